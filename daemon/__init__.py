@@ -1,0 +1,1 @@
+"""The device daemon: haptic rendering of the SAS, the fixed-rate loop, safety, publishing."""

@@ -1,0 +1,148 @@
+"""The device interface every haptic (or input-only) device implements.
+
+Frames and units: the device frame is right-handed, millimetres, with the origin at
+the centre of the device's usable workspace box when the driver can place it there;
+forces are newtons in the same frame. Time is integer nanoseconds on the monotonic
+clock (`time.monotonic_ns()`), or a driver's own clock mapped onto it.
+
+Contract for the daemon's fixed-rate loop:
+- `read()` returns the newest state and must not block longer than the driver's read
+  timeout; a lost, late or garbled device raises DeviceFault (never hangs);
+- `write_force()` sends one force command; a device without force output ignores it;
+- on DeviceFault the daemon writes zero force, flags the fault and keeps calling
+  `read()` (after `reconnect()` when the driver supports it) until the device answers;
+- `close()` must leave the device producing zero force.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sasprobe.errors import UserError
+
+IDENTITY_QUATERNION = (1.0, 0.0, 0.0, 0.0)  # (w, x, y, z)
+
+
+class DeviceFault(RuntimeError):
+    """A device that stopped answering correctly at run time (timeout, lost link, bad data)."""
+
+
+class DeviceOpenError(UserError):
+    """A device that cannot be opened (unknown, missing, no permission, missing firmware)."""
+
+
+@dataclass(frozen=True)
+class DeviceLimits:
+    """What the hardware can safely render; the daemon clamps every command to these."""
+
+    max_force_n: float  # peak force ever commanded
+    continuous_force_n: float  # force the motors sustain without overheating
+    max_stiffness_n_per_mm: float  # stiffest virtual spring the device renders stably
+    max_damping_n_s_per_m: float
+    workspace_min_mm: tuple[float, float, float]  # usable box in the device frame
+    workspace_max_mm: tuple[float, float, float]
+    nominal_rate_hz: float = 1000.0
+    has_force_output: bool = True
+
+    @property
+    def workspace_center_mm(self) -> np.ndarray:
+        return (np.asarray(self.workspace_min_mm) + np.asarray(self.workspace_max_mm)) / 2.0
+
+    @property
+    def workspace_size_mm(self) -> np.ndarray:
+        return np.asarray(self.workspace_max_mm) - np.asarray(self.workspace_min_mm)
+
+
+# A PHANTOM Omni class arm: 3.3 N peak and 0.88 N continuous (HDAPI examples), CHAI3D's
+# 0.7 N/mm stiffness and 5 N·s/m damping limits, ~160 x 120 x 70 mm workspace.
+PHANTOM_OMNI_LIMITS = DeviceLimits(
+    max_force_n=3.3,
+    continuous_force_n=0.88,
+    max_stiffness_n_per_mm=0.7,
+    max_damping_n_s_per_m=5.0,
+    workspace_min_mm=(-80.0, -60.0, -35.0),
+    workspace_max_mm=(80.0, 60.0, 35.0),
+    nominal_rate_hz=1000.0,
+)
+
+
+@dataclass(frozen=True)
+class DeviceInfo:
+    kind: str  # the --device scheme, e.g. "sim", "replay", "falcon"
+    model: str  # human-readable model name
+    limits: DeviceLimits
+    serial: str = ""
+    details: dict = field(default_factory=dict)  # driver-specific, JSON-serialisable
+
+    def as_dict(self) -> dict:
+        lim = self.limits
+        return {
+            "kind": self.kind,
+            "model": self.model,
+            "serial": self.serial,
+            "limits": {
+                "max_force_n": lim.max_force_n,
+                "continuous_force_n": lim.continuous_force_n,
+                "max_stiffness_n_per_mm": lim.max_stiffness_n_per_mm,
+                "max_damping_n_s_per_m": lim.max_damping_n_s_per_m,
+                "workspace_min_mm": list(lim.workspace_min_mm),
+                "workspace_max_mm": list(lim.workspace_max_mm),
+                "nominal_rate_hz": lim.nominal_rate_hz,
+                "has_force_output": lim.has_force_output,
+            },
+            "details": dict(self.details),
+        }
+
+
+@dataclass
+class DeviceState:
+    """One reading of the device."""
+
+    t_ns: int  # device timestamp, monotonic ns
+    position_mm: np.ndarray  # (3,) stylus tip in the device frame
+    orientation: np.ndarray = field(default_factory=lambda: np.array(IDENTITY_QUATERNION))  # (w, x, y, z)
+    velocity_mm_s: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,)
+    buttons: int = 0  # bit i = button i pressed
+    calibrated: bool = True  # False: the daemon must not output force yet
+
+    def is_finite(self) -> bool:
+        return bool(
+            np.all(np.isfinite(self.position_mm))
+            and np.all(np.isfinite(self.orientation))
+            and np.all(np.isfinite(self.velocity_mm_s))
+        )
+
+
+class HapticDevice(abc.ABC):
+    """Base class of every device: hardware drivers, the simulated arm, the replay device."""
+
+    @property
+    @abc.abstractmethod
+    def info(self) -> DeviceInfo: ...
+
+    @abc.abstractmethod
+    def open(self) -> None: ...
+
+    @abc.abstractmethod
+    def close(self) -> None: ...
+
+    @abc.abstractmethod
+    def read(self) -> DeviceState: ...
+
+    @abc.abstractmethod
+    def write_force(self, force_n: np.ndarray) -> None: ...
+
+    def reconnect(self) -> None:
+        """Try to re-establish a lost link; raises DeviceFault while the device is still gone."""
+        self.close()
+        self.open()
+
+    def __enter__(self) -> HapticDevice:
+        self.open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,47 @@
+"""`--device` strings: SCHEME[:ARGUMENT], e.g. `sim`, `sim:scan`, `replay:session.mcap`.
+
+Each scheme names a factory `module:function` imported only when used, so a missing
+optional dependency of one driver never breaks the others. A factory takes the
+argument after the colon (or None) and keyword options, and returns an unopened
+HapticDevice.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+
+from sasprobe.devices.base import DeviceOpenError, HapticDevice
+
+
+@dataclass(frozen=True)
+class DeviceScheme:
+    factory: str  # "sasprobe.devices.module:function"
+    summary: str  # one line for --help and `sasprobe devices`
+    example: str
+
+
+# Drivers add one line here.
+SCHEMES: dict[str, DeviceScheme] = {}
+
+
+def parse_device_spec(spec: str) -> tuple[str, str | None]:
+    scheme, sep, argument = spec.partition(":")
+    scheme = scheme.strip().lower()
+    return scheme, (argument if sep else None)
+
+
+def open_device(spec: str, **options: object) -> HapticDevice:
+    """Create (not open) the device a --device string names; DeviceOpenError if unknown."""
+    scheme, argument = parse_device_spec(spec)
+    entry = SCHEMES.get(scheme)
+    if entry is None:
+        known = ", ".join(sorted(SCHEMES)) or "none"
+        raise DeviceOpenError(f"unknown device '{spec}' (known: {known})")
+    module_name, _, function = entry.factory.partition(":")
+    factory = getattr(importlib.import_module(module_name), function)
+    return factory(argument, **options)
+
+
+def describe_schemes() -> str:
+    return "; ".join(f"{name}: {s.summary} (e.g. {s.example})" for name, s in sorted(SCHEMES.items()))

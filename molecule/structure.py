@@ -1,0 +1,303 @@
+"""Loading a macromolecular structure (PDB or mmCIF, plain or gzipped) through gemmi.
+
+Rules (the same for every command, so what is felt and what is drawn agree):
+- the first model only;
+- alternate locations: per residue, the conformer with the highest occupancy is kept
+  (ties: the one that appears first); atoms without an altloc are always kept;
+- waters are removed unless `keep_water`;
+- hydrogens, ligands and ions are kept.
+
+Every problem a user can cause (missing, empty, garbage, truncated file, nothing left
+after filtering) raises StructureError with one line naming the file.
+"""
+
+from __future__ import annotations
+
+import gzip
+import re
+import hashlib
+import logging
+import zlib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import gemmi
+import numpy as np
+
+from sasprobe.errors import UserError
+from sasprobe.molecule.backbone import trace_segments
+from sasprobe.molecule.elements import FALLBACK_RADIUS, colors_for, has_bondi_radius, radii_for
+
+log = logging.getLogger("sasprobe")
+
+DEFAULT_STRUCTURE = "1crn.pdb.gz"
+DEFAULT_PROBE_RADIUS = 1.4  # Å, one water molecule
+
+
+class StructureError(UserError):
+    """A structure file that cannot be used; the message names the file."""
+
+
+@dataclass
+class Structure:
+    """One model of a structure as flat per-atom arrays (molecule frame, Å)."""
+
+    name: str
+    source: str  # file path, or "embedded:<file>"
+    source_bytes: bytes = field(repr=False)  # the file exactly as read (served to remote renderers)
+    sha256: str
+    positions: np.ndarray  # (N, 3) float64, Å
+    elements: np.ndarray  # (N,) str, e.g. "C", "Fe"; "X" when undeterminable
+    vdw_radii: np.ndarray  # (N,) float64, Å (Bondi 1964, fallback 1.80 Å)
+    colors: np.ndarray  # (N, 3) float32, CPK, 0..1
+    chain_ids: np.ndarray  # (N,) str (auth chain id; may be several characters)
+    residue_names: np.ndarray  # (N,) str
+    residue_numbers: np.ndarray  # (N,) int32 (auth sequence number)
+    insertion_codes: np.ndarray  # (N,) str ("" when none)
+    atom_names: np.ndarray  # (N,) str
+    is_hetero: np.ndarray  # (N,) bool (HETATM)
+    backbone: list[np.ndarray]  # per segment: atom indices of the trace (CA or P), in order
+    backbone_chains: list[str]  # chain id of each segment
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def n_atoms(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def n_chains(self) -> int:
+        return int(np.unique(self.chain_ids).size)
+
+    @property
+    def n_residues(self) -> int:
+        keys = np.char.add(
+            np.char.add(self.chain_ids.astype(str), "\x00"),
+            np.char.add(self.residue_numbers.astype(str), self.insertion_codes.astype(str)),
+        )
+        keys = np.char.add(np.char.add(keys, "\x00"), self.residue_names.astype(str))
+        return int(np.unique(keys).size)
+
+    def expanded_radii(self, probe_radius: float = DEFAULT_PROBE_RADIUS) -> np.ndarray:
+        """Radii of the solvent-accessible spheres: van der Waals radius + probe radius."""
+        return self.vdw_radii + float(probe_radius)
+
+    def bbox(self) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned bounds of the atom centres (Å)."""
+        return self.positions.min(axis=0), self.positions.max(axis=0)
+
+    def atom_label(self, index: int) -> str:
+        """Human label of one atom, e.g. 'A:THR1:CA'."""
+        icode = self.insertion_codes[index]
+        return (
+            f"{self.chain_ids[index]}:{self.residue_names[index]}"
+            f"{self.residue_numbers[index]}{icode}:{self.atom_names[index]}"
+        )
+
+
+def load_structure(path: str | Path, keep_water: bool = False) -> Structure:
+    """Load a PDB or mmCIF file (optionally .gz); raises StructureError on bad input."""
+    path = Path(path)
+    label = str(path)
+    if not path.exists():
+        raise StructureError(f"{label}: no such file")
+    if path.is_dir():
+        raise StructureError(f"{label}: is a directory, not a structure file")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise StructureError(f"{label}: cannot read ({exc.strerror or exc})") from None
+    return parse_structure(data, name=_stem(path.name), source=label, keep_water=keep_water)
+
+
+def load_default(keep_water: bool = False) -> Structure:
+    """The embedded default structure (crambin, 1CRN)."""
+    data = resources.files("sasprobe.molecule").joinpath("data", DEFAULT_STRUCTURE).read_bytes()
+    return parse_structure(
+        data, name=_stem(DEFAULT_STRUCTURE), source=f"embedded:{DEFAULT_STRUCTURE}", keep_water=keep_water
+    )
+
+
+def load_structure_or_default(path: str | Path | None, keep_water: bool = False) -> Structure:
+    return load_default(keep_water) if path is None else load_structure(path, keep_water)
+
+
+def parse_structure(data: bytes, name: str, source: str, keep_water: bool = False) -> Structure:
+    """Parse structure file bytes (gzip detected from the magic number, format from content)."""
+    if not data:
+        raise StructureError(f"{source}: file is empty")
+    text = _decompress(data, source)
+    if not text.strip():
+        raise StructureError(f"{source}: file is empty")
+    if b"\x00" in text[:65536]:
+        raise StructureError(f"{source}: not a PDB or mmCIF text file (binary content)")
+    is_cif = _looks_like_cif(text)
+    if not is_cif:
+        _check_pdb_not_truncated(text, source)
+    try:
+        fmt = gemmi.CoorFormat.Mmcif if is_cif else gemmi.CoorFormat.Pdb
+        st = gemmi.read_structure_string(text, format=fmt)
+    except (RuntimeError, ValueError, IndexError) as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        reason = reason.replace("string:", "line ", 1)
+        raise StructureError(f"{source}: cannot parse ({_shorten(reason)})") from None
+    if len(st) == 0 or st[0].count_atom_sites() == 0:
+        raise StructureError(f"{source}: no atoms found (not a PDB or mmCIF structure?)")
+    while len(st) > 1:  # first model only
+        del st[len(st) - 1]
+    if not keep_water:
+        st.remove_waters()
+    st.remove_empty_chains()
+    if st[0].count_atom_sites() == 0:
+        hint = "" if keep_water else " after removing waters (use --keep-water to keep them)"
+        raise StructureError(f"{source}: no atoms left{hint}")
+    return _to_arrays(st[0], data, name, source)
+
+
+def _to_arrays(model: gemmi.Model, data: bytes, name: str, source: str) -> Structure:
+    xyz: list[tuple[float, float, float]] = []
+    occupancy: list[float] = []
+    altloc: list[str] = []
+    elements: list[str] = []
+    atom_names: list[str] = []
+    residue_of_atom: list[int] = []
+    chains: list[str] = []
+    res_names: list[str] = []
+    res_nums: list[int] = []
+    icodes: list[str] = []
+    hetero: list[bool] = []
+    for chain in model:
+        for residue in chain:
+            chains.append(chain.name)
+            res_names.append(residue.name)
+            res_nums.append(residue.seqid.num)
+            icodes.append(residue.seqid.icode.strip())
+            hetero.append(residue.het_flag == "H")
+            r = len(res_names) - 1
+            for atom in residue:
+                p = atom.pos
+                xyz.append((p.x, p.y, p.z))
+                occupancy.append(atom.occ)
+                altloc.append(atom.altloc)
+                elements.append(atom.element.name)
+                atom_names.append(atom.name)
+                residue_of_atom.append(r)
+    res_index = np.asarray(residue_of_atom, dtype=np.int64)
+    keep = _choose_conformers(
+        np.asarray(chains)[res_index],
+        np.asarray(res_nums, dtype=np.int64)[res_index],
+        np.asarray(icodes)[res_index],
+        np.asarray(altloc),
+        np.asarray(occupancy, dtype=np.float64),
+    )
+    res_index = res_index[keep]
+    positions = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)[keep]
+    element_arr = np.asarray(elements)[keep]
+    warnings: list[str] = []
+    unknown = int(np.count_nonzero(element_arr == "X"))
+    if unknown:
+        warnings.append(
+            f"{source}: element of {unknown} atom(s) could not be determined; "
+            f"using the fallback radius {FALLBACK_RADIUS:.2f} Å"
+        )
+    lacking = sorted({e for e in np.unique(element_arr) if e != "X" and not has_bondi_radius(e)})
+    if lacking:
+        log.info("%s: no Bondi radius for %s; using %.2f Å", source, ", ".join(lacking), FALLBACK_RADIUS)
+    for message in warnings:
+        log.warning(message)
+    structure = Structure(
+        name=name,
+        source=source,
+        source_bytes=data,
+        sha256=hashlib.sha256(data).hexdigest(),
+        positions=positions,
+        elements=element_arr,
+        vdw_radii=radii_for(element_arr),
+        colors=colors_for(element_arr),
+        chain_ids=np.asarray(chains)[res_index],
+        residue_names=np.asarray(res_names)[res_index],
+        residue_numbers=np.asarray(res_nums, dtype=np.int32)[res_index],
+        insertion_codes=np.asarray(icodes)[res_index],
+        atom_names=np.asarray(atom_names)[keep],
+        is_hetero=np.asarray(hetero, dtype=bool)[res_index],
+        backbone=[],
+        backbone_chains=[],
+        warnings=warnings,
+    )
+    structure.backbone, structure.backbone_chains = trace_segments(structure)
+    return structure
+
+
+def _choose_conformers(
+    chains: np.ndarray, numbers: np.ndarray, icodes: np.ndarray, altloc: np.ndarray, occupancy: np.ndarray
+) -> np.ndarray:
+    """Mask of atoms to keep: per residue the altloc with the highest occupancy, ties -> first.
+
+    Residues are grouped by (chain, number, insertion code) so that microheterogeneity
+    (two residue names at one position) is resolved the same way.
+    """
+    keep = np.ones(altloc.shape[0], dtype=bool)
+    alt_atoms = np.flatnonzero(altloc != "\x00")
+    if alt_atoms.size == 0:
+        return keep
+    # Only atoms with an altloc reach this loop: a few dozen in a typical entry.
+    # (residue key) -> {letter: (max occupancy, first appearance)}
+    conformers: dict[tuple, dict[str, tuple[float, int]]] = {}
+    for order, i in enumerate(alt_atoms):
+        letters = conformers.setdefault((chains[i], int(numbers[i]), icodes[i]), {})
+        occ, first = letters.get(altloc[i], (-np.inf, order))
+        letters[altloc[i]] = (max(occ, float(occupancy[i])), first)
+    chosen = {
+        key: max(letters.items(), key=lambda item: (item[1][0], -item[1][1]))[0]
+        for key, letters in conformers.items()
+    }
+    for i in alt_atoms:
+        keep[i] = altloc[i] == chosen[(chains[i], int(numbers[i]), icodes[i])]
+    return keep
+
+
+def _decompress(data: bytes, source: str) -> bytes:
+    if data[:2] != b"\x1f\x8b":
+        return data
+    try:
+        return gzip.decompress(data)
+    except (EOFError, OSError, zlib.error) as exc:
+        raise StructureError(f"{source}: corrupt or truncated gzip data ({exc})") from None
+
+
+def _looks_like_cif(text: bytes) -> bool:
+    for line in text[:65536].splitlines():
+        stripped = line.strip()
+        if not stripped or stripped.startswith(b"#"):
+            continue
+        return stripped.startswith(b"data_")
+    return False
+
+
+_COORD_RECORDS = (b"ATOM  ", b"HETATM")
+
+
+def _check_pdb_not_truncated(text: bytes, source: str) -> None:
+    """Reject a PDB file that was cut short (gemmi would silently read the first part).
+
+    Two signs: the last line is an incomplete coordinate record, or the file starts
+    like a wwPDB entry (HEADER) but lacks the END record every such entry ends with.
+    """
+    tail = text[-4096:].rstrip(b"\r\n \t")
+    last = tail.rsplit(b"\n", 1)[-1].rstrip(b"\r")
+    # Columns 1-66 hold everything up to the B-factor; a shorter final line was cut.
+    if not text.endswith((b"\n", b"\r")) and last.startswith(_COORD_RECORDS) and len(last.rstrip()) < 66:
+        raise StructureError(f"{source}: truncated PDB file (last coordinate line is incomplete)")
+    if text.lstrip().startswith(b"HEADER") and not re.search(rb"(^|\n)END\s*$", tail):
+        raise StructureError(f"{source}: truncated PDB file (wwPDB entry without its END record)")
+
+
+def _stem(filename: str) -> str:
+    for suffix in (".gz", ".pdb", ".ent", ".cif", ".mmcif"):
+        if filename.lower().endswith(suffix):
+            filename = filename[: -len(suffix)]
+    return filename
+
+
+def _shorten(text: str, limit: int = 160) -> str:
+    return text if len(text) <= limit else text[: limit - 3] + "..."

@@ -1,0 +1,1 @@
+"""Wire protocol between the daemon and renderers: messages, byte layouts, endpoints, security."""

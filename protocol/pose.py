@@ -1,0 +1,103 @@
+"""The `pose` message: one fixed-size little-endian record per daemon tick.
+
+The byte layout is documented in protocol/README.md; this module is its one
+implementation in Python and the tests check the two against each other.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+
+import numpy as np
+
+POSE_TOPIC = b"pose"
+POSE_VERSION = 1
+
+# version, flags, buttons, seq, device_t_ns, publish_t_ns, proxy[3], goal[3], force[3],
+# tip[3], orientation[4], touched_atom, reserved, cube_center[3], cube_half
+_LAYOUT = struct.Struct("<HHIQqq3d3d3d3d4diI3dd")
+POSE_SIZE = _LAYOUT.size  # 200 bytes
+
+FLAG_CONTACT = 1 << 0  # the proxy touches the SAS
+FLAG_CLAMPED = 1 << 1  # the force was clamped to the device limit
+FLAG_FAULT = 1 << 2  # the watchdog zeroed the force (device fault, late tick, bad values)
+FLAG_DRIFTING = 1 << 3  # the navigation cube is drifting (tip in the workspace margin)
+FLAG_RAMPING = 1 << 4  # forces are still ramping up after start or reconnect
+
+
+class PoseDecodeError(ValueError):
+    """A payload that is not a pose this reader understands."""
+
+
+def _vec(n: int) -> np.ndarray:
+    return np.zeros(n, dtype=np.float64)
+
+
+@dataclass
+class Pose:
+    seq: int = 0
+    device_t_ns: int = 0
+    publish_t_ns: int = 0
+    proxy_A: np.ndarray = field(default_factory=lambda: _vec(3))  # probe centre, molecule frame
+    goal_A: np.ndarray = field(default_factory=lambda: _vec(3))  # device tip mapped to the molecule
+    force_N: np.ndarray = field(default_factory=lambda: _vec(3))  # force sent to the device, device frame
+    tip_mm: np.ndarray = field(default_factory=lambda: _vec(3))  # device tip, device frame
+    orientation: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))  # w, x, y, z
+    buttons: int = 0
+    touched_atom: int = -1
+    flags: int = 0
+    cube_center_A: np.ndarray = field(default_factory=lambda: _vec(3))
+    cube_half_A: float = 0.0
+    version: int = POSE_VERSION
+
+    def has(self, flag: int) -> bool:
+        return bool(self.flags & flag)
+
+
+def encode_pose(pose: Pose) -> bytes:
+    return _LAYOUT.pack(
+        POSE_VERSION,
+        pose.flags & 0xFFFF,
+        pose.buttons & 0xFFFFFFFF,
+        pose.seq,
+        pose.device_t_ns,
+        pose.publish_t_ns,
+        *np.asarray(pose.proxy_A, dtype=np.float64).reshape(3),
+        *np.asarray(pose.goal_A, dtype=np.float64).reshape(3),
+        *np.asarray(pose.force_N, dtype=np.float64).reshape(3),
+        *np.asarray(pose.tip_mm, dtype=np.float64).reshape(3),
+        *np.asarray(pose.orientation, dtype=np.float64).reshape(4),
+        pose.touched_atom,
+        0,
+        *np.asarray(pose.cube_center_A, dtype=np.float64).reshape(3),
+        float(pose.cube_half_A),
+    )
+
+
+def decode_pose(payload: bytes) -> Pose:
+    """Decode a pose; later versions may append fields, which this reader skips."""
+    if len(payload) < 2:
+        raise PoseDecodeError(f"pose payload of {len(payload)} bytes is too short")
+    (version,) = struct.unpack_from("<H", payload, 0)
+    if version < POSE_VERSION:
+        raise PoseDecodeError(f"pose version {version} is older than this reader's {POSE_VERSION}")
+    if len(payload) < POSE_SIZE:
+        raise PoseDecodeError(f"pose payload of {len(payload)} bytes, expected at least {POSE_SIZE}")
+    v = _LAYOUT.unpack_from(payload, 0)
+    return Pose(
+        version=v[0],
+        flags=v[1],
+        buttons=v[2],
+        seq=v[3],
+        device_t_ns=v[4],
+        publish_t_ns=v[5],
+        proxy_A=np.array(v[6:9]),
+        goal_A=np.array(v[9:12]),
+        force_N=np.array(v[12:15]),
+        tip_mm=np.array(v[15:18]),
+        orientation=np.array(v[18:22]),
+        touched_atom=v[22],
+        cube_center_A=np.array(v[24:27]),
+        cube_half_A=v[27],
+    )

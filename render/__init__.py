@@ -1,0 +1,1 @@
+"""The render process: moderngl passes, lighting and the subscriber."""

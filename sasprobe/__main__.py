@@ -1,0 +1,5 @@
+import sys
+
+from sasprobe.cli import main
+
+sys.exit(main())

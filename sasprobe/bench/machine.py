@@ -1,0 +1,78 @@
+"""A description of the machine a benchmark ran on, for reports."""
+
+from __future__ import annotations
+
+import os
+import platform
+import shutil
+import subprocess
+
+import numpy as np
+
+
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _memory_gib() -> float | None:
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemTotal"):
+                    return round(int(line.split()[1]) / 1024**2, 1)
+    except OSError:
+        pass
+    return None
+
+
+def _gpu() -> str | None:
+    if not shutil.which("nvidia-smi"):
+        return None
+    try:
+        out = subprocess.run(
+            ["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True, text=True, timeout=10
+        )
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    return out.stdout.strip() or None
+
+
+def gl_renderer() -> str | None:
+    """The OpenGL renderer string of a headless EGL context, or None without one."""
+    try:
+        import moderngl
+
+        ctx = moderngl.create_standalone_context(backend="egl")
+    except Exception:  # no EGL or no driver: reported as absent, not an error
+        return None
+    try:
+        return f"{ctx.info['GL_RENDERER']} / OpenGL {ctx.info['GL_VERSION']}"
+    finally:
+        ctx.release()
+
+
+def describe(with_gl: bool = False) -> dict:
+    info = {
+        "cpu": _cpu_model(),
+        "cores": os.cpu_count(),
+        "memory_gib": _memory_gib(),
+        "os": f"{platform.system()} {platform.release()}",
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "gpu": _gpu(),
+    }
+    if with_gl:
+        info["gl_renderer"] = gl_renderer()
+    return info
+
+
+def markdown(info: dict) -> str:
+    rows = [f"| {k} | {v if v is not None else 'none'} |" for k, v in info.items()]
+    return "| machine | |\n|---|---|\n" + "\n".join(rows)

@@ -1,0 +1,1 @@
+"""Subcommands of the `sasprobe` CLI, one module each, found automatically."""

@@ -1,0 +1,83 @@
+"""`sasprobe bench [NAME] [--quick] [--json] [--out DIR]`: speed and accuracy figures.
+
+Without a name every available benchmark runs and, with --out, report.md is written
+beside the JSON and the charts.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from sasprobe import bench
+from sasprobe.bench.machine import describe, markdown
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("bench", help="run benchmarks (speed and accuracy), write JSON, charts and report.md")
+    _common(p)
+    names = p.add_subparsers(dest="bench_name", metavar="NAME")
+    for name in bench.available():
+        module = bench.load(name)
+        q = names.add_parser(name, help=module.TITLE)
+        _common(q, suppress=True)
+        if hasattr(module, "add_arguments"):
+            module.add_arguments(q)
+    p.set_defaults(func=run)
+
+
+def _common(p: argparse.ArgumentParser, suppress: bool = False) -> None:
+    # Sub-benchmarks repeat the options so `bench grid --quick` and `bench --quick grid` both work.
+    default = argparse.SUPPRESS if suppress else None
+    p.add_argument("--quick", action="store_true", default=argparse.SUPPRESS if suppress else False,
+                   help="fewer repeats and structures (a few minutes in all)")
+    p.add_argument("--json", action="store_true", default=argparse.SUPPRESS if suppress else False,
+                   help="print the figures as one JSON object")
+    p.add_argument("--out", type=Path, default=default, help="write JSON, PNG charts and report.md here")
+
+
+def run(args: argparse.Namespace) -> int:
+    names = [args.bench_name] if args.bench_name else bench.available()
+    ctx = bench.BenchContext(quick=args.quick, out_dir=args.out)
+    machine = describe(with_gl=any(n in ("render", "lighting") for n in names))
+    results = []
+    for name in names:
+        t0 = time.perf_counter()
+        result = bench.load(name).run(ctx, args) if _takes_args(name) else bench.load(name).run(ctx)
+        result.data["wall_seconds"] = time.perf_counter() - t0
+        results.append(result)
+        if not args.json:
+            print(f"## {bench.load(name).TITLE}\n\n{result.markdown}\n", flush=True)
+    payload = {"machine": machine, "quick": args.quick, "benchmarks": {r.name: r.data for r in results}}
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        for r in results:
+            (args.out / f"{r.name}.json").write_text(json.dumps({"machine": machine, **r.data}, indent=1))
+        (args.out / "report.md").write_text(_report(machine, results, args.quick))
+        print(f"wrote {args.out / 'report.md'}", file=sys.stderr)
+    if args.json:
+        print(json.dumps(payload))
+    return 0
+
+
+def _takes_args(name: str) -> bool:
+    import inspect
+
+    return len(inspect.signature(bench.load(name).run).parameters) > 1
+
+
+def _report(machine: dict, results: list[bench.BenchResult], quick: bool) -> str:
+    parts = [
+        "# sasprobe benchmark report",
+        "",
+        f"Mode: {'quick' if quick else 'full'}. Times are medians; ratios come from the same run.",
+        "",
+        markdown(machine),
+    ]
+    for r in results:
+        parts += ["", f"## {bench.load(r.name).TITLE}", "", r.markdown]
+        parts += [f"\n![{c.stem}]({c.name})" for c in r.charts]
+    return "\n".join(parts) + "\n"
