@@ -169,6 +169,10 @@ class WindowApp:
                 count += 1
                 if done:
                     break
+            if writer is not None and writer.count == 0 and self.renderer.last_frame is not None:
+                # Closed early (window, Ctrl-C, SIGTERM): the screenshot is of one more frame.
+                self.renderer.render(self.camera, output_fbo=self.renderer.ctx.screen)
+                writer.write(self.renderer.read_image())
         finally:
             signal.signal(signal.SIGTERM, old_term)
         if gbuffer_path is not None and self.renderer.last_frame is not None:
