@@ -9,6 +9,8 @@ pass goes before "light").
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from sasprobe.render.buffers import MoleculeBuffers
@@ -82,8 +84,11 @@ class Renderer:
             self.targets = RenderTargets(self.ctx, size)
 
     # ------------------------------------------------------------- frames
-    def render(self, camera: Camera, output_fbo=None) -> Frame:
-        """Run the chain once; the image lands in `output_fbo` (default: targets.final)."""
+    def render(self, camera: Camera, output_fbo=None, pass_times: dict | None = None) -> Frame:
+        """Run the chain once; the image lands in `output_fbo` (default: targets.final).
+
+        With `pass_times`, the GPU is drained (glFinish) after every pass and each pass's
+        wall time is added under its name (for benchmarks; it serialises the pipeline)."""
         center, radius = self.scene.bounding_sphere()
         camera.fit_clip_range(center, radius)
         w, h = self.targets.size
@@ -102,8 +107,16 @@ class Renderer:
             index=self.frame_index,
         )
         for p in self.passes:
-            if p.enabled(frame):
+            if not p.enabled(frame):
+                continue
+            if pass_times is None:
                 p.run(frame)
+                continue
+            self.ctx.finish()
+            t0 = time.perf_counter()
+            p.run(frame)
+            self.ctx.finish()
+            pass_times[p.name] = pass_times.get(p.name, 0.0) + time.perf_counter() - t0
         self.frame_index += 1
         self.last_frame = frame
         return frame
