@@ -89,7 +89,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                      help="follow a running daemon (default endpoint from the protocol); the structure comes from it")
     p.add_argument("--control", metavar="ENDPOINT", help="the daemon's control endpoint (with --connect)")
     p.add_argument("--headless", action="store_true", help="render offscreen through EGL (default when no display)")
-    p.add_argument("--size", type=size_type, default=(1280, 720), metavar="WxH", help="image/window size (default 1280x720)")
+    p.add_argument("--size", type=size_type, default="1280x720", metavar="WxH", help="image/window size (default 1280x720)")
     p.add_argument("--frames", type=frames_type, metavar="N", help="stop after N frames")
     p.add_argument("--seconds", type=positive_float, metavar="S", help="stop after S seconds")
     p.add_argument("--out", type=Path, metavar="FILE", help="write frames: .png (numbered when several) or .mp4")
@@ -105,7 +105,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--probe-radius", type=probe_radius, default=None, help="Å (default 1.4, or the daemon's)")
     p.add_argument("--nav-cube", type=cube_type, metavar="X,Y,Z,HALF",
                    help="standalone: navigation cube centre and half edge (Å)")
-    p.add_argument("--clip", type=plane_type, action="append", default=[], metavar="A,B,C,D",
+    p.add_argument("--clip", type=plane_type, action="append", default=None, metavar="A,B,C,D",
                    help="clipping plane, a·x+b·y+c·z+d >= 0 kept (repeatable)")
     p.add_argument("--probe-plane", action="store_true", help="clip with a plane through the probe facing the camera")
     p.add_argument("--light", type=direction_type, metavar="X,Y,Z", help="direction the directional light travels")
@@ -118,6 +118,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from sasprobe.render.app import RenderOptions, render_main
 
+    args.clip = args.clip or []
     if len(args.clip) > MAX_USER_PLANES:
         raise UserError(f"at most {MAX_USER_PLANES} --clip planes")
     if args.frames is not None and args.seconds is not None:
