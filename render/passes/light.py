@@ -17,7 +17,7 @@ class LightSettings:
     shininess: float = 40.0
     specular: float = 0.25
     background: tuple[float, float, float] = (0.08, 0.09, 0.11)
-    highlight: tuple[float, float, float] = (1.0, 0.85, 0.1)
+    highlight: tuple[float, float, float] = (0.1, 1.0, 0.5)  # mint: no CPK element looks like it
 
 
 class LightPass(Pass):

@@ -6,7 +6,7 @@ from sasprobe.render.buffers import SPHERE_FORMAT
 from sasprobe.render.passes.base import Frame, Pass, apply_planes, apply_uniforms
 from sasprobe.render.passes.spheres import draw_spheres
 
-PROBE_COLOR = (1.0, 0.93, 0.55)
+PROBE_COLOR = (0.92, 0.95, 1.0)  # near white: the light source
 
 
 class ProbePass(Pass):

@@ -40,21 +40,21 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     if not entries:
         raise UserError("no shared structures found (expected ../shared/data/pdb/ or SASPROBE_DATA)")
     size = getattr(args, "size", None) or ((640, 360) if ctx.quick else (1280, 720))
-    repeats, mesh_repeats = (3, 1) if ctx.quick else (7, 3)
+    repeats, mesh_repeats = (3, 2) if ctx.quick else (9, 5)
     gl = create_headless_context()
     renderer_name = f"{gl.info['GL_RENDERER']} / OpenGL {gl.info['GL_VERSION']}"
     try:
         structures = {e.id: load_structure(e.path) for e in progress(entries, "bench render: load", len(entries))}
         crambin = load_default()
-        scaling = [_whole(gl, structures[e.id], size, repeats) | {"id": e.id}
-                   for e in progress(entries, "bench render: frame time", len(entries))]
+        scaling = _scaling(gl, [(e.id, structures[e.id]) for e in entries], size, repeats)
         mesh_id = min(structures, key=lambda k: abs(structures[k].n_atoms - MESH_TARGET_ATOMS))
-        modes = _modes(gl, structures[mesh_id], size, repeats, mesh_repeats) | {"id": mesh_id}
+        sizes = [size] if ctx.quick else [size, (size[0] // 2, size[1] // 2)]
+        modes = [_modes(gl, structures[mesh_id], s, mesh_repeats) | {"id": mesh_id} for s in sizes]
         big_id = max(structures, key=lambda k: structures[k].n_atoms)
         cube = _cube(gl, structures[big_id], crambin, size, repeats) | {"id": big_id}
     finally:
         gl.release()
-    data = {"gl_renderer": renderer_name, "size": list(size), "repeats": repeats,
+    data = {"gl_renderer": renderer_name, "size": list(size), "repeats": repeats, "mesh_repeats": mesh_repeats,
             "modes": modes, "cube": cube, "scaling": scaling}
     charts = []
     path = ctx.chart_path("render_frame_time.png")
@@ -64,34 +64,31 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
 
 
 # ---------------------------------------------------------------- measurements
-def _frame_times(renderer, camera, repeats: int) -> tuple[float, dict[str, float]]:
-    """Median frame time (s) and median per-pass times, after one warm-up frame."""
-    (frame,) = _interleaved([(renderer, camera, None)], repeats)
-    passes = []
-    for _ in range(repeats):
-        per_pass: dict[str, float] = {}
-        renderer.render(camera, pass_times=per_pass)
-        passes.append(per_pass)
-    return frame, {n: statistics.median(p.get(n, 0.0) for p in passes) for n in passes[0]}
-
-
-def _interleaved(cases, repeats: int) -> list[float]:
-    """Median frame time of each (renderer, camera, before) case, their frames taken in
-    turn so that load from other processes falls on all of them alike."""
+def _measure(cases, repeats: int) -> list[tuple[float, dict[str, float]]]:
+    """Median frame time (s) and median per-pass times of each (renderer, camera, before)
+    case. Frames of the cases are taken in turn, so load from other processes falls on
+    all of them alike; frame and pass times come from the same frames (the GPU drained
+    after each pass), after one warm-up frame per case."""
     for renderer, camera, _ in cases:
         renderer.render(camera)
         renderer.ctx.finish()
-    samples: list[list[float]] = [[] for _ in cases]
+    frames: list[list[float]] = [[] for _ in cases]
+    passes: list[list[dict]] = [[] for _ in cases]
     for _ in range(repeats):
-        for (renderer, camera, before), out in zip(cases, samples):
+        for i, (renderer, camera, before) in enumerate(cases):
             if before is not None:
                 before()
+            per_pass: dict[str, float] = {}
             renderer.ctx.finish()
             t0 = time.perf_counter()
-            renderer.render(camera)
+            renderer.render(camera, pass_times=per_pass)
             renderer.ctx.finish()
-            out.append(time.perf_counter() - t0)
-    return [statistics.median(x) for x in samples]
+            frames[i].append(time.perf_counter() - t0)
+            passes[i].append(per_pass)
+    return [
+        (statistics.median(f), {n: statistics.median(p.get(n, 0.0) for p in ps) for n in ps[0]})
+        for f, ps in zip(frames, passes)
+    ]
 
 
 def _renderer(gl, structure, size, mode="quad", nav_cube=None):
@@ -105,27 +102,35 @@ def _renderer(gl, structure, size, mode="quad", nav_cube=None):
     return Renderer(gl, scene, size, sphere_mode=mode), camera
 
 
-def _whole(gl, structure, size, repeats) -> dict:
-    renderer, camera = _renderer(gl, structure, size)
+def _scaling(gl, structures, size, repeats) -> list[dict]:
+    cases, rows = [], []
     try:
-        frame, passes = _frame_times(renderer, camera, repeats)
+        for name, structure in progress(structures, "bench render: set up", len(structures)):
+            renderer, camera = _renderer(gl, structure, size)
+            cases.append((renderer, camera, None))
+            rows.append({"id": name, "n_atoms": structure.n_atoms})
+        for row, (frame, passes) in zip(rows, _measure(cases, repeats)):
+            row.update(frame_s=frame, spheres_s=passes.get("spheres", 0.0), passes_s=passes)
     finally:
-        renderer.release()
-    return {"n_atoms": structure.n_atoms, "frame_s": frame, "spheres_s": passes.get("spheres", 0.0), "passes_s": passes}
+        for renderer, _, _ in cases:
+            renderer.release()
+    return rows
 
 
-def _modes(gl, structure, size, repeats, mesh_repeats) -> dict:
+def _modes(gl, structure, size, repeats) -> dict:
     from sasprobe.render.passes.mesh import uv_sphere
 
-    out = {"n_atoms": structure.n_atoms, "mesh_triangles_per_atom": len(uv_sphere()[1])}
-    for mode, reps in (("quad", repeats), ("sprite", repeats), ("mesh", mesh_repeats)):
-        renderer, camera = _renderer(gl, structure, size, mode)
-        try:
-            frame, passes = _frame_times(renderer, camera, reps)
-        finally:
+    out = {"n_atoms": structure.n_atoms, "size": list(size), "mesh_triangles_per_atom": len(uv_sphere()[1])}
+    cases = []
+    try:
+        for mode in ("quad", "sprite", "mesh"):
+            renderer, camera = _renderer(gl, structure, size, mode)
+            cases.append((renderer, camera, None))
+        for mode, (frame, passes) in zip(("quad", "sprite", "mesh"), _measure(cases, repeats)):
+            out[mode] = {"frame_s": frame, "atoms_pass_s": passes.get("mesh_spheres" if mode == "mesh" else "spheres", 0.0)}
+    finally:
+        for renderer, _, _ in cases:
             renderer.release()
-        atoms_pass = passes.get("mesh_spheres" if mode == "mesh" else "spheres", 0.0)
-        out[mode] = {"frame_s": frame, "atoms_pass_s": atoms_pass}
     out["mesh_over_quad_atoms_pass"] = out["mesh"]["atoms_pass_s"] / out["quad"]["atoms_pass_s"]
     out["mesh_over_quad_frame"] = out["mesh"]["frame_s"] / out["quad"]["frame_s"]
     return out
@@ -160,9 +165,8 @@ def _cube(gl, big, small, size, repeats) -> dict:
     step = np.array([0.013, -0.007, 0.011])
     nudge = lambda: setattr(moving_cube, "center", moving_cube.center + step)  # noqa: E731
     try:
-        still_s, moving_s, whole_s = _interleaved(
+        (still_s, passes), (moving_s, _), (whole_s, _) = _measure(
             [(still, still_camera, None), (moving, moving_camera, nudge), (whole, whole_camera, None)], repeats)
-        _, passes = _frame_times(still, still_camera, repeats)
         spheres = still.buffers.n_selected
     finally:
         for r in (still, moving, whole):
@@ -189,22 +193,25 @@ def _chart(path, scaling, renderer_name, size):
 
 
 def _markdown(d: dict) -> str:
-    m, c = d["modes"], d["cube"]
+    c = d["cube"]
     ms = lambda s: f"{s * 1e3:.1f}"  # noqa: E731
+    m0 = d["modes"][0]
     lines = [
-        f"GL renderer: **{d['gl_renderer']}**, {d['size'][0]}x{d['size'][1]}, medians of {d['repeats']} frames "
-        "(GPU drained with glFinish around each frame or pass).",
+        f"GL renderer: **{d['gl_renderer']}**, {d['size'][0]}x{d['size'][1]} unless noted; medians of "
+        f"{d['repeats']} frames (impostors vs meshes: {d['mesh_repeats']}), the GPU drained (glFinish) after "
+        "every pass; the frames of compared cases are taken in turn.",
         "",
-        f"**Impostors vs meshes** ({m['id']}, {m['n_atoms']} atoms, mesh = {m['mesh_triangles_per_atom']} triangles per atom):",
+        f"**Impostors vs meshes** ({m0['id']}, {m0['n_atoms']} atoms, mesh = {m0['mesh_triangles_per_atom']} "
+        "triangles per atom; atom pass / whole frame, ms):",
         "",
-        "| atoms drawn as | atom pass (ms) | whole frame (ms) |",
-        "|---|---:|---:|",
-        f"| ray-cast quads (default) | {ms(m['quad']['atoms_pass_s'])} | {ms(m['quad']['frame_s'])} |",
-        f"| ray-cast point sprites | {ms(m['sprite']['atoms_pass_s'])} | {ms(m['sprite']['frame_s'])} |",
-        f"| triangle meshes | {ms(m['mesh']['atoms_pass_s'])} | {ms(m['mesh']['frame_s'])} |",
-        "",
-        f"Meshes take **{m['mesh_over_quad_atoms_pass']:.1f}x** the impostors' time for the atom pass "
-        f"({m['mesh_over_quad_frame']:.1f}x for the whole frame).",
+        "| size | ray-cast quads (default) | ray-cast point sprites | triangle meshes | meshes / quads, atom pass | meshes / quads, frame |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    for m in d["modes"]:
+        cells = " | ".join(f"{ms(m[k]['atoms_pass_s'])} / {ms(m[k]['frame_s'])}" for k in ("quad", "sprite", "mesh"))
+        lines.append(f"| {m['size'][0]}x{m['size'][1]} | {cells} | **{m['mesh_over_quad_atoms_pass']:.1f}x** | "
+                     f"{m['mesh_over_quad_frame']:.1f}x |")
+    lines += [
         "",
         f"**Navigation cube** ({c['id']}, {c['n_atoms']} atoms; cube half edge {c['cube_half_A']:.2f} Å holding "
         f"{c['atoms_in_cube']} atoms; backbone trace elsewhere) against {c['small_id']} ({c['small_atoms']} atoms) drawn whole:",
