@@ -25,6 +25,19 @@ def gl_context():
     return _CONTEXT
 
 
+@pytest.fixture(scope="module")
+def ctx():
+    """The GL context for a test module (import this fixture into it)."""
+    return gl_context()
+
+
+@pytest.fixture(scope="module")
+def crambin():
+    from sasprobe.molecule import load_default
+
+    return load_default()
+
+
 def pixel_rays(view: np.ndarray, proj: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
     """Eye position and unit world directions (H, W, 3) through pixel centres; row 0 = top."""
     inv_vp = np.linalg.inv(proj @ view)

@@ -10,25 +10,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sasprobe.molecule import load_default, load_structure
+from sasprobe.molecule import load_structure
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer import gbuffer_arrays
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import NavCube, Probe, SceneState, normalise_plane
 from sasprobe.render.targets import KIND_BACKBONE, KIND_CAP, KIND_PROBE, KIND_SPHERE
-from tests.render_support import edge_mask, gl_context, reference_cast
+from tests.render_support import crambin, ctx, edge_mask, reference_cast  # noqa: F401 (fixtures)
 
 SIZE = (200, 150)
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    return gl_context()
-
-
-@pytest.fixture(scope="module")
-def crambin():
-    return load_default()
 
 
 def render_gbuffer(ctx, scene, camera, size=SIZE, mode="quad"):

@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sasprobe.molecule import load_default
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer import gbuffer_arrays
 from sasprobe.render.passes.base import Pass
@@ -14,20 +13,10 @@ from sasprobe.render.passes.probe import PROBE_COLOR
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import Probe, SceneState
 from sasprobe.render.targets import KIND_BACKGROUND, KIND_PROBE
-from tests.render_support import edge_mask, gl_context
+from tests.render_support import crambin, ctx, edge_mask  # noqa: F401 (fixtures)
 
 SIZE = (160, 120)
 TOL = 2.5 / 255  # RGBA8 rounding plus float32 shading
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    return gl_context()
-
-
-@pytest.fixture(scope="module")
-def crambin():
-    return load_default()
 
 
 class FixedVisibility(Pass):
