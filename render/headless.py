@@ -8,7 +8,6 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable
 
-
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer import gbuffer_arrays, save_gbuffer
 

@@ -47,13 +47,6 @@ def program(ctx, vertex: str, fragment: str | None = None, geometry: str | None 
     )
 
 
-def set_uniforms(prog, **values) -> None:
-    """Set the uniforms a program actually uses (the compiler drops unused ones)."""
-    for name, value in values.items():
-        if name in prog:
-            prog[name].value = value
-
-
 class ProgramCache:
     """Programs compiled once per (files, defines) and shared by the passes of a renderer."""
 

@@ -4,7 +4,6 @@ the atoms). Drawn when a navigation cube is in effect, or always with `show_alwa
 
 from __future__ import annotations
 
-
 from sasprobe.render.buffers import BACKBONE_FORMAT
 from sasprobe.render.passes.base import Frame, Pass, apply_planes, apply_uniforms
 

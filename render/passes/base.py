@@ -8,7 +8,7 @@ import numpy as np
 
 from sasprobe.render.camera import Camera, gl_bytes
 from sasprobe.render.scene import NavCube, SceneState
-from sasprobe.render.shaders import ProgramCache, set_uniforms
+from sasprobe.render.shaders import ProgramCache
 from sasprobe.render.targets import RenderTargets
 from sasprobe.render.buffers import MoleculeBuffers
 
@@ -115,5 +115,3 @@ class ClearPass(Pass):
     def release(self) -> None:
         self.vao.release()
 
-
-__all__ = ["Frame", "Pass", "ClearPass", "apply_uniforms", "apply_planes", "set_uniforms"]
