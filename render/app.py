@@ -51,12 +51,15 @@ class RenderOptions:
         )
 
 
-def build_scene(structure, opts: RenderOptions):
+def build_scene(structure, opts: RenderOptions, effects=None):
+    """The SceneState for a structure: the options' planes, probe, cube and light."""
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS
-    from sasprobe.render.scene import NavCube, Probe, SceneState
+    from sasprobe.render.scene import Effects, NavCube, Probe, SceneState
 
     radius = opts.probe_radius or DEFAULT_PROBE_RADIUS
-    scene = SceneState(structure, probe_radius=radius, clip_planes=[np.array(p) for p in opts.clip])
+    if effects is None:
+        effects = Effects(fxaa=opts.fxaa, probe_plane=opts.probe_plane)
+    scene = SceneState(structure, probe_radius=radius, clip_planes=[np.array(p) for p in opts.clip], effects=effects)
     if opts.touched >= structure.n_atoms:
         raise UserError(f"--touched {opts.touched}: {structure.name} has atoms 0..{structure.n_atoms - 1}")
     if opts.probe is not None:
@@ -66,8 +69,6 @@ def build_scene(structure, opts: RenderOptions):
     if opts.light is not None:
         v = np.array(opts.light, dtype=np.float64)
         scene.light_direction = v / np.linalg.norm(v)
-    scene.effects.probe_plane = opts.probe_plane
-    scene.effects.fxaa = opts.fxaa
     return scene
 
 
@@ -81,31 +82,31 @@ def initial_camera(scene, opts: RenderOptions):
     return Camera.fitted(center, radius, aspect)
 
 
+def open_source(opts: RenderOptions):
+    """A StaticSource for --molecule (or the embedded 1CRN), a DaemonLink for --connect."""
+    if opts.connect is None:
+        from sasprobe.molecule import load_structure_or_default
+        from sasprobe.render.source import StaticSource
+
+        return StaticSource(load_structure_or_default(opts.molecule, keep_water=opts.keep_water))
+    try:
+        from sasprobe.render.link import DaemonLink  # needs the daemon's protocol client
+    except ModuleNotFoundError:
+        raise UserError("--connect is not available in this build (the daemon's protocol client is missing)") from None
+    return DaemonLink(opts.connect or None, opts.control, keep_water=opts.keep_water)
+
+
 def render_main(opts: RenderOptions) -> int:
     from sasprobe.render.context import display_available
 
-    if opts.connect is not None:
-        try:
-            from sasprobe.render.link import DaemonLink  # needs the daemon's protocol client
-        except ModuleNotFoundError:
-            raise UserError("--connect is not available in this build (the daemon's protocol client is missing)") from None
-
-        link = DaemonLink.connect(opts.connect or None, opts.control)
-        structure = link.structure
-    else:
-        from sasprobe.molecule import load_structure_or_default
-
-        link = None
-        structure = load_structure_or_default(opts.molecule, keep_water=opts.keep_water)
-    scene = build_scene(structure, opts)
     window_mode = not opts.headless and display_available()
     if not opts.headless and not window_mode:
         log.info("no display found: rendering headless")
+    source = open_source(opts)
     try:
-        return _run_window(scene, opts, link) if window_mode else _run_headless(scene, opts, link)
+        return _run_window(opts, source) if window_mode else _run_headless(opts, source)
     finally:
-        if link is not None:
-            link.close()
+        source.close()
 
 
 def _writer(opts: RenderOptions, frames: int | None):
@@ -114,19 +115,26 @@ def _writer(opts: RenderOptions, frames: int | None):
     return FrameWriter(opts.out, frames, opts.fps) if opts.out is not None else None
 
 
-def _run_headless(scene, opts: RenderOptions, link) -> int:
+def _run_headless(opts: RenderOptions, source) -> int:
     from sasprobe.progress import progress_bar
     from sasprobe.render.context import create_headless_context
     from sasprobe.render.headless import run_headless
     from sasprobe.render.renderer import Renderer
 
+    if hasattr(source, "wait_ready"):
+        source.wait_ready()  # a daemon: its structure and a first pose, or one clear line
+    scene = build_scene(source.take_new_structure(), opts)
     ctx = create_headless_context()
     renderer = Renderer(ctx, scene, opts.size, sphere_mode=opts.spheres, backbone_always=opts.backbone)
     camera = initial_camera(scene, opts)
     frames = opts.frames if (opts.frames is not None or opts.seconds is not None) else 1
     writer = _writer(opts, frames)
     bar = progress_bar(frames, "render", unit="frame") if frames and frames > 1 else None
-    update = (lambda: link.apply(scene)) if link is not None else None
+
+    def update() -> None:
+        source.poll()
+        source.apply(scene)
+
     try:
         stats = run_headless(renderer, camera, frames, opts.seconds, writer=writer, gbuffer_path=opts.gbuffer,
                              orbit_deg=opts.orbit, update=update, progress=bar)
@@ -137,33 +145,40 @@ def _run_headless(scene, opts: RenderOptions, link) -> int:
             writer.close()
         renderer.release()
         ctx.release()
+    dropped = source.readout().dropped
+    if dropped:
+        log.warning("dropped %d malformed message(s) from the daemon", dropped)
     _report(stats.summary(), writer, opts)
     return 0
 
 
-def _run_window(scene, opts: RenderOptions, link) -> int:
+def _run_window(opts: RenderOptions, source) -> int:
     import glfw
 
     from sasprobe.render.context import create_window
     from sasprobe.render.renderer import Renderer
+    from sasprobe.render.scene import Effects
     from sasprobe.render.window import WindowApp
 
-    title = f"sasprobe render: {scene.structure.name} ({scene.structure.n_atoms} atoms)"
-    window, ctx = create_window(opts.size, title)
+    window, ctx = create_window(opts.size, "sasprobe render")
     try:
-        fb = glfw.get_framebuffer_size(window)
-        renderer = Renderer(ctx, scene, fb, sphere_mode=opts.spheres, backbone_always=opts.backbone, overlay=True)
-        camera = initial_camera(scene, opts)
-        update = (lambda: link.apply(scene)) if link is not None else None
-        app = WindowApp(window, renderer, camera, title, update=update)
+        def build(structure, effects):
+            scene = build_scene(structure, opts, effects)
+            renderer = Renderer(ctx, scene, glfw.get_framebuffer_size(window), sphere_mode=opts.spheres,
+                                backbone_always=opts.backbone)
+            glfw.set_window_title(window, f"sasprobe render: {structure.name} ({structure.n_atoms} atoms)")
+            return renderer, initial_camera(scene, opts)
+
+        app = WindowApp(window, ctx, source, build, "sasprobe render",
+                        Effects(fxaa=opts.fxaa, probe_plane=opts.probe_plane))
         writer = _writer(opts, 1)
-        log.info("window open: %dx%d framebuffer", *fb)
+        log.info("window open: %dx%d framebuffer", *glfw.get_framebuffer_size(window))
         try:
             count = app.run(frames=opts.frames, seconds=opts.seconds, writer=writer, gbuffer_path=opts.gbuffer)
         finally:
             if writer is not None:
                 writer.close()
-            renderer.release()
+            app.release()
         _report(f"{count} frame(s) shown", writer, opts)
     finally:
         glfw.destroy_window(window)

@@ -1,7 +1,7 @@
 """The renderer: GL objects created once, and the pass chain run each frame.
 
     clear -> spheres -> probe -> backbone -> [lighting passes: fill visibility]
-          -> light -> navcube -> fxaa -> [overlay]
+          -> light -> navcube -> fxaa
 
 `passes` is a plain list; `insert_before(name, pass)` slots a pass in (a shadow or AO
 pass goes before "light").
@@ -20,7 +20,6 @@ from sasprobe.render.passes.base import ClearPass, Frame, Pass
 from sasprobe.render.passes.fxaa import FxaaPass
 from sasprobe.render.passes.light import LightPass, LightSettings
 from sasprobe.render.passes.navcube import NavCubePass
-from sasprobe.render.passes.overlay import OverlayPass
 from sasprobe.render.passes.probe import ProbePass
 from sasprobe.render.passes.spheres import SpherePass
 from sasprobe.render.scene import SceneState
@@ -30,14 +29,13 @@ from sasprobe.render.targets import RenderTargets
 
 class Renderer:
     def __init__(self, ctx, scene: SceneState, size: tuple[int, int], sphere_mode: str = "quad",
-                 backbone_always: bool = False, light: LightSettings | None = None, overlay: bool = False):
+                 backbone_always: bool = False, light: LightSettings | None = None):
         self.ctx = ctx
         self.scene = scene
         self.programs = ProgramCache(ctx)
         self.buffers = MoleculeBuffers(ctx, scene.structure)
         self.targets = RenderTargets(ctx, size)
         self.sphere_pass = self._sphere_pass(sphere_mode)
-        self.overlay = OverlayPass(ctx, self.programs) if overlay else None
         self.passes: list[Pass] = [
             ClearPass(ctx, self.programs),
             self.sphere_pass,
@@ -47,8 +45,6 @@ class Renderer:
             NavCubePass(ctx, self.programs),
             FxaaPass(ctx, self.programs),
         ]
-        if self.overlay is not None:
-            self.passes.append(self.overlay)
         self.frame_index = 0
         self.last_frame: Frame | None = None
 

@@ -1,12 +1,13 @@
-"""Window-only pass: the text readout (fps, haptic rate, force, state) in the top-left
-corner, drawn with Pillow's built-in font into a texture that is rewritten only when
-the text changes."""
+"""Window-only text readout (fps, haptic rate, force, state) in the top-left corner,
+drawn with Pillow's built-in font into a texture rewritten only when the text changes.
+Not a pass of the chain: the window draws it over whatever the frame shows, also while
+it waits for a daemon and has nothing else to show."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.render.passes.base import Frame, Pass, apply_uniforms
+from sasprobe.render.passes.base import apply_uniforms
 
 PADDING = 6
 MAX_SIZE = (640, 320)
@@ -29,42 +30,37 @@ def text_image(lines: list[str]) -> np.ndarray:
     return np.asarray(img)
 
 
-class OverlayPass(Pass):
-    name = "overlay"
-
+class TextOverlay:
     def __init__(self, ctx, programs):
         self.ctx = ctx
         self.prog = programs.get("overlay.vert", "overlay.frag")
         self.vao = ctx.vertex_array(self.prog, [])
         self.texture = ctx.texture(MAX_SIZE, 4)
         self.texture.filter = (ctx.NEAREST, ctx.NEAREST)
-        self.lines: list[str] = []
         self._shown: list[str] | None = None
         self._size = (0, 0)
         if "u_text" in self.prog:
             self.prog["u_text"].value = 0
 
-    def set_text(self, lines: list[str]) -> None:
-        self.lines = list(lines)
-
-    def enabled(self, frame: Frame) -> bool:
-        return bool(self.lines) and frame.scene.effects.readout
-
-    def run(self, frame: Frame) -> None:
+    def draw(self, fbo, size: tuple[int, int], lines: list[str]) -> None:
+        """Draw the lines over `fbo` (of `size` pixels), re-rasterising only changed text."""
+        if not lines:
+            return
         ctx = self.ctx
-        if self.lines != self._shown:
-            img = text_image(self.lines)
+        if lines != self._shown:
+            img = text_image(lines)
             h, w = img.shape[:2]
             self.texture.write(img.tobytes(), viewport=(0, 0, w, h))
-            self._size, self._shown = (w, h), list(self.lines)
+            self._size, self._shown = (w, h), list(lines)
         w, h = self._size
         self.texture.use(0)
         apply_uniforms(self.prog, {
             "u_rect": (8.0, 8.0, float(w), float(h)),
-            "u_screen": tuple(float(v) for v in frame.size),
+            "u_screen": (float(size[0]), float(size[1])),
             "u_uv_scale": (w / MAX_SIZE[0], h / MAX_SIZE[1]),
         })
-        frame.output_fbo.use()
+        fbo.use()
+        fbo.viewport = (0, 0, size[0], size[1])
         ctx.enable_only(ctx.BLEND)
         ctx.blend_func = ctx.SRC_ALPHA, ctx.ONE_MINUS_SRC_ALPHA
         self.vao.render(ctx.TRIANGLE_STRIP, vertices=4)
