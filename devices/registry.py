@@ -22,7 +22,9 @@ class DeviceScheme:
 
 
 # Drivers add one line here.
-SCHEMES: dict[str, DeviceScheme] = {}
+SCHEMES: dict[str, DeviceScheme] = {
+    "replay": DeviceScheme("sasprobe.devices.replay:open_replay", "a recorded session (--speed X|max)", "replay:session.mcap"),
+}
 
 
 def parse_device_spec(spec: str) -> tuple[str, str | None]:

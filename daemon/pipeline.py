@@ -1,0 +1,115 @@
+"""One tick's computation, shared by the live daemon and `sasprobe replay --verify`.
+
+device state (or the reason there is none) → haptic engine → safety guard → force,
+flags and the pose fields. It reads no clock and touches no socket, so feeding it a
+recording's inputs reproduces the recorded forces bit for bit.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from sasprobe.daemon.safety import GuardResult, SafetyGuard
+from sasprobe.devices.base import DeviceState
+from sasprobe.protocol.pose import (
+    FLAG_CLAMPED,
+    FLAG_CONTACT,
+    FLAG_DRIFTING,
+    FLAG_FAULT,
+    FLAG_RAMPING,
+    Pose,
+)
+
+log = logging.getLogger("sasprobe")
+
+
+@dataclass
+class TickResult:
+    force_n: np.ndarray  # the force to write (safe)
+    flags: int
+    guard: GuardResult
+    output: object | None  # the engine's HapticOutput, None when it did not run
+
+
+class HapticPipeline:
+    """Owns the haptic engine and the safety guard; used by one thread only (the loop)."""
+
+    def __init__(self, engine, guard: SafetyGuard) -> None:
+        self.engine = engine
+        self.guard = guard
+        self.last_output = None  # newest engine output (poses keep showing it during faults)
+        self._engine_missed_states = False  # the engine skipped states: reset it before the next step
+        self.engine_errors = 0
+
+    def replace_engine(self, engine) -> None:
+        """Swap in an engine built elsewhere (new structure or settings); forces ramp in again."""
+        self.engine = engine
+        self.last_output = None
+        self._engine_missed_states = False
+        self.guard.restart_ramp()
+
+    def restart(self, engine) -> None:
+        """A fresh engine and guard: all haptic state re-anchored (a recording starts here)."""
+        self.engine = engine
+        self.guard = SafetyGuard(self.guard.limits, self.guard.ramp_ns / 1e9, self.guard.late_limit_periods)
+        self.last_output = None
+        self._engine_missed_states = False
+
+    def step(self, state: DeviceState | None, read_error: str | None, late_periods: float) -> TickResult:
+        reason = self.guard.check(state, read_error, late_periods)
+        output = None
+        force = None
+        ramp_again = True  # unless the engine ran cleanly and only the timing was off
+        if state is not None and read_error is None and state.is_finite():
+            # A late tick still steps the engine, so the proxy keeps following the tip.
+            if self._engine_missed_states:
+                self.engine.reset()
+                self._engine_missed_states = False
+            try:
+                output = self.engine.step(state)
+            except Exception as exc:  # a bug must cost force, never the loop
+                self.engine_errors += 1
+                if self.engine_errors <= 3:
+                    log.error("haptic engine failed: %s: %s", type(exc).__name__, exc)
+                reason = reason or f"haptic engine error: {type(exc).__name__}"
+                self._engine_missed_states = True
+            else:
+                force = output.force_n
+                self.last_output = output
+                ramp_again = bool(output.fault)
+                if output.fault and reason is None:
+                    reason = "haptic engine fault"
+        else:
+            self._engine_missed_states = True
+        guard = self.guard.filter(force, state, reason, ramp_again)
+        flags = 0
+        if guard.fault:
+            flags |= FLAG_FAULT
+        elif guard.ramp < 1.0:
+            flags |= FLAG_RAMPING
+        if guard.clamped:
+            flags |= FLAG_CLAMPED
+        if output is not None:
+            flags |= (FLAG_CONTACT if output.contact else 0) | (FLAG_DRIFTING if output.drifting else 0)
+            flags |= FLAG_CLAMPED if output.clamped else 0
+        return TickResult(guard.force_n, flags, guard, output)
+
+    def pose(self, seq: int, state: DeviceState | None, result: TickResult, publish_t_ns: int) -> Pose:
+        """The pose message of a tick; during faults it repeats the last known engine geometry."""
+        out = result.output if result.output is not None else self.last_output
+        pose = Pose(seq=seq, publish_t_ns=publish_t_ns, force_N=result.force_n, flags=result.flags)
+        if state is not None and state.is_finite():  # NaN never goes on the wire
+            pose.device_t_ns = state.t_ns
+            pose.tip_mm = state.position_mm
+            pose.orientation = state.orientation
+            pose.buttons = state.buttons
+        if out is not None:
+            pose.proxy_A = out.proxy_A
+            pose.goal_A = out.goal_A
+            pose.touched_atom = out.touched_atoms[0] if out.touched_atoms else -1
+            pose.cube_center_A = out.cube_center_A
+            pose.cube_half_A = out.cube_half_A
+        return pose

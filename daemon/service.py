@@ -1,0 +1,508 @@
+"""`sasprobe daemon`: the one process that owns the device.
+
+Threads: the main thread runs the fixed-rate loop (read → haptic force → safety →
+write → publish → hand to the recorder) and is the only one that touches the device,
+the engine and the PUB socket. The control thread answers requests; anything that
+changes state is prepared there (parsing a structure, building an engine) and handed
+to the loop as a small closure, applied at the start of the next tick. The recorder
+thread writes the MCAP file. ZeroMQ's own I/O threads do the network sending.
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import logging
+import os
+import signal
+import sys
+import threading
+import time
+from concurrent.futures import Future, TimeoutError as FutureTimeout
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sasprobe import __version__
+from sasprobe.daemon.control import ControlServer
+from sasprobe.daemon.engine import HapticBackend, apply_recorded_event, needs_rebuild, split_changes
+from sasprobe.daemon.loop import FixedRateLoop
+from sasprobe.daemon.pipeline import HapticPipeline
+from sasprobe.daemon.publisher import Publisher
+from sasprobe.daemon.recorder import Recorder
+from sasprobe.daemon.safety import SafetyGuard
+from sasprobe.devices.base import DeviceFault
+from sasprobe.errors import UserError
+from sasprobe.protocol.control import Reply, Request
+from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
+from sasprobe.protocol.pose import encode_pose
+from sasprobe.protocol.scene import DEFAULT_LIGHTS, SCENE_VERSION, encode_scene, merge_lights
+
+log = logging.getLogger("sasprobe")
+
+SCENE_INTERVAL_NS = 1_000_000_000  # re-publish the scene at least this often (late joiners)
+RECONNECT_INTERVAL_NS = 500_000_000  # between reconnect attempts while the device is gone
+LATE_READ_PERIODS = 3.0  # a read slower than this many periods counts as failed
+SUBMIT_TIMEOUT_S = 5.0
+SWITCH_INTERVAL_S = 1e-4  # how long another Python thread may hold the GIL before the loop gets it
+
+
+@dataclass
+class DaemonConfig:
+    device: str = "sim"
+    molecule: str | None = None
+    keep_water: bool = False
+    rate_hz: float | None = 1000.0  # None: as fast as possible (replay --speed max)
+    pub: list[str] = field(default_factory=lambda: [DEFAULT_PUB_ENDPOINT])
+    ctl: list[str] = field(default_factory=lambda: [DEFAULT_CTL_ENDPOINT])
+    record: str | None = None
+    keys: str | None = None
+    settings: dict = field(default_factory=dict)  # haptic settings given on the command line
+    speed: float | None = 1.0  # replay speed (None: max)
+    seed: int = 0
+    spin_s: float = 200e-6
+    report: str | None = None  # write a JSON exit report here
+    max_seconds: float | None = None  # stop by itself after this long (benchmarks, demos)
+
+
+def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:
+    """Refuse to expose the daemon beyond this machine without CURVE keys."""
+    for text in endpoints:
+        endpoint = parse_endpoint(text)
+        if not endpoint.is_loopback and keys_dir is None:
+            raise UserError(
+                f"refusing to bind {text} without encryption: an address other machines can reach needs "
+                f"--keys DIR (CURVE keys with a client allow-list; create them with `sasprobe keys DIR`)"
+            )
+
+
+class Daemon:
+    def __init__(self, config: DaemonConfig, backend=None) -> None:
+        import zmq
+
+        from sasprobe.devices.registry import open_device, parse_device_spec
+        from sasprobe.molecule import load_structure_or_default, parse_structure
+        from sasprobe.protocol.security import load_server_keys, start_authenticator
+
+        self.config = config
+        self.backend = backend or HapticBackend()
+        check_bind_security(config.pub + config.ctl, config.keys)
+        self.keys = load_server_keys(Path(config.keys)) if config.keys else None
+
+        scheme, _ = parse_device_spec(config.device)
+        replaying = scheme == "replay"
+        self.structure = None if replaying and config.molecule is None else load_structure_or_default(
+            config.molecule, keep_water=config.keep_water)
+        self.device = open_device(config.device, structure=self.structure, rate_hz=config.rate_hz,
+                                  seed=config.seed, speed=config.speed)
+        session = getattr(self.device, "session", None)  # a replay device's recorded start
+        initial_settings = dict(config.settings)
+        if session is not None:
+            if self.structure is None:
+                self.structure = parse_structure(session.structure_bytes, name=session.structure_name,
+                                                 source=f"{config.device} (recorded)",
+                                                 keep_water=session.keep_water)
+            initial_settings = {**session.settings, **config.settings}
+        self.limits = self.device.info.limits
+        self.settings = self.backend.validate(initial_settings, self.limits)
+        self.rate_hz = config.rate_hz
+        if replaying:
+            recorded = self.device.info.limits.nominal_rate_hz
+            self.rate_hz = None if config.speed is None else recorded * config.speed
+        self.clip_planes: list[list[float]] = []
+        self.lights = json.loads(json.dumps(DEFAULT_LIGHTS))
+        self.lights["probe"]["radius_A"] = self.settings["probe_radius_A"]
+        self.nav_cube_enabled = True
+
+        engine = self.backend.build(self.structure, self.limits, self.settings)
+        self.pipeline = HapticPipeline(engine, SafetyGuard(self.limits))
+        self.loop = FixedRateLoop(self.rate_hz, spin_s=config.spin_s)
+        self._pending: collections.deque = collections.deque()
+        self._stop_reason: str | None = None
+        self._scene_revision = 0
+        self._scene_bytes = b""
+        self._scene_dict: dict = {}
+        self._scene_cube_half = None
+        self._next_scene_ns = 0
+        self.recorder: Recorder | None = None
+        self._started_ns = time.monotonic_ns()
+        self._carry_error: str | None = None
+        self._last_reconnect_ns = 0
+        self.last_force_written = np.zeros(3)
+        self.write_failures = 0
+
+        self.device.open()
+        self.context = zmq.Context()
+        self.auth = start_authenticator(self.context, self.keys) if self.keys else None
+        try:
+            self.publisher = Publisher(self.context, config.pub, self.keys)
+            self.control = ControlServer(self.context, config.ctl, self.handle, self.keys)
+        except zmq.ZMQError as exc:
+            self._close_network()
+            self.device.close()
+            raise UserError(f"cannot bind {' / '.join(config.pub + config.ctl)}: {exc}") from None
+        self._rebuild_scene()
+        if config.record:
+            self._attach_recorder(Recorder(config.record, self._recording_metadata()))
+
+    # ------------------------------------------------------------------ the loop
+    def run(self) -> int:
+        """Run until SIGINT/SIGTERM, `shutdown`, the end of a replay or max_seconds; return 0."""
+        previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+        old_switch = sys.getswitchinterval()
+        sys.setswitchinterval(SWITCH_INTERVAL_S)
+        self._loop_cpu_clock = time.pthread_getcpuclockid(threading.get_ident())
+        self.control.start()
+        log.info("daemon: pose+scene on %s, control on %s, device %s, %s",
+                 ", ".join(self.publisher.endpoints), ", ".join(self.control.endpoints),
+                 self.device.info.model, f"{self.rate_hz:g} Hz" if self.rate_hz else "free-running")
+        print(json.dumps({"event": "ready", "pub": self.publisher.endpoints, "ctl": self.control.endpoints,
+                          "device": self.device.info.kind, "rate_hz": self.rate_hz, "pid": os.getpid()}),
+              flush=True)
+        try:
+            self._loop()
+        finally:
+            sys.setswitchinterval(old_switch)
+            self._shutdown()
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+        return 0
+
+    def _on_signal(self, signum, frame) -> None:
+        self._stop_reason = signal.Signals(signum).name
+
+    def _loop(self) -> None:
+        loop, device, pipeline, publisher = self.loop, self.device, self.pipeline, self.publisher
+        clock = time.monotonic_ns
+        take_events = getattr(device, "take_events", None)
+        late_read_ns = int(LATE_READ_PERIODS * (loop.period_ns or 1_000_000))
+        deadline = clock() + int(self.config.max_seconds * 1e9) if self.config.max_seconds else None
+        self._cpu_at_reset = self._loop_cpu_ns()
+        loop.start()
+        while self._stop_reason is None:
+            tick = loop.wait()
+            if self._pending:
+                self._apply_pending(tick.seq)
+            pipeline = self.pipeline
+            state = None
+            error, self._carry_error = self._carry_error, None
+            t_read = clock()
+            try:
+                state = device.read()
+            except DeviceFault as exc:
+                error = error or (str(exc) or type(exc).__name__)
+            except EOFError:  # a replay reached its end
+                self._stop_reason = "end of replay"
+                break
+            read_ns = clock() - t_read
+            if error is None and read_ns > late_read_ns:
+                error = f"device read took {read_ns / 1e6:.1f} ms"
+            if take_events is not None:
+                for event in take_events():
+                    self._apply_recorded_event(event, tick.seq)
+                pipeline = self.pipeline
+            was_faulted = pipeline.guard.faulted
+            result = pipeline.step(state, error, tick.late_periods)
+            try:
+                device.write_force(result.force_n)
+                self.last_force_written = result.force_n
+            except DeviceFault as exc:
+                self.write_failures += 1
+                self._carry_error = f"force write failed: {exc}"
+            if result.guard.fault != was_faulted:
+                if result.guard.fault:
+                    log.warning("device fault: %s; force zeroed", result.guard.reason)
+                else:
+                    log.warning("device recovered after %s", pipeline.guard.last_reason)
+            if error is not None and state is None:
+                self._maybe_reconnect(tick.start_ns)
+            now = clock()
+            pose = pipeline.pose(tick.seq, state, result, now)
+            publisher.publish_pose(encode_pose(pose))
+            if self.recorder is not None:
+                self.recorder.offer_tick(now, tick.seq, state, error, tick.late_periods, read_ns, pose)
+            cube_half = pose.cube_half_A
+            if publisher.poll_subscriptions() or now >= self._next_scene_ns or cube_half != self._scene_cube_half:
+                if cube_half != self._scene_cube_half:
+                    self._scene_cube_half = cube_half
+                    self._rebuild_scene()
+                self._publish_scene(now)
+            loop.stats.record_work(clock() - tick.start_ns)
+            if deadline is not None and now >= deadline:
+                self._stop_reason = "time limit"
+
+    def _maybe_reconnect(self, now_ns: int) -> None:
+        if now_ns - self._last_reconnect_ns < RECONNECT_INTERVAL_NS:
+            return
+        self._last_reconnect_ns = now_ns
+        try:
+            self.device.reconnect()
+            log.warning("device reconnected")
+            self.pipeline.guard.restart_ramp()
+        except DeviceFault as exc:
+            log.info("device reconnect failed: %s", exc)
+        except NotImplementedError:
+            pass
+
+    def _shutdown(self) -> None:
+        """Zero force, close the device, stop serving, finish the recording, report."""
+        try:
+            self.device.write_force(np.zeros(3))
+            self.last_force_written = np.zeros(3)
+        except DeviceFault as exc:
+            log.warning("could not write zero force at shutdown: %s", exc)
+        device_last = getattr(self.device, "last_force_n", None)
+        try:
+            self.device.close()
+        except DeviceFault as exc:
+            log.warning("closing the device failed: %s", exc)
+        self.control.stop()
+        recording = None
+        if self.recorder is not None:
+            recorder, self.recorder = self.recorder, None
+            recording = recorder.close().as_dict()
+        stats = self.loop.stats.summary()
+        report = {
+            "event": "stopped",
+            "reason": self._stop_reason,
+            "ticks": stats["total"]["ticks"],
+            "overruns": stats["total"]["overruns"],
+            "faults": self.pipeline.guard.faults,
+            "last_force_written_n": np.asarray(self.last_force_written).tolist(),
+            "device_last_force_n": None if device_last is None else np.asarray(device_last, dtype=float).tolist(),
+            "recording": recording,
+        }
+        self._close_network()
+        if self.config.report:
+            Path(self.config.report).write_text(json.dumps(report))
+        print(json.dumps(report), flush=True)
+
+    def _close_network(self) -> None:
+        for closer in (getattr(self, "publisher", None), ):
+            if closer is not None:
+                closer.close()
+        if self.auth is not None:
+            self.auth.stop()
+        self.context.term() if hasattr(self, "context") else None
+
+    # ------------------------------------------------------------------ scene
+    def _rebuild_scene(self) -> None:
+        s = self.settings
+        half = self._scene_cube_half if self._scene_cube_half is not None else (s.get("cube_half_A") or 0.0)
+        self._scene_revision += 1
+        scene = {
+            "version": SCENE_VERSION,
+            "revision": self._scene_revision,
+            "daemon_version": __version__,
+            "structure": {"name": self.structure.name, "sha256": self.structure.sha256,
+                          "n_atoms": self.structure.n_atoms},
+            "probe_radius_A": s["probe_radius_A"],
+            "nav_cube": {"half_A": float(half), "enabled": self.nav_cube_enabled},
+            "clip_planes": self.clip_planes,
+            "lights": self.lights,
+            "device": self.device.info.as_dict(),
+            "haptics": {"method": s["method"], "stiffness_n_per_mm": s["stiffness_n_per_mm"],
+                        "damping_n_s_per_m": s["damping_n_s_per_m"]},
+            "rate_hz": self.rate_hz,
+        }
+        self._scene_bytes = encode_scene(scene)
+        self._scene_dict = scene
+        self._next_scene_ns = 0  # publish at the next tick
+        if self.recorder is not None:
+            self.recorder.offer_json("scene", time.monotonic_ns(), scene)
+
+    def _publish_scene(self, now_ns: int) -> None:
+        self.publisher.publish_scene(self._scene_bytes)
+        self._next_scene_ns = now_ns + SCENE_INTERVAL_NS
+
+    # ------------------------------------------------------------------ control
+    def handle(self, request: Request) -> Reply:
+        """Runs on the control thread."""
+        handler = getattr(self, f"_cmd_{request.cmd}")
+        result, data = handler(request)
+        return Reply(ok=True, result=result, data=data)
+
+    def _submit(self, fn):
+        """Run fn on the loop thread at the start of the next tick and return its result."""
+        future: Future = Future()
+        self._pending.append((fn, future))
+        try:
+            return future.result(timeout=SUBMIT_TIMEOUT_S)
+        except FutureTimeout:
+            raise UserError("the daemon loop did not take the change in time (is it shutting down?)") from None
+
+    def _apply_pending(self, seq: int) -> None:
+        while self._pending:
+            fn, future = self._pending.popleft()
+            try:
+                future.set_result(fn(seq))
+            except Exception as exc:
+                future.set_exception(exc)
+
+    def _record_control(self, seq: int, cmd: str, args: dict) -> None:
+        if self.recorder is not None:
+            self.recorder.offer_json("control", time.monotonic_ns(), {"seq": seq, "cmd": cmd, "args": args})
+
+    def _cmd_ping(self, request):
+        return {"pong": True, "t_ns": time.monotonic_ns(), "daemon_version": __version__}, None
+
+    def _cmd_status(self, request):
+        stats = self.loop.stats
+        if request.args.get("reset_stats"):
+            self._submit(lambda seq: self._reset_stats())
+        summary = stats.summary()
+        cpu_s = (self._loop_cpu_ns() - self._cpu_at_reset) / 1e9
+        summary["cpu_percent"] = 100.0 * cpu_s / summary["window_s"] if summary["window_s"] > 0 else None
+        summary["target_rate_hz"] = self.rate_hz
+        guard = self.pipeline.guard
+        rec = self.recorder
+        return {
+            "daemon_version": __version__,
+            "pid": os.getpid(),
+            "uptime_s": (time.monotonic_ns() - self._started_ns) / 1e9,
+            "loop": summary,
+            "device": {**self.device.info.as_dict(), "faulted": guard.faulted, "faults": guard.faults,
+                       "fault_ticks": guard.fault_ticks, "last_fault": guard.last_reason,
+                       "write_failures": self.write_failures},
+            "structure": {"name": self.structure.name, "sha256": self.structure.sha256,
+                          "n_atoms": self.structure.n_atoms},
+            "publisher": {"endpoints": self.publisher.endpoints, "subscribers": self.publisher.subscribers,
+                          "poses_sent": self.publisher.poses_sent, "scenes_sent": self.publisher.scenes_sent,
+                          "send_failures": self.publisher.send_failures},
+            "control": {"endpoints": self.control.endpoints, "requests": self.control.requests,
+                        "errors": self.control.errors},
+            "recording": None if rec is None else {**rec.stats().as_dict(), "error": rec.error},
+        }, None
+
+    def _reset_stats(self) -> None:
+        self.loop.stats.reset()
+        self._cpu_at_reset = self._loop_cpu_ns()
+
+    def _loop_cpu_ns(self) -> int:
+        clock_id = getattr(self, "_loop_cpu_clock", None)
+        return time.clock_gettime_ns(clock_id) if clock_id is not None else time.thread_time_ns()
+
+    def _cmd_get_scene(self, request):
+        return self._scene_dict, None
+
+    def _cmd_get_structure(self, request):
+        s = self.structure
+        return {"name": s.name, "sha256": s.sha256, "n_atoms": s.n_atoms, "bytes": len(s.source_bytes),
+                "gzip": s.source_bytes[:2] == b"\x1f\x8b", "keep_water": self._keep_water}, s.source_bytes
+
+    @property
+    def _keep_water(self) -> bool:
+        return getattr(self, "_structure_keep_water", self.config.keep_water)
+
+    def _cmd_load(self, request):
+        from sasprobe.molecule import load_structure, parse_structure
+
+        keep_water = request.args.get("keep_water", False)
+        if request.data is not None:
+            name = request.args.get("name") or "uploaded"
+            structure = parse_structure(request.data, name=name, source=f"control:{name}", keep_water=keep_water)
+        else:
+            structure = load_structure(request.args["path"], keep_water=keep_water)
+        engine = self.backend.build(structure, self.limits, self.settings)  # off the loop: grids take time
+
+        def swap(seq: int):
+            self.structure = structure
+            self._structure_keep_water = keep_water
+            self.pipeline.replace_engine(engine)
+            self._scene_cube_half = None
+            if self.recorder is not None:
+                self.recorder.offer_structure(time.monotonic_ns(), structure.name, structure.source_bytes)
+            self._record_control(seq, "load", {"sha256": structure.sha256, "name": structure.name,
+                                               "keep_water": keep_water})
+            self._rebuild_scene()
+            return seq
+
+        seq = self._submit(swap)
+        log.warning("loaded %s (%d atoms) at tick %d", structure.source, structure.n_atoms, seq)
+        return {"structure": {"name": structure.name, "sha256": structure.sha256, "n_atoms": structure.n_atoms},
+                "seq": seq}, None
+
+    def _cmd_set(self, request):
+        changes = dict(request.args)
+        haptic, scene_only = split_changes(changes)
+        new_settings = self.backend.validate({**self.settings, **haptic}, self.limits) if haptic else self.settings
+        lights = merge_lights(self.lights, scene_only["lights"]) if "lights" in scene_only else None
+        engine = self.backend.build(self.structure, self.limits, new_settings) if needs_rebuild(haptic) else None
+
+        def apply(seq: int):
+            if engine is not None:
+                self.pipeline.replace_engine(engine)
+            elif haptic:
+                self.pipeline.engine.update(**haptic)
+            self.settings = new_settings
+            if "clip_planes" in scene_only:
+                self.clip_planes = scene_only["clip_planes"]
+            if lights is not None:
+                self.lights = lights
+            if "nav_cube_enabled" in scene_only:
+                self.nav_cube_enabled = scene_only["nav_cube_enabled"]
+            if "cube_half_A" in haptic:
+                self._scene_cube_half = None
+            self._record_control(seq, "set", {**haptic, **scene_only})
+            self._rebuild_scene()
+            return seq
+
+        seq = self._submit(apply)
+        return {"seq": seq, "settings": new_settings, "revision": self._scene_revision}, None
+
+    def _apply_recorded_event(self, event: dict, seq: int) -> None:
+        """A replay device's recorded control command, applied as it was live."""
+        if event.get("cmd") not in ("set", "load"):
+            return
+        self.structure, self.settings = apply_recorded_event(
+            event, self.pipeline, self.backend, self.structure, self.settings, self.limits,
+            self.device.session.structure)
+        self._rebuild_scene()
+
+    def _cmd_record_start(self, request):
+        if self.recorder is not None:
+            raise UserError(f"already recording to {self.recorder.path}")
+        recorder = Recorder(request.args["path"], self._recording_metadata())
+        engine = self.backend.build(self.structure, self.limits, self.settings)  # the replay starts from this
+        try:
+            seq = self._submit(lambda seq: self._attach_recorder(recorder, seq, engine))
+        except UserError:
+            recorder.close()
+            raise
+        return {"path": str(recorder.path), "seq": seq}, None
+
+    def _attach_recorder(self, recorder: Recorder, seq: int = 0, fresh_engine=None) -> int:
+        """Start recording at this tick from a fresh engine and guard, so the file replays exactly."""
+        if fresh_engine is not None:
+            self.pipeline.restart(fresh_engine)
+        self.recorder = recorder
+        recorder.offer_structure(time.monotonic_ns(), self.structure.name, self.structure.source_bytes)
+        self._record_control(seq, "start", {
+            "settings": self.settings, "structure_sha256": self.structure.sha256,
+            "structure_name": self.structure.name, "keep_water": self._keep_water,
+            "rate_hz": self.rate_hz, "device": self.device.info.as_dict(),
+        })
+        self._rebuild_scene()
+        return seq
+
+    def _cmd_record_stop(self, request):
+        recorder = self._submit(lambda seq: self._detach_recorder(seq))
+        if recorder is None:
+            raise UserError("not recording")
+        return recorder.close().as_dict(), None
+
+    def _detach_recorder(self, seq: int):
+        recorder, self.recorder = self.recorder, None
+        if recorder is not None:
+            recorder.offer_json("control", time.monotonic_ns(), {"seq": seq, "cmd": "record_stop", "args": {}})
+        return recorder
+
+    def _cmd_shutdown(self, request):
+        self._stop_reason = "shutdown request"
+        return {"stopping": True}, None
+
+    def _recording_metadata(self) -> dict:
+        return {"daemon_version": __version__, "device": self.config.device, "rate_hz": self.rate_hz,
+                "started_unix_s": time.time()}
+
