@@ -13,6 +13,8 @@ from typing import Callable
 
 import zmq
 
+from sasprobe.daemon.loop import helper_priority
+
 from sasprobe.errors import UserError
 from sasprobe.protocol.control import MAX_MESSAGE_BYTES, ProtocolError, Reply, Request, decode_request, encode_reply
 from sasprobe.protocol.security import ServerKeys, make_curve_server
@@ -44,6 +46,7 @@ class ControlServer:
         self._thread.start()
 
     def _run(self) -> None:
+        helper_priority()
         poller = zmq.Poller()
         poller.register(self._socket, zmq.POLLIN)
         while not self._stop.is_set():

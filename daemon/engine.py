@@ -11,7 +11,7 @@ from __future__ import annotations
 from sasprobe.devices.base import DeviceLimits
 
 HAPTIC_FIELDS = ("probe_radius_A", "method", "stiffness_n_per_mm", "damping_n_s_per_m", "cube_half_A")
-REBUILD_FIELDS = frozenset({"probe_radius_A", "cube_half_A"})
+REBUILD_FIELDS = frozenset({"probe_radius_A"})  # a new grid: built off the loop
 
 
 def split_changes(changes: dict) -> tuple[dict, dict]:

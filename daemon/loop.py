@@ -9,12 +9,17 @@ and the schedule stays on the same grid.
 
 from __future__ import annotations
 
+import logging
+import os
 import time
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
+log = logging.getLogger("sasprobe")
+
+REALTIME_PRIORITY = 50  # SCHED_FIFO priority with --realtime (1-99)
 HIST_BIN_NS = 1_000  # period-error histogram: 1 µs bins ...
 HIST_BINS = 100_000  # ... up to 100 ms (larger errors land in the last bin)
 RECENT_TICKS = 1024  # the window `sasprobe status` shows (about a second at 1 kHz)
@@ -188,3 +193,27 @@ class FixedRateLoop:
         self._seq += 1
         self.stats.record(tick)
         return tick
+
+
+def enter_realtime(priority: int = REALTIME_PRIORITY) -> bool:
+    """SCHED_FIFO for the calling thread (and the threads it starts); False when not permitted."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        return True
+    except (OSError, AttributeError) as exc:
+        log.warning("--realtime: cannot use SCHED_FIFO (%s); running with normal scheduling", exc)
+        return False
+
+
+def helper_priority() -> None:
+    """Helper threads (control, recorder) drop to the lowest real-time priority.
+
+    Not to normal scheduling: a helper preempted by another process while it holds the
+    GIL would stall the loop until it runs again. Lowest FIFO priority keeps it ahead of
+    ordinary processes but behind the loop.
+    """
+    try:
+        if os.sched_getscheduler(0) == os.SCHED_FIFO:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
+    except (OSError, AttributeError):
+        pass

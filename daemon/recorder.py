@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from sasprobe import __version__
+from sasprobe.daemon.loop import helper_priority
 from sasprobe.devices.base import DeviceState
 from sasprobe.errors import UserError
 from sasprobe.protocol.pose import Pose
@@ -209,6 +210,7 @@ class Recorder:
             self._write(queue.popleft())
 
     def _run(self) -> None:
+        helper_priority()
         last_flush = time.monotonic()
         try:
             while not self._stop.is_set():

@@ -54,7 +54,9 @@ def scan(path: Path) -> Scan:
             if end > size:
                 break
             if opcode == _OPCODE_FOOTER:
-                return Scan(end=min(end + len(MAGIC), size), size=size, finished=True)
+                if end + len(MAGIC) <= size:
+                    return Scan(end=end + len(MAGIC), size=size, finished=True)
+                break  # the closing magic was cut: read up to the footer
             offset = end
         return Scan(end=offset, size=size, finished=False)
 

@@ -11,6 +11,7 @@ thread writes the MCAP file. ZeroMQ's own I/O threads do the network sending.
 from __future__ import annotations
 
 import collections
+import gc
 import json
 import logging
 import os
@@ -27,7 +28,7 @@ import numpy as np
 from sasprobe import __version__
 from sasprobe.daemon.control import ControlServer
 from sasprobe.daemon.engine import HapticBackend, apply_recorded_event, needs_rebuild, split_changes
-from sasprobe.daemon.loop import FixedRateLoop
+from sasprobe.daemon.loop import FixedRateLoop, enter_realtime
 from sasprobe.daemon.pipeline import HapticPipeline
 from sasprobe.daemon.publisher import Publisher
 from sasprobe.daemon.recorder import Recorder
@@ -64,6 +65,7 @@ class DaemonConfig:
     spin_s: float = 200e-6
     report: str | None = None  # write a JSON exit report here
     max_seconds: float | None = None  # stop by itself after this long (benchmarks, demos)
+    realtime: bool = False  # SCHED_FIFO for the loop and ZeroMQ's I/O thread
 
 
 def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:
@@ -75,6 +77,27 @@ def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:
                 f"refusing to bind {text} without encryption: an address other machines can reach needs "
                 f"--keys DIR (CURVE keys with a client allow-list; create them with `sasprobe keys DIR`)"
             )
+
+
+class FaultLog:
+    """Log fault transitions without flooding: at most one line per second, with a count."""
+
+    def __init__(self, interval_ns: int = 1_000_000_000) -> None:
+        self.interval_ns = interval_ns
+        self._last_ns = -interval_ns
+        self._suppressed = 0
+
+    def note(self, reason: str | None, now_ns: int) -> None:
+        if now_ns - self._last_ns < self.interval_ns:
+            self._suppressed += 1
+            return
+        more = f" ({self._suppressed} more fault changes in the last second)" if self._suppressed else ""
+        if reason is None:
+            log.warning("device fault cleared, force back on%s", more)
+        else:
+            log.warning("device fault: %s; force zeroed%s", reason, more)
+        self._last_ns = now_ns
+        self._suppressed = 0
 
 
 class Daemon:
@@ -132,8 +155,10 @@ class Daemon:
         self.last_force_written = np.zeros(3)
         self.write_failures = 0
 
+        self.realtime = enter_realtime() if config.realtime else False
+        self._fault_log = FaultLog()
         self.device.open()
-        self.context = zmq.Context()
+        self.context = zmq.Context()  # its I/O thread inherits the loop's scheduling
         self.auth = start_authenticator(self.context, self.keys) if self.keys else None
         try:
             self.publisher = Publisher(self.context, config.pub, self.keys)
@@ -154,11 +179,14 @@ class Daemon:
         sys.setswitchinterval(SWITCH_INTERVAL_S)
         self._loop_cpu_clock = time.pthread_getcpuclockid(threading.get_ident())
         self.control.start()
+        gc.collect()
+        gc.freeze()  # start-up objects leave the collector's view: later collections stay short
         log.info("daemon: pose+scene on %s, control on %s, device %s, %s",
                  ", ".join(self.publisher.endpoints), ", ".join(self.control.endpoints),
                  self.device.info.model, f"{self.rate_hz:g} Hz" if self.rate_hz else "free-running")
         print(json.dumps({"event": "ready", "pub": self.publisher.endpoints, "ctl": self.control.endpoints,
-                          "device": self.device.info.kind, "rate_hz": self.rate_hz, "pid": os.getpid()}),
+                          "device": self.device.info.kind, "rate_hz": self.rate_hz, "pid": os.getpid(),
+                          "realtime": self.realtime}),
               flush=True)
         try:
             self._loop()
@@ -175,8 +203,10 @@ class Daemon:
     def _loop(self) -> None:
         loop, device, pipeline, publisher = self.loop, self.device, self.pipeline, self.publisher
         clock = time.monotonic_ns
-        take_events = getattr(device, "take_events", None)
-        late_read_ns = int(LATE_READ_PERIODS * (loop.period_ns or 1_000_000))
+        take_events = getattr(device, "take_events", None)  # a replay's recorded control commands
+        recorded_lateness = getattr(device, "recorded_late_periods", None)  # and its recorded timing
+        # A free-running loop (replay at --speed max) has no period to be late against.
+        late_read_ns = int(LATE_READ_PERIODS * loop.period_ns) if loop.period_ns else None
         deadline = clock() + int(self.config.max_seconds * 1e9) if self.config.max_seconds else None
         self._cpu_at_reset = self._loop_cpu_ns()
         loop.start()
@@ -196,14 +226,16 @@ class Daemon:
                 self._stop_reason = "end of replay"
                 break
             read_ns = clock() - t_read
-            if error is None and read_ns > late_read_ns:
+            if error is None and late_read_ns is not None and read_ns > late_read_ns:
                 error = f"device read took {read_ns / 1e6:.1f} ms"
+            late_periods = tick.late_periods
             if take_events is not None:
                 for event in take_events():
                     self._apply_recorded_event(event, tick.seq)
                 pipeline = self.pipeline
+                late_periods = max(late_periods, recorded_lateness())
             was_faulted = pipeline.guard.faulted
-            result = pipeline.step(state, error, tick.late_periods)
+            result = pipeline.step(state, error, late_periods)
             try:
                 device.write_force(result.force_n)
                 self.last_force_written = result.force_n
@@ -211,17 +243,14 @@ class Daemon:
                 self.write_failures += 1
                 self._carry_error = f"force write failed: {exc}"
             if result.guard.fault != was_faulted:
-                if result.guard.fault:
-                    log.warning("device fault: %s; force zeroed", result.guard.reason)
-                else:
-                    log.warning("device recovered after %s", pipeline.guard.last_reason)
+                self._fault_log.note(result.guard.reason if result.guard.fault else None, tick.start_ns)
             if error is not None and state is None:
                 self._maybe_reconnect(tick.start_ns)
             now = clock()
             pose = pipeline.pose(tick.seq, state, result, now)
             publisher.publish_pose(encode_pose(pose))
             if self.recorder is not None:
-                self.recorder.offer_tick(now, tick.seq, state, error, tick.late_periods, read_ns, pose)
+                self.recorder.offer_tick(now, tick.seq, state, error, late_periods, read_ns, pose)
             cube_half = pose.cube_half_A
             if publisher.poll_subscriptions() or now >= self._next_scene_ns or cube_half != self._scene_cube_half:
                 if cube_half != self._scene_cube_half:
@@ -458,6 +487,9 @@ class Daemon:
         self.structure, self.settings = apply_recorded_event(
             event, self.pipeline, self.backend, self.structure, self.settings, self.limits,
             self.device.session.structure)
+        if event["cmd"] == "load" and self.recorder is not None:
+            self.recorder.offer_structure(time.monotonic_ns(), self.structure.name, self.structure.source_bytes)
+        self._record_control(seq, event["cmd"], event.get("args", {}))
         self._rebuild_scene()
 
     def _cmd_record_start(self, request):

@@ -2,7 +2,8 @@
 
 Each read() returns the next recorded device state (or raises DeviceFault where the
 recording has a failed read), so the daemon recomputes forces through the same
-pipeline. The daemon paces the replay at the recorded rate times --speed (`max`: as
+pipeline; it also hands the daemon the recorded control commands and how late each
+tick was, so settings changes and timing faults recur where they happened. The daemon paces the replay at the recorded rate times --speed (`max`: as
 fast as it can); after the last state read() raises ReplayFinished (an EOFError).
 The whole device channel is loaded at open(), so the loop never waits on the disk.
 """
@@ -204,6 +205,11 @@ class ReplayDevice(HapticDevice):
         if error is not None or state is None:
             raise DeviceFault(error or "recorded read failure")
         return state
+
+    def recorded_late_periods(self) -> float:
+        """How late the tick read last started in the recording: the daemon's watchdog
+        repeats the recorded timing faults, so a replay's forces match the original's."""
+        return float(self.session.late_periods[self._index - 1]) if self._index else 0.0
 
     def take_events(self) -> list[dict]:
         """Recorded control commands due at or before the tick read last, in order."""

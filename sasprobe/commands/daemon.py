@@ -36,6 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--damping", type=float, default=None, metavar="N_S_PER_M", help="contact damping")
     p.add_argument("--cube-half", type=positive_float, default=None, metavar="ANGSTROM",
                    help="navigation-cube half edge (default: fit the molecule)")
+    p.add_argument("--realtime", action="store_true",
+                   help="run the loop with SCHED_FIFO priority (needs CAP_SYS_NICE or root; steadier timing)")
     p.add_argument("--seed", type=int, default=0, help="seed of the simulated arm")
     p.add_argument("--duration", type=positive_float, default=None, metavar="SECONDS", help="stop after this long")
     p.add_argument("--report", metavar="FILE", help="write the exit report (JSON) here")
@@ -71,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         report=args.report,
         max_seconds=args.duration,
+        realtime=args.realtime,
     )
     try:
         daemon = Daemon(config)
