@@ -22,7 +22,13 @@ class DeviceScheme:
 
 
 # Drivers add one line here.
-SCHEMES: dict[str, DeviceScheme] = {}
+SCHEMES: dict[str, DeviceScheme] = {
+    "sim": DeviceScheme(
+        "sasprobe.devices.simulated:make_simulated",
+        "simulated arm driven by a scripted hand (scan, dive, press, orbit, random)",
+        "sim:scan",
+    ),
+}
 
 
 def parse_device_spec(spec: str) -> tuple[str, str | None]:
