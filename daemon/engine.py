@@ -26,7 +26,7 @@ def needs_rebuild(haptic_changes: dict) -> bool:
 
 def apply_recorded_event(event: dict, pipeline, backend, structure, settings: dict, limits: DeviceLimits,
                          structure_for_sha) -> tuple[object, dict]:
-    """Apply a recorded `set`/`load` exactly as the live daemon did; return (structure, settings).
+    """Apply a recorded `set`/`load`/`reconnect` as the live daemon did; return (structure, settings).
 
     Live, the control thread builds new engines and the loop swaps them in; a replay
     (live or `--verify`) does the same steps in line, so the forces come out identical.
@@ -43,6 +43,8 @@ def apply_recorded_event(event: dict, pipeline, backend, structure, settings: di
     elif cmd == "load":
         structure = structure_for_sha(args["sha256"], args.get("keep_water", False))
         pipeline.replace_engine(backend.build(structure, limits, settings))
+    elif cmd == "reconnect":
+        pipeline.reconnected()
     return structure, settings
 
 

@@ -41,14 +41,19 @@ class HapticPipeline:
         self.engine = engine
         self.guard = guard
         self.last_output = None  # newest engine output (poses keep showing it during faults)
-        self._engine_missed_states = False  # the engine skipped states: reset it before the next step
         self.engine_errors = 0
 
     def replace_engine(self, engine) -> None:
         """Swap in an engine built elsewhere (new structure or settings); forces ramp in again."""
         self.engine = engine
         self.last_output = None
-        self._engine_missed_states = False
+        self.guard.restart_ramp()
+
+    def reconnected(self) -> None:
+        """The device was lost and is back: the hand may be anywhere, so unseat the proxy
+        (no force until the probe is in free space) and ramp in again. Shorter faults keep
+        the proxy where it was: it follows the tip along the surface, never through it."""
+        self.engine.reset()
         self.guard.restart_ramp()
 
     def restart(self, engine) -> None:
@@ -56,7 +61,6 @@ class HapticPipeline:
         self.engine = engine
         self.guard = SafetyGuard(self.guard.limits, self.guard.ramp_ns / 1e9, self.guard.late_limit_periods)
         self.last_output = None
-        self._engine_missed_states = False
 
     def step(self, state: DeviceState | None, read_error: str | None, late_periods: float) -> TickResult:
         reason = self.guard.check(state, read_error, late_periods)
@@ -65,9 +69,6 @@ class HapticPipeline:
         ramp_again = True  # unless the engine ran cleanly and only the timing was off
         if state is not None and read_error is None and state.is_finite():
             # A late tick still steps the engine, so the proxy keeps following the tip.
-            if self._engine_missed_states:
-                self.engine.reset()
-                self._engine_missed_states = False
             try:
                 output = self.engine.step(state)
             except Exception as exc:  # a bug must cost force, never the loop
@@ -75,15 +76,12 @@ class HapticPipeline:
                 if self.engine_errors <= 3:
                     log.error("haptic engine failed: %s: %s", type(exc).__name__, exc)
                 reason = reason or f"haptic engine error: {type(exc).__name__}"
-                self._engine_missed_states = True
             else:
                 force = output.force_n
                 self.last_output = output
                 ramp_again = bool(output.fault)
                 if output.fault and reason is None:
                     reason = "haptic engine fault"
-        else:
-            self._engine_missed_states = True
         guard = self.guard.filter(force, state, reason, ramp_again)
         flags = 0
         if guard.fault:

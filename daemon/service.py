@@ -43,6 +43,7 @@ from sasprobe.protocol.scene import DEFAULT_LIGHTS, SCENE_VERSION, encode_scene,
 log = logging.getLogger("sasprobe")
 
 SCENE_INTERVAL_NS = 1_000_000_000  # re-publish the scene at least this often (late joiners)
+RECONNECT_AFTER_NS = 100_000_000  # a device failing this long gets reconnect() (a blip does not)
 RECONNECT_INTERVAL_NS = 500_000_000  # between reconnect attempts while the device is gone
 LATE_READ_PERIODS = 3.0  # a read slower than this many periods counts as failed
 SUBMIT_TIMEOUT_S = 5.0
@@ -66,6 +67,7 @@ class DaemonConfig:
     report: str | None = None  # write a JSON exit report here
     max_seconds: float | None = None  # stop by itself after this long (benchmarks, demos)
     realtime: bool = False  # SCHED_FIFO for the loop and ZeroMQ's I/O thread
+    faults: list[str] = field(default_factory=list)  # simulated-arm fault injection, e.g. "nan@900+5"
 
 
 def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:
@@ -118,7 +120,9 @@ class Daemon:
         self.structure = None if replaying and config.molecule is None else load_structure_or_default(
             config.molecule, keep_water=config.keep_water)
         self.device = open_device(config.device, structure=self.structure, rate_hz=config.rate_hz,
-                                  seed=config.seed, speed=config.speed)
+                                  seed=config.seed, speed=config.speed, faults=config.faults,
+                                  probe_radius_A=config.settings.get("probe_radius_A"),
+                                  cube_half_A=config.settings.get("cube_half_A"))
         session = getattr(self.device, "session", None)  # a replay device's recorded start
         initial_settings = dict(config.settings)
         if session is not None:
@@ -152,6 +156,7 @@ class Daemon:
         self._started_ns = time.monotonic_ns()
         self._carry_error: str | None = None
         self._last_reconnect_ns = 0
+        self._failing_since_ns: int | None = None
         self.last_force_written = np.zeros(3)
         self.write_failures = 0
 
@@ -225,6 +230,8 @@ class Daemon:
             except EOFError:  # a replay reached its end
                 self._stop_reason = "end of replay"
                 break
+            except Exception as exc:  # a driver bug costs force, never the loop
+                error = error or f"device error: {type(exc).__name__}: {exc}"
             read_ns = clock() - t_read
             if error is None and late_read_ns is not None and read_ns > late_read_ns:
                 error = f"device read took {read_ns / 1e6:.1f} ms"
@@ -239,13 +246,15 @@ class Daemon:
             try:
                 device.write_force(result.force_n)
                 self.last_force_written = result.force_n
-            except DeviceFault as exc:
+            except Exception as exc:
                 self.write_failures += 1
                 self._carry_error = f"force write failed: {exc}"
             if result.guard.fault != was_faulted:
                 self._fault_log.note(result.guard.reason if result.guard.fault else None, tick.start_ns)
-            if error is not None and state is None:
-                self._maybe_reconnect(tick.start_ns)
+            if error is None or state is not None:
+                self._failing_since_ns = None
+            elif take_events is None:  # a replay repeats the recorded reconnects instead
+                self._maybe_reconnect(tick.seq, tick.start_ns)
             now = clock()
             pose = pipeline.pose(tick.seq, state, result, now)
             publisher.publish_pose(encode_pose(pose))
@@ -261,18 +270,20 @@ class Daemon:
             if deadline is not None and now >= deadline:
                 self._stop_reason = "time limit"
 
-    def _maybe_reconnect(self, now_ns: int) -> None:
-        if now_ns - self._last_reconnect_ns < RECONNECT_INTERVAL_NS:
+    def _maybe_reconnect(self, seq: int, now_ns: int) -> None:
+        if self._failing_since_ns is None:
+            self._failing_since_ns = now_ns
+        if now_ns - self._failing_since_ns < RECONNECT_AFTER_NS or now_ns - self._last_reconnect_ns < RECONNECT_INTERVAL_NS:
             return
         self._last_reconnect_ns = now_ns
         try:
             self.device.reconnect()
-            log.warning("device reconnected")
-            self.pipeline.guard.restart_ramp()
         except DeviceFault as exc:
             log.info("device reconnect failed: %s", exc)
-        except NotImplementedError:
-            pass
+            return
+        log.warning("device reconnected")
+        self.pipeline.reconnected()
+        self._record_control(seq, "reconnect", {})
 
     def _shutdown(self) -> None:
         """Zero force, close the device, stop serving, finish the recording, report."""
@@ -482,7 +493,7 @@ class Daemon:
 
     def _apply_recorded_event(self, event: dict, seq: int) -> None:
         """A replay device's recorded control command, applied as it was live."""
-        if event.get("cmd") not in ("set", "load"):
+        if event.get("cmd") not in ("set", "load", "reconnect"):
             return
         self.structure, self.settings = apply_recorded_event(
             event, self.pipeline, self.backend, self.structure, self.settings, self.limits,

@@ -14,14 +14,12 @@ import threading
 from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
-# Until the haptics branch (HapticRenderer, `sim`) is on main the daemon runs with the
-# test-only arm and spring engine of tests/daemon_fakes.py.
-CLI = [sys.executable, "-m", "tests.daemon_fakes"]
-DEVICE = "testarm"
+CLI = [sys.executable, "-m", "sasprobe"]
+DEVICE = "sim"
 
 
 def cli(*args: str, timeout: float = 120, **kwargs) -> subprocess.CompletedProcess:
-    """Run the CLI (with the same device set-up the daemon tests use)."""
+    """Run `sasprobe ARGS` as a user would."""
     return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=timeout, cwd=REPO_ROOT,
                           env=dict(os.environ, PYTHONUNBUFFERED="1"), **kwargs)
 

@@ -38,6 +38,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="navigation-cube half edge (default: fit the molecule)")
     p.add_argument("--realtime", action="store_true",
                    help="run the loop with SCHED_FIFO priority (needs CAP_SYS_NICE or root; steadier timing)")
+    p.add_argument("--inject-fault", action="append", metavar="KIND@TICK[+COUNT]",
+                   help="simulated arm only, to try the watchdog: raise, nan or disconnect at a tick (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="seed of the simulated arm")
     p.add_argument("--duration", type=positive_float, default=None, metavar="SECONDS", help="stop after this long")
     p.add_argument("--report", metavar="FILE", help="write the exit report (JSON) here")
@@ -74,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
         report=args.report,
         max_seconds=args.duration,
         realtime=args.realtime,
+        faults=args.inject_fault or [],
     )
     try:
         daemon = Daemon(config)
