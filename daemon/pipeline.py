@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sasprobe.daemon.safety import GuardResult, SafetyGuard
+from sasprobe.daemon.safety import GuardResult, SafetyGuard, state_is_finite
 from sasprobe.devices.base import DeviceState
 from sasprobe.protocol.pose import (
     FLAG_CLAMPED,
@@ -24,6 +24,11 @@ from sasprobe.protocol.pose import (
 )
 
 log = logging.getLogger("sasprobe")
+
+_ZERO3 = np.zeros(3)  # shared, read-only defaults of pose fields
+_ZERO3.flags.writeable = False
+_IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
+_IDENTITY.flags.writeable = False
 
 
 @dataclass
@@ -67,7 +72,7 @@ class HapticPipeline:
         output = None
         force = None
         ramp_again = True  # unless the engine ran cleanly and only the timing was off
-        if state is not None and read_error is None and state.is_finite():
+        if reason is None or (read_error is None and state is not None and state_is_finite(state)):
             # A late tick still steps the engine, so the proxy keeps following the tip.
             try:
                 output = self.engine.step(state)
@@ -98,16 +103,19 @@ class HapticPipeline:
     def pose(self, seq: int, state: DeviceState | None, result: TickResult, publish_t_ns: int) -> Pose:
         """The pose message of a tick; during faults it repeats the last known engine geometry."""
         out = result.output if result.output is not None else self.last_output
-        pose = Pose(seq=seq, publish_t_ns=publish_t_ns, force_N=result.force_n, flags=result.flags)
-        if state is not None and state.is_finite():  # NaN never goes on the wire
-            pose.device_t_ns = state.t_ns
-            pose.tip_mm = state.position_mm
-            pose.orientation = state.orientation
-            pose.buttons = state.buttons
-        if out is not None:
-            pose.proxy_A = out.proxy_A
-            pose.goal_A = out.goal_A
-            pose.touched_atom = out.touched_atoms[0] if out.touched_atoms else -1
-            pose.cube_center_A = out.cube_center_A
-            pose.cube_half_A = out.cube_half_A
-        return pose
+        valid = state is not None and (result.output is not None or state_is_finite(state))  # no NaN on the wire
+        return Pose(
+            seq=seq,
+            device_t_ns=state.t_ns if state is not None else 0,
+            publish_t_ns=publish_t_ns,
+            proxy_A=out.proxy_A if out is not None else _ZERO3,
+            goal_A=out.goal_A if out is not None else _ZERO3,
+            force_N=result.force_n,
+            tip_mm=state.position_mm if valid else _ZERO3,
+            orientation=state.orientation if valid else _IDENTITY,
+            buttons=state.buttons if valid else 0,
+            touched_atom=out.touched_atoms[0] if out is not None and out.touched_atoms else -1,
+            flags=result.flags,
+            cube_center_A=out.cube_center_A if out is not None else _ZERO3,
+            cube_half_A=out.cube_half_A if out is not None else 0.0,
+        )

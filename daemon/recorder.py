@@ -19,6 +19,7 @@ from __future__ import annotations
 import collections
 import json
 import logging
+import math
 import threading
 import time
 from dataclasses import dataclass
@@ -76,10 +77,10 @@ CHANNELS = tuple(SCHEMAS)
 
 def _floats(values) -> list:
     """A vector as JSON numbers; non-finite entries become null (JSON has no NaN)."""
-    array = np.asarray(values, dtype=np.float64)
-    if np.all(np.isfinite(array)):
-        return array.tolist()
-    return [float(x) if np.isfinite(x) else None for x in array]
+    floats = np.asarray(values, dtype=np.float64).tolist()
+    if all(map(math.isfinite, floats)):
+        return floats
+    return [x if math.isfinite(x) else None for x in floats]
 
 
 def device_record(seq: int, state: DeviceState | None, error: str | None, late_periods: float, read_ns: int) -> dict:

@@ -68,7 +68,7 @@ class SafetyGuard:
             return f"device read failed: {read_error}"
         if state is None:
             return "no device state"
-        if not state.is_finite():
+        if not state_is_finite(state):
             return "non-finite device state"
         if late_periods > self.late_limit_periods:
             return f"tick {late_periods:.1f} periods late"
@@ -80,10 +80,13 @@ class SafetyGuard:
         `ramp_again`: whether a fault restarts the ramp. Faults where the device or the
         engine failed do (the hand may have moved meanwhile); a merely late tick does not.
         """
-        force = None
+        fx = fy = fz = 0.0
         if reason is None:
-            force = np.asarray(force_n, dtype=np.float64) if force_n is not None else None
-            if force is None or force.shape != (3,) or not np.all(np.isfinite(force)):
+            try:
+                fx, fy, fz = np.asarray(force_n, dtype=np.float64).tolist()
+            except (TypeError, ValueError):  # None, or not 3 numbers
+                fx = math.nan
+            if not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(fz)):
                 reason, ramp_again = "non-finite force from the haptic engine", True
         if reason is not None:
             if not self._faulted:
@@ -104,10 +107,17 @@ class SafetyGuard:
         ramp = self._ramp = (
             1.0 if self.ramp_ns <= 0 else min(max((state.t_ns - self._ramp_start_ns) / self.ramp_ns, 0.0), 1.0)
         )
-        force = force * ramp
-        magnitude = math.sqrt(float(force @ force))
+        fx, fy, fz = fx * ramp, fy * ramp, fz * ramp
+        magnitude = math.sqrt(fx * fx + fy * fy + fz * fz)
         clamped = magnitude > self.limits.max_force_n
         if clamped:
-            force = force * (self.limits.max_force_n / magnitude)
+            scale = self.limits.max_force_n / magnitude
+            fx, fy, fz = fx * scale, fy * scale, fz * scale
             self.clamped_ticks += 1
-        return GuardResult(force, False, None, clamped, ramp, recovered)
+        return GuardResult(np.array((fx, fy, fz)), False, None, clamped, ramp, recovered)
+
+
+def state_is_finite(state: DeviceState) -> bool:
+    """DeviceState.is_finite() in plain floats (a few µs cheaper, and it runs every tick)."""
+    values = state.position_mm.tolist() + state.velocity_mm_s.tolist() + state.orientation.tolist()
+    return all(map(math.isfinite, values))
