@@ -34,9 +34,13 @@ class ControlServer:
         if keys is not None:
             make_curve_server(self._socket, keys)
         self.endpoints = []
-        for endpoint in endpoints:
-            self._socket.bind(endpoint)
-            self.endpoints.append(self._socket.getsockopt_string(zmq.LAST_ENDPOINT))
+        try:
+            for endpoint in endpoints:
+                self._socket.bind(endpoint)
+                self.endpoints.append(self._socket.getsockopt_string(zmq.LAST_ENDPOINT))
+        except zmq.ZMQError:
+            self._socket.close(linger=0)  # an open socket would block Context.term()
+            raise
         self.requests = 0
         self.errors = 0
         self._stop = threading.Event()

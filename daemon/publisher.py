@@ -27,9 +27,13 @@ class Publisher:
         if keys is not None:
             make_curve_server(self._socket, keys)
         self.endpoints = []
-        for endpoint in endpoints:
-            self._socket.bind(endpoint)
-            self.endpoints.append(self._socket.getsockopt_string(zmq.LAST_ENDPOINT))
+        try:
+            for endpoint in endpoints:
+                self._socket.bind(endpoint)
+                self.endpoints.append(self._socket.getsockopt_string(zmq.LAST_ENDPOINT))
+        except zmq.ZMQError:
+            self._socket.close(linger=0)  # an open socket would block Context.term()
+            raise
         self.poses_sent = 0
         self.scenes_sent = 0
         self.send_failures = 0  # sends the socket refused (never blocks; counted, not hidden)

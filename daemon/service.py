@@ -104,77 +104,114 @@ class FaultLog:
 
 class Daemon:
     def __init__(self, config: DaemonConfig, backend=None) -> None:
-        import zmq
-
-        from sasprobe.devices.registry import open_device, parse_device_spec
-        from sasprobe.molecule import load_structure_or_default, parse_structure
-        from sasprobe.protocol.security import load_server_keys, start_authenticator
-
         self.config = config
         self.backend = backend or HapticBackend()
         check_bind_security(config.pub + config.ctl, config.keys)
-        self.keys = load_server_keys(Path(config.keys)) if config.keys else None
-
-        scheme, _ = parse_device_spec(config.device)
-        replaying = scheme == "replay"
-        self.structure = None if replaying and config.molecule is None else load_structure_or_default(
-            config.molecule, keep_water=config.keep_water)
-        self.device = open_device(config.device, structure=self.structure, rate_hz=config.rate_hz,
-                                  seed=config.seed, speed=config.speed, faults=config.faults,
-                                  probe_radius_A=config.settings.get("probe_radius_A"),
-                                  cube_half_A=config.settings.get("cube_half_A"))
-        session = getattr(self.device, "session", None)  # a replay device's recorded start
-        initial_settings = dict(config.settings)
-        if session is not None:
-            if self.structure is None:
-                self.structure = parse_structure(session.structure_bytes, name=session.structure_name,
-                                                 source=f"{config.device} (recorded)",
-                                                 keep_water=session.keep_water)
-            initial_settings = {**session.settings, **config.settings}
-        self.limits = self.device.info.limits
-        self.settings = self.backend.validate(initial_settings, self.limits)
-        self.rate_hz = config.rate_hz
-        if replaying:
-            recorded = self.device.info.limits.nominal_rate_hz
-            self.rate_hz = None if config.speed is None else recorded * config.speed
+        if config.record and Path(config.record).exists():
+            raise UserError(f"{config.record}: already exists; record to a new file")
+        self._open_device_and_engine()
+        self.loop = FixedRateLoop(self.rate_hz, spin_s=config.spin_s)
         self.clip_planes: list[list[float]] = []
         self.lights = json.loads(json.dumps(DEFAULT_LIGHTS))
         self.lights["probe"]["radius_A"] = self.settings["probe_radius_A"]
         self.nav_cube_enabled = True
-
-        engine = self.backend.build(self.structure, self.limits, self.settings)
-        self.pipeline = HapticPipeline(engine, SafetyGuard(self.limits))
-        self.loop = FixedRateLoop(self.rate_hz, spin_s=config.spin_s)
-        self._pending: collections.deque = collections.deque()
+        self.recorder: Recorder | None = None
+        self.last_force_written = np.zeros(3)
+        self.write_failures = 0
+        self._pending: collections.deque = collections.deque()  # (closure, Future) for the loop
         self._stop_reason: str | None = None
         self._scene_revision = 0
         self._scene_bytes = b""
         self._scene_dict: dict = {}
-        self._scene_cube_half = None
+        self._scene_cube_half: float | None = None
         self._next_scene_ns = 0
-        self.recorder: Recorder | None = None
         self._started_ns = time.monotonic_ns()
-        self._carry_error: str | None = None
+        self._carry_error: str | None = None  # a failed force write, reported on the next tick
         self._last_reconnect_ns = 0
         self._failing_since_ns: int | None = None
-        self.last_force_written = np.zeros(3)
-        self.write_failures = 0
-
-        self.realtime = enter_realtime() if config.realtime else False
         self._fault_log = FaultLog()
-        self.device.open()
-        self.context = zmq.Context()  # its I/O thread inherits the loop's scheduling
-        self.auth = start_authenticator(self.context, self.keys) if self.keys else None
+        self._loop_cpu_clock: int | None = None
+        self._cpu_at_reset = 0
         try:
-            self.publisher = Publisher(self.context, config.pub, self.keys)
-            self.control = ControlServer(self.context, config.ctl, self.handle, self.keys)
-        except zmq.ZMQError as exc:
+            self.realtime = enter_realtime() if config.realtime else False
+            self.device.open()
+            self._open_network()
+            self._rebuild_scene()
+            if config.record:
+                self._attach_recorder(Recorder(config.record, self._recording_metadata()))
+        except BaseException:
             self._close_network()
+            self._close_device()
+            raise
+
+    def _open_device_and_engine(self) -> None:
+        """The structure, the (unopened) device, the validated settings and the engine."""
+        from sasprobe.devices.registry import open_device, parse_device_spec
+        from sasprobe.molecule import load_structure_or_default, parse_structure
+
+        config = self.config
+        replaying = parse_device_spec(config.device)[0] == "replay"
+        self.structure = None
+        self.structure_keep_water = config.keep_water
+        if config.molecule is not None or not replaying:
+            self.structure = load_structure_or_default(config.molecule, keep_water=config.keep_water)
+        self.device = open_device(config.device, structure=self.structure, rate_hz=config.rate_hz,
+                                  seed=config.seed, speed=config.speed, faults=config.faults,
+                                  probe_radius_A=config.settings.get("probe_radius_A"),
+                                  cube_half_A=config.settings.get("cube_half_A"))
+        session = getattr(self.device, "session", None)  # a replay: the recording's start
+        settings = dict(config.settings)
+        self.rate_hz = config.rate_hz
+        if session is not None:
+            if self.structure is None:
+                self.structure = parse_structure(session.structure_bytes, name=session.structure_name,
+                                                 source=f"{config.device} (recorded)", keep_water=session.keep_water)
+                self.structure_keep_water = session.keep_water
+            settings = {**session.settings, **settings}
+            self.rate_hz = None if config.speed is None else session.rate_hz * config.speed
+        self.limits = self.device.info.limits
+        self.settings = self.backend.validate(settings, self.limits)
+        self.pipeline = HapticPipeline(self.backend.build(self.structure, self.limits, self.settings),
+                                       SafetyGuard(self.limits))
+
+    def _open_network(self) -> None:
+        import zmq
+
+        from sasprobe.protocol.security import load_server_keys, start_authenticator
+
+        keys = load_server_keys(Path(self.config.keys)) if self.config.keys else None
+        self.context = zmq.Context()  # its I/O thread inherits the loop's scheduling (--realtime)
+        self.auth = start_authenticator(self.context, keys) if keys else None
+        try:
+            self.publisher = Publisher(self.context, self.config.pub, keys)
+            self.control = ControlServer(self.context, self.config.ctl, self.handle, keys)
+        except zmq.ZMQError as exc:
+            endpoints = " / ".join(self.config.pub + self.config.ctl)
+            raise UserError(f"cannot bind {endpoints}: {exc}") from None
+
+    def _close_network(self) -> None:
+        """Stop the control thread, close the sockets and the authenticator (safe to repeat)."""
+        if getattr(self, "control", None) is not None:
+            self.control.stop()
+        if getattr(self, "publisher", None) is not None:
+            self.publisher.close()
+        if getattr(self, "auth", None) is not None:
+            self.auth.stop()
+        if getattr(self, "context", None) is not None:
+            self.context.term()
+        self.control = self.publisher = self.auth = self.context = None
+
+    def _close_device(self) -> None:
+        """Zero force and close the device; a failing device is logged, never raised."""
+        try:
+            self.device.write_force(np.zeros(3))
+            self.last_force_written = np.zeros(3)
+        except Exception as exc:
+            log.warning("could not write zero force: %s", exc)
+        try:
             self.device.close()
-            raise UserError(f"cannot bind {' / '.join(config.pub + config.ctl)}: {exc}") from None
-        self._rebuild_scene()
-        if config.record:
-            self._attach_recorder(Recorder(config.record, self._recording_metadata()))
+        except Exception as exc:
+            log.warning("closing the device failed: %s", exc)
 
     # ------------------------------------------------------------------ the loop
     def run(self) -> int:
@@ -182,7 +219,7 @@ class Daemon:
         previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
         old_switch = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL_S)
-        self._loop_cpu_clock = time.pthread_getcpuclockid(threading.get_ident())
+        self._loop_cpu_clock = time.pthread_getcpuclockid(threading.get_ident())  # readable from other threads
         self.control.start()
         gc.collect()
         gc.freeze()  # start-up objects leave the collector's view: later collections stay short
@@ -287,17 +324,10 @@ class Daemon:
 
     def _shutdown(self) -> None:
         """Zero force, close the device, stop serving, finish the recording, report."""
-        try:
-            self.device.write_force(np.zeros(3))
-            self.last_force_written = np.zeros(3)
-        except DeviceFault as exc:
-            log.warning("could not write zero force at shutdown: %s", exc)
-        device_last = getattr(self.device, "last_force_n", None)
-        try:
-            self.device.close()
-        except DeviceFault as exc:
-            log.warning("closing the device failed: %s", exc)
-        self.control.stop()
+        self._close_device()
+        device_last = getattr(self.device, "last_force_n", None)  # what the device itself holds
+        publisher_stats = {"poses_sent": self.publisher.poses_sent, "subscribers": self.publisher.subscribers}
+        self._close_network()
         recording = None
         if self.recorder is not None:
             recorder, self.recorder = self.recorder, None
@@ -311,20 +341,12 @@ class Daemon:
             "faults": self.pipeline.guard.faults,
             "last_force_written_n": np.asarray(self.last_force_written).tolist(),
             "device_last_force_n": None if device_last is None else np.asarray(device_last, dtype=float).tolist(),
+            "publisher": publisher_stats,
             "recording": recording,
         }
-        self._close_network()
         if self.config.report:
             Path(self.config.report).write_text(json.dumps(report))
         print(json.dumps(report), flush=True)
-
-    def _close_network(self) -> None:
-        for closer in (getattr(self, "publisher", None), ):
-            if closer is not None:
-                closer.close()
-        if self.auth is not None:
-            self.auth.stop()
-        self.context.term() if hasattr(self, "context") else None
 
     # ------------------------------------------------------------------ scene
     def _rebuild_scene(self) -> None:
@@ -420,7 +442,7 @@ class Daemon:
         self._cpu_at_reset = self._loop_cpu_ns()
 
     def _loop_cpu_ns(self) -> int:
-        clock_id = getattr(self, "_loop_cpu_clock", None)
+        clock_id = self._loop_cpu_clock
         return time.clock_gettime_ns(clock_id) if clock_id is not None else time.thread_time_ns()
 
     def _cmd_get_scene(self, request):
@@ -429,11 +451,7 @@ class Daemon:
     def _cmd_get_structure(self, request):
         s = self.structure
         return {"name": s.name, "sha256": s.sha256, "n_atoms": s.n_atoms, "bytes": len(s.source_bytes),
-                "gzip": s.source_bytes[:2] == b"\x1f\x8b", "keep_water": self._keep_water}, s.source_bytes
-
-    @property
-    def _keep_water(self) -> bool:
-        return getattr(self, "_structure_keep_water", self.config.keep_water)
+                "gzip": s.source_bytes[:2] == b"\x1f\x8b", "keep_water": self.structure_keep_water}, s.source_bytes
 
     def _cmd_load(self, request):
         from sasprobe.molecule import load_structure, parse_structure
@@ -448,7 +466,7 @@ class Daemon:
 
         def swap(seq: int):
             self.structure = structure
-            self._structure_keep_water = keep_water
+            self.structure_keep_water = keep_water
             self.pipeline.replace_engine(engine)
             self._scene_cube_half = None
             if self.recorder is not None:
@@ -523,7 +541,7 @@ class Daemon:
         recorder.offer_structure(time.monotonic_ns(), self.structure.name, self.structure.source_bytes)
         self._record_control(seq, "start", {
             "settings": self.settings, "structure_sha256": self.structure.sha256,
-            "structure_name": self.structure.name, "keep_water": self._keep_water,
+            "structure_name": self.structure.name, "keep_water": self.structure_keep_water,
             "rate_hz": self.rate_hz, "device": self.device.info.as_dict(),
         })
         self._rebuild_scene()

@@ -352,3 +352,27 @@ def test_curve_keys_admit_allowed_clients_and_reject_unknown_ones(tmp_path):
         assert plain.returncode == 2
         rc, _ = d.stop()
     assert rc == 0
+
+
+def test_user_errors_end_in_one_line(tmp_path):
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        taken = cli("daemon", "--pub", f"tcp://127.0.0.1:{port}", "--ctl", f"ipc://{tmp_path}/c", "--duration", "1",
+                    timeout=60)
+    existing = tmp_path / "old.mcap"
+    existing.write_bytes(b"")
+    cases = {
+        "cannot bind": taken,
+        "already exists": cli("daemon", "--record", str(existing), "--duration", "1"),
+        "unknown device": cli("daemon", "--device", "warp:9", "--duration", "1"),
+        "stiffness must be": cli("daemon", "--stiffness", "50", "--duration", "1"),
+        "no such file": cli("daemon", "--device", f"replay:{tmp_path}/none.mcap", "--duration", "1"),
+        "not an MCAP file": cli("replay", str(existing)),
+    }
+    for fragment, out in cases.items():
+        assert out.returncode == 2, (fragment, out.stderr)
+        assert fragment in out.stderr and out.stderr.count("\n") == 1 and "Traceback" not in out.stderr, out.stderr

@@ -81,12 +81,15 @@ class _Daemon:
         shutil.rmtree(self.dir, ignore_errors=True)
 
 
-def _measure(d: _Daemon, warmup_s: float, seconds: float) -> dict:
+def _measure(d: _Daemon, warmup_s: float, seconds: float, realtime_subscriber: bool) -> dict:
     import zmq
 
+    from sasprobe.daemon.loop import enter_realtime
     from sasprobe.protocol.client import ControlClient
     from sasprobe.protocol.pose import decode_pose
 
+    # The daemon is already running, so it does not inherit this; the context's I/O thread does.
+    subscriber_rt = enter_realtime(priority=40) if realtime_subscriber else False
     context = zmq.Context()
     socks = {}
     for name, endpoint in (("tcp", d.tcp), ("ipc", d.ipc)):
@@ -125,7 +128,10 @@ def _measure(d: _Daemon, warmup_s: float, seconds: float) -> dict:
     for sock in socks:
         sock.close(linger=0)
     context.term()
-    out = {"loop": status["loop"], "device": status["device"]["model"], "structure": status["structure"]}
+    if subscriber_rt:
+        os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    out = {"loop": status["loop"], "device": status["device"]["model"], "structure": status["structure"],
+           "subscriber_realtime": subscriber_rt}
     for name in ("tcp", "ipc"):
         lat = np.array(latencies[name], dtype=np.float64) / 1e3
         s = np.array(seqs[name])
@@ -145,17 +151,18 @@ def _measure(d: _Daemon, warmup_s: float, seconds: float) -> dict:
 
 def run(ctx: BenchContext, args=None) -> BenchResult:
     seconds = getattr(args, "seconds", None) or (3.0 if ctx.quick else 10.0)
-    realtime_modes = [False] if getattr(args, "no_realtime", False) else [False, True]
+    # (daemon --realtime, subscriber in SCHED_FIFO): where the time goes on a busy machine
+    modes = [(False, False)] if getattr(args, "no_realtime", False) else [(False, False), (True, False), (True, True)]
     by_id = {e.id: e for e in shared_structures()}
     structures = [("1crn (embedded)", None)]
     if "1aon" in by_id:
         structures.append(("1aon", by_id["1aon"].path))
     runs = []
-    configs = [(label, path, rt) for label, path in structures for rt in realtime_modes]
-    for label, path, realtime in progress(configs, desc="bench daemon", total=len(configs)):
+    configs = [(label, path, rt, sub_rt) for label, path in structures for rt, sub_rt in modes]
+    for label, path, realtime, sub_rt in progress(configs, desc="bench daemon", total=len(configs)):
         d = _Daemon(path, realtime)
         try:
-            result = _measure(d, warmup_s=1.5, seconds=seconds)
+            result = _measure(d, warmup_s=1.5, seconds=seconds, realtime_subscriber=sub_rt)
         finally:
             d.stop()
         result.update(label=label, realtime_requested=realtime, realtime=bool(d.ready.get("realtime")),
@@ -169,8 +176,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
             for name in ("tcp", "ipc"):
                 lat = np.sort(r[name]["samples_us"])
                 if lat.size:
-                    mode = "realtime" if r["realtime"] else "normal"
-                    ax.semilogx(lat, np.arange(1, lat.size + 1) / lat.size, label=f"{r['label']}, {mode}, {name}")
+                    ax.semilogx(lat, np.arange(1, lat.size + 1) / lat.size, label=f"{r['label']}, {_mode(r)}, {name}")
         ax.axvline(1000, color="k", ls=":", lw=1)
         ax.set_xlabel("publish → receive latency (µs)")
         ax.set_ylabel("fraction of poses")
@@ -181,6 +187,11 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
         for name in ("tcp", "ipc"):
             r[name].pop("samples_us")
     return BenchResult("daemon", {"targets": TARGETS, "runs": runs}, _markdown(runs, seconds), charts)
+
+
+def _mode(r: dict) -> str:
+    daemon = "FIFO" if r["realtime"] else ("normal (FIFO refused)" if r["realtime_requested"] else "normal")
+    return f"daemon {daemon} / subscriber {'FIFO' if r['subscriber_realtime'] else 'normal'}"
 
 
 def _fmt(v, digits=0) -> str:
@@ -196,9 +207,8 @@ def _markdown(runs: list[dict], seconds: float) -> str:
     ]
     for r in runs:
         loop, err, work = r["loop"], r["loop"]["period_error_us"], r["loop"]["work_us"]
-        mode = "SCHED_FIFO" if r["realtime"] else ("normal (FIFO refused)" if r["realtime_requested"] else "normal")
         lines.append(
-            f"| {r['label']} | {r['structure']['n_atoms']} | {mode} | {_fmt(loop['rate_hz'], 1)} | "
+            f"| {r['label']} | {r['structure']['n_atoms']} | {_mode(r)} | {_fmt(loop['rate_hz'], 1)} | "
             f"{_fmt(err['p50'])} / {_fmt(err['p99'])} / {_fmt(err['max'])} | "
             f"{loop['overruns']} ({loop['missed_deadlines']}) | {_fmt(work['recent_p50'])} / {_fmt(work['recent_p99'])} | "
             f"{_fmt(loop['cpu_percent'])} % | {_fmt(r['tcp']['latency_us']['p50'])} / {_fmt(r['tcp']['latency_us']['p99'])} | "
@@ -212,5 +222,8 @@ def _markdown(runs: list[dict], seconds: float) -> str:
         "(the deadlines it skipped are the missed ticks); tick work is read + haptics + write + publish "
         "(last ~1000 ticks); loop CPU is the loop thread's CPU time over wall time; load avg is the machine's "
         f"1-minute load average at the end of the run ({os.cpu_count()} cores, shared with other work). "
+        "Scheduling: `normal` is the default; daemon `FIFO` is `--realtime` (SCHED_FIFO for its loop and ZeroMQ "
+        "I/O thread); subscriber `FIFO` puts the benchmark's receiving thread in SCHED_FIFO as well, which shows "
+        "how much of the latency is the receiver waiting for a core. "
         f"Targets: {TARGETS}.\n\n" + "\n".join(lines)
     )
