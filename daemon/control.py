@@ -17,7 +17,7 @@ from sasprobe.daemon.loop import helper_priority
 
 from sasprobe.errors import UserError
 from sasprobe.protocol.control import MAX_MESSAGE_BYTES, ProtocolError, Reply, Request, decode_request, encode_reply
-from sasprobe.protocol.security import ServerKeys, make_curve_server
+from sasprobe.protocol.security import ServerKeys, bind_server_socket
 
 log = logging.getLogger("sasprobe")
 
@@ -31,16 +31,7 @@ class ControlServer:
         self._socket = context.socket(zmq.ROUTER)
         self._socket.linger = REPLY_LINGER_MS
         self._socket.setsockopt(zmq.MAXMSGSIZE, MAX_MESSAGE_BYTES)  # larger frames drop the connection
-        if keys is not None:
-            make_curve_server(self._socket, keys)
-        self.endpoints = []
-        try:
-            for endpoint in endpoints:
-                self._socket.bind(endpoint)
-                self.endpoints.append(self._socket.getsockopt_string(zmq.LAST_ENDPOINT))
-        except zmq.ZMQError:
-            self._socket.close(linger=0)  # an open socket would block Context.term()
-            raise
+        self.endpoints = bind_server_socket(self._socket, endpoints, keys)
         self.requests = 0
         self.errors = 0
         self._stop = threading.Event()

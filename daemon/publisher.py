@@ -12,7 +12,7 @@ import zmq
 
 from sasprobe.protocol.pose import POSE_TOPIC
 from sasprobe.protocol.scene import SCENE_TOPIC
-from sasprobe.protocol.security import ServerKeys, make_curve_server
+from sasprobe.protocol.security import ServerKeys, bind_server_socket
 
 SNDHWM = 2000  # messages queued per subscriber (2 s of poses at 1 kHz) before it drops
 
@@ -24,16 +24,7 @@ class Publisher:
         self._socket.linger = 0
         self._socket.sndhwm = sndhwm
         self._socket.setsockopt(zmq.XPUB_VERBOSER, 1)  # every (un)subscription, so they can be counted
-        if keys is not None:
-            make_curve_server(self._socket, keys)
-        self.endpoints = []
-        try:
-            for endpoint in endpoints:
-                self._socket.bind(endpoint)
-                self.endpoints.append(self._socket.getsockopt_string(zmq.LAST_ENDPOINT))
-        except zmq.ZMQError:
-            self._socket.close(linger=0)  # an open socket would block Context.term()
-            raise
+        self.endpoints = bind_server_socket(self._socket, endpoints, keys)
         self.poses_sent = 0
         self.scenes_sent = 0
         self.send_failures = 0  # sends the socket refused (never blocks; counted, not hidden)

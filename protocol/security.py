@@ -114,6 +114,27 @@ def make_curve_server(socket, keys: ServerKeys) -> None:
     socket.curve_server = True
 
 
+def bind_server_socket(socket, endpoints: list[str], keys: ServerKeys | None) -> list[str]:
+    """CURVE (when keys) and bind every endpoint; return the bound addresses.
+
+    On failure the socket is closed before the error propagates: an open socket would
+    keep Context.term() waiting forever.
+    """
+    import zmq
+
+    if keys is not None:
+        make_curve_server(socket, keys)
+    bound = []
+    try:
+        for endpoint in endpoints:
+            socket.bind(endpoint)
+            bound.append(socket.getsockopt_string(zmq.LAST_ENDPOINT))
+    except zmq.ZMQError:
+        socket.close(linger=0)
+        raise
+    return bound
+
+
 def make_curve_client(socket, keys: ClientKeys) -> None:
     socket.curve_secretkey = keys.secret
     socket.curve_publickey = keys.public
