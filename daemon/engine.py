@@ -56,9 +56,6 @@ class HapticBackend:
 
         return haptics
 
-    def default_settings(self, limits: DeviceLimits) -> dict:
-        return self.validate({}, limits)
-
     def validate(self, settings: dict, limits: DeviceLimits) -> dict:
         """Complete and check settings; ValueError with one clear line when a value is bad."""
         haptics = self._module()

@@ -249,7 +249,7 @@ class Daemon:
         recorded_lateness = getattr(device, "recorded_late_periods", None)  # and its recorded timing
         # A free-running loop (replay at --speed max) has no period to be late against.
         late_read_ns = int(LATE_READ_PERIODS * loop.period_ns) if loop.period_ns else None
-        deadline = clock() + int(self.config.max_seconds * 1e9) if self.config.max_seconds else None
+        stop_at_ns = clock() + int(self.config.max_seconds * 1e9) if self.config.max_seconds else None
         self._cpu_at_reset = self._loop_cpu_ns()
         loop.start()
         while self._stop_reason is None:
@@ -304,7 +304,7 @@ class Daemon:
                     self._rebuild_scene()
                 self._publish_scene(now)
             loop.stats.record_work(clock() - tick.start_ns)
-            if deadline is not None and now >= deadline:
+            if stop_at_ns is not None and now >= stop_at_ns:
                 self._stop_reason = "time limit"
 
     def _maybe_reconnect(self, seq: int, now_ns: int) -> None:
@@ -426,6 +426,7 @@ class Daemon:
             "loop": summary,
             "device": {**self.device.info.as_dict(), "faulted": guard.faulted, "faults": guard.faults,
                        "fault_ticks": guard.fault_ticks, "last_fault": guard.last_reason,
+                       "clamped_ticks": guard.clamped_ticks,
                        "write_failures": self.write_failures},
             "structure": {"name": self.structure.name, "sha256": self.structure.sha256,
                           "n_atoms": self.structure.n_atoms},

@@ -172,7 +172,8 @@ class ControlClient:
         return self.call("ping")
 
     def status(self, reset_stats: bool = False) -> dict:
-        return self.call("status", reset_stats=True) if reset_stats else self.call("status")
+        """The daemon's status; reset_stats starts a new measurement window first."""
+        return self.call("status", **({"reset_stats": True} if reset_stats else {}))
 
     def get_scene(self) -> dict:
         return self.call("get_scene")
