@@ -24,6 +24,17 @@ def cli(*args: str, timeout: float = 120, **kwargs) -> subprocess.CompletedProce
                           env=dict(os.environ, PYTHONUNBUFFERED="1"), **kwargs)
 
 
+def cli_many(*commands: tuple[str, ...], timeout: float = 120) -> list[subprocess.CompletedProcess]:
+    """Run several `sasprobe` commands at once (start-up dominates short ones)."""
+    procs = [subprocess.Popen([*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                              cwd=REPO_ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1")) for args in commands]
+    results = []
+    for args, proc in zip(commands, procs):
+        out, err = proc.communicate(timeout=timeout)
+        results.append(subprocess.CompletedProcess([*CLI, *args], proc.returncode, out, err))
+    return results
+
+
 class DaemonProcess:
     def __init__(self, *args: str, device: str = DEVICE, pub: str | None = None, ctl: str | None = None,
                  ready_timeout: float = 90.0) -> None:

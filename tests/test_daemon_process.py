@@ -22,7 +22,7 @@ from sasprobe.devices.replay import load_session
 from sasprobe.protocol.client import ControlClient, ControlError, Subscriber, fetch_structure
 from sasprobe.protocol.control import decode_reply
 from sasprobe.protocol.pose import FLAG_FAULT
-from tests.daemon_process import DaemonProcess, cli
+from tests.daemon_process import DaemonProcess, cli, cli_many
 from tests.test_protocol_pose import reference_decode
 
 
@@ -219,13 +219,13 @@ def fetch_raw_default() -> bytes:
 
 
 def test_status_command_prints_rate_jitter_and_subscribers(daemon):
-    out = cli("status", "--ctl", daemon.ctl)
+    out, js, gone = cli_many(("status", "--ctl", daemon.ctl), ("status", "--ctl", daemon.ctl, "--json"),
+                             ("status", "--ctl", "ipc:///tmp/sasprobe-nobody-here", "--timeout", "0.5"))
     assert out.returncode == 0, out.stderr
     for word in ("rate", "jitter", "overruns", "subscriber", "recording"):
         assert word in out.stdout
-    js = json.loads(cli("status", "--ctl", daemon.ctl, "--json").stdout)
+    js = json.loads(js.stdout)
     assert js["loop"]["target_rate_hz"] == 1000.0 and js["loop"]["period_error_us"]["p50"] is not None
-    gone = cli("status", "--ctl", "ipc:///tmp/sasprobe-nobody-here", "--timeout", "0.5")
     assert gone.returncode == 2 and "no reply" in gone.stderr and gone.stderr.count("\n") == 1
 
 
@@ -357,22 +357,21 @@ def test_curve_keys_admit_allowed_clients_and_reject_unknown_ones(tmp_path):
 def test_user_errors_end_in_one_line(tmp_path):
     import socket
 
+    existing = tmp_path / "old.mcap"
+    existing.write_bytes(b"")
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))
         busy.listen()
         port = busy.getsockname()[1]
-        taken = cli("daemon", "--pub", f"tcp://127.0.0.1:{port}", "--ctl", f"ipc://{tmp_path}/c", "--duration", "1",
-                    timeout=60)
-    existing = tmp_path / "old.mcap"
-    existing.write_bytes(b"")
-    cases = {
-        "cannot bind": taken,
-        "already exists": cli("daemon", "--record", str(existing), "--duration", "1"),
-        "unknown device": cli("daemon", "--device", "warp:9", "--duration", "1"),
-        "stiffness must be": cli("daemon", "--stiffness", "50", "--duration", "1"),
-        "no such file": cli("daemon", "--device", f"replay:{tmp_path}/none.mcap", "--duration", "1"),
-        "not an MCAP file": cli("replay", str(existing)),
-    }
-    for fragment, out in cases.items():
+        cases = {
+            "cannot bind": ("daemon", "--pub", f"tcp://127.0.0.1:{port}", "--ctl", f"ipc://{tmp_path}/c"),
+            "already exists": ("daemon", "--record", str(existing)),
+            "unknown device": ("daemon", "--device", "warp:9"),
+            "stiffness must be": ("daemon", "--stiffness", "50"),
+            "no such file": ("daemon", "--device", f"replay:{tmp_path}/none.mcap"),
+            "not an MCAP file": ("replay", str(existing)),
+        }
+        outs = cli_many(*[(*args, "--duration", "1") if args[0] == "daemon" else args for args in cases.values()])
+    for fragment, out in zip(cases, outs):
         assert out.returncode == 2, (fragment, out.stderr)
         assert fragment in out.stderr and out.stderr.count("\n") == 1 and "Traceback" not in out.stderr, out.stderr
