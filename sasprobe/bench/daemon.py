@@ -172,15 +172,19 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     path = ctx.chart_path("daemon_latency.png")
     if path is not None:
         fig, ax = figure()
-        for r in runs:
-            for name in ("tcp", "ipc"):
+        largest = runs[-1]["label"]  # the chart shows the largest structure (the target case)
+        colors = iter(["tab:red", "tab:blue", "tab:green", "tab:purple"])
+        for r in (r for r in runs if r["label"] == largest):
+            color = next(colors)
+            for name, style in (("tcp", "-"), ("ipc", "--")):
                 lat = np.sort(r[name]["samples_us"])
                 if lat.size:
-                    ax.semilogx(lat, np.arange(1, lat.size + 1) / lat.size, label=f"{r['label']}, {_mode(r)}, {name}")
+                    ax.semilogx(lat, np.arange(1, lat.size + 1) / lat.size, style, color=color,
+                                label=f"{_mode(r)}, {name}")
         ax.axvline(1000, color="k", ls=":", lw=1)
         ax.set_xlabel("publish → receive latency (µs)")
         ax.set_ylabel("fraction of poses")
-        ax.set_title("Pose latency over loopback (CDF); dotted: 1 ms target")
+        ax.set_title(f"Pose latency over loopback, {largest} (CDF); dotted: 1 ms target")
         ax.legend(fontsize=7)
         charts.append(save(fig, path))
     for r in runs:
