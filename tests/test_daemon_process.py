@@ -218,6 +218,26 @@ def fetch_raw_default() -> bytes:
     return load_default().source_bytes
 
 
+def test_recording_started_mid_session_replays_exactly(daemon, tmp_path):
+    path = tmp_path / "mid.mcap"
+    with ControlClient(daemon.ctl) as client:
+        with pytest.raises(ControlError, match="not recording"):
+            client.record_stop()
+        started = client.record_start(path)
+        with pytest.raises(ControlError, match="already recording"):
+            client.record_start(tmp_path / "second.mcap")
+        time.sleep(0.6)
+        client.set(damping_n_s_per_m=0.3, method="penalty")
+        time.sleep(0.6)
+        client.set(method="proxy")
+        time.sleep(0.3)
+        stopped = client.record_stop()
+    assert stopped["dropped"] == 0 and stopped["path"] == str(path) and started["seq"] > 0
+    out = cli("replay", str(path), "--verify", "--json")
+    verify = json.loads(out.stdout)["verify"]
+    assert out.returncode == 0 and verify["ok"] and verify["events_applied"] >= 2, out.stdout
+
+
 def test_status_command_prints_rate_jitter_and_subscribers(daemon):
     out, js, gone = cli_many(("status", "--ctl", daemon.ctl), ("status", "--ctl", daemon.ctl, "--json"),
                              ("status", "--ctl", "ipc:///tmp/sasprobe-nobody-here", "--timeout", "0.5"))
