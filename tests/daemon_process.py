@@ -42,7 +42,8 @@ class DaemonProcess:
         self.pub = pub or f"ipc://{self.sockets}/pub"
         self.ctl = ctl or f"ipc://{self.sockets}/ctl"
         command = [*CLI, "daemon", "--device", device, "--pub", self.pub, "--ctl", self.ctl, *args]
-        self.proc = subprocess.Popen(command, cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        # cwd: the private folder, so nothing a test asks the daemon to write lands in the checkout
+        self.proc = subprocess.Popen(command, cwd=self.sockets, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
         self._lines: queue.Queue = queue.Queue()
         self.stderr_lines: list[str] = []

@@ -159,7 +159,7 @@ def _garbage_from_hypothesis(endpoint: str) -> None:
     requests = st.one_of(
         st.lists(st.binary(max_size=64), min_size=1, max_size=3),
         st.builds(lambda cmd, args: [json.dumps({"cmd": cmd, "args": args}).encode()],
-                  st.sampled_from(["ping", "set", "load", "status", "record_start", "nope", ""]),
+                  st.sampled_from(["ping", "set", "load", "status", "record_stop", "nope", ""]),
                   st.dictionaries(st.sampled_from(["path", "stiffness_n_per_mm", "probe_radius_A", "method",
                                                    "clip_planes", "lights", "reset_stats", "x"]),
                                   json_values, max_size=3)),
