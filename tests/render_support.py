@@ -119,3 +119,53 @@ def edge_mask(ids: np.ndarray) -> np.ndarray:
     edge[:, 1:] |= diff_h
     edge[:, :-1] |= diff_h
     return edge
+
+
+# ---------------------------------------------------------------- a real daemon
+def free_tcp_endpoint() -> str:
+    """A loopback TCP endpoint on a port that was free a moment ago."""
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return f"tcp://127.0.0.1:{s.getsockname()[1]}"
+
+
+def start_daemon(pub: str, ctl: str, script: str = "orbit", timeout_s: float = 60.0):
+    """`sasprobe daemon` with the simulated arm in a subprocess, once it answers a ping."""
+    import subprocess
+    import sys
+    import time
+
+    from sasprobe.protocol.client import ControlClient, ControlError
+    from tests.conftest import REPO_ROOT
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sasprobe", "daemon", "--device", f"sim:{script}", "--pub", pub, "--ctl", ctl,
+         "--duration", "600"],
+        cwd=REPO_ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )
+    deadline = time.monotonic() + timeout_s
+    with ControlClient(ctl, timeout_s=1.0) as client:
+        while True:
+            if proc.poll() is not None:
+                raise RuntimeError(f"the daemon exited: {proc.stderr.read()}")
+            try:
+                client.ping()
+                return proc
+            except ControlError:
+                if time.monotonic() > deadline:
+                    proc.kill()
+                    raise RuntimeError("the daemon did not answer a ping within the time limit") from None
+
+
+def stop_daemon(proc) -> None:
+    import signal
+
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=20)
+        except Exception:
+            proc.kill()
+            proc.wait()

@@ -137,3 +137,71 @@ def _molecule_pixels(rgb: np.ndarray) -> int:
     oxygen = (r > 90) & (g < r // 3) & (b < r // 3)
     carbon = (r > 70) & (np.abs(r - g) < 12) & (np.abs(r - b) < 12)
     return int(np.count_nonzero(oxygen | carbon))
+
+
+def _start_window(display: str, *args: str) -> subprocess.Popen:
+    env = dict(os.environ, DISPLAY=display, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sasprobe", "-v", "render", "--size", f"{WINDOW[0]}x{WINDOW[1]}", *args],
+        cwd=REPO_ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )
+    deadline = time.monotonic() + 90
+    lines: list[str] = []
+    while not any("window open" in l for l in lines) and time.monotonic() < deadline:
+        line = proc.stderr.readline()
+        if not line and proc.poll() is not None:
+            break
+        lines.append(line)
+    assert any("window open" in l for l in lines), f"no window (exit {proc.poll()}): {''.join(lines)}"
+    return proc
+
+
+def _window_region(display: str) -> tuple[slice, slice]:
+    for _ in range(30):
+        painted = np.any(x_screenshot(display) != 0, axis=2)
+        if painted.sum() >= 0.9 * WINDOW[0] * WINDOW[1]:
+            ys, xs = np.nonzero(painted)
+            return slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1)
+        time.sleep(1.0)
+    raise AssertionError("the window never appeared on the X screen")
+
+
+def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
+    """No daemon: the window opens and waits (no molecule). A daemon starts: the molecule
+    appears. It stops: the window stays up. It comes back: the picture moves again."""
+    from tests.render_support import free_tcp_endpoint, start_daemon, stop_daemon
+
+    pub, ctl = free_tcp_endpoint(), free_tcp_endpoint()
+    proc = _start_window(xvfb, "--connect", pub, "--control", ctl, "--probe-plane", "--seconds", "600")
+    daemon = None
+    try:
+        rows, cols = _window_region(xvfb)
+        below_text = lambda: x_screenshot(xvfb)[rows, cols][100:]  # noqa: E731 (under the readout)
+        time.sleep(2.0)
+        assert _molecule_pixels(below_text()) < 30, "nothing to draw before the daemon is there"
+        daemon = start_daemon(pub, ctl)
+        deadline = time.monotonic() + 90
+        while _molecule_pixels(below_text()) < 300 and time.monotonic() < deadline:
+            time.sleep(1.0)
+        assert _molecule_pixels(below_text()) >= 300, "the molecule did not appear once the daemon ran"
+        stop_daemon(daemon)
+        time.sleep(3.0)
+        frozen = below_text()
+        time.sleep(2.0)
+        assert proc.poll() is None, "the window must survive the daemon going away"
+        assert np.array_equal(frozen, below_text()), "no poses: the picture holds still"
+        daemon = start_daemon(pub, ctl)
+        deadline = time.monotonic() + 60
+        moved = False
+        while not moved and time.monotonic() < deadline:
+            time.sleep(1.0)
+            moved = np.abs(below_text().astype(int) - frozen.astype(int)).max() > 30
+        assert moved, "the probe should move again once the daemon is back"
+        assert proc.poll() is None
+    finally:
+        if daemon is not None:
+            stop_daemon(daemon)
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err
