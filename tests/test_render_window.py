@@ -87,23 +87,27 @@ def x_screenshot(display: str) -> np.ndarray:
         lib.XCloseDisplay(dpy)
 
 
+def _start_window(display: str, *args: str) -> subprocess.Popen:
+    env = dict(os.environ, DISPLAY=display, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sasprobe", "-v", "render", "--size", f"{WINDOW[0]}x{WINDOW[1]}", *args],
+        cwd=REPO_ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )
+    deadline = time.monotonic() + 90
+    lines: list[str] = []
+    while not any("window open" in l for l in lines) and time.monotonic() < deadline:
+        line = proc.stderr.readline()
+        if not line and proc.poll() is not None:
+            break
+        lines.append(line)
+    assert any("window open" in l for l in lines), f"no window (exit {proc.poll()}): {''.join(lines)}"
+    return proc
+
+
 def test_window_opens_and_shows_the_molecule(xvfb, tmp_path):
     shot = tmp_path / "shot.png"
-    env = dict(os.environ, DISPLAY=xvfb, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "sasprobe", "-v", "render", "--size", f"{WINDOW[0]}x{WINDOW[1]}",
-         "--seconds", "120", "--out", str(shot)],
-        cwd=REPO_ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )
+    proc = _start_window(xvfb, "--seconds", "120", "--out", str(shot))
     try:
-        deadline = time.monotonic() + 90
-        lines: list[str] = []
-        while not any("window open" in l for l in lines) and time.monotonic() < deadline:
-            line = proc.stderr.readline()
-            if not line and proc.poll() is not None:
-                break
-            lines.append(line)
-        assert any("window open" in l for l in lines), f"no window (exit {proc.poll()}): {''.join(lines)}"
         # Frames are being presented; let a few reach the X server.
         for _ in range(60):
             time.sleep(1.0)
@@ -137,23 +141,6 @@ def _molecule_pixels(rgb: np.ndarray) -> int:
     oxygen = (r > 90) & (g < r // 3) & (b < r // 3)
     carbon = (r > 70) & (np.abs(r - g) < 12) & (np.abs(r - b) < 12)
     return int(np.count_nonzero(oxygen | carbon))
-
-
-def _start_window(display: str, *args: str) -> subprocess.Popen:
-    env = dict(os.environ, DISPLAY=display, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "sasprobe", "-v", "render", "--size", f"{WINDOW[0]}x{WINDOW[1]}", *args],
-        cwd=REPO_ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-    )
-    deadline = time.monotonic() + 90
-    lines: list[str] = []
-    while not any("window open" in l for l in lines) and time.monotonic() < deadline:
-        line = proc.stderr.readline()
-        if not line and proc.poll() is not None:
-            break
-        lines.append(line)
-    assert any("window open" in l for l in lines), f"no window (exit {proc.poll()}): {''.join(lines)}"
-    return proc
 
 
 def _window_region(display: str) -> tuple[slice, slice]:
