@@ -89,6 +89,14 @@ class HapticSettings:
         )
 
 
+def _xyz(value) -> tuple[float, float, float]:
+    """Three floats from a (3,) array or sequence (ValueError/TypeError otherwise)."""
+    if type(value) is np.ndarray and value.shape == (3,):
+        value = value.tolist()  # far cheaper than iterating numpy scalars
+    x, y, z = value
+    return float(x), float(y), float(z)
+
+
 def _finite(value, name: str) -> float:
     try:
         value = float(value)
@@ -204,8 +212,8 @@ class HapticRenderer:
     def step(self, state: DeviceState) -> HapticOutput:
         """One control tick: the force to write for this device state."""
         try:
-            tx, ty, tz = (float(v) for v in state.position_mm)
-            vx, vy, vz = (float(v) for v in state.velocity_mm_s)
+            tx, ty, tz = _xyz(state.position_mm)
+            vx, vy, vz = _xyz(state.velocity_mm_s)
             t_ns = int(state.t_ns)
         except (TypeError, ValueError, OverflowError):
             return self._fault()
@@ -260,16 +268,19 @@ class HapticRenderer:
     def _output(self, force, proxy, goal, touched, drifting, seated=True, iterations=0) -> HapticOutput:
         self._last_proxy = proxy
         m = self._mapping
+        c = m.cube_center
+        # one array, four views: a numpy call costs more than these twelve floats
+        buf = np.array((force.x, force.y, force.z, *proxy, *goal, c[0], c[1], c[2]))
         return HapticOutput(
-            force_n=np.array((force.x, force.y, force.z)),
-            proxy_A=np.array(proxy),
-            goal_A=np.array(goal),
+            force_n=buf[0:3],
+            proxy_A=buf[3:6],
+            goal_A=buf[6:9],
             touched_atoms=touched,
             contact=bool(touched),
             clamped=force.clamped,
             drifting=drifting,
             fault=False,
-            cube_center_A=np.array(m.cube_center),
+            cube_center_A=buf[9:12],
             cube_half_A=m.cube_half_A,
             seated=seated,
             iterations=iterations if self._settings.method == "proxy" else 0,

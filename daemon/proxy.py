@@ -22,7 +22,9 @@ as constraints. One tick iterates:
    - three spheres: the point where they meet; no motion.
    Distance to g falls monotonically along every one of these paths, so the
    iteration cannot cycle through real moves. A path is cut to MAX_STEP_A (chord),
-   so it always fits a small neighbour query.
+   so it always fits a small neighbour query; only a free flight longer than
+   LONG_FLIGHT_A (a device glitch, a jump) walks the grid cells along the segment
+   instead (3D-DDA), so the proxy never lags behind a free goal.
 3. First contact along the path with any other sphere, solved analytically (ray /
    sphere, and arc / sphere: |x(theta) - c|^2 - R^2 = K0 + A cos(theta) + B sin(theta)),
    using the spheres that the neighbour cache says can meet the path's bounding ball.
@@ -41,12 +43,15 @@ from __future__ import annotations
 import math
 from itertools import combinations
 
+import numpy as np
+
 from sasprobe.daemon.neighbours import NeighbourCache, Sphere, deepest
 
 TOUCH_A = 1e-10  # |distance to a sphere's surface| below this: touching
 ANGLE_TOL = 1e-9  # cosine tolerance for "entering" / "leaving" a sphere
 MOVE_EPS_A = 1e-11  # a KKT residual below this is converged
 MAX_STEP_A = 2.0  # longest path (chord) per iteration, keeps neighbour queries small
+LONG_FLIGHT_A = 8.0  # free segments longer than this are checked along the grid's cells
 MAX_ITERATIONS = 32  # per tick; the proxy stays valid (just not yet converged) beyond it
 REENTRY_MIN_RAD = 1e-6  # roots closer than this to the start of a leaving arc are round-off
 TWO_PI = 2.0 * math.pi
@@ -114,8 +119,8 @@ class ProxySolver:
                 _, _, _, _, qx, qy, qz = path
                 length = math.sqrt((qx - px) ** 2 + (qy - py) ** 2 + (qz - pz) ** 2)
                 if length > budget:
-                    if budget <= 0.0:
-                        break
+                    if budget <= MOVE_EPS_A:
+                        break  # spent for this tick
                     k = budget / length
                     path = ("seg", px, py, pz, px + k * (qx - px), py + k * (qy - py), pz + k * (qz - pz))
                 x0, y0, z0 = px, py, pz
@@ -124,8 +129,8 @@ class ProxySolver:
             else:
                 rho, theta = path[4], path[7]
                 if rho * theta > budget:
-                    if budget <= 0.0:
-                        break
+                    if budget <= MOVE_EPS_A:
+                        break  # spent for this tick
                     path = path[:7] + (budget / rho,)
                 hit, (px, py, pz), moved = self._arc(path, exclude)
                 budget -= rho * moved
@@ -143,8 +148,12 @@ class ProxySolver:
         dx, dy, dz = qx - px, qy - py, qz - pz
         a = dx * dx + dy * dy + dz * dz
         length = math.sqrt(a)
+        if length > LONG_FLIGHT_A:
+            candidates = self._spheres_along(px, py, pz, dx, dy, dz)
+        else:
+            candidates = self.cache.candidates((px + qx) * 0.5, (py + qy) * 0.5, (pz + qz) * 0.5, length * 0.5 + 1e-9)
         best_t, best = 1.0, None
-        for s in self.cache.candidates((px + qx) * 0.5, (py + qy) * 0.5, (pz + qz) * 0.5, length * 0.5 + 1e-9):
+        for s in candidates:
             if s[0] in exclude:
                 continue
             wx, wy, wz = px - s[1], py - s[2], pz - s[3]
@@ -172,6 +181,17 @@ class ProxySolver:
             return None, (qx, qy, qz)
         x, y, z = px + best_t * dx, py + best_t * dy, pz + best_t * dz
         return best, _snap(best, x, y, z)
+
+    def _spheres_along(self, px, py, pz, dx, dy, dz) -> list[Sphere]:
+        """Every sphere stored in a grid cell that the segment p -> p + d crosses."""
+        grid = self.cache.grid
+        cells, _, _ = grid.ray_cells(np.array((px, py, pz)), np.array((dx, dy, dz)), 0.0, 1.0)
+        if cells.shape[0] == 0:
+            return []
+        ids = np.unique(np.concatenate([grid.atoms_in_cell(int(c)) for c in grid.flat_id(cells)]))
+        centers = grid.centers[ids].tolist()
+        radii = grid.radii[ids].tolist()
+        return [(i, c[0], c[1], c[2], r) for i, c, r in zip(ids.tolist(), centers, radii)]
 
     def _arc(self, path, exclude) -> tuple[Sphere | None, tuple[float, float, float], float]:
         _, ox, oy, oz, rho, e1, e2, theta_end = path
@@ -335,7 +355,7 @@ def _path(px, py, pz, active: list[Sphere], gx, gy, gz):
     if not active:
         dx, dy, dz = gx - px, gy - py, gz - pz
         length = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if length > MAX_STEP_A:
+        if MAX_STEP_A < length <= LONG_FLIGHT_A:
             k = MAX_STEP_A / length
             gx, gy, gz = px + dx * k, py + dy * k, pz + dz * k
         return ("seg", px, py, pz, gx, gy, gz)

@@ -129,6 +129,20 @@ class _Surface:
         return cols[0][1] if cols else None
 
 
+def surface_site(structure, probe_radius: float = 1.4) -> tuple[float, float, float]:
+    """The top of the SAS above the middle of the molecule (a centre for a zoomed-in cube)."""
+    grid = UniformGrid(structure.positions, structure.expanded_radii(probe_radius))
+    lo, hi = structure.positions.min(axis=0), structure.positions.max(axis=0)
+    x, y = float((lo[0] + hi[0]) / 2), float((lo[1] + hi[1]) / 2)
+    surface = _Surface(grid)
+    top = surface.top(x, y)
+    if top is None:  # a hole through the middle: use the nearest atom column instead
+        i = int(np.argmin((structure.positions[:, 0] - x) ** 2 + (structure.positions[:, 1] - y) ** 2))
+        x, y = float(structure.positions[i, 0]), float(structure.positions[i, 1])
+        top = surface.top(x, y)
+    return x, y, float(top)
+
+
 def make_script(
     name: str,
     structure,

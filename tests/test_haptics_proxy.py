@@ -237,3 +237,29 @@ def test_press_script_on_crambin_pops_through_with_penalty_not_with_proxy():
         along[method] = worst
     assert along["penalty"] > 0.2  # pulled along the push: popped through
     assert along["proxy"] <= 1e-9
+
+
+def test_a_long_jump_of_the_goal_is_followed_at_once_and_stops_at_first_contact():
+    centers, radii = CRAMBIN.positions, CRAMBIN.expanded_radii(1.4)
+    solver = solver_for(centers, radii)
+    top = centers[np.argmax(centers[:, 2] + radii)]
+    start = np.array([top[0], top[1], centers[:, 2].max() + 60.0])
+    assert solver.seat_if_free(tuple(start))
+    far_free = start + np.array([6.0, -5.0, 40.0])
+    assert np.allclose(solver.solve(tuple(far_free)), far_free)  # 41 Å of free flight in one tick
+    assert solver.iterations == 1
+    # one jump down through the molecule: with a travel budget just beyond the first
+    # contact, the proxy stops exactly where the segment first meets the SAS (brute force:
+    # the smallest ray parameter over all spheres)
+    below = np.array([top[0], top[1], centers[:, 2].min() - 30.0])
+    d = below - far_free
+    w = far_free - centers
+    b = w @ d
+    c = (w * w).sum(axis=1) - radii**2
+    disc = b * b - (d @ d) * c
+    t = (-b[disc > 0] - np.sqrt(disc[disc > 0])) / (d @ d)
+    t = t[t >= 0].min()
+    first = far_free + t * d
+    p = np.array(solver.solve(tuple(below), budget_A=t * np.linalg.norm(d) + 1e-9))
+    assert np.linalg.norm(p - first) < 1e-6
+    assert len(solver.touching) == 1
