@@ -254,11 +254,12 @@ def _charts(ctx: BenchContext, rows, stability, trace) -> list:
     path = ctx.chart_path("haptics_tick_time.png")
     if path is not None:
         fig, ax = figure()
-        for method, marker in zip(METHODS, "os"):
+        for method, marker, color in zip(METHODS, "os", ("tab:blue", "tab:orange")):
             sel = [r for r in rows if r["method"] == method]
             atoms = [r["n_atoms"] for r in sel]
-            ax.semilogx(atoms, [r["p50_us"] for r in sel], marker + "-", label=f"{method} p50")
-            ax.semilogx(atoms, [r["p99_us"] for r in sel], marker + "--", label=f"{method} p99")
+            ax.semilogx(atoms, [r["p50_us"] for r in sel], marker + "-", color=color, label=f"{method} p50")
+            ax.semilogx(atoms, [r["p99_us"] for r in sel], marker + "--", color=color, mfc="none",
+                        label=f"{method} p99")
         ax.axhline(100, color="red", lw=1, ls=":", label="target p99 100 µs")
         ax.set_xlabel("atoms")
         ax.set_ylabel("force computation per tick (µs)")
