@@ -263,3 +263,30 @@ def test_a_long_jump_of_the_goal_is_followed_at_once_and_stops_at_first_contact(
     p = np.array(solver.solve(tuple(below), budget_A=t * np.linalg.norm(d) + 1e-9))
     assert np.linalg.norm(p - first) < 1e-6
     assert len(solver.touching) == 1
+
+
+def test_degenerate_clusters_never_trap_or_cycle_the_proxy():
+    """Coplanar centres, equal radii and duplicate atoms make circles tangent to spheres and
+    four spheres meet at a point; the proxy must stay outside and converge (no cycling to
+    the iteration cap)."""
+    from sasprobe.daemon.proxy import MAX_ITERATIONS
+
+    rng = np.random.default_rng(21)
+    for trial in range(24):
+        n = int(rng.integers(3, 40))
+        box = rng.uniform(3, 10)
+        centers = rng.uniform(-box, box, (n, 3))
+        centers[:, 2] = 0.0  # all in one plane
+        centers = np.round(centers)  # on a lattice: many symmetric triples
+        centers[1] = centers[0]
+        radii = np.full(n, 3.1)
+        solver = solver_for(centers, radii)
+        goal = np.array([0.0, 0.0, box + 8.0])
+        assert solver.seat_if_free(tuple(goal))
+        velocity = np.zeros(3)
+        for _ in range(500):
+            velocity = 0.95 * velocity + rng.normal(size=3) * 0.05 - goal * 0.002
+            goal = goal + velocity
+            p = np.array(solver.solve(tuple(goal), rng.uniform(0.05, 1.0)))
+            assert signed_distance(p, centers, radii)[0] >= -1e-9
+            assert solver.iterations < MAX_ITERATIONS

@@ -40,10 +40,20 @@ ENERGY_UNSTABLE_MJ = 1.0  # net energy put into the arm over a press-and-release
 POP_THROUGH_N = 0.2  # force component along the push: the surface pulls the hand in
 
 
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"'{text}' must be positive")
+    return value
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--structures", help="comma-separated shared structure ids (default: all; --quick: 4)")
-    parser.add_argument("--ticks", type=int, help="control ticks per timing session (default 10000, --quick 3000)")
-    parser.add_argument("--repeats", type=int, help="timing replays per session (default 5, --quick 3)")
+    parser.add_argument("--ticks", type=_positive_int, help="control ticks per timing session (default 10000, --quick 3000)")
+    parser.add_argument("--repeats", type=_positive_int, help="timing replays per session (default 5, --quick 3)")
     parser.add_argument("--no-map", action="store_true", help="skip the stability map")
 
 
