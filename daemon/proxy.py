@@ -274,6 +274,7 @@ def _kkt(px, py, pz, touching: list[Sphere], dx, dy, dz, forced: tuple[int, ...]
     held as equalities whatever their multiplier: spheres that blocked a path at its
     very start although the linearisation released them (a circle tangent to a third
     sphere and curving into it), so the next path cannot run into them again.
+    Written out per subset size: this runs several times per tick.
     """
     dlen = math.sqrt(dx * dx + dy * dy + dz * dz)
     if dlen == 0.0 or not touching:
@@ -282,58 +283,79 @@ def _kkt(px, py, pz, touching: list[Sphere], dx, dy, dz, forced: tuple[int, ...]
     normals = [_unit_normal(s, px, py, pz) for s in touching]
     nd = [n[0] * dx + n[1] * dy + n[2] * dz for n in normals]
     count = len(touching)
-    must = {k for k in range(count) if touching[k][0] in forced}
+    must = tuple(k for k in range(count) if touching[k][0] in forced) if forced else ()
+
+    def feasible(delta, skip) -> bool:
+        ex, ey, ez = delta
+        elen = math.sqrt(ex * ex + ey * ey + ez * ez)
+        for k in range(count):
+            if k not in skip:
+                n = normals[k]
+                if n[0] * ex + n[1] * ey + n[2] * ez < -ANGLE_TOL * elen:
+                    return False
+        return True
+
     if not must and all(v >= -tol for v in nd):
         return [], [], (dx, dy, dz)
-    for size in (1, 2, 3):
-        for subset in combinations(range(count), size):
-            if not must.issubset(subset):
-                continue
-            lams = _multipliers([normals[k] for k in subset], [-nd[k] for k in subset])
-            if lams is None or any(lam <= tol for k, lam in zip(subset, lams) if k not in must):
-                continue
-            ex, ey, ez = dx, dy, dz
-            for k, lam in zip(subset, lams):
-                n = normals[k]
-                ex, ey, ez = ex + lam * n[0], ey + lam * n[1], ez + lam * n[2]
-            elen_tol = -ANGLE_TOL * math.sqrt(ex * ex + ey * ey + ez * ez)
-            if all(
-                normals[k][0] * ex + normals[k][1] * ey + normals[k][2] * ez >= elen_tol
-                for k in range(count)
-                if k not in subset
-            ):
-                ranked = sorted(zip(lams, subset), key=lambda item: -item[0])
-                return [touching[k] for _, k in ranked], [lam for lam, _ in ranked], (ex, ey, ez)
-    # Degenerate contact (e.g. four spheres through one point): stay put this tick.
-    return touching[:3], [0.0] * min(count, 3), (0.0, 0.0, 0.0)
-
-
-def _multipliers(normals, rhs) -> list[float] | None:
-    """Solve the Gram system G lambda = rhs of 1-3 unit normals; None when (nearly) singular."""
-    if len(normals) == 1:
-        return [rhs[0]]
-    if len(normals) == 2:
-        (ax, ay, az), (bx, by, bz) = normals
-        c = ax * bx + ay * by + az * bz
+    for a in range(count):
+        if must and must != (a,):
+            continue
+        lam = -nd[a]
+        if lam <= tol and a not in must:
+            continue
+        n = normals[a]
+        delta = (dx + lam * n[0], dy + lam * n[1], dz + lam * n[2])
+        if feasible(delta, (a,)):
+            return [touching[a]], [lam], delta
+    for a, b in combinations(range(count), 2):
+        if must and not all(k in (a, b) for k in must):
+            continue
+        na, nb = normals[a], normals[b]
+        c = na[0] * nb[0] + na[1] * nb[1] + na[2] * nb[2]
         det = 1.0 - c * c
         if det < 1e-12:
-            return None
-        return [(rhs[0] - c * rhs[1]) / det, (rhs[1] - c * rhs[0]) / det]
-    n1, n2, n3 = normals
-    g12 = n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
-    g13 = n1[0] * n3[0] + n1[1] * n3[1] + n1[2] * n3[2]
-    g23 = n2[0] * n3[0] + n2[1] * n3[1] + n2[2] * n3[2]
-    det = 1.0 + 2.0 * g12 * g13 * g23 - g12 * g12 - g13 * g13 - g23 * g23
-    if det < 1e-12:
-        return None
-    r1, r2, r3 = rhs
-    # Adjugate of the symmetric Gram matrix [[1,g12,g13],[g12,1,g23],[g13,g23,1]].
-    a12, a13, a23 = g13 * g23 - g12, g12 * g23 - g13, g12 * g13 - g23
-    return [
-        ((1.0 - g23 * g23) * r1 + a12 * r2 + a13 * r3) / det,
-        (a12 * r1 + (1.0 - g13 * g13) * r2 + a23 * r3) / det,
-        (a13 * r1 + a23 * r2 + (1.0 - g12 * g12) * r3) / det,
-    ]
+            continue
+        la = (-nd[a] + c * nd[b]) / det
+        lb = (-nd[b] + c * nd[a]) / det
+        if (la <= tol and a not in must) or (lb <= tol and b not in must):
+            continue
+        delta = (
+            dx + la * na[0] + lb * nb[0],
+            dy + la * na[1] + lb * nb[1],
+            dz + la * na[2] + lb * nb[2],
+        )
+        if feasible(delta, (a, b)):
+            if la >= lb:
+                return [touching[a], touching[b]], [la, lb], delta
+            return [touching[b], touching[a]], [lb, la], delta
+    for a, b, c3 in combinations(range(count), 3):
+        if must and not all(k in (a, b, c3) for k in must):
+            continue
+        n1, n2, n3 = normals[a], normals[b], normals[c3]
+        g12 = n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
+        g13 = n1[0] * n3[0] + n1[1] * n3[1] + n1[2] * n3[2]
+        g23 = n2[0] * n3[0] + n2[1] * n3[1] + n2[2] * n3[2]
+        det = 1.0 + 2.0 * g12 * g13 * g23 - g12 * g12 - g13 * g13 - g23 * g23
+        if det < 1e-12:
+            continue
+        r1, r2, r3 = -nd[a], -nd[b], -nd[c3]
+        # Adjugate of the symmetric Gram matrix [[1,g12,g13],[g12,1,g23],[g13,g23,1]].
+        a12, a13, a23 = g13 * g23 - g12, g12 * g23 - g13, g12 * g13 - g23
+        l1 = ((1.0 - g23 * g23) * r1 + a12 * r2 + a13 * r3) / det
+        l2 = (a12 * r1 + (1.0 - g13 * g13) * r2 + a23 * r3) / det
+        l3 = (a13 * r1 + a23 * r2 + (1.0 - g12 * g12) * r3) / det
+        if (l1 <= tol and a not in must) or (l2 <= tol and b not in must) or (l3 <= tol and c3 not in must):
+            continue
+        delta = (
+            dx + l1 * n1[0] + l2 * n2[0] + l3 * n3[0],
+            dy + l1 * n1[1] + l2 * n2[1] + l3 * n3[1],
+            dz + l1 * n1[2] + l2 * n2[2] + l3 * n3[2],
+        )
+        if feasible(delta, (a, b, c3)):
+            ranked = sorted(zip((l1, l2, l3), (a, b, c3)), key=lambda item: -item[0])
+            return [touching[i] for _, i in ranked], [lam for lam, _ in ranked], delta
+    # Degenerate contact (e.g. four spheres through one point): stay put this tick.
+    return touching[:3], [0.0] * min(count, 3), (0.0, 0.0, 0.0)
 
 
 def _truncate(theta: float, rho: float) -> float:
