@@ -26,6 +26,7 @@ from sasprobe.errors import UserError
 from sasprobe.molecule import load_structure
 from sasprobe.paths import shared_structures
 from sasprobe.progress import progress
+from sasprobe.units import positive_float
 
 TITLE = "Haptic rendering: per-tick cost, penetration, continuity, passivity, stability"
 
@@ -50,29 +51,37 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _cube_half(text: str) -> float:
+    value = 0.0 if text.strip() == "0" else positive_float(text)
+    return value
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--structures", help="comma-separated shared structure ids (default: all; --quick: 4)")
     parser.add_argument("--ticks", type=_positive_int, help="control ticks per timing session (default 10000, --quick 3000)")
     parser.add_argument("--repeats", type=_positive_int, help="timing replays per session (default 5, --quick 3)")
     parser.add_argument("--no-map", action="store_true", help="skip the stability map")
+    parser.add_argument("--cube-half", type=_cube_half, default=CUBE_HALF_A,
+                        help=f"navigation cube half edge in Å on the top surface (default {CUBE_HALF_A:g}; 0 = fit the molecule)")
 
 
 def run(ctx: BenchContext, args: argparse.Namespace | None = None) -> BenchResult:
     ticks = getattr(args, "ticks", None) or (3000 if ctx.quick else 10000)
     repeats = getattr(args, "repeats", None) or (3 if ctx.quick else 5)
     entries = _entries(getattr(args, "structures", None), ctx.quick)
+    cube_half = getattr(args, "cube_half", CUBE_HALF_A)
     rows = []
     for entry in progress(entries, desc="bench haptics", total=len(entries)):
         structure = load_structure(entry.path)
         for method in METHODS:
-            rows.append(_structure_row(entry.id, structure, method, ticks, repeats))
+            rows.append(_structure_row(entry.id, structure, method, ticks, repeats, cube_half))
     stability = None if getattr(args, "no_map", False) else _stability_map(entries, ctx.quick)
     trace = _force_trace()
-    charts = _charts(ctx, rows, stability, trace)
-    data = {"ticks_per_session": ticks, "repeats": repeats, "cube_half_A": CUBE_HALF_A, "rows": rows}
+    charts = _charts(ctx, rows, stability, trace, cube_half)
+    data = {"ticks_per_session": ticks, "repeats": repeats, "cube_half_A": cube_half or None, "rows": rows}
     if stability is not None:
         data["stability"] = stability
-    return BenchResult("haptics", data, _markdown(rows, stability, ticks, repeats), charts)
+    return BenchResult("haptics", data, _markdown(rows, stability, ticks, repeats, cube_half), charts)
 
 
 def _entries(ids: str | None, quick: bool):
@@ -138,13 +147,13 @@ def _penetration(grid, points: np.ndarray) -> float:
     return worst
 
 
-def _structure_row(entry_id, structure, method, ticks, repeats) -> dict:
+def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> dict:
     from sasprobe.daemon.haptics import HapticRenderer, HapticSettings
     from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
     from sasprobe.devices.scripts import surface_site
 
     limits = PHANTOM_OMNI_LIMITS
-    settings_kw = {"cube_half_A": CUBE_HALF_A, "cube_center_A": surface_site(structure)}
+    settings_kw = {"cube_half_A": cube_half, "cube_center_A": surface_site(structure)} if cube_half else {}
     t0 = time.perf_counter()
     renderer = HapticRenderer(structure, limits, HapticSettings(method=method, **settings_kw))
     setup_s = time.perf_counter() - t0
@@ -172,6 +181,7 @@ def _structure_row(entry_id, structure, method, ticks, repeats) -> dict:
         "id": entry_id,
         "n_atoms": structure.n_atoms,
         "method": method,
+        "scale_A_per_mm": renderer.mapping.scale_A_per_mm,
         "setup_s": setup_s,
         "ticks": n,
         "p50_us": float(np.percentile(best_all, 50)),
@@ -257,7 +267,7 @@ def _force_trace() -> dict:
 
 
 # -------------------------------------------------------------- charts, text
-def _charts(ctx: BenchContext, rows, stability, trace) -> list:
+def _charts(ctx: BenchContext, rows, stability, trace, cube_half) -> list:
     from sasprobe.bench.charts import figure, save
 
     charts = []
@@ -273,7 +283,7 @@ def _charts(ctx: BenchContext, rows, stability, trace) -> list:
         ax.axhline(100, color="red", lw=1, ls=":", label="target p99 100 µs")
         ax.set_xlabel("atoms")
         ax.set_ylabel("force computation per tick (µs)")
-        ax.set_title("Per-tick cost vs molecule size (same 20 Å cube)")
+        ax.set_title(f"Per-tick cost vs molecule size ({f'same {cube_half:g} Å cube' if cube_half else 'fitted cube'})")
         ax.set_ylim(bottom=0)
         ax.legend(fontsize=8)
         charts.append(save(fig, path))
@@ -330,21 +340,25 @@ def _stability_figure(stability):
     return fig
 
 
-def _markdown(rows, stability, ticks, repeats) -> str:
+def _markdown(rows, stability, ticks, repeats, cube_half) -> str:
+    cube = (
+        f"navigation cube half edge {cube_half:g} Å on the top surface of every structure (same Å/mm)"
+        if cube_half
+        else "navigation cube fitted to each molecule (Å/mm grows with size)"
+    )
     lines = [
-        f"Simulated arm, 1 kHz, scripts {' + '.join(SCRIPTS)} ({ticks} ticks each), navigation cube half edge "
-        f"{CUBE_HALF_A:g} Å on the top surface of every structure (same Å/mm). Per-tick time: minimum over "
+        f"Simulated arm, 1 kHz, scripts {' + '.join(SCRIPTS)} ({ticks} ticks each), {cube}. Per-tick time: minimum over "
         f"{repeats} replays of the recorded states (single-run p99 beside it). Penetration: deepest the rendered "
         "contact point gets inside any expanded sphere. Force step: largest change between consecutive ticks. "
         "Energy: sum of F·dx the rendering put into the arm (negative = it absorbed energy).",
         "",
-        "| structure | atoms | method | p50 (µs) | p99 (µs) | max (µs) | single-run p99 (µs) | setup (s) | "
+        "| structure | atoms | Å/mm | method | p50 (µs) | p99 (µs) | max (µs) | single-run p99 (µs) | setup (s) | "
         "max penetration (Å) | max force step (N) | p99 force step (N) | energy (mJ) | contact |",
-        "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
         lines.append(
-            f"| {r['id']} | {r['n_atoms']} | {r['method']} | {r['p50_us']:.1f} | {r['p99_us']:.1f} | "
+            f"| {r['id']} | {r['n_atoms']} | {r['scale_A_per_mm']:.2f} | {r['method']} | {r['p50_us']:.1f} | {r['p99_us']:.1f} | "
             f"{r['max_us']:.0f} | {r['single_run_p99_us']:.1f} | {r['setup_s']:.2f} | {r['max_penetration_A']:.2g} | "
             f"{r['max_force_step_n']:.3f} | {r['p99_force_step_n']:.3f} | {r['energy_mj']:.1f} | "
             f"{r['contact_fraction']:.0%} |"
