@@ -26,8 +26,8 @@ def progress(iterable: Iterable[T], desc: str, total: int | None = None) -> Iter
     )
 
 
-def progress_bar(total: float, desc: str, unit: str = "it") -> tqdm:
-    """A manually advanced bar (call .update(n), then .close())."""
+def progress_bar(total: float | None, desc: str, unit: str = "it", **options) -> tqdm:
+    """A manually advanced bar (call .update(n), then .close()); options go to tqdm (e.g. bar_format)."""
     interactive = sys.stderr.isatty()
     return tqdm(
         total=total,
@@ -37,4 +37,5 @@ def progress_bar(total: float, desc: str, unit: str = "it") -> tqdm:
         mininterval=0.1 if interactive else 10.0,
         leave=interactive,
         dynamic_ncols=True,
+        **options,
     )
