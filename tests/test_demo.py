@@ -24,6 +24,7 @@ import pytest
 
 from tests.conftest import REPO_ROOT, run_cli
 from tests.render_support import edge_mask, gl_context, reference_cast
+from tests.test_render_window import xvfb  # noqa: F401 (fixture)
 
 SECONDS = 3
 FPS = 10  # the demo's default headless frame rate
@@ -155,6 +156,20 @@ def test_replay_frames_follow_the_recorded_timing(demo):
     for frame in frames:
         t = times[0] + frame.index * 1e9 / fps
         assert frame.pose.seq == seqs[np.searchsorted(times, t, side="right") - 1]
+
+
+def test_with_a_display_the_demo_opens_a_window(xvfb, tmp_path):
+    """Under a real X server (Xvfb) the renderer is a window that follows the daemon."""
+    out = tmp_path / "window"
+    result = run_cli("demo", "--seconds", "3", "--size", "320x240", "--out", str(out), timeout=300,
+                     env=dict(os.environ, DISPLAY=xvfb))
+    assert result.returncode == 0, result.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["mode"] == "window" and not summary["notes"]
+    assert summary["renderer"]["window"] is True and summary["renderer"]["frames"] >= 3
+    assert summary["renderer"]["daemon"]["poses_received"] > 0
+    assert summary["daemon_exit"]["device_last_force_n"] == [0.0, 0.0, 0.0]
+    assert not (out / "demo.mp4").exists()
 
 
 def _descendants(pid: int) -> dict[int, str]:
