@@ -22,7 +22,13 @@ class DeviceScheme:
 
 
 # Drivers add one line here.
-SCHEMES: dict[str, DeviceScheme] = {}
+SCHEMES: dict[str, DeviceScheme] = {
+    "falcon": DeviceScheme("sasprobe.devices.falcon:create", "Novint Falcon over USB", "falcon:FIRMWARE"),
+    "woodenhaptics": DeviceScheme("sasprobe.devices.woodenhaptics:create", "WoodenHaptics/Polhem serial arm", "woodenhaptics:/dev/ttyACM0"),
+    "haply": DeviceScheme("sasprobe.devices.haply:create", "Haply 2DIY over serial", "haply:/dev/ttyACM0"),
+    "spacemouse": DeviceScheme("sasprobe.devices.spacemouse:create", "3Dconnexion SpaceMouse (input only)", "spacemouse"),
+    "openhaptics": DeviceScheme("sasprobe.devices.openhaptics:create", "PHANTOM Omni/Touch via OpenHaptics", "openhaptics"),
+}
 
 
 def parse_device_spec(spec: str) -> tuple[str, str | None]:
