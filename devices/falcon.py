@@ -185,8 +185,9 @@ class FalconDevice(HardwareDevice):
         self._ftdi = FtdiBridge(self._usb)
         self._reader = FrameReader()
         self._velocity = VelocityFilter()
-        self._motor = [0, 0, 0]
-        self._awaiting_reply = False
+        self.force = np.zeros(3)  # the force last asked for, clamped; every frame renders it
+        self.motor = [0, 0, 0]  # the motor counts of the last frame sent
+        self._outstanding = 0  # frames sent whose replies have not been read
         self._homed = 0
         self._theta = counts_to_angles([0, 0, 0])
         self._position = np.zeros(3)
@@ -233,24 +234,25 @@ class FalconDevice(HardwareDevice):
             self._usb.close()
             raise
         self._velocity.reset()
-        self._motor = [0, 0, 0]
+        self.force = np.zeros(3)
 
     def close(self) -> None:
         if self._usb.is_open:
             try:  # leave the motors at zero and the LEDs dark
-                self._motor = [0, 0, 0]
-                self._ftdi.write(encode_frame(self._motor, 0))
+                self.force = np.zeros(3)
+                self._ftdi.write(encode_frame([0, 0, 0], 0))
             except DeviceFault:
                 pass
         self._usb.close()
-        self._awaiting_reply = False
+        self._outstanding = 0
         self._reader.clear()
 
     def read(self) -> DeviceState:
-        if not self._awaiting_reply:
+        if self._outstanding == 0:
             self._send()
-        self._awaiting_reply = False
-        counts, status = self._receive()
+        pending, self._outstanding = self._outstanding, 0
+        for _ in range(pending):  # every reply owed; the newest describes the arm now
+            counts, status = self._receive()
         now = time.monotonic_ns()
         self._homed = (status >> HOMED_SHIFT) & 0b111
         self._theta = counts_to_angles(counts)
@@ -266,7 +268,7 @@ class FalconDevice(HardwareDevice):
         )
 
     def write_force(self, force_n) -> None:
-        self._motor = self.motor_command(force_n)
+        self.force = clamp_force(force_n, FALCON_LIMITS.max_force_n)
         self._send()
 
     def motor_command(self, force_n) -> list[int]:
@@ -285,8 +287,9 @@ class FalconDevice(HardwareDevice):
         return LED_GREEN if self.calibrated else (LED_RED | HOMING_MODE)
 
     def _send(self) -> None:
-        self._ftdi.write(encode_frame(self._motor, self._flags()))
-        self._awaiting_reply = True
+        self.motor = self.motor_command(self.force)
+        self._ftdi.write(encode_frame(self.motor, self._flags()))
+        self._outstanding += 1
 
     def _receive(self, timeout_s: float | None = None) -> tuple[list[int], int]:
         deadline = time.monotonic() + (self.read_timeout_s if timeout_s is None else timeout_s)
@@ -319,20 +322,20 @@ class FalconDevice(HardwareDevice):
         self._ftdi.set_baud_divisor(NORMAL_DIVISOR)
         self._ftdi.purge()
         self._reader.clear()
-        self._awaiting_reply = False
+        self._outstanding = 0
 
     def _firmware_running(self) -> bool:
         """Send a zero frame twice; running firmware answers with a valid frame."""
+        self.force = np.zeros(3)
         for _ in range(2):
-            self._motor = [0, 0, 0]
             self._send()
             try:
                 self._receive(timeout_s=0.1)
-                self._awaiting_reply = False
                 return True
             except DeviceFault:
                 self._reader.clear()
-        self._awaiting_reply = False
+            finally:
+                self._outstanding = 0
         return False
 
     def _upload_with_retries(self, image: bytes) -> None:

@@ -90,7 +90,6 @@ class Haply2DIYDevice(SerialArm):
         self.offsets_deg = tuple(offsets_deg)
         self.resolution = resolution
         self.arm = PantographArm()
-        self._torques = np.zeros(2)
         self._theta = np.radians(self.offsets_deg)
         self._position = np.zeros(3)
         self._buffer = b""
@@ -105,7 +104,6 @@ class Haply2DIYDevice(SerialArm):
     # wire -----------------------------------------------------------------------------
     def _handshake(self) -> None:
         self.calibrated = False
-        self._torques = np.zeros(2)
         self.transport.discard_input()
         self._buffer = b""
         setup = []
@@ -123,14 +121,18 @@ class Haply2DIYDevice(SerialArm):
             self.transport.discard_input()
             self._buffer = b""
         self.calibrated = True
-        self._awaiting_reply = False
 
-    def _command_bytes(self) -> bytes:
-        if self._buffer or self._stale_input():
-            self.rejected_frames += 1  # bytes nobody asked for: drop them before the next exchange
+    def _send(self) -> None:
+        if self._outstanding == 0 and (self._buffer or self._stale_input()):
+            # bytes nobody asked for: binary frames cannot resynchronise on them, so drop them
+            self.rejected_frames += 1
             self.transport.discard_input(quiet_s=0.0005, max_s=0.005)
             self._buffer = b""
-        return encode_message(TYPE_TORQUES, self.mask, self.device_id, list(self._torques))
+        super()._send()
+
+    def _command_bytes(self) -> bytes:
+        torques = self.torques_for(self.force) if self.calibrated else np.zeros(2)
+        return encode_message(TYPE_TORQUES, self.mask, self.device_id, list(torques))
 
     def _stale_input(self) -> bool:
         return bool(self.transport.read(4096, 0.0))
@@ -159,7 +161,8 @@ class Haply2DIYDevice(SerialArm):
             if reply is None:
                 return None
             angles = decode_angles(reply, self.device_id, channels)
-            if angles is not None and not self._buffer:
+            # bytes beyond the last reply due mean this frame was too long
+            if angles is not None and not (self._buffer and self._replies_after_this == 0):
                 return angles
             # junk, a short or long frame, a foreign ID: resynchronise and ask again
             self.rejected_frames += 1
@@ -167,7 +170,7 @@ class Haply2DIYDevice(SerialArm):
             self._buffer = b""
             if time.monotonic() >= deadline:
                 return None
-            self._send()
+            self._write_command()
 
     # kinematics -----------------------------------------------------------------------
     def _state_from(self, angles_deg, t_ns: int):
@@ -188,9 +191,6 @@ class Haply2DIYDevice(SerialArm):
         except (KinematicsError, np.linalg.LinAlgError):
             return np.zeros(2)
         return scale_to_limit(torques, TORQUE_LIMIT_NM)[0]
-
-    def _set_force(self, force_n) -> None:
-        self._torques = self.torques_for(force_n) if self.calibrated else np.zeros(2)
 
 
 def create(argument: str | None = None, **options) -> Haply2DIYDevice:

@@ -2,9 +2,10 @@
 
 The host runs the control loop. `read()` sends the latest command unless `write_force()`
 already did, then waits for the reply; `write_force()` turns a force into the arm's
-command and sends it, so the reply to it is what the next `read()` returns. A reply
-that does not arrive within the read timeout raises DeviceFault; malformed replies are
-counted in `rejected_frames` and skipped.
+command and sends it, so the reply to it is what the next `read()` returns (when several
+commands went out since the last read, `read()` collects every reply and returns the
+newest, so replies never lag). A reply that does not arrive within the read timeout
+raises DeviceFault; malformed replies are counted in `rejected_frames` and skipped.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import time
 import numpy as np
 
 from sasprobe.devices.base import DeviceFault, DeviceOpenError, DeviceState
-from sasprobe.devices.support import HardwareDevice, VelocityFilter
+from sasprobe.devices.support import HardwareDevice, VelocityFilter, clamp_force
 from sasprobe.devices.transports import SerialTransport
 
 
@@ -31,7 +32,9 @@ class SerialArm(HardwareDevice):
         self.transport = SerialTransport(port, baudrate)
         self.rejected_frames = 0
         self._velocity = VelocityFilter()
-        self._awaiting_reply = False
+        self.force = np.zeros(3)  # the force last asked for, clamped; every command renders it
+        self._outstanding = 0  # commands sent whose replies have not been read
+        self._replies_after_this = 0  # while read() collects: replies still due after this one
         self._last_sent = 0.0
 
     # subclasses -----------------------------------------------------------------------
@@ -41,7 +44,7 @@ class SerialArm(HardwareDevice):
 
     @abc.abstractmethod
     def _command_bytes(self) -> bytes:
-        """The current command (the force last asked for, or zero) on the wire."""
+        """The command rendering `self.force` at the latest pose (zero while uncalibrated)."""
 
     @abc.abstractmethod
     def _receive(self, deadline: float):
@@ -51,14 +54,12 @@ class SerialArm(HardwareDevice):
     def _state_from(self, reply, t_ns: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
         """(position mm, orientation quaternion, buttons, calibrated) of a reply."""
 
-    @abc.abstractmethod
-    def _set_force(self, force_n) -> None:
-        """Turn a device-frame force into the next command (zero while uncalibrated)."""
 
     # interface ------------------------------------------------------------------------
     def open(self) -> None:
         self.transport.open()
-        self._awaiting_reply = False
+        self._outstanding = 0
+        self.force = np.zeros(3)
         self._velocity.reset()
         try:
             self._handshake()
@@ -73,18 +74,20 @@ class SerialArm(HardwareDevice):
     def close(self) -> None:
         if self.transport.is_open:
             try:
-                self._set_force(np.zeros(3))
+                self.force = np.zeros(3)
                 self._send()
             except DeviceFault:
                 pass
         self.transport.close()
-        self._awaiting_reply = False
+        self._outstanding = 0
 
     def read(self) -> DeviceState:
-        if not self._awaiting_reply:
+        if self._outstanding == 0:
             self._send()
-        self._awaiting_reply = False
-        reply = self._receive_or_fault()
+        pending, self._outstanding = self._outstanding, 0
+        for i in range(pending):
+            self._replies_after_this = pending - 1 - i
+            reply = self._receive_or_fault()
         now = time.monotonic_ns()
         position, orientation, buttons, calibrated = self._state_from(reply, now)
         return DeviceState(t_ns=now, position_mm=position, orientation=orientation,
@@ -92,14 +95,17 @@ class SerialArm(HardwareDevice):
                            calibrated=calibrated)
 
     def write_force(self, force_n) -> None:
-        self._set_force(force_n)
+        self.force = clamp_force(force_n, self.info.limits.max_force_n)
         self._send()
 
     # helpers --------------------------------------------------------------------------
     def _send(self) -> None:
+        self._write_command()
+        self._outstanding += 1
+
+    def _write_command(self) -> None:
         self.transport.write(self._command_bytes())
         self._last_sent = time.monotonic()
-        self._awaiting_reply = True
 
     def _receive_or_fault(self):
         reply = self._receive(time.monotonic() + self.read_timeout_s)

@@ -19,9 +19,13 @@ def clamp_force(force_n, max_force_n: float) -> np.ndarray:
     f = np.asarray(force_n, dtype=float).reshape(-1)
     if f.shape != (3,) or not np.all(np.isfinite(f)):
         return ZERO_FORCE.copy()
-    norm = float(np.linalg.norm(f))
+    biggest = float(np.max(np.abs(f)))
+    if biggest == 0.0:
+        return f
+    unit = f / biggest  # normalise first so huge commands do not overflow the norm
+    norm = biggest * float(np.linalg.norm(unit))
     if norm > max_force_n:
-        f = f * (max_force_n / norm)
+        f = unit * (max_force_n / float(np.linalg.norm(unit)))
     return f
 
 

@@ -125,7 +125,6 @@ class WoodenHapticsDevice(SerialArm):
         self.model: WoodenModel | None = None
         self.arm: PhantomArm | None = None
         self._lines = LineReader(self.transport)
-        self._currents = np.zeros(3)
         self._q = np.zeros(3)
         self._position = np.zeros(3)
         self._home_streak = 0
@@ -150,11 +149,9 @@ class WoodenHapticsDevice(SerialArm):
     def _handshake(self) -> None:
         self._lines.clear()
         self.transport.discard_input()
-        self._currents = np.zeros(3)
         self._home_streak = 0
         self.calibrated = False
-        self._send()
-        self._awaiting_reply = False
+        self._write_command()
         self._receive_or_fault()  # learns the model
 
     def _command_bytes(self) -> bytes:
@@ -163,8 +160,10 @@ class WoodenHapticsDevice(SerialArm):
             self.watchdog_gaps += 1
             log.info("no command for more than %d ms: the arm's watchdog disabled its amplifiers",
                      WATCHDOG_S * 1000)
-            self._currents = np.zeros(3)
-        return encode_command(self._currents)
+            return encode_command(np.zeros(3))
+        if not (self.calibrated and self.model):
+            return encode_command(np.zeros(3))
+        return encode_command(self.currents_for(self.force))
 
     def _receive(self, deadline: float):
         while True:
@@ -244,9 +243,6 @@ class WoodenHapticsDevice(SerialArm):
             quaternion_multiply(quaternion_about((0, 1, 0), self._q[0] + gimbal[0]), quaternion_about((1, 0, 0), gimbal[1])),
             quaternion_about((0, 0, 1), gimbal[2]))
         return self._position.copy(), orientation, 0, self.calibrated
-
-    def _set_force(self, force_n) -> None:
-        self._currents = self.currents_for(force_n) if (self.calibrated and self.model) else np.zeros(3)
 
 
 def create(argument: str | None = None, **options) -> WoodenHapticsDevice:

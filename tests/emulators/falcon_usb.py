@@ -50,6 +50,7 @@ class FalconHardware:
         self.frames_answered = 0
         self.max_command_force_n = 0.0
         self.last_motor = [0, 0, 0]
+        self.last_force_n = np.zeros(3)
         self.upload_attempts = 0
         self._power_on()
 
@@ -170,6 +171,7 @@ class FalconHardware:
         self.last_motor = motor
         self.homing = bool(flags & F.HOMING_MODE)
         force = self.motor_force()
+        self.last_force_n = force  # what the motors produce at the pose the frame arrived in
         self.max_command_force_n = max(self.max_command_force_n, float(np.linalg.norm(force)))
         self.stylus.advance(force)
         absolute = self._true_counts()
@@ -227,6 +229,7 @@ class EmulatedUsbBackend(usb.backend.IBackend):
         super().__init__()
         self.hw = hardware
         self.open_handles = 0
+        self.access_denied = False  # as libusb answers without a udev rule
 
     def enumerate_devices(self):
         if self.hw.plugged:
@@ -261,6 +264,8 @@ class EmulatedUsbBackend(usb.backend.IBackend):
     def open_device(self, dev):
         if not self.hw.plugged:
             raise usb.core.USBError("No such device", errno=errno.ENODEV)
+        if self.access_denied:
+            raise usb.core.USBError("Access denied (insufficient permissions)", errno=errno.EACCES)
         self.open_handles += 1
         return {"generation": self.hw.generation}
 
@@ -307,13 +312,18 @@ class EmulatedUsbBackend(usb.backend.IBackend):
 
 
 def backend_from_environment():
-    """Factory for SASPROBE_USB_BACKEND in daemon subprocess tests.
+    """Factory for SASPROBE_USB_BACKEND in subprocess tests (the CLI, the daemon).
 
     SASPROBE_FALCON_EMU_FIRMWARE names the image the emulated loader accepts; the hand
     sweeps the grip through the index marks (homing) and then rests at the centre.
+    SASPROBE_FALCON_EMU_UNPLUGGED=1 starts with no Falcon attached.
     """
-    firmware = open(os.environ["SASPROBE_FALCON_EMU_FIRMWARE"], "rb").read()
-    return EmulatedUsbBackend(FalconHardware(firmware, hand=homing_sweep))
+    with open(os.environ["SASPROBE_FALCON_EMU_FIRMWARE"], "rb") as f:
+        firmware = f.read()
+    hardware = FalconHardware(firmware, hand=homing_sweep)
+    if os.environ.get("SASPROBE_FALCON_EMU_UNPLUGGED") == "1":
+        hardware.unplug()
+    return EmulatedUsbBackend(hardware)
 
 
 def homing_sweep(t: float):

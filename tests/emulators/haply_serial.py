@@ -30,6 +30,7 @@ class Haply2DIYEmulator(PtySerialDevice):
         self.resolution = None
         self.torques = np.zeros(2)
         self.max_force_n = 0.0
+        self.last_force_n = np.zeros(3)
         self.inject_before_reply: list[bytes] = []
         self.reply_override: bytes | None = None  # send this instead of the next reply
         self.ignored_bytes = 0
@@ -68,6 +69,7 @@ class Haply2DIYEmulator(PtySerialDevice):
     def _exchange(self, torques: np.ndarray) -> None:
         self.torques = torques if self.offsets_deg is not None else np.zeros(2)
         force = self.motor_force()
+        self.last_force_n = force  # at the pose the command arrived in
         self.max_force_n = max(self.max_force_n, float(np.linalg.norm(force)))
         self.stylus.advance(force)
         self.stylus.position[2] = 0.0

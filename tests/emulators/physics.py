@@ -44,3 +44,13 @@ class HeldStylus:
                 self.velocity = self.velocity + h * total / self.mass_kg * 1000.0
                 self.position = self.position + h * self.velocity
             return self.position.copy()
+
+
+class MovableHand:
+    """A hand whose target the test moves: `hand.target = (x, y, z)`."""
+
+    def __init__(self, target=(0.0, 0.0, 0.0)):
+        self.target = tuple(target)
+
+    def __call__(self, t: float):
+        return self.target

@@ -24,6 +24,7 @@ class WoodenHapticsEmulator(PtySerialDevice):
     def __init__(self, directory, *, model_code: int = 3, hand=None, start_mm=None, press_calibration=True,
                  gimbal_counts=(0, 0, 0)):
         self.model = WOODEN_MODELS[model_code]
+        self.reported_model = model_code
         self.arm = PhantomArm(PHANTOM_MODELS[self.model.kinematics or "woody"])
         home = self.arm.forward(self.model.home_joint_angles)
         self.stylus = HeldStylus(home if start_mm is None else start_mm, hand=hand, mass_kg=0.12)
@@ -36,6 +37,7 @@ class WoodenHapticsEmulator(PtySerialDevice):
         self.bad_lines = 0
         self.watchdog_trips = 0
         self.max_force_n = 0.0
+        self.last_force_n = np.zeros(3)
         self.inject_before_reply: list[bytes] = []
         self.gimbal_error_bits = 0
         super().__init__(directory)
@@ -50,6 +52,14 @@ class WoodenHapticsEmulator(PtySerialDevice):
     def _raw_counts(self) -> np.ndarray:
         q = self.arm.inverse(self.stylus.position)
         return np.round((q - np.asarray(self.model.home_joint_angles)) / self._rad_per_count())
+
+    def replug(self) -> None:
+        """Power comes back: counters restart at the present pose, torque off until the button."""
+        self.calibrated = False
+        self.amplifiers_on = False
+        self.currents = np.zeros(3)
+        self.count_zero = self._raw_counts()
+        super().replug()
 
     def press_calibration_button(self) -> None:
         """The firmware zeroes its counters here and lets torque through from now on."""
@@ -86,10 +96,11 @@ class WoodenHapticsEmulator(PtySerialDevice):
             self.currents = np.clip(currents, -self.model.max_current_ma, self.model.max_current_ma)
             self.amplifiers_on = self.calibrated
         force = self.motor_force() if self.amplifiers_on else np.zeros(3)
+        self.last_force_n = force  # at the pose the command arrived in
         self.max_force_n = max(self.max_force_n, float(np.linalg.norm(force)))
         self.stylus.advance(force)
         counts = (self._raw_counts() - self.count_zero).astype(int)
-        reply = f"[{self.model.code},{counts[0]},{counts[1]},{counts[2]}," \
+        reply = f"[{self.reported_model},{counts[0]},{counts[1]},{counts[2]}," \
                 f"{self.gimbal_counts[0]},{self.gimbal_counts[1]},{self.gimbal_counts[2]},{self.error_bits}]\n"
         for junk in self.inject_before_reply:
             self.send(junk)
