@@ -28,6 +28,11 @@ SCHEMES: dict[str, DeviceScheme] = {
     "haply": DeviceScheme("sasprobe.devices.haply:create", "Haply 2DIY over serial", "haply:/dev/ttyACM0"),
     "spacemouse": DeviceScheme("sasprobe.devices.spacemouse:create", "3Dconnexion SpaceMouse (input only)", "spacemouse"),
     "openhaptics": DeviceScheme("sasprobe.devices.openhaptics:create", "PHANTOM Omni/Touch via OpenHaptics", "openhaptics"),
+    "sim": DeviceScheme(
+        "sasprobe.devices.simulated:make_simulated",
+        "simulated arm driven by a scripted hand (scan, dive, press, orbit, random)",
+        "sim:scan",
+    ),
 }
 
 
