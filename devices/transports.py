@@ -247,6 +247,7 @@ class UsbTransport(Transport):
 
     def open(self) -> None:
         import usb.core
+        import usb.util
 
         if self._dev is not None:
             return
