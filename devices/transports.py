@@ -32,6 +32,7 @@ class Transport(abc.ABC):
     """A byte pipe to one device."""
 
     name: str = ""
+    _handle = None  # the library's open port/device object
 
     @abc.abstractmethod
     def open(self) -> None: ...
@@ -40,8 +41,13 @@ class Transport(abc.ABC):
     def close(self) -> None: ...
 
     @property
-    @abc.abstractmethod
-    def is_open(self) -> bool: ...
+    def is_open(self) -> bool:
+        return self._handle is not None
+
+    def _require(self):
+        if self._handle is None:
+            raise DeviceFault(f"{self.name} is not open")
+        return self._handle
 
     @abc.abstractmethod
     def write(self, data: bytes) -> None: ...
@@ -78,19 +84,14 @@ class SerialTransport(Transport):
         self.name = port
         self.baudrate = baudrate
         self.write_timeout_s = write_timeout_s
-        self._serial = None
-
-    @property
-    def is_open(self) -> bool:
-        return self._serial is not None
 
     def open(self) -> None:
         import serial
 
-        if self._serial is not None:
+        if self._handle is not None:
             return
         try:
-            self._serial = serial.Serial(self.port, self.baudrate, timeout=0, write_timeout=self.write_timeout_s)
+            self._handle = serial.Serial(self.port, self.baudrate, timeout=0, write_timeout=self.write_timeout_s)
         except serial.SerialException as exc:
             raise self._open_error(exc) from None
         except (OSError, ValueError) as exc:
@@ -108,17 +109,12 @@ class SerialTransport(Transport):
         return DeviceOpenError(f"cannot open serial port {self.port}: {exc}")
 
     def close(self) -> None:
-        ser, self._serial = self._serial, None
+        ser, self._handle = self._handle, None
         if ser is not None:
             try:
                 ser.close()
             except Exception:  # closing a port whose device vanished may fail; it is closed anyway
                 pass
-
-    def _require(self):
-        if self._serial is None:
-            raise DeviceFault(f"serial port {self.port} is not open")
-        return self._serial
 
     def write(self, data: bytes) -> None:
         import serial
@@ -171,7 +167,6 @@ class HidTransport(Transport):
         self.name = path.decode(errors="replace") if isinstance(path, bytes) else str(path)
         self.label = label
         self._api = hid_api
-        self._dev = None
 
     @property
     def api(self):
@@ -179,12 +174,8 @@ class HidTransport(Transport):
             self._api = load_hidapi()
         return self._api
 
-    @property
-    def is_open(self) -> bool:
-        return self._dev is not None
-
     def open(self) -> None:
-        if self._dev is not None:
+        if self._handle is not None:
             return
         dev = self.api.device()
         try:
@@ -194,10 +185,10 @@ class HidTransport(Transport):
                 raise DeviceOpenError(permission_hint(self.name, group="plugdev")) from None
             raise DeviceOpenError(f"cannot open {self.label} at {self.name}: {exc} "
                                   f"(unplugged? no permission? {UDEV_HINT})") from None
-        self._dev = dev
+        self._handle = dev
 
     def close(self) -> None:
-        dev, self._dev = self._dev, None
+        dev, self._handle = self._handle, None
         if dev is not None:
             try:
                 dev.close()
@@ -205,20 +196,18 @@ class HidTransport(Transport):
                 pass
 
     def write(self, data: bytes) -> None:
-        if self._dev is None:
-            raise DeviceFault(f"{self.label} is not open")
+        dev = self._require()
         try:
-            n = self._dev.write(list(data))
+            n = dev.write(list(data))
         except (OSError, ValueError) as exc:
             raise DeviceFault(f"{self.label} lost: {exc}") from None
         if n is not None and n < 0:
             raise DeviceFault(f"{self.label} lost: write failed")
 
     def read(self, max_bytes: int, timeout_s: float) -> bytes:
-        if self._dev is None:
-            raise DeviceFault(f"{self.label} is not open")
+        dev = self._require()
         try:
-            report = self._dev.read(max_bytes, max(int(timeout_s * 1000), 0))
+            report = dev.read(max_bytes, max(int(timeout_s * 1000), 0))
         except (OSError, ValueError) as exc:
             raise DeviceFault(f"{self.label} lost: {exc}") from None
         return bytes(report)
@@ -238,18 +227,13 @@ class UsbTransport(Transport):
         self.backend = backend
         self.interface = interface
         self.label = label
-        self.name = f"usb:{vendor_id:04x}:{product_id:04x}"
-        self._dev = None
-
-    @property
-    def is_open(self) -> bool:
-        return self._dev is not None
+        self.name = f"the {label}"
 
     def open(self) -> None:
         import usb.core
         import usb.util
 
-        if self._dev is not None:
+        if self._handle is not None:
             return
         try:
             dev = usb.core.find(idVendor=self.vendor_id, idProduct=self.product_id, backend=self.backend)
@@ -275,22 +259,17 @@ class UsbTransport(Transport):
             if exc.errno == errno.EBUSY:
                 raise DeviceOpenError(f"the {self.label} is busy: another program has it open") from None
             raise DeviceOpenError(f"cannot open the {self.label}: {exc}") from None
-        self._dev = dev
+        self._handle = dev
 
     def close(self) -> None:
         import usb.util
 
-        dev, self._dev = self._dev, None
+        dev, self._handle = self._handle, None
         if dev is not None:
             try:
                 usb.util.dispose_resources(dev)
             except Exception:  # a vanished device cannot release its interface; it is gone anyway
                 pass
-
-    def _require(self):
-        if self._dev is None:
-            raise DeviceFault(f"the {self.label} is not open")
-        return self._dev
 
     def control(self, request_type: int, request: int, value: int = 0, index: int = 0,
                 data_or_length=None, timeout_s: float = 0.1):

@@ -28,7 +28,7 @@ import usb.core
 from sasprobe.devices import falcon as F
 from sasprobe.devices.ftdi import (DIVISOR_9600, PURGE_RX, PURGE_TX, SIO_MODEM_CTRL, SIO_RESET, SIO_SET_BAUD_RATE,
                                    SIO_SET_LATENCY_TIMER, STATUS_BYTES)
-from sasprobe.devices.kinematics import DeltaArm, KinematicsError, tip_force
+from sasprobe.devices.kinematics import DeltaArm, tip_force
 from tests.emulators.physics import HeldStylus
 
 MODEM_STATUS = b"\x01\x60"  # FTDI status bytes: CTS/DSR idle, transmitter empty

@@ -46,3 +46,23 @@ def wall(axis: int, at_mm: float, stiffness_n_per_mm: float):
             f[axis] = -stiffness_n_per_mm * depth
         return f
     return force_of
+
+
+def pull_the_cable(device: HapticDevice, unplug, replug, command=(0.0, 0.0, 0.0)) -> DeviceState:
+    """Unplug: the next exchange faults at once (no read timeout to wait out), reconnecting
+    fails while the cable is out; replug: reconnect works. Returns the first state after."""
+    import pytest
+
+    from sasprobe.devices.base import DeviceFault
+
+    unplug()
+    t0 = time.monotonic()
+    with pytest.raises(DeviceFault):
+        device.write_force(command)
+        device.read()
+    assert time.monotonic() - t0 < 1.0  # generous: the fault comes from the first transfer
+    with pytest.raises(DeviceFault, match="still unavailable"):
+        device.reconnect()
+    replug()
+    device.reconnect()
+    return device.read()
