@@ -25,6 +25,13 @@ class Echo(PtySerialDevice):
         return b""
 
 
+def read_at_least(port, n, timeout_s=2.0) -> bytes:
+    got, deadline = b"", time.monotonic() + timeout_s
+    while len(got) < n and time.monotonic() < deadline:
+        got += port.read(64, 0.1)
+    return got
+
+
 @pytest.fixture
 def echo(tmp_path):
     dev = Echo(tmp_path)
@@ -35,11 +42,7 @@ def echo(tmp_path):
 def test_serial_round_trip_and_read_timeout(echo):
     with SerialTransport(echo.path) as port:
         port.write(b"hello")
-        got = b""
-        deadline = time.monotonic() + 2
-        while len(got) < 5 and time.monotonic() < deadline:
-            got += port.read(64, 0.1)
-        assert got == b"hello"
+        assert read_at_least(port, 5) == b"hello"
         t0 = time.monotonic()
         assert port.read(64, 0.05) == b""  # nothing came: empty, not a hang
         assert time.monotonic() - t0 < 1.0
@@ -70,11 +73,7 @@ def test_a_pulled_serial_cable_is_a_fault_and_the_port_comes_back(echo):
     echo.replug()
     port.open()
     port.write(b"back")
-    got = b""
-    deadline = time.monotonic() + 2
-    while len(got) < 4 and time.monotonic() < deadline:
-        got += port.read(64, 0.1)
-    assert got == b"back"
+    assert read_at_least(port, 4) == b"back"
     port.close()
 
 
