@@ -214,6 +214,7 @@ class FalconDevice(HardwareDevice):
 
     def open(self) -> None:
         image = self._firmware_image()  # a missing file is the user's to fix, before touching USB
+        self._homed = 0  # until the Falcon says otherwise (it forgets its homing with its power)
         self._usb.open()
         try:
             self._enter_normal_mode()
