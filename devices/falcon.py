@@ -238,9 +238,9 @@ class FalconDevice(HardwareDevice):
         self.force = np.zeros(3)
 
     def close(self) -> None:
+        self.force = np.zeros(3)
         if self._usb.is_open:
             try:  # leave the motors at zero and the LEDs dark
-                self.force = np.zeros(3)
                 self._ftdi.write(encode_frame([0, 0, 0], 0))
             except DeviceFault:
                 pass

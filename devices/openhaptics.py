@@ -223,6 +223,7 @@ class OpenHapticsDevice(HardwareDevice):
             return
         with self._lock:
             self._force[:] = [0.0, 0.0, 0.0]
+            self.force = np.zeros(3)
         lib.hdStopScheduler()
         if self._schedule is not None:
             lib.hdUnschedule(self._schedule)
@@ -277,6 +278,7 @@ class OpenHapticsDevice(HardwareDevice):
         force = clamp_force(force_n, self._limits.max_force_n)
         with self._lock:
             self._force[:] = [float(v) for v in force]
+            self.force = force
 
 
 def create(argument: str | None = None, **options) -> OpenHapticsDevice:

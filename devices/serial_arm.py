@@ -72,9 +72,9 @@ class SerialArm(HardwareDevice):
             raise
 
     def close(self) -> None:
+        self.force = np.zeros(3)
         if self.transport.is_open:
             try:
-                self.force = np.zeros(3)
                 self._send()
             except DeviceFault:
                 pass

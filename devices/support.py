@@ -103,6 +103,13 @@ class HardwareDevice(HapticDevice):
     keeps retrying `reconnect()`, which must raise DeviceFault while the cable is out.
     """
 
+    force = ZERO_FORCE  # the force last asked for, after clamping (drivers assign a new array)
+
+    @property
+    def last_force_n(self) -> np.ndarray:
+        """The force the device was last told to render (zero after `close()`)."""
+        return np.array(self.force, dtype=float)
+
     def reconnect(self) -> None:
         self.close()
         try:

@@ -137,3 +137,17 @@ def test_check_uploads_firmware_to_an_emulated_falcon(tmp_path, monkeypatch):
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
     assert report["info"]["details"]["firmware_uploads"] == 1 and report["reads"] > 50 and report["faults"] == 0
+
+
+def test_last_force_is_what_was_asked_after_clamping_and_zero_after_close(tmp_path):
+    emu = WoodenHapticsEmulator(tmp_path)
+    try:
+        device = registry.open_device(f"woodenhaptics:{emu.path}")
+        device.open()
+        device.read()
+        device.write_force([100.0, 0.0, 0.0])
+        assert device.last_force_n.tolist() == [device.info.limits.max_force_n, 0.0, 0.0]
+        device.close()
+        assert device.last_force_n.tolist() == [0.0, 0.0, 0.0]
+    finally:
+        emu.stop()
