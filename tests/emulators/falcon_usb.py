@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import array
 import errno
+import json
 import os
 import threading
 import time
@@ -42,7 +43,10 @@ class FalconHardware:
         self.start_mm = start_mm
         self.corrupt_echo_attempts = set(corrupt_echo_attempts)
         self.lock = threading.RLock()
-        self.plugged = True
+        self._plugged = True
+        self.cable_schedule = None  # (seconds after the first boot to unplug, seconds to stay out)
+        self.first_boot = None
+        self._schedule_done = 0
         self.generation = 0
         self.buttons = 0
         self.host_bad_frames = 0
@@ -73,15 +77,32 @@ class FalconHardware:
         self._last_absolute = self.count_offset.copy()
         self._echoed = 0
 
+    @property
+    def plugged(self) -> bool:
+        self._follow_cable_schedule()
+        return self._plugged
+
     def unplug(self) -> None:
         with self.lock:
-            self.plugged = False
+            self._plugged = False
             self.generation += 1
 
     def replug(self) -> None:
         with self.lock:
             self._power_on()
-            self.plugged = True
+            self._plugged = True
+
+    def _follow_cable_schedule(self) -> None:
+        if self.cable_schedule is None or self.first_boot is None or self._schedule_done == 2:
+            return
+        elapsed = time.monotonic() - self.first_boot
+        after, out_for = self.cable_schedule
+        if self._schedule_done == 0 and elapsed >= after:
+            self._schedule_done = 1
+            self.unplug()
+        elif self._schedule_done == 1 and elapsed >= after + out_for:
+            self._schedule_done = 2
+            self.replug()
 
     # -- kinematics ---------------------------------------------------------------------
     def _true_angles(self) -> np.ndarray:
@@ -125,6 +146,7 @@ class FalconHardware:
         if self.divisor == F.NORMAL_DIVISOR and self.loader_state == "loading":
             if bytes(self.loaded) == self.expected_firmware:
                 self.running = True  # the firmware starts; its encoders count from zero
+                self.first_boot = self.first_boot or time.monotonic()
                 self.count_offset = self._true_counts()
                 self._last_absolute = self.count_offset.copy()
             self.loader_state = "idle"
@@ -200,8 +222,9 @@ class FalconHardware:
         return packet if packet is not None else MODEM_STATUS
 
     def _packet(self, size: int) -> bytes | None:
+        plugged = self.plugged
         with self.lock:
-            if not self.plugged:
+            if not plugged:
                 raise usb.core.USBError("No such device", errno=errno.ENODEV)
             if not self.out:
                 return None
@@ -230,6 +253,7 @@ class EmulatedUsbBackend(usb.backend.IBackend):
         self.hw = hardware
         self.open_handles = 0
         self.access_denied = False  # as libusb answers without a udev rule
+        self.report_path = None  # write_report() here on every close
 
     def enumerate_devices(self):
         if self.hw.plugged:
@@ -271,6 +295,17 @@ class EmulatedUsbBackend(usb.backend.IBackend):
 
     def close_device(self, dev_handle):
         self.open_handles -= 1
+        if self.report_path:
+            self.write_report()
+
+    def write_report(self) -> None:
+        """What the device saw, for tests whose driver runs in another process (the daemon)."""
+        hw = self.hw
+        report = {"frames_answered": hw.frames_answered, "max_force_n": hw.max_command_force_n,
+                  "last_motor": list(hw.last_motor), "homed": list(hw.homed), "running": hw.running,
+                  "upload_attempts": hw.upload_attempts, "generation": hw.generation}
+        with open(self.report_path, "w") as f:
+            json.dump(report, f)
 
     def set_configuration(self, dev_handle, config_value):
         self._check(dev_handle)
@@ -314,20 +349,38 @@ class EmulatedUsbBackend(usb.backend.IBackend):
 def backend_from_environment():
     """Factory for SASPROBE_USB_BACKEND in subprocess tests (the CLI, the daemon).
 
-    SASPROBE_FALCON_EMU_FIRMWARE names the image the emulated loader accepts; the hand
-    sweeps the grip through the index marks (homing) and then rests at the centre.
-    SASPROBE_FALCON_EMU_UNPLUGGED=1 starts with no Falcon attached.
+    SASPROBE_FALCON_EMU_FIRMWARE names the image the emulated loader accepts. The user's
+    hand homes the Falcon whenever its LED is red (sweeping the grip through the index
+    marks), and otherwise holds it at `SASPROBE_FALCON_EMU_HOLD` ("x,y,z" mm, default the
+    centre). SASPROBE_FALCON_EMU_UNPLUGGED=1 starts with no Falcon attached;
+    SASPROBE_FALCON_EMU_PULL="AFTER,FOR" pulls the cable AFTER seconds from the first
+    boot for FOR seconds; SASPROBE_FALCON_EMU_REPORT names a JSON file the emulator
+    writes what it saw into whenever the driver closes it.
     """
     with open(os.environ["SASPROBE_FALCON_EMU_FIRMWARE"], "rb") as f:
         firmware = f.read()
-    hardware = FalconHardware(firmware, hand=homing_sweep)
+    hold = tuple(float(v) for v in os.environ.get("SASPROBE_FALCON_EMU_HOLD", "0,0,0").split(","))
+    hand = LedWatchingHand(hold)
+    hardware = FalconHardware(firmware, hand=hand)
+    hand.hardware = hardware
     if os.environ.get("SASPROBE_FALCON_EMU_UNPLUGGED") == "1":
         hardware.unplug()
-    return EmulatedUsbBackend(hardware)
+    if os.environ.get("SASPROBE_FALCON_EMU_PULL"):
+        after, out_for = (float(v) for v in os.environ["SASPROBE_FALCON_EMU_PULL"].split(","))
+        hardware.cable_schedule = (after, out_for)
+    backend = EmulatedUsbBackend(hardware)
+    backend.report_path = os.environ.get("SASPROBE_FALCON_EMU_REPORT")
+    return backend
 
 
-def homing_sweep(t: float):
-    """Swing in +Z and back for 4 s (every thigh passes its index mark at 35°), then rest."""
-    if t < 4.0:
-        return (0.0, 0.0, 35.0 * np.sin(np.pi * t) ** 2)
-    return (0.0, 0.0, 0.0)
+class LedWatchingHand:
+    """A user who homes the Falcon while its LED is red, then holds the grip still."""
+
+    def __init__(self, hold=(0.0, 0.0, 0.0)):
+        self.hold = hold
+        self.hardware: FalconHardware | None = None
+
+    def __call__(self, t: float):
+        if self.hardware is not None and self.hardware.flags & F.LED_RED:
+            return (0.0, 0.0, 35.0 * np.sin(np.pi * t) ** 2)  # every thigh passes its index at 35°
+        return self.hold
