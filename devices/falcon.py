@@ -37,7 +37,7 @@ import numpy as np
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState
 from sasprobe.devices.ftdi import DIVISOR_9600, FtdiBridge
 from sasprobe.devices.kinematics import DeltaArm, KinematicsError
-from sasprobe.devices.support import HardwareDevice, VelocityFilter, clamp_force
+from sasprobe.devices.support import HardwareDevice, VelocityFilter, clamp_force, factory_from_environment
 from sasprobe.devices.transports import UsbTransport
 
 log = logging.getLogger("sasprobe.devices.falcon")
@@ -394,18 +394,6 @@ def create(argument: str | None = None, **options) -> FalconDevice:
     Without `usb_backend`, SASPROBE_USB_BACKEND=module:function names a factory of one
     (how the test suite points a daemon subprocess at its emulated Falcon).
     """
-    backend = options.get("usb_backend")
-    if backend is None and os.environ.get("SASPROBE_USB_BACKEND"):
-        backend = _backend_from_environment(os.environ["SASPROBE_USB_BACKEND"])
+    backend = options.get("usb_backend") or factory_from_environment("SASPROBE_USB_BACKEND")
     return FalconDevice(argument or None, usb_backend=backend,
                         read_timeout_s=float(options.get("read_timeout_s", 0.05)))
-
-
-def _backend_from_environment(spec: str):
-    import importlib
-
-    module_name, _, function = spec.partition(":")
-    try:
-        return getattr(importlib.import_module(module_name), function)()
-    except (ImportError, AttributeError) as exc:
-        raise DeviceOpenError(f"SASPROBE_USB_BACKEND={spec} is not usable: {exc}") from None

@@ -12,8 +12,12 @@ Implemented from the public description (research notes §3):
   angle (degrees) per active encoder.
 
 Our conventions (check them on your board): angles counter-clockwise from +x with the
-handle on the −y side; torques positive counter-clockwise at the joint. The 2DIY is
-planar: the device frame's z is always 0 and forces along z are dropped.
+handle on the −y side; torques positive counter-clockwise at the joint. Positions are
+reported relative to the centre of the usable area (`WORKSPACE_CENTRE_XY_MM` in the
+pantograph's frame). The 2DIY is planar: z is always 0 and forces along z are dropped;
+its workspace box gets a z depth equal to its y depth so that the daemon's navigation
+cube (fitted to the box's smallest side) maps onto it, and the probe then moves in the
+cube's mid-plane.
 
 Calibration: the setup message declares the pose the arm is in as the start pose (left
 link pointing left at 180°, right link pointing right at 0°), so the handle must rest
@@ -44,13 +48,14 @@ QUIET_S = 0.005  # a partial reply with no new bytes for this long is a short fr
 
 # Not published for the 2DIY: conservative figures for a small desktop pantograph.
 TORQUE_LIMIT_NM = 0.25
+WORKSPACE_CENTRE_XY_MM = np.array([0.0, -75.0])  # the usable area is x ±60, y −110..−40 mm
 HAPLY_2DIY_LIMITS = DeviceLimits(
     max_force_n=3.0,
     continuous_force_n=1.0,
     max_stiffness_n_per_mm=0.5,
     max_damping_n_s_per_m=3.0,
-    workspace_min_mm=(-60.0, -110.0, 0.0),
-    workspace_max_mm=(60.0, -40.0, 0.0),  # planar: z spans nothing
+    workspace_min_mm=(-60.0, -35.0, -35.0),
+    workspace_max_mm=(60.0, 35.0, 35.0),  # z: planar, see above
     nominal_rate_hz=1000.0,
 )
 
@@ -176,7 +181,7 @@ class Haply2DIYDevice(SerialArm):
     def _state_from(self, angles_deg, t_ns: int):
         theta = np.radians(angles_deg)
         try:
-            xy = self.arm.forward(theta)
+            xy = self.arm.forward(theta) - WORKSPACE_CENTRE_XY_MM
         except KinematicsError:
             xy = self._position[:2]  # keep the last pose; the daemon sees a still handle
         else:

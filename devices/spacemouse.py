@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState
-from sasprobe.devices.support import HardwareDevice, quaternion_about, quaternion_multiply
+from sasprobe.devices.support import HardwareDevice, factory_from_environment, quaternion_about, quaternion_multiply
 from sasprobe.devices.transports import HidTransport, load_hidapi
 
 VENDOR_3DCONNEXION = 0x256F
@@ -200,6 +200,10 @@ class SpaceMouseDevice(HardwareDevice):
 
 
 def create(argument: str | None = None, **options) -> SpaceMouseDevice:
-    """`spacemouse[:PATH]` (PATH as `sasprobe devices` prints it). Options: hid_api, speed_mm_s."""
-    return SpaceMouseDevice(argument or None, hid_api=options.get("hid_api"),
-                            speed_mm_s=float(options.get("speed_mm_s", 100.0)))
+    """`spacemouse[:PATH]` (PATH as `sasprobe devices` prints it). Options: hid_api, speed_mm_s.
+
+    Without `hid_api`, SASPROBE_HID_API=module:function names a factory of a stand-in for
+    the hidapi module (how the test suite points a daemon subprocess at an emulated puck).
+    """
+    hid_api = options.get("hid_api") or factory_from_environment("SASPROBE_HID_API")
+    return SpaceMouseDevice(argument or None, hid_api=hid_api, speed_mm_s=float(options.get("speed_mm_s", 100.0)))

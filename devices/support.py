@@ -96,6 +96,25 @@ def quaternion_from_matrix(m) -> np.ndarray:
     return q if q[0] >= 0 else -q
 
 
+def factory_from_environment(variable: str):
+    """The object `module:function()` named by an environment variable, or None when unset.
+
+    How a test points a driver running in another process (the daemon, the CLI) at an
+    emulator that stands in for a library boundary (a pyusb backend, the hidapi module).
+    """
+    import importlib
+    import os
+
+    spec = os.environ.get(variable)
+    if not spec:
+        return None
+    module_name, _, function = spec.partition(":")
+    try:
+        return getattr(importlib.import_module(module_name), function)()
+    except (ImportError, AttributeError) as exc:
+        raise DeviceOpenError(f"{variable}={spec} is not usable: {exc}") from None
+
+
 class HardwareDevice(HapticDevice):
     """A driver of real hardware: `reconnect()` reports a still-missing device as a fault.
 

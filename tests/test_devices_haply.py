@@ -34,6 +34,11 @@ def test_malformed_replies_are_rejected(reply):
     assert H.decode_angles(reply, 5, 2) is None
 
 
+def pantograph_frame(state) -> np.ndarray:
+    """A reported position in the emulator's (pantograph) frame."""
+    return state.position_mm + np.append(H.WORKSPACE_CENTRE_XY_MM, 0.0)
+
+
 @pytest.fixture
 def rig(tmp_path):
     hand = MovableHand(start_pose_mm())
@@ -55,7 +60,7 @@ def test_setup_then_positions_and_forces_round_trip(rig):
         loop.run(dev, 0.5)
         state = dev.read()
         assert state.position_mm[2] == 0.0
-        np.testing.assert_allclose(state.position_mm, emu.stylus.position, atol=0.05)  # 13824 counts per turn
+        np.testing.assert_allclose(pantograph_frame(state), emu.stylus.position, atol=0.05)  # 13824 counts/turn
         for force in ([0.8, -0.5, 0.0], [-1.0, 1.2, 0.7]):
             dev.write_force(force)
             dev.read()
@@ -98,7 +103,7 @@ def test_malformed_replies_are_counted_and_skipped(rig):
         emu.reply_override = override
         dev.write_force([0, 0, 0])
         state = dev.read()
-        np.testing.assert_allclose(state.position_mm, emu.stylus.position, atol=0.05)
+        np.testing.assert_allclose(pantograph_frame(state), emu.stylus.position, atol=0.05)
     assert dev.rejected_frames == len(cases)
 
 

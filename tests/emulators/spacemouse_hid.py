@@ -100,3 +100,19 @@ class FakeHidApi:
 
     def device(self) -> _FakeHandle:
         return _FakeHandle(self)
+
+
+def api_from_environment() -> FakeHidApi:
+    """Factory for SASPROBE_HID_API in subprocess tests: a puck whose user deflects the cap
+    right (half way) for a second, then left for a second, and so on, reporting at 60 Hz."""
+    puck = EmulatedSpaceMouse()
+
+    def user() -> None:
+        start = time.monotonic()
+        while True:
+            phase = int(time.monotonic() - start) % 2
+            puck.move([175 if phase == 0 else -175, 0, 0], [0, 0, 0])
+            time.sleep(1 / 60)
+
+    threading.Thread(target=user, name="spacemouse-user", daemon=True).start()
+    return FakeHidApi(puck)
