@@ -22,7 +22,9 @@ as constraints. One tick iterates:
    - three spheres: the point where they meet; no motion.
    Distance to g falls monotonically along every one of these paths, so the
    iteration cannot cycle through real moves. A path is cut to MAX_STEP_A (chord),
-   so it always fits a small neighbour query.
+   so it always fits a small neighbour query; only a free flight longer than
+   LONG_FLIGHT_A (a device glitch, a jump) walks the grid cells along the segment
+   instead (3D-DDA), so the proxy never lags behind a free goal.
 3. First contact along the path with any other sphere, solved analytically (ray /
    sphere, and arc / sphere: |x(theta) - c|^2 - R^2 = K0 + A cos(theta) + B sin(theta)),
    using the spheres that the neighbour cache says can meet the path's bounding ball.
@@ -41,12 +43,15 @@ from __future__ import annotations
 import math
 from itertools import combinations
 
+import numpy as np
+
 from sasprobe.daemon.neighbours import NeighbourCache, Sphere, deepest
 
 TOUCH_A = 1e-10  # |distance to a sphere's surface| below this: touching
 ANGLE_TOL = 1e-9  # cosine tolerance for "entering" / "leaving" a sphere
 MOVE_EPS_A = 1e-11  # a KKT residual below this is converged
 MAX_STEP_A = 2.0  # longest path (chord) per iteration, keeps neighbour queries small
+LONG_FLIGHT_A = 8.0  # free segments longer than this are checked along the grid's cells
 MAX_ITERATIONS = 32  # per tick; the proxy stays valid (just not yet converged) beyond it
 REENTRY_MIN_RAD = 1e-6  # roots closer than this to the start of a leaving arc are round-off
 TWO_PI = 2.0 * math.pi
@@ -100,8 +105,9 @@ class ProxySolver:
         touching = self.touching
         iterations = 0
         budget = budget_A
+        forced: tuple[int, ...] = ()
         while True:
-            active, lams, (ex, ey, ez) = _kkt(px, py, pz, touching, gx - px, gy - py, gz - pz)
+            active, lams, (ex, ey, ez) = _kkt(px, py, pz, touching, gx - px, gy - py, gz - pz, forced)
             touching = active
             if iterations >= MAX_ITERATIONS or ex * ex + ey * ey + ez * ez <= MOVE_EPS_A * MOVE_EPS_A:
                 break
@@ -114,23 +120,26 @@ class ProxySolver:
                 _, _, _, _, qx, qy, qz = path
                 length = math.sqrt((qx - px) ** 2 + (qy - py) ** 2 + (qz - pz) ** 2)
                 if length > budget:
-                    if budget <= 0.0:
-                        break
+                    if budget <= MOVE_EPS_A:
+                        break  # spent for this tick
                     k = budget / length
                     path = ("seg", px, py, pz, px + k * (qx - px), py + k * (qy - py), pz + k * (qz - pz))
                 x0, y0, z0 = px, py, pz
                 hit, (px, py, pz) = self._segment(path, exclude)
-                budget -= math.sqrt((px - x0) ** 2 + (py - y0) ** 2 + (pz - z0) ** 2)
+                moved = math.sqrt((px - x0) ** 2 + (py - y0) ** 2 + (pz - z0) ** 2)
             else:
                 rho, theta = path[4], path[7]
                 if rho * theta > budget:
-                    if budget <= 0.0:
-                        break
+                    if budget <= MOVE_EPS_A:
+                        break  # spent for this tick
                     path = path[:7] + (budget / rho,)
-                hit, (px, py, pz), moved = self._arc(path, exclude)
-                budget -= rho * moved
+                hit, (px, py, pz), angle = self._arc(path, exclude)
+                moved = rho * angle
+            budget -= moved
             if hit is not None:
                 touching = active + [hit]
+                if moved == 0.0 and hit[0] not in forced:
+                    forced += (hit[0],)  # blocked at the start: hold it (see _kkt)
         self.position = (px, py, pz)
         self.touching = touching
         self.multipliers = lams
@@ -143,8 +152,12 @@ class ProxySolver:
         dx, dy, dz = qx - px, qy - py, qz - pz
         a = dx * dx + dy * dy + dz * dz
         length = math.sqrt(a)
+        if length > LONG_FLIGHT_A:
+            candidates = self._spheres_along(px, py, pz, dx, dy, dz)
+        else:
+            candidates = self.cache.candidates((px + qx) * 0.5, (py + qy) * 0.5, (pz + qz) * 0.5, length * 0.5 + 1e-9)
         best_t, best = 1.0, None
-        for s in self.cache.candidates((px + qx) * 0.5, (py + qy) * 0.5, (pz + qz) * 0.5, length * 0.5 + 1e-9):
+        for s in candidates:
             if s[0] in exclude:
                 continue
             wx, wy, wz = px - s[1], py - s[2], pz - s[3]
@@ -172,6 +185,17 @@ class ProxySolver:
             return None, (qx, qy, qz)
         x, y, z = px + best_t * dx, py + best_t * dy, pz + best_t * dz
         return best, _snap(best, x, y, z)
+
+    def _spheres_along(self, px, py, pz, dx, dy, dz) -> list[Sphere]:
+        """Every sphere stored in a grid cell that the segment p -> p + d crosses."""
+        grid = self.cache.grid
+        cells, _, _ = grid.ray_cells(np.array((px, py, pz)), np.array((dx, dy, dz)), 0.0, 1.0)
+        if cells.shape[0] == 0:
+            return []
+        ids = np.unique(np.concatenate([grid.atoms_in_cell(int(c)) for c in grid.flat_id(cells)]))
+        centers = grid.centers[ids].tolist()
+        radii = grid.radii[ids].tolist()
+        return [(i, c[0], c[1], c[2], r) for i, c, r in zip(ids.tolist(), centers, radii)]
 
     def _arc(self, path, exclude) -> tuple[Sphere | None, tuple[float, float, float], float]:
         _, ox, oy, oz, rho, e1, e2, theta_end = path
@@ -241,12 +265,16 @@ def _unit_normal(s: Sphere, px: float, py: float, pz: float) -> tuple[float, flo
     return dx / length, dy / length, dz / length
 
 
-def _kkt(px, py, pz, touching: list[Sphere], dx, dy, dz):
+def _kkt(px, py, pz, touching: list[Sphere], dx, dy, dz, forced: tuple[int, ...] = ()):
     """KKT point of min |delta - d| s.t. n_k . delta >= 0 over the touching spheres.
 
     Returns (active spheres sorted by multiplier, multipliers, delta). The QP is
     strictly convex, so the first subset that satisfies the KKT conditions is the
-    answer; subsets with (nearly) dependent normals are skipped.
+    answer; subsets with (nearly) dependent normals are skipped. `forced` atoms are
+    held as equalities whatever their multiplier: spheres that blocked a path at its
+    very start although the linearisation released them (a circle tangent to a third
+    sphere and curving into it), so the next path cannot run into them again.
+    Written out per subset size: this runs several times per tick.
     """
     dlen = math.sqrt(dx * dx + dy * dy + dz * dz)
     if dlen == 0.0 or not touching:
@@ -255,6 +283,7 @@ def _kkt(px, py, pz, touching: list[Sphere], dx, dy, dz):
     normals = [_unit_normal(s, px, py, pz) for s in touching]
     nd = [n[0] * dx + n[1] * dy + n[2] * dz for n in normals]
     count = len(touching)
+    must = tuple(k for k in range(count) if touching[k][0] in forced) if forced else ()
 
     def feasible(delta, skip) -> bool:
         ex, ey, ez = delta
@@ -266,17 +295,21 @@ def _kkt(px, py, pz, touching: list[Sphere], dx, dy, dz):
                     return False
         return True
 
-    if all(v >= -tol for v in nd):
+    if not must and all(v >= -tol for v in nd):
         return [], [], (dx, dy, dz)
     for a in range(count):
+        if must and must != (a,):
+            continue
         lam = -nd[a]
-        if lam <= tol:
+        if lam <= tol and a not in must:
             continue
         n = normals[a]
         delta = (dx + lam * n[0], dy + lam * n[1], dz + lam * n[2])
         if feasible(delta, (a,)):
             return [touching[a]], [lam], delta
     for a, b in combinations(range(count), 2):
+        if must and not all(k in (a, b) for k in must):
+            continue
         na, nb = normals[a], normals[b]
         c = na[0] * nb[0] + na[1] * nb[1] + na[2] * nb[2]
         det = 1.0 - c * c
@@ -284,7 +317,7 @@ def _kkt(px, py, pz, touching: list[Sphere], dx, dy, dz):
             continue
         la = (-nd[a] + c * nd[b]) / det
         lb = (-nd[b] + c * nd[a]) / det
-        if la <= tol or lb <= tol:
+        if (la <= tol and a not in must) or (lb <= tol and b not in must):
             continue
         delta = (
             dx + la * na[0] + lb * nb[0],
@@ -296,6 +329,8 @@ def _kkt(px, py, pz, touching: list[Sphere], dx, dy, dz):
                 return [touching[a], touching[b]], [la, lb], delta
             return [touching[b], touching[a]], [lb, la], delta
     for a, b, c3 in combinations(range(count), 3):
+        if must and not all(k in (a, b, c3) for k in must):
+            continue
         n1, n2, n3 = normals[a], normals[b], normals[c3]
         g12 = n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]
         g13 = n1[0] * n3[0] + n1[1] * n3[1] + n1[2] * n3[2]
@@ -309,7 +344,7 @@ def _kkt(px, py, pz, touching: list[Sphere], dx, dy, dz):
         l1 = ((1.0 - g23 * g23) * r1 + a12 * r2 + a13 * r3) / det
         l2 = (a12 * r1 + (1.0 - g13 * g13) * r2 + a23 * r3) / det
         l3 = (a13 * r1 + a23 * r2 + (1.0 - g12 * g12) * r3) / det
-        if l1 <= tol or l2 <= tol or l3 <= tol:
+        if (l1 <= tol and a not in must) or (l2 <= tol and b not in must) or (l3 <= tol and c3 not in must):
             continue
         delta = (
             dx + l1 * n1[0] + l2 * n2[0] + l3 * n3[0],
@@ -335,7 +370,7 @@ def _path(px, py, pz, active: list[Sphere], gx, gy, gz):
     if not active:
         dx, dy, dz = gx - px, gy - py, gz - pz
         length = math.sqrt(dx * dx + dy * dy + dz * dz)
-        if length > MAX_STEP_A:
+        if MAX_STEP_A < length <= LONG_FLIGHT_A:
             k = MAX_STEP_A / length
             gx, gy, gz = px + dx * k, py + dy * k, pz + dz * k
         return ("seg", px, py, pz, gx, gy, gz)

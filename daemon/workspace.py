@@ -170,6 +170,9 @@ class WorkspaceMapping:
         """Drift velocity of the cube for a tip position (device-frame equivalent, mm/s)."""
         margin = self.half_mm * self.margin_fraction
         inner = self.half_mm - margin
+        wx, wy, wz = self.workspace_center_mm
+        if abs(x - wx) <= inner and abs(y - wy) <= inner and abs(z - wz) <= inner:
+            return 0.0, 0.0, 0.0  # the usual case: inside the drift-free core
         out = []
         for u in (x - self.workspace_center_mm[0], y - self.workspace_center_mm[1], z - self.workspace_center_mm[2]):
             depth = abs(u) - inner

@@ -33,6 +33,7 @@ SCHEMES: dict[str, DeviceScheme] = {
         "simulated arm driven by a scripted hand (scan, dive, press, orbit, random)",
         "sim:scan",
     ),
+    "replay": DeviceScheme("sasprobe.devices.replay:open_replay", "a recorded session (--speed X|max)", "replay:session.mcap"),
 }
 
 

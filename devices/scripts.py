@@ -11,8 +11,9 @@ expanded spheres (vdW + probe) and the uniform grid:
 - `dive`: down into the groove between two surface atoms, hold, rock across the
   groove, and back out;
 - `press`: down, steadily, into a thin part (the thinnest top-exposed column of
-  solid with free space under it), far enough that the hand pushes harder than a
-  penalty wall can resist;
+  solid with free space under it; where there is none, such as compact crambin, the
+  highest exposed atom and the bulk under it), far enough that the hand pushes
+  harder than a penalty wall can resist;
 - `orbit`: spiral in to a horizontal circle around the molecule's middle, rubbing
   along its sides;
 - `random`: a seeded smooth wander (a sum of sinusoids) through the cube, in and out
@@ -129,6 +130,20 @@ class _Surface:
         return cols[0][1] if cols else None
 
 
+def surface_site(structure, probe_radius: float = 1.4) -> tuple[float, float, float]:
+    """The top of the SAS above the middle of the molecule (a centre for a zoomed-in cube)."""
+    grid = UniformGrid(structure.positions, structure.expanded_radii(probe_radius))
+    lo, hi = structure.positions.min(axis=0), structure.positions.max(axis=0)
+    x, y = float((lo[0] + hi[0]) / 2), float((lo[1] + hi[1]) / 2)
+    surface = _Surface(grid)
+    top = surface.top(x, y)
+    if top is None:  # a hole through the middle: use the nearest atom column instead
+        i = int(np.argmin((structure.positions[:, 0] - x) ** 2 + (structure.positions[:, 1] - y) ** 2))
+        x, y = float(structure.positions[i, 0]), float(structure.positions[i, 1])
+        top = surface.top(x, y)
+    return x, y, float(top)
+
+
 def make_script(
     name: str,
     structure,
@@ -141,7 +156,7 @@ def make_script(
         raise ValueError(f"unknown simulated-arm script {name!r} (known: {', '.join(SCRIPTS)})")
     grid = UniformGrid(structure.positions, structure.expanded_radii(probe_radius))
     placer = _Placer(_Surface(grid), mapping)
-    return getattr(placer, name)(seed)
+    return placer.random(seed) if name == "random" else getattr(placer, name)()
 
 
 class _Placer:
@@ -183,7 +198,7 @@ class _Placer:
         return out
 
     # --------------------------------------------------------------- scripts
-    def scan(self, seed: int) -> Script:
+    def scan(self) -> Script:
         w = self.region(0.4)
         cx, cy = self.center[0], self.center[1]
         press = SCAN_PRESS_MM * self.s
@@ -203,7 +218,7 @@ class _Placer:
         path.move(self.dev((last[0], last[1], last[2] + press + HOVER_MM * self.s)), speed_mm_s=SCAN_SPEED_MM_S)
         return path.script("scan", {"region_half_A": w, "lines": lines, "press_mm": SCAN_PRESS_MM})
 
-    def dive(self, seed: int) -> Script:
+    def dive(self) -> Script:
         grid = self.surface.grid
         exposed = self.exposed_columns()
         best = None
@@ -245,7 +260,7 @@ class _Placer:
         info = {"atoms": (i, j), "crease_A": [float(v) for v in crease], "push_direction": (0.0, 0.0, -1.0)}
         return path.script("dive", info)
 
-    def press(self, seed: int) -> Script:
+    def press(self) -> Script:
         grid = self.surface.grid
         best = None
         fallback = None
@@ -282,7 +297,7 @@ class _Placer:
         }
         return path.script("press", info)
 
-    def orbit(self, seed: int) -> Script:
+    def orbit(self) -> Script:
         cx, cy, cz = (float(v) for v in self.center)
         extents = []
         for a in np.linspace(0, 2 * math.pi, 36, endpoint=False):

@@ -240,7 +240,7 @@ def make_simulated(argument: str | None, **options) -> SimulatedDevice:
 
         structure = load_default()
     limits = options.get("limits") or PHANTOM_OMNI_LIMITS
-    probe = float(options.get("probe_radius_A") or 1.4)
+    probe = float(options.get("probe_radius_A") or options.get("probe_radius") or 1.4)
     seed = int(options.get("seed") or 0)
     mapping = WorkspaceMapping.initial(
         structure, limits, options.get("cube_half_A"), probe, options.get("cube_center_A")

@@ -237,3 +237,56 @@ def test_press_script_on_crambin_pops_through_with_penalty_not_with_proxy():
         along[method] = worst
     assert along["penalty"] > 0.2  # pulled along the push: popped through
     assert along["proxy"] <= 1e-9
+
+
+def test_a_long_jump_of_the_goal_is_followed_at_once_and_stops_at_first_contact():
+    centers, radii = CRAMBIN.positions, CRAMBIN.expanded_radii(1.4)
+    solver = solver_for(centers, radii)
+    top = centers[np.argmax(centers[:, 2] + radii)]
+    start = np.array([top[0], top[1], centers[:, 2].max() + 60.0])
+    assert solver.seat_if_free(tuple(start))
+    far_free = start + np.array([6.0, -5.0, 40.0])
+    assert np.allclose(solver.solve(tuple(far_free)), far_free)  # 41 Å of free flight in one tick
+    assert solver.iterations == 1
+    # one jump down through the molecule: with a travel budget just beyond the first
+    # contact, the proxy stops exactly where the segment first meets the SAS (brute force:
+    # the smallest ray parameter over all spheres)
+    below = np.array([top[0], top[1], centers[:, 2].min() - 30.0])
+    d = below - far_free
+    w = far_free - centers
+    b = w @ d
+    c = (w * w).sum(axis=1) - radii**2
+    disc = b * b - (d @ d) * c
+    t = (-b[disc > 0] - np.sqrt(disc[disc > 0])) / (d @ d)
+    t = t[t >= 0].min()
+    first = far_free + t * d
+    p = np.array(solver.solve(tuple(below), budget_A=t * np.linalg.norm(d) + 1e-9))
+    assert np.linalg.norm(p - first) < 1e-6
+    assert len(solver.touching) == 1
+
+
+def test_degenerate_clusters_never_trap_or_cycle_the_proxy():
+    """Coplanar centres, equal radii and duplicate atoms make circles tangent to spheres and
+    four spheres meet at a point; the proxy must stay outside and converge (no cycling to
+    the iteration cap)."""
+    from sasprobe.daemon.proxy import MAX_ITERATIONS
+
+    rng = np.random.default_rng(21)
+    for trial in range(24):
+        n = int(rng.integers(3, 40))
+        box = rng.uniform(3, 10)
+        centers = rng.uniform(-box, box, (n, 3))
+        centers[:, 2] = 0.0  # all in one plane
+        centers = np.round(centers)  # on a lattice: many symmetric triples
+        centers[1] = centers[0]
+        radii = np.full(n, 3.1)
+        solver = solver_for(centers, radii)
+        goal = np.array([0.0, 0.0, box + 8.0])
+        assert solver.seat_if_free(tuple(goal))
+        velocity = np.zeros(3)
+        for _ in range(500):
+            velocity = 0.95 * velocity + rng.normal(size=3) * 0.05 - goal * 0.002
+            goal = goal + velocity
+            p = np.array(solver.solve(tuple(goal), rng.uniform(0.05, 1.0)))
+            assert signed_distance(p, centers, radii)[0] >= -1e-9
+            assert solver.iterations < MAX_ITERATIONS
