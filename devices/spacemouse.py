@@ -24,7 +24,8 @@ import time
 
 import numpy as np
 
-from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState
+from sasprobe.devices.base import (PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError,
+                                   DeviceState)
 from sasprobe.devices.support import HardwareDevice, factory_from_environment, quaternion_about, quaternion_multiply
 from sasprobe.devices.transports import HidTransport, load_hidapi
 
@@ -56,8 +57,13 @@ REPORT_TRANSLATION, REPORT_ROTATION, REPORT_BUTTONS = 1, 2, 3
 FULL_SCALE = 350.0
 DEADBAND = 8.0  # counts; a cap at rest drifts by a few
 
+# No force reaches the device (max force 0, has_force_output False). The daemon's engine
+# still computes the contact so the proxy stays on the surface in the picture; its spring
+# and damping are bounded like an Omni-class arm's, since nothing is rendered by hand.
 SPACEMOUSE_LIMITS = DeviceLimits(
-    max_force_n=0.0, continuous_force_n=0.0, max_stiffness_n_per_mm=0.0, max_damping_n_s_per_m=0.0,
+    max_force_n=0.0, continuous_force_n=0.0,
+    max_stiffness_n_per_mm=PHANTOM_OMNI_LIMITS.max_stiffness_n_per_mm,
+    max_damping_n_s_per_m=PHANTOM_OMNI_LIMITS.max_damping_n_s_per_m,
     workspace_min_mm=(-100.0, -100.0, -100.0), workspace_max_mm=(100.0, 100.0, 100.0),
     nominal_rate_hz=1000.0,  # reports come at ~60 Hz; the cursor integrates at any polling rate
     has_force_output=False,

@@ -7,25 +7,20 @@ import math
 import shutil
 import subprocess
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from sasprobe.devices import openhaptics as O
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
-
-SOURCE = Path(__file__).parent / "emulators" / "fake_libhd.c"
+from tests.emulators.libhd import build as build_libhd
 
 
 @pytest.fixture(scope="module")
 def libhd(tmp_path_factory):
-    compiler = shutil.which("cc") or shutil.which("gcc")
-    if compiler is None:
+    out = build_libhd(tmp_path_factory.mktemp("libhd"))
+    if out is None:
         pytest.skip("no C compiler to build the stand-in HD library")
-    out = tmp_path_factory.mktemp("libhd") / "libHD.so"
-    subprocess.run([compiler, "-shared", "-fPIC", "-O2", "-o", str(out), str(SOURCE), "-lpthread", "-lm"],
-                   check=True, capture_output=True, timeout=120)
     fake = ctypes.CDLL(str(out))
     fake.fake_set_hand.argtypes = [ctypes.c_double] * 3
     fake.fake_set_yaw.argtypes = [ctypes.c_double]

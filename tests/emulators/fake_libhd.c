@@ -45,6 +45,7 @@ static int calibration = HD_CALIBRATION_NEEDS_MANUAL_INPUT;
 static double hand[3] = {0, 0, 0}, position[3] = {0, 0, 0}, velocity[3] = {0, 0, 0};
 static double force[3] = {0, 0, 0}, max_force_seen = 0.0, yaw = 0.0;
 static int buttons = 0;
+static double sweep_mm = 0.0; /* the hand swings along x by this much (FAKE_HD_SWEEP), period 2 s */
 static long callbacks_run = 0, forces_exceeding = 0;
 static const double HAND_STIFFNESS = 0.5; /* N/mm */
 static const double MAX_FORCE = 3.3;
@@ -62,8 +63,10 @@ HHD hdInitDevice(const char *name) {
         persistent_error = HD_SUCCESS;
         /* for tests in another process: FAKE_HD_CALIBRATED=1 skips the inkwell, FAKE_HD_HAND="x,y,z" */
         const char *cal = getenv("FAKE_HD_CALIBRATED"), *where = getenv("FAKE_HD_HAND");
+        const char *sweep = getenv("FAKE_HD_SWEEP");
         if (cal && cal[0] == '1') calibration = HD_CALIBRATION_OK;
         if (where) sscanf(where, "%lf,%lf,%lf", &hand[0], &hand[1], &hand[2]);
+        if (sweep) sweep_mm = atof(sweep);
     }
     pthread_mutex_unlock(&lock);
     return h;
@@ -95,8 +98,9 @@ void hdEndFrame(HHD h) {
     double applied[3] = {0, 0, 0};
     if (force_enabled && persistent_error == HD_SUCCESS)
         for (int i = 0; i < 3; i++) applied[i] = force[i];
+    double swing[3] = {sweep_mm * sin(2.0 * 3.14159265358979323846 * callbacks_run / 2000.0), 0, 0};
     for (int i = 0; i < 3; i++) {
-        double p = hand[i] + applied[i] / HAND_STIFFNESS;
+        double p = hand[i] + swing[i] + applied[i] / HAND_STIFFNESS;
         velocity[i] = (p - position[i]) * 1000.0;
         position[i] = p;
     }
@@ -180,6 +184,7 @@ void fake_set_yaw(double radians) { yaw = radians; }
 void fake_put_in_inkwell(void) { if (calibration == HD_CALIBRATION_NEEDS_MANUAL_INPUT) calibration = HD_CALIBRATION_NEEDS_UPDATE; }
 void fake_reset(void) {
     pthread_mutex_lock(&lock);
+    sweep_mm = 0.0;
     calibration = HD_CALIBRATION_NEEDS_MANUAL_INPUT;
     unplugged = 0; persistent_error = HD_SUCCESS; pending_error = HD_SUCCESS;
     max_force_seen = 0; forces_exceeding = 0; callbacks_run = 0; buttons = 0; yaw = 0;
