@@ -54,7 +54,6 @@ class SerialArm(HardwareDevice):
     def _state_from(self, reply, t_ns: int) -> tuple[np.ndarray, np.ndarray, int, bool]:
         """(position mm, orientation quaternion, buttons, calibrated) of a reply."""
 
-
     # interface ------------------------------------------------------------------------
     def open(self) -> None:
         self.transport.open()
