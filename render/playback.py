@@ -24,12 +24,11 @@ POSE_FIELDS = ("seq", "device_t_ns", "publish_t_ns", "proxy_A", "goal_A", "force
 
 @dataclass
 class RecordedFrame:
-    index: int
-    t_ns: int  # the moment this frame stands for (recording clock)
-    structure_sha256: str
+    index: int  # frame k stands for the first pose's time + k/fps (recording clock)
+    structure_sha256: str  # the structure in force (the scene's)
+    structure_file: tuple[str, bytes, bool] | None  # its name, attached bytes and keep_water (None: not attached)
     scene: dict  # the scene message in force
-    pose: Pose  # the newest pose published at or before t_ns
-    pose_log_ns: int
+    pose: Pose  # the newest pose published at or before that moment
 
 
 def pose_time_range(path: Path) -> tuple[int, int] | None:
@@ -62,34 +61,33 @@ def recorded_frames(path: Path, fps: float, time_range: tuple[int, int] | None =
     if time_range is None:
         return
     t0, n = time_range[0], frame_count(time_range, fps)
+    files: dict[str, tuple[str, bytes]] = {}
+    keep_water: dict[str, bool] = {}
     k = 0
-    scene = None
-    pose = pose_log = None
-    for item in iter_items(path):
-        if item.topic == "scene":
-            scene = item.data
-        elif item.topic == "pose":
-            # Frames due before this pose show the state so far.
-            while k < n and pose is not None and scene is not None and t0 + k * 1_000_000_000 / fps < item.log_time:
-                yield RecordedFrame(k, round(t0 + k * 1e9 / fps), scene["structure"]["sha256"], scene, pose, pose_log)
-                k += 1
-            pose, pose_log = _pose(item.data), item.log_time
-    while k < n and pose is not None and scene is not None:
-        yield RecordedFrame(k, round(t0 + k * 1e9 / fps), scene["structure"]["sha256"], scene, pose, pose_log)
-        k += 1
+    scene = pose = None
 
+    def frame() -> RecordedFrame:
+        sha = scene["structure"]["sha256"]
+        attached = (*files[sha], keep_water.get(sha, False)) if sha in files else None
+        return RecordedFrame(k, sha, attached, scene, pose)
 
-def recorded_structures(path: Path) -> tuple[dict, dict]:
-    """(sha256 -> (name, bytes)) of the attached structures, (sha256 -> keep_water) from the control records."""
-    files, keep_water = {}, {}
     for item in iter_items(path):
         if item.topic == "attachment":
             files[item.data["sha256"]] = (item.data["name"], item.raw)
         elif item.topic == "control" and item.data.get("cmd") in ("start", "load"):
             args = item.data.get("args", {})
-            sha = args.get("structure_sha256") or args.get("sha256")
-            keep_water[sha] = bool(args.get("keep_water", False))
-    return files, keep_water
+            keep_water[args.get("structure_sha256") or args.get("sha256")] = bool(args.get("keep_water", False))
+        elif item.topic == "scene":
+            scene = item.data
+        elif item.topic == "pose":
+            # Frames due before this pose show the state so far.
+            while k < n and pose is not None and scene is not None and t0 + k * 1e9 / fps < item.log_time:
+                yield frame()
+                k += 1
+            pose = _pose(item.data)
+    while k < n and pose is not None and scene is not None:
+        yield frame()
+        k += 1
 
 
 def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
@@ -106,7 +104,6 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
     time_range = pose_time_range(path)
     if time_range is None:
         raise UserError(f"{path}: no recorded poses to draw")
-    files, keep_water = recorded_structures(path)
     opts = RenderOptions(headless=True, size=size, fps=fps)
     ctx = create_headless_context()
     writer = FrameWriter(out, None, fps)
@@ -117,10 +114,10 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
         for frame in recorded_frames(path, fps, time_range):
             if frame.structure_sha256 != sha:  # the first structure, or a `load` during the session
                 sha = frame.structure_sha256
-                if sha not in files:
+                if frame.structure_file is None:
                     raise UserError(f"{path}: structure {sha[:12]} is not attached to the recording")
-                name, data = files[sha]
-                structure = parse_structure(data, name=name, source=f"{path}:{name}", keep_water=keep_water.get(sha, False))
+                name, data, keep_water = frame.structure_file
+                structure = parse_structure(data, name=name, source=f"{path}:{name}", keep_water=keep_water)
                 if renderer is not None:
                     renderer.release()
                 scene = build_scene(structure, opts)

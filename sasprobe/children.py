@@ -11,7 +11,6 @@ wait, then SIGKILL to the whole group, which also sweeps up anything the child l
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import json
 import os
 import queue
@@ -24,8 +23,8 @@ from pathlib import Path
 PR_SET_PDEATHSIG = 1
 
 try:
-    _LIBC = ctypes.CDLL(ctypes.util.find_library("c") or None, use_errno=True)
-except OSError:  # pragma: no cover - not Linux/glibc
+    _LIBC = ctypes.CDLL(None, use_errno=True)  # this process's own symbols, libc's among them
+except OSError:  # pragma: no cover
     _LIBC = None
 
 

@@ -156,6 +156,7 @@ class DemoSession:
         self.control = None
         self.ready: dict = {}
         self.status_end: dict | None = None
+        self.last_status: dict | None = None  # the newest answer, should the daemon end by itself
         self.exit_report: dict | None = None
         self.renderer_rc: int | None = None
         self.daemon_rc: int | None = None
@@ -216,9 +217,10 @@ class DemoSession:
         if self.control is None or self.daemon is None or not self.daemon.alive():
             return None
         try:
-            return self.control.status(reset_stats=reset)
+            self.last_status = self.control.status(reset_stats=reset)
         except UserError:
             return None
+        return self.last_status
 
     # ------------------------------------------------------------ run
     def watch(self, headless: bool, seconds: float | None) -> None:
@@ -314,7 +316,7 @@ class DemoSession:
             return None
 
     def summary(self, headless: bool, seconds: float | None, interrupted: bool) -> dict:
-        end = self.status_end or {}
+        end = self.status_end or self.last_status or {}
         loop = end.get("loop") or {}
         nominal = loop.get("target_rate_hz")
         rate = loop.get("rate_hz")
