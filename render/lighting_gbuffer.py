@@ -1,0 +1,128 @@
+"""The G-buffer layers the lighting passes read, as GL textures, and the compute-pass plumbing
+they share.
+
+| unit | layer | format | content |
+|---|---|---|---|
+| 0 | position | rgba32f | world position (Å) |
+| 1 | normal | rgba32f | unit world normal (a cap carries its plane's normal) |
+| 2 | atom | r32i | atom index; -1 background; -2 probe |
+
+Row 0 of a texture is the bottom image row (GL); `download()` returns arrays in that order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sasprobe.render.glsl import set_uniforms, shader_source
+
+LOCAL_SIZE = 8  # compute work-group edge of the 2D lighting passes
+
+
+def texture_2d(ctx, width: int, height: int, components: int = 1, dtype: str = "f4", data: bytes | None = None):
+    """A texture read with texelFetch or as an image: nearest filtering (integer textures are
+    incomplete, and read as zero, with the default linear filter)."""
+    import moderngl
+
+    tex = ctx.texture((width, height), components, data=data, dtype=dtype)
+    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    tex.repeat_x = tex.repeat_y = False
+    return tex
+
+
+def read_texture(tex, components: int | None = None, dtype: str | None = None) -> np.ndarray:
+    """(H, W) or (H, W, C) array of a texture, row 0 = bottom."""
+    components = components or tex.components
+    dtype = dtype or tex.dtype
+    data = np.frombuffer(tex.read(), dtype=np.dtype(dtype)).reshape(tex.height, tex.width, components)
+    return data[..., 0].copy() if components == 1 else data.copy()
+
+
+def dispatch(program, width: int, height: int) -> None:
+    """Run a 2D compute pass over width × height, then make its writes visible to whatever
+    reads them next (texture fetch, image load, buffer read-back)."""
+    program.run(group_x=(width + LOCAL_SIZE - 1) // LOCAL_SIZE, group_y=(height + LOCAL_SIZE - 1) // LOCAL_SIZE)
+    program.ctx.memory_barrier()
+
+
+class ComputePass:
+    """A compute program over an image, with the grid bound when it has one (the lighting
+    passes' base)."""
+
+    def __init__(self, ctx, shader: str, gpu_grid=None, defines: dict | None = None):
+        self.ctx = ctx
+        self.grid = gpu_grid
+        self.program = ctx.compute_shader(shader_source(shader, defines))
+
+    def run(self, width: int, height: int, uniforms: dict) -> None:
+        if self.grid is not None:
+            self.grid.bind()
+            uniforms = {**self.grid.uniforms(), **uniforms}
+        set_uniforms(self.program, uniforms)
+        dispatch(self.program, width, height)
+
+    def release(self) -> None:
+        self.program.release()
+
+
+@dataclass
+class GBuffer:
+    position: object
+    normal: object
+    atom: object
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.atom.width, self.atom.height
+
+    @classmethod
+    def allocate(cls, ctx, width: int, height: int) -> "GBuffer":
+        return cls(texture_2d(ctx, width, height, 4), texture_2d(ctx, width, height, 4),
+                   texture_2d(ctx, width, height, 1, "i4"))
+
+    @classmethod
+    def upload(cls, ctx, position: np.ndarray, normal: np.ndarray, atom: np.ndarray) -> "GBuffer":
+        """From arrays (H, W, 3), (H, W, 3), (H, W); row 0 = bottom."""
+        h, w = atom.shape
+        pad = np.zeros((h, w, 1), dtype=np.float32)
+        pos = np.concatenate([np.asarray(position, dtype=np.float32), pad + 1.0], axis=2)
+        nrm = np.concatenate([np.asarray(normal, dtype=np.float32), pad], axis=2)
+        return cls(texture_2d(ctx, w, h, 4, data=pos.tobytes()), texture_2d(ctx, w, h, 4, data=nrm.tobytes()),
+                   texture_2d(ctx, w, h, 1, "i4", data=np.asarray(atom, dtype=np.int32).tobytes()))
+
+    def bind(self) -> None:
+        self.position.use(location=0)
+        self.normal.use(location=1)
+        self.atom.use(location=2)
+
+    def download(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return read_texture(self.position)[..., :3], read_texture(self.normal)[..., :3], read_texture(self.atom)
+
+    def release(self) -> None:
+        for tex in (self.position, self.normal, self.atom):
+            tex.release()
+
+
+class RaycastGBuffer(ComputePass):
+    """Primary rays through the grid (closest hit with clip caps) into a GBuffer."""
+
+    def __init__(self, gpu_grid):
+        super().__init__(gpu_grid.ctx, "gbuffer_raycast.comp", gpu_grid)
+
+    def render(self, view: np.ndarray, proj: np.ndarray, width: int, height: int, out: GBuffer | None = None) -> GBuffer:
+        gbuffer = out or GBuffer.allocate(self.ctx, width, height)
+        gbuffer.position.bind_to_image(0, read=False, write=True)
+        gbuffer.normal.bind_to_image(1, read=False, write=True)
+        gbuffer.atom.bind_to_image(2, read=False, write=True)
+        self.run(width, height, {
+            "u_inv_proj": mat4_uniform(np.linalg.inv(proj)),
+            "u_inv_view": mat4_uniform(np.linalg.inv(view)),
+        })
+        return gbuffer
+
+
+def mat4_uniform(m: np.ndarray) -> tuple[float, ...]:
+    """A 4×4 matrix as moderngl wants a mat4 uniform (column-major)."""
+    return tuple(float(v) for v in np.asarray(m, dtype=np.float64).T.reshape(-1))

@@ -1,0 +1,110 @@
+"""Light and lighting-effect parameters shared by the GPU passes, the CPU references, the
+CLI and the G-buffer export (plain data, no GL)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Shadow/AO rays start at p + n * (RAY_EPS_ABS + RAY_EPS_REL * max|p_i|) (Å): a few float32
+# spacings at the coordinate's magnitude plus a floor of 1e-3 Å, far below what a pixel
+# shows. The source atom is excluded from every query as well, which is exact for convex
+# solids; the offset only matters where neighbouring atoms meet.
+RAY_EPS_ABS = 1e-3
+RAY_EPS_REL = 1e-5
+
+ATOM_BACKGROUND = -1  # G-buffer atom id of background pixels
+ATOM_PROBE = -2  # G-buffer atom id of the probe sphere's pixels
+
+
+def ray_epsilon(points: np.ndarray) -> np.ndarray:
+    """Per-point offset (Å) of the ray origin along the normal."""
+    points = np.asarray(points, dtype=np.float64)
+    return RAY_EPS_ABS + RAY_EPS_REL * np.max(np.abs(points), axis=-1)
+
+
+def ray_epsilon_uniforms() -> dict[str, float]:
+    return {"u_ray_eps_abs": RAY_EPS_ABS, "u_ray_eps_rel": RAY_EPS_REL}
+
+
+@dataclass(frozen=True)
+class DirectionalLight:
+    direction: tuple[float, float, float]  # world frame, pointing *towards* the light
+
+    def unit(self) -> np.ndarray:
+        d = np.asarray(self.direction, dtype=np.float64)
+        norm = np.linalg.norm(d)
+        if not np.isfinite(norm) or norm == 0:
+            raise ValueError("a directional light needs a non-zero direction")
+        return d / norm
+
+
+@dataclass(frozen=True)
+class PointLight:
+    """The probe's light at the probe centre; nothing beyond `radius` Å is lit (or traced)."""
+
+    position: tuple[float, float, float]
+    radius: float
+
+
+@dataclass(frozen=True)
+class SoftShadow:
+    """Parker et al. (1998) single-ray soft shadows.
+
+    Each occluder gets an inner sphere (vdW radius + inner) and an outer sphere (vdW radius
+    + outer); a shadow ray passing at distance b from the centre sees smoothstep(inner,
+    outer, b), and the minimum over all occluders is the light's visibility. The shell
+    widens linearly from nothing at the receiver to full width `growth` Å along the ray
+    (0 = full width everywhere): penumbrae grow with the distance between occluder and
+    receiver, and atoms touching the receiver do not darken it. inner == outer == 0 is the
+    hard shadow. `outer` may not exceed the grid's expansion (the probe radius), since the
+    grid only holds each sphere in the cells its expanded sphere overlaps.
+    """
+
+    inner: float = -0.4
+    outer: float = 0.8
+    growth: float = 4.0
+
+    def shell(self) -> tuple[float, float]:
+        return (float(self.inner), float(self.outer))
+
+
+HARD_SHADOW = SoftShadow(0.0, 0.0, 0.0)
+
+
+AO_MODES = ("off", "analytic", "ssao", "rt", "hybrid", "reference")
+SSAO_SAMPLING = ("point", "line")
+ANALYTIC_K = (8, 16, 32)
+
+
+@dataclass(frozen=True)
+class AOSettings:
+    """Ambient occlusion, selectable at run time (see render/ambient_occlusion.py)."""
+
+    mode: str = "analytic"
+    k: int = 16  # analytic: nearest neighbours per atom (8, 16 or 32)
+    distance: float = 8.0  # ray-traced / reference: ray length (Å)
+    rt_spp: int = 1  # ray-traced: samples per pixel per frame
+    blur: bool = True  # bilateral blur of the noisy estimates (SSAO; ray-traced below 16 spp)
+    ssao_radius: float = 4.0  # Å
+    ssao_intensity: float = 1.0
+    ssao_sampling: str = "point"
+    ssao_samples: int = 16
+    ssao_half_resolution: bool = False
+    reference_spp: int = 32  # reference: samples per frame ...
+    reference_total: int = 1024  # ... until this many have accumulated
+
+    def __post_init__(self) -> None:
+        if self.mode not in AO_MODES:
+            raise ValueError(f"unknown AO mode '{self.mode}' (one of {', '.join(AO_MODES)})")
+        if self.ssao_sampling not in SSAO_SAMPLING:
+            raise ValueError(f"unknown SSAO sampling '{self.ssao_sampling}' (point or line)")
+        if not 1 <= self.k <= 32:
+            raise ValueError("analytic AO uses 1 to 32 neighbours")
+        for name in ("distance", "ssao_radius"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive")
+        for name in ("rt_spp", "ssao_samples", "reference_spp", "reference_total"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1")
