@@ -277,6 +277,57 @@ class UniformGrid:
             ring += 1
         return out_idx, out_dist
 
+    def overlapping_pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """All ordered pairs (i, j), i != j, of overlapping spheres, sorted by i then j.
+
+        Centres are binned once (one cell each); two spheres can only overlap when their
+        centres are closer than the largest diameter, so comparing each cell with the
+        cells within that reach finds every pair. Vectorised per neighbour offset.
+        """
+        n = self.centers.shape[0]
+        home = self.cell_index(self.centers)
+        flat = self.flat_id(home)
+        order = np.argsort(flat, kind="stable")
+        counts = np.bincount(flat, minlength=self.n_cells)
+        start = np.zeros(self.n_cells + 1, dtype=np.int64)
+        np.cumsum(counts, out=start[1:])
+        occupied = np.flatnonzero(counts)
+        occ_ijk = np.stack(np.unravel_index(occupied, tuple(self.dims[::-1])), axis=1)[:, ::-1]
+        reach = int(np.ceil(2.0 * self.radii.max() / self.cell_size))
+        firsts: list[np.ndarray] = []
+        seconds: list[np.ndarray] = []
+        offsets = range(-reach, reach + 1)
+        for dz in offsets:
+            for dy in offsets:
+                for dx in offsets:
+                    if (dz, dy, dx) < (0, 0, 0):
+                        continue  # each unordered cell pair once; pairs are mirrored below
+                    other = occ_ijk + (dx, dy, dz)
+                    ok = np.all((other >= 0) & (other < self.dims), axis=1)
+                    a_cells = occupied[ok]
+                    b_cells = self.flat_id(other[ok])
+                    ca, cb = counts[a_cells], counts[b_cells]
+                    per = ca * cb
+                    if not per.any():
+                        continue
+                    total = int(per.sum())
+                    which = np.repeat(np.arange(a_cells.size), per)
+                    local = np.arange(total) - np.repeat(np.cumsum(per) - per, per)
+                    a = order[start[a_cells][which] + local // cb[which]]
+                    b = order[start[b_cells][which] + local % cb[which]]
+                    diff = self.centers[b] - self.centers[a]
+                    hit = np.einsum("ij,ij->i", diff, diff) < (self.radii[a] + self.radii[b]) ** 2
+                    # within one cell keep a < b; across cells every pair is new
+                    hit &= (a < b) if (dx, dy, dz) == (0, 0, 0) else True
+                    firsts.append(a[hit])
+                    seconds.append(b[hit])
+        half_i = np.concatenate(firsts)
+        half_j = np.concatenate(seconds)
+        i = np.concatenate((half_i, half_j))
+        j = np.concatenate((half_j, half_i))
+        sort = np.argsort(i * n + j)
+        return i[sort], j[sort]
+
     # ------------------------------------------------------------- ray walk
     def ray_cells(
         self, origin: np.ndarray, direction: np.ndarray, t_min: float = 0.0, t_max: float = np.inf

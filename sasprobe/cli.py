@@ -13,7 +13,7 @@ import pkgutil
 import sys
 
 import sasprobe.commands
-from sasprobe import __version__
+from sasprobe import __version__, config
 from sasprobe.errors import UserError
 
 
@@ -36,6 +36,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"sasprobe {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="print informational messages")
+    parser.add_argument("--config", metavar="FILE", help=f"TOML settings (default: {config.default_path()} if present)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
     for info in sorted(pkgutil.iter_modules(sasprobe.commands.__path__), key=lambda m: m.name):
         module = importlib.import_module(f"sasprobe.commands.{info.name}")
@@ -52,8 +53,30 @@ def _configure_logging(verbose: bool) -> None:
     root.propagate = False
 
 
+def subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return dict(action.choices)
+    return {}
+
+
+def _apply_config(parser: argparse.ArgumentParser, argv: list[str] | None) -> None:
+    """Settings from the TOML file become defaults, so flags on the command line win."""
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument("--config")
+    known, _ = pre.parse_known_args(argv)
+    path = config.find_config(known.config)
+    if path is not None:
+        config.apply(path, config.load(path), subcommands(parser))
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    try:
+        _apply_config(parser, argv)
+    except UserError as exc:
+        print(f"sasprobe: error: {exc}", file=sys.stderr)
+        return 2
     args = parser.parse_args(argv)
     _configure_logging(args.verbose)
     if not getattr(args, "func", None):

@@ -29,7 +29,7 @@ def shared_by_id(shared_entries):
 
 def run_cli(*args: str, timeout: float = 120, **kwargs) -> subprocess.CompletedProcess:
     """Run `sasprobe ARGS` as a user would (a real subprocess)."""
-    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    env = dict(kwargs.pop("env", None) or os.environ, PYTHONUNBUFFERED="1")
     return subprocess.run(
         [sys.executable, "-m", "sasprobe", *args],
         capture_output=True,

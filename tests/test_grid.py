@@ -168,3 +168,12 @@ def test_bad_grid_input_is_refused():
         UniformGrid(CENTERS, RADII, cell_size=0.0)
     with pytest.raises(ValueError):
         UniformGrid(CENTERS, RADII, cell_size=1e-3)  # billions of cells
+
+
+@pytest.mark.parametrize("size", [None, 2.0, 40.0])
+def test_overlapping_pairs_equal_brute_force(size):
+    i, j = GRIDS[size].overlapping_pairs()
+    dist = np.linalg.norm(CENTERS[:, None] - CENTERS[None], axis=2)
+    expected_i, expected_j = np.nonzero((dist < RADII[:, None] + RADII[None]) & ~np.eye(len(CENTERS), dtype=bool))
+    np.testing.assert_array_equal(i, expected_i)
+    np.testing.assert_array_equal(j, expected_j)
