@@ -31,6 +31,7 @@ def ray_epsilon_uniforms() -> dict[str, float]:
 @dataclass(frozen=True)
 class DirectionalLight:
     direction: tuple[float, float, float]  # world frame, pointing *towards* the light
+    intensity: float = 1.0  # irradiance on a surface facing it (path tracer)
 
     def unit(self) -> np.ndarray:
         d = np.asarray(self.direction, dtype=np.float64)
@@ -46,6 +47,19 @@ class PointLight:
 
     position: tuple[float, float, float]
     radius: float
+    intensity: float = 1.0  # at the light; falls off as (1 - d / radius)^2 (shaders/lights.glsl)
+
+
+def light_uniforms(sun: DirectionalLight | None, probe_light: PointLight | None) -> dict[str, object]:
+    """Uniforms of shaders/lights.glsl (a missing light is switched off)."""
+    return {
+        "u_sun_dir": tuple(sun.unit()) if sun is not None else (0.0, 0.0, 1.0),
+        "u_sun_intensity": float(sun.intensity) if sun is not None else 0.0,
+        "u_probe_light_on": int(probe_light is not None),
+        "u_probe_light_pos": tuple(float(v) for v in probe_light.position) if probe_light else (0.0, 0.0, 0.0),
+        "u_probe_light_radius": float(probe_light.radius) if probe_light else 1.0,
+        "u_probe_light_intensity": float(probe_light.intensity) if probe_light else 0.0,
+    }
 
 
 @dataclass(frozen=True)

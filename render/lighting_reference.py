@@ -358,3 +358,38 @@ def raycast_gbuffer(view, proj, width, height, occ: Occluders):
     normal[cap] = entry[cap]
     shape = (height, width)
     return position.reshape(*shape, 3), normal.reshape(*shape, 3), best.reshape(shape).astype(np.int32)
+
+
+# ------------------------------------------------------------------ edge cueing
+def view_depths(positions, atom_ids, view) -> np.ndarray:
+    """View-space depth (Å, positive) per pixel; inf on background."""
+    p = np.asarray(positions, dtype=np.float64)
+    depth = -(p @ np.asarray(view)[2, :3] + np.asarray(view)[2, 3])
+    return np.where(np.asarray(atom_ids) == ATOM_BACKGROUND, np.inf, depth)
+
+
+def edge_cueing(depth: np.ndarray, atom_ids: np.ndarray, settings) -> np.ndarray:
+    """QuteMol contour lines and halos from view depths (inf = background) and atom ids
+    (only other atoms count); 1 = untouched. Same definition as shaders/edge_cueing.comp,
+    by whole-image shifts."""
+    h, w = depth.shape
+    line = np.zeros((h, w))
+    halo = np.zeros((h, w))
+    reach = max(settings.line_width if settings.contours else 0.0, settings.halo_radius if settings.halos else 0.0)
+    r = int(np.ceil(reach))
+    padded = np.pad(depth, r, mode="constant", constant_values=np.inf)
+    padded_ids = np.pad(np.asarray(atom_ids), r, mode="constant", constant_values=ATOM_BACKGROUND)
+    for dy in range(-r, r + 1):
+        for dx in range(-r, r + 1):
+            front = padded[r + dy : r + dy + h, r + dx : r + dx + w]
+            other = padded_ids[r + dy : r + dy + h, r + dx : r + dx + w] != atom_ids
+            dist = np.hypot(dx, dy)
+            with np.errstate(invalid="ignore"):
+                gap = np.where(np.isinf(front) | ~other, -np.inf, depth - front)  # inf - finite = inf: behind
+            if settings.contours and dist <= settings.line_width:
+                strength = np.clip(gap / settings.line_threshold - 1.0, 0.0, 1.0)
+                line = np.maximum(line, np.where(gap > settings.line_threshold, strength, 0.0))
+            if settings.halos and dist <= settings.halo_radius:
+                strength = (1.0 - dist / settings.halo_radius) * np.clip(gap / settings.halo_depth, 0.0, 1.0)
+                halo = np.maximum(halo, np.where(gap > 0, strength, 0.0))
+    return (1.0 - line) * (1.0 - settings.halo_strength * halo)

@@ -5,7 +5,14 @@ pass multiplies in."""
 from __future__ import annotations
 
 from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, texture_2d
-from sasprobe.render.lighting_params import HARD_SHADOW, DirectionalLight, PointLight, SoftShadow, ray_epsilon_uniforms
+from sasprobe.render.lighting_params import (
+    HARD_SHADOW,
+    DirectionalLight,
+    PointLight,
+    SoftShadow,
+    light_uniforms,
+    ray_epsilon_uniforms,
+)
 
 
 class ShadowPass(ComputePass):
@@ -24,13 +31,10 @@ class ShadowPass(ComputePass):
         out = out or texture_2d(self.ctx, width, height)
         gbuffer.bind()
         out.bind_to_image(0, read=False, write=True)
-        if isinstance(light, DirectionalLight):
-            light_uniforms = {"u_point_light": 0, "u_light_dir": tuple(light.unit())}
-        else:
-            light_uniforms = {"u_point_light": 1, "u_light_pos": tuple(float(v) for v in light.position),
-                              "u_light_radius": float(light.radius), "u_light_dir": (0.0, 0.0, 1.0)}
+        point = isinstance(light, PointLight)
         self.run(width, height, {
-            **light_uniforms,
+            **light_uniforms(None if point else light, light if point else None),
+            "u_point_light": int(point),
             **ray_epsilon_uniforms(),
             "u_shell": soft.shell(),
             "u_shell_growth": float(soft.growth),

@@ -77,13 +77,18 @@ def test_more_neighbours_never_lighten(analytic, scene):
     assert (ao8 - ao32).max() > 0.05
 
 
-def test_ray_traced_ao_converges_to_monte_carlo_reference(crambin_grid, scene):
-    name, gbuffer, position, normal, atom, occluders, *_ = scene
-    if name != "none":
-        pytest.skip("one convergence run is enough on llvmpipe; culling is covered by the shadow tests")
+def test_ray_traced_ao_converges_to_monte_carlo_reference(crambin, crambin_grid):
+    """One run, without culling (llvmpipe is slow; culled traversal is covered by the
+    shadow and path-tracing tests), with the probe beside the molecule."""
+    crambin_grid.set_probe(probe_on_surface(crambin), DEFAULT_PROBE_RADIUS)
+    view, proj = camera(crambin)
+    gbuffer, position, normal, atom = gbuffer_arrays(crambin_grid, view, proj)
+    occluders = Occluders.of(crambin_grid)
+    crambin_grid.set_probe(None)
     rt = RayTracedAO(crambin_grid)
     gpu = read_texture(rt.accumulate(gbuffer, 256, AO_DISTANCE))
     rt.release()
+    gbuffer.release()
     # CPU reference on a random sample of 700 pixels, 32 x 32 jittered-stratified rays each
     rng = np.random.default_rng(2024)
     pick = rng.choice(np.flatnonzero(atom.reshape(-1) != -1), 700, replace=False)

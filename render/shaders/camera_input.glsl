@@ -1,4 +1,5 @@
 // The camera of the frame the G-buffer was drawn with (OpenGL conventions).
+const float BIG_DEPTH = 1e30;  // the view depth of background pixels
 uniform mat4 u_view;
 uniform mat4 u_proj;
 

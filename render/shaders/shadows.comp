@@ -8,13 +8,11 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "grid_traversal.glsl"
 #include "gbuffer_input.glsl"
+#include "lights.glsl"
 
 layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
 
-uniform int u_point_light;     // 0: directional, 1: point
-uniform vec3 u_light_dir;      // towards the light, unit
-uniform vec3 u_light_pos;      // Å
-uniform float u_light_radius;  // Å
+uniform int u_point_light;     // 0: the directional light, 1: the probe's point light
 uniform vec2 u_shell;
 uniform float u_shell_growth;
 
@@ -26,14 +24,14 @@ void main() {
     float vis = 1.0;
     if (gbuffer_fetch(px, p, n, atom)) {
         vec3 o = ray_origin(p, n);
-        vec3 d = u_light_dir;
+        vec3 d = u_sun_dir;
         float t_max = BIG;
         bool traced = true;
         if (u_point_light != 0) {
-            vec3 to_light = u_light_pos - o;
+            vec3 to_light = u_probe_light_pos - o;
             t_max = length(to_light);
             d = to_light / max(t_max, 1e-30);
-            traced = distance(u_light_pos, p) <= u_light_radius;
+            traced = distance(u_probe_light_pos, p) <= u_probe_light_radius;
         }
         if (traced) {
             vis = dot(n, d) > 0.0
