@@ -149,6 +149,15 @@ def occluded_visibility(o, d, t0, t1, skip, candidates, occ: Occluders, soft: So
     return vis
 
 
+def _flatten(positions, normals, atom_ids):
+    """G-buffer layers as flat arrays: (image shape, ids, float64 positions, unit normals)."""
+    atom_ids = np.asarray(atom_ids)
+    p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    n = n / np.maximum(np.linalg.norm(n, axis=1), 1e-30)[:, None]
+    return atom_ids.shape, atom_ids.reshape(-1), p, n
+
+
 # ------------------------------------------------------------------ shadows
 def light_visibility(positions, normals, atom_ids, light: DirectionalLight | PointLight, occ: Occluders,
                      soft: SoftShadow = HARD_SHADOW) -> np.ndarray:
@@ -156,12 +165,7 @@ def light_visibility(positions, normals, atom_ids, light: DirectionalLight | Poi
     from the light get 0 (their own atom blocks it). For a point light, pixels farther than
     its radius get 1 (unlit anyway, not traced) and the probe sphere, which holds the light,
     does not occlude it."""
-    atom_ids = np.asarray(atom_ids)
-    shape = atom_ids.shape
-    ids = atom_ids.reshape(-1)
-    p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    n = n / np.maximum(np.linalg.norm(n, axis=1), 1e-30)[:, None]
+    shape, ids, p, n = _flatten(positions, normals, atom_ids)
     out = np.ones(ids.shape[0])
     pick = np.flatnonzero(ids != ATOM_BACKGROUND)
     p, n, ids = p[pick], n[pick], ids[pick]
@@ -196,28 +200,14 @@ def sphere_occlusion(p, n, centers, radii):
     return np.clip(np.maximum(cos, 0.0) * (radii / length) ** 2, 0.0, 1.0)
 
 
-def probe_neighbours(centers: np.ndarray, probe_center, k: int) -> np.ndarray:
-    """The k atoms nearest the probe centre (by centre distance), ties to the lower index."""
-    diff = np.asarray(centers) - np.asarray(probe_center, dtype=np.float64)
-    dist = np.einsum("ij,ij->i", diff, diff)
-    order = np.lexsort((np.arange(dist.size), dist))
-    out = np.full(k, -1, dtype=np.int64)
-    out[: min(k, dist.size)] = order[:k]
-    return out
-
-
 def analytic_ao(positions, normals, atom_ids, occ: Occluders, neighbours: np.ndarray, k: int,
                 probe_neighbour_ids: np.ndarray | None = None) -> np.ndarray:
     """Accessibility 1 - occlusion from each pixel's atom's first k neighbours (rows of
-    `neighbours`, -1 padded; culled ones and those with a clipped centre skipped) and the probe, combined multiplicatively
-    (prod(1 - occ_i), so overlapping occluders are not counted twice into negative light).
-    Probe pixels use `probe_neighbour_ids`. 1 on background."""
-    atom_ids = np.asarray(atom_ids)
-    shape = atom_ids.shape
-    ids = atom_ids.reshape(-1)
-    p = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    n = n / np.maximum(np.linalg.norm(n, axis=1), 1e-30)[:, None]
+    `neighbours`, -1 padded; culled ones and those with a clipped centre skipped) and the
+    probe, combined multiplicatively (prod(1 - occ_i), so overlapping occluders are not
+    counted twice into negative light). Probe pixels use `probe_neighbour_ids`. 1 on
+    background."""
+    shape, ids, p, n = _flatten(positions, normals, atom_ids)
     out = np.ones(ids.shape[0])
     atoms = np.flatnonzero(ids >= 0)
     lists = np.asarray(neighbours)[ids[atoms], :k]
@@ -266,12 +256,7 @@ def monte_carlo_ao(positions, normals, atom_ids, occ: Occluders, distance: float
     (culled ones and the pixel's own atom excluded; the probe included except on its own
     pixels). `grid` (the UniformGrid) narrows the spheres to those within reach. 1 on
     background."""
-    atom_ids = np.asarray(atom_ids)
-    shape = atom_ids.shape
-    ids = atom_ids.reshape(-1)
-    p_all = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
-    n_all = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
-    n_all = n_all / np.maximum(np.linalg.norm(n_all, axis=1), 1e-30)[:, None]
+    shape, ids, p_all, n_all = _flatten(positions, normals, atom_ids)
     out = np.ones(ids.shape[0])
     everyone = np.arange(occ.centers.shape[0])
     for atom in np.unique(ids[ids != ATOM_BACKGROUND]):

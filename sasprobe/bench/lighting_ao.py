@@ -10,7 +10,14 @@ from dataclasses import replace
 import numpy as np
 
 from sasprobe.bench.charts import figure, save
-from sasprobe.bench.lighting_scene import Scene, gpu_time, oblique_camera, spheres_grid, trace_scene
+from sasprobe.bench.lighting_scene import (
+    Scene,
+    cost_vs_size_chart,
+    interleaved_times,
+    oblique_camera,
+    spheres_grid,
+    trace_scene,
+)
 from sasprobe.render.ambient_occlusion import AmbientOcclusion
 from sasprobe.render.lighting_gbuffer import read_texture
 from sasprobe.render.lighting_params import AOSettings
@@ -59,11 +66,13 @@ def pareto(gl, scene: Scene, ref_spp: int, repeats: int) -> dict:
     mask = scene.atom != -1
     ref = reference(ao, scene, ref_spp)
     rows, images = [], {"reference": ref}
-    for label, family, settings in methods():
-        seconds = gpu_time(gl, lambda: one_frame(ao, scene, settings), repeats)
+    listed = methods()
+    seconds = interleaved_times(gl, {label: (lambda s=settings: one_frame(ao, scene, s)) for label, _, settings in listed},
+                                repeats)
+    for label, family, settings in listed:
         image = read_texture(one_frame(ao, scene, settings)).copy()
         images[label] = image
-        rows.append({"method": label, "family": family, "ms": seconds * 1e3, **errors(image, ref, mask)})
+        rows.append({"method": label, "family": family, "ms": seconds[label] * 1e3, **errors(image, ref, mask)})
     # failure mode: analytic AO with too few neighbours
     k_rows = []
     for k in (1, 2, 4, 8, 16, 32):
@@ -172,37 +181,28 @@ def noise_chart(noise_rows: list[dict], images: dict, mask: np.ndarray, path):
 
 # ------------------------------------------------------------------ scaling with molecule size
 def analytic_scaling(gl, scenes: list[tuple[str, int, Scene]], repeats: int) -> list[dict]:
+    variants = (("analytic_ms", replace(BASE, mode="analytic", k=16)),
+                ("analytic32_ms", replace(BASE, mode="analytic", k=32)),
+                ("ssao_ms", replace(BASE, mode="ssao")),
+                ("rt1_ms", replace(BASE, mode="rt", rt_spp=1, blur=False)))
+    passes = [AmbientOcclusion(scene.grid) for _, _, scene in scenes]
+    calls = {(i, label): (lambda ao=ao, scene=scene, s=settings: one_frame(ao, scene, s))
+             for i, ((_, _, scene), ao) in enumerate(zip(scenes, passes)) for label, settings in variants}
+    seconds = interleaved_times(gl, calls, repeats)
     rows = []
-    for name, atoms, scene in scenes:
-        ao = AmbientOcclusion(scene.grid)
-        row = {"structure": name, "atoms": atoms, "coverage": scene.coverage}
-        for label, settings in (("analytic_ms", replace(BASE, mode="analytic", k=16)),
-                                ("analytic32_ms", replace(BASE, mode="analytic", k=32)),
-                                ("ssao_ms", replace(BASE, mode="ssao")),
-                                ("rt1_ms", replace(BASE, mode="rt", rt_spp=1, blur=False))):
-            row[label] = gpu_time(gl, lambda: one_frame(ao, scene, settings), repeats) * 1e3
+    for i, (name, atoms, scene) in enumerate(scenes):
+        rows.append({"structure": name, "atoms": atoms, "coverage": scene.coverage,
+                     **{label: seconds[(i, label)] * 1e3 for label, _ in variants}})
+    for ao in passes:
         ao.release()
-        rows.append(row)
     return rows
 
 
 def scaling_chart(rows: list[dict], path):
-    fig, ax = figure()
-    atoms = [r["atoms"] for r in rows]
-    base = rows[0]["analytic_ms"]
-    ax.fill_between([min(atoms), max(atoms)], base * 0.8, base * 1.2, color="tab:blue", alpha=0.12,
-                    label=f"±20 % of {rows[0]['structure']}")
-    ax.plot(atoms, [r["analytic_ms"] for r in rows], "o-", label="analytic K=16")
-    ax.plot(atoms, [r["analytic32_ms"] for r in rows], "o:", label="analytic K=32")
-    ax.plot(atoms, [r["ssao_ms"] for r in rows], "s-", label="SSAO point, 16 samples")
-    ax.plot(atoms, [r["rt1_ms"] for r in rows], "^-", label="RT 1 spp (8 Å rays)")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("atoms (half the pixels show the molecule)")
-    ax.set_ylabel("time per frame (ms)")
-    ax.set_title("AO cost vs molecule size at equal screen coverage")
-    ax.legend(fontsize=7)
-    return save(fig, path)
+    series = [("analytic_ms", "analytic K=16", "o-"), ("analytic32_ms", "analytic K=32", "o:"),
+              ("ssao_ms", "SSAO point, 16 samples", "s-"), ("rt1_ms", "RT 1 spp (8 Å rays)", "^-")]
+    return cost_vs_size_chart(rows, series, "AO cost vs molecule size at equal screen coverage",
+                              "time per frame (ms)", path)
 
 
 # ------------------------------------------------------------------ SSAO and distant occluders

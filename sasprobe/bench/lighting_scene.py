@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sasprobe.bench import median_time
+from sasprobe.bench.charts import figure, save
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
 from sasprobe.render.camera_math import fit_camera, look_at, perspective
 from sasprobe.render.gpu_grid import Culling, GpuGrid
@@ -22,15 +22,35 @@ def gl_context():
     return moderngl.create_standalone_context(backend="egl", require=430)
 
 
-def gpu_time(gl, fn, repeats: int) -> float:
-    """Median seconds of fn() with the GPU drained after each call (one warm-up call first)."""
+SLOW_SECONDS = 2.0  # a call slower than this is timed in fewer rounds
 
-    def call():
+
+def interleaved_times(gl, calls: dict, repeats: int) -> dict:
+    """Median seconds of each call (GPU drained after each), measured round-robin: one call
+    of each per round, so load from elsewhere on the machine (llvmpipe shares the CPU)
+    falls on all of them alike and their ratios stay fair. One warm-up call each; calls
+    slower than SLOW_SECONDS take part in at most 3 rounds."""
+    import statistics
+    import time
+
+    def timed(fn) -> float:
+        t0 = time.perf_counter()
         fn()
         gl.finish()
+        return time.perf_counter() - t0
 
-    call()
-    return median_time(call, repeats)
+    warm = {key: timed(fn) for key, fn in calls.items()}
+    samples = {key: [] for key in calls}
+    for round_ in range(max(1, repeats)):
+        for key, fn in calls.items():
+            if round_ < 3 or warm[key] < SLOW_SECONDS:
+                samples[key].append(timed(fn))
+    return {key: statistics.median(v) for key, v in samples.items()}
+
+
+def gpu_time(gl, fn, repeats: int) -> float:
+    """Median seconds of fn() with the GPU drained after each call."""
+    return interleaved_times(gl, {0: fn}, repeats)[0]
 
 
 @dataclass
@@ -97,3 +117,22 @@ def oblique_camera(target, distance: float, elevation_deg: float, size: tuple[in
     el = np.radians(elevation_deg)
     eye = np.asarray(target, dtype=np.float64) + distance * np.array([0.0, -np.cos(el), np.sin(el)])
     return look_at(eye, target, (0.0, 0.0, 1.0)), perspective(fov, size[0] / size[1], 1.0, distance * 4)
+
+
+def cost_vs_size_chart(rows: list[dict], series: list[tuple[str, str, str]], title: str, ylabel: str, path):
+    """Time against atom count on log axes, with a ±20 % band around the first structure's
+    value of the first series (the flatness target). series: (row key, label, style)."""
+    fig, ax = figure()
+    atoms = [r["atoms"] for r in rows]
+    base = rows[0][series[0][0]]
+    ax.fill_between([min(atoms), max(atoms)], base * 0.8, base * 1.2, color="tab:blue", alpha=0.12,
+                    label=f"±20 % of {rows[0]['structure']}")
+    for key, label, style in series:
+        ax.plot(atoms, [r[key] for r in rows], style, label=label)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("atoms in the structure (about half the pixels show atoms)")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=7)
+    return save(fig, path)

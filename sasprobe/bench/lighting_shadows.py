@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.bench.charts import figure, save
-from sasprobe.bench.lighting_scene import fitted_scene, gpu_time, scene_with_coverage
+from sasprobe.bench.lighting_scene import cost_vs_size_chart, fitted_scene, interleaved_times, scene_with_coverage
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
 from sasprobe.render.gpu_grid import Culling, GpuGrid
 from sasprobe.render.lighting_params import HARD_SHADOW, DirectionalLight, SoftShadow
@@ -36,24 +35,27 @@ def cell_sweep(gl, name: str, structure, size, cell_sizes, repeats: int) -> list
     default = GpuGrid(gl, UniformGrid(structure.positions, expanded), structure.vdw_radii)
     scene = fitted_scene(default, size, fill=1.0)
     extent = float(np.max(default.grid.upper - default.grid.origin))
+    grids = [default if cell is None else GpuGrid(gl, UniformGrid(structure.positions, expanded, cell),
+                                                  structure.vdw_radii)
+             for cell in [*cell_sizes, None, extent + 1.0]]
+    passes = [ShadowPass(grid) for grid in grids]
+    calls = {}
+    for i, shadows in enumerate(passes):
+        calls[(i, "hard_ms")] = lambda p=shadows: p.trace(scene.gbuffer, SUN, HARD_SHADOW)
+        calls[(i, "soft_ms")] = lambda p=shadows: p.trace(scene.gbuffer, SUN, SOFT)
+    seconds = interleaved_times(gl, calls, repeats)
     rows = []
-    for cell in [*cell_sizes, None, extent + 1.0]:
-        grid = default if cell is None else GpuGrid(gl, UniformGrid(structure.positions, expanded, cell),
-                                                    structure.vdw_radii)
-        shadows = ShadowPass(grid)
+    for i, grid in enumerate(grids):
         stats = grid.grid.stats()
-        row = {
+        rows.append({
             "structure": name, "atoms": structure.n_atoms, "cell_size": stats.cell_size, "cells": stats.n_cells,
-            "default": cell is None, "brute_force": stats.n_cells == 1, "grid_bytes": grid.nbytes,
-            "hard_ms": gpu_time(gl, lambda: shadows.trace(scene.gbuffer, SUN, HARD_SHADOW), repeats) * 1e3,
-            "soft_ms": gpu_time(gl, lambda: shadows.trace(scene.gbuffer, SUN, SOFT), repeats) * 1e3,
-        }
-        rows.append(row)
+            "default": grid is default, "brute_force": stats.n_cells == 1, "grid_bytes": grid.nbytes,
+            "hard_ms": seconds[(i, "hard_ms")] * 1e3, "soft_ms": seconds[(i, "soft_ms")] * 1e3,
+        })
+    for shadows, grid in zip(passes, grids):
         shadows.release()
-        if grid is not default:
-            grid.release()
+        grid.release()
     scene.release()
-    default.release()
     return rows
 
 
@@ -89,44 +91,34 @@ def sweep_chart(rows: list[dict], path):
 def cube_bounded(gl, structures: list[tuple[str, object]], size, repeats: int) -> list[dict]:
     """Hard and soft directional shadows with the navigation cube on (camera framing the
     cube, atoms outside culled, rays limited to the cube) and, for contrast, of the whole
-    molecule; both at equal screen coverage."""
-    rows = []
+    molecule; both at equal screen coverage. Each structure has its own grid, so the
+    culling (set when its scene is traced) stays as the cube scene left it."""
+    setups, calls = [], {}
     for name, structure in structures:
         grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
-        shadows = ShadowPass(grid)
-        centre = densest_cube_centre(grid)
-        whole = scene_with_coverage(grid, size, COVERAGE)
-        row = {"structure": name, "atoms": structure.n_atoms,
-               "whole_coverage": whole.coverage,
-               "whole_hard_ms": gpu_time(gl, lambda: shadows.trace(whole.gbuffer, SUN, HARD_SHADOW), repeats) * 1e3}
-        whole.release()
-        cube = scene_with_coverage(grid, size, COVERAGE, Culling(nav_cube=(centre, CUBE_HALF)))
-        row.update({
-            "cube_atoms": int((~grid.culled_mask).sum()),
-            "cube_coverage": cube.coverage,
-            "cube_hard_ms": gpu_time(gl, lambda: shadows.trace(cube.gbuffer, SUN, HARD_SHADOW), repeats) * 1e3,
-            "cube_soft_ms": gpu_time(gl, lambda: shadows.trace(cube.gbuffer, SUN, SOFT), repeats) * 1e3,
+        whole_grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+        whole = scene_with_coverage(whole_grid, size, COVERAGE)
+        cube = scene_with_coverage(grid, size, COVERAGE, Culling(nav_cube=(densest_cube_centre(grid), CUBE_HALF)))
+        cube_pass, whole_pass = ShadowPass(grid), ShadowPass(whole_grid)
+        setups.append((name, structure, grid, whole_grid, whole, cube, cube_pass, whole_pass))
+        calls[(name, "whole_hard_ms")] = lambda p=whole_pass, s=whole: p.trace(s.gbuffer, SUN, HARD_SHADOW)
+        calls[(name, "cube_hard_ms")] = lambda p=cube_pass, s=cube: p.trace(s.gbuffer, SUN, HARD_SHADOW)
+        calls[(name, "cube_soft_ms")] = lambda p=cube_pass, s=cube: p.trace(s.gbuffer, SUN, SOFT)
+    seconds = interleaved_times(gl, calls, repeats)
+    rows = []
+    for name, structure, grid, whole_grid, whole, cube, cube_pass, whole_pass in setups:
+        rows.append({
+            "structure": name, "atoms": structure.n_atoms, "whole_coverage": whole.coverage,
+            "cube_atoms": int((~grid.culled_mask).sum()), "cube_coverage": cube.coverage,
+            **{key: seconds[(name, key)] * 1e3 for key in ("whole_hard_ms", "cube_hard_ms", "cube_soft_ms")},
         })
-        cube.release()
-        shadows.release()
-        grid.release()
-        rows.append(row)
+        for thing in (whole, cube, cube_pass, whole_pass, grid, whole_grid):
+            thing.release()
     return rows
 
 
 def cube_chart(rows: list[dict], path):
-    fig, ax = figure()
-    atoms = [r["atoms"] for r in rows]
-    base = rows[0]["cube_hard_ms"]
-    ax.fill_between([min(atoms), max(atoms)], base * 0.8, base * 1.2, color="tab:blue", alpha=0.12,
-                    label=f"±20 % of {rows[0]['structure']}")
-    ax.plot(atoms, [r["cube_hard_ms"] for r in rows], "o-", label="cube on: hard")
-    ax.plot(atoms, [r["cube_soft_ms"] for r in rows], "x-", label="cube on: soft")
-    ax.plot(atoms, [r["whole_hard_ms"] for r in rows], "s--", label="whole molecule: hard")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("atoms in the structure")
-    ax.set_ylabel("shadow pass (ms, median)")
-    ax.set_title(f"Shadows bounded by a {2 * CUBE_HALF:g} Å navigation cube")
-    ax.legend(fontsize=7)
-    return save(fig, path)
+    series = [("cube_hard_ms", "cube on: hard", "o-"), ("cube_soft_ms", "cube on: soft", "x-"),
+              ("whole_hard_ms", "whole molecule: hard", "s--")]
+    return cost_vs_size_chart(rows, series, f"Shadows bounded by a {2 * CUBE_HALF:g} Å navigation cube",
+                              "shadow pass (ms, median)", path)
