@@ -22,7 +22,14 @@ class DeviceScheme:
 
 
 # Drivers add one line here.
-SCHEMES: dict[str, DeviceScheme] = {}
+SCHEMES: dict[str, DeviceScheme] = {
+    "sim": DeviceScheme(
+        "sasprobe.devices.simulated:make_simulated",
+        "simulated arm driven by a scripted hand (scan, dive, press, orbit, random)",
+        "sim:scan",
+    ),
+    "replay": DeviceScheme("sasprobe.devices.replay:open_replay", "a recorded session (--speed X|max)", "replay:session.mcap"),
+}
 
 
 def parse_device_spec(spec: str) -> tuple[str, str | None]:

@@ -56,6 +56,13 @@ class Pose:
 
 
 def encode_pose(pose: Pose) -> bytes:
+    # One concatenate + tolist instead of per-field conversions: this runs every tick.
+    vectors = np.concatenate(
+        (pose.proxy_A, pose.goal_A, pose.force_N, pose.tip_mm, pose.orientation, pose.cube_center_A), dtype=np.float64
+    )
+    if vectors.shape != (19,):
+        raise ValueError("pose vectors must be 3 values each (orientation: 4)")
+    v = vectors.tolist()
     return _LAYOUT.pack(
         POSE_VERSION,
         pose.flags & 0xFFFF,
@@ -63,14 +70,10 @@ def encode_pose(pose: Pose) -> bytes:
         pose.seq,
         pose.device_t_ns,
         pose.publish_t_ns,
-        *np.asarray(pose.proxy_A, dtype=np.float64).reshape(3),
-        *np.asarray(pose.goal_A, dtype=np.float64).reshape(3),
-        *np.asarray(pose.force_N, dtype=np.float64).reshape(3),
-        *np.asarray(pose.tip_mm, dtype=np.float64).reshape(3),
-        *np.asarray(pose.orientation, dtype=np.float64).reshape(4),
+        *v[:16],
         pose.touched_atom,
         0,
-        *np.asarray(pose.cube_center_A, dtype=np.float64).reshape(3),
+        *v[16:],
         float(pose.cube_half_A),
     )
 

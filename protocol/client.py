@@ -1,0 +1,235 @@
+"""Clients of the daemon: a subscriber (latest pose + current scene) and a control client.
+
+The subscriber never blocks its caller longer than asked: `poll()` drains whatever has
+arrived and returns, so a renderer calls it once per frame and draws the newest pose.
+Messages that break the protocol are dropped and counted, never raised.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from pathlib import Path
+
+import zmq
+
+from sasprobe.errors import UserError
+from sasprobe.protocol.control import ProtocolError, Reply, decode_reply, encode_request
+from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
+from sasprobe.protocol.pose import POSE_TOPIC, Pose, PoseDecodeError, decode_pose
+from sasprobe.protocol.scene import SCENE_TOPIC, SceneError, decode_scene
+from sasprobe.protocol.security import ClientKeys, make_curve_client
+
+
+class ControlError(UserError):
+    """The daemon did not answer, or answered with an error (the message says which)."""
+
+
+class Subscriber:
+    """Subscribes to pose and scene; keeps the latest of each and counts what it saw."""
+
+    def __init__(
+        self,
+        endpoint: str = DEFAULT_PUB_ENDPOINT,
+        keys: ClientKeys | None = None,
+        context: zmq.Context | None = None,
+        rcvhwm: int = 10000,
+    ) -> None:
+        parse_endpoint(endpoint)
+        self.endpoint = endpoint
+        self._context = context or zmq.Context.instance()
+        self._socket = self._context.socket(zmq.SUB)
+        self._socket.linger = 0
+        self._socket.rcvhwm = rcvhwm
+        if keys is not None:
+            make_curve_client(self._socket, keys)
+        self._socket.setsockopt(zmq.SUBSCRIBE, POSE_TOPIC)
+        self._socket.setsockopt(zmq.SUBSCRIBE, SCENE_TOPIC)
+        self._socket.connect(endpoint)
+        self.pose: Pose | None = None  # the newest pose
+        self.scene: dict | None = None  # the newest scene
+        self.poses_received = 0
+        self.scenes_received = 0
+        self.malformed = 0  # messages dropped because they break the protocol
+        self.missed = 0  # poses lost between two received ones (gaps in `seq`)
+        self.last_error: str | None = None  # why the last malformed message was dropped
+
+    def poll(self, timeout_s: float = 0.0) -> list[Pose]:
+        """Wait up to timeout_s for a message, then drain all queued ones without blocking.
+
+        Returns the poses received by this call, oldest first; `pose` and `scene` hold
+        the newest of each.
+        """
+        received: list[Pose] = []
+        if timeout_s > 0 and not self._socket.poll(int(timeout_s * 1000)):
+            return received
+        while True:
+            try:
+                frames = self._socket.recv_multipart(zmq.NOBLOCK)
+            except zmq.Again:
+                return received
+            pose = self._handle(frames)
+            if pose is not None:
+                received.append(pose)
+
+    def _handle(self, frames: list[bytes]) -> Pose | None:
+        try:
+            if len(frames) != 2:
+                raise ValueError(f"expected [topic, payload], got {len(frames)} frames")
+            topic, payload = frames
+            if topic == POSE_TOPIC:
+                pose = decode_pose(payload)
+                if self.pose is not None and pose.seq > self.pose.seq + 1:
+                    self.missed += pose.seq - self.pose.seq - 1
+                self.pose = pose
+                self.poses_received += 1
+                return pose
+            if topic == SCENE_TOPIC:
+                self.scene = decode_scene(payload)
+                self.scenes_received += 1
+                return None
+            raise ValueError(f"unknown topic {topic[:20]!r}")
+        except (PoseDecodeError, SceneError, ValueError) as exc:
+            self.malformed += 1
+            self.last_error = str(exc)
+            return None
+
+    def wait_for_scene(self, timeout_s: float = 3.0) -> dict:
+        """Poll until a scene has arrived (the daemon sends one at least once a second)."""
+        deadline = time.monotonic() + timeout_s
+        while self.scene is None:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise ControlError(f"no scene from {self.endpoint} within {timeout_s:g} s (is the daemon running?)")
+            self.poll(min(remaining, 0.1))
+        return self.scene
+
+    def close(self) -> None:
+        self._socket.close(linger=0)
+
+    def __enter__(self) -> Subscriber:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class ControlClient:
+    """Sends control requests (REQ socket); a lost reply resets the socket (lazy pirate)."""
+
+    def __init__(
+        self,
+        endpoint: str = DEFAULT_CTL_ENDPOINT,
+        keys: ClientKeys | None = None,
+        timeout_s: float = 3.0,
+        context: zmq.Context | None = None,
+    ) -> None:
+        parse_endpoint(endpoint)
+        self.endpoint = endpoint
+        self.timeout_s = timeout_s
+        self._keys = keys
+        self._context = context or zmq.Context.instance()
+        self._ids = itertools.count(1)
+        self._socket: zmq.Socket | None = None
+
+    def _open(self) -> zmq.Socket:
+        if self._socket is None:
+            sock = self._context.socket(zmq.REQ)
+            sock.linger = 0
+            if self._keys is not None:
+                make_curve_client(sock, self._keys)
+            sock.connect(self.endpoint)
+            self._socket = sock
+        return self._socket
+
+    def request(self, cmd: str, args: dict | None = None, data: bytes | None = None,
+                timeout_s: float | None = None) -> Reply:
+        """One request and its reply (ok or not); ControlError when no valid reply comes in time."""
+        sock = self._open()
+        request_id = next(self._ids)
+        sock.send_multipart(encode_request(cmd, args, id=request_id, data=data))
+        timeout = self.timeout_s if timeout_s is None else timeout_s
+        if not sock.poll(int(timeout * 1000)):
+            self._reset()
+            raise ControlError(f"no reply from the daemon at {self.endpoint} within {timeout:g} s (is it running?)")
+        try:
+            reply = decode_reply(sock.recv_multipart())
+        except ProtocolError as exc:
+            raise ControlError(f"bad reply from {self.endpoint}: {exc}") from None
+        if reply.id != request_id:
+            self._reset()
+            raise ControlError(f"reply from {self.endpoint} does not match the request")
+        return reply
+
+    def call(self, cmd: str, data: bytes | None = None, timeout_s: float | None = None, **args) -> dict:
+        """Send a command and return its result; ControlError carries the daemon's error line."""
+        reply = self.request(cmd, args, data=data, timeout_s=timeout_s)
+        if not reply.ok:
+            raise ControlError(f"{cmd}: {reply.error}")
+        return reply.result
+
+    def ping(self) -> dict:
+        return self.call("ping")
+
+    def status(self, reset_stats: bool = False) -> dict:
+        """The daemon's status; reset_stats starts a new measurement window first."""
+        return self.call("status", **({"reset_stats": True} if reset_stats else {}))
+
+    def get_scene(self) -> dict:
+        return self.call("get_scene")
+
+    def get_structure(self, timeout_s: float = 30.0) -> tuple[dict, bytes]:
+        """The structure file the daemon uses: (header with name, sha256, ..., the raw bytes)."""
+        reply = self.request("get_structure", timeout_s=timeout_s)
+        if not reply.ok:
+            raise ControlError(f"get_structure: {reply.error}")
+        if reply.data is None:
+            raise ControlError("get_structure: the reply carries no file bytes")
+        return reply.result, reply.data
+
+    def load(self, path: str | Path | None = None, data: bytes | None = None, name: str | None = None,
+             timeout_s: float = 60.0) -> dict:
+        if data is not None:
+            return self.call("load", data=data, timeout_s=timeout_s, **({"name": name} if name else {}))
+        return self.call("load", timeout_s=timeout_s, path=str(path))
+
+    def set(self, **changes) -> dict:
+        return self.call("set", **changes)
+
+    def record_start(self, path: str | Path) -> dict:
+        return self.call("record_start", path=str(path))
+
+    def record_stop(self) -> dict:
+        return self.call("record_stop")
+
+    def shutdown(self) -> dict:
+        return self.call("shutdown")
+
+    def _reset(self) -> None:
+        if self._socket is not None:
+            self._socket.close(linger=0)
+            self._socket = None
+
+    def close(self) -> None:
+        self._reset()
+
+    def __enter__(self) -> ControlClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def fetch_structure(ctl_endpoint: str = DEFAULT_CTL_ENDPOINT, keys: ClientKeys | None = None,
+                    timeout_s: float = 30.0, keep_water: bool = False):
+    """The daemon's structure as a sasprobe.molecule.Structure, from `get_structure` bytes."""
+    import hashlib
+
+    from sasprobe.molecule import parse_structure
+
+    with ControlClient(ctl_endpoint, keys=keys, timeout_s=timeout_s) as client:
+        header, data = client.get_structure(timeout_s=timeout_s)
+    if hashlib.sha256(data).hexdigest() != header.get("sha256"):
+        raise ControlError(f"structure from {ctl_endpoint} does not match its sha256")
+    return parse_structure(data, name=header.get("name", "structure"), source=f"{ctl_endpoint}:{header.get('name')}",
+                           keep_water=keep_water or bool(header.get("keep_water", False)))

@@ -1,0 +1,195 @@
+"""`sasprobe render` put together: options -> structure and scene -> context -> loop."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sasprobe.errors import UserError
+
+log = logging.getLogger("sasprobe")
+
+
+@dataclass
+class RenderOptions:
+    molecule: str | None = None
+    connect: str | None = None  # None: standalone; "" default endpoint
+    control: str | None = None
+    headless: bool = False
+    size: tuple[int, int] = (1280, 720)
+    frames: int | None = None
+    seconds: float | None = None
+    out: Path | None = None
+    fps: float = 30.0
+    gbuffer: Path | None = None
+    camera: dict | None = None
+    orbit: float = 0.0
+    spheres: str = "quad"
+    probe: list[float] | None = None
+    touched: int = -1
+    probe_radius: float | None = None
+    nav_cube: list[float] | None = None
+    clip: list[list[float]] = field(default_factory=list)
+    probe_plane: bool = False
+    light: list[float] | None = None
+    backbone: bool = False
+    fxaa: bool = True
+    keep_water: bool = False
+
+    @classmethod
+    def from_args(cls, args) -> "RenderOptions":
+        return cls(
+            molecule=args.molecule, connect=args.connect, control=args.control, headless=args.headless,
+            size=args.size, frames=args.frames, seconds=args.seconds, out=args.out, fps=args.fps,
+            gbuffer=args.gbuffer, camera=args.camera, orbit=args.orbit, spheres=args.spheres,
+            probe=args.probe, touched=args.touched, probe_radius=args.probe_radius, nav_cube=args.nav_cube,
+            clip=args.clip, probe_plane=args.probe_plane, light=args.light, backbone=args.backbone,
+            fxaa=not args.no_fxaa, keep_water=args.keep_water,
+        )
+
+
+def build_scene(structure, opts: RenderOptions, effects=None):
+    """The SceneState for a structure: the options' planes, probe, cube and light."""
+    from sasprobe.molecule import DEFAULT_PROBE_RADIUS
+    from sasprobe.render.scene import Effects, NavCube, Probe, SceneState
+
+    radius = opts.probe_radius or DEFAULT_PROBE_RADIUS
+    if effects is None:
+        effects = Effects(fxaa=opts.fxaa, probe_plane=opts.probe_plane)
+    scene = SceneState(structure, probe_radius=radius, clip_planes=[np.array(p) for p in opts.clip], effects=effects)
+    if opts.touched >= structure.n_atoms:
+        raise UserError(f"--touched {opts.touched}: {structure.name} has atoms 0..{structure.n_atoms - 1}")
+    if opts.probe is not None:
+        scene.probe = Probe(center=np.array(opts.probe, dtype=np.float64), radius=radius, touched_atom=opts.touched)
+    if opts.nav_cube is not None:
+        scene.nav_cube = NavCube(center=np.array(opts.nav_cube[:3], dtype=np.float64), half=float(opts.nav_cube[3]))
+    if opts.light is not None:
+        v = np.array(opts.light, dtype=np.float64)
+        scene.light_direction = v / np.linalg.norm(v)
+    return scene
+
+
+def initial_camera(scene, opts: RenderOptions):
+    from sasprobe.render.camera import Camera, camera_from_spec
+
+    center, radius = scene.bounding_sphere()
+    aspect = opts.size[0] / opts.size[1]
+    if opts.camera:
+        return camera_from_spec(opts.camera, center, radius, aspect)
+    return Camera.fitted(center, radius, aspect)
+
+
+def open_source(opts: RenderOptions):
+    """A StaticSource for --molecule (or the embedded 1CRN), a DaemonLink for --connect."""
+    if opts.connect is None:
+        from sasprobe.molecule import load_structure_or_default
+        from sasprobe.render.source import StaticSource
+
+        return StaticSource(load_structure_or_default(opts.molecule, keep_water=opts.keep_water))
+    try:
+        from sasprobe.render.link import DaemonLink  # needs the daemon's protocol client
+    except ModuleNotFoundError:
+        raise UserError("--connect is not available in this build (the daemon's protocol client is missing)") from None
+    return DaemonLink(opts.connect or None, opts.control, keep_water=opts.keep_water)
+
+
+def render_main(opts: RenderOptions) -> int:
+    from sasprobe.render.context import display_available
+
+    window_mode = not opts.headless and display_available()
+    if not opts.headless and not window_mode:
+        log.info("no display found: rendering headless")
+    source = open_source(opts)
+    try:
+        return _run_window(opts, source) if window_mode else _run_headless(opts, source)
+    finally:
+        source.close()
+
+
+def _writer(opts: RenderOptions, frames: int | None):
+    from sasprobe.render.output import FrameWriter
+
+    return FrameWriter(opts.out, frames, opts.fps) if opts.out is not None else None
+
+
+def _run_headless(opts: RenderOptions, source) -> int:
+    from sasprobe.progress import progress_bar
+    from sasprobe.render.context import create_headless_context
+    from sasprobe.render.headless import run_headless
+    from sasprobe.render.renderer import Renderer
+
+    if hasattr(source, "wait_ready"):
+        source.wait_ready()  # a daemon: its structure and a first pose, or one clear line
+    scene = build_scene(source.take_new_structure(), opts)
+    ctx = create_headless_context()
+    renderer = Renderer(ctx, scene, opts.size, sphere_mode=opts.spheres, backbone_always=opts.backbone)
+    camera = initial_camera(scene, opts)
+    frames = opts.frames if (opts.frames is not None or opts.seconds is not None) else 1
+    writer = _writer(opts, frames)
+    bar = progress_bar(frames, "render", unit="frame") if frames and frames > 1 else None
+
+    def update() -> None:
+        source.poll()
+        source.apply(scene)
+
+    try:
+        stats = run_headless(renderer, camera, frames, opts.seconds, writer=writer, gbuffer_path=opts.gbuffer,
+                             orbit_deg=opts.orbit, update=update, progress=bar)
+    finally:
+        if bar is not None:
+            bar.close()
+        if writer is not None:
+            writer.close()
+        renderer.release()
+        ctx.release()
+    dropped = source.readout().dropped
+    if dropped:
+        log.warning("dropped %d malformed message(s) from the daemon", dropped)
+    _report(stats.summary(), writer, opts)
+    return 0
+
+
+def _run_window(opts: RenderOptions, source) -> int:
+    import glfw
+
+    from sasprobe.render.context import create_window
+    from sasprobe.render.renderer import Renderer
+    from sasprobe.render.scene import Effects
+    from sasprobe.render.window import WindowApp
+
+    window, ctx = create_window(opts.size, "sasprobe render")
+    try:
+        def build(structure, effects):
+            scene = build_scene(structure, opts, effects)
+            renderer = Renderer(ctx, scene, glfw.get_framebuffer_size(window), sphere_mode=opts.spheres,
+                                backbone_always=opts.backbone)
+            glfw.set_window_title(window, f"sasprobe render: {structure.name} ({structure.n_atoms} atoms)")
+            return renderer, initial_camera(scene, opts)
+
+        app = WindowApp(window, ctx, source, build, "sasprobe render",
+                        Effects(fxaa=opts.fxaa, probe_plane=opts.probe_plane))
+        writer = _writer(opts, 1)
+        log.info("window open: %dx%d framebuffer", *glfw.get_framebuffer_size(window))
+        try:
+            count = app.run(frames=opts.frames, seconds=opts.seconds, writer=writer, gbuffer_path=opts.gbuffer)
+        finally:
+            if writer is not None:
+                writer.close()
+            app.release()
+        _report(f"{count} frame(s) shown", writer, opts)
+    finally:
+        glfw.destroy_window(window)
+        glfw.terminate()
+    return 0
+
+
+def _report(summary: str, writer, opts: RenderOptions) -> None:
+    log.info(summary)
+    if writer is not None and writer.written:
+        shown = writer.written[0] if len(writer.written) == 1 else f"{writer.written[0]} .. {writer.written[-1]}"
+        log.info("wrote %s", shown)
+    if opts.gbuffer is not None:
+        log.info("wrote %s", opts.gbuffer)

@@ -1,0 +1,57 @@
+"""G-buffer pass of the backbone trace: C-alpha (P) segments per chain, chain-coloured,
+shaded as thin tubes, outside the navigation cube only (inside it the spheres show
+the atoms). Drawn when a navigation cube is in effect, or always with `show_always`."""
+
+from __future__ import annotations
+
+from sasprobe.render.buffers import BACKBONE_FORMAT
+from sasprobe.render.passes.base import Frame, Pass, apply_planes, apply_uniforms
+
+TRACE_RADIUS = 0.35  # Å
+MIN_WIDTH_PX = 2.0
+
+
+class BackbonePass(Pass):
+    name = "backbone"
+
+    def __init__(self, ctx, programs, buffers, show_always: bool = False):
+        self.prog = programs.get("backbone.vert", "backbone.frag", "wide_line.geom")
+        self.vao = ctx.vertex_array(self.prog, [(buffers.backbone, BACKBONE_FORMAT, "in_position", "in_color", "in_atom")])
+        self.n_vertices = buffers.n_backbone_vertices
+        self.show_always = show_always
+
+    def enabled(self, frame: Frame) -> bool:
+        return (
+            self.n_vertices > 0
+            and frame.scene.effects.backbone
+            and (frame.cube is not None or self.show_always)
+        )
+
+    def run(self, frame: Frame) -> None:
+        ctx = frame.ctx
+        apply_uniforms(self.prog, frame.camera_uniforms())
+        apply_uniforms(self.prog, line_width_uniforms(frame, TRACE_RADIUS, MIN_WIDTH_PX))
+        apply_planes(self.prog, frame.planes)
+        cube = frame.cube
+        apply_uniforms(self.prog, {
+            "u_cube_enabled": int(cube is not None),
+            "u_cube": (*map(float, cube.center), float(cube.half)) if cube is not None else (0.0, 0.0, 0.0, 0.0),
+        })
+        frame.targets.gbuffer_fbo.use()
+        ctx.enable_only(ctx.DEPTH_TEST)
+        ctx.depth_func = "<"
+        self.vao.render(ctx.LINES, vertices=self.n_vertices)
+
+    def release(self) -> None:
+        self.vao.release()
+
+
+def line_width_uniforms(frame: Frame, radius: float, min_width_px: float) -> dict:
+    """Uniforms of shaders/wide_line.geom."""
+    return {
+        "u_radius": float(radius),
+        "u_min_width_px": float(min_width_px),
+        "u_proj_scale": float(frame.proj[1, 1]) * frame.size[1] * 0.5,
+    }
+
+

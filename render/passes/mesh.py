@@ -1,0 +1,76 @@
+"""Benchmark baseline: atoms as instanced triangle-mesh spheres (a UV sphere of 648
+triangles by default) into the same G-buffer, for comparison with the impostors."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sasprobe.render.passes.base import Frame, Pass, apply_uniforms
+
+
+def uv_sphere(slices: int = 18, stacks: int = 19) -> tuple[np.ndarray, np.ndarray]:
+    """Unit sphere: (vertices (V, 3) float32, triangle indices (T, 3) uint32), 2*slices*(stacks-1) triangles."""
+    verts = [(0.0, 1.0, 0.0)]
+    for i in range(1, stacks):
+        theta = math.pi * i / stacks
+        for j in range(slices):
+            phi = 2.0 * math.pi * j / slices
+            verts.append((math.sin(theta) * math.cos(phi), math.cos(theta), math.sin(theta) * math.sin(phi)))
+    verts.append((0.0, -1.0, 0.0))
+    bottom = len(verts) - 1
+    tris = []
+    ring = lambda i, j: 1 + (i - 1) * slices + (j % slices)  # noqa: E731
+    for j in range(slices):
+        tris.append((0, ring(1, j + 1), ring(1, j)))
+        tris.append((bottom, ring(stacks - 1, j), ring(stacks - 1, j + 1)))
+    for i in range(1, stacks - 1):
+        for j in range(slices):
+            a, b, c, d = ring(i, j), ring(i, j + 1), ring(i + 1, j), ring(i + 1, j + 1)
+            tris += [(a, b, c), (b, d, c)]
+    return np.array(verts, dtype=np.float32), np.array(tris, dtype=np.uint32)
+
+
+class MeshSpherePass(Pass):
+    name = "mesh_spheres"
+
+    def __init__(self, ctx, programs, buffers, slices: int = 18, stacks: int = 19):
+        verts, tris = uv_sphere(slices, stacks)
+        self.n_triangles = len(tris)
+        self.prog = programs.get("mesh.vert", "mesh.frag")
+        self.vertex_buffer = ctx.buffer(verts.tobytes())
+        self.index_buffer = ctx.buffer(tris.tobytes())
+        n = max(buffers.n_atoms, 1)
+        self.instances = ctx.buffer(reserve=n * 36)  # 8 floats + atom id per drawn atom
+        self.records = buffers.records
+        self.n_instances = 0
+        self._last = None
+        self.vao = ctx.vertex_array(
+            self.prog,
+            [(self.vertex_buffer, "3f", "in_vertex"), (self.instances, "4f 4f 1i/i", "in_sphere", "in_color", "in_atom")],
+            index_buffer=self.index_buffer,
+            index_element_size=4,
+        )
+
+    def run(self, frame: Frame) -> None:
+        ctx = frame.ctx
+        ids = frame.scene.sphere_selection(frame.camera.eye)
+        if ids is not self._last:
+            inst = np.zeros(len(ids), dtype=[("rec", "<f4", 8), ("atom", "<i4")])
+            inst["rec"] = self.records[ids]
+            inst["atom"] = ids
+            if len(ids):
+                self.instances.write(inst.tobytes())
+            self.n_instances, self._last = len(ids), ids
+        if not self.n_instances:
+            return
+        apply_uniforms(self.prog, frame.camera_uniforms())
+        frame.targets.gbuffer_fbo.use()
+        ctx.enable_only(ctx.DEPTH_TEST)
+        ctx.depth_func = "<"
+        self.vao.render(ctx.TRIANGLES, instances=self.n_instances)
+
+    def release(self) -> None:
+        for obj in (self.vao, self.vertex_buffer, self.index_buffer, self.instances):
+            obj.release()

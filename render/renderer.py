@@ -1,0 +1,133 @@
+"""The renderer: GL objects created once, and the pass chain run each frame.
+
+    clear -> spheres -> probe -> backbone -> [lighting passes: fill visibility]
+          -> light -> navcube -> fxaa
+
+`passes` is a plain list; `insert_before(name, pass)` slots a pass in (a shadow or AO
+pass goes before "light").
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from sasprobe.render.buffers import MoleculeBuffers
+from sasprobe.render.camera import Camera
+from sasprobe.render.passes.backbone import BackbonePass
+from sasprobe.render.passes.base import ClearPass, Frame, Pass
+from sasprobe.render.passes.fxaa import FxaaPass
+from sasprobe.render.passes.light import LightPass, LightSettings
+from sasprobe.render.passes.navcube import NavCubePass
+from sasprobe.render.passes.probe import ProbePass
+from sasprobe.render.passes.spheres import SpherePass
+from sasprobe.render.scene import SceneState
+from sasprobe.render.shaders import ProgramCache
+from sasprobe.render.targets import RenderTargets
+
+
+class Renderer:
+    def __init__(self, ctx, scene: SceneState, size: tuple[int, int], sphere_mode: str = "quad",
+                 backbone_always: bool = False, light: LightSettings | None = None):
+        self.ctx = ctx
+        self.scene = scene
+        self.programs = ProgramCache(ctx)
+        self.buffers = MoleculeBuffers(ctx, scene.structure)
+        self.targets = RenderTargets(ctx, size)
+        self.sphere_pass = self._sphere_pass(sphere_mode)
+        self.passes: list[Pass] = [
+            ClearPass(ctx, self.programs),
+            self.sphere_pass,
+            ProbePass(ctx, self.programs, self.buffers),
+            BackbonePass(ctx, self.programs, self.buffers, show_always=backbone_always),
+            LightPass(ctx, self.programs, light),
+            NavCubePass(ctx, self.programs),
+            FxaaPass(ctx, self.programs),
+        ]
+        self.frame_index = 0
+        self.last_frame: Frame | None = None
+
+    # ------------------------------------------------------------- chain
+    def _sphere_pass(self, mode: str) -> Pass:
+        if mode == "mesh":
+            from sasprobe.render.passes.mesh import MeshSpherePass
+
+            return MeshSpherePass(self.ctx, self.programs, self.buffers)
+        return SpherePass(self.ctx, self.programs, self.buffers, mode)
+
+    def set_sphere_mode(self, mode: str) -> None:
+        """Swap the atoms' G-buffer pass (quad impostors, point sprites or meshes)."""
+        new = self._sphere_pass(mode)
+        i = self.passes.index(self.sphere_pass)
+        self.sphere_pass.release()
+        self.passes[i] = self.sphere_pass = new
+
+    @property
+    def sphere_mode(self) -> str:
+        return getattr(self.sphere_pass, "mode", "mesh")
+
+    def pass_named(self, name: str) -> Pass:
+        return next(p for p in self.passes if p.name == name)
+
+    def insert_before(self, name: str, new_pass: Pass) -> None:
+        self.passes.insert(self.passes.index(self.pass_named(name)), new_pass)
+
+    def resize(self, size: tuple[int, int]) -> None:
+        size = (max(int(size[0]), 1), max(int(size[1]), 1))
+        if size != self.targets.size:
+            self.targets.release()
+            self.targets = RenderTargets(self.ctx, size)
+
+    # ------------------------------------------------------------- frames
+    def render(self, camera: Camera, output_fbo=None, pass_times: dict | None = None) -> Frame:
+        """Run the chain once; the image lands in `output_fbo` (default: targets.final).
+
+        With `pass_times`, the GPU is drained (glFinish) after every pass and each pass's
+        wall time is added under its name (for benchmarks; it serialises the pipeline)."""
+        center, radius = self.scene.bounding_sphere()
+        camera.fit_clip_range(center, radius)
+        w, h = self.targets.size
+        frame = Frame(
+            ctx=self.ctx,
+            programs=self.programs,
+            targets=self.targets,
+            buffers=self.buffers,
+            scene=self.scene,
+            camera=camera,
+            view=camera.view(),
+            proj=camera.projection(w / h),
+            planes=self.scene.active_planes(camera.eye),
+            cube=self.scene.active_cube(),
+            output_fbo=output_fbo if output_fbo is not None else self.targets.final_fbo,
+            index=self.frame_index,
+        )
+        for p in self.passes:
+            if not p.enabled(frame):
+                continue
+            if pass_times is None:
+                p.run(frame)
+                continue
+            self.ctx.finish()
+            t0 = time.perf_counter()
+            p.run(frame)
+            self.ctx.finish()
+            pass_times[p.name] = pass_times.get(p.name, 0.0) + time.perf_counter() - t0
+        self.frame_index += 1
+        self.last_frame = frame
+        return frame
+
+    def read_image(self, frame: Frame | None = None) -> np.ndarray:
+        """The final image of a frame as H x W x 3 uint8, row 0 = top."""
+        frame = frame or self.last_frame
+        fbo = frame.output_fbo
+        w, h = self.targets.size
+        data = np.frombuffer(fbo.read(viewport=(0, 0, w, h), components=3), dtype=np.uint8)
+        return data.reshape(h, w, 3)[::-1].copy()
+
+    def release(self) -> None:
+        for p in self.passes:
+            p.release()
+        self.targets.release()
+        self.buffers.release()
+        self.programs.release()

@@ -1,0 +1,16 @@
+#version 410 core
+// Navigation-cube wire: the unit cube's 12 edges, scaled and moved to the cube.
+in vec3 in_position;  // corners of [-1, 1]^3
+uniform vec4 u_cube;  // centre xyz, half edge (Å)
+
+out LineVertex {
+    vec3 position;
+    vec3 color;
+    flat int id;
+} vs_out;
+
+void main() {
+    vs_out.position = u_cube.xyz + in_position * u_cube.w;
+    vs_out.color = vec3(0.0);
+    vs_out.id = -1;
+}

@@ -1,0 +1,232 @@
+"""`sasprobe bench render`: impostors against triangle meshes, the navigation cube on a
+large structure against a small one drawn whole, and frame time against atom count.
+
+Frame times are wall times of a whole frame with the GPU drained (glFinish) before
+and after; per-pass times drain after every pass. Medians over repeats, ratios from
+the same run. The GL renderer is named in the results: on llvmpipe (Mesa's software
+rasteriser) the figures are CPU figures, not what a GPU does.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+import numpy as np
+
+from sasprobe.bench import BenchContext, BenchResult
+from sasprobe.bench.charts import figure, save
+from sasprobe.errors import UserError
+from sasprobe.paths import shared_structures
+from sasprobe.progress import progress
+
+TITLE = "Rendering: impostors vs meshes, navigation cube, frame time vs atoms"
+MESH_TARGET_ATOMS = 60_000
+CUBE_TARGET_ATOMS = 300
+
+
+def add_arguments(parser) -> None:
+    from sasprobe.commands.render import size_type
+
+    parser.add_argument("--size", type=size_type, default=None, metavar="WxH",
+                        help="frame size (default 1280x720, --quick 640x360)")
+
+
+def run(ctx: BenchContext, args=None) -> BenchResult:
+    from sasprobe.molecule import load_default, load_structure
+    from sasprobe.render.context import create_headless_context
+
+    entries = shared_structures()
+    if not entries:
+        raise UserError("no shared structures found (expected ../shared/data/pdb/ or SASPROBE_DATA)")
+    size = getattr(args, "size", None) or ((640, 360) if ctx.quick else (1280, 720))
+    repeats, mesh_repeats = (3, 2) if ctx.quick else (9, 5)
+    gl = create_headless_context()
+    renderer_name = f"{gl.info['GL_RENDERER']} / OpenGL {gl.info['GL_VERSION']}"
+    try:
+        structures = {e.id: load_structure(e.path) for e in progress(entries, "bench render: load", len(entries))}
+        crambin = load_default()
+        scaling = _scaling(gl, [(e.id, structures[e.id]) for e in entries], size, repeats)
+        mesh_id = min(structures, key=lambda k: abs(structures[k].n_atoms - MESH_TARGET_ATOMS))
+        sizes = [size] if ctx.quick else [size, (size[0] // 2, size[1] // 2)]
+        modes = [_modes(gl, structures[mesh_id], s, mesh_repeats) | {"id": mesh_id} for s in sizes]
+        big_id = max(structures, key=lambda k: structures[k].n_atoms)
+        cube = _cube(gl, structures[big_id], crambin, size, repeats) | {"id": big_id}
+    finally:
+        gl.release()
+    data = {"gl_renderer": renderer_name, "size": list(size), "repeats": repeats, "mesh_repeats": mesh_repeats,
+            "modes": modes, "cube": cube, "scaling": scaling}
+    charts = []
+    path = ctx.chart_path("render_frame_time.png")
+    if path is not None:
+        charts.append(_chart(path, scaling, renderer_name, size))
+    return BenchResult("render", data, _markdown(data), charts)
+
+
+# ---------------------------------------------------------------- measurements
+def _measure(cases, repeats: int) -> list[tuple[float, dict[str, float]]]:
+    """Median frame time (s) and median per-pass times of each (renderer, camera, before)
+    case. Frames of the cases are taken in turn, so load from other processes falls on
+    all of them alike; frame and pass times come from the same frames (the GPU drained
+    after each pass), after one warm-up frame per case."""
+    for renderer, camera, _ in cases:
+        renderer.render(camera)
+        renderer.ctx.finish()
+    frames: list[list[float]] = [[] for _ in cases]
+    passes: list[list[dict]] = [[] for _ in cases]
+    for _ in range(repeats):
+        for i, (renderer, camera, before) in enumerate(cases):
+            if before is not None:
+                before()
+            per_pass: dict[str, float] = {}
+            renderer.ctx.finish()
+            t0 = time.perf_counter()
+            renderer.render(camera, pass_times=per_pass)
+            renderer.ctx.finish()
+            frames[i].append(time.perf_counter() - t0)
+            passes[i].append(per_pass)
+    return [
+        (statistics.median(f), {n: statistics.median(p.get(n, 0.0) for p in ps) for n in ps[0]})
+        for f, ps in zip(frames, passes)
+    ]
+
+
+def _renderer(gl, structure, size, mode="quad", nav_cube=None):
+    from sasprobe.render.camera import Camera
+    from sasprobe.render.renderer import Renderer
+    from sasprobe.render.scene import SceneState
+
+    scene = SceneState(structure, nav_cube=nav_cube)
+    center, radius = scene.bounding_sphere()
+    camera = Camera.fitted(center, radius, size[0] / size[1])
+    return Renderer(gl, scene, size, sphere_mode=mode), camera
+
+
+def _scaling(gl, structures, size, repeats) -> list[dict]:
+    cases, rows = [], []
+    try:
+        for name, structure in progress(structures, "bench render: set up", len(structures)):
+            renderer, camera = _renderer(gl, structure, size)
+            cases.append((renderer, camera, None))
+            rows.append({"id": name, "n_atoms": structure.n_atoms})
+        for row, (frame, passes) in zip(rows, _measure(cases, repeats)):
+            row.update(frame_s=frame, spheres_s=passes.get("spheres", 0.0), passes_s=passes)
+    finally:
+        for renderer, _, _ in cases:
+            renderer.release()
+    return rows
+
+
+def _modes(gl, structure, size, repeats) -> dict:
+    from sasprobe.render.passes.mesh import uv_sphere
+
+    out = {"n_atoms": structure.n_atoms, "size": list(size), "mesh_triangles_per_atom": len(uv_sphere()[1])}
+    cases = []
+    try:
+        for mode in ("quad", "sprite", "mesh"):
+            renderer, camera = _renderer(gl, structure, size, mode)
+            cases.append((renderer, camera, None))
+        for mode, (frame, passes) in zip(("quad", "sprite", "mesh"), _measure(cases, repeats)):
+            out[mode] = {"frame_s": frame, "atoms_pass_s": passes.get("mesh_spheres" if mode == "mesh" else "spheres", 0.0)}
+    finally:
+        for renderer, _, _ in cases:
+            renderer.release()
+    out["mesh_over_quad_atoms_pass"] = out["mesh"]["atoms_pass_s"] / out["quad"]["atoms_pass_s"]
+    out["mesh_over_quad_frame"] = out["mesh"]["frame_s"] / out["quad"]["frame_s"]
+    return out
+
+
+def cube_for(structure, target: int):
+    """A navigation cube around the atom nearest the centroid holding about `target`
+    atoms (half edge found by bisection)."""
+    from sasprobe.render.scene import NavCube
+
+    pos, radii = structure.positions, structure.vdw_radii
+    center = pos[np.argmin(np.linalg.norm(pos - pos.mean(axis=0), axis=1))].copy()
+
+    def count(half: float) -> int:
+        gap = pos - np.clip(pos, center - half, center + half)
+        return int(np.count_nonzero(np.einsum("ij,ij->i", gap, gap) <= radii ** 2))
+
+    lo, hi = 0.5, 50.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if count(mid) < target else (lo, mid)
+    return NavCube(center=center, half=hi), count(hi)
+
+
+def _cube(gl, big, small, size, repeats) -> dict:
+    still_cube, n_inside = cube_for(big, CUBE_TARGET_ATOMS)
+    moving_cube, _ = cube_for(big, CUBE_TARGET_ATOMS)
+    still, still_camera = _renderer(gl, big, size, nav_cube=still_cube)
+    moving, moving_camera = _renderer(gl, big, size, nav_cube=moving_cube)
+    whole, whole_camera = _renderer(gl, small, size)
+    # The haptic arm drags the cube: new culling (a grid query) before every frame.
+    step = np.array([0.013, -0.007, 0.011])
+    nudge = lambda: setattr(moving_cube, "center", moving_cube.center + step)  # noqa: E731
+    try:
+        (still_s, passes), (moving_s, _), (whole_s, _) = _measure(
+            [(still, still_camera, None), (moving, moving_camera, nudge), (whole, whole_camera, None)], repeats)
+        spheres = still.buffers.n_selected
+    finally:
+        for r in (still, moving, whole):
+            r.release()
+    return {
+        "n_atoms": big.n_atoms, "cube_half_A": still_cube.half, "atoms_in_cube": n_inside, "spheres_drawn": spheres,
+        "frame_s": still_s, "moving_frame_s": moving_s, "passes_s": passes,
+        "small_id": small.name, "small_atoms": small.n_atoms, "small_whole_frame_s": whole_s,
+        "ratio": still_s / whole_s, "moving_ratio": moving_s / whole_s,
+    }
+
+
+# ---------------------------------------------------------------- report
+def _chart(path, scaling, renderer_name, size):
+    fig, ax = figure()
+    atoms = [r["n_atoms"] for r in scaling]
+    ax.loglog(atoms, [r["frame_s"] * 1e3 for r in scaling], "o-", label="whole frame")
+    ax.loglog(atoms, [r["spheres_s"] * 1e3 for r in scaling], "s-", label="sphere impostor pass")
+    ax.set_xlabel("atoms")
+    ax.set_ylabel("median time (ms)")
+    ax.set_title(f"Frame time vs atoms, {size[0]}x{size[1]}\n{renderer_name.split(' / ')[0]}", fontsize=9)
+    ax.legend()
+    return save(fig, path)
+
+
+def _markdown(d: dict) -> str:
+    c = d["cube"]
+    ms = lambda s: f"{s * 1e3:.1f}"  # noqa: E731
+    m0 = d["modes"][0]
+    lines = [
+        f"GL renderer: **{d['gl_renderer']}**, {d['size'][0]}x{d['size'][1]} unless noted; medians of "
+        f"{d['repeats']} frames (impostors vs meshes: {d['mesh_repeats']}), the GPU drained (glFinish) after "
+        "every pass; the frames of compared cases are taken in turn.",
+        "",
+        f"**Impostors vs meshes** ({m0['id']}, {m0['n_atoms']} atoms, mesh = {m0['mesh_triangles_per_atom']} "
+        "triangles per atom; atom pass / whole frame, ms):",
+        "",
+        "| size | ray-cast quads (default) | ray-cast point sprites | triangle meshes | meshes / quads, atom pass | meshes / quads, frame |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    for m in d["modes"]:
+        cells = " | ".join(f"{ms(m[k]['atoms_pass_s'])} / {ms(m[k]['frame_s'])}" for k in ("quad", "sprite", "mesh"))
+        lines.append(f"| {m['size'][0]}x{m['size'][1]} | {cells} | **{m['mesh_over_quad_atoms_pass']:.1f}x** | "
+                     f"{m['mesh_over_quad_frame']:.1f}x |")
+    lines += [
+        "",
+        f"**Navigation cube** ({c['id']}, {c['n_atoms']} atoms; cube half edge {c['cube_half_A']:.2f} Å holding "
+        f"{c['atoms_in_cube']} atoms; backbone trace elsewhere) against {c['small_id']} ({c['small_atoms']} atoms) drawn whole:",
+        "",
+        "| scene | frame (ms) | ratio to small whole |",
+        "|---|---:|---:|",
+        f"| {c['id']}, cube still | {ms(c['frame_s'])} | {c['ratio']:.2f} |",
+        f"| {c['id']}, cube moving (culling every frame) | {ms(c['moving_frame_s'])} | {c['moving_ratio']:.2f} |",
+        f"| {c['small_id']} whole | {ms(c['small_whole_frame_s'])} | 1.00 |",
+        "",
+        "**Frame time vs atoms** (whole molecule, auto-fitted camera):",
+        "",
+        "| structure | atoms | sphere pass (ms) | whole frame (ms) | fps |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for r in d["scaling"]:
+        lines.append(f"| {r['id']} | {r['n_atoms']} | {ms(r['spheres_s'])} | {ms(r['frame_s'])} | {1 / r['frame_s']:.1f} |")
+    return "\n".join(lines)

@@ -1,0 +1,87 @@
+"""`sasprobe daemon`: run the device daemon (fixed-rate haptic loop, publisher, control)."""
+
+from __future__ import annotations
+
+import argparse
+
+from sasprobe.units import positive_float, probe_radius
+
+
+def speed(text: str) -> float | None:
+    """--speed: a positive factor, or `max` (as fast as possible)."""
+    if text.strip().lower() == "max":
+        return None
+    return positive_float(text)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
+
+    p = sub.add_parser("daemon", help="run the device daemon: haptic loop, pose/scene publisher, control server")
+    p.add_argument("--device", default="sim", help="SCHEME[:ARG]: sim[:SCRIPT] (default), replay:FILE, ...")
+    p.add_argument("--molecule", metavar="FILE", help="PDB or mmCIF file, optionally .gz (default: embedded 1CRN)")
+    p.add_argument("--keep-water", action="store_true", help="keep water molecules")
+    p.add_argument("--rate", type=positive_float, default=None, metavar="HZ",
+                   help="loop rate (default 1000; a replay runs at its recorded rate times --speed)")
+    p.add_argument("--speed", type=speed, default=1.0, metavar="X|max", help="replay speed factor, or max")
+    p.add_argument("--pub", action="append", metavar="ENDPOINT",
+                   help=f"PUB endpoint for pose and scene, repeatable (default {DEFAULT_PUB_ENDPOINT}; ipc:// too)")
+    p.add_argument("--ctl", action="append", metavar="ENDPOINT",
+                   help=f"control endpoint, repeatable (default {DEFAULT_CTL_ENDPOINT})")
+    p.add_argument("--keys", metavar="DIR", help="CURVE keys from `sasprobe keys DIR` (required beyond loopback)")
+    p.add_argument("--record", metavar="FILE", help="record the session to this MCAP file")
+    p.add_argument("--probe-radius", type=probe_radius, default=None, help="probe radius in Å (default 1.4)")
+    p.add_argument("--method", choices=("proxy", "penalty"), default=None, help="haptic rendering method")
+    p.add_argument("--stiffness", type=positive_float, default=None, metavar="N_PER_MM", help="contact stiffness")
+    p.add_argument("--damping", type=float, default=None, metavar="N_S_PER_M", help="contact damping")
+    p.add_argument("--cube-half", type=positive_float, default=None, metavar="ANGSTROM",
+                   help="navigation-cube half edge (default: fit the molecule)")
+    p.add_argument("--realtime", action="store_true",
+                   help="run the loop with SCHED_FIFO priority (needs CAP_SYS_NICE or root; steadier timing)")
+    p.add_argument("--inject-fault", action="append", metavar="KIND@TICK[+COUNT]",
+                   help="simulated arm only, to try the watchdog: raise, nan or disconnect at a tick (repeatable)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the simulated arm")
+    p.add_argument("--duration", type=positive_float, default=None, metavar="SECONDS", help="stop after this long")
+    p.add_argument("--report", metavar="FILE", help="write the exit report (JSON) here")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from sasprobe.daemon.service import Daemon, DaemonConfig
+    from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
+
+    settings = {
+        key: value
+        for key, value in (
+            ("probe_radius_A", args.probe_radius),
+            ("method", args.method),
+            ("stiffness_n_per_mm", args.stiffness),
+            ("damping_n_s_per_m", args.damping),
+            ("cube_half_A", args.cube_half),
+        )
+        if value is not None
+    }
+    config = DaemonConfig(
+        device=args.device,
+        molecule=args.molecule,
+        keep_water=args.keep_water,
+        rate_hz=args.rate or 1000.0,
+        pub=args.pub or [DEFAULT_PUB_ENDPOINT],
+        ctl=args.ctl or [DEFAULT_CTL_ENDPOINT],
+        record=args.record,
+        keys=args.keys,
+        settings=settings,
+        speed=args.speed,
+        seed=args.seed,
+        report=args.report,
+        max_seconds=args.duration,
+        realtime=args.realtime,
+        faults=args.inject_fault or [],
+    )
+    try:
+        daemon = Daemon(config)
+    except ValueError as exc:  # a haptic setting the device cannot render
+        from sasprobe.errors import UserError
+
+        raise UserError(str(exc)) from None
+    return daemon.run()

@@ -1,0 +1,58 @@
+"""`sasprobe status`: ask a running daemon how it is doing (control channel)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT
+
+    p = sub.add_parser("status", help="rate, jitter, overruns, subscribers and recording of a running daemon")
+    p.add_argument("--ctl", default=DEFAULT_CTL_ENDPOINT, metavar="ENDPOINT",
+                   help=f"the daemon's control endpoint (default {DEFAULT_CTL_ENDPOINT})")
+    p.add_argument("--keys", metavar="DIR", help="client keys (a daemon with --keys)")
+    p.add_argument("--timeout", type=float, default=2.0, metavar="S", help="seconds to wait for the reply")
+    p.add_argument("--json", action="store_true", help="print the daemon's status reply as JSON")
+    p.set_defaults(func=run)
+
+
+def _us(value) -> str:
+    return "-" if value is None else f"{value:.0f} µs"
+
+
+def run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from sasprobe.protocol.client import ControlClient
+    from sasprobe.protocol.security import load_client_keys
+
+    keys = load_client_keys(Path(args.keys)) if args.keys else None
+    with ControlClient(args.ctl, keys=keys, timeout_s=args.timeout) as client:
+        status = client.status()
+    if args.json:
+        print(json.dumps(status))
+        return 0
+    loop, dev, pub, rec = status["loop"], status["device"], status["publisher"], status["recording"]
+    err, recent = loop["period_error_us"], loop["recent"]
+    target = loop.get("target_rate_hz")
+    print(f"sasprobe daemon {status['daemon_version']} (pid {status['pid']}), up {status['uptime_s']:.0f} s")
+    print(f"  structure   {status['structure']['name']} ({status['structure']['n_atoms']} atoms)")
+    print(f"  device      {dev['model']} [{dev['kind']}]  "
+          + (f"FAULT: {dev['last_fault']}" if dev["faulted"] else f"ok ({dev['faults']} faults so far)"))
+    rate = recent["rate_hz"]
+    print(f"  rate        {rate:.1f} Hz over the last {recent['ticks']} ticks" if rate else "  rate        -",
+          f"(target {target:g} Hz)" if target else "(free-running)")
+    print(f"  jitter      period error p50 {_us(err['p50'])}, p99 {_us(err['p99'])}, max {_us(err['max'])} "
+          f"over {loop['window_s']:.0f} s; last second p99 {_us(recent['period_error_p99_us'])}")
+    print(f"  overruns    {loop['total']['overruns']} ({loop['total']['missed_deadlines']} deadlines missed) "
+          f"in {loop['total']['ticks']} ticks; loop CPU {loop['cpu_percent']:.0f} %")
+    print(f"  publisher   {', '.join(pub['endpoints'])}: {pub['subscribers']} subscriber(s), "
+          f"{pub['poses_sent']} poses sent")
+    if rec is None:
+        print("  recording   off")
+    else:
+        print(f"  recording   {rec['path']}: {rec['messages']} messages, {rec['bytes'] / 1e6:.1f} MB, "
+              f"{rec['dropped']} dropped" + (f", FAILED: {rec['error']}" if rec.get("error") else ""))
+    return 0

@@ -1,0 +1,74 @@
+"""The subscriber client over a real PUB socket: latest pose and scene, drops counted."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+import zmq
+
+from sasprobe.protocol.client import Subscriber
+from sasprobe.protocol.pose import POSE_TOPIC, Pose, encode_pose
+from sasprobe.protocol.scene import SCENE_TOPIC, SceneError, decode_scene, encode_scene, validate_scene
+from tests.test_protocol_scene import example_scene
+
+
+@pytest.fixture()
+def pub_and_sub(tmp_path):
+    context = zmq.Context()
+    pub = context.socket(zmq.PUB)
+    pub.linger = 0
+    endpoint = f"ipc://{tmp_path}/pub"
+    pub.bind(endpoint)
+    sub = Subscriber(endpoint, context=context)
+    # PUB/SUB joins asynchronously: publish until the subscriber sees something.
+    deadline = time.monotonic() + 5
+    while sub.poses_received == 0 and time.monotonic() < deadline:
+        pub.send_multipart([POSE_TOPIC, encode_pose(Pose(seq=0))])
+        sub.poll(0.01)
+    assert sub.poses_received > 0
+    yield pub, sub
+    sub.close()
+    pub.close()
+    context.term()
+
+
+def test_poll_drains_everything_and_keeps_the_newest(pub_and_sub):
+    pub, sub = pub_and_sub
+    start = sub.pose.seq + 1
+    for seq in range(start, start + 500):
+        pub.send_multipart([POSE_TOPIC, encode_pose(Pose(seq=seq, force_N=np.array([seq, 0.0, 0.0])))])
+    pub.send_multipart([SCENE_TOPIC, encode_scene(example_scene())])
+    got = []
+    deadline = time.monotonic() + 5
+    while sub.scene is None and time.monotonic() < deadline:
+        got += sub.poll(0.05)
+    assert [p.seq for p in got] == list(range(start, start + 500))
+    assert sub.pose.seq == start + 499 and sub.pose.force_N[0] == start + 499
+    assert sub.scene["structure"]["name"] == "1crn"
+    t0 = time.monotonic()
+    assert sub.poll() == [] and time.monotonic() - t0 < 0.5  # nothing queued: returns at once
+
+
+def test_malformed_messages_are_dropped_and_counted(pub_and_sub):
+    pub, sub = pub_and_sub
+    seq = sub.pose.seq
+    pub.send_multipart([POSE_TOPIC, b"short"])
+    pub.send_multipart([SCENE_TOPIC, b"{not json"])
+    pub.send_multipart([SCENE_TOPIC, b'{"version": 1}'])
+    pub.send_multipart([POSE_TOPIC, encode_pose(Pose()), b"extra frame"])
+    pub.send_multipart([POSE_TOPIC, encode_pose(Pose(seq=seq + 10))])  # 9 poses lost in between
+    deadline = time.monotonic() + 5
+    while sub.pose.seq != seq + 10 and time.monotonic() < deadline:
+        sub.poll(0.05)
+    assert sub.malformed == 4 and sub.missed == 9 and sub.scene is None
+
+
+def test_scene_decoder_rejects_bad_scenes():
+    for broken in ({"version": 0}, {**example_scene(), "clip_planes": [[0, 0, 0, 1]]},
+                   {**example_scene(), "haptics": {"method": "magic", "stiffness_n_per_mm": 1, "damping_n_s_per_m": 0}}):
+        with pytest.raises(SceneError):
+            validate_scene(broken)
+    with pytest.raises(SceneError):
+        decode_scene(b'{"version": NaN}')

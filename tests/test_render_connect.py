@@ -1,0 +1,145 @@
+"""`--connect`: the renderer follows a real daemon (simulated arm, real ZeroMQ sockets).
+
+The rendered probe must sit exactly where the pose stream puts it (the probe centre
+recovered from the G-buffer's probe pixels, each at position - radius * normal, against
+the proxy of the pose with the same sequence number as seen by an independent
+subscriber); malformed messages are dropped and counted; no daemon gives one line.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+import zmq
+
+from sasprobe.protocol.client import ControlClient, Subscriber
+from sasprobe.protocol.pose import Pose, encode_pose
+from sasprobe.protocol.scene import encode_scene
+from sasprobe.render.camera import Camera
+from sasprobe.render.gbuffer import gbuffer_arrays
+from sasprobe.render.link import DaemonLink
+from sasprobe.render.renderer import Renderer
+from sasprobe.render.scene import Effects, SceneState
+from sasprobe.render.targets import KIND_PROBE
+from tests.conftest import run_cli
+from tests.render_support import crambin, ctx, free_tcp_endpoint, start_daemon, stop_daemon  # noqa: F401 (fixtures)
+
+
+@pytest.fixture(scope="module")
+def daemon():
+    pub, ctl = free_tcp_endpoint(), free_tcp_endpoint()
+    proc = start_daemon(pub, ctl)
+    yield pub, ctl
+    stop_daemon(proc)
+
+
+def test_rendered_probe_follows_the_pose_stream(ctx, daemon):
+    pub, ctl = daemon
+    watch = Subscriber(pub)  # an independent record of every pose, by sequence number
+    link = DaemonLink(pub, ctl)
+    proxies: dict[int, np.ndarray] = {}
+    renderer = None
+    try:
+        deadline = time.monotonic() + 60
+        structure = None
+        while structure is None and time.monotonic() < deadline:
+            link.poll()
+            structure = link.take_new_structure()
+            time.sleep(0.02)
+        assert structure is not None and structure.n_atoms == 327, "no structure from get_structure"
+        scene = SceneState(structure, effects=Effects(probe_plane=True))  # nothing may hide the probe
+        center, radius = scene.bounding_sphere()
+        camera = Camera.fitted(center, radius * 1.3, 4 / 3)
+        renderer = Renderer(ctx, scene, (160, 120))
+        checked, positions = 0, set()
+        while (checked < 8 or len(positions) < 3) and time.monotonic() < deadline:
+            link.poll()
+            link.apply(scene)
+            pose = link.subscriber.pose
+            if pose is None:
+                continue
+            renderer.render(camera)
+            g = gbuffer_arrays(renderer)
+            for p in watch.poll():
+                proxies[p.seq] = p.proxy_A
+            while pose.seq not in proxies and time.monotonic() < deadline:
+                proxies.update({p.seq: p.proxy_A for p in watch.poll(0.05)})
+            probe = g["kind"] == KIND_PROBE
+            if probe.sum() < 20:
+                continue  # out of view this frame
+            rendered = (g["position"][probe] - scene.probe.radius * g["normal"][probe]).mean(axis=0)
+            np.testing.assert_allclose(rendered, proxies[pose.seq], atol=2e-3)
+            np.testing.assert_allclose(g["nav_cube"], [*pose.cube_center_A, pose.cube_half_A], atol=1e-9)
+            checked += 1
+            positions.add(tuple(np.round(proxies[pose.seq], 1)))
+        assert checked >= 8, f"only {checked} frames showed the probe"
+        assert len(positions) >= 3, "the simulated arm should move the probe between frames"
+        assert link.readout().haptic_hz > 100
+    finally:
+        if renderer is not None:
+            renderer.release()
+        watch.close()
+        link.close()
+
+
+def test_cli_follows_the_daemon_headless(daemon, tmp_path):
+    pub, ctl = daemon
+    npz = tmp_path / "g.npz"
+    r = run_cli("render", "--headless", "--connect", pub, "--control", ctl, "--frames", "5", "--size", "160x120",
+                "--probe-plane", "--gbuffer", str(npz), timeout=180)
+    assert r.returncode == 0, r.stderr
+    g = np.load(npz)
+    assert (g["kind"] == KIND_PROBE).sum() > 0
+    assert "nav_cube" in g.files and g["nav_cube"][3] > 0
+
+
+def test_no_daemon_is_one_line():
+    r = run_cli("render", "--headless", "--connect", free_tcp_endpoint(), "--control", free_tcp_endpoint(),
+                "--size", "160x120", timeout=120)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "no daemon answered" in lines[0], r.stderr
+
+
+def test_malformed_messages_are_dropped_and_counted(daemon, crambin):
+    """A stand-in publisher (a real PUB socket) sends valid and broken messages."""
+    with ControlClient(daemon[1]) as client:
+        real_scene = client.get_scene()
+    endpoint = free_tcp_endpoint()
+    sock = zmq.Context.instance().socket(zmq.PUB)
+    sock.linger = 0
+    sock.bind(endpoint)
+    link = DaemonLink(endpoint, free_tcp_endpoint())
+    try:
+        first = Pose(seq=1, proxy_A=np.array([1.0, 2.0, 3.0]), touched_atom=5, cube_center_A=np.array([1.0, 2.0, 3.0]),
+                     cube_half_A=6.0)
+        deadline = time.monotonic() + 20
+        while link.subscriber.pose is None and time.monotonic() < deadline:  # until subscribed
+            sock.send_multipart([b"pose", encode_pose(first)])
+            time.sleep(0.05)
+            link.poll()
+        assert link.subscriber.pose is not None
+        before = link.readout().dropped
+        garbage = [[b"pose", b"too short"], [b"scene", b"{not json"], [b"scene", b'{"version": 1}'],
+                   [b"posed", b"x"], [b"pose"]]  # (a topic outside pose/scene is filtered by ZeroMQ itself)
+        for frames in garbage:
+            sock.send_multipart(frames)
+        good = Pose(seq=2, proxy_A=np.array([4.0, 5.0, 6.0]), touched_atom=7, cube_center_A=np.array([4.0, 5.0, 6.0]),
+                    cube_half_A=5.0)
+        sock.send_multipart([b"pose", encode_pose(good)])
+        sock.send_multipart([b"scene", encode_scene(real_scene)])
+        while link.subscriber.scene is None and time.monotonic() < deadline:
+            link.poll()
+            time.sleep(0.02)
+        assert link.readout().dropped - before == len(garbage)
+        scene = SceneState(crambin)
+        link.apply(scene)
+        np.testing.assert_array_equal(scene.probe.center, [4.0, 5.0, 6.0])
+        assert scene.probe.touched_atom == 7
+        np.testing.assert_array_equal(scene.nav_cube.center, [4.0, 5.0, 6.0])
+        assert scene.nav_cube.half == 5.0
+    finally:
+        link.close()
+        sock.close()

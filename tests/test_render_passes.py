@@ -1,0 +1,155 @@
+"""The light pass against a numpy Phong reference (including the visibility factors a
+lighting pass slots in), the toggles, the touched-atom highlight, and FXAA."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sasprobe.render.camera import Camera
+from sasprobe.render.gbuffer import gbuffer_arrays
+from sasprobe.render.passes.base import Pass
+from sasprobe.render.passes.probe import PROBE_COLOR
+from sasprobe.render.renderer import Renderer
+from sasprobe.render.scene import Probe, SceneState
+from sasprobe.render.targets import KIND_BACKGROUND, KIND_PROBE
+from tests.render_support import crambin, ctx, edge_mask  # noqa: F401 (fixtures)
+
+SIZE = (160, 120)
+TOL = 2.5 / 255  # RGBA8 rounding plus float32 shading
+
+
+class FixedVisibility(Pass):
+    """Stands in for a shadow/AO pass: writes given visibility factors before the light pass."""
+
+    name = "fixed_visibility"
+
+    def __init__(self, values: np.ndarray):
+        self.values = values  # (H, W, 4) float, row 0 = top
+
+    def run(self, frame) -> None:
+        frame.targets.visibility.write(np.ascontiguousarray(self.values[::-1], dtype=np.float16).tobytes())
+
+
+def scene_with_probe(s):
+    atom = 200
+    probe = Probe(center=s.positions[atom] + np.array([0.0, 0.3, 1.0]) / np.linalg.norm([0.0, 0.3, 1.0]) * (s.vdw_radii[atom] + 1.4),
+                  touched_atom=atom)
+    return SceneState(s, probe=probe), atom
+
+
+def render(ctx, scene, camera, extra_pass=None):
+    renderer = Renderer(ctx, scene, SIZE)
+    if extra_pass is not None:
+        renderer.insert_before("light", extra_pass)
+    try:
+        renderer.render(camera)
+        t = renderer.targets
+        lit = t.read(t.lit, 4, np.uint8)[..., :3] / 255.0
+        albedo = t.read(t.albedo, 4, np.uint8)[..., :3] / 255.0
+        final = renderer.read_image() / 255.0
+        return gbuffer_arrays(renderer), lit, albedo, final, renderer.pass_named("light").settings
+    finally:
+        renderer.release()
+
+
+def phong(albedo, n, v, l, s):
+    diffuse = np.clip(np.einsum("...i,...i", n, l), 0, None)
+    r = -l - 2 * np.einsum("...i,...i", n, -l)[..., None] * n  # reflect(-l, n)
+    spec = np.where(diffuse > 0, np.clip(np.einsum("...i,...i", r, v), 0, None) ** s.shininess, 0.0)
+    return diffuse[..., None] * albedo + spec[..., None] * s.specular
+
+
+def reference_light(g, albedo, scene, camera, s, vis):
+    p, n = g["position"].astype(np.float64), g["normal"].astype(np.float64)
+    n = n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
+    v = camera.eye - p
+    v /= np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+    fx = scene.effects
+    if fx.highlight and scene.probe is not None and scene.probe.touched_atom >= 0:
+        touched = (g["atom_id"] == scene.probe.touched_atom) & (g["kind"] != 3)
+        albedo = albedo.copy()
+        albedo[touched] = 0.4 * albedo[touched] + 0.6 * np.array(s.highlight)
+    color = s.ambient * vis[..., 2:3] * albedo
+    if fx.directional_light:
+        color += vis[..., 0:1] * s.directional_intensity * phong(albedo, n, v, -scene.light_direction, s)
+    if fx.probe_light and scene.probe is not None:
+        to_probe = scene.probe.center - p
+        dist = np.linalg.norm(to_probe, axis=-1, keepdims=True)
+        c0, c1, c2 = s.probe_attenuation
+        atten = 1.0 / (c0 + c1 * dist + c2 * dist ** 2)
+        color += vis[..., 1:2] * s.probe_intensity * atten * phong(albedo, n, v, to_probe / dist, s)
+    color = np.minimum(color, 1.0)
+    probe_px = g["kind"] == KIND_PROBE
+    color[probe_px] = np.array(PROBE_COLOR) * (0.75 + 0.25 * np.clip(np.einsum("...i,...i", n, v), 0, None))[probe_px, None]
+    color[g["kind"] == KIND_BACKGROUND] = s.background
+    return color
+
+
+def test_light_pass_matches_phong_reference_with_visibility_factors(ctx, crambin):
+    scene, atom = scene_with_probe(crambin)
+    camera = Camera(eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0)
+    rng = np.random.default_rng(3)
+    vis = rng.uniform(0.0, 1.0, size=(SIZE[1], SIZE[0], 4)).astype(np.float16).astype(np.float64)
+    g, lit, albedo, _, settings = render(ctx, scene, camera, FixedVisibility(vis))
+    assert (g["kind"] == KIND_PROBE).sum() > 100
+    expected = reference_light(g, albedo, scene, camera, settings, vis)
+    assert np.abs(lit - expected).max() <= TOL
+    # The visibility factors really matter: the same frame without them differs.
+    g1, lit1, *_ = render(ctx, scene, camera)
+    assert np.abs(lit1 - lit)[g1["kind"] == 1].mean() > 0.05
+
+
+@pytest.mark.parametrize("switch", ["directional_light", "probe_light"])
+def test_each_light_can_be_switched_off(ctx, crambin, switch):
+    scene, _ = scene_with_probe(crambin)
+    setattr(scene.effects, switch, False)
+    camera = Camera(eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0)
+    g, lit, albedo, _, settings = render(ctx, scene, camera)
+    ones = np.ones((SIZE[1], SIZE[0], 4))
+    assert np.abs(lit - reference_light(g, albedo, scene, camera, settings, ones)).max() <= TOL
+    setattr(scene.effects, switch, True)
+    g2, lit2, *_ = render(ctx, scene, camera)
+    assert np.abs(lit2 - lit)[g2["kind"] == 1].mean() > 0.01
+
+
+def test_touched_atom_is_highlighted(ctx, crambin):
+    scene, atom = scene_with_probe(crambin)
+    scene.effects.probe = False  # so the touched atom is not hidden behind the probe
+    camera = Camera(eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0)
+    first, *_ = render(ctx, scene, camera)
+    ids, counts = np.unique(first["atom_id"][first["atom_id"] >= 0], return_counts=True)
+    atom = scene.probe.touched_atom = int(ids[np.argmax(counts)])  # the atom most in view
+    g, lit, albedo, _, settings = render(ctx, scene, camera)
+    mine = g["atom_id"] == atom
+    assert mine.sum() > 50
+    np.testing.assert_allclose(albedo[mine], np.broadcast_to(crambin.colors[atom], albedo[mine].shape), atol=TOL)
+    ones = np.ones((SIZE[1], SIZE[0], 4))
+    assert np.abs(lit - reference_light(g, albedo, scene, camera, settings, ones)).max() <= TOL
+    scene.effects.highlight = False
+    g2, plain, *_ = render(ctx, scene, camera)
+    assert np.abs(plain - reference_light(g2, albedo, scene, camera, settings, ones)).max() <= TOL
+    # Highlighted: the atom's pixels move towards the highlight colour (mint: green up, red down).
+    shift = (lit[mine] - plain[mine]).mean(axis=0)
+    assert shift[1] > 0.05 and shift[0] < 0
+
+
+def test_fxaa_only_softens_edges(ctx, crambin):
+    scene = SceneState(crambin)
+    center, radius = scene.bounding_sphere()
+    camera = Camera.fitted(center, radius, SIZE[0] / SIZE[1])
+    g, lit, _, final, _ = render(ctx, scene, camera)
+    changed = np.abs(final - lit).max(axis=2) > 1.5 / 255
+    assert changed.sum() > 100, "FXAA should touch the silhouettes"
+    # Only where the luma has contrast with a diagonal neighbour (FXAA's own edge test).
+    luma = lit @ np.array([0.299, 0.587, 0.114])
+    pad = np.pad(luma, 1, mode="edge")
+    diag = [pad[:-2, :-2], pad[:-2, 2:], pad[2:, :-2], pad[2:, 2:], luma]
+    contrast = np.max(diag, axis=0) - np.min(diag, axis=0)
+    assert np.all(contrast[changed] >= 0.0312 - 1e-3)
+    # Flat interiors and the background stay exactly as lit.
+    flat = ~edge_mask(g["atom_id"]) & (contrast < 0.02)
+    assert np.abs(final - lit)[flat].max() <= 1.5 / 255
+    scene.effects.fxaa = False
+    _, lit2, _, final2, _ = render(ctx, scene, camera)
+    assert np.abs(final2 - lit2).max() <= 1 / 255

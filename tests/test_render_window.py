@@ -1,0 +1,194 @@
+"""The window path under a real X server (Xvfb): the window opens, shows the molecule
+(an X-level screenshot of the root window, independent of GL), and its own
+screenshot (--out) matches what the X server shows."""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import os
+import select
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from tests.conftest import REPO_ROOT
+from tests.render_support import gl_context
+
+SCREEN = (640, 480)
+WINDOW = (320, 240)
+BACKGROUND = np.array([20, 23, 28])  # LightSettings.background * 255
+
+
+@pytest.fixture(scope="module")
+def xvfb():
+    gl_context()  # no EGL/Mesa: skip like the other GL tests
+    if shutil.which("Xvfb") is None:
+        pytest.fail("Xvfb is not installed (Debian package xvfb; .ci/run installs it)")
+    read_fd, write_fd = os.pipe()
+    proc = subprocess.Popen(
+        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0", f"{SCREEN[0]}x{SCREEN[1]}x24", "-nolisten", "tcp", "-br", "-noreset"],
+        pass_fds=(write_fd,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+    os.close(write_fd)
+    # Xvfb writes the number, then "\n" in a second write: closing the pipe before the
+    # newline arrives kills the server (EPIPE is fatal there).
+    data = b""
+    deadline = time.monotonic() + 30
+    while not data.endswith(b"\n") and time.monotonic() < deadline:
+        ready, _, _ = select.select([read_fd], [], [], 1.0)
+        chunk = os.read(read_fd, 64) if ready else b""
+        if ready and not chunk:
+            break
+        data += chunk
+    os.close(read_fd)
+    number = data.decode().strip()
+    if not number:
+        proc.kill()
+        pytest.fail("Xvfb did not start within 30 s")
+    yield f":{number}"
+    proc.terminate()
+    proc.wait(timeout=10)
+
+
+class _XImage(ctypes.Structure):
+    _fields_ = [("width", ctypes.c_int), ("height", ctypes.c_int), ("xoffset", ctypes.c_int),
+                ("format", ctypes.c_int), ("data", ctypes.c_void_p), ("byte_order", ctypes.c_int),
+                ("bitmap_unit", ctypes.c_int), ("bitmap_bit_order", ctypes.c_int), ("bitmap_pad", ctypes.c_int),
+                ("depth", ctypes.c_int), ("bytes_per_line", ctypes.c_int), ("bits_per_pixel", ctypes.c_int)]
+
+
+def x_screenshot(display: str) -> np.ndarray:
+    """The root window's pixels through Xlib's XGetImage (H, W, 3 uint8)."""
+    lib = ctypes.CDLL(ctypes.util.find_library("X11") or "libX11.so.6")
+    lib.XOpenDisplay.restype = ctypes.c_void_p
+    lib.XOpenDisplay.argtypes = [ctypes.c_char_p]
+    lib.XDefaultRootWindow.restype = ctypes.c_ulong
+    lib.XDefaultRootWindow.argtypes = [ctypes.c_void_p]
+    lib.XGetImage.restype = ctypes.POINTER(_XImage)
+    lib.XGetImage.argtypes = [ctypes.c_void_p, ctypes.c_ulong, ctypes.c_int, ctypes.c_int, ctypes.c_uint,
+                              ctypes.c_uint, ctypes.c_ulong, ctypes.c_int]
+    lib.XCloseDisplay.argtypes = [ctypes.c_void_p]
+    dpy = lib.XOpenDisplay(display.encode())
+    assert dpy, f"cannot open X display {display}"
+    try:
+        img = lib.XGetImage(dpy, lib.XDefaultRootWindow(dpy), 0, 0, SCREEN[0], SCREEN[1], 0xFFFFFFFF, 2).contents
+        assert img.bits_per_pixel == 32, img.bits_per_pixel
+        raw = ctypes.string_at(img.data, img.bytes_per_line * img.height)
+        pixels = np.frombuffer(raw, dtype=np.uint8).reshape(img.height, img.bytes_per_line // 4, 4)
+        return pixels[:, : img.width, 2::-1].copy()  # BGRX -> RGB
+    finally:
+        lib.XCloseDisplay(dpy)
+
+
+def _start_window(display: str, *args: str) -> subprocess.Popen:
+    env = dict(os.environ, DISPLAY=display, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sasprobe", "-v", "render", "--size", f"{WINDOW[0]}x{WINDOW[1]}", *args],
+        cwd=REPO_ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+    )
+    deadline = time.monotonic() + 90
+    lines: list[str] = []
+    while not any("window open" in l for l in lines) and time.monotonic() < deadline:
+        line = proc.stderr.readline()
+        if not line and proc.poll() is not None:
+            break
+        lines.append(line)
+    assert any("window open" in l for l in lines), f"no window (exit {proc.poll()}): {''.join(lines)}"
+    return proc
+
+
+def test_window_opens_and_shows_the_molecule(xvfb, tmp_path):
+    shot = tmp_path / "shot.png"
+    proc = _start_window(xvfb, "--seconds", "120", "--out", str(shot))
+    try:
+        # Frames are being presented; let a few reach the X server.
+        for _ in range(60):
+            time.sleep(1.0)
+            screen = x_screenshot(xvfb)
+            painted = np.any(screen != 0, axis=2)
+            if painted.sum() >= 0.9 * WINDOW[0] * WINDOW[1] and _molecule_pixels(screen) > 500:
+                break
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    ys, xs = np.nonzero(painted)
+    assert (ys.max() - ys.min() + 1, xs.max() - xs.min() + 1) == (WINDOW[1], WINDOW[0]), "the window is not on screen at its size"
+    window = screen[ys.min(): ys.max() + 1, xs.min(): xs.max() + 1]
+    assert (np.abs(window.astype(int) - BACKGROUND).max(axis=2) <= 2).mean() > 0.2, "no background around the molecule"
+    assert _molecule_pixels(window) > 500, "the X server shows no CPK-coloured atoms"
+    # The app's own screenshot (read from the window's framebuffer) shows the same picture
+    # (the overlay's text and fps figures in the top-left corner aside).
+    own = iio.imread(shot)[..., :3]
+    assert own.shape == window.shape
+    same = np.abs(own.astype(int) - window.astype(int)).max(axis=2) <= 3
+    same[:80, :200] = True
+    assert same.mean() > 0.98
+
+
+def _molecule_pixels(rgb: np.ndarray) -> int:
+    """Pixels of shaded CPK oxygen (red) or carbon (grey) atoms."""
+    r, g, b = (rgb[..., i].astype(int) for i in range(3))
+    oxygen = (r > 90) & (g < r // 3) & (b < r // 3)
+    carbon = (r > 70) & (np.abs(r - g) < 12) & (np.abs(r - b) < 12)
+    return int(np.count_nonzero(oxygen | carbon))
+
+
+def _window_region(display: str) -> tuple[slice, slice]:
+    for _ in range(30):
+        painted = np.any(x_screenshot(display) != 0, axis=2)
+        if painted.sum() >= 0.9 * WINDOW[0] * WINDOW[1]:
+            ys, xs = np.nonzero(painted)
+            return slice(ys.min(), ys.max() + 1), slice(xs.min(), xs.max() + 1)
+        time.sleep(1.0)
+    raise AssertionError("the window never appeared on the X screen")
+
+
+def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
+    """No daemon: the window opens and waits (no molecule). A daemon starts: the molecule
+    appears. It stops: the window stays up. It comes back: the picture moves again."""
+    from tests.render_support import free_tcp_endpoint, start_daemon, stop_daemon
+
+    pub, ctl = free_tcp_endpoint(), free_tcp_endpoint()
+    proc = _start_window(xvfb, "--connect", pub, "--control", ctl, "--probe-plane", "--seconds", "600")
+    daemon = None
+    try:
+        rows, cols = _window_region(xvfb)
+        below_text = lambda: x_screenshot(xvfb)[rows, cols][100:]  # noqa: E731 (under the readout)
+        time.sleep(2.0)
+        assert _molecule_pixels(below_text()) < 30, "nothing to draw before the daemon is there"
+        daemon = start_daemon(pub, ctl)
+        deadline = time.monotonic() + 90
+        while _molecule_pixels(below_text()) < 300 and time.monotonic() < deadline:
+            time.sleep(1.0)
+        assert _molecule_pixels(below_text()) >= 300, "the molecule did not appear once the daemon ran"
+        stop_daemon(daemon)
+        time.sleep(3.0)
+        frozen = below_text()
+        time.sleep(2.0)
+        assert proc.poll() is None, "the window must survive the daemon going away"
+        assert np.array_equal(frozen, below_text()), "no poses: the picture holds still"
+        daemon = start_daemon(pub, ctl)
+        deadline = time.monotonic() + 60
+        moved = False
+        while not moved and time.monotonic() < deadline:
+            time.sleep(1.0)
+            moved = np.abs(below_text().astype(int) - frozen.astype(int)).max() > 30
+        assert moved, "the probe should move again once the daemon is back"
+        assert proc.poll() is None
+    finally:
+        if daemon is not None:
+            stop_daemon(daemon)
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err
