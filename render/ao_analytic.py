@@ -48,7 +48,7 @@ class AnalyticAO(ComputePass):
         gbuffer.bind()
         self.buffer.bind_to_storage_buffer(BINDING_NEIGHBOURS)
         out.bind_to_image(0, read=False, write=True)
-        self.run(width, height, {"u_k": int(k), "u_probe_neighbours": self.probe_neighbours})
+        self.run(width, height, {"u_k": int(k), "u_probe_neighbours": self.probe_neighbours.astype(np.int32).tobytes()})
         return out
 
     def release(self) -> None:

@@ -7,14 +7,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, mat4_uniform, texture_2d
+from sasprobe.render.camera import gl_bytes
+from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, texture_2d
 from sasprobe.render.lighting_params import AOSettings
 
 SSAO_BIAS = 0.05  # Å: a sample must lie this far behind the visible surface to count
 
 
 def camera_uniforms(view: np.ndarray, proj: np.ndarray) -> dict:
-    return {"u_view": mat4_uniform(view), "u_proj": mat4_uniform(proj)}
+    return {"u_view": gl_bytes(view), "u_proj": gl_bytes(proj)}
 
 
 class SSAO(ComputePass):

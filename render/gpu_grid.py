@@ -22,8 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sasprobe.molecule.grid import UniformGrid
-
-MAX_CLIP_PLANES = 8  # matches grid_traversal.glsl
+from sasprobe.render.passes.base import MAX_CLIP_PLANES  # grid_traversal.glsl holds as many
 BINDING_CELL_START, BINDING_CELL_ATOMS, BINDING_SPHERES, BINDING_CULLED = 0, 1, 2, 3
 NO_PROBE = (0.0, 0.0, 0.0, 0.0)
 CULLED, CENTRE_CLIPPED = 1, 2  # flag bits of the culled buffer
@@ -104,7 +103,7 @@ class Culling:
         lo, hi = box if box is not None else (np.zeros(3), np.zeros(3))
         return {
             "u_clip_count": int(self.clip_planes.shape[0]),
-            "u_clip_planes": planes,
+            "u_clip_planes": planes.tobytes(),
             "u_cube_on": int(box is not None),
             "u_cube_lo": tuple(float(v) for v in lo),
             "u_cube_hi": tuple(float(v) for v in hi),
@@ -205,7 +204,8 @@ class GridWalks:
 def walk_rays_on_gpu(gpu_grid: GpuGrid, origins, directions, t_min=0.0, t_max=1e30, max_visits: int = 256,
                      walk_range: tuple[np.ndarray, np.ndarray] | None = None) -> GridWalks:
     """Test hook: walk rays o + t d through the grid with the shaders' DDA (grid_walk_probe.comp)."""
-    from sasprobe.render.glsl import set_uniforms, shader_source
+    from sasprobe.render.passes.base import apply_uniforms
+    from sasprobe.render.shaders import source
 
     ctx = gpu_grid.ctx
     origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
@@ -214,7 +214,7 @@ def walk_rays_on_gpu(gpu_grid: GpuGrid, origins, directions, t_min=0.0, t_max=1e
     rays = np.zeros((n, 8), dtype=np.float32)
     rays[:, :3], rays[:, 3] = origins, t_min
     rays[:, 4:7], rays[:, 7] = directions, t_max
-    program = ctx.compute_shader(shader_source("grid_walk_probe.comp"))
+    program = ctx.compute_shader(source("grid_walk_probe.comp"))
     buffers = [
         ctx.buffer(rays.tobytes()),
         ctx.buffer(reserve=max(n * max_visits * 16, 16)),
@@ -229,7 +229,7 @@ def walk_rays_on_gpu(gpu_grid: GpuGrid, origins, directions, t_min=0.0, t_max=1e
         if walk_range is not None:
             uniforms["u_walk_lo"] = tuple(int(v) for v in walk_range[0])
             uniforms["u_walk_hi"] = tuple(int(v) for v in walk_range[1])
-        set_uniforms(program, {**uniforms, "u_n_rays": n, "u_max_visits": max_visits})
+        apply_uniforms(program, {**uniforms, "u_n_rays": n, "u_max_visits": max_visits})
         program.run(group_x=(n + 63) // 64)
         ctx.memory_barrier()
         cells = np.frombuffer(buffers[1].read(), dtype=np.int32)[: n * max_visits * 4].reshape(n, max_visits, 4)

@@ -1,11 +1,12 @@
-"""The G-buffer layers the lighting passes read, as GL textures, and the compute-pass plumbing
-they share.
+"""The G-buffer layers the lighting passes read, as GL textures (the renderer's own,
+render/targets.py, or made here for tests and benchmarks), and the compute-pass plumbing
+the lighting passes share.
 
 | unit | layer | format | content |
 |---|---|---|---|
 | 0 | position | rgba32f | world position (Å) |
-| 1 | normal | rgba32f | unit world normal (a cap carries its plane's normal) |
-| 2 | atom | r32i | atom index; -1 background; -2 probe |
+| 1 | normal | rgba32f | unit world normal (a cap carries its plane's outward normal) |
+| 2 | ids | rg32i | (atom index, kind): atom -1 background, -2 probe; kind as targets.KIND_* |
 
 Row 0 of a texture is the bottom image row (GL); `download()` returns arrays in that order.
 """
@@ -16,7 +17,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sasprobe.render.glsl import set_uniforms, shader_source
+from sasprobe.render.camera import gl_bytes
+from sasprobe.render.passes.base import apply_uniforms
+from sasprobe.render.lighting_params import ATOM_BACKGROUND, ATOM_PROBE
+from sasprobe.render.shaders import source
+from sasprobe.render.targets import KIND_BACKGROUND, KIND_CAP, KIND_PROBE, KIND_SPHERE
 
 LOCAL_SIZE = 8  # compute work-group edge of the 2D lighting passes
 
@@ -51,16 +56,16 @@ class ComputePass:
     """A compute program over an image, with the grid bound when it has one (the lighting
     passes' base)."""
 
-    def __init__(self, ctx, shader: str, gpu_grid=None, defines: dict | None = None):
+    def __init__(self, ctx, shader: str, gpu_grid=None):
         self.ctx = ctx
         self.grid = gpu_grid
-        self.program = ctx.compute_shader(shader_source(shader, defines))
+        self.program = ctx.compute_shader(source(shader))
 
     def run(self, width: int, height: int, uniforms: dict) -> None:
         if self.grid is not None:
             self.grid.bind()
             uniforms = {**self.grid.uniforms(), **uniforms}
-        set_uniforms(self.program, uniforms)
+        apply_uniforms(self.program, uniforms)
         dispatch(self.program, width, height)
 
     def release(self) -> None:
@@ -71,38 +76,57 @@ class ComputePass:
 class GBuffer:
     position: object
     normal: object
-    atom: object
+    ids: object
+    owned: bool = True  # False: the renderer's targets (released by it)
 
     @property
     def size(self) -> tuple[int, int]:
-        return self.atom.width, self.atom.height
+        return self.ids.width, self.ids.height
+
+    @classmethod
+    def of_targets(cls, targets) -> "GBuffer":
+        """The renderer's G-buffer (render/targets.py), read in place."""
+        return cls(targets.position, targets.normal, targets.ids, owned=False)
 
     @classmethod
     def allocate(cls, ctx, width: int, height: int) -> "GBuffer":
         return cls(texture_2d(ctx, width, height, 4), texture_2d(ctx, width, height, 4),
-                   texture_2d(ctx, width, height, 1, "i4"))
+                   texture_2d(ctx, width, height, 2, "i4"))
 
     @classmethod
     def upload(cls, ctx, position: np.ndarray, normal: np.ndarray, atom: np.ndarray) -> "GBuffer":
-        """From arrays (H, W, 3), (H, W, 3), (H, W); row 0 = bottom."""
+        """From arrays (H, W, 3), (H, W, 3), (H, W) atom ids; row 0 = bottom. Kinds follow
+        from the ids: background (-1), probe (-2), sphere surface (atoms)."""
         h, w = atom.shape
         pad = np.zeros((h, w, 1), dtype=np.float32)
         pos = np.concatenate([np.asarray(position, dtype=np.float32), pad + 1.0], axis=2)
         nrm = np.concatenate([np.asarray(normal, dtype=np.float32), pad], axis=2)
+        atom = np.asarray(atom, dtype=np.int32)
+        kind = np.where(atom >= 0, KIND_SPHERE, np.where(atom == ATOM_PROBE, KIND_PROBE, KIND_BACKGROUND))
+        ids = np.stack([atom, kind.astype(np.int32)], axis=-1)
         return cls(texture_2d(ctx, w, h, 4, data=pos.tobytes()), texture_2d(ctx, w, h, 4, data=nrm.tobytes()),
-                   texture_2d(ctx, w, h, 1, "i4", data=np.asarray(atom, dtype=np.int32).tobytes()))
+                   texture_2d(ctx, w, h, 2, "i4", data=ids.tobytes()))
 
     def bind(self) -> None:
         self.position.use(location=0)
         self.normal.use(location=1)
-        self.atom.use(location=2)
+        self.ids.use(location=2)
 
     def download(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return read_texture(self.position)[..., :3], read_texture(self.normal)[..., :3], read_texture(self.atom)
+        """(position, normal, atom id), row 0 = bottom; atom ids are -1 wherever the
+        lighting does not shade (background, backbone trace)."""
+        ids = read_texture(self.ids)
+        lit = np.isin(ids[..., 1], (KIND_SPHERE, KIND_CAP, KIND_PROBE))
+        atom = np.where(lit, ids[..., 0], ATOM_BACKGROUND)
+        return read_texture(self.position)[..., :3], read_texture(self.normal)[..., :3], atom
+
+    def kinds(self) -> np.ndarray:
+        return read_texture(self.ids)[..., 1]
 
     def release(self) -> None:
-        for tex in (self.position, self.normal, self.atom):
-            tex.release()
+        if self.owned:
+            for tex in (self.position, self.normal, self.ids):
+                tex.release()
 
 
 class RaycastGBuffer(ComputePass):
@@ -115,14 +139,9 @@ class RaycastGBuffer(ComputePass):
         gbuffer = out or GBuffer.allocate(self.ctx, width, height)
         gbuffer.position.bind_to_image(0, read=False, write=True)
         gbuffer.normal.bind_to_image(1, read=False, write=True)
-        gbuffer.atom.bind_to_image(2, read=False, write=True)
+        gbuffer.ids.bind_to_image(2, read=False, write=True)
         self.run(width, height, {
-            "u_inv_proj": mat4_uniform(np.linalg.inv(proj)),
-            "u_inv_view": mat4_uniform(np.linalg.inv(view)),
+            "u_inv_proj": gl_bytes(np.linalg.inv(proj)),
+            "u_inv_view": gl_bytes(np.linalg.inv(view)),
         })
         return gbuffer
-
-
-def mat4_uniform(m: np.ndarray) -> tuple[float, ...]:
-    """A 4×4 matrix as moderngl wants a mat4 uniform (column-major)."""
-    return tuple(float(v) for v in np.asarray(m, dtype=np.float64).T.reshape(-1))

@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sasprobe.render.targets import PROBE_ID
+
 # Shadow/AO rays start at p + n * (RAY_EPS_ABS + RAY_EPS_REL * max|p_i|) (Å): a few float32
 # spacings at the coordinate's magnitude plus a floor of 1e-3 Å, far below what a pixel
 # shows. The source atom is excluded from every query as well, which is exact for convex
@@ -15,7 +17,7 @@ RAY_EPS_ABS = 1e-3
 RAY_EPS_REL = 1e-5
 
 ATOM_BACKGROUND = -1  # G-buffer atom id of background pixels
-ATOM_PROBE = -2  # G-buffer atom id of the probe sphere's pixels
+ATOM_PROBE = PROBE_ID  # G-buffer atom id of the probe sphere's pixels
 
 
 def ray_epsilon(points: np.ndarray) -> np.ndarray:

@@ -9,6 +9,7 @@ import pytest
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
 from sasprobe.render.gpu_grid import CENTRE_CLIPPED, CULLED, Culling, GpuGrid, walk_rays_on_gpu
 from sasprobe.render.lighting_reference import Occluders, raycast_gbuffer
+from sasprobe.render.targets import KIND_CAP
 from tests.lighting_support import camera, crambin, crambin_grid, cullings, gbuffer_arrays, gl  # noqa: F401
 
 
@@ -114,7 +115,7 @@ def test_culled_flags_follow_planes_and_cube(gl, crambin, crambin_grid):
 
 def test_too_many_clip_planes_is_refused():
     with pytest.raises(ValueError, match="at most"):
-        Culling(clip_planes=np.tile([1.0, 0.0, 0.0, 0.0], (9, 1)))
+        Culling(clip_planes=np.tile([1.0, 0.0, 0.0, 0.0], (25, 1)))
 
 
 @pytest.mark.parametrize("which", ["none", "plane", "cube"])
@@ -123,6 +124,7 @@ def test_closest_hit_traversal_matches_brute_force_ray_casting(gl, crambin, cram
     crambin_grid.set_probe(crambin.positions.mean(axis=0) + [0.0, 0.0, 14.0], DEFAULT_PROBE_RADIUS)
     view, proj = camera(crambin)
     gbuffer, position, normal, atom = gbuffer_arrays(crambin_grid, view, proj)
+    kinds = gbuffer.kinds()
     gbuffer.release()
     ref_position, ref_normal, ref_atom = raycast_gbuffer(view, proj, atom.shape[1], atom.shape[0], Occluders.of(crambin_grid))
     crambin_grid.set_culling(Culling())
@@ -136,4 +138,5 @@ def test_closest_hit_traversal_matches_brute_force_ray_casting(gl, crambin, cram
         plane = cullings(crambin)["plane"].clip_planes[0]
         caps = same & np.all(np.isclose(normal, -plane[:3], atol=1e-4), axis=-1)
         assert caps.sum() > 50
+        assert np.array_equal(kinds[same] == KIND_CAP, caps[same])
         assert np.abs(position[caps] @ plane[:3] + plane[3]).max() < 1e-3

@@ -91,7 +91,7 @@ def test_soft_shadows_match_the_cpu_parker_reference(crambin, shadow_pass, scene
         valid = atom != -1
         assert gpu.min() >= 0.0 and gpu.max() <= 1.0
         penumbra = valid & (cpu > 0.02) & (cpu < 0.98)
-        assert penumbra.sum() > 50, (name, light)  # the shell really produces partial values
+        assert penumbra.sum() > 20, (name, light)  # the shell really produces partial values
         close = np.abs(gpu - cpu)[valid] < 2e-3
         assert close.mean() >= 0.995, (name, close.mean())
 

@@ -1,3 +1,4 @@
+#version 430 core
 // Analytic ambient occlusion (Quilez's sphere occlusion) from each atom's K nearest
 // neighbours and the probe. One sphere of radius r at distance l, at angle theta from the
 // normal, occludes cos(theta) (r / l)^2 of the cosine-weighted hemisphere (exact while it

@@ -1,3 +1,4 @@
+#version 430 core
 // Ray-traced ambient occlusion through the grid: cosine-weighted rays of length
 // u_distance from each pixel (any hit ends a ray), accumulated as a running mean over
 // frames while the view is still. Sample i of a pixel is the i-th point of a per-pixel

@@ -1,3 +1,4 @@
+#version 430 core
 // Screen-space ambient occlusion from the G-buffer, at full or half resolution
 // (u_scale = 1 or 2 G-buffer pixels per output pixel), two ways:
 //   point sampling (Crytek/hemisphere): points in the normal-oriented hemisphere of radius
@@ -29,7 +30,7 @@ uniform uint u_seed;
 bool surface_depth_at(vec2 pixel, ivec2 size, out float depth) {
     ivec2 q = ivec2(floor(pixel));
     if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) return false;
-    if (texelFetch(u_gb_atom, q, 0).r == ATOM_BACKGROUND) return false;
+    if (!gbuffer_lit(q)) return false;
     depth = view_depth(texelFetch(u_gb_position, q, 0).xyz);
     return true;
 }
@@ -82,7 +83,7 @@ float line_sampling(vec3 p, float depth, ivec2 size, uint seed, vec2 centre) {
 void main() {
     ivec2 out_px = ivec2(gl_GlobalInvocationID.xy);
     if (any(greaterThanEqual(out_px, imageSize(u_accessibility)))) return;
-    ivec2 size = textureSize(u_gb_atom, 0);
+    ivec2 size = textureSize(u_gb_ids, 0);
     ivec2 px = min(out_px * u_scale, size - 1);
     vec3 p, n;
     int atom;

@@ -1,3 +1,4 @@
+#version 430 core
 // Depth- and normal-aware (bilateral) blur of a noisy accessibility image, which may be at
 // half resolution (u_scale = 2): each output pixel averages source pixels around it,
 // weighted by screen distance, by how close their surface's depth is to its own (relative
@@ -26,7 +27,7 @@ void main() {
         return;
     }
     ivec2 source_size = textureSize(u_source, 0);
-    ivec2 gb_size = textureSize(u_gb_atom, 0);
+    ivec2 gb_size = textureSize(u_gb_ids, 0);
     float depth = view_depth(p);
     ivec2 centre = min(px / u_scale, source_size - 1);
     float sum = 0.0, weights = 0.0;
@@ -35,7 +36,7 @@ void main() {
             ivec2 s = centre + ivec2(dx, dy);
             if (any(lessThan(s, ivec2(0))) || any(greaterThanEqual(s, source_size))) continue;
             ivec2 g = min(s * u_scale, gb_size - 1);  // the G-buffer pixel the sample was made at
-            if (texelFetch(u_gb_atom, g, 0).r == ATOM_BACKGROUND) continue;
+            if (!gbuffer_lit(g)) continue;
             float dz = (view_depth(texelFetch(u_gb_position, g, 0).xyz) - depth) / (u_depth_sigma * depth);
             float agree = max(dot(n, normalize(texelFetch(u_gb_normal, g, 0).xyz)), 0.0);
             float w = exp(-float(dx * dx + dy * dy) / (2.0 * u_sigma * u_sigma) - dz * dz) * agree * agree * agree * agree;

@@ -1,3 +1,4 @@
+#version 430 core
 // QuteMol's edge cueing (Tarini et al. 2006) as an image-space factor the final colour is
 // multiplied by (1 = untouched), from the G-buffer's view depths (background = infinitely
 // far). Only neighbours showing another atom count, so a sphere's own curvature never
@@ -25,7 +26,7 @@ uniform float u_halo_depth;      // Å
 uniform float u_halo_strength;
 
 float depth_at(ivec2 q) {
-    if (texelFetch(u_gb_atom, q, 0).r == ATOM_BACKGROUND) return BIG_DEPTH;
+    if (!gbuffer_lit(q)) return BIG_DEPTH;
     return view_depth(texelFetch(u_gb_position, q, 0).xyz);
 }
 
@@ -34,7 +35,7 @@ void main() {
     ivec2 size = imageSize(u_edges);
     if (any(greaterThanEqual(px, size))) return;
     float depth = depth_at(px);
-    int atom = texelFetch(u_gb_atom, px, 0).r;
+    int atom = texelFetch(u_gb_ids, px, 0).r;
     float reach = max(u_contours != 0 ? u_line_width : 0.0, u_halos != 0 ? u_halo_radius : 0.0);
     int r = int(ceil(reach));
     float line = 0.0, halo = 0.0;
@@ -44,7 +45,7 @@ void main() {
             if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
             float dist = length(vec2(dx, dy));
             float front = depth_at(q);
-            if (front >= BIG_DEPTH || texelFetch(u_gb_atom, q, 0).r == atom) continue;
+            if (front >= BIG_DEPTH || texelFetch(u_gb_ids, q, 0).r == atom) continue;
             float gap = depth >= BIG_DEPTH ? BIG_DEPTH : depth - front;
             if (u_contours != 0 && dist <= u_line_width && gap > u_line_threshold) {
                 line = max(line, clamp(gap / u_line_threshold - 1.0, 0.0, 1.0));

@@ -26,7 +26,7 @@ uniform ivec3 u_grid_dims;
 uniform ivec3 u_walk_lo;      // inclusive cell range walks stay in: the whole grid, or the
 uniform ivec3 u_walk_hi;      // navigation cube's cells (nothing outside it is drawn)
 
-#define MAX_CLIP_PLANES 8
+#define MAX_CLIP_PLANES 24
 uniform int u_clip_count;
 uniform vec4 u_clip_planes[MAX_CLIP_PLANES];  // kept where dot(xyz, p) + w >= 0
 uniform int u_cube_on;
@@ -210,10 +210,11 @@ bool sphere_interval(vec3 o, vec3 d, vec4 sphere, out float t_in, out float t_ou
 // clip plane or the cube face cuts one; or the probe sphere (atom -2, seen from outside,
 // never clipped).
 bool trace_closest(vec3 o, vec3 d, float t_min, float t_max, int skip_atom, bool with_probe,
-                   out float t_hit, out int hit_atom, out vec3 hit_normal) {
+                   out float t_hit, out int hit_atom, out vec3 hit_normal, out bool hit_cap) {
     t_hit = BIG;
     hit_atom = -1;
     hit_normal = vec3(0.0);
+    hit_cap = false;
     float t_in, t_out;
     if (with_probe && u_probe_sphere.w > 0.0 && sphere_interval(o, d, u_probe_sphere, t_in, t_out)) {
         if (t_in >= t_min && t_in <= t_max) {  // the probe is never clipped
@@ -237,7 +238,8 @@ bool trace_closest(vec3 o, vec3 d, float t_min, float t_max, int skip_atom, bool
                 if (t > min(t_out, t_max) || t >= t_hit) continue;
                 t_hit = t;
                 hit_atom = atom;
-                hit_normal = t_in >= t_min ? (o + t * d - sphere.xyz) / sphere.w : cut_normal;
+                hit_cap = t_in < t_min;
+                hit_normal = hit_cap ? cut_normal : (o + t * d - sphere.xyz) / sphere.w;
             }
             // A sphere entered at t lies in the cell holding o + t d, and cells come in t
             // order: once a hit lies within the current cell no later cell can beat it.

@@ -1,3 +1,4 @@
+#version 430 core
 // Test hook: walks given rays through the grid with the same 3D-DDA the lighting passes use
 // and records every cell visited with its [t_enter, t_exit], for comparison with the CPU
 // walk UniformGrid.ray_cells.

@@ -1,3 +1,4 @@
+#version 430 core
 // out = a * b per pixel (the hybrid AO: analytic x ray-traced).
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 3) uniform sampler2D u_a;

@@ -1,3 +1,4 @@
+#version 430 core
 // Progressive path tracing from the G-buffer's primary hits (Easdon 2013, Algorithm 2):
 // at every vertex both lights are sampled directly with a shadow ray through the grid
 // (they are delta lights, so this is their whole contribution); the path then continues
@@ -104,7 +105,8 @@ void main() {
             float t;
             int hit;
             vec3 hit_normal;
-            if (!trace_closest(o, d, 0.0, BIG, atom, true, t, hit, hit_normal)) {
+            bool cap;
+            if (!trace_closest(o, d, 0.0, BIG, atom, true, t, hit, hit_normal, cap)) {
                 total += throughput * u_sky;
                 break;
             }

@@ -1,3 +1,4 @@
+#version 430 core
 // Light visibility per G-buffer pixel, traced through the grid: hard shadows, or Parker
 // soft shadows from the same single ray (u_shell = (inner, outer) offsets, see
 // occluder_visibility). Directional light: the ray runs to the grid's (or the navigation

@@ -9,7 +9,8 @@ import numpy as np
 
 from sasprobe.bench.charts import figure, save
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
-from sasprobe.render.camera_math import fit_camera, look_at, perspective
+from sasprobe.render.camera import Camera
+from sasprobe.render.camera_math import fit_camera
 from sasprobe.render.gpu_grid import Culling, GpuGrid
 from sasprobe.render.lighting_gbuffer import GBuffer, RaycastGBuffer
 
@@ -116,7 +117,8 @@ def scene_with_coverage(grid: GpuGrid, size: tuple[int, int], target: float, cul
 def oblique_camera(target, distance: float, elevation_deg: float, size: tuple[int, int], fov: float = 40.0):
     el = np.radians(elevation_deg)
     eye = np.asarray(target, dtype=np.float64) + distance * np.array([0.0, -np.cos(el), np.sin(el)])
-    return look_at(eye, target, (0.0, 0.0, 1.0)), perspective(fov, size[0] / size[1], 1.0, distance * 4)
+    camera = Camera(eye, target, up=(0.0, 0.0, 1.0), fov_y=fov, near=1.0, far=distance * 4)
+    return camera.view(), camera.projection(size[0] / size[1])
 
 
 def cost_vs_size_chart(rows: list[dict], series: list[tuple[str, str, str]], title: str, ylabel: str, path):
