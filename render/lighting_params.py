@@ -3,7 +3,7 @@ CLI and the G-buffer export (plain data, no GL)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -43,13 +43,27 @@ class DirectionalLight:
         return d / norm
 
 
+DEFAULT_PROBE_ATTENUATION = (1.0, 0.0, 0.02)  # the light pass's (passes/light.py): half at 7 Å
+DEFAULT_PROBE_RANGE = 20.0  # Å: the probe light's reach (lit, and shadowed, inside it)
+
+
 @dataclass(frozen=True)
 class PointLight:
     """The probe's light at the probe centre; nothing beyond `radius` Å is lit (or traced)."""
 
     position: tuple[float, float, float]
-    radius: float
-    intensity: float = 1.0  # at the light; falls off as (1 - d / radius)^2 (shaders/lights.glsl)
+    radius: float = DEFAULT_PROBE_RANGE
+    intensity: float = 1.0
+    attenuation: tuple[float, float, float] = DEFAULT_PROBE_ATTENUATION  # constant, linear, quadratic
+
+
+def probe_falloff(distance, light: PointLight):
+    """The point light's falloff: 1 / (c + l d + q d^2) windowed to 0 at its radius by
+    (1 - (d/R)^4)^2 (smooth, so the light's edge is not seen)."""
+    d = np.asarray(distance, dtype=np.float64)
+    c, lin, q = light.attenuation
+    window = np.clip(1.0 - (d / light.radius) ** 4, 0.0, 1.0) ** 2
+    return window / (c + lin * d + q * d * d)
 
 
 def light_uniforms(sun: DirectionalLight | None, probe_light: PointLight | None) -> dict[str, object]:
@@ -60,6 +74,7 @@ def light_uniforms(sun: DirectionalLight | None, probe_light: PointLight | None)
         "u_probe_light_on": int(probe_light is not None),
         "u_probe_light_pos": tuple(float(v) for v in probe_light.position) if probe_light else (0.0, 0.0, 0.0),
         "u_probe_light_radius": float(probe_light.radius) if probe_light else 1.0,
+        "u_probe_light_atten": tuple(float(v) for v in probe_light.attenuation) if probe_light else (1.0, 0.0, 0.0),
         "u_probe_light_intensity": float(probe_light.intensity) if probe_light else 0.0,
     }
 
@@ -126,3 +141,79 @@ class AOSettings:
         for name in ("rt_spp", "ssao_samples", "reference_spp", "reference_total"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1")
+
+
+@dataclass(frozen=True)
+class EdgeCueing:
+    contours: bool = True
+    halos: bool = False
+    line_width: float = 1.5  # pixels
+    line_threshold: float = 1.5  # Å of depth jump where lines start (full at twice that)
+    halo_radius: float = 8.0  # pixels
+    halo_depth: float = 6.0  # Å of depth gap for a full halo
+    halo_strength: float = 0.6
+
+    def __post_init__(self) -> None:
+        for name in ("line_width", "line_threshold", "halo_radius", "halo_depth"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"edge cueing {name} must be positive")
+        if not 0.0 <= self.halo_strength <= 1.0:
+            raise ValueError("halo strength must lie in [0, 1]")
+
+
+MAX_BOUNCES = 3
+
+
+@dataclass(frozen=True)
+class PathTracing:
+    bounces: int = 3
+    spp: int = 1  # per frame
+    sky: tuple[float, float, float] = (0.45, 0.47, 0.5)  # radiance of the environment
+    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.bounces <= MAX_BOUNCES:
+            raise ValueError(f"path tracing uses 0 to {MAX_BOUNCES} bounces")
+
+
+SHADOW_MODES = ("off", "hard", "soft")
+EDGE_MODES = ("off", "lines", "halos", "both")
+
+
+@dataclass(frozen=True)
+class LightingSettings:
+    """What the renderer's lighting computes (render/passes/lighting.py). The scene's
+    Effects switch each effect on and off at run time (window keys); these say how."""
+
+    shadows: str = "hard"  # off, hard, soft (the initial state of the window's S and V keys)
+    soft: SoftShadow = SoftShadow()
+    ao: AOSettings = AOSettings()  # mode "off": AO starts switched off (A key; then analytic)
+    edges: str = "off"  # off, lines, halos, both
+    edge_cueing: EdgeCueing = EdgeCueing(contours=True, halos=True)
+    path_tracing: bool = False
+    path_tracer: PathTracing = PathTracing()
+    samples: int = 0  # progressive effects accumulate this many samples per pixel before a frame is shown
+
+    def __post_init__(self) -> None:
+        if self.shadows not in SHADOW_MODES:
+            raise ValueError(f"unknown shadow mode '{self.shadows}' (one of {', '.join(SHADOW_MODES)})")
+        if self.edges not in EDGE_MODES:
+            raise ValueError(f"unknown edge cueing '{self.edges}' (one of {', '.join(EDGE_MODES)})")
+        if self.samples < 0:
+            raise ValueError("samples must not be negative")
+
+    def effects(self) -> dict[str, bool]:
+        """Initial values of the scene's lighting switches (render/scene.py Effects)."""
+        return {
+            "shadows": self.shadows != "off",
+            "soft_shadows": self.shadows == "soft",
+            "ambient_occlusion": self.ao.mode != "off",
+            "edge_cueing": self.edges != "off",
+            "path_tracing": self.path_tracing,
+        }
+
+    def edge_settings(self) -> EdgeCueing:
+        """Edge cueing as chosen (both effects when toggled on from 'off')."""
+        if self.edges == "off":
+            return self.edge_cueing
+        return replace(self.edge_cueing, contours=self.edges in ("lines", "both"), halos=self.edges in ("halos", "both"))

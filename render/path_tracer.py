@@ -5,29 +5,20 @@ is still. Output: linear radiance (rgba32f)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from sasprobe.render.lighting_gbuffer import GBuffer
-from sasprobe.render.lighting_params import DirectionalLight, PointLight, light_uniforms, ray_epsilon_uniforms
+from sasprobe.render.lighting_params import (
+    DirectionalLight,
+    PathTracing,
+    PointLight,
+    light_uniforms,
+    ray_epsilon_uniforms,
+)
 from sasprobe.render.materials import PROBE_MATERIAL, atom_materials
 from sasprobe.render.progressive import ProgressivePass
 
-MAX_BOUNCES = 3
 BINDING_MATERIALS = 5
-
-
-@dataclass(frozen=True)
-class PathTracing:
-    bounces: int = 3
-    spp: int = 1  # per frame
-    sky: tuple[float, float, float] = (0.45, 0.47, 0.5)  # radiance of the environment
-    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    def __post_init__(self) -> None:
-        if not 0 <= self.bounces <= MAX_BOUNCES:
-            raise ValueError(f"path tracing uses 0 to {MAX_BOUNCES} bounces")
 
 
 class PathTracer(ProgressivePass):

@@ -10,6 +10,7 @@ from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid, load_default
 from sasprobe.render.camera_math import fit_camera
 from sasprobe.render.gpu_grid import Culling, GpuGrid
 from sasprobe.render.lighting_gbuffer import RaycastGBuffer
+from tests.render_support import gl_context
 
 WIDTH, HEIGHT = 128, 96
 VIEW_DIRECTION = (0.3, 0.4, 1.0)
@@ -17,14 +18,12 @@ VIEW_DIRECTION = (0.3, 0.4, 1.0)
 
 @pytest.fixture(scope="session")
 def gl():
-    import moderngl
-
-    try:
-        ctx = moderngl.create_standalone_context(backend="egl", require=430)
-    except Exception as exc:  # the lighting needs compute shaders and SSBOs
-        pytest.fail(f"no headless OpenGL 4.3 context through EGL: {exc}")
-    yield ctx
-    ctx.release()
+    """The render tests' headless context (tests/render_support.py); the lighting needs
+    OpenGL 4.3 (compute shaders, storage buffers) on top."""
+    ctx = gl_context()
+    if ctx.version_code < 430:
+        pytest.fail(f"the lighting needs OpenGL 4.3; {ctx.info['GL_RENDERER']} offers {ctx.info['GL_VERSION']}")
+    return ctx
 
 
 @pytest.fixture(scope="session")

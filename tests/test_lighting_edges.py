@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from sasprobe.render.camera_math import fit_camera
-from sasprobe.render.edge_cueing import EdgeCueing, EdgeCueingPass
+from sasprobe.render.edge_cueing import EdgeCueingPass
+from sasprobe.render.lighting_params import EdgeCueing
 from sasprobe.render.lighting_gbuffer import read_texture
 from sasprobe.render.lighting_reference import edge_cueing, view_depths
 from tests.lighting_support import camera, crambin, crambin_grid, gbuffer_arrays, gl, sphere_grid  # noqa: F401

@@ -9,10 +9,10 @@ import pytest
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS
 from sasprobe.render.gpu_grid import Culling
 from sasprobe.render.lighting_gbuffer import read_texture
-from sasprobe.render.lighting_params import HARD_SHADOW, DirectionalLight, PointLight
+from sasprobe.render.lighting_params import HARD_SHADOW, DirectionalLight, PathTracing, PointLight, probe_falloff
 from sasprobe.render.lighting_reference import Occluders, light_visibility, monte_carlo_ao
 from sasprobe.render.materials import atom_materials
-from sasprobe.render.path_tracer import PathTracer, PathTracing
+from sasprobe.render.path_tracer import PathTracer
 from tests.lighting_support import (  # noqa: F401
     away_from_boundaries,
     camera,
@@ -49,7 +49,7 @@ def matte(crambin, albedo=None):
 def test_direct_light_is_lambert_times_cpu_shadow_rays(crambin, crambin_grid, scene):
     gbuffer, position, normal, atom, occluders, eye, probe = scene
     sun = DirectionalLight((0.45, 0.8, 0.4), intensity=2.0)
-    lamp = PointLight(tuple(probe), 14.0, intensity=3.0)
+    lamp = PointLight(tuple(probe), 14.0, intensity=30.0)
     materials = matte(crambin)
     tracer = PathTracer(crambin_grid, materials)
     radiance = read_texture(tracer.accumulate(gbuffer, eye, sun, lamp, PathTracing(bounces=0, spp=1)))[..., :3]
@@ -60,7 +60,7 @@ def test_direct_light_is_lambert_times_cpu_shadow_rays(crambin, crambin_grid, sc
     to_lamp = np.asarray(lamp.position) - position
     dist = np.linalg.norm(to_lamp, axis=-1)
     cos_lamp = np.clip(np.einsum("hwk,hwk->hw", normal, to_lamp) / dist, 0.0, None)
-    falloff = np.clip(1.0 - dist / lamp.radius, 0.0, 1.0) ** 2
+    falloff = probe_falloff(dist, lamp)
     vis_sun = light_visibility(position, normal, atom, sun, occluders, HARD_SHADOW)
     vis_lamp = light_visibility(position, normal, atom, lamp, occluders, HARD_SHADOW)
     expect = albedo / np.pi * (sun.intensity * cos_sun * vis_sun + lamp.intensity * falloff * cos_lamp * vis_lamp)[..., None]

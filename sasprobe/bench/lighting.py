@@ -20,8 +20,8 @@ from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
 from sasprobe.paths import shared_structures
 from sasprobe.progress import progress
 from sasprobe.render.gpu_grid import GpuGrid
-from sasprobe.render.lighting_params import DirectionalLight
-from sasprobe.render.path_tracer import PathTracer, PathTracing
+from sasprobe.render.lighting_params import DirectionalLight, PathTracing
+from sasprobe.render.path_tracer import PathTracer
 
 TITLE = "Lighting: shadows and ambient occlusion, speed vs accuracy"
 
