@@ -23,7 +23,7 @@ from sasprobe.render.ao_analytic import AnalyticAO
 from sasprobe.render.ao_blur import BilateralBlur
 from sasprobe.render.ao_raytraced import RayTracedAO
 from sasprobe.render.ao_ssao import SSAO
-from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, texture_2d
+from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, TextureCache
 from sasprobe.render.lighting_params import AOSettings
 
 BLUR_BELOW_SPP = 16  # ray-traced AO is blurred until this many samples have accumulated
@@ -35,7 +35,7 @@ class AmbientOcclusion:
         self.ctx = gpu_grid.ctx
         self.settings = settings
         self._passes: dict[str, object] = {}
-        self._textures: dict[tuple[str, tuple[int, int]], object] = {}
+        self.textures = TextureCache(self.ctx)
 
     # ------------------------------------------------------------ state
     def configure(self, settings: AOSettings) -> None:
@@ -73,13 +73,6 @@ class AmbientOcclusion:
             self._passes[name] = make()
         return self._passes[name]
 
-    def _texture(self, name: str, size: tuple[int, int], fill: float | None = None):
-        key = (name, size)
-        if key not in self._textures:
-            data = None if fill is None else np.full(size[0] * size[1], fill, dtype=np.float32).tobytes()
-            self._textures[key] = texture_2d(self.ctx, size[0], size[1], data=data)
-        return self._textures[key]
-
     def update_probe(self) -> None:
         """The probe moved (after GpuGrid.set_probe)."""
         if "analytic" in self._passes:
@@ -90,22 +83,22 @@ class AmbientOcclusion:
         s = self.settings
         size = gbuffer.size
         if s.mode == "off":
-            return self._texture("ones", size, fill=1.0)
+            return self.textures.get("ones", size, fill=1.0)
         if s.mode == "analytic":
             return self._analytic(gbuffer)
         if s.mode == "ssao":
             ssao = self._pass("ssao")
-            raw = ssao.compute(gbuffer, view, proj, s, out=self._texture("ssao", ssao.output_size(gbuffer, s.ssao_half_resolution)))
+            raw = ssao.compute(gbuffer, view, proj, s, out=self.textures.get("ssao", ssao.output_size(gbuffer, s.ssao_half_resolution)))
             if not (s.blur or s.ssao_half_resolution):
                 return raw
-            return self._pass("blur").apply(gbuffer, view, proj, raw, out=self._texture("blurred", size))
+            return self._pass("blur").apply(gbuffer, view, proj, raw, out=self.textures.get("blurred", size))
         if s.mode == "reference":
             return self._traced(gbuffer, s.reference_spp, blur=False, view=view, proj=proj)
         traced = self._traced(gbuffer, s.rt_spp, blur=s.blur, view=view, proj=proj)
         if s.mode == "rt":
             return traced
         analytic = self._analytic(gbuffer)
-        product = self._texture("hybrid", size)
+        product = self.textures.get("hybrid", size)
         analytic.use(location=3)
         traced.use(location=4)
         product.bind_to_image(0, read=False, write=True)
@@ -116,20 +109,18 @@ class AmbientOcclusion:
         analytic = self._pass("analytic")
         if self.grid.probe_sphere[3] > 0 and analytic.probe_neighbours[0] < 0:
             analytic.update_probe()
-        return analytic.compute(gbuffer, self.settings.k, out=self._texture("analytic", gbuffer.size))
+        return analytic.compute(gbuffer, self.settings.k, out=self.textures.get("analytic", gbuffer.size))
 
     def _traced(self, gbuffer: GBuffer, spp: int, blur: bool, view, proj):
         rt = self._pass("rt")
         if rt.samples < self.settings.reference_total:
             rt.accumulate(gbuffer, min(spp, self.settings.reference_total - rt.samples), self.settings.distance)
         if blur and rt.samples < BLUR_BELOW_SPP:
-            return self._pass("blur").apply(gbuffer, view, proj, rt.accumulated, out=self._texture("blurred", gbuffer.size))
+            return self._pass("blur").apply(gbuffer, view, proj, rt.accumulated, out=self.textures.get("blurred", gbuffer.size))
         return rt.accumulated
 
     def release(self) -> None:
         for p in self._passes.values():
             p.release()
-        for t in self._textures.values():
-            t.release()
+        self.textures.release()
         self._passes.clear()
-        self._textures.clear()

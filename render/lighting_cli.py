@@ -18,19 +18,9 @@ from sasprobe.render.lighting_params import (
     LightingSettings,
     PathTracing,
 )
-from sasprobe.units import positive_float
+from sasprobe.units import positive_float, positive_int
 
 HEADLESS_SAMPLES = {"reference": 256, "path_tracing": 64}  # per pixel before a headless frame is written
-
-
-def _count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"'{text}' must be at least 1")
-    return value
 
 
 def _shell(text: str) -> tuple[float, float]:
@@ -55,7 +45,7 @@ def add_lighting_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--ao-k", type=int, choices=ANALYTIC_K, default=None, help="analytic AO: neighbours per atom (32)")
     g.add_argument("--ao-distance", type=positive_float, default=None, metavar="Å",
                    help="ray-traced AO: ray length (default 8)")
-    g.add_argument("--ao-spp", type=_count, default=None, metavar="N", help="ray-traced AO: samples per pixel per frame (1)")
+    g.add_argument("--ao-spp", type=positive_int, default=None, metavar="N", help="ray-traced AO: samples per pixel per frame (1)")
     g.add_argument("--no-ao-blur", action="store_true", help="ray-traced AO and SSAO: no bilateral blur")
     g.add_argument("--ssao-radius", type=positive_float, default=None, metavar="Å", help="SSAO sampling radius (4)")
     g.add_argument("--ssao-intensity", type=positive_float, default=None, help="SSAO intensity (2)")
@@ -65,7 +55,7 @@ def add_lighting_arguments(parser: argparse.ArgumentParser) -> None:
                    help="QuteMol edge cueing: depth-aware contour lines, halos, both (default off)")
     g.add_argument("--path-trace", action="store_true", help="progressive path tracing instead of the light pass")
     g.add_argument("--pt-bounces", type=int, choices=range(MAX_BOUNCES + 1), default=None, help="path bounces (3)")
-    g.add_argument("--pt-spp", type=_count, default=None, metavar="N", help="path samples per pixel per frame (1)")
+    g.add_argument("--pt-spp", type=positive_int, default=None, metavar="N", help="path samples per pixel per frame (1)")
     g.add_argument("--samples", type=int, default=None, metavar="N",
                    help="progressive effects accumulate N samples per pixel before each frame is shown "
                         "(headless default: 256 for --ao reference, 64 with --path-trace)")

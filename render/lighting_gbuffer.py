@@ -37,6 +37,27 @@ def texture_2d(ctx, width: int, height: int, components: int = 1, dtype: str = "
     return tex
 
 
+class TextureCache:
+    """r32f textures by (name, size), made on first use and reused every frame (creating
+    GL objects per frame is what slows moderngl programs down)."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self._textures: dict = {}
+
+    def get(self, name: str, size: tuple[int, int], fill: float | None = None):
+        key = (name, tuple(size))
+        if key not in self._textures:
+            data = None if fill is None else np.full(size[0] * size[1], fill, dtype=np.float32).tobytes()
+            self._textures[key] = texture_2d(self.ctx, size[0], size[1], data=data)
+        return self._textures[key]
+
+    def release(self) -> None:
+        for tex in self._textures.values():
+            tex.release()
+        self._textures.clear()
+
+
 def read_texture(tex, components: int | None = None, dtype: str | None = None) -> np.ndarray:
     """(H, W) or (H, W, C) array of a texture, row 0 = bottom."""
     components = components or tex.components

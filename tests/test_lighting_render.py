@@ -13,7 +13,6 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from sasprobe.molecule import DEFAULT_PROBE_RADIUS
 from sasprobe.render.ao_analytic import MAX_K, nearest_to_point
 from sasprobe.render.camera import Camera
 from sasprobe.render.context import GLUnavailable

@@ -22,7 +22,7 @@ from sasprobe.render.ambient_occlusion import AmbientOcclusion
 from sasprobe.render.context import GLUnavailable
 from sasprobe.render.edge_cueing import EdgeCueingPass
 from sasprobe.render.gpu_grid import Culling, GpuGrid
-from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, read_texture, texture_2d
+from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, TextureCache, read_texture
 from sasprobe.render.lighting_params import (
     AO_MODES,
     HARD_SHADOW,
@@ -66,7 +66,7 @@ class LightingPass(Pass):
         self._culling_key: bytes | None = None
         self._probe_key: bytes | None = None
         self._still_key: bytes | None = None
-        self._textures: dict = {}
+        self.textures = TextureCache(ctx)
         self.layers: dict[str, object] = {}  # textures of the last frame's terms (for the G-buffer export)
         self.lights: tuple[DirectionalLight | None, PointLight | None] = (None, None)
 
@@ -78,13 +78,6 @@ class LightingPass(Pass):
     def cycle_ao_mode(self) -> str:
         self.ao_mode = CYCLED_AO_MODES[(CYCLED_AO_MODES.index(self.ao_mode) + 1) % len(CYCLED_AO_MODES)]
         return self.ao_mode
-
-    def _texture(self, name: str, size: tuple[int, int], fill: float | None = None):
-        key = (name, size)
-        if key not in self._textures:
-            data = None if fill is None else np.full(size[0] * size[1], fill, dtype=np.float32).tobytes()
-            self._textures[key] = texture_2d(self.ctx, size[0], size[1], data=data)
-        return self._textures[key]
 
     def _sync(self, frame: Frame) -> None:
         """Follow the frame: the structure (grid), culling, probe, lights; restart
@@ -129,14 +122,14 @@ class LightingPass(Pass):
         self._sync(frame)
         fx, size = frame.scene.effects, frame.size
         gbuffer = GBuffer.of_targets(frame.targets)
-        ones = self._texture("ones", size, fill=1.0)
+        ones = self.textures.get("ones", size, fill=1.0)
         sun, lamp = self.lights
         self.layers = {}
         if fx.shadows:
             soft = self.settings.soft if fx.soft_shadows else HARD_SHADOW
             for name, light in (("shadow_dir", sun), ("shadow_probe", lamp)):
                 if light is not None:
-                    self.layers[name] = self.shadows.trace(gbuffer, light, soft, out=self._texture(name, size))
+                    self.layers[name] = self.shadows.trace(gbuffer, light, soft, out=self.textures.get(name, size))
         if fx.ambient_occlusion:
             self.ao.configure(replace(self.settings.ao, mode=self.ao_mode,
                                       reference_total=max(self.settings.ao.reference_total, self.settings.samples)))
@@ -147,7 +140,7 @@ class LightingPass(Pass):
         edges = ones
         if fx.edge_cueing:
             edges = self.edges.compute(gbuffer, frame.view, frame.proj, self.settings.edge_settings(),
-                                       out=self._texture("edges", size))
+                                       out=self.textures.get("edges", size))
         for unit, texture in enumerate((self.layers.get("shadow_dir", ones), self.layers.get("shadow_probe", ones),
                                         self.layers.get("ao", ones), edges), start=3):
             texture.use(location=unit)
@@ -174,8 +167,7 @@ class LightingPass(Pass):
         self._release_structure()
         self.edges.release()
         self.compose.release()
-        for tex in self._textures.values():
-            tex.release()
+        self.textures.release()
 
 
 class PathTracePass(Pass):
