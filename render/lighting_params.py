@@ -168,6 +168,7 @@ MAX_BOUNCES = 3
 class PathTracing:
     bounces: int = 3
     spp: int = 1  # per frame
+    max_samples: int = 4096  # per pixel: a still view stops costing anything beyond this
     sky: tuple[float, float, float] = (0.45, 0.47, 0.5)  # radiance of the environment
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
 

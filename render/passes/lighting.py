@@ -196,9 +196,10 @@ class PathTracePass(Pass):
         sun, lamp = lighting.lights
         s = lighting.light_settings
         tracing = replace(settings.path_tracer, sky=(s.ambient,) * 3, background=tuple(s.background))
-        radiance = tracer.accumulate(gbuffer, frame.camera.eye, sun, lamp, tracing)
-        while tracer.samples < settings.samples:
-            radiance = tracer.accumulate(gbuffer, frame.camera.eye, sun, lamp, tracing)
+        target = max(settings.samples, min(tracer.samples + tracing.spp, tracing.max_samples))
+        while tracer.samples < target or tracer.accumulated is None:
+            tracer.accumulate(gbuffer, frame.camera.eye, sun, lamp, tracing)
+        radiance = tracer.accumulated
         gbuffer.bind()
         radiance.use(location=3)
         frame.targets.visibility.use(location=4)
