@@ -1,0 +1,142 @@
+"""What is plugged in: serial ports, SpaceMouse HID devices, USB arms with known ids.
+
+Each finding carries the `--device` string that selects it. The sources (pyserial's
+port list, the hidapi module, a pyusb backend) can be passed in, which is how tests
+point discovery at their emulators.
+"""
+
+from __future__ import annotations
+
+import ctypes.util
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from sasprobe.devices import falcon, spacemouse
+
+
+@dataclass(frozen=True)
+class Found:
+    transport: str  # "serial", "hid", "usb"
+    path: str
+    vendor_id: int | None
+    product_id: int | None
+    description: str
+    device: str | None  # the --device string, None when sasprobe cannot drive it directly
+    note: str = ""
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        for key in ("vendor_id", "product_id"):
+            d[key] = None if d[key] is None else f"{d[key]:04x}"
+        return d
+
+
+# Serial (CDC-ACM) devices recognised by USB id: (vid, pid) → (description, --device template, note).
+KNOWN_SERIAL = {
+    (0x16C0, 0x0483): ("Teensy USB serial (WoodenHaptics / Polhem firmware)", "woodenhaptics:{port}", ""),
+    (0x0301, 0x2988): ("3D Systems Touch", "openhaptics",
+                       "its serial protocol is not public: sasprobe drives it through OpenHaptics"),
+    (0x2988, 0x0302): ("3D Systems Touch", "openhaptics",
+                       "its serial protocol is not public: sasprobe drives it through OpenHaptics"),
+}
+KNOWN_USB = {(falcon.VENDOR_ID, falcon.PRODUCT_ID): ("Novint Falcon", "falcon")}
+
+
+def serial_ports(comports=None) -> tuple[list[Found], list[str]]:
+    """USB serial ports (every arm sasprobe drives over serial is a USB device); others in a note."""
+    if comports is None:
+        from serial.tools.list_ports import comports
+    found, other = [], []
+    for port in sorted(comports(), key=lambda p: p.device):
+        if port.vid is None:
+            other.append(port.device)
+            continue
+        known = KNOWN_SERIAL.get((port.vid, port.pid))
+        if known:
+            description, template, note = known
+            device = template.format(port=port.device)
+        else:
+            description = port.description if port.description and port.description != "n/a" else "serial port"
+            device = f"woodenhaptics:{port.device}"
+            note = f"or haply:{port.device} for a Haply 2DIY"
+        found.append(Found("serial", port.device, port.vid, port.pid, description, device, note))
+    notes = [f"{len(other)} serial port(s) without a USB id not listed ({', '.join(other[:3])}"
+             f"{', ...' if len(other) > 3 else ''}): no supported arm uses one"] if other else []
+    return found, notes
+
+
+def hid_devices(hid_api=None) -> list[Found]:
+    if hid_api is None:
+        import hid as hid_api
+    mice = [d for d in hid_api.enumerate() if spacemouse.is_spacemouse(d["vendor_id"], d["product_id"])]
+    # one entry per device: its multi-axis controller interface when it lists one
+    by_device: dict[tuple, dict] = {}
+    for d in mice:
+        key = (d["vendor_id"], d["product_id"], d.get("serial_number") or "")
+        best = by_device.get(key)
+        if best is None or (d.get("usage_page"), d.get("usage")) == (1, 8):
+            by_device[key] = d
+    found = []
+    for d in by_device.values():
+        path = d["path"].decode(errors="replace") if isinstance(d["path"], bytes) else str(d["path"])
+        found.append(Found("hid", path, d["vendor_id"], d["product_id"],
+                           spacemouse.product_name(d["vendor_id"], d["product_id"]), f"spacemouse:{path}",
+                           "input only: moves the cursor and navigation cube, no force"))
+    return found
+
+
+def usb_devices(backend=None) -> tuple[list[Found], list[str]]:
+    """Known USB arms, through pyusb (or sysfs when libusb is missing)."""
+    import usb.core
+
+    try:
+        devices = [(d.idVendor, d.idProduct, f"usb bus {d.bus} address {d.address}")
+                   for d in usb.core.find(find_all=True, backend=backend)]
+        notes = []
+    except usb.core.NoBackendError:
+        devices = _sysfs_usb()
+        notes = ["libusb-1.0 is not installed: USB ids read from sysfs, but drivers that use pyusb (falcon) "
+                 "need it (Debian/Ubuntu: sudo apt install libusb-1.0-0)"]
+    found = []
+    for vid, pid, where in devices:
+        known = KNOWN_USB.get((vid, pid))
+        if known:
+            found.append(Found("usb", where, vid, pid, known[0], known[1],
+                               "the firmware file is needed once per power-up: --device falcon:FIRMWARE"))
+    return found, notes
+
+
+def _sysfs_usb(root: Path = Path("/sys/bus/usb/devices")) -> list[tuple[int, int, str]]:
+    out = []
+    if not root.is_dir():
+        return out
+    for dev in sorted(root.iterdir()):
+        try:
+            vid = int((dev / "idVendor").read_text().strip(), 16)
+            pid = int((dev / "idProduct").read_text().strip(), 16)
+        except (OSError, ValueError):
+            continue
+        out.append((vid, pid, f"usb {dev.name}"))
+    return out
+
+
+def openhaptics_note() -> str:
+    path = os.environ.get("SASPROBE_HD_LIBRARY") or ctypes.util.find_library("HD")
+    if path:
+        return f"OpenHaptics HD library found ({path}): PHANTOM Omni/Touch arms open with --device openhaptics"
+    return "OpenHaptics is not installed: PHANTOM Omni/Touch arms need it (--device openhaptics)"
+
+
+def discover(*, comports=None, hid_api=None, usb_backend=None) -> tuple[list[Found], list[str]]:
+    """(everything found, notes about what could not be looked at)."""
+    found, notes = serial_ports(comports)
+    try:
+        found += hid_devices(hid_api)
+    except (ImportError, OSError) as exc:
+        notes.append(f"HID devices not listed: {exc}")
+    usb_found, usb_notes = usb_devices(usb_backend)
+    found += usb_found
+    notes += usb_notes
+    notes.append(openhaptics_note())
+    return found, notes

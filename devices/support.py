@@ -1,0 +1,137 @@
+"""Small pieces every hardware driver shares: force clamping and velocity estimation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sasprobe.devices.base import DeviceFault, DeviceOpenError, HapticDevice
+
+ZERO_FORCE = np.zeros(3)
+
+
+def clamp_force(force_n, max_force_n: float) -> np.ndarray:
+    """A finite force no longer than `max_force_n`, pointing where the command pointed.
+
+    Anything not finite (NaN, inf) becomes zero: a device is never sent NaN.
+    """
+    f = np.asarray(force_n, dtype=float).reshape(-1)
+    if f.shape != (3,) or not np.all(np.isfinite(f)):
+        return ZERO_FORCE.copy()
+    biggest = float(np.max(np.abs(f)))
+    if biggest == 0.0:
+        return f
+    unit = f / biggest  # normalise first so huge commands do not overflow the norm
+    norm = biggest * float(np.linalg.norm(unit))
+    if norm > max_force_n:
+        f = unit * (max_force_n / float(np.linalg.norm(unit)))
+    return f
+
+
+class VelocityFilter:
+    """Finite differences through a first-order low-pass (the usual haptic estimate).
+
+    The cut-off trades noise against delay; 100 Hz suits encoder-quantised arms at 1 kHz.
+    """
+
+    def __init__(self, cutoff_hz: float = 100.0):
+        self.cutoff_hz = cutoff_hz
+        self.reset()
+
+    def reset(self) -> None:
+        self._t_ns: int | None = None
+        self._p = np.zeros(3)
+        self.velocity = np.zeros(3)
+
+    def update(self, t_ns: int, position) -> np.ndarray:
+        p = np.asarray(position, dtype=float)
+        if self._t_ns is not None and t_ns > self._t_ns:
+            dt = (t_ns - self._t_ns) * 1e-9
+            raw = (p - self._p) / dt
+            alpha = 1.0 - math.exp(-2.0 * math.pi * self.cutoff_hz * dt)
+            self.velocity = self.velocity + alpha * (raw - self.velocity)
+        self._t_ns, self._p = t_ns, p
+        return self.velocity.copy()
+
+
+def quaternion_about(axis, angle_rad: float) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a rotation by `angle_rad` about `axis`."""
+    axis = np.asarray(axis, dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    half = angle_rad / 2.0
+    return np.concatenate([[math.cos(half)], math.sin(half) * axis])
+
+
+def quaternion_multiply(a, b) -> np.ndarray:
+    """Hamilton product a·b (apply b first, then a)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return np.array([
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    ])
+
+
+def quaternion_from_matrix(m) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of a 3x3 rotation matrix (Shepperd's method)."""
+    m = np.asarray(m, dtype=float)
+    trace = m[0, 0] + m[1, 1] + m[2, 2]
+    if trace > 0:
+        s = 2.0 * math.sqrt(trace + 1.0)
+        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
+    else:
+        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
+    q = np.asarray(q)
+    q = q / np.linalg.norm(q)
+    return q if q[0] >= 0 else -q
+
+
+def factory_from_environment(variable: str):
+    """The object `module:function()` named by an environment variable, or None when unset.
+
+    How a test points a driver running in another process (the daemon, the CLI) at an
+    emulator that stands in for a library boundary (a pyusb backend, the hidapi module).
+    """
+    import importlib
+    import os
+
+    spec = os.environ.get(variable)
+    if not spec:
+        return None
+    module_name, _, function = spec.partition(":")
+    try:
+        return getattr(importlib.import_module(module_name), function)()
+    except (ImportError, AttributeError) as exc:
+        raise DeviceOpenError(f"{variable}={spec} is not usable: {exc}") from None
+
+
+class HardwareDevice(HapticDevice):
+    """A driver of real hardware: `reconnect()` reports a still-missing device as a fault.
+
+    `open()` raises DeviceOpenError for the user to read; during a session the daemon
+    keeps retrying `reconnect()`, which must raise DeviceFault while the cable is out.
+    """
+
+    force = ZERO_FORCE  # the force last asked for, after clamping (drivers assign a new array)
+
+    @property
+    def last_force_n(self) -> np.ndarray:
+        """The force the device was last told to render (zero after `close()`)."""
+        return np.array(self.force, dtype=float)
+
+    def reconnect(self) -> None:
+        self.close()
+        try:
+            self.open()
+        except DeviceOpenError as exc:
+            raise DeviceFault(f"device still unavailable: {exc}") from None

@@ -1,0 +1,186 @@
+"""The daemon (`sasprobe daemon --device ...`, a real subprocess) driving emulated arms.
+
+The haptic engine is in the loop: the emulated hand pushes the stylus into the
+molecule, the daemon renders the contact force, and the emulator's motors must push
+back (within the declared limits). The machine these tests share may be too loaded
+for 1 kHz, so they assert what happened, never how fast.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+
+import numpy as np
+import pytest
+
+from sasprobe.devices.haply import HAPLY_2DIY_LIMITS
+from sasprobe.devices.woodenhaptics import WOODEN_MODELS
+from sasprobe.protocol.client import Subscriber
+from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
+from tests.conftest import REPO_ROOT
+from tests.daemon_process import DaemonProcess
+from tests.emulators import libhd
+from tests.emulators.haply_serial import Haply2DIYEmulator, start_pose_mm
+from tests.emulators.physics import MovableHand
+from tests.emulators.woodenhaptics_serial import WoodenHapticsEmulator
+
+FALCON_BACKEND = "tests.emulators.falcon_usb:backend_from_environment"
+
+
+def poses_until(sub: Subscriber, condition, daemon: DaemonProcess, timeout_s: float = 60.0):
+    """Poll poses until `condition(pose)` holds for one; AssertionError after the timeout."""
+    deadline = time.monotonic() + timeout_s
+    seen = 0
+    while time.monotonic() < deadline:
+        for pose in sub.poll(0.1):
+            seen += 1
+            if condition(pose):
+                return pose
+    last = sub.pose
+    raise AssertionError(f"no such pose among {seen} within {timeout_s} s; last flags "
+                         f"{last.flags if last else None}, force {last.force_N if last else None}; "
+                         f"daemon stderr: {daemon.stderr[-1500:]}")
+
+
+@pytest.fixture
+def emulators_importable(monkeypatch):
+    """The daemon runs in a private folder: let it import tests.emulators for its device."""
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH")])))
+
+
+def exchanges(emu, n: int, timeout_s: float = 30.0) -> None:
+    """Wait until the driver has exchanged `n` more commands with the emulator."""
+    target, deadline = emu.replies_sent + n, time.monotonic() + timeout_s
+    while emu.replies_sent < target:
+        assert time.monotonic() < deadline, "the daemon stopped talking to the arm"
+        time.sleep(0.01)
+
+
+def pushing(pose) -> bool:
+    return pose.has(FLAG_CONTACT) and not pose.has(FLAG_FAULT) and np.linalg.norm(pose.force_N) > 0.05
+
+
+def test_daemon_session_on_the_emulated_serial_arm(tmp_path):
+    hand = MovableHand()
+    emu = WoodenHapticsEmulator(tmp_path, hand=hand)
+    home = tuple(emu.stylus.position)
+    hand.target = home  # resting in the home pose: the driver calibrates
+    limit = WOODEN_MODELS[3].limits.max_force_n
+    try:
+        with DaemonProcess(device=f"woodenhaptics:{emu.path}") as daemon:
+            assert daemon.ready["device"] == "woodenhaptics"
+            sub = Subscriber(daemon.pub)
+            poses_until(sub, lambda p: True, daemon)
+            exchanges(emu, 100)  # the driver sees the arm resting at home: calibrated
+            hand.target = (0.0, 0.0, 0.0)  # into the molecule
+            poses_until(sub, pushing, daemon)
+            exchanges(emu, 20)  # the force the daemon published has gone out to the arm
+            assert emu.max_force_n > 0.05, "the motors never pushed back"
+            # the tip the daemon publishes is where the emulated stylus is (both move: agree once)
+            poses_until(sub, lambda p: np.linalg.norm(p.tip_mm - emu.stylus.position) < 1.0, daemon)
+            assert emu.max_force_n <= limit + 0.05
+            assert emu.bad_lines == 0
+
+            emu.unplug()  # pull the cable: force zeroed, fault flagged
+            fault = poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon)
+            assert np.allclose(fault.force_N, 0.0)
+            emu.replug()  # the Teensy restarts: the user brings the arm home and presses its button
+            hand.target = home
+            deadline = time.monotonic() + 10
+            while np.linalg.norm(emu.stylus.position - np.asarray(home)) > 0.5 and time.monotonic() < deadline:
+                time.sleep(0.05)
+            emu.press_calibration_button()
+            exchanges(emu, 100)  # resting at home again
+            hand.target = (0.0, 0.0, 0.0)
+            poses_until(sub, pushing, daemon)  # reconnected, recalibrated, pushing again
+            assert "device reconnected" in daemon.stderr
+
+            rc, report = daemon.stop()
+            assert rc == 0, daemon.stderr
+            assert report["ticks"] > 0 and report["device_last_force_n"] == [0.0, 0.0, 0.0]
+        time.sleep(0.1)
+        assert emu.currents.tolist() == [0, 0, 0]  # closing the device left the motors at zero
+    finally:
+        emu.stop()
+
+
+def test_daemon_session_on_the_emulated_falcon(tmp_path, monkeypatch, emulators_importable):
+    firmware = tmp_path / "falcon.bin"
+    firmware.write_bytes(os.urandom(2000))
+    seen = tmp_path / "falcon-saw.json"
+    monkeypatch.setenv("SASPROBE_USB_BACKEND", FALCON_BACKEND)
+    monkeypatch.setenv("SASPROBE_FALCON_EMU_FIRMWARE", str(firmware))
+    monkeypatch.setenv("SASPROBE_FALCON_EMU_REPORT", str(seen))
+    monkeypatch.setenv("SASPROBE_FALCON_EMU_PULL", "8,1")  # the cable is out from 8 s to 9 s after boot
+    with DaemonProcess(device=f"falcon:{firmware}") as daemon:
+        assert daemon.ready["device"] == "falcon"
+        sub = Subscriber(daemon.pub)
+        poses_until(sub, pushing, daemon)  # homed by the user's sweep, then held in the molecule
+        faults = []
+
+        def reconnected(pose) -> bool:  # the cable is pulled 8 s after boot and put back 1 s later
+            if pose.has(FLAG_FAULT):
+                faults.append(pose)
+            return "device reconnected" in daemon.stderr
+
+        back = poses_until(sub, reconnected, daemon)
+        assert faults and all(np.allclose(p.force_N, 0.0) for p in faults)
+        poses_until(sub, lambda p: pushing(p) and p.seq > back.seq, daemon)  # firmware again, homed again
+        rc, report = daemon.stop()
+        assert rc == 0, daemon.stderr
+        assert report["device_last_force_n"] == [0.0, 0.0, 0.0]
+    saw = json.loads(seen.read_text())
+    assert saw["upload_attempts"] == 2 and saw["generation"] == 1  # uploaded at start and after the pull
+    assert saw["homed"] == [True, True, True]
+    assert 0.05 < saw["max_force_n"] <= 8.0 + 0.01  # the motors pushed back, within the limit
+    assert saw["last_motor"] == [0, 0, 0]  # closing left the motors at zero
+
+
+def test_daemon_session_on_the_emulated_haply(tmp_path):
+    hand = MovableHand(start_pose_mm())
+    emu = Haply2DIYEmulator(tmp_path, hand=hand)
+    try:
+        with DaemonProcess(device=f"haply:{emu.path}") as daemon:
+            sub = Subscriber(daemon.pub)
+            poses_until(sub, lambda p: True, daemon)
+            hand.target = (0.0, -75.0, 0.0)  # the centre of the pad: the molecule's mid-plane
+            pose = poses_until(sub, pushing, daemon)
+            assert pose.tip_mm[2] == 0.0  # planar: the driver drops the force's z, the emulator has none
+            exchanges(emu, 50)
+            assert 0.0 < emu.max_force_n <= HAPLY_2DIY_LIMITS.max_force_n + 1e-3
+            rc, _report = daemon.stop()
+            assert rc == 0, daemon.stderr
+    finally:
+        emu.stop()
+
+
+def test_daemon_takes_the_input_only_spacemouse(monkeypatch, emulators_importable):
+    monkeypatch.setenv("SASPROBE_HID_API", "tests.emulators.spacemouse_hid:api_from_environment")
+    with DaemonProcess(device="spacemouse") as daemon:
+        sub = Subscriber(daemon.pub)
+        start = poses_until(sub, lambda p: True, daemon)
+        # the scripted user deflects the cap right, then left: the cursor moves along X
+        moved = poses_until(sub, lambda p: abs(p.tip_mm[0] - start.tip_mm[0]) > 20.0, daemon)
+        assert abs(moved.tip_mm[1] - start.tip_mm[1]) < 1e-6 and abs(moved.tip_mm[2] - start.tip_mm[2]) < 1e-6
+        poses = sub.poll(0.5)
+        assert poses and all(np.allclose(p.force_N, 0.0) for p in poses)  # no force output, ever
+        rc, report = daemon.stop()
+        assert rc == 0, daemon.stderr
+
+
+def test_daemon_on_openhaptics_through_the_stand_in_library(tmp_path, monkeypatch):
+    library = libhd.build(tmp_path)
+    if library is None:
+        pytest.skip("no C compiler to build the stand-in HD library")
+    monkeypatch.setenv("SASPROBE_HD_LIBRARY", str(library))
+    monkeypatch.setenv("FAKE_HD_CALIBRATED", "1")
+    monkeypatch.setenv("FAKE_HD_HAND", "0,0,-35")  # the centre of the usable box (the cube's centre)
+    monkeypatch.setenv("FAKE_HD_SWEEP", "30")  # swinging ±30 mm along x: through the molecule
+    with DaemonProcess(device="openhaptics") as daemon:
+        sub = Subscriber(daemon.pub)
+        pose = poses_until(sub, pushing, daemon)
+        assert np.linalg.norm(pose.force_N) <= 3.3
+        rc, report = daemon.stop()
+        assert rc == 0, daemon.stderr
