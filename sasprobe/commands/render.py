@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 from sasprobe.errors import UserError
+from sasprobe.render.lighting_cli import add_lighting_arguments
 from sasprobe.units import positive_float, probe_radius
 
 log = logging.getLogger("sasprobe")
@@ -112,6 +113,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--backbone", action="store_true", help="draw the backbone trace even without a navigation cube")
     p.add_argument("--no-fxaa", action="store_true", help="skip the FXAA pass")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
+    add_lighting_arguments(p)
     p.set_defaults(func=run)
 
 
