@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from sasprobe.errors import UserError
+from sasprobe.render.lighting_params import DEFAULT_PROBE_RANGE, LightingSettings
 
 log = logging.getLogger("sasprobe")
 
@@ -39,29 +40,48 @@ class RenderOptions:
     backbone: bool = False
     fxaa: bool = True
     keep_water: bool = False
+    lighting: LightingSettings | None = None  # None: no lighting passes
+    lighting_required: bool = False  # asked for explicitly: no OpenGL 4.3 is an error
+    probe_light_range: float = DEFAULT_PROBE_RANGE
     snapshot: Path | None = None  # also write the last frame as a PNG (headless)
     report: Path | None = None  # write frame and pose counts as JSON at the end
 
     @classmethod
     def from_args(cls, args) -> "RenderOptions":
+        from sasprobe.render.context import display_available
+        from sasprobe.render.lighting_cli import lighting_from_args
+
+        lighting, required = lighting_from_args(args, headless=args.headless or not display_available())
         return cls(
             molecule=args.molecule, connect=args.connect, control=args.control, headless=args.headless,
             size=args.size, frames=args.frames, seconds=args.seconds, out=args.out, fps=args.fps,
             gbuffer=args.gbuffer, camera=args.camera, orbit=args.orbit, spheres=args.spheres,
             probe=args.probe, touched=args.touched, probe_radius=args.probe_radius, nav_cube=args.nav_cube,
             clip=args.clip, probe_plane=args.probe_plane, light=args.light, backbone=args.backbone,
-            fxaa=not args.no_fxaa, keep_water=args.keep_water, snapshot=args.snapshot, report=args.report,
+            fxaa=not args.no_fxaa, keep_water=args.keep_water, lighting=lighting, lighting_required=required,
+            probe_light_range=args.probe_light_range or DEFAULT_PROBE_RANGE, snapshot=args.snapshot,
+            report=args.report,
         )
+
+    def effects(self):
+        """The scene's switches: the options' FXAA, probe plane and initial lighting."""
+        from sasprobe.render.scene import Effects
+
+        lighting = self.lighting.effects() if self.lighting is not None else {}
+        return Effects(fxaa=self.fxaa, probe_plane=self.probe_plane, **lighting)
 
 
 def build_scene(structure, opts: RenderOptions, effects=None):
     """The SceneState for a structure: the options' planes, probe, cube and light."""
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS
-    from sasprobe.render.scene import Effects, NavCube, Probe, SceneState
+    from sasprobe.render.lighting_cli import check_soft_shell
+    from sasprobe.render.scene import NavCube, Probe, SceneState
 
     radius = opts.probe_radius or DEFAULT_PROBE_RADIUS
     if effects is None:
-        effects = Effects(fxaa=opts.fxaa, probe_plane=opts.probe_plane)
+        effects = opts.effects()
+    if opts.lighting is not None:
+        check_soft_shell(opts.lighting, radius)
     scene = SceneState(structure, probe_radius=radius, clip_planes=[np.array(p) for p in opts.clip], effects=effects)
     if opts.touched >= structure.n_atoms:
         raise UserError(f"--touched {opts.touched}: {structure.name} has atoms 0..{structure.n_atoms - 1}")
@@ -112,6 +132,23 @@ def render_main(opts: RenderOptions) -> int:
         source.close()
 
 
+def make_renderer(ctx, scene, size, opts: RenderOptions):
+    """The renderer of the options, lighting included when asked for and supported."""
+    from sasprobe.render.passes.light import LightSettings
+    from sasprobe.render.passes.lighting import install_lighting
+    from sasprobe.render.renderer import Renderer
+
+    renderer = Renderer(ctx, scene, size, sphere_mode=opts.spheres, backbone_always=opts.backbone,
+                        light=LightSettings(probe_range=opts.probe_light_range))
+    if opts.lighting is not None:
+        try:
+            install_lighting(renderer, opts.lighting, required=opts.lighting_required)
+        except Exception:
+            renderer.release()
+            raise
+    return renderer
+
+
 def _writer(opts: RenderOptions, frames: int | None):
     from sasprobe.render.output import FrameWriter
 
@@ -122,13 +159,16 @@ def _run_headless(opts: RenderOptions, source) -> int:
     from sasprobe.progress import progress_bar
     from sasprobe.render.context import create_headless_context
     from sasprobe.render.headless import run_headless
-    from sasprobe.render.renderer import Renderer
 
     if hasattr(source, "wait_ready"):
         source.wait_ready()  # a daemon: its structure and a first pose, or one clear line
     scene = build_scene(source.take_new_structure(), opts)
     ctx = create_headless_context()
-    renderer = Renderer(ctx, scene, opts.size, sphere_mode=opts.spheres, backbone_always=opts.backbone)
+    try:
+        renderer = make_renderer(ctx, scene, opts.size, opts)
+    except Exception:
+        ctx.release()
+        raise
     camera = initial_camera(scene, opts)
     frames = opts.frames if (opts.frames is not None or opts.seconds is not None) else 1
     writer = _writer(opts, frames)
@@ -168,21 +208,17 @@ def _run_window(opts: RenderOptions, source) -> int:
     import glfw
 
     from sasprobe.render.context import create_window
-    from sasprobe.render.renderer import Renderer
-    from sasprobe.render.scene import Effects
     from sasprobe.render.window import WindowApp
 
     window, ctx = create_window(opts.size, "sasprobe render")
     try:
         def build(structure, effects):
             scene = build_scene(structure, opts, effects)
-            renderer = Renderer(ctx, scene, glfw.get_framebuffer_size(window), sphere_mode=opts.spheres,
-                                backbone_always=opts.backbone)
+            renderer = make_renderer(ctx, scene, glfw.get_framebuffer_size(window), opts)
             glfw.set_window_title(window, f"sasprobe render: {structure.name} ({structure.n_atoms} atoms)")
             return renderer, initial_camera(scene, opts)
 
-        app = WindowApp(window, ctx, source, build, "sasprobe render",
-                        Effects(fxaa=opts.fxaa, probe_plane=opts.probe_plane))
+        app = WindowApp(window, ctx, source, build, "sasprobe render", opts.effects())
         writer = _writer(opts, 1)
         log.info("window open: %dx%d framebuffer", *glfw.get_framebuffer_size(window))
         start = time.perf_counter()

@@ -14,7 +14,14 @@ Keys (row 0 is the top row of the image; H x W is the frame size):
     nav_cube    float64 (4,)       centre x, y, z and half edge, Å; absent when no cube is in effect
     clip_planes float64 N x 4      planes in effect (the user's, then the probe plane);
                                    a·x + b·y + c·z + d >= 0 is kept; unit normals
-Lighting passes add their own layers under their own names.
+Lighting passes add their own layers under their own names; the lighting
+(render/passes/lighting.py) adds, for what it computed in that frame:
+    shadow_dir      float32 H x W  directional-light visibility 0..1 (1 lit; 0 shadowed or facing away)
+    shadow_probe    float32 H x W  probe-light visibility 0..1 (1 beyond the light's range: not traced)
+    ao              float32 H x W  ambient accessibility 0..1 (1 unoccluded)
+    light_direction float64 (3,)   direction the directional light travels (as --light)
+    probe_light     float64 (4,)   probe light position x, y, z and range, Å
+Background and backbone-trace pixels are 1 in the lighting layers.
 """
 
 from __future__ import annotations
@@ -43,6 +50,9 @@ def gbuffer_arrays(renderer, frame=None) -> dict[str, np.ndarray]:
     }
     if frame.cube is not None:
         arrays["nav_cube"] = np.array([*frame.cube.center, frame.cube.half], dtype=np.float64)
+    for p in renderer.passes:
+        if hasattr(p, "gbuffer_layers") and p.enabled(frame):
+            arrays.update(p.gbuffer_layers(frame))
     return arrays
 
 

@@ -95,16 +95,17 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
     """Write the session as a video at its recorded timing; returns frame counts and duration."""
     from sasprobe.errors import UserError
     from sasprobe.molecule import parse_structure
-    from sasprobe.render.app import RenderOptions, build_scene, initial_camera
+    from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
     from sasprobe.render.context import create_headless_context
+    from sasprobe.render.lighting_params import LightingSettings
     from sasprobe.render.link import apply_pose, apply_scene_message
     from sasprobe.render.output import FrameWriter
-    from sasprobe.render.renderer import Renderer
 
     time_range = pose_time_range(path)
     if time_range is None:
         raise UserError(f"{path}: no recorded poses to draw")
-    opts = RenderOptions(headless=True, size=size, fps=fps)
+    # `sasprobe render`'s defaults, lighting included (where the GL driver offers OpenGL 4.3)
+    opts = RenderOptions(headless=True, size=size, fps=fps, lighting=LightingSettings())
     ctx = create_headless_context()
     writer = FrameWriter(out, None, fps)
     renderer = camera = None
@@ -121,7 +122,7 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
                 if renderer is not None:
                     renderer.release()
                 scene = build_scene(structure, opts)
-                renderer = Renderer(ctx, scene, size)
+                renderer = make_renderer(ctx, scene, size, opts)
                 camera = initial_camera(scene, opts)
             scene = renderer.scene
             scene.effects.probe_light = apply_scene_message(scene, frame.scene)

@@ -70,6 +70,12 @@ class Effects:
     clip_planes: bool = True
     probe_plane: bool = False  # a plane through the probe centre, facing the camera
     readout: bool = True  # on-screen fps / haptic rate / force (window only)
+    # lighting (render/passes/lighting.py; how each is computed: LightingSettings)
+    shadows: bool = False
+    soft_shadows: bool = False
+    ambient_occlusion: bool = False
+    edge_cueing: bool = False
+    path_tracing: bool = False
 
 
 @dataclass

@@ -13,6 +13,7 @@ import numpy as np
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer import gbuffer_arrays, save_gbuffer
 from sasprobe.render.passes.light import LightSettings
+from sasprobe.render.passes.lighting import lighting_of, lighting_status
 from sasprobe.render.passes.overlay import TextOverlay
 from sasprobe.render.scene import Effects
 from sasprobe.render.shaders import ProgramCache
@@ -31,12 +32,17 @@ TOGGLES = {
     "K": ("clip_planes", "clipping planes"),
     "X": ("probe_plane", "clip plane at the probe"),
     "O": ("readout", "readout"),
+    "S": ("shadows", "shadows"),
+    "V": ("soft_shadows", "soft shadows"),
+    "A": ("ambient_occlusion", "ambient occlusion"),
+    "E": ("edge_cueing", "edge cueing"),
+    "G": ("path_tracing", "path tracing"),
 }
 SPHERE_MODES = ("quad", "sprite")
 HELP = [
     "drag: rotate   right/middle drag or shift+drag: pan   wheel: zoom",
     *[f"{k}: {label}" for k, (_, label) in TOGGLES.items()],
-    "M: sphere mode (quad/sprite)   R: reset camera   H: help   Q/Esc: quit",
+    "M: sphere mode (quad/sprite)   C: AO method   R: reset camera   H: help   Q/Esc: quit",
 ]
 
 
@@ -87,6 +93,8 @@ class WindowApp:
         elif name == "M" and self.renderer is not None:
             i = SPHERE_MODES.index(self.renderer.sphere_mode) if self.renderer.sphere_mode in SPHERE_MODES else -1
             self.renderer.set_sphere_mode(SPHERE_MODES[(i + 1) % len(SPHERE_MODES)])
+        elif name == "C" and self.renderer is not None and lighting_of(self.renderer) is not None:
+            lighting_of(self.renderer).cycle_ao_mode()
         elif name == "R" and self.camera is not None:
             self.camera.eye, self.camera.target, self.camera.up = self.home.eye.copy(), self.home.target.copy(), self.home.up.copy()
         elif name == "H" or key == glfw.KEY_F1:
@@ -127,6 +135,8 @@ class WindowApp:
         lines = [self.title if r is None else f"{self.title}: {r.scene.structure.name} ({r.scene.structure.n_atoms} atoms)"]
         if r is not None:
             lines.append(f"{fps:5.1f} fps   {r.buffers.n_selected} spheres ({r.sphere_mode})")
+            if lighting_of(r) is not None:
+                lines.append(lighting_status(r))
         ro = self.readout
         if ro.status:
             lines.append(ro.status)

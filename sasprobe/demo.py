@@ -9,9 +9,8 @@ force before it exits) and writes summary.json.
 
 On a shared, small machine the software rasteriser would take every core from the
 1 kHz loop, so the daemon asks for SCHED_FIFO (`--realtime`), which no ordinary process
-can preempt, and a headless renderer draws with one llvmpipe thread (a modest size and
-frame rate). Where SCHED_FIFO is refused (no root or CAP_SYS_NICE) the renderer also
-runs at a lower priority.
+can preempt. Where that is refused (no root or CAP_SYS_NICE) the renderer runs at a
+lower priority and, headless, with one llvmpipe thread.
 """
 
 from __future__ import annotations
@@ -206,9 +205,9 @@ class DemoSession:
 
     def start_renderer(self, headless: bool, seconds: float | None) -> None:
         env = _child_env()
-        if headless:  # Mesa llvmpipe: one core draws a 640x360 frame in ~80 ms; the other is the loop's
-            env.setdefault("LP_NUM_THREADS", "1")
-        protected = bool(self.ready.get("realtime"))  # a SCHED_FIFO loop needs no lower priority beside it
+        protected = bool(self.ready.get("realtime"))  # no ordinary process can preempt a SCHED_FIFO loop
+        if not protected and headless:
+            env.setdefault("LP_NUM_THREADS", "1")  # Mesa llvmpipe: leave the loop a core of its own
         self.renderer = Child("render", self._render_argv(headless, seconds), self.sockets / "render.log",
                               env=env, nice=0 if protected else RENDERER_NICE, registry=self.children)
         self._status(reset=True)  # the measured window is the demo proper, renderer included

@@ -77,13 +77,14 @@ def reference_light(g, albedo, scene, camera, s, vis):
         to_probe = scene.probe.center - p
         dist = np.linalg.norm(to_probe, axis=-1, keepdims=True)
         c0, c1, c2 = s.probe_attenuation
-        atten = 1.0 / (c0 + c1 * dist + c2 * dist ** 2)
+        window = np.clip(1.0 - (dist / s.probe_range) ** 4, 0.0, 1.0) ** 2
+        atten = window / (c0 + c1 * dist + c2 * dist ** 2)
         color += vis[..., 1:2] * s.probe_intensity * atten * phong(albedo, n, v, to_probe / dist, s)
     color = np.minimum(color, 1.0)
     probe_px = g["kind"] == KIND_PROBE
     color[probe_px] = np.array(PROBE_COLOR) * (0.75 + 0.25 * np.clip(np.einsum("...i,...i", n, v), 0, None))[probe_px, None]
     color[g["kind"] == KIND_BACKGROUND] = s.background
-    return color
+    return color * vis[..., 3:4]  # edge cueing scales everything
 
 
 def test_light_pass_matches_phong_reference_with_visibility_factors(ctx, crambin):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from sasprobe.render.lighting_params import DEFAULT_PROBE_ATTENUATION, DEFAULT_PROBE_RANGE
 from sasprobe.render.passes.base import Frame, Pass, apply_uniforms
 from sasprobe.render.passes.probe import PROBE_COLOR
 
@@ -13,7 +14,8 @@ class LightSettings:
     ambient: float = 0.28
     directional_intensity: float = 0.75
     probe_intensity: float = 1.0
-    probe_attenuation: tuple[float, float, float] = (1.0, 0.0, 0.02)  # 1/(1 + 0.02 d^2): half at 7 Å
+    probe_attenuation: tuple[float, float, float] = DEFAULT_PROBE_ATTENUATION  # 1/(1 + 0.02 d^2): half at 7 Å
+    probe_range: float = DEFAULT_PROBE_RANGE  # Å: the probe light is windowed to 0 here (shadows are traced inside)
     shininess: float = 40.0
     specular: float = 0.25
     background: tuple[float, float, float] = (0.08, 0.09, 0.11)
@@ -48,6 +50,7 @@ class LightPass(Pass):
             "u_probe_center": tuple(float(v) for v in probe.center) if probe is not None else (0.0, 0.0, 0.0),
             "u_probe_intensity": s.probe_intensity,
             "u_probe_atten": s.probe_attenuation,
+            "u_probe_range": s.probe_range,
             "u_shininess": s.shininess,
             "u_specular": s.specular,
             "u_touched_atom": int(probe.touched_atom) if (probe is not None and fx.highlight) else -1,

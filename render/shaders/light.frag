@@ -3,8 +3,10 @@
 // (attenuated with distance), CPK albedo, the touched atom highlighted, the probe glowing.
 // Every light term is multiplied by its own visibility factor, read from u_visibility:
 //   r: directional-light visibility (shadow), g: probe-light visibility (shadow),
-//   b: ambient accessibility (ambient occlusion).
+//   b: ambient accessibility (ambient occlusion); and the whole colour, background
+//   included, by a: edge cueing (contour lines, halos).
 // The targets clear it to 1.0; lighting passes that run before this one fill it.
+// The probe light reaches u_probe_range Å: its attenuation is windowed to 0 there.
 #include "kinds.glsl"
 
 uniform sampler2D u_albedo;
@@ -23,6 +25,7 @@ uniform int u_probe_light_enabled;
 uniform vec3 u_probe_center;
 uniform float u_probe_intensity;
 uniform vec3 u_probe_atten;      // constant, linear, quadratic (distance from the probe centre, Å)
+uniform float u_probe_range;     // Å
 uniform float u_shininess;
 uniform float u_specular;
 uniform int u_touched_atom;      // -1: none
@@ -40,17 +43,17 @@ vec3 phong(vec3 albedo, vec3 n, vec3 v, vec3 l) {
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
     ivec2 ids = texelFetch(u_ids, px, 0).xy;
+    vec4 vis = texelFetch(u_visibility, px, 0);
     if (ids.y == KIND_BACKGROUND) {
-        o_color = vec4(u_background, 1.0);
+        o_color = vec4(u_background * vis.a, 1.0);
         return;
     }
     vec3 albedo = texelFetch(u_albedo, px, 0).rgb;
     vec3 p = texelFetch(u_position, px, 0).xyz;
     vec3 n = normalize(texelFetch(u_normal, px, 0).xyz);
-    vec4 vis = texelFetch(u_visibility, px, 0);
     vec3 v = normalize(u_eye - p);
     if (ids.y == KIND_PROBE) {  // the light source itself: bright, lightly shaded
-        o_color = vec4(u_probe_color * (0.75 + 0.25 * max(dot(n, v), 0.0)), 1.0);
+        o_color = vec4(u_probe_color * (0.75 + 0.25 * max(dot(n, v), 0.0)) * vis.a, 1.0);
         return;
     }
     if (u_touched_atom >= 0 && ids.x == u_touched_atom && ids.y != KIND_BACKBONE)
@@ -61,8 +64,10 @@ void main() {
     if (u_probe_light_enabled == 1) {
         vec3 to_probe = u_probe_center - p;
         float dist = length(to_probe);
-        float atten = 1.0 / (u_probe_atten.x + u_probe_atten.y * dist + u_probe_atten.z * dist * dist);
+        float x = dist / u_probe_range;
+        float window = clamp(1.0 - x * x * x * x, 0.0, 1.0);  // as lighting_params.probe_falloff
+        float atten = window * window / (u_probe_atten.x + u_probe_atten.y * dist + u_probe_atten.z * dist * dist);
         color += vis.g * u_probe_intensity * atten * phong(albedo, n, v, to_probe / max(dist, 1e-6));
     }
-    o_color = vec4(min(color, vec3(1.0)), 1.0);
+    o_color = vec4(min(color, vec3(1.0)) * vis.a, 1.0);
 }

@@ -8,6 +8,7 @@ import math
 from pathlib import Path
 
 from sasprobe.errors import UserError
+from sasprobe.render.lighting_cli import add_lighting_arguments
 from sasprobe.units import positive_float, probe_radius
 
 log = logging.getLogger("sasprobe")
@@ -115,6 +116,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--snapshot", type=Path, metavar="FILE.png", help="headless: also write the last frame as a PNG")
     p.add_argument("--report", type=Path, metavar="FILE.json",
                    help="write frame counts, fps and (with --connect) poses received and lost as JSON at the end")
+    add_lighting_arguments(p)
     p.set_defaults(func=run)
 
 

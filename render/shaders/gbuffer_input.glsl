@@ -1,0 +1,41 @@
+// The G-buffer layers the lighting passes read (render/targets.py; bound to units 0..2).
+//   position  rgba32f  world position (Å) in xyz
+//   normal    rgba32f  unit world normal in xyz (a cap carries its plane's outward normal)
+//   ids       rg32i    (atom index, kind): atom -1 background, -2 the probe; kind KIND_*
+// Lighting applies to sphere surfaces, caps and the probe; background and backbone-trace
+// pixels are left alone (visibility and accessibility 1).
+
+#include "kinds.glsl"
+
+layout(binding = 0) uniform sampler2D u_gb_position;
+layout(binding = 1) uniform sampler2D u_gb_normal;
+layout(binding = 2) uniform isampler2D u_gb_ids;
+
+const int ATOM_PROBE = -2;
+
+// Whether a pixel shows a surface the lighting shades (a sphere, a cap or the probe).
+bool gbuffer_lit(ivec2 px) {
+    int kind = texelFetch(u_gb_ids, px, 0).g;
+    return kind == KIND_SPHERE || kind == KIND_CAP || kind == KIND_PROBE;
+}
+
+// False for pixels the lighting leaves alone.
+bool gbuffer_fetch(ivec2 px, out vec3 position, out vec3 normal, out int atom) {
+    atom = texelFetch(u_gb_ids, px, 0).r;
+    position = texelFetch(u_gb_position, px, 0).xyz;
+    normal = normalize(texelFetch(u_gb_normal, px, 0).xyz);
+    return gbuffer_lit(px);
+}
+
+// Rays leave a surface from just outside it: offset along the normal by an epsilon that
+// grows with the coordinates' magnitude (float32 spacing), as Waechter & Binder (RTG ch. 6)
+// advise. The source atom is also excluded from every query, which for a convex solid
+// (a sphere, or a sphere cut by planes) removes self-intersection exactly; the offset only
+// matters at seams between neighbouring atoms.
+uniform float u_ray_eps_abs;  // Å
+uniform float u_ray_eps_rel;  // per Å of |coordinate|
+
+vec3 ray_origin(vec3 position, vec3 normal) {
+    float scale = max(max(abs(position.x), abs(position.y)), abs(position.z));
+    return position + normal * (u_ray_eps_abs + u_ray_eps_rel * scale);
+}

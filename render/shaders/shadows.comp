@@ -1,0 +1,45 @@
+#version 430 core
+// Light visibility per G-buffer pixel, traced through the grid: hard shadows, or Parker
+// soft shadows from the same single ray (u_shell = (inner, outer) offsets, see
+// occluder_visibility). Directional light: the ray runs to the grid's (or the navigation
+// cube's) edge. Probe point light: the segment ends at the light; pixels beyond its
+// attenuation radius are not traced (written 1), and the probe sphere holding the light
+// does not occlude it. Pixels facing away from the light are 0: their own atom blocks it.
+layout(local_size_x = 8, local_size_y = 8) in;
+
+#include "grid_traversal.glsl"
+#include "gbuffer_input.glsl"
+#include "lights.glsl"
+
+layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
+
+uniform int u_point_light;     // 0: the directional light, 1: the probe's point light
+uniform vec2 u_shell;
+uniform float u_shell_growth;
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (any(greaterThanEqual(px, imageSize(u_visibility)))) return;
+    vec3 p, n;
+    int atom;
+    float vis = 1.0;
+    if (gbuffer_fetch(px, p, n, atom)) {
+        vec3 o = ray_origin(p, n);
+        vec3 d = u_sun_dir;
+        float t_max = BIG;
+        bool traced = true;
+        if (u_point_light != 0) {
+            vec3 to_light = u_probe_light_pos - o;
+            t_max = length(to_light);
+            d = to_light / max(t_max, 1e-30);
+            traced = distance(u_probe_light_pos, p) <= u_probe_light_radius;
+        }
+        if (traced) {
+            vis = dot(n, d) > 0.0
+                ? trace_visibility(o, d, 0.0, t_max, atom, u_shell, u_shell_growth,
+                                   u_point_light == 0 && atom != ATOM_PROBE)
+                : 0.0;
+        }
+    }
+    imageStore(u_visibility, px, vec4(vis));
+}

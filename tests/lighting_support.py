@@ -1,0 +1,95 @@
+"""Shared set-up of the lighting tests: one headless GL 4.3+ context (EGL, llvmpipe on CI),
+small scenes and their G-buffers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid, load_default
+from sasprobe.render.camera_math import fit_camera
+from sasprobe.render.gpu_grid import Culling, GpuGrid
+from sasprobe.render.lighting_gbuffer import RaycastGBuffer
+from tests.render_support import gl_context
+
+WIDTH, HEIGHT = 128, 96
+VIEW_DIRECTION = (0.3, 0.4, 1.0)
+
+
+@pytest.fixture(scope="session")
+def gl():
+    """The render tests' headless context (tests/render_support.py); the lighting needs
+    OpenGL 4.3 (compute shaders, storage buffers) on top."""
+    ctx = gl_context()
+    if ctx.version_code < 430:
+        pytest.fail(f"the lighting needs OpenGL 4.3; {ctx.info['GL_RENDERER']} offers {ctx.info['GL_VERSION']}")
+    return ctx
+
+
+@pytest.fixture(scope="session")
+def crambin():
+    return load_default()
+
+
+@pytest.fixture(scope="session")
+def crambin_grid(gl, crambin):
+    grid = GpuGrid.from_structure(gl, crambin, DEFAULT_PROBE_RADIUS)
+    yield grid
+    grid.release()
+
+
+def cullings(structure) -> dict[str, Culling]:
+    """No culling; an oblique clip plane near the middle; a navigation cube off-centre."""
+    centre = structure.positions.mean(axis=0)
+    normal = -np.array([1.0, 0.2, 0.5]) / np.linalg.norm([1.0, 0.2, 0.5])  # caps face the camera
+    return {
+        "none": Culling(),
+        "plane": Culling(clip_planes=[[*normal, -float(normal @ centre) + 2.0]]),
+        "cube": Culling(nav_cube=(centre + [2.0, -1.0, 0.0], 8.0)),
+    }
+
+
+def camera(structure, width=WIDTH, height=HEIGHT, fill=1.25):
+    return fit_camera(structure.positions, structure.vdw_radii, width / height, VIEW_DIRECTION, fill=fill)
+
+
+def gbuffer_arrays(gpu_grid, view, proj, width=WIDTH, height=HEIGHT):
+    """(GBuffer, position, normal, atom id) traced through the grid on the GPU."""
+    caster = RaycastGBuffer(gpu_grid)
+    gbuffer = caster.render(view, proj, width, height)
+    caster.release()
+    return (gbuffer, *gbuffer.download())
+
+
+def probe_on_surface(structure, direction=VIEW_DIRECTION, probe_radius=DEFAULT_PROBE_RADIUS, lift=0.2):
+    """A probe centre on the solvent accessible surface: leaving the molecule's centre along
+    `direction`, the first point outside every expanded sphere (+ `lift` Å)."""
+    direction = np.asarray(direction, dtype=np.float64) / np.linalg.norm(direction)
+    centre = structure.positions.mean(axis=0)
+    t = np.arange(0.0, 80.0, 0.05)
+    points = centre + t[:, None] * direction
+    gaps = np.linalg.norm(points[:, None, :] - structure.positions[None], axis=-1) - structure.vdw_radii - probe_radius
+    inside = np.flatnonzero(np.min(gaps, axis=1) < 0)
+    return centre + (t[inside[-1]] + 0.05 + lift) * direction
+
+
+def sphere_grid(gl, centers, radii, pad=DEFAULT_PROBE_RADIUS) -> GpuGrid:
+    """A GpuGrid over hand-placed spheres (expanded by `pad`, as the daemon's grid is)."""
+    centers = np.asarray(centers, dtype=np.float64)
+    radii = np.asarray(radii, dtype=np.float64)
+    return GpuGrid(gl, UniformGrid(centers, radii + pad), radii)
+
+
+def away_from_boundaries(classes: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Valid pixels with no valid 8-neighbour of another class: the one-pixel margin around
+    every lit/shadowed boundary is left out (background neighbours do not count)."""
+    h, w = classes.shape
+    padded = np.pad(classes, 1, mode="edge")
+    padded_valid = np.pad(valid, 1, mode="constant", constant_values=False)
+    keep = valid.copy()
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            other = padded[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
+            other_valid = padded_valid[1 + dy : 1 + dy + h, 1 + dx : 1 + dx + w]
+            keep &= ~other_valid | (other == classes)
+    return keep

@@ -1,0 +1,216 @@
+"""The lighting inside the renderer: terms computed on the impostor pipeline's own
+G-buffer equal the CPU references on the exported arrays, the visibility buffer carries
+them to the light pass, path tracing replaces the lit image, `sasprobe render` takes the
+lighting options, and the window's keys switch the effects."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from sasprobe.render.ao_analytic import MAX_K, nearest_to_point
+from sasprobe.render.camera import Camera
+from sasprobe.render.context import GLUnavailable
+from sasprobe.render.gbuffer import gbuffer_arrays
+from sasprobe.render.gpu_grid import Culling
+from sasprobe.render.lighting_params import (
+    AO_MODES,
+    HARD_SHADOW,
+    AOSettings,
+    DirectionalLight,
+    LightingSettings,
+    PointLight,
+)
+from sasprobe.render.lighting_reference import Occluders, analytic_ao, edge_cueing, light_visibility, view_depths
+from sasprobe.render.passes.lighting import LightingPass, install_lighting, lighting_of
+from sasprobe.render.renderer import Renderer
+from sasprobe.render.scene import NavCube, Probe, SceneState
+from sasprobe.render.targets import KIND_BACKBONE
+from tests.conftest import REPO_ROOT, run_cli
+from tests.lighting_support import away_from_boundaries, crambin, gl, probe_on_surface  # noqa: F401
+from tests.test_render_window import xvfb  # noqa: F401 (fixture: a real X server)
+
+SIZE = (160, 120)
+SETUPS = ["none", "planes", "cube"]
+
+
+def make_scene(structure, setup: str) -> SceneState:
+    scene = SceneState(structure, probe=Probe(center=probe_on_surface(structure, (0.2, 0.3, 1.0))))
+    centre = structure.positions.mean(axis=0)
+    if setup == "planes":
+        n = -np.array([1.0, 0.2, 0.5]) / np.linalg.norm([1.0, 0.2, 0.5])
+        scene.clip_planes = [np.array([*n, -float(n @ centre) + 2.0]), np.array([0.0, 1.0, 0.0, -centre[1] + 9.0])]
+    elif setup == "cube":
+        scene.nav_cube = NavCube(center=centre + [2.0, -1.0, 0.0], half=9.0)
+    scene.light_direction = -np.array([0.45, 0.8, 0.4]) / np.linalg.norm([0.45, 0.8, 0.4])
+    return scene
+
+
+def render_frame(ctx, scene, settings: LightingSettings, camera=None):
+    """(renderer, G-buffer export arrays) of one frame with the lighting installed and
+    switched on as `settings` says."""
+    for name, on in settings.effects().items():
+        setattr(scene.effects, name, on)
+    renderer = Renderer(ctx, scene, SIZE)
+    install_lighting(renderer, settings)
+    if camera is None:
+        center, radius = scene.bounding_sphere()
+        camera = Camera.fitted(center, radius * 0.8, SIZE[0] / SIZE[1], direction=(0.2, 0.3, 1.0))
+    renderer.render(camera)
+    return renderer, gbuffer_arrays(renderer)
+
+
+def occluders_of(g, scene) -> Occluders:
+    s = scene.structure
+    cube = g.get("nav_cube")
+    culling = Culling(g["clip_planes"], None if cube is None else (cube[:3], cube[3]))
+    probe = np.array([*scene.probe.center, scene.probe.radius])
+    return Occluders(s.positions, s.vdw_radii, culling=culling, probe=probe)
+
+
+def shaded_ids(g) -> np.ndarray:
+    """Atom ids where the lighting shades (backbone pixels count as background)."""
+    return np.where(g["kind"] == KIND_BACKBONE, -1, g["atom_id"])
+
+
+@pytest.fixture(scope="module", params=SETUPS)
+def frame(request, gl, crambin):
+    scene = make_scene(crambin, request.param)
+    renderer, g = render_frame(gl, scene, LightingSettings(shadows="hard", ao=AOSettings(mode="analytic", k=16)))
+    yield request.param, scene, renderer, g
+    renderer.release()
+
+
+def test_pipeline_shadows_equal_the_cpu_ray_tracer(frame):
+    setup, scene, renderer, g = frame
+    ids = shaded_ids(g)
+    valid = ids != -1
+    occ = occluders_of(g, scene)
+    lights = {"shadow_dir": DirectionalLight(tuple(-g["light_direction"])),
+              "shadow_probe": PointLight(tuple(g["probe_light"][:3]), float(g["probe_light"][3]))}
+    for layer, light in lights.items():
+        cpu = light_visibility(g["position"], g["normal"], ids, light, occ, HARD_SHADOW)
+        gpu = g[layer]
+        assert gpu.dtype == np.float32 and gpu.shape == ids.shape
+        shadowed = cpu < 0.5
+        assert 0.03 < shadowed[valid].mean() < 0.97, (setup, layer)
+        compared = away_from_boundaries(shadowed, valid)
+        assert ((gpu < 0.5) == shadowed)[compared].mean() >= 0.995, (setup, layer)
+        assert np.all(gpu[~valid] == 1.0)
+
+
+def test_pipeline_analytic_ao_equals_the_cpu_formula(frame):
+    setup, scene, renderer, g = frame
+    ids = shaded_ids(g)
+    neighbours, _ = scene.grid.nearest_neighbors(MAX_K)
+    probe_list = nearest_to_point(scene.structure.positions, scene.probe.center)
+    cpu = analytic_ao(g["position"], g["normal"], ids, occluders_of(g, scene), neighbours, 16, probe_list)
+    assert np.abs(g["ao"] - cpu).max() <= 1e-4, setup
+    assert cpu[ids != -1].min() < 0.6
+
+
+def test_visibility_buffer_carries_the_terms_to_the_light_pass(frame):
+    setup, scene, renderer, g = frame
+    t = renderer.targets
+    vis = t.read(t.visibility, 4, np.float16).astype(np.float32)
+    for channel, layer in enumerate(("shadow_dir", "shadow_probe", "ao")):
+        assert np.abs(vis[..., channel] - g[layer]).max() <= 1e-3, layer
+    assert np.all(vis[..., 3] == 1.0)  # edge cueing off
+
+
+def test_edge_cueing_reaches_the_visibility_alpha(gl, crambin):
+    scene = make_scene(crambin, "none")
+    renderer, g = render_frame(gl, scene, LightingSettings(shadows="off", ao=AOSettings(mode="off"), edges="both"))
+    t = renderer.targets
+    alpha = t.read(t.visibility, 4, np.float16)[..., 3].astype(np.float32)
+    ids = shaded_ids(g)
+    cpu = edge_cueing(view_depths(g["position"], ids, g["view"]), ids, LightingSettings(edges="both").edge_settings())
+    assert np.abs(alpha - cpu).max() < 2e-3
+    assert (cpu < 0.5).sum() > 100
+    assert "shadow_dir" not in g and "ao" not in g  # only what was computed is exported
+    renderer.release()
+
+
+def test_path_tracing_replaces_the_lit_atoms(gl, crambin):
+    scene = make_scene(crambin, "planes")
+    settings = LightingSettings(ao=AOSettings(mode="off"), shadows="off", path_tracing=True, samples=8)
+    renderer, g = render_frame(gl, scene, settings)
+    t = renderer.targets
+    lit = t.read(t.lit, 4, np.uint8)[..., :3].astype(np.float64) / 255
+    tracer = lighting_of(renderer).tracer
+    assert tracer.samples >= 8
+    radiance = tracer.accumulated.read()
+    radiance = np.frombuffer(radiance, dtype=np.float32).reshape(SIZE[1], SIZE[0], 4)[::-1, :, :3]
+    shaded = shaded_ids(g) != -1
+    assert np.abs(lit[shaded] - np.minimum(radiance[shaded], 1.0)).max() <= 1.0 / 255 + 1e-6
+    # a still view keeps accumulating; a moved one starts over
+    renderer.render(renderer.last_frame.camera)
+    assert tracer.samples > 8
+    camera = renderer.last_frame.camera
+    camera.orbit(np.array([0.0, 1.0, 0.0]), 0.2)
+    renderer.render(camera)
+    assert tracer.samples == 8  # restarted, then brought to --samples again
+    renderer.release()
+
+
+def test_no_opengl_43_is_one_clear_line(crambin):
+    class OldDriver:  # a GL 4.1 context as macOS offers (the renderer itself needs only 4.1)
+        version_code = 410
+        info = {"GL_RENDERER": "Apple M1", "GL_VERSION": "4.1 Metal"}
+
+    with pytest.raises(GLUnavailable, match="need OpenGL 4.3.*Apple M1 offers 4.1 Metal"):
+        LightingPass(OldDriver(), LightingSettings(), None)
+
+
+def test_render_cli_takes_every_lighting_option(tmp_path):
+    runs = [(ao, shadows) for ao, shadows in zip(AO_MODES, ["off", "hard", "soft"] * 2)]
+    for ao, shadows in runs:
+        npz, png = tmp_path / f"{ao}.npz", tmp_path / f"{ao}.png"
+        r = run_cli("render", "--headless", "--size", "96x72", "--ao", ao, "--shadows", shadows,
+                    "--probe", "14,14,14", "--samples", "16", "--edges", "lines", "--out", str(png),
+                    "--gbuffer", str(npz), timeout=180)
+        assert r.returncode == 0, (ao, shadows, r.stderr)
+        g = np.load(npz)
+        assert iio.imread(png).shape[:2] == (72, 96)
+        assert ("ao" in g.files) == (ao != "off")
+        assert ("shadow_dir" in g.files) == ("shadow_probe" in g.files) == (shadows != "off")
+        for layer in ("ao", "shadow_dir", "shadow_probe"):
+            if layer in g.files:
+                values = g[layer]
+                assert values.dtype == np.float32 and values.shape == (72, 96)
+                assert values.min() >= 0.0 and values.max() <= 1.0
+                assert values[g["atom_id"] >= 0].min() < 0.9, (ao, shadows, layer)  # something is occluded
+        np.testing.assert_allclose(g["probe_light"], [14, 14, 14, 20])
+    r = run_cli("render", "--headless", "--size", "64x48", "--path-trace", "--samples", "4", "--ao", "off",
+                "--out", str(tmp_path / "pt.png"), timeout=180)
+    assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--ao", "magic"], ["--ao", "magic"]),
+    (["--soft-shell", "0,3"], ["--soft-shell", "probe radius"]),
+    (["--soft-shell", "1,0"], ["--soft-shell"]),
+    (["--pt-bounces", "7"], ["--pt-bounces"]),
+])
+def test_bad_lighting_options_are_one_line(args, words):
+    r = run_cli("render", "--headless", "--size", "32x32", *args)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("sasprobe"), r.stderr
+    for w in words:
+        assert w in lines[0], lines[0]
+
+
+def test_window_keys_switch_the_lighting(xvfb):
+    """In a real window (Xvfb; its own process, as GLX and this process's EGL context do
+    not mix): S, V, A, E, G switch the effects, C cycles the AO method, and what the
+    window draws changes with them (tests/lighting_window_check.py)."""
+    env = dict(os.environ, DISPLAY=xvfb)
+    r = subprocess.run([sys.executable, "-m", "tests.lighting_window_check"], capture_output=True, text=True,
+                       timeout=300, env=env, cwd=REPO_ROOT)
+    assert r.returncode == 0 and r.stdout.strip().endswith("keys ok"), r.stdout + r.stderr
