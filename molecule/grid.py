@@ -222,6 +222,20 @@ class UniformGrid:
         return np.unique(cand[dist - self.radii[cand] <= d]).astype(np.int64)
 
     # ---------------------------------------------------- nearest neighbours
+    def _centre_bins(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Centres binned once, each sphere in exactly one cell (CSR over `order`).
+
+        Returns (cell ijk per sphere, flat cell per sphere, spheres sorted by cell,
+        spheres per cell, CSR offsets into the sorted spheres).
+        """
+        home = self.cell_index(self.centers)
+        flat = self.flat_id(home)
+        order = np.argsort(flat, kind="stable")
+        counts = np.bincount(flat, minlength=self.n_cells)
+        start = np.zeros(self.n_cells + 1, dtype=np.int64)
+        np.cumsum(counts, out=start[1:])
+        return home, flat, order, counts, start
+
     def nearest_neighbors(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """The k nearest other spheres of every sphere, by centre distance.
 
@@ -235,13 +249,7 @@ class UniformGrid:
             raise ValueError("k must be positive")
         out_idx = np.full((n, k), -1, dtype=np.int64)
         out_dist = np.full((n, k), np.inf, dtype=np.float64)
-        # Bin centres once (each sphere in exactly one cell).
-        home = self.cell_index(self.centers)
-        home_flat = self.flat_id(home)
-        order = np.argsort(home_flat, kind="stable")
-        counts = np.bincount(home_flat, minlength=self.n_cells)
-        start = np.zeros(self.n_cells + 1, dtype=np.int64)
-        np.cumsum(counts, out=start[1:])
+        home, home_flat, order, counts, start = self._centre_bins()
         pending = np.arange(n)
         ring = 1
         while pending.size:
@@ -285,12 +293,7 @@ class UniformGrid:
         cells within that reach finds every pair. Vectorised per neighbour offset.
         """
         n = self.centers.shape[0]
-        home = self.cell_index(self.centers)
-        flat = self.flat_id(home)
-        order = np.argsort(flat, kind="stable")
-        counts = np.bincount(flat, minlength=self.n_cells)
-        start = np.zeros(self.n_cells + 1, dtype=np.int64)
-        np.cumsum(counts, out=start[1:])
+        _, _, order, counts, start = self._centre_bins()
         occupied = np.flatnonzero(counts)
         occ_ijk = np.stack(np.unravel_index(occupied, tuple(self.dims[::-1])), axis=1)[:, ::-1]
         reach = int(np.ceil(2.0 * self.radii.max() / self.cell_size))
