@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -42,6 +43,8 @@ class RenderOptions:
     lighting: LightingSettings | None = None  # None: no lighting passes
     lighting_required: bool = False  # asked for explicitly: no OpenGL 4.3 is an error
     probe_light_range: float = DEFAULT_PROBE_RANGE
+    snapshot: Path | None = None  # also write the last frame as a PNG (headless)
+    report: Path | None = None  # write frame and pose counts as JSON at the end
 
     @classmethod
     def from_args(cls, args) -> "RenderOptions":
@@ -56,7 +59,8 @@ class RenderOptions:
             probe=args.probe, touched=args.touched, probe_radius=args.probe_radius, nav_cube=args.nav_cube,
             clip=args.clip, probe_plane=args.probe_plane, light=args.light, backbone=args.backbone,
             fxaa=not args.no_fxaa, keep_water=args.keep_water, lighting=lighting, lighting_required=required,
-            probe_light_range=args.probe_light_range or DEFAULT_PROBE_RANGE,
+            probe_light_range=args.probe_light_range or DEFAULT_PROBE_RANGE, snapshot=args.snapshot,
+            report=args.report,
         )
 
     def effects(self):
@@ -174,9 +178,15 @@ def _run_headless(opts: RenderOptions, source) -> int:
         source.poll()
         source.apply(scene)
 
+    # A live daemon into a video: keep the video in wall-clock time (see run_headless).
+    pace = opts.fps if opts.connect is not None and writer is not None and writer.is_video else None
     try:
         stats = run_headless(renderer, camera, frames, opts.seconds, writer=writer, gbuffer_path=opts.gbuffer,
-                             orbit_deg=opts.orbit, update=update, progress=bar)
+                             orbit_deg=opts.orbit, update=update, progress=bar, pace_fps=pace)
+        if opts.snapshot is not None:
+            from sasprobe.render.output import FrameWriter
+
+            FrameWriter(opts.snapshot, 1, opts.fps).write(renderer.read_image())
     finally:
         if bar is not None:
             bar.close()
@@ -188,6 +198,9 @@ def _run_headless(opts: RenderOptions, source) -> int:
     if dropped:
         log.warning("dropped %d malformed message(s) from the daemon", dropped)
     _report(stats.summary(), writer, opts)
+    _write_run_report(opts, stats.as_dict(), source)
+    if stats.interrupted == "SIGINT":
+        raise KeyboardInterrupt  # outputs are complete; the CLI still ends with 'interrupted'
     return 0
 
 
@@ -208,17 +221,35 @@ def _run_window(opts: RenderOptions, source) -> int:
         app = WindowApp(window, ctx, source, build, "sasprobe render", opts.effects())
         writer = _writer(opts, 1)
         log.info("window open: %dx%d framebuffer", *glfw.get_framebuffer_size(window))
+        start = time.perf_counter()
         try:
             count = app.run(frames=opts.frames, seconds=opts.seconds, writer=writer, gbuffer_path=opts.gbuffer)
         finally:
             if writer is not None:
                 writer.close()
             app.release()
+        seconds = time.perf_counter() - start
         _report(f"{count} frame(s) shown", writer, opts)
+        _write_run_report(opts, {"frames": count, "seconds": seconds, "fps": count / seconds if count else None,
+                                 "window": True}, source)
     finally:
         glfw.destroy_window(window)
         glfw.terminate()
     return 0
+
+
+def _write_run_report(opts: RenderOptions, frames: dict, source) -> None:
+    """--report: frame counts, and with a daemon the poses received and lost (seq gaps)."""
+    if opts.report is None:
+        return
+    import json
+
+    report = {"size": list(opts.size), **frames}
+    subscriber = getattr(source, "subscriber", None)
+    if subscriber is not None:
+        report["daemon"] = {"poses_received": subscriber.poses_received, "poses_missed": subscriber.missed,
+                            "scenes_received": subscriber.scenes_received, "malformed": subscriber.malformed}
+    opts.report.write_text(json.dumps(report, indent=1))
 
 
 def _report(summary: str, writer, opts: RenderOptions) -> None:

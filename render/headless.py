@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import math
+import signal
 import statistics
+import threading
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Iterator
 
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer import gbuffer_arrays, save_gbuffer
@@ -14,53 +17,106 @@ from sasprobe.render.gbuffer import gbuffer_arrays, save_gbuffer
 
 @dataclass
 class RunStats:
-    frames: int = 0
+    frames: int = 0  # frames rendered
     seconds: float = 0.0
     frame_times: list[float] = field(default_factory=list)
+    video_frames: int = 0  # frames written to a paced video (a late frame fills every slot it covered)
+    interrupted: str | None = None  # "SIGINT" / "SIGTERM" when a signal ended the run early
 
     @property
     def median_ms(self) -> float:
         return statistics.median(self.frame_times) * 1e3 if self.frame_times else float("nan")
 
+    @property
+    def fps(self) -> float:
+        return self.frames / self.seconds if self.seconds > 0 else float("nan")
+
     def summary(self) -> str:
-        fps = self.frames / self.seconds if self.seconds > 0 else float("nan")
-        return f"{self.frames} frame(s) in {self.seconds:.2f} s ({fps:.1f} fps, median frame {self.median_ms:.1f} ms)"
+        return f"{self.frames} frame(s) in {self.seconds:.2f} s ({self.fps:.1f} fps, median frame {self.median_ms:.1f} ms)"
+
+    def as_dict(self) -> dict:
+        return {"frames": self.frames, "seconds": self.seconds, "fps": self.fps if self.frames else None,
+                "median_frame_ms": self.median_ms if self.frame_times else None,
+                "video_frames": self.video_frames, "interrupted": self.interrupted}
+
+
+@contextmanager
+def stop_on_signals() -> Iterator[dict]:
+    """SIGINT and SIGTERM end the loop after the current frame (so a video is finished
+    properly) instead of killing it mid-write; yields {"signal": name or None}."""
+    state: dict = {"signal": None}
+    if threading.current_thread() is not threading.main_thread():
+        yield state
+        return
+
+    def note(signum, frame) -> None:
+        state["signal"] = signal.Signals(signum).name
+
+    previous = {sig: signal.signal(sig, note) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield state
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def run_headless(renderer, camera: Camera, frames: int | None, seconds: float | None, writer=None,
                  gbuffer_path=None, orbit_deg: float = 0.0, update: Callable[[], None] | None = None,
-                 progress=None) -> RunStats:
+                 progress=None, pace_fps: float | None = None) -> RunStats:
     """Render until `frames` are done or `seconds` have passed (at least one frame).
 
     `orbit_deg` turns the camera that many degrees per frame about its up axis;
     `update` runs before each frame (e.g. to take the latest pose from the daemon).
+    `pace_fps` (a live source into a video) keeps the video in wall-clock time: frame
+    slot k is due k/pace_fps after the start, a frame is rendered when its slot is due,
+    and one that took longer than a slot is written once per slot it covered, so the
+    video has exactly round(seconds * pace_fps) (or `frames`) frames.
     """
     stats = RunStats()
     step = math.radians(orbit_deg)
     axis = camera.up.copy()
+    slots = None
+    if pace_fps:
+        slots = frames if frames is not None else max(1, round((seconds or 0.0) * pace_fps))
     start = time.perf_counter()
-    while True:
-        if update is not None:
-            update()
-        t0 = time.perf_counter()
-        renderer.render(camera)
-        renderer.ctx.finish()
-        stats.frame_times.append(time.perf_counter() - t0)
-        stats.frames += 1
-        if writer is not None:
-            writer.write(renderer.read_image())
-        if progress is not None:
-            progress.update(1)
-        elapsed = time.perf_counter() - start
-        if frames is not None and stats.frames >= frames:
-            break
-        if frames is None and (seconds is None or elapsed >= seconds):
-            break
-        if step:
-            camera.orbit(axis, step)
+    with stop_on_signals() as stop:
+        while stop["signal"] is None:
+            if update is not None:
+                update()
+            t0 = time.perf_counter()
+            renderer.render(camera)
+            renderer.ctx.finish()
+            stats.frame_times.append(time.perf_counter() - t0)
+            stats.frames += 1
+            image = renderer.read_image() if writer is not None else None
+            if slots is not None:
+                covered = int((time.perf_counter() - start) * pace_fps)  # slots whose start has passed
+                n = min(max(1, covered - stats.video_frames), slots - stats.video_frames)
+                for _ in range(n):
+                    if image is not None:
+                        writer.write(image)
+                stats.video_frames += n
+                if progress is not None:
+                    progress.update(n)
+                if stats.video_frames >= slots:
+                    break
+                wait = start + stats.video_frames / pace_fps - time.perf_counter()
+                if wait > 0:
+                    time.sleep(wait)
+            else:
+                if image is not None:
+                    writer.write(image)
+                if progress is not None:
+                    progress.update(1)
+                elapsed = time.perf_counter() - start
+                if frames is not None and stats.frames >= frames:
+                    break
+                if frames is None and (seconds is None or elapsed >= seconds):
+                    break
+            if step:
+                camera.orbit(axis, step)
+        stats.interrupted = stop["signal"]
     stats.seconds = time.perf_counter() - start
     if gbuffer_path is not None:
         save_gbuffer(gbuffer_path, gbuffer_arrays(renderer))
     return stats
-
-

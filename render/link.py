@@ -34,6 +34,33 @@ FETCH_TIMEOUT_S = 2.0
 RATE_WINDOW_S = 0.5  # haptic rate: poses over this much device time
 
 
+def apply_scene_message(scene, state: dict) -> bool:
+    """A `scene` message's probe radius, clip planes and light direction into a SceneState;
+    returns whether the daemon has the probe light on (the caller decides whether to follow)."""
+    scene.probe_radius = float(state["probe_radius_A"])
+    planes = [normalise_plane(p) for p in state["clip_planes"]]
+    if len(planes) != len(scene.clip_planes) or any(not np.array_equal(a, b) for a, b in zip(planes, scene.clip_planes)):
+        scene.clip_planes = planes
+    lights = state["lights"]
+    direction = np.asarray(lights["directional"]["direction"], dtype=np.float64)
+    scene.light_direction = direction / np.linalg.norm(direction)
+    return bool(lights["probe"]["enabled"])
+
+
+def apply_pose(scene, pose, cube_enabled: bool) -> None:
+    """A pose's probe, touched atom and navigation cube into a SceneState."""
+    touched = pose.touched_atom if 0 <= pose.touched_atom < scene.structure.n_atoms else -1
+    scene.probe = Probe(center=np.array(pose.proxy_A, dtype=np.float64), radius=scene.probe_radius,
+                        touched_atom=touched)
+    if cube_enabled and pose.cube_half_A > 0 and np.all(np.isfinite(pose.cube_center_A)):
+        center = np.array(pose.cube_center_A, dtype=np.float64)
+        if scene.nav_cube is None or not np.array_equal(scene.nav_cube.center, center) \
+                or scene.nav_cube.half != pose.cube_half_A:
+            scene.nav_cube = NavCube(center=center, half=float(pose.cube_half_A))
+    else:
+        scene.nav_cube = None
+
+
 class DaemonLink:
     def __init__(self, pub: str | None = None, ctl: str | None = None, keep_water: bool = False):
         self.pub = pub or DEFAULT_PUB_ENDPOINT
@@ -97,30 +124,11 @@ class DaemonLink:
         """The daemon's probe, cube, planes and lights into the renderer's SceneState."""
         state, pose = self.subscriber.scene, self.subscriber.pose
         if state is not None:
-            scene.probe_radius = float(state["probe_radius_A"])
-            planes = [normalise_plane(p) for p in state["clip_planes"]]
-            if len(planes) != len(scene.clip_planes) or any(
-                    not np.array_equal(a, b) for a, b in zip(planes, scene.clip_planes)):
-                scene.clip_planes = planes
-            lights = state["lights"]
-            direction = np.asarray(lights["directional"]["direction"], dtype=np.float64)
-            scene.light_direction = direction / np.linalg.norm(direction)
-            probe_light = bool(lights["probe"]["enabled"])
+            probe_light = apply_scene_message(scene, state)
             if probe_light != self._daemon_probe_light:  # follow the daemon's changes; keys still toggle
                 scene.effects.probe_light = self._daemon_probe_light = probe_light
-        if pose is None:
-            return
-        touched = pose.touched_atom if 0 <= pose.touched_atom < scene.structure.n_atoms else -1
-        scene.probe = Probe(center=np.array(pose.proxy_A, dtype=np.float64), radius=scene.probe_radius,
-                            touched_atom=touched)
-        cube_on = state is None or state["nav_cube"]["enabled"]
-        if cube_on and pose.cube_half_A > 0 and np.all(np.isfinite(pose.cube_center_A)):
-            center = np.array(pose.cube_center_A, dtype=np.float64)
-            if scene.nav_cube is None or not np.array_equal(scene.nav_cube.center, center) \
-                    or scene.nav_cube.half != pose.cube_half_A:
-                scene.nav_cube = NavCube(center=center, half=float(pose.cube_half_A))
-        else:
-            scene.nav_cube = None
+        if pose is not None:
+            apply_pose(scene, pose, cube_enabled=state is None or state["nav_cube"]["enabled"])
 
     def readout(self) -> Readout:
         pose = self.subscriber.pose

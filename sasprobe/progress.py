@@ -22,6 +22,6 @@ def progress(iterable: Iterable[T], desc: str, total: int | None = None) -> Iter
     return iter(tqdm(iterable, desc=desc, total=total, **_style()))
 
 
-def progress_bar(total: float, desc: str, unit: str = "it") -> tqdm:
-    """A manually advanced bar (call .update(n), then .close())."""
-    return tqdm(total=total, desc=desc, unit=unit, **_style())
+def progress_bar(total: float | None, desc: str, unit: str = "it", **options) -> tqdm:
+    """A manually advanced bar (call .update(n), then .close()); options go to tqdm (e.g. bar_format)."""
+    return tqdm(total=total, desc=desc, unit=unit, **_style(), **options)

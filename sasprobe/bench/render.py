@@ -22,6 +22,7 @@ from sasprobe.progress import progress
 
 TITLE = "Rendering: impostors vs meshes, navigation cube, frame time vs atoms"
 MESH_TARGET_ATOMS = 60_000
+QUICK_MESH_TARGET_ATOMS = 10_000  # --quick: a mesh frame of ~60k atoms takes seconds on llvmpipe
 CUBE_TARGET_ATOMS = 300
 
 
@@ -47,7 +48,8 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
         structures = {e.id: load_structure(e.path) for e in progress(entries, "bench render: load", len(entries))}
         crambin = load_default()
         scaling = _scaling(gl, [(e.id, structures[e.id]) for e in entries], size, repeats)
-        mesh_id = min(structures, key=lambda k: abs(structures[k].n_atoms - MESH_TARGET_ATOMS))
+        mesh_target = QUICK_MESH_TARGET_ATOMS if ctx.quick else MESH_TARGET_ATOMS
+        mesh_id = min(structures, key=lambda k: abs(structures[k].n_atoms - mesh_target))
         sizes = [size] if ctx.quick else [size, (size[0] // 2, size[1] // 2)]
         modes = [_modes(gl, structures[mesh_id], s, mesh_repeats) | {"id": mesh_id} for s in sizes]
         big_id = max(structures, key=lambda k: structures[k].n_atoms)

@@ -14,6 +14,7 @@ from sasprobe.progress import progress
 
 TITLE = "Solvent accessible surface area (Shrake-Rupley vs FreeSASA)"
 MAX_ATOMS = 70_000  # FreeSASA's Python wrapper takes minutes beyond this
+QUICK_MAX_ATOMS = 25_000  # --quick: the ~60k-atom entry alone takes half the run
 
 
 def run(ctx: BenchContext) -> BenchResult:
@@ -21,7 +22,8 @@ def run(ctx: BenchContext) -> BenchResult:
         import freesasa
     except ImportError:
         raise UserError("bench sas needs FreeSASA as the reference: pip install freesasa") from None
-    entries = [e for e in shared_structures() if e.atoms <= MAX_ATOMS]
+    max_atoms = QUICK_MAX_ATOMS if ctx.quick else MAX_ATOMS
+    entries = [e for e in shared_structures() if e.atoms <= max_atoms]
     if not entries:
         raise UserError("no shared structures found (expected ../shared/data/pdb/ or SASPROBE_DATA)")
     repeats = 1 if ctx.quick else 3

@@ -1,7 +1,8 @@
-"""`sasprobe bench [NAME] [--quick] [--json] [--out DIR]`: speed and accuracy figures.
+"""`sasprobe bench [NAME] [--quick] [--only NAMES] [--json] [--out DIR]`: speed and accuracy figures.
 
-Without a name every available benchmark runs and, with --out, report.md is written
-beside the JSON and the charts.
+Without a name every available benchmark runs (one that cannot run here, e.g. without
+the shared structures or OpenGL, is listed as skipped with its reason) and, with --out,
+report.md and report.json are written beside each benchmark's JSON and charts.
 """
 
 from __future__ import annotations
@@ -14,11 +15,14 @@ from pathlib import Path
 
 from sasprobe import bench
 from sasprobe.bench.machine import describe, markdown
+from sasprobe.errors import UserError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("bench", help="run benchmarks (speed and accuracy), write JSON, charts and report.md")
     _common(p)
+    p.add_argument("--only", metavar="NAMES", help=f"comma-separated benchmarks to run (default all: "
+                                                   f"{', '.join(bench.available())})")
     names = p.add_subparsers(dest="bench_name", metavar="NAME")
     for name in bench.available():
         module = bench.load(name)
@@ -40,27 +44,52 @@ def _common(p: argparse.ArgumentParser, suppress: bool = False) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    names = [args.bench_name] if args.bench_name else bench.available()
+    names = [args.bench_name] if args.bench_name else _selected(getattr(args, "only", None))
     ctx = bench.BenchContext(quick=args.quick, out_dir=args.out)
-    machine = describe(with_gl=any(n in ("render", "lighting") for n in names))
-    results = []
+    machine = describe(with_gl=True)  # the GL renderer string belongs in every report
+    results, skipped = [], {}
+    t_start = time.perf_counter()
     for name in names:
         t0 = time.perf_counter()
-        result = bench.load(name).run(ctx, args) if _takes_args(name) else bench.load(name).run(ctx)
+        try:
+            result = bench.load(name).run(ctx, args) if _takes_args(name) else bench.load(name).run(ctx)
+        except UserError as exc:
+            if args.bench_name:  # the one asked for: its error is the answer
+                raise
+            skipped[name] = str(exc)
+            print(f"sasprobe: warning: bench {name} skipped: {exc}", file=sys.stderr, flush=True)
+            continue
         result.data["wall_seconds"] = time.perf_counter() - t0
         results.append(result)
         if not args.json:
             print(f"## {bench.load(name).TITLE}\n\n{result.markdown}\n", flush=True)
-    payload = {"machine": machine, "quick": args.quick, "benchmarks": {r.name: r.data for r in results}}
+    if not results:
+        raise UserError("no benchmark could run: " + "; ".join(f"{n}: {why}" for n, why in skipped.items()))
+    total_s = time.perf_counter() - t_start
+    payload = {"machine": machine, "quick": args.quick, "wall_seconds": total_s, "skipped": skipped,
+               "benchmarks": {r.name: r.data for r in results}}
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
         for r in results:
             (args.out / f"{r.name}.json").write_text(json.dumps({"machine": machine, **r.data}, indent=1))
-        (args.out / "report.md").write_text(_report(machine, results, args.quick))
+        (args.out / "report.json").write_text(json.dumps(payload, indent=1))
+        (args.out / "report.md").write_text(_report(machine, results, args.quick, skipped, total_s))
         print(f"wrote {args.out / 'report.md'}", file=sys.stderr)
     if args.json:
         print(json.dumps(payload))
     return 0
+
+
+def _selected(only: str | None) -> list[str]:
+    available = bench.available()
+    if not only:
+        return available
+    names = [n.strip() for n in only.split(",") if n.strip()]
+    unknown = [n for n in names if n not in available]
+    if unknown or not names:
+        raise UserError(f"--only {only}: unknown benchmark(s) {', '.join(unknown) or '(none given)'} "
+                        f"(available: {', '.join(available)})")
+    return [n for n in available if n in names]  # in the usual order
 
 
 def _takes_args(name: str) -> bool:
@@ -69,13 +98,20 @@ def _takes_args(name: str) -> bool:
     return len(inspect.signature(bench.load(name).run).parameters) > 1
 
 
-def _report(machine: dict, results: list[bench.BenchResult], quick: bool) -> str:
+def _report(machine: dict, results: list[bench.BenchResult], quick: bool, skipped: dict[str, str],
+            total_s: float) -> str:
     parts = [
         "# sasprobe benchmark report",
         "",
         f"Mode: {'quick' if quick else 'full'}. Times are medians; ratios come from the same run.",
         "",
         markdown(machine),
+        "",
+        "| benchmark | wall time (s) |",
+        "|---|---:|",
+        *[f"| {r.name} | {r.data['wall_seconds']:.1f} |" for r in results],
+        *[f"| {name} | skipped: {why} |" for name, why in skipped.items()],
+        f"| **all** | **{total_s:.1f}** |",
     ]
     for r in results:
         parts += ["", f"## {bench.load(r.name).TITLE}", "", r.markdown]

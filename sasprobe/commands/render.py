@@ -113,6 +113,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--backbone", action="store_true", help="draw the backbone trace even without a navigation cube")
     p.add_argument("--no-fxaa", action="store_true", help="skip the FXAA pass")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
+    p.add_argument("--snapshot", type=Path, metavar="FILE.png", help="headless: also write the last frame as a PNG")
+    p.add_argument("--report", type=Path, metavar="FILE.json",
+                   help="write frame counts, fps and (with --connect) poses received and lost as JSON at the end")
     add_lighting_arguments(p)
     p.set_defaults(func=run)
 
@@ -135,4 +138,13 @@ def run(args: argparse.Namespace) -> int:
         check_out_path(args.out, args.frames)
     if args.gbuffer is not None and args.gbuffer.suffix.lower() != ".npz":
         raise UserError(f"--gbuffer {args.gbuffer}: expected a .npz file")
+    if args.snapshot is not None:
+        from sasprobe.render.context import display_available
+        from sasprobe.render.output import check_out_path
+
+        if args.snapshot.suffix.lower() != ".png":
+            raise UserError(f"--snapshot {args.snapshot}: expected a .png file")
+        if not args.headless and display_available():
+            raise UserError("--snapshot is for headless rendering (in a window, --out FILE.png saves the last frame)")
+        check_out_path(args.snapshot, 1)
     return render_main(RenderOptions.from_args(args))

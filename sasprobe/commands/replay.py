@@ -1,4 +1,4 @@
-"""`sasprobe replay FILE`: inspect, verify or recover a recorded session."""
+"""`sasprobe replay FILE`: inspect, verify, recover or render a recorded session."""
 
 from __future__ import annotations
 
@@ -6,14 +6,24 @@ import argparse
 import json
 from pathlib import Path
 
+from sasprobe.errors import UserError
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("replay", help="summarise a recording; --verify recomputes its forces; --recover repairs it")
+    from sasprobe.commands.render import size_type
+    from sasprobe.units import positive_float
+
+    p = sub.add_parser("replay", help="summarise a recording; --verify recomputes its forces; --recover repairs it; "
+                                      "--video renders it")
     p.add_argument("file", type=Path, help="an MCAP recording (sasprobe daemon --record)")
     p.add_argument("--verify", action="store_true",
                    help="recompute every force from the recorded inputs and report the largest difference")
     p.add_argument("--recover", type=Path, metavar="OUT",
                    help="write the readable part of a cut recording (daemon killed) as a finished file")
+    p.add_argument("--video", type=Path, metavar="OUT.mp4",
+                   help="render the session to a video at its recorded timing (headless)")
+    p.add_argument("--fps", type=positive_float, default=30.0, help="video frame rate (default 30)")
+    p.add_argument("--size", type=size_type, default="1280x720", metavar="WxH", help="video size (default 1280x720)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -22,6 +32,13 @@ def run(args: argparse.Namespace) -> int:
     from sasprobe.daemon.recording import recover, summarize
 
     result: dict = {}
+    if args.video is not None:
+        from sasprobe.render.output import VIDEO_SUFFIXES
+
+        if args.video.suffix.lower() not in VIDEO_SUFFIXES:
+            raise UserError(f"--video {args.video}: expected a video file ({', '.join(VIDEO_SUFFIXES)})")
+        if not args.video.resolve().parent.is_dir():
+            raise UserError(f"--video {args.video}: folder {args.video.parent} does not exist")
     if args.recover is not None:
         result["recovered"] = recover(args.file, args.recover).as_dict()
     summary = summarize(args.file)
@@ -38,6 +55,16 @@ def run(args: argparse.Namespace) -> int:
             bar.close()
         result["verify"] = report.as_dict()
         status = 0 if report.ok else 1
+    if args.video is not None:
+        from sasprobe.progress import progress_bar
+        from sasprobe.render.playback import frame_count, pose_time_range, render_recording
+
+        time_range = pose_time_range(args.file)
+        bar = progress_bar(frame_count(time_range, args.fps) if time_range else 0, desc="video", unit="frame")
+        try:
+            result["video"] = render_recording(args.file, args.video, args.fps, args.size, progress=bar.update)
+        finally:
+            bar.close()
     if args.json:
         print(json.dumps(result))
         return status
@@ -54,4 +81,8 @@ def run(args: argparse.Namespace) -> int:
               f"{r['flag_mismatches']} flag mismatches -> {'OK' if r['ok'] else 'DIFFERENT'}")
         if r["missing_ticks"]:
             print(f"  note     {r['missing_ticks']} ticks were dropped while recording; forces after a gap can differ")
+    if args.video is not None:
+        v = result["video"]
+        print(f"  video    {v['video']}: {v['frames']} frames at {v['fps']:g} fps, {v['size'][0]}x{v['size'][1]} "
+              f"({v['duration_s']:.2f} s recorded)")
     return status

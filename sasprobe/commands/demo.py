@@ -1,0 +1,62 @@
+"""`sasprobe demo`: the daemon with a simulated arm and a renderer following it, end to end."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from sasprobe.units import positive_float
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from sasprobe.commands.render import size_type
+
+    p = sub.add_parser(
+        "demo",
+        help="the daemon with the simulated arm and a renderer following it: a window, or headless a video, "
+             "a snapshot and summary.json",
+        description="Start `sasprobe daemon` (simulated arm scanning the molecule) and `sasprobe render --connect` "
+                    "as two processes on private ipc:// sockets. With a display: a live window until you close it. "
+                    "Without one (or --headless): --seconds of video, a PNG snapshot and summary.json (haptic rate "
+                    "and jitter, forces, contacts, renderer fps, lost poses) in --out.",
+    )
+    p.add_argument("--molecule", metavar="FILE", help="PDB or mmCIF file, optionally .gz (default: embedded 1CRN)")
+    p.add_argument("--device", default="sim:scan", help="the daemon's device (default sim:scan: the simulated arm "
+                                                        "scanning the surface)")
+    p.add_argument("--headless", action="store_true", help="no window even when a display exists")
+    p.add_argument("--seconds", type=positive_float, default=None, metavar="S",
+                   help="how long to render (default: 10 headless; with a window, until it is closed)")
+    p.add_argument("--out", type=Path, default=Path("sasprobe-demo"), metavar="DIR",
+                   help="where demo.mp4, snapshot.png and summary.json go (default ./sasprobe-demo)")
+    p.add_argument("--size", type=size_type, default=None, metavar="WxH",
+                   help="frame size (default 640x360 headless, 1280x720 in a window)")
+    p.add_argument("--fps", type=positive_float, default=10.0, help="headless video frame rate (default 10)")
+    p.add_argument("--record", type=Path, metavar="FILE.mcap",
+                   help="also record the session (replay it with `sasprobe replay FILE --verify/--video`)")
+    p.add_argument("--no-realtime", action="store_true",
+                   help="do not ask for SCHED_FIFO for the daemon's loop (by default it is asked for, and refused "
+                        "gracefully without the privilege)")
+    p.add_argument("--keep-water", action="store_true", help="keep water molecules")
+    p.add_argument("--render-args", metavar="'OPTIONS'", help="extra `sasprobe render` options, e.g. '--no-fxaa'")
+    p.add_argument("--daemon-args", metavar="'OPTIONS'", help="extra `sasprobe daemon` options, e.g. '--stiffness 0.2'")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from sasprobe.demo import RESERVED_DAEMON, RESERVED_RENDER, DemoOptions, run_demo, split_extra_args
+
+    opts = DemoOptions(
+        molecule=args.molecule,
+        device=args.device,
+        headless=args.headless,
+        seconds=args.seconds,
+        out=args.out,
+        size=args.size,
+        fps=args.fps,
+        record=args.record,
+        realtime=not args.no_realtime,
+        keep_water=args.keep_water,
+        render_args=split_extra_args(args.render_args, RESERVED_RENDER, "--render-args"),
+        daemon_args=split_extra_args(args.daemon_args, RESERVED_DAEMON, "--daemon-args"),
+    )
+    return run_demo(opts)

@@ -1,0 +1,455 @@
+"""`sasprobe demo`: the daemon with the simulated arm and a renderer following it.
+
+Two processes, started the way a user would start them (`sasprobe daemon ...` and
+`sasprobe render --connect ...`) on ipc:// sockets in a private temporary folder, so
+two demos never collide. This process watches the daemon over the public protocol (a
+pose subscriber for the force and contact figures, the control channel for the loop's
+rate and jitter), shows progress, stops both children (the daemon first: it writes zero
+force before it exits) and writes summary.json.
+
+On a shared, small machine the software rasteriser would take every core from the
+1 kHz loop, so the daemon asks for SCHED_FIFO (`--realtime`), which no ordinary process
+can preempt. Where that is refused (no root or CAP_SYS_NICE) the renderer runs at a
+lower priority and, headless, with one llvmpipe thread.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+import shutil
+import signal
+import sys
+import tempfile
+import threading
+import time
+from array import array
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sasprobe import __version__
+from sasprobe.children import Child
+from sasprobe.errors import UserError
+
+DEFAULT_SECONDS = 10.0  # headless
+HEADLESS_SIZE = (640, 360)
+WINDOW_SIZE = (1280, 720)
+RENDERER_NICE = 10  # the haptic loop comes first
+DAEMON_READY_S = 90.0  # start-up on a loaded machine: imports, structure, grid
+RENDER_START_GRACE_S = 90.0  # renderer start-up (imports, GL context, structure) beyond --seconds
+DAEMON_STOP_S = 10.0
+RENDER_STOP_S = 20.0  # it finishes the video first
+POLL_S = 0.1
+STATUS_EVERY_S = 1.0
+
+# Options the demo sets itself; passing them through --render-args/--daemon-args would break it.
+RESERVED_RENDER = ("--connect", "--control", "--molecule", "--headless", "--out", "--snapshot", "--report",
+                   "--seconds", "--frames", "--size", "--fps")
+RESERVED_DAEMON = ("--device", "--molecule", "--pub", "--ctl", "--record", "--report", "--duration",
+                   "--realtime", "--keep-water")
+
+
+@dataclass
+class DemoOptions:
+    molecule: str | None = None
+    device: str = "sim:scan"
+    headless: bool = False
+    seconds: float | None = None  # None: DEFAULT_SECONDS headless, until the window closes otherwise
+    out: Path = Path("sasprobe-demo")
+    size: tuple[int, int] | None = None
+    fps: float = 10.0
+    record: Path | None = None
+    realtime: bool = True
+    keep_water: bool = False
+    render_args: list[str] = field(default_factory=list)
+    daemon_args: list[str] = field(default_factory=list)
+
+
+def _child_env() -> dict:
+    # Unbuffered: events arrive as they happen. Fault handler: a crash in a driver leaves a trace in the log.
+    return dict(os.environ, PYTHONUNBUFFERED="1", PYTHONFAULTHANDLER="1")
+
+
+def split_extra_args(text: str | None, reserved: tuple[str, ...], flag: str) -> list[str]:
+    """Extra options passed through to a child, refusing the ones the demo sets itself."""
+    if not text:
+        return []
+    try:
+        args = shlex.split(text)
+    except ValueError as exc:
+        raise UserError(f"{flag}: {exc}") from None
+    for arg in args:
+        name = arg.split("=", 1)[0]
+        if name in reserved:
+            raise UserError(f"{flag}: {name} is set by the demo itself (see sasprobe demo --help)")
+    return args
+
+
+class ForceMonitor:
+    """Every pose the daemon publishes (as a renderer sees them): force magnitudes,
+    contacts, touched atoms. Polled without blocking from the demo's main loop."""
+
+    def __init__(self, endpoint: str) -> None:
+        from sasprobe.protocol.client import Subscriber
+
+        self.subscriber = Subscriber(endpoint)
+        self.force_n = array("f")
+        self.contact_ticks = 0
+        self.clamped_ticks = 0
+        self.fault_ticks = 0
+        self.touched: set[int] = set()
+
+    def poll(self) -> None:
+        from sasprobe.protocol.pose import FLAG_CLAMPED, FLAG_CONTACT, FLAG_FAULT
+
+        for pose in self.subscriber.poll():
+            self.force_n.append(float(np.linalg.norm(pose.force_N)))
+            self.contact_ticks += bool(pose.flags & FLAG_CONTACT)
+            self.clamped_ticks += bool(pose.flags & FLAG_CLAMPED)
+            self.fault_ticks += bool(pose.flags & FLAG_FAULT)
+            if pose.touched_atom >= 0:
+                self.touched.add(pose.touched_atom)
+
+    def last_force(self) -> float | None:
+        return float(self.force_n[-1]) if self.force_n else None
+
+    def contact_fraction(self) -> float | None:
+        return self.contact_ticks / len(self.force_n) if self.force_n else None
+
+    def summary(self) -> dict:
+        f = np.frombuffer(self.force_n, dtype=np.float32).astype(np.float64) if self.force_n else np.zeros(0)
+        stats = (lambda fn: float(fn(f)) if f.size else None)
+        return {
+            "poses": int(f.size),
+            "poses_missed": self.subscriber.missed,
+            "force_n": {"mean": stats(np.mean), "median": stats(np.median),
+                        "p95": stats(lambda a: np.percentile(a, 95)), "max": stats(np.max)},
+            "contact_ticks": self.contact_ticks,
+            "contact_fraction": self.contact_fraction(),
+            "atoms_touched": len(self.touched),
+            "clamped_ticks": self.clamped_ticks,
+            "fault_ticks": self.fault_ticks,
+        }
+
+    def close(self) -> None:
+        self.subscriber.close()
+
+
+class DemoSession:
+    def __init__(self, opts: DemoOptions) -> None:
+        self.opts = opts
+        self.sockets = Path(tempfile.mkdtemp(prefix="sasprobe-demo-"))  # short: ipc paths hold ~100 bytes
+        self.pub = f"ipc://{self.sockets}/pub"
+        self.ctl = f"ipc://{self.sockets}/ctl"
+        self.out = opts.out
+        self.video = self.out / "demo.mp4"
+        self.snapshot = self.out / "snapshot.png"
+        self.render_report = self.sockets / "render.json"
+        self.children: list[Child] = []  # every child started, in order (the daemon first)
+        self.daemon: Child | None = None
+        self.renderer: Child | None = None
+        self.monitor: ForceMonitor | None = None
+        self.control = None
+        self.ready: dict = {}
+        self.status_end: dict | None = None
+        self.last_status: dict | None = None  # the newest answer, should the daemon end by itself
+        self.exit_report: dict | None = None
+        self.renderer_rc: int | None = None
+        self.daemon_rc: int | None = None
+        self.notes: list[str] = []
+        self.hurry = threading.Event()
+
+    # ------------------------------------------------------------ start
+    def start_daemon(self) -> None:
+        from sasprobe.protocol.client import ControlClient
+
+        o = self.opts
+        argv = [sys.executable, "-m", "sasprobe", "daemon", "--device", o.device, "--pub", self.pub, "--ctl", self.ctl]
+        if o.molecule:
+            argv += ["--molecule", str(Path(o.molecule).resolve())]
+        if o.keep_water:
+            argv.append("--keep-water")
+        if o.realtime:
+            argv.append("--realtime")
+        if o.record:
+            argv += ["--record", str(Path(o.record).resolve())]
+        self.daemon = Child("daemon", argv + o.daemon_args, self.sockets / "daemon.log", env=_child_env(),
+                            registry=self.children)
+        ready = self.daemon.wait_event("ready", DAEMON_READY_S)
+        if ready is None:
+            why = self.daemon.error_line() if not self.daemon.alive() else f"no answer within {DAEMON_READY_S:g} s"
+            raise UserError(f"the daemon did not start: {why}")
+        self.ready = ready
+        if o.realtime and not ready.get("realtime"):
+            self.notes.append("real-time scheduling was refused (needs root or CAP_SYS_NICE): the haptic rate "
+                              "may drop while the renderer runs")
+        self.monitor = ForceMonitor(self.pub)
+        self.control = ControlClient(self.ctl, timeout_s=3.0)
+
+    def _render_argv(self, headless: bool, seconds: float | None) -> list[str]:
+        o = self.opts
+        size = o.size or (HEADLESS_SIZE if headless else WINDOW_SIZE)
+        argv = [sys.executable, "-m", "sasprobe", "render", "--connect", self.pub, "--control", self.ctl,
+                "--size", f"{size[0]}x{size[1]}", "--report", str(self.render_report)]
+        if o.keep_water:
+            argv.append("--keep-water")
+        if headless:
+            argv += ["--headless", "--seconds", f"{seconds:g}", "--fps", f"{o.fps:g}",
+                     "--out", str(self.video), "--snapshot", str(self.snapshot)]
+        elif seconds is not None:
+            argv += ["--seconds", f"{seconds:g}"]
+        return argv + o.render_args
+
+    def start_renderer(self, headless: bool, seconds: float | None) -> None:
+        env = _child_env()
+        protected = bool(self.ready.get("realtime"))  # no ordinary process can preempt a SCHED_FIFO loop
+        if not protected and headless:
+            env.setdefault("LP_NUM_THREADS", "1")  # Mesa llvmpipe: leave the loop a core of its own
+        self.renderer = Child("render", self._render_argv(headless, seconds), self.sockets / "render.log",
+                              env=env, nice=0 if protected else RENDERER_NICE, registry=self.children)
+        self._status(reset=True)  # the measured window is the demo proper, renderer included
+
+    def _status(self, reset: bool = False) -> dict | None:
+        if self.control is None or self.daemon is None or not self.daemon.alive():
+            return None
+        try:
+            self.last_status = self.control.status(reset_stats=reset)
+        except UserError:
+            return None
+        return self.last_status
+
+    # ------------------------------------------------------------ run
+    def watch(self, headless: bool, seconds: float | None) -> None:
+        """Until the renderer ends (its --seconds, or the window closed) or the daemon stops."""
+        from sasprobe.progress import progress_bar
+
+        bar = progress_bar(seconds if headless else None, "demo", unit="s",
+                           bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} s{postfix}" if headless
+                           else "{desc}: {n:.0f} s{postfix}")
+        deadline = time.monotonic() + (seconds or 0.0) + RENDER_START_GRACE_S if headless else None
+        rendering_since = None
+        shown = 0.0
+        next_status = 0.0
+        try:
+            while self.renderer.alive() and self.daemon.alive():
+                time.sleep(POLL_S)
+                self.monitor.poll()
+                now = time.monotonic()
+                if rendering_since is None and (not headless or self.video.exists()):
+                    rendering_since = now  # the first frame is in the video
+                if now >= next_status:
+                    next_status = now + STATUS_EVERY_S
+                    bar.set_postfix_str(self._progress_text(), refresh=False)
+                if rendering_since is not None:
+                    elapsed = min(now - rendering_since, seconds) if headless else now - rendering_since
+                    if elapsed > shown:
+                        bar.update(elapsed - shown)
+                        shown = elapsed
+                if deadline is not None and now > deadline:
+                    raise UserError(f"the renderer did not finish within {seconds + RENDER_START_GRACE_S:g} s "
+                                    f"(see its last words: {self.renderer.error_line() or 'none'})")
+        finally:
+            bar.close()
+
+    def _progress_text(self) -> str:
+        status = self._status()
+        parts = []
+        if status is not None and status["loop"]["recent"]["rate_hz"]:
+            parts.append(f"haptic {status['loop']['recent']['rate_hz']:.0f} Hz")
+        force = self.monitor.last_force()
+        if force is not None:
+            parts.append(f"force {force:.2f} N")
+        contact = self.monitor.contact_fraction()
+        if contact is not None:
+            parts.append(f"contact {100 * contact:.0f} %")
+        return ", ".join(parts)
+
+    # ------------------------------------------------------------ stop
+    def stop(self) -> None:
+        """Daemon first (zero force), then the renderer; bounded waits, SIGKILL as the last resort.
+        A second Ctrl+C while stopping skips the waits."""
+        previous = signal.signal(signal.SIGINT, lambda *_: self.hurry.set()) \
+            if threading.current_thread() is threading.main_thread() else None
+        try:
+            if self.monitor is not None:
+                self.monitor.poll()
+            if self.status_end is None:
+                self.status_end = self._status()
+            for child in self.children:
+                child.signal(signal.SIGTERM)
+            for child in self.children:
+                rc = child.finish(DAEMON_STOP_S if child is self.daemon else RENDER_STOP_S, self.hurry)
+                if child is self.daemon:
+                    self.daemon_rc, self.exit_report = rc, child.events.get("stopped")
+                elif child is self.renderer:
+                    self.renderer_rc = rc
+            if self.monitor is not None:
+                self.monitor.poll()
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
+
+    def keep_logs(self) -> None:
+        """Copy the children's stderr into --out (before close() removes the private folder)."""
+        for child in self.children:
+            try:
+                shutil.copyfile(child.log_path, self.out / child.log_path.name)
+            except OSError:
+                pass
+
+    def close(self) -> None:
+        if self.monitor is not None:
+            self.monitor.close()
+        if self.control is not None:
+            self.control.close()
+        shutil.rmtree(self.sockets, ignore_errors=True)
+
+    # ------------------------------------------------------------ summary
+    def renderer_report(self) -> dict | None:
+        try:
+            return json.loads(self.render_report.read_text())
+        except (OSError, ValueError):
+            return None
+
+    def summary(self, headless: bool, seconds: float | None, interrupted: bool) -> dict:
+        end = self.status_end or self.last_status or {}
+        loop = end.get("loop") or {}
+        nominal = loop.get("target_rate_hz")
+        rate = loop.get("rate_hz")
+        haptics = None
+        if loop:
+            haptics = {
+                "nominal_rate_hz": nominal,
+                "rate_hz": rate,
+                "rate_error_percent": 100.0 * (rate - nominal) / nominal if rate and nominal else None,
+                "window_s": loop["window_s"],
+                "ticks": loop["ticks"],
+                "period_error_us": loop["period_error_us"],
+                "overruns": loop["overruns"],
+                "missed_deadlines": loop["missed_deadlines"],
+                "tick_work_us": loop["work_us"],
+                "loop_cpu_percent": loop.get("cpu_percent"),
+                "realtime": bool(self.ready.get("realtime")),
+                "device_faults": end["device"]["faults"],
+            }
+        files = {}
+        if headless:
+            files = {"video": str(self.video) if self.video.exists() else None,
+                     "snapshot": str(self.snapshot) if self.snapshot.exists() else None}
+        if self.opts.record:
+            files["recording"] = str(self.opts.record)
+        return {
+            "sasprobe_version": __version__,
+            "mode": "headless" if headless else "window",
+            "seconds": seconds,
+            "interrupted": interrupted,
+            "device": self.opts.device,
+            "structure": end.get("structure"),
+            "haptics": haptics,
+            "forces": self.monitor.summary() if self.monitor is not None else None,
+            "renderer": self.renderer_report(),
+            "renderer_exit_status": self.renderer_rc,
+            "daemon_exit": self.exit_report,
+            "daemon_exit_status": self.daemon_rc,
+            "files": files,
+            "notes": self.notes,
+        }
+
+
+def run_demo(opts: DemoOptions) -> int:
+    from sasprobe.render.context import display_available
+
+    window = not opts.headless and display_available()
+    headless = not window
+    seconds = opts.seconds if opts.seconds is not None else (DEFAULT_SECONDS if headless else None)
+    try:
+        opts.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"--out {opts.out}: cannot create ({exc.strerror or exc})") from None
+    if opts.record is not None and Path(opts.record).exists():
+        raise UserError(f"--record {opts.record}: already exists; record to a new file")
+    for stale in ("demo.mp4", "snapshot.png", "summary.json"):  # never mix an old run's files with this one's
+        (opts.out / stale).unlink(missing_ok=True)
+    session = DemoSession(opts)
+    interrupted = False
+    failed = True
+    try:
+        try:
+            print(f"sasprobe demo: starting the daemon ({opts.device})", file=sys.stderr, flush=True)
+            session.start_daemon()
+            session.start_renderer(headless, seconds)
+            what = "window open (close it or press Ctrl+C to stop)" if window else f"rendering {seconds:g} s headless"
+            print(f"sasprobe demo: {what}", file=sys.stderr, flush=True)
+            session.watch(headless, seconds)
+            if window and session.renderer.proc.poll() not in (None, 0) and session.renderer_report() is None:
+                # No window after all (e.g. no GL 4.1 on this display): the same demo, headless.
+                session.notes.append(f"no window ({session.renderer.error_line()}); ran headless instead")
+                print(f"sasprobe demo: {session.notes[-1]}", file=sys.stderr, flush=True)
+                window, headless = False, True
+                seconds = opts.seconds if opts.seconds is not None else DEFAULT_SECONDS
+                session.renderer.finish(0)
+                session.start_renderer(True, seconds)
+                session.watch(True, seconds)
+            session.status_end = session._status()
+        except KeyboardInterrupt:
+            interrupted = True
+        finally:
+            session.stop()
+            summary = session.summary(headless, seconds, interrupted)
+            (opts.out / "summary.json").write_text(json.dumps(summary, indent=1))
+        _check_children(session, summary, interrupted)
+        failed = False
+    finally:
+        if failed:
+            session.keep_logs()
+        session.close()
+    _print_summary(summary, opts.out / "summary.json")
+    if interrupted:
+        raise KeyboardInterrupt
+    return 0
+
+
+def _check_children(session: DemoSession, summary: dict, interrupted: bool) -> None:
+    """A child that failed (rather than being stopped) ends the demo with its own error line."""
+    if interrupted:
+        return
+    exit_report = summary["daemon_exit"]
+    if exit_report is None or exit_report.get("reason") not in ("SIGTERM", "end of replay"):
+        why = session.daemon.error_line() or exit_report or f"exit status {session.daemon_rc}"
+        raise UserError(f"the daemon stopped unexpectedly: {why} (logs in {session.out})")
+    if summary["renderer"] is None:
+        why = session.renderer.error_line() or f"exit status {session.renderer_rc}, no report"
+        raise UserError(f"the renderer failed: {why} (logs in {session.out})")
+
+
+def _print_summary(summary: dict, path: Path) -> None:
+    s = summary
+    structure = s["structure"] or {}
+    print(f"sasprobe demo: {structure.get('name', '?')} ({structure.get('n_atoms', '?')} atoms), device {s['device']}, "
+          f"{s['mode']}" + (" (interrupted)" if s["interrupted"] else ""))
+    h = s["haptics"]
+    if h:
+        print(f"  haptics   {h['rate_hz']:.1f} Hz (nominal {h['nominal_rate_hz']:g}) over {h['window_s']:.1f} s, "
+              f"period error p99 {h['period_error_us']['p99']:.0f} µs, {h['overruns']} overruns, "
+              f"{'real-time' if h['realtime'] else 'normal'} scheduling")
+    f = s["forces"]
+    if f and f["poses"]:
+        print(f"  forces    mean {f['force_n']['mean']:.2f} N, p95 {f['force_n']['p95']:.2f} N, "
+              f"max {f['force_n']['max']:.2f} N; in contact {100 * f['contact_fraction']:.0f} % of ticks, "
+              f"{f['atoms_touched']} atoms touched")
+    r = s["renderer"]
+    if r:
+        lost = (r.get("daemon") or {}).get("poses_missed")
+        print(f"  renderer  {r['frames']} frames at {r['fps'] or 0:.1f} fps ({r['size'][0]}x{r['size'][1]})"
+              + (f", {r['video_frames']} video frames" if r.get("video_frames") else "")
+              + (f", {lost} poses lost" if lost is not None else ""))
+    d = s["daemon_exit"]
+    if d:
+        print(f"  stopped   daemon: {d['reason']}, last force written {d['last_force_written_n']} N")
+    for note in s["notes"]:
+        print(f"  note      {note}")
+    written = [p for p in s["files"].values() if p] + [str(path)]
+    print("  wrote     " + ", ".join(written))
