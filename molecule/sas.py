@@ -27,7 +27,9 @@ REFINE_BELOW = 1.5  # Å^2: atoms with a small non-zero coarse area are re-sampl
 # Lee-Richards (200 slices) and Shrake-Rupley (5000 points) agree on only 97.9 % of
 # atoms for "area > 0", but on 99.9 % for "area >= 0.5 Å^2".
 ACCESSIBLE_MIN_AREA = 0.5
-_CHUNK_PAIRS = 200_000  # pairs per matrix product (bounds memory)
+# pairs x points per matrix product: about a million keeps the product, the comparison
+# and the packed bits in cache (4x faster on 1AON than 200k-pair chunks, less memory)
+_CHUNK_ELEMENTS = 1 << 20
 
 
 @dataclass
@@ -105,8 +107,9 @@ def _sample(grid: UniformGrid, i: np.ndarray, j: np.ndarray, atoms: np.ndarray, 
     normals = (d_vec / d[:, None]).astype(np.float32)
     cos_cap = ((radii[i] ** 2 + d**2 - radii[j] ** 2) / (2.0 * radii[i] * d)).astype(np.float32)
     unit_t = sphere_points(n_points).T.astype(np.float32)
-    for lo in range(0, i.size, _CHUNK_PAIRS):
-        hi = min(lo + _CHUNK_PAIRS, i.size)
+    chunk = max(1, _CHUNK_ELEMENTS // n_points)
+    for lo in range(0, i.size, chunk):
+        hi = min(lo + chunk, i.size)
         inside_cap = (normals[lo:hi] @ unit_t) > cos_cap[lo:hi, None]
         if pad:
             inside_cap = np.pad(inside_cap, ((0, 0), (0, pad)))
