@@ -192,3 +192,13 @@ def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
             proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err
+
+
+def test_every_render_key_and_the_mouse_change_the_picture(xvfb):
+    """F B N W P L D T K X O each flip their switch and change the picture, pressed again
+    they restore it exactly; M swaps quads for sprites, H shows the help, a drag turns,
+    the wheel zooms, R resets the camera, Q closes (tests/render_window_keys_check.py)."""
+    env = dict(os.environ, DISPLAY=xvfb)
+    r = subprocess.run([sys.executable, "-m", "tests.render_window_keys_check"], capture_output=True, text=True,
+                       timeout=300, env=env, cwd=REPO_ROOT)
+    assert r.returncode == 0 and r.stdout.strip().endswith("keys ok"), r.stdout + r.stderr
