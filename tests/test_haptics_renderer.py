@@ -12,7 +12,7 @@ from sasprobe.daemon.haptics import HapticOutput, HapticRenderer, HapticSettings
 from sasprobe.daemon.workspace import WorkspaceMapping
 from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceState, open_device
 from sasprobe.molecule import load_default
-from tests.haptics_reference import signed_distance, synthetic_structure
+from tests.haptics_reference import synthetic_structure
 
 CRAMBIN = load_default()
 LIMITS = PHANTOM_OMNI_LIMITS

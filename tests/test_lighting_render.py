@@ -5,9 +5,6 @@ lighting options, and the window's keys switch the effects."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 
 import imageio.v3 as iio
 import numpy as np
@@ -31,9 +28,9 @@ from sasprobe.render.passes.lighting import LightingPass, install_lighting, ligh
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import NavCube, Probe, SceneState
 from sasprobe.render.targets import KIND_BACKBONE
-from tests.conftest import REPO_ROOT, run_cli
+from tests.conftest import run_cli
 from tests.lighting_support import away_from_boundaries, crambin, gl, probe_on_surface  # noqa: F401
-from tests.test_render_window import xvfb  # noqa: F401 (fixture: a real X server)
+from tests.test_render_window import run_window_check, xvfb  # noqa: F401 (xvfb: a real X server)
 
 SIZE = (160, 120)
 SETUPS = ["none", "planes", "cube"]
@@ -210,7 +207,4 @@ def test_window_keys_switch_the_lighting(xvfb):
     """In a real window (Xvfb; its own process, as GLX and this process's EGL context do
     not mix): S, V, A, E, G switch the effects, C cycles the AO method, and what the
     window draws changes with them (tests/lighting_window_check.py)."""
-    env = dict(os.environ, DISPLAY=xvfb)
-    r = subprocess.run([sys.executable, "-m", "tests.lighting_window_check"], capture_output=True, text=True,
-                       timeout=300, env=env, cwd=REPO_ROOT)
-    assert r.returncode == 0 and r.stdout.strip().endswith("keys ok"), r.stdout + r.stderr
+    run_window_check(xvfb, "tests.lighting_window_check")

@@ -57,6 +57,14 @@ def xvfb():
     proc.wait(timeout=10)
 
 
+def run_window_check(display: str, module: str) -> None:
+    """Run a window check script on the X server in its own process (GLX and this
+    process's EGL context do not mix); it prints 'keys ok' when every check passed."""
+    r = subprocess.run([sys.executable, "-m", module], capture_output=True, text=True, timeout=300,
+                       env=dict(os.environ, DISPLAY=display), cwd=REPO_ROOT)
+    assert r.returncode == 0 and r.stdout.strip().endswith("keys ok"), r.stdout + r.stderr
+
+
 class _XImage(ctypes.Structure):
     _fields_ = [("width", ctypes.c_int), ("height", ctypes.c_int), ("xoffset", ctypes.c_int),
                 ("format", ctypes.c_int), ("data", ctypes.c_void_p), ("byte_order", ctypes.c_int),
@@ -198,7 +206,4 @@ def test_every_render_key_and_the_mouse_change_the_picture(xvfb):
     """F B N W P L D T K X O each flip their switch and change the picture, pressed again
     they restore it exactly; M swaps quads for sprites, H shows the help, a drag turns,
     the wheel zooms, R resets the camera, Q closes (tests/render_window_keys_check.py)."""
-    env = dict(os.environ, DISPLAY=xvfb)
-    r = subprocess.run([sys.executable, "-m", "tests.render_window_keys_check"], capture_output=True, text=True,
-                       timeout=300, env=env, cwd=REPO_ROOT)
-    assert r.returncode == 0 and r.stdout.strip().endswith("keys ok"), r.stdout + r.stderr
+    run_window_check(xvfb, "tests.render_window_keys_check")

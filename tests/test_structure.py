@@ -6,7 +6,6 @@ import gzip
 
 import gemmi
 import numpy as np
-import pytest
 
 from sasprobe.molecule import load_default, load_structure, parse_structure
 from sasprobe.molecule.elements import BONDI_RADII, FALLBACK_RADIUS
