@@ -83,6 +83,23 @@ def test_larger_structure_matches_reference(ctx, shared_by_id):
     compare_with_reference(g, s.positions, s.vdw_radii, np.arange(s.n_atoms))
 
 
+def test_camera_inside_a_sphere_sees_its_solid_cap(ctx, crambin):
+    """Zoomed into an atom, the atom is a solid: the near plane cuts it into a cap that
+    fills the view (it must not vanish and show what lies behind it)."""
+    s = crambin
+    top = int(np.argmax(s.positions[:, 2]))
+    eye = s.positions[top] + np.array([0.0, 0.0, 0.5 * s.vdw_radii[top]])
+    inside = np.flatnonzero(np.linalg.norm(s.positions - eye, axis=1) < s.vdw_radii)
+    assert inside.tolist() == [top], "the eye should be inside exactly one sphere"
+    camera = Camera(eye=eye, target=s.positions.mean(axis=0), up=np.array([0.0, 1.0, 0.0]), fov_y=60.0)
+    g = render_gbuffer(ctx, SceneState(s), camera)
+    forward = -camera.basis()[:, 2]
+    near = np.array([*forward, -float(forward @ camera.eye) - camera.near])
+    compare_with_reference(g, s.positions, s.vdw_radii, np.arange(s.n_atoms), near[None, :])
+    assert (g["atom_id"] == top).all() and (g["kind"] == KIND_CAP).all()
+    np.testing.assert_allclose(g["normal"].reshape(-1, 3), np.tile(-forward, (g["normal"][..., 0].size, 1)), atol=1e-3)
+
+
 def test_clip_planes_cap_atoms_and_cull_those_behind(ctx, crambin):
     s = crambin
     center = s.positions.mean(axis=0)

@@ -4,7 +4,7 @@
 // sphere cuts that plane in a circle of radius (d - r) r / sqrt(d^2 - r^2), and the
 // square circumscribes that circle. Every ray through the square meets the plane before
 // the sphere, so the ray-cast depth is never nearer than the square's: depth_greater.
-// Returns 0 when the eye is inside the sphere (nothing to draw).
+// Returns 0 when the eye is inside the sphere (no square bounds it: the caller covers the view).
 float sphere_quad(vec3 c, float r, out vec3 corners[4]) {
     vec3 axis = c - u_eye;
     float d2 = dot(axis, axis);
