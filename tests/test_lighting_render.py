@@ -5,7 +5,6 @@ lighting options, and the window's keys switch the effects."""
 
 from __future__ import annotations
 
-
 import imageio.v3 as iio
 import numpy as np
 import pytest
