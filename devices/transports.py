@@ -213,6 +213,10 @@ class HidTransport(Transport):
         return bytes(report)
 
 
+class TransferTimeout(DeviceFault):
+    """A USB transfer the device did not complete in time (it is still there)."""
+
+
 class UsbTransport(Transport):
     """Raw USB bulk (or interrupt) endpoints through pyusb.
 
@@ -281,13 +285,17 @@ class UsbTransport(Transport):
         except usb.core.USBError as exc:
             raise DeviceFault(f"the {self.label} lost: {exc}") from None
 
-    def write(self, data: bytes) -> None:
+    def write(self, data: bytes, timeout_s: float = 0.1) -> None:
         import usb.core
 
         dev = self._require()
         try:
-            n = dev.write(self.ep_out, data, 100)
+            n = dev.write(self.ep_out, data, max(int(timeout_s * 1000), 1))
+        except usb.core.USBTimeoutError:
+            raise TransferTimeout(f"the {self.label} took no data for {timeout_s * 1000:.0f} ms") from None
         except usb.core.USBError as exc:
+            if exc.errno == errno.ETIMEDOUT:
+                raise TransferTimeout(f"the {self.label} took no data for {timeout_s * 1000:.0f} ms") from None
             raise DeviceFault(f"the {self.label} lost: {exc}") from None
         if n != len(data):
             raise DeviceFault(f"the {self.label}: short write ({n} of {len(data)} bytes)")

@@ -1,20 +1,28 @@
-"""An FTDI USB-serial bridge driven directly over USB (the Novint Falcon's link).
+"""The Falcon's FTDI USB-serial bridge, driven over raw USB as libnifalcon's libusb core does.
 
-FTDI chips take "SIO" vendor control requests (FTDI application notes AN232B-04/-05,
-and the request table documented in the Linux kernel's ftdi_sio.h comments):
-reset/purge 0, modem control 1, flow control 2, baud divisor 3, line properties 4,
-latency timer 9. Every bulk-IN packet (at most 64 bytes) starts with two modem-status
-bytes that are not data; `read` strips them.
+Control requests (FalconCommLibUSB.cpp, from libftdi's table): reset/purge 0, modem
+control 1, flow control 2, baud divisor 3, line properties 4, latency timer 9, all
+vendor-type (0x40) to interface 0. Every bulk-IN packet starts with two modem-status
+bytes, which are not data.
+
+Two ways of moving bytes:
+- blocking (`write_blocking`, `read_packet`): the loader handshake and the upload,
+  libnifalcon's readBlocking/writeBlocking;
+- asynchronous (`start`/`send`/`take`): normal mode. libnifalcon submits libusb
+  transfers and polls them; pyusb has only synchronous transfers, so a reader thread
+  keeps one 64-byte IN transfer pending and a writer thread sends the newest frame
+  handed to it. The control loop never waits on USB.
 """
 
 from __future__ import annotations
 
+import threading
 import time
 
 from sasprobe.devices.base import DeviceFault
-from sasprobe.devices.transports import UsbTransport
+from sasprobe.devices.transports import TransferTimeout, UsbTransport
 
-VENDOR_OUT = 0x40  # host → device, vendor request, device recipient
+VENDOR_OUT = 0x40
 
 SIO_RESET = 0
 SIO_MODEM_CTRL = 1
@@ -23,94 +31,122 @@ SIO_SET_BAUD_RATE = 3
 SIO_SET_DATA = 4
 SIO_SET_LATENCY_TIMER = 9
 
-RESET_SIO = 0
-PURGE_RX = 1
-PURGE_TX = 2
+PURGE_RX, PURGE_TX = 1, 2
+DTR_HIGH, DTR_LOW = 0x0101, 0x0100  # value | mask << 8
+RTS_HIGH, RTS_LOW = 0x0202, 0x0200
+DATA_8N1 = 0x0008  # 8 data bits, no parity, one stop bit
 
-DTR_BIT, RTS_BIT = 0x01, 0x02
-DTR_MASK, RTS_MASK = 0x0100, 0x0200
-
-DATA_8N1 = 0x0008  # 8 data bits, no parity (bits 8-10 = 0), one stop bit (bits 11-12 = 0)
+DIVISOR_9600 = 0x4138  # the loader's probe rate
+DIVISOR_LOADER = 0x15  # the upload rate (≈ 140 kbaud, libnifalcon's comment)
+DIVISOR_NORMAL = 0x2  # normal mode
+LATENCY_LOADER_MS, LATENCY_NORMAL_MS = 16, 1
 
 PACKET_SIZE = 64
 STATUS_BYTES = 2
-
-# Baud divisors: 3 MHz / divisor, with the sub-integer part in bits 14-15 (AN232B-05).
-DIVISOR_9600 = 0x4138  # 312.5 → 9600 baud
+READ_WAIT_S = 0.1  # the reader thread's transfer timeout: how soon it notices a stop
 
 
-def divisor_to_baud(divisor: int) -> float:
-    """The baud rate an FTDI (232B-class) divisor selects; used by the emulator and logs."""
-    integer = divisor & 0x3FFF
-    fraction = {0: 0.0, 1: 0.5, 2: 0.25, 3: 0.125}[(divisor >> 14) & 0x3]
-    if integer == 0 and fraction == 0.0:
-        return 3_000_000.0
-    if integer == 1 and fraction == 0.0:
-        return 2_000_000.0
-    return 3_000_000.0 / (integer + fraction)
-
-
-class FtdiBridge:
-    """SIO requests and status-stripped bulk reads on top of a UsbTransport."""
+class FtdiLink:
+    """SIO requests, blocking packet I/O and the asynchronous normal-mode I/O of one Falcon."""
 
     def __init__(self, usb: UsbTransport):
         self.usb = usb
-        self._pending = b""
+        self._lock = threading.Lock()
+        self._wake = threading.Condition(self._lock)
+        self._threads: list[threading.Thread] = []
+        self._running = False
+        self._received = bytearray()
+        self._received_ns = 0
+        self._outgoing: bytes | None = None
+        self.error: str | None = None  # set by an I/O thread when the USB link fails
 
-    def _request(self, request: int, value: int, index: int = 0) -> None:
-        self.usb.control(VENDOR_OUT, request, value, index, None)
-
-    def reset(self) -> None:
-        self._request(SIO_RESET, RESET_SIO)
+    # -- control requests --------------------------------------------------------------
+    def request(self, request: int, value: int, index: int = 0) -> None:
+        self.usb.control(VENDOR_OUT, request, value, index, None, timeout_s=1.0)
 
     def purge(self) -> None:
-        self._request(SIO_RESET, PURGE_RX)
-        self._request(SIO_RESET, PURGE_TX)
-        self._pending = b""
+        self.request(SIO_RESET, PURGE_RX)
+        self.request(SIO_RESET, PURGE_TX)
 
-    def set_latency_timer(self, ms: int) -> None:
-        self._request(SIO_SET_LATENCY_TIMER, ms & 0xFF)
+    def normal_mode(self) -> None:
+        """FalconCommLibUSB::setNormalMode: latency 1 ms, divisor 0x2, purge."""
+        self.request(SIO_SET_LATENCY_TIMER, LATENCY_NORMAL_MS)
+        self.request(SIO_SET_BAUD_RATE, DIVISOR_NORMAL)
+        self.purge()
 
-    def set_baud_divisor(self, divisor: int) -> None:
-        self._request(SIO_SET_BAUD_RATE, divisor & 0xFFFF, (divisor >> 16) & 0xFF)
+    # -- blocking I/O (the loader) -----------------------------------------------------
+    def write_blocking(self, data: bytes, timeout_s: float = 1.0) -> None:
+        self.usb.write(data, timeout_s)
 
-    def set_line_8n1(self) -> None:
-        self._request(SIO_SET_DATA, DATA_8N1)
+    def read_packet(self, timeout_s: float) -> bytes:
+        """The data of the next IN packet (status bytes removed); b"" if none in time."""
+        return self.usb.read(PACKET_SIZE, timeout_s)[STATUS_BYTES:]
 
-    def set_no_flow_control(self) -> None:
-        self._request(SIO_SET_FLOW_CTRL, 0, 0)
+    # -- asynchronous I/O (normal mode) ------------------------------------------------
+    def start(self) -> None:
+        if self._running:
+            return
+        self._running, self.error = True, None
+        self._received.clear()
+        self._outgoing = None
+        self._threads = [threading.Thread(target=loop, name=f"falcon-{loop.__name__}", daemon=True)
+                         for loop in (self._reader, self._writer)]
+        for thread in self._threads:
+            thread.start()
 
-    def set_dtr(self, high: bool) -> None:
-        self._request(SIO_MODEM_CTRL, DTR_MASK | (DTR_BIT if high else 0))
+    def stop(self) -> None:
+        with self._lock:
+            self._running = False
+            self._wake.notify_all()
+        for thread in self._threads:
+            thread.join(timeout=2.0)
+        self._threads = []
 
-    def set_rts(self, high: bool) -> None:
-        self._request(SIO_MODEM_CTRL, RTS_MASK | (RTS_BIT if high else 0))
+    def send(self, frame: bytes) -> None:
+        """Hand a frame to the writer thread; one not yet sent is replaced (it is owed no reply)."""
+        with self._lock:
+            self._outgoing = frame
+            self._wake.notify()
 
-    def write(self, data: bytes) -> None:
-        self.usb.write(data)
+    def take(self) -> tuple[bytes, int]:
+        """(bytes received since the last take, monotonic ns when the newest arrived)."""
+        with self._lock:
+            data = bytes(self._received)
+            self._received.clear()
+            return data, self._received_ns
 
-    def read_some(self, max_bytes: int, timeout_s: float) -> bytes:
-        """Data bytes that arrived within the timeout (status bytes removed), or b""."""
-        if self._pending:
-            out, self._pending = self._pending[:max_bytes], self._pending[max_bytes:]
-            return out
-        deadline = time.monotonic() + timeout_s
+    def _fail(self, exc: DeviceFault) -> None:
+        with self._lock:
+            if self.error is None:
+                self.error = str(exc)
+            self._running = False
+            self._wake.notify_all()
+
+    def _reader(self) -> None:
+        while self._running:
+            try:
+                data = self.read_packet(READ_WAIT_S)
+            except DeviceFault as exc:
+                self._fail(exc)
+                return
+            if data:
+                now = time.monotonic_ns()
+                with self._lock:
+                    self._received += data
+                    self._received_ns = now
+
+    def _writer(self) -> None:
         while True:
-            packet = self.usb.read(PACKET_SIZE, max(deadline - time.monotonic(), 0.001))
-            if len(packet) > STATUS_BYTES:
-                data = packet[STATUS_BYTES:]
-                out, self._pending = data[:max_bytes], data[max_bytes:]
-                return out
-            if time.monotonic() >= deadline:
-                return b""
-
-    def read_exact(self, size: int, timeout_s: float) -> bytes:
-        """Exactly `size` bytes, or DeviceFault when they do not arrive in time."""
-        deadline = time.monotonic() + timeout_s
-        buf = b""
-        while len(buf) < size:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                raise DeviceFault(f"{self.usb.label}: timed out waiting for {size} bytes (got {len(buf)})")
-            buf += self.read_some(size - len(buf), remaining)
-        return buf
+            with self._lock:
+                while self._running and self._outgoing is None:
+                    self._wake.wait()
+                if not self._running:
+                    return
+                frame, self._outgoing = self._outgoing, None
+            try:
+                self.usb.write(frame)
+            except TransferTimeout:  # the chip's buffer is full: the frame is lost, the driver resends
+                continue
+            except DeviceFault as exc:
+                self._fail(exc)
+                return

@@ -1,237 +1,251 @@
-"""An emulated Novint Falcon behind a pyusb backend.
+"""An emulated Novint Falcon behind pyusb's backend interface, from public sources only.
 
-`FalconHardware` is the device side: the FTDI bridge's SIO requests and status bytes,
-the firmware loader (handshake at 9600 baud, then 128-byte blocks echoed at divisor
-0x15), and, once the right image is loaded and the host switches to normal mode, the
-16-byte nibble frames with encoders, buttons, homing and motor commands driving a held
-stylus. `EmulatedUsbBackend` implements pyusb's `IBackend` over it, so the driver goes
-through pyusb's own `core.find`, configuration, interface claiming and transfers.
+The device side as libnifalcon (github.com/libnifalcon/libnifalcon, commit f7c727a)
+describes it; nothing here comes from sasprobe:
+- the FTDI bridge (FalconCommLibUSB.cpp): vendor requests purge 0, modem control 1,
+  flow 2, baud divisor 3, line 4, latency timer 9; every IN packet starts with two
+  status bytes, and the chip sends a packet when 62 data bytes wait or its latency
+  timer runs out (then possibly with no data);
+- the loader (FalconCommLibUSB::setFirmwareMode): after DTR goes high, at 9600 baud
+  (divisor 0x4138) it answers 0A 43 0D with 0A 44 2C 0D as a Linux host sees it (00 0A
+  44 2C 0D on macOS), after `probes_ignored` probes it sleeps through; at divisor 0x15
+  'A' is echoed, then every image byte; the firmware starts when the host switches to
+  normal mode (divisor 0x2) with the whole image loaded (when it starts is our guess);
+- the firmware (FalconFirmwareNovintSDK.h/.cpp): one 16-byte reply per 16-byte command,
+  '<' … '>', bytes 'A'..'P' in commands; motors (signed 16-bit), LEDs (green 2, blue 4,
+  red 8), homing mode 1; replies with encoders and byte 13 = 'A' + buttons + homed axes
+  << 4. A command without the homing bit makes it forget its homing (FalconFirmware.h:
+  "must be set in each input packet ... to stay homed"); in homing mode an axis homes
+  when its thigh passes its index mark, where the count becomes 0 (35°, getTheta).
+  A command it cannot parse, or a motor value beyond the documented ±4096, is refused.
+- the mechanism: `falcon_mechanism`; the grip is held by a spring hand (`physics`).
 
-Pulling the cable (`unplug()`) makes every transfer raise USBError(ENODEV) and the device
-vanish from enumeration; `replug()` brings back a freshly powered Falcon: loader mode,
-no firmware, not homed.
+`EmulatedUsbBackend(FalconHardware(image))` is the in-process form. `launch()` runs the
+hardware in this process behind a socket, for a driver in another process (the daemon).
 """
 
 from __future__ import annotations
 
 import array
+import collections
 import errno
-import json
+import math
 import os
+import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
+from multiprocessing.connection import Client, Listener
 
 import numpy as np
 import usb.backend
 import usb.core
 
-from sasprobe.devices import falcon as F
-from sasprobe.devices.ftdi import (DIVISOR_9600, PURGE_RX, PURGE_TX, SIO_MODEM_CTRL, SIO_RESET, SIO_SET_BAUD_RATE,
-                                   SIO_SET_LATENCY_TIMER, STATUS_BYTES)
-from sasprobe.devices.kinematics import DeltaArm, tip_force
+from tests.emulators import falcon_mechanism as mech
 from tests.emulators.physics import HeldStylus
 
-MODEM_STATUS = b"\x01\x60"  # FTDI status bytes: CTS/DSR idle, transmitter empty
+VENDOR_ID, PRODUCT_ID, EP_OUT, EP_IN = 0x0403, 0xCB48, 0x02, 0x81
+MODEM_STATUS = b"\x01\x60"  # CTS/DSR idle, transmitter empty
+FULL_PACKET = 62
+PROBE, LINUX_REPLY, MACOS_REPLY = b"\x0a\x43\x0d", b"\x0a\x44\x2c\x0d", b"\x00\x0a\x44\x2c\x0d"
+DIVISOR_9600, DIVISOR_LOADER, DIVISOR_NORMAL = 0x4138, 0x15, 0x2
+LED_GREEN, LED_BLUE, LED_RED, HOMING = 0x2, 0x4, 0x8, 0x1
+COMMAND_LIMIT = 4096
+
+
+@dataclass
+class Sample:
+    """One command as the motors carried it out."""
+
+    t_ns: int
+    motor: tuple
+    force_n: np.ndarray  # on the grip, device-frame axes
+    grip_mm: np.ndarray  # where the grip was (device frame)
 
 
 class FalconHardware:
-    def __init__(self, firmware: bytes, *, hand=None, start_mm=(0.0, 0.0, 0.0), corrupt_echo_attempts=()):
+    def __init__(self, firmware: bytes, *, hand=None, start_mm=(0.0, 0.0, 0.0), hand_stiffness_n_per_mm=0.5,
+                 probes_ignored: int = 2, macos: bool = False, loader_silent: bool = False,
+                 corrupt_echo_attempts=()):
         self.expected_firmware = bytes(firmware)
-        self.kinematics = DeltaArm()
-        self.hand = hand
-        self.start_mm = start_mm
+        self.hand, self.start_mm, self.hand_stiffness = hand, start_mm, hand_stiffness_n_per_mm
+        self.probes_ignored, self.macos, self.loader_silent = probes_ignored, macos, loader_silent
         self.corrupt_echo_attempts = set(corrupt_echo_attempts)
         self.lock = threading.RLock()
-        self._plugged = True
-        self.cable_schedule = None  # (seconds after the first boot to unplug, seconds to stay out)
-        self.first_boot = None
-        self._schedule_done = 0
-        self.generation = 0
+        self.plugged, self.generation = True, 0
         self.buttons = 0
-        self.host_bad_frames = 0
-        self.inject_before_reply: list[bytes] = []  # raw bytes sent ahead of the next reply
-        self.frames_answered = 0
-        self.max_command_force_n = 0.0
-        self.last_motor = [0, 0, 0]
-        self.last_force_n = np.zeros(3)
+        self.inject_before_reply: list[bytes] = []  # raw bytes put ahead of the next reply
+        self.samples: collections.deque[Sample] = collections.deque(maxlen=20000)
+        self.refused = 0  # commands the firmware could not take
+        self.homing_losses = 0
         self.upload_attempts = 0
+        self.probes_seen = 0
+        self.replies = 0
+        self.silent_until = 0.0  # a stall: commands wait until then
+        self.hung = False  # stopped answering for good
         self._power_on()
 
-    # -- power ------------------------------------------------------------------------
+    # -- power and cable --------------------------------------------------------------
     def _power_on(self) -> None:
         self.running = False
-        self.loader_state = "idle"
+        self.loader = "idle"
         self.loaded = bytearray()
-        self.latency_ms = 16
-        self.divisor = DIVISOR_9600
-        self.dtr = self.rts = False
-        self.host_in = bytearray()
-        self.out = bytearray()
-        self.homing = False
-        self.homed = [False, False, False]
-        self.flags = 0
-        self.motor = [0, 0, 0]
-        self.stylus = HeldStylus(self.start_mm, hand=self.hand, mass_kg=0.15)
-        self.count_offset = self._true_counts()  # relative encoders: zero at power-on
-        self._last_absolute = self.count_offset.copy()
-        self._echoed = 0
-
-    @property
-    def plugged(self) -> bool:
-        self._follow_cable_schedule()
-        return self._plugged
+        self.latency_ms, self.divisor, self.dtr = 16, DIVISOR_9600, False
+        self.out = bytearray()  # chip → host
+        self.pending = bytearray()  # host → firmware, not yet taken
+        self.leds, self.homing, self.homed = 0, False, [False, False, False]
+        self.motor = (0, 0, 0)
+        self.stylus = HeldStylus(self.start_mm, hand=self.hand, mass_kg=0.15,
+                                 hand_stiffness_n_per_mm=self.hand_stiffness)
+        self.offset_counts = self._absolute_counts()  # relative encoders: 0 where it was powered on
+        self._last_angles = mech.thigh_angles(self.grip_m)
 
     def unplug(self) -> None:
         with self.lock:
-            self._plugged = False
+            self.plugged = False
             self.generation += 1
 
     def replug(self) -> None:
         with self.lock:
             self._power_on()
-            self._plugged = True
+            self.plugged = True
 
-    def _follow_cable_schedule(self) -> None:
-        if self.cable_schedule is None or self.first_boot is None or self._schedule_done == 2:
-            return
-        elapsed = time.monotonic() - self.first_boot
-        after, out_for = self.cable_schedule
-        if self._schedule_done == 0 and elapsed >= after:
-            self._schedule_done = 1
-            self.unplug()
-        elif self._schedule_done == 1 and elapsed >= after + out_for:
-            self._schedule_done = 2
-            self.replug()
+    def stall(self, seconds: float) -> None:
+        """The firmware stops answering for a while; commands sent meanwhile wait."""
+        self.silent_until = time.monotonic() + seconds
 
-    # -- kinematics ---------------------------------------------------------------------
-    def _true_angles(self) -> np.ndarray:
-        return self.kinematics.inverse(self.stylus.position)
+    # -- mechanism --------------------------------------------------------------------
+    @property
+    def grip_m(self) -> np.ndarray:
+        return mech.mechanism_m(self.stylus.position)
 
-    def _true_counts(self) -> np.ndarray:
-        return F.angles_to_counts(self._true_angles())
+    def _absolute_counts(self) -> np.ndarray:
+        return (mech.thigh_angles(self.grip_m) - mech.INDEX_ANGLE) / mech.RAD_PER_COUNT
 
-    def motor_force(self, motor=None) -> np.ndarray:
-        """The tip force the motors produce at the current pose (N)."""
-        theta = self._true_angles()
-        torques = F.motor_to_torques(self.motor if motor is None else motor)
-        return tip_force(self.kinematics.jacobian(theta, self.stylus.position), torques)
+    @property
+    def calibrated(self) -> bool:
+        return all(self.homed)
+
+    def check(self, generation: int) -> None:
+        """USBError(ENODEV) for a handle opened before the cable was pulled, or none plugged."""
+        if not self.plugged or generation != self.generation:
+            raise usb.core.USBError("No such device", errno=errno.ENODEV)
 
     # -- FTDI control requests --------------------------------------------------------
-    def control(self, request: int, value: int, index: int) -> None:
+    def control(self, generation: int, request: int, value: int, index: int) -> None:
         with self.lock:
-            if request == SIO_RESET and value in (PURGE_RX, PURGE_TX):
-                if value == PURGE_RX:
-                    self.host_in.clear()
-                else:
-                    self.out.clear()
-            elif request == SIO_SET_LATENCY_TIMER:
+            self.check(generation)
+            if request == 0 and value == 1:  # libftdi's "rx": what waits for the host
+                self.out.clear()
+            elif request == 0 and value == 2:
+                self.pending.clear()
+            elif request == 9:
                 self.latency_ms = value & 0xFF
-            elif request == SIO_SET_BAUD_RATE:
+            elif request == 3:
                 self.divisor = value | (index << 16)
-                self._baud_changed()
-            elif request == SIO_MODEM_CTRL:
-                if value & 0x0100:
-                    was = self.dtr
-                    self.dtr = bool(value & 0x01)
-                    if self.dtr and not was and not self.running:  # DTR edge resets the loader
-                        self.loader_state = "reset"
-                        self.loaded.clear()
-                if value & 0x0200:
-                    self.rts = bool(value & 0x02)
+                if self.divisor == DIVISOR_NORMAL and self.loader == "loading":
+                    self.running = self.loaded == self.expected_firmware
+                    self.loader = "idle"
+                elif self.divisor == DIVISOR_LOADER and self.loader == "probed":
+                    self.loader = "handshake"
+            elif request == 1 and value & 0x0100:
+                rising = bool(value & 0x01) and not self.dtr
+                self.dtr = bool(value & 0x01)
+                if rising and not self.running:  # DTR resets the microcontroller into its loader
+                    self.loader, self.probes_seen = "reset", 0
+                    self.loaded.clear()
 
-    def _baud_changed(self) -> None:
-        if self.running:
-            return
-        if self.divisor == F.NORMAL_DIVISOR and self.loader_state == "loading":
-            if bytes(self.loaded) == self.expected_firmware:
-                self.running = True  # the firmware starts; its encoders count from zero
-                self.first_boot = self.first_boot or time.monotonic()
-                self.count_offset = self._true_counts()
-                self._last_absolute = self.count_offset.copy()
-            self.loader_state = "idle"
-        elif self.divisor == F.LOADER_DIVISOR and self.loader_state == "probed":
-            self.loader_state = "handshake"
-
-    # -- bulk OUT ---------------------------------------------------------------------
-    def host_write(self, data: bytes) -> None:
+    # -- bytes from the host ----------------------------------------------------------
+    def host_write(self, generation: int, data: bytes) -> None:
         with self.lock:
+            self.check(generation)
             if not self.running:
                 self._loader_bytes(bytes(data))
                 return
-            self.host_in += data
-            while len(self.host_in) >= F.FRAME_SIZE:
-                chunk = bytes(self.host_in[:F.FRAME_SIZE])
-                del self.host_in[:F.FRAME_SIZE]
-                self._frame(chunk)
+            self.pending += data
+            self._serve()
 
     def _loader_bytes(self, data: bytes) -> None:
-        if self.loader_state == "reset" and self.divisor == DIVISOR_9600 and data == F.LOADER_PROBE:
-            self.out += F.LOADER_REPLY
-            self.loader_state = "probed"
-        elif self.loader_state == "handshake" and data == F.LOADER_HANDSHAKE:
+        if self.loader == "reset" and self.divisor == DIVISOR_9600 and data == PROBE:
+            self.probes_seen += 1
+            if not self.loader_silent and self.probes_seen > self.probes_ignored:
+                self.out += MACOS_REPLY if self.macos else LINUX_REPLY
+                self.loader = "probed"
+        elif self.loader == "handshake" and self.divisor == DIVISOR_LOADER and data == b"A":
             self.out += data
-            self.loader_state = "loading"
+            self.loader = "loading"
             self.upload_attempts += 1
-            self._echoed = 0
-        elif self.loader_state == "loading":
-            self.loaded += data
+        elif self.loader == "loading" and self.divisor == DIVISOR_LOADER:
             echo = bytearray(data)
-            if self.upload_attempts in self.corrupt_echo_attempts and self._echoed == 0:
-                echo[0] ^= 0xFF  # a flaky link: one bad echo byte
-            self._echoed += 1
+            if self.upload_attempts in self.corrupt_echo_attempts and not self.loaded:
+                echo[0] ^= 0xFF  # a flaky link: one bad byte in the first echo
+            self.loaded += data
             self.out += echo
-        # anything else (frames sent to a loader, wrong baud) is ignored, as a loader would
+        # anything else (frames sent to the loader, a wrong rate) is lost on a loader
 
-    def _frame(self, chunk: bytes) -> None:
-        try:
-            motor, flags = F.decode_frame(chunk)
-        except F.FrameError:
-            self.host_bad_frames += 1
+    def _serve(self) -> None:
+        """Answer every complete command, unless stalled or hung."""
+        if self.hung or time.monotonic() < self.silent_until:
             return
-        self.motor, self.flags = motor, flags
-        self.last_motor = motor
-        self.homing = bool(flags & F.HOMING_MODE)
-        force = self.motor_force()
-        self.last_force_n = force  # what the motors produce at the pose the frame arrived in
-        self.max_command_force_n = max(self.max_command_force_n, float(np.linalg.norm(force)))
+        while len(self.pending) >= 16:
+            command = bytes(self.pending[:16])
+            del self.pending[:16]
+            self._command(command)
+
+    def _command(self, frame: bytes) -> None:
+        nibbles = [b - 0x41 for b in frame[1:15]]
+        if (self.divisor != DIVISOR_NORMAL or frame[0] != 0x3C or frame[15] != 0x3E
+                or any(not 0 <= n <= 15 for n in nibbles)):
+            self.refused += 1
+            return
+        motor = []
+        for i in range(3):
+            u = sum(nibbles[4 * i + k] << (4 * k) for k in range(4))
+            motor.append(u - 0x10000 if u >= 0x8000 else u)
+        if any(abs(m) > COMMAND_LIMIT for m in motor):
+            self.refused += 1
+            motor = [0, 0, 0]
+        flags = nibbles[12]
+        self.leds, self.homing, self.motor = flags & 0xE, bool(flags & HOMING), tuple(motor)
+        if not self.homing and any(self.homed):
+            self.homing_losses += 1
+            self.homed = [False, False, False]
+        force = mech.grip_force(self.grip_m, self.motor)
+        self.samples.append(Sample(time.monotonic_ns(), self.motor, force, self.stylus.position.copy()))
         self.stylus.advance(force)
-        absolute = self._true_counts()
-        if self.homing:  # passing the index mark (absolute count 0, thigh at 35°) homes an axis
+        self._reply()
+
+    def _reply(self) -> None:
+        angles = mech.thigh_angles(self.grip_m)
+        if self.homing:
             for i in range(3):
-                if not self.homed[i] and np.sign(absolute[i]) != np.sign(self._last_absolute[i]):
-                    self.homed[i] = True
-                    self.count_offset[i] = 0
-        self._last_absolute = absolute
-        counts = absolute - self.count_offset
-        status = (self.buttons & 0xF) | (sum(1 << i for i in range(3) if self.homed[i]) << F.HOMED_SHIFT)
+                crossed = (angles[i] - mech.INDEX_ANGLE) * (self._last_angles[i] - mech.INDEX_ANGLE) <= 0
+                if not self.homed[i] and crossed:
+                    self.homed[i], self.offset_counts[i] = True, 0.0
+        self._last_angles = angles
+        counts = np.round((angles - mech.INDEX_ANGLE) / mech.RAD_PER_COUNT - self.offset_counts).astype(int)
+        status = (self.buttons & 0xF) | sum(1 << (4 + i) for i in range(3) if self.homed[i])
+        body = [((int(c) & 0xFFFF) >> (4 * k)) & 0xF for c in counts for k in range(4)] + [status, 0]
         for junk in self.inject_before_reply:
             self.out += junk
         self.inject_before_reply = []
-        self.out += F.encode_frame([int(c) for c in counts], status)
-        self.frames_answered += 1
+        self.out += bytes([0x3C, *(b + 0x41 for b in body), 0x3E])
+        self.replies += 1
 
-    # -- bulk IN ----------------------------------------------------------------------
-    def host_read(self, size: int, timeout_ms: int) -> bytes:
-        packet = self._packet(size)
-        if packet is None:
-            # nothing queued: the chip answers with a status-only packet when its latency
-            # timer (or the host's timeout) expires
-            time.sleep(min(max(self.latency_ms, 1), max(timeout_ms, 1)) / 1000.0)
-            packet = self._packet(size)
-        return packet if packet is not None else MODEM_STATUS
-
-    def _packet(self, size: int) -> bytes | None:
-        plugged = self.plugged
-        with self.lock:
-            if not plugged:
-                raise usb.core.USBError("No such device", errno=errno.ENODEV)
-            if not self.out:
-                return None
-            n = min(size - STATUS_BYTES, len(self.out))
-            data = bytes(self.out[:n])
-            del self.out[:n]
-            return MODEM_STATUS + data
+    # -- bytes to the host ------------------------------------------------------------
+    def host_read(self, generation: int, size: int, timeout_ms: int) -> bytes:
+        """One IN packet: at once when a full one waits, else when the latency timer runs out."""
+        deadline = time.monotonic() + min(max(self.latency_ms, 1), max(timeout_ms, 1)) / 1000.0
+        while True:
+            with self.lock:
+                self.check(generation)
+                self._serve()  # a stall that ended answers what waited
+                if len(self.out) >= FULL_PACKET or time.monotonic() >= deadline:
+                    n = min(size - len(MODEM_STATUS), len(self.out))
+                    data = bytes(self.out[:n])
+                    del self.out[:n]
+                    return MODEM_STATUS + data
+            time.sleep(min(0.0005, max(deadline - time.monotonic(), 0.0)))
 
 
 @dataclass
@@ -246,23 +260,21 @@ class _Descriptor:
 
 
 class EmulatedUsbBackend(usb.backend.IBackend):
-    """pyusb's backend interface over one FalconHardware."""
+    """pyusb's backend interface over one FalconHardware (or its remote proxy)."""
 
-    def __init__(self, hardware: FalconHardware):
+    def __init__(self, hardware):
         super().__init__()
         self.hw = hardware
-        self.open_handles = 0
         self.access_denied = False  # as libusb answers without a udev rule
-        self.report_path = None  # write_report() here on every close
 
     def enumerate_devices(self):
         if self.hw.plugged:
-            yield self.hw
+            yield 0
 
     def get_device_descriptor(self, dev):
         return _Descriptor(dict(
             bLength=18, bDescriptorType=1, bcdUSB=0x0200, bDeviceClass=0, bDeviceSubClass=0, bDeviceProtocol=0,
-            bMaxPacketSize0=8, idVendor=F.VENDOR_ID, idProduct=F.PRODUCT_ID, bcdDevice=0x0400, iManufacturer=0,
+            bMaxPacketSize0=8, idVendor=VENDOR_ID, idProduct=PRODUCT_ID, bcdDevice=0x0400, iManufacturer=0,
             iProduct=0, iSerialNumber=0, bNumConfigurations=1, address=5, bus=1, port_number=2, port_numbers=(2,),
             speed=2))
 
@@ -277,110 +289,169 @@ class EmulatedUsbBackend(usb.backend.IBackend):
                                 bInterfaceProtocol=0xFF, iInterface=0, extra_descriptors=[]))
 
     def get_endpoint_descriptor(self, dev, ep, intf, alt, config):
-        address = (F.EP_IN, F.EP_OUT)[ep]
-        return _Descriptor(dict(bLength=7, bDescriptorType=5, bEndpointAddress=address, bmAttributes=0x02,
-                                wMaxPacketSize=64, bInterval=0, bRefresh=0, bSynchAddress=0, extra_descriptors=[]))
-
-    def _check(self, handle):
-        if not self.hw.plugged or handle["generation"] != self.hw.generation:
-            raise usb.core.USBError("No such device", errno=errno.ENODEV)
+        return _Descriptor(dict(bLength=7, bDescriptorType=5, bEndpointAddress=(EP_IN, EP_OUT)[ep],
+                                bmAttributes=0x02, wMaxPacketSize=64, bInterval=0, bRefresh=0, bSynchAddress=0,
+                                extra_descriptors=[]))
 
     def open_device(self, dev):
-        if not self.hw.plugged:
-            raise usb.core.USBError("No such device", errno=errno.ENODEV)
+        generation = self.hw.generation
+        self.hw.check(generation)
         if self.access_denied:
             raise usb.core.USBError("Access denied (insufficient permissions)", errno=errno.EACCES)
-        self.open_handles += 1
-        return {"generation": self.hw.generation}
+        return generation
 
     def close_device(self, dev_handle):
-        self.open_handles -= 1
-        if self.report_path:
-            self.write_report()
-
-    def write_report(self) -> None:
-        """What the device saw, for tests whose driver runs in another process (the daemon)."""
-        hw = self.hw
-        report = {"frames_answered": hw.frames_answered, "max_force_n": hw.max_command_force_n,
-                  "last_motor": list(hw.last_motor), "homed": list(hw.homed), "running": hw.running,
-                  "upload_attempts": hw.upload_attempts, "generation": hw.generation}
-        with open(self.report_path, "w") as f:
-            json.dump(report, f)
+        pass
 
     def set_configuration(self, dev_handle, config_value):
-        self._check(dev_handle)
+        self.hw.check(dev_handle)
 
     def get_configuration(self, dev_handle):
-        self._check(dev_handle)
+        self.hw.check(dev_handle)
         return 1
 
     def claim_interface(self, dev_handle, intf):
-        self._check(dev_handle)
+        self.hw.check(dev_handle)
 
     def release_interface(self, dev_handle, intf):
-        self._check(dev_handle)
+        self.hw.check(dev_handle)
 
     def is_kernel_driver_active(self, dev_handle, intf):
         return False
 
     def ctrl_transfer(self, dev_handle, bmRequestType, bRequest, wValue, wIndex, data, timeout):
-        self._check(dev_handle)
         if bmRequestType != 0x40:
             raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
-        self.hw.control(bRequest, wValue, wIndex)
+        self.hw.control(dev_handle, bRequest, wValue, wIndex)
         return 0
 
     def bulk_write(self, dev_handle, ep, intf, data, timeout):
-        self._check(dev_handle)
-        if ep != F.EP_OUT:
-            raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
-        self.hw.host_write(bytes(data))
+        self.hw.host_write(dev_handle, bytes(data))
         return len(data)
 
     def bulk_read(self, dev_handle, ep, intf, buff, timeout):
-        self._check(dev_handle)
-        if ep != F.EP_IN:
-            raise usb.core.USBError("Pipe error", errno=errno.EPIPE)
-        data = self.hw.host_read(len(buff), timeout)
+        data = self.hw.host_read(dev_handle, len(buff), timeout)
         buff[:len(data)] = array.array("B", data)
         return len(data)
 
 
-def backend_from_environment():
-    """Factory for SASPROBE_USB_BACKEND in subprocess tests (the CLI, the daemon).
+# -- a Falcon for a driver in another process ---------------------------------------------
 
-    SASPROBE_FALCON_EMU_FIRMWARE names the image the emulated loader accepts. The user's
-    hand homes the Falcon whenever its LED is red (sweeping the grip through the index
-    marks), and otherwise holds it at `SASPROBE_FALCON_EMU_HOLD` ("x,y,z" mm, default the
-    centre). SASPROBE_FALCON_EMU_UNPLUGGED=1 starts with no Falcon attached;
-    SASPROBE_FALCON_EMU_PULL="AFTER,FOR" pulls the cable AFTER seconds from the first
-    boot for FOR seconds; SASPROBE_FALCON_EMU_REPORT names a JSON file the emulator
-    writes what it saw into whenever the driver closes it.
-    """
-    with open(os.environ["SASPROBE_FALCON_EMU_FIRMWARE"], "rb") as f:
-        firmware = f.read()
-    hold = tuple(float(v) for v in os.environ.get("SASPROBE_FALCON_EMU_HOLD", "0,0,0").split(","))
-    hand = LedWatchingHand(hold)
-    hardware = FalconHardware(firmware, hand=hand)
-    hand.hardware = hardware
-    if os.environ.get("SASPROBE_FALCON_EMU_UNPLUGGED") == "1":
-        hardware.unplug()
-    if os.environ.get("SASPROBE_FALCON_EMU_PULL"):
-        after, out_for = (float(v) for v in os.environ["SASPROBE_FALCON_EMU_PULL"].split(","))
-        hardware.cable_schedule = (after, out_for)
-    backend = EmulatedUsbBackend(hardware)
-    backend.report_path = os.environ.get("SASPROBE_FALCON_EMU_REPORT")
-    return backend
+AUTHKEY = b"falcon-emulator"
+REMOTE_CALLS = {"check", "control", "host_write", "host_read", "plugged", "generation"}
 
 
-class LedWatchingHand:
-    """A user who homes the Falcon while its LED is red, then holds the grip still."""
+def _serve_connection(hardware: FalconHardware, conn) -> None:
+    with conn:
+        while True:
+            try:
+                name, args = conn.recv()
+            except (EOFError, OSError):
+                return
+            try:
+                value = getattr(hardware, name) if name in REMOTE_CALLS else None
+                conn.send(("ok", value(*args) if callable(value) else value))
+            except usb.core.USBError as exc:
+                conn.send(("usb", (exc.strerror, exc.errno)))
 
-    def __init__(self, hold=(0.0, 0.0, 0.0)):
-        self.hold = hold
+
+class RemoteHardware:
+    """Stands in for FalconHardware in the driver's process: every call goes over the socket."""
+
+    def __init__(self, address: str):
+        self.address = address
+        self._local = threading.local()  # one connection per thread: reader and writer block apart
+
+    def _call(self, name, *args):
+        conn = getattr(self._local, "conn", None)
+        if conn is None:
+            conn = self._local.conn = Client(self.address, family="AF_UNIX", authkey=AUTHKEY)
+        conn.send((name, args))
+        kind, value = conn.recv()
+        if kind == "usb":
+            raise usb.core.USBError(value[0], errno=value[1])
+        return value
+
+    plugged = property(lambda self: self._call("plugged"))
+    generation = property(lambda self: self._call("generation"))
+
+    def check(self, *args):
+        return self._call("check", *args)
+
+    def control(self, *args):
+        return self._call("control", *args)
+
+    def host_write(self, *args):
+        return self._call("host_write", *args)
+
+    def host_read(self, *args):
+        return self._call("host_read", *args)
+
+
+class Hand:
+    """Where the user holds the grip (device frame, mm): `target`, or, while the LED is red
+    and `homes` is set, libnifalcon's homing gesture (CalibrateDevice: "move the grip all
+    the way out, then push it straight in"): out to +35 mm and back once a second."""
+
+    def __init__(self, target=(0.0, 0.0, 0.0), homes: bool = True):
+        self.target, self.homes = tuple(target), homes
         self.hardware: FalconHardware | None = None
 
     def __call__(self, t: float):
-        if self.hardware is not None and self.hardware.flags & F.LED_RED:
-            return (0.0, 0.0, 35.0 * np.sin(np.pi * t) ** 2)  # every thigh passes its index at 35°
-        return self.hold
+        if self.homes and self.hardware is not None and self.hardware.leds & LED_RED:
+            return (0.0, 0.0, 35.0 * math.sin(math.pi * t) ** 2)
+        return self.target
+
+
+class LaunchedFalcon:
+    """An emulated Falcon served to another process: `device_spec`, `env`, `hand`, `close()`."""
+
+    def __init__(self, image_size: int = 1500, hand_target=(0.0, 0.0, 0.0), **options):
+        self.folder = tempfile.TemporaryDirectory(prefix="falcon-emu")
+        firmware = os.path.join(self.folder.name, "falcon.bin")
+        image = os.urandom(image_size)
+        with open(firmware, "wb") as f:
+            f.write(image)
+        self.hand = Hand(hand_target)
+        self.hardware = FalconHardware(image, hand=self.hand, **options)
+        self.hand.hardware = self.hardware
+        address = os.path.join(self.folder.name, "usb")
+        self._listener = Listener(address, family="AF_UNIX", authkey=AUTHKEY)
+        threading.Thread(target=self._accept, daemon=True).start()
+        self.device_spec = f"falcon:{firmware}"
+        self.env = {"SASPROBE_USB_BACKEND": "tests.emulators.falcon_usb:backend_from_environment",
+                    "SASPROBE_FALCON_EMU_SOCKET": address}
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                conn = self._listener.accept()
+            except OSError:  # closed
+                return
+            threading.Thread(target=_serve_connection, args=(self.hardware, conn), daemon=True).start()
+
+    def close(self) -> None:
+        self._listener.close()
+        self.folder.cleanup()
+
+
+def launch(**options) -> LaunchedFalcon:
+    """A Falcon for a driver in a subprocess. Options: image_size, hand_target and those of
+    FalconHardware (hand_stiffness_n_per_mm, probes_ignored, macos, loader_silent, ...)."""
+    return LaunchedFalcon(**options)
+
+
+def backend_from_environment():
+    """SASPROBE_USB_BACKEND factory: the launched Falcon (SASPROBE_FALCON_EMU_SOCKET), or a
+    local one accepting the image in SASPROBE_FALCON_EMU_FIRMWARE, homed by a user who
+    sweeps it while the LED is red (SASPROBE_FALCON_EMU_UNPLUGGED=1: none attached)."""
+    if os.environ.get("SASPROBE_FALCON_EMU_SOCKET"):
+        return EmulatedUsbBackend(RemoteHardware(os.environ["SASPROBE_FALCON_EMU_SOCKET"]))
+    with open(os.environ["SASPROBE_FALCON_EMU_FIRMWARE"], "rb") as f:
+        image = f.read()
+    hand = Hand()
+    hardware = FalconHardware(image, hand=hand)
+    hand.hardware = hardware
+    if os.environ.get("SASPROBE_FALCON_EMU_UNPLUGGED") == "1":
+        hardware.unplug()
+    return EmulatedUsbBackend(hardware)
