@@ -8,7 +8,6 @@ for 1 kHz, so they assert what happened, never how fast.
 
 from __future__ import annotations
 
-import json
 import os
 import time
 
@@ -21,13 +20,10 @@ from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
 from tests.conftest import REPO_ROOT
 from tests.daemon_process import DaemonProcess
-from tests.emulators import libhd
+from tests.emulators import falcon_usb, libhd
 from tests.emulators.haply_serial import Haply2DIYEmulator, start_pose_mm
 from tests.emulators.physics import MovableHand
 from tests.emulators.woodenhaptics_serial import WoodenHapticsEmulator
-
-FALCON_BACKEND = "tests.emulators.falcon_usb:backend_from_environment"
-
 
 def poses_until(sub: Subscriber, condition, daemon: DaemonProcess, timeout_s: float = 60.0):
     """Poll poses until `condition(pose)` holds for one; AssertionError after the timeout."""
@@ -106,36 +102,80 @@ def test_daemon_session_on_the_emulated_serial_arm(tmp_path):
         emu.stop()
 
 
-def test_daemon_session_on_the_emulated_falcon(tmp_path, monkeypatch, emulators_importable):
-    firmware = tmp_path / "falcon.bin"
-    firmware.write_bytes(os.urandom(2000))
-    seen = tmp_path / "falcon-saw.json"
-    monkeypatch.setenv("SASPROBE_USB_BACKEND", FALCON_BACKEND)
-    monkeypatch.setenv("SASPROBE_FALCON_EMU_FIRMWARE", str(firmware))
-    monkeypatch.setenv("SASPROBE_FALCON_EMU_REPORT", str(seen))
-    monkeypatch.setenv("SASPROBE_FALCON_EMU_PULL", "8,1")  # the cable is out from 8 s to 9 s after boot
-    with DaemonProcess(device=f"falcon:{firmware}") as daemon:
-        assert daemon.ready["device"] == "falcon"
-        sub = Subscriber(daemon.pub)
-        poses_until(sub, pushing, daemon)  # homed by the user's sweep, then held in the molecule
-        faults = []
+def poses_for(sub: Subscriber, seconds: float) -> list:
+    poses, deadline = [], time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        poses += sub.poll(0.05)
+    return poses
 
-        def reconnected(pose) -> bool:  # the cable is pulled 8 s after boot and put back 1 s later
-            if pose.has(FLAG_FAULT):
-                faults.append(pose)
-            return "device reconnected" in daemon.stderr
 
-        back = poses_until(sub, reconnected, daemon)
-        assert faults and all(np.allclose(p.force_N, 0.0) for p in faults)
-        poses_until(sub, lambda p: pushing(p) and p.seq > back.seq, daemon)  # firmware again, homed again
-        rc, report = daemon.stop()
-        assert rc == 0, daemon.stderr
-        assert report["device_last_force_n"] == [0.0, 0.0, 0.0]
-    saw = json.loads(seen.read_text())
-    assert saw["upload_attempts"] == 2 and saw["generation"] == 1  # uploaded at start and after the pull
-    assert saw["homed"] == [True, True, True]
-    assert 0.05 < saw["max_force_n"] <= 8.0 + 0.01  # the motors pushed back, within the limit
-    assert saw["last_motor"] == [0, 0, 0]  # closing left the motors at zero
+def test_daemon_presses_the_emulated_falcon_into_the_molecule(monkeypatch, emulators_importable):
+    # the user homes the Falcon when its LED is red, then holds the grip at the workspace
+    # centre, inside the molecule, with a soft hand (0.1 N/mm) so the force stays moderate
+    emu = falcon_usb.launch(hand_stiffness_n_per_mm=0.1)
+    hw = emu.hardware
+    for name, value in emu.env.items():
+        monkeypatch.setenv(name, value)
+    try:
+        with DaemonProcess(device=emu.device_spec) as daemon:
+            assert daemon.ready["device"] == "falcon"
+            sub = Subscriber(daemon.pub)
+            poses_until(sub, pushing, daemon)
+            poses_for(sub, 2.0)  # the grip settles where the motors balance the hand
+            poses = [p for p in poses_for(sub, 0.5) if not p.has(FLAG_FAULT)]
+            t_first, t_last = poses[0].publish_t_ns, poses[-1].publish_t_ns
+            samples = [x for x in list(hw.samples) if t_first <= x.t_ns <= t_last]
+            written = np.mean([p.force_N for p in poses], axis=0)
+            exerted = np.mean([x.force_n for x in samples], axis=0)
+            assert len(poses) > 100 and len(samples) > 100
+            assert exerted @ written / np.linalg.norm(exerted) / np.linalg.norm(written) >= 0.99
+            assert np.linalg.norm(exerted) == pytest.approx(np.linalg.norm(written), rel=0.05)
+            # pushed back out: the grip sits off the hand's target along the force, as far
+            # as the hand's spring needs to balance it
+            off = np.mean([x.grip_mm for x in samples], axis=0) - np.asarray(emu.hand.target)
+            assert off @ exerted / np.linalg.norm(off) / np.linalg.norm(exerted) >= 0.98
+            assert np.linalg.norm(off) * 0.1 == pytest.approx(np.linalg.norm(exerted), rel=0.1)
+
+            hw.stall(0.2)  # the Falcon stops answering for 200 ms: zero force, then on by itself
+            stalled = poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon)
+            assert np.allclose(stalled.force_N, 0.0)
+            poses_until(sub, lambda p: pushing(p) and p.seq > stalled.seq, daemon)
+            assert hw.upload_attempts == 1 and "device reconnected" not in daemon.stderr
+
+            hw.unplug()  # pull the cable, put it back: a fresh Falcon, firmware and homing again
+            fault = poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon)
+            assert np.allclose(fault.force_N, 0.0)
+            hw.replug()
+            back = poses_until(sub, lambda p: "device reconnected" in daemon.stderr, daemon)
+            poses_until(sub, lambda p: pushing(p) and p.seq > back.seq, daemon)
+            assert hw.upload_attempts == 2 and hw.refused == 0 and hw.homing_losses == 0
+            rc, report = daemon.stop()
+            assert rc == 0, daemon.stderr
+            assert report["device_last_force_n"] == [0.0, 0.0, 0.0]
+        assert hw.motor == (0, 0, 0)  # closing left the motors at zero
+        assert max(abs(m) for x in hw.samples for m in x.motor) <= 4096
+    finally:
+        emu.close()
+
+
+def test_daemon_survives_a_falcon_that_stops_answering(monkeypatch, emulators_importable):
+    emu = falcon_usb.launch()
+    for name, value in emu.env.items():
+        monkeypatch.setenv(name, value)
+    try:
+        with DaemonProcess(device=emu.device_spec) as daemon:
+            sub = Subscriber(daemon.pub)
+            poses_until(sub, pushing, daemon)
+            emu.hardware.hung = True
+            poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon)
+            silent = poses_for(sub, 1.0)  # the loop goes on: poses keep coming, all without force
+            assert len(silent) > 100 and all(p.has(FLAG_FAULT) and np.allclose(p.force_N, 0.0) for p in silent)
+            assert emu.hardware.upload_attempts == 1  # no firmware pushed into a running Falcon
+            rc, _report = daemon.stop()
+            assert rc == 0, daemon.stderr
+            assert "the Falcon has not answered" in daemon.stderr
+    finally:
+        emu.close()
 
 
 def test_daemon_session_on_the_emulated_haply(tmp_path):

@@ -6,12 +6,16 @@ frames sent, a reply expected; up to ten kicks). If not, the image is uploaded
 (`loader`), up to ten attempts with the USB reopened between them as FalconCLIBase
 does, except that a loader that never answered its 100 probes is reported at once.
 
-Running follows FalconFirmwareNovintSDK::runIOLoop: one frame in flight; the next goes
-out once its reply is in. The reply is read by the link's reader thread, so `read()`
-only takes what has arrived and `write_force()` only hands a frame over: neither waits
-on USB. A frame unanswered for RESEND_AFTER_S is sent again (libnifalcon "kicks out
-another write"); a state older than `reply_timeout_s` is a DeviceFault (zero force),
-and the next reply ends the fault, so a stalled Falcon recovers without a reconnect.
+Running follows FalconFirmwareNovintSDK::runIOLoop: each frame is answered by one reply,
+and no new frame goes out while earlier ones are unanswered. libnifalcon's free-running
+loop keeps one frame in flight; ours is paced at 1 kHz and the FTDI may hold a reply
+for its 1 ms latency timer, so we allow two, which keeps a command going out every
+tick. Replies are read by the link's reader thread: `read()` only takes what has
+arrived and `write_force()` only hands a frame over, neither waits on USB. Frames
+unanswered for RESEND_AFTER_S are taken as lost and a fresh one is sent (libnifalcon
+"kicks out another write"); a state older than `reply_timeout_s` is a DeviceFault
+(zero force), and the next reply ends the fault, so a stalled Falcon recovers without
+a reconnect, and a burst of late replies leaves only the newest.
 
 Homing (FalconFirmware.h, FalconCLIBase::calibrateDevice): the homing-mode bit goes in
 every frame, from open to close, since the firmware forgets its homing in a frame
@@ -21,6 +25,7 @@ until then no force is sent.
 
 from __future__ import annotations
 
+import collections
 import logging
 import os
 import time
@@ -42,6 +47,7 @@ log = logging.getLogger("sasprobe.devices.falcon")
 UPLOAD_ATTEMPTS = 10  # FalconCLIBase::loadFirmware
 FIRMWARE_KICKS = 10  # FalconFirmware::isFirmwareLoaded: ten rounds of a hundred IO loops
 FIRMWARE_KICK_WAIT_S = 0.02
+MAX_IN_FLIGHT = 2
 RESEND_AFTER_S = 0.005
 REPLY_TIMEOUT_S = 0.02
 
@@ -63,7 +69,7 @@ class FalconDevice(HardwareDevice):
         self._homed = 0
         self._position_m = M.WORKSPACE_CENTRE_M.copy()
         self._state: DeviceState | None = None
-        self._owed_since_ns: int | None = None  # when the frame still owed a reply went out
+        self._in_flight: collections.deque[int] = collections.deque()  # send times of unanswered frames
         self.firmware_uploads = 0
         self.upload_retries = 0
         self.resent_frames = 0
@@ -144,10 +150,10 @@ class FalconDevice(HardwareDevice):
 
     def write_force(self, force_n) -> None:
         self.force = clamp_force(force_n, M.FALCON_LIMITS.max_force_n)
-        owed = self._owed_since_ns
-        if owed is None:
+        if len(self._in_flight) < MAX_IN_FLIGHT:
             self._send_frame()
-        elif time.monotonic_ns() - owed > RESEND_AFTER_S * 1e9:
+        elif time.monotonic_ns() - self._in_flight[0] > RESEND_AFTER_S * 1e9:
+            self._in_flight.clear()  # taken as lost: send afresh
             self.resent_frames += 1
             self._send_frame()
 
@@ -165,7 +171,7 @@ class FalconDevice(HardwareDevice):
         self.motor = self.motor_command(self.force)
         leds = P.LED_GREEN if self.calibrated else P.LED_RED
         self._link.send(P.encode_command(self.motor, leds, homing=True))
-        self._owed_since_ns = time.monotonic_ns()
+        self._in_flight.append(time.monotonic_ns())
 
     def _last_reply_ns(self) -> int:
         return self._state.t_ns if self._state is not None else 0
@@ -179,9 +185,10 @@ class FalconDevice(HardwareDevice):
         newest = None
         while (reply := self._frames.next_reply()) is not None:
             newest = reply
+            if self._in_flight:
+                self._in_flight.popleft()
         if newest is None:
             return False
-        self._owed_since_ns = None
         self._homed = newest.homed
         self._position_m = self._locate(K.thigh_angles(newest.encoders))
         position_mm = K.to_device_mm(self._position_m)
@@ -206,7 +213,8 @@ class FalconDevice(HardwareDevice):
     def _firmware_answers(self) -> bool:
         """Frames out, a reply back within ten kicks: firmware is running (link left running)."""
         self._frames.clear()
-        self._state, self._owed_since_ns = None, None
+        self._state = None
+        self._in_flight.clear()
         self.force = np.zeros(3)
         self._link.start()
         for _ in range(FIRMWARE_KICKS):
@@ -259,7 +267,8 @@ class FalconDevice(HardwareDevice):
         self._link.stop()
         self._usb.close()
         self._frames.clear()
-        self._state, self._owed_since_ns = None, None
+        self._state = None
+        self._in_flight.clear()
 
 
 def create(argument: str | None = None, **options) -> FalconDevice:
