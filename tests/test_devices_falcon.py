@@ -170,25 +170,25 @@ def test_force_to_motor_commands_is_getforces(position_mm, force_n):
     p = CENTRE + np.asarray(position_mm) / 1000.0
     torque = stamper_jacobian(p).T @ np.asarray(force_n, dtype=float)
     expected = [int(-10000.0 * t) for t in torque]  # getForces: -(torque * 10000), as int
-    assert K.motor_commands(p, force_n) == expected
+    assert K.motor_commands(K.jacobian(p), force_n) == expected
 
 
 def test_motor_signs_match_the_traced_novint_packets():
     # util/translate_packet.py: commands the Novint driver sent for +x, -x and -z
-    centre = K.from_device_mm([0, 0, 0])
-    assert np.sign(K.motor_commands(centre, [1.0, 0, 0])).tolist() == [-1, 1, -1]  # [-65, 136, -159]
-    assert np.sign(K.motor_commands(centre, [-5.0, 0, 0])).tolist() == [1, -1, 1]  # [399, -3087, 1135]
-    assert np.sign(K.motor_commands(centre, [0, 0, -5.0])).tolist() == [1, 1, 1]  # [661, 731, 766]
+    j_centre = K.jacobian(K.from_device_mm([0, 0, 0]))
+    assert np.sign(K.motor_commands(j_centre, [1.0, 0, 0])).tolist() == [-1, 1, -1]  # [-65, 136, -159]
+    assert np.sign(K.motor_commands(j_centre, [-5.0, 0, 0])).tolist() == [1, -1, 1]  # [399, -3087, 1135]
+    assert np.sign(K.motor_commands(j_centre, [0, 0, -5.0])).tolist() == [1, 1, 1]  # [661, 731, 766]
 
 
 def test_commands_beyond_4096_are_scaled_together():
     p = K.from_device_mm([10, 20, -10])
     force = np.array([30.0, -12.0, 20.0])
     unlimited = -10000.0 * (stamper_jacobian(p).T @ force)
-    motor = K.motor_commands(p, force)
+    motor = K.motor_commands(K.jacobian(p), force)
     assert max(abs(m) for m in motor) <= 4096
     np.testing.assert_allclose(motor, unlimited * 4096 / np.max(np.abs(unlimited)), atol=1.0)
-    assert K.motor_commands(p, [math.nan, 0, 0]) == [0, 0, 0]
+    assert K.motor_commands(K.jacobian(p), [math.nan, 0, 0]) == [0, 0, 0]
 
 
 def test_the_declared_workspace_is_reachable_and_well_conditioned():

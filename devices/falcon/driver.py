@@ -68,6 +68,7 @@ class FalconDevice(HardwareDevice):
         self.motor = [0, 0, 0]  # the motor commands of the last frame sent
         self._homed = 0
         self._position_m = M.WORKSPACE_CENTRE_M.copy()
+        self._jacobian: np.ndarray | None = None  # ∂p/∂θ1 there, once per reply
         self._state: DeviceState | None = None
         self._in_flight: collections.deque[int] = collections.deque()  # send times of unanswered frames
         self.firmware_uploads = 0
@@ -159,12 +160,9 @@ class FalconDevice(HardwareDevice):
 
     def motor_command(self, force_n) -> list[int]:
         """The motor commands rendering `force_n` at the current pose (zero until homed)."""
-        if not self.calibrated:
+        if not self.calibrated or self._jacobian is None:
             return [0, 0, 0]
-        try:
-            return K.motor_commands(self._position_m, clamp_force(force_n, M.FALCON_LIMITS.max_force_n))
-        except (K.KinematicsError, np.linalg.LinAlgError):
-            return [0, 0, 0]
+        return K.motor_commands(self._jacobian, clamp_force(force_n, M.FALCON_LIMITS.max_force_n))
 
     # -- frames ----------------------------------------------------------------------
     def _send_frame(self) -> None:
@@ -191,6 +189,10 @@ class FalconDevice(HardwareDevice):
             return False
         self._homed = newest.homed
         self._position_m = self._locate(K.thigh_angles(newest.encoders))
+        try:
+            self._jacobian = K.jacobian(self._position_m)
+        except K.KinematicsError:
+            self._jacobian = None
         position_mm = K.to_device_mm(self._position_m)
         self._state = DeviceState(
             t_ns=arrived_ns, position_mm=position_mm,
@@ -203,7 +205,7 @@ class FalconDevice(HardwareDevice):
         for guess in (self._position_m, None):  # homing moves the encoders' origin: start afresh
             try:
                 return K.forward(theta, guess)
-            except (K.KinematicsError, np.linalg.LinAlgError):
+            except K.KinematicsError:
                 continue
         if self.calibrated:
             raise DeviceFault("the Falcon's encoders match no reachable position")

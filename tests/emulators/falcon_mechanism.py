@@ -46,26 +46,26 @@ def mechanism_m(device_mm) -> np.ndarray:
 
 
 def thigh_angles(p_m) -> np.ndarray:
-    """The three thigh angles θ1 (rad) with the grip at p (m)."""
-    p = np.asarray(p_m, dtype=float)
+    """The three thigh angles θ1 (rad) with the grip at p (m). Scalar math: it runs for
+    every command the emulated firmware answers."""
+    x, y, z = (float(v) for v in p_m)
     angles = []
     for phi in LEG_AZIMUTHS:
-        radial = np.array([math.cos(phi), math.sin(phi), 0.0])
-        along_axis = np.array([-math.sin(phi), math.cos(phi), 0.0])
-        joint = p + C * radial + F * along_axis - (R * radial + S * along_axis)  # from the leg base
-        h = joint @ along_axis
+        cos_phi, sin_phi = math.cos(phi), math.sin(phi)
+        # the shin joint relative to the leg base, in (radial, along the thigh's axis, z)
+        radial = cos_phi * x + sin_phi * y + C - R
+        h = -sin_phi * x + cos_phi * y + F - S
         if abs(h) >= B:
             raise Unreachable("the shin cannot reach")
         sweep = D + E + math.sqrt(B * B - h * h)
-        q = np.array([joint @ radial, joint[2]])  # the joint in the thigh's plane
-        dist = float(np.hypot(*q))
+        dist = math.hypot(radial, z)  # the joint in the thigh's plane: (radial, z)
         if not abs(A - sweep) < dist < A + sweep:
             raise Unreachable("the thigh cannot reach")
         along = (A * A - sweep * sweep + dist * dist) / (2.0 * dist)
         across = math.sqrt(A * A - along * along)
-        unit = q / dist
-        normal = np.array([-unit[1], unit[0]])
-        knee = max((along * unit + across * normal, along * unit - across * normal), key=lambda k: k[0])
+        ux, uz = radial / dist, z / dist
+        knees = [(along * ux - side * across * uz, along * uz + side * across * ux) for side in (1.0, -1.0)]
+        knee = max(knees, key=lambda k: k[0])  # knee-out: the one farther from the device's axis
         angles.append(math.atan2(knee[1], knee[0]))
     return np.array(angles)
 
