@@ -33,7 +33,7 @@ SIO_SET_LATENCY_TIMER = 9
 
 PURGE_RX, PURGE_TX = 1, 2
 DTR_HIGH, DTR_LOW = 0x0101, 0x0100  # value | mask << 8
-RTS_HIGH, RTS_LOW = 0x0202, 0x0200
+RTS_LOW = 0x0200
 DATA_8N1 = 0x0008  # 8 data bits, no parity, one stop bit
 
 DIVISOR_9600 = 0x4138  # the loader's probe rate

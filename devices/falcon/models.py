@@ -47,7 +47,7 @@ MOTOR_COMMAND_LIMIT = 4096
 # The device frame is libnifalcon's (x right, y up, z toward the user, seen from the
 # front) moved to the workspace centre its examples use (z = 0.11 m: FalconSphereTest.cpp,
 # barrow_mechanics/main.cpp) and scaled to millimetres. getWorkspaceOrigin() says
-# z = 0.150 m, which is near the outer end of the reach, so we follow the examples.
+# z = 0.150 m, 33 mm from the outer end of the model's reach (0.183 m): we follow the examples.
 WORKSPACE_CENTRE_M = np.array([0.0, 0.0, 0.110])
 
 FALCON_LIMITS = DeviceLimits(

@@ -21,7 +21,7 @@ FRAME_START, FRAME_END = ord("<"), ord(">")
 BYTE_OFFSET = 0x41  # 'A'
 
 HOMING_MODE = 0x01
-LED_GREEN, LED_BLUE, LED_RED = 0x2, 0x4, 0x8
+LED_GREEN, LED_RED = 0x2, 0x8  # (blue is 0x4)
 HOMED_SHIFT = 4
 ALL_HOMED = 0b111
 STATUS_MAX = 0x7F  # three homed bits above four button bits

@@ -49,7 +49,7 @@ MODEM_STATUS = b"\x01\x60"  # CTS/DSR idle, transmitter empty
 FULL_PACKET = 62
 PROBE, LINUX_REPLY, MACOS_REPLY = b"\x0a\x43\x0d", b"\x0a\x44\x2c\x0d", b"\x00\x0a\x44\x2c\x0d"
 DIVISOR_9600, DIVISOR_LOADER, DIVISOR_NORMAL = 0x4138, 0x15, 0x2
-LED_GREEN, LED_BLUE, LED_RED, HOMING = 0x2, 0x4, 0x8, 0x1
+LED_RED, HOMING = 0x8, 0x1
 COMMAND_LIMIT = 4096
 
 
@@ -121,10 +121,6 @@ class FalconHardware:
 
     def _absolute_counts(self) -> np.ndarray:
         return (mech.thigh_angles(self.grip_m) - mech.INDEX_ANGLE) / mech.RAD_PER_COUNT
-
-    @property
-    def calibrated(self) -> bool:
-        return all(self.homed)
 
     def check(self, generation: int) -> None:
         """USBError(ENODEV) for a handle opened before the cable was pulled, or none plugged."""
@@ -390,8 +386,9 @@ class RemoteHardware:
 
 class Hand:
     """Where the user holds the grip (device frame, mm): `target`, or, while the LED is red
-    and `homes` is set, libnifalcon's homing gesture (CalibrateDevice: "move the grip all
-    the way out, then push it straight in"): out to +35 mm and back once a second."""
+    and `homes` is set, the homing gesture libnifalcon asks for (FalconCLIBase::
+    calibrateDevice: "Move control all the way out then push straight all the way in"):
+    out to +35 mm and back once a second."""
 
     def __init__(self, target=(0.0, 0.0, 0.0), homes: bool = True):
         self.target, self.homes = tuple(target), homes
