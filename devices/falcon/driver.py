@@ -105,7 +105,7 @@ class FalconDevice(HardwareDevice):
                 if image is None:
                     raise DeviceOpenError(
                         "the Falcon has no firmware running: give the firmware file as falcon:PATH "
-                        "(the image from the Falcon SDK/driver package)")
+                        "(the image from the Falcon SDK/driver package, or libnifalcon's firmware/)")
                 self._load(image)
                 if not self._firmware_answers():
                     raise DeviceOpenError("the Falcon did not start after the firmware upload: "
@@ -135,18 +135,20 @@ class FalconDevice(HardwareDevice):
             self._send_frame()
             age_ms = (time.monotonic_ns() - self._last_reply_ns()) / 1e6
             raise DeviceFault(f"device still unavailable: the Falcon has not answered for {age_ms:.0f} ms "
-                              "(its USB link is up)")
+                              "although its USB link is up (unplug it and plug it back in if this lasts)")
         super().reconnect()
 
     def read(self) -> DeviceState:
-        if self._link.error is not None:
-            self.force = np.zeros(3)
-            raise DeviceFault(f"the Falcon's USB link failed: {self._link.error}")
-        self._poll()
-        age_ns = time.monotonic_ns() - self._last_reply_ns()
-        if self._state is None or age_ns > self.reply_timeout_ns:
-            self.force = np.zeros(3)  # what the kicks carry while it is silent
-            raise DeviceFault(f"the Falcon has not answered for {age_ns / 1e6:.0f} ms")
+        try:
+            if self._link.error is not None:
+                raise DeviceFault(f"the Falcon's USB link failed: {self._link.error}")
+            self._poll()
+            age_ns = time.monotonic_ns() - self._last_reply_ns()
+            if self._state is None or age_ns > self.reply_timeout_ns:
+                raise DeviceFault(f"the Falcon has not answered for {age_ns / 1e6:.0f} ms")
+        except DeviceFault:
+            self.force = np.zeros(3)  # what any frame carries until it answers again
+            raise
         return self._state
 
     def write_force(self, force_n) -> None:
