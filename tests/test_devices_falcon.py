@@ -1,6 +1,6 @@
 """Novint Falcon: the wire format and the Stamper kinematics against values computed here
 from libnifalcon's published equations and constants, then the driver in closed loop
-against the emulated Falcon (tests/emulators/falcon_usb.py, written from libnifalcon only).
+against the emulated Falcon (tests/emulators/falcon_*.py, written from libnifalcon only).
 
 libnifalcon = github.com/libnifalcon/libnifalcon at commit f7c727a.
 """
@@ -22,7 +22,8 @@ from sasprobe.devices.falcon import kinematics as K
 from sasprobe.devices.falcon import models as M
 from sasprobe.devices.falcon import protocol as P
 from tests.conftest import run_cli
-from tests.emulators.falcon_usb import EmulatedUsbBackend, FalconHardware, Hand, launch
+from tests.emulators.falcon_device import FalconHardware, Hand
+from tests.emulators.falcon_usb import EmulatedUsbBackend, launch
 
 # --- libnifalcon's published equations, written out here ------------------------------------
 
