@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from sasprobe.devices import falcon as F
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
-from tests.emulators import loop
+from tests import device_loop as loop
 from tests.emulators.falcon_usb import EmulatedUsbBackend, FalconHardware
 from tests.emulators.physics import MovableHand
 
