@@ -187,7 +187,8 @@ class HidTransport(Transport):
         try:
             dev.open_path(self.path)
         except (OSError, ValueError) as exc:
-            if self.name.startswith("/dev/") and os.path.exists(self.name) and not os.access(self.name, os.R_OK | os.W_OK):
+            if (self.name.startswith("/dev/") and os.path.exists(self.name)
+                    and not os.access(self.name, os.R_OK | os.W_OK)):
                 raise DeviceOpenError(permission_hint(self.name, group="plugdev")) from None
             raise DeviceOpenError(f"cannot open {self.label} at {self.name}: {exc} "
                                   f"(unplugged? no permission? {UDEV_HINT})") from None

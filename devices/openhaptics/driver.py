@@ -34,7 +34,8 @@ import time
 
 import numpy as np
 
-from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState
+from sasprobe.devices.base import (PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError,
+                                   DeviceState)
 from sasprobe.devices.openhaptics import hdapi
 from sasprobe.devices.openhaptics.hdapi import error_name
 from sasprobe.devices.support import HardwareDevice, clamp_force, quaternion_from_matrix

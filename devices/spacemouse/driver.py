@@ -23,7 +23,8 @@ import time
 
 import numpy as np
 
-from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState
+from sasprobe.devices.base import (PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError,
+                                   DeviceState)
 from sasprobe.devices.spacemouse import models, protocol
 from sasprobe.devices.support import HardwareDevice, quaternion_about, quaternion_multiply
 from sasprobe.devices.transports import HidTransport, load_hidapi
