@@ -72,14 +72,17 @@ def test_devices_lists_the_emulated_devices_it_was_shown(tmp_path, monkeypatch):
     assert "0403:cb48  Novint Falcon\n       --device falcon" in text.stdout
     for absent in ("CadMouse", "Keyboard", "hidraw6", "hidraw7", "hidraw8"):
         assert absent not in text.stdout
+    bus.close()
 
 
 def test_devices_without_any_device_says_none_found(tmp_path, monkeypatch):
     monkeypatch.setenv("SASPROBE_HID_API", "tests.emulators.hidapi_fake:module_from_environment")
-    monkeypatch.setenv("SASPROBE_HID_BUS", str(HidBus().directory))
+    bus = HidBus()
+    monkeypatch.setenv("SASPROBE_HID_BUS", str(bus.directory))
     monkeypatch.setenv("PYTHONPATH", str(REPO_ROOT))
     emulated_falcon(monkeypatch, tmp_path, unplugged=True)
     result = run_cli("devices", "--json")
+    bus.close()
     assert result.returncode == 0, result.stderr
     assert not [d for d in json.loads(result.stdout)["devices"] if d["transport"] in ("hid", "usb")]
 
@@ -88,9 +91,12 @@ def test_checking_a_cadmouse_is_refused_in_one_line(monkeypatch):
     emu = EmulatedSpaceMouse("CadMouse", path=b"/dev/hidraw7")
     for key, value in emu.env.items():
         monkeypatch.setenv(key, value)
-    one_line_error(run_cli("devices", "--check", "spacemouse:/dev/hidraw7"),
-                   "CadMouse (256f:c650) is not a 6-DoF device")
-    one_line_error(run_cli("devices", "--check", "spacemouse"), "no 3Dconnexion SpaceMouse found")
+    try:
+        one_line_error(run_cli("devices", "--check", "spacemouse:/dev/hidraw7"),
+                       "CadMouse (256f:c650) is not a 6-DoF device")
+        one_line_error(run_cli("devices", "--check", "spacemouse"), "no 3Dconnexion SpaceMouse found")
+    finally:
+        emu.close()
 
 
 def test_check_reads_an_emulated_spacemouse_end_to_end(monkeypatch):
@@ -98,6 +104,7 @@ def test_check_reads_an_emulated_spacemouse_end_to_end(monkeypatch):
     for key, value in emu.env.items():
         monkeypatch.setenv(key, value)
     result = run_cli("devices", "--check", emu.device_spec, "--seconds", "0.3", "--json")
+    emu.close()
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
     assert report["info"]["model"] == "SpaceMouse Pro" and report["faults"] == 0 and report["reads"] > 20
@@ -114,6 +121,7 @@ def test_discovery_reports_each_emulated_device_with_its_device_string(tmp_path)
     EmulatedSpaceMouse("CadMouse Pro", path=b"/dev/hidraw8", bus=bus)
     falcon = EmulatedUsbBackend(FalconHardware(b"fw"))
     found, notes = discover(comports=lambda: ports, hid_api=HidModule(bus.directory), usb_backend=falcon)
+    bus.close()
     assert [(f.transport, f.device) for f in found] == [
         ("serial", "woodenhaptics:/dev/ttyACM0"), ("serial", "openhaptics"), ("serial", "woodenhaptics:/dev/ttyUSB0"),
         ("hid", "spacemouse:/dev/hidraw7"), ("usb", "falcon")]

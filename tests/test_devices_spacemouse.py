@@ -34,7 +34,9 @@ AXES = np.eye(3)
 
 @pytest.fixture
 def bus():
-    return HidBus()
+    bus = HidBus()
+    yield bus
+    bus.close()
 
 
 def opened(name: str, bus: HidBus, **options) -> tuple[SpaceMouseDevice, EmulatedSpaceMouse]:

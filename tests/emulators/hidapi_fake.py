@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import os
 import select
+import shutil
 import socket
 import tempfile
 import threading
@@ -58,6 +59,10 @@ class HidBus:
         with self._lock:
             self._entries.pop(hidraw_path.decode(), None)
             self._publish()
+
+    def close(self) -> None:
+        """Remove the folder (nodes still plugged in vanish with it)."""
+        shutil.rmtree(self.directory, ignore_errors=True)
 
     def _publish(self) -> None:
         tmp = self.listing.with_suffix(".tmp")

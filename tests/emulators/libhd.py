@@ -94,6 +94,7 @@ class EmulatedHD:
         self.hand.target = hand
         self.name = name
         self.reset_encoders = reset_encoders
+        self.scratch: Path | None = None
 
     @property
     def device_spec(self) -> str:
@@ -130,13 +131,22 @@ class EmulatedHD:
         """Remove the control file (a library that mapped it keeps its pages until it maps another)."""
         self._file.close()
         shutil.rmtree(self._folder, ignore_errors=True)
+        if self.scratch is not None:  # the library launch() built for this arm alone
+            shutil.rmtree(self.scratch, ignore_errors=True)
 
 
 def launch(**options) -> EmulatedHD:
-    """Build the library (into `directory`, or a fresh folder) and make one arm. Other options:
-    styles, hand, inkwell, name, reset_encoders (see EmulatedHD)."""
-    directory = options.pop("directory", None) or tempfile.mkdtemp(prefix="libhd")
-    library = options.pop("library", None) or build(Path(directory))
+    """One emulated arm: `library` (a built stand-in) or a build into `directory` (or a
+    scratch folder, removed by `close()`). Other options as EmulatedHD: styles (default
+    inkwell only), hand, inkwell (True: the stylus starts in the inkwell, so the arm
+    calibrates at once), name, reset_encoders."""
+    library, directory = options.pop("library", None), options.pop("directory", None)
+    scratch = None
     if library is None:
-        raise RuntimeError("no C compiler to build the stand-in HD library")
-    return EmulatedHD(library, **options)
+        scratch = None if directory else Path(tempfile.mkdtemp(prefix="libhd"))
+        library = build(Path(directory) if directory else scratch)
+        if library is None:
+            raise RuntimeError("no C compiler to build the stand-in HD library")
+    emu = EmulatedHD(library, **options)
+    emu.scratch = scratch
+    return emu

@@ -174,6 +174,7 @@ class EmulatedSpaceMouse:
     def __init__(self, product: Product | str = "SpaceMouse Compact", *, path: bytes = b"/dev/hidraw0",
                  bus: HidBus | None = None, full_scale: int = 350, serial: str = ""):
         self.product = BY_NAME[product] if isinstance(product, str) else product
+        self._own_bus = bus is None
         self.bus = bus or HidBus()
         self.path = path
         self.full_scale = full_scale
@@ -240,6 +241,8 @@ class EmulatedSpaceMouse:
 
     def close(self) -> None:
         self.node.unplug()
+        if self._own_bus:
+            self.bus.close()
 
 
 def launch(**options) -> EmulatedSpaceMouse:
