@@ -266,7 +266,7 @@ def test_unknown_device_name(arm):
         dev.open()
 
 
-def test_the_device_string(tmp_path):
+def test_the_device_string():
     assert (openhaptics.create(None).name, openhaptics.create(None).reset_encoders) == (None, False)
     assert (openhaptics.create("reset-encoders").name, openhaptics.create("reset-encoders").reset_encoders) == (
         None, True)
