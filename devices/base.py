@@ -1,9 +1,10 @@
 """The device interface every haptic (or input-only) device implements.
 
-Frames and units: the device frame is right-handed, millimetres, with the origin at
-the centre of the device's usable workspace box when the driver can place it there;
-forces are newtons in the same frame. Time is integer nanoseconds on the monotonic
-clock (`time.monotonic_ns()`), or a driver's own clock mapped onto it.
+The device frame, one for every driver: x to the user's right, y up, z toward the user
+(right-handed), in millimetres, with the origin at the centre of the device's
+workspace; forces are newtons in that frame. Each driver maps its device's own frame
+onto this one. Time is integer nanoseconds on the monotonic clock
+(`time.monotonic_ns()`), or a driver's own clock mapped onto it.
 
 Contract for the daemon's fixed-rate loop:
 - `read()` returns the newest state and must not block longer than the driver's read

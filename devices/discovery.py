@@ -1,8 +1,9 @@
 """What is plugged in: serial ports, SpaceMouse HID devices, USB arms with known ids.
 
 Each finding carries the `--device` string that selects it. The sources (pyserial's
-port list, the hidapi module, a pyusb backend) can be passed in, which is how tests
-point discovery at their emulators.
+port list, the hidapi module, a pyusb backend) can be passed in; without them the
+SASPROBE_HID_API and SASPROBE_USB_BACKEND hooks the drivers honour apply too, which is
+how tests point `sasprobe devices` in a subprocess at their emulators.
 """
 
 from __future__ import annotations
@@ -12,7 +13,11 @@ import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from sasprobe.devices import falcon, spacemouse
+from sasprobe.devices import falcon
+from sasprobe.devices.base import DeviceOpenError
+from sasprobe.devices.spacemouse import models as spacemouse_models
+from sasprobe.devices.support import factory_from_environment
+from sasprobe.devices.transports import load_hidapi
 
 
 @dataclass(frozen=True)
@@ -67,29 +72,32 @@ def serial_ports(comports=None) -> tuple[list[Found], list[str]]:
 
 
 def hid_devices(hid_api=None) -> list[Found]:
+    """The 6-DoF 3Dconnexion devices (spacenavd's list; CadMice, keyboards and numpads left out)."""
     if hid_api is None:
-        import hid as hid_api
-    mice = [d for d in hid_api.enumerate() if spacemouse.is_spacemouse(d["vendor_id"], d["product_id"])]
-    # one entry per device: its multi-axis controller interface when it lists one
-    by_device: dict[tuple, dict] = {}
-    for d in mice:
-        key = (d["vendor_id"], d["product_id"], d.get("serial_number") or "")
-        best = by_device.get(key)
-        if best is None or (d.get("usage_page"), d.get("usage")) == (1, 8):
+        hid_api = factory_from_environment("SASPROBE_HID_API") or load_hidapi()
+    by_device: dict[tuple, dict] = {}  # one entry per device: its multi-axis controller interface
+    for d in hid_api.enumerate():
+        usage = spacemouse_models.interface_usage(d)
+        if not spacemouse_models.is_six_dof(d["vendor_id"], d["product_id"], usage):
+            continue
+        key = (d["vendor_id"], d["product_id"], d.get("serial_number") or "", d["path"])
+        if key not in by_device or usage == spacemouse_models.MULTI_AXIS_CONTROLLER:
             by_device[key] = d
     found = []
     for d in by_device.values():
         path = d["path"].decode(errors="replace") if isinstance(d["path"], bytes) else str(d["path"])
         found.append(Found("hid", path, d["vendor_id"], d["product_id"],
-                           spacemouse.product_name(d["vendor_id"], d["product_id"]), f"spacemouse:{path}",
+                           spacemouse_models.product_name(d["vendor_id"], d["product_id"]), f"spacemouse:{path}",
                            "input only: moves the cursor and navigation cube, no force"))
-    return found
+    return sorted(found, key=lambda f: f.path)
 
 
 def usb_devices(backend=None) -> tuple[list[Found], list[str]]:
     """Known USB arms, through pyusb (or sysfs when libusb is missing)."""
     import usb.core
 
+    if backend is None:
+        backend = factory_from_environment("SASPROBE_USB_BACKEND")
     try:
         devices = [(d.idVendor, d.idProduct, f"usb bus {d.bus} address {d.address}")
                    for d in usb.core.find(find_all=True, backend=backend)]
@@ -133,7 +141,7 @@ def discover(*, comports=None, hid_api=None, usb_backend=None) -> tuple[list[Fou
     found, notes = serial_ports(comports)
     try:
         found += hid_devices(hid_api)
-    except (ImportError, OSError) as exc:
+    except (ImportError, OSError, DeviceOpenError) as exc:
         notes.append(f"HID devices not listed: {exc}")
     usb_found, usb_notes = usb_devices(usb_backend)
     found += usb_found

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import abc
 import errno
+import math
 import os
 import select
 import time
@@ -158,6 +159,11 @@ def load_hidapi():
 class HidTransport(Transport):
     """One HID device through hidapi; reads return one input report (report id first).
 
+    The handle is set non-blocking when opened: hidapi's `read(n)` (timeout 0) is then a
+    poll that returns at once, where on a blocking handle it waits for the next report
+    (libusb/hidapi linux/hid.c `hid_read`; trezor/cython-hidapi hid.pyx `device.read`
+    calls `hid_read` for a timeout of 0 and `hid_read_timeout` only for one above 0).
+
     `hid_api` is the hidapi module (`import hid`); tests pass a fake with the same surface
     (`enumerate()`, `device()`), the boundary where hardware would be.
     """
@@ -181,11 +187,23 @@ class HidTransport(Transport):
         try:
             dev.open_path(self.path)
         except (OSError, ValueError) as exc:
-            if self.name.startswith("/dev/") and os.path.exists(self.name) and not os.access(self.name, os.R_OK | os.W_OK):
+            if (self.name.startswith("/dev/") and os.path.exists(self.name)
+                    and not os.access(self.name, os.R_OK | os.W_OK)):
                 raise DeviceOpenError(permission_hint(self.name, group="plugdev")) from None
             raise DeviceOpenError(f"cannot open {self.label} at {self.name}: {exc} "
                                   f"(unplugged? no permission? {UDEV_HINT})") from None
+        if dev.set_nonblocking(1) == -1:
+            dev.close()
+            raise DeviceOpenError(f"cannot make reads from {self.label} at {self.name} non-blocking")
         self._handle = dev
+
+    def report_descriptor(self) -> bytes | None:
+        """The device's HID report descriptor, or None where hidapi cannot give it."""
+        dev = self._require()
+        try:
+            return bytes(dev.get_report_descriptor())
+        except (AttributeError, OSError, ValueError):  # hidapi before 0.14, or a backend without it
+            return None
 
     def close(self) -> None:
         dev, self._handle = self._handle, None
@@ -207,7 +225,7 @@ class HidTransport(Transport):
     def read(self, max_bytes: int, timeout_s: float) -> bytes:
         dev = self._require()
         try:
-            report = dev.read(max_bytes, max(int(timeout_s * 1000), 0))
+            report = dev.read(max_bytes, math.ceil(timeout_s * 1000) if timeout_s > 0 else 0)
         except (OSError, ValueError) as exc:
             raise DeviceFault(f"{self.label} lost: {exc}") from None
         return bytes(report)

@@ -16,7 +16,9 @@ from sasprobe.devices.base import HapticDevice
 from sasprobe.devices.discovery import discover
 from tests.conftest import REPO_ROOT, run_cli
 from tests.emulators.falcon_usb import EmulatedUsbBackend, FalconHardware
-from tests.emulators.spacemouse_hid import EmulatedSpaceMouse, FakeHidApi
+from tests.emulators.hidapi_fake import HidBus, HidModule
+from tests.emulators.libhd import build as build_libhd
+from tests.emulators.spacemouse_hid import EmulatedSpaceMouse
 from tests.emulators.woodenhaptics_serial import WoodenHapticsEmulator
 
 FALCON_BACKEND = "tests.emulators.falcon_usb:backend_from_environment"
@@ -31,19 +33,82 @@ def one_line_error(result, *fragments):
     assert "Traceback" not in result.stderr
 
 
-def test_devices_lists_what_discovery_finds():
+def test_devices_lists_the_emulated_devices_it_was_shown(tmp_path, monkeypatch):
+    """`sasprobe devices` in a subprocess, pointed at emulators this test set up: each
+    6-DoF device, the Falcon and the HD library are listed with the strings written
+    here; the CadMouse, keyboard and the receiver's mouse interface are not."""
+    bus = HidBus()
+    for path, name in [(b"/dev/hidraw3", "SpaceNavigator"), (b"/dev/hidraw4", "SpaceMouse Enterprise"),
+                       (b"/dev/hidraw5", "Universal Receiver + SpaceMouse Wireless"),
+                       (b"/dev/hidraw6", "Universal Receiver Mouse"), (b"/dev/hidraw7", "CadMouse"),
+                       (b"/dev/hidraw8", "Keyboard Pro"), (b"/dev/hidraw9", "SpaceMouse Classic")]:
+        EmulatedSpaceMouse(name, path=path, bus=bus)
+    monkeypatch.setenv("SASPROBE_HID_API", "tests.emulators.hidapi_fake:module_from_environment")
+    monkeypatch.setenv("SASPROBE_HID_BUS", str(bus.directory))
+    monkeypatch.setenv("PYTHONPATH", str(REPO_ROOT))
+    emulated_falcon(monkeypatch, tmp_path)
+    library = build_libhd(tmp_path)
+    if library is not None:
+        monkeypatch.setenv("SASPROBE_HD_LIBRARY", str(library))
     result = run_cli("devices", "--json")
     assert result.returncode == 0, result.stderr
     listed = json.loads(result.stdout)
-    found, _notes = discover()
-    assert [d["device"] for d in listed["devices"]] == [f.device for f in found]
+    hid = [(d["path"], d["vendor_id"], d["product_id"], d["description"], d["device"])
+           for d in listed["devices"] if d["transport"] == "hid"]
+    assert hid == [
+        ("/dev/hidraw3", "046d", "c626", "SpaceNavigator", "spacemouse:/dev/hidraw3"),
+        ("/dev/hidraw4", "256f", "c633", "SpaceMouse Enterprise", "spacemouse:/dev/hidraw4"),
+        ("/dev/hidraw5", "256f", "c652", "3Dconnexion Universal Receiver", "spacemouse:/dev/hidraw5"),
+        ("/dev/hidraw9", "046d", "c606", "SpaceMouse Classic", "spacemouse:/dev/hidraw9"),
+    ]
+    usb = [(d["vendor_id"], d["product_id"], d["description"], d["device"])
+           for d in listed["devices"] if d["transport"] == "usb"]
+    assert usb == [("0403", "cb48", "Novint Falcon", "falcon")]
+    if library is not None:
+        assert f"OpenHaptics HD library found ({library})" in " ".join(listed["notes"])
     text = run_cli("devices")
-    assert text.returncode == 0
-    if not found:
-        assert text.stdout.startswith("none found")
-    else:
-        for f in found:
-            assert f"--device {f.device}" in text.stdout
+    assert text.returncode == 0, text.stderr
+    assert "046d:c626  SpaceNavigator\n       --device spacemouse:/dev/hidraw3" in text.stdout
+    assert "0403:cb48  Novint Falcon\n       --device falcon" in text.stdout
+    for absent in ("CadMouse", "Keyboard", "hidraw6", "hidraw7", "hidraw8"):
+        assert absent not in text.stdout
+    bus.close()
+
+
+def test_devices_without_any_device_says_none_found(tmp_path, monkeypatch):
+    monkeypatch.setenv("SASPROBE_HID_API", "tests.emulators.hidapi_fake:module_from_environment")
+    bus = HidBus()
+    monkeypatch.setenv("SASPROBE_HID_BUS", str(bus.directory))
+    monkeypatch.setenv("PYTHONPATH", str(REPO_ROOT))
+    emulated_falcon(monkeypatch, tmp_path, unplugged=True)
+    result = run_cli("devices", "--json")
+    bus.close()
+    assert result.returncode == 0, result.stderr
+    assert not [d for d in json.loads(result.stdout)["devices"] if d["transport"] in ("hid", "usb")]
+
+
+def test_checking_a_cadmouse_is_refused_in_one_line(monkeypatch):
+    emu = EmulatedSpaceMouse("CadMouse", path=b"/dev/hidraw7")
+    for key, value in emu.env.items():
+        monkeypatch.setenv(key, value)
+    try:
+        one_line_error(run_cli("devices", "--check", "spacemouse:/dev/hidraw7"),
+                       "CadMouse (256f:c650) is not a 6-DoF device")
+        one_line_error(run_cli("devices", "--check", "spacemouse"), "no 3Dconnexion SpaceMouse found")
+    finally:
+        emu.close()
+
+
+def test_check_reads_an_emulated_spacemouse_end_to_end(monkeypatch):
+    emu = EmulatedSpaceMouse("SpaceMouse Pro", path=b"/dev/hidraw2")
+    for key, value in emu.env.items():
+        monkeypatch.setenv(key, value)
+    result = run_cli("devices", "--check", emu.device_spec, "--seconds", "0.3", "--json")
+    emu.close()
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["info"]["model"] == "SpaceMouse Pro" and report["faults"] == 0 and report["reads"] > 20
+    assert report["info"]["details"]["usb_id"] == "046d:c62b"
 
 
 def test_discovery_reports_each_emulated_device_with_its_device_string(tmp_path):
@@ -51,9 +116,12 @@ def test_discovery_reports_each_emulated_device_with_its_device_string(tmp_path)
              SimpleNamespace(device="/dev/ttyACM1", vid=0x0301, pid=0x2988, description="Touch"),
              SimpleNamespace(device="/dev/ttyUSB0", vid=0x0403, pid=0x6001, description="FT232R"),
              SimpleNamespace(device="/dev/ttyS0", vid=None, pid=None, description="n/a")]
-    puck = EmulatedSpaceMouse(path=b"/dev/hidraw7")
+    bus = HidBus()
+    EmulatedSpaceMouse("SpaceMouse Compact", path=b"/dev/hidraw7", bus=bus)
+    EmulatedSpaceMouse("CadMouse Pro", path=b"/dev/hidraw8", bus=bus)
     falcon = EmulatedUsbBackend(FalconHardware(b"fw"))
-    found, notes = discover(comports=lambda: ports, hid_api=FakeHidApi(puck), usb_backend=falcon)
+    found, notes = discover(comports=lambda: ports, hid_api=HidModule(bus.directory), usb_backend=falcon)
+    bus.close()
     assert [(f.transport, f.device) for f in found] == [
         ("serial", "woodenhaptics:/dev/ttyACM0"), ("serial", "openhaptics"), ("serial", "woodenhaptics:/dev/ttyUSB0"),
         ("hid", "spacemouse:/dev/hidraw7"), ("usb", "falcon")]

@@ -8,7 +8,10 @@ for 1 kHz, so they assert what happened, never how fast.
 
 from __future__ import annotations
 
+import json
+import math
 import os
+import threading
 import time
 
 import numpy as np
@@ -20,7 +23,7 @@ from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
 from tests.conftest import REPO_ROOT
 from tests.daemon_process import DaemonProcess
-from tests.emulators import falcon_usb, libhd
+from tests.emulators import falcon_usb, libhd, spacemouse_hid
 from tests.emulators.haply_serial import Haply2DIYEmulator, start_pose_mm
 from tests.emulators.physics import MovableHand
 from tests.emulators.woodenhaptics_serial import WoodenHapticsEmulator
@@ -196,31 +199,67 @@ def test_daemon_session_on_the_emulated_haply(tmp_path):
         emu.stop()
 
 
-def test_daemon_takes_the_input_only_spacemouse(monkeypatch, emulators_importable):
-    monkeypatch.setenv("SASPROBE_HID_API", "tests.emulators.spacemouse_hid:api_from_environment")
-    with DaemonProcess(device="spacemouse") as daemon:
-        sub = Subscriber(daemon.pub)
-        start = poses_until(sub, lambda p: True, daemon)
-        # the scripted user deflects the cap right, then left: the cursor moves along X
-        moved = poses_until(sub, lambda p: abs(p.tip_mm[0] - start.tip_mm[0]) > 20.0, daemon)
-        assert abs(moved.tip_mm[1] - start.tip_mm[1]) < 1e-6 and abs(moved.tip_mm[2] - start.tip_mm[2]) < 1e-6
-        poses = sub.poll(0.5)
-        assert poses and all(np.allclose(p.force_N, 0.0) for p in poses)  # no force output, ever
-        rc, report = daemon.stop()
-        assert rc == 0, daemon.stderr
+def test_daemon_takes_the_input_only_spacemouse(monkeypatch):
+    emu = spacemouse_hid.launch(product="SpaceNavigator", path=b"/dev/hidraw5")
+    for key, value in emu.env.items():
+        monkeypatch.setenv(key, value)
+    try:
+        with DaemonProcess(device=emu.device_spec) as daemon:
+            sub = Subscriber(daemon.pub)
+            start = poses_until(sub, lambda p: True, daemon)
+            emu.hand.deflect(translation=(0.5, 0.0, 0.0))  # held right; the cap sends nothing more
+            moved = poses_until(sub, lambda p: p.tip_mm[0] - start.tip_mm[0] > 20.0, daemon)  # 0.4 s at 50 mm/s
+            assert abs(moved.tip_mm[1] - start.tip_mm[1]) < 1e-6 and abs(moved.tip_mm[2] - start.tip_mm[2]) < 1e-6
+            poses = sub.poll(0.3)
+            assert poses and all(np.allclose(p.force_N, 0.0) for p in poses)  # no force output, ever
+            emu.unplug()  # the cable pulled: a fault, never a hang
+            assert np.allclose(poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon).force_N, 0.0)
+            emu.replug()
+            back = poses_until(sub, lambda p: "device reconnected" in daemon.stderr and not p.has(FLAG_FAULT), daemon)
+            emu.hand.deflect(translation=(0.0, -0.5, 0.0))  # pushed down: the cursor goes down
+            poses_until(sub, lambda p: p.tip_mm[1] < back.tip_mm[1] - 5.0, daemon)
+            rc, _report = daemon.stop()
+            assert rc == 0, daemon.stderr
+    finally:
+        emu.close()
 
 
 def test_daemon_on_openhaptics_through_the_stand_in_library(tmp_path, monkeypatch):
-    library = libhd.build(tmp_path)
-    if library is None:
+    if libhd.build(tmp_path) is None:
         pytest.skip("no C compiler to build the stand-in HD library")
-    monkeypatch.setenv("SASPROBE_HD_LIBRARY", str(library))
-    monkeypatch.setenv("FAKE_HD_CALIBRATED", "1")
-    monkeypatch.setenv("FAKE_HD_HAND", "0,0,-35")  # the centre of the usable box (the cube's centre)
-    monkeypatch.setenv("FAKE_HD_SWEEP", "30")  # swinging ±30 mm along x: through the molecule
-    with DaemonProcess(device="openhaptics") as daemon:
-        sub = Subscriber(daemon.pub)
-        pose = poses_until(sub, pushing, daemon)
-        assert np.linalg.norm(pose.force_N) <= 3.3
-        rc, report = daemon.stop()
-        assert rc == 0, daemon.stderr
+    centre = np.asarray(libhd.USABLE_BOX_CENTRE)  # the cube's centre
+    emu = libhd.launch(library=tmp_path / "libHD.so", styles=libhd.HD_CALIBRATION_INKWELL, hand=centre,
+                       inkwell=True)
+    for key, value in emu.env.items():
+        monkeypatch.setenv(key, value)
+    swinging = threading.Event()
+
+    def sweep():  # the user swings the stylus ±30 mm along x, through the molecule
+        t0 = time.monotonic()
+        while not swinging.is_set():
+            emu.hand.target = centre + [30.0 * math.sin(math.pi * (time.monotonic() - t0)), 0.0, 0.0]
+            time.sleep(0.005)
+
+    hand = threading.Thread(target=sweep, daemon=True)
+    hand.start()
+    try:
+        with DaemonProcess(device=emu.device_spec) as daemon:
+            sub = Subscriber(daemon.pub)
+            pose = poses_until(sub, pushing, daemon)  # calibrated in the inkwell, then pushed back
+            assert np.linalg.norm(pose.force_N) <= 3.3
+            emu.wait_frames(20)
+            assert 0.05 < emu.control.max_force <= 3.3 + 1e-9 and emu.control.resets == 0
+            emu.unplug()
+            assert np.allclose(poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon).force_N, 0.0)
+            assert emu.applied_force == (0.0, 0.0, 0.0)
+            emu.replug()
+            back = poses_until(sub, lambda p: "device reconnected" in daemon.stderr, daemon)
+            poses_until(sub, lambda p: pushing(p) and p.seq > back.seq, daemon)  # recalibrated, pushing again
+            rc, report = daemon.stop()
+            assert rc == 0, daemon.stderr
+            assert report["device_last_force_n"] == [0.0, 0.0, 0.0]
+        assert emu.applied_force == (0.0, 0.0, 0.0)
+    finally:
+        swinging.set()
+        hand.join()
+        emu.close()

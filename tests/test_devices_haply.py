@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sasprobe.devices import haply as H
-from tests.emulators import loop
+from tests import device_loop as loop
 from tests.emulators.haply_serial import Haply2DIYEmulator, start_pose_mm
 from tests.emulators.physics import MovableHand
 

@@ -1,9 +1,16 @@
-"""OpenHaptics driver through ctypes against a stand-in HD library compiled from C."""
+"""OpenHaptics driver through ctypes against the stand-in HD library (fake_libhd.c).
+
+Expected behaviour is that of the SDK's own examples (danepowell/openhaptics, commit
+2ce9a48, examples/HD/console): Calibration.c prefers auto over inkwell over encoder
+reset and resets the encoders before the scheduler, at the reset pose;
+AnchoredSpringForce.c stops force output on a force error and ends the callback on a
+scheduler error.
+"""
 
 from __future__ import annotations
 
-import ctypes
 import math
+import re
 import shutil
 import subprocess
 import time
@@ -11,32 +18,40 @@ import time
 import numpy as np
 import pytest
 
-from sasprobe.devices import openhaptics as O
+from sasprobe.devices import openhaptics
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
-from tests.emulators.libhd import build as build_libhd
+from sasprobe.devices.openhaptics import hdapi
+from sasprobe.devices.openhaptics.driver import OpenHapticsDevice
+from tests.emulators import libhd
+from tests.emulators.libhd import (HD_CALIBRATION_AUTO, HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_INKWELL,
+                                   HD_COMM_ERROR, HD_DEVICE_FAULT, HD_EXCEEDED_MAX_VELOCITY, HD_INVALID_ENUM,
+                                   HD_WARM_MOTORS, UNCALIBRATED_OFFSET, USABLE_BOX_CENTRE)
 
 
 @pytest.fixture(scope="module")
-def libhd(tmp_path_factory):
-    out = build_libhd(tmp_path_factory.mktemp("libhd"))
+def library(tmp_path_factory):
+    out = libhd.build(tmp_path_factory.mktemp("libhd"))
     if out is None:
         pytest.skip("no C compiler to build the stand-in HD library")
-    fake = ctypes.CDLL(str(out))
-    fake.fake_set_hand.argtypes = [ctypes.c_double] * 3
-    fake.fake_set_yaw.argtypes = [ctypes.c_double]
-    fake.fake_max_force_seen.restype = ctypes.c_double
-    fake.fake_forces_exceeding.restype = ctypes.c_long
-    fake.fake_callbacks_run.restype = ctypes.c_long
-    return str(out), fake
+    return out
 
 
 @pytest.fixture
-def rig(libhd):
-    path, fake = libhd
-    fake.fake_reset()
-    dev = O.OpenHapticsDevice(library=path)
-    yield dev, fake
-    dev.close()
+def arm(library, monkeypatch):
+    """A factory: an emulated arm (options as libhd.EmulatedHD) and a driver pointed at it."""
+    made = []
+
+    def make(reset_encoders=False, name=None, **options):
+        emu = libhd.launch(library=library, **options)
+        monkeypatch.setenv("FAKE_HD_CONTROL", str(emu.control_path))
+        dev = OpenHapticsDevice(name, library=str(library), reset_encoders=reset_encoders)
+        made.append((dev, emu))
+        return dev, emu
+
+    yield make
+    for dev, emu in made:
+        dev.close()
+        emu.close()
 
 
 def wait_for(dev, condition, timeout_s=5.0):
@@ -48,18 +63,16 @@ def wait_for(dev, condition, timeout_s=5.0):
                 return state
         except DeviceFault:
             pass
-        time.sleep(0.005)
+        time.sleep(0.002)
     raise AssertionError("condition not reached in time")
 
 
-def library_force(fake):
-    out = (ctypes.c_double * 3)()
-    fake.fake_force(out)
-    return np.array(out[:])
+def device_frame(library_mm):
+    return np.asarray(library_mm) - np.asarray(USABLE_BOX_CENTRE)
 
 
-def test_open_reads_the_nominal_limits_and_recentres_the_workspace(rig):
-    dev, fake = rig
+def test_open_reads_the_nominal_limits_and_recentres_the_workspace(arm):
+    dev, emu = arm(styles=HD_CALIBRATION_INKWELL, hand=(10.0, -5.0, -20.0))
     dev.open()
     lim = dev.info.limits
     assert (lim.max_force_n, lim.continuous_force_n, lim.max_stiffness_n_per_mm) == (3.3, 0.88, 0.5)
@@ -67,66 +80,136 @@ def test_open_reads_the_nominal_limits_and_recentres_the_workspace(rig):
     # the library's usable box is z -70..0: the device frame puts its centre at the origin
     assert lim.workspace_min_mm == (-80.0, -60.0, -35.0) and lim.workspace_max_mm == (80.0, 60.0, 35.0)
     assert dev.info.model == "Touch (emulated)"
-    fake.fake_set_hand(10.0, -5.0, -20.0)
-    state = wait_for(dev, lambda s: s.position_mm[0] == 10.0)
-    assert state.position_mm.tolist() == [10.0, -5.0, -20.0 + 35.0]
-
-
-def test_inkwell_calibration_gates_force(rig):
-    dev, fake = rig
-    dev.open()
     state = wait_for(dev, lambda s: True)
-    assert not state.calibrated
+    assert not state.calibrated  # uncalibrated encoders read off by the emulator's offset
+    np.testing.assert_allclose(state.position_mm, device_frame(np.subtract((10.0, -5.0, -20.0), UNCALIBRATED_OFFSET)))
+    emu.control.inkwell = 1
+    state = wait_for(dev, lambda s: s.calibrated)
+    np.testing.assert_allclose(state.position_mm, [10.0, -5.0, 15.0])
+
+
+@pytest.mark.parametrize("supported, chosen", [
+    (HD_CALIBRATION_AUTO | HD_CALIBRATION_INKWELL | HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_AUTO),
+    (HD_CALIBRATION_INKWELL | HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_INKWELL),
+    (HD_CALIBRATION_AUTO | HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_AUTO),
+    (HD_CALIBRATION_AUTO | HD_CALIBRATION_INKWELL, HD_CALIBRATION_AUTO),
+])
+def test_calibration_prefers_auto_then_inkwell_then_encoder_reset(arm, supported, chosen):
+    dev, emu = arm(styles=supported, inkwell=True)
+    dev.open()
+    wait_for(dev, lambda s: s.calibrated)
+    assert dev.calibration_style == chosen and emu.control.last_update_style == chosen
+    assert emu.control.resets == 0  # an encoder reset was never needed, so never done
+
+
+def test_inkwell_calibration_gates_force(arm):
+    dev, emu = arm(styles=HD_CALIBRATION_INKWELL)
+    dev.open()
+    assert not wait_for(dev, lambda s: True).calibrated
     dev.write_force([1.0, 0.0, 0.0])
-    time.sleep(0.02)
-    assert np.allclose(library_force(fake), 0.0)  # no force until calibrated
-    fake.fake_put_in_inkwell()  # NEEDS_MANUAL_INPUT → NEEDS_UPDATE → hdUpdateCalibration → OK
+    emu.wait_frames(20)
+    assert emu.applied_force == (0.0, 0.0, 0.0)  # no force until calibrated
+    assert emu.control.calibration == libhd.HD_CALIBRATION_NEEDS_MANUAL_INPUT
+    emu.control.inkwell = 1  # NEEDS_MANUAL_INPUT → NEEDS_UPDATE → hdUpdateCalibration(INKWELL) → OK
     wait_for(dev, lambda s: s.calibrated)
     dev.write_force([1.0, 0.0, 0.0])
     state = wait_for(dev, lambda s: s.position_mm[0] > 1.0)
-    np.testing.assert_allclose(library_force(fake), [1.0, 0.0, 0.0])
-    assert state.position_mm[0] == pytest.approx(1.0 / 0.5)  # the hand's 0.5 N/mm spring gives way 2 mm
+    assert emu.applied_force == (1.0, 0.0, 0.0)
+    assert state.position_mm[0] == pytest.approx(1.0 / libhd.HAND_STIFFNESS_N_PER_MM)  # the hand gives way 2 mm
 
 
-def test_transform_buttons_and_servo_rate(rig):
-    dev, fake = rig
+def test_the_encoder_reset_comes_before_the_scheduler_at_the_held_pose(arm):
+    dev, emu = arm(styles=HD_CALIBRATION_ENCODER_RESET, hand=(0.0, 0.0, 0.0), reset_encoders=True)
+    dev.open()  # the user holds the arm at its reset pose (the emulator's origin) and says so
+    assert (emu.control.resets, emu.control.resets_while_running) == (1, 0)
+    assert emu.control.reset_distance_mm == 0.0
+    assert wait_for(dev, lambda s: True).calibrated
+    emu.hand.target = (10.0, -5.0, -20.0)
+    state = wait_for(dev, lambda s: s.position_mm[0] == 10.0)
+    np.testing.assert_allclose(state.position_mm, device_frame((10.0, -5.0, -20.0)))
+    emu.wait_frames(50)
+    assert emu.control.resets == 1  # never again from the servo loop
+
+
+def test_an_encoder_reset_arm_is_refused_until_the_user_holds_the_reset_pose(arm):
+    dev, emu = arm(styles=HD_CALIBRATION_ENCODER_RESET, hand=(20.0, 30.0, -10.0))
+    with pytest.raises(DeviceOpenError, match=r"needs an encoder reset.*reset position.*openhaptics:reset-encoders"):
+        dev.open()
+    assert emu.control.resets == 0 and emu.control.scheduler_running == 0
+
+
+def test_a_reconnect_never_resets_the_encoders_at_an_unknown_pose(arm):
+    dev, emu = arm(styles=HD_CALIBRATION_ENCODER_RESET, reset_encoders=True)
     dev.open()
-    fake.fake_set_yaw(ctypes.c_double(0.5))
-    fake.fake_set_buttons(0b11)
-    state = wait_for(dev, lambda s: s.buttons == 0b11)
-    state = wait_for(dev, lambda s: abs(s.orientation[2]) > 0.1)
-    np.testing.assert_allclose(state.orientation, [math.cos(0.25), 0.0, math.sin(0.25), 0.0], atol=1e-12)
-    ticks = dev.servo_ticks
-    time.sleep(0.2)
-    assert dev.servo_ticks - ticks > 20  # the library's scheduler thread keeps calling us
-
-
-def test_forces_never_exceed_the_nominal_maximum(rig):
-    dev, fake = rig
-    dev.open()
-    fake.fake_put_in_inkwell()
     wait_for(dev, lambda s: s.calibrated)
-    rng = np.random.default_rng(5)
-    for command in [rng.normal(size=3) * 50 for _ in range(50)] + [[np.nan, 0, 0], [np.inf, 1, 1]]:
-        dev.write_force(command)
-        time.sleep(0.002)
-    dev.read()
-    assert fake.fake_forces_exceeding() == 0
-    assert fake.fake_max_force_seen() <= 3.3 + 1e-12
+    emu.unplug()  # power lost: the encoders forget their zero
+    with pytest.raises(DeviceFault, match="HD_COMM_ERROR"):
+        _until_fault(dev)
+    emu.hand.target = (25.0, 10.0, -30.0)  # wherever the user put it down
+    emu.replug()
+    with pytest.raises(DeviceFault, match="needs an encoder reset"):
+        dev.reconnect()
+    assert emu.control.resets == 1
 
 
-def test_an_hd_error_is_a_fault_naming_the_code_and_recovery_follows(rig):
-    dev, fake = rig
+def calibrated_and_pushing(arm, force=(1.0, 0.0, 0.0)):
+    dev, emu = arm(styles=HD_CALIBRATION_AUTO)
     dev.open()
-    wait_for(dev, lambda s: True)
-    fake.fake_unplug()
+    wait_for(dev, lambda s: s.calibrated)
+    dev.write_force(force)
+    emu.wait_frames(5)
+    assert emu.applied_force == force
+    return dev, emu
+
+
+@pytest.mark.parametrize("code", [HD_EXCEEDED_MAX_VELOCITY, HD_WARM_MOTORS, HD_DEVICE_FAULT])
+def test_a_force_error_stops_only_force_output(arm, code):
+    dev, emu = calibrated_and_pushing(arm)
+    emu.inject(code)
+    emu.wait_frames(5)
+    dev.write_force([1.0, 0.0, 0.0])  # the daemon still asks for force ...
+    emu.wait_frames(5)
+    assert emu.applied_force == (0.0, 0.0, 0.0)  # ... the arm gets none
+    frames = emu.control.frames
+    state = dev.read()  # no fault: the servo loop goes on
+    assert state.calibrated and emu.control.callback_done == 0
+    emu.wait_frames(5)
+    assert emu.control.frames > frames
+    assert dev.info.details["force_errors"] == 1 and dev.info.details["force_stopped"] is True
+    dev.write_force([0.0, 0.0, 0.0])  # the user left the contact
+    dev.write_force([0.5, 0.0, 0.0])
+    emu.wait_frames(5)
+    assert emu.applied_force == (0.5, 0.0, 0.0)
+
+
+def test_other_errors_are_counted_and_force_goes_on(arm):
+    dev, emu = calibrated_and_pushing(arm)
+    emu.inject(HD_INVALID_ENUM)
+    emu.wait_frames(5)
+    dev.read()
+    assert emu.applied_force == (1.0, 0.0, 0.0)
+    assert dev.info.details["other_errors"] == 1 and dev.info.details["force_errors"] == 0
+
+
+def test_a_scheduler_error_ends_the_callback_and_is_a_fault(arm):
+    dev, emu = calibrated_and_pushing(arm)
+    emu.inject(HD_COMM_ERROR)
     with pytest.raises(DeviceFault, match=r"HD_COMM_ERROR \(0x0302"):
         _until_fault(dev)
-    with pytest.raises(DeviceFault, match="HD_COMM_CONFIG_ERROR"):
+    assert emu.control.callback_done == 1
+
+
+def test_a_vanished_arm_faults_and_recovers_when_back(arm):
+    dev, emu = calibrated_and_pushing(arm)
+    emu.unplug()
+    with pytest.raises(DeviceFault, match=r"HD_COMM_ERROR \(0x0302"):
+        _until_fault(dev)
+    assert emu.applied_force == (0.0, 0.0, 0.0)  # the motors are off
+    with pytest.raises(DeviceFault, match="still unavailable.*HD_COMM_ERROR"):
         dev.reconnect()
-    fake.fake_replug()
+    emu.replug()
     dev.reconnect()
-    wait_for(dev, lambda s: True)
+    wait_for(dev, lambda s: s.calibrated)  # auto calibration again after the power cycle
 
 
 def _until_fault(dev, timeout_s=2.0):
@@ -137,8 +220,38 @@ def _until_fault(dev, timeout_s=2.0):
         time.sleep(0.002)
 
 
-def test_a_stalled_servo_loop_is_a_fault(rig):
-    dev, fake = rig
+def test_forces_never_exceed_the_nominal_maximum(arm):
+    dev, emu = calibrated_and_pushing(arm)
+    rng = np.random.default_rng(5)
+    for command in [rng.normal(size=3) * 50 for _ in range(50)] + [[np.nan, 0, 0], [np.inf, 1, 1]]:
+        dev.write_force(command)
+        time.sleep(0.002)
+    dev.read()
+    assert emu.control.forces_clamped == 0  # the driver clamped first: the library never had to
+    assert emu.control.max_force <= 3.3 + 1e-12
+
+
+def test_close_leaves_the_motors_at_zero(arm):
+    dev, emu = calibrated_and_pushing(arm)
+    dev.close()
+    assert emu.applied_force == (0.0, 0.0, 0.0) and dev.last_force_n.tolist() == [0.0, 0.0, 0.0]
+
+
+def test_transform_buttons_and_servo_rate(arm):
+    dev, emu = arm(styles=HD_CALIBRATION_AUTO)
+    dev.open()
+    emu.control.yaw = 0.5
+    emu.control.buttons = 0b11
+    wait_for(dev, lambda s: s.buttons == 0b11)
+    state = wait_for(dev, lambda s: abs(s.orientation[2]) > 0.1)
+    np.testing.assert_allclose(state.orientation, [math.cos(0.25), 0.0, math.sin(0.25), 0.0], atol=1e-12)
+    ticks = dev.servo_ticks
+    time.sleep(0.2)
+    assert dev.servo_ticks - ticks > 20  # the library's scheduler thread keeps calling us
+
+
+def test_a_stalled_servo_loop_is_a_fault(arm):
+    dev, emu = arm(styles=HD_CALIBRATION_AUTO)
     dev.open()
     wait_for(dev, lambda s: True)
     dev._lib.hdStopScheduler()
@@ -147,21 +260,46 @@ def test_a_stalled_servo_loop_is_a_fault(rig):
         dev.read()
 
 
-def test_unknown_device_name(rig, libhd):
-    path, _fake = libhd
+def test_unknown_device_name(arm):
+    dev, _emu = arm(name="Left Arm")
     with pytest.raises(DeviceOpenError, match="could not initialise 'Left Arm'.*HD_COMM_CONFIG_ERROR"):
-        O.OpenHapticsDevice("Left Arm", library=path).open()
+        dev.open()
+
+
+def test_the_device_string():
+    assert (openhaptics.create(None).name, openhaptics.create(None).reset_encoders) == (None, False)
+    assert (openhaptics.create("reset-encoders").name, openhaptics.create("reset-encoders").reset_encoders) == (
+        None, True)
+    named = openhaptics.create("Left Arm:reset-encoders")
+    assert (named.name, named.reset_encoders) == ("Left Arm", True)
+    assert openhaptics.create("Default PHANToM").name == "Default PHANToM"
 
 
 def test_missing_library_says_so_in_one_line(monkeypatch, tmp_path):
     monkeypatch.delenv("SASPROBE_HD_LIBRARY", raising=False)
     with pytest.raises(DeviceOpenError, match="OpenHaptics is not installed") as err:
-        O.OpenHapticsDevice(library=str(tmp_path / "libHD.so")).open()
+        OpenHapticsDevice(library=str(tmp_path / "libHD.so")).open()
     assert "\n" not in str(err.value)
 
-def test_a_library_without_the_hd_entry_points_is_refused(libhd, tmp_path):
+
+def test_a_library_without_the_hd_entry_points_is_refused(library, tmp_path):
     not_hd = tmp_path / "libnot.so"
     subprocess.run([shutil.which("cc") or "gcc", "-shared", "-fPIC", "-o", str(not_hd), "-x", "c", "-"],
                    input=b"int x;", check=True, capture_output=True, timeout=120)
     with pytest.raises(DeviceOpenError, match="is not the OpenHaptics HD library"):
-        O.load_library(str(not_hd))
+        hdapi.load_library(str(not_hd))
+
+
+def test_the_stand_in_and_the_driver_transcribed_hddefines_alike():
+    """Two transcriptions of hdDefines.h (the emulator's C, the driver's Python) must agree."""
+    def value(text):
+        shift = re.fullmatch(r"\(1 << (\d+)\)", text)
+        return 1 << int(shift.group(1)) if shift else int(text, 0)
+
+    defines = {name: value(text) for name, text in
+               re.findall(r"^#define (HD_\w+) (\(1 << \d+\)|0x[0-9A-Fa-f]+|\d+)$", libhd.SOURCE.read_text(), re.M)}
+    assert len(defines) > 25
+    shared = {name: value for name, value in defines.items() if hasattr(hdapi, name)}
+    assert shared == {name: getattr(hdapi, name) for name in shared} and len(shared) > 15
+    named = {name: code for code, name in hdapi.HD_ERRORS.items()}
+    assert all(named[name] == value for name, value in defines.items() if name in named)

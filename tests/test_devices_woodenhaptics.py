@@ -9,7 +9,7 @@ import pytest
 
 from sasprobe.devices import woodenhaptics as W
 from sasprobe.devices.base import DeviceOpenError
-from tests.emulators import loop
+from tests import device_loop as loop
 from tests.emulators.physics import MovableHand
 from tests.emulators.woodenhaptics_serial import WoodenHapticsEmulator
 

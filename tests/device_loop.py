@@ -1,4 +1,8 @@
-"""A minimal host control loop for closed-loop driver tests (the daemon's job, in miniature)."""
+"""A minimal host control loop for closed-loop driver tests (the daemon's job, in miniature).
+
+A harness on the host side, not an emulator: it drives the drivers under test, so it
+lives outside tests/emulators/ (whose modules import nothing from sasprobe).
+"""
 
 from __future__ import annotations
 

@@ -1,0 +1,273 @@
+"""PHANTOM Omni / Touch (and other HDAPI arms) through the vendor's HD library, as a HapticDevice.
+
+The arms' own wire protocols are not public, so this driver follows the HDAPI flow of
+the SDK's examples (danepowell/openhaptics, commit 2ce9a48,
+usr/share/3DTouch/examples/HD/console/): hdInitDevice → read the nominal limits and the
+calibration styles → (encoder reset, see below) → hdScheduleAsynchronous(servo
+callback) → hdEnable(HD_FORCE_OUTPUT) → hdStartScheduler (AnchoredSpringForce.c). The
+callback runs in the library's 1 kHz servo thread: inside hdBeginFrame/hdEndFrame it
+reads position, velocity, transform and buttons, checks the calibration and writes the
+latest force.
+
+Calibration (Calibration.c): the style is AUTO over INKWELL over ENCODER_RESET among
+those the device supports. AUTO and INKWELL are updated from the servo loop whenever
+hdCheckCalibration says HD_CALIBRATION_NEEDS_UPDATE (an inkwell arm needs its stylus in
+the inkwell first: NEEDS_MANUAL_INPUT keeps `calibrated=False`, no force). An encoder
+reset zeroes the encoders where the arm is, so it is done once, before the scheduler
+starts, and only when the user says the arm is at its reset position (all links
+orthogonal): `openhaptics[:NAME]:reset-encoders`. Without it an uncalibrated
+encoder-reset arm is refused at open; a reconnect never resets again.
+
+Errors (AnchoredSpringForce.c, ErrorHandling.c): after each frame the error stack is
+drained. A force error (and, our choice for safety, HD_DEVICE_FAULT) stops force output
+until the daemon's command has returned to zero (the user has left the contact); the
+callback goes on. A scheduler error (communication, timer) ends the callback, and the
+next `read()` raises DeviceFault naming the code. Other errors are counted and logged.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import logging
+import threading
+import time
+
+import numpy as np
+
+from sasprobe.devices.base import (PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError,
+                                   DeviceState)
+from sasprobe.devices.openhaptics import hdapi
+from sasprobe.devices.openhaptics.hdapi import error_name
+from sasprobe.devices.support import HardwareDevice, clamp_force, quaternion_from_matrix
+
+log = logging.getLogger("sasprobe.devices.openhaptics")
+
+RESET_ENCODERS = "reset-encoders"
+RESUME_BELOW_N = 0.01  # after a force error, force output resumes once the command is this small
+MAX_ERRORS_PER_FRAME = 16  # the error stack is drained, boundedly, after every frame
+
+
+class OpenHapticsDevice(HardwareDevice):
+    def __init__(self, name: str | None = None, *, library: str | None = None, read_timeout_s: float = 0.05,
+                 reset_encoders: bool = False):
+        self.name = name or None  # None: HD_DEFAULT_DEVICE
+        self.library_path = library
+        self.read_timeout_s = read_timeout_s
+        self.reset_encoders = reset_encoders  # asked for once; a reconnect never resets again
+        self._lib = None
+        self._handle = hdapi.HD_INVALID_HANDLE
+        self._schedule = None
+        self._callback = hdapi.SchedulerCallback(self._servo)  # keep a reference: the library calls it
+        self._lock = threading.Lock()
+        self._force = (ctypes.c_double * 3)()
+        self._zero = (ctypes.c_double * 3)()
+        self._limits = PHANTOM_OMNI_LIMITS
+        self._centre = np.zeros(3)
+        self.calibration_style: int | None = None
+        self.model = "PHANTOM (OpenHaptics)"
+        self._reset_servo_state()
+
+    def _reset_servo_state(self) -> None:
+        self._sample = None  # (t_ns, position, velocity, transform, buttons)
+        self._fatal: tuple[int, int] | None = None
+        self._calibrated = False
+        self._force_blocked = False
+        self._unlogged: list[int] = []  # error codes the servo thread saw, for read() to log
+        self._logged: set[int] = set()
+        self.servo_ticks = 0
+        self.force_errors = 0
+        self.other_errors = 0
+
+    @property
+    def _who(self) -> str:
+        return f"'{self.name}'" if self.name else "the default OpenHaptics device"
+
+    @property
+    def info(self) -> DeviceInfo:
+        with self._lock:
+            details = {"servo_ticks": self.servo_ticks, "calibration_style": self.calibration_style,
+                       "force_errors": self.force_errors, "other_errors": self.other_errors,
+                       "force_stopped": self._force_blocked,
+                       "last_error": error_name(self._fatal[0]) if self._fatal else None}
+        return DeviceInfo(kind="openhaptics", model=self.model, limits=self._limits, serial=self.name or "",
+                          details=details)
+
+    # lifecycle ------------------------------------------------------------------------
+    def _pop_errors(self) -> list[tuple[int, int]]:
+        out = []
+        for _ in range(MAX_ERRORS_PER_FRAME):
+            err = self._lib.hdGetError()
+            if err.errorCode == hdapi.HD_SUCCESS:
+                break
+            out.append((err.errorCode, err.internalErrorCode))
+        return out
+
+    def open(self) -> None:
+        if self._lib is None:
+            self._lib = hdapi.load_library(self.library_path)
+        lib = self._lib
+        self._reset_servo_state()
+        handle = lib.hdInitDevice(self.name.encode() if self.name else None)
+        errors = self._pop_errors()
+        if errors or handle == hdapi.HD_INVALID_HANDLE:
+            code = errors[0][0] if errors else 0
+            raise DeviceOpenError(f"OpenHaptics could not initialise {self._who}: {error_name(code)} "
+                                  f"(0x{code:04x}{self._describe(code)}); is it connected and set up in the "
+                                  "vendor's configuration tool?")
+        self._handle = handle
+        lib.hdMakeCurrentDevice(handle)
+        self._read_properties()
+        self._reset_encoders_if_asked()
+        self._schedule = lib.hdScheduleAsynchronous(self._callback, None, hdapi.HD_DEFAULT_SCHEDULER_PRIORITY)
+        lib.hdEnable(hdapi.HD_FORCE_OUTPUT)
+        lib.hdStartScheduler()
+        errors = self._pop_errors()
+        if errors:
+            self.close()
+            raise DeviceOpenError(f"OpenHaptics scheduler did not start: {error_name(errors[0][0])} "
+                                  f"(0x{errors[0][0]:04x})")
+
+    def _describe(self, code: int) -> str:
+        text = self._lib.hdGetErrorString(code)
+        return f", {text.decode(errors='replace')}" if text else ""
+
+    def _reset_encoders_if_asked(self) -> None:
+        """Calibration.c's encoder reset: before the scheduler, at the pose the user holds."""
+        if self.calibration_style != hdapi.HD_CALIBRATION_ENCODER_RESET:
+            return
+        lib = self._lib
+        if self.reset_encoders:
+            lib.hdUpdateCalibration(hdapi.HD_CALIBRATION_ENCODER_RESET)
+            self.reset_encoders = False
+            errors = self._pop_errors()
+            if errors:
+                self._disable()
+                raise DeviceOpenError(f"the encoder reset of {self._who} failed: {error_name(errors[0][0])} "
+                                      f"(0x{errors[0][0]:04x})")
+        if lib.hdCheckCalibration() != hdapi.HD_CALIBRATION_OK:
+            self._disable()
+            spec = ":".join(["openhaptics", *([self.name] if self.name else []), RESET_ENCODERS])
+            raise DeviceOpenError(f"{self._who} needs an encoder reset: hold the arm at its reset position (all "
+                                  f"links orthogonal) and open it as --device '{spec}'")
+
+    def _read_properties(self) -> None:
+        lib = self._lib
+
+        def doubles(param: int, n: int) -> np.ndarray:
+            out = (ctypes.c_double * n)()
+            lib.hdGetDoublev(param, out)
+            return np.array(out[:])
+
+        model = lib.hdGetString(hdapi.HD_DEVICE_MODEL_TYPE)
+        if model:
+            self.model = model.decode(errors="replace")
+        box = doubles(hdapi.HD_USABLE_WORKSPACE_DIMENSIONS, 6)
+        lo, hi = box[:3], box[3:]
+        if not np.all(hi > lo):
+            lo, hi = np.asarray(PHANTOM_OMNI_LIMITS.workspace_min_mm), np.asarray(PHANTOM_OMNI_LIMITS.workspace_max_mm)
+        self._centre = (lo + hi) / 2.0
+        styles = ctypes.c_int(0)
+        lib.hdGetIntegerv(hdapi.HD_CALIBRATION_STYLE, ctypes.byref(styles))
+        self.calibration_style = hdapi.preferred_calibration_style(styles.value)
+        max_force = float(doubles(hdapi.HD_NOMINAL_MAX_FORCE, 1)[0]) or PHANTOM_OMNI_LIMITS.max_force_n
+        continuous = float(doubles(hdapi.HD_NOMINAL_MAX_CONTINUOUS_FORCE, 1)[0])
+        stiffness = float(doubles(hdapi.HD_NOMINAL_MAX_STIFFNESS, 1)[0])
+        damping_n_s_per_mm = float(doubles(hdapi.HD_NOMINAL_MAX_DAMPING, 1)[0])  # HDAPI's unit
+        self._limits = DeviceLimits(
+            max_force_n=max_force,
+            continuous_force_n=continuous or PHANTOM_OMNI_LIMITS.continuous_force_n,
+            max_stiffness_n_per_mm=stiffness or PHANTOM_OMNI_LIMITS.max_stiffness_n_per_mm,
+            max_damping_n_s_per_m=damping_n_s_per_mm * 1000.0 or PHANTOM_OMNI_LIMITS.max_damping_n_s_per_m,
+            workspace_min_mm=tuple(float(v) for v in lo - self._centre),
+            workspace_max_mm=tuple(float(v) for v in hi - self._centre),
+            nominal_rate_hz=1000.0,
+        )
+        self._pop_errors()  # a parameter this device lacks leaves HD_INVALID_ENUM; the defaults stand
+
+    def _disable(self) -> None:
+        self._lib.hdDisableDevice(self._handle)
+        self._handle = hdapi.HD_INVALID_HANDLE
+
+    def close(self) -> None:
+        lib = self._lib
+        if lib is None or self._handle == hdapi.HD_INVALID_HANDLE:
+            return
+        with self._lock:
+            self._force[:] = [0.0, 0.0, 0.0]
+            self.force = np.zeros(3)
+            ticks = self.servo_ticks
+        deadline = time.monotonic() + 0.02  # let one frame send the zero while the loop still runs
+        while self._fatal is None and self.servo_ticks == ticks and time.monotonic() < deadline:
+            time.sleep(0.001)
+        lib.hdStopScheduler()
+        if self._schedule is not None:
+            lib.hdUnschedule(self._schedule)
+            self._schedule = None
+        self._disable()
+
+    # servo thread (the library's, 1 kHz) --------------------------------------------
+    def _servo(self, _user_data) -> int:
+        lib, h = self._lib, self._handle
+        position, velocity, transform = (ctypes.c_double * 3)(), (ctypes.c_double * 3)(), (ctypes.c_double * 16)()
+        buttons = ctypes.c_int(0)
+        lib.hdBeginFrame(h)
+        lib.hdGetDoublev(hdapi.HD_CURRENT_POSITION, position)
+        lib.hdGetDoublev(hdapi.HD_CURRENT_VELOCITY, velocity)
+        lib.hdGetDoublev(hdapi.HD_CURRENT_TRANSFORM, transform)
+        lib.hdGetIntegerv(hdapi.HD_CURRENT_BUTTONS, ctypes.byref(buttons))
+        calibration = lib.hdCheckCalibration()
+        if calibration == hdapi.HD_CALIBRATION_NEEDS_UPDATE and self.calibration_style in (
+                hdapi.HD_CALIBRATION_AUTO, hdapi.HD_CALIBRATION_INKWELL):
+            lib.hdUpdateCalibration(self.calibration_style)  # Calibration.c's UpdateCalibrationCallback
+        calibrated = calibration == hdapi.HD_CALIBRATION_OK
+        with self._lock:
+            lib.hdSetDoublev(hdapi.HD_CURRENT_FORCE,
+                             self._force if calibrated and not self._force_blocked else self._zero)
+        lib.hdEndFrame(h)
+        errors = self._pop_errors()
+        with self._lock:
+            self.servo_ticks += 1
+            self._calibrated = calibrated
+            self._sample = (time.monotonic_ns(), np.array(position[:]), np.array(velocity[:]),
+                            np.array(transform[:]).reshape(4, 4).T, buttons.value)
+            for code, internal in errors:
+                if len(self._unlogged) < MAX_ERRORS_PER_FRAME:
+                    self._unlogged.append(code)
+                if hdapi.is_scheduler_error(code):
+                    self._fatal = (code, internal)
+                    return hdapi.HD_CALLBACK_DONE
+                if hdapi.is_force_error(code) or code == hdapi.HD_DEVICE_FAULT:
+                    self.force_errors += 1
+                    self._force_blocked = True
+                else:
+                    self.other_errors += 1
+        return hdapi.HD_CALLBACK_CONTINUE
+
+    # interface ------------------------------------------------------------------------
+    def read(self) -> DeviceState:
+        with self._lock:
+            sample, fatal, calibrated = self._sample, self._fatal, self._calibrated
+            unlogged, self._unlogged = self._unlogged, []
+        for code in unlogged:  # once per code and session; the counts are in `info.details`
+            if code not in self._logged and not hdapi.is_scheduler_error(code):
+                self._logged.add(code)
+                stops_force = hdapi.is_force_error(code) or code == hdapi.HD_DEVICE_FAULT
+                log.warning("OpenHaptics reported %s (0x%04x): %s", error_name(code), code,
+                            "force output stopped until the command returns to zero" if stops_force
+                            else "the servo loop goes on")
+        if fatal is not None:
+            raise DeviceFault(f"OpenHaptics reported {error_name(fatal[0])} (0x{fatal[0]:04x}, internal {fatal[1]})")
+        if sample is None or time.monotonic_ns() - sample[0] > self.read_timeout_s * 1e9:
+            raise DeviceFault(f"the OpenHaptics servo loop has not run for {self.read_timeout_s * 1000:.0f} ms")
+        t_ns, position, velocity, transform, buttons = sample
+        return DeviceState(t_ns=t_ns, position_mm=position - self._centre,
+                           orientation=quaternion_from_matrix(transform[:3, :3]), velocity_mm_s=velocity,
+                           buttons=buttons, calibrated=calibrated)
+
+    def write_force(self, force_n) -> None:
+        force = clamp_force(force_n, self._limits.max_force_n)
+        with self._lock:
+            self._force[:] = [float(v) for v in force]
+            self.force = force
+            if self._force_blocked and float(np.linalg.norm(force)) <= RESUME_BELOW_N:
+                self._force_blocked = False
