@@ -15,7 +15,7 @@ from typing import Callable, Iterator
 
 import numpy as np
 
-from sasprobe.daemon.recording import iter_items
+from sasprobe.protocol.recording import iter_items
 from sasprobe.protocol.pose import Pose
 
 POSE_FIELDS = ("seq", "device_t_ns", "publish_t_ns", "proxy_A", "goal_A", "force_N", "tip_mm", "orientation",

@@ -16,7 +16,6 @@ lower priority and, headless, with one llvmpipe thread.
 from __future__ import annotations
 
 import json
-import os
 import shlex
 import shutil
 import signal
@@ -31,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from sasprobe import __version__
-from sasprobe.children import Child
+from sasprobe.children import Child, DaemonChild, child_env
 from sasprobe.errors import UserError
 
 DEFAULT_SECONDS = 10.0  # headless
@@ -48,7 +47,7 @@ STATUS_EVERY_S = 1.0
 # Options the demo sets itself; passing them through --render-args/--daemon-args would break it.
 RESERVED_RENDER = ("--connect", "--control", "--molecule", "--headless", "--out", "--snapshot", "--report",
                    "--seconds", "--frames", "--size", "--fps")
-RESERVED_DAEMON = ("--device", "--molecule", "--pub", "--ctl", "--record", "--report", "--duration",
+RESERVED_DAEMON = ("--device", "--molecule", "--pub", "--ctl", "--record", "--report", "--seconds",
                    "--realtime", "--keep-water")
 
 
@@ -66,11 +65,6 @@ class DemoOptions:
     keep_water: bool = False
     render_args: list[str] = field(default_factory=list)
     daemon_args: list[str] = field(default_factory=list)
-
-
-def _child_env() -> dict:
-    # Unbuffered: events arrive as they happen. Fault handler: a crash in a driver leaves a trace in the log.
-    return dict(os.environ, PYTHONUNBUFFERED="1", PYTHONFAULTHANDLER="1")
 
 
 def split_extra_args(text: str | None, reserved: tuple[str, ...], flag: str) -> list[str]:
@@ -167,7 +161,7 @@ class DemoSession:
         from sasprobe.protocol.client import ControlClient
 
         o = self.opts
-        argv = [sys.executable, "-m", "sasprobe", "daemon", "--device", o.device, "--pub", self.pub, "--ctl", self.ctl]
+        argv = ["--device", o.device, "--pub", self.pub, "--ctl", self.ctl]
         if o.molecule:
             argv += ["--molecule", str(Path(o.molecule).resolve())]
         if o.keep_water:
@@ -176,13 +170,8 @@ class DemoSession:
             argv.append("--realtime")
         if o.record:
             argv += ["--record", str(Path(o.record).resolve())]
-        self.daemon = Child("daemon", argv + o.daemon_args, self.sockets / "daemon.log", env=_child_env(),
-                            registry=self.children)
-        ready = self.daemon.wait_event("ready", DAEMON_READY_S)
-        if ready is None:
-            why = self.daemon.error_line() if not self.daemon.alive() else f"no answer within {DAEMON_READY_S:g} s"
-            raise UserError(f"the daemon did not start: {why}")
-        self.ready = ready
+        self.daemon = DaemonChild(argv + o.daemon_args, self.sockets / "daemon.log", registry=self.children)
+        ready = self.ready = self.daemon.wait_ready(DAEMON_READY_S)
         if o.realtime and not ready.get("realtime"):
             self.notes.append("real-time scheduling was refused (needs root or CAP_SYS_NICE): the haptic rate "
                               "may drop while the renderer runs")
@@ -204,7 +193,7 @@ class DemoSession:
         return argv + o.render_args
 
     def start_renderer(self, headless: bool, seconds: float | None) -> None:
-        env = _child_env()
+        env = child_env()
         protected = bool(self.ready.get("realtime"))  # no ordinary process can preempt a SCHED_FIFO loop
         if not protected and headless:
             env.setdefault("LP_NUM_THREADS", "1")  # Mesa llvmpipe: leave the loop a core of its own
@@ -283,7 +272,7 @@ class DemoSession:
             for child in self.children:
                 rc = child.finish(DAEMON_STOP_S if child is self.daemon else RENDER_STOP_S, self.hurry)
                 if child is self.daemon:
-                    self.daemon_rc, self.exit_report = rc, child.events.get("stopped")
+                    self.daemon_rc, self.exit_report = rc, child.exit_report
                 elif child is self.renderer:
                     self.renderer_rc = rc
             if self.monitor is not None:

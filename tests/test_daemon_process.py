@@ -17,11 +17,12 @@ import zmq
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sasprobe.daemon.recording import iter_items, scan
-from sasprobe.devices.replay import load_session
+from sasprobe.protocol.recording import iter_items, scan
+from sasprobe.daemon.recording.replay import load_session
 from sasprobe.protocol.client import ControlClient, ControlError, Subscriber, fetch_structure
 from sasprobe.protocol.control import decode_reply
 from sasprobe.protocol.pose import FLAG_FAULT
+from sasprobe.protocol.scene import SCENE_VERSION
 from tests.daemon_process import DaemonProcess, cli, cli_many
 from tests.test_protocol_pose import reference_decode
 
@@ -101,7 +102,7 @@ def test_late_joiner_gets_the_scene_within_a_second(daemon):
         t0 = time.monotonic()
         scene = sub.wait_for_scene(3.0)
         assert time.monotonic() - t0 < 1.5
-    assert scene["structure"]["n_atoms"] > 0 and scene["version"] == 1
+    assert scene["structure"]["n_atoms"] > 0 and scene["version"] == SCENE_VERSION
 
 
 MALFORMED = [
@@ -338,7 +339,7 @@ def test_injected_faults_zero_the_force_then_recover(tmp_path):
 
 
 def test_non_loopback_bind_without_keys_is_refused():
-    out = cli("daemon", "--pub", "tcp://0.0.0.0:45555", "--duration", "1")
+    out = cli("daemon", "--pub", "tcp://0.0.0.0:45555", "--seconds", "1")
     assert out.returncode == 2
     assert out.stderr.startswith("sasprobe: error: refusing to bind tcp://0.0.0.0:45555 without encryption")
     assert out.stderr.count("\n") == 1
@@ -391,7 +392,7 @@ def test_user_errors_end_in_one_line(tmp_path):
             "no such file": ("daemon", "--device", f"replay:{tmp_path}/none.mcap"),
             "not an MCAP file": ("replay", str(existing)),
         }
-        outs = cli_many(*[(*args, "--duration", "1") if args[0] == "daemon" else args for args in cases.values()])
+        outs = cli_many(*[(*args, "--seconds", "1") if args[0] == "daemon" else args for args in cases.values()])
     for fragment, out in zip(cases, outs):
         assert out.returncode == 2, (fragment, out.stderr)
         assert fragment in out.stderr and out.stderr.count("\n") == 1 and "Traceback" not in out.stderr, out.stderr

@@ -8,6 +8,7 @@ subscriber); malformed messages are dropped and counted; no daemon gives one lin
 
 from __future__ import annotations
 
+import signal
 import time
 
 import numpy as np
@@ -24,15 +25,17 @@ from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import Effects, SceneState
 from sasprobe.render.targets import KIND_PROBE
 from tests.conftest import run_cli
-from tests.render_support import crambin, ctx, free_tcp_endpoint, start_daemon, stop_daemon  # noqa: F401 (fixtures)
+from tests.daemon_process import DaemonProcess
+from tests.render_support import crambin, ctx, free_tcp_endpoint  # noqa: F401 (fixtures)
+
+ORBIT = "sim:orbit"  # the simulated arm circling the molecule: the probe keeps moving
 
 
 @pytest.fixture(scope="module")
 def daemon():
-    pub, ctl = free_tcp_endpoint(), free_tcp_endpoint()
-    proc = start_daemon(pub, ctl)
-    yield pub, ctl
-    stop_daemon(proc)
+    with DaemonProcess("--seconds", "600", device=ORBIT, pub=free_tcp_endpoint(), ctl=free_tcp_endpoint()) as d:
+        yield d.pub, d.ctl
+        d.stop(signal.SIGINT)
 
 
 def test_rendered_probe_follows_the_pose_stream(ctx, daemon):

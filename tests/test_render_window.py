@@ -164,9 +164,14 @@ def _window_region(display: str) -> tuple[slice, slice]:
 def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
     """No daemon: the window opens and waits (no molecule). A daemon starts: the molecule
     appears. It stops: the window stays up. It comes back: the picture moves again."""
-    from tests.render_support import free_tcp_endpoint, start_daemon, stop_daemon
+    from tests.daemon_process import DaemonProcess
+    from tests.render_support import free_tcp_endpoint
 
     pub, ctl = free_tcp_endpoint(), free_tcp_endpoint()
+
+    def start_daemon() -> DaemonProcess:
+        return DaemonProcess("--seconds", "600", device="sim:orbit", pub=pub, ctl=ctl)
+
     proc = _start_window(xvfb, "--connect", pub, "--control", ctl, "--probe-plane", "--seconds", "600")
     daemon = None
     try:
@@ -174,18 +179,18 @@ def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
         below_text = lambda: x_screenshot(xvfb)[rows, cols][100:]  # noqa: E731 (under the readout)
         time.sleep(2.0)
         assert _molecule_pixels(below_text()) < 30, "nothing to draw before the daemon is there"
-        daemon = start_daemon(pub, ctl)
+        daemon = start_daemon()
         deadline = time.monotonic() + 90
         while _molecule_pixels(below_text()) < 300 and time.monotonic() < deadline:
             time.sleep(1.0)
         assert _molecule_pixels(below_text()) >= 300, "the molecule did not appear once the daemon ran"
-        stop_daemon(daemon)
+        daemon.stop(signal.SIGINT)
         time.sleep(3.0)
         frozen = below_text()
         time.sleep(2.0)
         assert proc.poll() is None, "the window must survive the daemon going away"
         assert np.array_equal(frozen, below_text()), "no poses: the picture holds still"
-        daemon = start_daemon(pub, ctl)
+        daemon = start_daemon()
         deadline = time.monotonic() + 60
         moved = False
         while not moved and time.monotonic() < deadline:
@@ -195,7 +200,7 @@ def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
         assert proc.poll() is None
     finally:
         if daemon is not None:
-            stop_daemon(daemon)
+            daemon.stop(signal.SIGINT)
         if proc.poll() is None:
             proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=60)

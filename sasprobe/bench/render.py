@@ -27,7 +27,7 @@ CUBE_TARGET_ATOMS = 300
 
 
 def add_arguments(parser) -> None:
-    from sasprobe.commands.render import size_type
+    from sasprobe.units import size_type
 
     parser.add_argument("--size", type=size_type, default=None, metavar="WxH",
                         help="frame size (default 1280x720, --quick 640x360)")

@@ -9,7 +9,7 @@ from sasprobe.units import positive_float
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from sasprobe.commands.render import size_type
+    from sasprobe.units import size_type
 
     p = sub.add_parser(
         "demo",

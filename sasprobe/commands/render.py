@@ -9,23 +9,11 @@ from pathlib import Path
 
 from sasprobe.errors import UserError
 from sasprobe.render.lighting_cli import add_lighting_arguments
-from sasprobe.units import positive_float, probe_radius
+from sasprobe.units import positive_float, probe_radius, size_type
 
 log = logging.getLogger("sasprobe")
 
-MAX_SIZE = 8192
 MAX_USER_PLANES = 16
-
-
-def size_type(text: str) -> tuple[int, int]:
-    parts = text.lower().split("x")
-    try:
-        w, h = (int(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not WIDTHxHEIGHT (e.g. 1280x720)") from None
-    if not (16 <= w <= MAX_SIZE and 16 <= h <= MAX_SIZE):
-        raise argparse.ArgumentTypeError(f"'{text}': width and height must be 16..{MAX_SIZE} pixels")
-    return w, h
 
 
 def _floats(text: str, n: int, what: str) -> list[float]:

@@ -10,7 +10,7 @@ from sasprobe.errors import UserError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from sasprobe.commands.render import size_type
+    from sasprobe.units import size_type
     from sasprobe.units import positive_float
 
     p = sub.add_parser("replay", help="summarise a recording; --verify recomputes its forces; --recover repairs it; "
@@ -29,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from sasprobe.daemon.recording import recover, summarize
+    from sasprobe.protocol.recording import recover, summarize
 
     result: dict = {}
     if args.video is not None:
@@ -45,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     result["summary"] = summary.as_dict()
     status = 0
     if args.verify:
-        from sasprobe.daemon.verify import verify_recording
+        from sasprobe.daemon.recording.verify import verify_recording
         from sasprobe.progress import progress_bar
 
         bar = progress_bar(summary.ticks, desc="verify", unit="tick")

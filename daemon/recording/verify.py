@@ -15,10 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from sasprobe.daemon.engine import HapticBackend, apply_recorded_event
-from sasprobe.daemon.pipeline import HapticPipeline
-from sasprobe.daemon.safety import SafetyGuard
-from sasprobe.devices.replay import load_session
+from sasprobe.daemon.haptics import HapticPipeline, SafetyGuard, build_engine, validate_settings
+from sasprobe.daemon.recording.replay import apply_recorded_event, load_session
+from sasprobe.protocol.pose import FLAG_FAULT
 
 
 @dataclass
@@ -43,15 +42,12 @@ class VerifyReport:
         return {**self.__dict__, "ok": self.ok}
 
 
-def verify_recording(path: str | Path, backend=None, progress=None) -> VerifyReport:
-    from sasprobe.protocol.pose import FLAG_FAULT
-
+def verify_recording(path: str | Path, progress=None) -> VerifyReport:
     session = load_session(path)
-    backend = backend or HapticBackend()
     limits = session.device_limits()
     structure = session.structure(session.start["structure_sha256"])
-    settings = backend.validate(session.settings, limits)
-    pipeline = HapticPipeline(backend.build(structure, limits, settings), SafetyGuard(limits))
+    settings = validate_settings(session.settings, limits)
+    pipeline = HapticPipeline(build_engine(structure, limits, settings), SafetyGuard(limits))
     events = session.events
     next_event = 0
     max_diff = 0.0
@@ -62,7 +58,7 @@ def verify_recording(path: str | Path, backend=None, progress=None) -> VerifyRep
         seq = int(session.seq[i])
         while next_event < len(events) and events[next_event]["seq"] <= seq:
             structure, settings = apply_recorded_event(
-                events[next_event], pipeline, backend, structure, settings, limits, session.structure)
+                events[next_event], pipeline, structure, settings, limits, session.structure)
             next_event += 1
         state, error = session.state(i)
         result = pipeline.step(state, error, float(session.late_periods[i]))

@@ -20,6 +20,10 @@ bounding box of the atom centres, so the molecule cannot be lost.
 The fitted cube (`cube_half_A=None`) holds the whole solvent accessible surface in
 its drift-free core, so a freshly started session never drifts unless the user
 reaches for the edge.
+
+It lives with the devices, not in the daemon's haptics, because two layers need the
+same mapping: the haptic engine maps the tip through it every tick, and the simulated
+arm places its scripted hand on the molecule with the mapping a session starts with.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sasprobe.devices.base import DeviceLimits
+from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
 
 MARGIN_FRACTION = 0.15  # outer part of the cube (per axis) where the cube drifts
 DRIFT_SPEED_MM_S = 30.0  # drift speed at the cube face, device-frame equivalent
@@ -73,7 +78,7 @@ class WorkspaceMapping:
     """Device workspace (mm) <-> navigation cube (Å), with the drift state (cube centre).
 
     All members are plain Python floats: the mapping runs every control tick.
-    Callers outside the renderer should treat it as read-only.
+    Callers outside the haptic engine should treat it as read-only.
     """
 
     workspace_center_mm: tuple[float, float, float]
@@ -92,7 +97,7 @@ class WorkspaceMapping:
         structure,
         limits: DeviceLimits,
         cube_half_A: float | None = None,
-        probe_radius: float = 1.4,
+        probe_radius: float = DEFAULT_PROBE_RADIUS,
         cube_center_A=None,
     ) -> "WorkspaceMapping":
         """The mapping a session starts with (the daemon and the simulated arm share it).

@@ -4,9 +4,10 @@ The loop hands each tick to `offer_tick()`, which only appends a tuple to a boun
 queue (a full queue drops the tick and counts it). The writer thread turns the queue
 into JSON messages on four channels and finishes an MCAP chunk and flushes the file at
 least every `flush_interval_s`, so a daemon killed with SIGKILL loses at most that much
-and leaves a file whose complete records `recording.read_recording()` still reads.
+and leaves a file whose complete records `protocol.recording.iter_items()` still reads.
 
-Channels (message encoding `json`, schemas in JSON Schema):
+Channels (message encoding `json`, schemas in JSON Schema; protocol/recording.py holds
+them and protocol/README.md describes them):
   device   raw device state per tick: the replay input (state or read error, lateness)
   pose     the published pose per tick (force, proxy, flags, ...)
   scene    every scene the daemon published
@@ -19,68 +20,23 @@ from __future__ import annotations
 import collections
 import json
 import logging
-import math
 import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-
-import numpy as np
 
 from sasprobe import __version__
 from sasprobe.daemon.loop import helper_priority
 from sasprobe.devices.base import DeviceState
 from sasprobe.errors import UserError
 from sasprobe.protocol.pose import Pose
+from sasprobe.protocol.recording import PROFILE, SCHEMAS, json_floats, pose_record
 
 log = logging.getLogger("sasprobe")
 
-PROFILE = "sasprobe"
 FLUSH_INTERVAL_S = 0.05  # half the 100 ms the issue allows, leaving room for a busy machine
 QUEUE_LIMIT = 20_000  # items (about 10 s of ticks at 1 kHz)
 _WAKE_S = 0.01
-
-_VEC = {"type": "array", "items": {"type": ["number", "null"]}}
-SCHEMAS = {
-    "device": {
-        "title": "sasprobe.DeviceTick",
-        "description": "Raw device input of one tick (null numbers: non-finite values)",
-        "type": "object",
-        "properties": {
-            "seq": {"type": "integer"}, "t_ns": {"type": "integer"}, "error": {"type": ["string", "null"]},
-            "late_periods": {"type": "number"}, "read_ns": {"type": "integer"},
-            "position_mm": _VEC, "orientation": _VEC, "velocity_mm_s": _VEC,
-            "buttons": {"type": "integer"}, "calibrated": {"type": "boolean"},
-        },
-    },
-    "pose": {
-        "title": "sasprobe.Pose",
-        "description": "The pose message as published (protocol/README.md), as JSON",
-        "type": "object",
-        "properties": {
-            "seq": {"type": "integer"}, "device_t_ns": {"type": "integer"}, "publish_t_ns": {"type": "integer"},
-            "proxy_A": _VEC, "goal_A": _VEC, "force_N": _VEC, "tip_mm": _VEC, "orientation": _VEC,
-            "buttons": {"type": "integer"}, "touched_atom": {"type": "integer"}, "flags": {"type": "integer"},
-            "cube_center_A": _VEC, "cube_half_A": {"type": "number"},
-        },
-    },
-    "scene": {"title": "sasprobe.Scene", "description": "The scene message (protocol/README.md)", "type": "object"},
-    "control": {
-        "title": "sasprobe.Control",
-        "description": "A state-changing control command and the tick it took effect at",
-        "type": "object",
-        "properties": {"seq": {"type": "integer"}, "cmd": {"type": "string"}, "args": {"type": "object"}},
-    },
-}
-CHANNELS = tuple(SCHEMAS)
-
-
-def _floats(values) -> list:
-    """A vector as JSON numbers; non-finite entries become null (JSON has no NaN)."""
-    floats = np.asarray(values, dtype=np.float64).tolist()
-    if all(map(math.isfinite, floats)):
-        return floats
-    return [x if math.isfinite(x) else None for x in floats]
 
 
 def device_record(seq: int, state: DeviceState | None, error: str | None, late_periods: float, read_ns: int) -> dict:
@@ -88,31 +44,13 @@ def device_record(seq: int, state: DeviceState | None, error: str | None, late_p
     if state is not None:
         record.update(
             t_ns=int(state.t_ns),
-            position_mm=_floats(state.position_mm),
-            orientation=_floats(state.orientation),
-            velocity_mm_s=_floats(state.velocity_mm_s),
+            position_mm=json_floats(state.position_mm),
+            orientation=json_floats(state.orientation),
+            velocity_mm_s=json_floats(state.velocity_mm_s),
             buttons=int(state.buttons),
             calibrated=bool(state.calibrated),
         )
     return record
-
-
-def pose_record(pose: Pose) -> dict:
-    return {
-        "seq": int(pose.seq),
-        "device_t_ns": int(pose.device_t_ns),
-        "publish_t_ns": int(pose.publish_t_ns),
-        "proxy_A": _floats(pose.proxy_A),
-        "goal_A": _floats(pose.goal_A),
-        "force_N": _floats(pose.force_N),
-        "tip_mm": _floats(pose.tip_mm),
-        "orientation": _floats(pose.orientation),
-        "buttons": int(pose.buttons),
-        "touched_atom": int(pose.touched_atom),
-        "flags": int(pose.flags),
-        "cube_center_A": _floats(pose.cube_center_A),
-        "cube_half_A": float(pose.cube_half_A),
-    }
 
 
 def _media_type(data: bytes) -> str:

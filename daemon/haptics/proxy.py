@@ -45,7 +45,7 @@ from itertools import combinations
 
 import numpy as np
 
-from sasprobe.daemon.neighbours import NeighbourCache, Sphere, deepest
+from sasprobe.daemon.haptics.neighbours import NeighbourCache, Sphere, deepest
 
 TOUCH_A = 1e-10  # |distance to a sphere's surface| below this: touching
 ANGLE_TOL = 1e-9  # cosine tolerance for "entering" / "leaving" a sphere

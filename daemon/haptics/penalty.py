@@ -11,7 +11,7 @@ measured in `sasprobe bench haptics`.
 
 from __future__ import annotations
 
-from sasprobe.daemon.neighbours import NeighbourCache, Sphere, deepest
+from sasprobe.daemon.haptics.neighbours import NeighbourCache, Sphere, deepest
 
 
 def penalty_contact(

@@ -1,4 +1,4 @@
-"""HapticRenderer: settings validation, faults, clamping, determinism, seams, drift."""
+"""HapticEngine: settings validation, faults, clamping, determinism, seams, drift."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from sasprobe.daemon.force_law import contact_force
-from sasprobe.daemon.haptics import HapticOutput, HapticRenderer, HapticSettings
-from sasprobe.daemon.workspace import WorkspaceMapping
+from sasprobe.daemon.haptics.force_law import contact_force
+from sasprobe.daemon.haptics import HapticOutput, HapticEngine, HapticSettings
+from sasprobe.devices.workspace import WorkspaceMapping
 from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceState, open_device
 from sasprobe.molecule import load_default
 from tests.haptics_reference import synthetic_structure
@@ -44,24 +44,24 @@ def state(k: int, tip, velocity=(0.0, 0.0, 0.0), **kw) -> DeviceState:
 )
 def test_bad_settings_are_one_clear_value_error(changes, words):
     with pytest.raises(ValueError) as err:
-        HapticRenderer(CRAMBIN, LIMITS, HapticSettings(**changes))
+        HapticEngine(CRAMBIN, LIMITS, HapticSettings(**changes))
     message = str(err.value)
     assert words in message and "\n" not in message
-    renderer = HapticRenderer(CRAMBIN, LIMITS)
-    before = renderer.settings
+    engine = HapticEngine(CRAMBIN, LIMITS)
+    before = engine.settings
     with pytest.raises(ValueError):
-        renderer.update(**changes)
-    assert renderer.settings == before  # nothing changed
+        engine.update(**changes)
+    assert engine.settings == before  # nothing changed
 
 
 def test_update_rejects_unknown_names_and_accepts_good_values():
-    renderer = HapticRenderer(CRAMBIN, LIMITS)
+    engine = HapticEngine(CRAMBIN, LIMITS)
     with pytest.raises(ValueError, match="unknown haptic setting"):
-        renderer.update(stiffnes=0.2)
-    renderer.update(stiffness_n_per_mm=0.7, method="penalty", probe_radius_A=1.0)
-    s = renderer.settings
+        engine.update(stiffnes=0.2)
+    engine.update(stiffness_n_per_mm=0.7, method="penalty", probe_radius_A=1.0)
+    s = engine.settings
     assert (s.stiffness_n_per_mm, s.method, s.probe_radius_A) == (0.7, "penalty", 1.0)
-    assert np.allclose(renderer.grid.radii, CRAMBIN.vdw_radii + 1.0)  # the grid follows the probe
+    assert np.allclose(engine.grid.radii, CRAMBIN.vdw_radii + 1.0)  # the grid follows the probe
 
 
 def test_default_settings_are_valid_and_well_under_the_device_limit():
@@ -81,40 +81,40 @@ def test_default_settings_are_valid_and_well_under_the_device_limit():
     ],
 )
 def test_non_finite_or_malformed_input_gives_zero_force_and_a_fault(bad):
-    renderer = HapticRenderer(CRAMBIN, LIMITS)
-    m = renderer.mapping
+    engine = HapticEngine(CRAMBIN, LIMITS)
+    m = engine.mapping
     inside = np.array(m.to_device(*CRAMBIN.positions[0]))
     outside = inside + [0, 0, 60.0]
     for k, tip in enumerate(np.linspace(outside, inside, 400)):  # press into the surface
-        out = renderer.step(state(k, tip))
+        out = engine.step(state(k, tip))
     assert out.contact and np.linalg.norm(out.force_n) > 0.5
     proxy_before = out.proxy_A.copy()
     fields = dict(t_ns=400 * 1_000_000, position_mm=inside, velocity_mm_s=np.zeros(3))
     fields.update(bad)
-    out = renderer.step(DeviceState(**fields))
+    out = engine.step(DeviceState(**fields))
     assert out.fault and not out.contact
     assert np.array_equal(out.force_n, np.zeros(3))
     assert np.array_equal(out.proxy_A, proxy_before)
-    out = renderer.step(state(401, inside))  # recovers: the proxy kept its place, no pop-through
+    out = engine.step(state(401, inside))  # recovers: the proxy kept its place, no pop-through
     assert not out.fault and out.contact and np.linalg.norm(out.force_n) > 0.5
 
 
 def test_uncalibrated_device_gets_no_force():
-    renderer = HapticRenderer(CRAMBIN, LIMITS)
-    inside = np.array(renderer.mapping.to_device(*CRAMBIN.positions[0]))
-    out = renderer.step(state(0, inside, calibrated=False))
+    engine = HapticEngine(CRAMBIN, LIMITS)
+    inside = np.array(engine.mapping.to_device(*CRAMBIN.positions[0]))
+    out = engine.step(state(0, inside, calibrated=False))
     assert np.array_equal(out.force_n, np.zeros(3)) and not out.fault and not out.seated
 
 
 def test_forces_are_finite_and_clamped_for_wild_input():
     rng = np.random.default_rng(11)
     for method in ("proxy", "penalty"):
-        renderer = HapticRenderer(CRAMBIN, LIMITS, HapticSettings(method=method, stiffness_n_per_mm=0.7))
+        engine = HapticEngine(CRAMBIN, LIMITS, HapticSettings(method=method, stiffness_n_per_mm=0.7))
         clamped = 0
         for k in range(3000):
             scale = 10.0 ** rng.integers(-1, 7)  # up to a million mm: a garbled reading
             tip = rng.normal(size=3) * scale if k % 7 == 0 else rng.normal(size=3) * 15
-            out = renderer.step(state(k, tip, rng.normal(size=3) * 1e3))
+            out = engine.step(state(k, tip, rng.normal(size=3) * 1e3))
             assert np.all(np.isfinite(out.force_n))
             assert np.linalg.norm(out.force_n) <= LIMITS.max_force_n * (1 + 1e-12)
             clamped += out.clamped
@@ -140,11 +140,11 @@ def test_force_law_against_hand_calculation():
 # ---------------------------------------------------------------- determinism
 def run_session(script: str, method: str, ticks: int) -> list[HapticOutput]:
     device = open_device(f"sim:{script}", structure=CRAMBIN, seed=9)
-    renderer = HapticRenderer(CRAMBIN, LIMITS, HapticSettings(method=method))
+    engine = HapticEngine(CRAMBIN, LIMITS, HapticSettings(method=method))
     device.open()
     outs = []
     for _ in range(ticks):
-        out = renderer.step(device.read())
+        out = engine.step(device.read())
         device.write_force(out.force_n)
         outs.append(out)
     return outs
@@ -158,57 +158,57 @@ def test_step_is_deterministic_bit_for_bit(method):
         assert np.array_equal(x.force_n, y.force_n) and np.array_equal(x.proxy_A, y.proxy_A)
         assert x.touched_atoms == y.touched_atoms and x.clamped == y.clamped
     assert sum(o.contact for o in a) > 300
-    # Replaying the recorded states into a fresh renderer gives the same outputs.
+    # Replaying the recorded states into a fresh engine gives the same outputs.
     device = open_device("sim:random", structure=CRAMBIN, seed=9)
     device.open()
     states = []
     for out in a:
         states.append(device.read())
         device.write_force(out.force_n)
-    renderer = HapticRenderer(CRAMBIN, LIMITS, HapticSettings(method=method))
+    engine = HapticEngine(CRAMBIN, LIMITS, HapticSettings(method=method))
     for s, out in zip(states, a):
-        again = renderer.step(s)
+        again = engine.step(s)
         assert np.array_equal(again.force_n, out.force_n)
 
 
 def test_reset_unseats_the_proxy_until_the_goal_is_free():
-    renderer = HapticRenderer(CRAMBIN, LIMITS)
-    m = renderer.mapping
+    engine = HapticEngine(CRAMBIN, LIMITS)
+    m = engine.mapping
     inside = np.array(m.to_device(*CRAMBIN.positions[0]))
     outside = inside + [0, 0, 60.0]
     path = np.linspace(outside, inside, 300)
     for k, tip in enumerate(path):
-        out = renderer.step(state(k, tip))
+        out = engine.step(state(k, tip))
     assert out.contact
-    renderer.reset()
-    out = renderer.step(state(300, inside))
+    engine.reset()
+    out = engine.step(state(300, inside))
     assert not out.seated and np.array_equal(out.force_n, np.zeros(3))  # no kick on reconnect
     for k, tip in enumerate(path[::-1]):  # back out ...
-        out = renderer.step(state(301 + k, tip))
+        out = engine.step(state(301 + k, tip))
     assert out.seated
     for k, tip in enumerate(path):  # ... and the surface is there again
-        out = renderer.step(state(601 + k, tip))
+        out = engine.step(state(601 + k, tip))
     assert out.contact and np.linalg.norm(out.force_n) > 0.5
 
 
 def test_set_structure_refits_the_cube_and_unseats():
-    renderer = HapticRenderer(CRAMBIN, LIMITS)
+    engine = HapticEngine(CRAMBIN, LIMITS)
     small = synthetic_structure([[0, 0, 0], [1.5, 0, 0]])
-    renderer.set_structure(small)
-    assert renderer.structure is small and renderer.grid.centers.shape[0] == 2
-    assert renderer.mapping.cube_half_A < 10.0
-    out = renderer.step(state(0, renderer.mapping.to_device(0.75, 0.0, 0.0)))
+    engine.set_structure(small)
+    assert engine.structure is small and engine.grid.centers.shape[0] == 2
+    assert engine.mapping.cube_half_A < 10.0
+    out = engine.step(state(0, engine.mapping.to_device(0.75, 0.0, 0.0)))
     assert not out.seated and np.array_equal(out.force_n, np.zeros(3))
 
 
 # ------------------------------------------------------------------- seams
 def seam_session(points, goal_path_A, method="proxy"):
     structure = synthetic_structure(points)
-    renderer = HapticRenderer(structure, LIMITS, HapticSettings(method=method, cube_half_A=10.0, cube_center_A=(0, 0, 0)))
-    m = renderer.mapping
+    engine = HapticEngine(structure, LIMITS, HapticSettings(method=method, cube_half_A=10.0, cube_center_A=(0, 0, 0)))
+    m = engine.mapping
     forces, contacts = [], []
     for k, g in enumerate(goal_path_A):
-        out = renderer.step(state(k, m.to_device(*g)))
+        out = engine.step(state(k, m.to_device(*g)))
         forces.append(out.force_n)
         contacts.append(out.touched_atoms)
     return np.array(forces), contacts, m.scale_A_per_mm
@@ -252,17 +252,17 @@ def test_force_is_continuous_while_the_goal_slides_across_seams(points):
 def test_drift_moves_the_cube_without_a_force_jump():
     points = np.array([[x, y, 0.0] for x in np.arange(-40, 41, 2.0) for y in np.arange(-40, 41, 2.0)])
     structure = synthetic_structure(points)  # a wide flat floor to slide on while drifting
-    renderer = HapticRenderer(structure, LIMITS, HapticSettings(cube_half_A=15.0, cube_center_A=(0, 0, 0)))
-    m = renderer.mapping
+    engine = HapticEngine(structure, LIMITS, HapticSettings(cube_half_A=15.0, cube_center_A=(0, 0, 0)))
+    m = engine.mapping
     core = m.core_half_mm
     floor = np.array(m.to_device(0, 0, 3.1))[2] - 1.0  # pressed 1 mm into the floor
     start = np.array([0.0, 0.0, floor])
     for k in range(200):  # touch down from 10 mm above
-        renderer.step(state(k, start + [0, 0, 10.0 * (1 - k / 199)]))
+        engine.step(state(k, start + [0, 0, 10.0 * (1 - k / 199)]))
     forces, drifting, centers = [], [], []
     for k in range(3000):
         x = min(k * 0.02, core + 3.0)  # 20 mm/s toward +x, into the margin, then held there
-        out = renderer.step(state(200 + k, start + [x, 0, 0], velocity=(20.0 if x < core + 3 else 0.0, 0, 0)))
+        out = engine.step(state(200 + k, start + [x, 0, 0], velocity=(20.0 if x < core + 3 else 0.0, 0, 0)))
         forces.append(out.force_n)
         drifting.append(out.drifting)
         centers.append(out.cube_center_A[0])

@@ -1,7 +1,7 @@
 """The haptic engine the daemon loop calls once per control tick.
 
-    renderer = HapticRenderer(structure, device.info.limits, HapticSettings())
-    out = renderer.step(device.read())      # force in the device frame, proxy, ...
+    engine = HapticEngine(structure, device.info.limits, HapticSettings())
+    out = engine.step(device.read())        # force in the device frame, proxy, ...
     device.write_force(out.force_n)
 
 One tick: device tip (mm) -> workspace drift -> goal in the molecule frame (Å) ->
@@ -31,17 +31,16 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from sasprobe.daemon.force_law import ZERO, contact_force
-from sasprobe.daemon.neighbours import NeighbourCache
-from sasprobe.daemon.penalty import penalty_contact
-from sasprobe.daemon.proxy import ProxySolver
-from sasprobe.daemon.workspace import WorkspaceMapping, validate_cube_center, validate_cube_half
+from sasprobe.daemon.haptics.force_law import ZERO, contact_force
+from sasprobe.daemon.haptics.neighbours import NeighbourCache
+from sasprobe.daemon.haptics.penalty import penalty_contact
+from sasprobe.daemon.haptics.proxy import ProxySolver
+from sasprobe.daemon.haptics.settings import HapticSettings
 from sasprobe.devices.base import DeviceLimits, DeviceState
+from sasprobe.devices.workspace import WorkspaceMapping
 from sasprobe.molecule.grid import UniformGrid
 from sasprobe.molecule.structure import Structure
-from sasprobe.units import MAX_PROBE_RADIUS
 
-METHODS = ("proxy", "penalty")
 MAX_DT_S = 0.05  # a longer gap between ticks (a stall) drifts the cube by at most this much time
 # The proxy may travel, per tick, twice the goal's own motion plus SNAP_SPEED_MM_S * dt
 # (device-frame equivalent). Following the goal is never limited, but a snap between
@@ -51,60 +50,12 @@ SNAP_SPEED_MM_S = 300.0
 MIN_SNAP_DT_S = 1e-3  # the budget of a tick with no time step (first tick, equal stamps)
 
 
-@dataclass
-class HapticSettings:
-    probe_radius_A: float = 1.4
-    method: str = "proxy"  # "proxy" | "penalty"
-    # Well under an Omni-class arm's 0.7 N/mm, and stable at every control rate from
-    # 100 Hz up on the simulated arm (see the stability map in the README).
-    stiffness_n_per_mm: float = 0.3
-    damping_n_s_per_m: float = 0.2
-    cube_half_A: float | None = None  # navigation-cube half edge; None = fit the molecule
-    cube_center_A: tuple[float, float, float] | None = None  # None = centre of the molecule
-
-    def validated(self, limits: DeviceLimits) -> "HapticSettings":
-        """A checked copy; ValueError with one clear line on a bad value."""
-        radius = _finite(self.probe_radius_A, "probe radius")
-        if radius <= 0 or radius > MAX_PROBE_RADIUS:
-            raise ValueError(f"probe radius must be in (0, {MAX_PROBE_RADIUS:g}] Å, got {radius:g}")
-        if self.method not in METHODS:
-            raise ValueError(f"unknown haptic method {self.method!r} (known: {', '.join(METHODS)})")
-        stiffness = _finite(self.stiffness_n_per_mm, "stiffness")
-        if stiffness <= 0 or stiffness > limits.max_stiffness_n_per_mm:
-            raise ValueError(
-                f"stiffness must be in (0, {limits.max_stiffness_n_per_mm:g}] N/mm for this device, got {stiffness:g}"
-            )
-        damping = _finite(self.damping_n_s_per_m, "damping")
-        if damping < 0 or damping > limits.max_damping_n_s_per_m:
-            raise ValueError(
-                f"damping must be in [0, {limits.max_damping_n_s_per_m:g}] N·s/m for this device, got {damping:g}"
-            )
-        return HapticSettings(
-            probe_radius_A=radius,
-            method=self.method,
-            stiffness_n_per_mm=stiffness,
-            damping_n_s_per_m=damping,
-            cube_half_A=validate_cube_half(self.cube_half_A),
-            cube_center_A=validate_cube_center(self.cube_center_A),
-        )
-
-
 def _xyz(value) -> tuple[float, float, float]:
     """Three floats from a (3,) array or sequence (ValueError/TypeError otherwise)."""
     if type(value) is np.ndarray and value.shape == (3,):
         value = value.tolist()  # far cheaper than iterating numpy scalars
     x, y, z = value
     return float(x), float(y), float(z)
-
-
-def _finite(value, name: str) -> float:
-    try:
-        value = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(value):
-        raise ValueError(f"{name} must be finite, got {value}")
-    return value
 
 
 @dataclass
@@ -123,7 +74,7 @@ class HapticOutput:
     iterations: int = 0  # proxy path steps this tick
 
 
-class HapticRenderer:
+class HapticEngine:
     """Contact force of the probe sphere on the SAS of one structure (see module docstring)."""
 
     def __init__(self, structure: Structure, limits: DeviceLimits, settings: HapticSettings | None = None):
@@ -301,3 +252,8 @@ class HapticRenderer:
             cube_half_A=m.cube_half_A,
             seated=self._solver.seated,
         )
+
+
+def build_engine(structure: Structure, limits: DeviceLimits, settings: dict) -> HapticEngine:
+    """An engine from a settings dict (validate_settings' form): how the daemon and replays build one."""
+    return HapticEngine(structure, limits, HapticSettings(**settings).validated(limits))

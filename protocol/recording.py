@@ -1,7 +1,13 @@
-"""Reading recordings, including files whose writer was killed (no summary, cut record).
+"""Recordings: the MCAP file a daemon writes (`--record`), its channels and their JSON,
+and reading it back, including files whose writer was killed (no summary, cut record).
 
-A finished MCAP file ends with a summary and footer; a file of a daemon killed with
-SIGKILL ends after its last flushed chunk, possibly in the middle of a record. The
+The format is documented in protocol/README.md. The daemon writes it
+(daemon/recording/writer.py); the daemon's replay and `replay --verify`, and the
+renderer's `replay --video`, read it through this module, so a renderer needs no daemon
+code to draw a recorded session.
+
+Reading: a finished MCAP file ends with a summary and footer; a file of a daemon killed
+with SIGKILL ends after its last flushed chunk, possibly in the middle of a record. The
 reader walks the top-level records, stops before the first incomplete one and reads
 everything up to there in file order. `recover()` writes such a prefix out again as a
 finished, indexed MCAP file.
@@ -12,15 +18,88 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import math
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
+import numpy as np
+
 from sasprobe.errors import UserError
+from sasprobe.protocol.pose import Pose
 
 MAGIC = b"\x89MCAP0\r\n"
 _OPCODE_FOOTER = 0x02
+PROFILE = "sasprobe"
+
+_VEC = {"type": "array", "items": {"type": ["number", "null"]}}
+SCHEMAS = {
+    "device": {
+        "title": "sasprobe.DeviceTick",
+        "description": "Raw device input of one tick (null numbers: non-finite values)",
+        "type": "object",
+        "properties": {
+            "seq": {"type": "integer"}, "t_ns": {"type": "integer"}, "error": {"type": ["string", "null"]},
+            "late_periods": {"type": "number"}, "read_ns": {"type": "integer"},
+            "position_mm": _VEC, "orientation": _VEC, "velocity_mm_s": _VEC,
+            "buttons": {"type": "integer"}, "calibrated": {"type": "boolean"},
+        },
+    },
+    "pose": {
+        "title": "sasprobe.Pose",
+        "description": "The pose message as published (protocol/README.md), as JSON",
+        "type": "object",
+        "properties": {
+            "seq": {"type": "integer"}, "device_t_ns": {"type": "integer"}, "publish_t_ns": {"type": "integer"},
+            "proxy_A": _VEC, "goal_A": _VEC, "force_N": _VEC, "tip_mm": _VEC, "orientation": _VEC,
+            "buttons": {"type": "integer"}, "touched_atom": {"type": "integer"}, "flags": {"type": "integer"},
+            "cube_center_A": _VEC, "cube_half_A": {"type": "number"},
+        },
+    },
+    "scene": {"title": "sasprobe.Scene", "description": "The scene message (protocol/README.md)", "type": "object"},
+    "control": {
+        "title": "sasprobe.Control",
+        "description": "A state-changing control command and the tick it took effect at",
+        "type": "object",
+        "properties": {"seq": {"type": "integer"}, "cmd": {"type": "string"}, "args": {"type": "object"}},
+    },
+}
+CHANNELS = tuple(SCHEMAS)
+
+
+def json_floats(values) -> list:
+    """A vector as JSON numbers; non-finite entries become null (JSON has no NaN)."""
+    floats = np.asarray(values, dtype=np.float64).tolist()
+    if all(map(math.isfinite, floats)):
+        return floats
+    return [x if math.isfinite(x) else None for x in floats]
+
+
+# The `pose` channel's fields: the Pose's, in its order, without its version.
+POSE_RECORD_FIELDS = ("seq", "device_t_ns", "publish_t_ns", "proxy_A", "goal_A", "force_N", "tip_mm", "orientation",
+                      "buttons", "touched_atom", "flags", "cube_center_A", "cube_half_A")
+_POSE_VECTORS = frozenset({"proxy_A", "goal_A", "force_N", "tip_mm", "orientation", "cube_center_A"})
+
+
+def pose_record(pose: Pose) -> dict:
+    """A pose as the `pose` channel's JSON (non-finite numbers as null)."""
+    record = {}
+    for name in POSE_RECORD_FIELDS:
+        value = getattr(pose, name)
+        record[name] = json_floats(value) if name in _POSE_VECTORS else float(value) if name == "cube_half_A" \
+            else int(value)
+    return record
+
+
+def pose_from_record(record: dict) -> Pose:
+    """The inverse of pose_record (null numbers come back as NaN)."""
+    values = {}
+    for name in POSE_RECORD_FIELDS:
+        v = record[name]
+        values[name] = np.array([np.nan if x is None else x for x in v], dtype=np.float64) if name in _POSE_VECTORS \
+            else v
+    return Pose(**values)
 
 
 class RecordingError(UserError):
@@ -186,7 +265,7 @@ def recover(path: Path, out: Path) -> Summary:
     info = scan(path)
     with open(path, "rb") as src, open(out, "xb") as dst:
         writer = Writer(dst, compression=CompressionType.ZSTD)
-        writer.start(profile="sasprobe", library="sasprobe recover")
+        writer.start(profile=PROFILE, library="sasprobe recover")
         schema_ids: dict[int, int] = {}
         channel_ids: dict[int, int] = {}
         try:

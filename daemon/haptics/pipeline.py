@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sasprobe.daemon.safety import GuardResult, SafetyGuard, state_is_finite
+from sasprobe.daemon.haptics.safety import GuardResult, SafetyGuard, state_is_finite
 from sasprobe.devices.base import DeviceState
 from sasprobe.protocol.pose import (
     FLAG_CLAMPED,

@@ -3,9 +3,15 @@
 Each read() returns the next recorded device state (or raises DeviceFault where the
 recording has a failed read), so the daemon recomputes forces through the same
 pipeline; it also hands the daemon the recorded control commands and how late each
-tick was, so settings changes and timing faults recur where they happened. The daemon paces the replay at the recorded rate times --speed (`max`: as
-fast as it can); after the last state read() raises ReplayFinished (an EOFError).
-The whole device channel is loaded at open(), so the loop never waits on the disk.
+tick was, so settings changes and timing faults recur where they happened. The daemon
+paces the replay at the recorded rate times --speed (`max`: as fast as it can); after
+the last state read() raises ReplayFinished (an EOFError). The whole device channel is
+loaded when the device is made, so the loop never waits on the disk.
+
+The replay device reads the daemon's own recordings, so it lives here rather than in
+devices/; the daemon registers its scheme (REPLAY_SCHEME) with the device registry.
+`apply_recorded_event` is how both a replaying daemon and `replay --verify` repeat a
+recorded control command.
 """
 
 from __future__ import annotations
@@ -15,7 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
+from sasprobe.daemon.haptics import HapticPipeline, build_engine, validate_settings
+from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState, HapticDevice
+from sasprobe.devices.registry import DeviceScheme
+from sasprobe.protocol.recording import RecordingError, iter_items, scan
 
 
 class ReplayFinished(EOFError):
@@ -110,8 +120,6 @@ def _vector(values, n: int) -> list[float]:
 
 def load_session(path: str | Path) -> ReplaySession:
     """Read a recording (finished or recovered) into a ReplaySession; DeviceOpenError if unusable."""
-    from sasprobe.daemon.recording import RecordingError, iter_items, scan
-
     path = Path(path)
     try:
         finished = scan(path).finished
@@ -194,7 +202,12 @@ class ReplayDevice(HapticDevice):
         self.last_force_n = np.zeros(3)
 
     def reconnect(self) -> None:
-        """A file does not go away: nothing to re-establish."""
+        """A file does not go away: the recorded reconnects come back as recorded events,
+        so the daemon's own attempts (after a recorded read failure) add nothing."""
+        raise DeviceFault("a replay repeats the recorded reconnects")
+
+    def recorded_session(self) -> ReplaySession:
+        return self.session
 
     def read(self) -> DeviceState:
         if self._index >= self.session.n_ticks:
@@ -211,7 +224,7 @@ class ReplayDevice(HapticDevice):
         repeats the recorded timing faults, so a replay's forces match the original's."""
         return float(self.session.late_periods[self._index - 1]) if self._index else 0.0
 
-    def take_events(self) -> list[dict]:
+    def take_recorded_events(self) -> list[dict]:
         """Recorded control commands due at or before the tick read last, in order."""
         if self._index == 0:
             return []
@@ -233,3 +246,30 @@ def open_replay(argument: str | None, speed: float | None = 1.0, **options) -> R
     if not Path(argument).is_file():
         raise DeviceOpenError(f"replay file {argument}: no such file")
     return ReplayDevice(argument, speed=speed)
+
+
+REPLAY_SCHEME = DeviceScheme(f"{__name__}:open_replay", "a recorded session (--speed X|max)", "replay:session.mcap")
+
+
+def apply_recorded_event(event: dict, pipeline: HapticPipeline, structure, settings: dict, limits: DeviceLimits,
+                         structure_for_sha) -> tuple[object, dict]:
+    """Apply a recorded `set`/`load`/`reconnect` as the live daemon did; return (structure, settings).
+
+    Live, the control thread builds new engines and the loop swaps them in; a replay
+    (live or `--verify`) does the same steps in line, so the forces come out identical.
+    """
+    cmd, args = event.get("cmd"), event.get("args", {})
+    if cmd == "set":
+        haptic, _ = split_changes(args)
+        if needs_rebuild(haptic):
+            settings = validate_settings({**settings, **haptic}, limits)
+            pipeline.replace_engine(build_engine(structure, limits, settings))
+        elif haptic:
+            pipeline.engine.update(**haptic)
+            settings = validate_settings({**settings, **haptic}, limits)
+    elif cmd == "load":
+        structure = structure_for_sha(args["sha256"], args.get("keep_water", False))
+        pipeline.replace_engine(build_engine(structure, limits, settings))
+    elif cmd == "reconnect":
+        pipeline.reconnected()
+    return structure, settings
