@@ -349,7 +349,7 @@ class DemoSession:
 
 
 def run_demo(opts: DemoOptions) -> int:
-    from sasprobe.render.context import display_available
+    from sasprobe.render.gl.context import display_available
 
     window = not opts.headless and display_available()
     headless = not window

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid, load_default
-from sasprobe.render.camera_math import fit_camera
-from sasprobe.render.gpu_grid import Culling, GpuGrid
-from sasprobe.render.lighting_gbuffer import RaycastGBuffer
+from sasprobe.render.camera import fit_camera
+from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.lighting.gbuffer import RaycastGBuffer
 from tests.render_support import gl_context
 
 WIDTH, HEIGHT = 128, 96

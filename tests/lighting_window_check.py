@@ -12,8 +12,8 @@ def main() -> None:
     from sasprobe.molecule import load_default
     from sasprobe.render.app import RenderOptions, make_renderer
     from sasprobe.render.camera import Camera
-    from sasprobe.render.context import create_window
-    from sasprobe.render.lighting_params import AO_MODES, AOSettings, LightingSettings
+    from sasprobe.render.gl.context import create_window
+    from sasprobe.render.lighting.settings import AO_MODES, AOSettings, LightingSettings
     from sasprobe.render.passes.lighting import lighting_of
     from sasprobe.render.source import StaticSource
     from sasprobe.render.window import WindowApp

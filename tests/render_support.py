@@ -14,7 +14,7 @@ def gl_context():
     """The session's headless EGL context (created once), or pytest.skip when none can be made."""
     global _CONTEXT, _CONTEXT_ERROR
     if _CONTEXT is None and _CONTEXT_ERROR is None:
-        from sasprobe.render.context import GLUnavailable, create_headless_context
+        from sasprobe.render.gl.context import GLUnavailable, create_headless_context
 
         try:
             _CONTEXT = create_headless_context()

@@ -22,7 +22,7 @@ def main() -> None:
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_default
     from sasprobe.render.app import RenderOptions, build_scene, make_renderer
     from sasprobe.render.camera import Camera
-    from sasprobe.render.context import create_window
+    from sasprobe.render.gl.context import create_window
     from sasprobe.render.source import StaticSource
     from sasprobe.render.window import TOGGLES, WindowApp
 

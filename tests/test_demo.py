@@ -29,7 +29,7 @@ from tests.test_render_window import xvfb  # noqa: F401 (fixture)
 SECONDS = 3
 FPS = 10  # the demo's default headless frame rate
 SIZE = (640, 360)  # and size
-BACKGROUND = np.array([0.08, 0.09, 0.11]) * 255  # LightSettings().background
+BACKGROUND = np.array([0.08, 0.09, 0.11]) * 255  # ShadingSettings().background
 
 
 @pytest.fixture(scope="module")

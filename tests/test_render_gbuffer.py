@@ -12,10 +12,10 @@ import pytest
 
 from sasprobe.molecule import load_structure
 from sasprobe.render.camera import Camera
-from sasprobe.render.gbuffer import gbuffer_arrays
+from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import NavCube, Probe, SceneState, normalise_plane
-from sasprobe.render.targets import KIND_BACKBONE, KIND_CAP, KIND_PROBE, KIND_SPHERE
+from sasprobe.render.gl.targets import KIND_BACKBONE, KIND_CAP, KIND_PROBE, KIND_SPHERE
 from tests.render_support import crambin, ctx, edge_mask, reference_cast  # noqa: F401 (fixtures)
 
 SIZE = (200, 150)

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from sasprobe.render.camera import Camera
-from sasprobe.render.gbuffer import gbuffer_arrays
+from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.passes.base import Pass
 from sasprobe.render.passes.probe import PROBE_COLOR
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import Probe, SceneState
-from sasprobe.render.targets import KIND_BACKGROUND, KIND_PROBE
+from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE
 from tests.render_support import crambin, ctx, edge_mask  # noqa: F401 (fixtures)
 
 SIZE = (160, 120)
@@ -41,14 +41,14 @@ def scene_with_probe(s):
 def render(ctx, scene, camera, extra_pass=None):
     renderer = Renderer(ctx, scene, SIZE)
     if extra_pass is not None:
-        renderer.insert_before("light", extra_pass)
+        renderer.insert_before("shading", extra_pass)
     try:
         renderer.render(camera)
         t = renderer.targets
-        lit = t.read(t.lit, 4, np.uint8)[..., :3] / 255.0
-        albedo = t.read(t.albedo, 4, np.uint8)[..., :3] / 255.0
+        lit = t.read(t.lit)[..., :3] / 255.0
+        albedo = t.read(t.albedo)[..., :3] / 255.0
         final = renderer.read_image() / 255.0
-        return gbuffer_arrays(renderer), lit, albedo, final, renderer.pass_named("light").settings
+        return gbuffer_arrays(renderer), lit, albedo, final, renderer.pass_named("shading").settings
     finally:
         renderer.release()
 

@@ -23,7 +23,7 @@ from tests.render_support import gl_context
 
 SCREEN = (640, 480)
 WINDOW = (320, 240)
-BACKGROUND = np.array([20, 23, 28])  # LightSettings.background * 255
+BACKGROUND = np.array([20, 23, 28])  # ShadingSettings.background * 255
 
 
 @pytest.fixture(scope="module")

@@ -35,7 +35,7 @@ def add_arguments(parser) -> None:
 
 def run(ctx: BenchContext, args=None) -> BenchResult:
     from sasprobe.molecule import load_default, load_structure
-    from sasprobe.render.context import create_headless_context
+    from sasprobe.render.gl.context import create_headless_context
 
     entries = shared_structures()
     if not entries:

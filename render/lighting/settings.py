@@ -1,5 +1,7 @@
-"""Light and lighting-effect parameters shared by the GPU passes, the CPU references, the
-CLI and the G-buffer export (plain data, no GL)."""
+"""How the picture is lit, as plain data (no GL): the shading pass's own parameters, the
+lights, and how each lighting effect (shadows, ambient occlusion, edge cueing, path
+tracing) is computed. The passes, the CLI's option defaults and help texts, the CPU
+references in the tests and the G-buffer export all read them from here."""
 
 from __future__ import annotations
 
@@ -7,17 +9,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from sasprobe.render.targets import PROBE_ID
-
 # Shadow/AO rays start at p + n * (RAY_EPS_ABS + RAY_EPS_REL * max|p_i|) (Å): a few float32
 # spacings at the coordinate's magnitude plus a floor of 1e-3 Å, far below what a pixel
 # shows. The source atom is excluded from every query as well, which is exact for convex
 # solids; the offset only matters where neighbouring atoms meet.
 RAY_EPS_ABS = 1e-3
 RAY_EPS_REL = 1e-5
-
-ATOM_BACKGROUND = -1  # G-buffer atom id of background pixels
-ATOM_PROBE = PROBE_ID  # G-buffer atom id of the probe sphere's pixels
 
 
 def ray_epsilon(points: np.ndarray) -> np.ndarray:
@@ -43,8 +40,24 @@ class DirectionalLight:
         return d / norm
 
 
-DEFAULT_PROBE_ATTENUATION = (1.0, 0.0, 0.02)  # the light pass's (passes/light.py): half at 7 Å
+DEFAULT_PROBE_ATTENUATION = (1.0, 0.0, 0.02)  # 1/(1 + 0.02 d^2): half at 7 Å
 DEFAULT_PROBE_RANGE = 20.0  # Å: the probe light's reach (lit, and shadowed, inside it)
+
+
+@dataclass
+class ShadingSettings:
+    """The shading pass (render/passes/shading.py): deferred Phong of the G-buffer with a
+    directional light and the probe's point light."""
+
+    ambient: float = 0.28
+    directional_intensity: float = 0.75
+    probe_intensity: float = 1.0
+    probe_attenuation: tuple[float, float, float] = DEFAULT_PROBE_ATTENUATION
+    probe_range: float = DEFAULT_PROBE_RANGE  # Å: the probe light is windowed to 0 here (shadows are traced inside)
+    shininess: float = 40.0
+    specular: float = 0.25
+    background: tuple[float, float, float] = (0.08, 0.09, 0.11)
+    highlight: tuple[float, float, float] = (0.1, 1.0, 0.5)  # mint: no CPK element looks like it
 
 
 @dataclass(frozen=True)
@@ -111,7 +124,7 @@ ANALYTIC_K = (8, 16, 32)
 
 @dataclass(frozen=True)
 class AOSettings:
-    """Ambient occlusion, selectable at run time (see render/ambient_occlusion.py)."""
+    """Ambient occlusion, selectable at run time (see render/lighting/ao/__init__.py)."""
 
     mode: str = "analytic"
     k: int = 32  # analytic: nearest neighbours per atom (8, 16 or 32)
@@ -177,6 +190,7 @@ class PathTracing:
             raise ValueError(f"path tracing uses 0 to {MAX_BOUNCES} bounces")
 
 
+HEADLESS_SAMPLES = {"reference": 256, "path_tracing": 64}  # per pixel before a headless frame is written
 SHADOW_MODES = ("off", "hard", "soft")
 EDGE_MODES = ("off", "lines", "halos", "both")
 
@@ -212,6 +226,13 @@ class LightingSettings:
             "edge_cueing": self.edges != "off",
             "path_tracing": self.path_tracing,
         }
+
+    def check_soft_shell(self, probe_radius: float) -> None:
+        """ValueError when the soft shell is thicker than the grid's expansion (the probe
+        radius): it would be cut at cell borders."""
+        if self.soft.outer > probe_radius + 1e-9:
+            raise ValueError(f"soft-shadow outer offset {self.soft.outer:g} Å exceeds the probe radius "
+                             f"{probe_radius:g} Å (the grid's expansion)")
 
     def edge_settings(self) -> EdgeCueing:
         """Edge cueing as chosen (both effects when toggled on from 'off')."""

@@ -19,12 +19,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.render.ao_analytic import AnalyticAO
-from sasprobe.render.ao_blur import BilateralBlur
-from sasprobe.render.ao_raytraced import RayTracedAO
-from sasprobe.render.ao_ssao import SSAO
-from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, TextureCache
-from sasprobe.render.lighting_params import AOSettings
+from sasprobe.render.lighting.ao.analytic import AnalyticAO
+from sasprobe.render.lighting.ao.blur import BilateralBlur
+from sasprobe.render.lighting.ao.raytraced import RayTracedAO
+from sasprobe.render.lighting.ao.ssao import SSAO
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.textures import TextureCache
+from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.settings import AOSettings
 
 BLUR_BELOW_SPP = 16  # ray-traced AO is blurred until this many samples have accumulated
 

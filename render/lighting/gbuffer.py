@@ -1,12 +1,12 @@
-"""The G-buffer layers the lighting passes read, as GL textures (the renderer's own,
-render/targets.py, or made here for tests and benchmarks), and the compute-pass plumbing
-the lighting passes share.
+"""The G-buffer layers the lighting passes read, as GL textures: the renderer's own
+(render/gl/targets.py), or made here for tests and benchmarks (uploaded from arrays, or
+ray cast through the grid by RaycastGBuffer).
 
 | unit | layer | format | content |
 |---|---|---|---|
 | 0 | position | rgba32f | world position (Å) |
 | 1 | normal | rgba32f | unit world normal (a cap carries its plane's outward normal) |
-| 2 | ids | rg32i | (atom index, kind): atom -1 background, -2 probe; kind as targets.KIND_* |
+| 2 | ids | rg32i | (atom index, kind): atom ATOM_BACKGROUND (-1), ATOM_PROBE (-2); kind KIND_* (render/gl/targets.py) |
 
 Row 0 of a texture is the bottom image row (GL); `download()` returns arrays in that order.
 """
@@ -17,80 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sasprobe.render.camera import gl_bytes
-from sasprobe.render.passes.base import apply_uniforms
-from sasprobe.render.lighting_params import ATOM_BACKGROUND, ATOM_PROBE
-from sasprobe.render.shaders import source
-from sasprobe.render.targets import KIND_BACKGROUND, KIND_CAP, KIND_PROBE, KIND_SPHERE
-
-LOCAL_SIZE = 8  # compute work-group edge of the 2D lighting passes
-
-
-def texture_2d(ctx, width: int, height: int, components: int = 1, dtype: str = "f4", data: bytes | None = None):
-    """A texture read with texelFetch or as an image: nearest filtering (integer textures are
-    incomplete, and read as zero, with the default linear filter)."""
-    import moderngl
-
-    tex = ctx.texture((width, height), components, data=data, dtype=dtype)
-    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
-    tex.repeat_x = tex.repeat_y = False
-    return tex
-
-
-class TextureCache:
-    """r32f textures by (name, size), made on first use and reused every frame (creating
-    GL objects per frame is what slows moderngl programs down)."""
-
-    def __init__(self, ctx):
-        self.ctx = ctx
-        self._textures: dict = {}
-
-    def get(self, name: str, size: tuple[int, int], fill: float | None = None):
-        key = (name, tuple(size))
-        if key not in self._textures:
-            data = None if fill is None else np.full(size[0] * size[1], fill, dtype=np.float32).tobytes()
-            self._textures[key] = texture_2d(self.ctx, size[0], size[1], data=data)
-        return self._textures[key]
-
-    def release(self) -> None:
-        for tex in self._textures.values():
-            tex.release()
-        self._textures.clear()
-
-
-def read_texture(tex, components: int | None = None, dtype: str | None = None) -> np.ndarray:
-    """(H, W) or (H, W, C) array of a texture, row 0 = bottom."""
-    components = components or tex.components
-    dtype = dtype or tex.dtype
-    data = np.frombuffer(tex.read(), dtype=np.dtype(dtype)).reshape(tex.height, tex.width, components)
-    return data[..., 0].copy() if components == 1 else data.copy()
-
-
-def dispatch(program, width: int, height: int) -> None:
-    """Run a 2D compute pass over width × height, then make its writes visible to whatever
-    reads them next (texture fetch, image load, buffer read-back)."""
-    program.run(group_x=(width + LOCAL_SIZE - 1) // LOCAL_SIZE, group_y=(height + LOCAL_SIZE - 1) // LOCAL_SIZE)
-    program.ctx.memory_barrier()
-
-
-class ComputePass:
-    """A compute program over an image, with the grid bound when it has one (the lighting
-    passes' base)."""
-
-    def __init__(self, ctx, shader: str, gpu_grid=None):
-        self.ctx = ctx
-        self.grid = gpu_grid
-        self.program = ctx.compute_shader(source(shader))
-
-    def run(self, width: int, height: int, uniforms: dict) -> None:
-        if self.grid is not None:
-            self.grid.bind()
-            uniforms = {**self.grid.uniforms(), **uniforms}
-        apply_uniforms(self.program, uniforms)
-        dispatch(self.program, width, height)
-
-    def release(self) -> None:
-        self.program.release()
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.targets import ATOM_BACKGROUND, ATOM_PROBE, KIND_BACKGROUND, KIND_CAP, KIND_PROBE, KIND_SPHERE
+from sasprobe.render.gl.textures import read_texture, texture_2d
+from sasprobe.render.gl.uniforms import gl_bytes
 
 
 @dataclass
@@ -106,7 +36,7 @@ class GBuffer:
 
     @classmethod
     def of_targets(cls, targets) -> "GBuffer":
-        """The renderer's G-buffer (render/targets.py), read in place."""
+        """The renderer's G-buffer (render/gl/targets.py), read in place."""
         return cls(targets.position, targets.normal, targets.ids, owned=False)
 
     @classmethod

@@ -1,33 +1,20 @@
-"""Deferred light pass: G-buffer + visibility buffer -> lit colour (shaders/light.frag)."""
+"""Deferred shading: G-buffer + visibility buffer -> lit colour (shaders/shading.frag),
+with the parameters of ShadingSettings (render/lighting/settings.py)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-from sasprobe.render.lighting_params import DEFAULT_PROBE_ATTENUATION, DEFAULT_PROBE_RANGE
-from sasprobe.render.passes.base import Frame, Pass, apply_uniforms
+from sasprobe.render.gl.uniforms import apply_uniforms
+from sasprobe.render.lighting.settings import ShadingSettings
+from sasprobe.render.passes.base import Frame, Pass
 from sasprobe.render.passes.probe import PROBE_COLOR
 
 
-@dataclass
-class LightSettings:
-    ambient: float = 0.28
-    directional_intensity: float = 0.75
-    probe_intensity: float = 1.0
-    probe_attenuation: tuple[float, float, float] = DEFAULT_PROBE_ATTENUATION  # 1/(1 + 0.02 d^2): half at 7 Å
-    probe_range: float = DEFAULT_PROBE_RANGE  # Å: the probe light is windowed to 0 here (shadows are traced inside)
-    shininess: float = 40.0
-    specular: float = 0.25
-    background: tuple[float, float, float] = (0.08, 0.09, 0.11)
-    highlight: tuple[float, float, float] = (0.1, 1.0, 0.5)  # mint: no CPK element looks like it
+class ShadingPass(Pass):
+    name = "shading"
 
-
-class LightPass(Pass):
-    name = "light"
-
-    def __init__(self, ctx, programs, settings: LightSettings | None = None):
-        self.settings = settings or LightSettings()
-        self.prog = programs.get("fullscreen.vert", "light.frag")
+    def __init__(self, ctx, programs, settings: ShadingSettings | None = None):
+        self.settings = settings or ShadingSettings()
+        self.prog = programs.get("fullscreen.vert", "shading.frag")
         self.vao = ctx.vertex_array(self.prog, [])
         for unit, name in enumerate(("u_albedo", "u_position", "u_normal", "u_ids", "u_visibility")):
             if name in self.prog:

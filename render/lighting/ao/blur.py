@@ -3,8 +3,10 @@ accessibility, and joint-bilateral upsampling of half-resolution input."""
 
 from __future__ import annotations
 
-from sasprobe.render.ao_ssao import camera_uniforms
-from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, texture_2d
+from sasprobe.render.gl.uniforms import view_proj_uniforms
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.textures import texture_2d
+from sasprobe.render.lighting.gbuffer import GBuffer
 
 
 class BilateralBlur(ComputePass):
@@ -21,7 +23,7 @@ class BilateralBlur(ComputePass):
         source.use(location=3)
         out.bind_to_image(0, read=False, write=True)
         self.run(width, height, {
-            **camera_uniforms(view, proj),
+            **view_proj_uniforms(view, proj),
             "u_scale": scale,
             "u_radius": max(1, self.radius // scale),
             "u_sigma": self.sigma / scale,

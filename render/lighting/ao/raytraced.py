@@ -3,9 +3,9 @@ rays of a set length, N per pixel per frame, accumulated while the view is still
 
 from __future__ import annotations
 
-from sasprobe.render.lighting_gbuffer import GBuffer
-from sasprobe.render.lighting_params import ray_epsilon_uniforms
-from sasprobe.render.progressive import ProgressivePass
+from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.settings import ray_epsilon_uniforms
+from sasprobe.render.lighting.progressive import ProgressivePass
 
 
 class RayTracedAO(ProgressivePass):

@@ -7,16 +7,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.render.lighting_gbuffer import GBuffer
-from sasprobe.render.lighting_params import (
+from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.settings import (
     DirectionalLight,
     PathTracing,
     PointLight,
     light_uniforms,
     ray_epsilon_uniforms,
 )
-from sasprobe.render.materials import PROBE_MATERIAL, atom_materials
-from sasprobe.render.progressive import ProgressivePass
+from sasprobe.render.lighting.materials import PROBE_MATERIAL, atom_materials
+from sasprobe.render.lighting.progressive import ProgressivePass
 
 BINDING_MATERIALS = 5
 

@@ -1,4 +1,4 @@
-"""Render targets of one frame size: the G-buffer, the visibility buffer the light pass
+"""Render targets of one frame size: the G-buffer, the visibility buffer the shading pass
 multiplies by, the lit colour and the final image. Created once per size, reused
 every frame (no per-frame GL allocation).
 
@@ -6,23 +6,28 @@ G-buffer attachments (shaders/gbuffer_out.glsl writes them in this order):
     0 albedo    RGBA8    CPK colour
     1 position  RGBA32F  world position, Å (w = 1 where covered)
     2 normal    RGBA32F  world unit normal (caps: the cutting plane's outward normal)
-    3 ids       RG32I    (atom id, kind); atom id -1 background, -2 probe; kind KIND_*
+    3 ids       RG32I    (atom id, kind): an atom index, ATOM_BACKGROUND or ATOM_PROBE; KIND_*
     depth       24-bit depth texture
 Visibility (RGBA16F, cleared to 1): r directional-light visibility, g probe-light
-visibility, b ambient accessibility. Lighting passes draw into `visibility_fbo`
-(with a colour mask for their channel) before the light pass reads it.
+visibility, b ambient accessibility, a edge factor. The lighting pass writes it before
+the shading pass reads it.
+
+The ids below are the one home of these numbers: the shaders get them as #defines
+(render/gl/programs.py generates constants.glsl from them), the export and the lighting
+passes import them.
 """
 
 from __future__ import annotations
 
-import numpy as np
+from sasprobe.render.gl.textures import read_texture
 
+ATOM_BACKGROUND = -1  # atom id of background pixels
+ATOM_PROBE = -2  # atom id of the probe sphere's pixels
 KIND_BACKGROUND = 0
 KIND_SPHERE = 1
-KIND_CAP = 2
+KIND_CAP = 2  # a sphere's cut face (clip plane, cube face or near plane)
 KIND_BACKBONE = 3
 KIND_PROBE = 4
-PROBE_ID = -2
 
 
 class RenderTargets:
@@ -52,11 +57,9 @@ class RenderTargets:
         self.visibility_fbo.use()
         self.visibility_fbo.clear(1.0, 1.0, 1.0, 1.0)
 
-    def read(self, texture, components: int, dtype) -> np.ndarray:
-        """A texture as H x W x components, row 0 = top of the image."""
-        w, h = self.size
-        data = np.frombuffer(texture.read(), dtype=dtype).reshape(h, w, components)
-        return data[::-1].copy()
+    def read(self, texture) -> np.ndarray:
+        """One of these textures as H x W (x components), row 0 = top of the image."""
+        return read_texture(texture, top_first=True)
 
     def release(self) -> None:
         for obj in (self.gbuffer_fbo, self.visibility_fbo, self.lit_fbo, self.final_fbo, self.albedo,

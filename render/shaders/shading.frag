@@ -7,7 +7,7 @@
 //   included, by a: edge cueing (contour lines, halos).
 // The targets clear it to 1.0; lighting passes that run before this one fill it.
 // The probe light reaches u_probe_range Å: its attenuation is windowed to 0 there.
-#include "kinds.glsl"
+#include "constants.glsl"
 
 uniform sampler2D u_albedo;
 uniform sampler2D u_position;
@@ -65,7 +65,7 @@ void main() {
         vec3 to_probe = u_probe_center - p;
         float dist = length(to_probe);
         float x = dist / u_probe_range;
-        float window = clamp(1.0 - x * x * x * x, 0.0, 1.0);  // as lighting_params.probe_falloff
+        float window = clamp(1.0 - x * x * x * x, 0.0, 1.0);  // as render/lighting/settings.py probe_falloff
         float atten = window * window / (u_probe_atten.x + u_probe_atten.y * dist + u_probe_atten.z * dist * dist);
         color += vis.g * u_probe_intensity * atten * phong(albedo, n, v, to_probe / max(dist, 1e-6));
     }

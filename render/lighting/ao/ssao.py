@@ -1,21 +1,17 @@
 """Screen-space ambient occlusion (shaders/ao_ssao.comp): hemisphere point sampling or
 Sculptor's line sampling, radius in Å, intensity, full or half resolution. Its output is
-noisy and, at half resolution, small: ambient_occlusion.py follows it with the bilateral
-blur (ao_blur.py), which also upsamples."""
+noisy and, at half resolution, small: the AO family (ao/__init__.py) follows it with the
+bilateral blur (ao/blur.py), which also upsamples."""
 
 from __future__ import annotations
 
-import numpy as np
-
-from sasprobe.render.camera import gl_bytes
-from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, texture_2d
-from sasprobe.render.lighting_params import AOSettings
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.textures import texture_2d
+from sasprobe.render.gl.uniforms import view_proj_uniforms
+from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.settings import AOSettings
 
 SSAO_BIAS = 0.05  # Å: a sample must lie this far behind the visible surface to count
-
-
-def camera_uniforms(view: np.ndarray, proj: np.ndarray) -> dict:
-    return {"u_view": gl_bytes(view), "u_proj": gl_bytes(proj)}
 
 
 class SSAO(ComputePass):
@@ -34,7 +30,7 @@ class SSAO(ComputePass):
         gbuffer.bind()
         out.bind_to_image(0, read=False, write=True)
         self.run(width, height, {
-            **camera_uniforms(view, proj),
+            **view_proj_uniforms(view, proj),
             "u_scale": 2 if settings.ssao_half_resolution else 1,
             "u_samples": int(settings.ssao_samples),
             "u_line_sampling": int(settings.ssao_sampling == "line"),

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, texture_2d
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.textures import texture_2d
+from sasprobe.render.lighting.gbuffer import GBuffer
 
 MAX_K = 32  # matches ao_analytic.comp
 BINDING_NEIGHBOURS = 4

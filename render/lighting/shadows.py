@@ -4,8 +4,10 @@ pass multiplies in."""
 
 from __future__ import annotations
 
-from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, texture_2d
-from sasprobe.render.lighting_params import (
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.textures import texture_2d
+from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.settings import (
     HARD_SHADOW,
     DirectionalLight,
     PointLight,

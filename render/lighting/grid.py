@@ -22,7 +22,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sasprobe.molecule.grid import UniformGrid
-from sasprobe.render.passes.base import MAX_CLIP_PLANES  # grid_traversal.glsl holds as many
+from sasprobe.render.gl.uniforms import MAX_CLIP_PLANES, padded_planes
+
 BINDING_CELL_START, BINDING_CELL_ATOMS, BINDING_SPHERES, BINDING_CULLED = 0, 1, 2, 3
 NO_PROBE = (0.0, 0.0, 0.0, 0.0)
 CULLED, CENTRE_CLIPPED = 1, 2  # flag bits of the culled buffer
@@ -97,13 +98,11 @@ class Culling:
         return clipped
 
     def uniforms(self) -> dict[str, object]:
-        planes = np.zeros((MAX_CLIP_PLANES, 4), dtype=np.float32)
-        planes[: self.clip_planes.shape[0]] = self.clip_planes
         box = self.cube_box
         lo, hi = box if box is not None else (np.zeros(3), np.zeros(3))
         return {
             "u_clip_count": int(self.clip_planes.shape[0]),
-            "u_clip_planes": planes.tobytes(),
+            "u_clip_planes": padded_planes(self.clip_planes).tobytes(),
             "u_cube_on": int(box is not None),
             "u_cube_lo": tuple(float(v) for v in lo),
             "u_cube_hi": tuple(float(v) for v in hi),
@@ -204,8 +203,8 @@ class GridWalks:
 def walk_rays_on_gpu(gpu_grid: GpuGrid, origins, directions, t_min=0.0, t_max=1e30, max_visits: int = 256,
                      walk_range: tuple[np.ndarray, np.ndarray] | None = None) -> GridWalks:
     """Test hook: walk rays o + t d through the grid with the shaders' DDA (grid_walk_probe.comp)."""
-    from sasprobe.render.passes.base import apply_uniforms
-    from sasprobe.render.shaders import source
+    from sasprobe.render.gl.programs import source
+    from sasprobe.render.gl.uniforms import apply_uniforms
 
     ctx = gpu_grid.ctx
     origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)

@@ -1,9 +1,10 @@
-"""CPU references (numpy, float64, vectorised) for every GPU lighting term.
+"""CPU references (numpy, float64, vectorised) for every GPU lighting term (test code:
+it ships with the tests, not in the wheel).
 
 They take the same inputs as the GPU passes: G-buffer arrays (world positions, normals,
 atom ids; any image shape) and the occluding spheres with their culled flags and clip
-state, and follow the same definitions (documented in shaders/grid_traversal.glsl and
-lighting_params.py) without sharing code with the shaders:
+state, and follow the same definitions (documented in render/shaders/grid_traversal.glsl and
+render/lighting/settings.py) without sharing code with the shaders:
 
 - `light_visibility`: hard shadows and Parker soft shadows, directional or point light,
   brute force over all spheres;
@@ -18,10 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sasprobe.render.gpu_grid import Culling
-from sasprobe.render.lighting_params import (
-    ATOM_BACKGROUND,
-    ATOM_PROBE,
+from sasprobe.render.gl.targets import ATOM_BACKGROUND, ATOM_PROBE
+from sasprobe.render.lighting.grid import Culling
+from sasprobe.render.lighting.settings import (
     HARD_SHADOW,
     DirectionalLight,
     PointLight,

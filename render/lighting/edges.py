@@ -3,9 +3,11 @@ texture (r32f, 1 = untouched) the final colour is multiplied by."""
 
 from __future__ import annotations
 
-from sasprobe.render.ao_ssao import camera_uniforms
-from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, texture_2d
-from sasprobe.render.lighting_params import EdgeCueing
+from sasprobe.render.gl.uniforms import view_proj_uniforms
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.textures import texture_2d
+from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.settings import EdgeCueing
 
 
 class EdgeCueingPass(ComputePass):
@@ -18,7 +20,7 @@ class EdgeCueingPass(ComputePass):
         gbuffer.bind()
         out.bind_to_image(0, read=False, write=True)
         self.run(width, height, {
-            **camera_uniforms(view, proj),
+            **view_proj_uniforms(view, proj),
             "u_contours": int(settings.contours),
             "u_line_width": float(settings.line_width),
             "u_line_threshold": float(settings.line_threshold),

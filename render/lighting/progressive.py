@@ -6,7 +6,9 @@ nothing but the order they arrive in."""
 
 from __future__ import annotations
 
-from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, texture_2d
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.textures import texture_2d
+from sasprobe.render.lighting.gbuffer import GBuffer
 
 
 class ProgressivePass(ComputePass):

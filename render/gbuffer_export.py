@@ -37,12 +37,12 @@ def gbuffer_arrays(renderer, frame=None) -> dict[str, np.ndarray]:
     """The G-buffer of a rendered frame (default: the last one) as numpy arrays."""
     frame = frame or renderer.last_frame
     t = renderer.targets
-    ids = t.read(t.ids, 2, np.int32)
+    ids = t.read(t.ids)
     arrays = {
         "atom_id": np.ascontiguousarray(ids[..., 0]),
         "kind": ids[..., 1].astype(np.uint8),
-        "position": np.ascontiguousarray(t.read(t.position, 4, np.float32)[..., :3]),
-        "normal": np.ascontiguousarray(t.read(t.normal, 4, np.float32)[..., :3]),
+        "position": np.ascontiguousarray(t.read(t.position)[..., :3]),
+        "normal": np.ascontiguousarray(t.read(t.normal)[..., :3]),
         "view": np.asarray(frame.view, dtype=np.float64),
         "proj": np.asarray(frame.proj, dtype=np.float64),
         "viewport": np.array(t.size, dtype=np.int32),
@@ -51,7 +51,7 @@ def gbuffer_arrays(renderer, frame=None) -> dict[str, np.ndarray]:
     if frame.cube is not None:
         arrays["nav_cube"] = np.array([*frame.cube.center, frame.cube.half], dtype=np.float64)
     for p in renderer.passes:
-        if hasattr(p, "gbuffer_layers") and p.enabled(frame):
+        if p.enabled(frame):
             arrays.update(p.gbuffer_layers(frame))
     return arrays
 
