@@ -24,89 +24,36 @@ import sys
 import threading
 import time
 from concurrent.futures import Future, TimeoutError as FutureTimeout
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from sasprobe import __version__
 from sasprobe.daemon import events
+from sasprobe.daemon.config import DaemonConfig, check_bind_security
 from sasprobe.daemon.control import ControlServer
+from sasprobe.daemon.faults import FaultLog, Reconnector
 from sasprobe.daemon.haptics import HapticPipeline, SafetyGuard, build_engine, validate_settings
-from sasprobe.daemon.loop import DEFAULT_RATE_HZ, FixedRateLoop, enter_realtime
+from sasprobe.daemon.loop import FixedRateLoop, enter_realtime
 from sasprobe.daemon.publisher import Publisher
 from sasprobe.daemon.recording.replay import REPLAY_SCHEME, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
 from sasprobe.daemon.requests import RequestHandlers
+from sasprobe.daemon.scene import scene_message
 from sasprobe.devices.base import DeviceFault
 from sasprobe.devices.registry import register_scheme
 from sasprobe.errors import UserError
-from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
 from sasprobe.protocol.pose import encode_pose
-from sasprobe.protocol.scene import DEFAULT_LIGHTS, SCENE_VERSION, encode_scene
+from sasprobe.protocol.scene import DEFAULT_LIGHTS, encode_scene
 
 log = logging.getLogger("sasprobe")
 
 register_scheme("replay", REPLAY_SCHEME)  # the daemon's own recordings, played back as a device
 
 SCENE_INTERVAL_NS = 1_000_000_000  # re-publish the scene at least this often (late joiners)
-RECONNECT_AFTER_NS = 100_000_000  # a device failing this long gets reconnect() (a blip does not)
-RECONNECT_INTERVAL_NS = 500_000_000  # between reconnect attempts while the device is gone
 LATE_READ_PERIODS = 3.0  # a read slower than this many periods counts as failed
 SUBMIT_TIMEOUT_S = 5.0
 SWITCH_INTERVAL_S = 1e-4  # how long another Python thread may hold the GIL before the loop gets it
-
-
-@dataclass
-class DaemonConfig:
-    device: str = "sim"
-    molecule: str | None = None
-    keep_water: bool = False
-    rate_hz: float | None = DEFAULT_RATE_HZ  # None: as fast as possible (replay --speed max)
-    pub: list[str] = field(default_factory=lambda: [DEFAULT_PUB_ENDPOINT])
-    ctl: list[str] = field(default_factory=lambda: [DEFAULT_CTL_ENDPOINT])
-    record: str | None = None
-    keys: str | None = None
-    settings: dict = field(default_factory=dict)  # haptic settings given on the command line
-    speed: float | None = 1.0  # replay speed (None: max)
-    seed: int = 0
-    spin_s: float = 200e-6
-    report: str | None = None  # write a JSON exit report here
-    max_seconds: float | None = None  # stop by itself after this long (benchmarks, demos)
-    realtime: bool = False  # SCHED_FIFO for the loop and ZeroMQ's I/O thread
-    faults: list[str] = field(default_factory=list)  # simulated-arm fault injection, e.g. "nan@900+5"
-
-
-def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:
-    """Refuse to expose the daemon beyond this machine without CURVE keys."""
-    for text in endpoints:
-        endpoint = parse_endpoint(text)
-        if not endpoint.is_loopback and keys_dir is None:
-            raise UserError(
-                f"refusing to bind {text} without encryption: an address other machines can reach needs "
-                f"--keys DIR (CURVE keys with a client allow-list; create them with `sasprobe keys DIR`)"
-            )
-
-
-class FaultLog:
-    """Log fault transitions without flooding: at most one line per second, with a count."""
-
-    def __init__(self, interval_ns: int = 1_000_000_000) -> None:
-        self.interval_ns = interval_ns
-        self._last_ns = -interval_ns
-        self._suppressed = 0
-
-    def note(self, reason: str | None, now_ns: int) -> None:
-        if now_ns - self._last_ns < self.interval_ns:
-            self._suppressed += 1
-            return
-        more = f" ({self._suppressed} more fault changes in the last second)" if self._suppressed else ""
-        if reason is None:
-            log.warning("device fault cleared, force back on%s", more)
-        else:
-            log.warning("device fault: %s; force zeroed%s", reason, more)
-        self._last_ns = now_ns
-        self._suppressed = 0
 
 
 class Daemon:
@@ -132,8 +79,7 @@ class Daemon:
         self._pending: collections.deque = collections.deque()  # (closure, Future) for the loop
         self._stop_reason: str | None = None
         self._carry_error: str | None = None  # a failed force write, reported on the next tick
-        self._last_reconnect_ns = 0
-        self._failing_since_ns: int | None = None
+        self._reconnector = Reconnector(self.device)
         self._fault_log = FaultLog()
         self._loop_cpu_clock: int | None = None
         self._cpu_at_reset = 0
@@ -316,9 +262,10 @@ class Daemon:
             if result.guard.fault != was_faulted:
                 self._fault_log.note(result.guard.reason if result.guard.fault else None, tick.start_ns)
             if error is None or state is not None:
-                self._failing_since_ns = None
-            else:
-                self._maybe_reconnect(tick.seq, tick.start_ns)
+                self._reconnector.answered()
+            elif self._reconnector.failed(tick.start_ns):
+                self.pipeline.reconnected()  # the hand may be anywhere: unseat the proxy, ramp in again
+                self.record_control(tick.seq, "reconnect", {})
             now = clock()
             pose = pipeline.pose(tick.seq, state, result, now)
             publisher.publish_pose(encode_pose(pose))
@@ -329,21 +276,6 @@ class Daemon:
             loop.stats.record_work(clock() - tick.start_ns)
             if stop_at_ns is not None and now >= stop_at_ns:
                 self.request_stop("time limit")
-
-    def _maybe_reconnect(self, seq: int, now_ns: int) -> None:
-        if self._failing_since_ns is None:
-            self._failing_since_ns = now_ns
-        if now_ns - self._failing_since_ns < RECONNECT_AFTER_NS or now_ns - self._last_reconnect_ns < RECONNECT_INTERVAL_NS:
-            return
-        self._last_reconnect_ns = now_ns
-        try:
-            self.device.reconnect()
-        except DeviceFault as exc:
-            log.info("device reconnect failed: %s", exc)
-            return
-        log.warning("device reconnected")
-        self.pipeline.reconnected()
-        self.record_control(seq, "reconnect", {})
 
     def _apply_recorded_event(self, event: dict, seq: int) -> None:
         """A replayed control command, applied as it was live."""
@@ -406,28 +338,14 @@ class Daemon:
 
     # ------------------------------------------------------------------ scene
     def rebuild_scene(self) -> None:
-        s = self.settings
+        """The scene message of the current state; published at the next tick, and recorded."""
         self.scene_revision += 1
-        scene = {
-            "version": SCENE_VERSION,
-            "revision": self.scene_revision,
-            "daemon_version": __version__,
-            "structure": {"name": self.structure.name, "sha256": self.structure.sha256,
-                          "n_atoms": self.structure.n_atoms},
-            "probe_radius_A": s["probe_radius_A"],
-            "nav_cube": {"enabled": self.nav_cube_enabled},
-            "clip_planes": self.clip_planes,
-            "lights": self.lights,
-            "device": self.device.info.as_dict(),
-            "haptics": {"method": s["method"], "stiffness_n_per_mm": s["stiffness_n_per_mm"],
-                        "damping_n_s_per_m": s["damping_n_s_per_m"]},
-            "rate_hz": self.rate_hz,
-        }
-        self._scene_bytes = encode_scene(scene)
-        self.scene = scene
-        self._next_scene_ns = 0  # publish at the next tick
+        self.scene = scene_message(self.scene_revision, self.structure, self.settings, self.nav_cube_enabled,
+                                   self.clip_planes, self.lights, self.device.info, self.rate_hz)
+        self._scene_bytes = encode_scene(self.scene)
+        self._next_scene_ns = 0
         if self.recorder is not None:
-            self.recorder.offer_json("scene", time.monotonic_ns(), scene)
+            self.recorder.offer_json("scene", time.monotonic_ns(), self.scene)
 
     def _publish_scene(self, now_ns: int) -> None:
         self.publisher.publish_scene(self._scene_bytes)

@@ -20,7 +20,7 @@ from collections import deque
 import numpy as np
 
 from sasprobe.errors import UserError
-from sasprobe.molecule import Structure
+from sasprobe.molecule import Structure, parse_structure
 from sasprobe.protocol.client import Subscriber, fetch_structure
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
 from sasprobe.render.scene import NavCube, Probe, normalise_plane
@@ -81,7 +81,9 @@ class DaemonLink(RenderSource):
     # ------------------------------------------------------------ structure
     def _fetch(self) -> None:
         try:
-            self._fetched = fetch_structure(self.ctl, timeout_s=FETCH_TIMEOUT_S, keep_water=self.keep_water)
+            served = fetch_structure(self.ctl, timeout_s=FETCH_TIMEOUT_S)
+            self._fetched = parse_structure(served.data, name=served.name, source=served.source,
+                                            keep_water=self.keep_water or served.keep_water)
             self._fetch_error = None
         except UserError as exc:  # ControlError, or a StructureError from the bytes
             self._fetch_error = str(exc)

@@ -1,42 +1,10 @@
-"""Shared by the render tests: one GL context per session and an independent numpy
-reference ray caster (brute force over spheres, float64) for a given view/projection."""
+"""Shared by the render tests: an independent numpy reference ray caster (brute force over
+spheres, float64) for a given view/projection, and small helpers. The GL context and the
+structures are fixtures in conftest.py."""
 
 from __future__ import annotations
 
 import numpy as np
-import pytest
-
-_CONTEXT = None
-_CONTEXT_ERROR: str | None = None
-
-
-def gl_context():
-    """The session's headless EGL context (created once), or pytest.skip when none can be made."""
-    global _CONTEXT, _CONTEXT_ERROR
-    if _CONTEXT is None and _CONTEXT_ERROR is None:
-        from sasprobe.render.gl.context import GLUnavailable, create_headless_context
-
-        try:
-            _CONTEXT = create_headless_context()
-        except GLUnavailable as exc:
-            _CONTEXT_ERROR = str(exc)
-    if _CONTEXT is None:
-        pytest.skip(f"no headless OpenGL context: {_CONTEXT_ERROR}")
-    return _CONTEXT
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    """The GL context for a test module (import this fixture into it)."""
-    return gl_context()
-
-
-@pytest.fixture(scope="module")
-def crambin():
-    from sasprobe.molecule import load_default
-
-    return load_default()
-
 
 def pixel_rays(view: np.ndarray, proj: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
     """Eye position and unit world directions (H, W, 3) through pixel centres; row 0 = top."""

@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 
 from sasprobe.protocol.recording import iter_items, scan
 from sasprobe.daemon.recording.replay import load_session
+from sasprobe.molecule import parse_structure
 from sasprobe.protocol.client import ControlClient, ControlError, Subscriber, fetch_structure
 from sasprobe.protocol.control import decode_reply
 from sasprobe.protocol.pose import FLAG_FAULT
@@ -195,7 +196,8 @@ def test_control_commands_change_the_scene_and_serve_the_structure(daemon, tmp_p
         assert sub.scene["revision"] >= scene["revision"] and sub.malformed == 0
         status = client.status()
         assert status["publisher"]["subscribers"] >= 1 and status["loop"]["total"]["ticks"] > 0
-    structure = fetch_structure(daemon.ctl)
+    served = fetch_structure(daemon.ctl)
+    structure = parse_structure(served.data, name=served.name, source=served.source, keep_water=served.keep_water)
     assert structure.sha256 == scene["structure"]["sha256"] and structure.n_atoms == scene["structure"]["n_atoms"]
 
 

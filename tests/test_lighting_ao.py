@@ -15,16 +15,9 @@ from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.settings import AO_MODES, AOSettings
 from tests.lighting_reference import Occluders, analytic_ao, monte_carlo_ao
-from tests.lighting_support import (  # noqa: F401
-    camera,
-    crambin,
-    crambin_grid,
-    cullings,
-    gbuffer_arrays,
-    gl,
-    probe_on_surface,
-    sphere_grid,
-)
+from tests.lighting_support import camera, cullings, gbuffer_arrays, probe_on_surface, sphere_grid
+
+pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 
 AO_DISTANCE = 8.0
 

@@ -13,16 +13,9 @@ from sasprobe.render.lighting.settings import HARD_SHADOW, DirectionalLight, Pat
 from tests.lighting_reference import Occluders, light_visibility, monte_carlo_ao
 from sasprobe.render.lighting.materials import atom_materials
 from sasprobe.render.lighting.path_tracer import PathTracer
-from tests.lighting_support import (  # noqa: F401
-    away_from_boundaries,
-    camera,
-    crambin,
-    crambin_grid,
-    cullings,
-    gbuffer_arrays,
-    gl,
-    probe_on_surface,
-)
+from tests.lighting_support import away_from_boundaries, camera, cullings, gbuffer_arrays, probe_on_surface
+
+pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 
 
 @pytest.fixture(scope="module")

@@ -27,9 +27,10 @@ from sasprobe.render.passes.lighting import LightingPass, install_lighting, ligh
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import NavCube, Probe, SceneState
 from sasprobe.render.gl.targets import KIND_BACKBONE
-from tests.conftest import run_cli
-from tests.lighting_support import away_from_boundaries, crambin, gl, probe_on_surface  # noqa: F401
-from tests.test_render_window import run_window_check, xvfb  # noqa: F401 (xvfb: a real X server)
+from tests.conftest import run_cli, run_window_check
+from tests.lighting_support import away_from_boundaries, probe_on_surface
+
+pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 
 SIZE = (160, 120)
 SETUPS = ["none", "planes", "cube"]

@@ -14,17 +14,9 @@ from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.settings import HARD_SHADOW, DirectionalLight, PointLight, SoftShadow
 from tests.lighting_reference import Occluders, light_visibility
 from sasprobe.render.lighting.shadows import ShadowPass
-from tests.lighting_support import (  # noqa: F401
-    away_from_boundaries,
-    probe_on_surface,
-    camera,
-    crambin,
-    crambin_grid,
-    cullings,
-    gbuffer_arrays,
-    gl,
-    sphere_grid,
-)
+from tests.lighting_support import away_from_boundaries, camera, cullings, gbuffer_arrays, probe_on_surface, sphere_grid
+
+pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 
 SUN = DirectionalLight((0.45, 0.8, 0.4))
 

@@ -28,7 +28,7 @@ from sasprobe.render.scene import Effects, SceneState
 from sasprobe.render.gl.targets import KIND_PROBE
 from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess
-from tests.render_support import crambin, ctx, free_tcp_endpoint  # noqa: F401 (fixtures)
+from tests.render_support import free_tcp_endpoint
 
 ORBIT = "sim:orbit"  # the simulated arm circling the molecule: the probe keeps moving
 
@@ -40,7 +40,7 @@ def daemon():
         d.stop(signal.SIGINT)
 
 
-def test_rendered_probe_follows_the_pose_stream(ctx, daemon):
+def test_rendered_probe_follows_the_pose_stream(gl, daemon):
     pub, ctl = daemon
     watch = Subscriber(pub)  # an independent record of every pose, by sequence number
     link = DaemonLink(pub, ctl)
@@ -57,7 +57,7 @@ def test_rendered_probe_follows_the_pose_stream(ctx, daemon):
         scene = SceneState(structure, effects=Effects(probe_plane=True))  # nothing may hide the probe
         center, radius = scene.bounding_sphere()
         camera = Camera.fitted(center, radius * 1.3, 4 / 3)
-        renderer = Renderer(ctx, scene, (160, 120))
+        renderer = Renderer(gl, scene, (160, 120))
         checked, positions = 0, set()
         while (checked < 8 or len(positions) < 3) and time.monotonic() < deadline:
             link.poll()
@@ -150,7 +150,7 @@ def test_malformed_messages_are_dropped_and_counted(daemon, crambin):
         sock.close()
 
 
-def test_the_grid_follows_the_daemons_probe_radius(ctx):
+def test_the_grid_follows_the_daemons_probe_radius(gl):
     """A daemon feeling with a 2.0 Å probe: the renderer's grid (navigation-cube culling,
     and the lighting's GPU grid) is rebuilt with the daemon's radius, not its own default."""
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS
@@ -176,7 +176,7 @@ def test_the_grid_follows_the_daemons_probe_radius(ctx):
             link.close()
     np.testing.assert_allclose(scene.grid.radii, structure.vdw_radii + radius)
     assert scene.probe.radius == radius
-    renderer = Renderer(ctx, scene, (64, 48))
+    renderer = Renderer(gl, scene, (64, 48))
     try:
         lighting = install_lighting(renderer, LightingSettings(shadows="hard", ao=replace(AOSettings(), mode="off")))
         scene.effects.shadows = True

@@ -62,6 +62,10 @@ class RenderTargets:
         return read_texture(texture, top_first=True)
 
     def release(self) -> None:
+        # moderngl binds the framebuffer it last used again when it makes a new one: leave the
+        # default one bound, not one of these about to be deleted (a GL_INVALID_OPERATION).
+        if any(self.ctx.fbo is fbo for fbo in (self.gbuffer_fbo, self.visibility_fbo, self.lit_fbo, self.final_fbo)):
+            self.ctx.detect_framebuffer(0).use()
         for obj in (self.gbuffer_fbo, self.visibility_fbo, self.lit_fbo, self.final_fbo, self.albedo,
                     self.position, self.normal, self.ids, self.depth, self.visibility, self.lit, self.final):
             obj.release()

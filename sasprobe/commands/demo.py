@@ -37,8 +37,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="do not ask for SCHED_FIFO for the daemon's loop (by default it is asked for, and refused "
                         "gracefully without the privilege)")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
-    p.add_argument("--render-args", metavar="'OPTIONS'", help="extra `sasprobe render` options, e.g. '--no-fxaa'")
-    p.add_argument("--daemon-args", metavar="'OPTIONS'", help="extra `sasprobe daemon` options, e.g. '--stiffness 0.2'")
+    p.add_argument("--render-args", metavar="'OPTIONS'",
+                   help="extra `sasprobe render` options, e.g. --render-args=--no-fxaa (with the =)")
+    p.add_argument("--daemon-args", metavar="'OPTIONS'",
+                   help="extra `sasprobe daemon` options, e.g. --daemon-args='--stiffness 0.2'")
     p.set_defaults(func=run)
 
 
