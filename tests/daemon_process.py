@@ -1,4 +1,5 @@
-"""Run `sasprobe` as a real subprocess: one command, several at once, or the daemon on private sockets."""
+"""Run `sasprobe` as real subprocesses: several commands at once, or the daemon on private sockets
+(one command: conftest.run_cli)."""
 
 from __future__ import annotations
 
@@ -12,16 +13,10 @@ from pathlib import Path
 
 from sasprobe.children import DaemonChild
 from sasprobe.errors import UserError
+from tests.conftest import REPO_ROOT
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
 CLI = [sys.executable, "-m", "sasprobe"]
 DEVICE = "sim"
-
-
-def cli(*args: str, timeout: float = 120, **kwargs) -> subprocess.CompletedProcess:
-    """Run `sasprobe ARGS` as a user would."""
-    return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=timeout, cwd=REPO_ROOT,
-                          env=dict(os.environ, PYTHONUNBUFFERED="1"), **kwargs)
 
 
 def cli_many(*commands: tuple[str, ...], timeout: float = 120) -> list[subprocess.CompletedProcess]:

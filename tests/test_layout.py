@@ -9,6 +9,7 @@ checked without being listed here.
 from __future__ import annotations
 
 import ast
+import re
 import tomllib
 from pathlib import Path
 
@@ -170,3 +171,28 @@ def test_no_module_is_over_400_lines_without_saying_why():
         if lines > MAX_LINES and SIZE_REASON not in (ast.get_docstring(ast.parse(path.read_text())) or ""):
             long.append(f"{path.relative_to(REPO_ROOT)}: {lines} lines")
     assert long == [], f"over {MAX_LINES} lines without '{SIZE_REASON} <why>' in the docstring: {long}"
+
+
+def layout_rows() -> list[str]:
+    """The folders in the first column of the README's layout table."""
+    text = (REPO_ROOT / "README.md").read_text()
+    section = text[text.index("## Layout"):]
+    section = section[: section.index("\n## ", 1)]
+    return [line.split("|")[1].strip().strip("`") for line in section.splitlines()
+            if line.startswith("| `") and line.split("|")[1].strip().startswith("`")]
+
+
+def test_the_readme_layout_table_matches_the_tree():
+    import fnmatch
+
+    rows = layout_rows()
+    patterns = [re.sub(r"<[^>]+>", "*", row) for row in rows]
+    for row in rows:
+        if "<" not in row:  # a pattern row (devices/<driver>/) may match nothing yet
+            assert (REPO_ROOT / row).is_dir(), f"the layout table names {row}, which is not a folder"
+    folders = {f"{path.relative_to(REPO_ROOT).as_posix()}/" for root in package_dirs().values()
+               for path in [root, *(init.parent for init in root.rglob("__init__.py"))]}
+    folders.add("tests/")
+    missing = sorted(f for f in folders if not any(fnmatch.fnmatch(f, p) and f.count("/") == p.count("/")
+                                                   for p in patterns))
+    assert missing == [], f"packages the README's layout table does not list: {missing}"

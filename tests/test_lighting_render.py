@@ -1,6 +1,6 @@
 """The lighting inside the renderer: terms computed on the impostor pipeline's own
 G-buffer equal the CPU references on the exported arrays, the visibility buffer carries
-them to the light pass, path tracing replaces the lit image, `sasprobe render` takes the
+them to the shading pass, path tracing replaces the lit image, `sasprobe render` takes the
 lighting options, and the window's keys switch the effects."""
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ def test_pipeline_analytic_ao_equals_the_cpu_formula(frame):
     assert cpu[ids != -1].min() < 0.6
 
 
-def test_visibility_buffer_carries_the_terms_to_the_light_pass(frame):
+def test_visibility_buffer_carries_the_terms_to_the_shading_pass(frame):
     setup, scene, renderer, g = frame
     t = renderer.targets
     vis = t.read(t.visibility).astype(np.float32)

@@ -1,4 +1,4 @@
-"""The light pass against a numpy Phong reference (including the visibility factors a
+"""The shading pass against a numpy Phong reference (including the visibility factors a
 lighting pass slots in), the toggles, the touched-atom highlight, and FXAA."""
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ TOL = 2.5 / 255  # RGBA8 rounding plus float32 shading
 
 
 class FixedVisibility(Pass):
-    """Stands in for a shadow/AO pass: writes given visibility factors before the light pass."""
+    """Stands in for a shadow/AO pass: writes given visibility factors before the shading pass."""
 
     name = "fixed_visibility"
 
@@ -87,7 +87,7 @@ def reference_light(g, albedo, scene, camera, s, vis):
     return color * vis[..., 3:4]  # edge cueing scales everything
 
 
-def test_light_pass_matches_phong_reference_with_visibility_factors(gl, crambin):
+def test_shading_pass_matches_phong_reference_with_visibility_factors(gl, crambin):
     scene, atom = scene_with_probe(crambin)
     camera = Camera(eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0)
     rng = np.random.default_rng(3)

@@ -41,7 +41,7 @@ class RenderTargets:
         self.ids = ctx.texture(w_h, 2, dtype="i4")
         self.depth = ctx.depth_texture(w_h)
         self.visibility = ctx.texture(w_h, 4, dtype="f2")
-        self.lit = ctx.texture(w_h, 4, dtype="f1")  # light pass output, FXAA input
+        self.lit = ctx.texture(w_h, 4, dtype="f1")  # shading pass output, FXAA input
         self.final = ctx.texture(w_h, 4, dtype="f1")  # headless output
         for tex in (self.albedo, self.position, self.normal, self.ids, self.visibility):
             tex.filter = (ctx.NEAREST, ctx.NEAREST)

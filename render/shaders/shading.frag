@@ -1,5 +1,5 @@
 #version 410 core
-// Deferred light pass: Phong with a directional light and the probe's point light
+// Deferred shading pass: Phong with a directional light and the probe's point light
 // (attenuated with distance), CPK albedo, the touched atom highlighted, the probe glowing.
 // Every light term is multiplied by its own visibility factor, read from u_visibility:
 //   r: directional-light visibility (shadow), g: probe-light visibility (shadow),

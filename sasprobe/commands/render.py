@@ -64,16 +64,6 @@ def cube_type(text: str) -> list[float]:
     return v
 
 
-def frames_type(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"'{text}': at least 1 frame")
-    return n
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS
     from sasprobe.render.app import RenderOptions
@@ -89,7 +79,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--control", metavar="ENDPOINT", help="the daemon's control endpoint (with --connect)")
     p.add_argument("--headless", action="store_true", help="render offscreen through EGL (default when no display)")
     p.add_argument("--size", type=size_type, default=size, metavar="WxH", help=f"image/window size (default {size})")
-    p.add_argument("--frames", type=frames_type, metavar="N", help="stop after N frames")
+    p.add_argument("--frames", type=positive_int, metavar="N", help="stop after N frames")
     p.add_argument("--seconds", type=positive_float, metavar="S", help="stop after S seconds")
     p.add_argument("--out", type=Path, metavar="FILE", help="write frames: .png (numbered when several) or .mp4")
     p.add_argument("--fps", type=positive_float, default=defaults.fps,

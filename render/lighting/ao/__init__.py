@@ -1,5 +1,5 @@
 """The ambient-occlusion family behind one call: `AmbientOcclusion.compute` returns the
-accessibility texture (r32f, 1 = unoccluded) the light pass multiplies in, made by the
+accessibility texture (r32f, 1 = unoccluded) the shading pass multiplies in, made by the
 method `AOSettings.mode` selects:
 
 | mode | method | per frame |
