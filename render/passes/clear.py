@@ -8,7 +8,7 @@ from sasprobe.render.passes.base import Frame, Pass
 
 
 class ClearPass(Pass):
-    """Background values in the G-buffer (depth 1, atom id -1) and visibility 1."""
+    """The G-buffer cleared to the background, the visibility buffer to 1."""
 
     name = "clear"
 
