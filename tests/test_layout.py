@@ -10,12 +10,17 @@ from __future__ import annotations
 
 import ast
 import re
-import tomllib
+import sys
 from pathlib import Path
 
 import pytest
 
 from tests.conftest import REPO_ROOT
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
 
 # Which subsystems each may import (besides itself and the foundation below).
 ALLOWED = {
