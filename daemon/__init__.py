@@ -1,1 +1,3 @@
-"""The device daemon: haptic rendering of the SAS, the fixed-rate loop, safety, publishing."""
+"""The device daemon: the process (service, requests, loop, control, publisher, events), the
+haptic rendering it runs each tick (haptics/) and session recording and replay
+(recording/)."""

@@ -19,6 +19,7 @@ import numpy as np
 
 log = logging.getLogger("sasprobe")
 
+DEFAULT_RATE_HZ = 1000.0  # the control rate haptics needs (1 kHz)
 REALTIME_PRIORITY = 50  # SCHED_FIFO priority with --realtime (1-99)
 HIST_BIN_NS = 1_000  # period-error histogram: 1 µs bins ...
 HIST_BINS = 100_000  # ... up to 100 ms (larger errors land in the last bin)

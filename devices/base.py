@@ -52,10 +52,6 @@ class DeviceLimits:
     def workspace_center_mm(self) -> np.ndarray:
         return (np.asarray(self.workspace_min_mm) + np.asarray(self.workspace_max_mm)) / 2.0
 
-    @property
-    def workspace_size_mm(self) -> np.ndarray:
-        return np.asarray(self.workspace_max_mm) - np.asarray(self.workspace_min_mm)
-
 
 # A PHANTOM Omni class arm: 3.3 N peak and 0.88 N continuous (HDAPI examples), CHAI3D's
 # 0.7 N/mm stiffness and 5 N·s/m damping limits, ~160 x 120 x 70 mm workspace.
@@ -118,7 +114,15 @@ class DeviceState:
 
 
 class HapticDevice(abc.ABC):
-    """Base class of every device: hardware drivers, the simulated arm, the replay device."""
+    """Base class of every device: hardware drivers, the simulated arm, the replay device.
+
+    Besides the abstract interface it has explicit defaults for what only some devices
+    do, so the daemon treats every device alike: a device that replays a recorded
+    session overrides the three `recorded_*` methods; a device that can tell what force
+    it holds sets `last_force_n`.
+    """
+
+    last_force_n: np.ndarray | None = None  # the force the device itself holds now; None: it cannot tell
 
     @property
     @abc.abstractmethod
@@ -140,6 +144,19 @@ class HapticDevice(abc.ABC):
         """Try to re-establish a lost link; raises DeviceFault while the device is still gone."""
         self.close()
         self.open()
+
+    def recorded_session(self):
+        """The recorded session a device replays (its structure, settings and rate); None
+        for a live device."""
+        return None
+
+    def take_recorded_events(self) -> list[dict]:
+        """Recorded control commands due at the tick read last, in order; none for a live device."""
+        return []
+
+    def recorded_late_periods(self) -> float:
+        """How many periods late the tick read last started in the recording; 0 for a live device."""
+        return 0.0
 
     def __enter__(self) -> HapticDevice:
         self.open()

@@ -3,7 +3,8 @@
 Each scheme names a factory `module:function` imported only when used, so a missing
 optional dependency of one driver never breaks the others. A factory takes the
 argument after the colon (or None) and keyword options, and returns an unopened
-HapticDevice.
+HapticDevice. Schemes whose device lives above devices/ (the daemon's `replay`) are
+added by their owner with `register_scheme`, so nothing here imports upward.
 """
 
 from __future__ import annotations
@@ -33,8 +34,12 @@ SCHEMES: dict[str, DeviceScheme] = {
         "simulated arm driven by a scripted hand (scan, dive, press, orbit, random)",
         "sim:scan",
     ),
-    "replay": DeviceScheme("sasprobe.devices.replay:open_replay", "a recorded session (--speed X|max)", "replay:session.mcap"),
 }
+
+
+def register_scheme(name: str, scheme: DeviceScheme) -> None:
+    """Add a scheme from a layer above devices/ (the daemon registers `replay`)."""
+    SCHEMES[name] = scheme
 
 
 def parse_device_spec(spec: str) -> tuple[str, str | None]:
@@ -53,7 +58,3 @@ def open_device(spec: str, **options: object) -> HapticDevice:
     module_name, _, function = entry.factory.partition(":")
     factory = getattr(importlib.import_module(module_name), function)
     return factory(argument, **options)
-
-
-def describe_schemes() -> str:
-    return "; ".join(f"{name}: {s.summary} (e.g. {s.example})" for name, s in sorted(SCHEMES.items()))

@@ -3,7 +3,7 @@
 A script is a target position (device frame, mm) for every simulated time t >= 0; it
 loops forever, so a daemon can run on it as long as it likes, and `duration_s` is one
 pass. Scripts are placed on the molecule through the session's initial workspace
-mapping (`WorkspaceMapping.initial`, the same one the renderer starts with), using the
+mapping (`WorkspaceMapping.initial`, the same one the haptic engine starts with), using the
 expanded spheres (vdW + probe) and the uniform grid:
 
 - `scan`: a raster over the top of the molecule, pressing `SCAN_PRESS_MM` into the
@@ -19,7 +19,7 @@ expanded spheres (vdW + probe) and the uniform grid:
 - `random`: a seeded smooth wander (a sum of sinusoids) through the cube, in and out
   of the molecule.
 
-Everything starts hovering in free space above the molecule, so the renderer seats
+Everything starts hovering in free space above the molecule, so the haptic engine seats
 its proxy at once.
 """
 
@@ -31,8 +31,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sasprobe.daemon.workspace import WorkspaceMapping
+from sasprobe.devices.workspace import WorkspaceMapping
 from sasprobe.molecule.grid import UniformGrid
+from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
 
 SCRIPTS = ("scan", "dive", "press", "orbit", "random")
 
@@ -130,7 +131,7 @@ class _Surface:
         return cols[0][1] if cols else None
 
 
-def surface_site(structure, probe_radius: float = 1.4) -> tuple[float, float, float]:
+def surface_site(structure, probe_radius: float = DEFAULT_PROBE_RADIUS) -> tuple[float, float, float]:
     """The top of the SAS above the middle of the molecule (a centre for a zoomed-in cube)."""
     grid = UniformGrid(structure.positions, structure.expanded_radii(probe_radius))
     lo, hi = structure.positions.min(axis=0), structure.positions.max(axis=0)
@@ -148,7 +149,7 @@ def make_script(
     name: str,
     structure,
     mapping: WorkspaceMapping,
-    probe_radius: float = 1.4,
+    probe_radius: float = DEFAULT_PROBE_RADIUS,
     seed: int = 0,
 ) -> Script:
     """The script `name` placed on `structure` through `mapping` (its initial state)."""

@@ -42,7 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sasprobe.daemon.workspace import WorkspaceMapping
+from sasprobe.devices.workspace import WorkspaceMapping
+from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
 from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo, DeviceLimits, DeviceState, HapticDevice
 from sasprobe.devices.scripts import SCRIPTS, Script, make_script
 
@@ -226,7 +227,7 @@ def make_simulated(argument: str | None, **options) -> SimulatedDevice:
 
     Options: structure (default: embedded 1CRN), rate_hz (1000), seed (0), limits,
     probe_radius_A, cube_half_A, cube_center_A (so the scripts are placed with the
-    renderer's mapping), arm (ArmModel), start_ns, faults, failed_reconnects.
+    haptic engine's mapping), arm (ArmModel), start_ns, faults, failed_reconnects.
     Unknown options are ignored.
     """
     from sasprobe.devices.base import DeviceOpenError
@@ -240,7 +241,7 @@ def make_simulated(argument: str | None, **options) -> SimulatedDevice:
 
         structure = load_default()
     limits = options.get("limits") or PHANTOM_OMNI_LIMITS
-    probe = float(options.get("probe_radius_A") or options.get("probe_radius") or 1.4)
+    probe = float(options.get("probe_radius_A") or DEFAULT_PROBE_RADIUS)
     seed = int(options.get("seed") or 0)
     mapping = WorkspaceMapping.initial(
         structure, limits, options.get("cube_half_A"), probe, options.get("cube_center_A")

@@ -1,8 +1,8 @@
-"""Structures, radii and colours, the uniform grid and the backbone trace."""
+"""Structures, radii and colours, the solvent probe, the uniform grid and the backbone trace."""
 
 from sasprobe.molecule.grid import UniformGrid
+from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS, MAX_PROBE_RADIUS, check_probe_radius
 from sasprobe.molecule.structure import (
-    DEFAULT_PROBE_RADIUS,
     Structure,
     StructureError,
     load_default,
@@ -13,9 +13,11 @@ from sasprobe.molecule.structure import (
 
 __all__ = [
     "DEFAULT_PROBE_RADIUS",
+    "MAX_PROBE_RADIUS",
     "Structure",
     "StructureError",
     "UniformGrid",
+    "check_probe_radius",
     "load_default",
     "load_structure",
     "load_structure_or_default",

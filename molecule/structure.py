@@ -28,11 +28,11 @@ import numpy as np
 from sasprobe.errors import UserError
 from sasprobe.molecule.backbone import trace_segments
 from sasprobe.molecule.elements import FALLBACK_RADIUS, colors_for, has_bondi_radius, radii_for
+from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
 
 log = logging.getLogger("sasprobe")
 
 DEFAULT_STRUCTURE = "1crn.pdb.gz"
-DEFAULT_PROBE_RADIUS = 1.4  # Å, one water molecule
 
 
 class StructureError(UserError):
@@ -85,14 +85,6 @@ class Structure:
     def bbox(self) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned bounds of the atom centres (Å)."""
         return self.positions.min(axis=0), self.positions.max(axis=0)
-
-    def atom_label(self, index: int) -> str:
-        """Human label of one atom, e.g. 'A:THR1:CA'."""
-        icode = self.insertion_codes[index]
-        return (
-            f"{self.chain_ids[index]}:{self.residue_names[index]}"
-            f"{self.residue_numbers[index]}{icode}:{self.atom_names[index]}"
-        )
 
 
 def load_structure(path: str | Path, keep_water: bool = False) -> Structure:

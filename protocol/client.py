@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import zmq
@@ -220,16 +221,27 @@ class ControlClient:
         self.close()
 
 
-def fetch_structure(ctl_endpoint: str = DEFAULT_CTL_ENDPOINT, keys: ClientKeys | None = None,
-                    timeout_s: float = 30.0, keep_water: bool = False):
-    """The daemon's structure as a sasprobe.molecule.Structure, from `get_structure` bytes."""
-    import hashlib
+@dataclass(frozen=True)
+class StructureFile:
+    """The daemon's structure file as `get_structure` serves it, its sha256 checked. Parse it
+    with `sasprobe.molecule.parse_structure(data, name=name, source=source, keep_water=keep_water)`
+    to get the daemon's atoms (the protocol itself knows nothing of structures)."""
 
-    from sasprobe.molecule import parse_structure
+    name: str
+    data: bytes
+    keep_water: bool  # as the daemon loaded it
+    source: str  # where it came from, for messages
+
+
+def fetch_structure(ctl_endpoint: str = DEFAULT_CTL_ENDPOINT, keys: ClientKeys | None = None,
+                    timeout_s: float = 30.0) -> StructureFile:
+    """The daemon's structure file (no shared disk needed); ControlError if it does not match its sha256."""
+    import hashlib
 
     with ControlClient(ctl_endpoint, keys=keys, timeout_s=timeout_s) as client:
         header, data = client.get_structure(timeout_s=timeout_s)
     if hashlib.sha256(data).hexdigest() != header.get("sha256"):
         raise ControlError(f"structure from {ctl_endpoint} does not match its sha256")
-    return parse_structure(data, name=header.get("name", "structure"), source=f"{ctl_endpoint}:{header.get('name')}",
-                           keep_water=keep_water or bool(header.get("keep_water", False)))
+    name = header.get("name", "structure")
+    return StructureFile(name=name, data=data, keep_water=bool(header.get("keep_water", False)),
+                         source=f"{ctl_endpoint}:{name}")

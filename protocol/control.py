@@ -25,7 +25,6 @@ CONTROL_VERSION = 1
 MAX_REQUEST_JSON_BYTES = 64 * 1024  # the JSON frame; structure bytes travel in frame 2
 MAX_STRUCTURE_BYTES = 256 * 1024 * 1024  # the largest structure file `load` accepts
 MAX_MESSAGE_BYTES = MAX_STRUCTURE_BYTES + MAX_REQUEST_JSON_BYTES  # larger frames drop the connection
-MAX_PROBE_RADIUS_A = 10.0
 
 COMMANDS = (
     "ping",
@@ -39,9 +38,10 @@ COMMANDS = (
     "shutdown",
 )
 
-# `set` fields and the JSON types they take (semantic limits are checked by the daemon).
+# `set` fields and the JSON types they take (semantic limits, such as the probe radius's
+# upper bound and the device's stiffness limit, are checked by the daemon).
 SET_FIELDS = {
-    "probe_radius_A": "number > 0 and ≤ 10",
+    "probe_radius_A": "number > 0",
     "stiffness_n_per_mm": "number ≥ 0",
     "damping_n_s_per_m": "number ≥ 0",
     "method": f"one of {', '.join(HAPTIC_METHODS)}",
@@ -178,10 +178,10 @@ def _no_args(req: Request) -> None:
         raise ProtocolError(f"'{req.cmd}' takes no arguments, got {', '.join(sorted(map(str, req.args)))}")
 
 
-def _number(value, key: str, minimum: float, strict: bool, maximum: float | None = None) -> float:
+def _number(value, key: str, minimum: float, strict: bool) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ProtocolError(f"'{key}' must be a finite number")
-    if value < minimum or (strict and value == minimum) or (maximum is not None and value > maximum):
+    if value < minimum or (strict and value == minimum):
         raise ProtocolError(f"'{key}' must be a {SET_FIELDS[key]}, got {value}")
     return float(value)
 
@@ -196,7 +196,7 @@ def validate_set_args(args: dict) -> dict:
     out: dict = {}
     for key, value in args.items():
         if key == "probe_radius_A":
-            out[key] = _number(value, key, 0.0, True, MAX_PROBE_RADIUS_A)
+            out[key] = _number(value, key, 0.0, True)
         elif key in ("stiffness_n_per_mm", "damping_n_s_per_m"):
             out[key] = _number(value, key, 0.0, False)
         elif key == "cube_half_A":

@@ -11,16 +11,19 @@ import json
 import math
 
 SCENE_TOPIC = b"scene"
-SCENE_VERSION = 1
+SCENE_VERSION = 2  # 2: nav_cube.half_A and lights.probe.radius_A are gone (the pose and probe_radius_A carry them)
 MAX_SCENE_BYTES = 1 << 20  # a scene is a few KiB; anything this big is not one
 MAX_CLIP_PLANES = 8
-HAPTIC_METHODS = ("proxy", "penalty")
+HAPTIC_METHODS = ("proxy", "penalty")  # the `method` a scene reports and a `set` may ask for; the first is the default
+
+# The direction the key light travels (from the light towards the molecule), molecule frame,
+# not normalised: from the upper left front of a view down -z (the renderer's fitted view).
+# The daemon publishes it and the standalone renderer starts with it.
+DEFAULT_LIGHT_DIRECTION = (0.45, -0.55, -0.70)
 
 DEFAULT_LIGHTS = {
-    # Unit vector the light travels along (from the light towards the molecule), molecule frame.
-    "directional": {"direction": [-0.4082482904638631, -0.4082482904638631, -0.8164965809277261]},
-    # A point light at the probe centre; radius_A is the size of its (soft-shadow) source.
-    "probe": {"radius_A": 1.4, "enabled": True},
+    "directional": {"direction": list(DEFAULT_LIGHT_DIRECTION)},
+    "probe": {"enabled": True},  # a point light at the probe centre
 }
 
 
@@ -94,7 +97,6 @@ def _check_lights(lights) -> None:
     direction = _vector(lights["directional"].get("direction"), 3, "lights.directional.direction")
     if direction == [0.0, 0.0, 0.0]:
         raise SceneError("lights.directional.direction must not be zero")
-    _number(lights["probe"].get("radius_A"), "lights.probe.radius_A", positive=True)
     _bool(lights["probe"].get("enabled"), "lights.probe.enabled")
 
 
@@ -112,7 +114,6 @@ def validate_scene(scene) -> dict:
         raise SceneError("structure.n_atoms must be a non-negative integer")
     _number(scene.get("probe_radius_A"), "probe_radius_A", positive=True)
     cube = _object(scene.get("nav_cube"), "nav_cube")
-    _number(cube.get("half_A"), "nav_cube.half_A")
     _bool(cube.get("enabled"), "nav_cube.enabled")
     validate_clip_planes(scene.get("clip_planes"))
     _check_lights(scene.get("lights"))

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from sasprobe.errors import UserError
-from sasprobe.render.lighting_params import DEFAULT_PROBE_RANGE, LightingSettings
+from sasprobe.render.lighting.settings import DEFAULT_PROBE_RANGE, LightingSettings
+from sasprobe.render.source import RenderSource
 
 log = logging.getLogger("sasprobe")
 
@@ -46,23 +47,6 @@ class RenderOptions:
     snapshot: Path | None = None  # also write the last frame as a PNG (headless)
     report: Path | None = None  # write frame and pose counts as JSON at the end
 
-    @classmethod
-    def from_args(cls, args) -> "RenderOptions":
-        from sasprobe.render.context import display_available
-        from sasprobe.render.lighting_cli import lighting_from_args
-
-        lighting, required = lighting_from_args(args, headless=args.headless or not display_available())
-        return cls(
-            molecule=args.molecule, connect=args.connect, control=args.control, headless=args.headless,
-            size=args.size, frames=args.frames, seconds=args.seconds, out=args.out, fps=args.fps,
-            gbuffer=args.gbuffer, camera=args.camera, orbit=args.orbit, spheres=args.spheres,
-            probe=args.probe, touched=args.touched, probe_radius=args.probe_radius, nav_cube=args.nav_cube,
-            clip=args.clip, probe_plane=args.probe_plane, light=args.light, backbone=args.backbone,
-            fxaa=not args.no_fxaa, keep_water=args.keep_water, lighting=lighting, lighting_required=required,
-            probe_light_range=args.probe_light_range or DEFAULT_PROBE_RANGE, snapshot=args.snapshot,
-            report=args.report,
-        )
-
     def effects(self):
         """The scene's switches: the options' FXAA, probe plane and initial lighting."""
         from sasprobe.render.scene import Effects
@@ -74,14 +58,16 @@ class RenderOptions:
 def build_scene(structure, opts: RenderOptions, effects=None):
     """The SceneState for a structure: the options' planes, probe, cube and light."""
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS
-    from sasprobe.render.lighting_cli import check_soft_shell
     from sasprobe.render.scene import NavCube, Probe, SceneState
 
     radius = opts.probe_radius or DEFAULT_PROBE_RADIUS
     if effects is None:
         effects = opts.effects()
     if opts.lighting is not None:
-        check_soft_shell(opts.lighting, radius)
+        try:
+            opts.lighting.check_soft_shell(radius)
+        except ValueError as exc:
+            raise UserError(f"--soft-shell: {exc}") from None
     scene = SceneState(structure, probe_radius=radius, clip_planes=[np.array(p) for p in opts.clip], effects=effects)
     if opts.touched >= structure.n_atoms:
         raise UserError(f"--touched {opts.touched}: {structure.name} has atoms 0..{structure.n_atoms - 1}")
@@ -105,22 +91,20 @@ def initial_camera(scene, opts: RenderOptions):
     return Camera.fitted(center, radius, aspect)
 
 
-def open_source(opts: RenderOptions):
+def open_source(opts: RenderOptions) -> RenderSource:
     """A StaticSource for --molecule (or the embedded 1CRN), a DaemonLink for --connect."""
     if opts.connect is None:
         from sasprobe.molecule import load_structure_or_default
         from sasprobe.render.source import StaticSource
 
         return StaticSource(load_structure_or_default(opts.molecule, keep_water=opts.keep_water))
-    try:
-        from sasprobe.render.link import DaemonLink  # needs the daemon's protocol client
-    except ModuleNotFoundError:
-        raise UserError("--connect is not available in this build (the daemon's protocol client is missing)") from None
+    from sasprobe.render.link import DaemonLink
+
     return DaemonLink(opts.connect or None, opts.control, keep_water=opts.keep_water)
 
 
 def render_main(opts: RenderOptions) -> int:
-    from sasprobe.render.context import display_available
+    from sasprobe.render.gl.context import display_available
 
     window_mode = not opts.headless and display_available()
     if not opts.headless and not window_mode:
@@ -134,12 +118,12 @@ def render_main(opts: RenderOptions) -> int:
 
 def make_renderer(ctx, scene, size, opts: RenderOptions):
     """The renderer of the options, lighting included when asked for and supported."""
-    from sasprobe.render.passes.light import LightSettings
+    from sasprobe.render.lighting.settings import ShadingSettings
     from sasprobe.render.passes.lighting import install_lighting
     from sasprobe.render.renderer import Renderer
 
     renderer = Renderer(ctx, scene, size, sphere_mode=opts.spheres, backbone_always=opts.backbone,
-                        light=LightSettings(probe_range=opts.probe_light_range))
+                        shading=ShadingSettings(probe_range=opts.probe_light_range))
     if opts.lighting is not None:
         try:
             install_lighting(renderer, opts.lighting, required=opts.lighting_required)
@@ -155,13 +139,12 @@ def _writer(opts: RenderOptions, frames: int | None):
     return FrameWriter(opts.out, frames, opts.fps) if opts.out is not None else None
 
 
-def _run_headless(opts: RenderOptions, source) -> int:
+def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
     from sasprobe.progress import progress_bar
-    from sasprobe.render.context import create_headless_context
+    from sasprobe.render.gl.context import create_headless_context
     from sasprobe.render.headless import run_headless
 
-    if hasattr(source, "wait_ready"):
-        source.wait_ready()  # a daemon: its structure and a first pose, or one clear line
+    source.wait_ready()  # a daemon: its structure and a first pose, or one clear line
     scene = build_scene(source.take_new_structure(), opts)
     ctx = create_headless_context()
     try:
@@ -204,10 +187,10 @@ def _run_headless(opts: RenderOptions, source) -> int:
     return 0
 
 
-def _run_window(opts: RenderOptions, source) -> int:
+def _run_window(opts: RenderOptions, source: RenderSource) -> int:
     import glfw
 
-    from sasprobe.render.context import create_window
+    from sasprobe.render.gl.context import create_window
     from sasprobe.render.window import WindowApp
 
     window, ctx = create_window(opts.size, "sasprobe render")
@@ -238,17 +221,16 @@ def _run_window(opts: RenderOptions, source) -> int:
     return 0
 
 
-def _write_run_report(opts: RenderOptions, frames: dict, source) -> None:
+def _write_run_report(opts: RenderOptions, frames: dict, source: RenderSource) -> None:
     """--report: frame counts, and with a daemon the poses received and lost (seq gaps)."""
     if opts.report is None:
         return
     import json
 
     report = {"size": list(opts.size), **frames}
-    subscriber = getattr(source, "subscriber", None)
-    if subscriber is not None:
-        report["daemon"] = {"poses_received": subscriber.poses_received, "poses_missed": subscriber.missed,
-                            "scenes_received": subscriber.scenes_received, "malformed": subscriber.malformed}
+    stream = source.stream_report()
+    if stream is not None:
+        report["daemon"] = stream
     opts.report.write_text(json.dumps(report, indent=1))
 
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Callable, Iterator
 
 from sasprobe.render.camera import Camera
-from sasprobe.render.gbuffer import gbuffer_arrays, save_gbuffer
+from sasprobe.render.gbuffer_export import gbuffer_arrays, save_gbuffer
 
 
 @dataclass

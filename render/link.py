@@ -20,11 +20,11 @@ from collections import deque
 import numpy as np
 
 from sasprobe.errors import UserError
-from sasprobe.molecule import Structure
+from sasprobe.molecule import Structure, parse_structure
 from sasprobe.protocol.client import Subscriber, fetch_structure
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
 from sasprobe.render.scene import NavCube, Probe, normalise_plane
-from sasprobe.render.source import Readout
+from sasprobe.render.source import Readout, RenderSource
 
 log = logging.getLogger("sasprobe")
 
@@ -35,8 +35,9 @@ RATE_WINDOW_S = 0.5  # haptic rate: poses over this much device time
 
 
 def apply_scene_message(scene, state: dict) -> bool:
-    """A `scene` message's probe radius, clip planes and light direction into a SceneState;
-    returns whether the daemon has the probe light on (the caller decides whether to follow)."""
+    """A `scene` message's probe radius, clip planes and light direction into a SceneState
+    (its grid then follows the daemon's probe radius); returns whether the daemon has the
+    probe light on (the caller decides whether to follow)."""
     scene.probe_radius = float(state["probe_radius_A"])
     planes = [normalise_plane(p) for p in state["clip_planes"]]
     if len(planes) != len(scene.clip_planes) or any(not np.array_equal(a, b) for a, b in zip(planes, scene.clip_planes)):
@@ -61,7 +62,7 @@ def apply_pose(scene, pose, cube_enabled: bool) -> None:
         scene.nav_cube = None
 
 
-class DaemonLink:
+class DaemonLink(RenderSource):
     def __init__(self, pub: str | None = None, ctl: str | None = None, keep_water: bool = False):
         self.pub = pub or DEFAULT_PUB_ENDPOINT
         self.ctl = ctl or DEFAULT_CTL_ENDPOINT
@@ -80,7 +81,9 @@ class DaemonLink:
     # ------------------------------------------------------------ structure
     def _fetch(self) -> None:
         try:
-            self._fetched = fetch_structure(self.ctl, timeout_s=FETCH_TIMEOUT_S, keep_water=self.keep_water)
+            served = fetch_structure(self.ctl, timeout_s=FETCH_TIMEOUT_S)
+            self._fetched = parse_structure(served.data, name=served.name, source=served.source,
+                                            keep_water=self.keep_water or served.keep_water)
             self._fetch_error = None
         except UserError as exc:  # ControlError, or a StructureError from the bytes
             self._fetch_error = str(exc)
@@ -154,6 +157,11 @@ class DaemonLink:
                 raise UserError(f"no daemon answered within {timeout_s:g} s: {why} (start one with `sasprobe daemon`)")
             self.poll()
             time.sleep(0.02)
+
+    def stream_report(self) -> dict:
+        sub = self.subscriber
+        return {"poses_received": sub.poses_received, "poses_missed": sub.missed,
+                "scenes_received": sub.scenes_received, "malformed": sub.malformed}
 
     def close(self) -> None:
         self.subscriber.close()

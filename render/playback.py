@@ -13,13 +13,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterator
 
-import numpy as np
-
-from sasprobe.daemon.recording import iter_items
 from sasprobe.protocol.pose import Pose
-
-POSE_FIELDS = ("seq", "device_t_ns", "publish_t_ns", "proxy_A", "goal_A", "force_N", "tip_mm", "orientation",
-               "buttons", "touched_atom", "flags", "cube_center_A", "cube_half_A")
+from sasprobe.protocol.recording import iter_items, pose_from_record
 
 
 @dataclass
@@ -45,14 +40,6 @@ def frame_count(time_range: tuple[int, int], fps: float) -> int:
     """Frames at 1/fps steps from the first pose up to and including the last one."""
     first, last = time_range
     return int((last - first) * fps // 1_000_000_000) + 1
-
-
-def _pose(data: dict) -> Pose:
-    values = {}
-    for name in POSE_FIELDS:
-        v = data[name]
-        values[name] = np.array([np.nan if x is None else x for x in v], dtype=np.float64) if isinstance(v, list) else v
-    return Pose(**values)
 
 
 def recorded_frames(path: Path, fps: float, time_range: tuple[int, int] | None = None) -> Iterator[RecordedFrame]:
@@ -84,7 +71,7 @@ def recorded_frames(path: Path, fps: float, time_range: tuple[int, int] | None =
             while k < n and pose is not None and scene is not None and t0 + k * 1e9 / fps < item.log_time:
                 yield frame()
                 k += 1
-            pose = _pose(item.data)
+            pose = pose_from_record(item.data)
     while k < n and pose is not None and scene is not None:
         yield frame()
         k += 1
@@ -96,8 +83,8 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
     from sasprobe.errors import UserError
     from sasprobe.molecule import parse_structure
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
-    from sasprobe.render.context import create_headless_context
-    from sasprobe.render.lighting_params import LightingSettings
+    from sasprobe.render.gl.context import create_headless_context
+    from sasprobe.render.lighting.settings import LightingSettings
     from sasprobe.render.link import apply_pose, apply_scene_message
     from sasprobe.render.output import FrameWriter
 

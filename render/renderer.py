@@ -1,10 +1,10 @@
 """The renderer: GL objects created once, and the pass chain run each frame.
 
-    clear -> spheres -> probe -> backbone -> [lighting passes: fill visibility]
-          -> light -> navcube -> fxaa
+    clear -> spheres -> probe -> backbone -> [lighting: fills the visibility buffer]
+          -> shading -> [path_trace] -> navcube -> fxaa
 
-`passes` is a plain list; `insert_before(name, pass)` slots a pass in (a shadow or AO
-pass goes before "light").
+`passes` is a plain list; `insert_before(name, pass)` slots a pass in (the lighting
+passes go before "shading" and "navcube", render/passes/lighting.py).
 """
 
 from __future__ import annotations
@@ -13,23 +13,26 @@ import time
 
 import numpy as np
 
-from sasprobe.render.buffers import MoleculeBuffers
 from sasprobe.render.camera import Camera
+from sasprobe.render.gl.buffers import MoleculeBuffers
+from sasprobe.render.gl.programs import ProgramCache
+from sasprobe.render.gl.targets import RenderTargets
+from sasprobe.render.gl.textures import read_image
+from sasprobe.render.lighting.settings import ShadingSettings
 from sasprobe.render.passes.backbone import BackbonePass
-from sasprobe.render.passes.base import ClearPass, Frame, Pass
+from sasprobe.render.passes.base import Frame, Pass
+from sasprobe.render.passes.clear import ClearPass
 from sasprobe.render.passes.fxaa import FxaaPass
-from sasprobe.render.passes.light import LightPass, LightSettings
 from sasprobe.render.passes.navcube import NavCubePass
 from sasprobe.render.passes.probe import ProbePass
+from sasprobe.render.passes.shading import ShadingPass
 from sasprobe.render.passes.spheres import SpherePass
 from sasprobe.render.scene import SceneState
-from sasprobe.render.shaders import ProgramCache
-from sasprobe.render.targets import RenderTargets
 
 
 class Renderer:
     def __init__(self, ctx, scene: SceneState, size: tuple[int, int], sphere_mode: str = "quad",
-                 backbone_always: bool = False, light: LightSettings | None = None):
+                 backbone_always: bool = False, shading: ShadingSettings | None = None):
         self.ctx = ctx
         self.scene = scene
         self.programs = ProgramCache(ctx)
@@ -41,7 +44,7 @@ class Renderer:
             self.sphere_pass,
             ProbePass(ctx, self.programs, self.buffers),
             BackbonePass(ctx, self.programs, self.buffers, show_always=backbone_always),
-            LightPass(ctx, self.programs, light),
+            ShadingPass(ctx, self.programs, shading),
             NavCubePass(ctx, self.programs),
             FxaaPass(ctx, self.programs),
         ]
@@ -65,7 +68,7 @@ class Renderer:
 
     @property
     def sphere_mode(self) -> str:
-        return getattr(self.sphere_pass, "mode", "mesh")
+        return self.sphere_pass.mode
 
     def pass_named(self, name: str) -> Pass:
         return next(p for p in self.passes if p.name == name)
@@ -120,10 +123,7 @@ class Renderer:
     def read_image(self, frame: Frame | None = None) -> np.ndarray:
         """The final image of a frame as H x W x 3 uint8, row 0 = top."""
         frame = frame or self.last_frame
-        fbo = frame.output_fbo
-        w, h = self.targets.size
-        data = np.frombuffer(fbo.read(viewport=(0, 0, w, h), components=3), dtype=np.uint8)
-        return data.reshape(h, w, 3)[::-1].copy()
+        return read_image(frame.output_fbo, self.targets.size)
 
     def release(self) -> None:
         for p in self.passes:

@@ -13,10 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, Structure, UniformGrid
-
-# Default directional light: the direction it travels (world), from upper left front of
-# the default auto-fitted view (which looks down -z).
-DEFAULT_LIGHT_DIRECTION = (0.45, -0.55, -0.70)
+from sasprobe.protocol.scene import DEFAULT_LIGHT_DIRECTION
 
 
 def normalise_plane(plane) -> np.ndarray:
@@ -89,13 +86,24 @@ class SceneState:
     effects: Effects = field(default_factory=Effects)
 
     def __post_init__(self) -> None:
-        # The grid of the expanded (SAS) spheres: the one the daemon feels with and the
-        # lighting traces through; the renderer uses it for navigation-cube culling.
-        self.grid = UniformGrid(self.structure.positions, self.structure.expanded_radii(self.probe_radius))
+        self._grid: UniformGrid | None = None
+        self._grid_key: tuple | None = None
         self.clip_planes = [normalise_plane(p) for p in self.clip_planes]
         self._selection_key: bytes | None = None
         self._selection = np.empty(0, dtype=np.uint32)
         self._atoms_sphere: tuple[np.ndarray, float] | None = None
+
+    @property
+    def grid(self) -> UniformGrid:
+        """The grid of the expanded (SAS) spheres at the scene's probe radius: the one the
+        daemon feels with and the lighting traces through (the renderer also culls to the
+        navigation cube with it). Rebuilt when the structure or the probe radius changes,
+        so a renderer following a daemon uses the daemon's radius."""
+        key = (id(self.structure), float(self.probe_radius))
+        if key != self._grid_key:
+            self._grid = UniformGrid(self.structure.positions, self.structure.expanded_radii(self.probe_radius))
+            self._grid_key = key
+        return self._grid
 
     # ---------------------------------------------------------------- planes
     def active_cube(self) -> NavCube | None:

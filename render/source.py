@@ -4,11 +4,13 @@ A source is polled once per frame: `poll()` takes in what has arrived (never blo
 `take_new_structure()` hands out a structure once when one (re)appears, `apply(scene)`
 writes the live state (probe, cube, planes, lights) into the SceneState, and
 `readout()` says what the window's text shows. `StaticSource` is a file (nothing
-changes); `render.link.DaemonLink` follows a running daemon.
+changes); `render.link.DaemonLink` follows a running daemon. The base class's methods
+are the defaults of a source that has nothing live.
 """
 
 from __future__ import annotations
 
+import abc
 from dataclasses import dataclass
 
 from sasprobe.molecule import Structure
@@ -24,22 +26,34 @@ class Readout:
     dropped: int = 0  # malformed messages dropped
 
 
-class StaticSource:
-    def __init__(self, structure: Structure):
-        self._new: Structure | None = structure
+class RenderSource(abc.ABC):
+    @abc.abstractmethod
+    def take_new_structure(self) -> Structure | None: ...
+
+    def wait_ready(self) -> None:
+        """Headless start: block until there is something to draw (or fail in one line)."""
 
     def poll(self) -> None:
-        pass
-
-    def take_new_structure(self) -> Structure | None:
-        structure, self._new = self._new, None
-        return structure
+        """Take in what has arrived, without blocking."""
 
     def apply(self, scene) -> None:
-        pass
+        """Write the live state into the scene."""
 
     def readout(self) -> Readout:
         return Readout()
 
+    def stream_report(self) -> dict | None:
+        """What arrived and what was lost, for `--report`; None without a stream."""
+        return None
+
     def close(self) -> None:
         pass
+
+
+class StaticSource(RenderSource):
+    def __init__(self, structure: Structure):
+        self._new: Structure | None = structure
+
+    def take_new_structure(self) -> Structure | None:
+        structure, self._new = self._new, None
+        return structure

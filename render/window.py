@@ -11,12 +11,13 @@ from typing import Callable
 import numpy as np
 
 from sasprobe.render.camera import Camera
-from sasprobe.render.gbuffer import gbuffer_arrays, save_gbuffer
-from sasprobe.render.passes.light import LightSettings
+from sasprobe.render.gbuffer_export import gbuffer_arrays, save_gbuffer
+from sasprobe.render.lighting.settings import ShadingSettings
 from sasprobe.render.passes.lighting import lighting_of, lighting_status
 from sasprobe.render.passes.overlay import TextOverlay
 from sasprobe.render.scene import Effects
-from sasprobe.render.shaders import ProgramCache
+from sasprobe.render.gl.programs import ProgramCache
+from sasprobe.render.gl.textures import read_image
 from sasprobe.render.source import Readout
 
 # key -> (Effects field, label); sphere mode and camera keys are handled separately
@@ -167,7 +168,7 @@ class WindowApp:
         else:
             screen.use()
             screen.viewport = (0, 0, *size)
-            screen.clear(*LightSettings().background, 1.0)
+            screen.clear(*ShadingSettings().background, 1.0)
         if self.effects.readout and text is not None:
             self.overlay.draw(screen, size, text)
 
@@ -215,8 +216,7 @@ class WindowApp:
 
     def _screenshot(self, size: tuple[int, int]) -> np.ndarray:
         """The window's back buffer, H x W x 3, row 0 = top."""
-        data = self.ctx.screen.read(viewport=(0, 0, *size), components=3)
-        return np.frombuffer(data, dtype=np.uint8).reshape(size[1], size[0], 3)[::-1].copy()
+        return read_image(self.ctx.screen, size)
 
     def release(self) -> None:
         if self.renderer is not None:

@@ -6,6 +6,9 @@ child's own children (ffmpeg under the renderer) are signalled and killed with i
 On Linux each child also gets PR_SET_PDEATHSIG, so it receives SIGTERM should the
 parent die without cleaning up. Stopping is: a polite signal to the child, a bounded
 wait, then SIGKILL to the whole group, which also sweeps up anything the child left.
+
+`DaemonChild` is the one way this project starts `sasprobe daemon` as a child (the demo,
+the daemon benchmark and the tests): it knows the daemon's ready and stopped events.
 """
 
 from __future__ import annotations
@@ -16,9 +19,13 @@ import os
 import queue
 import signal
 import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
+
+from sasprobe.daemon import events
+from sasprobe.errors import UserError
 
 PR_SET_PDEATHSIG = 1
 
@@ -26,6 +33,12 @@ try:
     _LIBC = ctypes.CDLL(None, use_errno=True)  # this process's own symbols, libc's among them
 except OSError:  # pragma: no cover
     _LIBC = None
+
+
+def child_env(base: dict | None = None) -> dict:
+    """The environment of a child: unbuffered, so events arrive as they happen; with the fault
+    handler, so a crash in a driver leaves a trace in the log."""
+    return dict(os.environ if base is None else base, PYTHONUNBUFFERED="1", PYTHONFAULTHANDLER="1")
 
 
 def _child_setup(nice: int):
@@ -137,3 +150,30 @@ class Child:
         self._pump.join(timeout=2.0)
         self._log.close()
         return rc
+
+
+class DaemonChild(Child):
+    """`python -m sasprobe daemon ARGS` in its own process group, stderr into `log_path`."""
+
+    def __init__(self, args: list[str], log_path: Path, env: dict | None = None, nice: int = 0,
+                 cwd: Path | None = None, registry: list | None = None) -> None:
+        super().__init__("daemon", [sys.executable, "-m", "sasprobe", "daemon", *args], log_path,
+                         env=child_env(env), nice=nice, cwd=cwd, registry=registry)
+
+    def wait_ready(self, timeout_s: float) -> dict:
+        """The daemon's ready event; UserError with its own error line when it ends or is silent first."""
+        ready = self.wait_event(events.READY, timeout_s)
+        if ready is None:
+            why = self.error_line() if not self.alive() else f"no answer within {timeout_s:g} s"
+            raise UserError(f"the daemon did not start: {why}")
+        return ready
+
+    @property
+    def exit_report(self) -> dict | None:
+        """The stopped event (the daemon's exit report), once it has printed it."""
+        return self.events.get(events.STOPPED)
+
+    def stop(self, timeout_s: float, sig: int = signal.SIGTERM, hurry: threading.Event | None = None) -> int:
+        """Signal the daemon (it writes zero force, closes the device and reports), wait, return its status."""
+        self.signal(sig)
+        return self.finish(timeout_s, hurry)

@@ -16,7 +16,6 @@ lower priority and, headless, with one llvmpipe thread.
 from __future__ import annotations
 
 import json
-import os
 import shlex
 import shutil
 import signal
@@ -24,14 +23,12 @@ import sys
 import tempfile
 import threading
 import time
-from array import array
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from sasprobe import __version__
-from sasprobe.children import Child
+from sasprobe.children import Child, DaemonChild, child_env
+from sasprobe.demo_report import ForceMonitor, print_summary
 from sasprobe.errors import UserError
 
 DEFAULT_SECONDS = 10.0  # headless
@@ -48,7 +45,7 @@ STATUS_EVERY_S = 1.0
 # Options the demo sets itself; passing them through --render-args/--daemon-args would break it.
 RESERVED_RENDER = ("--connect", "--control", "--molecule", "--headless", "--out", "--snapshot", "--report",
                    "--seconds", "--frames", "--size", "--fps")
-RESERVED_DAEMON = ("--device", "--molecule", "--pub", "--ctl", "--record", "--report", "--duration",
+RESERVED_DAEMON = ("--device", "--molecule", "--pub", "--ctl", "--record", "--report", "--seconds",
                    "--realtime", "--keep-water")
 
 
@@ -68,11 +65,6 @@ class DemoOptions:
     daemon_args: list[str] = field(default_factory=list)
 
 
-def _child_env() -> dict:
-    # Unbuffered: events arrive as they happen. Fault handler: a crash in a driver leaves a trace in the log.
-    return dict(os.environ, PYTHONUNBUFFERED="1", PYTHONFAULTHANDLER="1")
-
-
 def split_extra_args(text: str | None, reserved: tuple[str, ...], flag: str) -> list[str]:
     """Extra options passed through to a child, refusing the ones the demo sets itself."""
     if not text:
@@ -86,56 +78,6 @@ def split_extra_args(text: str | None, reserved: tuple[str, ...], flag: str) -> 
         if name in reserved:
             raise UserError(f"{flag}: {name} is set by the demo itself (see sasprobe demo --help)")
     return args
-
-
-class ForceMonitor:
-    """Every pose the daemon publishes (as a renderer sees them): force magnitudes,
-    contacts, touched atoms. Polled without blocking from the demo's main loop."""
-
-    def __init__(self, endpoint: str) -> None:
-        from sasprobe.protocol.client import Subscriber
-
-        self.subscriber = Subscriber(endpoint)
-        self.force_n = array("f")
-        self.contact_ticks = 0
-        self.clamped_ticks = 0
-        self.fault_ticks = 0
-        self.touched: set[int] = set()
-
-    def poll(self) -> None:
-        from sasprobe.protocol.pose import FLAG_CLAMPED, FLAG_CONTACT, FLAG_FAULT
-
-        for pose in self.subscriber.poll():
-            self.force_n.append(float(np.linalg.norm(pose.force_N)))
-            self.contact_ticks += bool(pose.flags & FLAG_CONTACT)
-            self.clamped_ticks += bool(pose.flags & FLAG_CLAMPED)
-            self.fault_ticks += bool(pose.flags & FLAG_FAULT)
-            if pose.touched_atom >= 0:
-                self.touched.add(pose.touched_atom)
-
-    def last_force(self) -> float | None:
-        return float(self.force_n[-1]) if self.force_n else None
-
-    def contact_fraction(self) -> float | None:
-        return self.contact_ticks / len(self.force_n) if self.force_n else None
-
-    def summary(self) -> dict:
-        f = np.frombuffer(self.force_n, dtype=np.float32).astype(np.float64) if self.force_n else np.zeros(0)
-        stats = (lambda fn: float(fn(f)) if f.size else None)
-        return {
-            "poses": int(f.size),
-            "poses_missed": self.subscriber.missed,
-            "force_n": {"mean": stats(np.mean), "median": stats(np.median),
-                        "p95": stats(lambda a: np.percentile(a, 95)), "max": stats(np.max)},
-            "contact_ticks": self.contact_ticks,
-            "contact_fraction": self.contact_fraction(),
-            "atoms_touched": len(self.touched),
-            "clamped_ticks": self.clamped_ticks,
-            "fault_ticks": self.fault_ticks,
-        }
-
-    def close(self) -> None:
-        self.subscriber.close()
 
 
 class DemoSession:
@@ -167,7 +109,7 @@ class DemoSession:
         from sasprobe.protocol.client import ControlClient
 
         o = self.opts
-        argv = [sys.executable, "-m", "sasprobe", "daemon", "--device", o.device, "--pub", self.pub, "--ctl", self.ctl]
+        argv = ["--device", o.device, "--pub", self.pub, "--ctl", self.ctl]
         if o.molecule:
             argv += ["--molecule", str(Path(o.molecule).resolve())]
         if o.keep_water:
@@ -176,13 +118,8 @@ class DemoSession:
             argv.append("--realtime")
         if o.record:
             argv += ["--record", str(Path(o.record).resolve())]
-        self.daemon = Child("daemon", argv + o.daemon_args, self.sockets / "daemon.log", env=_child_env(),
-                            registry=self.children)
-        ready = self.daemon.wait_event("ready", DAEMON_READY_S)
-        if ready is None:
-            why = self.daemon.error_line() if not self.daemon.alive() else f"no answer within {DAEMON_READY_S:g} s"
-            raise UserError(f"the daemon did not start: {why}")
-        self.ready = ready
+        self.daemon = DaemonChild(argv + o.daemon_args, self.sockets / "daemon.log", registry=self.children)
+        ready = self.ready = self.daemon.wait_ready(DAEMON_READY_S)
         if o.realtime and not ready.get("realtime"):
             self.notes.append("real-time scheduling was refused (needs root or CAP_SYS_NICE): the haptic rate "
                               "may drop while the renderer runs")
@@ -204,7 +141,7 @@ class DemoSession:
         return argv + o.render_args
 
     def start_renderer(self, headless: bool, seconds: float | None) -> None:
-        env = _child_env()
+        env = child_env()
         protected = bool(self.ready.get("realtime"))  # no ordinary process can preempt a SCHED_FIFO loop
         if not protected and headless:
             env.setdefault("LP_NUM_THREADS", "1")  # Mesa llvmpipe: leave the loop a core of its own
@@ -283,7 +220,7 @@ class DemoSession:
             for child in self.children:
                 rc = child.finish(DAEMON_STOP_S if child is self.daemon else RENDER_STOP_S, self.hurry)
                 if child is self.daemon:
-                    self.daemon_rc, self.exit_report = rc, child.events.get("stopped")
+                    self.daemon_rc, self.exit_report = rc, child.exit_report
                 elif child is self.renderer:
                     self.renderer_rc = rc
             if self.monitor is not None:
@@ -360,7 +297,7 @@ class DemoSession:
 
 
 def run_demo(opts: DemoOptions) -> int:
-    from sasprobe.render.context import display_available
+    from sasprobe.render.gl.context import display_available
 
     window = not opts.headless and display_available()
     headless = not window
@@ -406,7 +343,7 @@ def run_demo(opts: DemoOptions) -> int:
         if failed:
             session.keep_logs()
         session.close()
-    _print_summary(summary, opts.out / "summary.json")
+    print_summary(summary, opts.out / "summary.json")
     if interrupted:
         raise KeyboardInterrupt
     return 0
@@ -423,33 +360,3 @@ def _check_children(session: DemoSession, summary: dict, interrupted: bool) -> N
     if summary["renderer"] is None:
         why = session.renderer.error_line() or f"exit status {session.renderer_rc}, no report"
         raise UserError(f"the renderer failed: {why} (logs in {session.out})")
-
-
-def _print_summary(summary: dict, path: Path) -> None:
-    s = summary
-    structure = s["structure"] or {}
-    print(f"sasprobe demo: {structure.get('name', '?')} ({structure.get('n_atoms', '?')} atoms), device {s['device']}, "
-          f"{s['mode']}" + (" (interrupted)" if s["interrupted"] else ""))
-    h = s["haptics"]
-    if h:
-        print(f"  haptics   {h['rate_hz']:.1f} Hz (nominal {h['nominal_rate_hz']:g}) over {h['window_s']:.1f} s, "
-              f"period error p99 {h['period_error_us']['p99']:.0f} µs, {h['overruns']} overruns, "
-              f"{'real-time' if h['realtime'] else 'normal'} scheduling")
-    f = s["forces"]
-    if f and f["poses"]:
-        print(f"  forces    mean {f['force_n']['mean']:.2f} N, p95 {f['force_n']['p95']:.2f} N, "
-              f"max {f['force_n']['max']:.2f} N; in contact {100 * f['contact_fraction']:.0f} % of ticks, "
-              f"{f['atoms_touched']} atoms touched")
-    r = s["renderer"]
-    if r:
-        lost = (r.get("daemon") or {}).get("poses_missed")
-        print(f"  renderer  {r['frames']} frames at {r['fps'] or 0:.1f} fps ({r['size'][0]}x{r['size'][1]})"
-              + (f", {r['video_frames']} video frames" if r.get("video_frames") else "")
-              + (f", {lost} poses lost" if lost is not None else ""))
-    d = s["daemon_exit"]
-    if d:
-        print(f"  stopped   daemon: {d['reason']}, last force written {d['last_force_written_n']} N")
-    for note in s["notes"]:
-        print(f"  note      {note}")
-    written = [p for p in s["files"].values() if p] + [str(path)]
-    print("  wrote     " + ", ".join(written))

@@ -1,11 +1,11 @@
-"""argparse types for physical quantities: one clear line for a bad value."""
+"""argparse types the commands share (quantities, image sizes): one clear line for a bad value."""
 
 from __future__ import annotations
 
 import argparse
 import math
 
-MAX_PROBE_RADIUS = 10.0  # Å; larger "probes" are not a solvent any more
+MAX_IMAGE_SIZE = 8192  # pixels a side
 
 
 def positive_float(text: str) -> float:
@@ -29,7 +29,22 @@ def positive_int(text: str) -> int:
 
 
 def probe_radius(text: str) -> float:
+    from sasprobe.molecule.probe import check_probe_radius
+
     value = positive_float(text)
-    if value > MAX_PROBE_RADIUS:
-        raise argparse.ArgumentTypeError(f"probe radius {value:g} Å is absurd (at most {MAX_PROBE_RADIUS:g} Å)")
-    return value
+    try:
+        return check_probe_radius(value)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def size_type(text: str) -> tuple[int, int]:
+    """WIDTHxHEIGHT in pixels."""
+    parts = text.lower().split("x")
+    try:
+        w, h = (int(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not WIDTHxHEIGHT (e.g. 1280x720)") from None
+    if not (16 <= w <= MAX_IMAGE_SIZE and 16 <= h <= MAX_IMAGE_SIZE):
+        raise argparse.ArgumentTypeError(f"'{text}': width and height must be 16..{MAX_IMAGE_SIZE} pixels")
+    return w, h

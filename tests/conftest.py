@@ -1,10 +1,15 @@
-"""Shared fixtures: the shared PDB structures and a helper to run the real CLI."""
+"""Shared fixtures: the shared PDB structures, the embedded structure, one headless GL
+context (checked for GL errors after every test that uses it), a real X server for the
+window tests, and a helper to run the real CLI."""
 
 from __future__ import annotations
 
 import os
+import select
+import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -12,19 +17,135 @@ import pytest
 from sasprobe.paths import shared_structures
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
+X_SCREEN = (640, 480)
+
+
+def in_ci() -> bool:
+    """CI sets CI=true (.ci/run does): there every test must run, so what would be a skip for a
+    missing dependency (an X server, OpenGL, the shared structures) is a failure."""
+    return os.environ.get("CI", "").lower() == "true"
+
+
+def skip_or_fail(reason: str) -> None:
+    if in_ci():
+        pytest.fail(f"{reason} (CI=true: a CI machine must have it)")
+    pytest.skip(reason)
 
 
 @pytest.fixture(scope="session")
 def shared_entries():
     entries = shared_structures()
     if not entries:
-        pytest.skip("shared structures (../shared/data/pdb) are not beside this checkout")
+        skip_or_fail("shared structures (../shared/data/pdb) are not beside this checkout")
     return entries
 
 
 @pytest.fixture(scope="session")
 def shared_by_id(shared_entries):
     return {e.id: e for e in shared_entries}
+
+
+@pytest.fixture(scope="session")
+def crambin():
+    """The embedded structure (1CRN, 327 atoms)."""
+    from sasprobe.molecule import load_default
+
+    return load_default()
+
+
+@pytest.fixture(scope="session")
+def gl():
+    """The session's headless EGL context (Mesa's llvmpipe is enough), or a skip where none
+    can be made. Every test that uses it, directly or through another fixture, must leave
+    no GL error behind (checked by _gl_checks below)."""
+    from sasprobe.render.gl.context import GLUnavailable, create_headless_context
+
+    try:
+        ctx = create_headless_context()
+    except GLUnavailable as exc:
+        skip_or_fail(f"no headless OpenGL context: {exc}")
+    yield ctx
+    ctx.release()
+
+
+@pytest.fixture(scope="session")
+def crambin_grid(gl, crambin):
+    """1CRN's uniform grid (expanded by the default probe radius) on the GPU."""
+    from sasprobe.molecule import DEFAULT_PROBE_RADIUS
+    from sasprobe.render.lighting.grid import GpuGrid
+
+    grid = GpuGrid.from_structure(gl, crambin, DEFAULT_PROBE_RADIUS)
+    yield grid
+    grid.release()
+
+
+def _drain_gl_errors(ctx) -> list[str]:
+    errors = []
+    while len(errors) < 16:  # glGetError reports one flag per call
+        error = ctx.error
+        if error == "GL_NO_ERROR":
+            break
+        errors.append(error)
+    return errors
+
+
+@pytest.fixture(autouse=True)
+def _gl_checks(request):
+    """For tests that use `gl`: the OpenGL version a module needs (`pytest.mark.needs_gl(430)`)
+    and no GL error left behind."""
+    if "gl" not in request.fixturenames:
+        yield
+        return
+    ctx = request.getfixturevalue("gl")
+    needed = request.node.get_closest_marker("needs_gl")
+    if needed is not None and ctx.version_code < needed.args[0]:
+        pytest.fail(f"needs OpenGL {needed.args[0] / 100:.1f}; {ctx.info['GL_RENDERER']} offers {ctx.info['GL_VERSION']}")
+    _drain_gl_errors(ctx)  # an earlier test's leftovers are that test's failure, not this one's
+    yield
+    errors = _drain_gl_errors(ctx)
+    assert not errors, f"OpenGL error(s) after the test: {', '.join(errors)}"
+
+
+@pytest.fixture(scope="module")
+def xvfb(gl):
+    """A private X server (Xvfb) for the window tests: its DISPLAY string. Without Xvfb the
+    window tests skip, saying so; under CI=true they fail instead."""
+    if shutil.which("Xvfb") is None:
+        skip_or_fail("no X server for the window tests: Xvfb is not installed (Debian package xvfb)")
+    read_fd, write_fd = os.pipe()
+    proc = subprocess.Popen(
+        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0", f"{X_SCREEN[0]}x{X_SCREEN[1]}x24", "-nolisten", "tcp",
+         "-br", "-noreset"],
+        pass_fds=(write_fd,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+    os.close(write_fd)
+    # Xvfb writes the number, then "\n" in a second write: closing the pipe before the
+    # newline arrives kills the server (EPIPE is fatal there).
+    data = b""
+    deadline = time.monotonic() + 30
+    while not data.endswith(b"\n") and time.monotonic() < deadline:
+        ready, _, _ = select.select([read_fd], [], [], 1.0)
+        chunk = os.read(read_fd, 64) if ready else b""
+        if ready and not chunk:
+            break
+        data += chunk
+    os.close(read_fd)
+    number = data.decode().strip()
+    if not number:
+        proc.kill()
+        proc.wait()
+        skip_or_fail("no X server for the window tests: Xvfb did not start within 30 s")
+    yield f":{number}"
+    proc.terminate()
+    proc.wait(timeout=10)
+
+
+def run_window_check(display: str, module: str) -> None:
+    """Run a window check script on the X server in its own process (GLX and this
+    process's EGL context do not mix); it prints 'keys ok' when every check passed."""
+    r = subprocess.run([sys.executable, "-m", module], capture_output=True, text=True, timeout=300,
+                       env=dict(os.environ, DISPLAY=display), cwd=REPO_ROOT)
+    assert r.returncode == 0 and r.stdout.strip().endswith("keys ok"), r.stdout + r.stderr
 
 
 def run_cli(*args: str, timeout: float = 120, **kwargs) -> subprocess.CompletedProcess:

@@ -1,27 +1,22 @@
-"""Run `sasprobe daemon` as a real subprocess on ipc:// sockets in a private folder."""
+"""Run `sasprobe` as real subprocesses: several commands at once, or the daemon on private sockets
+(one command: conftest.run_cli)."""
 
 from __future__ import annotations
 
-import json
 import os
-import queue
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
-import threading
 from pathlib import Path
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+from sasprobe.children import DaemonChild
+from sasprobe.errors import UserError
+from tests.conftest import REPO_ROOT
+
 CLI = [sys.executable, "-m", "sasprobe"]
 DEVICE = "sim"
-
-
-def cli(*args: str, timeout: float = 120, **kwargs) -> subprocess.CompletedProcess:
-    """Run `sasprobe ARGS` as a user would."""
-    return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=timeout, cwd=REPO_ROOT,
-                          env=dict(os.environ, PYTHONUNBUFFERED="1"), **kwargs)
 
 
 def cli_many(*commands: tuple[str, ...], timeout: float = 120) -> list[subprocess.CompletedProcess]:
@@ -36,65 +31,50 @@ def cli_many(*commands: tuple[str, ...], timeout: float = 120) -> list[subproces
 
 
 class DaemonProcess:
+    """The daemon as the tests use it: sasprobe.children.DaemonChild on ipc:// sockets in a
+    private folder that is also its working directory (nothing a test asks it to write lands
+    in the checkout); AssertionError with its stderr when it does not become ready."""
+
     def __init__(self, *args: str, device: str = DEVICE, pub: str | None = None, ctl: str | None = None,
                  ready_timeout: float = 90.0) -> None:
         self.sockets = Path(tempfile.mkdtemp(prefix="spd"))  # short: ipc paths are limited to ~100 bytes
         self.pub = pub or f"ipc://{self.sockets}/pub"
         self.ctl = ctl or f"ipc://{self.sockets}/ctl"
-        command = [*CLI, "daemon", "--device", device, "--pub", self.pub, "--ctl", self.ctl, *args]
-        # cwd: the private folder, so nothing a test asks the daemon to write lands in the checkout
-        self.proc = subprocess.Popen(command, cwd=self.sockets, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
-        self._lines: queue.Queue = queue.Queue()
-        self.stderr_lines: list[str] = []
-        threading.Thread(target=self._pump, args=(self.proc.stdout, self._lines.put), daemon=True).start()
-        threading.Thread(target=self._pump, args=(self.proc.stderr, self.stderr_lines.append), daemon=True).start()
-        self.ready = self._next_event("ready", ready_timeout)
-
-    @staticmethod
-    def _pump(stream, sink) -> None:
-        for line in stream:
-            sink(line)
-        sink(None)  # end of stream
-
-    def _next_event(self, name: str, timeout: float) -> dict:
-        while True:
-            try:
-                line = self._lines.get(timeout=timeout)
-            except queue.Empty:
-                raise AssertionError(f"daemon printed no '{name}' within {timeout} s; stderr: {self.stderr}") from None
-            if line is None:
-                raise AssertionError(f"daemon exited ({self.proc.wait()}) before '{name}'; stderr: {self.stderr}")
-            try:
-                event = json.loads(line)
-            except ValueError:
-                continue
-            if event.get("event") == name:
-                return event
+        self._stderr: str | None = None  # kept once the private folder is gone
+        self.child = DaemonChild(["--device", device, "--pub", self.pub, "--ctl", self.ctl, *args],
+                                 self.sockets / "daemon.log", cwd=self.sockets)
+        self.proc = self.child.proc
+        try:
+            self.ready = self.child.wait_ready(ready_timeout)
+        except UserError as exc:
+            self._cleanup()
+            raise AssertionError(f"{exc}; stderr: {self.stderr}") from None
 
     @property
     def stderr(self) -> str:
-        return "".join(line for line in self.stderr_lines if line)
+        if self._stderr is not None:
+            return self._stderr
+        try:
+            return self.child.log_path.read_text(errors="replace")
+        except OSError:
+            return ""
 
     def stop(self, sig: int = signal.SIGTERM, timeout: float = 30.0) -> tuple[int, dict | None]:
         """Signal the daemon, wait for it, return (exit status, exit report or None)."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(sig)
-        rc = self.proc.wait(timeout=timeout)
-        report = None
-        if sig != signal.SIGKILL:
-            try:
-                report = self._next_event("stopped", 5.0)
-            except AssertionError:
-                report = None
-        shutil.rmtree(self.sockets, ignore_errors=True)
+        rc = self.child.stop(timeout, sig)
+        report = self.child.exit_report
+        self._cleanup()
         return rc, report
+
+    def _cleanup(self) -> None:
+        if self.child.alive():
+            self.child.kill_group()
+        self.child.finish(0)
+        self._stderr = self.stderr
+        shutil.rmtree(self.sockets, ignore_errors=True)
 
     def __enter__(self) -> DaemonProcess:
         return self
 
     def __exit__(self, *exc) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
-            self.proc.wait()
-        shutil.rmtree(self.sockets, ignore_errors=True)
+        self._cleanup()

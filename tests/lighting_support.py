@@ -1,41 +1,18 @@
-"""Shared set-up of the lighting tests: one headless GL 4.3+ context (EGL, llvmpipe on CI),
-small scenes and their G-buffers."""
+"""Shared set-up of the lighting tests: small scenes and their G-buffers (the GL context,
+1CRN and its GPU grid are fixtures in conftest.py; the lighting needs OpenGL 4.3, which
+each lighting test module asks for with `pytest.mark.needs_gl(430)`)."""
 
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
-from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid, load_default
-from sasprobe.render.camera_math import fit_camera
-from sasprobe.render.gpu_grid import Culling, GpuGrid
-from sasprobe.render.lighting_gbuffer import RaycastGBuffer
-from tests.render_support import gl_context
+from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
+from sasprobe.render.camera import fit_camera
+from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.lighting.gbuffer import RaycastGBuffer
 
 WIDTH, HEIGHT = 128, 96
 VIEW_DIRECTION = (0.3, 0.4, 1.0)
-
-
-@pytest.fixture(scope="session")
-def gl():
-    """The render tests' headless context (tests/render_support.py); the lighting needs
-    OpenGL 4.3 (compute shaders, storage buffers) on top."""
-    ctx = gl_context()
-    if ctx.version_code < 430:
-        pytest.fail(f"the lighting needs OpenGL 4.3; {ctx.info['GL_RENDERER']} offers {ctx.info['GL_VERSION']}")
-    return ctx
-
-
-@pytest.fixture(scope="session")
-def crambin():
-    return load_default()
-
-
-@pytest.fixture(scope="session")
-def crambin_grid(gl, crambin):
-    grid = GpuGrid.from_structure(gl, crambin, DEFAULT_PROBE_RADIUS)
-    yield grid
-    grid.release()
 
 
 def cullings(structure) -> dict[str, Culling]:

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from tests.window_support import glfw_window, press
+
 
 def main() -> None:
     import glfw
@@ -12,16 +14,14 @@ def main() -> None:
     from sasprobe.molecule import load_default
     from sasprobe.render.app import RenderOptions, make_renderer
     from sasprobe.render.camera import Camera
-    from sasprobe.render.context import create_window
-    from sasprobe.render.lighting_params import AO_MODES, AOSettings, LightingSettings
+    from sasprobe.render.lighting.settings import AO_MODES, AOSettings, LightingSettings
     from sasprobe.render.passes.lighting import lighting_of
     from sasprobe.render.source import StaticSource
     from sasprobe.render.window import WindowApp
 
     size = (160, 120)
-    window, ctx = create_window(size, "lighting keys")
     opts = RenderOptions(size=size, lighting=LightingSettings(shadows="hard", ao=AOSettings(mode="analytic")))
-    try:
+    with glfw_window(size, "lighting keys") as (window, ctx):
         def build(structure, effects):
             from sasprobe.render.app import build_scene
 
@@ -37,32 +37,26 @@ def main() -> None:
         fx = app.effects
         assert fx.shadows and fx.ambient_occlusion and not fx.soft_shadows and not fx.edge_cueing, fx
 
-        def press(key):
-            app._on_key(window, key, glfw.get_key_scancode(key), glfw.PRESS, 0)
-
         for key, field in ((glfw.KEY_S, "shadows"), (glfw.KEY_V, "soft_shadows"), (glfw.KEY_A, "ambient_occlusion"),
                            (glfw.KEY_E, "edge_cueing"), (glfw.KEY_G, "path_tracing")):
             before = getattr(fx, field)
-            press(key)
+            press(app, key)
             assert getattr(fx, field) != before, field
-            press(key)
+            press(app, key)
         lighting = lighting_of(app.renderer)
         modes = [lighting.ao_mode]
         for _ in range(len(AO_MODES) - 2):
-            press(glfw.KEY_C)
+            press(app, glfw.KEY_C)
             modes.append(lighting.ao_mode)
         assert sorted(modes) == sorted(m for m in AO_MODES if m != "off"), modes
-        press(glfw.KEY_C)
+        press(app, glfw.KEY_C)
         assert lighting.ao_mode == modes[0]
         assert any("lighting: hard shadows, AO analytic" in line for line in app.text()), app.text()
-        press(glfw.KEY_S)  # shadows off: the picture changes
+        press(app, glfw.KEY_S)  # shadows off: the picture changes
         app.run(frames=1)
         second = app._screenshot(glfw.get_framebuffer_size(window))
         assert np.abs(second.astype(int) - first.astype(int)).max() > 30, "switching shadows off changed nothing"
         app.release()
-    finally:
-        glfw.destroy_window(window)
-        glfw.terminate()
     print("keys ok")
 
 

@@ -1,42 +1,10 @@
-"""Shared by the render tests: one GL context per session and an independent numpy
-reference ray caster (brute force over spheres, float64) for a given view/projection."""
+"""Shared by the render tests: an independent numpy reference ray caster (brute force over
+spheres, float64) for a given view/projection, and small helpers. The GL context and the
+structures are fixtures in conftest.py."""
 
 from __future__ import annotations
 
 import numpy as np
-import pytest
-
-_CONTEXT = None
-_CONTEXT_ERROR: str | None = None
-
-
-def gl_context():
-    """The session's headless EGL context (created once), or pytest.skip when none can be made."""
-    global _CONTEXT, _CONTEXT_ERROR
-    if _CONTEXT is None and _CONTEXT_ERROR is None:
-        from sasprobe.render.context import GLUnavailable, create_headless_context
-
-        try:
-            _CONTEXT = create_headless_context()
-        except GLUnavailable as exc:
-            _CONTEXT_ERROR = str(exc)
-    if _CONTEXT is None:
-        pytest.skip(f"no headless OpenGL context: {_CONTEXT_ERROR}")
-    return _CONTEXT
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    """The GL context for a test module (import this fixture into it)."""
-    return gl_context()
-
-
-@pytest.fixture(scope="module")
-def crambin():
-    from sasprobe.molecule import load_default
-
-    return load_default()
-
 
 def pixel_rays(view: np.ndarray, proj: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
     """Eye position and unit world directions (H, W, 3) through pixel centres; row 0 = top."""
@@ -129,43 +97,3 @@ def free_tcp_endpoint() -> str:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return f"tcp://127.0.0.1:{s.getsockname()[1]}"
-
-
-def start_daemon(pub: str, ctl: str, script: str = "orbit", timeout_s: float = 60.0):
-    """`sasprobe daemon` with the simulated arm in a subprocess, once it answers a ping."""
-    import subprocess
-    import sys
-    import time
-
-    from sasprobe.protocol.client import ControlClient, ControlError
-    from tests.conftest import REPO_ROOT
-
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "sasprobe", "daemon", "--device", f"sim:{script}", "--pub", pub, "--ctl", ctl,
-         "--duration", "600"],
-        cwd=REPO_ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-    )
-    deadline = time.monotonic() + timeout_s
-    with ControlClient(ctl, timeout_s=1.0) as client:
-        while True:
-            if proc.poll() is not None:
-                raise RuntimeError(f"the daemon exited: {proc.stderr.read()}")
-            try:
-                client.ping()
-                return proc
-            except ControlError:
-                if time.monotonic() > deadline:
-                    proc.kill()
-                    raise RuntimeError("the daemon did not answer a ping within the time limit") from None
-
-
-def stop_daemon(proc) -> None:
-    import signal
-
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=20)
-        except Exception:
-            proc.kill()
-            proc.wait()

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from tests.window_support import glfw_window, press
+
 SIZE = (240, 180)
 
 
@@ -22,7 +24,6 @@ def main() -> None:
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_default
     from sasprobe.render.app import RenderOptions, build_scene, make_renderer
     from sasprobe.render.camera import Camera
-    from sasprobe.render.context import create_window
     from sasprobe.render.source import StaticSource
     from sasprobe.render.window import TOGGLES, WindowApp
 
@@ -36,8 +37,7 @@ def main() -> None:
     normal = np.array([0.3, 0.4, 0.87]) / np.linalg.norm([0.3, 0.4, 0.87])
     opts = RenderOptions(size=SIZE, probe=probe.tolist(), touched=top, nav_cube=[*probe, 10.0],
                          clip=[[*-normal, float(normal @ (probe - [0.0, 0.0, 3.0]))]])
-    window, ctx = create_window(SIZE, "render keys")
-    try:
+    with glfw_window(SIZE, "render keys") as (window, ctx):
         def build(structure, effects):
             scene = build_scene(structure, opts, effects)
             center, radius = scene.bounding_sphere()
@@ -51,11 +51,8 @@ def main() -> None:
             app.run(frames=1)
             return app._screenshot(size)
 
-        def press(key: int) -> None:
-            app._on_key(window, key, glfw.get_key_scancode(key), glfw.PRESS, 0)
-
         with_readout = frame()
-        press(glfw.KEY_O)  # the readout shows the fps, which changes: off for the rest
+        press(app, glfw.KEY_O)  # the readout shows the fps, which changes: off for the rest
         assert not app.effects.readout
         base = frame()
         assert changed_pixels(with_readout, base) > 0, "the readout drew nothing"
@@ -66,25 +63,25 @@ def main() -> None:
         for letter, (field, _label) in render_keys.items():
             key = getattr(glfw, f"KEY_{letter}")
             before = getattr(app.effects, field)
-            press(key)
+            press(app, key)
             assert getattr(app.effects, field) != before, f"{letter} did not switch {field}"
             toggled = frame()
             assert changed_pixels(base, toggled) >= 10, f"{letter} ({field}) changed {changed_pixels(base, toggled)} pixels"
-            press(key)
+            press(app, key)
             assert getattr(app.effects, field) == before
             again = frame()
             assert changed_pixels(base, again) == 0, f"{letter} ({field}) did not restore the picture"
 
-        press(glfw.KEY_M)
+        press(app, glfw.KEY_M)
         assert app.renderer.sphere_mode == "sprite", app.renderer.sphere_mode
         sprites = frame()
         assert changed_pixels(base, sprites) < 0.05 * base.shape[0] * base.shape[1], "sprites draw other spheres"
-        press(glfw.KEY_M)
+        press(app, glfw.KEY_M)
         assert app.renderer.sphere_mode == "quad"
 
-        press(glfw.KEY_H)
+        press(app, glfw.KEY_H)
         assert app.show_help and any("M: sphere mode" in line for line in app.text())
-        press(glfw.KEY_H)
+        press(app, glfw.KEY_H)
         assert not app.show_help
 
         # Drag to turn (left button), then R puts the camera back where it started.
@@ -97,15 +94,12 @@ def main() -> None:
         app._on_scroll(window, 0.0, 2.0)
         zoomed = frame()
         assert changed_pixels(turned, zoomed) > 100, "the wheel did not zoom"
-        press(glfw.KEY_R)
+        press(app, glfw.KEY_R)
         assert changed_pixels(base, frame()) == 0, "R did not reset the camera"
 
-        press(glfw.KEY_Q)
+        press(app, glfw.KEY_Q)
         assert glfw.window_should_close(window)
         app.release()
-    finally:
-        glfw.destroy_window(window)
-        glfw.terminate()
     print("keys ok")
 
 

@@ -1,13 +1,13 @@
-"""The daemon as a real process: poses over real sockets, control, recording, signals, faults.
+"""The daemon as a real process shared by the module: poses over real sockets, control,
+recording, status, security, user errors (test_daemon_sessions.py: one daemon per test).
 
-Timing bars are the issue's own (≥ 95 % of poses, ≤ 100 ms lost at SIGKILL); nothing
-tighter, because the machine running the tests is shared.
+Timing bars are the issue's own (≥ 95 % of poses); nothing tighter, because the machine
+running the tests is shared.
 """
 
 from __future__ import annotations
 
 import json
-import signal
 import threading
 import time
 
@@ -17,12 +17,12 @@ import zmq
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sasprobe.daemon.recording import iter_items, scan
-from sasprobe.devices.replay import load_session
+from sasprobe.molecule import parse_structure
 from sasprobe.protocol.client import ControlClient, ControlError, Subscriber, fetch_structure
 from sasprobe.protocol.control import decode_reply
-from sasprobe.protocol.pose import FLAG_FAULT
-from tests.daemon_process import DaemonProcess, cli, cli_many
+from sasprobe.protocol.scene import SCENE_VERSION
+from tests.conftest import run_cli
+from tests.daemon_process import DaemonProcess, cli_many
 from tests.test_protocol_pose import reference_decode
 
 
@@ -34,7 +34,7 @@ def daemon():
         assert rc == 0, d.stderr
 
 
-def _collect_raw(endpoint: str, seconds: float, stop: threading.Event | None = None) -> list[bytes]:
+def collect_raw(endpoint: str, seconds: float, stop: threading.Event | None = None) -> list[bytes]:
     """Pose payloads received on a raw SUB socket (no sasprobe code in the path)."""
     context = zmq.Context.instance()
     sock = context.socket(zmq.SUB)
@@ -73,7 +73,7 @@ def test_subscriber_gets_95_percent_of_poses_decoded_with_the_documented_layout(
     stalled.setsockopt(zmq.SUBSCRIBE, b"")
     stalled.connect(daemon.pub)
     try:
-        payloads = _collect_raw(daemon.pub, 2.0)
+        payloads = collect_raw(daemon.pub, 2.0)
     finally:
         stalled.close(linger=0)
     coverage, poses = _coverage(payloads)
@@ -101,7 +101,7 @@ def test_late_joiner_gets_the_scene_within_a_second(daemon):
         t0 = time.monotonic()
         scene = sub.wait_for_scene(3.0)
         assert time.monotonic() - t0 < 1.5
-    assert scene["structure"]["n_atoms"] > 0 and scene["version"] == 1
+    assert scene["structure"]["n_atoms"] > 0 and scene["version"] == SCENE_VERSION
 
 
 MALFORMED = [
@@ -132,7 +132,7 @@ def _raw_request(endpoint: str, frames: list[bytes]):
 def test_malformed_control_traffic_gets_errors_while_poses_keep_flowing(daemon):
     stop = threading.Event()
     result = {}
-    thread = threading.Thread(target=lambda: result.setdefault("p", _collect_raw(daemon.pub, 60, stop)))
+    thread = threading.Thread(target=lambda: result.setdefault("p", collect_raw(daemon.pub, 60, stop)))
     thread.start()
     try:
         time.sleep(0.3)
@@ -194,7 +194,8 @@ def test_control_commands_change_the_scene_and_serve_the_structure(daemon, tmp_p
         assert sub.scene["revision"] >= scene["revision"] and sub.malformed == 0
         status = client.status()
         assert status["publisher"]["subscribers"] >= 1 and status["loop"]["total"]["ticks"] > 0
-    structure = fetch_structure(daemon.ctl)
+    served = fetch_structure(daemon.ctl)
+    structure = parse_structure(served.data, name=served.name, source=served.source, keep_water=served.keep_water)
     assert structure.sha256 == scene["structure"]["sha256"] and structure.n_atoms == scene["structure"]["n_atoms"]
 
 
@@ -233,7 +234,7 @@ def test_recording_started_mid_session_replays_exactly(daemon, tmp_path):
         time.sleep(0.3)
         stopped = client.record_stop()
     assert stopped["dropped"] == 0 and stopped["path"] == str(path) and started["seq"] > 0
-    out = cli("replay", str(path), "--verify", "--json")
+    out = run_cli("replay", str(path), "--verify", "--json")
     verify = json.loads(out.stdout)["verify"]
     assert out.returncode == 0 and verify["ok"] and verify["events_applied"] >= 2, out.stdout
 
@@ -249,96 +250,8 @@ def test_status_command_prints_rate_jitter_and_subscribers(daemon):
     assert gone.returncode == 2 and "no reply" in gone.stderr and gone.stderr.count("\n") == 1
 
 
-def test_record_then_sigkill_leaves_a_readable_file_missing_at_most_100_ms(tmp_path):
-    path = tmp_path / "killed.mcap"
-    with DaemonProcess("--record", str(path)) as d:
-        payloads = _collect_raw(d.pub, 1.5)
-        last_seen = max(reference_decode(p)["publish_t_ns"] for p in payloads)
-        d.stop(signal.SIGKILL)
-    assert not scan(path).finished
-    poses = [item.data for item in iter_items(path) if item.topic == "pose"]
-    seqs = [p["seq"] for p in poses]
-    assert seqs == list(range(seqs[0], seqs[0] + len(seqs))), "the recording has holes"
-    lost_ms = (last_seen - poses[-1]["publish_t_ns"]) / 1e6
-    assert lost_ms <= 100, f"the file ends {lost_ms:.0f} ms before the last pose a subscriber saw"
-    out = cli("replay", str(path), "--recover", str(tmp_path / "fixed.mcap"), "--json")
-    assert out.returncode == 0, out.stderr
-    summary = json.loads(out.stdout)
-    assert summary["recovered"]["finished"] and summary["recovered"]["counts"]["pose"] == len(poses)
-
-
-def test_replay_verify_reproduces_every_force_exactly(tmp_path):
-    path = tmp_path / "session.mcap"
-    with DaemonProcess("--record", str(path), "--inject-fault", "raise@700+30", "--inject-fault", "nan@1200+20") as d:
-        with ControlClient(d.ctl) as client:
-            time.sleep(0.5)
-            client.set(stiffness_n_per_mm=0.25)
-            time.sleep(0.3)
-            client.set(probe_radius_A=1.6, damping_n_s_per_m=0.1)
-            time.sleep(0.8)
-        rc, report = d.stop()
-    assert rc == 0 and scan(path).finished
-    out = cli("replay", str(path), "--verify", "--json")
-    assert out.returncode == 0, out.stdout + out.stderr
-    verify = json.loads(out.stdout)["verify"]
-    assert verify["ok"] and verify["max_force_diff_n"] == 0.0 and verify["flag_mismatches"] == 0
-    assert verify["events_applied"] >= 2 and verify["ticks"] > 1000 and verify["fault_ticks"] >= 50
-    # The replay device through the live daemon recomputes the same forces.
-    again = tmp_path / "again.mcap"
-    with DaemonProcess("--device", f"replay:{path}", "--speed", "max", "--record", str(again)) as d:
-        rc = d.proc.wait(timeout=120)
-    assert rc == 0, d.stderr
-    first, second = load_session(path), load_session(again)
-    assert second.n_ticks == first.n_ticks
-    np.testing.assert_array_equal(second.force_n, first.force_n)
-    np.testing.assert_array_equal(second.flags, first.flags)
-    assert [e["cmd"] for e in second.events] == [e["cmd"] for e in first.events]
-
-
-def test_sigterm_leaves_the_arm_at_zero_force(tmp_path):
-    path = tmp_path / "term.mcap"
-    with DaemonProcess("--record", str(path)) as d:
-        time.sleep(1.5)
-        rc, report = d.stop(signal.SIGTERM)
-    assert rc == 0 and report is not None, d.stderr
-    assert report["device_last_force_n"] == [0.0, 0.0, 0.0]
-    assert report["reason"] == "SIGTERM" and report["recording"]["dropped"] == 0
-    session = load_session(path)
-    assert scan(path).finished and np.abs(session.force_n).max() > 0  # it was pushing before the signal
-
-
-def test_injected_faults_zero_the_force_then_recover(tmp_path):
-    path = tmp_path / "faults.mcap"
-    faults = ["raise@500+40", "nan@900+40", "disconnect@2400"]  # the first two while the scan script touches
-    with DaemonProcess("--record", str(path), *[a for f in faults for a in ("--inject-fault", f)]) as d:
-        deadline = time.monotonic() + 30
-        with ControlClient(d.ctl) as client:
-            while client.status()["loop"]["total"]["ticks"] < 4000 and time.monotonic() < deadline:
-                time.sleep(0.2)
-        rc, report = d.stop()
-    assert rc == 0
-    s = load_session(path)
-    timeouts = [i for i, e in s.errors.items() if "timed out" in e]
-    lost = [i for i, e in s.errors.items() if "link lost" in e]
-    nans = [i for i in range(s.n_ticks) if s.has_state[i] and not np.all(np.isfinite(s.position_mm[i]))]
-    assert len(timeouts) == 40 and len(nans) == 40
-    assert len(lost) >= 50  # disconnected until the daemon's reconnect (after 100 ms of failures)
-    assert "device reconnected" in d.stderr
-    for i in timeouts + nans + lost:
-        assert s.flags[i] & FLAG_FAULT and not np.any(s.force_n[i]), f"tick {i} was not zeroed"
-    for window in (timeouts, nans, lost):
-        after = slice(max(window) + 1, max(window) + 1500)
-        assert not np.all(s.flags[after] & FLAG_FAULT), "never recovered"
-    # Short faults keep the proxy: force ramps back in. After a reconnect the proxy is
-    # unseated until the probe is in free space (the engine's rule), so no such check.
-    for window in (timeouts, nans):
-        assert np.abs(s.force_n[max(window) + 1: max(window) + 1500]).max() > 0, "force never came back"
-    assert [e["cmd"] for e in s.events].count("reconnect") == 1
-    assert report["faults"] >= 3
-
-
 def test_non_loopback_bind_without_keys_is_refused():
-    out = cli("daemon", "--pub", "tcp://0.0.0.0:45555", "--duration", "1")
+    out = run_cli("daemon", "--pub", "tcp://0.0.0.0:45555", "--seconds", "1")
     assert out.returncode == 2
     assert out.stderr.startswith("sasprobe: error: refusing to bind tcp://0.0.0.0:45555 without encryption")
     assert out.stderr.count("\n") == 1
@@ -354,21 +267,21 @@ def _free_port() -> int:
 
 def test_curve_keys_admit_allowed_clients_and_reject_unknown_ones(tmp_path):
     keys, other = tmp_path / "keys", tmp_path / "other"
-    assert cli("keys", str(keys)).returncode == 0
-    assert cli("keys", str(other)).returncode == 0
+    assert run_cli("keys", str(keys)).returncode == 0
+    assert run_cli("keys", str(other)).returncode == 0
     (other / "server.key").write_bytes((keys / "server.key").read_bytes())
     pub_port, ctl_port = _free_port(), _free_port()
     with DaemonProcess("--keys", str(keys), pub=f"tcp://0.0.0.0:{pub_port}", ctl=f"tcp://0.0.0.0:{ctl_port}") as d:
         ctl = f"tcp://127.0.0.1:{ctl_port}"
-        ok = cli("status", "--ctl", ctl, "--keys", str(keys), "--json")
+        ok = run_cli("status", "--ctl", ctl, "--keys", str(keys), "--json")
         assert ok.returncode == 0, ok.stderr
         from sasprobe.protocol.security import load_client_keys
 
         with Subscriber(f"tcp://127.0.0.1:{pub_port}", keys=load_client_keys(keys)) as sub:
             sub.wait_for_scene(5.0)
-        rejected = cli("status", "--ctl", ctl, "--keys", str(other), "--timeout", "1")
+        rejected = run_cli("status", "--ctl", ctl, "--keys", str(other), "--timeout", "1")
         assert rejected.returncode == 2 and "no reply" in rejected.stderr
-        plain = cli("status", "--ctl", ctl, "--timeout", "1")
+        plain = run_cli("status", "--ctl", ctl, "--timeout", "1")
         assert plain.returncode == 2
         rc, _ = d.stop()
     assert rc == 0
@@ -391,7 +304,7 @@ def test_user_errors_end_in_one_line(tmp_path):
             "no such file": ("daemon", "--device", f"replay:{tmp_path}/none.mcap"),
             "not an MCAP file": ("replay", str(existing)),
         }
-        outs = cli_many(*[(*args, "--duration", "1") if args[0] == "daemon" else args for args in cases.values()])
+        outs = cli_many(*[(*args, "--seconds", "1") if args[0] == "daemon" else args for args in cases.values()])
     for fragment, out in zip(cases, outs):
         assert out.returncode == 2, (fragment, out.stderr)
         assert fragment in out.stderr and out.stderr.count("\n") == 1 and "Traceback" not in out.stderr, out.stderr

@@ -8,10 +8,10 @@ import time
 import numpy as np
 import pytest
 
-from sasprobe.daemon.recorder import Recorder
-from sasprobe.daemon.recording import RecordingError, iter_items, recover, scan, summarize
+from sasprobe.daemon.recording.writer import Recorder
+from sasprobe.protocol.recording import RecordingError, iter_items, recover, scan, summarize
 from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceInfo, DeviceState
-from sasprobe.devices.replay import load_session
+from sasprobe.daemon.recording.replay import load_session
 from sasprobe.protocol.pose import Pose
 
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from sasprobe.daemon.safety import SafetyGuard
+from sasprobe.daemon.haptics.safety import SafetyGuard
 from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceState
 
 

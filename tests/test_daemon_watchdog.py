@@ -12,7 +12,7 @@ import numpy as np
 
 from sasprobe.daemon.service import Daemon, DaemonConfig
 from sasprobe.devices.registry import SCHEMES, DeviceScheme
-from sasprobe.devices.replay import load_session
+from sasprobe.daemon.recording.replay import load_session
 from sasprobe.devices.simulated import SimulatedDevice, make_simulated
 from sasprobe.protocol.pose import FLAG_FAULT
 

@@ -23,18 +23,16 @@ import numpy as np
 import pytest
 
 from tests.conftest import REPO_ROOT, run_cli
-from tests.render_support import edge_mask, gl_context, reference_cast
-from tests.test_render_window import xvfb  # noqa: F401 (fixture)
+from tests.render_support import edge_mask, reference_cast
 
 SECONDS = 3
 FPS = 10  # the demo's default headless frame rate
 SIZE = (640, 360)  # and size
-BACKGROUND = np.array([0.08, 0.09, 0.11]) * 255  # LightSettings().background
+BACKGROUND = np.array([0.08, 0.09, 0.11]) * 255  # ShadingSettings().background
 
 
 @pytest.fixture(scope="module")
-def demo(tmp_path_factory):
-    gl_context()  # skips the module where no headless OpenGL exists
+def demo(tmp_path_factory, gl):  # gl: skips where no headless OpenGL exists
     out = tmp_path_factory.mktemp("demo")
     result = run_cli("demo", "--headless", "--seconds", str(SECONDS), "--out", str(out),
                      "--record", str(out / "session.mcap"), timeout=300)
@@ -205,8 +203,7 @@ def _running(pid: int, start_time: str) -> bool:
     return stat is not None and stat[19] == start_time and stat[0] not in ("Z", "X")
 
 
-def test_sigint_stops_every_process_and_leaves_the_arm_at_zero_force(tmp_path):
-    gl_context()
+def test_sigint_stops_every_process_and_leaves_the_arm_at_zero_force(tmp_path, gl):
     out = tmp_path / "demo"
     proc = subprocess.Popen([sys.executable, "-m", "sasprobe", "demo", "--headless", "--seconds", "120",
                              "--out", str(out)], cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,

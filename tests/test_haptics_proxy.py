@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sasprobe.daemon.neighbours import NeighbourCache
-from sasprobe.daemon.proxy import ProxySolver
+from sasprobe.daemon.haptics.neighbours import NeighbourCache
+from sasprobe.daemon.haptics.proxy import ProxySolver
 from sasprobe.molecule import UniformGrid, load_default, load_structure
 from tests.haptics_reference import (
     constrained_candidates,
@@ -163,18 +163,18 @@ def test_proxy_never_enters_the_sas_in_long_random_sessions(entry, shared_by_id)
 
 
 def test_proxy_never_enters_the_sas_in_scripted_sessions():
-    from sasprobe.daemon.haptics import HapticRenderer, HapticSettings
+    from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices import PHANTOM_OMNI_LIMITS, open_device
 
     centers, radii = CRAMBIN.positions, CRAMBIN.expanded_radii(1.4)
     for script in ("scan", "dive", "press", "orbit", "random"):
         device = open_device(f"sim:{script}", structure=CRAMBIN, seed=5)
-        renderer = HapticRenderer(CRAMBIN, PHANTOM_OMNI_LIMITS, HapticSettings())
+        engine = HapticEngine(CRAMBIN, PHANTOM_OMNI_LIMITS, HapticSettings())
         device.open()
         proxies = []
         contacts = 0
         for _ in range(min(int(device.script.duration_s * 1000), 5000)):
-            out = renderer.step(device.read())
+            out = engine.step(device.read())
             device.write_force(out.force_n)
             if out.seated:
                 proxies.append(out.proxy_A)
@@ -193,20 +193,20 @@ def sheet(spacing: float = 2.0, n: int = 9) -> np.ndarray:
 
 @pytest.mark.parametrize("method", ["proxy", "penalty"])
 def test_pushing_through_a_thin_sheet_pops_through_only_with_the_penalty_method(method):
-    from sasprobe.daemon.haptics import HapticRenderer, HapticSettings
+    from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceState
     from tests.haptics_reference import synthetic_structure
 
     structure = synthetic_structure(sheet() + [0.3, 0.2, 0.0])  # off-centre: not a symmetric balance
-    renderer = HapticRenderer(structure, PHANTOM_OMNI_LIMITS, HapticSettings(method=method, cube_half_A=12.0))
-    m = renderer.mapping
+    engine = HapticEngine(structure, PHANTOM_OMNI_LIMITS, HapticSettings(method=method, cube_half_A=12.0))
+    m = engine.mapping
     start = np.array(m.to_device(0.0, 0.0, 6.0))
     end = np.array(m.to_device(0.0, 0.0, -6.0))  # straight through the sheet, out the far side
     pushed_along = 0.0
     lowest_proxy = np.inf
     for k in range(1201):
         tip = start + (end - start) * k / 1200
-        out = renderer.step(DeviceState(t_ns=k * 1_000_000, position_mm=tip))
+        out = engine.step(DeviceState(t_ns=k * 1_000_000, position_mm=tip))
         pushed_along = max(pushed_along, -out.force_n[2])  # force component along the push (-z)
         if out.contact:
             lowest_proxy = min(lowest_proxy, out.proxy_A[2])
@@ -220,18 +220,18 @@ def test_pushing_through_a_thin_sheet_pops_through_only_with_the_penalty_method(
 
 
 def test_press_script_on_crambin_pops_through_with_penalty_not_with_proxy():
-    from sasprobe.daemon.haptics import HapticRenderer, HapticSettings
+    from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices import PHANTOM_OMNI_LIMITS, open_device
 
     along = {}
     for method in ("proxy", "penalty"):
         device = open_device("sim:press", structure=CRAMBIN)
         push = np.array(device.script.info["push_direction"])
-        renderer = HapticRenderer(CRAMBIN, PHANTOM_OMNI_LIMITS, HapticSettings(method=method))
+        engine = HapticEngine(CRAMBIN, PHANTOM_OMNI_LIMITS, HapticSettings(method=method))
         device.open()
         worst = -np.inf
         for _ in range(int(device.script.duration_s * 1000)):
-            out = renderer.step(device.read())
+            out = engine.step(device.read())
             device.write_force(out.force_n)
             worst = max(worst, float(out.force_n @ push))
         along[method] = worst
@@ -269,7 +269,7 @@ def test_degenerate_clusters_never_trap_or_cycle_the_proxy():
     """Coplanar centres, equal radii and duplicate atoms make circles tangent to spheres and
     four spheres meet at a point; the proxy must stay outside and converge (no cycling to
     the iteration cap)."""
-    from sasprobe.daemon.proxy import MAX_ITERATIONS
+    from sasprobe.daemon.haptics.proxy import MAX_ITERATIONS
 
     rng = np.random.default_rng(21)
     for trial in range(24):

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from sasprobe.daemon.workspace import WorkspaceMapping
+from sasprobe.devices.workspace import WorkspaceMapping
 from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceFault, DeviceOpenError, HapticDevice, open_device
 from sasprobe.devices.scripts import SCRIPTS, Script
 from sasprobe.devices.simulated import ArmModel, SimulatedDevice

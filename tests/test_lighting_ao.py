@@ -7,24 +7,17 @@ import numpy as np
 import pytest
 
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS
-from sasprobe.render.ambient_occlusion import AmbientOcclusion
-from sasprobe.render.ao_analytic import AnalyticAO
-from sasprobe.render.ao_raytraced import RayTracedAO
-from sasprobe.render.camera_math import fit_camera
-from sasprobe.render.gpu_grid import Culling
-from sasprobe.render.lighting_gbuffer import read_texture
-from sasprobe.render.lighting_params import AO_MODES, AOSettings
-from sasprobe.render.lighting_reference import Occluders, analytic_ao, monte_carlo_ao
-from tests.lighting_support import (  # noqa: F401
-    camera,
-    crambin,
-    crambin_grid,
-    cullings,
-    gbuffer_arrays,
-    gl,
-    probe_on_surface,
-    sphere_grid,
-)
+from sasprobe.render.lighting.ao import AmbientOcclusion
+from sasprobe.render.lighting.ao.analytic import AnalyticAO
+from sasprobe.render.lighting.ao.raytraced import RayTracedAO
+from sasprobe.render.camera import fit_camera
+from sasprobe.render.lighting.grid import Culling
+from sasprobe.render.gl.textures import read_texture
+from sasprobe.render.lighting.settings import AO_MODES, AOSettings
+from tests.lighting_reference import Occluders, analytic_ao, monte_carlo_ao
+from tests.lighting_support import camera, cullings, gbuffer_arrays, probe_on_surface, sphere_grid
+
+pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 
 AO_DISTANCE = 8.0
 

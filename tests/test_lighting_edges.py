@@ -4,13 +4,16 @@ fall on a scene of two spheres at different depths."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from sasprobe.render.camera_math import fit_camera
-from sasprobe.render.edge_cueing import EdgeCueingPass
-from sasprobe.render.lighting_params import EdgeCueing
-from sasprobe.render.lighting_gbuffer import read_texture
-from sasprobe.render.lighting_reference import edge_cueing, view_depths
-from tests.lighting_support import camera, crambin, crambin_grid, gbuffer_arrays, gl, sphere_grid  # noqa: F401
+from sasprobe.render.camera import fit_camera
+from sasprobe.render.lighting.edges import EdgeCueingPass
+from sasprobe.render.lighting.settings import EdgeCueing
+from sasprobe.render.gl.textures import read_texture
+from tests.lighting_reference import edge_cueing, view_depths
+from tests.lighting_support import camera, gbuffer_arrays, sphere_grid
+
+pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 
 
 def test_edge_cueing_equals_the_numpy_definition(gl, crambin, crambin_grid):

@@ -7,10 +7,12 @@ import numpy as np
 import pytest
 
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
-from sasprobe.render.gpu_grid import CENTRE_CLIPPED, CULLED, Culling, GpuGrid, walk_rays_on_gpu
-from sasprobe.render.lighting_reference import Occluders, raycast_gbuffer
-from sasprobe.render.targets import KIND_CAP
-from tests.lighting_support import camera, crambin, crambin_grid, cullings, gbuffer_arrays, gl  # noqa: F401
+from sasprobe.render.lighting.grid import CENTRE_CLIPPED, CULLED, Culling, GpuGrid, walk_rays_on_gpu
+from tests.lighting_reference import Occluders, raycast_gbuffer
+from sasprobe.render.gl.targets import KIND_CAP
+from tests.lighting_support import camera, cullings, gbuffer_arrays
+
+pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 
 
 def random_rays(grid: UniformGrid, n: int, seed: int, margin: float = 0.3):

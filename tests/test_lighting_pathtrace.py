@@ -7,22 +7,15 @@ import numpy as np
 import pytest
 
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS
-from sasprobe.render.gpu_grid import Culling
-from sasprobe.render.lighting_gbuffer import read_texture
-from sasprobe.render.lighting_params import HARD_SHADOW, DirectionalLight, PathTracing, PointLight, probe_falloff
-from sasprobe.render.lighting_reference import Occluders, light_visibility, monte_carlo_ao
-from sasprobe.render.materials import atom_materials
-from sasprobe.render.path_tracer import PathTracer
-from tests.lighting_support import (  # noqa: F401
-    away_from_boundaries,
-    camera,
-    crambin,
-    crambin_grid,
-    cullings,
-    gbuffer_arrays,
-    gl,
-    probe_on_surface,
-)
+from sasprobe.render.lighting.grid import Culling
+from sasprobe.render.gl.textures import read_texture
+from sasprobe.render.lighting.settings import HARD_SHADOW, DirectionalLight, PathTracing, PointLight, probe_falloff
+from tests.lighting_reference import Occluders, light_visibility, monte_carlo_ao
+from sasprobe.render.lighting.materials import atom_materials
+from sasprobe.render.lighting.path_tracer import PathTracer
+from tests.lighting_support import away_from_boundaries, camera, cullings, gbuffer_arrays, probe_on_surface
+
+pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 
 
 @pytest.fixture(scope="module")

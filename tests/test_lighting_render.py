@@ -1,6 +1,6 @@
 """The lighting inside the renderer: terms computed on the impostor pipeline's own
 G-buffer equal the CPU references on the exported arrays, the visibility buffer carries
-them to the light pass, path tracing replaces the lit image, `sasprobe render` takes the
+them to the shading pass, path tracing replaces the lit image, `sasprobe render` takes the
 lighting options, and the window's keys switch the effects."""
 
 from __future__ import annotations
@@ -9,12 +9,12 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from sasprobe.render.ao_analytic import MAX_K, nearest_to_point
+from sasprobe.render.lighting.ao.analytic import MAX_K, nearest_to_point
 from sasprobe.render.camera import Camera
-from sasprobe.render.context import GLUnavailable
-from sasprobe.render.gbuffer import gbuffer_arrays
-from sasprobe.render.gpu_grid import Culling
-from sasprobe.render.lighting_params import (
+from sasprobe.render.gl.context import GLUnavailable
+from sasprobe.render.gbuffer_export import gbuffer_arrays
+from sasprobe.render.lighting.grid import Culling
+from sasprobe.render.lighting.settings import (
     AO_MODES,
     HARD_SHADOW,
     AOSettings,
@@ -22,14 +22,15 @@ from sasprobe.render.lighting_params import (
     LightingSettings,
     PointLight,
 )
-from sasprobe.render.lighting_reference import Occluders, analytic_ao, edge_cueing, light_visibility, view_depths
+from tests.lighting_reference import Occluders, analytic_ao, edge_cueing, light_visibility, view_depths
 from sasprobe.render.passes.lighting import LightingPass, install_lighting, lighting_of
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import NavCube, Probe, SceneState
-from sasprobe.render.targets import KIND_BACKBONE
-from tests.conftest import run_cli
-from tests.lighting_support import away_from_boundaries, crambin, gl, probe_on_surface  # noqa: F401
-from tests.test_render_window import run_window_check, xvfb  # noqa: F401 (xvfb: a real X server)
+from sasprobe.render.gl.targets import KIND_BACKBONE
+from tests.conftest import run_cli, run_window_check
+from tests.lighting_support import away_from_boundaries, probe_on_surface
+
+pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 
 SIZE = (160, 120)
 SETUPS = ["none", "planes", "cube"]
@@ -110,10 +111,10 @@ def test_pipeline_analytic_ao_equals_the_cpu_formula(frame):
     assert cpu[ids != -1].min() < 0.6
 
 
-def test_visibility_buffer_carries_the_terms_to_the_light_pass(frame):
+def test_visibility_buffer_carries_the_terms_to_the_shading_pass(frame):
     setup, scene, renderer, g = frame
     t = renderer.targets
-    vis = t.read(t.visibility, 4, np.float16).astype(np.float32)
+    vis = t.read(t.visibility).astype(np.float32)
     for channel, layer in enumerate(("shadow_dir", "shadow_probe", "ao")):
         assert np.abs(vis[..., channel] - g[layer]).max() <= 1e-3, layer
     assert np.all(vis[..., 3] == 1.0)  # edge cueing off
@@ -123,7 +124,7 @@ def test_edge_cueing_reaches_the_visibility_alpha(gl, crambin):
     scene = make_scene(crambin, "none")
     renderer, g = render_frame(gl, scene, LightingSettings(shadows="off", ao=AOSettings(mode="off"), edges="both"))
     t = renderer.targets
-    alpha = t.read(t.visibility, 4, np.float16)[..., 3].astype(np.float32)
+    alpha = t.read(t.visibility)[..., 3].astype(np.float32)
     ids = shaded_ids(g)
     cpu = edge_cueing(view_depths(g["position"], ids, g["view"]), ids, LightingSettings(edges="both").edge_settings())
     assert np.abs(alpha - cpu).max() < 2e-3
@@ -137,7 +138,7 @@ def test_path_tracing_replaces_the_lit_atoms(gl, crambin):
     settings = LightingSettings(ao=AOSettings(mode="off"), shadows="off", path_tracing=True, samples=8)
     renderer, g = render_frame(gl, scene, settings)
     t = renderer.targets
-    lit = t.read(t.lit, 4, np.uint8)[..., :3].astype(np.float64) / 255
+    lit = t.read(t.lit)[..., :3].astype(np.float64) / 255
     tracer = lighting_of(renderer).tracer
     assert tracer.samples >= 8
     radiance = tracer.accumulated.read()

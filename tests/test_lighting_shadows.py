@@ -8,22 +8,15 @@ import numpy as np
 import pytest
 
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS
-from sasprobe.render.gpu_grid import Culling
-from sasprobe.render.lighting_gbuffer import GBuffer, read_texture
-from sasprobe.render.lighting_params import HARD_SHADOW, DirectionalLight, PointLight, SoftShadow
-from sasprobe.render.lighting_reference import Occluders, light_visibility
-from sasprobe.render.shadows import ShadowPass
-from tests.lighting_support import (  # noqa: F401
-    away_from_boundaries,
-    probe_on_surface,
-    camera,
-    crambin,
-    crambin_grid,
-    cullings,
-    gbuffer_arrays,
-    gl,
-    sphere_grid,
-)
+from sasprobe.render.lighting.grid import Culling
+from sasprobe.render.gl.textures import read_texture
+from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.settings import HARD_SHADOW, DirectionalLight, PointLight, SoftShadow
+from tests.lighting_reference import Occluders, light_visibility
+from sasprobe.render.lighting.shadows import ShadowPass
+from tests.lighting_support import away_from_boundaries, camera, cullings, gbuffer_arrays, probe_on_surface, sphere_grid
+
+pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 
 SUN = DirectionalLight((0.45, 0.8, 0.4))
 

@@ -14,12 +14,12 @@ README = Path(__file__).resolve().parent.parent / "protocol" / "README.md"
 
 def example_scene() -> dict:
     return {
-        "version": 1,
+        "version": 2,
         "revision": 3,
         "daemon_version": "0.1.0",
         "structure": {"name": "1crn", "sha256": "ab" * 32, "n_atoms": 327},
         "probe_radius_A": 1.4,
-        "nav_cube": {"half_A": 12.5, "enabled": True},
+        "nav_cube": {"enabled": True},
         "clip_planes": [[1.0, 0.0, 0.0, -3.0]],
         "lights": merge_lights(DEFAULT_LIGHTS, {}),
         "device": DeviceInfo("sim", "simulated arm", PHANTOM_OMNI_LIMITS).as_dict(),
@@ -46,9 +46,9 @@ def test_round_trip_and_partial_light_updates():
     scene = example_scene()
     assert decode_scene(encode_scene(scene)) == scene
     lights = merge_lights(scene["lights"], {"probe": {"enabled": False}})
-    assert lights["probe"] == {"radius_A": 1.4, "enabled": False}
+    assert lights["probe"] == {"enabled": False}
     assert lights["directional"] == scene["lights"]["directional"]
-    with pytest.raises(SceneError, match="radius_A must be positive"):
-        merge_lights(scene["lights"], {"probe": {"radius_A": 0}})
+    with pytest.raises(SceneError, match="unknown field lights.probe.radius_A"):
+        merge_lights(scene["lights"], {"probe": {"radius_A": 1.4}})  # the probe's radius is probe_radius_A
     with pytest.raises(SceneError, match="must not be zero"):
         merge_lights(scene["lights"], {"directional": {"direction": [0, 0, 0]}})

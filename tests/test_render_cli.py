@@ -9,14 +9,13 @@ import pytest
 
 from sasprobe.molecule import load_structure
 from tests.conftest import run_cli
-from tests.render_support import gl_context
 
 SMALL = "160x120"
 
 
 @pytest.fixture(scope="module", autouse=True)
-def needs_gl():
-    gl_context()  # skips the module when no EGL context can be made
+def needs_gl(gl):
+    """The CLI renders in its own process; this skips the module where no EGL context can be made."""
 
 
 def render(*args, timeout=180):

@@ -8,7 +8,9 @@ subscriber); malformed messages are dropped and counted; no daemon gives one lin
 
 from __future__ import annotations
 
+import signal
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -18,24 +20,27 @@ from sasprobe.protocol.client import ControlClient, Subscriber
 from sasprobe.protocol.pose import Pose, encode_pose
 from sasprobe.protocol.scene import encode_scene
 from sasprobe.render.camera import Camera
-from sasprobe.render.gbuffer import gbuffer_arrays
+from sasprobe.render.gbuffer_export import gbuffer_arrays
+from sasprobe.render.lighting.settings import AOSettings
 from sasprobe.render.link import DaemonLink
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import Effects, SceneState
-from sasprobe.render.targets import KIND_PROBE
+from sasprobe.render.gl.targets import KIND_PROBE
 from tests.conftest import run_cli
-from tests.render_support import crambin, ctx, free_tcp_endpoint, start_daemon, stop_daemon  # noqa: F401 (fixtures)
+from tests.daemon_process import DaemonProcess
+from tests.render_support import free_tcp_endpoint
+
+ORBIT = "sim:orbit"  # the simulated arm circling the molecule: the probe keeps moving
 
 
 @pytest.fixture(scope="module")
 def daemon():
-    pub, ctl = free_tcp_endpoint(), free_tcp_endpoint()
-    proc = start_daemon(pub, ctl)
-    yield pub, ctl
-    stop_daemon(proc)
+    with DaemonProcess("--seconds", "600", device=ORBIT, pub=free_tcp_endpoint(), ctl=free_tcp_endpoint()) as d:
+        yield d.pub, d.ctl
+        d.stop(signal.SIGINT)
 
 
-def test_rendered_probe_follows_the_pose_stream(ctx, daemon):
+def test_rendered_probe_follows_the_pose_stream(gl, daemon):
     pub, ctl = daemon
     watch = Subscriber(pub)  # an independent record of every pose, by sequence number
     link = DaemonLink(pub, ctl)
@@ -52,7 +57,7 @@ def test_rendered_probe_follows_the_pose_stream(ctx, daemon):
         scene = SceneState(structure, effects=Effects(probe_plane=True))  # nothing may hide the probe
         center, radius = scene.bounding_sphere()
         camera = Camera.fitted(center, radius * 1.3, 4 / 3)
-        renderer = Renderer(ctx, scene, (160, 120))
+        renderer = Renderer(gl, scene, (160, 120))
         checked, positions = 0, set()
         while (checked < 8 or len(positions) < 3) and time.monotonic() < deadline:
             link.poll()
@@ -143,3 +148,39 @@ def test_malformed_messages_are_dropped_and_counted(daemon, crambin):
     finally:
         link.close()
         sock.close()
+
+
+def test_the_grid_follows_the_daemons_probe_radius(gl):
+    """A daemon feeling with a 2.0 Å probe: the renderer's grid (navigation-cube culling,
+    and the lighting's GPU grid) is rebuilt with the daemon's radius, not its own default."""
+    from sasprobe.molecule import DEFAULT_PROBE_RADIUS
+    from sasprobe.render.lighting.settings import LightingSettings
+    from sasprobe.render.passes.lighting import install_lighting
+
+    radius = 2.0
+    assert radius != DEFAULT_PROBE_RADIUS
+    with DaemonProcess("--probe-radius", str(radius), device=ORBIT, pub=free_tcp_endpoint(),
+                       ctl=free_tcp_endpoint()) as d:
+        link = DaemonLink(d.pub, d.ctl)
+        try:
+            link.wait_ready(60.0)
+            deadline = time.monotonic() + 20
+            while link.subscriber.scene is None and time.monotonic() < deadline:
+                link.poll()
+                time.sleep(0.02)
+            structure = link.take_new_structure()
+            scene = SceneState(structure)  # the renderer's own default radius, until the daemon's arrives
+            np.testing.assert_allclose(scene.grid.radii, structure.vdw_radii + DEFAULT_PROBE_RADIUS)
+            link.apply(scene)
+        finally:
+            link.close()
+    np.testing.assert_allclose(scene.grid.radii, structure.vdw_radii + radius)
+    assert scene.probe.radius == radius
+    renderer = Renderer(gl, scene, (64, 48))
+    try:
+        lighting = install_lighting(renderer, LightingSettings(shadows="hard", ao=replace(AOSettings(), mode="off")))
+        scene.effects.shadows = True
+        renderer.render(Camera.fitted(*scene.bounding_sphere(), 64 / 48))
+        assert lighting.grid.max_shell == pytest.approx(radius)
+    finally:
+        renderer.release()

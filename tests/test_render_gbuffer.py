@@ -12,17 +12,17 @@ import pytest
 
 from sasprobe.molecule import load_structure
 from sasprobe.render.camera import Camera
-from sasprobe.render.gbuffer import gbuffer_arrays
+from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import NavCube, Probe, SceneState, normalise_plane
-from sasprobe.render.targets import KIND_BACKBONE, KIND_CAP, KIND_PROBE, KIND_SPHERE
-from tests.render_support import crambin, ctx, edge_mask, reference_cast  # noqa: F401 (fixtures)
+from sasprobe.render.gl.targets import KIND_BACKBONE, KIND_CAP, KIND_PROBE, KIND_SPHERE
+from tests.render_support import edge_mask, reference_cast
 
 SIZE = (200, 150)
 
 
-def render_gbuffer(ctx, scene, camera, size=SIZE, mode="quad"):
-    renderer = Renderer(ctx, scene, size, sphere_mode=mode)
+def render_gbuffer(gl, scene, camera, size=SIZE, mode="quad"):
+    renderer = Renderer(gl, scene, size, sphere_mode=mode)
     try:
         renderer.render(camera)
         return gbuffer_arrays(renderer)
@@ -53,16 +53,16 @@ def fitted_camera(scene, size=SIZE, **kw):
     return Camera.fitted(center, radius, size[0] / size[1], **kw)
 
 
-def test_whole_molecule_matches_reference(ctx, crambin):
+def test_whole_molecule_matches_reference(gl, crambin):
     scene = SceneState(crambin)
-    g = render_gbuffer(ctx, scene, fitted_camera(scene))
+    g = render_gbuffer(gl, scene, fitted_camera(scene))
     s = crambin
     compare_with_reference(g, s.positions, s.vdw_radii, np.arange(s.n_atoms))
     covered = g["atom_id"] >= 0
     assert set(np.unique(g["kind"][covered])) == {KIND_SPHERE}
 
 
-def test_close_oblique_view_keeps_spheres_at_the_screen_edge(ctx, crambin):
+def test_close_oblique_view_keeps_spheres_at_the_screen_edge(gl, crambin):
     """A wide-angle view from inside the molecule's bounding box, many spheres cut by the
     image border: none may vanish (point sprites would) and perspective must stay exact."""
     s = crambin
@@ -70,20 +70,20 @@ def test_close_oblique_view_keeps_spheres_at_the_screen_edge(ctx, crambin):
     camera = Camera(eye=center + np.array([14.0, 9.0, 16.0]), target=center + np.array([-2.0, 1.0, 0.0]),
                     up=np.array([0.2, 1.0, 0.1]), fov_y=75.0)
     scene = SceneState(s)
-    g = render_gbuffer(ctx, scene, camera)
+    g = render_gbuffer(gl, scene, camera)
     compare_with_reference(g, s.positions, s.vdw_radii, np.arange(s.n_atoms))
     border = np.concatenate([g["atom_id"][0], g["atom_id"][-1], g["atom_id"][:, 0], g["atom_id"][:, -1]])
     assert np.count_nonzero(border >= 0) > 50, "the view should put spheres across the image border"
 
 
-def test_larger_structure_matches_reference(ctx, shared_by_id):
+def test_larger_structure_matches_reference(gl, shared_by_id):
     s = load_structure(shared_by_id["1oky"].path)
     scene = SceneState(s)
-    g = render_gbuffer(ctx, scene, fitted_camera(scene, direction=(0.3, 0.5, 0.8)))
+    g = render_gbuffer(gl, scene, fitted_camera(scene, direction=(0.3, 0.5, 0.8)))
     compare_with_reference(g, s.positions, s.vdw_radii, np.arange(s.n_atoms))
 
 
-def test_camera_inside_a_sphere_sees_its_solid_cap(ctx, crambin):
+def test_camera_inside_a_sphere_sees_its_solid_cap(gl, crambin):
     """Zoomed into an atom, the atom is a solid: the near plane cuts it into a cap that
     fills the view (it must not vanish and show what lies behind it)."""
     s = crambin
@@ -92,7 +92,7 @@ def test_camera_inside_a_sphere_sees_its_solid_cap(ctx, crambin):
     inside = np.flatnonzero(np.linalg.norm(s.positions - eye, axis=1) < s.vdw_radii)
     assert inside.tolist() == [top], "the eye should be inside exactly one sphere"
     camera = Camera(eye=eye, target=s.positions.mean(axis=0), up=np.array([0.0, 1.0, 0.0]), fov_y=60.0)
-    g = render_gbuffer(ctx, SceneState(s), camera)
+    g = render_gbuffer(gl, SceneState(s), camera)
     forward = -camera.basis()[:, 2]
     near = np.array([*forward, -float(forward @ camera.eye) - camera.near])
     compare_with_reference(g, s.positions, s.vdw_radii, np.arange(s.n_atoms), near[None, :])
@@ -100,7 +100,7 @@ def test_camera_inside_a_sphere_sees_its_solid_cap(ctx, crambin):
     np.testing.assert_allclose(g["normal"], np.broadcast_to(-forward, g["normal"].shape), atol=1e-3)
 
 
-def test_clip_planes_cap_atoms_and_cull_those_behind(ctx, crambin):
+def test_clip_planes_cap_atoms_and_cull_those_behind(gl, crambin):
     s = crambin
     center = s.positions.mean(axis=0)
     planes = [
@@ -109,7 +109,7 @@ def test_clip_planes_cap_atoms_and_cull_those_behind(ctx, crambin):
     ]
     scene = SceneState(s, clip_planes=planes)
     camera = fitted_camera(scene, direction=(-0.4, -0.6, -0.7))  # on the removed side: facing the cut
-    renderer = Renderer(ctx, scene, SIZE)
+    renderer = Renderer(gl, scene, SIZE)
     try:
         renderer.render(camera)
         g = gbuffer_arrays(renderer)
@@ -138,13 +138,13 @@ def test_clip_planes_cap_atoms_and_cull_those_behind(ctx, crambin):
     assert (g["position"][covered] @ P[:, :3].T + P[:, 3]).min() >= -1e-3
 
 
-def test_navigation_cube_spheres_inside_backbone_outside(ctx, shared_by_id):
+def test_navigation_cube_spheres_inside_backbone_outside(gl, shared_by_id):
     s = load_structure(shared_by_id["1oky"].path)
     center = s.positions[s.n_atoms // 2]
     cube = NavCube(center=center.copy(), half=7.0)
     scene = SceneState(s, nav_cube=cube)
     camera = fitted_camera(scene, direction=(0.2, 0.4, 0.9))
-    renderer = Renderer(ctx, scene, (240, 180))
+    renderer = Renderer(gl, scene, (240, 180))
     try:
         renderer.render(camera)
         g = gbuffer_arrays(renderer)
@@ -180,7 +180,7 @@ def test_navigation_cube_spheres_inside_backbone_outside(ctx, shared_by_id):
     assert set(np.unique(ids).tolist()) <= set(np.concatenate([starts, ends]).tolist())
 
 
-def test_probe_drawn_unclipped_and_touched_atom_kept(ctx, crambin):
+def test_probe_drawn_unclipped_and_touched_atom_kept(gl, crambin):
     s = crambin
     atom = 120
     direction = np.array([0.0, 0.0, 1.0])
@@ -188,7 +188,7 @@ def test_probe_drawn_unclipped_and_touched_atom_kept(ctx, crambin):
     scene = SceneState(s, probe=Probe(center=probe_center, touched_atom=atom))
     scene.effects.probe_plane = True
     camera = Camera(eye=probe_center + np.array([2.0, 3.0, 15.0]), target=probe_center, fov_y=35.0)
-    g = render_gbuffer(ctx, scene, camera)
+    g = render_gbuffer(gl, scene, camera)
     probe_px = g["kind"] == KIND_PROBE
     assert probe_px.sum() > 500
     # Never hidden: every pixel of the probe's own disc shows the probe.
@@ -209,13 +209,13 @@ def test_probe_drawn_unclipped_and_touched_atom_kept(ctx, crambin):
 
 
 @pytest.mark.parametrize("mode,min_agree", [("sprite", 0.995), ("mesh", 0.97)])
-def test_other_sphere_modes_match_reference(ctx, crambin, mode, min_agree):
+def test_other_sphere_modes_match_reference(gl, crambin, mode, min_agree):
     """Point sprites cast the same rays (exact where the whole molecule is in view);
     the 648-triangle mesh baseline approximates the spheres (looser agreement, and its
     positions are only checked to the mesh's faceting error)."""
     s = crambin
     scene = SceneState(s)
-    g = render_gbuffer(ctx, scene, fitted_camera(scene), mode=mode)
+    g = render_gbuffer(gl, scene, fitted_camera(scene), mode=mode)
     if mode == "sprite":
         compare_with_reference(g, s.positions, s.vdw_radii, np.arange(s.n_atoms))
         return

@@ -1,4 +1,4 @@
-"""The light pass against a numpy Phong reference (including the visibility factors a
+"""The shading pass against a numpy Phong reference (including the visibility factors a
 lighting pass slots in), the toggles, the touched-atom highlight, and FXAA."""
 
 from __future__ import annotations
@@ -7,20 +7,20 @@ import numpy as np
 import pytest
 
 from sasprobe.render.camera import Camera
-from sasprobe.render.gbuffer import gbuffer_arrays
+from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.passes.base import Pass
 from sasprobe.render.passes.probe import PROBE_COLOR
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import Probe, SceneState
-from sasprobe.render.targets import KIND_BACKGROUND, KIND_PROBE
-from tests.render_support import crambin, ctx, edge_mask  # noqa: F401 (fixtures)
+from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE
+from tests.render_support import edge_mask
 
 SIZE = (160, 120)
 TOL = 2.5 / 255  # RGBA8 rounding plus float32 shading
 
 
 class FixedVisibility(Pass):
-    """Stands in for a shadow/AO pass: writes given visibility factors before the light pass."""
+    """Stands in for a shadow/AO pass: writes given visibility factors before the shading pass."""
 
     name = "fixed_visibility"
 
@@ -38,17 +38,17 @@ def scene_with_probe(s):
     return SceneState(s, probe=probe), atom
 
 
-def render(ctx, scene, camera, extra_pass=None):
-    renderer = Renderer(ctx, scene, SIZE)
+def render(gl, scene, camera, extra_pass=None):
+    renderer = Renderer(gl, scene, SIZE)
     if extra_pass is not None:
-        renderer.insert_before("light", extra_pass)
+        renderer.insert_before("shading", extra_pass)
     try:
         renderer.render(camera)
         t = renderer.targets
-        lit = t.read(t.lit, 4, np.uint8)[..., :3] / 255.0
-        albedo = t.read(t.albedo, 4, np.uint8)[..., :3] / 255.0
+        lit = t.read(t.lit)[..., :3] / 255.0
+        albedo = t.read(t.albedo)[..., :3] / 255.0
         final = renderer.read_image() / 255.0
-        return gbuffer_arrays(renderer), lit, albedo, final, renderer.pass_named("light").settings
+        return gbuffer_arrays(renderer), lit, albedo, final, renderer.pass_named("shading").settings
     finally:
         renderer.release()
 
@@ -87,59 +87,59 @@ def reference_light(g, albedo, scene, camera, s, vis):
     return color * vis[..., 3:4]  # edge cueing scales everything
 
 
-def test_light_pass_matches_phong_reference_with_visibility_factors(ctx, crambin):
+def test_shading_pass_matches_phong_reference_with_visibility_factors(gl, crambin):
     scene, atom = scene_with_probe(crambin)
     camera = Camera(eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0)
     rng = np.random.default_rng(3)
     vis = rng.uniform(0.0, 1.0, size=(SIZE[1], SIZE[0], 4)).astype(np.float16).astype(np.float64)
-    g, lit, albedo, _, settings = render(ctx, scene, camera, FixedVisibility(vis))
+    g, lit, albedo, _, settings = render(gl, scene, camera, FixedVisibility(vis))
     assert (g["kind"] == KIND_PROBE).sum() > 100
     expected = reference_light(g, albedo, scene, camera, settings, vis)
     assert np.abs(lit - expected).max() <= TOL
     # The visibility factors really matter: the same frame without them differs.
-    g1, lit1, *_ = render(ctx, scene, camera)
+    g1, lit1, *_ = render(gl, scene, camera)
     assert np.abs(lit1 - lit)[g1["kind"] == 1].mean() > 0.05
 
 
 @pytest.mark.parametrize("switch", ["directional_light", "probe_light"])
-def test_each_light_can_be_switched_off(ctx, crambin, switch):
+def test_each_light_can_be_switched_off(gl, crambin, switch):
     scene, _ = scene_with_probe(crambin)
     setattr(scene.effects, switch, False)
     camera = Camera(eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0)
-    g, lit, albedo, _, settings = render(ctx, scene, camera)
+    g, lit, albedo, _, settings = render(gl, scene, camera)
     ones = np.ones((SIZE[1], SIZE[0], 4))
     assert np.abs(lit - reference_light(g, albedo, scene, camera, settings, ones)).max() <= TOL
     setattr(scene.effects, switch, True)
-    g2, lit2, *_ = render(ctx, scene, camera)
+    g2, lit2, *_ = render(gl, scene, camera)
     assert np.abs(lit2 - lit)[g2["kind"] == 1].mean() > 0.01
 
 
-def test_touched_atom_is_highlighted(ctx, crambin):
+def test_touched_atom_is_highlighted(gl, crambin):
     scene, atom = scene_with_probe(crambin)
     scene.effects.probe = False  # so the touched atom is not hidden behind the probe
     camera = Camera(eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0)
-    first, *_ = render(ctx, scene, camera)
+    first, *_ = render(gl, scene, camera)
     ids, counts = np.unique(first["atom_id"][first["atom_id"] >= 0], return_counts=True)
     atom = scene.probe.touched_atom = int(ids[np.argmax(counts)])  # the atom most in view
-    g, lit, albedo, _, settings = render(ctx, scene, camera)
+    g, lit, albedo, _, settings = render(gl, scene, camera)
     mine = g["atom_id"] == atom
     assert mine.sum() > 50
     np.testing.assert_allclose(albedo[mine], np.broadcast_to(crambin.colors[atom], albedo[mine].shape), atol=TOL)
     ones = np.ones((SIZE[1], SIZE[0], 4))
     assert np.abs(lit - reference_light(g, albedo, scene, camera, settings, ones)).max() <= TOL
     scene.effects.highlight = False
-    g2, plain, *_ = render(ctx, scene, camera)
+    g2, plain, *_ = render(gl, scene, camera)
     assert np.abs(plain - reference_light(g2, albedo, scene, camera, settings, ones)).max() <= TOL
     # Highlighted: the atom's pixels move towards the highlight colour (mint: green up, red down).
     shift = (lit[mine] - plain[mine]).mean(axis=0)
     assert shift[1] > 0.05 and shift[0] < 0
 
 
-def test_fxaa_only_softens_edges(ctx, crambin):
+def test_fxaa_only_softens_edges(gl, crambin):
     scene = SceneState(crambin)
     center, radius = scene.bounding_sphere()
     camera = Camera.fitted(center, radius, SIZE[0] / SIZE[1])
-    g, lit, _, final, _ = render(ctx, scene, camera)
+    g, lit, _, final, _ = render(gl, scene, camera)
     changed = np.abs(final - lit).max(axis=2) > 1.5 / 255
     assert changed.sum() > 100, "FXAA should touch the silhouettes"
     # Only where the luma has contrast with a diagonal neighbour (FXAA's own edge test).
@@ -152,5 +152,5 @@ def test_fxaa_only_softens_edges(ctx, crambin):
     flat = ~edge_mask(g["atom_id"]) & (contrast < 0.02)
     assert np.abs(final - lit)[flat].max() <= 1.5 / 255
     scene.effects.fxaa = False
-    _, lit2, _, final2, _ = render(ctx, scene, camera)
+    _, lit2, _, final2, _ = render(gl, scene, camera)
     assert np.abs(final2 - lit2).max() <= 1 / 255

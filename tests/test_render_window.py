@@ -1,14 +1,12 @@
-"""The window path under a real X server (Xvfb): the window opens, shows the molecule
-(an X-level screenshot of the root window, independent of GL), and its own
-screenshot (--out) matches what the X server shows."""
+"""The window path under a real X server (Xvfb, conftest.py's `xvfb`): the window opens,
+shows the molecule (an X-level screenshot of the root window, independent of GL), and its
+own screenshot (--out) matches what the X server shows."""
 
 from __future__ import annotations
 
 import ctypes
 import ctypes.util
 import os
-import select
-import shutil
 import signal
 import subprocess
 import sys
@@ -16,53 +14,10 @@ import time
 
 import imageio.v3 as iio
 import numpy as np
-import pytest
 
-from tests.conftest import REPO_ROOT
-from tests.render_support import gl_context
-
-SCREEN = (640, 480)
+from tests.conftest import REPO_ROOT, X_SCREEN as SCREEN, run_window_check
 WINDOW = (320, 240)
-BACKGROUND = np.array([20, 23, 28])  # LightSettings.background * 255
-
-
-@pytest.fixture(scope="module")
-def xvfb():
-    gl_context()  # no EGL/Mesa: skip like the other GL tests
-    if shutil.which("Xvfb") is None:
-        pytest.fail("Xvfb is not installed (Debian package xvfb; .ci/run installs it)")
-    read_fd, write_fd = os.pipe()
-    proc = subprocess.Popen(
-        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0", f"{SCREEN[0]}x{SCREEN[1]}x24", "-nolisten", "tcp", "-br", "-noreset"],
-        pass_fds=(write_fd,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-    )
-    os.close(write_fd)
-    # Xvfb writes the number, then "\n" in a second write: closing the pipe before the
-    # newline arrives kills the server (EPIPE is fatal there).
-    data = b""
-    deadline = time.monotonic() + 30
-    while not data.endswith(b"\n") and time.monotonic() < deadline:
-        ready, _, _ = select.select([read_fd], [], [], 1.0)
-        chunk = os.read(read_fd, 64) if ready else b""
-        if ready and not chunk:
-            break
-        data += chunk
-    os.close(read_fd)
-    number = data.decode().strip()
-    if not number:
-        proc.kill()
-        pytest.fail("Xvfb did not start within 30 s")
-    yield f":{number}"
-    proc.terminate()
-    proc.wait(timeout=10)
-
-
-def run_window_check(display: str, module: str) -> None:
-    """Run a window check script on the X server in its own process (GLX and this
-    process's EGL context do not mix); it prints 'keys ok' when every check passed."""
-    r = subprocess.run([sys.executable, "-m", module], capture_output=True, text=True, timeout=300,
-                       env=dict(os.environ, DISPLAY=display), cwd=REPO_ROOT)
-    assert r.returncode == 0 and r.stdout.strip().endswith("keys ok"), r.stdout + r.stderr
+BACKGROUND = np.array([20, 23, 28])  # ShadingSettings.background * 255
 
 
 class _XImage(ctypes.Structure):
@@ -164,9 +119,14 @@ def _window_region(display: str) -> tuple[slice, slice]:
 def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
     """No daemon: the window opens and waits (no molecule). A daemon starts: the molecule
     appears. It stops: the window stays up. It comes back: the picture moves again."""
-    from tests.render_support import free_tcp_endpoint, start_daemon, stop_daemon
+    from tests.daemon_process import DaemonProcess
+    from tests.render_support import free_tcp_endpoint
 
     pub, ctl = free_tcp_endpoint(), free_tcp_endpoint()
+
+    def start_daemon() -> DaemonProcess:
+        return DaemonProcess("--seconds", "600", device="sim:orbit", pub=pub, ctl=ctl)
+
     proc = _start_window(xvfb, "--connect", pub, "--control", ctl, "--probe-plane", "--seconds", "600")
     daemon = None
     try:
@@ -174,18 +134,18 @@ def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
         below_text = lambda: x_screenshot(xvfb)[rows, cols][100:]  # noqa: E731 (under the readout)
         time.sleep(2.0)
         assert _molecule_pixels(below_text()) < 30, "nothing to draw before the daemon is there"
-        daemon = start_daemon(pub, ctl)
+        daemon = start_daemon()
         deadline = time.monotonic() + 90
         while _molecule_pixels(below_text()) < 300 and time.monotonic() < deadline:
             time.sleep(1.0)
         assert _molecule_pixels(below_text()) >= 300, "the molecule did not appear once the daemon ran"
-        stop_daemon(daemon)
+        daemon.stop(signal.SIGINT)
         time.sleep(3.0)
         frozen = below_text()
         time.sleep(2.0)
         assert proc.poll() is None, "the window must survive the daemon going away"
         assert np.array_equal(frozen, below_text()), "no poses: the picture holds still"
-        daemon = start_daemon(pub, ctl)
+        daemon = start_daemon()
         deadline = time.monotonic() + 60
         moved = False
         while not moved and time.monotonic() < deadline:
@@ -195,7 +155,7 @@ def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
         assert proc.poll() is None
     finally:
         if daemon is not None:
-            stop_daemon(daemon)
+            daemon.stop(signal.SIGINT)
         if proc.poll() is None:
             proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=60)

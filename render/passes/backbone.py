@@ -4,8 +4,9 @@ the atoms). Drawn when a navigation cube is in effect, or always with `show_alwa
 
 from __future__ import annotations
 
-from sasprobe.render.buffers import BACKBONE_FORMAT
-from sasprobe.render.passes.base import Frame, Pass, apply_planes, apply_uniforms
+from sasprobe.render.gl.buffers import BACKBONE_FORMAT
+from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
+from sasprobe.render.passes.base import Frame, Pass
 
 TRACE_RADIUS = 0.35  # Å
 MIN_WIDTH_PX = 2.0
@@ -29,7 +30,7 @@ class BackbonePass(Pass):
 
     def run(self, frame: Frame) -> None:
         ctx = frame.ctx
-        apply_uniforms(self.prog, frame.camera_uniforms())
+        apply_uniforms(self.prog, frame.raster_camera_uniforms())
         apply_uniforms(self.prog, line_width_uniforms(frame, TRACE_RADIUS, MIN_WIDTH_PX))
         apply_planes(self.prog, frame.planes)
         cube = frame.cube

@@ -1,4 +1,4 @@
-"""What every pass sees of a frame, and the helpers they share."""
+"""What every pass sees of a frame (Frame), and what every pass is (Pass)."""
 
 from __future__ import annotations
 
@@ -6,13 +6,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sasprobe.render.camera import Camera, gl_bytes
+from sasprobe.render.camera import Camera
+from sasprobe.render.gl.buffers import MoleculeBuffers
+from sasprobe.render.gl.programs import ProgramCache
+from sasprobe.render.gl.targets import RenderTargets
+from sasprobe.render.gl.uniforms import gl_bytes
 from sasprobe.render.scene import NavCube, SceneState
-from sasprobe.render.shaders import ProgramCache
-from sasprobe.render.targets import RenderTargets
-from sasprobe.render.buffers import MoleculeBuffers
-
-MAX_CLIP_PLANES = 24  # shaders/clip.glsl
 
 
 @dataclass
@@ -45,7 +44,8 @@ class Frame:
         forward = -self.camera.basis()[:, 2]
         return np.array([*forward, -float(forward @ self.camera.eye) - self.camera.near])
 
-    def camera_uniforms(self) -> dict:
+    def raster_camera_uniforms(self) -> dict:
+        """The camera as the impostor and line shaders take it (shaders/camera.glsl)."""
         p = self.proj
         w, h = self.size
         return {
@@ -57,31 +57,8 @@ class Frame:
         }
 
 
-def apply_uniforms(prog, values: dict) -> None:
-    """Set uniforms (bytes are written raw: matrices); unused names are skipped."""
-    for name, value in values.items():
-        if name not in prog:
-            continue
-        if isinstance(value, bytes):
-            prog[name].write(value)
-        else:
-            prog[name].value = value
-
-
-def apply_planes(prog, planes: np.ndarray) -> None:
-    planes = np.asarray(planes, dtype=np.float64).reshape(-1, 4)
-    if planes.shape[0] > MAX_CLIP_PLANES:
-        raise ValueError(f"at most {MAX_CLIP_PLANES} planes reach the shaders, got {planes.shape[0]}")
-    if "u_n_planes" in prog:
-        prog["u_n_planes"].value = int(planes.shape[0])
-    if "u_planes" in prog and planes.shape[0]:
-        padded = np.zeros((MAX_CLIP_PLANES, 4), dtype=np.float32)
-        padded[: planes.shape[0]] = planes
-        prog["u_planes"].write(padded.tobytes())
-
-
 class Pass:
-    """Base of the passes: on by default, nothing to release."""
+    """Base of the passes: on by default, no G-buffer export layers, nothing to release."""
 
     name = "pass"
 
@@ -91,27 +68,9 @@ class Pass:
     def run(self, frame: Frame) -> None:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def gbuffer_layers(self, frame: Frame) -> dict[str, np.ndarray]:
+        """Extra layers this pass adds to the G-buffer export (render/gbuffer_export.py)."""
+        return {}
+
     def release(self) -> None:
         pass
-
-
-class ClearPass(Pass):
-    """Background values in the G-buffer (depth 1, atom id -1) and visibility 1."""
-
-    name = "clear"
-
-    def __init__(self, ctx, programs: ProgramCache):
-        self.prog = programs.get("fullscreen.vert", "gbuffer_clear.frag")
-        self.vao = ctx.vertex_array(self.prog, [])
-
-    def run(self, frame: Frame) -> None:
-        t = frame.targets
-        t.gbuffer_fbo.use()
-        t.gbuffer_fbo.clear(depth=1.0)
-        frame.ctx.disable(frame.ctx.DEPTH_TEST | frame.ctx.BLEND)
-        self.vao.render(frame.ctx.TRIANGLES, vertices=3)
-        t.clear_visibility()
-
-    def release(self) -> None:
-        self.vao.release()
-

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from sasprobe.render.passes.base import Frame, Pass, apply_uniforms
+from sasprobe.render.gl.uniforms import apply_uniforms
+from sasprobe.render.passes.base import Frame, Pass
 
 
 class FxaaPass(Pass):

@@ -1,8 +1,9 @@
 """The lighting in the renderer's pass chain: shadows, ambient occlusion and edge cueing
-fill the visibility buffer before the light pass (LightingPass), and progressive path
-tracing replaces the lit image after it (PathTracePass).
+fill the visibility buffer before the shading pass (LightingPass), and progressive path
+tracing replaces the lit image after it (passes/path_trace.py, sharing this pass's grid,
+lights and stillness).
 
-    clear -> spheres -> probe -> backbone -> lighting -> light -> path_trace -> navcube -> fxaa
+    clear -> spheres -> probe -> backbone -> lighting -> shading -> path_trace -> navcube -> fxaa
 
 The grid is the scene's own (SceneState.grid, expanded radii: the daemon's), uploaded
 once per structure; clip planes, the navigation cube and the probe come from the frame.
@@ -18,21 +19,25 @@ from dataclasses import replace
 
 import numpy as np
 
-from sasprobe.render.ambient_occlusion import AmbientOcclusion
-from sasprobe.render.context import GLUnavailable
-from sasprobe.render.edge_cueing import EdgeCueingPass
-from sasprobe.render.gpu_grid import Culling, GpuGrid
-from sasprobe.render.lighting_gbuffer import ComputePass, GBuffer, TextureCache, read_texture
-from sasprobe.render.lighting_params import (
+from sasprobe.render.lighting.ao import AmbientOcclusion
+from sasprobe.render.gl.context import GLUnavailable
+from sasprobe.render.lighting.edges import EdgeCueingPass
+from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.textures import TextureCache, read_texture
+from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.settings import (
     AO_MODES,
     HARD_SHADOW,
     DirectionalLight,
     LightingSettings,
     PointLight,
+    ShadingSettings,
+    SoftShadow,
 )
 from sasprobe.render.passes.base import Frame, Pass
-from sasprobe.render.path_tracer import PathTracer
-from sasprobe.render.shadows import ShadowPass
+from sasprobe.render.lighting.path_tracer import PathTracer
+from sasprobe.render.lighting.shadows import ShadowPass
 
 log = logging.getLogger("sasprobe")
 
@@ -47,7 +52,7 @@ def lighting_supported(ctx) -> bool:
 class LightingPass(Pass):
     name = "lighting"
 
-    def __init__(self, ctx, settings: LightingSettings, light_settings):
+    def __init__(self, ctx, settings: LightingSettings, shading: ShadingSettings | None):
         if not lighting_supported(ctx):
             raise GLUnavailable(
                 f"shadows, ambient occlusion and path tracing need OpenGL 4.3 (compute shaders); "
@@ -56,9 +61,9 @@ class LightingPass(Pass):
             )
         self.ctx = ctx
         self.settings = settings
-        self.light_settings = light_settings  # the light pass's: probe attenuation, intensities
+        self.shading = shading  # the shading pass's: probe attenuation, intensities
         self.ao_mode = settings.ao.mode if settings.ao.mode != "off" else "analytic"
-        self.structure = None
+        self.scene_grid = None  # the SceneState grid self.grid was uploaded from
         self.grid: GpuGrid | None = None
         self.shadows = self.ao = self.tracer = None
         self.edges = EdgeCueingPass(ctx)
@@ -69,6 +74,7 @@ class LightingPass(Pass):
         self.textures = TextureCache(ctx)
         self.layers: dict[str, object] = {}  # textures of the last frame's terms (for the G-buffer export)
         self.lights: tuple[DirectionalLight | None, PointLight | None] = (None, None)
+        self._warned_shell = False
 
     # ------------------------------------------------------------ state
     def enabled(self, frame: Frame) -> bool:
@@ -83,9 +89,9 @@ class LightingPass(Pass):
         """Follow the frame: the structure (grid), culling, probe, lights; restart
         accumulation when what the picture shows has changed."""
         scene, fx = frame.scene, frame.scene.effects
-        if scene.structure is not self.structure:
+        if scene.grid is not self.scene_grid:  # a new structure, or the daemon changed the probe radius
             self._release_structure()
-            self.structure = scene.structure
+            self.scene_grid = scene.grid
             self.grid = GpuGrid(self.ctx, scene.grid, scene.structure.vdw_radii)
             self.shadows = ShadowPass(self.grid)
             self.ao = AmbientOcclusion(self.grid, self.settings.ao)
@@ -102,7 +108,7 @@ class LightingPass(Pass):
             self.grid.set_probe(None if probe is None else probe.center, 0.0 if probe is None else probe.radius)
             self.ao.update_probe()
             self._probe_key = probe_key
-        s = self.light_settings
+        s = self.shading
         sun = DirectionalLight(tuple(-scene.light_direction), np.pi * s.directional_intensity) \
             if fx.directional_light else None
         lamp = PointLight(tuple(scene.probe.center), s.probe_range, np.pi * s.probe_intensity,
@@ -126,7 +132,7 @@ class LightingPass(Pass):
         sun, lamp = self.lights
         self.layers = {}
         if fx.shadows:
-            soft = self.settings.soft if fx.soft_shadows else HARD_SHADOW
+            soft = self._soft_shell() if fx.soft_shadows else HARD_SHADOW
             for name, light in (("shadow_dir", sun), ("shadow_probe", lamp)):
                 if light is not None:
                     self.layers[name] = self.shadows.trace(gbuffer, light, soft, out=self.textures.get(name, size))
@@ -147,10 +153,21 @@ class LightingPass(Pass):
         frame.targets.visibility.bind_to_image(0, read=False, write=True)
         self.compose.run(*size, {})
 
+    def _soft_shell(self) -> SoftShadow:
+        """The soft-shadow shell, cut to the grid's expansion: a daemon may shrink the probe
+        radius (the grid's expansion) below the shell the renderer started with."""
+        soft, limit = self.settings.soft, self.grid.max_shell
+        if soft.outer <= limit + 1e-9:
+            return soft
+        if not self._warned_shell:
+            log.warning("soft-shadow shell cut to %.2f Å, the probe radius", limit)
+            self._warned_shell = True
+        return replace(soft, inner=min(soft.inner, limit), outer=limit)
+
     def gbuffer_layers(self, frame: Frame) -> dict[str, np.ndarray]:
         """The last frame's lighting terms for the G-buffer export (row 0 = top) and the
         lights they were traced for."""
-        out = {name: read_texture(tex)[::-1].astype(np.float32) for name, tex in self.layers.items()}
+        out = {name: read_texture(tex, top_first=True).astype(np.float32) for name, tex in self.layers.items()}
         sun, lamp = self.lights
         if sun is not None:
             out["light_direction"] = -np.asarray(sun.direction, dtype=np.float64)  # as it travels, like --light
@@ -170,46 +187,6 @@ class LightingPass(Pass):
         self.textures.release()
 
 
-class PathTracePass(Pass):
-    """Progressive path tracing (Easdon's Algorithm 2) over the lit image, sharing the
-    lighting pass's grid, lights and stillness."""
-
-    name = "path_trace"
-
-    def __init__(self, ctx, lighting: LightingPass):
-        self.ctx = ctx
-        self.lighting = lighting
-        self.output = ComputePass(ctx, "path_trace_output.comp")
-
-    def enabled(self, frame: Frame) -> bool:
-        return frame.scene.effects.path_tracing
-
-    @property
-    def samples(self) -> int:
-        tracer = self.lighting.tracer
-        return tracer.samples if tracer is not None else 0
-
-    def run(self, frame: Frame) -> None:
-        lighting, settings = self.lighting, self.lighting.settings
-        tracer = lighting.tracer
-        gbuffer = GBuffer.of_targets(frame.targets)
-        sun, lamp = lighting.lights
-        s = lighting.light_settings
-        tracing = replace(settings.path_tracer, sky=(s.ambient,) * 3, background=tuple(s.background))
-        target = max(settings.samples, min(tracer.samples + tracing.spp, tracing.max_samples))
-        while tracer.samples < target or tracer.accumulated is None:
-            tracer.accumulate(gbuffer, frame.camera.eye, sun, lamp, tracing)
-        radiance = tracer.accumulated
-        gbuffer.bind()
-        radiance.use(location=3)
-        frame.targets.visibility.use(location=4)
-        frame.targets.lit.bind_to_image(0, read=False, write=True)
-        self.output.run(*frame.size, {})
-
-    def release(self) -> None:
-        self.output.release()
-
-
 def install_lighting(renderer, settings: LightingSettings, required: bool = True) -> LightingPass | None:
     """Slot the lighting into a renderer's chain. Without OpenGL 4.3: GLUnavailable when
     `required`, else a warning and no lighting."""
@@ -218,8 +195,10 @@ def install_lighting(renderer, settings: LightingSettings, required: bool = True
             LightingPass(renderer.ctx, settings, None)  # raises the one-line error
         log.warning("OpenGL 4.3 is not available: rendering without shadows, ambient occlusion and path tracing")
         return None
-    lighting = LightingPass(renderer.ctx, settings, renderer.pass_named("light").settings)
-    renderer.insert_before("light", lighting)
+    from sasprobe.render.passes.path_trace import PathTracePass
+
+    lighting = LightingPass(renderer.ctx, settings, renderer.pass_named("shading").settings)
+    renderer.insert_before("shading", lighting)
     renderer.insert_before("navcube", PathTracePass(renderer.ctx, lighting))
     return lighting
 

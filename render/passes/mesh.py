@@ -7,7 +7,8 @@ import math
 
 import numpy as np
 
-from sasprobe.render.passes.base import Frame, Pass, apply_uniforms
+from sasprobe.render.gl.uniforms import apply_uniforms
+from sasprobe.render.passes.base import Frame, Pass
 
 
 def uv_sphere(slices: int = 18, stacks: int = 19) -> tuple[np.ndarray, np.ndarray]:
@@ -34,6 +35,7 @@ def uv_sphere(slices: int = 18, stacks: int = 19) -> tuple[np.ndarray, np.ndarra
 
 class MeshSpherePass(Pass):
     name = "mesh_spheres"
+    mode = "mesh"  # as --spheres names it
 
     def __init__(self, ctx, programs, buffers, slices: int = 18, stacks: int = 19):
         verts, tris = uv_sphere(slices, stacks)
@@ -65,7 +67,7 @@ class MeshSpherePass(Pass):
             self.n_instances, self._last = len(ids), ids
         if not self.n_instances:
             return
-        apply_uniforms(self.prog, frame.camera_uniforms())
+        apply_uniforms(self.prog, frame.raster_camera_uniforms())
         frame.targets.gbuffer_fbo.use()
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<"

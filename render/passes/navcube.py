@@ -8,7 +8,8 @@ import itertools
 import numpy as np
 
 from sasprobe.render.passes.backbone import line_width_uniforms
-from sasprobe.render.passes.base import Frame, Pass, apply_uniforms
+from sasprobe.render.gl.uniforms import apply_uniforms
+from sasprobe.render.passes.base import Frame, Pass
 
 WIRE_COLOR = (0.55, 0.85, 1.0, 1.0)
 WIRE_WIDTH_PX = 1.5
@@ -34,7 +35,7 @@ class NavCubePass(Pass):
 
     def run(self, frame: Frame) -> None:
         ctx, cube = frame.ctx, frame.scene.nav_cube
-        apply_uniforms(self.prog, frame.camera_uniforms())
+        apply_uniforms(self.prog, frame.raster_camera_uniforms())
         apply_uniforms(self.prog, line_width_uniforms(frame, 0.0, WIRE_WIDTH_PX))
         apply_uniforms(self.prog, {"u_cube": (*map(float, cube.center), float(cube.half)), "u_wire_color": WIRE_COLOR})
         frame.targets.lit_fbo.use()

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.render.passes.base import apply_uniforms
+from sasprobe.render.gl.uniforms import apply_uniforms
 
 PADDING = 6
 MAX_SIZE = (640, 320)

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from sasprobe.render.buffers import SPHERE_FORMAT
-from sasprobe.render.passes.base import Frame, Pass, apply_planes, apply_uniforms
+from sasprobe.render.gl.buffers import SPHERE_FORMAT
+from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
+from sasprobe.render.passes.base import Frame, Pass
 from sasprobe.render.passes.spheres import draw_spheres
 
 PROBE_COLOR = (0.92, 0.95, 1.0)  # near white: the light source
@@ -22,7 +23,7 @@ class ProbePass(Pass):
     def run(self, frame: Frame) -> None:
         probe = frame.scene.probe
         frame.buffers.set_probe(probe.center, probe.radius, PROBE_COLOR)
-        apply_uniforms(self.prog, frame.camera_uniforms())
+        apply_uniforms(self.prog, frame.raster_camera_uniforms())
         apply_planes(self.prog, frame.near_plane()[None, :])
         apply_uniforms(self.prog, {"u_probe": 1})
         draw_spheres(frame.ctx, frame, self.vao, 1, sprite=False)

@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.render.buffers import SPHERE_FORMAT
-from sasprobe.render.passes.base import Frame, Pass, apply_planes, apply_uniforms
+from sasprobe.render.gl.buffers import SPHERE_FORMAT
+from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
+from sasprobe.render.passes.base import Frame, Pass
 
-MODES = ("quad", "sprite")
+MODES = ("quad", "sprite")  # this pass's; passes/mesh.py draws "mesh"
+SPHERE_MODES = (*MODES, "mesh")  # what --spheres and Renderer(sphere_mode=...) take
 
 
 class SpherePass(Pass):
@@ -44,7 +46,7 @@ class SpherePass(Pass):
         if frame.cube is not None:
             planes.append(frame.cube.planes())
         planes.append(frame.near_plane()[None, :])
-        apply_uniforms(self.prog, frame.camera_uniforms())
+        apply_uniforms(self.prog, frame.raster_camera_uniforms())
         apply_planes(self.prog, np.concatenate(planes))
         apply_uniforms(self.prog, {"u_probe": 0})
         draw_spheres(ctx, frame, self.vao, frame.buffers.n_selected, sprite=self.mode == "sprite")

@@ -1,7 +1,7 @@
 // Clipping planes: a point x is kept where dot(plane.xyz, x) + plane.w >= 0 (world frame,
 // unit normals). The list holds the user's planes, the probe plane, the navigation cube's
 // six faces and the camera's near plane, as the CPU sends them.
-#define MAX_CLIP_PLANES 24
+#include "constants.glsl"
 uniform vec4 u_planes[MAX_CLIP_PLANES];
 uniform int u_n_planes;
 

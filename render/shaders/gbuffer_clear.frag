@@ -7,5 +7,5 @@ void main() {
     o_albedo = vec4(0.0);
     o_position = vec4(0.0);
     o_normal = vec4(0.0);
-    o_ids = ivec2(-1, KIND_BACKGROUND);
+    o_ids = ivec2(ATOM_BACKGROUND, KIND_BACKGROUND);
 }

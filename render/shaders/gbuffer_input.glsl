@@ -1,17 +1,16 @@
-// The G-buffer layers the lighting passes read (render/targets.py; bound to units 0..2).
+// The G-buffer layers the lighting passes read (render/gl/targets.py; bound to units 0..2).
 //   position  rgba32f  world position (Å) in xyz
 //   normal    rgba32f  unit world normal in xyz (a cap carries its plane's outward normal)
-//   ids       rg32i    (atom index, kind): atom -1 background, -2 the probe; kind KIND_*
+//   ids       rg32i    (atom index, kind): atom ATOM_BACKGROUND or ATOM_PROBE for those; kind KIND_*
 // Lighting applies to sphere surfaces, caps and the probe; background and backbone-trace
 // pixels are left alone (visibility and accessibility 1).
 
-#include "kinds.glsl"
+#include "constants.glsl"
 
 layout(binding = 0) uniform sampler2D u_gb_position;
 layout(binding = 1) uniform sampler2D u_gb_normal;
 layout(binding = 2) uniform isampler2D u_gb_ids;
 
-const int ATOM_PROBE = -2;
 
 // Whether a pixel shows a surface the lighting shades (a sphere, a cap or the probe).
 bool gbuffer_lit(ivec2 px) {

@@ -5,11 +5,11 @@
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "grid_traversal.glsl"
-#include "kinds.glsl"
+#include "constants.glsl"
 
 layout(rgba32f, binding = 0) uniform writeonly image2D u_out_position;
 layout(rgba32f, binding = 1) uniform writeonly image2D u_out_normal;
-layout(rg32i, binding = 2) uniform writeonly iimage2D u_out_ids;  // (atom, kind) as render/targets.py
+layout(rg32i, binding = 2) uniform writeonly iimage2D u_out_ids;  // (atom, kind) as render/gl/targets.py
 
 uniform mat4 u_inv_proj;
 uniform mat4 u_inv_view;
@@ -29,10 +29,10 @@ void main() {
     if (trace_closest(eye, d, 0.0, BIG, -1, true, t, atom, normal, cap)) {
         imageStore(u_out_position, px, vec4(eye + t * d, 1.0));
         imageStore(u_out_normal, px, vec4(normalize(normal), 0.0));
-        imageStore(u_out_ids, px, ivec4(atom, atom == -2 ? KIND_PROBE : (cap ? KIND_CAP : KIND_SPHERE), 0, 0));
+        imageStore(u_out_ids, px, ivec4(atom, atom == ATOM_PROBE ? KIND_PROBE : (cap ? KIND_CAP : KIND_SPHERE), 0, 0));
     } else {
         imageStore(u_out_position, px, vec4(0.0));
         imageStore(u_out_normal, px, vec4(0.0));
-        imageStore(u_out_ids, px, ivec4(-1, KIND_BACKGROUND, 0, 0));
+        imageStore(u_out_ids, px, ivec4(ATOM_BACKGROUND, KIND_BACKGROUND, 0, 0));
     }
 }

@@ -1,7 +1,7 @@
 // The uniform grid of molecule/grid.py on the GPU: 3D-DDA (Amanatides & Woo 1987) and the
 // sphere queries shadows, ambient occlusion and path tracing share.
 //
-// Buffers (std430, uploaded by render/gpu_grid.py, layout as in molecule/grid.py):
+// Buffers (std430, uploaded by render/lighting/grid.py, layout as in molecule/grid.py):
 //   cell_start  uint[n_cells + 1]  CSR offsets, flat cell id = ix + nx * (iy + ny * iz)
 //   cell_atoms  uint[]             sphere indices per cell
 //   spheres     vec4[n_atoms]      centre (Å, world frame), van der Waals radius
@@ -26,7 +26,7 @@ uniform ivec3 u_grid_dims;
 uniform ivec3 u_walk_lo;      // inclusive cell range walks stay in: the whole grid, or the
 uniform ivec3 u_walk_hi;      // navigation cube's cells (nothing outside it is drawn)
 
-#define MAX_CLIP_PLANES 24
+#include "constants.glsl"
 uniform int u_clip_count;
 uniform vec4 u_clip_planes[MAX_CLIP_PLANES];  // kept where dot(xyz, p) + w >= 0
 uniform int u_cube_on;
@@ -207,24 +207,24 @@ bool sphere_interval(vec3 o, vec3 d, vec4 sphere, out float t_in, out float t_ou
 }
 
 // Closest visible surface along o + t d, t in [t_min, t_max]: a sphere, or a cap where a
-// clip plane or the cube face cuts one; or the probe sphere (atom -2, seen from outside,
+// clip plane or the cube face cuts one; or the probe sphere (ATOM_PROBE, seen from outside,
 // never clipped).
 bool trace_closest(vec3 o, vec3 d, float t_min, float t_max, int skip_atom, bool with_probe,
                    out float t_hit, out int hit_atom, out vec3 hit_normal, out bool hit_cap) {
     t_hit = BIG;
-    hit_atom = -1;
+    hit_atom = ATOM_BACKGROUND;
     hit_normal = vec3(0.0);
     hit_cap = false;
     float t_in, t_out;
     if (with_probe && u_probe_sphere.w > 0.0 && sphere_interval(o, d, u_probe_sphere, t_in, t_out)) {
         if (t_in >= t_min && t_in <= t_max) {  // the probe is never clipped
             t_hit = t_in;
-            hit_atom = -2;
+            hit_atom = ATOM_PROBE;
             hit_normal = (o + t_in * d - u_probe_sphere.xyz) / u_probe_sphere.w;
         }
     }
     vec3 cut_normal;
-    if (!clip_ray(o, d, t_min, t_max, cut_normal)) return hit_atom != -1;
+    if (!clip_ray(o, d, t_min, t_max, cut_normal)) return hit_atom != ATOM_BACKGROUND;
     GridWalk w;
     if (walk_begin(o, d, t_min, min(t_max, t_hit), w)) {
         do {
@@ -246,5 +246,5 @@ bool trace_closest(vec3 o, vec3 d, float t_min, float t_max, int skip_atom, bool
             if (t_hit <= w.t_exit) break;
         } while (walk_next(w));
     }
-    return hit_atom != -1;
+    return hit_atom != ATOM_BACKGROUND;
 }

@@ -1,7 +1,7 @@
 // The two lights every lighting effect shares: the directional light and the probe's point
-// light at the probe centre. The point light falls off as the light pass has it,
+// light at the probe centre. The point light falls off as the shading pass has it,
 // 1 / (c + l d + q d^2), windowed to zero at u_probe_light_radius Å by (1 - (d/R)^4)^2
-// (lighting_params.probe_falloff), so nothing beyond its range needs a shadow ray.
+// (render/lighting/settings.py probe_falloff), so nothing beyond its range needs a shadow ray.
 uniform vec3 u_sun_dir;          // towards the light, unit
 uniform float u_sun_intensity;   // irradiance on a surface facing it
 uniform int u_probe_light_on;

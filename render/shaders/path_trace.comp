@@ -4,7 +4,7 @@
 // (they are delta lights, so this is their whole contribution); the path then continues
 // in a cosine-weighted direction (throughput *= albedo for the Lambertian lobe) up to
 // u_bounces times, and a ray that escapes the molecule gathers the sky's radiance.
-// Materials are per element (render/materials.py): albedo and a normalised Phong lobe
+// Materials are per element (render/lighting/materials.py): albedo and a normalised Phong lobe
 // that only the lights' direct highlights use. Output: linear radiance, running mean.
 layout(local_size_x = 8, local_size_y = 8) in;
 

@@ -1,7 +1,7 @@
 #version 430 core
 // The path tracer's running mean into the renderer's lit image (RGBA8) where it shades
-// (spheres, caps, the probe), clamped as the light pass clamps, times the edge-cueing
-// factor; backbone and background pixels keep what the light pass drew.
+// (spheres, caps, the probe), clamped as the shading pass clamps, times the edge-cueing
+// factor; backbone and background pixels keep what the shading pass drew.
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "gbuffer_input.glsl"

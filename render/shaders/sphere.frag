@@ -37,6 +37,6 @@ void main() {
     bool cap = plane >= 0;
     vec3 n = cap ? -u_planes[plane].xyz : (p - c) / r;
     int kind = u_probe == 1 ? KIND_PROBE : (cap ? KIND_CAP : KIND_SPHERE);
-    write_gbuffer(fs_in.color, p, n, u_probe == 1 ? -2 : fs_in.id, kind);
+    write_gbuffer(fs_in.color, p, n, u_probe == 1 ? ATOM_PROBE : fs_in.id, kind);
     gl_FragDepth = window_depth(p);
 }

@@ -1,7 +1,7 @@
 #version 430 core
-// The renderer's visibility buffer (render/targets.py, RGBA16F) from the lighting terms:
+// The renderer's visibility buffer (render/gl/targets.py, RGBA16F) from the lighting terms:
 // r directional-light visibility, g probe-light visibility, b ambient accessibility,
-// a edge cueing (contour lines, halos); the light pass multiplies each into its term.
+// a edge cueing (contour lines, halos); the shading pass multiplies each into its term.
 layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(binding = 3) uniform sampler2D u_shadow_dir;

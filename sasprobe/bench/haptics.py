@@ -6,8 +6,8 @@ change between consecutive ticks), and the energy the rendering put into the arm
 (sum of F . dx over each held period). Then a stability map over control rate x
 stiffness: where each method injects energy (unstable) or pops through.
 
-Timing: sessions run closed-loop (sim arm <-> renderer); the recorded device states
-are then replayed through fresh renderers `repeats` times and each tick's time is the
+Timing: sessions run closed-loop (sim arm <-> engine); the recorded device states
+are then replayed through fresh engines `repeats` times and each tick's time is the
 minimum over the replays. `step` is deterministic, so every replay does the same work
 and the minimum removes time stolen by other processes on a shared machine; the
 single-run p99 is reported beside it.
@@ -26,11 +26,11 @@ from sasprobe.errors import UserError
 from sasprobe.molecule import load_structure
 from sasprobe.paths import shared_structures
 from sasprobe.progress import progress
+from sasprobe.protocol.scene import HAPTIC_METHODS as METHODS
 from sasprobe.units import positive_float
 
 TITLE = "Haptic rendering: per-tick cost, penetration, continuity, passivity, stability"
 
-METHODS = ("proxy", "penalty")
 SCRIPTS = ("scan", "random")  # timing and accuracy sessions
 CUBE_HALF_A = 20.0  # the same zoom (Å per mm) for every structure, so sizes compare fairly
 RATES_HZ = (100, 250, 500, 1000, 2000)
@@ -100,17 +100,17 @@ def _entries(ids: str | None, quick: bool):
 
 # ------------------------------------------------------------------ sessions
 def _session(structure, script, method, settings_kw, limits, ticks, rate_hz=1000, seed=1):
-    """Closed loop sim arm <-> renderer; returns the states, outputs and the arm."""
-    from sasprobe.daemon.haptics import HapticRenderer, HapticSettings
+    """Closed loop sim arm <-> engine; returns the states, outputs and the arm."""
+    from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices.simulated import make_simulated
 
     device = make_simulated(script, structure=structure, rate_hz=rate_hz, seed=seed, limits=limits, **settings_kw)
-    renderer = HapticRenderer(structure, limits, HapticSettings(method=method, **settings_kw))
+    engine = HapticEngine(structure, limits, HapticSettings(method=method, **settings_kw))
     device.open()
     states, outputs = [], []
     for _ in range(ticks):
         state = device.read()
-        out = renderer.step(state)
+        out = engine.step(state)
         device.write_force(out.force_n)
         states.append(state)
         outputs.append(out)
@@ -120,12 +120,12 @@ def _session(structure, script, method, settings_kw, limits, ticks, rate_hz=1000
 
 def _replay_times(structure, method, settings_kw, limits, states, repeats) -> tuple[np.ndarray, np.ndarray]:
     """(per-tick minimum over replays, first replay) in µs."""
-    from sasprobe.daemon.haptics import HapticRenderer, HapticSettings
+    from sasprobe.daemon.haptics import HapticEngine, HapticSettings
 
     runs = []
     for _ in range(repeats):
-        renderer = HapticRenderer(structure, limits, HapticSettings(method=method, **settings_kw))
-        step = renderer.step
+        engine = HapticEngine(structure, limits, HapticSettings(method=method, **settings_kw))
+        step = engine.step
         clock = time.perf_counter_ns
         times = np.empty(len(states))
         for k, state in enumerate(states):
@@ -148,14 +148,14 @@ def _penetration(grid, points: np.ndarray) -> float:
 
 
 def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> dict:
-    from sasprobe.daemon.haptics import HapticRenderer, HapticSettings
+    from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
     from sasprobe.devices.scripts import surface_site
 
     limits = PHANTOM_OMNI_LIMITS
     settings_kw = {"cube_half_A": cube_half, "cube_center_A": surface_site(structure)} if cube_half else {}
     t0 = time.perf_counter()
-    renderer = HapticRenderer(structure, limits, HapticSettings(method=method, **settings_kw))
+    engine = HapticEngine(structure, limits, HapticSettings(method=method, **settings_kw))
     setup_s = time.perf_counter() - t0
     best, single = [], []
     penetration = jump_max = 0.0
@@ -168,7 +168,7 @@ def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> di
         single.append(s)
         forces = np.array([o.force_n for o in outputs])
         contacts = [o.proxy_A for o in outputs if o.contact]
-        penetration = max(penetration, _penetration(renderer.grid, contacts))
+        penetration = max(penetration, _penetration(engine.grid, contacts))
         d = np.linalg.norm(np.diff(forces, axis=0), axis=1)
         jumps.append(d)
         jump_max = max(jump_max, float(d.max()))
@@ -181,7 +181,7 @@ def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> di
         "id": entry_id,
         "n_atoms": structure.n_atoms,
         "method": method,
-        "scale_A_per_mm": renderer.mapping.scale_A_per_mm,
+        "scale_A_per_mm": engine.mapping.scale_A_per_mm,
         "setup_s": setup_s,
         "ticks": n,
         "p50_us": float(np.percentile(best_all, 50)),
@@ -230,16 +230,16 @@ def _stability_map(entries, quick: bool) -> dict:
 
 
 def _stability_cell(structure, method, rate, stiffness, limits) -> dict:
-    from sasprobe.daemon.haptics import HapticRenderer, HapticSettings
+    from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices.simulated import make_simulated
 
     device = make_simulated("press", structure=structure, rate_hz=rate, limits=limits)
-    renderer = HapticRenderer(structure, limits, HapticSettings(method=method, stiffness_n_per_mm=stiffness))
+    engine = HapticEngine(structure, limits, HapticSettings(method=method, stiffness_n_per_mm=stiffness))
     push = np.asarray(device.script.info["push_direction"])
     device.open()
     along = 0.0
     for _ in range(int(round(device.script.duration_s * rate))):
-        out = renderer.step(device.read())
+        out = engine.step(device.read())
         device.write_force(out.force_n)
         along = max(along, float(out.force_n @ push))
     return {

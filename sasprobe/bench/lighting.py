@@ -19,9 +19,9 @@ from sasprobe.errors import UserError
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
 from sasprobe.paths import shared_structures
 from sasprobe.progress import progress
-from sasprobe.render.gpu_grid import GpuGrid
-from sasprobe.render.lighting_params import DirectionalLight, PathTracing
-from sasprobe.render.path_tracer import PathTracer
+from sasprobe.render.lighting.grid import GpuGrid
+from sasprobe.render.lighting.settings import DirectionalLight, PathTracing
+from sasprobe.render.lighting.path_tracer import PathTracer
 
 TITLE = "Lighting: shadows and ambient occlusion, speed vs accuracy"
 

@@ -18,9 +18,9 @@ from sasprobe.bench.lighting_scene import (
     spheres_grid,
     trace_scene,
 )
-from sasprobe.render.ambient_occlusion import AmbientOcclusion
-from sasprobe.render.lighting_gbuffer import read_texture
-from sasprobe.render.lighting_params import AOSettings
+from sasprobe.render.lighting.ao import AmbientOcclusion
+from sasprobe.render.gl.textures import read_texture
+from sasprobe.render.lighting.settings import AOSettings
 
 BASE = AOSettings()
 

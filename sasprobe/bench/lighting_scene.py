@@ -10,9 +10,9 @@ import numpy as np
 from sasprobe.bench.charts import figure, save
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
 from sasprobe.render.camera import Camera
-from sasprobe.render.camera_math import fit_camera
-from sasprobe.render.gpu_grid import Culling, GpuGrid
-from sasprobe.render.lighting_gbuffer import GBuffer, RaycastGBuffer
+from sasprobe.render.camera import fit_camera
+from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.lighting.gbuffer import GBuffer, RaycastGBuffer
 
 VIEW_DIRECTION = (0.3, 0.4, 1.0)
 

@@ -8,9 +8,9 @@ import numpy as np
 
 from sasprobe.bench.lighting_scene import cost_vs_size_chart, fitted_scene, interleaved_times, scene_with_coverage
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
-from sasprobe.render.gpu_grid import Culling, GpuGrid
-from sasprobe.render.lighting_params import HARD_SHADOW, DirectionalLight, SoftShadow
-from sasprobe.render.shadows import ShadowPass
+from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.lighting.settings import HARD_SHADOW, DirectionalLight, SoftShadow
+from sasprobe.render.lighting.shadows import ShadowPass
 
 SUN = DirectionalLight((0.45, 0.8, 0.4))
 SOFT = SoftShadow()

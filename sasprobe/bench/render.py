@@ -27,7 +27,7 @@ CUBE_TARGET_ATOMS = 300
 
 
 def add_arguments(parser) -> None:
-    from sasprobe.commands.render import size_type
+    from sasprobe.units import size_type
 
     parser.add_argument("--size", type=size_type, default=None, metavar="WxH",
                         help="frame size (default 1280x720, --quick 640x360)")
@@ -35,7 +35,7 @@ def add_arguments(parser) -> None:
 
 def run(ctx: BenchContext, args=None) -> BenchResult:
     from sasprobe.molecule import load_default, load_structure
-    from sasprobe.render.context import create_headless_context
+    from sasprobe.render.gl.context import create_headless_context
 
     entries = shared_structures()
     if not entries:

@@ -1,4 +1,4 @@
-"""`sasprobe bench [NAME] [--quick] [--only NAMES] [--json] [--out DIR]`: speed and accuracy figures.
+"""`sasprobe bench [--quick] [--only NAMES] [--json] [--out DIR] [NAME]`: speed and accuracy figures.
 
 Without a name every available benchmark runs (one that cannot run here, e.g. without
 the shared structures or OpenGL, is listed as skipped with its reason) and, with --out,

@@ -15,14 +15,19 @@ def speed(text: str) -> float | None:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    from sasprobe.daemon.haptics import HapticSettings
+    from sasprobe.daemon.loop import DEFAULT_RATE_HZ
     from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
+    from sasprobe.protocol.scene import HAPTIC_METHODS
+
+    defaults = HapticSettings()
 
     p = sub.add_parser("daemon", help="run the device daemon: haptic loop, pose/scene publisher, control server")
     p.add_argument("--device", default="sim", help="SCHEME[:ARG]: sim[:SCRIPT] (default), replay:FILE, ...")
     p.add_argument("--molecule", metavar="FILE", help="PDB or mmCIF file, optionally .gz (default: embedded 1CRN)")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
     p.add_argument("--rate", type=positive_float, default=None, metavar="HZ",
-                   help="loop rate (default 1000; a replay runs at its recorded rate times --speed)")
+                   help=f"loop rate (default {DEFAULT_RATE_HZ:g}; a replay runs at its recorded rate times --speed)")
     p.add_argument("--speed", type=speed, default=1.0, metavar="X|max", help="replay speed factor, or max")
     p.add_argument("--pub", action="append", metavar="ENDPOINT",
                    help=f"PUB endpoint for pose and scene, repeatable (default {DEFAULT_PUB_ENDPOINT}; ipc:// too)")
@@ -30,10 +35,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"control endpoint, repeatable (default {DEFAULT_CTL_ENDPOINT})")
     p.add_argument("--keys", metavar="DIR", help="CURVE keys from `sasprobe keys DIR` (required beyond loopback)")
     p.add_argument("--record", metavar="FILE", help="record the session to this MCAP file")
-    p.add_argument("--probe-radius", type=probe_radius, default=None, help="probe radius in Å (default 1.4)")
-    p.add_argument("--method", choices=("proxy", "penalty"), default=None, help="haptic rendering method")
-    p.add_argument("--stiffness", type=positive_float, default=None, metavar="N_PER_MM", help="contact stiffness")
-    p.add_argument("--damping", type=float, default=None, metavar="N_S_PER_M", help="contact damping")
+    p.add_argument("--probe-radius", type=probe_radius, default=None,
+                   help=f"probe radius in Å (default {defaults.probe_radius_A:g})")
+    p.add_argument("--method", choices=HAPTIC_METHODS, default=None,
+                   help=f"haptic rendering method (default {defaults.method})")
+    p.add_argument("--stiffness", type=positive_float, default=None, metavar="N_PER_MM",
+                   help=f"contact stiffness (default {defaults.stiffness_n_per_mm:g})")
+    p.add_argument("--damping", type=float, default=None, metavar="N_S_PER_M",
+                   help=f"contact damping (default {defaults.damping_n_s_per_m:g})")
     p.add_argument("--cube-half", type=positive_float, default=None, metavar="ANGSTROM",
                    help="navigation-cube half edge (default: fit the molecule)")
     p.add_argument("--realtime", action="store_true",
@@ -41,12 +50,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--inject-fault", action="append", metavar="KIND@TICK[+COUNT]",
                    help="simulated arm only, to try the watchdog: raise, nan or disconnect at a tick (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="seed of the simulated arm")
-    p.add_argument("--duration", type=positive_float, default=None, metavar="SECONDS", help="stop after this long")
+    p.add_argument("--seconds", type=positive_float, default=None, metavar="S", help="stop after S seconds")
     p.add_argument("--report", metavar="FILE", help="write the exit report (JSON) here")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from sasprobe.daemon.loop import DEFAULT_RATE_HZ
     from sasprobe.daemon.service import Daemon, DaemonConfig
     from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
 
@@ -65,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
         device=args.device,
         molecule=args.molecule,
         keep_water=args.keep_water,
-        rate_hz=args.rate or 1000.0,
+        rate_hz=args.rate or DEFAULT_RATE_HZ,
         pub=args.pub or [DEFAULT_PUB_ENDPOINT],
         ctl=args.ctl or [DEFAULT_CTL_ENDPOINT],
         record=args.record,
@@ -74,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         speed=args.speed,
         seed=args.seed,
         report=args.report,
-        max_seconds=args.duration,
+        max_seconds=args.seconds,
         realtime=args.realtime,
         faults=args.inject_fault or [],
     )

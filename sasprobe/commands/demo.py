@@ -9,7 +9,10 @@ from sasprobe.units import positive_float
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from sasprobe.commands.render import size_type
+    from sasprobe.demo import DEFAULT_SECONDS, HEADLESS_SIZE, WINDOW_SIZE, DemoOptions
+    from sasprobe.units import size_type
+
+    defaults = DemoOptions()
 
     p = sub.add_parser(
         "demo",
@@ -21,24 +24,28 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "and jitter, forces, contacts, renderer fps, lost poses) in --out.",
     )
     p.add_argument("--molecule", metavar="FILE", help="PDB or mmCIF file, optionally .gz (default: embedded 1CRN)")
-    p.add_argument("--device", default="sim:scan", help="the daemon's device (default sim:scan: the simulated arm "
-                                                        "scanning the surface)")
+    p.add_argument("--device", default=defaults.device,
+                   help=f"the daemon's device (default {defaults.device}: the simulated arm scanning the surface)")
     p.add_argument("--headless", action="store_true", help="no window even when a display exists")
     p.add_argument("--seconds", type=positive_float, default=None, metavar="S",
-                   help="how long to render (default: 10 headless; with a window, until it is closed)")
-    p.add_argument("--out", type=Path, default=Path("sasprobe-demo"), metavar="DIR",
-                   help="where demo.mp4, snapshot.png and summary.json go (default ./sasprobe-demo)")
+                   help=f"how long to render (default: {DEFAULT_SECONDS:g} headless; with a window, until it is closed)")
+    p.add_argument("--out", type=Path, default=defaults.out, metavar="DIR",
+                   help=f"where demo.mp4, snapshot.png and summary.json go (default ./{defaults.out})")
     p.add_argument("--size", type=size_type, default=None, metavar="WxH",
-                   help="frame size (default 640x360 headless, 1280x720 in a window)")
-    p.add_argument("--fps", type=positive_float, default=10.0, help="headless video frame rate (default 10)")
+                   help=f"frame size (default {HEADLESS_SIZE[0]}x{HEADLESS_SIZE[1]} headless, "
+                        f"{WINDOW_SIZE[0]}x{WINDOW_SIZE[1]} in a window)")
+    p.add_argument("--fps", type=positive_float, default=defaults.fps,
+                   help=f"headless video frame rate (default {defaults.fps:g})")
     p.add_argument("--record", type=Path, metavar="FILE.mcap",
                    help="also record the session (replay it with `sasprobe replay FILE --verify/--video`)")
     p.add_argument("--no-realtime", action="store_true",
                    help="do not ask for SCHED_FIFO for the daemon's loop (by default it is asked for, and refused "
                         "gracefully without the privilege)")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
-    p.add_argument("--render-args", metavar="'OPTIONS'", help="extra `sasprobe render` options, e.g. '--no-fxaa'")
-    p.add_argument("--daemon-args", metavar="'OPTIONS'", help="extra `sasprobe daemon` options, e.g. '--stiffness 0.2'")
+    p.add_argument("--render-args", metavar="'OPTIONS'",
+                   help="extra `sasprobe render` options, e.g. --render-args=--no-fxaa (with the =)")
+    p.add_argument("--daemon-args", metavar="'OPTIONS'",
+                   help="extra `sasprobe daemon` options, e.g. --daemon-args='--stiffness 0.2'")
     p.set_defaults(func=run)
 
 

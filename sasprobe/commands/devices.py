@@ -10,12 +10,16 @@ from sasprobe.errors import UserError
 from sasprobe.units import positive_float
 
 
+CHECK_SECONDS = 1.0  # how long --check reads by default
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("devices", help="list attached haptic/input devices and their --device strings")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--check", metavar="DEVICE",
                    help="open DEVICE (a --device string), read it for --seconds with zero force, report")
-    p.add_argument("--seconds", type=positive_float, default=1.0, help="how long --check reads (default 1)")
+    p.add_argument("--seconds", type=positive_float, default=CHECK_SECONDS,
+                   help=f"how long --check reads (default {CHECK_SECONDS:g})")
     p.set_defaults(func=run)
 
 

@@ -15,7 +15,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("info", help="summarise a structure and its uniform grid")
     p.add_argument("file", nargs="?", help="PDB or mmCIF file, optionally .gz (default: embedded 1CRN)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--probe-radius", type=probe_radius, default=DEFAULT_PROBE_RADIUS, help="Å (default 1.4)")
+    p.add_argument("--probe-radius", type=probe_radius, default=DEFAULT_PROBE_RADIUS, help=f"Å (default {DEFAULT_PROBE_RADIUS:g})")
     p.add_argument("--cell-size", type=positive_float, default=None, help="grid cell edge in Å (default: largest expanded diameter)")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
     p.set_defaults(func=run)

@@ -1,31 +1,23 @@
-"""`sasprobe render`: draw a structure (or follow a daemon) in a window or headless."""
+"""`sasprobe render`: draw a structure (or follow a daemon) in a window or headless.
+
+Its options, the lighting ones included, and the RenderOptions they make; every default
+shown in a help text is read from the dataclass that holds it.
+"""
 
 from __future__ import annotations
 
 import argparse
 import logging
 import math
+from dataclasses import replace
 from pathlib import Path
 
 from sasprobe.errors import UserError
-from sasprobe.render.lighting_cli import add_lighting_arguments
-from sasprobe.units import positive_float, probe_radius
+from sasprobe.units import positive_float, positive_int, probe_radius, size_type
 
 log = logging.getLogger("sasprobe")
 
-MAX_SIZE = 8192
 MAX_USER_PLANES = 16
-
-
-def size_type(text: str) -> tuple[int, int]:
-    parts = text.lower().split("x")
-    try:
-        w, h = (int(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not WIDTHxHEIGHT (e.g. 1280x720)") from None
-    if not (16 <= w <= MAX_SIZE and 16 <= h <= MAX_SIZE):
-        raise argparse.ArgumentTypeError(f"'{text}': width and height must be 16..{MAX_SIZE} pixels")
-    return w, h
 
 
 def _floats(text: str, n: int, what: str) -> list[float]:
@@ -72,17 +64,13 @@ def cube_type(text: str) -> list[float]:
     return v
 
 
-def frames_type(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"'{text}': at least 1 frame")
-    return n
-
-
 def register(sub: argparse._SubParsersAction) -> None:
+    from sasprobe.molecule import DEFAULT_PROBE_RADIUS
+    from sasprobe.render.app import RenderOptions
+    from sasprobe.render.passes.spheres import SPHERE_MODES
+
+    defaults = RenderOptions()
+    size = f"{defaults.size[0]}x{defaults.size[1]}"
     p = sub.add_parser("render", help="draw a structure (or follow the daemon) in a window or headless")
     src = p.add_mutually_exclusive_group()
     src.add_argument("--molecule", metavar="FILE", help="PDB or mmCIF file, optionally .gz (default: embedded 1CRN)")
@@ -90,20 +78,23 @@ def register(sub: argparse._SubParsersAction) -> None:
                      help="follow a running daemon (default endpoint from the protocol); the structure comes from it")
     p.add_argument("--control", metavar="ENDPOINT", help="the daemon's control endpoint (with --connect)")
     p.add_argument("--headless", action="store_true", help="render offscreen through EGL (default when no display)")
-    p.add_argument("--size", type=size_type, default="1280x720", metavar="WxH", help="image/window size (default 1280x720)")
-    p.add_argument("--frames", type=frames_type, metavar="N", help="stop after N frames")
+    p.add_argument("--size", type=size_type, default=size, metavar="WxH", help=f"image/window size (default {size})")
+    p.add_argument("--frames", type=positive_int, metavar="N", help="stop after N frames")
     p.add_argument("--seconds", type=positive_float, metavar="S", help="stop after S seconds")
     p.add_argument("--out", type=Path, metavar="FILE", help="write frames: .png (numbered when several) or .mp4")
-    p.add_argument("--fps", type=positive_float, default=30.0, help="frame rate of a video --out (default 30)")
+    p.add_argument("--fps", type=positive_float, default=defaults.fps,
+                   help=f"frame rate of a video --out (default {defaults.fps:g})")
     p.add_argument("--gbuffer", type=Path, metavar="FILE.npz", help="write the last frame's G-buffer")
     p.add_argument("--camera", type=camera_type, metavar="SPEC",
                    help="'eye=X,Y,Z target=X,Y,Z up=X,Y,Z fov=DEG' (any subset; the rest is auto-fitted)")
     p.add_argument("--orbit", type=float, default=0.0, metavar="DEG", help="turn the camera DEG degrees per frame")
-    p.add_argument("--spheres", choices=("quad", "sprite", "mesh"), default="quad",
-                   help="atom drawing: ray-cast quads (default), point sprites (low-end), triangle meshes")
+    p.add_argument("--spheres", choices=SPHERE_MODES, default=defaults.spheres,
+                   help=f"atom drawing: ray-cast quads, point sprites (low-end), triangle meshes "
+                        f"(default {defaults.spheres})")
     p.add_argument("--probe", type=point_type, metavar="X,Y,Z", help="standalone: draw the probe here (Å)")
     p.add_argument("--touched", type=int, default=-1, metavar="ATOM", help="standalone: highlight this atom index")
-    p.add_argument("--probe-radius", type=probe_radius, default=None, help="Å (default 1.4, or the daemon's)")
+    p.add_argument("--probe-radius", type=probe_radius, default=None,
+                   help=f"Å (default {DEFAULT_PROBE_RADIUS:g}, or the daemon's)")
     p.add_argument("--nav-cube", type=cube_type, metavar="X,Y,Z,HALF",
                    help="standalone: navigation cube centre and half edge (Å)")
     p.add_argument("--clip", type=plane_type, action="append", default=None, metavar="A,B,C,D",
@@ -120,8 +111,131 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
+def _shell(text: str) -> tuple[float, float]:
+    try:
+        inner, outer = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not INNER,OUTER (Å, e.g. -0.4,0.8)") from None
+    if not (math.isfinite(inner) and math.isfinite(outer)) or outer < inner:
+        raise argparse.ArgumentTypeError(f"'{text}': the outer offset must be finite and at least the inner one")
+    return inner, outer
+
+
+def add_lighting_arguments(parser: argparse.ArgumentParser) -> None:
+    from sasprobe.render.lighting.settings import (
+        ANALYTIC_K,
+        AO_MODES,
+        DEFAULT_PROBE_RANGE,
+        EDGE_MODES,
+        HEADLESS_SAMPLES,
+        MAX_BOUNCES,
+        SHADOW_MODES,
+        SSAO_SAMPLING,
+        LightingSettings,
+        PathTracing,
+    )
+
+    base = LightingSettings()
+    ao, soft, tracer = base.ao, base.soft, PathTracing()
+    g = parser.add_argument_group("lighting (OpenGL 4.3; the window's S, V, A, C, E, G keys switch them)")
+    g.add_argument("--shadows", choices=SHADOW_MODES, default=None,
+                   help=f"shadows of the directional and the probe light, traced through the grid "
+                        f"(default {base.shadows})")
+    g.add_argument("--soft-shell", type=_shell, default=None, metavar="INNER,OUTER",
+                   help=f"soft shadows: Parker shell around each atom, Å from its vdW radius "
+                        f"(default {soft.inner:g},{soft.outer:g})")
+    g.add_argument("--soft-growth", type=float, default=None, metavar="Å",
+                   help=f"soft shadows: distance over which penumbrae reach full width "
+                        f"(default {soft.growth:g}; 0 = everywhere)")
+    g.add_argument("--ao", choices=AO_MODES, default=None, help=f"ambient occlusion method (default {ao.mode})")
+    g.add_argument("--ao-k", type=int, choices=ANALYTIC_K, default=None,
+                   help=f"analytic AO: neighbours per atom (default {ao.k})")
+    g.add_argument("--ao-distance", type=positive_float, default=None, metavar="Å",
+                   help=f"ray-traced AO: ray length (default {ao.distance:g})")
+    g.add_argument("--ao-spp", type=positive_int, default=None, metavar="N",
+                   help=f"ray-traced AO: samples per pixel per frame (default {ao.rt_spp})")
+    g.add_argument("--no-ao-blur", action="store_true", help="ray-traced AO and SSAO: no bilateral blur")
+    g.add_argument("--ssao-radius", type=positive_float, default=None, metavar="Å",
+                   help=f"SSAO sampling radius (default {ao.ssao_radius:g})")
+    g.add_argument("--ssao-intensity", type=positive_float, default=None,
+                   help=f"SSAO intensity (default {ao.ssao_intensity:g})")
+    g.add_argument("--ssao-sampling", choices=SSAO_SAMPLING, default=None,
+                   help=f"SSAO: point or line samples (default {ao.ssao_sampling})")
+    g.add_argument("--ssao-half", action="store_true", help="SSAO at half resolution (blurred back up)")
+    g.add_argument("--edges", choices=EDGE_MODES, default=None,
+                   help=f"QuteMol edge cueing: depth-aware contour lines, halos, both (default {base.edges})")
+    g.add_argument("--path-trace", action="store_true", help="progressive path tracing instead of the shading pass")
+    g.add_argument("--pt-bounces", type=int, choices=range(MAX_BOUNCES + 1), default=None,
+                   help=f"path bounces (default {tracer.bounces})")
+    g.add_argument("--pt-spp", type=positive_int, default=None, metavar="N",
+                   help=f"path samples per pixel per frame (default {tracer.spp})")
+    g.add_argument("--samples", type=int, default=None, metavar="N",
+                   help=f"progressive effects accumulate N samples per pixel before each frame is shown "
+                        f"(headless default: {HEADLESS_SAMPLES['reference']} for --ao reference, "
+                        f"{HEADLESS_SAMPLES['path_tracing']} with --path-trace)")
+    g.add_argument("--probe-light-range", type=positive_float, default=None, metavar="Å",
+                   help=f"the probe light's reach (default {DEFAULT_PROBE_RANGE:g})")
+
+
+def lighting_from_args(args, headless: bool):
+    """(LightingSettings, explicit): explicit when the user asked for a lighting effect, so
+    that a driver without OpenGL 4.3 is an error rather than a warning."""
+    from sasprobe.render.lighting.settings import HEADLESS_SAMPLES, LightingSettings, PathTracing
+
+    base = LightingSettings()
+    ao = base.ao
+    try:
+        ao = replace(ao, **{k: v for k, v in {
+            "mode": args.ao, "k": args.ao_k, "distance": args.ao_distance, "rt_spp": args.ao_spp,
+            "ssao_radius": args.ssao_radius, "ssao_intensity": args.ssao_intensity, "ssao_sampling": args.ssao_sampling,
+        }.items() if v is not None})
+        ao = replace(ao, blur=not args.no_ao_blur, ssao_half_resolution=args.ssao_half)
+        soft = base.soft
+        if args.soft_shell is not None:
+            soft = replace(soft, inner=args.soft_shell[0], outer=args.soft_shell[1])
+        if args.soft_growth is not None:
+            soft = replace(soft, growth=max(0.0, args.soft_growth))
+        tracer = replace(PathTracing(), **{k: v for k, v in {"bounces": args.pt_bounces, "spp": args.pt_spp}.items()
+                                           if v is not None})
+        samples = args.samples
+        if samples is None:
+            samples = 0
+            if headless and args.path_trace:
+                samples = HEADLESS_SAMPLES["path_tracing"]
+            elif headless and ao.mode == "reference":
+                samples = HEADLESS_SAMPLES["reference"]
+        settings = LightingSettings(
+            shadows=args.shadows or base.shadows, soft=soft, ao=ao, edges=args.edges or base.edges,
+            path_tracing=args.path_trace, path_tracer=tracer, samples=samples,
+        )
+    except ValueError as exc:
+        raise UserError(str(exc)) from None
+    explicit = (args.shadows not in (None, "off") or args.ao not in (None, "off") or args.path_trace
+                or args.edges not in (None, "off"))
+    return settings, explicit
+
+
+def render_options(args: argparse.Namespace):
+    """The RenderOptions of a `sasprobe render` command line."""
+    from sasprobe.render.app import RenderOptions
+    from sasprobe.render.gl.context import display_available
+    from sasprobe.render.lighting.settings import DEFAULT_PROBE_RANGE
+
+    lighting, required = lighting_from_args(args, headless=args.headless or not display_available())
+    return RenderOptions(
+        molecule=args.molecule, connect=args.connect, control=args.control, headless=args.headless,
+        size=args.size, frames=args.frames, seconds=args.seconds, out=args.out, fps=args.fps,
+        gbuffer=args.gbuffer, camera=args.camera, orbit=args.orbit, spheres=args.spheres,
+        probe=args.probe, touched=args.touched, probe_radius=args.probe_radius, nav_cube=args.nav_cube,
+        clip=args.clip, probe_plane=args.probe_plane, light=args.light, backbone=args.backbone,
+        fxaa=not args.no_fxaa, keep_water=args.keep_water, lighting=lighting, lighting_required=required,
+        probe_light_range=args.probe_light_range or DEFAULT_PROBE_RANGE, snapshot=args.snapshot,
+        report=args.report,
+    )
+
+
 def run(args: argparse.Namespace) -> int:
-    from sasprobe.render.app import RenderOptions, render_main
+    from sasprobe.render.app import render_main
 
     args.clip = args.clip or []
     if len(args.clip) > MAX_USER_PLANES:
@@ -139,7 +253,7 @@ def run(args: argparse.Namespace) -> int:
     if args.gbuffer is not None and args.gbuffer.suffix.lower() != ".npz":
         raise UserError(f"--gbuffer {args.gbuffer}: expected a .npz file")
     if args.snapshot is not None:
-        from sasprobe.render.context import display_available
+        from sasprobe.render.gl.context import display_available
         from sasprobe.render.output import check_out_path
 
         if args.snapshot.suffix.lower() != ".png":
@@ -147,4 +261,4 @@ def run(args: argparse.Namespace) -> int:
         if not args.headless and display_available():
             raise UserError("--snapshot is for headless rendering (in a window, --out FILE.png saves the last frame)")
         check_out_path(args.snapshot, 1)
-    return render_main(RenderOptions.from_args(args))
+    return render_main(render_options(args))

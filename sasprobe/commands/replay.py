@@ -10,8 +10,11 @@ from sasprobe.errors import UserError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from sasprobe.commands.render import size_type
-    from sasprobe.units import positive_float
+    from sasprobe.render.app import RenderOptions
+    from sasprobe.units import positive_float, size_type
+
+    video = RenderOptions()  # a replay's video is drawn with `sasprobe render`'s defaults
+    size = f"{video.size[0]}x{video.size[1]}"
 
     p = sub.add_parser("replay", help="summarise a recording; --verify recomputes its forces; --recover repairs it; "
                                       "--video renders it")
@@ -22,14 +25,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="write the readable part of a cut recording (daemon killed) as a finished file")
     p.add_argument("--video", type=Path, metavar="OUT.mp4",
                    help="render the session to a video at its recorded timing (headless)")
-    p.add_argument("--fps", type=positive_float, default=30.0, help="video frame rate (default 30)")
-    p.add_argument("--size", type=size_type, default="1280x720", metavar="WxH", help="video size (default 1280x720)")
+    p.add_argument("--fps", type=positive_float, default=video.fps, help=f"video frame rate (default {video.fps:g})")
+    p.add_argument("--size", type=size_type, default=size, metavar="WxH", help=f"video size (default {size})")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from sasprobe.daemon.recording import recover, summarize
+    from sasprobe.protocol.recording import recover, summarize
 
     result: dict = {}
     if args.video is not None:
@@ -45,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     result["summary"] = summary.as_dict()
     status = 0
     if args.verify:
-        from sasprobe.daemon.verify import verify_recording
+        from sasprobe.daemon.recording.verify import verify_recording
         from sasprobe.progress import progress_bar
 
         bar = progress_bar(summary.ticks, desc="verify", unit="tick")

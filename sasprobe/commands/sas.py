@@ -28,7 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("sas", help="per-atom solvent accessible surface area (Shrake-Rupley)")
     p.add_argument("file", nargs="?", help="PDB or mmCIF file, optionally .gz (default: embedded 1CRN)")
     p.add_argument("--json", action="store_true", help="print one JSON object with per-atom columns")
-    p.add_argument("--probe-radius", type=probe_radius, default=DEFAULT_PROBE_RADIUS, help="Å (default 1.4)")
+    p.add_argument("--probe-radius", type=probe_radius, default=DEFAULT_PROBE_RADIUS, help=f"Å (default {DEFAULT_PROBE_RADIUS:g})")
     p.add_argument("--points", type=_points, default=DEFAULT_POINTS, help=f"test points per atom (default {DEFAULT_POINTS})")
     p.add_argument("--refine-points", type=_points, default=REFINE_POINTS,
                    help=f"points for atoms with a small exposed area (default {REFINE_POINTS})")

@@ -1,0 +1,41 @@
+"""What a daemon is started with (DaemonConfig, from `sasprobe daemon`'s options), and the
+check that keeps it on this machine unless it has CURVE keys."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from sasprobe.daemon.loop import DEFAULT_RATE_HZ
+from sasprobe.errors import UserError
+from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
+
+
+@dataclass
+class DaemonConfig:
+    device: str = "sim"
+    molecule: str | None = None
+    keep_water: bool = False
+    rate_hz: float | None = DEFAULT_RATE_HZ  # None: as fast as possible (replay --speed max)
+    pub: list[str] = field(default_factory=lambda: [DEFAULT_PUB_ENDPOINT])
+    ctl: list[str] = field(default_factory=lambda: [DEFAULT_CTL_ENDPOINT])
+    record: str | None = None
+    keys: str | None = None
+    settings: dict = field(default_factory=dict)  # haptic settings given on the command line
+    speed: float | None = 1.0  # replay speed (None: max)
+    seed: int = 0
+    spin_s: float = 200e-6
+    report: str | None = None  # write a JSON exit report here
+    max_seconds: float | None = None  # stop by itself after this long (benchmarks, demos)
+    realtime: bool = False  # SCHED_FIFO for the loop and ZeroMQ's I/O thread
+    faults: list[str] = field(default_factory=list)  # simulated-arm fault injection, e.g. "nan@900+5"
+
+
+def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:
+    """Refuse to expose the daemon beyond this machine without CURVE keys."""
+    for text in endpoints:
+        endpoint = parse_endpoint(text)
+        if not endpoint.is_loopback and keys_dir is None:
+            raise UserError(
+                f"refusing to bind {text} without encryption: an address other machines can reach needs "
+                f"--keys DIR (CURVE keys with a client allow-list; create them with `sasprobe keys DIR`)"
+            )

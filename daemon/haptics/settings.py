@@ -1,0 +1,87 @@
+"""Haptic settings: the dataclass the engine takes, and the plain dicts the daemon keeps.
+
+The daemon, the control server and `replay --verify` all check settings here, so a
+change is applied the same way live and in a replay. Changes to REBUILD_FIELDS need a
+new engine (a new grid), built away from the loop because building the grid of a large
+structure takes longer than a tick; the others are applied in the loop with
+`HapticEngine.update()`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from sasprobe.devices.base import DeviceLimits
+from sasprobe.devices.workspace import validate_cube_center, validate_cube_half
+from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS, check_probe_radius
+from sasprobe.protocol.scene import HAPTIC_METHODS
+
+# What the daemon publishes and a control `set` may change (the cube centre is fixed per session).
+HAPTIC_FIELDS = ("probe_radius_A", "method", "stiffness_n_per_mm", "damping_n_s_per_m", "cube_half_A")
+REBUILD_FIELDS = frozenset({"probe_radius_A"})  # a new grid: built off the loop
+
+
+@dataclass
+class HapticSettings:
+    probe_radius_A: float = DEFAULT_PROBE_RADIUS
+    method: str = HAPTIC_METHODS[0]  # the god-object proxy; "penalty" is the textbook baseline
+    # Well under an Omni-class arm's 0.7 N/mm, and stable at every control rate from
+    # 100 Hz up on the simulated arm (see the stability map in the README).
+    stiffness_n_per_mm: float = 0.3
+    damping_n_s_per_m: float = 0.2
+    cube_half_A: float | None = None  # navigation-cube half edge; None = fit the molecule
+    cube_center_A: tuple[float, float, float] | None = None  # None = centre of the molecule
+
+    def validated(self, limits: DeviceLimits) -> "HapticSettings":
+        """A checked copy; ValueError with one clear line on a bad value."""
+        radius = check_probe_radius(self.probe_radius_A)
+        if self.method not in HAPTIC_METHODS:
+            raise ValueError(f"unknown haptic method {self.method!r} (known: {', '.join(HAPTIC_METHODS)})")
+        stiffness = _finite(self.stiffness_n_per_mm, "stiffness")
+        if stiffness <= 0 or stiffness > limits.max_stiffness_n_per_mm:
+            raise ValueError(
+                f"stiffness must be in (0, {limits.max_stiffness_n_per_mm:g}] N/mm for this device, got {stiffness:g}"
+            )
+        damping = _finite(self.damping_n_s_per_m, "damping")
+        if damping < 0 or damping > limits.max_damping_n_s_per_m:
+            raise ValueError(
+                f"damping must be in [0, {limits.max_damping_n_s_per_m:g}] N·s/m for this device, got {damping:g}"
+            )
+        return HapticSettings(
+            probe_radius_A=radius,
+            method=self.method,
+            stiffness_n_per_mm=stiffness,
+            damping_n_s_per_m=damping,
+            cube_half_A=validate_cube_half(self.cube_half_A),
+            cube_center_A=validate_cube_center(self.cube_center_A),
+        )
+
+
+def _finite(value, name: str) -> float:
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(value):
+        raise ValueError(f"{name} must be finite, got {value}")
+    return value
+
+
+def validate_settings(settings: dict, limits: DeviceLimits) -> dict:
+    """Complete and check a settings dict (HAPTIC_FIELDS); ValueError with one clear line."""
+    try:
+        checked = HapticSettings(**settings).validated(limits)
+    except TypeError as exc:  # an unknown field name
+        raise ValueError(str(exc)) from None
+    return {name: getattr(checked, name) for name in HAPTIC_FIELDS}
+
+
+def split_changes(changes: dict) -> tuple[dict, dict]:
+    """(haptic engine fields, scene-only fields) of a `set`."""
+    haptic = {k: v for k, v in changes.items() if k in HAPTIC_FIELDS}
+    return haptic, {k: v for k, v in changes.items() if k not in HAPTIC_FIELDS}
+
+
+def needs_rebuild(haptic_changes: dict) -> bool:
+    return bool(REBUILD_FIELDS & set(haptic_changes))

@@ -1,0 +1,134 @@
+"""The daemon's answers to control requests; they run on the control thread.
+
+One method per command of the protocol (protocol/control.py COMMANDS). A request
+that changes state does the slow part here (parsing a structure, building an engine,
+checking settings) and hands the loop a closure through `Daemon.submit`, so the loop
+only ever swaps finished objects in.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+
+from sasprobe import __version__
+from sasprobe.daemon.haptics import build_engine, validate_settings
+from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
+from sasprobe.errors import UserError
+from sasprobe.protocol.control import COMMANDS, Reply, Request
+from sasprobe.protocol.scene import merge_lights
+
+log = logging.getLogger("sasprobe")
+
+
+class RequestHandlers:
+    def __init__(self, daemon) -> None:
+        self.daemon = daemon
+        self._handlers = {
+            "ping": self.ping,
+            "status": self.status,
+            "get_scene": self.get_scene,
+            "get_structure": self.get_structure,
+            "load": self.load,
+            "set": self.set,
+            "record_start": self.record_start,
+            "record_stop": self.record_stop,
+            "shutdown": self.shutdown,
+        }
+        assert set(self._handlers) == set(COMMANDS), "every protocol command needs its handler"
+
+    def handle(self, request: Request) -> Reply:
+        """The reply to a decoded request (ControlServer turns exceptions into error replies)."""
+        result, data = self._handlers[request.cmd](request)
+        return Reply(ok=True, result=result, data=data)
+
+    # ------------------------------------------------------------------ reading
+    def ping(self, request):
+        return {"pong": True, "t_ns": time.monotonic_ns(), "daemon_version": __version__}, None
+
+    def status(self, request):
+        d = self.daemon
+        if request.args.get("reset_stats"):
+            d.submit(lambda seq: d.reset_stats())
+        summary = d.loop.stats.summary()
+        cpu_s = d.loop_cpu_since_reset_ns() / 1e9
+        summary["cpu_percent"] = 100.0 * cpu_s / summary["window_s"] if summary["window_s"] > 0 else None
+        summary["target_rate_hz"] = d.rate_hz
+        guard = d.pipeline.guard
+        rec = d.recorder
+        return {
+            "daemon_version": __version__,
+            "pid": os.getpid(),
+            "uptime_s": (time.monotonic_ns() - d.started_ns) / 1e9,
+            "loop": summary,
+            "device": {**d.device.info.as_dict(), "faulted": guard.faulted, "faults": guard.faults,
+                       "fault_ticks": guard.fault_ticks, "last_fault": guard.last_reason,
+                       "clamped_ticks": guard.clamped_ticks,
+                       "write_failures": d.write_failures},
+            "structure": {"name": d.structure.name, "sha256": d.structure.sha256,
+                          "n_atoms": d.structure.n_atoms},
+            "publisher": {"endpoints": d.publisher.endpoints, "subscribers": d.publisher.subscribers,
+                          "poses_sent": d.publisher.poses_sent, "scenes_sent": d.publisher.scenes_sent,
+                          "send_failures": d.publisher.send_failures},
+            "control": {"endpoints": d.control.endpoints, "requests": d.control.requests,
+                        "errors": d.control.errors},
+            "recording": None if rec is None else {**rec.stats().as_dict(), "error": rec.error},
+        }, None
+
+    def get_scene(self, request):
+        return self.daemon.scene, None
+
+    def get_structure(self, request):
+        s = self.daemon.structure
+        return {"name": s.name, "sha256": s.sha256, "n_atoms": s.n_atoms, "bytes": len(s.source_bytes),
+                "gzip": s.source_bytes[:2] == b"\x1f\x8b", "keep_water": self.daemon.structure_keep_water}, s.source_bytes
+
+    # ------------------------------------------------------------------ changing
+    def load(self, request):
+        from sasprobe.molecule import load_structure, parse_structure
+
+        d = self.daemon
+        keep_water = request.args.get("keep_water", False)
+        if request.data is not None:
+            name = request.args.get("name") or "uploaded"
+            structure = parse_structure(request.data, name=name, source=f"control:{name}", keep_water=keep_water)
+        else:
+            structure = load_structure(request.args["path"], keep_water=keep_water)
+        engine = build_engine(structure, d.limits, d.settings)  # off the loop: grids take time
+        seq = d.submit(lambda seq: d.swap_structure(structure, keep_water, engine, seq))
+        log.warning("loaded %s (%d atoms) at tick %d", structure.source, structure.n_atoms, seq)
+        return {"structure": {"name": structure.name, "sha256": structure.sha256, "n_atoms": structure.n_atoms},
+                "seq": seq}, None
+
+    def set(self, request):
+        d = self.daemon
+        haptic, scene_only = split_changes(dict(request.args))
+        settings = validate_settings({**d.settings, **haptic}, d.limits) if haptic else d.settings
+        lights = merge_lights(d.lights, scene_only["lights"]) if "lights" in scene_only else None
+        engine = build_engine(d.structure, d.limits, settings) if needs_rebuild(haptic) else None
+        seq = d.submit(lambda seq: d.apply_settings(haptic, scene_only, settings, lights, engine, seq))
+        return {"seq": seq, "settings": settings, "revision": d.scene_revision}, None
+
+    def record_start(self, request):
+        d = self.daemon
+        if d.recorder is not None:
+            raise UserError(f"already recording to {d.recorder.path}")
+        recorder = d.new_recorder(request.args["path"])
+        engine = build_engine(d.structure, d.limits, d.settings)  # the replay starts from this
+        try:
+            seq = d.submit(lambda seq: d.attach_recorder(recorder, seq, engine))
+        except UserError:
+            recorder.close()
+            raise
+        return {"path": str(recorder.path), "seq": seq}, None
+
+    def record_stop(self, request):
+        recorder = self.daemon.submit(self.daemon.detach_recorder)
+        if recorder is None:
+            raise UserError("not recording")
+        return recorder.close().as_dict(), None
+
+    def shutdown(self, request):
+        self.daemon.request_stop("shutdown request")
+        return {"stopping": True}, None

@@ -1,0 +1,35 @@
+"""Compute programs over an image: the dispatch every lighting pass uses."""
+
+from __future__ import annotations
+
+from sasprobe.render.gl.programs import source
+from sasprobe.render.gl.uniforms import apply_uniforms
+
+LOCAL_SIZE = 8  # compute work-group edge of the 2D passes (the shaders' local_size_x/y)
+
+
+def dispatch(program, width: int, height: int) -> None:
+    """Run a 2D compute pass over width × height, then make its writes visible to whatever
+    reads them next (texture fetch, image load, buffer read-back)."""
+    program.run(group_x=(width + LOCAL_SIZE - 1) // LOCAL_SIZE, group_y=(height + LOCAL_SIZE - 1) // LOCAL_SIZE)
+    program.ctx.memory_barrier()
+
+
+class ComputePass:
+    """A compute program over an image, with a GPU grid bound when it has one (the base of
+    the lighting passes; the grid is anything with bind() and uniforms())."""
+
+    def __init__(self, ctx, shader: str, gpu_grid=None):
+        self.ctx = ctx
+        self.grid = gpu_grid
+        self.program = ctx.compute_shader(source(shader))
+
+    def run(self, width: int, height: int, uniforms: dict) -> None:
+        if self.grid is not None:
+            self.grid.bind()
+            uniforms = {**self.grid.uniforms(), **uniforms}
+        apply_uniforms(self.program, uniforms)
+        dispatch(self.program, width, height)
+
+    def release(self) -> None:
+        self.program.release()

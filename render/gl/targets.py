@@ -1,0 +1,71 @@
+"""Render targets of one frame size: the G-buffer, the visibility buffer the shading pass
+multiplies by, the lit colour and the final image. Created once per size, reused
+every frame (no per-frame GL allocation).
+
+G-buffer attachments (shaders/gbuffer_out.glsl writes them in this order):
+    0 albedo    RGBA8    CPK colour
+    1 position  RGBA32F  world position, Å (w = 1 where covered)
+    2 normal    RGBA32F  world unit normal (caps: the cutting plane's outward normal)
+    3 ids       RG32I    (atom id, kind): an atom index, ATOM_BACKGROUND or ATOM_PROBE; KIND_*
+    depth       24-bit depth texture
+Visibility (RGBA16F, cleared to 1): r directional-light visibility, g probe-light
+visibility, b ambient accessibility, a edge factor. The lighting pass writes it before
+the shading pass reads it.
+
+The ids below are the one home of these numbers: the shaders get them as #defines
+(render/gl/programs.py generates constants.glsl from them), the export and the lighting
+passes import them.
+"""
+
+from __future__ import annotations
+
+from sasprobe.render.gl.textures import read_texture
+
+ATOM_BACKGROUND = -1  # atom id of background pixels
+ATOM_PROBE = -2  # atom id of the probe sphere's pixels
+KIND_BACKGROUND = 0
+KIND_SPHERE = 1
+KIND_CAP = 2  # a sphere's cut face (clip plane, cube face or near plane)
+KIND_BACKBONE = 3
+KIND_PROBE = 4
+
+
+class RenderTargets:
+    def __init__(self, ctx, size: tuple[int, int]):
+        self.ctx = ctx
+        self.size = (int(size[0]), int(size[1]))
+        w_h = self.size
+        self.albedo = ctx.texture(w_h, 4, dtype="f1")
+        self.position = ctx.texture(w_h, 4, dtype="f4")
+        self.normal = ctx.texture(w_h, 4, dtype="f4")
+        self.ids = ctx.texture(w_h, 2, dtype="i4")
+        self.depth = ctx.depth_texture(w_h)
+        self.visibility = ctx.texture(w_h, 4, dtype="f2")
+        self.lit = ctx.texture(w_h, 4, dtype="f1")  # shading pass output, FXAA input
+        self.final = ctx.texture(w_h, 4, dtype="f1")  # headless output
+        for tex in (self.albedo, self.position, self.normal, self.ids, self.visibility):
+            tex.filter = (ctx.NEAREST, ctx.NEAREST)
+        self.lit.filter = (ctx.LINEAR, ctx.LINEAR)
+        self.lit.repeat_x = self.lit.repeat_y = False
+        self.gbuffer_fbo = ctx.framebuffer([self.albedo, self.position, self.normal, self.ids], self.depth)
+        self.visibility_fbo = ctx.framebuffer([self.visibility])
+        # Forward passes after lighting (the cube wire) test against the G-buffer depth.
+        self.lit_fbo = ctx.framebuffer([self.lit], self.depth)
+        self.final_fbo = ctx.framebuffer([self.final])
+
+    def clear_visibility(self) -> None:
+        self.visibility_fbo.use()
+        self.visibility_fbo.clear(1.0, 1.0, 1.0, 1.0)
+
+    def read(self, texture) -> np.ndarray:
+        """One of these textures as H x W (x components), row 0 = top of the image."""
+        return read_texture(texture, top_first=True)
+
+    def release(self) -> None:
+        # moderngl binds the framebuffer it last used again when it makes a new one: leave the
+        # default one bound, not one of these about to be deleted (a GL_INVALID_OPERATION).
+        if any(self.ctx.fbo is fbo for fbo in (self.gbuffer_fbo, self.visibility_fbo, self.lit_fbo, self.final_fbo)):
+            self.ctx.detect_framebuffer(0).use()
+        for obj in (self.gbuffer_fbo, self.visibility_fbo, self.lit_fbo, self.final_fbo, self.albedo,
+                    self.position, self.normal, self.ids, self.depth, self.visibility, self.lit, self.final):
+            obj.release()

@@ -1,0 +1,58 @@
+"""Textures made for compute passes, reused per size, and the one way pixels come back to numpy.
+
+GL keeps row 0 at the bottom of an image; `read_texture(..., top_first=True)` and
+`read_image` return row 0 = the top row, as images and the G-buffer export are stored.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def texture_2d(ctx, width: int, height: int, components: int = 1, dtype: str = "f4", data: bytes | None = None):
+    """A texture read with texelFetch or as an image: nearest filtering (integer textures are
+    incomplete, and read as zero, with the default linear filter)."""
+    import moderngl
+
+    tex = ctx.texture((width, height), components, data=data, dtype=dtype)
+    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    tex.repeat_x = tex.repeat_y = False
+    return tex
+
+
+class TextureCache:
+    """r32f textures by (name, size), made on first use and reused every frame (creating
+    GL objects per frame is what slows moderngl programs down)."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self._textures: dict = {}
+
+    def get(self, name: str, size: tuple[int, int], fill: float | None = None):
+        key = (name, tuple(size))
+        if key not in self._textures:
+            data = None if fill is None else np.full(size[0] * size[1], fill, dtype=np.float32).tobytes()
+            self._textures[key] = texture_2d(self.ctx, size[0], size[1], data=data)
+        return self._textures[key]
+
+    def release(self) -> None:
+        for tex in self._textures.values():
+            tex.release()
+        self._textures.clear()
+
+
+def read_texture(tex, top_first: bool = False) -> np.ndarray:
+    """(H, W) or (H, W, C) copy of a texture in its own dtype (normalised bytes "f1" as
+    uint8); row 0 = bottom unless `top_first`."""
+    dtype = np.uint8 if tex.dtype == "f1" else np.dtype(tex.dtype)
+    data = np.frombuffer(tex.read(), dtype=dtype).reshape(tex.height, tex.width, tex.components)
+    if top_first:
+        data = data[::-1]
+    return data[..., 0].copy() if tex.components == 1 else data.copy()
+
+
+def read_image(fbo, size: tuple[int, int]) -> np.ndarray:
+    """A framebuffer's colour as H x W x 3 uint8, row 0 = top (the window's screen, or an offscreen target)."""
+    w, h = size
+    data = np.frombuffer(fbo.read(viewport=(0, 0, w, h), components=3), dtype=np.uint8)
+    return data.reshape(h, w, 3)[::-1].copy()

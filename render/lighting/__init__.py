@@ -1,0 +1,3 @@
+"""The lighting family on top of render/gl/: its settings, the G-buffer as the lighting reads
+it, the uniform grid on the GPU, shadows, ambient occlusion (ao/), edge cueing and
+progressive path tracing. The passes that put them into the frame are render/passes/."""

@@ -1,0 +1,128 @@
+"""The ambient-occlusion family behind one call: `AmbientOcclusion.compute` returns the
+accessibility texture (r32f, 1 = unoccluded) the shading pass multiplies in, made by the
+method `AOSettings.mode` selects:
+
+| mode | method | per frame |
+|---|---|---|
+| off | none (all 1) | nothing |
+| analytic | Quilez sphere occlusion, K nearest neighbours + probe | K terms per pixel |
+| ssao | screen-space, point or line sampling, bilateral blur | N depth taps per pixel |
+| rt | cosine rays through the grid, `rt_spp` per frame, accumulated while still, blurred while noisy | spp rays |
+| hybrid | analytic × rt | both |
+| reference | rt with `reference_spp` per frame until `reference_total` | until converged |
+
+Call `view_changed()` whenever the G-buffer's content changes (camera, molecule, culling,
+probe): accumulation then restarts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sasprobe.render.lighting.ao.analytic import AnalyticAO
+from sasprobe.render.lighting.ao.blur import BilateralBlur
+from sasprobe.render.lighting.ao.raytraced import RayTracedAO
+from sasprobe.render.lighting.ao.ssao import SSAO
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.textures import TextureCache
+from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.settings import AOSettings
+
+BLUR_BELOW_SPP = 16  # ray-traced AO is blurred until this many samples have accumulated
+
+
+class AmbientOcclusion:
+    def __init__(self, gpu_grid, settings: AOSettings = AOSettings()):
+        self.grid = gpu_grid
+        self.ctx = gpu_grid.ctx
+        self.settings = settings
+        self._passes: dict[str, object] = {}
+        self.textures = TextureCache(self.ctx)
+
+    # ------------------------------------------------------------ state
+    def configure(self, settings: AOSettings) -> None:
+        if (settings.mode, settings.distance) != (self.settings.mode, self.settings.distance):
+            self.view_changed()
+        self.settings = settings
+
+    def view_changed(self) -> None:
+        if "rt" in self._passes:
+            self._passes["rt"].reset()
+
+    @property
+    def samples(self) -> int:
+        """Ray-traced samples per pixel accumulated so far (rt, hybrid, reference)."""
+        return self._passes["rt"].samples if "rt" in self._passes else 0
+
+    @property
+    def converged(self) -> bool:
+        """Nothing left to add while the view stays still."""
+        s = self.settings
+        if s.mode in ("rt", "hybrid", "reference"):
+            return self.samples >= s.reference_total
+        return True
+
+    # ------------------------------------------------------------ passes
+    def _pass(self, name: str):
+        if name not in self._passes:
+            make = {
+                "analytic": lambda: AnalyticAO(self.grid),
+                "rt": lambda: RayTracedAO(self.grid),
+                "ssao": lambda: SSAO(self.ctx),
+                "blur": lambda: BilateralBlur(self.ctx),
+                "multiply": lambda: ComputePass(self.ctx, "multiply.comp"),
+            }[name]
+            self._passes[name] = make()
+        return self._passes[name]
+
+    def update_probe(self) -> None:
+        """The probe moved (after GpuGrid.set_probe)."""
+        if "analytic" in self._passes:
+            self._passes["analytic"].update_probe()
+        self.view_changed()
+
+    def compute(self, gbuffer: GBuffer, view: np.ndarray, proj: np.ndarray):
+        s = self.settings
+        size = gbuffer.size
+        if s.mode == "off":
+            return self.textures.get("ones", size, fill=1.0)
+        if s.mode == "analytic":
+            return self._analytic(gbuffer)
+        if s.mode == "ssao":
+            ssao = self._pass("ssao")
+            raw = ssao.compute(gbuffer, view, proj, s, out=self.textures.get("ssao", ssao.output_size(gbuffer, s.ssao_half_resolution)))
+            if not (s.blur or s.ssao_half_resolution):
+                return raw
+            return self._pass("blur").apply(gbuffer, view, proj, raw, out=self.textures.get("blurred", size))
+        if s.mode == "reference":
+            return self._traced(gbuffer, s.reference_spp, blur=False, view=view, proj=proj)
+        traced = self._traced(gbuffer, s.rt_spp, blur=s.blur, view=view, proj=proj)
+        if s.mode == "rt":
+            return traced
+        analytic = self._analytic(gbuffer)
+        product = self.textures.get("hybrid", size)
+        analytic.use(location=3)
+        traced.use(location=4)
+        product.bind_to_image(0, read=False, write=True)
+        self._pass("multiply").run(size[0], size[1], {})
+        return product
+
+    def _analytic(self, gbuffer: GBuffer):
+        analytic = self._pass("analytic")
+        if self.grid.probe_sphere[3] > 0 and analytic.probe_neighbours[0] < 0:
+            analytic.update_probe()
+        return analytic.compute(gbuffer, self.settings.k, out=self.textures.get("analytic", gbuffer.size))
+
+    def _traced(self, gbuffer: GBuffer, spp: int, blur: bool, view, proj):
+        rt = self._pass("rt")
+        if rt.samples < self.settings.reference_total:
+            rt.accumulate(gbuffer, min(spp, self.settings.reference_total - rt.samples), self.settings.distance)
+        if blur and rt.samples < BLUR_BELOW_SPP:
+            return self._pass("blur").apply(gbuffer, view, proj, rt.accumulated, out=self.textures.get("blurred", gbuffer.size))
+        return rt.accumulated
+
+    def release(self) -> None:
+        for p in self._passes.values():
+            p.release()
+        self.textures.release()
+        self._passes.clear()

@@ -1,0 +1,58 @@
+"""Analytic sphere ambient occlusion (Quilez) from each atom's K nearest neighbours plus the
+probe (shaders/ao_analytic.comp). The neighbour lists (32 per atom, nearest first) are
+computed once per molecule on the CPU through the grid and uploaded; K ≤ 32 is chosen per
+frame. Cost per pixel is K sphere terms, independent of the molecule's size."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.textures import texture_2d
+from sasprobe.render.lighting.gbuffer import GBuffer
+
+MAX_K = 32  # matches ao_analytic.comp
+BINDING_NEIGHBOURS = 4
+
+
+def nearest_to_point(centers: np.ndarray, point, k: int = MAX_K) -> np.ndarray:
+    """The k atoms whose centres are nearest `point`, nearest first (-1 padded)."""
+    diff = np.asarray(centers, dtype=np.float64) - np.asarray(point, dtype=np.float64)
+    dist = np.einsum("ij,ij->i", diff, diff)
+    take = min(k, dist.size)
+    nearest = np.argpartition(dist, take - 1)[:take] if take < dist.size else np.arange(dist.size)
+    nearest = nearest[np.lexsort((nearest, dist[nearest]))]
+    out = np.full(k, -1, dtype=np.int64)
+    out[:take] = nearest
+    return out
+
+
+class AnalyticAO(ComputePass):
+    def __init__(self, gpu_grid):
+        super().__init__(gpu_grid.ctx, "ao_analytic.comp", gpu_grid)
+        neighbours, _ = gpu_grid.grid.nearest_neighbors(MAX_K)
+        self.neighbours = neighbours  # (N, 32) int64, -1 padded
+        self.buffer = self.ctx.buffer(neighbours.astype(np.int32).tobytes())
+        self.probe_neighbours = np.full(MAX_K, -1, dtype=np.int64)
+
+    def update_probe(self) -> None:
+        """Refresh the probe's neighbour list after the probe moved (GpuGrid.set_probe)."""
+        probe = self.grid.probe_sphere
+        self.probe_neighbours = (
+            nearest_to_point(self.grid.grid.centers, probe[:3]) if probe[3] > 0 else np.full(MAX_K, -1, dtype=np.int64)
+        )
+
+    def compute(self, gbuffer: GBuffer, k: int, out=None):
+        if not 1 <= k <= MAX_K:
+            raise ValueError(f"analytic AO uses 1 to {MAX_K} neighbours, got {k}")
+        width, height = gbuffer.size
+        out = out or texture_2d(self.ctx, width, height)
+        gbuffer.bind()
+        self.buffer.bind_to_storage_buffer(BINDING_NEIGHBOURS)
+        out.bind_to_image(0, read=False, write=True)
+        self.run(width, height, {"u_k": int(k), "u_probe_neighbours": self.probe_neighbours.astype(np.int32).tobytes()})
+        return out
+
+    def release(self) -> None:
+        super().release()
+        self.buffer.release()

@@ -1,0 +1,241 @@
+"""The uniform grid (molecule/grid.py) on the GPU, and which atoms the clip planes and the
+navigation cube remove.
+
+`GpuGrid` uploads, once per molecule, the grid built with the *expanded* radii (vdW +
+probe, the grid the daemon uses) as std430 shader-storage buffers:
+
+| binding | buffer | layout |
+|---|---|---|
+| 0 | cell_start | uint32[n_cells + 1], CSR offsets |
+| 1 | cell_atoms | uint32[], sphere indices per cell |
+| 2 | spheres | vec4[n_atoms]: centre (Å, float32), van der Waals radius |
+| 3 | culled | uint32[n_atoms] flags: bit 0 = nothing of the atom is kept (it casts no shadow and occludes nothing); bit 1 = its centre is clipped away (analytic AO skips it) |
+
+`culled` is rewritten (n_atoms × 4 bytes) whenever a clip plane or the cube moves; the rest
+stays until the molecule changes. Shaders read them through shaders/grid_traversal.glsl.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sasprobe.molecule.grid import UniformGrid
+from sasprobe.render.gl.uniforms import MAX_CLIP_PLANES, padded_planes
+
+BINDING_CELL_START, BINDING_CELL_ATOMS, BINDING_SPHERES, BINDING_CULLED = 0, 1, 2, 3
+NO_PROBE = (0.0, 0.0, 0.0, 0.0)
+CULLED, CENTRE_CLIPPED = 1, 2  # flag bits of the culled buffer
+
+
+@dataclass
+class Culling:
+    """Clip planes (kept where a·x + b·y + c·z + d >= 0) and the navigation cube.
+
+    What is drawn, and what casts shadows and occludes, is every sphere intersected with
+    the kept half-spaces and the cube (atoms crossing a face are cut, their caps drawn).
+    Atoms that keep nothing are *culled*: flagged so that the GPU skips them outright.
+    """
+
+    clip_planes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    nav_cube: tuple[np.ndarray, float] | None = None  # centre (Å), half edge (Å)
+
+    def __post_init__(self) -> None:
+        planes = np.asarray(self.clip_planes, dtype=np.float64).reshape(-1, 4)
+        if planes.shape[0] > MAX_CLIP_PLANES:
+            raise ValueError(f"at most {MAX_CLIP_PLANES} clip planes are supported, got {planes.shape[0]}")
+        norms = np.linalg.norm(planes[:, :3], axis=1)
+        if np.any(norms == 0):
+            raise ValueError("a clip plane needs a non-zero normal")
+        self.clip_planes = planes / norms[:, None]  # unit normals: d is then a distance in Å
+        if self.nav_cube is not None:
+            centre, half = self.nav_cube
+            self.nav_cube = (np.asarray(centre, dtype=np.float64).reshape(3), float(half))
+
+    @property
+    def cube_box(self) -> tuple[np.ndarray, np.ndarray] | None:
+        if self.nav_cube is None:
+            return None
+        centre, half = self.nav_cube
+        return centre - half, centre + half
+
+    def culled_atoms(self, centers: np.ndarray, radii: np.ndarray, grid: UniformGrid | None = None) -> np.ndarray:
+        """Boolean mask of atoms of which nothing is kept (wholly behind a plane, or not
+        overlapping the cube). `grid` speeds up the cube test through its box → cells query."""
+        centers = np.asarray(centers, dtype=np.float64)
+        radii = np.asarray(radii, dtype=np.float64)
+        culled = np.zeros(centers.shape[0], dtype=bool)
+        for a, b, c, d in self.clip_planes:
+            culled |= centers @ np.array([a, b, c]) + d < -radii
+        box = self.cube_box
+        if box is not None:
+            lo, hi = box
+            if grid is not None:
+                candidates = grid.candidates_in_box(lo, hi)  # superset: grid radii >= vdW
+            else:
+                candidates = np.arange(centers.shape[0])
+            nearest = np.clip(centers[candidates], lo, hi)
+            gap = centers[candidates] - nearest
+            overlapping = np.zeros(centers.shape[0], dtype=bool)
+            overlapping[candidates[np.einsum("ij,ij->i", gap, gap) <= radii[candidates] ** 2]] = True
+            culled |= ~overlapping
+        return culled
+
+    def centre_clipped(self, centers: np.ndarray) -> np.ndarray:
+        """Boolean mask of atoms whose centre lies in a removed half-space or outside the cube.
+
+        Analytic AO treats a neighbour as a whole sphere; one whose centre is cut away
+        keeps at most a cap under the cut, and counting it whole would black out the caps
+        drawn on the cut (their points lie inside such neighbours), so it is skipped."""
+        centers = np.asarray(centers, dtype=np.float64)
+        clipped = np.zeros(centers.shape[0], dtype=bool)
+        for a, b, c, d in self.clip_planes:
+            clipped |= centers @ np.array([a, b, c]) + d < 0
+        box = self.cube_box
+        if box is not None:
+            clipped |= np.any((centers < box[0]) | (centers > box[1]), axis=1)
+        return clipped
+
+    def uniforms(self) -> dict[str, object]:
+        box = self.cube_box
+        lo, hi = box if box is not None else (np.zeros(3), np.zeros(3))
+        return {
+            "u_clip_count": int(self.clip_planes.shape[0]),
+            "u_clip_planes": padded_planes(self.clip_planes).tobytes(),
+            "u_cube_on": int(box is not None),
+            "u_cube_lo": tuple(float(v) for v in lo),
+            "u_cube_hi": tuple(float(v) for v in hi),
+        }
+
+
+class GpuGrid:
+    """The grid's buffers on one moderngl context, plus the per-atom culled flags."""
+
+    def __init__(self, ctx, grid: UniformGrid, vdw_radii: np.ndarray):
+        vdw_radii = np.asarray(vdw_radii, dtype=np.float64).reshape(-1)
+        if vdw_radii.shape[0] != grid.centers.shape[0]:
+            raise ValueError("one vdW radius per grid sphere is needed")
+        if np.any(vdw_radii > grid.radii):
+            raise ValueError("the grid must be built with radii at least the vdW radii (vdW + probe)")
+        self.ctx = ctx
+        self.grid = grid
+        self.n_atoms = int(vdw_radii.shape[0])
+        self.vdw_radii = vdw_radii
+        # Thickest soft-shadow shell the grid still holds: the smallest expansion.
+        self.max_shell = float(np.min(grid.radii - vdw_radii))
+        spheres = np.column_stack([grid.centers, vdw_radii]).astype(np.float32)
+        # Zero-length buffers cannot be created; an all-empty grid still gets one entry.
+        atoms = grid.cell_atoms if grid.cell_atoms.size else np.zeros(1, dtype=np.uint32)
+        self.cell_start = ctx.buffer(grid.cell_start.astype(np.uint32).tobytes())
+        self.cell_atoms = ctx.buffer(atoms.astype(np.uint32).tobytes())
+        self.spheres = ctx.buffer(spheres.tobytes())
+        self.culled = ctx.buffer(np.zeros(self.n_atoms, dtype=np.uint32).tobytes())
+        self.culling = Culling()
+        self.culled_mask = np.zeros(self.n_atoms, dtype=bool)
+        self.centre_clipped_mask = np.zeros(self.n_atoms, dtype=bool)
+        self.walk_range = (np.zeros(3, dtype=np.int64), grid.dims - 1)
+        self.probe_sphere = NO_PROBE
+
+    @classmethod
+    def from_structure(cls, ctx, structure, probe_radius: float, cell_size: float | None = None) -> "GpuGrid":
+        grid = UniformGrid(structure.positions, structure.expanded_radii(probe_radius), cell_size)
+        return cls(ctx, grid, structure.vdw_radii)
+
+    @property
+    def nbytes(self) -> int:
+        """GPU memory of the grid and sphere buffers (bytes)."""
+        return sum(b.size for b in (self.cell_start, self.cell_atoms, self.spheres, self.culled))
+
+    def set_culling(self, culling: Culling) -> None:
+        """Clip planes / navigation cube moved: refresh the culled flags and the walk range."""
+        self.culling = culling
+        self.culled_mask = culling.culled_atoms(self.grid.centers, self.vdw_radii, self.grid)
+        self.centre_clipped_mask = culling.centre_clipped(self.grid.centers)
+        flags = np.where(self.culled_mask, CULLED, 0) | np.where(self.centre_clipped_mask, CENTRE_CLIPPED, 0)
+        self.culled.write(flags.astype(np.uint32).tobytes())
+        box = culling.cube_box
+        rng = self.grid.cell_range(*box) if box is not None else None
+        if box is not None and rng is None:  # the cube is off the molecule: walk one cell
+            rng = (np.zeros(3, dtype=np.int64), np.zeros(3, dtype=np.int64))
+        self.walk_range = rng if rng is not None else (np.zeros(3, dtype=np.int64), self.grid.dims - 1)
+
+    def set_probe(self, center: np.ndarray | None, radius: float = 0.0) -> None:
+        """The probe sphere as an occluder (None: no probe)."""
+        self.probe_sphere = NO_PROBE if center is None else (*(float(v) for v in center), float(radius))
+
+    def bind(self) -> None:
+        self.cell_start.bind_to_storage_buffer(BINDING_CELL_START)
+        self.cell_atoms.bind_to_storage_buffer(BINDING_CELL_ATOMS)
+        self.spheres.bind_to_storage_buffer(BINDING_SPHERES)
+        self.culled.bind_to_storage_buffer(BINDING_CULLED)
+
+    def uniforms(self) -> dict[str, object]:
+        lo, hi = self.walk_range
+        return {
+            "u_grid_origin": tuple(float(v) for v in self.grid.origin),
+            "u_cell_size": float(self.grid.cell_size),
+            "u_grid_dims": tuple(int(v) for v in self.grid.dims),
+            "u_walk_lo": tuple(int(v) for v in lo),
+            "u_walk_hi": tuple(int(v) for v in hi),
+            "u_probe_sphere": self.probe_sphere,
+            **self.culling.uniforms(),
+        }
+
+    def release(self) -> None:
+        for b in (self.cell_start, self.cell_atoms, self.spheres, self.culled):
+            b.release()
+
+
+@dataclass
+class GridWalks:
+    """Cells a batch of rays visited on the GPU (the DDA test hook's answer)."""
+
+    counts: np.ndarray  # (R,) cells visited per ray (may exceed max_visits: then truncated)
+    cells: np.ndarray  # (R, max_visits, 3) int
+    t: np.ndarray  # (R, max_visits, 2) float32: t_enter, t_exit
+
+    def ray(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        n = min(int(self.counts[i]), self.cells.shape[1])
+        return self.cells[i, :n], self.t[i, :n]
+
+
+def walk_rays_on_gpu(gpu_grid: GpuGrid, origins, directions, t_min=0.0, t_max=1e30, max_visits: int = 256,
+                     walk_range: tuple[np.ndarray, np.ndarray] | None = None) -> GridWalks:
+    """Test hook: walk rays o + t d through the grid with the shaders' DDA (grid_walk_probe.comp)."""
+    from sasprobe.render.gl.programs import source
+    from sasprobe.render.gl.uniforms import apply_uniforms
+
+    ctx = gpu_grid.ctx
+    origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
+    directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
+    n = origins.shape[0]
+    rays = np.zeros((n, 8), dtype=np.float32)
+    rays[:, :3], rays[:, 3] = origins, t_min
+    rays[:, 4:7], rays[:, 7] = directions, t_max
+    program = ctx.compute_shader(source("grid_walk_probe.comp"))
+    buffers = [
+        ctx.buffer(rays.tobytes()),
+        ctx.buffer(reserve=max(n * max_visits * 16, 16)),
+        ctx.buffer(reserve=max(n * max_visits * 8, 8)),
+        ctx.buffer(reserve=max(n * 4, 4)),
+    ]
+    try:
+        gpu_grid.bind()
+        for binding, buffer in enumerate(buffers, start=4):
+            buffer.bind_to_storage_buffer(binding)
+        uniforms = gpu_grid.uniforms()
+        if walk_range is not None:
+            uniforms["u_walk_lo"] = tuple(int(v) for v in walk_range[0])
+            uniforms["u_walk_hi"] = tuple(int(v) for v in walk_range[1])
+        apply_uniforms(program, {**uniforms, "u_n_rays": n, "u_max_visits": max_visits})
+        program.run(group_x=(n + 63) // 64)
+        ctx.memory_barrier()
+        cells = np.frombuffer(buffers[1].read(), dtype=np.int32)[: n * max_visits * 4].reshape(n, max_visits, 4)
+        t = np.frombuffer(buffers[2].read(), dtype=np.float32)[: n * max_visits * 2].reshape(n, max_visits, 2)
+        counts = np.frombuffer(buffers[3].read(), dtype=np.int32)[:n].copy()
+    finally:
+        for buffer in buffers:
+            buffer.release()
+        program.release()
+    return GridWalks(counts, cells[..., :3].astype(np.int64), t)

@@ -1,0 +1,90 @@
+"""What `sasprobe demo` measures itself and prints: every pose the daemon publishes, as a
+renderer receives them (ForceMonitor), and the closing summary."""
+
+from __future__ import annotations
+
+from array import array
+from pathlib import Path
+
+import numpy as np
+
+
+class ForceMonitor:
+    """Every pose the daemon publishes (as a renderer sees them): force magnitudes,
+    contacts, touched atoms. Polled without blocking from the demo's main loop."""
+
+    def __init__(self, endpoint: str) -> None:
+        from sasprobe.protocol.client import Subscriber
+
+        self.subscriber = Subscriber(endpoint)
+        self.force_n = array("f")
+        self.contact_ticks = 0
+        self.clamped_ticks = 0
+        self.fault_ticks = 0
+        self.touched: set[int] = set()
+
+    def poll(self) -> None:
+        from sasprobe.protocol.pose import FLAG_CLAMPED, FLAG_CONTACT, FLAG_FAULT
+
+        for pose in self.subscriber.poll():
+            self.force_n.append(float(np.linalg.norm(pose.force_N)))
+            self.contact_ticks += bool(pose.flags & FLAG_CONTACT)
+            self.clamped_ticks += bool(pose.flags & FLAG_CLAMPED)
+            self.fault_ticks += bool(pose.flags & FLAG_FAULT)
+            if pose.touched_atom >= 0:
+                self.touched.add(pose.touched_atom)
+
+    def last_force(self) -> float | None:
+        return float(self.force_n[-1]) if self.force_n else None
+
+    def contact_fraction(self) -> float | None:
+        return self.contact_ticks / len(self.force_n) if self.force_n else None
+
+    def summary(self) -> dict:
+        f = np.frombuffer(self.force_n, dtype=np.float32).astype(np.float64) if self.force_n else np.zeros(0)
+        stats = (lambda fn: float(fn(f)) if f.size else None)
+        return {
+            "poses": int(f.size),
+            "poses_missed": self.subscriber.missed,
+            "force_n": {"mean": stats(np.mean), "median": stats(np.median),
+                        "p95": stats(lambda a: np.percentile(a, 95)), "max": stats(np.max)},
+            "contact_ticks": self.contact_ticks,
+            "contact_fraction": self.contact_fraction(),
+            "atoms_touched": len(self.touched),
+            "clamped_ticks": self.clamped_ticks,
+            "fault_ticks": self.fault_ticks,
+        }
+
+    def close(self) -> None:
+        self.subscriber.close()
+
+
+def print_summary(summary: dict, path: Path) -> None:
+    """The summary in a few lines on stdout (summary.json holds all of it)."""
+    s = summary
+    structure = s["structure"] or {}
+    print(f"sasprobe demo: {structure.get('name', '?')} ({structure.get('n_atoms', '?')} atoms), device {s['device']}, "
+          f"{s['mode']}" + (" (interrupted)" if s["interrupted"] else ""))
+    h = s["haptics"]
+    if h:
+        print(f"  haptics   {h['rate_hz']:.1f} Hz (nominal {h['nominal_rate_hz']:g}) over {h['window_s']:.1f} s, "
+              f"period error p99 {h['period_error_us']['p99']:.0f} µs, {h['overruns']} overruns, "
+              f"{'real-time' if h['realtime'] else 'normal'} scheduling")
+    f = s["forces"]
+    if f and f["poses"]:
+        print(f"  forces    mean {f['force_n']['mean']:.2f} N, p95 {f['force_n']['p95']:.2f} N, "
+              f"max {f['force_n']['max']:.2f} N; in contact {100 * f['contact_fraction']:.0f} % of ticks, "
+              f"{f['atoms_touched']} atoms touched")
+    r = s["renderer"]
+    if r:
+        lost = (r.get("daemon") or {}).get("poses_missed")
+        print(f"  renderer  {r['frames']} frames at {r['fps'] or 0:.1f} fps ({r['size'][0]}x{r['size'][1]})"
+              + (f", {r['video_frames']} video frames" if r.get("video_frames") else "")
+              + (f", {lost} poses lost" if lost is not None else ""))
+    d = s["daemon_exit"]
+    if d:
+        print(f"  stopped   daemon: {d['reason']}, last force written {d['last_force_written_n']} N")
+    for note in s["notes"]:
+        print(f"  note      {note}")
+    written = [p for p in s["files"].values() if p] + [str(path)]
+    print("  wrote     " + ", ".join(written))
