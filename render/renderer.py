@@ -1,10 +1,16 @@
 """The renderer: GL objects created once, and the pass chain run each frame.
 
-    clear -> spheres -> probe -> backbone -> [lighting: fills the visibility buffer]
-          -> shading -> [path_trace] -> navcube -> fxaa
+    clear -> spheres -> backbone -> [molecule lighting] -> probe -> [lighting: fills the
+          visibility buffer] -> shading -> [path_trace] -> navcube -> fxaa
 
 `passes` is a plain list; `insert_before(name, pass)` slots a pass in (the lighting
-passes go before "shading" and "navcube", render/passes/lighting.py).
+passes go before "probe", "shading" and "navcube", render/passes/lighting.py).
+
+With `frame_cache` (the default) the molecule layer — the passes whose `layer` is
+MOLECULE, and the lighting terms that do not depend on the probe — is kept while its
+key holds (render/frame_cache.py): a frame in which only the probe moved puts back what
+the probe covered, draws the probe and recomputes what the probe changes. Without it
+every frame is drawn whole (the benchmarks' full redraw).
 """
 
 from __future__ import annotations
@@ -14,13 +20,14 @@ import time
 import numpy as np
 
 from sasprobe.render.camera import Camera
+from sasprobe.render.frame_cache import MoleculeCache
 from sasprobe.render.gl.buffers import MoleculeBuffers
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import RenderTargets
 from sasprobe.render.gl.textures import read_image
 from sasprobe.render.lighting.settings import ShadingSettings
 from sasprobe.render.passes.backbone import BackbonePass
-from sasprobe.render.passes.base import Frame, Pass
+from sasprobe.render.passes.base import MOLECULE, Frame, Pass
 from sasprobe.render.passes.clear import ClearPass
 from sasprobe.render.passes.fxaa import FxaaPass
 from sasprobe.render.passes.navcube import NavCubePass
@@ -32,18 +39,19 @@ from sasprobe.render.scene import SceneState
 
 class Renderer:
     def __init__(self, ctx, scene: SceneState, size: tuple[int, int], sphere_mode: str = "quad",
-                 backbone_always: bool = False, shading: ShadingSettings | None = None):
+                 backbone_always: bool = False, shading: ShadingSettings | None = None, frame_cache: bool = True):
         self.ctx = ctx
         self.scene = scene
         self.programs = ProgramCache(ctx)
         self.buffers = MoleculeBuffers(ctx, scene.structure)
         self.targets = RenderTargets(ctx, size)
         self.sphere_pass = self._sphere_pass(sphere_mode)
+        self.cache = MoleculeCache(ctx, self.programs) if frame_cache else None
         self.passes: list[Pass] = [
             ClearPass(ctx, self.programs),
             self.sphere_pass,
-            ProbePass(ctx, self.programs, self.buffers),
             BackbonePass(ctx, self.programs, self.buffers, show_always=backbone_always),
+            ProbePass(ctx, self.programs, self.buffers),
             ShadingPass(ctx, self.programs, shading),
             NavCubePass(ctx, self.programs),
             FxaaPass(ctx, self.programs),
@@ -88,8 +96,7 @@ class Renderer:
 
         With `pass_times`, the GPU is drained (glFinish) after every pass and each pass's
         wall time is added under its name (for benchmarks; it serialises the pipeline)."""
-        center, radius = self.scene.bounding_sphere()
-        camera.fit_clip_range(center, radius)
+        camera.fit_clip_range(*self._clip_sphere())
         w, h = self.targets.size
         frame = Frame(
             ctx=self.ctx,
@@ -104,9 +111,12 @@ class Renderer:
             cube=self.scene.active_cube(),
             output_fbo=output_fbo if output_fbo is not None else self.targets.final_fbo,
             index=self.frame_index,
+            cache=self.cache,
         )
+        if self.cache is not None:
+            frame.cached = self.cache.begin(frame, self.passes)
         for p in self.passes:
-            if not p.enabled(frame):
+            if not p.enabled(frame) or (frame.cached and p.layer == MOLECULE):
                 continue
             if pass_times is None:
                 p.run(frame)
@@ -120,6 +130,17 @@ class Renderer:
         self.last_frame = frame
         return frame
 
+    def _clip_sphere(self) -> tuple[np.ndarray, float]:
+        """The sphere the near and far planes hold: the molecule and cube with room for a
+        probe on its SAS (so the clip range, and with it the molecule layer, stays put while
+        the probe moves there), widened only when the probe leaves that room."""
+        scene = self.scene
+        center, radius = scene.bounding_sphere(with_probe=False)
+        radius += 2.0 * scene.probe_radius
+        if scene.probe is not None:
+            radius = max(radius, float(np.linalg.norm(scene.probe.center - center)) + scene.probe.radius)
+        return center, radius
+
     def read_image(self, frame: Frame | None = None) -> np.ndarray:
         """The final image of a frame as H x W x 3 uint8, row 0 = top."""
         frame = frame or self.last_frame
@@ -128,6 +149,8 @@ class Renderer:
     def release(self) -> None:
         for p in self.passes:
             p.release()
+        if self.cache is not None:
+            self.cache.release()
         self.targets.release()
         self.buffers.release()
         self.programs.release()

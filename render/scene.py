@@ -139,8 +139,8 @@ class SceneState:
             self._selection_key = key
         return self._selection
 
-    def bounding_sphere(self) -> tuple[np.ndarray, float]:
-        """Centre and radius holding every atom, the probe and the cube (for fitting and clip range)."""
+    def bounding_sphere(self, with_probe: bool = True) -> tuple[np.ndarray, float]:
+        """Centre and radius holding every atom, the probe (unless not `with_probe`) and the cube."""
         if self._atoms_sphere is None:
             s = self.structure
             lo = (s.positions - s.vdw_radii[:, None]).min(axis=0)
@@ -148,7 +148,7 @@ class SceneState:
             center = (lo + hi) / 2.0
             self._atoms_sphere = (center, float(np.sqrt(((s.positions - center) ** 2).sum(axis=1)).max() + s.vdw_radii.max()))
         center, radius = self._atoms_sphere
-        if self.probe is not None:
+        if self.probe is not None and with_probe:
             radius = max(radius, float(np.linalg.norm(self.probe.center - center)) + self.probe.radius)
         if self.nav_cube is not None:
             radius = max(radius, float(np.linalg.norm(self.nav_cube.center - center)) + self.nav_cube.half * np.sqrt(3))

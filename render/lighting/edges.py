@@ -14,12 +14,15 @@ class EdgeCueingPass(ComputePass):
     def __init__(self, ctx):
         super().__init__(ctx, "edge_cueing.comp")
 
-    def compute(self, gbuffer: GBuffer, view, proj, settings: EdgeCueing, out=None):
+    def compute(self, gbuffer: GBuffer, view, proj, settings: EdgeCueing, out=None, rect=None):
+        """The factor texture; `rect` (x, y, width, height) recomputes only those pixels of `out`."""
         width, height = gbuffer.size
         out = out or texture_2d(self.ctx, width, height)
+        x, y, w, h = rect if rect is not None else (0, 0, width, height)
         gbuffer.bind()
         out.bind_to_image(0, read=False, write=True)
-        self.run(width, height, {
+        self.run(w, h, {
+            "u_offset": (int(x), int(y)),
             **view_proj_uniforms(view, proj),
             "u_contours": int(settings.contours),
             "u_line_width": float(settings.line_width),

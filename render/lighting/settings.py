@@ -173,6 +173,10 @@ class EdgeCueing:
         if not 0.0 <= self.halo_strength <= 1.0:
             raise ValueError("halo strength must lie in [0, 1]")
 
+    def reach_px(self) -> int:
+        """How far (pixels) a pixel's factor looks: a change of the G-buffer reaches this far."""
+        return int(np.ceil(max(self.line_width if self.contours else 0.0, self.halo_radius if self.halos else 0.0)))
+
 
 MAX_BOUNCES = 3
 

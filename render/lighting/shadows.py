@@ -22,8 +22,10 @@ class ShadowPass(ComputePass):
         super().__init__(gpu_grid.ctx, "shadows.comp", gpu_grid)
 
     def trace(self, gbuffer: GBuffer, light: DirectionalLight | PointLight, soft: SoftShadow = HARD_SHADOW,
-              out=None):
-        """Visibility texture (r32f) of `light` at every G-buffer pixel; `out` is reused when given."""
+              out=None, rect=None, only_probe: bool = False):
+        """Visibility texture (r32f) of `light` at every G-buffer pixel; `out` is reused when given.
+        `rect` (x, y, width, height) traces only those pixels, `only_probe` only the probe's
+        (the others keep what `out` holds)."""
         if soft.outer > self.grid.max_shell + 1e-9:
             raise ValueError(
                 f"soft-shadow outer radius +{soft.outer:g} Å exceeds the grid's expansion "
@@ -31,10 +33,13 @@ class ShadowPass(ComputePass):
             )
         width, height = gbuffer.size
         out = out or texture_2d(self.ctx, width, height)
+        x, y, w, h = rect if rect is not None else (0, 0, width, height)
         gbuffer.bind()
         out.bind_to_image(0, read=False, write=True)
         point = isinstance(light, PointLight)
-        self.run(width, height, {
+        self.run(w, h, {
+            "u_offset": (int(x), int(y)),
+            "u_only_probe": int(only_probe),
             **light_uniforms(None if point else light, light if point else None),
             "u_point_light": int(point),
             **ray_epsilon_uniforms(),

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from sasprobe.render.gl.buffers import BACKBONE_FORMAT
 from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
-from sasprobe.render.passes.base import Frame, Pass
+from sasprobe.render.passes.base import MOLECULE, Frame, Pass
 
 TRACE_RADIUS = 0.35  # Å
 MIN_WIDTH_PX = 2.0
@@ -14,12 +14,16 @@ MIN_WIDTH_PX = 2.0
 
 class BackbonePass(Pass):
     name = "backbone"
+    layer = MOLECULE
 
     def __init__(self, ctx, programs, buffers, show_always: bool = False):
         self.prog = programs.get("backbone.vert", "backbone.frag", "wide_line.geom")
         self.vao = ctx.vertex_array(self.prog, [(buffers.backbone, BACKBONE_FORMAT, "in_position", "in_color", "in_atom")])
         self.n_vertices = buffers.n_backbone_vertices
         self.show_always = show_always
+
+    def state(self):
+        return self.show_always
 
     def enabled(self, frame: Frame) -> bool:
         return (

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sasprobe.render.camera import Camera
+from sasprobe.render.frame_cache import sphere_rect
 from sasprobe.render.gl.buffers import MoleculeBuffers
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import RenderTargets
@@ -30,6 +31,8 @@ class Frame:
     cube: NavCube | None  # the navigation cube in effect
     output_fbo: object  # where the final image goes
     index: int = 0  # frame number
+    cache: object = None  # the renderer's MoleculeCache (render/frame_cache.py), None when it redraws all
+    cached: bool = False  # the molecule layer of the last frame holds: its passes do not run
 
     @property
     def size(self) -> tuple[int, int]:
@@ -38,6 +41,13 @@ class Frame:
     @property
     def viewproj(self) -> np.ndarray:
         return self.proj @ self.view
+
+    def probe_rect(self, radius: float | None = None):
+        """Pixels the probe (or a sphere of `radius` around its centre) can cover; None without a probe."""
+        probe = self.scene.probe
+        if probe is None:
+            return None
+        return sphere_rect(probe.center, probe.radius if radius is None else radius, self.viewproj, self.size)
 
     def near_plane(self) -> np.ndarray:
         """The camera's near plane as a clip plane (spheres crossing it get a cap)."""
@@ -57,10 +67,23 @@ class Frame:
         }
 
 
+MOLECULE, FRAME = "molecule", "frame"  # Pass.layer
+
+
 class Pass:
-    """Base of the passes: on by default, no G-buffer export layers, nothing to release."""
+    """Base of the passes: on by default, no G-buffer export layers, nothing to release.
+
+    `layer` MOLECULE: the pass draws the molecule layer (what does not depend on the probe)
+    and does not run while that layer is cached (Frame.cached). `state()` is what of the
+    pass's own configuration shapes the picture; it is part of the molecule layer's key
+    (render/frame_cache.py), so a setting added to a pass's `settings` dataclass is keyed
+    without being listed."""
 
     name = "pass"
+    layer = FRAME
+
+    def state(self):
+        return getattr(self, "settings", None)
 
     def enabled(self, frame: Frame) -> bool:
         return True

@@ -4,13 +4,14 @@ and a visibility of 1 everywhere."""
 from __future__ import annotations
 
 from sasprobe.render.gl.programs import ProgramCache
-from sasprobe.render.passes.base import Frame, Pass
+from sasprobe.render.passes.base import MOLECULE, Frame, Pass
 
 
 class ClearPass(Pass):
     """The G-buffer cleared to the background, the visibility buffer to 1."""
 
     name = "clear"
+    layer = MOLECULE
 
     def __init__(self, ctx, programs: ProgramCache):
         self.prog = programs.get("fullscreen.vert", "gbuffer_clear.frag")

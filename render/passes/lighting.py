@@ -1,14 +1,30 @@
 """The lighting in the renderer's pass chain: shadows, ambient occlusion and edge cueing
-fill the visibility buffer before the shading pass (LightingPass), and progressive path
-tracing replaces the lit image after it (passes/path_trace.py, sharing this pass's grid,
-lights and stillness).
+fill the visibility buffer before the shading pass, and progressive path tracing replaces
+the lit image after it (passes/path_trace.py, sharing this pass's grid, lights and
+stillness). Two ways of computing one picture:
 
-    clear -> spheres -> probe -> backbone -> lighting -> shading -> path_trace -> navcube -> fxaa
+- **whole frames** (a renderer without the frame cache): LightingPass, after the probe is
+  drawn, traces every term on the G-buffer the probe is in, the probe an occluder of the
+  directional light and of the ambient occlusion like any atom;
+
+      clear -> spheres -> backbone -> probe -> lighting -> shading -> path_trace -> navcube -> fxaa
+
+- **layered frames** (the frame cache, render/frame_cache.py): MoleculeLightingPass,
+  before the probe is drawn, computes the molecule's own terms — its shadows of the
+  directional light, its ambient occlusion — on the molecule layer, once per molecule
+  key (progressive AO keeps adding samples while the key holds, whatever the probe
+  does); LightingPass, after the probe pass, recomputes what the probe changes: the probe
+  light's shadows within its range, the probe's pixels, edge cueing around it, and, in
+  the compose pass, the probe's shadow of the directional light and its share of the
+  ambient occlusion as one analytic sphere (shaders/visibility_compose.comp). With hard or
+  soft shadows and analytic AO the result is the whole frame's; the traced, screen-space
+  and precomputed AO methods take the molecule's occlusion without the probe and the
+  probe's share analytically.
+
+      clear -> spheres -> backbone -> molecule_lighting -> probe -> lighting -> shading -> ...
 
 The grid is the scene's own (SceneState.grid, expanded radii: the daemon's), uploaded
 once per structure; clip planes, the navigation cube and the probe come from the frame.
-Progressive effects (ray-traced AO, path tracing) accumulate while the frame's camera,
-culling, probe and lights stay the same, and start over when any of them changes.
 Needs OpenGL 4.3 (compute shaders, storage buffers).
 """
 
@@ -19,13 +35,16 @@ from dataclasses import replace
 
 import numpy as np
 
-from sasprobe.render.lighting.ao import AmbientOcclusion
-from sasprobe.render.gl.context import GLUnavailable
-from sasprobe.render.lighting.edges import EdgeCueingPass
-from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.frame_cache import full_rect, grow_rect, union_rect
 from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.context import GLUnavailable
 from sasprobe.render.gl.textures import TextureCache, read_texture
+from sasprobe.render.lighting.ao import AmbientOcclusion
+from sasprobe.render.lighting.ao.analytic import MAX_K, nearest_to_point
+from sasprobe.render.lighting.edges import EdgeCueingPass
 from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.lighting.path_tracer import PathTracer
 from sasprobe.render.lighting.settings import (
     AO_MODES,
     HARD_SHADOW,
@@ -34,15 +53,17 @@ from sasprobe.render.lighting.settings import (
     PointLight,
     ShadingSettings,
     SoftShadow,
+    light_uniforms,
+    ray_epsilon_uniforms,
 )
-from sasprobe.render.passes.base import Frame, Pass
-from sasprobe.render.lighting.path_tracer import PathTracer
 from sasprobe.render.lighting.shadows import ShadowPass
+from sasprobe.render.passes.base import Frame, Pass
 
 log = logging.getLogger("sasprobe")
 
 REQUIRED_GL = 430
 CYCLED_AO_MODES = tuple(m for m in AO_MODES if m != "off")
+NO_NEIGHBOURS = np.full(MAX_K, -1, dtype=np.int32)
 
 
 def lighting_supported(ctx) -> bool:
@@ -52,7 +73,7 @@ def lighting_supported(ctx) -> bool:
 class LightingPass(Pass):
     name = "lighting"
 
-    def __init__(self, ctx, settings: LightingSettings, shading: ShadingSettings | None):
+    def __init__(self, ctx, settings: LightingSettings, shading: ShadingSettings | None, layered: bool = False):
         if not lighting_supported(ctx):
             raise GLUnavailable(
                 f"shadows, ambient occlusion and path tracing need OpenGL 4.3 (compute shaders); "
@@ -62,21 +83,27 @@ class LightingPass(Pass):
         self.ctx = ctx
         self.settings = settings
         self.shading = shading  # the shading pass's: probe attenuation, intensities
+        self.layered = layered
         self.ao_mode = settings.ao.mode if settings.ao.mode != "off" else "analytic"
         self.scene_grid = None  # the SceneState grid self.grid was uploaded from
         self.grid: GpuGrid | None = None
-        self.shadows = self.ao = self.tracer = None
+        self.shadows = self.ao = self.tracer = self.compose = None
         self.edges = EdgeCueingPass(ctx)
-        self.compose = ComputePass(ctx, "visibility_compose.comp")
         self._culling_key: bytes | None = None
         self._probe_key: bytes | None = None
         self._still_key: bytes | None = None
         self.textures = TextureCache(ctx)
         self.layers: dict[str, object] = {}  # textures of the last frame's terms (for the G-buffer export)
         self.lights: tuple[DirectionalLight | None, PointLight | None] = (None, None)
+        self.molecule_terms: dict[str, object] = {}  # layered: the molecule's own terms, kept with its layer
+        self._dirty: dict[str, tuple | None] = {}  # layered: the rectangle each probe term covered last
+        self._probe_neighbours = (None, NO_NEIGHBOURS)  # layered: (probe key, atoms nearest the probe)
         self._warned_shell = False
 
     # ------------------------------------------------------------ state
+    def state(self):
+        return (self.settings, self.ao_mode, self.layered)
+
     def enabled(self, frame: Frame) -> bool:
         fx = frame.scene.effects
         return fx.shadows or fx.ambient_occlusion or fx.edge_cueing or fx.path_tracing
@@ -85,9 +112,8 @@ class LightingPass(Pass):
         self.ao_mode = CYCLED_AO_MODES[(CYCLED_AO_MODES.index(self.ao_mode) + 1) % len(CYCLED_AO_MODES)]
         return self.ao_mode
 
-    def _sync(self, frame: Frame) -> None:
-        """Follow the frame: the structure (grid), culling, probe, lights; restart
-        accumulation when what the picture shows has changed."""
+    def _sync(self, frame: Frame) -> bytes:
+        """Follow the frame's structure (grid), culling and lights; returns the culling key."""
         scene, fx = frame.scene, frame.scene.effects
         if scene.grid is not self.scene_grid:  # a new structure, or the daemon changed the probe radius
             self._release_structure()
@@ -96,63 +122,168 @@ class LightingPass(Pass):
             self.shadows = ShadowPass(self.grid)
             self.ao = AmbientOcclusion(self.grid, self.settings.ao)
             self.tracer = PathTracer.for_structure(self.grid, scene.structure)
+            self.compose = ComputePass(self.ctx, "visibility_compose.comp", self.grid)
             self._culling_key = self._probe_key = None
         cube = frame.cube
         culling_key = frame.planes.tobytes() + (b"" if cube is None else np.array([*cube.center, cube.half]).tobytes())
         if culling_key != self._culling_key:
             self.grid.set_culling(Culling(frame.planes, None if cube is None else (cube.center, cube.half)))
             self._culling_key = culling_key
-        probe = scene.probe if fx.probe else None
-        probe_key = b"" if probe is None else np.array([*probe.center, probe.radius]).tobytes()
-        if probe_key != self._probe_key:
-            self.grid.set_probe(None if probe is None else probe.center, 0.0 if probe is None else probe.radius)
-            self.ao.update_probe()
-            self._probe_key = probe_key
         s = self.shading
         sun = DirectionalLight(tuple(-scene.light_direction), np.pi * s.directional_intensity) \
             if fx.directional_light else None
         lamp = PointLight(tuple(scene.probe.center), s.probe_range, np.pi * s.probe_intensity,
                           tuple(s.probe_attenuation)) if (fx.probe_light and scene.probe is not None) else None
         self.lights = (sun, lamp)
+        return culling_key
+
+    def _set_probe(self, frame: Frame) -> bytes:
+        """The probe as the grid's occluder (or none); returns its key."""
+        probe = frame.scene.probe if frame.scene.effects.probe else None
+        self.grid.set_probe(None if probe is None else probe.center, 0.0 if probe is None else probe.radius)
+        return b"" if probe is None else np.array([*probe.center, probe.radius]).tobytes()
+
+    def _stillness(self, frame: Frame, culling_key: bytes, probe_key: bytes) -> bool:
+        """Whether what the picture shows changed since the last frame (the path tracer restarts)."""
         still = b"".join([
             np.asarray(frame.view).tobytes(), np.asarray(frame.proj).tobytes(), np.array(frame.size).tobytes(),
-            culling_key, probe_key, repr((sun, lamp, self.ao_mode, fx.path_tracing)).encode(),
+            culling_key, probe_key, repr((self.lights, self.ao_mode, frame.scene.effects.path_tracing)).encode(),
         ])
-        if still != self._still_key:
-            self.ao.view_changed()
+        changed = still != self._still_key
+        self._still_key = still
+        if changed:
             self.tracer.reset()
-            self._still_key = still
+        return changed
 
-    # ------------------------------------------------------------ frame
+    # ------------------------------------------------------------ terms
+    def _soft(self, frame: Frame) -> SoftShadow:
+        return self._soft_shell() if frame.scene.effects.soft_shadows else HARD_SHADOW
+
+    def _ambient(self, gbuffer: GBuffer, frame: Frame):
+        """The AO method's texture, brought to `samples` per pixel where it is progressive."""
+        self.ao.configure(replace(self.settings.ao, mode=self.ao_mode,
+                                  reference_total=max(self.settings.ao.reference_total, self.settings.samples)))
+        texture = self.ao.compute(gbuffer, frame.view, frame.proj)
+        while self.ao.samples < self.settings.samples and not self.ao.converged:
+            texture = self.ao.compute(gbuffer, frame.view, frame.proj)
+        return texture
+
+    def _edges(self, gbuffer: GBuffer, frame: Frame, rect=None):
+        return self.edges.compute(gbuffer, frame.view, frame.proj, self.settings.edge_settings(),
+                                  out=self.textures.get("edges", frame.size), rect=rect)
+
+    def _compose(self, frame: Frame, terms: dict, uniforms: dict) -> None:
+        ones = self.textures.get("ones", frame.size, fill=1.0)
+        for unit, name in enumerate(("shadow_dir", "shadow_probe", "ao", "edges", "probe_pixels_sun"), start=3):
+            terms.get(name, ones).use(location=unit)
+        GBuffer.of_targets(frame.targets).bind()
+        frame.targets.visibility.bind_to_image(0, read=False, write=True)
+        self.compose.run(*frame.size, {"u_layered": 0, **uniforms})
+
+    # ------------------------------------------------------------ whole frames
     def run(self, frame: Frame) -> None:
-        self._sync(frame)
+        if self.layered:
+            self._run_probe_layer(frame)
+            return
+        culling_key = self._sync(frame)
+        probe_key = self._set_probe(frame)
+        if probe_key != self._probe_key:
+            self.ao.update_probe()
+            self._probe_key = probe_key
+        if self._stillness(frame, culling_key, probe_key):
+            self.ao.view_changed()
         fx, size = frame.scene.effects, frame.size
         gbuffer = GBuffer.of_targets(frame.targets)
-        ones = self.textures.get("ones", size, fill=1.0)
         sun, lamp = self.lights
         self.layers = {}
         if fx.shadows:
-            soft = self._soft_shell() if fx.soft_shadows else HARD_SHADOW
             for name, light in (("shadow_dir", sun), ("shadow_probe", lamp)):
                 if light is not None:
-                    self.layers[name] = self.shadows.trace(gbuffer, light, soft, out=self.textures.get(name, size))
+                    self.layers[name] = self.shadows.trace(gbuffer, light, self._soft(frame),
+                                                           out=self.textures.get(name, size))
         if fx.ambient_occlusion:
-            self.ao.configure(replace(self.settings.ao, mode=self.ao_mode,
-                                      reference_total=max(self.settings.ao.reference_total, self.settings.samples)))
-            texture = self.ao.compute(gbuffer, frame.view, frame.proj)
-            while self.ao.samples < self.settings.samples and not self.ao.converged:
-                texture = self.ao.compute(gbuffer, frame.view, frame.proj)
-            self.layers["ao"] = texture
-        edges = ones
+            self.layers["ao"] = self._ambient(gbuffer, frame)
+        terms = dict(self.layers)
         if fx.edge_cueing:
-            edges = self.edges.compute(gbuffer, frame.view, frame.proj, self.settings.edge_settings(),
-                                       out=self.textures.get("edges", size))
-        for unit, texture in enumerate((self.layers.get("shadow_dir", ones), self.layers.get("shadow_probe", ones),
-                                        self.layers.get("ao", ones), edges), start=3):
-            texture.use(location=unit)
-        frame.targets.visibility.bind_to_image(0, read=False, write=True)
-        self.compose.run(*size, {})
+            terms["edges"] = self._edges(gbuffer, frame)
+        self._compose(frame, terms, {})
 
+    # ------------------------------------------------------------ layered frames
+    def run_molecule(self, frame: Frame) -> None:
+        """The molecule's own terms, on the molecule layer (no probe in the G-buffer or the
+        grid): computed when the layer is drawn, and topped up with samples while it holds."""
+        self._sync(frame)
+        self.grid.set_probe(None)
+        fx = frame.scene.effects
+        gbuffer = GBuffer.of_targets(frame.targets)
+        if not frame.cached:
+            self.ao.view_changed()
+            self.molecule_terms = {}
+            sun = self.lights[0]
+            if fx.shadows and sun is not None:
+                self.molecule_terms["shadow_dir"] = self.shadows.trace(
+                    gbuffer, sun, self._soft(frame), out=self.textures.get("molecule_sun", frame.size))
+            if fx.ambient_occlusion:
+                self.molecule_terms["ao"] = self._ambient(gbuffer, frame)
+        elif fx.ambient_occlusion and not self.ao.converged:
+            self.molecule_terms["ao"] = self.ao.compute(gbuffer, frame.view, frame.proj)
+
+    def _dirty_rect(self, term: str, now, frame: Frame):
+        """Where a probe-dependent term must be recomputed: everywhere on a frame that drew
+        the molecule layer, else where the probe reaches now and where it reached last time."""
+        last = self._dirty.get(term)
+        self._dirty[term] = now
+        return full_rect(frame.size) if not frame.cached else union_rect(last, now)
+
+    def _run_probe_layer(self, frame: Frame) -> None:
+        fx, size = frame.scene.effects, frame.size
+        probe_key = self._set_probe(frame)
+        probe = self.grid.probe_sphere if probe_key else None
+        self._stillness(frame, self._culling_key, probe_key)
+        gbuffer = GBuffer.of_targets(frame.targets)
+        sun, lamp = self.lights
+        terms = dict(self.molecule_terms)
+        self.layers = {}
+        soft = self._soft(frame)
+        if fx.shadows and lamp is not None:
+            rect = self._dirty_rect("shadow_probe", frame.probe_rect(lamp.radius), frame)
+            terms["shadow_probe"] = self.layers["shadow_probe"] = self.shadows.trace(
+                gbuffer, lamp, soft, out=self.textures.get("shadow_probe", size), rect=rect)
+        probe_sun = fx.shadows and sun is not None and probe is not None
+        if probe_sun:
+            rect = frame.probe_rect()
+            if rect is not None:
+                terms["probe_pixels_sun"] = self.shadows.trace(
+                    gbuffer, sun, soft, out=self.textures.get("probe_pixels_sun", size), rect=rect, only_probe=True)
+        if fx.edge_cueing:
+            reach = self.settings.edge_settings().reach_px() + 1
+            rect = self._dirty_rect("edges", grow_rect(frame.probe_rect(), reach, size), frame)
+            terms["edges"] = self._edges(gbuffer, frame, rect)
+        probe_ambient = fx.ambient_occlusion and probe is not None
+        uniforms = {
+            **light_uniforms(sun, None), **ray_epsilon_uniforms(),
+            "u_probe_sun": int(probe_sun and "shadow_dir" in terms), "u_shell": soft.shell(),
+            "u_shell_growth": float(soft.growth), "u_probe_ambient": int(probe_ambient),
+            "u_k": int(self.settings.ao.k), "u_probe_neighbours": self._neighbours(probe_key, probe).tobytes(),
+        }
+        sun_out, ao_out = self.textures.get("shadow_dir", size), self.textures.get("ao", size)
+        sun_out.bind_to_image(1, read=False, write=True)
+        ao_out.bind_to_image(2, read=False, write=True)
+        self._compose(frame, terms, {**uniforms, "u_layered": 1})
+        if "shadow_dir" in terms:
+            self.layers["shadow_dir"] = sun_out
+        if fx.ambient_occlusion:
+            self.layers["ao"] = ao_out
+
+    def _neighbours(self, probe_key: bytes, probe) -> np.ndarray:
+        """The atoms nearest the probe (for the AO of its own pixels), found again when it moves."""
+        if probe is None:
+            return NO_NEIGHBOURS
+        if self._probe_neighbours[0] != probe_key:
+            self._probe_neighbours = (probe_key, nearest_to_point(self.grid.grid.centers, probe[:3]).astype(np.int32))
+        return self._probe_neighbours[1]
+
+    # ------------------------------------------------------------ helpers
     def _soft_shell(self) -> SoftShadow:
         """The soft-shadow shell, cut to the grid's expansion: a daemon may shrink the probe
         radius (the grid's expansion) below the shell the renderer started with."""
@@ -176,20 +307,38 @@ class LightingPass(Pass):
         return out
 
     def _release_structure(self) -> None:
-        for thing in (self.shadows, self.ao, self.tracer, self.grid):
+        for thing in (self.shadows, self.ao, self.tracer, self.compose, self.grid):
             if thing is not None:
                 thing.release()
 
     def release(self) -> None:
         self._release_structure()
         self.edges.release()
-        self.compose.release()
         self.textures.release()
 
 
+class MoleculeLightingPass(Pass):
+    """The layered lighting's first half, before the probe is drawn (LightingPass.run_molecule)."""
+
+    name = "molecule_lighting"
+
+    def __init__(self, lighting: LightingPass):
+        self.lighting = lighting
+
+    def state(self):
+        return None  # the lighting pass's settings are keyed under it
+
+    def enabled(self, frame: Frame) -> bool:
+        return self.lighting.enabled(frame)
+
+    def run(self, frame: Frame) -> None:
+        self.lighting.run_molecule(frame)
+
+
 def install_lighting(renderer, settings: LightingSettings, required: bool = True) -> LightingPass | None:
-    """Slot the lighting into a renderer's chain. Without OpenGL 4.3: GLUnavailable when
-    `required`, else a warning and no lighting."""
+    """Slot the lighting into a renderer's chain (layered when the renderer keeps the
+    molecule layer). Without OpenGL 4.3: GLUnavailable when `required`, else a warning and
+    no lighting."""
     if not lighting_supported(renderer.ctx):
         if required:
             LightingPass(renderer.ctx, settings, None)  # raises the one-line error
@@ -197,7 +346,10 @@ def install_lighting(renderer, settings: LightingSettings, required: bool = True
         return None
     from sasprobe.render.passes.path_trace import PathTracePass
 
-    lighting = LightingPass(renderer.ctx, settings, renderer.pass_named("shading").settings)
+    layered = renderer.cache is not None
+    lighting = LightingPass(renderer.ctx, settings, renderer.pass_named("shading").settings, layered=layered)
+    if layered:
+        renderer.insert_before("probe", MoleculeLightingPass(lighting))
     renderer.insert_before("shading", lighting)
     renderer.insert_before("navcube", PathTracePass(renderer.ctx, lighting))
     return lighting

@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from sasprobe.render.gl.uniforms import apply_uniforms
-from sasprobe.render.passes.base import Frame, Pass
+from sasprobe.render.passes.base import MOLECULE, Frame, Pass
 
 
 def uv_sphere(slices: int = 18, stacks: int = 19) -> tuple[np.ndarray, np.ndarray]:
@@ -36,6 +36,7 @@ def uv_sphere(slices: int = 18, stacks: int = 19) -> tuple[np.ndarray, np.ndarra
 class MeshSpherePass(Pass):
     name = "mesh_spheres"
     mode = "mesh"  # as --spheres names it
+    layer = MOLECULE
 
     def __init__(self, ctx, programs, buffers, slices: int = 18, stacks: int = 19):
         verts, tris = uv_sphere(slices, stacks)
@@ -54,6 +55,9 @@ class MeshSpherePass(Pass):
             index_buffer=self.index_buffer,
             index_element_size=4,
         )
+
+    def state(self):
+        return (self.mode, self.n_triangles)
 
     def run(self, frame: Frame) -> None:
         ctx = frame.ctx

@@ -38,10 +38,15 @@ class NavCubePass(Pass):
         apply_uniforms(self.prog, frame.raster_camera_uniforms())
         apply_uniforms(self.prog, line_width_uniforms(frame, 0.0, WIRE_WIDTH_PX))
         apply_uniforms(self.prog, {"u_cube": (*map(float, cube.center), float(cube.half)), "u_wire_color": WIRE_COLOR})
-        frame.targets.lit_fbo.use()
+        fbo = frame.targets.lit_fbo
+        fbo.use()
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<="
-        self.vao.render(ctx.LINES, vertices=24)
+        fbo.depth_mask = False  # tested against, never written: the G-buffer's depth outlives the frame (frame cache)
+        try:
+            self.vao.render(ctx.LINES, vertices=24)
+        finally:
+            fbo.depth_mask = True
 
     def release(self) -> None:
         self.vao.release()

@@ -12,7 +12,7 @@ import numpy as np
 
 from sasprobe.render.gl.buffers import SPHERE_FORMAT
 from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
-from sasprobe.render.passes.base import Frame, Pass
+from sasprobe.render.passes.base import MOLECULE, Frame, Pass
 
 MODES = ("quad", "sprite")  # this pass's; passes/mesh.py draws "mesh"
 SPHERE_MODES = (*MODES, "mesh")  # what --spheres and Renderer(sphere_mode=...) take
@@ -20,6 +20,7 @@ SPHERE_MODES = (*MODES, "mesh")  # what --spheres and Renderer(sphere_mode=...) 
 
 class SpherePass(Pass):
     name = "spheres"
+    layer = MOLECULE
 
     def __init__(self, ctx, programs, buffers, mode: str = "quad"):
         if mode not in MODES:
@@ -35,6 +36,9 @@ class SpherePass(Pass):
             index_buffer=buffers.selection,
             index_element_size=4,
         )
+
+    def state(self):
+        return self.mode
 
     def run(self, frame: Frame) -> None:
         ctx = frame.ctx

@@ -10,6 +10,7 @@
 //   halos: a pixel behind a nearer surface within u_halo_radius pixels is shadowed by a
 //     halo that fades with screen distance and grows with the depth gap (full at
 //     u_halo_depth Å), so nearer parts stand out from what lies behind them.
+// The pass may cover a rectangle only (u_offset: its first pixel).
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "gbuffer_input.glsl"
@@ -24,6 +25,7 @@ uniform int u_halos;
 uniform float u_halo_radius;     // pixels
 uniform float u_halo_depth;      // Å
 uniform float u_halo_strength;
+uniform ivec2 u_offset;
 
 float depth_at(ivec2 q) {
     if (!gbuffer_lit(q)) return BIG_DEPTH;
@@ -31,7 +33,7 @@ float depth_at(ivec2 q) {
 }
 
 void main() {
-    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy) + u_offset;
     ivec2 size = imageSize(u_edges);
     if (any(greaterThanEqual(px, size))) return;
     float depth = depth_at(px);

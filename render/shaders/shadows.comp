@@ -5,6 +5,8 @@
 // cube's) edge. Probe point light: the segment ends at the light; pixels beyond its
 // attenuation radius are not traced (written 1), and the probe sphere holding the light
 // does not occlude it. Pixels facing away from the light are 0: their own atom blocks it.
+// The pass may cover a rectangle only (u_offset: its first pixel), and only the probe's
+// own pixels (u_only_probe; the others keep what they hold).
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "grid_traversal.glsl"
@@ -16,14 +18,18 @@ layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
 uniform int u_point_light;     // 0: the directional light, 1: the probe's point light
 uniform vec2 u_shell;
 uniform float u_shell_growth;
+uniform ivec2 u_offset;
+uniform int u_only_probe;
 
 void main() {
-    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy) + u_offset;
     if (any(greaterThanEqual(px, imageSize(u_visibility)))) return;
     vec3 p, n;
     int atom;
     float vis = 1.0;
-    if (gbuffer_fetch(px, p, n, atom)) {
+    bool lit = gbuffer_fetch(px, p, n, atom);
+    if (u_only_probe != 0 && atom != ATOM_PROBE) return;
+    if (lit) {
         vec3 o = ray_origin(p, n);
         vec3 d = u_sun_dir;
         float t_max = BIG;
