@@ -46,6 +46,7 @@ class RenderOptions:
     probe_light_range: float = DEFAULT_PROBE_RANGE
     snapshot: Path | None = None  # also write the last frame as a PNG (headless)
     report: Path | None = None  # write frame and pose counts as JSON at the end
+    frame_cache: bool = True  # keep the molecule layer while only the probe moves (render/frame_cache.py)
 
     def effects(self):
         """The scene's switches: the options' FXAA, probe plane and initial lighting."""
@@ -123,7 +124,7 @@ def make_renderer(ctx, scene, size, opts: RenderOptions):
     from sasprobe.render.renderer import Renderer
 
     renderer = Renderer(ctx, scene, size, sphere_mode=opts.spheres, backbone_always=opts.backbone,
-                        shading=ShadingSettings(probe_range=opts.probe_light_range))
+                        shading=ShadingSettings(probe_range=opts.probe_light_range), frame_cache=opts.frame_cache)
     if opts.lighting is not None:
         try:
             install_lighting(renderer, opts.lighting, required=opts.lighting_required)

@@ -136,6 +136,7 @@ class GpuGrid:
         self.centre_clipped_mask = np.zeros(self.n_atoms, dtype=bool)
         self.walk_range = (np.zeros(3, dtype=np.int64), grid.dims - 1)
         self.probe_sphere = NO_PROBE
+        self.culling_version = 0  # counts set_culling calls (what depends on the culled flags follows it)
 
     @classmethod
     def from_structure(cls, ctx, structure, probe_radius: float, cell_size: float | None = None) -> "GpuGrid":
@@ -150,6 +151,7 @@ class GpuGrid:
     def set_culling(self, culling: Culling) -> None:
         """Clip planes / navigation cube moved: refresh the culled flags and the walk range."""
         self.culling = culling
+        self.culling_version += 1
         self.culled_mask = culling.culled_atoms(self.grid.centers, self.vdw_radii, self.grid)
         self.centre_clipped_mask = culling.centre_clipped(self.grid.centers)
         flags = np.where(self.culled_mask, CULLED, 0) | np.where(self.centre_clipped_mask, CENTRE_CLIPPED, 0)

@@ -117,7 +117,9 @@ class SoftShadow:
 HARD_SHADOW = SoftShadow(0.0, 0.0, 0.0)
 
 
-AO_MODES = ("off", "analytic", "ssao", "rt", "hybrid", "reference")
+AO_MODES = ("off", "analytic", "ssao", "rt", "hybrid", "reference", "precomputed")
+PATCH_RANGE = (3, 64)  # precomputed: texels per patch side
+DIRECTION_RANGE = (8, 1024)  # precomputed: ray directions
 SSAO_SAMPLING = ("point", "line")
 ANALYTIC_K = (8, 16, 32)
 
@@ -140,6 +142,10 @@ class AOSettings:
     ssao_half_resolution: bool = False
     reference_spp: int = 32  # reference: samples per frame ...
     reference_total: int = 1024  # ... until this many have accumulated
+    # precomputed (QuteMol's per-atom patches, ao/precomputed.py): texels per patch side and ray
+    # directions (QuteMol: 128 directions; its patch side grows with the texture, 16 for 1AON)
+    patch: int = 8
+    directions: int = 128
 
     def __post_init__(self) -> None:
         if self.mode not in AO_MODES:
@@ -154,6 +160,9 @@ class AOSettings:
         for name in ("rt_spp", "ssao_samples", "reference_spp", "reference_total"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1")
+        for name, (lo, hi) in (("patch", PATCH_RANGE), ("directions", DIRECTION_RANGE)):
+            if not lo <= getattr(self, name) <= hi:
+                raise ValueError(f"precomputed AO uses {lo} to {hi} {'texels a patch side' if name == 'patch' else name}")
 
 
 @dataclass(frozen=True)
@@ -195,7 +204,7 @@ class PathTracing:
 
 
 HEADLESS_SAMPLES = {"reference": 256, "path_tracing": 64}  # per pixel before a headless frame is written
-SHADOW_MODES = ("off", "hard", "soft")
+SHADOW_MODES = ("off", "hard", "soft", "precomputed")  # precomputed: the sun's from the occlusion atlas
 EDGE_MODES = ("off", "lines", "halos", "both")
 
 
@@ -204,7 +213,7 @@ class LightingSettings:
     """What the renderer's lighting computes (render/passes/lighting.py). The scene's
     Effects switch each effect on and off at run time (window keys); these say how."""
 
-    shadows: str = "hard"  # off, hard, soft (the initial state of the window's S and V keys)
+    shadows: str = "hard"  # off, hard, soft, precomputed (the initial state of the window's S and V keys)
     soft: SoftShadow = SoftShadow()
     ao: AOSettings = AOSettings()  # mode "off": AO starts switched off (A key; then analytic)
     edges: str = "off"  # off, lines, halos, both

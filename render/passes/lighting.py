@@ -159,10 +159,21 @@ class LightingPass(Pass):
     def _soft(self, frame: Frame) -> SoftShadow:
         return self._soft_shell() if frame.scene.effects.soft_shadows else HARD_SHADOW
 
-    def _ambient(self, gbuffer: GBuffer, frame: Frame):
-        """The AO method's texture, brought to `samples` per pixel where it is progressive."""
+    def _sun(self, gbuffer: GBuffer, frame: Frame, sun: DirectionalLight, name: str):
+        """The directional light's visibility: traced, or looked up in the occlusion atlas
+        (--shadows precomputed, hard shadows only)."""
+        if self.settings.shadows == "precomputed" and not frame.scene.effects.soft_shadows:
+            self._configure_ao()
+            return self.ao.baked(gbuffer, ambient=False, sun_direction=sun.unit())[1]
+        return self.shadows.trace(gbuffer, sun, self._soft(frame), out=self.textures.get(name, frame.size))
+
+    def _configure_ao(self) -> None:
         self.ao.configure(replace(self.settings.ao, mode=self.ao_mode,
                                   reference_total=max(self.settings.ao.reference_total, self.settings.samples)))
+
+    def _ambient(self, gbuffer: GBuffer, frame: Frame):
+        """The AO method's texture, brought to `samples` per pixel where it is progressive."""
+        self._configure_ao()
         texture = self.ao.compute(gbuffer, frame.view, frame.proj)
         while self.ao.samples < self.settings.samples and not self.ao.converged:
             texture = self.ao.compute(gbuffer, frame.view, frame.proj)
@@ -196,11 +207,11 @@ class LightingPass(Pass):
         gbuffer = GBuffer.of_targets(frame.targets)
         sun, lamp = self.lights
         self.layers = {}
-        if fx.shadows:
-            for name, light in (("shadow_dir", sun), ("shadow_probe", lamp)):
-                if light is not None:
-                    self.layers[name] = self.shadows.trace(gbuffer, light, self._soft(frame),
-                                                           out=self.textures.get(name, size))
+        if fx.shadows and sun is not None:
+            self.layers["shadow_dir"] = self._sun(gbuffer, frame, sun, "shadow_dir")
+        if fx.shadows and lamp is not None:
+            self.layers["shadow_probe"] = self.shadows.trace(gbuffer, lamp, self._soft(frame),
+                                                             out=self.textures.get("shadow_probe", size))
         if fx.ambient_occlusion:
             self.layers["ao"] = self._ambient(gbuffer, frame)
         terms = dict(self.layers)
@@ -221,8 +232,7 @@ class LightingPass(Pass):
             self.molecule_terms = {}
             sun = self.lights[0]
             if fx.shadows and sun is not None:
-                self.molecule_terms["shadow_dir"] = self.shadows.trace(
-                    gbuffer, sun, self._soft(frame), out=self.textures.get("molecule_sun", frame.size))
+                self.molecule_terms["shadow_dir"] = self._sun(gbuffer, frame, sun, "molecule_sun")
             if fx.ambient_occlusion:
                 self.molecule_terms["ao"] = self._ambient(gbuffer, frame)
         elif fx.ambient_occlusion and not self.ao.converged:

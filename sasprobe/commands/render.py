@@ -103,6 +103,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--light", type=direction_type, metavar="X,Y,Z", help="direction the directional light travels")
     p.add_argument("--backbone", action="store_true", help="draw the backbone trace even without a navigation cube")
     p.add_argument("--no-fxaa", action="store_true", help="skip the FXAA pass")
+    p.add_argument("--no-frame-cache", action="store_true",
+                   help="draw every frame whole (default: keep the molecule layer while only the probe moves)")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
     p.add_argument("--snapshot", type=Path, metavar="FILE.png", help="headless: also write the last frame as a PNG")
     p.add_argument("--report", type=Path, metavar="FILE.json",
@@ -228,7 +230,8 @@ def render_options(args: argparse.Namespace):
         gbuffer=args.gbuffer, camera=args.camera, orbit=args.orbit, spheres=args.spheres,
         probe=args.probe, touched=args.touched, probe_radius=args.probe_radius, nav_cube=args.nav_cube,
         clip=args.clip, probe_plane=args.probe_plane, light=args.light, backbone=args.backbone,
-        fxaa=not args.no_fxaa, keep_water=args.keep_water, lighting=lighting, lighting_required=required,
+        fxaa=not args.no_fxaa, frame_cache=not args.no_frame_cache, keep_water=args.keep_water, lighting=lighting,
+        lighting_required=required,
         probe_light_range=args.probe_light_range or DEFAULT_PROBE_RANGE, snapshot=args.snapshot,
         report=args.report,
     )

@@ -10,6 +10,7 @@ method `AOSettings.mode` selects:
 | rt | cosine rays through the grid, `rt_spp` per frame, accumulated while still, blurred while noisy | spp rays |
 | hybrid | analytic × rt | both |
 | reference | rt with `reference_spp` per frame until `reference_total` | until converged |
+| precomputed | QuteMol's per-atom patches (ao/precomputed.py), baked once per structure and culling | one lookup per pixel |
 
 Call `view_changed()` whenever the G-buffer's content changes (camera, molecule, culling,
 probe): accumulation then restarts.
@@ -21,6 +22,7 @@ import numpy as np
 
 from sasprobe.render.lighting.ao.analytic import AnalyticAO
 from sasprobe.render.lighting.ao.blur import BilateralBlur
+from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
 from sasprobe.render.lighting.ao.raytraced import RayTracedAO
 from sasprobe.render.lighting.ao.ssao import SSAO
 from sasprobe.render.gl.compute import ComputePass
@@ -71,6 +73,7 @@ class AmbientOcclusion:
                 "ssao": lambda: SSAO(self.ctx),
                 "blur": lambda: BilateralBlur(self.ctx),
                 "multiply": lambda: ComputePass(self.ctx, "multiply.comp"),
+                "atlas": lambda: OcclusionAtlas(self.grid),
             }[name]
             self._passes[name] = make()
         return self._passes[name]
@@ -88,6 +91,8 @@ class AmbientOcclusion:
             return self.textures.get("ones", size, fill=1.0)
         if s.mode == "analytic":
             return self._analytic(gbuffer)
+        if s.mode == "precomputed":
+            return self.baked(gbuffer, ambient=True)[0]
         if s.mode == "ssao":
             ssao = self._pass("ssao")
             raw = ssao.compute(gbuffer, view, proj, s, out=self.textures.get("ssao", ssao.output_size(gbuffer, s.ssao_half_resolution)))
@@ -106,6 +111,13 @@ class AmbientOcclusion:
         product.bind_to_image(0, read=False, write=True)
         self._pass("multiply").run(size[0], size[1], {})
         return product
+
+    def baked(self, gbuffer: GBuffer, ambient: bool, sun_direction=None, progress=None):
+        """(accessibility, light visibility) from the occlusion atlas, baked first where it
+        lacks the accessibility (`ambient`) or the light `sun_direction` (towards it)."""
+        s, atlas = self.settings, self._pass("atlas")
+        atlas.update(s.patch, s.directions, s.distance, ambient, sun_direction, progress)
+        return atlas.lookup(gbuffer, sun_direction)
 
     def _analytic(self, gbuffer: GBuffer):
         analytic = self._pass("analytic")

@@ -1,0 +1,232 @@
+"""QuteMol's precomputed occlusion (Tarini, Cignoni, Montani, IEEE TVCG 2006): each drawn
+atom gets a patch of P x P texels over its sphere (octahedral parametrisation) holding
+its ambient accessibility and, for a light fixed in the molecule frame, its visibility of
+that light. Patches are baked once per structure and per culling change (and the light
+channel again when the light moves); a frame then costs one bilinear lookup per pixel,
+whatever the camera does.
+
+What QuteMol used (pyQuteMol, MDAnalysis/pyQuteMol @6d45ec9f): 128 view directions
+(python/hardSettings.py N_VIEW_DIR), each a 256² shadow map of the molecule (AOSM_SIZE);
+patches packed into a 1024² texture grown up to 4096² (TSIZE, MAX_TSIZE), the patch side
+being the texture side over ceil(sqrt(atoms)), clamped to 6..250 (python/Molecule.py
+SetCsize: 16 texels for 1AON's 58,870 atoms in 4096², 53 for 1CRN's 327 in 1024²); texel
+centres on the patch border (python/OctaMap.py getDir), which is the layout here.
+
+Here the bake traces rays through the grid instead of rendering shadow maps
+(shaders/atlas_*.comp, in chunks of CHUNK_SLOTS atoms): each atom's neighbours within reach
+are gathered once from the grid, the ones that can meet a ray of each of the D directions
+(spherical Fibonacci points) are listed per direction, and each texel tests only those;
+the light channel is one ray per texel through the grid. The rays are `AOSettings.distance`
+long, as the ray-traced AO's, so the two converge to the same accessibility.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+
+import numpy as np
+
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.textures import TextureCache
+from sasprobe.render.gl.uniforms import apply_uniforms
+from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.settings import light_uniforms, ray_epsilon_uniforms
+
+log = logging.getLogger("sasprobe")
+
+CHUNK_SLOTS = 256  # atoms per bake dispatch (the candidate lists of a chunk: CHUNK_SLOTS x D x 96 spheres)
+MAX_NEIGHBOURS, MAX_OVERLAPS, MAX_CANDIDATES = 1024, 32, 95  # as shaders/atlas_bake_buffers.glsl
+MAX_ATLAS_BYTES = 512 * 2**20
+BINDING_SLOT_ATOMS, BINDING_ATOM_SLOTS = 4, 4
+LOCAL = 64  # the bake shaders' local_size_x
+
+
+def fibonacci_directions(n: int) -> np.ndarray:
+    """(n, 3) unit vectors spread evenly over the sphere: z = 1 - (2k + 1)/n, the azimuth
+    turning by the golden angle pi (3 - sqrt 5) per point (spherical Fibonacci lattice)."""
+    k = np.arange(n, dtype=np.float64)
+    z = 1.0 - (2.0 * k + 1.0) / n
+    phi = k * math.pi * (3.0 - math.sqrt(5.0))
+    r = np.sqrt(1.0 - z * z)
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+
+
+class OcclusionAtlas:
+    """The patches of one GPU grid's drawn atoms, and the passes that bake and read them."""
+
+    def __init__(self, gpu_grid):
+        self.grid = gpu_grid
+        self.ctx = gpu_grid.ctx
+        self.gather = ComputePass(self.ctx, "atlas_gather.comp", gpu_grid)
+        self.candidates = ComputePass(self.ctx, "atlas_candidates.comp", gpu_grid)
+        self.bake_pass = ComputePass(self.ctx, "atlas_bake.comp", gpu_grid)
+        self.fill = ComputePass(self.ctx, "atlas_fill.comp")
+        self.lookup_pass = ComputePass(self.ctx, "atlas_lookup.comp", gpu_grid)
+        self.textures = TextureCache(self.ctx)
+        self.texture = None  # rg16f: r accessibility, g light visibility
+        self.atom_slots = None  # int32 buffer: the patch of each atom (-1: culled, none)
+        self.slot_atoms = None  # uint32 buffer: the atom of each patch
+        self.layout_key = self.ambient_key = self.sun_key = None
+        self.n_slots = self.patch = self.tiles_x = 0
+        self.bake_seconds = 0.0  # the last bake's wall time (GPU drained)
+        self.overflows = 0
+
+    # ------------------------------------------------------------ layout
+    def _layout(self, patch: int) -> None:
+        """Patches for the atoms the culling keeps, in rows of ceil(sqrt(n)) tiles."""
+        key = (patch, self.grid.culling_version)
+        if key == self.layout_key:
+            return
+        kept = np.flatnonzero(~self.grid.culled_mask).astype(np.uint32)
+        n = max(int(kept.size), 1)
+        tiles_x = math.ceil(math.sqrt(n))
+        width, height = tiles_x * patch, math.ceil(n / tiles_x) * patch
+        limit = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
+        if max(width, height) > limit or width * height * 4 > MAX_ATLAS_BYTES:
+            raise ValueError(f"precomputed AO: {kept.size} patches of {patch}x{patch} texels need a "
+                             f"{width}x{height} atlas (limit {limit} texels a side, {MAX_ATLAS_BYTES >> 20} MiB); "
+                             "use a smaller --ao-patch or a navigation cube")
+        self._release_layout()
+        slots = np.full(self.grid.n_atoms, -1, dtype=np.int32)
+        slots[kept] = np.arange(kept.size, dtype=np.int32)
+        self.texture = self.ctx.texture((width, height), 2, dtype="f2")
+        self.texture.repeat_x = self.texture.repeat_y = False
+        self.slot_atoms = self.ctx.buffer(kept.tobytes() if kept.size else b"\0" * 4)
+        self.atom_slots = self.ctx.buffer(slots.tobytes())
+        self.n_slots, self.patch, self.tiles_x = int(kept.size), patch, tiles_x
+        self.layout_key = key
+        self.ambient_key = self.sun_key = None
+
+    # ------------------------------------------------------------ bake
+    def update(self, patch: int, directions: int, distance: float, ambient: bool, sun_direction=None,
+               progress=None) -> bool:
+        """Bake what is missing: the accessibility (`ambient`) for (patch, directions,
+        distance) and the light channel for `sun_direction` (towards the light; None: not
+        wanted). Returns whether anything was baked; `progress(fraction)` is called per chunk."""
+        self._layout(patch)
+        want_ambient = ambient and self.ambient_key != (directions, float(distance))
+        sun_key = None if sun_direction is None else tuple(np.round(np.asarray(sun_direction, dtype=np.float64), 12))
+        want_sun = sun_key is not None and sun_key != self.sun_key
+        if not (want_ambient or want_sun):
+            return False
+        t0 = time.perf_counter()
+        self._bake(directions, distance, want_ambient, sun_direction if want_sun else None, progress)
+        self.ctx.finish()
+        self.bake_seconds = time.perf_counter() - t0
+        if want_ambient:
+            self.ambient_key = (directions, float(distance))
+        if want_sun:
+            self.sun_key = sun_key
+        log.info("occlusion atlas: %d patches of %dx%d texels baked in %.2f s", self.n_slots, patch, patch,
+                 self.bake_seconds)
+        return True
+
+    def _bake(self, directions: int, distance: float, ambient: bool, sun_direction, progress) -> None:
+        ctx, grid = self.ctx, self.grid
+        chunk = min(CHUNK_SLOTS, max(self.n_slots, 1))
+        dirs = np.zeros((directions, 4), dtype=np.float32)
+        dirs[:, :3] = fibonacci_directions(directions)
+        lists = chunk * directions if ambient else 1
+        buffers = {
+            5: ctx.buffer(reserve=chunk * MAX_NEIGHBOURS * 16),
+            6: ctx.buffer(reserve=chunk * MAX_OVERLAPS * 16),
+            7: ctx.buffer(reserve=chunk * 2 * 4),
+            8: ctx.buffer(dirs.tobytes()),
+            9: ctx.buffer(reserve=lists * MAX_CANDIDATES * 16),
+            10: ctx.buffer(reserve=lists * 4),
+            11: ctx.buffer(np.zeros(1, dtype=np.uint32).tobytes()),
+        }
+        common = {
+            **ray_epsilon_uniforms(), **light_uniforms(None, None), "u_directions": directions,
+            "u_distance": float(distance), "u_max_radius": float(np.max(grid.vdw_radii)) if grid.n_atoms else 0.0,
+            "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_bake_ambient": int(ambient),
+            "u_bake_sun": int(sun_direction is not None),
+        }
+        if sun_direction is not None:
+            d = np.asarray(sun_direction, dtype=np.float64)
+            common["u_sun_dir"] = tuple(float(v) for v in d / np.linalg.norm(d))
+        probe = grid.probe_sphere
+        grid.set_probe(None)  # the atlas is the molecule's own
+        try:
+            self.slot_atoms.bind_to_storage_buffer(BINDING_SLOT_ATOMS)
+            for binding, buffer in buffers.items():
+                buffer.bind_to_storage_buffer(binding)
+            self.texture.bind_to_image(0, read=True, write=True)
+            for first in range(0, self.n_slots, chunk):
+                count = min(chunk, self.n_slots - first)
+                uniforms = {**common, "u_first_slot": first, "u_chunk_slots": count}
+                self._dispatch(self.gather, count, uniforms)  # the overlaps: the hidden-texel test needs them
+                if ambient:
+                    self._dispatch(self.candidates, count * directions, uniforms)
+                self._dispatch(self.bake_pass, count * self.patch * self.patch, uniforms)
+                if progress is not None:
+                    progress((first + count) / self.n_slots)
+            self.overflows = int(np.frombuffer(buffers[11].read(), dtype=np.uint32)[0])
+            self._fill_unseen()
+        finally:
+            grid.set_probe(None if probe[3] <= 0 else probe[:3], probe[3])
+            for buffer in buffers.values():
+                buffer.release()
+        if self.overflows:
+            log.warning("occlusion atlas: %d neighbour lists were full; those texels may be too bright",
+                        self.overflows)
+
+    def _fill_unseen(self) -> None:
+        """Texels inside other atoms take their seen neighbours' mean (shaders/atlas_fill.comp)."""
+        scratch = self.ctx.texture(self.texture.size, 2, dtype="f2")
+        try:
+            for last, (source, target) in enumerate(((self.texture, scratch), (scratch, self.texture))):
+                source.bind_to_image(0, read=True, write=False)
+                target.bind_to_image(1, read=False, write=True)
+                self.fill.run(*self.texture.size, {"u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_last": last})
+        finally:
+            scratch.release()
+
+    def _dispatch(self, compute: ComputePass, invocations: int, uniforms: dict) -> None:
+        self.slot_atoms.bind_to_storage_buffer(BINDING_SLOT_ATOMS)
+        compute.grid.bind()
+        apply_uniforms(compute.program, {**compute.grid.uniforms(), **uniforms})
+        compute.program.run(group_x=(invocations + LOCAL - 1) // LOCAL)
+        self.ctx.memory_barrier()
+
+    # ------------------------------------------------------------ lookup
+    def lookup(self, gbuffer: GBuffer, sun_direction=None):
+        """(accessibility, light visibility) textures (r32f) of every G-buffer pixel; the
+        light's only with a `sun_direction` (towards the light)."""
+        size = gbuffer.size
+        ambient, sun = self.textures.get("ambient", size), self.textures.get("sun", size)
+        gbuffer.bind()
+        self.texture.filter = (self.ctx.LINEAR, self.ctx.LINEAR)
+        self.texture.use(location=3)
+        self.atom_slots.bind_to_storage_buffer(BINDING_ATOM_SLOTS)
+        ambient.bind_to_image(0, read=False, write=True)
+        sun.bind_to_image(1, read=False, write=True)
+        self.lookup_pass.run(*size, {
+            **ray_epsilon_uniforms(),
+            "u_sun_dir": tuple(float(v) for v in (sun_direction if sun_direction is not None else (0.0, 0.0, 1.0))),
+            "u_write_sun": int(sun_direction is not None),
+            "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_atlas_size": tuple(float(v) for v in self.texture.size),
+        })
+        return ambient, sun
+
+    def read(self) -> np.ndarray:
+        """The atlas as (H, W, 2) float32 (row 0 = atlas row 0)."""
+        data = np.frombuffer(self.texture.read(), dtype=np.float16).reshape(self.texture.height, self.texture.width, 2)
+        return data.astype(np.float32)
+
+    def slot_of(self) -> np.ndarray:
+        return np.frombuffer(self.atom_slots.read(), dtype=np.int32).copy()
+
+    def _release_layout(self) -> None:
+        for obj in (self.texture, self.atom_slots, self.slot_atoms):
+            if obj is not None:
+                obj.release()
+        self.texture = self.atom_slots = self.slot_atoms = None
+
+    def release(self) -> None:
+        self._release_layout()
+        self.textures.release()
+        for p in (self.gather, self.candidates, self.bake_pass, self.fill, self.lookup_pass):
+            p.release()
