@@ -132,11 +132,12 @@ class Renderer:
 
     def _clip_sphere(self) -> tuple[np.ndarray, float]:
         """The sphere the near and far planes hold: the molecule and cube with room for a
-        probe on its SAS (so the clip range, and with it the molecule layer, stays put while
-        the probe moves there), widened only when the probe leaves that room."""
+        probe on its SAS and a probe diameter beyond (so the clip range, and with it the
+        molecule layer, stays put while the probe moves there), widened only when the probe
+        leaves that room."""
         scene = self.scene
         center, radius = scene.bounding_sphere(with_probe=False)
-        radius += 2.0 * scene.probe_radius
+        radius += 4.0 * scene.probe_radius
         if scene.probe is not None:
             radius = max(radius, float(np.linalg.norm(scene.probe.center - center)) + scene.probe.radius)
         return center, radius

@@ -145,7 +145,7 @@ class AOSettings:
     # precomputed (QuteMol's per-atom patches, ao/precomputed.py): texels per patch side and ray
     # directions (QuteMol: 128 directions; its patch side grows with the texture, 16 for 1AON)
     patch: int = 8
-    directions: int = 128
+    directions: int = 64
 
     def __post_init__(self) -> None:
         if self.mode not in AO_MODES:

@@ -141,8 +141,9 @@ def add_lighting_arguments(parser: argparse.ArgumentParser) -> None:
     ao, soft, tracer = base.ao, base.soft, PathTracing()
     g = parser.add_argument_group("lighting (OpenGL 4.3; the window's S, V, A, C, E, G keys switch them)")
     g.add_argument("--shadows", choices=SHADOW_MODES, default=None,
-                   help=f"shadows of the directional and the probe light, traced through the grid "
-                        f"(default {base.shadows})")
+                   help=f"shadows of the directional and the probe light, traced through the grid; precomputed: "
+                        f"the directional light's hard shadows from per-atom patches (for a light fixed in the "
+                        f"molecule frame) (default {base.shadows})")
     g.add_argument("--soft-shell", type=_shell, default=None, metavar="INNER,OUTER",
                    help=f"soft shadows: Parker shell around each atom, Å from its vdW radius "
                         f"(default {soft.inner:g},{soft.outer:g})")
@@ -157,6 +158,11 @@ def add_lighting_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument("--ao-spp", type=positive_int, default=None, metavar="N",
                    help=f"ray-traced AO: samples per pixel per frame (default {ao.rt_spp})")
     g.add_argument("--no-ao-blur", action="store_true", help="ray-traced AO and SSAO: no bilateral blur")
+    g.add_argument("--ao-patch", type=positive_int, default=None, metavar="N",
+                   help=f"precomputed AO and shadows: texels per atom patch side (default {ao.patch}; "
+                        "QuteMol: 1024-4096 texture side / ceil(sqrt(atoms)), 16 for 1AON)")
+    g.add_argument("--ao-directions", type=positive_int, default=None, metavar="N",
+                   help=f"precomputed AO: ray directions per texel (default {ao.directions}; QuteMol: 128)")
     g.add_argument("--ssao-radius", type=positive_float, default=None, metavar="Å",
                    help=f"SSAO sampling radius (default {ao.ssao_radius:g})")
     g.add_argument("--ssao-intensity", type=positive_float, default=None,
@@ -189,6 +195,7 @@ def lighting_from_args(args, headless: bool):
     try:
         ao = replace(ao, **{k: v for k, v in {
             "mode": args.ao, "k": args.ao_k, "distance": args.ao_distance, "rt_spp": args.ao_spp,
+            "patch": args.ao_patch, "directions": args.ao_directions,
             "ssao_radius": args.ssao_radius, "ssao_intensity": args.ssao_intensity, "ssao_sampling": args.ssao_sampling,
         }.items() if v is not None})
         ao = replace(ao, blur=not args.no_ao_blur, ssao_half_resolution=args.ssao_half)

@@ -1,0 +1,251 @@
+"""The frame cache (render/frame_cache.py): frames in which only the probe moved, drawn from
+the kept molecule layer, equal a full redraw of the same scene; progressive AO keeps
+accumulating while only the probe moves; anything but the probe invalidates the layer,
+including scene and settings fields that do not exist yet."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
+from sasprobe.render.camera import Camera
+from sasprobe.render.frame_cache import sphere_rect, state_key, union_rect
+from sasprobe.render.gbuffer_export import gbuffer_arrays
+from sasprobe.render.gl.targets import KIND_PROBE
+from sasprobe.render.lighting.settings import AOSettings, LightingSettings
+from sasprobe.render.passes.lighting import install_lighting, lighting_of
+from sasprobe.render.renderer import Renderer
+from sasprobe.render.scene import Effects, NavCube, Probe, SceneState
+from tests.lighting_support import probe_on_surface
+
+pytestmark = pytest.mark.needs_gl(430)
+
+DIRECTION = np.array([0.2, 0.3, 1.0]) / np.linalg.norm([0.2, 0.3, 1.0])
+LIGHT = -np.array([0.45, 0.8, 0.4]) / np.linalg.norm([0.45, 0.8, 0.4])
+
+
+def probe_path(structure) -> list[np.ndarray | None]:
+    """The probe coming in from 2.5 Å off the SAS, touching it, sliding over it, then leaving
+    the picture (None: no probe)."""
+    path = [probe_on_surface(structure, DIRECTION, lift=lift) for lift in (2.5, 1.5, 0.5, 0.0)]
+    for turn in (0.15, 0.3, 0.45):
+        side = DIRECTION + turn * np.array([1.0, -0.4, 0.0])
+        path.append(probe_on_surface(structure, side, lift=0.0))
+    return path + [None]
+
+
+def sas_gap(structure, point) -> float:
+    """Distance of a probe centre from the SAS (negative inside)."""
+    return float(np.min(np.linalg.norm(structure.positions - point, axis=1) - structure.vdw_radii
+                        - DEFAULT_PROBE_RADIUS))
+
+
+def make_renderer(gl, structure, size, settings, cache, setup="none"):
+    scene = SceneState(structure)
+    scene.light_direction = LIGHT
+    for name, on in settings.effects().items():
+        setattr(scene.effects, name, on)
+    centre = structure.positions.mean(axis=0)
+    if setup == "cube":
+        scene.nav_cube = NavCube(center=centre + [2.0, -1.0, 4.0], half=10.0)
+    elif setup == "plane":
+        n = -np.array([1.0, 0.2, 0.5]) / np.linalg.norm([1.0, 0.2, 0.5])
+        scene.clip_planes = [np.array([*n, -float(n @ centre) + 2.0])]
+    renderer = Renderer(gl, scene, size, frame_cache=cache)
+    install_lighting(renderer, settings)
+    c, r = scene.bounding_sphere()
+    return renderer, Camera.fitted(c, r * 0.8, size[0] / size[1], direction=DIRECTION)
+
+
+def agreement(a: np.ndarray, b: np.ndarray) -> float:
+    """Fraction of pixels whose every channel agrees within 2/255."""
+    return float((np.abs(a.astype(int) - b.astype(int)).max(axis=2) <= 2).mean())
+
+
+CASES = [
+    ("1crn", (160, 120), LightingSettings(), "none"),  # the default lighting: hard shadows, analytic AO
+    ("1crn", (160, 120), LightingSettings(shadows="soft", edges="both", ao=AOSettings(k=16)), "cube"),
+    ("1crn", (160, 120), LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed")), "plane"),
+    ("1tii", (200, 150), LightingSettings(), "none"),
+]
+
+
+@pytest.mark.parametrize("sid, size, settings, setup", CASES, ids=[f"{c[0]}-{c[3]}-{c[2].shadows}" for c in CASES])
+def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings, setup):
+    structure = load_structure(shared_by_id[sid].path, keep_water=True)
+    path = probe_path(structure)
+    gaps = [sas_gap(structure, p) for p in path if p is not None]
+    assert gaps[0] > 2.0 and min(abs(g) for g in gaps[3:]) < 0.06  # it comes in and touches
+    cached, camera = make_renderer(gl, structure, size, settings, cache=True, setup=setup)
+    full, full_camera = make_renderer(gl, structure, size, settings, cache=False, setup=setup)
+    try:
+        for center in path:
+            for r in (cached, full):
+                r.scene.probe = None if center is None else Probe(center=center.copy(), touched_atom=3)
+            cached.render(camera)
+            full.render(full_camera)
+            a, b = cached.read_image(), full.read_image()
+            assert agreement(a, b) >= 0.999, (sid, setup, center)
+            kinds = cached.targets.read(cached.targets.ids)[..., 1]
+            assert (kinds == KIND_PROBE).any() == (center is not None)  # the probe is in the picture
+            # the terms too, off the probe's own pixels (which the shading does not light)
+            ga, gb = gbuffer_arrays(cached), gbuffer_arrays(full)
+            for layer in ("shadow_dir", "shadow_probe", "ao"):
+                assert (layer in ga) == (layer in gb)
+                if layer in ga:
+                    off_probe = ga["kind"] != KIND_PROBE
+                    assert np.abs(ga[layer] - gb[layer])[off_probe].max() <= 1e-5, (sid, setup, layer)
+        assert cached.cache.misses == 1 and cached.cache.hits == len(path) - 1  # the layer held throughout
+        assert full.cache is None
+    finally:
+        cached.release()
+        full.release()
+
+
+def test_a_probe_that_moved_leaves_no_trace(gl, crambin):
+    """After the probe has moved away, the pixels it covered show the molecule layer again,
+    bit for bit as a renderer that never drew it there."""
+    settings = LightingSettings()
+    r, camera = make_renderer(gl, crambin, (160, 120), settings, cache=True)
+    fresh, fresh_camera = make_renderer(gl, crambin, (160, 120), settings, cache=True)
+    try:
+        first, last = probe_path(crambin)[3], probe_path(crambin)[6]
+        r.scene.probe = Probe(center=first)
+        r.render(camera)
+        seen = r.read_image()
+        r.scene.probe = Probe(center=last)
+        r.render(camera)
+        fresh.scene.probe = Probe(center=last)
+        fresh.render(fresh_camera)
+        assert r.cache.hits == 1
+        assert np.array_equal(r.read_image(), fresh.read_image())
+        assert not np.array_equal(seen, r.read_image())
+    finally:
+        r.release()
+        fresh.release()
+
+
+def test_progressive_ao_keeps_accumulating_while_only_the_probe_moves(gl, crambin):
+    """Ray-traced AO of the molecule does not depend on the probe: its samples keep adding up
+    while the probe moves, and after the same number of frames the picture equals one where
+    the probe stood at its last place all along."""
+    settings = LightingSettings(shadows="off", ao=AOSettings(mode="rt", rt_spp=2))
+    path = [p for p in probe_path(crambin) if p is not None]
+    moving, camera = make_renderer(gl, crambin, (128, 96), settings, cache=True)
+    still, still_camera = make_renderer(gl, crambin, (128, 96), settings, cache=True)
+    try:
+        for i, center in enumerate(path):
+            moving.scene.probe = Probe(center=center)
+            moving.render(camera)
+            still.scene.probe = Probe(center=path[-1])
+            still.render(still_camera)
+            assert lighting_of(moving).ao.samples == 2 * (i + 1)
+        assert np.array_equal(moving.read_image(), still.read_image())
+        camera.orbit(np.array([0.0, 1.0, 0.0]), 0.1)  # the camera turns: accumulation starts over
+        moving.render(camera)
+        assert lighting_of(moving).ao.samples == 2
+    finally:
+        moving.release()
+        still.release()
+
+
+# ------------------------------------------------------------------ the key
+def _changed(value):
+    """A different value of the same kind (for the generic invalidation test)."""
+    if isinstance(value, bool):
+        return not value
+    if isinstance(value, (int, float)):
+        return value + 1
+    if isinstance(value, tuple):
+        return tuple(_changed(v) for v in value)
+    if isinstance(value, np.ndarray):
+        return value + 0.5
+    raise TypeError(type(value))
+
+
+def test_every_effect_camera_and_setting_but_the_probe_invalidates_the_layer(gl, crambin):
+    settings = LightingSettings()
+    r, camera = make_renderer(gl, crambin, (64, 48), settings, cache=True)
+    try:
+        r.scene.probe = Probe(center=probe_path(crambin)[3])
+        r.render(camera)
+
+        def misses_after(change) -> int:
+            before = r.cache.misses
+            change()
+            r.render(camera)
+            return r.cache.misses - before
+
+        assert misses_after(lambda: setattr(r.scene, "probe", Probe(center=probe_path(crambin)[5]))) == 0
+        assert misses_after(lambda: setattr(r.scene.probe, "touched_atom", 7)) == 0
+        for f in dataclasses.fields(Effects):
+            assert misses_after(lambda f=f: setattr(r.scene.effects, f.name, not getattr(r.scene.effects, f.name))) \
+                == 1, f.name
+        assert misses_after(lambda: setattr(r.scene, "light_direction", -r.scene.light_direction)) == 1
+        assert misses_after(lambda: setattr(r.scene, "nav_cube", NavCube(crambin.positions[0].copy(), 6.0))) == 1
+        assert misses_after(lambda: setattr(r.scene.nav_cube, "half", 7.0)) == 1
+        assert misses_after(lambda: r.scene.clip_planes.append(np.array([1.0, 0.0, 0.0, -9.0]))) == 1
+        assert misses_after(lambda: setattr(r.scene, "probe_radius", 1.2)) == 1
+        for name in ("eye", "target", "up", "fov_y"):
+            assert misses_after(lambda n=name: setattr(camera, n, _changed(getattr(camera, n)))) == 1, name
+        shading = r.pass_named("shading").settings
+        for f in dataclasses.fields(shading):
+            assert misses_after(lambda f=f: setattr(shading, f.name, _changed(getattr(shading, f.name)))) == 1, f.name
+        lighting = lighting_of(r)
+        assert misses_after(lighting.cycle_ao_mode) == 1
+        assert misses_after(lambda: setattr(lighting, "settings", replace(lighting.settings, samples=3))) == 1
+        assert misses_after(lambda: r.resize((72, 48))) == 1
+        assert misses_after(lambda: r.set_sphere_mode("sprite")) == 1
+        assert misses_after(lambda: None) == 0
+    finally:
+        r.release()
+
+
+def test_the_key_covers_fields_added_later():
+    """A field another part of the program adds to the scene (a colour scheme, say) is in the
+    key without being listed anywhere; the probe alone is left out."""
+
+    @dataclasses.dataclass
+    class ExtendedScene(SceneState):
+        color_scheme: str = "cpk"
+        background: tuple = (0.0, 0.0, 0.0)
+
+    from sasprobe.molecule import load_default
+
+    scene = ExtendedScene(load_default())
+    key = state_key(scene, skip=("probe",))
+    assert state_key(replace(scene, color_scheme="chain"), skip=("probe",)) != key
+    assert state_key(replace(scene, background=(1.0, 1.0, 1.0)), skip=("probe",)) != key
+    assert state_key(replace(scene, probe=Probe(np.zeros(3))), skip=("probe",)) == key
+    assert state_key(replace(scene, effects=Effects(shadows=True)), skip=("probe",)) != key
+    assert state_key(AOSettings(patch=9)) != state_key(AOSettings())
+
+
+def test_rectangles_hold_the_sphere():
+    view = Camera(eye=(0.0, 0.0, 30.0), target=(0.0, 0.0, 0.0)).view()
+    proj = Camera(eye=(0.0, 0.0, 30.0), target=(0.0, 0.0, 0.0)).projection(4 / 3)
+    size = (160, 120)
+    rect = sphere_rect((2.0, -1.0, 3.0), 1.4, proj @ view, size)
+    # every pixel whose ray meets the sphere lies inside (brute force over the frame)
+    inv = np.linalg.inv(proj @ view)
+    xs, ys = np.meshgrid(np.arange(size[0]) + 0.5, np.arange(size[1]) + 0.5)
+    ndc = np.stack([xs / size[0] * 2 - 1, ys / size[1] * 2 - 1, np.ones_like(xs), np.ones_like(xs)], axis=-1)
+    far = ndc @ inv.T
+    d = far[..., :3] / far[..., 3:] - np.array([0.0, 0.0, 30.0])
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    oc = np.array([2.0, -1.0, 3.0]) - np.array([0.0, 0.0, 30.0])
+    b = d @ oc
+    hit = b * b - (oc @ oc - 1.4 ** 2) >= 0
+    x0, y0, w, h = rect
+    inside = np.zeros_like(hit)
+    inside[y0:y0 + h, x0:x0 + w] = True
+    assert hit.any() and np.all(inside[hit])
+    assert w * h < 0.1 * size[0] * size[1]
+    assert sphere_rect((0.0, 0.0, 30.5), 1.0, proj @ view, size) == (0, 0, 160, 120)  # holds the eye
+    assert sphere_rect((500.0, 0.0, 0.0), 1.0, proj @ view, size) is None  # off screen
+    assert union_rect(None, (1, 2, 3, 4)) == (1, 2, 3, 4)
+    assert union_rect((0, 0, 2, 2), (5, 5, 1, 1)) == (0, 0, 6, 6)
