@@ -1,0 +1,150 @@
+"""QuteMol's precomputed occlusion (render/lighting/ao/precomputed.py) against its CPU
+reference (tests/atlas_reference.py): the baked patches, the fill of texels inside other
+atoms, the per-pixel lookup, caps, when it bakes again, and how close it comes to the
+converged ray-traced AO and the exact per-pixel shadow."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from sasprobe.render.lighting.ao import AmbientOcclusion
+from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
+from sasprobe.render.lighting.grid import Culling
+from sasprobe.render.lighting.settings import AOSettings, DirectionalLight, HARD_SHADOW
+from sasprobe.render.gl.textures import read_texture
+from sasprobe.render.gl.targets import KIND_CAP
+from tests.atlas_reference import bake_atom, bilinear, fill_hidden, octa_decode, octa_encode
+from tests.lighting_reference import Occluders, light_visibility
+from tests.lighting_support import away_from_boundaries, camera, cullings, gbuffer_arrays
+
+pytestmark = pytest.mark.needs_gl(430)
+
+SUN = np.array([0.45, 0.8, 0.4]) / np.linalg.norm([0.45, 0.8, 0.4])  # towards the light
+PATCH, DIRECTIONS, DISTANCE = 5, 24, 8.0
+
+
+def patch_of(atlas: OcclusionAtlas, values: np.ndarray, atom: int) -> np.ndarray:
+    slot = int(atlas.slot_of()[atom])
+    x, y = (slot % atlas.tiles_x) * atlas.patch, (slot // atlas.tiles_x) * atlas.patch
+    return values[y:y + atlas.patch, x:x + atlas.patch]
+
+
+def test_octahedral_reference_round_trips():
+    v = np.random.default_rng(1).normal(size=(500, 3))
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    assert np.abs(octa_decode(octa_encode(v)) - v).max() < 1e-12
+
+
+@pytest.mark.parametrize("setup", ["none", "cube"])
+def test_patches_equal_the_cpu_bake(gl, crambin, crambin_grid, setup):
+    crambin_grid.set_culling(cullings(crambin)[setup])
+    occ = Occluders.of(crambin_grid)
+    atlas = OcclusionAtlas(crambin_grid)
+    try:
+        assert atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN)
+        values = atlas.read()
+        kept = np.flatnonzero(~crambin_grid.culled_mask)
+        assert atlas.n_slots == kept.size and np.array_equal(np.flatnonzero(atlas.slot_of() >= 0), kept)
+        rng = np.random.default_rng(5)
+        close = seen = 0
+        for atom in rng.choice(kept, size=min(24, kept.size), replace=False):
+            ambient, sun, hidden = bake_atom(int(atom), occ, PATCH, DIRECTIONS, DISTANCE, SUN)
+            gpu = patch_of(atlas, values, int(atom))
+            for channel, cpu in ((0, ambient), (1, sun)):
+                filled = fill_hidden(cpu, hidden)
+                ok = np.abs(gpu[..., channel] - filled) <= 2e-3  # float16 storage
+                close += ok.sum()
+                seen += ok.size
+            assert hidden.any() and not hidden.all()  # bonded neighbours hide part of every atom
+        assert close / seen >= 0.98, close / seen  # a ray grazing a sphere may go either way
+    finally:
+        atlas.release()
+        crambin_grid.set_culling(Culling())
+
+
+def test_lookup_is_the_bilinear_patch_value_and_caps_are_open(gl, crambin, crambin_grid):
+    crambin_grid.set_culling(cullings(crambin)["plane"])
+    view, proj = camera(crambin)
+    gbuffer, pos, nrm, atom = gbuffer_arrays(crambin_grid, view, proj)
+    atlas = OcclusionAtlas(crambin_grid)
+    try:
+        atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN)
+        ambient_tex, sun_tex = atlas.lookup(gbuffer, SUN)
+        ambient, sun = read_texture(ambient_tex), read_texture(sun_tex)
+        values, slots = atlas.read(), atlas.slot_of()
+        kinds = gbuffer.kinds()
+        caps = kinds == KIND_CAP
+        assert caps.sum() > 50
+        assert np.all(ambient[caps] == 1.0)
+        assert np.array_equal(sun[caps] == 1.0, (nrm[caps] @ SUN) > 0)
+        spheres = (atom >= 0) & ~caps
+        ys, xs = np.nonzero(spheres)
+        good = 0
+        for y, x in zip(ys, xs):
+            a = atom[y, x]
+            slot = slots[a]
+            e = octa_encode((pos[y, x] - crambin.positions[a]) / np.linalg.norm(pos[y, x] - crambin.positions[a]))
+            tx, ty = (slot % atlas.tiles_x) * PATCH, (slot // atlas.tiles_x) * PATCH
+            u = tx + (e[0] * 0.5 + 0.5) * (PATCH - 1) + 0.5
+            v = ty + (e[1] * 0.5 + 0.5) * (PATCH - 1) + 0.5
+            expected = bilinear(values, u, v)
+            good += np.abs(expected - np.array([ambient[y, x], sun[y, x]])).max() <= 1e-2
+        assert good / len(ys) >= 0.995
+        assert np.all(ambient[atom == -1] == 1.0)
+    finally:
+        atlas.release()
+        gbuffer.release()
+        crambin_grid.set_culling(Culling())
+
+
+def test_it_bakes_once_per_culling_and_light(gl, crambin, crambin_grid):
+    atlas = OcclusionAtlas(crambin_grid)
+    try:
+        crambin_grid.set_culling(Culling())
+        assert atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True)
+        assert not atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True)
+        assert atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN)  # the light channel
+        assert not atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN)
+        assert atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True, sun_direction=-SUN)  # the light moved
+        crambin_grid.set_culling(cullings(crambin)["cube"])
+        assert atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True)  # new culling: new patches
+        assert atlas.n_slots == int((~crambin_grid.culled_mask).sum()) < crambin.n_atoms
+        assert atlas.update(PATCH + 1, DIRECTIONS, DISTANCE, ambient=True)
+        with pytest.raises(ValueError, match="--ao-patch"):
+            atlas.update(4000, DIRECTIONS, DISTANCE, ambient=True)  # an atlas beyond the texture size
+    finally:
+        atlas.release()
+        crambin_grid.set_culling(Culling())
+
+
+def test_accuracy_against_the_converged_reference_and_the_exact_shadow(gl, crambin, crambin_grid):
+    """At the default patch and directions the precomputed AO is closer to converged
+    ray-traced AO than analytic AO with 32 neighbours, and its shadow agrees with the exact
+    per-pixel one away from shadow boundaries."""
+    crambin_grid.set_culling(Culling())
+    view, proj = camera(crambin, 96, 72)
+    gbuffer, pos, nrm, atom = gbuffer_arrays(crambin_grid, view, proj, 96, 72)
+    ao = AmbientOcclusion(crambin_grid)
+    try:
+        base = AOSettings()
+        ao.configure(replace(base, mode="reference", reference_spp=64, reference_total=256))
+        while not ao.converged:
+            reference = ao.compute(gbuffer, view, proj)
+        reference = read_texture(reference).copy()
+        errors = {}
+        for mode in ("precomputed", "analytic"):
+            ao.configure(replace(base, mode=mode))
+            image = read_texture(ao.compute(gbuffer, view, proj))
+            errors[mode] = float(np.sqrt(np.mean((image - reference)[atom >= 0] ** 2)))
+        assert errors["precomputed"] < 0.7 * errors["analytic"], errors
+        sun = read_texture(ao.baked(gbuffer, ambient=False, sun_direction=SUN)[1])
+        exact = light_visibility(pos, nrm, atom, DirectionalLight(tuple(SUN)), Occluders.of(crambin_grid), HARD_SHADOW)
+        valid = atom >= 0
+        compared = away_from_boundaries(exact < 0.5, valid)
+        assert ((sun >= 0.5) == (exact >= 0.5))[compared].mean() >= 0.95
+    finally:
+        ao.release()
+        gbuffer.release()
