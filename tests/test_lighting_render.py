@@ -165,7 +165,7 @@ def test_no_opengl_43_is_one_clear_line(crambin):
 
 
 def test_render_cli_takes_every_lighting_option(tmp_path):
-    runs = [(ao, shadows) for ao, shadows in zip(AO_MODES, ["off", "hard", "soft"] * 2)]
+    runs = [(ao, shadows) for ao, shadows in zip(AO_MODES, ["off", "hard", "soft", "precomputed"] * 2)]
     for ao, shadows in runs:
         npz, png = tmp_path / f"{ao}.npz", tmp_path / f"{ao}.png"
         r = run_cli("render", "--headless", "--size", "96x72", "--ao", ao, "--shadows", shadows,

@@ -98,6 +98,7 @@ class LightingPass(Pass):
         self.molecule_terms: dict[str, object] = {}  # layered: the molecule's own terms, kept with its layer
         self._dirty: dict[str, tuple | None] = {}  # layered: the rectangle each probe term covered last
         self._probe_neighbours = (None, NO_NEIGHBOURS)  # layered: (probe key, atoms nearest the probe)
+        self._looked_up = (-1, None)  # (frame index, accessibility) the atlas gave with the sun's visibility
         self._warned_shell = False
 
     # ------------------------------------------------------------ state
@@ -164,7 +165,10 @@ class LightingPass(Pass):
         (--shadows precomputed, hard shadows only)."""
         if self.settings.shadows == "precomputed" and not frame.scene.effects.soft_shadows:
             self._configure_ao()
-            return self.ao.baked(gbuffer, ambient=False, sun_direction=sun.unit())[1]
+            both = frame.scene.effects.ambient_occlusion and self.ao_mode == "precomputed"
+            ambient, visibility = self.ao.baked(gbuffer, ambient=both, sun_direction=sun.unit())
+            self._looked_up = (frame.index, ambient if both else None)  # one lookup gives both terms
+            return visibility
         return self.shadows.trace(gbuffer, sun, self._soft(frame), out=self.textures.get(name, frame.size))
 
     def _configure_ao(self) -> None:
@@ -173,6 +177,8 @@ class LightingPass(Pass):
 
     def _ambient(self, gbuffer: GBuffer, frame: Frame):
         """The AO method's texture, brought to `samples` per pixel where it is progressive."""
+        if self._looked_up[0] == frame.index and self._looked_up[1] is not None:
+            return self._looked_up[1]
         self._configure_ao()
         texture = self.ao.compute(gbuffer, frame.view, frame.proj)
         while self.ao.samples < self.settings.samples and not self.ao.converged:

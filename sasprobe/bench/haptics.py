@@ -99,7 +99,7 @@ def _entries(ids: str | None, quick: bool):
 
 
 # ------------------------------------------------------------------ sessions
-def _session(structure, script, method, settings_kw, limits, ticks, rate_hz=1000, seed=1):
+def closed_loop_session(structure, script, method, settings_kw, limits, ticks, rate_hz=1000, seed=1):
     """Closed loop sim arm <-> engine; returns the states, outputs and the arm."""
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices.simulated import make_simulated
@@ -162,7 +162,7 @@ def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> di
     jumps = []
     energy = contact = clamped = 0.0
     for script in SCRIPTS:
-        states, outputs, device = _session(structure, script, method, settings_kw, limits, ticks)
+        states, outputs, device = closed_loop_session(structure, script, method, settings_kw, limits, ticks)
         b, s = _replay_times(structure, method, settings_kw, limits, states, repeats)
         best.append(b)
         single.append(s)
@@ -261,7 +261,7 @@ def _force_trace() -> dict:
     structure = load_default()
     trace = {}
     for method in METHODS:
-        _, outputs, device = _session(structure, "dive", method, {}, PHANTOM_OMNI_LIMITS, ticks=4000)
+        _, outputs, device = closed_loop_session(structure, "dive", method, {}, PHANTOM_OMNI_LIMITS, ticks=4000)
         trace[method] = [float(np.linalg.norm(o.force_n)) for o in outputs]
     return trace
 

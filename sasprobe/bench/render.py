@@ -1,5 +1,7 @@
 """`sasprobe bench render`: impostors against triangle meshes, the navigation cube on a
-large structure against a small one drawn whole, and frame time against atom count.
+large structure against a small one drawn whole, frame time against atom count, and the
+frames of a session by scenario (bench/render_scenarios.py: the haptic session, an orbit,
+the drifting cube; against PyMOL's `ray` where it is installed).
 
 Frame times are wall times of a whole frame with the GPU drained (glFinish) before
 and after; per-pass times drain after every pass. Medians over repeats, ratios from
@@ -14,13 +16,14 @@ import time
 
 import numpy as np
 
-from sasprobe.bench import BenchContext, BenchResult
+from sasprobe.bench import BenchContext, BenchResult, render_scenarios
 from sasprobe.bench.charts import figure, save
 from sasprobe.errors import UserError
+from sasprobe.molecule import load_default, load_structure
 from sasprobe.paths import shared_structures
 from sasprobe.progress import progress
 
-TITLE = "Rendering: impostors vs meshes, navigation cube, frame time vs atoms"
+TITLE = "Rendering: impostors vs meshes, navigation cube, frame time vs atoms, session scenarios"
 MESH_TARGET_ATOMS = 60_000
 QUICK_MESH_TARGET_ATOMS = 10_000  # --quick: a mesh frame of ~60k atoms takes seconds on llvmpipe
 CUBE_TARGET_ATOMS = 300
@@ -31,38 +34,78 @@ def add_arguments(parser) -> None:
 
     parser.add_argument("--size", type=size_type, default=None, metavar="WxH",
                         help="frame size (default 1280x720, --quick 640x360)")
+    parser.add_argument("--scenario-size", type=size_type, default=None, metavar="WxH",
+                        help="frame size of the session scenarios (default 800x600, --quick 400x300)")
+    parser.add_argument("--scenarios-only", action="store_true",
+                        help="only the session scenarios (haptic session, orbit, drifting cube; PyMOL where installed)")
 
 
 def run(ctx: BenchContext, args=None) -> BenchResult:
-    from sasprobe.molecule import load_default, load_structure
     from sasprobe.render.gl.context import create_headless_context
 
     entries = shared_structures()
     if not entries:
         raise UserError("no shared structures found (expected ../shared/data/pdb/ or SASPROBE_DATA)")
     size = getattr(args, "size", None) or ((640, 360) if ctx.quick else (1280, 720))
+    scenario_size = getattr(args, "scenario_size", None) or ((400, 300) if ctx.quick else (800, 600))
+    only_scenarios = getattr(args, "scenarios_only", False)
     repeats, mesh_repeats = (3, 2) if ctx.quick else (9, 5)
     gl = create_headless_context()
     renderer_name = f"{gl.info['GL_RENDERER']} / OpenGL {gl.info['GL_VERSION']}"
+    by_id = {e.id: e for e in entries}
+    data = {"gl_renderer": renderer_name, "size": list(size), "repeats": repeats, "mesh_repeats": mesh_repeats}
+    charts = []
     try:
-        structures = {e.id: load_structure(e.path) for e in progress(entries, "bench render: load", len(entries))}
-        crambin = load_default()
-        scaling = _scaling(gl, [(e.id, structures[e.id]) for e in entries], size, repeats)
-        mesh_target = QUICK_MESH_TARGET_ATOMS if ctx.quick else MESH_TARGET_ATOMS
-        mesh_id = min(structures, key=lambda k: abs(structures[k].n_atoms - mesh_target))
-        sizes = [size] if ctx.quick else [size, (size[0] // 2, size[1] // 2)]
-        modes = [_modes(gl, structures[mesh_id], s, mesh_repeats) | {"id": mesh_id} for s in sizes]
-        big_id = max(structures, key=lambda k: structures[k].n_atoms)
-        cube = _cube(gl, structures[big_id], crambin, size, repeats) | {"id": big_id}
+        if not only_scenarios:
+            structures = {e.id: load_structure(e.path) for e in progress(entries, "bench render: load", len(entries))}
+            crambin = load_default()
+            scaling = _scaling(gl, [(e.id, structures[e.id]) for e in entries], size, repeats)
+            mesh_target = QUICK_MESH_TARGET_ATOMS if ctx.quick else MESH_TARGET_ATOMS
+            mesh_id = min(structures, key=lambda k: abs(structures[k].n_atoms - mesh_target))
+            sizes = [size] if ctx.quick else [size, (size[0] // 2, size[1] // 2)]
+            data["modes"] = [_modes(gl, structures[mesh_id], s, mesh_repeats) | {"id": mesh_id} for s in sizes]
+            big_id = max(structures, key=lambda k: structures[k].n_atoms)
+            data["cube"] = _cube(gl, structures[big_id], crambin, size, repeats) | {"id": big_id}
+            data["scaling"] = scaling
+            path = ctx.chart_path("render_frame_time.png")
+            if path is not None:
+                charts.append(_chart(path, scaling, renderer_name, size))
+        data["scenarios"] = _scenarios(gl, by_id, scenario_size, 10 if ctx.quick else 30, 1 if ctx.quick else 3)
     finally:
         gl.release()
-    data = {"gl_renderer": renderer_name, "size": list(size), "repeats": repeats, "mesh_repeats": mesh_repeats,
-            "modes": modes, "cube": cube, "scaling": scaling}
-    charts = []
-    path = ctx.chart_path("render_frame_time.png")
-    if path is not None:
-        charts.append(_chart(path, scaling, renderer_name, size))
-    return BenchResult("render", data, _markdown(data), charts)
+    text = _markdown(data) if not only_scenarios else f"GL renderer: **{renderer_name}**."
+    return BenchResult("render", data, text + "\n\n" + render_scenarios.markdown(data["scenarios"]), charts)
+
+
+def _scenarios(gl, by_id, size, frames: int, pymol_repeats: int) -> dict:
+    """(a) on 1CRN and 1TII (waters kept, as the issue measured), (b) on 1TII, (c) on the
+    largest structure; PyMOL on 1TII."""
+    steps = progress(range(5), "bench render: scenarios", 5)
+    out = {"size": list(size), "frames": frames, "load": [render_scenarios.load_average()],
+           "session": [], "orbit": [], "cube": []}
+    session_ids = [i for i in ("1crn", "1tii") if i in by_id]
+    next(steps)
+    for sid in session_ids:
+        structure = load_structure(by_id[sid].path, keep_water=True)
+        out["session"].append({"id": sid, "atoms": structure.n_atoms,
+                               **render_scenarios.session(gl, structure, size, frames)})
+    next(steps)
+    orbit_id = session_ids[-1]
+    structure = load_structure(by_id[orbit_id].path, keep_water=True)
+    probe = render_scenarios.demo_path(structure, 1)[0].proxy_A
+    out["orbit"].append({"id": orbit_id, "atoms": structure.n_atoms,
+                         **render_scenarios.orbit(gl, structure, size, frames, probe)})
+    next(steps)
+    big_id = max(by_id, key=lambda k: by_id[k].atoms)
+    big = load_structure(by_id[big_id].path)
+    out["cube"].append({"id": big_id, "atoms": big.n_atoms, **render_scenarios.drifting_cube(gl, big, size, frames)})
+    next(steps)
+    pymol = render_scenarios.pymol_ray(by_id[orbit_id].path, size, pymol_repeats)
+    if pymol is not None:
+        out["pymol"] = {"id": orbit_id, **pymol}
+    next(steps)
+    out["load"].append(render_scenarios.load_average())
+    return out
 
 
 # ---------------------------------------------------------------- measurements

@@ -1,0 +1,306 @@
+"""The frames a session draws, by scenario (part of `sasprobe bench render`):
+
+(a) the haptic session: the camera still, the probe moving along the demo's path (the
+    simulated arm's `scan` script through the haptic engine, as `sasprobe demo` runs it,
+    one pose per 1/30 s) with the navigation cube the poses carry, default lighting;
+(b) an orbit: the camera turning 1° a frame about the molecule, the probe still;
+(c) the cube drifting: a navigation cube holding about 300 atoms of the largest structure,
+    moved a little every frame, the probe at its centre, the camera framing it.
+
+Each is timed unlit (no lighting, every frame drawn whole), with the default lighting
+drawn whole every frame (the full redraw) and with the frame cache (render/frame_cache.py);
+the orbit and the drifting cube also with precomputed occlusion (AO and directional
+shadows from the per-atom atlas; light fixed in the molecule frame; the bake before the
+first frame is reported apart). Frames of the cases are taken in turn, so load from other
+processes falls on all alike, and the load average is recorded beside the figures. Where
+`pymol-open-source` is importable, PyMOL's `ray` renders the session's structure at the
+same size with and without its shadows in the same run (in a child process).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+PATH_FPS = 30.0  # poses per second of the demo path (a renderer's frame rate)
+PATH_START_S = 1.0  # the scan reaches the surface in its first second
+
+
+@dataclass
+class Case:
+    label: str
+    renderer: object
+    camera: object
+    step: Callable[[int], None]  # before frame k: move what the scenario moves
+    times: list[float] = field(default_factory=list)
+
+
+def load_average() -> float:
+    return round(os.getloadavg()[0], 2)
+
+
+def demo_path(structure, frames: int) -> list:
+    """Poses of the demo's session (sim:scan through the haptic engine), one per 1/PATH_FPS s."""
+    from sasprobe.bench.haptics import closed_loop_session
+    from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
+
+    stride = int(1000 / PATH_FPS)
+    ticks = int(PATH_START_S * 1000) + stride * frames
+    _, outputs, _ = closed_loop_session(structure, "scan", "proxy", {}, PHANTOM_OMNI_LIMITS, ticks)
+    return outputs[int(PATH_START_S * 1000)::stride][:frames]
+
+
+def make_case(gl, label: str, structure, size, lighting, cache: bool, nav_cube=None, camera=None):
+    from sasprobe.render.camera import Camera
+    from sasprobe.render.passes.lighting import install_lighting
+    from sasprobe.render.renderer import Renderer
+    from sasprobe.render.scene import SceneState
+
+    scene = SceneState(structure, nav_cube=nav_cube)
+    if lighting is not None:
+        for name, on in lighting.effects().items():
+            setattr(scene.effects, name, on)
+    renderer = Renderer(gl, scene, size, frame_cache=cache)
+    if lighting is not None:
+        install_lighting(renderer, lighting)
+    if camera is None:
+        center, radius = scene.bounding_sphere()
+        camera = Camera.fitted(center, radius, size[0] / size[1])
+    return Case(label, renderer, Camera(camera.eye, camera.target, camera.up, camera.fov_y), lambda k: None)
+
+
+def time_cases(gl, cases: list[Case], frames: int, warmup: int = 2) -> None:
+    """Frame k of every case, in turn, for k < frames (after `warmup` frames each, whose
+    steps are those of frames 0..warmup-1 again)."""
+    for k in range(warmup):
+        for case in cases:
+            case.step(k)
+            case.renderer.render(case.camera)
+    gl.finish()
+    for k in range(frames):
+        for case in cases:
+            case.step(k)
+            gl.finish()
+            t0 = time.perf_counter()
+            case.renderer.render(case.camera)
+            gl.finish()
+            case.times.append(time.perf_counter() - t0)
+
+
+def summary(cases: list[Case], unlit: str, full: str) -> dict:
+    rows = {}
+    for case in cases:
+        cache = case.renderer.cache
+        ms = statistics.median(case.times) * 1e3
+        rows[case.label] = {"ms": ms, "frames": len(case.times),
+                            "cache_hits": None if cache is None else cache.hits,
+                            "cache_misses": None if cache is None else cache.misses}
+    for row in rows.values():
+        row["over_unlit"] = row["ms"] / rows[unlit]["ms"]
+        row["full_over_this"] = rows[full]["ms"] / row["ms"]
+    return rows
+
+
+def release(cases: list[Case]) -> None:
+    for case in cases:
+        case.renderer.release()
+
+
+# ------------------------------------------------------------------ the scenarios
+def session(gl, structure, size, frames: int) -> dict:
+    """(a): the probe along the demo path, camera still, the poses' cube."""
+    from sasprobe.render.lighting.settings import LightingSettings
+    from sasprobe.render.scene import NavCube, Probe
+
+    path = demo_path(structure, frames)
+    first = path[0]
+    cube = NavCube(np.array(first.cube_center_A, dtype=np.float64), float(first.cube_half_A))
+    lit = LightingSettings()
+    cases = [make_case(gl, "unlit", structure, size, None, False, cube),
+             make_case(gl, "full redraw", structure, size, lit, False, cube),
+             make_case(gl, "session (frame cache)", structure, size, lit, True, cube)]
+
+    def step_of(scene):
+        def step(k: int) -> None:
+            pose = path[k % len(path)]
+            touched = pose.touched_atoms[0] if pose.touched_atoms else -1
+            scene.probe = Probe(center=np.array(pose.proxy_A, dtype=np.float64), touched_atom=touched)
+            center = np.array(pose.cube_center_A, dtype=np.float64)
+            if not np.array_equal(center, scene.nav_cube.center) or pose.cube_half_A != scene.nav_cube.half:
+                scene.nav_cube = NavCube(center, float(pose.cube_half_A))
+        return step
+
+    for case in cases:
+        case.step = step_of(case.renderer.scene)
+    try:
+        time_cases(gl, cases, frames)
+        out = {"rows": summary(cases, "unlit", "full redraw"),
+               "contact_fraction": float(np.mean([p.contact for p in path])),
+               "probe_travel_A": float(np.sum(np.linalg.norm(np.diff([p.proxy_A for p in path], axis=0), axis=1)))}
+    finally:
+        release(cases)
+    return out
+
+
+def orbit(gl, structure, size, frames: int, probe_center) -> dict:
+    """(b): the camera turning 1° a frame, the probe still."""
+    from sasprobe.render.lighting.settings import AOSettings, LightingSettings
+    from sasprobe.render.scene import Probe
+
+    lit = LightingSettings()
+    baked = LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed"))
+    cases = [make_case(gl, "unlit", structure, size, None, False),
+             make_case(gl, "full redraw", structure, size, lit, False),
+             make_case(gl, "frame cache", structure, size, lit, True),
+             make_case(gl, "precomputed AO + shadows", structure, size, baked, True)]
+    step_angle = np.radians(1.0)
+
+    def step_of(case):
+        axis = case.camera.up.copy()
+        case.renderer.scene.probe = Probe(center=np.array(probe_center, dtype=np.float64))
+        return lambda k: case.camera.orbit(axis, step_angle)
+
+    for case in cases:
+        case.step = step_of(case)
+    try:
+        bake_s = _first_frame_bake(gl, cases[-1])
+        time_cases(gl, cases, frames)
+        out = {"rows": summary(cases, "unlit", "full redraw"), "bake_s": bake_s}
+    finally:
+        release(cases)
+    return out
+
+
+def drifting_cube(gl, structure, size, frames: int) -> dict:
+    """(c): a ~300-atom cube of the largest structure moving every frame, the probe inside."""
+    from sasprobe.bench.render import CUBE_TARGET_ATOMS, cube_for
+    from sasprobe.render.camera import Camera
+    from sasprobe.render.lighting.settings import AOSettings, LightingSettings
+    from sasprobe.render.scene import NavCube, Probe
+
+    cube, inside = cube_for(structure, CUBE_TARGET_ATOMS)
+    camera = Camera.fitted(cube.center, cube.half * np.sqrt(3.0), size[0] / size[1])
+    lit = LightingSettings()
+    baked = LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed"))
+    cases = [make_case(gl, label, structure, size, lighting, cache, NavCube(cube.center.copy(), cube.half), camera)
+             for label, lighting, cache in (("unlit", None, False), ("full redraw", lit, False),
+                                            ("frame cache", lit, True), ("precomputed AO + shadows", baked, True))]
+    drift = np.array([0.05, -0.03, 0.04])  # Å per frame: 1.5-2 Å/s at 30 fps
+
+    def step_of(scene):
+        def step(k: int) -> None:
+            scene.nav_cube = NavCube(cube.center + k * drift, cube.half)
+            scene.probe = Probe(center=scene.nav_cube.center + [0.0, 0.0, 0.5 * cube.half])
+        return step
+
+    for case in cases:
+        case.step = step_of(case.renderer.scene)
+    try:
+        time_cases(gl, cases, frames)
+        out = {"rows": summary(cases, "unlit", "full redraw"), "cube_half_A": cube.half, "atoms_in_cube": inside}
+    finally:
+        release(cases)
+    return out
+
+
+def _first_frame_bake(gl, case: Case) -> float:
+    """Draw the case's first frame with its atlas baking; the bake's own time (s)."""
+    from sasprobe.render.passes.lighting import lighting_of
+
+    case.renderer.render(case.camera)
+    gl.finish()
+    atlas = lighting_of(case.renderer).ao._pass("atlas")
+    return atlas.bake_seconds
+
+
+# ------------------------------------------------------------------ PyMOL
+PYMOL_SCRIPT = r"""
+import json, statistics, sys, time
+import pymol
+from pymol import cmd
+pymol.finish_launching(["pymol", "-qc"])
+cmd.feedback("disable", "all", "everything")
+path, w, h, repeats = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
+cmd.load(path, "m")
+cmd.hide("everything")
+cmd.show("spheres")
+cmd.orient()
+cmd.viewport(w, h)
+out = {"version": cmd.get_version()[0], "atoms": cmd.count_atoms("all"), "max_threads": cmd.get("max_threads"),
+       "antialias_default": int(cmd.get("antialias"))}
+for shadows in (1, 0):
+    for antialias in sorted({out["antialias_default"], 0}, reverse=True):
+        cmd.set("ray_shadows", shadows)
+        cmd.set("antialias", antialias)
+        cmd.ray(w, h)
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            cmd.ray(w, h)
+            times.append(time.perf_counter() - t0)
+        out[f"shadows{shadows}_aa{antialias}_ms"] = statistics.median(times) * 1e3
+print("PYMOL_RESULT " + json.dumps(out))
+"""
+
+
+def pymol_available() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("pymol") is not None
+
+
+def pymol_ray(path, size, repeats: int) -> dict | None:
+    """PyMOL's ray tracer on a structure file (spheres, oriented, w x h), with and without its
+    shadows and antialiasing; None where pymol-open-source is not installed."""
+    if not pymol_available():
+        return None
+    r = subprocess.run([sys.executable, "-c", PYMOL_SCRIPT, str(path), str(size[0]), str(size[1]), str(repeats)],
+                       capture_output=True, text=True, timeout=900)
+    for line in r.stdout.splitlines():
+        if line.startswith("PYMOL_RESULT "):
+            return json.loads(line.split(" ", 1)[1])
+    return {"error": (r.stderr.strip().splitlines() or ["no result"])[-1]}
+
+
+# ------------------------------------------------------------------ report
+def markdown(d: dict) -> str:
+    size = f"{d['size'][0]}x{d['size'][1]}"
+    lines = [f"**Scenarios** ({size}, medians of {d['frames']} frames per case, cases in turn; load average "
+             f"{d['load'][0]} at the start, {d['load'][1]} at the end):", "",
+             "| scenario | structure | case | ms / frame | × unlit | full redraw / this | layer kept |",
+             "|---|---|---|---:|---:|---:|---:|"]
+    for key, title in (("session", "(a) haptic session"), ("orbit", "(b) orbit"), ("cube", "(c) cube drifting")):
+        for run in d[key]:
+            for label, r in run["rows"].items():
+                kept = "" if r["cache_hits"] is None else f"{r['cache_hits']}/{r['cache_hits'] + r['cache_misses']}"
+                lines.append(f"| {title} | {run['id']} | {label} | {r['ms']:.1f} | {r['over_unlit']:.2f} | "
+                             f"{r['full_over_this']:.2f} | {kept} |")
+    for run in d["orbit"]:
+        lines.append(f"\nOrbit, {run['id']}: the atlas baked in {run['bake_s']:.2f} s before the first frame.")
+    for run in d["cube"]:
+        lines.append(f"Drifting cube, {run['id']}: half edge {run['cube_half_A']:.2f} Å, {run['atoms_in_cube']} atoms; "
+                     "the atlas is baked again every frame (the culling changes).")
+    p = d.get("pymol")
+    if p is None:
+        lines.append("\nPyMOL: pymol-open-source is not installed (`pip install -e '.[peers]'`).")
+    elif "error" in p:
+        lines.append(f"\nPyMOL could not run: {p['error']}")
+    else:
+        session = next(r for r in d["session"] if r["id"] == p["id"])["rows"]["session (frame cache)"]["ms"]
+        lines += ["", f"**PyMOL {p['version']}** `ray` on {p['id']} ({p['atoms']} atoms, spheres, {size}, "
+                  f"max_threads {p['max_threads']}), same run; ratio = PyMOL / sasprobe session frame:", "",
+                  "| PyMOL setting | ms | PyMOL / session frame |", "|---|---:|---:|"]
+        aa = p["antialias_default"]
+        for shadows in (1, 0):
+            for antialias in sorted({aa, 0}, reverse=True):
+                ms = p[f"shadows{shadows}_aa{antialias}_ms"]
+                lines.append(f"| ray_shadows {shadows}, antialias {antialias} | {ms:.0f} | {ms / session:.1f}× |")
+    return "\n".join(lines)
