@@ -12,9 +12,11 @@ import numpy as np
 
 from sasprobe.bench import BenchContext, BenchResult
 from sasprobe.bench import lighting_ao as ao_bench
+from sasprobe.bench import lighting_precomputed as precomputed_bench
 from sasprobe.bench import lighting_shadows as shadow_bench
 from sasprobe.bench.lighting_scene import fitted_scene, gl_context, gpu_time, scene_with_coverage
 from sasprobe.bench.machine import gl_renderer
+from sasprobe.bench.render import CUBE_TARGET_ATOMS, cube_for
 from sasprobe.errors import UserError
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
 from sasprobe.paths import shared_structures
@@ -30,10 +32,12 @@ def _plan(quick: bool) -> dict:
     if quick:
         return {"ao_size": (160, 120), "ref_spp": 256, "repeats": 3, "sweep_size": (96, 72),
                 "sweep_ids": ("1crn", "3sn6"), "cells": (3.2, 12.8), "scaling_ids": ("1crn", "3sn6", "1aon"),
-                "heights": (1.0, 4.0, 8.0), "distant_size": (96, 72), "distant_spp": 64}  # keeps --quick < 5 min
+                "heights": (1.0, 4.0, 8.0), "distant_size": (96, 72), "distant_spp": 64,  # keeps --quick < 5 min
+                "bake_ids": ("1crn", "1tii"), "patches": (4, 8, 16)}
     return {"ao_size": (320, 240), "ref_spp": 1024, "repeats": 7, "sweep_size": (200, 150),
             "sweep_ids": ("1crn", "1oky", "3sn6"), "cells": (2.0, 3.2, 4.8, 9.6, 16.0, 32.0), "scaling_ids": None,
-            "heights": (0.5, 1.0, 2.0, 4.0, 6.0, 8.0, 12.0), "distant_size": (192, 144), "distant_spp": 256}
+            "heights": (0.5, 1.0, 2.0, 4.0, 6.0, 8.0, 12.0), "distant_size": (192, 144), "distant_spp": 256,
+            "bake_ids": None, "patches": (4, 6, 8, 12, 16, 24, 32)}
 
 
 def run(ctx: BenchContext) -> BenchResult:
@@ -54,7 +58,7 @@ def run(ctx: BenchContext) -> BenchResult:
             structures[sid] = load_structure(by_id[sid].path)
         return structures[sid]
 
-    steps = progress(range(5), desc="bench lighting", total=5)
+    steps = progress(range(6), desc="bench lighting", total=6)
     # --- AO: every method vs the reference, on a mid-size protein filling the view
     next(steps)
     ao_id = "1oky" if "1oky" in by_id else entries[0].id
@@ -69,6 +73,7 @@ def run(ctx: BenchContext) -> BenchResult:
         tracer.accumulate(scene.gbuffer, scene.eye, sun, None, PathTracing(bounces=3, spp=1))
 
     pt_ms = gpu_time(gl, path_trace_frame, plan["repeats"]) * 1e3
+    sweep_patches = precomputed_bench.patch_sweep(gl, scene, plan["patches"], plan["repeats"])
     tracer.release()
     scene.release()
     grid.release()
@@ -96,6 +101,14 @@ def run(ctx: BenchContext) -> BenchResult:
     next(steps)
     cube = shadow_bench.cube_bounded(gl, [(sid, structure(sid)) for sid in ids if sid in by_id], plan["sweep_size"],
                                      plan["repeats"])
+    # --- precomputed occlusion: bake time against molecule size
+    next(steps)
+    bake_ids = [i for i in (plan["bake_ids"] or tuple(e.id for e in entries)) if i in by_id]
+    largest = max(by_id, key=lambda k: by_id[k].atoms)
+    bake_structures = [(sid, structure(sid)) for sid in dict.fromkeys([*bake_ids, largest])]
+    bakes = precomputed_bench.bake_scaling(gl, bake_structures, lambda s: cube_for(s, CUBE_TARGET_ATOMS))
+    if plan["bake_ids"] is not None:  # quick: the largest only for its cube
+        bakes = [r for r in bakes if r["cube"] or r["structure"] in plan["bake_ids"]]
     gl.release()
 
     charts = []
@@ -109,6 +122,8 @@ def run(ctx: BenchContext) -> BenchResult:
             ao_bench.distant_chart(distant, ctx.chart_path("lighting_ao_distant.png")),
             shadow_bench.sweep_chart(sweep, ctx.chart_path("lighting_shadow_cells.png")),
             shadow_bench.cube_chart(cube, ctx.chart_path("lighting_shadow_cube.png")),
+            precomputed_bench.scaling_chart(bakes, ctx.chart_path("lighting_precomputed_bake.png")),
+            precomputed_bench.patch_chart(sweep_patches, ctx.chart_path("lighting_precomputed_patch.png")),
         ]
     data = {
         "gl_renderer": renderer,
@@ -124,6 +139,8 @@ def run(ctx: BenchContext) -> BenchResult:
         "shadow_cells": sweep,
         "shadow_size": list(plan["sweep_size"]),
         "cube_shadows": cube,
+        "precomputed_bake": bakes,
+        "precomputed_patches": sweep_patches,
         **_checks(scaling, sweep, cube),
     }
     return BenchResult("lighting", data, _markdown(data, plan), charts)
@@ -164,7 +181,9 @@ def _markdown(d: dict, plan: dict) -> str:
         "|---|---:|---:|---:|---:|",
     ]
     for r in d["ao"]:
-        lines.append(f"| {r['method']} | {r['ms']:.1f} | {r['rmse']:.4f} | {r['max_error']:.3f} | {r['bias']:+.4f} |")
+        bake = f" (bake {r['bake_s']:.2f} s once)" if r.get("bake_s") is not None else ""
+        lines.append(f"| {r['method']}{bake} | {r['ms']:.1f} | {r['rmse']:.4f} | {r['max_error']:.3f} | "
+                     f"{r['bias']:+.4f} |")
     lines += [
         f"| path tracing, 1 spp, 3 bounces (for scale) | {d['path_trace_1spp_3_bounces_ms']:.1f} | | | |",
         "",
@@ -225,4 +244,6 @@ def _markdown(d: dict, plan: dict) -> str:
                      f"{r['cube_soft_ms']:.2f} | {r['whole_hard_ms']:.2f} |")
     lines += ["", f"Cube-bounded hard shadows: largest / smallest time {d['cube_spread']:.2f}; largest deviation "
               f"from {d['cube_shadows'][0]['structure']} {100 * d['cube_max_deviation_from_smallest']:.0f} %."]
+    lines += ["", precomputed_bench.markdown(d["precomputed_bake"], d["precomputed_patches"], d["ao_structure"],
+                                             d["ao_size"])]
     return "\n".join(lines)

@@ -1,7 +1,8 @@
 """Ambient-occlusion part of `sasprobe bench lighting`: every method and setting timed per
-frame and compared with the converged ray-traced reference (Pareto chart), analytic AO
-against molecule size, and where methods fail (SSAO and distant occluders, analytic AO
-with few neighbours, 1-spp noise before and after the blur)."""
+frame and compared with the converged ray-traced reference (Pareto chart; precomputed
+occlusion by its per-frame lookup, its one-off bake reported beside), analytic AO against
+molecule size, and where methods fail (SSAO and distant occluders, analytic AO with few
+neighbours, 1-spp noise before and after the blur)."""
 
 from __future__ import annotations
 
@@ -23,6 +24,8 @@ from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.settings import AOSettings
 
 BASE = AOSettings()
+PRECOMPUTED = ((6, 64), (8, 64), (12, 64), (16, 64), (16, 128))  # (patch side, directions); QuteMol: 128 directions
+PRECOMPUTED_SHOWN = f"precomputed {BASE.patch}x{BASE.patch}, {BASE.directions} dirs"
 
 
 def methods() -> list[tuple[str, str, AOSettings]]:
@@ -36,6 +39,8 @@ def methods() -> list[tuple[str, str, AOSettings]]:
     out.append(("RT 1 spp raw", "rt", replace(BASE, mode="rt", rt_spp=1, blur=False)))
     out += [(f"RT {n} spp{' + blur' if n < 16 else ''}", "rt", replace(BASE, mode="rt", rt_spp=n)) for n in (1, 4, 16, 64)]
     out.append(("hybrid K=32 × RT 1 spp", "hybrid", replace(BASE, mode="hybrid", rt_spp=1)))
+    out += [(f"precomputed {p}x{p}, {d} dirs", "precomputed", replace(BASE, mode="precomputed", patch=p, directions=d))
+            for p, d in PRECOMPUTED]
     return out
 
 
@@ -67,12 +72,19 @@ def pareto(gl, scene: Scene, ref_spp: int, repeats: int) -> dict:
     ref = reference(ao, scene, ref_spp)
     rows, images = [], {"reference": ref}
     listed = methods()
-    seconds = interleaved_times(gl, {label: (lambda s=settings: one_frame(ao, scene, s)) for label, _, settings in listed},
-                                repeats)
+    # each precomputed variant keeps its own atlas: the interleaved frames then time its lookup,
+    # the warm-up frame its bake
+    own = {label: AmbientOcclusion(scene.grid) for label, family, _ in listed if family == "precomputed"}
+    seconds = interleaved_times(gl, {label: (lambda s=settings, a=own.get(label, ao): one_frame(a, scene, s))
+                                     for label, _, settings in listed}, repeats)
     for label, family, settings in listed:
-        image = read_texture(one_frame(ao, scene, settings)).copy()
+        image = read_texture(one_frame(own.get(label, ao), scene, settings)).copy()
         images[label] = image
-        rows.append({"method": label, "family": family, "ms": seconds[label] * 1e3, **errors(image, ref, mask)})
+        bake = own[label]._pass("atlas").bake_seconds if label in own else None
+        rows.append({"method": label, "family": family, "ms": seconds[label] * 1e3, "bake_s": bake,
+                     **errors(image, ref, mask)})
+    for extra in own.values():
+        extra.release()
     # failure mode: analytic AO with too few neighbours
     k_rows = []
     for k in (1, 2, 4, 8, 16, 32):
@@ -92,7 +104,7 @@ def pareto(gl, scene: Scene, ref_spp: int, repeats: int) -> dict:
 
 # ------------------------------------------------------------------ charts
 FAMILY_STYLE = {"analytic": ("tab:blue", "o"), "ssao": ("tab:orange", "s"), "rt": ("tab:green", "^"),
-                "hybrid": ("tab:purple", "D")}
+                "hybrid": ("tab:purple", "D"), "precomputed": ("tab:red", "P")}
 
 
 def pareto_chart(rows: list[dict], path, renderer: str):
@@ -101,7 +113,8 @@ def pareto_chart(rows: list[dict], path, renderer: str):
         pts = [r for r in rows if r["family"] == family]
         ax.scatter([r["ms"] for r in pts], [r["rmse"] for r in pts], c=color, marker=marker, label=family, zorder=3)
         for r in pts:
-            ax.annotate(r["method"], (r["ms"], r["rmse"]), fontsize=6, xytext=(3, 2), textcoords="offset points")
+            note = r["method"] + (f" (bake {r['bake_s']:.2f} s)" if r.get("bake_s") is not None else "")
+            ax.annotate(note, (r["ms"], r["rmse"]), fontsize=6, xytext=(3, 2), textcoords="offset points")
     front, best = [], np.inf
     for r in sorted(rows, key=lambda r: r["ms"]):
         if r["rmse"] < best:
@@ -111,7 +124,7 @@ def pareto_chart(rows: list[dict], path, renderer: str):
             label="Pareto front")
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("time per frame (ms, median)")
+    ax.set_xlabel("time per frame (ms, median; precomputed: the lookup, its bake once per structure and culling)")
     ax.set_ylabel("RMSE vs converged ray-traced AO")
     ax.set_title(f"Ambient occlusion: speed vs accuracy\n({renderer})", fontsize=9)
     ax.legend(fontsize=7)
@@ -122,7 +135,7 @@ def comparison_figure(images: dict, mask: np.ndarray, path):
     import matplotlib.pyplot as plt
 
     shown = ["analytic K=32", "SSAO point 4 Å full", "SSAO line 4 Å full", "RT 1 spp + blur", "hybrid K=32 × RT 1 spp",
-             "reference"]
+             PRECOMPUTED_SHOWN, "reference"]
     fig, axes = plt.subplots(2, len(shown), figsize=(2.3 * len(shown), 4.2), dpi=110)
     ref = images["reference"]
     for col, name in enumerate(shown):

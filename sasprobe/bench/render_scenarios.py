@@ -47,15 +47,37 @@ def load_average() -> float:
     return round(os.getloadavg()[0], 2)
 
 
-def demo_path(structure, frames: int) -> list:
-    """Poses of the demo's session (sim:scan through the haptic engine), one per 1/PATH_FPS s."""
+def demo_path(structure, frames: int, cube=None) -> list:
+    """Poses of the demo's session (sim:scan through the haptic engine), one per 1/PATH_FPS s;
+    the workspace mapped onto `cube` (a NavCube) when given, else the demo's own."""
     from sasprobe.bench.haptics import closed_loop_session
     from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
 
     stride = int(1000 / PATH_FPS)
     ticks = int(PATH_START_S * 1000) + stride * frames
-    _, outputs, _ = closed_loop_session(structure, "scan", "proxy", {}, PHANTOM_OMNI_LIMITS, ticks)
+    mapping = {} if cube is None else {"cube_half_A": cube.half, "cube_center_A": cube.center}
+    _, outputs, _ = closed_loop_session(structure, "scan", "proxy", mapping, PHANTOM_OMNI_LIMITS, ticks)
     return outputs[int(PATH_START_S * 1000)::stride][:frames]
+
+
+def first_cube(path):
+    from sasprobe.render.scene import NavCube
+
+    return NavCube(np.array(path[0].cube_center_A, dtype=np.float64), float(path[0].cube_half_A))
+
+
+def follow_path(scene, path) -> Callable[[int], None]:
+    """The step that puts pose k of the path into the scene: probe, touched atom, cube."""
+    from sasprobe.render.scene import NavCube, Probe
+
+    def step(k: int) -> None:
+        pose = path[k % len(path)]
+        scene.probe = Probe(center=np.array(pose.proxy_A, dtype=np.float64),
+                            touched_atom=pose.touched_atoms[0] if pose.touched_atoms else -1)
+        center = np.array(pose.cube_center_A, dtype=np.float64)
+        if not np.array_equal(center, scene.nav_cube.center) or pose.cube_half_A != scene.nav_cube.half:
+            scene.nav_cube = NavCube(center, float(pose.cube_half_A))
+    return step
 
 
 def make_case(gl, label: str, structure, size, lighting, cache: bool, nav_cube=None, camera=None):
@@ -118,28 +140,16 @@ def release(cases: list[Case]) -> None:
 def session(gl, structure, size, frames: int) -> dict:
     """(a): the probe along the demo path, camera still, the poses' cube."""
     from sasprobe.render.lighting.settings import LightingSettings
-    from sasprobe.render.scene import NavCube, Probe
 
     path = demo_path(structure, frames)
-    first = path[0]
-    cube = NavCube(np.array(first.cube_center_A, dtype=np.float64), float(first.cube_half_A))
+    cube = first_cube(path)
     lit = LightingSettings()
     cases = [make_case(gl, "unlit", structure, size, None, False, cube),
              make_case(gl, "full redraw", structure, size, lit, False, cube),
              make_case(gl, "session (frame cache)", structure, size, lit, True, cube)]
 
-    def step_of(scene):
-        def step(k: int) -> None:
-            pose = path[k % len(path)]
-            touched = pose.touched_atoms[0] if pose.touched_atoms else -1
-            scene.probe = Probe(center=np.array(pose.proxy_A, dtype=np.float64), touched_atom=touched)
-            center = np.array(pose.cube_center_A, dtype=np.float64)
-            if not np.array_equal(center, scene.nav_cube.center) or pose.cube_half_A != scene.nav_cube.half:
-                scene.nav_cube = NavCube(center, float(pose.cube_half_A))
-        return step
-
     for case in cases:
-        case.step = step_of(case.renderer.scene)
+        case.step = follow_path(case.renderer.scene, path)
     try:
         time_cases(gl, cases, frames)
         out = {"rows": summary(cases, "unlit", "full redraw"),

@@ -3,6 +3,8 @@
 Without a name every available benchmark runs (one that cannot run here, e.g. without
 the shared structures or OpenGL, is listed as skipped with its reason) and, with --out,
 report.md and report.json are written beside each benchmark's JSON and charts.
+`sasprobe bench --gpu-quick [--gpu-size WxH]` runs only the short GPU check
+(sasprobe/bench/gpu_quick.py).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from pathlib import Path
 from sasprobe import bench
 from sasprobe.bench.machine import describe, markdown
 from sasprobe.errors import UserError
+from sasprobe.units import size_type
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -23,6 +26,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     _common(p)
     p.add_argument("--only", metavar="NAMES", help=f"comma-separated benchmarks to run (default all: "
                                                    f"{', '.join(bench.available())})")
+    p.add_argument("--gpu-quick", action="store_true",
+                   help="only the short GPU check: 1080p frame times of 1CRN, 1TII, 1AON, 6ZU5 with a cube "
+                        "(unlit, default lighting, session frames) and atlas bakes")
+    p.add_argument("--gpu-size", type=size_type, default=None, metavar="WxH",
+                   help="frame size of --gpu-quick (default 1920x1080)")
     names = p.add_subparsers(dest="bench_name", metavar="NAME")
     for name in bench.available():
         module = bench.load(name)
@@ -44,6 +52,8 @@ def _common(p: argparse.ArgumentParser, suppress: bool = False) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.gpu_quick:
+        return _gpu_quick(args)
     names = [args.bench_name] if args.bench_name else _selected(getattr(args, "only", None))
     ctx = bench.BenchContext(quick=args.quick, out_dir=args.out)
     machine = describe(with_gl=True)  # the GL renderer string belongs in every report
@@ -77,6 +87,24 @@ def run(args: argparse.Namespace) -> int:
         print(f"wrote {args.out / 'report.md'}", file=sys.stderr)
     if args.json:
         print(json.dumps(payload))
+    return 0
+
+
+def _gpu_quick(args: argparse.Namespace) -> int:
+    from sasprobe.bench import gpu_quick
+
+    if args.bench_name or args.only:
+        raise UserError("--gpu-quick runs on its own (no benchmark name, no --only)")
+    machine = describe(with_gl=True)
+    print(f"sasprobe: GPU check on {machine.get('gl_renderer') or 'an unknown GL renderer'}", file=sys.stderr, flush=True)
+    result = gpu_quick.run(args.gpu_size or gpu_quick.DEFAULT_SIZE,
+                           progress=lambda sid: print(f"sasprobe: {sid} done", file=sys.stderr, flush=True))
+    text = gpu_quick.markdown(result, machine.get("gpu"))
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "gpu_quick.json").write_text(json.dumps({"machine": machine, **result}, indent=1))
+        (args.out / "gpu_quick.md").write_text(f"# {gpu_quick.TITLE}\n\n{markdown(machine)}\n\n{text}\n")
+    print(json.dumps({"machine": machine, **result}) if args.json else f"## {gpu_quick.TITLE}\n\n{text}")
     return 0
 
 

@@ -1,0 +1,142 @@
+"""QuteMol's precomputed occlusion in `sasprobe bench lighting`: its bake time against
+molecule size (every shared structure whole, and a ~300-atom navigation cube of the
+largest), and how the patch resolution trades the directional shadow's boundary accuracy
+(against the exact per-pixel shadow traced through the grid) for bake time and lookup
+time. Its place on the AO speed-vs-error chart is in bench/lighting_ao.py."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sasprobe.bench.charts import figure, save
+from sasprobe.bench.lighting_scene import Scene, interleaved_times
+from sasprobe.render.gl.textures import read_texture
+from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
+from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.lighting.settings import AOSettings, DirectionalLight, HARD_SHADOW
+from sasprobe.render.lighting.shadows import ShadowPass
+from sasprobe.molecule import DEFAULT_PROBE_RADIUS
+
+DEFAULT = AOSettings()
+SUN = np.array([0.45, 0.8, 0.4]) / np.linalg.norm([0.45, 0.8, 0.4])  # towards the light
+
+
+def bake_seconds(grid: GpuGrid, culling: Culling, settings: AOSettings = DEFAULT, sun: bool = True) -> dict:
+    """One bake of the accessibility (and the light channel) for `culling`, its programs
+    compiled first on a few atoms (as a renderer's are after its first bake)."""
+    atlas = OcclusionAtlas(grid)
+    try:
+        grid.set_culling(Culling(nav_cube=(grid.grid.centers[0], 2.0)))
+        atlas.update(settings.patch, settings.directions, settings.distance, ambient=True, sun_direction=SUN)
+        grid.set_culling(culling)
+        atlas.update(settings.patch, settings.directions, settings.distance, ambient=True)
+        ambient_s = atlas.bake_seconds
+        sun_s = 0.0
+        if sun:
+            atlas.update(settings.patch, settings.directions, settings.distance, ambient=True, sun_direction=SUN)
+            sun_s = atlas.bake_seconds
+        return {"patches": atlas.n_slots, "ambient_s": ambient_s, "sun_s": sun_s, "total_s": ambient_s + sun_s,
+                "overflows": atlas.overflows}
+    finally:
+        atlas.release()
+
+
+def bake_scaling(gl, structures: list[tuple[str, object]], cube_of) -> list[dict]:
+    """Bake times of every structure whole and of a ~300-atom cube of the largest."""
+    rows = []
+    for sid, structure in structures:
+        grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+        rows.append({"structure": sid, "atoms": structure.n_atoms, "cube": False, **bake_seconds(grid, Culling())})
+        grid.release()
+    sid, structure = max(structures, key=lambda s: s[1].n_atoms)
+    cube, inside = cube_of(structure)
+    grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+    rows.append({"structure": f"{sid} cube", "atoms": structure.n_atoms, "cube": True, "atoms_in_cube": inside,
+                 **bake_seconds(grid, Culling(nav_cube=(cube.center, cube.half)))})
+    grid.release()
+    return rows
+
+
+def patch_sweep(gl, scene: Scene, patches, repeats: int) -> dict:
+    """Hard directional shadows from patches of each resolution against the exact per-pixel
+    shadow: pixels whose lit/shadowed class differs, the mean absolute difference, bake and
+    lookup time; the per-pixel trace's time for comparison."""
+    mask = scene.atom >= 0
+    sun = DirectionalLight(tuple(SUN))
+    shadows = ShadowPass(scene.grid)
+    exact_tex = shadows.trace(scene.gbuffer, sun, HARD_SHADOW)
+    exact = read_texture(exact_tex).copy()
+    traced_ms = interleaved_times(gl, {0: lambda: shadows.trace(scene.gbuffer, sun, HARD_SHADOW, out=exact_tex)},
+                                  repeats)[0] * 1e3
+    rows = []
+    for patch in patches:
+        atlas = OcclusionAtlas(scene.grid)
+        atlas.update(patch, DEFAULT.directions, DEFAULT.distance, ambient=False, sun_direction=SUN)
+        bake_s = atlas.bake_seconds
+        baked = read_texture(atlas.lookup(scene.gbuffer, SUN)[1])
+        lookup_ms = interleaved_times(gl, {0: lambda a=atlas: a.lookup(scene.gbuffer, SUN)}, repeats)[0] * 1e3
+        rows.append({"patch": patch, "bake_s": bake_s, "lookup_ms": lookup_ms,
+                     "wrong_class": float(((baked >= 0.5) != (exact >= 0.5))[mask].mean()),
+                     "mean_abs_error": float(np.abs(baked - exact)[mask].mean())})
+        atlas.release()
+    shadows.release()
+    return {"traced_ms": traced_ms, "rows": rows}
+
+
+# ------------------------------------------------------------------ charts
+def scaling_chart(rows: list[dict], path):
+    fig, ax = figure()
+    whole = [r for r in rows if not r["cube"]]
+    ax.loglog([r["atoms"] for r in whole], [r["total_s"] for r in whole], "o-", label="whole structure")
+    ax.loglog([r["atoms"] for r in whole], [r["ambient_s"] for r in whole], "s:", label="accessibility only")
+    for r in rows:
+        if r["cube"]:
+            ax.loglog([r["atoms"]], [r["total_s"]], "D", color="tab:red",
+                      label=f"~300-atom cube of {r['structure'].split()[0]}")
+    ax.axhline(3.0, color="0.5", lw=0.8, ls="--", label="target: 1AON whole < 3 s")
+    ax.axhline(0.05, color="tab:red", lw=0.8, ls="--", label="target: 300-atom cube < 50 ms")
+    ax.set_xlabel("atoms in the structure")
+    ax.set_ylabel("bake time (s)")
+    ax.set_title(f"Precomputed occlusion: bake time ({DEFAULT.patch}x{DEFAULT.patch} texels, "
+                 f"{DEFAULT.directions} directions)", fontsize=9)
+    ax.legend(fontsize=7)
+    return save(fig, path)
+
+
+def patch_chart(sweep: dict, path):
+    fig, ax = figure()
+    rows = sweep["rows"]
+    patches = [r["patch"] for r in rows]
+    ax.plot(patches, [100 * r["wrong_class"] for r in rows], "o-", label="pixels lit/shadowed wrongly (%)")
+    ax.plot(patches, [100 * r["mean_abs_error"] for r in rows], "s--", label="mean |baked - exact| (%)")
+    ax.set_xlabel("patch side (texels)")
+    ax.set_ylabel("error against the exact per-pixel shadow (%)")
+    right = ax.twinx()
+    right.plot(patches, [r["bake_s"] * 1e3 for r in rows], "^:", color="tab:green", label="bake (ms)")
+    right.plot(patches, [r["lookup_ms"] for r in rows], "v:", color="tab:purple", label="lookup per frame (ms)")
+    right.axhline(sweep["traced_ms"], color="tab:purple", lw=0.8, ls="--", label="per-pixel trace per frame (ms)")
+    right.set_yscale("log")
+    right.set_ylabel("time (ms)")
+    lines = ax.get_legend_handles_labels()
+    more = right.get_legend_handles_labels()
+    ax.legend(lines[0] + more[0], lines[1] + more[1], fontsize=7, loc="upper center")
+    ax.set_title("Precomputed hard shadows: patch resolution vs boundary accuracy vs time", fontsize=9)
+    return save(fig, path)
+
+
+def markdown(scaling: list[dict], sweep: dict, structure: str, size) -> str:
+    lines = [f"### Precomputed occlusion: bake time ({DEFAULT.patch}x{DEFAULT.patch} texels, {DEFAULT.directions} "
+             f"directions, {DEFAULT.distance:g} Å rays; accessibility and light channel)", "",
+             "| structure | atoms | patches | accessibility (s) | light (s) | total (s) |", "|---|---:|---:|---:|---:|---:|"]
+    for r in scaling:
+        lines.append(f"| {r['structure']} | {r['atoms']} | {r['patches']} | {r['ambient_s']:.3f} | {r['sun_s']:.3f} | "
+                     f"{r['total_s']:.3f} |")
+    w, h = size
+    lines += ["", f"### Precomputed hard shadows against the exact per-pixel shadow ({structure}, {w}×{h}; the "
+              f"per-pixel trace takes {sweep['traced_ms']:.1f} ms a frame)", "",
+              "| patch | bake (ms) | lookup (ms / frame) | pixels lit/shadowed wrongly | mean abs. difference |",
+              "|---:|---:|---:|---:|---:|"]
+    for r in sweep["rows"]:
+        lines.append(f"| {r['patch']} | {r['bake_s'] * 1e3:.1f} | {r['lookup_ms']:.2f} | {100 * r['wrong_class']:.2f} % | "
+                     f"{r['mean_abs_error']:.3f} |")
+    return "\n".join(lines)
