@@ -23,7 +23,10 @@ FRAMES = 20
 DEFAULT_SIZE = (1920, 1080)
 
 
-def run(size=DEFAULT_SIZE, frames: int = FRAMES, progress=None) -> dict:
+def run(size=DEFAULT_SIZE, frames: int = FRAMES, structures=STRUCTURES, cube_id: str = CUBE_ID,
+        progress=None) -> dict:
+    """The figures of the check; other `structures`, `cube_id` (the one drawn with a cube)
+    and `frames` only shorten it for tests."""
     from sasprobe.bench.lighting_precomputed import bake_seconds
     from sasprobe.bench.machine import gl_renderer
     from sasprobe.bench.render import CUBE_TARGET_ATOMS, cube_for
@@ -34,16 +37,16 @@ def run(size=DEFAULT_SIZE, frames: int = FRAMES, progress=None) -> dict:
     from sasprobe.render.lighting.settings import LightingSettings
 
     by_id = {e.id: e for e in shared_structures()}
-    missing = [i for i in STRUCTURES if i not in by_id]
+    missing = [i for i in structures if i not in by_id]
     if missing:
         raise UserError(f"--gpu-quick needs the shared structures {', '.join(missing)} (../shared/data/pdb/)")
     gl = create_headless_context()
     out = {"gl_renderer": gl_renderer(), "size": list(size), "frames": frames, "rows": [], "bakes": []}
     t_start = time.perf_counter()
     try:
-        for sid in STRUCTURES:
+        for sid in structures:
             structure = load_structure(by_id[sid].path, keep_water=sid == "1tii")
-            cube, inside = cube_for(structure, CUBE_TARGET_ATOMS) if sid == CUBE_ID else (None, None)
+            cube, inside = cube_for(structure, CUBE_TARGET_ATOMS) if sid == cube_id else (None, None)
             path = scenarios.demo_path(structure, frames, cube)
             lit = LightingSettings()
             cases = [scenarios.make_case(gl, label, structure, size, lighting, cache, scenarios.first_cube(path))
@@ -57,7 +60,7 @@ def run(size=DEFAULT_SIZE, frames: int = FRAMES, progress=None) -> dict:
             finally:
                 scenarios.release(cases)
             out["rows"].append({"id": sid, "atoms": structure.n_atoms, "cube_atoms": inside, "cases": rows})
-            if sid in ("1aon", CUBE_ID):
+            if sid in ("1aon", cube_id):
                 grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
                 culling = Culling(nav_cube=(cube.center, cube.half)) if cube else Culling()
                 out["bakes"].append({"id": sid + (" cube" if cube else " whole"), **bake_seconds(grid, culling)})
