@@ -22,6 +22,7 @@ class RunStats:
     frame_times: list[float] = field(default_factory=list)
     video_frames: int = 0  # frames written to a paced video (a late frame fills every slot it covered)
     interrupted: str | None = None  # "SIGINT" / "SIGTERM" when a signal ended the run early
+    molecule_layer: dict | None = None  # frame cache: frames that kept the molecule layer / drew it anew
 
     @property
     def median_ms(self) -> float:
@@ -37,7 +38,8 @@ class RunStats:
     def as_dict(self) -> dict:
         return {"frames": self.frames, "seconds": self.seconds, "fps": self.fps if self.frames else None,
                 "median_frame_ms": self.median_ms if self.frame_times else None,
-                "video_frames": self.video_frames, "interrupted": self.interrupted}
+                "video_frames": self.video_frames, "interrupted": self.interrupted,
+                "molecule_layer": self.molecule_layer}
 
 
 @contextmanager
@@ -117,6 +119,8 @@ def run_headless(renderer, camera: Camera, frames: int | None, seconds: float | 
                 camera.orbit(axis, step)
         stats.interrupted = stop["signal"]
     stats.seconds = time.perf_counter() - start
+    if renderer.cache is not None:
+        stats.molecule_layer = {"kept": renderer.cache.hits, "drawn": renderer.cache.misses}
     if gbuffer_path is not None:
         save_gbuffer(gbuffer_path, gbuffer_arrays(renderer))
     return stats

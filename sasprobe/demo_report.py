@@ -80,7 +80,9 @@ def print_summary(summary: dict, path: Path) -> None:
         lost = (r.get("daemon") or {}).get("poses_missed")
         print(f"  renderer  {r['frames']} frames at {r['fps'] or 0:.1f} fps ({r['size'][0]}x{r['size'][1]})"
               + (f", {r['video_frames']} video frames" if r.get("video_frames") else "")
-              + (f", {lost} poses lost" if lost is not None else ""))
+              + (f", {lost} poses lost" if lost is not None else "")
+              + (f"; molecule layer kept in {r['molecule_layer']['kept']} of {r['frames']} frames"
+                 if r.get("molecule_layer") else ""))
     d = s["daemon_exit"]
     if d:
         print(f"  stopped   daemon: {d['reason']}, last force written {d['last_force_written_n']} N")
