@@ -4,7 +4,8 @@
 // overlapping it (centre distance < r_i + r_j, for the hidden-texel test), gathered from the
 // grid's cells around it (cells wholly out of reach are skipped). A sphere is stored in
 // every cell its expanded sphere overlaps; it is taken only from the cell that holds its
-// centre, so each is listed once.
+// centre, so each is listed once. Only cells next to the walk range (the cube's cells, with
+// a cube) can hold the centre of an atom the culling keeps.
 layout(local_size_x = 64) in;
 
 #include "grid_traversal.glsl"
@@ -17,8 +18,9 @@ void main() {
     vec4 self_sphere = spheres[atom];
     float reach = self_sphere.w + u_distance + u_max_radius;
     vec3 local = self_sphere.xyz - u_grid_origin;
-    ivec3 lo = clamp(ivec3(floor((local - reach) / u_cell_size)), ivec3(0), u_grid_dims - 1);
-    ivec3 hi = clamp(ivec3(floor((local + reach) / u_cell_size)), ivec3(0), u_grid_dims - 1);
+    ivec3 first = max(u_walk_lo - 1, ivec3(0)), last = min(u_walk_hi + 1, u_grid_dims - 1);
+    ivec3 lo = clamp(ivec3(floor((local - reach) / u_cell_size)), first, last);
+    ivec3 hi = clamp(ivec3(floor((local + reach) / u_cell_size)), first, last);
     int n = 0, n_over = 0;
     for (int z = lo.z; z <= hi.z; ++z)
     for (int y = lo.y; y <= hi.y; ++y)

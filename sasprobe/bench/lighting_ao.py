@@ -24,7 +24,7 @@ from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.settings import AOSettings
 
 BASE = AOSettings()
-PRECOMPUTED = ((6, 64), (8, 64), (12, 64), (16, 64), (16, 128))  # (patch side, directions); QuteMol: 128 directions
+PRECOMPUTED = ((6, 64), (8, 32), (8, 64), (12, 64), (16, 64), (16, 128))  # (patch side, directions); QuteMol: 128 directions
 PRECOMPUTED_SHOWN = f"precomputed {BASE.patch}x{BASE.patch}, {BASE.directions} dirs"
 
 

@@ -73,6 +73,11 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
         data["scenarios"] = _scenarios(gl, by_id, scenario_size, 10 if ctx.quick else 30, 1 if ctx.quick else 3)
     finally:
         gl.release()
+    path = ctx.chart_path("render_frame_cache.png")
+    if path is not None and data["scenarios"]["session"]:
+        charts.append(render_scenarios.cache_figure(data["scenarios"]["session"][-1], path))
+    for run in data["scenarios"]["session"]:
+        del run["images"]  # pictures, not figures: the JSON stays small
     text = _markdown(data) if not only_scenarios else f"GL renderer: **{renderer_name}**."
     return BenchResult("render", data, text + "\n\n" + render_scenarios.markdown(data["scenarios"]), charts)
 

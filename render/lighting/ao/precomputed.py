@@ -72,6 +72,7 @@ class OcclusionAtlas:
         self.n_slots = self.patch = self.tiles_x = 0
         self.bake_seconds = 0.0  # the last bake's wall time (GPU drained)
         self.overflows = 0
+        self._scratch: dict[int, object] = {}  # the bake's storage by binding, kept for the next bake
 
     # ------------------------------------------------------------ layout
     def _layout(self, patch: int) -> None:
@@ -124,20 +125,17 @@ class OcclusionAtlas:
         return True
 
     def _bake(self, directions: int, distance: float, ambient: bool, sun_direction, progress) -> None:
-        ctx, grid = self.ctx, self.grid
-        chunk = min(CHUNK_SLOTS, max(self.n_slots, 1))
+        grid = self.grid
+        n = max(self.n_slots, 1)
+        chunk = math.ceil(n / math.ceil(n / CHUNK_SLOTS))  # chunks of equal size
         dirs = np.zeros((directions, 4), dtype=np.float32)
         dirs[:, :3] = fibonacci_directions(directions)
         lists = chunk * directions if ambient else 1
-        buffers = {
-            5: ctx.buffer(reserve=chunk * MAX_NEIGHBOURS * 16),
-            6: ctx.buffer(reserve=chunk * MAX_OVERLAPS * 16),
-            7: ctx.buffer(reserve=chunk * 2 * 4),
-            8: ctx.buffer(dirs.tobytes()),
-            9: ctx.buffer(reserve=lists * MAX_CANDIDATES * 16),
-            10: ctx.buffer(reserve=lists * 4),
-            11: ctx.buffer(np.zeros(1, dtype=np.uint32).tobytes()),
-        }
+        buffers = {binding: self._buffer(binding, nbytes) for binding, nbytes in (
+            (5, chunk * MAX_NEIGHBOURS * 16), (6, chunk * MAX_OVERLAPS * 16), (7, chunk * 2 * 4), (8, dirs.nbytes),
+            (9, lists * MAX_CANDIDATES * 16), (10, lists * 4), (11, 4))}
+        buffers[8].write(dirs.tobytes())
+        buffers[11].write(np.zeros(1, dtype=np.uint32).tobytes())
         common = {
             **ray_epsilon_uniforms(), **light_uniforms(None, None), "u_directions": directions,
             "u_distance": float(distance), "u_max_radius": float(np.max(grid.vdw_radii)) if grid.n_atoms else 0.0,
@@ -167,11 +165,18 @@ class OcclusionAtlas:
             self._fill_unseen()
         finally:
             grid.set_probe(None if probe[3] <= 0 else probe[:3], probe[3])
-            for buffer in buffers.values():
-                buffer.release()
         if self.overflows:
             log.warning("occlusion atlas: %d neighbour lists were full; those texels may be too bright",
                         self.overflows)
+
+    def _buffer(self, binding: int, nbytes: int):
+        """The bake's storage at a binding, at least `nbytes` (made again only to grow)."""
+        buffer = self._scratch.get(binding)
+        if buffer is None or buffer.size < nbytes:
+            if buffer is not None:
+                buffer.release()
+            buffer = self._scratch[binding] = self.ctx.buffer(reserve=max(nbytes, 16))
+        return buffer
 
     def _fill_unseen(self) -> None:
         """Texels inside other atoms take their seen neighbours' mean (shaders/atlas_fill.comp)."""
@@ -228,5 +233,7 @@ class OcclusionAtlas:
     def release(self) -> None:
         self._release_layout()
         self.textures.release()
+        for buffer in self._scratch.values():
+            buffer.release()
         for p in (self.gather, self.candidates, self.bake_pass, self.fill, self.lookup_pass):
             p.release()
