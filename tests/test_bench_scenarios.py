@@ -35,7 +35,7 @@ def test_render_scenarios_print_every_case_with_its_ratios(shared_entries, tmp_p
     session = scenarios["session"][0]["rows"]["session (frame cache)"]
     assert session["cache_hits"] >= scenarios["frames"]  # the camera stood still: the layer held
     assert scenarios["orbit"][0]["rows"]["frame cache"]["cache_hits"] == 0  # it turned every frame
-    assert scenarios["session"][0]["contact_fraction"] > 0.5  # the demo path touches the surface
+    assert scenarios["session"][0]["contact_fraction"] >= 0.5  # the demo path touches the surface
     assert len(scenarios["load"]) == 2 and "load average" in report
     if render_scenarios.pymol_available():
         assert "ray_shadows 1" in report and "× |" in report.split("PyMOL")[-1]

@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 PATH_FPS = 30.0  # poses per second of the demo path (a renderer's frame rate)
-PATH_START_S = 1.8  # the scan reaches the surface of 1CRN in its first second, of 1TII at 1.9 s
+PATH_SEARCH_S = 8.0  # the session simulated; the frames are its first stretch in contact at least half the time
 
 
 @dataclass
@@ -51,16 +51,21 @@ def load_average() -> float:
 
 
 def demo_path(structure, frames: int, cube=None) -> list:
-    """Poses of the demo's session (sim:scan through the haptic engine), one per 1/PATH_FPS s;
-    the workspace mapped onto `cube` (a NavCube) when given, else the demo's own."""
+    """Poses of the demo's session (sim:scan through the haptic engine), one per 1/PATH_FPS s:
+    the first `frames` of them in contact at least half the time (the probe comes in, touches
+    and slides; how soon depends on the structure). The workspace is mapped onto `cube` (a
+    NavCube) when given, else the demo's own."""
     from sasprobe.bench.haptics import closed_loop_session
     from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
 
     stride = int(1000 / PATH_FPS)
-    ticks = int(PATH_START_S * 1000) + stride * frames
     mapping = {} if cube is None else {"cube_half_A": cube.half, "cube_center_A": cube.center}
-    _, outputs, _ = closed_loop_session(structure, "scan", "proxy", mapping, PHANTOM_OMNI_LIMITS, ticks)
-    return outputs[int(PATH_START_S * 1000)::stride][:frames]
+    _, outputs, _ = closed_loop_session(structure, "scan", "proxy", mapping, PHANTOM_OMNI_LIMITS,
+                                        int(PATH_SEARCH_S * 1000) + stride * frames)
+    poses = outputs[::stride]
+    contact = np.convolve([p.contact for p in poses], np.ones(frames) / frames, mode="valid")
+    start = int(np.argmax(contact >= 0.5)) if np.any(contact >= 0.5) else int(np.argmax(contact))
+    return poses[start:start + frames]
 
 
 def first_cube(path):
