@@ -75,7 +75,8 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
         gl.release()
     path = ctx.chart_path("render_frame_cache.png")
     if path is not None and data["scenarios"]["session"]:
-        charts.append(render_scenarios.cache_figure(data["scenarios"]["session"][-1], path))
+        molecule_view = [r for r in data["scenarios"]["session"] if not r["demo_view"]]
+        charts.append(render_scenarios.cache_figure(molecule_view[-1], path))
     for run in data["scenarios"]["session"]:
         del run["images"]  # pictures, not figures: the JSON stays small
     text = _markdown(data) if not only_scenarios else f"GL renderer: **{renderer_name}**."
@@ -92,8 +93,9 @@ def _scenarios(gl, by_id, size, frames: int, pymol_repeats: int) -> dict:
     next(steps)
     for sid in session_ids:
         structure = load_structure(by_id[sid].path, keep_water=True)
-        out["session"].append({"id": sid, "atoms": structure.n_atoms,
-                               **render_scenarios.session(gl, structure, size, frames)})
+        views = (False, True) if sid == session_ids[-1] else (False,)
+        out["session"] += [{"id": sid, "atoms": structure.n_atoms,
+                            **render_scenarios.session(gl, structure, size, frames, demo_view)} for demo_view in views]
     next(steps)
     orbit_id = session_ids[-1]
     structure = load_structure(by_id[orbit_id].path, keep_water=True)
