@@ -44,9 +44,9 @@ def texel_normals(patch: int) -> np.ndarray:
     return octa_decode(np.stack([i, j], axis=-1) * (2.0 / (patch - 1)) - 1.0)
 
 
-def bake_atom(atom: int, occ: Occluders, patch: int, n_directions: int, distance: float, sun=None):
-    """(accessibility, sun visibility, hidden) of one atom's patch, each (patch, patch): NaN
-    where not computed (no `sun`)."""
+def bake_atom(atom: int, occ: Occluders, patch: int, n_directions: int, distance: float, sun=None, lamp=None):
+    """(accessibility, sun visibility, probe-light visibility, hidden) of one atom's patch,
+    each (patch, patch): NaN where not computed (no `sun`, no `lamp`: (position, range))."""
     c, r = occ.centers[atom], occ.radii[atom]
     n = texel_normals(patch).reshape(-1, 3)
     x = c + r * n
@@ -70,8 +70,19 @@ def bake_atom(atom: int, occ: Occluders, patch: int, n_directions: int, distance
         sun_vis[facing] = occluded_visibility(o[facing], np.broadcast_to(d, o[facing].shape).copy(), 0.0, FAR,
                                               np.full(facing.sum(), atom), np.arange(len(occ.radii)), occ,
                                               HARD_SHADOW, False)
+    lamp_vis = np.full(len(n), np.nan)
+    if lamp is not None:
+        position, reach = np.asarray(lamp[0], dtype=np.float64), float(lamp[1])
+        to_light = position - o
+        length = np.linalg.norm(to_light, axis=1)
+        d = to_light / length[:, None]
+        lamp_vis = np.where(np.einsum("ij,ij->i", n, d) > 0, 1.0, 0.0)
+        lamp_vis[np.linalg.norm(position - x, axis=1) > reach] = 1.0
+        go = np.flatnonzero((lamp_vis == 1.0) & (np.linalg.norm(position - x, axis=1) <= reach))
+        lamp_vis[go] = occluded_visibility(o[go], d[go], 0.0, length[go], np.full(go.size, atom),
+                                           np.arange(len(occ.radii)), occ, HARD_SHADOW, False)
     shape = (patch, patch)
-    return ambient.reshape(shape), sun_vis.reshape(shape), hidden.reshape(shape)
+    return ambient.reshape(shape), sun_vis.reshape(shape), lamp_vis.reshape(shape), hidden.reshape(shape)
 
 
 def fill_hidden(values: np.ndarray, hidden: np.ndarray, rounds: int = 2) -> np.ndarray:

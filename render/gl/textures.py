@@ -27,6 +27,7 @@ class TextureCache:
     def __init__(self, ctx):
         self.ctx = ctx
         self._textures: dict = {}
+        self._framebuffers: dict = {}
 
     def get(self, name: str, size: tuple[int, int], fill: float | None = None):
         key = (name, tuple(size))
@@ -35,9 +36,20 @@ class TextureCache:
             self._textures[key] = texture_2d(self.ctx, size[0], size[1], data=data)
         return self._textures[key]
 
+    def fill(self, name: str, size: tuple[int, int], value: float):
+        """The texture `name`, cleared to `value` on the GPU (no upload)."""
+        key = (name, tuple(size))
+        if key not in self._framebuffers:
+            self._framebuffers[key] = self.ctx.framebuffer([self.get(name, size)])
+        self._framebuffers[key].clear(value, value, value, value)
+        return self._textures[key]
+
     def release(self) -> None:
-        for tex in self._textures.values():
-            tex.release()
+        if any(self.ctx.fbo is fbo for fbo in self._framebuffers.values()):
+            self.ctx.detect_framebuffer(0).use()
+        for obj in (*self._framebuffers.values(), *self._textures.values()):
+            obj.release()
+        self._framebuffers.clear()
         self._textures.clear()
 
 

@@ -62,6 +62,7 @@ from sasprobe.render.passes.base import Frame, Pass
 log = logging.getLogger("sasprobe")
 
 REQUIRED_GL = 430
+STILL_FRAMES = 3  # --shadows precomputed: frames the probe stands still before its light is baked
 CYCLED_AO_MODES = tuple(m for m in AO_MODES if m != "off")
 NO_NEIGHBOURS = np.full(MAX_K, -1, dtype=np.int32)
 
@@ -98,7 +99,10 @@ class LightingPass(Pass):
         self.molecule_terms: dict[str, object] = {}  # layered: the molecule's own terms, kept with its layer
         self._dirty: dict[str, tuple | None] = {}  # layered: the rectangle each probe term covered last
         self._probe_neighbours = (None, NO_NEIGHBOURS)  # layered: (probe key, atoms nearest the probe)
+        self._last_probe_key: bytes | None = None
+        self._composed = None  # layered: the last compose's inputs, run again for the G-buffer export
         self._looked_up = (-1, None)  # (frame index, accessibility) the atlas gave with the sun's visibility
+        self._still_frames = 0  # layered: frames the probe has stood still
         self._warned_shell = False
 
     # ------------------------------------------------------------ state
@@ -163,13 +167,17 @@ class LightingPass(Pass):
     def _sun(self, gbuffer: GBuffer, frame: Frame, sun: DirectionalLight, name: str):
         """The directional light's visibility: traced, or looked up in the occlusion atlas
         (--shadows precomputed, hard shadows only)."""
-        if self.settings.shadows == "precomputed" and not frame.scene.effects.soft_shadows:
+        if self._precomputed(frame):
             self._configure_ao()
             both = frame.scene.effects.ambient_occlusion and self.ao_mode == "precomputed"
-            ambient, visibility = self.ao.baked(gbuffer, ambient=both, sun_direction=sun.unit())
+            ambient, visibility, _ = self.ao.baked(gbuffer, ambient=both, sun_direction=sun.unit())
             self._looked_up = (frame.index, ambient if both else None)  # one lookup gives both terms
             return visibility
         return self.shadows.trace(gbuffer, sun, self._soft(frame), out=self.textures.get(name, frame.size))
+
+    def _precomputed(self, frame: Frame) -> bool:
+        """Whether the lights' shadows come from the occlusion atlas (--shadows precomputed; hard only)."""
+        return self.settings.shadows == "precomputed" and not frame.scene.effects.soft_shadows
 
     def _configure_ao(self) -> None:
         self.ao.configure(replace(self.settings.ao, mode=self.ao_mode,
@@ -195,7 +203,7 @@ class LightingPass(Pass):
             terms.get(name, ones).use(location=unit)
         GBuffer.of_targets(frame.targets).bind()
         frame.targets.visibility.bind_to_image(0, read=False, write=True)
-        self.compose.run(*frame.size, {"u_layered": 0, **uniforms})
+        self.compose.run(*frame.size, {"u_layered": 0, "u_write_terms": 0, **uniforms})
 
     # ------------------------------------------------------------ whole frames
     def run(self, frame: Frame) -> None:
@@ -261,10 +269,18 @@ class LightingPass(Pass):
         terms = dict(self.molecule_terms)
         self.layers = {}
         soft = self._soft(frame)
+        self._still_frames = self._still_frames + 1 if probe_key == self._last_probe_key else 0
+        self._last_probe_key = probe_key
         if fx.shadows and lamp is not None:
-            rect = self._dirty_rect("shadow_probe", frame.probe_rect(lamp.radius), frame)
-            terms["shadow_probe"] = self.layers["shadow_probe"] = self.shadows.trace(
-                gbuffer, lamp, soft, out=self.textures.get("shadow_probe", size), rect=rect)
+            if self._precomputed(frame) and self._still_frames >= STILL_FRAMES:
+                self._configure_ao()  # the probe stands still: its light is fixed in the molecule frame
+                terms["shadow_probe"] = self.ao.baked(gbuffer, ambient=False, probe_light=lamp,
+                                                      rect=frame.probe_rect(lamp.radius))[2]
+            else:
+                rect = self._dirty_rect("shadow_probe", frame.probe_rect(lamp.radius), frame)
+                terms["shadow_probe"] = self.shadows.trace(
+                    gbuffer, lamp, soft, out=self.textures.get("shadow_probe", size), rect=rect)
+            self.layers["shadow_probe"] = terms["shadow_probe"]
         probe_sun = fx.shadows and sun is not None and probe is not None
         if probe_sun:
             rect = frame.probe_rect()
@@ -282,13 +298,19 @@ class LightingPass(Pass):
             "u_shell_growth": float(soft.growth), "u_probe_ambient": int(probe_ambient),
             "u_k": int(self.settings.ao.k), "u_probe_neighbours": self._neighbours(probe_key, probe).tobytes(),
         }
-        sun_out, ao_out = self.textures.get("shadow_dir", size), self.textures.get("ao", size)
+        self._compose(frame, terms, {**uniforms, "u_layered": 1, "u_write_terms": 0})
+        self._composed = (frame, terms, uniforms, "shadow_dir" in terms, fx.ambient_occlusion)
+
+    def _export_composed(self) -> None:
+        """The last layered frame's composed sun and ambient terms, written for the export."""
+        frame, terms, uniforms, with_sun, with_ambient = self._composed
+        sun_out, ao_out = self.textures.get("shadow_dir", frame.size), self.textures.get("ao", frame.size)
         sun_out.bind_to_image(1, read=False, write=True)
         ao_out.bind_to_image(2, read=False, write=True)
-        self._compose(frame, terms, {**uniforms, "u_layered": 1})
-        if "shadow_dir" in terms:
+        self._compose(frame, terms, {**uniforms, "u_layered": 1, "u_write_terms": 1})
+        if with_sun:
             self.layers["shadow_dir"] = sun_out
-        if fx.ambient_occlusion:
+        if with_ambient:
             self.layers["ao"] = ao_out
 
     def _neighbours(self, probe_key: bytes, probe) -> np.ndarray:
@@ -314,6 +336,8 @@ class LightingPass(Pass):
     def gbuffer_layers(self, frame: Frame) -> dict[str, np.ndarray]:
         """The last frame's lighting terms for the G-buffer export (row 0 = top) and the
         lights they were traced for."""
+        if self.layered and self._composed is not None:
+            self._export_composed()
         out = {name: read_texture(tex, top_first=True).astype(np.float32) for name, tex in self.layers.items()}
         sun, lamp = self.lights
         if sun is not None:

@@ -3,8 +3,9 @@
 // atom's surface point in the texel's direction, the ambient accessibility over the D fixed
 // directions (cosine-weighted: sum of n.d over the unblocked rays of length u_distance, over
 // the sum of n.d over all rays above the surface; the candidates of step 2 are the only
-// spheres a ray can meet) and the directional light's visibility (one ray through the grid,
-// as shadows.comp traces it). Clip planes and the cube cut the rays as everywhere else.
+// spheres a ray can meet), the directional light's visibility and the probe light's (one
+// ray through the grid each, as shadows.comp traces them; beyond the probe light's range 1).
+// Clip planes and the cube cut the rays as everywhere else.
 // A point inside another drawn atom is never seen; it is marked -1 and filled from the
 // seen texels around it (atlas_fill.comp). Channels the bake leaves alone keep their value.
 layout(local_size_x = 64) in;
@@ -13,12 +14,13 @@ layout(local_size_x = 64) in;
 #include "gbuffer_input.glsl"
 #include "atlas_bake_buffers.glsl"
 #include "atlas_common.glsl"
+#include "lights.glsl"
 
-layout(rg16f, binding = 0) uniform image2D u_atlas;
+layout(rgba16f, binding = 0) uniform image2D u_atlas;
 
 uniform int u_bake_ambient;
 uniform int u_bake_sun;
-uniform vec3 u_sun_dir;  // towards the light
+uniform int u_bake_probe;
 
 void main() {
     int index = int(gl_GlobalInvocationID.x);
@@ -26,7 +28,7 @@ void main() {
     if (index >= u_chunk_slots * texels) return;
     int local_slot = index / texels;
     ivec2 texel = ivec2((index % texels) % u_patch, (index % texels) / u_patch);
-    int slot = u_first_slot + local_slot;
+    int slot = chunk_slot(local_slot);
     int atom = int(slot_atoms[slot]);
     vec4 self_sphere = spheres[atom];
     vec3 n = texel_direction(texel);
@@ -68,6 +70,13 @@ void main() {
     if (u_bake_sun != 0) {
         value.g = hidden ? -1.0 : (dot(n, u_sun_dir) > 0.0
             ? trace_visibility(o, u_sun_dir, 0.0, BIG, atom, vec2(0.0), 0.0, false) : 0.0);
+    }
+    if (u_bake_probe != 0) {
+        vec3 to_light = u_probe_light_pos - o;
+        float t_max = length(to_light);
+        vec3 d = to_light / max(t_max, 1e-30);
+        value.b = hidden ? -1.0 : (distance(u_probe_light_pos, x) > u_probe_light_radius ? 1.0
+            : (dot(n, d) > 0.0 ? trace_visibility(o, d, 0.0, t_max, atom, vec2(0.0), 0.0, false) : 0.0));
     }
     imageStore(u_atlas, at, value);
 }

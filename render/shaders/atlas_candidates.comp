@@ -14,7 +14,7 @@ void main() {
     if (index >= u_chunk_slots * u_directions) return;
     int local_slot = index / u_directions;
     vec3 d = directions[index % u_directions].xyz;
-    float radius = spheres[int(slot_atoms[u_first_slot + local_slot])].w;
+    float radius = spheres[int(slot_atoms[chunk_slot(local_slot)])].w;
     int base = index * MAX_CANDIDATES;
     int first = local_slot * MAX_NEIGHBOURS;
     int n = 0;

@@ -3,7 +3,7 @@
 // direction octa_decode(2 (i, j) / (P - 1) - 1) from its centre. Texel centres lie on the
 // patch's border, where the octahedral fold meets itself, so a bilinear lookup inside a patch
 // never reads its neighbour's (QuteMol's layout: Tarini et al. 2006; pyQuteMol OctaMap.py).
-// Channels: r ambient accessibility, g directional-light visibility.
+// Channels: r ambient accessibility, g directional-light visibility, b probe-light visibility.
 #include "octahedral.glsl"
 
 uniform int u_patch;    // P, texels per patch side

@@ -8,8 +8,8 @@ layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "atlas_common.glsl"
 
-layout(rg16f, binding = 0) uniform readonly image2D u_from;
-layout(rg16f, binding = 1) uniform writeonly image2D u_to;
+layout(rgba16f, binding = 0) uniform readonly image2D u_from;
+layout(rgba16f, binding = 1) uniform writeonly image2D u_to;
 uniform int u_last;  // the last round: what is left unseen becomes 0
 
 void main() {
@@ -17,7 +17,7 @@ void main() {
     if (any(greaterThanEqual(at, imageSize(u_from)))) return;
     vec4 value = imageLoad(u_from, at);
     ivec2 origin = (at / u_patch) * u_patch;
-    for (int c = 0; c < 2; ++c) {
+    for (int c = 0; c < 3; ++c) {
         if (value[c] >= 0.0) continue;
         float sum = 0.0, count = 0.0;
         for (int dy = -1; dy <= 1; ++dy)

@@ -14,7 +14,7 @@ layout(local_size_x = 64) in;
 void main() {
     int local_slot = int(gl_GlobalInvocationID.x);
     if (local_slot >= u_chunk_slots) return;
-    int atom = int(slot_atoms[u_first_slot + local_slot]);
+    int atom = int(slot_atoms[chunk_slot(local_slot)]);
     vec4 self_sphere = spheres[atom];
     float reach = self_sphere.w + u_distance + u_max_radius;
     vec3 local = self_sphere.xyz - u_grid_origin;

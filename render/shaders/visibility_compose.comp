@@ -11,7 +11,8 @@
 //   ambient: the molecule's times the probe's analytic share, 1 - occlusion of one sphere
 //     (as ao_analytic.comp multiplies it in), on atom pixels; the probe's pixels get the
 //     analytic occlusion of the atoms nearest the probe.
-// It then also writes the composed sun and ambient terms (r32f, for the G-buffer export).
+// With u_write_terms it also writes the composed sun and ambient terms (r32f), for the
+// G-buffer export only (run again then: each image written costs llvmpipe as much as the rest).
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "grid_traversal.glsl"
@@ -30,6 +31,7 @@ layout(r32f, binding = 1) uniform writeonly image2D u_sun_out;
 layout(r32f, binding = 2) uniform writeonly image2D u_ambient_out;
 
 uniform int u_layered;
+uniform int u_write_terms;
 uniform int u_probe_sun;        // the probe shadows the sun's light on the molecule
 uniform int u_probe_ambient;    // the probe's share of the ambient occlusion
 uniform vec2 u_shell;           // the sun's soft-shadow shell (shadows.comp)
@@ -59,8 +61,10 @@ void main() {
                 if (u_probe_ambient != 0) ambient *= 1.0 - sphere_occlusion(p, n, u_probe_sphere);
             }
         }
-        imageStore(u_sun_out, px, vec4(sun));
-        imageStore(u_ambient_out, px, vec4(ambient));
+        if (u_write_terms != 0) {
+            imageStore(u_sun_out, px, vec4(sun));
+            imageStore(u_ambient_out, px, vec4(ambient));
+        }
     }
     imageStore(u_visibility, px, vec4(sun, texelFetch(u_shadow_probe, px, 0).r, ambient,
                                       texelFetch(u_edges, px, 0).r));

@@ -73,8 +73,8 @@ def patch_sweep(gl, scene: Scene, patches, repeats: int) -> dict:
         atlas = OcclusionAtlas(scene.grid)
         atlas.update(patch, DEFAULT.directions, DEFAULT.distance, ambient=False, sun_direction=SUN)
         bake_s = atlas.bake_seconds
-        baked = read_texture(atlas.lookup(scene.gbuffer, SUN)[1])
-        lookup_ms = interleaved_times(gl, {0: lambda a=atlas: a.lookup(scene.gbuffer, SUN)}, repeats)[0] * 1e3
+        baked = read_texture(atlas.lookup(scene.gbuffer, False, SUN)[1])
+        lookup_ms = interleaved_times(gl, {0: lambda a=atlas: a.lookup(scene.gbuffer, False, SUN)}, repeats)[0] * 1e3
         rows.append({"patch": patch, "bake_s": bake_s, "lookup_ms": lookup_ms,
                      "wrong_class": float(((baked >= 0.5) != (exact >= 0.5))[mask].mean()),
                      "mean_abs_error": float(np.abs(baked - exact)[mask].mean())})

@@ -112,12 +112,14 @@ class AmbientOcclusion:
         self._pass("multiply").run(size[0], size[1], {})
         return product
 
-    def baked(self, gbuffer: GBuffer, ambient: bool, sun_direction=None, progress=None):
-        """(accessibility, light visibility) from the occlusion atlas, baked first where it
-        lacks the accessibility (`ambient`) or the light `sun_direction` (towards it)."""
+    def baked(self, gbuffer: GBuffer, ambient: bool, sun_direction=None, probe_light=None, rect=None,
+              progress=None):
+        """(accessibility, directional light, probe light) from the occlusion atlas, baked
+        first where it lacks the accessibility (`ambient`), the light `sun_direction`
+        (towards it) or the `probe_light` (a PointLight); `rect` as OcclusionAtlas.lookup."""
         s, atlas = self.settings, self._pass("atlas")
-        atlas.update(s.patch, s.directions, s.distance, ambient, sun_direction, progress)
-        return atlas.lookup(gbuffer, sun_direction)
+        atlas.update(s.patch, s.directions, s.distance, ambient, sun_direction, probe_light, progress)
+        return atlas.lookup(gbuffer, ambient, sun_direction, probe_light, rect)
 
     def _analytic(self, gbuffer: GBuffer):
         analytic = self._pass("analytic")

@@ -1,9 +1,10 @@
 """QuteMol's precomputed occlusion (Tarini, Cignoni, Montani, IEEE TVCG 2006): each drawn
 atom gets a patch of P x P texels over its sphere (octahedral parametrisation) holding
-its ambient accessibility and, for a light fixed in the molecule frame, its visibility of
-that light. Patches are baked once per structure and per culling change (and the light
-channel again when the light moves); a frame then costs one bilinear lookup per pixel,
-whatever the camera does.
+its ambient accessibility and, for lights fixed in the molecule frame, its visibility of
+the directional light and of the probe's light (for the atoms within the probe light's
+range, while the probe stands still). Patches are baked once per structure and per
+culling change (a light's channel again when that light moves); a frame then costs one
+bilinear lookup per pixel, whatever the camera does.
 
 What QuteMol used (pyQuteMol, MDAnalysis/pyQuteMol @6d45ec9f): 128 view directions
 (python/hardSettings.py N_VIEW_DIR), each a 256² shadow map of the molecule (AOSM_SIZE);
@@ -32,7 +33,7 @@ from sasprobe.render.gl.compute import ComputePass
 from sasprobe.render.gl.textures import TextureCache
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.settings import light_uniforms, ray_epsilon_uniforms
+from sasprobe.render.lighting.settings import PointLight, light_uniforms, ray_epsilon_uniforms
 
 log = logging.getLogger("sasprobe")
 
@@ -65,12 +66,13 @@ class OcclusionAtlas:
         self.fill = ComputePass(self.ctx, "atlas_fill.comp")
         self.lookup_pass = ComputePass(self.ctx, "atlas_lookup.comp", gpu_grid)
         self.textures = TextureCache(self.ctx)
-        self.texture = None  # rg16f: r accessibility, g light visibility
+        self.texture = None  # rgba16f: r accessibility, g directional light, b probe light
         self.atom_slots = None  # int32 buffer: the patch of each atom (-1: culled, none)
         self.slot_atoms = None  # uint32 buffer: the atom of each patch
-        self.layout_key = self.ambient_key = self.sun_key = None
+        self.layout_key = self.ambient_key = self.sun_key = self.probe_key = None
         self.n_slots = self.patch = self.tiles_x = 0
         self.bake_seconds = 0.0  # the last bake's wall time (GPU drained)
+        self.baked_patches = 0  # how many patches the last bake covered
         self.overflows = 0
         self._scratch: dict[int, object] = {}  # the bake's storage by binding, kept for the next bake
 
@@ -92,55 +94,72 @@ class OcclusionAtlas:
         self._release_layout()
         slots = np.full(self.grid.n_atoms, -1, dtype=np.int32)
         slots[kept] = np.arange(kept.size, dtype=np.int32)
-        self.texture = self.ctx.texture((width, height), 2, dtype="f2")
+        self.texture = self.ctx.texture((width, height), 4, dtype="f2")
         self.texture.repeat_x = self.texture.repeat_y = False
         self.slot_atoms = self.ctx.buffer(kept.tobytes() if kept.size else b"\0" * 4)
         self.atom_slots = self.ctx.buffer(slots.tobytes())
         self.n_slots, self.patch, self.tiles_x = int(kept.size), patch, tiles_x
         self.layout_key = key
-        self.ambient_key = self.sun_key = None
+        self.ambient_key = self.sun_key = self.probe_key = None
 
     # ------------------------------------------------------------ bake
     def update(self, patch: int, directions: int, distance: float, ambient: bool, sun_direction=None,
-               progress=None) -> bool:
+               probe_light: PointLight | None = None, progress=None) -> bool:
         """Bake what is missing: the accessibility (`ambient`) for (patch, directions,
-        distance) and the light channel for `sun_direction` (towards the light; None: not
-        wanted). Returns whether anything was baked; `progress(fraction)` is called per chunk."""
+        distance), the directional light's channel for `sun_direction` (towards the light)
+        and the probe light's for `probe_light` (its position and range; only the patches of
+        atoms within that range are baked); None: not wanted. Returns whether anything was
+        baked; `progress(fraction)` is called per chunk."""
         self._layout(patch)
         want_ambient = ambient and self.ambient_key != (directions, float(distance))
         sun_key = None if sun_direction is None else tuple(np.round(np.asarray(sun_direction, dtype=np.float64), 12))
         want_sun = sun_key is not None and sun_key != self.sun_key
-        if not (want_ambient or want_sun):
+        probe_key = None if probe_light is None else (tuple(probe_light.position), float(probe_light.radius))
+        want_probe = probe_key is not None and probe_key != self.probe_key
+        if not (want_ambient or want_sun or want_probe):
             return False
+        slots = np.arange(self.n_slots, dtype=np.uint32)
+        if not (want_ambient or want_sun):  # the probe light alone: the atoms it reaches
+            atoms = np.flatnonzero(self.slot_of() >= 0)
+            near = np.linalg.norm(self.grid.grid.centers[atoms] - probe_light.position, axis=1) \
+                <= probe_light.radius + self.grid.vdw_radii[atoms]
+            slots = np.sort(self.slot_of()[atoms[near]]).astype(np.uint32)
         t0 = time.perf_counter()
-        self._bake(directions, distance, want_ambient, sun_direction if want_sun else None, progress)
+        self._bake(slots, directions, distance, want_ambient, sun_direction if want_sun else None,
+                   probe_light if want_probe else None, progress)
         self.ctx.finish()
         self.bake_seconds = time.perf_counter() - t0
+        self.baked_patches = int(slots.size)
         if want_ambient:
             self.ambient_key = (directions, float(distance))
         if want_sun:
             self.sun_key = sun_key
-        log.info("occlusion atlas: %d patches of %dx%d texels baked in %.2f s", self.n_slots, patch, patch,
-                 self.bake_seconds)
+        if want_probe:
+            self.probe_key = probe_key
+        log.info("occlusion atlas: %d of %d patches of %dx%d texels baked in %.2f s", slots.size, self.n_slots,
+                 patch, patch, self.bake_seconds)
         return True
 
-    def _bake(self, directions: int, distance: float, ambient: bool, sun_direction, progress) -> None:
+    def _bake(self, slots: np.ndarray, directions: int, distance: float, ambient: bool, sun_direction,
+              probe_light, progress) -> None:
         grid = self.grid
-        n = max(self.n_slots, 1)
+        n = max(int(slots.size), 1)
         chunk = math.ceil(n / math.ceil(n / CHUNK_SLOTS))  # chunks of equal size
         dirs = np.zeros((directions, 4), dtype=np.float32)
         dirs[:, :3] = fibonacci_directions(directions)
         lists = chunk * directions if ambient else 1
         buffers = {binding: self._buffer(binding, nbytes) for binding, nbytes in (
             (5, chunk * MAX_NEIGHBOURS * 16), (6, chunk * MAX_OVERLAPS * 16), (7, chunk * 2 * 4), (8, dirs.nbytes),
-            (9, lists * MAX_CANDIDATES * 16), (10, lists * 4), (11, 4))}
+            (9, lists * MAX_CANDIDATES * 16), (10, lists * 4), (11, 4), (12, max(slots.nbytes, 4)))}
         buffers[8].write(dirs.tobytes())
         buffers[11].write(np.zeros(1, dtype=np.uint32).tobytes())
+        if slots.size:
+            buffers[12].write(slots.tobytes())
         common = {
-            **ray_epsilon_uniforms(), **light_uniforms(None, None), "u_directions": directions,
+            **ray_epsilon_uniforms(), **light_uniforms(None, probe_light), "u_directions": directions,
             "u_distance": float(distance), "u_max_radius": float(np.max(grid.vdw_radii)) if grid.n_atoms else 0.0,
             "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_bake_ambient": int(ambient),
-            "u_bake_sun": int(sun_direction is not None),
+            "u_bake_sun": int(sun_direction is not None), "u_bake_probe": int(probe_light is not None),
         }
         if sun_direction is not None:
             d = np.asarray(sun_direction, dtype=np.float64)
@@ -152,15 +171,15 @@ class OcclusionAtlas:
             for binding, buffer in buffers.items():
                 buffer.bind_to_storage_buffer(binding)
             self.texture.bind_to_image(0, read=True, write=True)
-            for first in range(0, self.n_slots, chunk):
-                count = min(chunk, self.n_slots - first)
+            for first in range(0, int(slots.size), chunk):
+                count = min(chunk, int(slots.size) - first)
                 uniforms = {**common, "u_first_slot": first, "u_chunk_slots": count}
                 self._dispatch(self.gather, count, uniforms)  # the overlaps: the hidden-texel test needs them
                 if ambient:
                     self._dispatch(self.candidates, count * directions, uniforms)
                 self._dispatch(self.bake_pass, count * self.patch * self.patch, uniforms)
                 if progress is not None:
-                    progress((first + count) / self.n_slots)
+                    progress((first + count) / slots.size)
             self.overflows = int(np.frombuffer(buffers[11].read(), dtype=np.uint32)[0])
             self._fill_unseen()
         finally:
@@ -180,7 +199,7 @@ class OcclusionAtlas:
 
     def _fill_unseen(self) -> None:
         """Texels inside other atoms take their seen neighbours' mean (shaders/atlas_fill.comp)."""
-        scratch = self.ctx.texture(self.texture.size, 2, dtype="f2")
+        scratch = self.ctx.texture(self.texture.size, 4, dtype="f2")
         try:
             for last, (source, target) in enumerate(((self.texture, scratch), (scratch, self.texture))):
                 source.bind_to_image(0, read=True, write=False)
@@ -197,28 +216,36 @@ class OcclusionAtlas:
         self.ctx.memory_barrier()
 
     # ------------------------------------------------------------ lookup
-    def lookup(self, gbuffer: GBuffer, sun_direction=None):
-        """(accessibility, light visibility) textures (r32f) of every G-buffer pixel; the
-        light's only with a `sun_direction` (towards the light)."""
+    def lookup(self, gbuffer: GBuffer, ambient: bool = True, sun_direction=None, probe_light: PointLight | None = None,
+               rect=None):
+        """(accessibility, directional light, probe light) textures (r32f) of every G-buffer
+        pixel; each written only when wanted (`ambient`; a light when given, `sun_direction`
+        towards it), the others keep what they hold. `rect` (x, y, width, height): only those
+        pixels, the probe light's 1 elsewhere (what lies beyond its range reads)."""
         size = gbuffer.size
+        want_ambient = ambient
         ambient, sun = self.textures.get("ambient", size), self.textures.get("sun", size)
+        lamp = self.textures.get("probe_light", size) if rect is None else self.textures.fill("probe_light", size, 1.0)
+        x, y, w, h = rect if rect is not None else (0, 0, *size)
         gbuffer.bind()
         self.texture.filter = (self.ctx.LINEAR, self.ctx.LINEAR)
         self.texture.use(location=3)
         self.atom_slots.bind_to_storage_buffer(BINDING_ATOM_SLOTS)
         ambient.bind_to_image(0, read=False, write=True)
         sun.bind_to_image(1, read=False, write=True)
-        self.lookup_pass.run(*size, {
-            **ray_epsilon_uniforms(),
+        lamp.bind_to_image(2, read=False, write=True)
+        self.lookup_pass.run(w, h, {
+            "u_offset": (int(x), int(y)), **ray_epsilon_uniforms(), **light_uniforms(None, probe_light),
             "u_sun_dir": tuple(float(v) for v in (sun_direction if sun_direction is not None else (0.0, 0.0, 1.0))),
-            "u_write_sun": int(sun_direction is not None),
+            "u_write_ambient": int(want_ambient), "u_write_sun": int(sun_direction is not None),
+            "u_write_probe": int(probe_light is not None),
             "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_atlas_size": tuple(float(v) for v in self.texture.size),
         })
-        return ambient, sun
+        return ambient, sun, lamp
 
     def read(self) -> np.ndarray:
-        """The atlas as (H, W, 2) float32 (row 0 = atlas row 0)."""
-        data = np.frombuffer(self.texture.read(), dtype=np.float16).reshape(self.texture.height, self.texture.width, 2)
+        """The atlas as (H, W, 4) float32 (row 0 = atlas row 0)."""
+        data = np.frombuffer(self.texture.read(), dtype=np.float16).reshape(self.texture.height, self.texture.width, 4)
         return data.astype(np.float32)
 
     def slot_of(self) -> np.ndarray:
