@@ -19,7 +19,6 @@ coordinates), clamped to the frame; None is an empty one.
 from __future__ import annotations
 
 import dataclasses
-import enum
 
 import numpy as np
 
@@ -43,8 +42,6 @@ def state_key(value, skip: tuple[str, ...] = ()):
         return ("array", value.dtype.str, value.shape, value.tobytes())
     if isinstance(value, np.generic):
         return value.item()
-    if isinstance(value, enum.Enum):
-        return (type(value).__name__, value.value)
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return (type(value).__name__,) + tuple(
             (f.name, state_key(getattr(value, f.name))) for f in dataclasses.fields(value) if f.name not in skip)
@@ -147,9 +144,6 @@ class MoleculeCache:
             self.stash = GBufferStash(self.ctx, self.programs, frame.size)
         self.stash.save(frame.targets, rect)
         self.stashed = rect
-
-    def invalidate(self) -> None:
-        self.key = None
 
     def release(self) -> None:
         if self.stash is not None:

@@ -35,12 +35,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from sasprobe.render.frame_cache import full_rect, grow_rect, union_rect
 from sasprobe.render.gl.compute import ComputePass
 from sasprobe.render.gl.context import GLUnavailable
 from sasprobe.render.gl.textures import TextureCache, read_texture
 from sasprobe.render.lighting.ao import AmbientOcclusion
-from sasprobe.render.lighting.ao.analytic import MAX_K, nearest_to_point
 from sasprobe.render.lighting.edges import EdgeCueingPass
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.grid import Culling, GpuGrid
@@ -53,25 +51,24 @@ from sasprobe.render.lighting.settings import (
     PointLight,
     ShadingSettings,
     SoftShadow,
-    light_uniforms,
-    ray_epsilon_uniforms,
 )
 from sasprobe.render.lighting.shadows import ShadowPass
 from sasprobe.render.passes.base import Frame, Pass
+from sasprobe.render.passes.lighting_layers import NO_NEIGHBOURS, LayeredLighting
 
 log = logging.getLogger("sasprobe")
 
 REQUIRED_GL = 430
-STILL_FRAMES = 3  # --shadows precomputed: frames the probe stands still before its light is baked
 CYCLED_AO_MODES = tuple(m for m in AO_MODES if m != "off")
-NO_NEIGHBOURS = np.full(MAX_K, -1, dtype=np.int32)
 
 
 def lighting_supported(ctx) -> bool:
     return ctx.version_code >= REQUIRED_GL
 
 
-class LightingPass(Pass):
+class LightingPass(LayeredLighting, Pass):
+    """Whole frames here; layered frames in LayeredLighting (passes/lighting_layers.py)."""
+
     name = "lighting"
 
     def __init__(self, ctx, settings: LightingSettings, shading: ShadingSettings | None, layered: bool = False):
@@ -232,94 +229,6 @@ class LightingPass(Pass):
         if fx.edge_cueing:
             terms["edges"] = self._edges(gbuffer, frame)
         self._compose(frame, terms, {})
-
-    # ------------------------------------------------------------ layered frames
-    def run_molecule(self, frame: Frame) -> None:
-        """The molecule's own terms, on the molecule layer (no probe in the G-buffer or the
-        grid): computed when the layer is drawn, and topped up with samples while it holds."""
-        self._sync(frame)
-        self.grid.set_probe(None)
-        fx = frame.scene.effects
-        gbuffer = GBuffer.of_targets(frame.targets)
-        if not frame.cached:
-            self.ao.view_changed()
-            self.molecule_terms = {}
-            sun = self.lights[0]
-            if fx.shadows and sun is not None:
-                self.molecule_terms["shadow_dir"] = self._sun(gbuffer, frame, sun, "molecule_sun")
-            if fx.ambient_occlusion:
-                self.molecule_terms["ao"] = self._ambient(gbuffer, frame)
-        elif fx.ambient_occlusion and not self.ao.converged:
-            self.molecule_terms["ao"] = self.ao.compute(gbuffer, frame.view, frame.proj)
-
-    def _dirty_rect(self, term: str, now, frame: Frame):
-        """Where a probe-dependent term must be recomputed: everywhere on a frame that drew
-        the molecule layer, else where the probe reaches now and where it reached last time."""
-        last = self._dirty.get(term)
-        self._dirty[term] = now
-        return full_rect(frame.size) if not frame.cached else union_rect(last, now)
-
-    def _run_probe_layer(self, frame: Frame) -> None:
-        fx, size = frame.scene.effects, frame.size
-        probe_key = self._set_probe(frame)
-        probe = self.grid.probe_sphere if probe_key else None
-        self._stillness(frame, self._culling_key, probe_key)
-        gbuffer = GBuffer.of_targets(frame.targets)
-        sun, lamp = self.lights
-        terms = dict(self.molecule_terms)
-        self.layers = {}
-        soft = self._soft(frame)
-        self._still_frames = self._still_frames + 1 if probe_key == self._last_probe_key else 0
-        self._last_probe_key = probe_key
-        if fx.shadows and lamp is not None:
-            if self._precomputed(frame) and self._still_frames >= STILL_FRAMES:
-                self._configure_ao()  # the probe stands still: its light is fixed in the molecule frame
-                terms["shadow_probe"] = self.ao.baked(gbuffer, ambient=False, probe_light=lamp,
-                                                      rect=frame.probe_rect(lamp.radius))[2]
-            else:
-                rect = self._dirty_rect("shadow_probe", frame.probe_rect(lamp.radius), frame)
-                terms["shadow_probe"] = self.shadows.trace(
-                    gbuffer, lamp, soft, out=self.textures.get("shadow_probe", size), rect=rect)
-            self.layers["shadow_probe"] = terms["shadow_probe"]
-        probe_sun = fx.shadows and sun is not None and probe is not None
-        if probe_sun:
-            rect = frame.probe_rect()
-            if rect is not None:
-                terms["probe_pixels_sun"] = self.shadows.trace(
-                    gbuffer, sun, soft, out=self.textures.get("probe_pixels_sun", size), rect=rect, only_probe=True)
-        if fx.edge_cueing:
-            reach = self.settings.edge_settings().reach_px() + 1
-            rect = self._dirty_rect("edges", grow_rect(frame.probe_rect(), reach, size), frame)
-            terms["edges"] = self._edges(gbuffer, frame, rect)
-        probe_ambient = fx.ambient_occlusion and probe is not None
-        uniforms = {
-            **light_uniforms(sun, None), **ray_epsilon_uniforms(),
-            "u_probe_sun": int(probe_sun and "shadow_dir" in terms), "u_shell": soft.shell(),
-            "u_shell_growth": float(soft.growth), "u_probe_ambient": int(probe_ambient),
-            "u_k": int(self.settings.ao.k), "u_probe_neighbours": self._neighbours(probe_key, probe).tobytes(),
-        }
-        self._compose(frame, terms, {**uniforms, "u_layered": 1, "u_write_terms": 0})
-        self._composed = (frame, terms, uniforms, "shadow_dir" in terms, fx.ambient_occlusion)
-
-    def _export_composed(self) -> None:
-        """The last layered frame's composed sun and ambient terms, written for the export."""
-        frame, terms, uniforms, with_sun, with_ambient = self._composed
-        sun_out, ao_out = self.textures.get("shadow_dir", frame.size), self.textures.get("ao", frame.size)
-        sun_out.bind_to_image(1, read=False, write=True)
-        ao_out.bind_to_image(2, read=False, write=True)
-        self._compose(frame, terms, {**uniforms, "u_layered": 1, "u_write_terms": 1})
-        if with_sun:
-            self.layers["shadow_dir"] = sun_out
-        if with_ambient:
-            self.layers["ao"] = ao_out
-
-    def _neighbours(self, probe_key: bytes, probe) -> np.ndarray:
-        """The atoms nearest the probe (for the AO of its own pixels), found again when it moves."""
-        if probe is None:
-            return NO_NEIGHBOURS
-        if self._probe_neighbours[0] != probe_key:
-            self._probe_neighbours = (probe_key, nearest_to_point(self.grid.grid.centers, probe[:3]).astype(np.int32))
-        return self._probe_neighbours[1]
 
     # ------------------------------------------------------------ helpers
     def _soft_shell(self) -> SoftShadow:
