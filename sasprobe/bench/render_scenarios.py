@@ -313,7 +313,7 @@ def cache_figure(run: dict, path):
         ax.imshow(image)
         ax.set_title(title, fontsize=8)
     im = axes[2].imshow(diff, cmap="magma", vmin=0, vmax=8)
-    axes[2].set_title(f"|difference| (max {diff.max()}/255; {100 * (diff <= 2).mean():.3f} % within 2/255)",
+    axes[2].set_title(f"|difference|: max {diff.max()}/255,\n{100 * (diff <= 2).mean():.3f} % of pixels within 2/255",
                       fontsize=8)
     fig.colorbar(im, ax=axes[2], shrink=0.8, label="/255")
     for ax in axes:
