@@ -84,8 +84,8 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
 
 
 def _scenarios(gl, by_id, size, frames: int, pymol_repeats: int) -> dict:
-    """(a) on 1CRN and 1TII (waters kept, as the issue measured), (b) on 1TII, (c) on the
-    largest structure; PyMOL on 1TII."""
+    """(a) on 1CRN and 1TII (waters kept, as the issue measured; PyMOL's ray between two
+    stretches of 1TII's session frames), (b) on 1TII, (c) on the largest structure."""
     steps = progress(range(5), "bench render: scenarios", 5)
     out = {"size": list(size), "frames": frames, "load": [render_scenarios.load_average()],
            "session": [], "orbit": [], "cube": []}
@@ -93,9 +93,14 @@ def _scenarios(gl, by_id, size, frames: int, pymol_repeats: int) -> dict:
     next(steps)
     for sid in session_ids:
         structure = load_structure(by_id[sid].path, keep_water=True)
-        views = (False, True) if sid == session_ids[-1] else (False,)
-        out["session"] += [{"id": sid, "atoms": structure.n_atoms,
-                            **render_scenarios.session(gl, structure, size, frames, demo_view)} for demo_view in views]
+        last = sid == session_ids[-1]  # 1TII: also PyMOL's ray, and the session as the demo frames it
+        peer = (lambda: render_scenarios.pymol_ray(by_id[sid].path, size, pymol_repeats)) \
+            if last and render_scenarios.pymol_available() else None
+        out["session"].append({"id": sid, "atoms": structure.n_atoms,
+                               **render_scenarios.session(gl, structure, size, frames, between=peer)})
+        if last:
+            out["session"].append({"id": sid, "atoms": structure.n_atoms,
+                                   **render_scenarios.session(gl, structure, size, frames, demo_view=True)})
     next(steps)
     orbit_id = session_ids[-1]
     structure = load_structure(by_id[orbit_id].path, keep_water=True)
@@ -107,9 +112,6 @@ def _scenarios(gl, by_id, size, frames: int, pymol_repeats: int) -> dict:
     big = load_structure(by_id[big_id].path)
     out["cube"].append({"id": big_id, "atoms": big.n_atoms, **render_scenarios.drifting_cube(gl, big, size, frames)})
     next(steps)
-    pymol = render_scenarios.pymol_ray(by_id[orbit_id].path, size, pymol_repeats)
-    if pymol is not None:
-        out["pymol"] = {"id": orbit_id, **pymol}
     next(steps)
     out["load"].append(render_scenarios.load_average())
     return out

@@ -18,7 +18,8 @@ processes falls on all alike, and the load average is recorded beside the figure
 frame's CPU time (this process, llvmpipe's threads included) is taken with its wall time,
 and on a machine shared with other work the CPU-time ratios are the steadier ones. Where
 `pymol-open-source` is importable, PyMOL's `ray` renders the session's structure at the
-same size with and without its shadows in the same run (in a child process).
+same size with and without its shadows in the same run (in a child process), between two
+stretches of session frames, and is compared with their mean.
 """
 
 from __future__ import annotations
@@ -152,9 +153,10 @@ def release(cases: list[Case]) -> None:
 
 
 # ------------------------------------------------------------------ the scenarios
-def session(gl, structure, size, frames: int, demo_view: bool = False) -> dict:
+def session(gl, structure, size, frames: int, demo_view: bool = False, between=None) -> dict:
     """(a): the probe along the demo path, camera still; fitted to the molecule, or (with
-    `demo_view`) to the poses' cube, which is drawn."""
+    `demo_view`) to the poses' cube, which is drawn. `between()` (a peer's timing) runs
+    after the frames, and session frames are timed again after it."""
     from sasprobe.render.lighting.settings import LightingSettings
 
     path = demo_path(structure, frames)
@@ -174,6 +176,13 @@ def session(gl, structure, size, frames: int, demo_view: bool = False) -> dict:
                "pixels_within_2": float((diff <= 2).mean()), "max_difference": int(diff.max()),
                "contact_fraction": float(np.mean([p.contact for p in path])),
                "probe_travel_A": float(np.sum(np.linalg.norm(np.diff([p.proxy_A for p in path], axis=0), axis=1)))}
+        if between is not None:
+            out["peer"] = between()
+            kept_case = cases[2]
+            after = Case("after", kept_case.renderer, kept_case.camera, kept_case.step)
+            time_cases(gl, [after], max(frames // 2, 3), warmup=0)
+            out["session_after"] = {"ms": statistics.median(after.times) * 1e3,
+                                    "cpu_ms": statistics.median(after.cpu) * 1e3}
     finally:
         release(cases)
     return out
@@ -350,16 +359,18 @@ def markdown(d: dict) -> str:
     for run in d["cube"]:
         lines.append(f"Drifting cube, {run['id']}: half edge {run['cube_half_A']:.2f} Å, {run['atoms_in_cube']} atoms; "
                      "the atlas is baked again every frame (the culling changes).")
-    p = d.get("pymol")
+    around = next((r for r in d["session"] if "peer" in r), None)
+    p = None if around is None else around["peer"]
     if p is None:
         lines.append("\nPyMOL: pymol-open-source is not installed (`pip install -e '.[peers]'`).")
     elif "error" in p:
         lines.append(f"\nPyMOL could not run: {p['error']}")
     else:
-        session = next(r for r in d["session"] if r["id"] == p["id"] and not r["demo_view"])["rows"][
-            "session (frame cache)"]
-        lines += ["", f"**PyMOL {p['version']}** `ray` on {p['id']} ({p['atoms']} atoms, spheres, {size}, "
-                  f"max_threads {p['max_threads']}), same run; ratio = PyMOL / sasprobe session frame:", "",
+        before, after = around["rows"]["session (frame cache)"], around["session_after"]
+        session = {key: (before[key] + after[key]) / 2 for key in ("ms", "cpu_ms")}
+        lines += ["", f"**PyMOL {p['version']}** `ray` on {around['id']} ({p['atoms']} atoms, spheres, {size}, "
+                  f"max_threads {p['max_threads']}), same run, between two stretches of session frames "
+                  f"({before['ms']:.1f} and {after['ms']:.1f} ms); ratio = PyMOL / their mean:", "",
                   "| PyMOL setting | ms | CPU ms | PyMOL / session frame | (CPU) |", "|---|---:|---:|---:|---:|"]
         aa = p["antialias_default"]
         for shadows in (1, 0):
