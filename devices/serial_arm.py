@@ -116,6 +116,10 @@ class SerialArm(HardwareDevice):
     def _max_force_n(self) -> float:
         return self.info.limits.max_force_n
 
+    def _renderable(self, force_n):
+        """The part of a force the mechanism can render (all of it, unless it is planar)."""
+        return force_n
+
     # interface ------------------------------------------------------------------------
     def open(self, handshake_timeout_s: float | None = None) -> None:
         self.transport.open()
@@ -168,7 +172,7 @@ class SerialArm(HardwareDevice):
                            velocity_mm_s=self._velocity.update(now, position), buttons=buttons, calibrated=True)
 
     def write_force(self, force_n) -> None:
-        self.force = clamp_force(force_n, self._max_force_n)
+        self.force = clamp_force(self._renderable(force_n), self._max_force_n)
         if self._sent_at is None and self._resync_reason is None and self._lost is None:
             self._send(self._command())
 

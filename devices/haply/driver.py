@@ -67,6 +67,12 @@ class Haply2DIYDevice(SerialArm):
     def _command(self) -> bytes:
         return protocol.encode_write(self.device_id, self.port_torques(self.force))
 
+    def _renderable(self, force_n):
+        force = np.array(force_n, dtype=float).reshape(-1)
+        if force.shape == (3,):
+            force[1] = 0.0  # the pad is flat: nothing pushes up or down
+        return force
+
     def _zero_may_overlap(self) -> bool:
         return True  # fixed-size frames cannot merge, and the board has no watchdog: always send zero
 

@@ -6,11 +6,12 @@ in a thread, reading and writing through the small Arduino-like serial API below
 (`available`, `read` → a byte or −1, `read_bytes` with a timeout, `write`), so its
 parsing sees bytes exactly as a board's does: as they arrive, merged or split.
 
-Faults a test can cause: `inject(data)` (bytes nobody asked for), `stall(seconds)` (the firmware stops reading and answering
-for a while; the host's bytes pile up in the buffer as they would in the USB stack),
-`go_silent()` (it never answers again), `unplug()` / `replug()` (the cable: the driver's
-next read or write fails with EIO; replugging makes a fresh pty, and the firmware
-restarts from `power_on()`, as a USB-powered board does).
+Faults a test can cause: `inject(data)` (bytes nobody asked for), `stall(seconds)`
+(the firmware stops reading and answering for a while; the host's bytes pile up in the
+buffer as they would in the USB stack), `go_silent()` (it stops reading and answering
+until `resume()`), `unplug()` / `replug()` (the cable: the driver's next read or write
+fails with EIO; replugging makes a fresh pty, and the firmware restarts from
+`power_on()`, as a USB-powered board does).
 """
 
 from __future__ import annotations
@@ -98,6 +99,9 @@ class PtySerialDevice:
 
     def go_silent(self) -> None:
         self.silent = True
+
+    def resume(self) -> None:
+        self.silent = False
 
     def inject(self, data: bytes) -> None:
         """Bytes on the line that no command asked for (a glitch, another program's output)."""
