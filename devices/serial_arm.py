@@ -10,7 +10,9 @@ under a 1 kHz loop that must never wait long:
   Two commands in flight could merge in the board's input buffer (the WoodenHaptics
   firmware refuses merged commands) and would leave the host one reply behind;
 - `read()` sends when nothing is in flight, then waits for the reply until
-  `reply_timeout_s` after the command went out. A reply that has not come by then
+  `reply_timeout_s` after the command went out (REPLY_PERIODS of the loop that drives
+  the arm: 2.5 ms at 1 kHz, so a read never takes the daemon's three periods). A reply
+  that has not come by then
   raises DeviceFault (the daemon writes zero force); the command stays in flight and the
   next `read()` takes the reply when it arrives, without sending anything new;
 - a reply is used only if it is fresh: it must have arrived within `stale_after_s` of
@@ -41,11 +43,24 @@ from sasprobe.devices.base import DeviceFault, DeviceOpenError, DeviceState
 from sasprobe.devices.support import HardwareDevice, VelocityFilter, clamp_force
 from sasprobe.devices.transports import SerialTransport
 
+REPLY_PERIODS = 2.5  # how many loop periods after its command a reply may take
 PROBE_INTERVAL_S = 0.1  # hfabapi wait_online(): one "[0,0,0]" every 100 ms until the board answers
 RESYNC_QUIET_S = 0.005  # the boards answer within a millisecond: this much silence means nothing is left
 JUNK_PROBES = 5  # a board that answered this many probes with foreign bytes speaks another protocol
 REOPEN_HANDSHAKE_S = 1.0  # a replugged board boots in well under a second
 CLOSE_WAIT_S = 0.02  # how long close() waits for the board to take its zero command
+
+
+def timing_options(options: dict) -> dict:
+    """The driver's timing from a factory's keyword options: explicit values, else from the
+    loop rate the daemon passes (`rate_hz`); the rest are ignored."""
+    timing = {k: float(options[k]) for k in ("reply_timeout_s", "stale_after_s", "handshake_timeout_s")
+              if options.get(k) is not None}
+    rate = options.get("rate_hz")
+    if rate and "reply_timeout_s" not in timing:
+        timing["reply_timeout_s"] = REPLY_PERIODS / float(rate)
+        timing.setdefault("stale_after_s", max(0.005, 5.0 / float(rate)))
+    return timing
 
 
 class Reply:
@@ -61,7 +76,8 @@ class BadFrame(Exception):
 class SerialArm(HardwareDevice):
     scheme = ""  # the --device scheme, for messages
 
-    def __init__(self, port: str | None, *, reply_timeout_s: float = 0.003, stale_after_s: float = 0.005,
+    def __init__(self, port: str | None, *, reply_timeout_s: float = REPLY_PERIODS / 1000.0,
+                 stale_after_s: float = 0.005,
                  handshake_timeout_s: float = 3.0, silent_after_s: float = 0.5):
         if not port:
             raise DeviceOpenError(f"{self.scheme} needs a serial port: --device {self.scheme}:/dev/ttyACM0 "

@@ -25,7 +25,7 @@ from sasprobe.devices.base import DeviceInfo, DeviceOpenError
 from sasprobe.devices.haply import kinematics, protocol
 from sasprobe.devices.haply.models import DEFAULT_GENERATION, GENERATIONS
 from sasprobe.devices.kinematics import KinematicsError, scale_to_limit
-from sasprobe.devices.serial_arm import JUNK_PROBES, PROBE_INTERVAL_S, BadFrame, SerialArm
+from sasprobe.devices.serial_arm import JUNK_PROBES, PROBE_INTERVAL_S, BadFrame, SerialArm, timing_options
 
 log = logging.getLogger("sasprobe.devices.haply")
 
@@ -185,15 +185,13 @@ class Haply2DIYDevice(SerialArm):
 def create(argument: str | None = None, **options) -> Haply2DIYDevice:
     """`haply:PORT` (generation 3) or `haply:gen2:PORT` / `haply:gen3:PORT`.
 
-    Options: device_id, reply_timeout_s, stale_after_s, handshake_timeout_s (others ignored).
+    Options: device_id, rate_hz, reply_timeout_s, stale_after_s, handshake_timeout_s.
     """
     generation = DEFAULT_GENERATION
     if argument:
         head, sep, rest = argument.partition(":")
         if sep and head.lower() in GENERATIONS:
             generation, argument = head.lower(), rest
-    timing = {k: float(options[k]) for k in ("reply_timeout_s", "stale_after_s", "handshake_timeout_s")
-              if options.get(k) is not None}
     device_id = int(options.get("device_id") or protocol.DEFAULT_DEVICE_ID)
-    return Haply2DIYDevice(argument, generation=generation, device_id=device_id, **timing)
+    return Haply2DIYDevice(argument, generation=generation, device_id=device_id, **timing_options(options))
 

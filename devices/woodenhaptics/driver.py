@@ -19,7 +19,7 @@ import numpy as np
 
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceOpenError
 from sasprobe.devices.kinematics import KinematicsError
-from sasprobe.devices.serial_arm import SerialArm
+from sasprobe.devices.serial_arm import SerialArm, timing_options
 from sasprobe.devices.woodenhaptics import kinematics, protocol
 from sasprobe.devices.woodenhaptics.models import LIMITS_BEFORE_THE_MODEL_IS_KNOWN, WOODEN_MODELS, WoodenModel, \
     known_models
@@ -113,7 +113,5 @@ class WoodenHapticsDevice(SerialArm):
 
 
 def create(argument: str | None = None, **options) -> WoodenHapticsDevice:
-    """`woodenhaptics:PORT`. Options: reply_timeout_s, stale_after_s, handshake_timeout_s (others ignored)."""
-    timing = {k: float(options[k]) for k in ("reply_timeout_s", "stale_after_s", "handshake_timeout_s")
-              if options.get(k) is not None}
-    return WoodenHapticsDevice(argument, **timing)
+    """`woodenhaptics:PORT`. Options: rate_hz, reply_timeout_s, stale_after_s, handshake_timeout_s."""
+    return WoodenHapticsDevice(argument, **timing_options(options))

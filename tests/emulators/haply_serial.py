@@ -47,7 +47,7 @@ from tests.emulators.physics import HeldStylus, MovableHand, follow, numeric_jac
 from tests.emulators.pty_serial import PtySerialDevice
 
 MAX_TORQUE = 0.123
-MOVE_EVERY_S = 0.001
+MOVE_EVERY_S = 0.002
 
 
 @dataclass(frozen=True)
@@ -134,6 +134,7 @@ class HaplyBoard(PtySerialDevice):
             self.answer_due = False
             angles = [self._angle(port) for port in sorted(self.encoders) if self.owner.get(port) == self.address]
             self.write(bytes([self.address & 0xFF]) + struct.pack(f"<{len(angles)}f", *angles))
+            self._refresh_force()  # the new torques (after the answer: the firmware's work is done)
 
     def _setup(self) -> None:
         self.owner = {}
@@ -173,7 +174,6 @@ class HaplyBoard(PtySerialDevice):
                 self.duty[port] = 0
         self.address = address
         self.writes += 1
-        self._refresh_force()
 
     def _ports(self, mask: int) -> list[int]:
         count = 2 if self.board == "M0" else 4

@@ -21,7 +21,8 @@ MAX_GAP_S = 1.0  # longer gaps (a suspended process) are integrated as this long
 
 class MovableHand:
     """A hand whose target the test sets (`hand.target = (x, y, z)`, mm); it gets there at
-    `speed_mm_s`. `position` is where it is now."""
+    `speed_mm_s`. `position` is where it is now. (Any function of time in seconds that
+    returns a position in mm is a hand too.)"""
 
     def __init__(self, target=(0.0, 0.0, 0.0), speed_mm_s: float = 400.0):
         self.position = np.asarray(target, dtype=float).copy()
@@ -60,6 +61,7 @@ class HeldStylus:
         self.hand = hand or MovableHand(start_mm)
         self.planar_axis = planar_axis  # a pad that holds the tip in a plane: this coordinate stays put
         self._plane = None if planar_axis is None else float(self.position[planar_axis])
+        self.t0 = time.monotonic()  # a hand is a function of the time since the stylus was picked up
         self._last: float | None = None
         self.lock = threading.Lock()
 
@@ -69,8 +71,8 @@ class HeldStylus:
         with self.lock:
             dt = 0.0 if self._last is None else min(now - self._last, MAX_GAP_S)
             self._last = now
-            start = self.hand(now - dt)
-            end = self.hand(now)
+            start = np.asarray(self.hand(now - dt - self.t0), dtype=float)
+            end = np.asarray(self.hand(now - self.t0), dtype=float)
             force = np.asarray(motor_force_n, dtype=float)
             substeps = max(1, int(np.ceil(dt / SUBSTEP_S)))
             h = dt / substeps

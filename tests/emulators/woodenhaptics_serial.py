@@ -44,7 +44,7 @@ PWM_MAX = 8191  # 13-bit PWM
 WATCHDOG_S = 0.1
 BUFFER = 127
 COMMAND = re.compile(rb"\[\s*([+-]?\d+),\s*([+-]?\d+),\s*([+-]?\d+)")  # sscanf "[%d,%d,%d]"
-MOVE_EVERY_S = 0.001
+MOVE_EVERY_S = 0.002
 
 
 @dataclass(frozen=True)
@@ -169,11 +169,11 @@ class WoodenHapticsEmulator(PtySerialDevice):
         self.last_command_ma = asked = [int(v) for v in match.groups()]
         currents = [ma if -ESCON_MAX_MA <= ma <= ESCON_MAX_MA else 0 for ma in asked]
         duty = [int(PWM_MAX * (0.4 * ma / ESCON_MAX_MA + 0.5)) for ma in currents]
-        self.currents_ma = np.array([(d / PWM_MAX - 0.5) / 0.4 * ESCON_MAX_MA for d in duty])
-        self._refresh_force()
         counts = self._motor_counts() - self._zero
         self.counters = [int(v) for v in counts] + list(self.gimbal_counts)
         self._answer(self.gimbal_error_bits, refused=False)
+        self.currents_ma = np.array([(d / PWM_MAX - 0.5) / 0.4 * ESCON_MAX_MA for d in duty])
+        self._refresh_force()
 
     def _await_message(self) -> tuple[int, int, bytes]:
         buf, start, commas = bytearray(), None, 0
