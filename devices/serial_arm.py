@@ -11,8 +11,8 @@ under a 1 kHz loop that must never wait long:
   firmware refuses merged commands) and would leave the host one reply behind;
 - `read()` sends when nothing is in flight, then waits for the reply until
   `reply_timeout_s` after the command went out (REPLY_PERIODS of the loop that drives
-  the arm: 2.5 ms at 1 kHz, so a read never takes the daemon's three periods). A reply
-  that has not come by then
+  the arm: 2.5 ms at 1 kHz, so a read never takes the daemon's three periods; 10 ms when
+  the factory is not told the loop rate). A reply that has not come by then
   raises DeviceFault (the daemon writes zero force); the command stays in flight and the
   next `read()` takes the reply when it arrives, without sending anything new;
 - a reply is used only if it is fresh: it must have arrived within `stale_after_s` of
@@ -76,9 +76,8 @@ class BadFrame(Exception):
 class SerialArm(HardwareDevice):
     scheme = ""  # the --device scheme, for messages
 
-    def __init__(self, port: str | None, *, reply_timeout_s: float = REPLY_PERIODS / 1000.0,
-                 stale_after_s: float = 0.005,
-                 handshake_timeout_s: float = 3.0, silent_after_s: float = 0.5):
+    def __init__(self, port: str | None, *, reply_timeout_s: float = 0.010,
+                 stale_after_s: float = 0.005, handshake_timeout_s: float = 3.0, silent_after_s: float = 0.5):
         if not port:
             raise DeviceOpenError(f"{self.scheme} needs a serial port: --device {self.scheme}:/dev/ttyACM0 "
                                   "(`sasprobe devices` lists the ports)")

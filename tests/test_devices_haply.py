@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
-from sasprobe.devices.haply import Haply2DIYDevice, create, kinematics, protocol
+from sasprobe.devices.haply import create, kinematics, protocol
 from sasprobe.devices.haply.models import GENERATIONS
 from tests.emulators import haply_serial
 from tests.serial_arm_session import Session, cosine

@@ -166,6 +166,7 @@ class HaplyBoard(PtySerialDevice):
         address = self.read()
         ports = [p for p in sorted(self.motor_dirs) if self.owner.get(p) == address]
         data = self.read_bytes(4 * len(ports)).ljust(4 * len(ports), b"\0")
+        self.stylus.advance(self._force)  # the old torques acted until now
         for port, torque in zip(ports, struct.unpack(f"<{len(ports)}f", data)):
             ccw = self.motor_dirs[port] == 1
             duty = int(self.pwm_resolution * min(abs(torque), MAX_TORQUE) / MAX_TORQUE)

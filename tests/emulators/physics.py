@@ -49,8 +49,9 @@ class MovableHand:
 
 
 class HeldStylus:
-    def __init__(self, start_mm, hand: MovableHand | None = None, *, mass_kg: float = 0.1, hand_stiffness_n_per_mm: float = 0.5,
-                 damping_n_s_per_m: float | None = None, planar_axis: int | None = None):
+    def __init__(self, start_mm, hand: MovableHand | None = None, *, mass_kg: float = 0.1,
+                 hand_stiffness_n_per_mm: float = 0.5, damping_n_s_per_m: float | None = None,
+                 planar_axis: int | None = None):
         self.position = np.asarray(start_mm, dtype=float).copy()
         self.velocity = np.zeros(3)
         self.mass_kg = mass_kg

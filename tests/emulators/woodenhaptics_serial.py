@@ -169,11 +169,12 @@ class WoodenHapticsEmulator(PtySerialDevice):
         self.last_command_ma = asked = [int(v) for v in match.groups()]
         currents = [ma if -ESCON_MAX_MA <= ma <= ESCON_MAX_MA else 0 for ma in asked]
         duty = [int(PWM_MAX * (0.4 * ma / ESCON_MAX_MA + 0.5)) for ma in currents]
+        self.stylus.advance(self._force)  # the old currents acted until now
+        self.currents_ma = np.array([(d / PWM_MAX - 0.5) / 0.4 * ESCON_MAX_MA for d in duty])
         counts = self._motor_counts() - self._zero
         self.counters = [int(v) for v in counts] + list(self.gimbal_counts)
         self._answer(self.gimbal_error_bits, refused=False)
-        self.currents_ma = np.array([(d / PWM_MAX - 0.5) / 0.4 * ESCON_MAX_MA for d in duty])
-        self._refresh_force()
+        self._refresh_force()  # the slow part after the answer, as the board's work is done
 
     def _await_message(self) -> tuple[int, int, bytes]:
         buf, start, commas = bytearray(), None, 0
