@@ -9,12 +9,14 @@ under a 1 kHz loop that must never wait long:
   reply has been read, otherwise it just keeps the newest force for the next command.
   Two commands in flight could merge in the board's input buffer (the WoodenHaptics
   firmware refuses merged commands) and would leave the host one reply behind;
-- `read()` sends when nothing is in flight, then waits for the reply until
-  `reply_timeout_s` after the command went out (REPLY_PERIODS of the loop that drives
-  the arm: 2.5 ms at 1 kHz, so a read never takes the daemon's three periods; 10 ms when
-  the factory is not told the loop rate). A reply that has not come by then
-  raises DeviceFault (the daemon writes zero force); the command stays in flight and the
-  next `read()` takes the reply when it arrives, without sending anything new;
+- `read()` sends when nothing is in flight, then polls for the reply as Haply's and
+  hfabapi's loops do, waiting at most `read_wait_s` (a quarter period at the loop rate
+  the daemon passes, so a read does not hold the tick). A reply that is later than that
+  gives the last pose again while it is younger than `reuse_s` (two periods); past that
+  the read waits until `reply_timeout_s` after the command went out (2.5 periods: 2.5 ms
+  at 1 kHz, so it never takes the daemon's three; 10 ms when the rate is not given) and
+  then raises DeviceFault (the daemon writes zero force). The command stays in flight:
+  a later `read()` takes its reply when it arrives, without sending anything new;
 - a reply is used only if it is fresh: it must have arrived within `stale_after_s` of
   the last time the driver looked and found nothing (a host that stalled finds an old
   reply waiting). A stale reply updates the pose used for the next force command, then
@@ -44,6 +46,8 @@ from sasprobe.devices.support import HardwareDevice, VelocityFilter, clamp_force
 from sasprobe.devices.transports import SerialTransport
 
 REPLY_PERIODS = 2.5  # how many loop periods after its command a reply may take
+READ_WAIT_PERIODS = 0.25  # how long a read waits for a reply before it gives the last pose again
+REUSE_PERIODS = 2.0  # how old that last pose may be
 PROBE_INTERVAL_S = 0.1  # hfabapi wait_online(): one "[0,0,0]" every 100 ms until the board answers
 RESYNC_QUIET_S = 0.005  # the boards answer within a millisecond: this much silence means nothing is left
 JUNK_PROBES = 5  # a board that answered this many probes with foreign bytes speaks another protocol
@@ -54,12 +58,14 @@ CLOSE_WAIT_S = 0.02  # how long close() waits for the board to take its zero com
 def timing_options(options: dict) -> dict:
     """The driver's timing from a factory's keyword options: explicit values, else from the
     loop rate the daemon passes (`rate_hz`); the rest are ignored."""
-    timing = {k: float(options[k]) for k in ("reply_timeout_s", "stale_after_s", "handshake_timeout_s")
-              if options.get(k) is not None}
-    rate = options.get("rate_hz")
-    if rate and "reply_timeout_s" not in timing:
-        timing["reply_timeout_s"] = REPLY_PERIODS / float(rate)
-        timing.setdefault("stale_after_s", max(0.005, 5.0 / float(rate)))
+    names = ("reply_timeout_s", "read_wait_s", "reuse_s", "stale_after_s", "handshake_timeout_s")
+    timing = {k: float(options[k]) for k in names if options.get(k) is not None}
+    rate = float(options.get("rate_hz") or 0.0)
+    if rate > 0:
+        for name, periods in (("reply_timeout_s", REPLY_PERIODS), ("read_wait_s", READ_WAIT_PERIODS),
+                              ("reuse_s", REUSE_PERIODS)):
+            timing.setdefault(name, periods / rate)
+        timing.setdefault("stale_after_s", max(0.005, 5.0 / rate))
     return timing
 
 
@@ -76,13 +82,16 @@ class BadFrame(Exception):
 class SerialArm(HardwareDevice):
     scheme = ""  # the --device scheme, for messages
 
-    def __init__(self, port: str | None, *, reply_timeout_s: float = 0.010,
-                 stale_after_s: float = 0.005, handshake_timeout_s: float = 3.0, silent_after_s: float = 0.5):
+    def __init__(self, port: str | None, *, reply_timeout_s: float = 0.010, read_wait_s: float = 0.001,
+                 reuse_s: float = 0.005, stale_after_s: float = 0.005, handshake_timeout_s: float = 3.0,
+                 silent_after_s: float = 0.5):
         if not port:
             raise DeviceOpenError(f"{self.scheme} needs a serial port: --device {self.scheme}:/dev/ttyACM0 "
                                   "(`sasprobe devices` lists the ports)")
         self.port = port
         self.reply_timeout_s = reply_timeout_s
+        self.read_wait_s = read_wait_s
+        self.reuse_s = reuse_s
         self.stale_after_s = stale_after_s
         self.handshake_timeout_s = handshake_timeout_s
         self.silent_after_s = silent_after_s
@@ -100,7 +109,10 @@ class SerialArm(HardwareDevice):
         self.rejected_frames = 0
         self.refused_commands = 0
         self.stale_replies = 0
+        self.reused_states = 0
         self.resyncs = 0
+        self._last: DeviceState | None = None  # the state read() returned last, and when
+        self._last_at = 0.0
 
     # subclasses -----------------------------------------------------------------------
     @abc.abstractmethod
@@ -128,8 +140,9 @@ class SerialArm(HardwareDevice):
         """(position mm, orientation quaternion, buttons) of the pose last taken."""
 
     @property
+    @abc.abstractmethod
     def _max_force_n(self) -> float:
-        return self.info.limits.max_force_n
+        """The device's force limit (read every write: keep it cheap)."""
 
     def _renderable(self, force_n):
         """The part of a force the mechanism can render (all of it, unless it is planar)."""
@@ -174,17 +187,24 @@ class SerialArm(HardwareDevice):
             raise DeviceFault(f"resynchronising with the {self.scheme} arm after {self._resync_reason}")
         if self._sent_at is None:
             self._send(self._command())
-        reply, fresh = self._wait_reply()
+        reply, fresh = self._wait_reply(self.read_wait_s)
         if reply is not None and not fresh:
             self.stale_replies += 1  # the host was away: ask again for the present pose
             self._send(self._command())
-            reply, fresh = self._wait_reply()
+            reply, fresh = self._wait_reply(self.read_wait_s)
+        if reply is None and self._sent_at is not None and self._resync_reason is None:
+            if self._last is not None and time.monotonic() - self._last_at <= self.reuse_s:
+                self.reused_states += 1
+                return self._last  # a little late: the last pose again, as Haply's and hfabapi's loops do
+            reply, fresh = self._wait_reply(self.reply_timeout_s)
         if reply is None:
             raise DeviceFault(self._silence())
         now = time.monotonic_ns()
         position, orientation, buttons = self._state(now)
-        return DeviceState(t_ns=now, position_mm=position, orientation=orientation,
-                           velocity_mm_s=self._velocity.update(now, position), buttons=buttons, calibrated=True)
+        self._last_at = time.monotonic()
+        self._last = DeviceState(t_ns=now, position_mm=position, orientation=orientation,
+                                 velocity_mm_s=self._velocity.update(now, position), buttons=buttons, calibrated=True)
+        return self._last
 
     def write_force(self, force_n) -> None:
         self.force = clamp_force(self._renderable(force_n), self._max_force_n)
@@ -242,6 +262,7 @@ class SerialArm(HardwareDevice):
         self._resync_reason = None
         self._lost = None
         self._probed_at = 0.0
+        self._last = None
 
     def _send(self, command: bytes) -> None:
         self._io(self.transport.write, command)
@@ -260,9 +281,10 @@ class SerialArm(HardwareDevice):
             self._sent_at = None
             raise
 
-    def _wait_reply(self) -> tuple[Reply | None, bool]:
-        """The reply to the command in flight (and whether it is fresh), None at the deadline."""
-        deadline = self._sent_at + self.reply_timeout_s
+    def _wait_reply(self, wait_s: float) -> tuple[Reply | None, bool]:
+        """The reply to the command in flight (and whether it is fresh), waiting at most
+        `wait_s` and never past the reply window; None when it has not come."""
+        deadline = min(self._sent_at + self.reply_timeout_s, time.monotonic() + wait_s)
         self._pump(0.0)
         while True:
             try:

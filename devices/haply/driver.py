@@ -52,6 +52,10 @@ class Haply2DIYDevice(SerialArm):
         self._position = np.zeros(3)
 
     @property
+    def _max_force_n(self) -> float:
+        return self.generation.limits.max_force_n
+
+    @property
     def info(self) -> DeviceInfo:
         return DeviceInfo(kind=self.scheme, model=self.generation.name, limits=self.generation.limits,
                           serial=self.port,

@@ -18,6 +18,7 @@ in every direction everywhere in that square), the stiffness and damping limits.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 from sasprobe.devices.base import DeviceLimits
@@ -48,7 +49,7 @@ class Generation:
     def port_for(self, link: int) -> PortSetup:
         return next(p for p in self.ports if p.link == link)
 
-    @property
+    @functools.cached_property
     def limits(self) -> DeviceLimits:
         h = HALF_WORKSPACE_MM
         # planar: the box's y (up) depth equals its others so the daemon's cube fits the plane

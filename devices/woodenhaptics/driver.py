@@ -42,6 +42,10 @@ class WoodenHapticsDevice(SerialArm):
         self._unreachable: str | None = None
 
     @property
+    def _max_force_n(self) -> float:
+        return (self.model.limits if self.model else LIMITS_BEFORE_THE_MODEL_IS_KNOWN).max_force_n
+
+    @property
     def info(self) -> DeviceInfo:
         model = self.model
         return DeviceInfo(

@@ -30,6 +30,7 @@ What we leave out: hfabapi's gravity compensation. It is zero for the serial mod
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -44,19 +45,21 @@ HFAB_TO_DEVICE = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
 POLHEM_JACOBIAN_STEP = 1e-6  # rad, central differences as polhemComputeMotorAmps() takes them
 
 
-def _directions(model: WoodenModel) -> np.ndarray:
-    return np.where(model.motor_and_body_aligned, -1.0, 1.0)
-
-
-def _ratios(model: WoodenModel) -> np.ndarray:
-    return np.asarray(model.capstan_diameters_m) / np.asarray(model.body_diameters_m)
+@functools.lru_cache(maxsize=None)
+def _drive(model: WoodenModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per motor: body radians per count, body→motor torque factor (dir · capstan∅ / body∅),
+    amperes per N·m of motor torque, home counts. Computed once per model."""
+    direction = np.where(model.motor_and_body_aligned, -1.0, 1.0)
+    ratio = np.asarray(model.capstan_diameters_m) / np.asarray(model.body_diameters_m)
+    per_count = direction * ratio * 2.0 * math.pi / np.asarray(model.counts_per_turn, dtype=float)
+    return per_count, direction * ratio, 1.0 / np.asarray(model.torque_constants_nm_per_a), \
+        np.asarray(model.home_counts[:3], dtype=float)
 
 
 def body_angles(model: WoodenModel, raw_counts) -> np.ndarray:
     """tA, tB, tC (rad) of the three motor counts the firmware sent (home counts added here)."""
-    counts = np.asarray(raw_counts[:3], dtype=float) + np.asarray(model.home_counts[:3])
-    motor = 2.0 * math.pi * counts / np.asarray(model.counts_per_turn, dtype=float)
-    return _directions(model) * motor * _ratios(model)
+    per_count, _torque, _amps, home = _drive(model)
+    return (np.asarray(raw_counts[:3], dtype=float) + home) * per_count
 
 
 def polhem_tip(angles) -> tuple[np.ndarray, float]:
@@ -121,10 +124,10 @@ def tip_position_mm(model: WoodenModel, angles) -> tuple[np.ndarray, float]:
 def motor_currents_ma(model: WoodenModel, angles, force_n) -> np.ndarray:
     """Currents (mA) rendering a device-frame force at these body angles, all scaled by one
     factor to stay within the firmware's ±6000 mA (beyond it the firmware sends 0)."""
+    _per_count, torque, amps, _home = _drive(model)
     force_hfab = HFAB_TO_DEVICE.T @ np.asarray(force_n, dtype=float)
     joint = hfab_jacobian(model, angles).T @ force_hfab  # N·m on the bodies
-    motor = joint * _directions(model) * _ratios(model)
-    currents = motor / np.asarray(model.torque_constants_nm_per_a) * 1000.0
+    currents = joint * torque * amps * 1000.0
     if not np.all(np.isfinite(currents)):
         return np.zeros(3)
     return scale_to_limit(currents, MAX_CURRENT_MA)[0]

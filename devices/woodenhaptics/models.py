@@ -15,6 +15,7 @@ the driver converts to the device frame (kinematics.py).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -49,7 +50,7 @@ class WoodenModel:
     gimbal_aligned: tuple[bool, bool]  # enc_and_body_aligned_d, _e (getRot() gives f no sign)
     gimbal_d_axis: str  # getRot(): "z" for the vintage PHANTOM, "x" otherwise
 
-    @property
+    @functools.cached_property
     def limits(self) -> DeviceLimits:
         # The box inside the published workspace sphere (its corners on the sphere). hfabapi
         # has one force limit; we declare it as both peak and continuous.
