@@ -105,6 +105,7 @@ class SerialArm(HardwareDevice):
         self._resync_reason: str | None = None
         self._quiet_since = 0.0
         self._lost: str | None = None  # why the port is gone
+        self._failing: str | None = None  # why the last read failed
         self.replies = 0
         self.rejected_frames = 0
         self.refused_commands = 0
@@ -171,8 +172,8 @@ class SerialArm(HardwareDevice):
     def reconnect(self) -> None:
         if self._lost is None and self.transport.is_open:
             # the port is fine: the session recovers by itself (late reply, resync, probing)
-            if self._sent_at is not None or self._resync_reason is not None:
-                raise DeviceFault(f"{self.scheme} arm on {self.port} is still not answering")
+            if self._failing is not None:
+                raise DeviceFault(self._failing)
             return
         self.close()
         try:
@@ -181,6 +182,15 @@ class SerialArm(HardwareDevice):
             raise DeviceFault(f"device still unavailable: {exc}") from None
 
     def read(self) -> DeviceState:
+        try:
+            state = self._read()
+        except DeviceFault as exc:
+            self._failing = str(exc)
+            raise
+        self._failing = None
+        return state
+
+    def _read(self) -> DeviceState:
         if self._lost is not None:
             raise DeviceFault(self._lost)
         if self._resync_reason is not None and not self._resync_step():
@@ -261,6 +271,7 @@ class SerialArm(HardwareDevice):
         self._sent_at = None
         self._resync_reason = None
         self._lost = None
+        self._failing = None
         self._probed_at = 0.0
         self._last = None
 
