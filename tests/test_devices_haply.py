@@ -181,6 +181,7 @@ def test_displacements_and_forces_in_the_device_frame(rig):
     hand.target = (0.0, 0.0, 0.0)
     session.settle(board.stylus, hand)
     check_forces(session, board, FORCES + [(0.3, 2.0, -0.4)])  # the Y part is dropped
+    assert dev.rejected_frames == 0 and dev.resyncs == 0  # every reply in step with its write
 
 
 def test_the_board_gets_haplys_setup_and_answers_no_setup_message(rig):
