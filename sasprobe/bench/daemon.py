@@ -6,7 +6,7 @@ warm-up the daemon's statistics are reset; for the measured window this process
 subscribes on both endpoints from one thread (timestamping each message as it is
 received) and at the end asks the daemon for its loop figures (`status`).
 Publish→receive latency compares the pose's publish_t_ns with the receive time on the
-same host's monotonic clock.
+same host's monotonic clock. Then one row per emulated device (`daemon_devices`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sasprobe.bench import BenchContext, BenchResult
+from sasprobe.bench import BenchContext, BenchResult, daemon_devices
 from sasprobe.bench.charts import figure, save
 from sasprobe.children import DaemonChild
 from sasprobe.paths import shared_structures
@@ -35,6 +35,7 @@ TARGETS = "1000 Hz, p99 period error ≤ 200 µs, no overrun in 10 s with ~60k a
 def add_arguments(parser) -> None:
     parser.add_argument("--seconds", type=float, default=None, help="measured window per run (default 10, quick 3)")
     parser.add_argument("--no-realtime", action="store_true", help="skip the --realtime (SCHED_FIFO) runs")
+    parser.add_argument("--no-devices", action="store_true", help="skip the rows on the emulated devices")
 
 
 def _free_port() -> int:
@@ -175,7 +176,11 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     for r in runs:
         for name in ("tcp", "ipc"):
             r[name].pop("samples_us")
-    return BenchResult("daemon", {"targets": TARGETS, "runs": runs}, _markdown(runs, seconds), charts)
+    data, text = {"targets": TARGETS, "runs": runs}, _markdown(runs, seconds)
+    if not getattr(args, "no_devices", False):
+        data["devices"] = daemon_devices.measure(ctx.quick, seconds)
+        text += "\n\n" + daemon_devices.markdown(data["devices"])
+    return BenchResult("daemon", data, text, charts)
 
 
 def _mode(r: dict) -> str:
