@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tests.emulators.physics import HeldStylus, MovableHand, follow, numeric_jacobian
-from tests.emulators.pty_serial import PtySerialDevice
+from tests.emulators.pty_serial import PtySerialDevice, Rig
 
 MAX_TORQUE = 0.123
 MOVE_EVERY_S = 0.002
@@ -236,22 +236,6 @@ class HaplyBoard(PtySerialDevice):
         return np.array([-fx, 0.0, fy])
 
 
-class Rig:
-    """What `launch()` returns: the board, its `--device` string, the hand, and `close()`."""
-
-    def __init__(self, board: HaplyBoard, generation: str, directory):
-        self.board = board
-        self.device_spec = f"haply:{generation}:{board.path}"
-        self.env: dict[str, str] = {}
-        self.hand = board.hand
-        self._directory = directory
-
-    def close(self) -> None:
-        self.board.stop()
-        if self._directory is not None:
-            self._directory.cleanup()
-
-
 def launch(*, directory=None, generation: str = "gen3", **options) -> Rig:
     """A Haply board on a fresh pty with the handle resting in its start pose.
 
@@ -260,4 +244,4 @@ def launch(*, directory=None, generation: str = "gen3", **options) -> Rig:
     """
     owned = tempfile.TemporaryDirectory(prefix="haply") if directory is None else None
     board = HaplyBoard(owned.name if owned else directory, generation=generation, **options)
-    return Rig(board, generation, owned)
+    return Rig(board, f"haply:{generation}:{board.path}", owned)

@@ -187,3 +187,20 @@ class PtySerialDevice:
                 if exc.errno not in (errno.EAGAIN, errno.EIO):
                     raise
         self.replies_sent += 1
+
+
+class Rig:
+    """What a serial emulator's `launch()` returns: the board, its `--device` string, the
+    hand that holds the stylus, and `close()` (stops the board, removes a scratch folder)."""
+
+    def __init__(self, board: PtySerialDevice, device_spec: str, directory=None):
+        self.board = board
+        self.device_spec = device_spec
+        self.env: dict[str, str] = {}
+        self.hand = board.hand
+        self._directory = directory
+
+    def close(self) -> None:
+        self.board.stop()
+        if self._directory is not None:
+            self._directory.cleanup()

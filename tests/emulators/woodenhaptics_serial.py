@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tests.emulators.physics import HeldStylus, MovableHand, follow, numeric_jacobian
-from tests.emulators.pty_serial import PtySerialDevice
+from tests.emulators.pty_serial import PtySerialDevice, Rig
 
 ESCON_MAX_MA = 6000
 PWM_MAX = 8191  # 13-bit PWM
@@ -244,22 +244,6 @@ class WoodenHapticsEmulator(PtySerialDevice):
         return np.linalg.solve(self._jacobian.T, body_torque)  # τ = Jᵀ·F
 
 
-class Rig:
-    """What `launch()` returns: the board, its `--device` string, the hand, and `close()`."""
-
-    def __init__(self, board: WoodenHapticsEmulator, directory):
-        self.board = board
-        self.device_spec = f"woodenhaptics:{board.path}"
-        self.env: dict[str, str] = {}
-        self.hand = board.hand
-        self._directory = directory
-
-    def close(self) -> None:
-        self.board.stop()
-        if self._directory is not None:
-            self._directory.cleanup()
-
-
 def launch(*, directory=None, **options) -> Rig:
     """A WoodenHaptics board on a fresh pty, its arm resting in the home pose.
 
@@ -269,4 +253,4 @@ def launch(*, directory=None, **options) -> Rig:
     """
     owned = tempfile.TemporaryDirectory(prefix="woody") if directory is None else None
     board = WoodenHapticsEmulator(owned.name if owned else directory, **options)
-    return Rig(board, owned)
+    return Rig(board, f"woodenhaptics:{board.path}", owned)
