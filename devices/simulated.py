@@ -6,11 +6,11 @@ arm's viscous damping, moved by a model hand and by the rendered force:
     m a = k_h (target - x) + b_h (target' - v) - b_arm v + F_rendered
 
 The hand is a spring-damper pulling toward the scripted target (devices/scripts.py),
-whose force never exceeds `max_hand_force_n` (default: the device's continuous rating,
-0.88 N for the Omni-class arm): a person does not lean on the arm harder than its
-motors can hold, so wherever the script's target lies, the rendered force that balances
-the hand stays within the rating (a target far inside the molecule makes the hand push
-at the rating, not at the amplifier's peak).
+whose force never exceeds `max_hand_force_n` (default: HAND_RATING_FRACTION of the
+device's continuous rating, 0.79 N for the Omni-class arm's 0.88 N): a person does not
+lean on the arm harder than its motors can hold, so wherever the script's target lies,
+the rendered force that balances the hand stays under the rating (a target far inside
+the molecule makes the hand push just under it, not at the amplifier's peak).
 The rendered force is held constant over a control period (zero-order hold, as a real
 amplifier does) while the motion is integrated in substeps of at most 0.1 ms
 (semi-implicit Euler), so sample-and-hold effects (energy gain, instability at low
@@ -58,6 +58,7 @@ from sasprobe.devices.scripts import SCRIPTS, Script, make_script
 
 FAULT_KINDS = ("raise", "nan", "disconnect")
 MAX_SUBSTEP_S = 1e-4
+HAND_RATING_FRACTION = 0.9  # the model hand pushes at most this fraction of the continuous rating
 
 
 @dataclass(frozen=True)
@@ -66,7 +67,7 @@ class ArmModel:
     arm_damping_n_s_per_m: float = 0.3
     hand_stiffness_n_per_mm: float = 0.2  # a light grip
     hand_damping_n_s_per_m: float = 1.0
-    max_hand_force_n: float | None = None  # None: the device's continuous rating
+    max_hand_force_n: float | None = None  # None: HAND_RATING_FRACTION of the device's continuous rating
 
 
 class SimulatedDevice(HapticDevice):
@@ -110,7 +111,7 @@ class SimulatedDevice(HapticDevice):
         self._failed_reconnects = int(failed_reconnects)
         self._presses = [_parse_press(p) for p in button_presses]
         self.max_hand_force_n = float(arm.max_hand_force_n if arm.max_hand_force_n is not None
-                                      else limits.continuous_force_n)
+                                      else HAND_RATING_FRACTION * limits.continuous_force_n)
 
     # --------------------------------------------------------------- interface
     @property

@@ -15,6 +15,7 @@ Keys (row 0 is the top row of the image; H x W is the frame size):
     nav_cube_axes float64 3 x 3    the cube's axes (columns; the device's x, y, z), with nav_cube
     probe       float64 (4,)       probe centre x, y, z and radius, Å; absent without a probe
     probe_goal  float64 (3,)       where the device tip maps (Å), when following a daemon
+    device_tip_mm float64 (3,)     the device tip in the device frame (mm), when following a daemon
     clip_planes float64 N x 4      planes in effect (the user's, then the probe plane);
                                    a·x + b·y + c·z + d >= 0 is kept; unit normals
 Lighting passes add their own layers under their own names; the lighting
@@ -59,6 +60,8 @@ def gbuffer_arrays(renderer, frame=None) -> dict[str, np.ndarray]:
         arrays["probe"] = np.array([*probe.center, probe.radius], dtype=np.float64)
         if probe.goal is not None:
             arrays["probe_goal"] = np.asarray(probe.goal, dtype=np.float64)
+        if probe.tip_mm is not None:
+            arrays["device_tip_mm"] = np.asarray(probe.tip_mm, dtype=np.float64)
     for p in renderer.passes:
         if p.enabled(frame):
             arrays.update(p.gbuffer_layers(frame))

@@ -76,7 +76,8 @@ def apply_pose(scene, pose, cube_enabled: bool, axes: np.ndarray | None = None) 
     touched = pose.touched_atom if 0 <= pose.touched_atom < scene.structure.n_atoms else -1
     scene.probe = Probe(center=np.array(pose.proxy_A, dtype=np.float64), radius=scene.probe_radius,
                         touched_atom=touched, goal=np.array(pose.goal_A, dtype=np.float64),
-                        force_n=axes @ np.asarray(pose.force_N, dtype=np.float64))
+                        force_n=axes @ np.asarray(pose.force_N, dtype=np.float64),
+                        tip_mm=np.array(pose.tip_mm, dtype=np.float64))
     if cube_enabled and pose.cube_half_A > 0 and np.all(np.isfinite(pose.cube_center_A)):
         cube = NavCube(center=np.array(pose.cube_center_A, dtype=np.float64), half=float(pose.cube_half_A), axes=axes)
         if scene.nav_cube is None or scene.nav_cube.key() != cube.key():

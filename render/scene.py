@@ -33,6 +33,7 @@ class Probe:
     touched_atom: int = -1
     goal: np.ndarray | None = None  # where the device tip maps (Å); differs from `center` in contact
     force_n: np.ndarray | None = None  # the force on the hand, N, in the molecule frame
+    tip_mm: np.ndarray | None = None  # the device tip, mm, device frame (what the hand does)
 
 
 @dataclass

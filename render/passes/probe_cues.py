@@ -1,7 +1,7 @@
 """Forward pass: what the hand feels, drawn over the lit image, and the probe always findable.
 
-- an outline of the probe wherever something in front hides it (drawn only where the
-  G-buffer is nearer than the probe);
+- an outline of the probe wherever something in front hides it (drawn where the G-buffer
+  is nearer than the probe's rim and is not the probe itself);
 - the device tip as a ghost sphere (its outline, seen through everything) with a spring
   to the probe, whenever the two differ (in contact the tip is inside the surface and
   the probe on it);
@@ -31,15 +31,14 @@ LINE_WIDTH_PX = 2.0
 CIRCLE_SEGMENTS = 48
 GHOST_MIN_RADII = 0.05  # the ghost shows when tip and probe are further apart than this many radii
 ARROW_RADII = 3.0  # the force arrow's length at the continuous rating, in probe radii
-OUTLINE_LIFT_A = 0.2  # the hidden-outline ring sits this much nearer the eye than the probe's rim
 EDGE_ARROW_NDC = 0.06  # size of the off-screen arrow
 EDGE_INSET_NDC = 0.04
 MAX_VERTICES = 2 * (3 * CIRCLE_SEGMENTS + 40)
 
 
-def silhouette(center, radius: float, eye, lift: float = 0.0, segments: int = CIRCLE_SEGMENTS) -> np.ndarray:
+def silhouette(center, radius: float, eye, segments: int = CIRCLE_SEGMENTS) -> np.ndarray:
     """Line-list endpoints (2·segments, 3) of a sphere's silhouette circle seen from `eye`
-    (the circle where the eye's tangent cone touches it), moved `lift` Å toward the eye."""
+    (the circle where the eye's tangent cone touches it)."""
     c, e = np.asarray(center, dtype=np.float64), np.asarray(eye, dtype=np.float64)
     to_eye = e - c
     d = float(np.linalg.norm(to_eye))
@@ -50,7 +49,7 @@ def silhouette(center, radius: float, eye, lift: float = 0.0, segments: int = CI
     u /= np.linalg.norm(u)
     v = np.cross(w, u)
     rho = radius * math.sqrt(d * d - radius * radius) / d
-    middle = c + w * (radius * radius / d + lift)
+    middle = c + w * (radius * radius / d)
     a = np.linspace(0.0, 2.0 * math.pi, segments + 1)
     ring = middle + rho * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * v)
     return np.repeat(ring, 2, axis=0)[1:-1]
@@ -110,8 +109,11 @@ class ProbeCuesPass(Pass):
         ctx.blend_func = ctx.SRC_ALPHA, ctx.ONE_MINUS_SRC_ALPHA
         apply_uniforms(self.lines, frame.raster_camera_uniforms())
         apply_uniforms(self.lines, line_width_uniforms(frame, 0.0, LINE_WIDTH_PX))
-        ctx.depth_func = ">"  # only where something nearer hides the probe
-        self._draw(silhouette(probe.center, probe.radius, eye, lift=OUTLINE_LIFT_A), OUTLINE_COLOR, 1.0)
+        frame.targets.ids.use(0)
+        apply_uniforms(self.lines, {"u_ids": 0, "u_hidden_only": 1})
+        ctx.depth_func = ">"  # only where something nearer than the probe's rim covers it
+        self._draw(silhouette(probe.center, probe.radius, eye), OUTLINE_COLOR, 1.0)
+        apply_uniforms(self.lines, {"u_hidden_only": 0})
         ctx.disable(ctx.DEPTH_TEST)  # the rest shows through: the tip is inside the surface in contact
         if probe.goal is not None and np.linalg.norm(probe.goal - probe.center) > GHOST_MIN_RADII * probe.radius:
             across = np.cross(probe.goal - probe.center, eye - probe.center)

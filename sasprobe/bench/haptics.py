@@ -233,16 +233,13 @@ def _stability_map(entries, quick: bool) -> dict:
 
 def _stability_cell(structure, method, rate, stiffness, limits) -> dict:
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
-    from sasprobe.devices.simulated import make_simulated
+    from sasprobe.devices.simulated import ArmModel, make_simulated
 
-    from sasprobe.devices.simulated import ArmModel
-
-    # The whole molecule, and a hand that pushes without limit (a person stops at the arm's
-    # rating): where each method breaks, not what a session feels like.
-    device = make_simulated("press", structure=structure, rate_hz=rate, limits=limits, cube_half_A="fit",
-                            arm=ArmModel(max_hand_force_n=math.inf))
-    engine = HapticEngine(structure, limits, HapticSettings(method=method, stiffness_n_per_mm=stiffness,
-                                                            cube_half_A="fit"))
+    # The whole molecule, and a hand without a person's limit: where each method breaks.
+    fit = {"cube_half_A": "fit"}
+    device = make_simulated("press", structure=structure, rate_hz=rate, limits=limits,
+                            arm=ArmModel(max_hand_force_n=math.inf), **fit)
+    engine = HapticEngine(structure, limits, HapticSettings(method=method, stiffness_n_per_mm=stiffness, **fit))
     push = np.asarray(device.script.info["push_direction"])
     device.open()
     along = 0.0
