@@ -50,7 +50,7 @@ SCAN_SPEED_MM_S = 20.0
 DIVE_DEPTH_MM = 8.0
 PRESS_DEPTH_MM = 20.0
 ORBIT_SPEED_MM_S = 25.0
-SWEEP_FRACTION = 0.5  # of the drift-free core's half edge
+SWEEP_FRACTION = 0.3  # of the drift-free core's half edge
 SWEEP_SPEED_MM_S = 20.0
 
 
@@ -329,7 +329,7 @@ class _Placer:
         hover = np.asarray(self.dev((self.center[0], self.center[1], top + self.hover)))
         reach = SWEEP_FRACTION * self.core
         path = _PathBuilder(hover)
-        path.hold(0.5)
+        path.hold(0.3)
         for axis, sign in ((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)):
             end = hover.copy()
             end[axis] += sign * reach
