@@ -12,7 +12,7 @@ and counted by the Subscriber.
 The haptic rate shown is poses over RATE_WINDOW_S of the daemon's device time, in a
 window of at most RATE_WINDOW_POSES poses that starts again whenever the device clock
 or the sequence number goes back (a restarted daemon starts both again). Requests the
-window makes (the view's turn, the clutch key, recentre) go through render/requests.py,
+window makes (the view's turn, the clutch key, recentre) go through render/daemon_requests.py,
 never blocking a frame.
 """
 
@@ -30,7 +30,7 @@ from sasprobe.molecule import Structure, parse_structure
 from sasprobe.protocol.client import Subscriber, fetch_structure
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
 from sasprobe.protocol.pose import FLAG_CLUTCHED, FLAG_DRIFTING
-from sasprobe.render.requests import RequestSender
+from sasprobe.render.daemon_requests import RequestSender
 from sasprobe.render.scene import NavCube, Probe, normalise_plane
 from sasprobe.render.source import Readout, RenderSource
 

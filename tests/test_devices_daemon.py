@@ -185,7 +185,8 @@ def test_daemon_session_on_the_emulated_haply(tmp_path):
     hand = MovableHand(start_pose_mm())
     emu = Haply2DIYEmulator(tmp_path, hand=hand)
     try:
-        with DaemonProcess(device=f"haply:{emu.path}") as daemon:
+        # the whole molecule in the cube, so that the planar arm's plane (the cube's mid-plane) cuts through it
+        with DaemonProcess("--cube-half", "fit", device=f"haply:{emu.path}") as daemon:
             sub = Subscriber(daemon.pub)
             poses_until(sub, lambda p: True, daemon)
             hand.target = (0.0, -75.0, 0.0)  # the centre of the pad: the molecule's mid-plane

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from sasprobe.daemon.buttons import KEY_CLUTCH_LEASE_S, ButtonMap, WorkspaceInputs, parse_button
-from sasprobe.daemon.haptics import HapticEngine, HapticPipeline, HapticSettings, SafetyGuard
+from sasprobe.daemon.haptics import HapticEngine, HapticPipeline, SafetyGuard
 from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceState, open_device
 from sasprobe.devices.workspace import WorkspaceMapping, validate_rotation
 from sasprobe.molecule import load_default, load_structure
