@@ -49,7 +49,7 @@ def _numbers(text: str, n: int, key: str) -> list[float]:
     except ValueError:
         values = []
     if len(values) != n or not all(math.isfinite(v) for v in values):
-        raise UserError(f"{key}={text}: expected {n} comma-separated numbers")
+        raise UserError(f"{key}={text}: expected " + ("a number" if n == 1 else f"{n} comma-separated numbers"))
     return values
 
 
