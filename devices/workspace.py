@@ -127,6 +127,27 @@ def _fitted(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
     return center, (extent + FIT_PADDING_A) / (1.0 - MARGIN_FRACTION)
 
 
+def _half_mm(limits: DeviceLimits) -> float:
+    """Half edge of the cube inscribed in the device's workspace box (mm)."""
+    half_mm = float(np.min(np.asarray(limits.workspace_max_mm) - np.asarray(limits.workspace_min_mm))) / 2.0
+    if not half_mm > 0:
+        raise ValueError("device workspace has no extent")
+    return half_mm
+
+
+def initial_half(structure, limits: DeviceLimits, cube_half_A: float | str | None = None,
+                 probe_radius: float = DEFAULT_PROBE_RADIUS) -> float:
+    """The half edge (Å) a session's cube starts with: `cube_half_A` (Å), "fit", or None for
+    the default (cheap: no surface search, so the loop may call it)."""
+    cube_half_A = validate_cube_half(cube_half_A)
+    lo, hi = _sas_box(structure, probe_radius)
+    if cube_half_A == CUBE_FIT:
+        return _fitted(lo, hi)[1]
+    if cube_half_A is None:
+        return default_cube_half(float(np.min(hi - lo)), _half_mm(limits))
+    return float(cube_half_A)
+
+
 def default_cube_half(smallest_width_A: float, half_mm: float) -> float:
     """The default half edge (Å): DEFAULT_SCALE_A_PER_MM Å per mm of the device's inscribed
     cube, at most CONTEXT_FRACTION of the molecule's smallest width."""
@@ -169,21 +190,12 @@ class WorkspaceMapping:
         the molecule, else the surface site (`surface`: a devices.surface.Surface of the
         structure at this probe radius, built here when not given).
         """
-        cube_half_A = validate_cube_half(cube_half_A)
         cube_center_A = validate_cube_center(cube_center_A)
         ws_lo = np.asarray(limits.workspace_min_mm, dtype=np.float64)
         ws_hi = np.asarray(limits.workspace_max_mm, dtype=np.float64)
-        half_mm = float(np.min(ws_hi - ws_lo)) / 2.0
-        if not half_mm > 0:
-            raise ValueError("device workspace has no extent")
-        lo, hi = _sas_box(structure, probe_radius)
-        fit_center, fit_half = _fitted(lo, hi)
-        if cube_half_A == CUBE_FIT:
-            half = fit_half
-        elif cube_half_A is None:
-            half = default_cube_half(float(np.min(hi - lo)), half_mm)
-        else:
-            half = float(cube_half_A)
+        half_mm = _half_mm(limits)
+        fit_center, fit_half = _fitted(*_sas_box(structure, probe_radius))
+        half = initial_half(structure, limits, cube_half_A, probe_radius)
         if cube_center_A is not None:
             center = np.asarray(cube_center_A, dtype=np.float64)
         elif half >= fit_half:

@@ -38,7 +38,7 @@ from sasprobe.daemon.haptics.proxy import ProxySolver
 from sasprobe.daemon.haptics.settings import HapticSettings
 from sasprobe.devices.base import DeviceLimits, DeviceState
 from sasprobe.devices.surface import Surface
-from sasprobe.devices.workspace import WorkspaceMapping
+from sasprobe.devices.workspace import WorkspaceMapping, initial_half
 from sasprobe.molecule.grid import UniformGrid
 from sasprobe.molecule.structure import Structure
 
@@ -142,7 +142,7 @@ class HapticEngine:
             rotation, self._mapping = self._mapping.rotation, self._initial_mapping()
             self._mapping.turn(rotation)
         elif new.cube_half_A != old.cube_half_A:
-            half = new.cube_half_A if isinstance(new.cube_half_A, float) else self._initial_mapping().cube_half_A
+            half = initial_half(self._structure, self._limits, new.cube_half_A, new.probe_radius_A)
             self._mapping.rescale(half, self._last_tip)
 
     def set_view(self, rotation) -> None:
