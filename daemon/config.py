@@ -28,6 +28,8 @@ class DaemonConfig:
     max_seconds: float | None = None  # stop by itself after this long (benchmarks, demos)
     realtime: bool = False  # SCHED_FIFO for the loop and ZeroMQ's I/O thread
     faults: list[str] = field(default_factory=list)  # simulated-arm fault injection, e.g. "nan@900+5"
+    buttons: list[str] = field(default_factory=list)  # --button ACTION=N (daemon/buttons.py)
+    button_presses: list[str] = field(default_factory=list)  # simulated arm: "BUTTON@TICK+COUNT" held down
 
 
 def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:

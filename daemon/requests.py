@@ -13,8 +13,10 @@ import os
 import time
 
 from sasprobe import __version__
+from sasprobe.daemon.buttons import KEY_CLUTCH_LEASE_S
 from sasprobe.daemon.haptics import build_engine, validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
+from sasprobe.devices.workspace import validate_rotation
 from sasprobe.errors import UserError
 from sasprobe.protocol.control import COMMANDS, Reply, Request
 from sasprobe.protocol.scene import merge_lights
@@ -35,6 +37,9 @@ class RequestHandlers:
             "record_start": self.record_start,
             "record_stop": self.record_stop,
             "shutdown": self.shutdown,
+            "view": self.view,
+            "clutch": self.clutch,
+            "recentre": self.recentre,
         }
         assert set(self._handlers) == set(COMMANDS), "every protocol command needs its handler"
 
@@ -128,6 +133,26 @@ class RequestHandlers:
         if recorder is None:
             raise UserError("not recording")
         return recorder.close().as_dict(), None
+
+    # ------------------------------------------------------------------ the workspace
+    def view(self, request):
+        """The workspace view turned: the mapping turns with it, about the probe."""
+        rotation = validate_rotation(request.args["rotation"])
+        d = self.daemon
+        seq = d.submit(lambda seq: d.turn_view(rotation, seq))
+        return {"seq": seq, "revision": d.scene_revision}, None
+
+    def clutch(self, request):
+        """The window's clutch key: held for KEY_CLUTCH_LEASE_S unless renewed, or let go."""
+        d = self.daemon
+        held = request.args["held"]
+        seq = d.submit(lambda seq: (d.inputs.key_clutch(held, time.monotonic_ns()), seq)[1])
+        return {"seq": seq, "held": held, "lease_s": KEY_CLUTCH_LEASE_S if held else None}, None
+
+    def recentre(self, request):
+        d = self.daemon
+        seq = d.submit(lambda seq: (d.workspace_action("recentre", {}, seq), seq)[1])
+        return {"seq": seq}, None
 
     def shutdown(self, request):
         self.daemon.request_stop("shutdown request")

@@ -30,18 +30,20 @@ import numpy as np
 
 from sasprobe import __version__
 from sasprobe.daemon import events
+from sasprobe.daemon.buttons import ButtonMap, WorkspaceInputs
 from sasprobe.daemon.config import DaemonConfig, check_bind_security
 from sasprobe.daemon.control import ControlServer
 from sasprobe.daemon.faults import FaultLog, Reconnector
-from sasprobe.daemon.haptics import HapticPipeline, SafetyGuard, build_engine, validate_settings
 from sasprobe.daemon.loop import FixedRateLoop, enter_realtime
 from sasprobe.daemon.publisher import Publisher
-from sasprobe.daemon.recording.replay import REPLAY_SCHEME, apply_recorded_event
+from sasprobe.daemon.recording.replay import REPLAY_SCHEME, REPLAYED_COMMANDS, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
 from sasprobe.daemon.requests import RequestHandlers
-from sasprobe.daemon.scene import scene_message
+from sasprobe.daemon.scene import rotation_rows, scene_message
+from sasprobe.daemon.session import open_session
 from sasprobe.devices.base import DeviceFault
 from sasprobe.devices.registry import register_scheme
+from sasprobe.devices.workspace import IDENTITY
 from sasprobe.errors import UserError
 from sasprobe.protocol.pose import encode_pose
 from sasprobe.protocol.scene import DEFAULT_LIGHTS, encode_scene
@@ -62,13 +64,17 @@ class Daemon:
         check_bind_security(config.pub + config.ctl, config.keys)
         if config.record and Path(config.record).exists():
             raise UserError(f"{config.record}: already exists; record to a new file")
-        self._open_device_and_engine()
+        start = open_session(config)
+        self.structure, self.structure_keep_water, self.device = start.structure, start.keep_water, start.device
+        self.rate_hz, self.limits, self.settings, self.pipeline = start.rate_hz, start.limits, start.settings, start.pipeline
         self.loop = FixedRateLoop(self.rate_hz, spin_s=config.spin_s)
         self.clip_planes: list[list[float]] = []
         self.lights = json.loads(json.dumps(DEFAULT_LIGHTS))
         self.nav_cube_enabled = True
         self.recorder: Recorder | None = None
         self.requests = RequestHandlers(self)
+        self.inputs = WorkspaceInputs(ButtonMap.from_options(config.buttons),
+                                      map_device_buttons=self.device.recorded_session() is None)
         self.last_force_written = np.zeros(3)
         self.write_failures = 0
         self.started_ns = time.monotonic_ns()
@@ -97,33 +103,6 @@ class Daemon:
             raise
 
     # ------------------------------------------------------------------ start and stop
-    def _open_device_and_engine(self) -> None:
-        """The structure, the (unopened) device, the validated settings and the engine."""
-        from sasprobe.devices.registry import open_device
-        from sasprobe.molecule import load_structure_or_default, parse_structure
-
-        config = self.config
-        self.structure = load_structure_or_default(config.molecule, keep_water=config.keep_water)
-        self.structure_keep_water = config.keep_water
-        self.device = open_device(config.device, structure=self.structure, rate_hz=config.rate_hz,
-                                  seed=config.seed, speed=config.speed, faults=config.faults,
-                                  probe_radius_A=config.settings.get("probe_radius_A"),
-                                  cube_half_A=config.settings.get("cube_half_A"))
-        settings = dict(config.settings)
-        self.rate_hz = config.rate_hz
-        session = self.device.recorded_session()
-        if session is not None:  # a replay: the recording's structure (unless given), settings and rate
-            if config.molecule is None:
-                self.structure = parse_structure(session.structure_bytes, name=session.structure_name,
-                                                 source=f"{config.device} (recorded)", keep_water=session.keep_water)
-                self.structure_keep_water = session.keep_water
-            settings = {**session.settings, **settings}
-            self.rate_hz = None if config.speed is None else session.rate_hz * config.speed
-        self.limits = self.device.info.limits
-        self.settings = validate_settings(settings, self.limits)
-        self.pipeline = HapticPipeline(build_engine(self.structure, self.limits, self.settings),
-                                       SafetyGuard(self.limits))
-
     def _open_network(self) -> None:
         import zmq
 
@@ -249,6 +228,8 @@ class Daemon:
                 error = f"device read took {read_ns / 1e6:.1f} ms"
             for event in device.take_recorded_events():  # a replay repeats its control changes here
                 self._apply_recorded_event(event, tick.seq)
+            for action, args in self.inputs.tick(state.buttons if state is not None else None, tick.start_ns):
+                self.workspace_action(action, args, tick.seq)
             late_periods = max(tick.late_periods, device.recorded_late_periods())
             pipeline = self.pipeline
             was_faulted = pipeline.guard.faulted
@@ -279,7 +260,7 @@ class Daemon:
 
     def _apply_recorded_event(self, event: dict, seq: int) -> None:
         """A replayed control command, applied as it was live."""
-        if event.get("cmd") not in ("set", "load", "reconnect"):
+        if event.get("cmd") not in REPLAYED_COMMANDS:
             return
         self.structure, self.settings = apply_recorded_event(
             event, self.pipeline, self.structure, self.settings, self.limits,
@@ -336,12 +317,30 @@ class Daemon:
         self.rebuild_scene()
         return seq
 
+    def workspace_action(self, action: str, args: dict, seq: int) -> None:
+        """On the loop thread: a clutch change or a pressed action (device button, window key), recorded."""
+        if action == "clutch":
+            self.pipeline.set_clutch(args["held"])
+        elif action == "recentre":
+            self.pipeline.recentre()
+        else:
+            return  # "mark": issue 18's marks
+        self.record_control(seq, action, args)
+
+    def turn_view(self, rotation: tuple[float, ...], seq: int) -> int:
+        """On the loop thread: the workspace view turned (control `view`); the mapping turns with it."""
+        self.pipeline.set_view(rotation)
+        self.record_control(seq, "view", {"rotation": rotation_rows(rotation)})
+        self.rebuild_scene()
+        return seq
+
     # ------------------------------------------------------------------ scene
     def rebuild_scene(self) -> None:
         """The scene message of the current state; published at the next tick, and recorded."""
         self.scene_revision += 1
         self.scene = scene_message(self.scene_revision, self.structure, self.settings, self.nav_cube_enabled,
-                                   self.clip_planes, self.lights, self.device.info, self.rate_hz)
+                                   self.clip_planes, self.lights, self.device.info, self.rate_hz,
+                                   self.pipeline.view_rotation)
         self._scene_bytes = encode_scene(self.scene)
         self._next_scene_ns = 0
         if self.recorder is not None:
@@ -367,6 +366,10 @@ class Daemon:
             "structure_name": self.structure.name, "keep_water": self.structure_keep_water,
             "rate_hz": self.rate_hz, "device": self.device.info.as_dict(),
         })
+        if self.pipeline.view_rotation != IDENTITY:  # the fresh engine took the view over: so will the replay
+            self.record_control(seq, "view", {"rotation": rotation_rows(self.pipeline.view_rotation)})
+        if self.pipeline.clutched:
+            self.record_control(seq, "clutch", {"held": True})
         self.rebuild_scene()
         return seq
 

@@ -34,7 +34,7 @@ SCHEMES: dict[str, DeviceScheme] = {
     "openhaptics": DeviceScheme("sasprobe.devices.openhaptics:create", "PHANTOM Omni/Touch via OpenHaptics", "openhaptics"),
     "sim": DeviceScheme(
         "sasprobe.devices.simulated:make_simulated",
-        "simulated arm driven by a scripted hand (scan, dive, press, orbit, random)",
+        "simulated arm driven by a scripted hand (scan, dive, press, orbit, random, sweep)",
         "sim:scan",
     ),
 }

@@ -36,6 +36,9 @@ COMMANDS = (
     "record_start",
     "record_stop",
     "shutdown",
+    "view",
+    "clutch",
+    "recentre",
 )
 
 # `set` fields and the JSON types they take (semantic limits, such as the probe radius's
@@ -45,7 +48,7 @@ SET_FIELDS = {
     "stiffness_n_per_mm": "number ≥ 0",
     "damping_n_s_per_m": "number ≥ 0",
     "method": f"one of {', '.join(HAPTIC_METHODS)}",
-    "cube_half_A": "number > 0, or null to fit the molecule",
+    "cube_half_A": "number > 0, \"fit\" (the whole molecule) or null (the default size)",
     "nav_cube_enabled": "true or false",
     "clip_planes": "list of [a, b, c, d]",
     "lights": "object (partial updates merge)",
@@ -200,7 +203,7 @@ def validate_set_args(args: dict) -> dict:
         elif key in ("stiffness_n_per_mm", "damping_n_s_per_m"):
             out[key] = _number(value, key, 0.0, False)
         elif key == "cube_half_A":
-            out[key] = None if value is None else _number(value, key, 0.0, True)
+            out[key] = value if value is None or value == "fit" else _number(value, key, 0.0, True)
         elif key == "method":
             if value not in HAPTIC_METHODS:
                 raise ProtocolError(f"'method' must be {SET_FIELDS[key]}, got {str(value)[:40]!r}")
@@ -245,3 +248,19 @@ def _check_args(req: Request) -> None:
             _string(req.args, "name", req.cmd, required=False)
     elif req.cmd == "set":
         req.args = validate_set_args(req.args)
+    elif req.cmd == "view":
+        rotation = req.args.get("rotation")
+        if set(req.args) != {"rotation"} or not _is_matrix3(rotation):
+            raise ProtocolError("'view' takes 'rotation': 3 rows of 3 finite numbers (device frame -> molecule frame)")
+    elif req.cmd == "clutch":
+        if set(req.args) != {"held"} or not isinstance(req.args["held"], bool):
+            raise ProtocolError("'clutch' takes 'held' (true or false)")
+    elif req.cmd == "recentre":
+        _no_args(req)
+
+
+def _is_matrix3(value) -> bool:
+    return (isinstance(value, list) and len(value) == 3 and all(
+        isinstance(row, list) and len(row) == 3 and all(
+            not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x) for x in row)
+        for row in value))

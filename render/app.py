@@ -1,4 +1,9 @@
-"""`sasprobe render` put together: options -> structure and scene -> context -> loop."""
+"""`sasprobe render` put together: options -> structure and scene -> context -> loop.
+
+Following a daemon the picture starts in the workspace view (render/workspace_view.py),
+with the clip plane at the probe on; standalone it starts in the overview. A headless
+run whose daemon stops sending for DAEMON_GONE_S ends with one line (exit status 2),
+its video finished."""
 
 from __future__ import annotations
 
@@ -14,6 +19,8 @@ from sasprobe.render.lighting.settings import DEFAULT_PROBE_RANGE, LightingSetti
 from sasprobe.render.source import RenderSource
 
 log = logging.getLogger("sasprobe")
+
+DAEMON_GONE_S = 3.0  # a headless --connect run ends when the daemon has been silent this long
 
 
 @dataclass
@@ -46,13 +53,25 @@ class RenderOptions:
     probe_light_range: float = DEFAULT_PROBE_RANGE
     snapshot: Path | None = None  # also write the last frame as a PNG (headless)
     report: Path | None = None  # write frame and pose counts as JSON at the end
+    view: str | None = None  # "workspace" or "overview"; None: workspace with --connect, else overview
+    gbuffer_dir: Path | None = None  # headless: every frame's G-buffer into this folder
+
+    @property
+    def start_view(self) -> str:
+        from sasprobe.render.workspace_view import OVERVIEW, WORKSPACE
+
+        if self.view is not None:
+            return self.view
+        return WORKSPACE if self.connect is not None and self.camera is None else OVERVIEW
 
     def effects(self):
-        """The scene's switches: the options' FXAA, probe plane and initial lighting."""
+        """The scene's switches: the options' FXAA, probe plane (on in the workspace view) and
+        initial lighting."""
         from sasprobe.render.scene import Effects
+        from sasprobe.render.workspace_view import WORKSPACE
 
         lighting = self.lighting.effects() if self.lighting is not None else {}
-        return Effects(fxaa=self.fxaa, probe_plane=self.probe_plane, **lighting)
+        return Effects(fxaa=self.fxaa, probe_plane=self.probe_plane or self.start_view == WORKSPACE, **lighting)
 
 
 def build_scene(structure, opts: RenderOptions, effects=None):
@@ -144,8 +163,11 @@ def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
     from sasprobe.render.gl.context import create_headless_context
     from sasprobe.render.headless import run_headless
 
+    from sasprobe.render.workspace_view import WorkspaceView
+
     source.wait_ready()  # a daemon: its structure and a first pose, or one clear line
     scene = build_scene(source.take_new_structure(), opts)
+    view = WorkspaceView(opts.start_view)  # headless never turns the view: it follows the daemon's
     ctx = create_headless_context()
     try:
         renderer = make_renderer(ctx, scene, opts.size, opts)
@@ -157,15 +179,23 @@ def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
     writer = _writer(opts, frames)
     bar = progress_bar(frames, "render", unit="frame") if frames and frames > 1 else None
 
+    aspect = opts.size[0] / opts.size[1]
+
     def update() -> None:
         source.poll()
+        if source.lost_for_s() > DAEMON_GONE_S:
+            raise UserError(f"the daemon stopped sending (nothing for {DAEMON_GONE_S:g} s): ending the render")
         source.apply(scene)
+        follow = view.camera(scene, aspect, source.view_axes())
+        if follow is not None:
+            camera.eye, camera.target, camera.up, camera.fov_y = follow.eye, follow.target, follow.up, follow.fov_y
 
     # A live daemon into a video: keep the video in wall-clock time (see run_headless).
     pace = opts.fps if opts.connect is not None and writer is not None and writer.is_video else None
     try:
         stats = run_headless(renderer, camera, frames, opts.seconds, writer=writer, gbuffer_path=opts.gbuffer,
-                             orbit_deg=opts.orbit, update=update, progress=bar, pace_fps=pace)
+                             orbit_deg=opts.orbit, update=update, progress=bar, pace_fps=pace,
+                             gbuffer_dir=opts.gbuffer_dir)
         if opts.snapshot is not None:
             from sasprobe.render.output import FrameWriter
 
@@ -201,7 +231,7 @@ def _run_window(opts: RenderOptions, source: RenderSource) -> int:
             glfw.set_window_title(window, f"sasprobe render: {structure.name} ({structure.n_atoms} atoms)")
             return renderer, initial_camera(scene, opts)
 
-        app = WindowApp(window, ctx, source, build, "sasprobe render", opts.effects())
+        app = WindowApp(window, ctx, source, build, "sasprobe render", opts.effects(), opts.start_view)
         writer = _writer(opts, 1)
         log.info("window open: %dx%d framebuffer", *glfw.get_framebuffer_size(window))
         start = time.perf_counter()

@@ -1,7 +1,7 @@
 """The renderer: GL objects created once, and the pass chain run each frame.
 
     clear -> spheres -> probe -> backbone -> [lighting: fills the visibility buffer]
-          -> shading -> [path_trace] -> navcube -> fxaa
+          -> shading -> [path_trace] -> navcube -> probe_cues -> fxaa
 
 `passes` is a plain list; `insert_before(name, pass)` slots a pass in (the lighting
 passes go before "shading" and "navcube", render/passes/lighting.py).
@@ -25,6 +25,7 @@ from sasprobe.render.passes.clear import ClearPass
 from sasprobe.render.passes.fxaa import FxaaPass
 from sasprobe.render.passes.navcube import NavCubePass
 from sasprobe.render.passes.probe import ProbePass
+from sasprobe.render.passes.probe_cues import ProbeCuesPass
 from sasprobe.render.passes.shading import ShadingPass
 from sasprobe.render.passes.spheres import SpherePass
 from sasprobe.render.scene import SceneState
@@ -46,6 +47,7 @@ class Renderer:
             BackbonePass(ctx, self.programs, self.buffers, show_always=backbone_always),
             ShadingPass(ctx, self.programs, shading),
             NavCubePass(ctx, self.programs),
+            ProbeCuesPass(ctx, self.programs),
             FxaaPass(ctx, self.programs),
         ]
         self.frame_index = 0

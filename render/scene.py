@@ -3,7 +3,8 @@ clipping planes, lights, effect switches), and the CPU culling that picks the at
 drawn as spheres.
 
 Planes are (a, b, c, d) with a·x + b·y + c·z + d >= 0 kept, normalised so that the
-value is a signed distance in Å.
+value is a signed distance in Å. The navigation cube turns with the workspace view: its
+axes are the device's axes in the molecule frame (identity until the view is turned).
 """
 
 from __future__ import annotations
@@ -30,25 +31,52 @@ class Probe:
     center: np.ndarray  # Å, molecule frame
     radius: float = DEFAULT_PROBE_RADIUS
     touched_atom: int = -1
+    goal: np.ndarray | None = None  # where the device tip maps (Å); differs from `center` in contact
+    force_n: np.ndarray | None = None  # the force on the hand, N, in the molecule frame
+    tip_mm: np.ndarray | None = None  # the device tip, mm, device frame (what the hand does)
 
 
 @dataclass
 class NavCube:
     center: np.ndarray
     half: float  # half the edge, Å
+    axes: np.ndarray = field(default_factory=lambda: np.eye(3))  # columns: the cube's x, y, z (device axes)
+
+    def __post_init__(self) -> None:
+        self.axes = np.asarray(self.axes, dtype=np.float64).reshape(3, 3)
+
+    @property
+    def axis_aligned(self) -> bool:
+        """Whether the cube's faces are the molecule frame's planes (no turn, or quarter turns)."""
+        a = np.abs(self.axes)
+        return bool(np.all((a < 1e-12) | (np.abs(a - 1.0) < 1e-12)))
+
+    def key(self) -> bytes:
+        """Bytes that change whenever the cube does (for caches)."""
+        return np.array([*self.center, self.half, *self.axes.ravel()]).tobytes()
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.center - self.half, self.center + self.half
+        """The axis-aligned box holding the cube."""
+        reach = self.half * np.abs(self.axes).sum(axis=1)
+        return self.center - reach, self.center + reach
+
+    def local(self, points) -> np.ndarray:
+        """Points in the cube's own frame (relative to its centre, along its axes)."""
+        return (np.asarray(points, dtype=np.float64) - self.center) @ self.axes
+
+    def corners(self) -> np.ndarray:
+        """(8, 3) corners, molecule frame."""
+        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+        return self.center + self.half * signs @ self.axes.T
 
     def planes(self) -> np.ndarray:
         """The six faces as planes that keep the inside."""
         c, h = self.center, self.half
         out = []
         for axis in range(3):
-            n = np.zeros(3)
-            n[axis] = 1.0
-            out.append([*n, -(c[axis] - h)])  # x >= c - h
-            out.append([*(-n), c[axis] + h])  # x <= c + h
+            n = self.axes[:, axis]
+            out.append([*n, -(float(n @ c) - h)])  # n·x >= n·c - h
+            out.append([*(-n), float(n @ c) + h])  # n·x <= n·c + h
         return np.array(out)
 
 
@@ -84,6 +112,7 @@ class SceneState:
     clip_planes: list[np.ndarray] = field(default_factory=list)
     light_direction: np.ndarray = field(default_factory=lambda: _unit(DEFAULT_LIGHT_DIRECTION))
     effects: Effects = field(default_factory=Effects)
+    force_ratings_n: tuple[float, float] | None = None  # the device's (continuous, peak) force, N
 
     def __post_init__(self) -> None:
         self._grid: UniformGrid | None = None
@@ -133,7 +162,7 @@ class SceneState:
         """Sorted uint32 ids of the atoms drawn as spheres (cached while nothing changes)."""
         planes = self.active_planes(eye)
         cube = self.active_cube()
-        key = planes.tobytes() + (b"" if cube is None else np.array([*cube.center, cube.half]).tobytes())
+        key = planes.tobytes() + (b"" if cube is None else cube.key())
         if key != self._selection_key:
             self._selection = select_spheres(self.structure, self.grid, planes, cube)
             self._selection_key = key
@@ -163,8 +192,8 @@ def select_spheres(structure: Structure, grid: UniformGrid, planes: np.ndarray, 
     if cube is not None:
         lo, hi = cube.bounds()
         cand = grid.candidates_in_box(lo, hi)
-        c = structure.positions[cand]
-        gap = c - np.clip(c, lo, hi)
+        q = cube.local(structure.positions[cand])  # an exact sphere-box test in the cube's frame
+        gap = q - np.clip(q, -cube.half, cube.half)
         cand = cand[np.einsum("ij,ij->i", gap, gap) <= structure.vdw_radii[cand] ** 2]
     else:
         cand = np.arange(structure.n_atoms)

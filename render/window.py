@@ -1,5 +1,8 @@
 """The interactive window (glfw): arcball rotate, zoom, pan, a key per effect and an
-on-screen readout of fps, haptic rate and force."""
+on-screen readout of fps, haptic rate, force against the device's ratings and the
+touched residue. Following a daemon it starts in the workspace view (a drag turns the
+view, and with it the hand's frame); Tab switches to the whole-molecule overview and
+back, Home recentres the cube on the probe, Space held is the clutch."""
 
 from __future__ import annotations
 
@@ -19,6 +22,7 @@ from sasprobe.render.scene import Effects
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.textures import read_image
 from sasprobe.render.source import Readout
+from sasprobe.render.workspace_view import OVERVIEW, WORKSPACE, WorkspaceView, overview_camera
 
 # key -> (Effects field, label); sphere mode and camera keys are handled separately
 TOGGLES = {
@@ -40,8 +44,10 @@ TOGGLES = {
     "G": ("path_tracing", "path tracing"),
 }
 SPHERE_MODES = ("quad", "sprite")
+CLUTCH_RENEW_S = 0.3  # the clutch key's lease is renewed this often while Space is down
 HELP = [
-    "drag: rotate   right/middle drag or shift+drag: pan   wheel: zoom",
+    "drag: rotate (workspace view: turns the hand's frame too)   right/middle drag or shift+drag: pan   wheel: zoom",
+    "Tab: workspace view / overview   Home: recentre the cube on the probe   Space (held): clutch",
     *[f"{k}: {label}" for k, (_, label) in TOGGLES.items()],
     "M: sphere mode (quad/sprite)   C: AO method   R: reset camera   H: help   Q/Esc: quit",
 ]
@@ -52,7 +58,8 @@ class WindowApp:
     structure; it runs again when the source brings a new one (a daemon that loaded
     another molecule). Until the first structure arrives, the window shows the text."""
 
-    def __init__(self, window, ctx, source, build: Callable, title: str, effects: Effects):
+    def __init__(self, window, ctx, source, build: Callable, title: str, effects: Effects,
+                 view: str = OVERVIEW):
         import glfw
 
         self.glfw = glfw
@@ -73,14 +80,26 @@ class WindowApp:
         self._drag: str | None = None
         self._last_pos = (0.0, 0.0)
         self._stop = False
+        self.view = WorkspaceView(view, send_view=self._send_view if source.follows_daemon else None)
+        self._clutch_renewed: float | None = None  # when the clutch key's lease was last renewed (None: up)
         glfw.set_key_callback(window, self._on_key)
         glfw.set_mouse_button_callback(window, self._on_button)
         glfw.set_cursor_pos_callback(window, self._on_cursor)
         glfw.set_scroll_callback(window, self._on_scroll)
 
     # ------------------------------------------------------------ input
+    def _send_view(self, axes) -> None:
+        self.source.request("view", rotation=np.asarray(axes, dtype=float).tolist())
+
+    def _clutch_key(self, held: bool) -> None:
+        self._clutch_renewed = time.perf_counter() if held else None
+        self.source.request("clutch", held=held)
+
     def _on_key(self, window, key, scancode, action, mods) -> None:
         glfw = self.glfw
+        if key == glfw.KEY_SPACE and action in (glfw.PRESS, glfw.RELEASE):
+            self._clutch_key(action == glfw.PRESS)
+            return
         if action != glfw.PRESS:
             return
         name = glfw.get_key_name(key, scancode)
@@ -96,8 +115,13 @@ class WindowApp:
             self.renderer.set_sphere_mode(SPHERE_MODES[(i + 1) % len(SPHERE_MODES)])
         elif name == "C" and self.renderer is not None and lighting_of(self.renderer) is not None:
             lighting_of(self.renderer).cycle_ao_mode()
+        elif key == glfw.KEY_TAB:
+            self._toggle_view()
+        elif key == glfw.KEY_HOME:
+            self.source.request("recentre")
         elif name == "R" and self.camera is not None:
             self.camera.eye, self.camera.target, self.camera.up = self.home.eye.copy(), self.home.target.copy(), self.home.up.copy()
+            self.view.reset()
         elif name == "H" or key == glfw.KEY_F1:
             self.show_help = not self.show_help
 
@@ -108,6 +132,8 @@ class WindowApp:
             self._drag = "pan" if pan else "rotate"
             self._last_pos = glfw.get_cursor_pos(window)
         elif action == glfw.RELEASE:
+            if self._drag == "rotate" and self._workspace_camera() is not None:
+                self.view.end_turn()
             self._drag = None
 
     def _on_cursor(self, window, x: float, y: float) -> None:
@@ -116,15 +142,40 @@ class WindowApp:
         w, h = self.glfw.get_window_size(window)
         x0, y0 = self._last_pos
         self._last_pos = (x, y)
-        if self._drag == "rotate":
-            ndc = lambda px, py: (2.0 * px / max(w, 1) - 1.0, 1.0 - 2.0 * py / max(h, 1))  # noqa: E731
+        ndc = lambda px, py: (2.0 * px / max(w, 1) - 1.0, 1.0 - 2.0 * py / max(h, 1))  # noqa: E731
+        workspace = self._workspace_camera() is not None
+        if self._drag == "rotate" and workspace:
+            self.view.turn(self.source.view_axes(), ndc(x0, y0), ndc(x, y))
+        elif self._drag == "rotate":
             self.camera.arcball(ndc(x0, y0), ndc(x, y))
-        else:
+        elif not workspace:  # the workspace view follows the cube: no pan there
             self.camera.pan(x - x0, y - y0, h)
 
     def _on_scroll(self, window, dx: float, dy: float) -> None:
-        if self.camera is not None:
+        if self._workspace_camera() is not None:
+            self.view.zoom_by(0.9 ** dy)
+        elif self.camera is not None:
             self.camera.zoom(0.9 ** dy)
+
+    def _aspect(self) -> float:
+        w, h = self.glfw.get_framebuffer_size(self.window)
+        return w / h if w and h else 16 / 9
+
+    def _workspace_camera(self) -> Camera | None:
+        """This frame's workspace camera; None in the overview (or with no cube to frame)."""
+        if self.renderer is None:
+            return None
+        return self.view.camera(self.renderer.scene, self._aspect(), self.source.view_axes())
+
+    def _toggle_view(self) -> None:
+        mode = self.view.toggle()
+        if self.renderer is None:
+            return
+        self.effects.probe_plane = mode == WORKSPACE
+        if mode == OVERVIEW:  # the whole molecule, from where the workspace view looked
+            axes = self.view.axes(self.source.view_axes())
+            self.camera = overview_camera(self.renderer.scene, self._aspect(), axes)
+            self.home = Camera(self.camera.eye, self.camera.target, self.camera.up, self.camera.fov_y)
 
     def request_stop(self, *_args) -> None:
         self._stop = True
@@ -142,8 +193,12 @@ class WindowApp:
         if ro.status:
             lines.append(ro.status)
         if ro.haptic_hz is not None:
-            force = f"{ro.force_n:.2f} N" if ro.force_n is not None else "-"
-            lines.append(f"haptic {ro.haptic_hz:6.0f} Hz   force {force}")
+            lines.append(f"haptic {ro.haptic_hz:6.0f} Hz   {force_text(ro)}")
+            state = [s for s, on in (("CLUTCH (Space/button held)", ro.clutched), ("cube drifting", ro.drifting)) if on]
+            lines.append(f"touching {ro.touched}" if ro.touched else "not touching")
+            lines += state
+        if r is not None and self.source.view_axes() is not None:
+            lines.append("workspace view (Tab: overview)" if self.view.workspace else "overview (Tab: workspace view)")
         if ro.dropped:
             lines.append(f"dropped malformed messages: {ro.dropped}")
         lines += HELP if self.show_help else ["H: help"]
@@ -164,7 +219,7 @@ class WindowApp:
         if self.renderer is not None:
             self.source.apply(self.renderer.scene)
             self.renderer.resize(size)
-            self.renderer.render(self.camera, output_fbo=screen)
+            self.renderer.render(self._workspace_camera() or self.camera, output_fbo=screen)
         else:
             screen.use()
             screen.viewport = (0, 0, *size)
@@ -185,6 +240,8 @@ class WindowApp:
             while not glfw.window_should_close(self.window) and not self._stop:
                 t0 = time.perf_counter()
                 glfw.poll_events()
+                if self._clutch_renewed is not None and t0 - self._clutch_renewed > CLUTCH_RENEW_S:
+                    self._clutch_key(True)  # Space still down: keep the lease
                 self.source.poll()
                 self._take_structure()
                 self.readout = self.source.readout()
@@ -219,7 +276,20 @@ class WindowApp:
         return read_image(self.ctx.screen, size)
 
     def release(self) -> None:
+        if self._clutch_renewed is not None:
+            self._clutch_key(False)  # never leave the daemon clutched
         if self.renderer is not None:
             self.renderer.release()
         self.overlay.release()
         self.programs.release()
+
+
+def force_text(readout: Readout) -> str:
+    """'force 0.42 N (continuous 0.88 N, peak 3.30 N)', or what of it is known."""
+    if readout.force_n is None:
+        return "force -"
+    text = f"force {readout.force_n:.2f} N"
+    if readout.continuous_force_n is not None and readout.peak_force_n is not None:
+        over = "  ABOVE CONTINUOUS" if readout.force_n > readout.continuous_force_n else ""
+        text += f" (continuous {readout.continuous_force_n:.2f} N, peak {readout.peak_force_n:.2f} N){over}"
+    return text

@@ -123,8 +123,10 @@ class DemoSession:
         if o.realtime and not ready.get("realtime"):
             self.notes.append("real-time scheduling was refused (needs root or CAP_SYS_NICE): the haptic rate "
                               "may drop while the renderer runs")
-        self.monitor = ForceMonitor(self.pub)
         self.control = ControlClient(self.ctl, timeout_s=3.0)
+        device = self.control.status()["device"]  # the ratings the forces are measured against
+        self.monitor = ForceMonitor(self.pub, device["limits"]["continuous_force_n"],
+                                    device["limits"]["nominal_rate_hz"])
 
     def _render_argv(self, headless: bool, seconds: float | None) -> list[str]:
         o = self.opts

@@ -55,6 +55,9 @@ def pushing(pose) -> bool:
 # reply, so the press is steady enough to compare forces; 1 kHz timing is measured by
 # `sasprobe bench daemon`.
 SERIAL_ARM_RATE = ("--rate", "250")
+# The whole molecule in the cube, so the workspace centre, where the hands press, is inside it
+# (the default cube is a few residues on the surface).
+WHOLE = ("--cube-half", "fit")
 
 
 def wait_for(condition, timeout_s: float = 20.0) -> None:
@@ -94,7 +97,7 @@ def test_daemon_presses_the_emulated_woody_into_the_molecule(tmp_path):
     try:
         hand.target = (0.0, 35.0, 0.0)  # from its home pose to above the molecule, before the daemon starts
         wait_for(lambda: np.linalg.norm(board.stylus.now() - hand.target) < 0.5)
-        with DaemonProcess(*SERIAL_ARM_RATE, device=rig.device_spec) as daemon:
+        with DaemonProcess(*SERIAL_ARM_RATE, *WHOLE, device=rig.device_spec) as daemon:
             assert daemon.ready["device"] == "woodenhaptics"
             sub = Subscriber(daemon.pub)
             poses_until(sub, lambda p: np.linalg.norm(p.tip_mm - board.stylus.now()) < 1.0, daemon)
@@ -135,7 +138,7 @@ def test_daemon_presses_the_emulated_falcon_into_the_molecule(monkeypatch, emula
     for name, value in emu.env.items():
         monkeypatch.setenv(name, value)
     try:
-        with DaemonProcess(device=emu.device_spec) as daemon:
+        with DaemonProcess(*WHOLE, device=emu.device_spec) as daemon:
             assert daemon.ready["device"] == "falcon"
             sub = Subscriber(daemon.pub)
             poses_until(sub, pushing, daemon)
@@ -181,7 +184,7 @@ def test_daemon_survives_a_falcon_that_stops_answering(monkeypatch, emulators_im
     for name, value in emu.env.items():
         monkeypatch.setenv(name, value)
     try:
-        with DaemonProcess(device=emu.device_spec) as daemon:
+        with DaemonProcess(*WHOLE, device=emu.device_spec) as daemon:
             sub = Subscriber(daemon.pub)
             poses_until(sub, pushing, daemon)
             emu.hardware.hung = True
@@ -200,7 +203,8 @@ def test_daemon_presses_the_emulated_haply_into_the_molecule(tmp_path):
     rig = haply_serial.launch(directory=tmp_path)
     board, hand = rig.board, rig.hand
     try:
-        with DaemonProcess(*SERIAL_ARM_RATE, device=rig.device_spec) as daemon:
+        # the planar arm's plane (the cube's mid-plane) cuts through the whole molecule
+        with DaemonProcess(*SERIAL_ARM_RATE, *WHOLE, device=rig.device_spec) as daemon:
             sub = Subscriber(daemon.pub)
             poses_until(sub, lambda p: True, daemon)
             hand.target = (0.0, 0.0, 0.0)  # the centre of the pad: into the molecule's mid-plane
@@ -218,7 +222,7 @@ def test_daemon_takes_the_input_only_spacemouse(monkeypatch):
     for key, value in emu.env.items():
         monkeypatch.setenv(key, value)
     try:
-        with DaemonProcess(device=emu.device_spec) as daemon:
+        with DaemonProcess(*WHOLE, device=emu.device_spec) as daemon:
             sub = Subscriber(daemon.pub)
             start = poses_until(sub, lambda p: True, daemon)
             emu.hand.deflect(translation=(0.5, 0.0, 0.0))  # held right; the cap sends nothing more
@@ -257,7 +261,7 @@ def test_daemon_on_openhaptics_through_the_stand_in_library(tmp_path, monkeypatc
     hand = threading.Thread(target=sweep, daemon=True)
     hand.start()
     try:
-        with DaemonProcess(device=emu.device_spec) as daemon:
+        with DaemonProcess(*WHOLE, device=emu.device_spec) as daemon:
             sub = Subscriber(daemon.pub)
             pose = poses_until(sub, pushing, daemon)  # calibrated in the inkwell, then pushed back
             assert np.linalg.norm(pose.force_N) <= 3.3

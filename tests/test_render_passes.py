@@ -40,6 +40,7 @@ def scene_with_probe(s):
 
 def render(gl, scene, camera, extra_pass=None):
     renderer = Renderer(gl, scene, SIZE)
+    renderer.passes.remove(renderer.pass_named("probe_cues"))  # drawn over the lit image: not the shading's
     if extra_pass is not None:
         renderer.insert_before("shading", extra_pass)
     try:

@@ -25,6 +25,7 @@ from sasprobe.daemon.haptics import HapticPipeline, build_engine, validate_setti
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState, HapticDevice
 from sasprobe.devices.registry import DeviceScheme
+from sasprobe.devices.workspace import validate_rotation
 from sasprobe.protocol.recording import RecordingError, iter_items, scan
 
 
@@ -251,9 +252,13 @@ def open_replay(argument: str | None, speed: float | None = 1.0, **options) -> R
 REPLAY_SCHEME = DeviceScheme(f"{__name__}:open_replay", "a recorded session (--speed X|max)", "replay:session.mcap")
 
 
+REPLAYED_COMMANDS = ("set", "load", "reconnect", "view", "clutch", "recentre")  # what a replay repeats
+
+
 def apply_recorded_event(event: dict, pipeline: HapticPipeline, structure, settings: dict, limits: DeviceLimits,
                          structure_for_sha) -> tuple[object, dict]:
-    """Apply a recorded `set`/`load`/`reconnect` as the live daemon did; return (structure, settings).
+    """Apply a recorded `set`/`load`/`reconnect`/`view`/`clutch`/`recentre` as the live daemon
+    did; return (structure, settings).
 
     Live, the control thread builds new engines and the loop swaps them in; a replay
     (live or `--verify`) does the same steps in line, so the forces come out identical.
@@ -272,4 +277,10 @@ def apply_recorded_event(event: dict, pipeline: HapticPipeline, structure, setti
         pipeline.replace_engine(build_engine(structure, limits, settings))
     elif cmd == "reconnect":
         pipeline.reconnected()
+    elif cmd == "view":
+        pipeline.set_view(validate_rotation(args["rotation"]))
+    elif cmd == "clutch":
+        pipeline.set_clutch(bool(args["held"]))
+    elif cmd == "recentre":
+        pipeline.recentre()
     return structure, settings

@@ -98,9 +98,9 @@ class LightingPass(Pass):
             self.tracer = PathTracer.for_structure(self.grid, scene.structure)
             self._culling_key = self._probe_key = None
         cube = frame.cube
-        culling_key = frame.planes.tobytes() + (b"" if cube is None else np.array([*cube.center, cube.half]).tobytes())
+        culling_key = frame.planes.tobytes() + (b"" if cube is None else cube.key())
         if culling_key != self._culling_key:
-            self.grid.set_culling(Culling(frame.planes, None if cube is None else (cube.center, cube.half)))
+            self.grid.set_culling(cube_culling(frame.planes, cube))
             self._culling_key = culling_key
         probe = scene.probe if fx.probe else None
         probe_key = b"" if probe is None else np.array([*probe.center, probe.radius]).tobytes()
@@ -185,6 +185,16 @@ class LightingPass(Pass):
         self.edges.release()
         self.compose.release()
         self.textures.release()
+
+
+def cube_culling(planes: np.ndarray, cube) -> Culling:
+    """The lighting's culling for the frame's planes and cube: an axis-aligned cube as the
+    grid's box (its walk range shrinks to the cube), a turned one as its six face planes."""
+    if cube is None:
+        return Culling(planes, None)
+    if cube.axis_aligned:
+        return Culling(planes, (cube.center, cube.half))
+    return Culling(np.concatenate([planes.reshape(-1, 4), cube.planes()]), None)
 
 
 def install_lighting(renderer, settings: LightingSettings, required: bool = True) -> LightingPass | None:

@@ -14,8 +14,31 @@ def speed(text: str) -> float | None:
     return positive_float(text)
 
 
+def cube_half(text: str) -> float | str:
+    """--cube-half: a positive half edge in Å, or `fit` (the whole molecule)."""
+    from sasprobe.devices.workspace import CUBE_FIT
+
+    return CUBE_FIT if text.strip().lower() == CUBE_FIT else positive_float(text)
+
+
+def button(text: str) -> str:
+    from sasprobe.daemon.buttons import parse_button
+
+    try:
+        parse_button(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
 def register(sub: argparse._SubParsersAction) -> None:
+    from sasprobe.daemon.buttons import ACTIONS, DEFAULT_BUTTONS
     from sasprobe.daemon.haptics import HapticSettings
+    from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
+    from sasprobe.devices.workspace import CONTEXT_FRACTION, DEFAULT_SCALE_A_PER_MM
+
+    omni = PHANTOM_OMNI_LIMITS
+    omni_half = DEFAULT_SCALE_A_PER_MM * min(hi - lo for lo, hi in zip(omni.workspace_min_mm, omni.workspace_max_mm)) / 2
     from sasprobe.daemon.loop import DEFAULT_RATE_HZ
     from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
     from sasprobe.protocol.scene import HAPTIC_METHODS
@@ -43,12 +66,19 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"contact stiffness (default {defaults.stiffness_n_per_mm:g})")
     p.add_argument("--damping", type=float, default=None, metavar="N_S_PER_M",
                    help=f"contact damping (default {defaults.damping_n_s_per_m:g})")
-    p.add_argument("--cube-half", type=positive_float, default=None, metavar="ANGSTROM",
-                   help="navigation-cube half edge (default: fit the molecule)")
+    p.add_argument("--cube-half", type=cube_half, default=None, metavar="ANGSTROM|fit",
+                   help=f"navigation-cube half edge in Å, or fit (the whole molecule); default "
+                        f"{DEFAULT_SCALE_A_PER_MM:g} Å per mm of the device's workspace ({omni_half:g} Å on an "
+                        f"Omni-class arm), at most {CONTEXT_FRACTION:g} of the molecule's smallest width")
+    p.add_argument("--button", action="append", type=button, metavar="ACTION=N",
+                   help=f"which device button does what (repeatable; actions {', '.join(ACTIONS)}; default "
+                        + ", ".join(f"{a}={i}" for a, i in DEFAULT_BUTTONS.items()) + ")")
     p.add_argument("--realtime", action="store_true",
                    help="run the loop with SCHED_FIFO priority (needs CAP_SYS_NICE or root; steadier timing)")
     p.add_argument("--inject-fault", action="append", metavar="KIND@TICK[+COUNT]",
                    help="simulated arm only, to try the watchdog: raise, nan or disconnect at a tick (repeatable)")
+    p.add_argument("--inject-button", action="append", metavar="BUTTON@TICK+COUNT",
+                   help="simulated arm only: hold a button down from a tick for COUNT ticks (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="seed of the simulated arm")
     p.add_argument("--seconds", type=positive_float, default=None, metavar="S", help="stop after S seconds")
     p.add_argument("--report", metavar="FILE", help="write the exit report (JSON) here")
@@ -87,6 +117,8 @@ def run(args: argparse.Namespace) -> int:
         max_seconds=args.seconds,
         realtime=args.realtime,
         faults=args.inject_fault or [],
+        buttons=args.button or [],
+        button_presses=args.inject_button or [],
     )
     try:
         daemon = Daemon(config)

@@ -68,6 +68,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS
     from sasprobe.render.app import RenderOptions
     from sasprobe.render.passes.spheres import SPHERE_MODES
+    from sasprobe.render.workspace_view import VIEWS
 
     defaults = RenderOptions()
     size = f"{defaults.size[0]}x{defaults.size[1]}"
@@ -85,6 +86,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fps", type=positive_float, default=defaults.fps,
                    help=f"frame rate of a video --out (default {defaults.fps:g})")
     p.add_argument("--gbuffer", type=Path, metavar="FILE.npz", help="write the last frame's G-buffer")
+    p.add_argument("--gbuffer-dir", type=Path, metavar="DIR",
+                   help="headless: write every frame's G-buffer into DIR (gbuffer_0000.npz, ...)")
+    p.add_argument("--view", choices=VIEWS, default=None,
+                   help="start in the workspace view (the navigation cube framed, looking along the device's -z) "
+                        "or the overview (the whole molecule); default: workspace with --connect, else overview "
+                        "(the window's Tab switches)")
     p.add_argument("--camera", type=camera_type, metavar="SPEC",
                    help="'eye=X,Y,Z target=X,Y,Z up=X,Y,Z fov=DEG' (any subset; the rest is auto-fitted)")
     p.add_argument("--orbit", type=float, default=0.0, metavar="DEG", help="turn the camera DEG degrees per frame")
@@ -98,10 +105,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--nav-cube", type=cube_type, metavar="X,Y,Z,HALF",
                    help="standalone: navigation cube centre and half edge (Å)")
     p.add_argument("--clip", type=plane_type, action="append", default=None, metavar="A,B,C,D",
-                   help="clipping plane, a·x+b·y+c·z+d >= 0 kept (repeatable)")
+                   help="clipping plane, a·x+b·y+c·z+d >= 0 kept (repeatable; standalone: with --connect the "
+                        "daemon's planes are drawn, set them with `sasprobe set clip=A,B,C,D`)")
     p.add_argument("--probe-plane", action="store_true", help="clip with a plane through the probe facing the camera")
     p.add_argument("--light", type=direction_type, metavar="X,Y,Z", help="direction the directional light travels")
-    p.add_argument("--backbone", action="store_true", help="draw the backbone trace even without a navigation cube")
+    p.add_argument("--backbone", action="store_true",
+                   help="draw the backbone trace even without a navigation cube (with --connect: also when the "
+                        "daemon turns its cube off)")
     p.add_argument("--no-fxaa", action="store_true", help="skip the FXAA pass")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
     p.add_argument("--snapshot", type=Path, metavar="FILE.png", help="headless: also write the last frame as a PNG")
@@ -230,7 +240,7 @@ def render_options(args: argparse.Namespace):
         clip=args.clip, probe_plane=args.probe_plane, light=args.light, backbone=args.backbone,
         fxaa=not args.no_fxaa, keep_water=args.keep_water, lighting=lighting, lighting_required=required,
         probe_light_range=args.probe_light_range or DEFAULT_PROBE_RANGE, snapshot=args.snapshot,
-        report=args.report,
+        report=args.report, view=args.view, gbuffer_dir=args.gbuffer_dir,
     )
 
 
@@ -246,6 +256,18 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--control needs --connect")
     if args.connect is not None and (args.probe or args.nav_cube or args.touched >= 0):
         raise UserError("--probe, --touched and --nav-cube are for standalone use; with --connect the daemon sets them")
+    if args.connect is not None and args.clip:
+        raise UserError("--clip is for standalone use; with --connect the clip planes are the daemon's: "
+                        "set them with `sasprobe set clip=A,B,C,D`")
+    if args.gbuffer_dir is not None:
+        from sasprobe.render.gl.context import display_available
+
+        if not args.headless and display_available():
+            raise UserError("--gbuffer-dir is for headless rendering")
+        try:
+            args.gbuffer_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UserError(f"--gbuffer-dir {args.gbuffer_dir}: cannot create ({exc.strerror or exc})") from None
     if args.out is not None:
         from sasprobe.render.output import check_out_path
 
