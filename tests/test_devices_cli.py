@@ -194,7 +194,9 @@ def test_check_drives_an_emulated_serial_arm_end_to_end(tmp_path):
         report = json.loads(result.stdout)
         assert report["info"]["model"] == "WoodenHaptics Woody" and report["reads"] > 50
         assert report["faults"] == 0 and report["calibrated"] is True  # it rested in its home pose
-        assert emu.replies_sent >= report["reads"]
+        # the states came from the board's replies: a read hands back the previous pose only
+        # when a reply is up to two periods late (devices/serial_arm.py), so most are fresh
+        assert emu.replies_sent >= 0.8 * report["reads"]
     finally:
         emu.stop()
 
