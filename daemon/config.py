@@ -28,6 +28,7 @@ class DaemonConfig:
     max_seconds: float | None = None  # stop by itself after this long (benchmarks, demos)
     realtime: bool = False  # SCHED_FIFO for the loop and ZeroMQ's I/O thread
     faults: list[str] = field(default_factory=list)  # simulated-arm fault injection, e.g. "nan@900+5"
+    color_scheme: str | None = None  # the scene's colour scheme (None: each renderer's default by structure)
 
 
 def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:

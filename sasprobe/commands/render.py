@@ -13,11 +13,14 @@ from dataclasses import replace
 from pathlib import Path
 
 from sasprobe.errors import UserError
+from sasprobe.structures import MOLECULE_HELP, add_fetch_options, resolve_molecule
 from sasprobe.units import positive_float, positive_int, probe_radius, size_type
 
 log = logging.getLogger("sasprobe")
 
 MAX_USER_PLANES = 16
+
+HELP = "draw a structure (or follow the daemon) in a window or headless"
 
 
 def _floats(text: str, n: int, what: str) -> list[float]:
@@ -71,9 +74,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     defaults = RenderOptions()
     size = f"{defaults.size[0]}x{defaults.size[1]}"
-    p = sub.add_parser("render", help="draw a structure (or follow the daemon) in a window or headless")
+    p = sub.add_parser("render", help=HELP)
     src = p.add_mutually_exclusive_group()
-    src.add_argument("--molecule", metavar="FILE", help="PDB or mmCIF file, optionally .gz (default: embedded 1CRN)")
+    src.add_argument("--molecule", metavar="FILE|ID", help=MOLECULE_HELP)
     src.add_argument("--connect", nargs="?", const="", metavar="PUB_ENDPOINT",
                      help="follow a running daemon (default endpoint from the protocol); the structure comes from it")
     p.add_argument("--control", metavar="ENDPOINT", help="the daemon's control endpoint (with --connect)")
@@ -104,6 +107,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--backbone", action="store_true", help="draw the backbone trace even without a navigation cube")
     p.add_argument("--no-fxaa", action="store_true", help="skip the FXAA pass")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
+    add_fetch_options(p)
     p.add_argument("--snapshot", type=Path, metavar="FILE.png", help="headless: also write the last frame as a PNG")
     p.add_argument("--report", type=Path, metavar="FILE.json",
                    help="write frame counts, fps and (with --connect) poses received and lost as JSON at the end")
@@ -223,7 +227,7 @@ def render_options(args: argparse.Namespace):
 
     lighting, required = lighting_from_args(args, headless=args.headless or not display_available())
     return RenderOptions(
-        molecule=args.molecule, connect=args.connect, control=args.control, headless=args.headless,
+        molecule=resolve_molecule(args, args.molecule), connect=args.connect, control=args.control, headless=args.headless,
         size=args.size, frames=args.frames, seconds=args.seconds, out=args.out, fps=args.fps,
         gbuffer=args.gbuffer, camera=args.camera, orbit=args.orbit, spheres=args.spheres,
         probe=args.probe, touched=args.touched, probe_radius=args.probe_radius, nav_cube=args.nav_cube,
