@@ -17,7 +17,7 @@ MAX_CLIP_PLANES = 8
 HAPTIC_METHODS = ("proxy", "penalty")  # the `method` a scene reports and a `set` may ask for; the first is the default
 # How renderers colour the atoms (render/colors.py says what each means); the optional scene
 # key `color_scheme` is one of these, or null for the renderer's default by structure.
-COLOR_SCHEMES = ("element", "chain", "polymer", "residue", "hydrophobicity", "bfactor", "sas")
+COLOR_SCHEMES = ("element", "chain", "chain-all", "polymer", "residue", "hydrophobicity", "bfactor", "sas")
 
 # The direction the key light travels (from the light towards the molecule), molecule frame,
 # not normalised: from the upper left front of a view down -z (the renderer's fitted view).

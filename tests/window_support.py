@@ -21,8 +21,8 @@ def glfw_window(size: tuple[int, int], title: str):
         glfw.terminate()
 
 
-def press(app, key: int) -> None:
-    """A key press as glfw delivers it to the WindowApp."""
+def press(app, key: int, mods: int = 0) -> None:
+    """A key press (with modifier bits, e.g. glfw.MOD_CONTROL) as glfw delivers it to the WindowApp."""
     import glfw
 
-    app._on_key(app.window, key, glfw.get_key_scancode(key), glfw.PRESS, 0)
+    app._on_key(app.window, key, glfw.get_key_scancode(key), glfw.PRESS, mods)

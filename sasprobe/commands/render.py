@@ -14,7 +14,7 @@ from pathlib import Path
 
 from sasprobe.errors import UserError
 from sasprobe.structures import MOLECULE_HELP, add_fetch_options, resolve_molecule
-from sasprobe.units import positive_float, positive_int, probe_radius, size_type
+from sasprobe.units import colour_type, positive_float, positive_int, probe_radius, size_type
 
 log = logging.getLogger("sasprobe")
 
@@ -69,7 +69,9 @@ def cube_type(text: str) -> list[float]:
 
 def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS
+    from sasprobe.protocol.scene import COLOR_SCHEMES
     from sasprobe.render.app import RenderOptions
+    from sasprobe.render.lighting.presets import PRESET_NAMES
     from sasprobe.render.passes.spheres import SPHERE_MODES
 
     defaults = RenderOptions()
@@ -84,7 +86,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--size", type=size_type, default=size, metavar="WxH", help=f"image/window size (default {size})")
     p.add_argument("--frames", type=positive_int, metavar="N", help="stop after N frames")
     p.add_argument("--seconds", type=positive_float, metavar="S", help="stop after S seconds")
-    p.add_argument("--out", type=Path, metavar="FILE", help="write frames: .png (numbered when several) or .mp4")
+    p.add_argument("--out", type=Path, metavar="FILE|DIR",
+                   help="write frames: .png (numbered when several) or .mp4; in a window, a folder is where Ctrl+S "
+                        "(screenshot) and Ctrl+R (video) write (default: the working directory)")
     p.add_argument("--fps", type=positive_float, default=defaults.fps,
                    help=f"frame rate of a video --out (default {defaults.fps:g})")
     p.add_argument("--gbuffer", type=Path, metavar="FILE.npz", help="write the last frame's G-buffer")
@@ -103,7 +107,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--clip", type=plane_type, action="append", default=None, metavar="A,B,C,D",
                    help="clipping plane, a·x+b·y+c·z+d >= 0 kept (repeatable)")
     p.add_argument("--probe-plane", action="store_true", help="clip with a plane through the probe facing the camera")
-    p.add_argument("--light", type=direction_type, metavar="X,Y,Z", help="direction the directional light travels")
+    p.add_argument("--light", type=direction_type, metavar="X,Y,Z",
+                   help="direction the key light travels: in the view (x right, y up, z towards you) while lights "
+                        "follow the camera, else in the molecule frame")
+    p.add_argument("--light-frame", choices=("camera", "molecule"), default=defaults.light_frame,
+                   help=f"lights turn with the camera, as in every viewer, or stay fixed in the molecule frame "
+                        f"(default {defaults.light_frame})")
+    p.add_argument("--color", choices=COLOR_SCHEMES, default=None,
+                   help="colour scheme (the window's C key; a daemon's scheme wins): element (CPK), chain (carbons "
+                        "by chain), polymer, residue, hydrophobicity (Kyte-Doolittle), bfactor, sas (exposed area "
+                        "per atom) (default: chain for several polymer chains, else element)")
+    p.add_argument("--preset", choices=PRESET_NAMES, default=defaults.preset,
+                   help=f"lighting preset (the window's I key): {', '.join(PRESET_NAMES)} (default {defaults.preset})")
+    p.add_argument("--background", type=colour_type, metavar="COLOUR",
+                   help="background colour: a name (white, black, ...), #RRGGBB or R,G,B in 0..1 (default: the preset's)")
     p.add_argument("--backbone", action="store_true", help="draw the backbone trace even without a navigation cube")
     p.add_argument("--no-fxaa", action="store_true", help="skip the FXAA pass")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
@@ -141,7 +158,8 @@ def add_lighting_arguments(parser: argparse.ArgumentParser) -> None:
 
     base = LightingSettings()
     ao, soft, tracer = base.ao, base.soft, PathTracing()
-    g = parser.add_argument_group("lighting (OpenGL 4.3; the window's S, V, A, C, E, G keys switch them)")
+    g = parser.add_argument_group("lighting (OpenGL 4.3; the window's S, V, A, Shift+A, E, G keys switch them; "
+                                  "defaults are the default preset's, --preset changes them)")
     g.add_argument("--shadows", choices=SHADOW_MODES, default=None,
                    help=f"shadows of the directional and the probe light, traced through the grid "
                         f"(default {base.shadows})")
@@ -182,11 +200,13 @@ def add_lighting_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def lighting_from_args(args, headless: bool):
-    """(LightingSettings, explicit): explicit when the user asked for a lighting effect, so
-    that a driver without OpenGL 4.3 is an error rather than a warning."""
-    from sasprobe.render.lighting.settings import HEADLESS_SAMPLES, LightingSettings, PathTracing
+    """(LightingSettings, explicit): the preset's lighting with the flags' changes; explicit
+    when the user asked for a lighting effect (or a preset), so that a driver without
+    OpenGL 4.3 is an error rather than a warning."""
+    from sasprobe.render.lighting.presets import DEFAULT_PRESET, PRESETS, headless_samples
+    from sasprobe.render.lighting.settings import HEADLESS_SAMPLES, PathTracing
 
-    base = LightingSettings()
+    base = PRESETS[args.preset].lighting
     ao = base.ao
     try:
         ao = replace(ao, **{k: v for k, v in {
@@ -201,6 +221,8 @@ def lighting_from_args(args, headless: bool):
             soft = replace(soft, growth=max(0.0, args.soft_growth))
         tracer = replace(PathTracing(), **{k: v for k, v in {"bounces": args.pt_bounces, "spp": args.pt_spp}.items()
                                            if v is not None})
+        settings = replace(base, shadows=args.shadows or base.shadows, soft=soft, ao=ao, edges=args.edges or base.edges,
+                           path_tracing=args.path_trace, path_tracer=tracer)
         samples = args.samples
         if samples is None:
             samples = 0
@@ -208,14 +230,13 @@ def lighting_from_args(args, headless: bool):
                 samples = HEADLESS_SAMPLES["path_tracing"]
             elif headless and ao.mode == "reference":
                 samples = HEADLESS_SAMPLES["reference"]
-        settings = LightingSettings(
-            shadows=args.shadows or base.shadows, soft=soft, ao=ao, edges=args.edges or base.edges,
-            path_tracing=args.path_trace, path_tracer=tracer, samples=samples,
-        )
+            elif headless:
+                samples = headless_samples(settings)
+        settings = replace(settings, samples=samples)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     explicit = (args.shadows not in (None, "off") or args.ao not in (None, "off") or args.path_trace
-                or args.edges not in (None, "off"))
+                or args.edges not in (None, "off") or args.preset != DEFAULT_PRESET)
     return settings, explicit
 
 
@@ -234,7 +255,8 @@ def render_options(args: argparse.Namespace):
         clip=args.clip, probe_plane=args.probe_plane, light=args.light, backbone=args.backbone,
         fxaa=not args.no_fxaa, keep_water=args.keep_water, lighting=lighting, lighting_required=required,
         probe_light_range=args.probe_light_range or DEFAULT_PROBE_RANGE, snapshot=args.snapshot,
-        report=args.report,
+        report=args.report, color=args.color, preset=args.preset, background=args.background,
+        light_frame=args.light_frame,
     )
 
 
@@ -250,7 +272,13 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--control needs --connect")
     if args.connect is not None and (args.probe or args.nav_cube or args.touched >= 0):
         raise UserError("--probe, --touched and --nav-cube are for standalone use; with --connect the daemon sets them")
-    if args.out is not None:
+    if args.out is not None and args.out.is_dir():
+        from sasprobe.render.gl.context import display_available
+
+        if args.headless or not display_available():
+            raise UserError(f"--out {args.out}: a folder is where the window's Ctrl+S and Ctrl+R write; "
+                            "headless, give a .png or .mp4 file")
+    elif args.out is not None:
         from sasprobe.render.output import check_out_path
 
         check_out_path(args.out, args.frames)
