@@ -95,7 +95,7 @@ def build_scene(structure, opts: RenderOptions, effects=None):
 
 
 def initial_camera(scene, opts: RenderOptions):
-    """The --camera spec, what it leaves out framed to the molecule (with probe and cube)."""
+    """The --camera spec, what it leaves out framed to the molecule's atoms."""
     from sasprobe.render.camera import camera_from_spec
 
     centers, radii = scene.framing_spheres()

@@ -161,17 +161,10 @@ class SceneState:
         return self._selection
 
     def framing_spheres(self) -> tuple[np.ndarray, np.ndarray]:
-        """(centres, radii) a fitted view shows: every atom, the probe, the cube's corners."""
-        s = self.structure
-        centers, radii = [s.positions], [s.vdw_radii]
-        if self.probe is not None:
-            centers.append(self.probe.center[None, :])
-            radii.append(np.array([self.probe.radius]))
-        if self.nav_cube is not None:
-            corners = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=np.float64)
-            centers.append(self.nav_cube.center + corners * self.nav_cube.half)
-            radii.append(np.zeros(8))
-        return np.concatenate(centers), np.concatenate(radii)
+        """(centres, radii) the whole-molecule view frames: every atom, whatever the probe
+        and the cube do (the navigation cube, often larger than the molecule, is the
+        workspace view's to frame)."""
+        return self.structure.positions, self.structure.vdw_radii
 
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
         """Centre and radius holding every atom, the probe and the cube (for fitting and clip range)."""

@@ -115,8 +115,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         f"(default {defaults.light_frame})")
     p.add_argument("--color", choices=COLOR_SCHEMES, default=None,
                    help="colour scheme (the window's C key; a daemon's scheme wins): element (CPK), chain (carbons "
-                        "by chain), polymer, residue, hydrophobicity (Kyte-Doolittle), bfactor, sas (exposed area "
-                        "per atom) (default: chain for several polymer chains, else element)")
+                        "by chain), chain-all (every atom by chain), polymer, residue, hydrophobicity (Kyte-Doolittle), "
+                        "bfactor, sas (exposed area per atom) (default: element for one polymer chain, chain for "
+                        "several, chain-all for several from 20000 atoms up)")
     p.add_argument("--preset", choices=PRESET_NAMES, default=defaults.preset,
                    help=f"lighting preset (the window's I key): {', '.join(PRESET_NAMES)} (default {defaults.preset})")
     p.add_argument("--background", type=colour_type, metavar="COLOUR",
