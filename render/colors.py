@@ -42,8 +42,17 @@ import numpy as np
 
 from sasprobe.molecule import Structure
 from sasprobe.molecule.elements import CPK_COLORS
-from sasprobe.molecule.residues import ION, KINDS, LIGAND, NUCLEIC, PROTEIN, WATER, KYTE_DOOLITTLE_RANGE, \
-    hydropathy, residue_kinds
+from sasprobe.molecule.residues import (
+    ION,
+    KINDS,
+    KYTE_DOOLITTLE_RANGE,
+    LIGAND,
+    NUCLEIC,
+    PROTEIN,
+    WATER,
+    hydropathy,
+    residue_kinds,
+)
 from sasprobe.molecule.sas import ACCESSIBLE_MIN_AREA
 from sasprobe.protocol.scene import COLOR_SCHEMES
 

@@ -113,6 +113,8 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
                 camera = initial_camera(scene, opts)
             scene = renderer.scene
             scene.effects.probe_light = apply_scene_message(scene, frame.scene)
+            if frame.scene.get("color_scheme"):  # the session's colours, as its renderers showed them
+                scene.effects.color_scheme = frame.scene["color_scheme"]
             apply_pose(scene, frame.pose, cube_enabled=frame.scene["nav_cube"]["enabled"])
             renderer.render(camera)
             writer.write(renderer.read_image())

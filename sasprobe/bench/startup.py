@@ -1,7 +1,7 @@
 """`sasprobe bench startup`: how long the CLI takes to start, and what it imports.
 
 Each command runs as a fresh process (`python -m sasprobe ...`) as a user's shell would
-start it; the figure is the median wall time. A bare `python -c pass` and `import numpy`
+start it, the commands taking turns; the figure is the median wall time. A bare `python -c pass` and `import numpy`
 give the floor in the same run. Target: `sasprobe --help` within 0.3 s. The modules each
 command loaded are listed from the process itself (sys.modules at exit), so a plotting or
 GL library that `--help` or `info` does not use shows up here.
@@ -49,11 +49,15 @@ def imported(argv: list[str]) -> list[str]:
 
 def run(ctx: BenchContext) -> BenchResult:
     repeats = 5 if ctx.quick else 15
-    rows = []
+    times: dict[str, list[float]] = {label: [] for label in COMMANDS}
     for label, args in COMMANDS.items():
         _wall(args)  # warm the file cache
-        times = [_wall(args) for _ in range(repeats)]
-        row = {"command": label, "median_s": statistics.median(times), "min_s": min(times)}
+    for _ in range(repeats):  # round robin: a change in the machine's load hits every command alike
+        for label, args in COMMANDS.items():
+            times[label].append(_wall(args))
+    rows = []
+    for label, args in COMMANDS.items():
+        row = {"command": label, "median_s": statistics.median(times[label]), "min_s": min(times[label])}
         if args[:2] == ["-m", "sasprobe"]:
             row["imports"] = imported(args[2:])
         rows.append(row)
