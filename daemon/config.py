@@ -30,6 +30,7 @@ class DaemonConfig:
     faults: list[str] = field(default_factory=list)  # simulated-arm fault injection, e.g. "nan@900+5"
     buttons: list[str] = field(default_factory=list)  # --button ACTION=N (daemon/buttons.py)
     button_presses: list[str] = field(default_factory=list)  # simulated arm: "BUTTON@TICK+COUNT" held down
+    color_scheme: str | None = None  # the scene's colour scheme (None: each renderer's default by structure)
 
 
 def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:

@@ -91,7 +91,7 @@ class RequestHandlers:
 
     # ------------------------------------------------------------------ changing
     def load(self, request):
-        from sasprobe.molecule import load_structure, parse_structure
+        from sasprobe.molecule import load_structure_or_default, parse_structure
 
         d = self.daemon
         keep_water = request.args.get("keep_water", False)
@@ -99,7 +99,7 @@ class RequestHandlers:
             name = request.args.get("name") or "uploaded"
             structure = parse_structure(request.data, name=name, source=f"control:{name}", keep_water=keep_water)
         else:
-            structure = load_structure(request.args["path"], keep_water=keep_water)
+            structure = load_structure_or_default(request.args["path"], keep_water=keep_water)  # a file or a PDB id
         engine = build_engine(structure, d.limits, d.settings)  # off the loop: grids take time
         seq = d.submit(lambda seq: d.swap_structure(structure, keep_water, engine, seq))
         log.warning("loaded %s (%d atoms) at tick %d", structure.source, structure.n_atoms, seq)

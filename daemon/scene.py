@@ -14,7 +14,8 @@ def rotation_rows(rotation) -> list[list[float]]:
 
 
 def scene_message(revision: int, structure, settings: dict, nav_cube_enabled: bool, clip_planes: list,
-                  lights: dict, device: DeviceInfo, rate_hz: float | None, view_rotation) -> dict:
+                  lights: dict, device: DeviceInfo, rate_hz: float | None, view_rotation,
+                  color_scheme: str | None = None) -> dict:
     return {
         "version": SCENE_VERSION,
         "revision": revision,
@@ -29,4 +30,5 @@ def scene_message(revision: int, structure, settings: dict, nav_cube_enabled: bo
                     "damping_n_s_per_m": settings["damping_n_s_per_m"]},
         "rate_hz": rate_hz,
         "view": {"rotation": rotation_rows(view_rotation)},
+        "color_scheme": color_scheme,
     }

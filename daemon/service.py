@@ -71,6 +71,7 @@ class Daemon:
         self.clip_planes: list[list[float]] = []
         self.lights = json.loads(json.dumps(DEFAULT_LIGHTS))
         self.nav_cube_enabled = True
+        self.color_scheme = config.color_scheme
         self.recorder: Recorder | None = None
         self.requests = RequestHandlers(self)
         self.inputs = WorkspaceInputs(ButtonMap.from_options(config.buttons),
@@ -313,6 +314,8 @@ class Daemon:
             self.lights = lights
         if "nav_cube_enabled" in scene_only:
             self.nav_cube_enabled = scene_only["nav_cube_enabled"]
+        if "color_scheme" in scene_only:
+            self.color_scheme = scene_only["color_scheme"]
         self.record_control(seq, "set", {**haptic, **scene_only})
         self.rebuild_scene()
         return seq
@@ -340,7 +343,7 @@ class Daemon:
         self.scene_revision += 1
         self.scene = scene_message(self.scene_revision, self.structure, self.settings, self.nav_cube_enabled,
                                    self.clip_planes, self.lights, self.device.info, self.rate_hz,
-                                   self.pipeline.view_rotation)
+                                   self.pipeline.view_rotation, self.color_scheme)
         self._scene_bytes = encode_scene(self.scene)
         self._next_scene_ns = 0
         if self.recorder is not None:

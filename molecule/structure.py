@@ -57,6 +57,7 @@ class Structure:
     insertion_codes: np.ndarray  # (N,) str ("" when none)
     atom_names: np.ndarray  # (N,) str
     is_hetero: np.ndarray  # (N,) bool (HETATM)
+    b_factors: np.ndarray  # (N,) float64, isotropic B (Å²) as the file gives it
     backbone: list[np.ndarray]  # per segment: atom indices of the trace (CA or P), in order
     backbone_chains: list[str]  # chain id of each segment
     warnings: list[str] = field(default_factory=list)
@@ -110,8 +111,14 @@ def load_default(keep_water: bool = False) -> Structure:
     )
 
 
-def load_structure_or_default(path: str | Path | None, keep_water: bool = False) -> Structure:
-    return load_default(keep_water) if path is None else load_structure(path, keep_water)
+def load_structure_or_default(path: str | Path | None, keep_water: bool = False, fetch=None) -> Structure:
+    """The embedded default (None), a file, or a PDB id (`4hhb`, `pdb:4hhb`: molecule/fetch.py,
+    with `fetch`'s FetchSettings or the environment's)."""
+    if path is None:
+        return load_default(keep_water)
+    from sasprobe.molecule.fetch import resolve
+
+    return load_structure(resolve(str(path), fetch), keep_water)
 
 
 def parse_structure(data: bytes, name: str, source: str, keep_water: bool = False) -> Structure:
@@ -149,6 +156,7 @@ def parse_structure(data: bytes, name: str, source: str, keep_water: bool = Fals
 def _to_arrays(model: gemmi.Model, data: bytes, name: str, source: str) -> Structure:
     xyz: list[tuple[float, float, float]] = []
     occupancy: list[float] = []
+    b_iso: list[float] = []
     altloc: list[str] = []
     elements: list[str] = []
     atom_names: list[str] = []
@@ -170,6 +178,7 @@ def _to_arrays(model: gemmi.Model, data: bytes, name: str, source: str) -> Struc
                 p = atom.pos
                 xyz.append((p.x, p.y, p.z))
                 occupancy.append(atom.occ)
+                b_iso.append(atom.b_iso)
                 altloc.append(atom.altloc)
                 elements.append(atom.element.name)
                 atom_names.append(atom.name)
@@ -212,6 +221,7 @@ def _to_arrays(model: gemmi.Model, data: bytes, name: str, source: str) -> Struc
         insertion_codes=np.asarray(icodes)[res_index],
         atom_names=np.asarray(atom_names)[keep],
         is_hetero=np.asarray(hetero, dtype=bool)[res_index],
+        b_factors=np.asarray(b_iso, dtype=np.float64)[keep],
         backbone=[],
         backbone_chains=[],
         warnings=warnings,

@@ -13,12 +13,14 @@ import math
 from dataclasses import dataclass, field
 
 from sasprobe.protocol.scene import (
+    COLOR_SCHEMES,
     DEFAULT_LIGHTS,
     HAPTIC_METHODS,
     SceneError,
     merge_lights,
     reject_constant,
     validate_clip_planes,
+    validate_color_scheme,
 )
 
 CONTROL_VERSION = 1
@@ -52,6 +54,7 @@ SET_FIELDS = {
     "nav_cube_enabled": "true or false",
     "clip_planes": "list of [a, b, c, d]",
     "lights": "object (partial updates merge)",
+    "color_scheme": f"one of {', '.join(COLOR_SCHEMES)}, or null for each renderer's default",
 }
 
 
@@ -212,9 +215,11 @@ def validate_set_args(args: dict) -> dict:
             if not isinstance(value, bool):
                 raise ProtocolError("'nav_cube_enabled' must be true or false")
             out[key] = value
-        else:  # clip_planes, lights: checked against the scene schema
+        else:  # clip_planes, lights, color_scheme: checked against the scene schema
             try:
-                if key == "clip_planes":
+                if key == "color_scheme":
+                    out[key] = validate_color_scheme(value)
+                elif key == "clip_planes":
                     out[key] = validate_clip_planes(value)
                 else:
                     merge_lights(DEFAULT_LIGHTS, value)  # type check only: the daemon merges into its own

@@ -15,6 +15,9 @@ SCENE_VERSION = 2  # 2: nav_cube.half_A and lights.probe.radius_A are gone (the 
 MAX_SCENE_BYTES = 1 << 20  # a scene is a few KiB; anything this big is not one
 MAX_CLIP_PLANES = 8
 HAPTIC_METHODS = ("proxy", "penalty")  # the `method` a scene reports and a `set` may ask for; the first is the default
+# How renderers colour the atoms (render/colors.py says what each means); the optional scene
+# key `color_scheme` is one of these, or null for the renderer's default by structure.
+COLOR_SCHEMES = ("element", "chain", "chain-all", "polymer", "residue", "hydrophobicity", "bfactor", "sas")
 
 # The direction the key light travels (from the light towards the molecule), molecule frame,
 # not normalised: from the upper left front of a view down -z (the renderer's fitted view).
@@ -75,6 +78,13 @@ def validate_clip_planes(value) -> list[list[float]]:
     return planes
 
 
+def validate_color_scheme(value) -> str | None:
+    """A colour scheme name, or None (each renderer picks its default by structure)."""
+    if value is not None and value not in COLOR_SCHEMES:
+        raise SceneError(f"color_scheme must be one of {', '.join(COLOR_SCHEMES)} or null, got {str(value)[:40]!r}")
+    return value
+
+
 def merge_lights(current: dict, changes) -> dict:
     """Apply a (possibly partial) lights object to the current one, validating every value."""
     changes = _object(changes, "lights")
@@ -123,6 +133,7 @@ def validate_scene(scene) -> dict:
         raise SceneError(f"haptics.method must be one of {', '.join(HAPTIC_METHODS)}")
     _number(haptics.get("stiffness_n_per_mm"), "haptics.stiffness_n_per_mm")
     _number(haptics.get("damping_n_s_per_m"), "haptics.damping_n_s_per_m")
+    validate_color_scheme(scene.get("color_scheme"))  # optional: absent reads as null
     if not isinstance(scene.get("daemon_version"), str):
         raise SceneError("daemon_version must be a string")
     return scene

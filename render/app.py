@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +63,10 @@ class RenderOptions:
         if self.view is not None:
             return self.view
         return WORKSPACE if self.connect is not None and self.camera is None else OVERVIEW
+    color: str | None = None  # colour scheme (render/colors.py); None: the default by structure
+    preset: str = "default"  # lighting preset (render/lighting/presets.py): light intensities, background
+    background: tuple[float, float, float] | None = None  # None: the preset's
+    light_frame: str = "camera"  # "camera": lights turn with the view; "molecule": fixed in the molecule frame
 
     def effects(self):
         """The scene's switches: the options' FXAA, probe plane (on in the workspace view) and
@@ -71,7 +75,15 @@ class RenderOptions:
         from sasprobe.render.workspace_view import WORKSPACE
 
         lighting = self.lighting.effects() if self.lighting is not None else {}
-        return Effects(fxaa=self.fxaa, probe_plane=self.probe_plane or self.start_view == WORKSPACE, **lighting)
+        return Effects(fxaa=self.fxaa, probe_plane=self.probe_plane or self.start_view == WORKSPACE, color_scheme=self.color, **lighting)
+
+    def shading(self):
+        """The shading pass's settings: the preset's lights and background (or --background)."""
+        from sasprobe.render.lighting.presets import PRESETS
+        from sasprobe.render.lighting.settings import ShadingSettings
+
+        shading = PRESETS[self.preset].shading(ShadingSettings(probe_range=self.probe_light_range))
+        return shading if self.background is None else replace(shading, background=tuple(self.background))
 
 
 def build_scene(structure, opts: RenderOptions, effects=None):
@@ -87,7 +99,8 @@ def build_scene(structure, opts: RenderOptions, effects=None):
             opts.lighting.check_soft_shell(radius)
         except ValueError as exc:
             raise UserError(f"--soft-shell: {exc}") from None
-    scene = SceneState(structure, probe_radius=radius, clip_planes=[np.array(p) for p in opts.clip], effects=effects)
+    scene = SceneState(structure, probe_radius=radius, clip_planes=[np.array(p) for p in opts.clip], effects=effects,
+                       lights_follow_camera=opts.light_frame == "camera")
     if opts.touched >= structure.n_atoms:
         raise UserError(f"--touched {opts.touched}: {structure.name} has atoms 0..{structure.n_atoms - 1}")
     if opts.probe is not None:
@@ -101,13 +114,11 @@ def build_scene(structure, opts: RenderOptions, effects=None):
 
 
 def initial_camera(scene, opts: RenderOptions):
-    from sasprobe.render.camera import Camera, camera_from_spec
+    """The --camera spec, what it leaves out framed to the molecule's atoms."""
+    from sasprobe.render.camera import camera_from_spec
 
-    center, radius = scene.bounding_sphere()
-    aspect = opts.size[0] / opts.size[1]
-    if opts.camera:
-        return camera_from_spec(opts.camera, center, radius, aspect)
-    return Camera.fitted(center, radius, aspect)
+    centers, radii = scene.framing_spheres()
+    return camera_from_spec(opts.camera or {}, centers, radii, opts.size[0] / opts.size[1])
 
 
 def open_source(opts: RenderOptions) -> RenderSource:
@@ -135,14 +146,14 @@ def render_main(opts: RenderOptions) -> int:
         source.close()
 
 
-def make_renderer(ctx, scene, size, opts: RenderOptions):
-    """The renderer of the options, lighting included when asked for and supported."""
-    from sasprobe.render.lighting.settings import ShadingSettings
+def make_renderer(ctx, scene, size, opts: RenderOptions, wait_for_areas: bool = True):
+    """The renderer of the options, lighting included when asked for and supported;
+    `wait_for_areas`: False in a window (the sas colours come once computed)."""
     from sasprobe.render.passes.lighting import install_lighting
     from sasprobe.render.renderer import Renderer
 
     renderer = Renderer(ctx, scene, size, sphere_mode=opts.spheres, backbone_always=opts.backbone,
-                        shading=ShadingSettings(probe_range=opts.probe_light_range))
+                        shading=opts.shading(), wait_for_areas=wait_for_areas)
     if opts.lighting is not None:
         try:
             install_lighting(renderer, opts.lighting, required=opts.lighting_required)
@@ -227,12 +238,14 @@ def _run_window(opts: RenderOptions, source: RenderSource) -> int:
     try:
         def build(structure, effects):
             scene = build_scene(structure, opts, effects)
-            renderer = make_renderer(ctx, scene, glfw.get_framebuffer_size(window), opts)
+            renderer = make_renderer(ctx, scene, glfw.get_framebuffer_size(window), opts, wait_for_areas=False)
             glfw.set_window_title(window, f"sasprobe render: {structure.name} ({structure.n_atoms} atoms)")
             return renderer, initial_camera(scene, opts)
 
-        app = WindowApp(window, ctx, source, build, "sasprobe render", opts.effects(), opts.start_view)
-        writer = _writer(opts, 1)
+        folder = opts.out if opts.out is not None and opts.out.is_dir() else None  # Ctrl+S / Ctrl+R go there
+        app = WindowApp(window, ctx, source, build, "sasprobe render", opts.effects(), opts.start_view,
+                        preset=opts.preset, background=opts.background, shots=folder)
+        writer = _writer(opts, 1) if folder is None else None
         log.info("window open: %dx%d framebuffer", *glfw.get_framebuffer_size(window))
         start = time.perf_counter()
         try:

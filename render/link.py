@@ -114,6 +114,7 @@ class DaemonLink(RenderSource):
         self._seen = 0
         self._recent: deque[tuple[int, int]] = deque(maxlen=RATE_WINDOW_POSES)  # (device_t_ns, seq)
         self._daemon_probe_light: bool | None = None
+        self._daemon_scheme: str | None = None
 
     # ------------------------------------------------------------ structure
     def _fetch(self) -> None:
@@ -175,6 +176,9 @@ class DaemonLink(RenderSource):
             probe_light = apply_scene_message(scene, state)
             if probe_light != self._daemon_probe_light:  # follow the daemon's changes; keys still toggle
                 scene.effects.probe_light = self._daemon_probe_light = probe_light
+            scheme = state.get("color_scheme")  # null: every renderer keeps its own (--color, or its default)
+            if scheme is not None and scheme != self._daemon_scheme:
+                scene.effects.color_scheme = self._daemon_scheme = scheme
         if pose is not None:
             apply_pose(scene, pose, cube_enabled=state is None or state["nav_cube"]["enabled"], axes=view_axes(state))
 

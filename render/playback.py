@@ -116,6 +116,8 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
                 camera = initial_camera(scene, opts)
             scene = renderer.scene
             scene.effects.probe_light = apply_scene_message(scene, frame.scene)
+            if frame.scene.get("color_scheme"):  # the session's colours, as its renderers showed them
+                scene.effects.color_scheme = frame.scene["color_scheme"]
             axes = view_axes(frame.scene)
             apply_pose(scene, frame.pose, cube_enabled=frame.scene["nav_cube"]["enabled"], axes=axes)
             renderer.render(view.camera(scene, size[0] / size[1], axes) or camera)

@@ -1,6 +1,6 @@
 """What the renderer draws: the structure plus the live state (probe, navigation cube,
-clipping planes, lights, effect switches), and the CPU culling that picks the atoms
-drawn as spheres.
+clipping planes, lights, colour scheme, effect switches), and the CPU culling that picks
+the atoms drawn as spheres.
 
 Planes are (a, b, c, d) with a·x + b·y + c·z + d >= 0 kept, normalised so that the
 value is a signed distance in Å. The navigation cube turns with the workspace view: its
@@ -15,6 +15,7 @@ import numpy as np
 
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, Structure, UniformGrid
 from sasprobe.protocol.scene import DEFAULT_LIGHT_DIRECTION
+from sasprobe.render.colors import AtomAreas, default_scheme
 
 
 def normalise_plane(plane) -> np.ndarray:
@@ -101,6 +102,7 @@ class Effects:
     ambient_occlusion: bool = False
     edge_cueing: bool = False
     path_tracing: bool = False
+    color_scheme: str | None = None  # render/colors.py SCHEMES; None: the default by structure (C key)
 
 
 @dataclass
@@ -113,6 +115,9 @@ class SceneState:
     light_direction: np.ndarray = field(default_factory=lambda: _unit(DEFAULT_LIGHT_DIRECTION))
     effects: Effects = field(default_factory=Effects)
     force_ratings_n: tuple[float, float] | None = None  # the device's (continuous, peak) force, N
+    # True: light_direction is in the camera's frame (x right, y up, z towards the viewer) and
+    # the light turns with the camera; False: it is fixed in the molecule frame.
+    lights_follow_camera: bool = False
 
     def __post_init__(self) -> None:
         self._grid: UniformGrid | None = None
@@ -121,6 +126,8 @@ class SceneState:
         self._selection_key: bytes | None = None
         self._selection = np.empty(0, dtype=np.uint32)
         self._atoms_sphere: tuple[np.ndarray, float] | None = None
+        self.atom_areas = AtomAreas()  # per-atom SAS of self.grid, for the sas colours
+        self._default_scheme: str | None = None
 
     @property
     def grid(self) -> UniformGrid:
@@ -133,6 +140,20 @@ class SceneState:
             self._grid = UniformGrid(self.structure.positions, self.structure.expanded_radii(self.probe_radius))
             self._grid_key = key
         return self._grid
+
+    def color_scheme(self) -> str:
+        """The scheme in effect: the one chosen, else the structure's default."""
+        if self.effects.color_scheme is not None:
+            return self.effects.color_scheme
+        if self._default_scheme is None:
+            self._default_scheme = default_scheme(self.structure)
+        return self._default_scheme
+
+    def world_light_direction(self, camera) -> np.ndarray:
+        """The direction the directional light travels, in the molecule frame, for this camera."""
+        if not self.lights_follow_camera:
+            return self.light_direction
+        return camera.basis() @ self.light_direction
 
     # ---------------------------------------------------------------- planes
     def active_cube(self) -> NavCube | None:
@@ -167,6 +188,12 @@ class SceneState:
             self._selection = select_spheres(self.structure, self.grid, planes, cube)
             self._selection_key = key
         return self._selection
+
+    def framing_spheres(self) -> tuple[np.ndarray, np.ndarray]:
+        """(centres, radii) the whole-molecule view frames: every atom, whatever the probe
+        and the cube do (the navigation cube, often larger than the molecule, is the
+        workspace view's to frame)."""
+        return self.structure.positions, self.structure.vdw_radii
 
     def bounding_sphere(self) -> tuple[np.ndarray, float]:
         """Centre and radius holding every atom, the probe and the cube (for fitting and clip range)."""

@@ -1,28 +1,37 @@
-"""The interactive window (glfw): arcball rotate, zoom, pan, a key per effect and an
-on-screen readout of fps, haptic rate, force against the device's ratings and the
+"""The interactive window (glfw): arcball rotate, zoom to the cursor, pan, a key per effect,
+colour schemes and lighting presets, clicking an atom to name it, screenshots and videos,
+and an on-screen readout of fps, haptic rate, force against the device's ratings and the
 touched residue. Following a daemon it starts in the workspace view (a drag turns the
 view, and with it the hand's frame); Tab switches to the whole-molecule overview and
 back, Home recentres the cube on the probe, Space held is the clutch."""
 
 from __future__ import annotations
 
+import logging
 import signal
 import time
 from collections import deque
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
+from sasprobe.molecule.sas import atom_areas
 from sasprobe.render.camera import Camera
+from sasprobe.render.capture import PacedRecorder, atom_label, save_screenshot
+from sasprobe.render.colors import SCHEMES
 from sasprobe.render.gbuffer_export import gbuffer_arrays, save_gbuffer
-from sasprobe.render.lighting.settings import ShadingSettings
-from sasprobe.render.passes.lighting import lighting_of, lighting_status
+from sasprobe.render.gl.programs import ProgramCache
+from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE
+from sasprobe.render.gl.textures import read_image
+from sasprobe.render.lighting.presets import PRESET_NAMES, PRESETS
+from sasprobe.render.passes.lighting import apply_preset, lighting_of, lighting_status
 from sasprobe.render.passes.overlay import TextOverlay
 from sasprobe.render.scene import Effects
-from sasprobe.render.gl.programs import ProgramCache
-from sasprobe.render.gl.textures import read_image
 from sasprobe.render.source import Readout
 from sasprobe.render.workspace_view import OVERVIEW, WORKSPACE, WorkspaceView, overview_camera
+
+log = logging.getLogger("sasprobe")
 
 # key -> (Effects field, label); sphere mode and camera keys are handled separately
 TOGGLES = {
@@ -46,20 +55,27 @@ TOGGLES = {
 SPHERE_MODES = ("quad", "sprite")
 CLUTCH_RENEW_S = 0.3  # the clutch key's lease is renewed this often while Space is down
 HELP = [
-    "drag: rotate (workspace view: turns the hand's frame too)   right/middle drag or shift+drag: pan   wheel: zoom",
+    "drag: rotate (workspace view: turns the hand's frame too)   right/middle drag or shift+drag: pan",
+    "wheel: zoom (overview: to the cursor)   click: name an atom",
     "Tab: workspace view / overview   Home: recentre the cube on the probe   Space (held): clutch",
     *[f"{k}: {label}" for k, (_, label) in TOGGLES.items()],
-    "M: sphere mode (quad/sprite)   C: AO method   R: reset camera   H: help   Q/Esc: quit",
+    "C: colour scheme   I: lighting preset   Shift+A: AO method   Z: centre on the probe",
+    "Ctrl+S: screenshot   Ctrl+R: start/stop a video   M: sphere mode (quad/sprite)",
+    "R: reset camera   H: help   Q/Esc: quit",
 ]
+CLICK_PIXELS = 3.0  # a press and release closer than this is a click (a pick), not a drag
+LABEL_OFFSET = (14.0, -10.0)  # the label's corner from the picked atom's centre on screen, pixels
 
 
 class WindowApp:
     """The window's loop. `build(structure, effects)` makes a (renderer, camera) for a
     structure; it runs again when the source brings a new one (a daemon that loaded
-    another molecule). Until the first structure arrives, the window shows the text."""
+    another molecule). Until the first structure arrives, the window shows the text.
+    `preset`, `background`: the lighting the renderer starts with (I cycles the presets);
+    `shots`: where Ctrl+S and Ctrl+R write."""
 
     def __init__(self, window, ctx, source, build: Callable, title: str, effects: Effects,
-                 view: str = OVERVIEW):
+                 view: str = OVERVIEW, preset: str = "default", background=None, shots: Path | None = None):
         import glfw
 
         self.glfw = glfw
@@ -68,16 +84,26 @@ class WindowApp:
         self.source = source
         self.build = build
         self.title = title
-        self.effects = effects  # kept across rebuilds: the user's toggles
+        self.effects = effects  # kept across rebuilds: the user's toggles and colour scheme
+        self.preset = preset
+        self.background = background
+        self.shots = Path.cwd() if shots is None else Path(shots)
         self.renderer = None
         self.camera: Camera | None = None
         self.home: Camera | None = None
         self.programs = ProgramCache(ctx)
         self.overlay = TextOverlay(ctx, self.programs)
+        self.label_overlay = TextOverlay(ctx, self.programs)
         self.readout = Readout()
         self.show_help = False
         self.frame_times: deque[float] = deque(maxlen=60)
+        self.picked: tuple[int, str] | None = None  # (atom, label)
+        self.recorder: PacedRecorder | None = None
+        self.saved: list[Path] = []  # screenshots and videos written, in order
+        self.message = ""  # the last capture's line in the readout
+        self._screenshot_due = False
         self._drag: str | None = None
+        self._press_pos = (0.0, 0.0)
         self._last_pos = (0.0, 0.0)
         self._stop = False
         self.view = WorkspaceView(view, send_view=self._send_view if source.follows_daemon else None)
@@ -105,16 +131,32 @@ class WindowApp:
         name = glfw.get_key_name(key, scancode)
         name = name.upper() if name else ""
         fx = self.effects
+        ctrl, shift = bool(mods & glfw.MOD_CONTROL), bool(mods & glfw.MOD_SHIFT)
         if key in (glfw.KEY_ESCAPE,) or name == "Q":
             glfw.set_window_should_close(window, True)
+        elif ctrl and name == "S":
+            self._screenshot_due = True  # after the next frame is drawn, before it is shown
+        elif ctrl and name == "R":
+            self._toggle_recording()
+        elif shift and name == "A":
+            if self.renderer is not None and lighting_of(self.renderer) is not None:
+                lighting_of(self.renderer).cycle_ao_mode()
         elif name in TOGGLES:
             field_name = TOGGLES[name][0]
             setattr(fx, field_name, not getattr(fx, field_name))
         elif name == "M" and self.renderer is not None:
             i = SPHERE_MODES.index(self.renderer.sphere_mode) if self.renderer.sphere_mode in SPHERE_MODES else -1
             self.renderer.set_sphere_mode(SPHERE_MODES[(i + 1) % len(SPHERE_MODES)])
-        elif name == "C" and self.renderer is not None and lighting_of(self.renderer) is not None:
-            lighting_of(self.renderer).cycle_ao_mode()
+        elif name == "C" and self.renderer is not None:
+            current = self.renderer.scene.color_scheme()
+            fx.color_scheme = SCHEMES[(SCHEMES.index(current) + 1) % len(SCHEMES)]
+        elif name == "I" and self.renderer is not None:
+            self.preset = PRESET_NAMES[(PRESET_NAMES.index(self.preset) + 1) % len(PRESET_NAMES)]
+            apply_preset(self.renderer, PRESETS[self.preset], self.background)
+        elif name == "Z" and self.camera is not None and self.renderer is not None:
+            probe = self.renderer.scene.probe
+            if probe is not None:
+                self.camera.centre_on(probe.center)
         elif key == glfw.KEY_TAB:
             self._toggle_view()
         elif key == glfw.KEY_HOME:
@@ -130,9 +172,12 @@ class WindowApp:
         if action == glfw.PRESS:
             pan = button in (glfw.MOUSE_BUTTON_RIGHT, glfw.MOUSE_BUTTON_MIDDLE) or (mods & glfw.MOD_SHIFT)
             self._drag = "pan" if pan else "rotate"
-            self._last_pos = glfw.get_cursor_pos(window)
+            self._press_pos = self._last_pos = glfw.get_cursor_pos(window)
         elif action == glfw.RELEASE:
-            if self._drag == "rotate" and self._workspace_camera() is not None:
+            x, y = glfw.get_cursor_pos(window)
+            if self._drag == "rotate" and np.hypot(x - self._press_pos[0], y - self._press_pos[1]) < CLICK_PIXELS:
+                self.pick(x, y)
+            elif self._drag == "rotate" and self._workspace_camera() is not None:
                 self.view.end_turn()
             self._drag = None
 
@@ -152,10 +197,11 @@ class WindowApp:
             self.camera.pan(x - x0, y - y0, h)
 
     def _on_scroll(self, window, dx: float, dy: float) -> None:
-        if self._workspace_camera() is not None:
+        if self._workspace_camera() is not None:  # the workspace view stays on the cube
             self.view.zoom_by(0.9 ** dy)
         elif self.camera is not None:
-            self.camera.zoom(0.9 ** dy)
+            point = self.point_under(*self.glfw.get_cursor_pos(window))
+            self.camera.zoom_towards(point, 0.9 ** dy)
 
     def _aspect(self) -> float:
         w, h = self.glfw.get_framebuffer_size(self.window)
@@ -180,6 +226,79 @@ class WindowApp:
     def request_stop(self, *_args) -> None:
         self._stop = True
 
+    # ------------------------------------------------------------ picking
+    def _pixel(self, x: float, y: float) -> tuple[int, int, np.ndarray] | None:
+        """The last frame's G-buffer under a cursor position (window coordinates)."""
+        if self.renderer is None or self.renderer.last_frame is None:
+            return None
+        ww, wh = self.glfw.get_window_size(self.window)
+        fw, fh = self.renderer.targets.size
+        return self.renderer.targets.read_pixel(x * fw / max(ww, 1), y * fh / max(wh, 1))
+
+    def point_under(self, x: float, y: float) -> np.ndarray:
+        """The surface point under the cursor, else the cursor's ray at the target's depth."""
+        hit = self._pixel(x, y)
+        if hit is not None and hit[1] != KIND_BACKGROUND:
+            return hit[2]
+        ww, wh = self.glfw.get_window_size(self.window)
+        cam = self.camera
+        ray = cam.ray((2.0 * x / max(ww, 1) - 1.0, 1.0 - 2.0 * y / max(wh, 1)), ww / max(wh, 1))
+        forward = -cam.basis()[:, 2]
+        return cam.eye + ray * (cam.distance / max(float(ray @ forward), 1e-6))
+
+    def pick(self, x: float, y: float) -> int | None:
+        """Name the atom under the cursor (the G-buffer's atom id there); clicking the
+        background or the probe clears the label. Returns the atom or None."""
+        hit = self._pixel(x, y)
+        if hit is None or hit[0] < 0 or hit[1] in (KIND_BACKGROUND, KIND_PROBE):
+            self.picked = None
+            return None
+        atom, scene = hit[0], self.renderer.scene
+        area = float(atom_areas(scene.grid, [atom])[0])
+        self.picked = (atom, atom_label(scene.structure, atom, area))
+        log.info("picked atom %d: %s", atom, self.picked[1])
+        return atom
+
+    def _label_position(self, size: tuple[int, int]) -> tuple[float, float] | None:
+        """Where the picked atom's label goes (pixels from the top left), or None when the
+        atom is behind the camera."""
+        atom = self.picked[0]
+        frame = self.renderer.last_frame
+        centre = self.renderer.scene.structure.positions[atom]
+        clip = frame.viewproj @ np.array([*centre, 1.0])
+        if clip[3] <= 0:
+            return None
+        x = (clip[0] / clip[3] * 0.5 + 0.5) * size[0] + LABEL_OFFSET[0]
+        y = (0.5 - clip[1] / clip[3] * 0.5) * size[1] + LABEL_OFFSET[1]
+        w, h = self.label_overlay.size
+        return min(max(x, 0.0), max(size[0] - w, 0.0)), min(max(y, 0.0), max(size[1] - h, 0.0))
+
+    # ------------------------------------------------------------ capture
+    def _toggle_recording(self) -> None:
+        if self.recorder is None:
+            self.recorder = PacedRecorder(self.shots)
+            self.message = f"recording {self.recorder.path.name} (Ctrl+R stops)"
+        else:
+            path = self.recorder.close()
+            self.recorder = None
+            self.saved.append(path)
+            self.message = f"saved {path}"
+            log.info("wrote %s", path)
+
+    def _capture(self, size: tuple[int, int]) -> None:
+        """Screenshot and video frames of what was just drawn (the back buffer, before it is shown)."""
+        if not (self._screenshot_due or self.recorder is not None):
+            return
+        image = self._screenshot(size)
+        if self._screenshot_due:
+            self._screenshot_due = False
+            path = save_screenshot(self.shots, image)
+            self.saved.append(path)
+            self.message = f"saved {path}"
+            log.info("wrote %s", path)
+        if self.recorder is not None:
+            self.recorder.add(image)
+
     # ------------------------------------------------------------ loop
     def text(self) -> list[str]:
         r = self.renderer
@@ -187,6 +306,9 @@ class WindowApp:
         lines = [self.title if r is None else f"{self.title}: {r.scene.structure.name} ({r.scene.structure.n_atoms} atoms)"]
         if r is not None:
             lines.append(f"{fps:5.1f} fps   {r.buffers.n_selected} spheres ({r.sphere_mode})")
+            scheme = r.scene.color_scheme()
+            lines.append(f"colour: {scheme}" + (" (computing SAS areas...)" if r.colors_pending else "")
+                         + f"   lighting preset: {self.preset}")
             if lighting_of(r) is not None:
                 lines.append(lighting_status(r))
         ro = self.readout
@@ -201,6 +323,8 @@ class WindowApp:
             lines.append("workspace view (Tab: overview)" if self.view.workspace else "overview (Tab: workspace view)")
         if ro.dropped:
             lines.append(f"dropped malformed messages: {ro.dropped}")
+        if self.message:
+            lines.append(self.message)
         lines += HELP if self.show_help else ["H: help"]
         return lines
 
@@ -211,6 +335,8 @@ class WindowApp:
         if self.renderer is not None:
             self.renderer.release()
         self.renderer, camera = self.build(structure, self.effects)
+        apply_preset(self.renderer, PRESETS[self.preset], self.background)
+        self.picked = None
         self.camera = camera
         self.home = Camera(camera.eye, camera.target, camera.up, camera.fov_y)
 
@@ -223,9 +349,15 @@ class WindowApp:
         else:
             screen.use()
             screen.viewport = (0, 0, *size)
-            screen.clear(*ShadingSettings().background, 1.0)
+            background = self.background or PRESETS[self.preset].background
+            screen.clear(*background, 1.0)
         if self.effects.readout and text is not None:
             self.overlay.draw(screen, size, text)
+        if self.picked is not None and self.renderer is not None:
+            self.label_overlay.prepare([self.picked[1]])
+            at = self._label_position(size)
+            if at is not None:
+                self.label_overlay.draw(screen, size, [self.picked[1]], at=at)
 
     def run(self, frames: int | None = None, seconds: float | None = None, writer=None, gbuffer_path=None) -> int:
         """Show frames until the window closes, Ctrl-C/SIGTERM, or `frames`/`seconds` are done."""
@@ -252,6 +384,7 @@ class WindowApp:
                 if t0 - last_text > 0.25:
                     text, last_text = self.text(), t0
                 self._draw(size, text)
+                self._capture(size)
                 done = (frames is not None and count + 1 >= frames) or (
                     frames is None and seconds is not None and time.perf_counter() - start >= seconds)
                 if writer is not None and (done or writer.is_video):  # PNG: a screenshot of the last frame
@@ -278,9 +411,12 @@ class WindowApp:
     def release(self) -> None:
         if self._clutch_renewed is not None:
             self._clutch_key(False)  # never leave the daemon clutched
+        if self.recorder is not None:
+            self._toggle_recording()  # finish the video
         if self.renderer is not None:
             self.renderer.release()
         self.overlay.release()
+        self.label_overlay.release()
         self.programs.release()
 
 

@@ -76,8 +76,8 @@ def test_snapshot_shows_the_molecule(demo):
     image = imageio.imread(out / "snapshot.png")[..., :3].astype(float)
     assert image.shape == (SIZE[1], SIZE[0], 3)
     structure = load_default()
+    camera = Camera.framing(structure.positions, structure.vdw_radii, SIZE[0] / SIZE[1])  # the renderer's fitted view
     center, radius = SceneState(structure).bounding_sphere()
-    camera = Camera.fitted(center, radius, SIZE[0] / SIZE[1])
     camera.fit_clip_range(center, radius)
     ids, _, _, _ = reference_cast(camera.view(), camera.projection(SIZE[0] / SIZE[1]), SIZE[0], SIZE[1],
                                   structure.positions, structure.vdw_radii, np.arange(structure.n_atoms))

@@ -184,3 +184,43 @@ def test_the_grid_follows_the_daemons_probe_radius(gl):
         assert lighting.grid.max_shell == pytest.approx(radius)
     finally:
         renderer.release()
+
+
+def test_renderers_follow_the_daemons_colour_scheme(daemon, crambin):
+    """`set color_scheme` reaches every renderer through the scene; a renderer's own choice
+    stands while the daemon says null, and a bad name is refused."""
+    from sasprobe.protocol.control import ProtocolError, validate_set_args
+
+    pub, ctl = daemon
+    link = DaemonLink(pub, ctl)
+    scene = SceneState(crambin, effects=Effects(color_scheme="residue"))  # this renderer's --color
+    try:
+        with ControlClient(ctl) as client:
+            def settled(expected) -> dict:
+                deadline = time.monotonic() + 20
+                while time.monotonic() < deadline:
+                    link.poll()
+                    state = link.subscriber.scene
+                    if state is not None and state.get("color_scheme") == expected:
+                        return state
+                    time.sleep(0.02)
+                raise AssertionError(f"the scene never said color_scheme={expected}")
+
+            settled(None)
+            link.apply(scene)
+            assert scene.color_scheme() == "residue"  # null: the renderer keeps its own
+            client.set(color_scheme="polymer")
+            settled("polymer")
+            link.apply(scene)
+            assert scene.color_scheme() == "polymer"
+            scene.effects.color_scheme = "sas"  # the window's C key still works ...
+            link.apply(scene)
+            assert scene.color_scheme() == "sas"  # ... until the daemon changes it again
+            with pytest.raises(ProtocolError, match="color_scheme must be one of"):
+                validate_set_args({"color_scheme": "rainbow"})
+            client.set(color_scheme=None)
+            settled(None)
+            link.apply(scene)
+            assert scene.color_scheme() == "sas"
+    finally:
+        link.close()

@@ -29,6 +29,7 @@ class Frame:
     planes: np.ndarray  # N x 4: user planes (+ probe plane) in effect
     cube: NavCube | None  # the navigation cube in effect
     output_fbo: object  # where the final image goes
+    light_direction: np.ndarray  # where the directional light travels (molecule frame), for this camera
     index: int = 0  # frame number
 
     @property

@@ -310,7 +310,9 @@ def _charts(ctx: BenchContext, rows, stability, trace, cube_half) -> list:
 
 
 def _stability_figure(stability):
-    import matplotlib.pyplot as plt
+    from sasprobe.bench.charts import pyplot
+
+    plt = pyplot()
     from matplotlib.colors import ListedColormap
 
     rates, ks = stability["rates_hz"], stability["stiffness_n_per_mm"]

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import argparse
 
+from sasprobe.structures import MOLECULE_HELP, add_fetch_options, resolve_molecule
 from sasprobe.units import positive_float, probe_radius
+
+HELP = "run the device daemon: haptic loop, pose/scene publisher, control server"
 
 
 def speed(text: str) -> float | None:
@@ -41,14 +44,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     omni_half = DEFAULT_SCALE_A_PER_MM * min(hi - lo for lo, hi in zip(omni.workspace_min_mm, omni.workspace_max_mm)) / 2
     from sasprobe.daemon.loop import DEFAULT_RATE_HZ
     from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
-    from sasprobe.protocol.scene import HAPTIC_METHODS
+    from sasprobe.protocol.scene import COLOR_SCHEMES, HAPTIC_METHODS
 
     defaults = HapticSettings()
 
-    p = sub.add_parser("daemon", help="run the device daemon: haptic loop, pose/scene publisher, control server")
+    p = sub.add_parser("daemon", help=HELP)
     p.add_argument("--device", default="sim", help="SCHEME[:ARG]: sim[:SCRIPT] (default), replay:FILE, ...")
-    p.add_argument("--molecule", metavar="FILE", help="PDB or mmCIF file, optionally .gz (default: embedded 1CRN)")
+    p.add_argument("--molecule", metavar="FILE|ID", help=MOLECULE_HELP)
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
+    add_fetch_options(p)
+    p.add_argument("--color", choices=COLOR_SCHEMES, default=None,
+                   help="the colour scheme every renderer shows (the scene's color_scheme; default: each "
+                        "renderer's default by structure)")
     p.add_argument("--rate", type=positive_float, default=None, metavar="HZ",
                    help=f"loop rate (default {DEFAULT_RATE_HZ:g}; a replay runs at its recorded rate times --speed)")
     p.add_argument("--speed", type=speed, default=1.0, metavar="X|max", help="replay speed factor, or max")
@@ -103,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
     }
     config = DaemonConfig(
         device=args.device,
-        molecule=args.molecule,
+        molecule=resolve_molecule(args, args.molecule),
         keep_water=args.keep_water,
         rate_hz=args.rate or DEFAULT_RATE_HZ,
         pub=args.pub or [DEFAULT_PUB_ENDPOINT],
@@ -119,6 +126,7 @@ def run(args: argparse.Namespace) -> int:
         faults=args.inject_fault or [],
         buttons=args.button or [],
         button_presses=args.inject_button or [],
+        color_scheme=args.color,
     )
     try:
         daemon = Daemon(config)

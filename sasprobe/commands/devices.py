@@ -12,9 +12,11 @@ from sasprobe.units import positive_float
 
 CHECK_SECONDS = 1.0  # how long --check reads by default
 
+HELP = "list attached haptic/input devices and their --device strings"
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("devices", help="list attached haptic/input devices and their --device strings")
+    p = sub.add_parser("devices", help=HELP)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--check", metavar="DEVICE",
                    help="open DEVICE (a --device string), read it for --seconds with zero force, report")

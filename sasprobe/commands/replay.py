@@ -8,6 +8,8 @@ from pathlib import Path
 
 from sasprobe.errors import UserError
 
+HELP = "summarise a recording; --verify recomputes its forces; --recover repairs it; --video renders it"
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.render.app import RenderOptions
@@ -16,8 +18,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     video = RenderOptions()  # a replay's video is drawn with `sasprobe render`'s defaults
     size = f"{video.size[0]}x{video.size[1]}"
 
-    p = sub.add_parser("replay", help="summarise a recording; --verify recomputes its forces; --recover repairs it; "
-                                      "--video renders it")
+    p = sub.add_parser("replay", help=HELP)
     p.add_argument("file", type=Path, help="an MCAP recording (sasprobe daemon --record)")
     p.add_argument("--verify", action="store_true",
                    help="recompute every force from the recorded inputs and report the largest difference")

@@ -5,11 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 
+HELP = "rate, jitter, overruns, subscribers and recording of a running daemon"
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT
 
-    p = sub.add_parser("status", help="rate, jitter, overruns, subscribers and recording of a running daemon")
+    p = sub.add_parser("status", help=HELP)
     p.add_argument("--ctl", default=DEFAULT_CTL_ENDPOINT, metavar="ENDPOINT",
                    help=f"the daemon's control endpoint (default {DEFAULT_CTL_ENDPOINT})")
     p.add_argument("--keys", metavar="DIR", help="client keys (a daemon with --keys)")
