@@ -26,8 +26,9 @@ class DaemonConfig:
     spin_s: float = 200e-6
     report: str | None = None  # write a JSON exit report here
     max_seconds: float | None = None  # stop by itself after this long (benchmarks, demos)
-    realtime: bool = False  # SCHED_FIFO for the loop and ZeroMQ's I/O thread
+    realtime: bool = True  # ask for SCHED_FIFO for the loop and ZeroMQ's I/O thread (fall back with a warning)
     faults: list[str] = field(default_factory=list)  # simulated-arm fault injection, e.g. "nan@900+5"
+    loop_stalls: list[tuple[int, float]] = field(default_factory=list)  # test hook: (tick, seconds) the loop sleeps
 
 
 def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:

@@ -197,12 +197,31 @@ class FixedRateLoop:
 
 
 def enter_realtime(priority: int = REALTIME_PRIORITY) -> bool:
-    """SCHED_FIFO for the calling thread (and the threads it starts); False when not permitted."""
+    """SCHED_FIFO for the calling thread (and the threads it starts); False, with one line
+    saying what that costs and how to allow it, when not permitted.
+
+    Without root or CAP_SYS_NICE an rtprio resource limit still allows SCHED_FIFO up to
+    its value, so the priority asked for is capped there (the soft limit raised to the
+    hard one first)."""
+    import resource
+
+    from sasprobe.daemon.faults import REALTIME_FIX
+
     try:
+        if os.geteuid() != 0:
+            soft, hard = resource.getrlimit(resource.RLIMIT_RTPRIO)
+            if soft < hard:
+                resource.setrlimit(resource.RLIMIT_RTPRIO, (hard, hard))
+                soft = hard
+            if 0 < soft < priority:
+                priority = int(soft)
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
         return True
-    except (OSError, AttributeError) as exc:
-        log.warning("--realtime: cannot use SCHED_FIFO (%s); running with normal scheduling", exc)
+    except (OSError, AttributeError, ValueError) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc)
+        log.warning("real-time scheduling refused (%s): the haptic loop competes with every other process and "
+                    "loses ticks (zero force) whenever the CPU is busy; to allow it, %s; --no-realtime says you "
+                    "know", reason, REALTIME_FIX)
         return False
 
 

@@ -55,6 +55,9 @@ class RequestHandlers:
         cpu_s = d.loop_cpu_since_reset_ns() / 1e9
         summary["cpu_percent"] = 100.0 * cpu_s / summary["window_s"] if summary["window_s"] > 0 else None
         summary["target_rate_hz"] = d.rate_hz
+        summary["stalls"] = d.watchdog.as_dict()
+        summary["lost_ticks"] = d.timing.lost
+        summary["realtime"] = d.realtime
         guard = d.pipeline.guard
         rec = d.recorder
         return {
@@ -72,7 +75,7 @@ class RequestHandlers:
                           "poses_sent": d.publisher.poses_sent, "scenes_sent": d.publisher.scenes_sent,
                           "send_failures": d.publisher.send_failures},
             "control": {"endpoints": d.control.endpoints, "requests": d.control.requests,
-                        "errors": d.control.errors},
+                        "errors": d.control.errors, "restarts": d.control.restarts},
             "recording": None if rec is None else {**rec.stats().as_dict(), "error": rec.error},
         }, None
 

@@ -1,8 +1,10 @@
 """`sasprobe daemon`: the one process that owns the device, its lifecycle and its loop.
 
 Threads: the main thread runs the fixed-rate loop (read → haptic force → safety →
-write → publish → hand to the recorder) and is the only one that touches the device,
-the engine and the PUB socket. The control thread answers requests (daemon/requests.py);
+write → publish → hand to the recorder) and is the only one that touches the engine
+and the PUB socket, and the device but for one exception: the watchdog thread
+(daemon/watchdog.py) writes zero force when no tick has completed in time, under the
+lock the loop writes with. The control thread answers requests (daemon/requests.py);
 anything that changes state is prepared there (parsing a structure, building an engine)
 and handed to the loop as a small closure, applied at the start of the next tick. The
 recorder thread writes the MCAP file. ZeroMQ's own I/O threads do the network sending.
@@ -32,7 +34,7 @@ from sasprobe import __version__
 from sasprobe.daemon import events
 from sasprobe.daemon.config import DaemonConfig, check_bind_security
 from sasprobe.daemon.control import ControlServer
-from sasprobe.daemon.faults import FaultLog, Reconnector
+from sasprobe.daemon.faults import FaultLog, Reconnector, TimingLog
 from sasprobe.daemon.haptics import HapticPipeline, SafetyGuard, build_engine, validate_settings
 from sasprobe.daemon.loop import FixedRateLoop, enter_realtime
 from sasprobe.daemon.publisher import Publisher
@@ -40,6 +42,7 @@ from sasprobe.daemon.recording.replay import REPLAY_SCHEME, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
 from sasprobe.daemon.requests import RequestHandlers
 from sasprobe.daemon.scene import scene_message
+from sasprobe.daemon.watchdog import StallWatchdog
 from sasprobe.devices.base import DeviceFault
 from sasprobe.devices.registry import register_scheme
 from sasprobe.errors import UserError
@@ -81,11 +84,16 @@ class Daemon:
         self._carry_error: str | None = None  # a failed force write, reported on the next tick
         self._reconnector = Reconnector(self.device)
         self._fault_log = FaultLog()
+        self._fault_logged = False  # the fault in progress was logged (timing faults are told by TimingLog)
+        self.write_lock = threading.Lock()  # the loop's force writes and the watchdog's zeros
+        self.watchdog = StallWatchdog(self.device, self.write_lock, self.loop.period_ns,
+                                      supervise=self._supervise)
         self._loop_cpu_clock: int | None = None
         self._cpu_at_reset = 0
         self.control = self.publisher = self.auth = self.context = None
         try:
             self.realtime = enter_realtime() if config.realtime else False
+            self.timing = TimingLog(self.realtime)
             self.device.open()
             self._open_network()
             self.rebuild_scene()
@@ -186,6 +194,8 @@ class Daemon:
             "ticks": stats["total"]["ticks"],
             "overruns": stats["total"]["overruns"],
             "faults": self.pipeline.guard.faults,
+            "lost_ticks": self.timing.lost,
+            "stalls": self.watchdog.as_dict(),
             "last_force_written_n": np.asarray(self.last_force_written).tolist(),
             "device_last_force_n": None if device_last is None else np.asarray(device_last, dtype=float).tolist(),
             "publisher": publisher_stats,
@@ -215,18 +225,27 @@ class Daemon:
             self._loop()
         finally:
             sys.setswitchinterval(old_switch)
+            self.watchdog.stop()
             self._shutdown()
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
         return 0
 
+    def _supervise(self) -> None:
+        """On the watchdog thread, twice a second: the control thread must be alive."""
+        if self.control is not None:
+            self.control.ensure_running()
+
     def _loop(self) -> None:
-        loop, device, publisher = self.loop, self.device, self.publisher
+        loop, device, publisher, watchdog, write_lock = self.loop, self.device, self.publisher, self.watchdog, \
+            self.write_lock
         clock = time.monotonic_ns
+        stall_at = dict(self.config.loop_stalls)  # test hook: tick -> seconds the loop sleeps there
         # A free-running loop (replay at --speed max) has no period to be late against.
         late_read_ns = int(LATE_READ_PERIODS * loop.period_ns) if loop.period_ns else None
         stop_at_ns = clock() + int(self.config.max_seconds * 1e9) if self.config.max_seconds else None
         self._cpu_at_reset = self.loop_cpu_ns()
+        watchdog.start()
         loop.start()
         while self._stop_reason is None:
             tick = loop.wait()
@@ -249,17 +268,27 @@ class Daemon:
                 error = f"device read took {read_ns / 1e6:.1f} ms"
             for event in device.take_recorded_events():  # a replay repeats its control changes here
                 self._apply_recorded_event(event, tick.seq)
-            late_periods = max(tick.late_periods, device.recorded_late_periods())
+            if stall_at and tick.seq in stall_at:
+                time.sleep(stall_at.pop(tick.seq))
+            # A tick the watchdog found overdue counts as late by as long: the guard zeroes it.
+            late_periods = max(tick.late_periods, device.recorded_late_periods(), watchdog.overdue_periods(clock()))
             pipeline = self.pipeline
             was_faulted = pipeline.guard.faulted
             result = pipeline.step(state, error, late_periods)
-            try:
-                device.write_force(result.force_n)
-                self.last_force_written = result.force_n
-            except Exception as exc:
-                self.write_failures += 1
-                self._carry_error = f"force write failed: {exc}"
-            if result.guard.fault != was_faulted:
+            with write_lock:
+                try:
+                    device.write_force(result.force_n)
+                    self.last_force_written = result.force_n
+                except Exception as exc:
+                    self.write_failures += 1
+                    self._carry_error = f"force write failed: {exc}"
+                stall = watchdog.heartbeat(clock())
+            timing_only = error is None and late_periods > pipeline.guard.late_limit_periods
+            self.timing.lost_ticks(tick.start_ns, tick.missed + (1 if timing_only else 0))
+            if stall is not None:
+                self.timing.stall(stall.length_ns, stall.zeroed_after_ns, tick.start_ns)
+            if result.guard.fault != was_faulted and (self._fault_logged or not timing_only):
+                self._fault_logged = result.guard.fault
                 self._fault_log.note(result.guard.reason if result.guard.fault else None, tick.start_ns)
             if error is None or state is not None:
                 self._reconnector.answered()

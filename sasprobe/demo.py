@@ -8,7 +8,7 @@ rate and jitter), shows progress, stops both children (the daemon first: it writ
 force before it exits) and writes summary.json.
 
 On a shared, small machine the software rasteriser would take every core from the
-1 kHz loop, so the daemon asks for SCHED_FIFO (`--realtime`), which no ordinary process
+1 kHz loop, so the daemon asks for SCHED_FIFO (its default), which no ordinary process
 can preempt. Where that is refused (no root or CAP_SYS_NICE) the renderer runs at a
 lower priority and, headless, with one llvmpipe thread.
 """
@@ -46,7 +46,7 @@ STATUS_EVERY_S = 1.0
 RESERVED_RENDER = ("--connect", "--control", "--molecule", "--headless", "--out", "--snapshot", "--report",
                    "--seconds", "--frames", "--size", "--fps")
 RESERVED_DAEMON = ("--device", "--molecule", "--pub", "--ctl", "--record", "--report", "--seconds",
-                   "--realtime", "--keep-water")
+                   "--no-realtime", "--keep-water")
 
 
 @dataclass
@@ -114,8 +114,8 @@ class DemoSession:
             argv += ["--molecule", str(Path(o.molecule).resolve())]
         if o.keep_water:
             argv.append("--keep-water")
-        if o.realtime:
-            argv.append("--realtime")
+        if not o.realtime:
+            argv.append("--no-realtime")
         if o.record:
             argv += ["--record", str(Path(o.record).resolve())]
         self.daemon = DaemonChild(argv + o.daemon_args, self.sockets / "daemon.log", registry=self.children)

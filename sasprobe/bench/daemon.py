@@ -52,8 +52,8 @@ class _Daemon:
         args = ["--device", "sim", "--pub", self.tcp, "--pub", self.ipc, "--ctl", self.ctl]
         if molecule is not None:
             args += ["--molecule", str(molecule)]
-        if realtime:
-            args.append("--realtime")
+        if not realtime:
+            args.append("--no-realtime")
         self.child = DaemonChild(args, self.dir / "daemon.log")
         try:
             self.ready = self.child.wait_ready(READY_S)

@@ -14,6 +14,23 @@ def speed(text: str) -> float | None:
     return positive_float(text)
 
 
+def fault_spec(text: str) -> tuple[str, int, int]:
+    """--inject-fault: KIND@TICK[+COUNT], checked now (a typo is one line, not a silent no-op)."""
+    from sasprobe.devices.simulated import FAULT_KINDS, parse_fault
+
+    try:
+        kind, tick, count = parse_fault(text, FAULT_KINDS + (LOOP_STALL,))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if kind == LOOP_STALL and count > MAX_STALL_MS:
+        raise argparse.ArgumentTypeError(f"fault '{text}': a stall lasts at most {MAX_STALL_MS} ms")
+    return kind, tick, count
+
+
+LOOP_STALL = "stall"  # the daemon's own: the loop sleeps COUNT ms at TICK (any device); the others are the sim arm's
+MAX_STALL_MS = 60_000
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.daemon.haptics import HapticSettings
     from sasprobe.daemon.loop import DEFAULT_RATE_HZ
@@ -45,10 +62,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"contact damping (default {defaults.damping_n_s_per_m:g})")
     p.add_argument("--cube-half", type=positive_float, default=None, metavar="ANGSTROM",
                    help="navigation-cube half edge (default: fit the molecule)")
-    p.add_argument("--realtime", action="store_true",
-                   help="run the loop with SCHED_FIFO priority (needs CAP_SYS_NICE or root; steadier timing)")
-    p.add_argument("--inject-fault", action="append", metavar="KIND@TICK[+COUNT]",
-                   help="simulated arm only, to try the watchdog: raise, nan or disconnect at a tick (repeatable)")
+    p.add_argument("--no-realtime", action="store_true",
+                   help="do not ask for SCHED_FIFO (by default the loop asks for it, and warns when it is refused)")
+    p.add_argument("--inject-fault", action="append", type=fault_spec, metavar="KIND@TICK[+COUNT]",
+                   help="to try the watchdogs: raise, nan or disconnect at a tick (simulated arm), or stall@TICK+MS "
+                        "(the loop sleeps MS ms; any device); repeatable")
     p.add_argument("--seed", type=int, default=0, help="seed of the simulated arm")
     p.add_argument("--seconds", type=positive_float, default=None, metavar="S", help="stop after S seconds")
     p.add_argument("--report", metavar="FILE", help="write the exit report (JSON) here")
@@ -71,6 +89,13 @@ def run(args: argparse.Namespace) -> int:
         )
         if value is not None
     }
+    faults = args.inject_fault or []
+    device_faults = [f"{kind}@{tick}+{count}" for kind, tick, count in faults if kind != LOOP_STALL]
+    if device_faults and args.device.split(":", 1)[0].strip().lower() != "sim":
+        from sasprobe.errors import UserError
+
+        raise UserError(f"--inject-fault {device_faults[0]}: only the simulated arm (--device sim...) takes "
+                        f"raise, nan and disconnect faults; stall@TICK+MS works on any device")
     config = DaemonConfig(
         device=args.device,
         molecule=args.molecule,
@@ -85,8 +110,9 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         report=args.report,
         max_seconds=args.seconds,
-        realtime=args.realtime,
-        faults=args.inject_fault or [],
+        realtime=not args.no_realtime,
+        faults=device_faults,
+        loop_stalls=[(tick, ms / 1000.0) for kind, tick, ms in faults if kind == LOOP_STALL],
     )
     try:
         daemon = Daemon(config)
