@@ -20,6 +20,7 @@ from typing import Callable
 import zmq
 
 from sasprobe.daemon.loop import helper_priority
+from sasprobe.daemon.monitor import AcceptPause, SocketMonitor
 from sasprobe.errors import UserError
 from sasprobe.protocol.control import (
     MAX_MESSAGE_BYTES,
@@ -45,8 +46,13 @@ class ControlServer:
         self._socket = context.socket(zmq.ROUTER)
         self._socket.linger = REPLY_LINGER_MS
         self._socket.setsockopt(zmq.MAXMSGSIZE, MAX_MESSAGE_BYTES)  # a larger frame drops the connection
-        self.endpoints = bind_server_socket(self._socket, endpoints, keys)
-        self.socket = self._socket  # for the connection monitor
+        self._monitor = SocketMonitor(self._socket, "control socket", keys is not None)
+        try:
+            self.endpoints = bind_server_socket(self._socket, endpoints, keys)
+        except BaseException:
+            self._monitor.close()
+            raise
+        self._pause = AcceptPause(self._socket, self.endpoints)
         self.requests = 0
         self.errors = 0
         self.restarts = 0  # threads started again after one ended
@@ -74,6 +80,8 @@ class ControlServer:
         poller = zmq.Poller()
         poller.register(self._socket, zmq.POLLIN)
         while not self._stop.is_set():
+            self._monitor.drain()
+            self._pause.service(self._monitor)
             if not poller.poll(POLL_MS):
                 continue
             try:
@@ -122,6 +130,7 @@ class ControlServer:
         self._stop.set()
         if self._thread is not None and self._thread.is_alive():
             self._thread.join()
+        self._monitor.close()
         self._socket.close()
 
 

@@ -13,6 +13,7 @@ import os
 import time
 
 from sasprobe import __version__
+from sasprobe.daemon.access import path_below
 from sasprobe.daemon.haptics import build_engine, validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.errors import UserError
@@ -89,15 +90,17 @@ class RequestHandlers:
 
     # ------------------------------------------------------------------ changing
     def load(self, request):
-        from sasprobe.molecule import load_structure, parse_structure
+        from sasprobe.molecule.structure import MAX_FILE_BYTES, read_regular_file, structure_name
 
         d = self.daemon
         keep_water = request.args.get("keep_water", False)
         if request.data is not None:
             name = request.args.get("name") or "uploaded"
-            structure = parse_structure(request.data, name=name, source=f"control:{name}", keep_water=keep_water)
+            data, source = request.data, f"control:{name}"
         else:
-            structure = load_structure(request.args["path"], keep_water=keep_water)
+            path = path_below(d.config.load_dir, request.args["path"], "--load-dir", "load")
+            data, name, source = read_regular_file(path, MAX_FILE_BYTES), structure_name(path.name), str(path)
+        structure = d.structure_worker.parse(data, name, source, keep_water)  # another process: never the GIL
         engine = build_engine(structure, d.limits, d.settings)  # off the loop: grids take time
         seq = d.submit(lambda seq: d.swap_structure(structure, keep_water, engine, seq))
         log.warning("loaded %s (%d atoms) at tick %d", structure.source, structure.n_atoms, seq)
@@ -117,7 +120,8 @@ class RequestHandlers:
         d = self.daemon
         if d.recorder is not None:
             raise UserError(f"already recording to {d.recorder.path}")
-        recorder = d.new_recorder(request.args["path"])
+        recorder = d.new_recorder(path_below(d.config.record_dir, request.args["path"], "--record-dir",
+                                             "record_start"))
         engine = build_engine(d.structure, d.limits, d.settings)  # the replay starts from this
         try:
             seq = d.submit(lambda seq: d.attach_recorder(recorder, seq, engine))

@@ -32,7 +32,8 @@ import numpy as np
 
 from sasprobe import __version__
 from sasprobe.daemon import events
-from sasprobe.daemon.config import DaemonConfig, check_bind_security
+from sasprobe.daemon.access import check_folder
+from sasprobe.daemon.config import DaemonConfig, check_bind_security, socket_keys
 from sasprobe.daemon.control import ControlServer
 from sasprobe.daemon.faults import FaultLog, Reconnector, TimingLog
 from sasprobe.daemon.haptics import HapticPipeline, SafetyGuard, build_engine, validate_settings
@@ -42,6 +43,7 @@ from sasprobe.daemon.recording.replay import REPLAY_SCHEME, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
 from sasprobe.daemon.requests import RequestHandlers
 from sasprobe.daemon.scene import scene_message
+from sasprobe.daemon.structure_worker import StructureWorker
 from sasprobe.daemon.watchdog import StallWatchdog
 from sasprobe.devices.base import DeviceFault
 from sasprobe.devices.registry import register_scheme
@@ -63,6 +65,8 @@ class Daemon:
     def __init__(self, config: DaemonConfig) -> None:
         self.config = config
         check_bind_security(config.pub + config.ctl, config.keys)
+        config.load_dir = check_folder(config.load_dir, "--load-dir")
+        config.record_dir = check_folder(config.record_dir, "--record-dir")
         if config.record and Path(config.record).exists():
             raise UserError(f"{config.record}: already exists; record to a new file")
         self._open_device_and_engine()
@@ -72,6 +76,7 @@ class Daemon:
         self.nav_cube_enabled = True
         self.recorder: Recorder | None = None
         self.requests = RequestHandlers(self)
+        self.structure_worker = StructureWorker()  # `load` parses there, started on first use
         self.last_force_written = np.zeros(3)
         self.write_failures = 0
         self.started_ns = time.monotonic_ns()
@@ -135,14 +140,19 @@ class Daemon:
     def _open_network(self) -> None:
         import zmq
 
-        from sasprobe.protocol.security import load_server_keys, start_authenticator
+        from sasprobe.daemon.monitor import raise_fd_limit
 
-        keys = load_server_keys(Path(self.config.keys)) if self.config.keys else None
-        self.context = zmq.Context()  # its I/O thread inherits the loop's scheduling (--realtime)
+        from sasprobe.protocol.security import start_authenticator
+
+        raise_fd_limit()
+        pub_keys = socket_keys(self.config.pub, self.config.keys)
+        ctl_keys = socket_keys(self.config.ctl, self.config.keys)
+        self.context = zmq.Context()  # its I/O thread inherits the loop's scheduling (real-time by default)
+        keys = pub_keys or ctl_keys
         self.auth = start_authenticator(self.context, keys) if keys else None
         try:
-            self.publisher = Publisher(self.context, self.config.pub, keys)
-            self.control = ControlServer(self.context, self.config.ctl, self.requests.handle, keys)
+            self.publisher = Publisher(self.context, self.config.pub, pub_keys)
+            self.control = ControlServer(self.context, self.config.ctl, self.requests.handle, ctl_keys)
         except zmq.ZMQError as exc:
             endpoints = " / ".join(self.config.pub + self.config.ctl)
             raise UserError(f"cannot bind {endpoints}: {exc}") from None
@@ -184,6 +194,7 @@ class Daemon:
         device_last = self.device.last_force_n  # what the device itself holds (None: it cannot tell)
         publisher_stats = {"poses_sent": self.publisher.poses_sent, "subscribers": self.publisher.subscribers}
         self._close_network()
+        self.structure_worker.close()
         recording = None
         if self.recorder is not None:
             recorder, self.recorder = self.recorder, None
@@ -300,7 +311,7 @@ class Daemon:
             publisher.publish_pose(encode_pose(pose))
             if self.recorder is not None:
                 self.recorder.offer_tick(now, tick.seq, state, error, late_periods, read_ns, pose)
-            if publisher.poll_subscriptions() or now >= self._next_scene_ns:
+            if publisher.poll_subscriptions(now) or now >= self._next_scene_ns:
                 self._publish_scene(now)
             loop.stats.record_work(clock() - tick.start_ns)
             if stop_at_ns is not None and now >= stop_at_ns:
@@ -405,7 +416,7 @@ class Daemon:
             recorder.offer_json("control", time.monotonic_ns(), {"seq": seq, "cmd": "record_stop", "args": {}})
         return recorder
 
-    def new_recorder(self, path: str) -> Recorder:
+    def new_recorder(self, path: str | Path) -> Recorder:
         return Recorder(path, self._recording_metadata())
 
     def _recording_metadata(self) -> dict:

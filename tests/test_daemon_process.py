@@ -28,7 +28,7 @@ from tests.test_protocol_pose import reference_decode
 
 @pytest.fixture(scope="module")
 def daemon():
-    with DaemonProcess() as d:
+    with DaemonProcess("--record-dir", ".") as d:  # its private working folder
         yield d
         rc, report = d.stop()
         assert rc == 0, d.stderr
@@ -219,14 +219,14 @@ def fetch_raw_default() -> bytes:
     return load_default().source_bytes
 
 
-def test_recording_started_mid_session_replays_exactly(daemon, tmp_path):
-    path = tmp_path / "mid.mcap"
+def test_recording_started_mid_session_replays_exactly(daemon):
+    path = daemon.sockets / "mid.mcap"
     with ControlClient(daemon.ctl) as client:
         with pytest.raises(ControlError, match="not recording"):
             client.record_stop()
-        started = client.record_start(path)
+        started = client.record_start("mid.mcap")  # below its --record-dir
         with pytest.raises(ControlError, match="already recording"):
-            client.record_start(tmp_path / "second.mcap")
+            client.record_start("second.mcap")
         time.sleep(0.6)
         client.set(damping_n_s_per_m=0.3, method="penalty")
         time.sleep(0.6)

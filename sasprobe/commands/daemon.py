@@ -52,6 +52,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"control endpoint, repeatable (default {DEFAULT_CTL_ENDPOINT})")
     p.add_argument("--keys", metavar="DIR", help="CURVE keys from `sasprobe keys DIR` (required beyond loopback)")
     p.add_argument("--record", metavar="FILE", help="record the session to this MCAP file")
+    p.add_argument("--record-dir", metavar="DIR",
+                   help="let the control command record_start create recordings below this folder (default: refused)")
+    p.add_argument("--load-dir", metavar="DIR",
+                   help="let the control command load read structure files below this folder (default: bytes only)")
     p.add_argument("--probe-radius", type=probe_radius, default=None,
                    help=f"probe radius in Å (default {defaults.probe_radius_A:g})")
     p.add_argument("--method", choices=HAPTIC_METHODS, default=None,
@@ -104,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
         pub=args.pub or [DEFAULT_PUB_ENDPOINT],
         ctl=args.ctl or [DEFAULT_CTL_ENDPOINT],
         record=args.record,
+        record_dir=args.record_dir,
+        load_dir=args.load_dir,
         keys=args.keys,
         settings=settings,
         speed=args.speed,
