@@ -1,9 +1,10 @@
 """The daemon's answers to control requests; they run on the control thread.
 
 One method per command of the protocol (protocol/control.py COMMANDS). A request
-that changes state does the slow part here (parsing a structure, building an engine,
-checking settings) and hands the loop a closure through `Daemon.submit`, so the loop
-only ever swaps finished objects in.
+that changes state does the slow part away from the loop (parsing a structure and
+building an engine happen in the daemon's worker process, daemon/structure_worker.py;
+settings are checked here) and hands the loop a closure through `Daemon.submit`, so the
+loop only ever swaps finished objects in.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import time
 
 from sasprobe import __version__
 from sasprobe.daemon.access import path_below
-from sasprobe.daemon.haptics import build_engine, validate_settings
+from sasprobe.daemon.haptics import validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.errors import UserError
 from sasprobe.protocol.control import COMMANDS, Reply, Request
@@ -100,8 +101,7 @@ class RequestHandlers:
         else:
             path = path_below(d.config.load_dir, request.args["path"], "--load-dir", "load")
             data, name, source = read_regular_file(path, MAX_FILE_BYTES), structure_name(path.name), str(path)
-        structure = d.structure_worker.parse(data, name, source, keep_water)  # another process: never the GIL
-        engine = build_engine(structure, d.limits, d.settings)  # off the loop: grids take time
+        structure, engine = d.structure_worker.build(data, name, source, keep_water, d.limits, d.settings)
         seq = d.submit(lambda seq: d.swap_structure(structure, keep_water, engine, seq))
         log.warning("loaded %s (%d atoms) at tick %d", structure.source, structure.n_atoms, seq)
         return {"structure": {"name": structure.name, "sha256": structure.sha256, "n_atoms": structure.n_atoms},
@@ -112,7 +112,7 @@ class RequestHandlers:
         haptic, scene_only = split_changes(dict(request.args))
         settings = validate_settings({**d.settings, **haptic}, d.limits) if haptic else d.settings
         lights = merge_lights(d.lights, scene_only["lights"]) if "lights" in scene_only else None
-        engine = build_engine(d.structure, d.limits, settings) if needs_rebuild(haptic) else None
+        engine = self._engine(settings) if needs_rebuild(haptic) else None
         seq = d.submit(lambda seq: d.apply_settings(haptic, scene_only, settings, lights, engine, seq))
         return {"seq": seq, "settings": settings, "revision": d.scene_revision}, None
 
@@ -122,13 +122,20 @@ class RequestHandlers:
             raise UserError(f"already recording to {d.recorder.path}")
         recorder = d.new_recorder(path_below(d.config.record_dir, request.args["path"], "--record-dir",
                                              "record_start"))
-        engine = build_engine(d.structure, d.limits, d.settings)  # the replay starts from this
+        engine = self._engine(d.settings)  # the replay starts from this
         try:
             seq = d.submit(lambda seq: d.attach_recorder(recorder, seq, engine))
         except UserError:
             recorder.close()
             raise
         return {"path": str(recorder.path), "seq": seq}, None
+
+    def _engine(self, settings: dict):
+        """A new engine for the current structure, built in the worker process."""
+        d = self.daemon
+        s = d.structure
+        return d.structure_worker.build(s.source_bytes, s.name, s.source, d.structure_keep_water, d.limits,
+                                        settings)[1]
 
     def record_stop(self, request):
         recorder = self.daemon.submit(self.daemon.detach_recorder)

@@ -46,6 +46,7 @@ class RenderOptions:
     probe_light_range: float = DEFAULT_PROBE_RANGE
     snapshot: Path | None = None  # also write the last frame as a PNG (headless)
     report: Path | None = None  # write frame and pose counts as JSON at the end
+    keys: Path | None = None  # with connect: CURVE client keys from `sasprobe keys DIR` (a keyed daemon)
 
     def effects(self):
         """The scene's switches: the options' FXAA, probe plane and initial lighting."""
@@ -100,7 +101,12 @@ def open_source(opts: RenderOptions) -> RenderSource:
         return StaticSource(load_structure_or_default(opts.molecule, keep_water=opts.keep_water))
     from sasprobe.render.link import DaemonLink
 
-    return DaemonLink(opts.connect or None, opts.control, keep_water=opts.keep_water)
+    keys = None
+    if opts.keys is not None:
+        from sasprobe.protocol.security import load_client_keys
+
+        keys = load_client_keys(opts.keys)
+    return DaemonLink(opts.connect or None, opts.control, keep_water=opts.keep_water, keys=keys)
 
 
 def render_main(opts: RenderOptions) -> int:

@@ -13,10 +13,10 @@ class ForceMonitor:
     """Every pose the daemon publishes (as a renderer sees them): force magnitudes,
     contacts, touched atoms. Polled without blocking from the demo's main loop."""
 
-    def __init__(self, endpoint: str) -> None:
+    def __init__(self, endpoint: str, keys=None) -> None:
         from sasprobe.protocol.client import Subscriber
 
-        self.subscriber = Subscriber(endpoint)
+        self.subscriber = Subscriber(endpoint, keys=keys)
         self.force_n = array("f")
         self.contact_ticks = 0
         self.clamped_ticks = 0

@@ -72,13 +72,16 @@ def _measure(d: _Daemon, warmup_s: float, seconds: float, realtime_subscriber: b
     from sasprobe.daemon.loop import enter_realtime
     from sasprobe.protocol.client import ControlClient
     from sasprobe.protocol.pose import decode_pose
+    from sasprobe.protocol.security import local_client_keys, make_curve_client
 
     # The daemon is already running, so it does not inherit this; the context's I/O thread does.
     subscriber_rt = enter_realtime(priority=40) if realtime_subscriber else False
     context = zmq.Context()
     socks = {}
+    keys = local_client_keys()  # the publisher binds loopback TCP, so it uses CURVE (ipc:// on it too)
     for name, endpoint in (("tcp", d.tcp), ("ipc", d.ipc)):
         sock = context.socket(zmq.SUB)
+        make_curve_client(sock, keys)
         sock.rcvhwm = 1_000_000
         sock.setsockopt(zmq.SUBSCRIBE, b"pose")
         sock.connect(endpoint)

@@ -42,6 +42,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="do not ask for SCHED_FIFO for the daemon's loop (by default it is asked for, and refused "
                         "gracefully without the privilege)")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
+    p.add_argument("--keys", type=Path, metavar="DIR",
+                   help="CURVE keys from `sasprobe keys DIR` for both processes (the daemon's pair, the renderer's "
+                        "client pair), as a lab with remote renderers runs them")
     p.add_argument("--render-args", metavar="'OPTIONS'",
                    help="extra `sasprobe render` options, e.g. --render-args=--no-fxaa (with the =)")
     p.add_argument("--daemon-args", metavar="'OPTIONS'",
@@ -63,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         record=args.record,
         realtime=not args.no_realtime,
         keep_water=args.keep_water,
+        keys=args.keys,
         render_args=split_extra_args(args.render_args, RESERVED_RENDER, "--render-args"),
         daemon_args=split_extra_args(args.daemon_args, RESERVED_DAEMON, "--daemon-args"),
     )
