@@ -34,6 +34,20 @@ class DaemonConfig:
     loop_stalls: list[tuple[int, float]] = field(default_factory=list)  # test hook: (tick, seconds) the loop sleeps
 
 
+def check_config(config: DaemonConfig) -> DaemonConfig:
+    """What can be checked before anything opens: binds, folders, a new recording file."""
+    from pathlib import Path
+
+    from sasprobe.daemon.access import check_folder
+
+    check_bind_security(config.pub + config.ctl, config.keys)
+    config.load_dir = check_folder(config.load_dir, "--load-dir")
+    config.record_dir = check_folder(config.record_dir, "--record-dir")
+    if config.record and Path(config.record).exists():
+        raise UserError(f"{config.record}: already exists; record to a new file")
+    return config
+
+
 def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:
     """Refuse to expose the daemon beyond this machine without CURVE keys."""
     for text in endpoints:

@@ -50,8 +50,9 @@ REALTIME_FIX = ("allow real-time scheduling: run as root, grant CAP_SYS_NICE (`s
                 "(`@USER - rtprio 60` in /etc/security/limits.conf, then log in again)")
 
 
-class TimingLog:
-    """Tells once that the loop is losing ticks, with the fix; long stalls with their length."""
+class LoopLog:
+    """What the loop says about its ticks: device faults (FaultLog), ticks lost to timing
+    (once, with the fix), long stalls (with their length)."""
 
     def __init__(self, realtime: bool) -> None:
         self.realtime = realtime
@@ -59,6 +60,17 @@ class TimingLog:
         self.warned = False
         self._window: list[tuple[int, int]] = []  # (tick time, lost) within the last window
         self._stalls = FaultLog()
+        self._faults = FaultLog()
+        self._fault_logged = False  # the fault in progress was told (a timing fault is not: lost_ticks tells it)
+
+    def tick(self, now_ns: int, missed: int, timing_only: bool, fault_changed: bool, guard, stall) -> None:
+        """After each tick: `timing_only` when the tick was faulted for lateness alone."""
+        self.lost_ticks(now_ns, missed + (1 if timing_only else 0))
+        if stall is not None:
+            self.stall(stall.length_ns, stall.zeroed_after_ns, now_ns)
+        if fault_changed and (self._fault_logged or not timing_only):
+            self._fault_logged = guard.fault
+            self._faults.note(guard.reason if guard.fault else None, now_ns)
 
     def lost_ticks(self, now_ns: int, count: int) -> None:
         if count <= 0:

@@ -32,13 +32,11 @@ import numpy as np
 
 from sasprobe import __version__
 from sasprobe.daemon import events
-from sasprobe.daemon.access import check_folder
-from sasprobe.daemon.config import DaemonConfig, check_bind_security, socket_keys
-from sasprobe.daemon.control import ControlServer
-from sasprobe.daemon.faults import FaultLog, Reconnector, TimingLog
+from sasprobe.daemon.config import DaemonConfig, check_config
+from sasprobe.daemon.faults import LoopLog, Reconnector
 from sasprobe.daemon.haptics import HapticPipeline, SafetyGuard, build_engine, validate_settings
 from sasprobe.daemon.loop import FixedRateLoop, enter_realtime
-from sasprobe.daemon.publisher import Publisher
+from sasprobe.daemon.network import Network
 from sasprobe.daemon.recording.replay import REPLAY_SCHEME, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
 from sasprobe.daemon.requests import RequestHandlers
@@ -63,12 +61,7 @@ SWITCH_INTERVAL_S = 1e-4  # how long another Python thread may hold the GIL befo
 
 class Daemon:
     def __init__(self, config: DaemonConfig) -> None:
-        self.config = config
-        check_bind_security(config.pub + config.ctl, config.keys)
-        config.load_dir = check_folder(config.load_dir, "--load-dir")
-        config.record_dir = check_folder(config.record_dir, "--record-dir")
-        if config.record and Path(config.record).exists():
-            raise UserError(f"{config.record}: already exists; record to a new file")
+        self.config = check_config(config)
         self._open_device_and_engine()
         self.loop = FixedRateLoop(self.rate_hz, spin_s=config.spin_s)
         self.clip_planes: list[list[float]] = []
@@ -88,17 +81,15 @@ class Daemon:
         self._stop_reason: str | None = None
         self._carry_error: str | None = None  # a failed force write, reported on the next tick
         self._reconnector = Reconnector(self.device)
-        self._fault_log = FaultLog()
-        self._fault_logged = False  # the fault in progress was logged (timing faults are told by TimingLog)
         self.write_lock = threading.Lock()  # the loop's force writes and the watchdog's zeros
         self.watchdog = StallWatchdog(self.device, self.write_lock, self.loop.period_ns,
                                       supervise=self._supervise)
         self._loop_cpu_clock: int | None = None
         self._cpu_at_reset = 0
-        self.control = self.publisher = self.auth = self.context = None
+        self._network = self.control = self.publisher = None
         try:
             self.realtime = enter_realtime() if config.realtime else False
-            self.timing = TimingLog(self.realtime)
+            self.timing = LoopLog(self.realtime)
             self.device.open()
             self._open_network()
             self.rebuild_scene()
@@ -138,36 +129,14 @@ class Daemon:
                                        SafetyGuard(self.limits))
 
     def _open_network(self) -> None:
-        import zmq
-
-        from sasprobe.daemon.monitor import raise_fd_limit
-
-        from sasprobe.protocol.security import start_authenticator
-
-        raise_fd_limit()
-        pub_keys = socket_keys(self.config.pub, self.config.keys)
-        ctl_keys = socket_keys(self.config.ctl, self.config.keys)
-        self.context = zmq.Context()  # its I/O thread inherits the loop's scheduling (real-time by default)
-        keys = pub_keys or ctl_keys
-        self.auth = start_authenticator(self.context, keys) if keys else None
-        try:
-            self.publisher = Publisher(self.context, self.config.pub, pub_keys)
-            self.control = ControlServer(self.context, self.config.ctl, self.requests.handle, ctl_keys)
-        except zmq.ZMQError as exc:
-            endpoints = " / ".join(self.config.pub + self.config.ctl)
-            raise UserError(f"cannot bind {endpoints}: {exc}") from None
+        self._network = Network(self.config, self.requests.handle)
+        self.publisher, self.control = self._network.publisher, self._network.control
 
     def _close_network(self) -> None:
-        """Stop the control thread, close the sockets and the authenticator (safe to repeat)."""
-        if self.control is not None:
-            self.control.stop()
-        if self.publisher is not None:
-            self.publisher.close()
-        if self.auth is not None:
-            self.auth.stop()
-        if self.context is not None:
-            self.context.term()
-        self.control = self.publisher = self.auth = self.context = None
+        """Stop serving (safe to repeat)."""
+        if self._network is not None:
+            self._network.close()
+        self._network = self.control = self.publisher = None
 
     def _close_device(self) -> None:
         """Zero force and close the device; a failing device is logged, never raised."""
@@ -293,14 +262,9 @@ class Daemon:
                 except Exception as exc:
                     self.write_failures += 1
                     self._carry_error = f"force write failed: {exc}"
-                stall = watchdog.heartbeat(clock())
-            timing_only = error is None and late_periods > pipeline.guard.late_limit_periods
-            self.timing.lost_ticks(tick.start_ns, tick.missed + (1 if timing_only else 0))
-            if stall is not None:
-                self.timing.stall(stall.length_ns, stall.zeroed_after_ns, tick.start_ns)
-            if result.guard.fault != was_faulted and (self._fault_logged or not timing_only):
-                self._fault_logged = result.guard.fault
-                self._fault_log.note(result.guard.reason if result.guard.fault else None, tick.start_ns)
+                stall = watchdog.heartbeat(clock())  # under the lock: the watchdog never zeroes this write
+            self.timing.tick(tick.start_ns, tick.missed, error is None and late_periods > pipeline.guard.late_limit_periods,
+                             result.guard.fault != was_faulted, result.guard, stall)
             if error is None or state is not None:
                 self._reconnector.answered()
             elif self._reconnector.failed(tick.start_ns):

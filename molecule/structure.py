@@ -19,9 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import os
 import re
-import stat
 import zlib
 from dataclasses import dataclass, field
 from importlib import resources
@@ -31,6 +29,7 @@ import gemmi
 import numpy as np
 
 from sasprobe.errors import UserError
+from sasprobe.files import read_regular
 from sasprobe.molecule.backbone import trace_segments
 from sasprobe.molecule.elements import FALLBACK_RADIUS, colors_for, has_bondi_radius, radii_for
 from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
@@ -105,42 +104,9 @@ def load_structure(path: str | Path, keep_water: bool = False) -> Structure:
                            keep_water=keep_water)
 
 
-_NOT_REGULAR = {stat.S_IFDIR: "a directory", stat.S_IFIFO: "a FIFO", stat.S_IFCHR: "a character device",
-                stat.S_IFBLK: "a block device", stat.S_IFSOCK: "a socket"}
-
-
-def read_regular_file(path: str | Path, limit: int, what: str = "structure file") -> bytes:
-    """The bytes of a regular file of at most `limit` bytes; StructureError in one line otherwise.
-
-    Opened non-blocking and checked on the open descriptor, so a FIFO never blocks the
-    reader and nothing can be swapped in between the check and the read."""
-    label = str(path)
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC)
-    except FileNotFoundError:
-        raise StructureError(f"{label}: no such file") from None
-    except OSError as exc:
-        raise StructureError(f"{label}: cannot read ({exc.strerror or exc})") from None
-    try:
-        info = os.fstat(fd)
-        kind = stat.S_IFMT(info.st_mode)
-        if kind != stat.S_IFREG:
-            raise StructureError(f"{label}: is {_NOT_REGULAR.get(kind, 'not a regular file')}, not a {what}")
-        if info.st_size > limit:
-            raise StructureError(f"{label}: {info.st_size} bytes is larger than the {limit >> 20} MiB a {what} "
-                                 f"may have")
-        os.set_blocking(fd, True)
-        with os.fdopen(fd, "rb", closefd=True) as handle:
-            fd = -1
-            data = handle.read(limit + 1)
-    except OSError as exc:
-        raise StructureError(f"{label}: cannot read ({exc.strerror or exc})") from None
-    finally:
-        if fd >= 0:
-            os.close(fd)
-    if len(data) > limit:
-        raise StructureError(f"{label}: larger than the {limit >> 20} MiB a {what} may have")
-    return data
+def read_regular_file(path: str | Path, limit: int) -> bytes:
+    """A structure file's bytes: a regular file of at most `limit` bytes, else StructureError."""
+    return read_regular(path, limit, "structure file", StructureError)
 
 
 def load_default(keep_water: bool = False) -> Structure:

@@ -153,8 +153,11 @@ def local_client_keys() -> ClientKeys | None:
 def _load(path: Path, need_secret: bool) -> tuple[bytes, bytes | None]:
     import zmq.auth
 
-    if not path.is_file():
+    from sasprobe.files import open_regular
+
+    if not path.exists():
         raise KeyFileError(f"{path}: no such key file (create keys with `sasprobe keys DIR`)")
+    open_regular(path, "key file", KeyFileError).close()  # a FIFO or device would block zmq's reader
     try:
         public, secret = zmq.auth.load_certificate(str(path))
     except (OSError, ValueError) as exc:

@@ -1,0 +1,50 @@
+"""The daemon's sockets: one ZeroMQ context, the CURVE authenticator, the publisher and the
+control server, opened together and closed in the one order that cannot hang.
+
+Each socket uses CURVE when it binds TCP (the given --keys, else this user's local keys;
+daemon/config.py `socket_keys`); ipc:// alone is guarded by the socket file's mode.
+"""
+
+from __future__ import annotations
+
+import zmq
+
+from sasprobe.daemon.config import DaemonConfig, socket_keys
+from sasprobe.daemon.control import ControlServer
+from sasprobe.daemon.monitor import raise_fd_limit
+from sasprobe.daemon.publisher import Publisher
+from sasprobe.errors import UserError
+from sasprobe.protocol.security import start_authenticator
+
+
+class Network:
+    def __init__(self, config: DaemonConfig, handler) -> None:
+        raise_fd_limit()
+        pub_keys = socket_keys(config.pub, config.keys)
+        ctl_keys = socket_keys(config.ctl, config.keys)
+        self.context = zmq.Context()  # its I/O thread inherits the loop's scheduling (real-time by default)
+        keys = pub_keys or ctl_keys
+        self.auth = start_authenticator(self.context, keys) if keys else None
+        self.publisher: Publisher | None = None
+        self.control: ControlServer | None = None
+        try:
+            self.publisher = Publisher(self.context, config.pub, pub_keys)
+            self.control = ControlServer(self.context, config.ctl, handler, ctl_keys)
+        except zmq.ZMQError as exc:
+            self.close()
+            raise UserError(f"cannot bind {' / '.join(config.pub + config.ctl)}: {exc}") from None
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        """Stop the control thread, close the sockets, the authenticator, the context (safe to repeat)."""
+        if self.control is not None:
+            self.control.stop()
+        if self.publisher is not None:
+            self.publisher.close()
+        if self.auth is not None:
+            self.auth.stop()
+        if self.context is not None:
+            self.context.term()
+        self.control = self.publisher = self.auth = self.context = None
