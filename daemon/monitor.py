@@ -3,8 +3,9 @@
 Each server socket (publisher, control) has a ZeroMQ socket monitor, drained without
 blocking by the thread that owns the socket, a bounded number of events per call:
 
-- peers are counted from completed handshakes and disconnections (by file descriptor),
-  so no message a client sends can forge the count;
+- peers are counted from accepted and closed connections (by file descriptor), so no
+  message a client sends can forge the count (a connection that fails its handshake
+  counts until it is dropped, within HANDSHAKE_IVL_MS);
 - failed handshakes are logged, at most one line per kind every LOG_INTERVAL_S, saying
   what the client got wrong (refused keys are logged by the allow-list itself);
 - when accept() fails for lack of file descriptors, libzmq's I/O thread would retry it
@@ -27,7 +28,7 @@ from sasprobe.protocol.endpoints import private_umask
 
 log = logging.getLogger("sasprobe")
 
-EVENTS = (zmq.EVENT_HANDSHAKE_SUCCEEDED | zmq.EVENT_DISCONNECTED | zmq.EVENT_ACCEPT_FAILED
+EVENTS = (zmq.EVENT_ACCEPTED | zmq.EVENT_DISCONNECTED | zmq.EVENT_ACCEPT_FAILED
           | zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL | zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL)
 HANDSHAKE_IVL_MS = 2000  # a connection that has not finished its handshake by then is dropped
 MAX_EVENTS_PER_DRAIN = 16  # bounded work for the loop thread even while events flood in
@@ -76,7 +77,7 @@ class SocketMonitor:
             self._event(int(message["event"]), int(message["value"]))
 
     def _event(self, event: int, value: int) -> None:
-        if event == zmq.EVENT_HANDSHAKE_SUCCEEDED:
+        if event == zmq.EVENT_ACCEPTED:  # the value is the connection's fd (not so for a handshake)
             self._peers.add(value)
         elif event == zmq.EVENT_DISCONNECTED:
             self._peers.discard(value)

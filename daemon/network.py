@@ -7,6 +7,8 @@ daemon/config.py `socket_keys`); ipc:// alone is guarded by the socket file's mo
 
 from __future__ import annotations
 
+import os
+
 import zmq
 
 from sasprobe.daemon.config import DaemonConfig, socket_keys
@@ -22,7 +24,11 @@ class Network:
         raise_fd_limit()
         pub_keys = socket_keys(config.pub, config.keys)
         ctl_keys = socket_keys(config.ctl, config.keys)
-        self.context = zmq.Context()  # its I/O thread inherits the loop's scheduling (real-time by default)
+        self.context = zmq.Context()
+        # ZeroMQ's I/O thread works for clients (a 256 MiB upload is memcpy'd there): ordinary
+        # scheduling, so it never competes with the real-time loop (it would inherit its priority).
+        self.context.set(zmq.THREAD_SCHED_POLICY, os.SCHED_OTHER)
+        self.context.set(zmq.THREAD_PRIORITY, 0)
         keys = pub_keys or ctl_keys
         self.auth = start_authenticator(self.context, keys) if keys else None
         self.publisher: Publisher | None = None

@@ -72,7 +72,7 @@ class Publisher:
 
     @property
     def subscribers(self) -> int:
-        """Peers connected to the publisher (a finished handshake each)."""
+        """Connections open to the publisher (each a subscriber, or a client being refused)."""
         return self._monitor.peers
 
     def _send(self, topic: bytes, payload: bytes) -> bool:
