@@ -16,6 +16,8 @@ recorded control command.
 
 from __future__ import annotations
 
+import os
+
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,6 +27,7 @@ from sasprobe.daemon.haptics import HapticPipeline, build_engine, validate_setti
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState, HapticDevice
 from sasprobe.devices.registry import DeviceScheme
+from sasprobe.files import open_regular
 from sasprobe.protocol.recording import RecordingError, iter_items, scan
 
 
@@ -243,8 +246,9 @@ class ReplayDevice(HapticDevice):
 def open_replay(argument: str | None, speed: float | None = 1.0, **options) -> ReplayDevice:
     if not argument:
         raise DeviceOpenError("replay needs a file: --device replay:FILE")
-    if not Path(argument).is_file():
+    if not os.path.lexists(argument):
         raise DeviceOpenError(f"replay file {argument}: no such file")
+    open_regular(argument, "recording", DeviceOpenError).close()  # a FIFO or a device: one line, no hang
     return ReplayDevice(argument, speed=speed)
 
 
