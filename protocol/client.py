@@ -50,6 +50,7 @@ class Subscriber:
         context: zmq.Context | None = None,
         rcvhwm: int = 10000,
     ) -> None:
+        local = keys is None
         keys = keys_for(endpoint, keys)
         self.endpoint = endpoint
         self._context = context or zmq.Context.instance()
@@ -58,7 +59,7 @@ class Subscriber:
         self._socket.rcvhwm = rcvhwm
         if keys is not None:
             make_curve_client(self._socket, keys)
-        self.watch = ConnectionWatch(self._socket, endpoint, keys is not None)
+        self.watch = ConnectionWatch(self._socket, endpoint, keys is not None, local and keys is not None)
         self._socket.setsockopt(zmq.SUBSCRIBE, POSE_TOPIC)
         self._socket.setsockopt(zmq.SUBSCRIBE, SCENE_TOPIC)
         self._socket.connect(endpoint)
@@ -141,6 +142,7 @@ class ControlClient:
         timeout_s: float = 3.0,
         context: zmq.Context | None = None,
     ) -> None:
+        self._local_keys = keys is None  # None asks for this user's local keys where they apply
         self._keys = keys_for(endpoint, keys)
         self.endpoint = endpoint
         self.timeout_s = timeout_s
@@ -155,7 +157,8 @@ class ControlClient:
             sock.linger = 0
             if self._keys is not None:
                 make_curve_client(sock, self._keys)
-            self._watch = ConnectionWatch(sock, self.endpoint, self._keys is not None)
+            self._watch = ConnectionWatch(sock, self.endpoint, self._keys is not None,
+                                          self._local_keys and self._keys is not None)
             sock.connect(self.endpoint)
             self._socket = sock
         return self._socket

@@ -21,9 +21,10 @@ _MECHANISM_MISMATCH = 0x11000002  # ZMQ_PROTOCOL_ERROR_ZMTP_MECHANISM_MISMATCH
 
 
 class ConnectionWatch:
-    def __init__(self, socket: zmq.Socket, endpoint: str, with_keys: bool) -> None:
+    def __init__(self, socket: zmq.Socket, endpoint: str, with_keys: bool, local_keys: bool = False) -> None:
         self.endpoint = endpoint
         self.with_keys = with_keys
+        self.local_keys = local_keys  # the keys are this user's local ones (no --keys was given)
         self._socket = socket
         self._monitor = socket.get_monitor_socket(_EVENTS)
         self._seen: dict[int, int] = {}  # event -> its last value
@@ -44,9 +45,10 @@ class ConnectionWatch:
         """Why nothing came: the worst thing the connection saw, in a few words."""
         self._drain()
         seen, where = self._seen, self.endpoint
+        hint = " (it was started with --keys DIR: give the same --keys DIR)" if self.local_keys else ""
         if zmq.EVENT_HANDSHAKE_FAILED_AUTH in seen:
             return (f"the daemon at {where} refused this client's CURVE key (its public key is not in the "
-                    f"daemon's allowed_clients/; a daemon of another user?)")
+                    f"daemon's allowed_clients/){hint or '; a daemon of another user?'}")
         if seen.get(zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL) == _MECHANISM_MISMATCH:
             if self.with_keys:
                 return f"the daemon at {where} does not use CURVE keys (connect without --keys)"
@@ -54,7 +56,7 @@ class ConnectionWatch:
                     f"client key (a loopback daemon of another user cannot be used)")
         if zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL in seen or zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL in seen:
             return (f"the CURVE handshake with {where} failed: the server.key this client has is not that "
-                    f"daemon's")
+                    f"daemon's{hint}")
         if zmq.EVENT_HANDSHAKE_SUCCEEDED in seen:
             return f"connected to {where}, but the daemon did not answer in time (busy or stuck?)"
         if zmq.EVENT_CONNECTED in seen:
