@@ -20,7 +20,7 @@ from typing import Callable
 import zmq
 
 from sasprobe.daemon.loop import helper_priority
-from sasprobe.daemon.monitor import AcceptPause, SocketMonitor
+from sasprobe.daemon.monitor import SocketMonitor
 from sasprobe.errors import UserError
 from sasprobe.protocol.control import (
     MAX_MESSAGE_BYTES,
@@ -52,7 +52,6 @@ class ControlServer:
         except BaseException:
             self._monitor.close()
             raise
-        self._pause = AcceptPause(self._socket, self.endpoints)
         self.requests = 0
         self.errors = 0
         self.restarts = 0  # threads started again after one ended
@@ -81,7 +80,6 @@ class ControlServer:
         poller.register(self._socket, zmq.POLLIN)
         while not self._stop.is_set():
             self._monitor.drain()
-            self._pause.service(self._monitor)
             if not poller.poll(POLL_MS):
                 continue
             try:

@@ -22,7 +22,7 @@ import time
 
 import zmq
 
-from sasprobe.daemon.monitor import AcceptPause, SocketMonitor
+from sasprobe.daemon.monitor import SocketMonitor
 from sasprobe.errors import UserError
 from sasprobe.protocol.pose import POSE_TOPIC
 from sasprobe.protocol.scene import SCENE_TOPIC
@@ -67,7 +67,6 @@ class Publisher:
         except BaseException:
             self._monitor.close()
             raise
-        self._pause = AcceptPause(sock, bound)
         return sock, bound
 
     @property
@@ -102,7 +101,6 @@ class Publisher:
             self._renew(now_ns)
             return False
         self._monitor.drain()
-        self._pause.service(self._monitor)
         for _ in range(SUBSCRIPTION_HWM):
             if not self._socket.getsockopt(zmq.EVENTS) & zmq.POLLIN:
                 break
