@@ -33,7 +33,7 @@ from typing import Callable
 log = logging.getLogger("sasprobe")
 
 STALL_PERIODS = 3  # no completed tick for this long is a stall (3 ms at 1 kHz; the guard's late limit)
-REZERO_PERIODS = 10  # while stalled, zero is written again this often
+REZERO_PERIODS = 3  # while stalled, zero is written again this often (a Falcon takes a frame once its oldest is 5 ms old)
 SUPERVISE_S = 0.5  # how often the control thread is checked
 WATCHDOG_PRIORITY_ABOVE_LOOP = 1
 
