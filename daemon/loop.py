@@ -20,7 +20,7 @@ import numpy as np
 log = logging.getLogger("sasprobe")
 
 DEFAULT_RATE_HZ = 1000.0  # the control rate haptics needs (1 kHz)
-REALTIME_PRIORITY = 50  # SCHED_FIFO priority with --realtime (1-99)
+REALTIME_PRIORITY = 50  # SCHED_FIFO priority of the loop (1-99), asked for unless --no-realtime
 HIST_BIN_NS = 1_000  # period-error histogram: 1 µs bins ...
 HIST_BINS = 100_000  # ... up to 100 ms (larger errors land in the last bin)
 RECENT_TICKS = 1024  # the window `sasprobe status` shows (about a second at 1 kHz)

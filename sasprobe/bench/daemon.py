@@ -140,7 +140,7 @@ def _measure(d: _Daemon, warmup_s: float, seconds: float, realtime_subscriber: b
 
 def run(ctx: BenchContext, args=None) -> BenchResult:
     seconds = getattr(args, "seconds", None) or (3.0 if ctx.quick else 10.0)
-    # (daemon --realtime, subscriber in SCHED_FIFO): where the time goes on a busy machine
+    # (daemon real-time, subscriber in SCHED_FIFO): where the time goes on a busy machine
     modes = [(False, False)] if getattr(args, "no_realtime", False) else [(False, False), (True, False), (True, True)]
     by_id = {e.id: e for e in shared_structures()}
     structures = [("1crn (embedded)", None)]
