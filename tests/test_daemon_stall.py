@@ -67,19 +67,21 @@ def test_a_stalled_loop_has_its_force_zeroed_within_the_bound(tmp_path, monkeypa
 
 
 def _stall_in(commands: list) -> tuple:
-    """(the loop's last command, the first after it) around the longest stretch of sparse commands:
-    the loop writes one a millisecond, the watchdog one every REZERO_PERIODS while it is stalled."""
-    times = np.array([t for t, _ in commands])
-    gaps = np.diff(times)
-    best, best_span = None, 0
-    for start in np.flatnonzero(gaps > 2.5e6):
-        end = start
-        while end < len(gaps) and gaps[end] > 2.5e6:
-            end += 1
-        if times[end] - times[start] > best_span:
-            best, best_span = start, times[end] - times[start]
-    assert best is not None and best_span > 0.2e9, "no stall in the commands the arm received"
-    return commands[best], commands[best + 1]
+    """(the loop's last command, the first after it) around the stall: the longest-lasting run of
+    zero-current commands that came sparsely (the loop sends one a millisecond, the watchdog one
+    every REZERO_PERIODS; the zeros before calibration come at the loop's pace)."""
+    runs, start = [], None
+    for i, (_, line) in enumerate(commands + [(0, b"end")]):
+        if line == b"[0,0,0]" and start is None:
+            start = i
+        elif line != b"[0,0,0]" and start is not None:
+            runs.append((start, i - 1))
+            start = None
+    sparse = [(a, b) for a, b in runs if b - a >= 10 and commands[b][0] - commands[a][0] > 0.2e9
+              and (commands[b][0] - commands[a][0]) / (b - a) > 2e6]
+    assert sparse and sparse[0][0] > 0, "no stall in the commands the arm received"
+    first = sparse[0][0]
+    return commands[first - 1], commands[first]
 
 
 class LoggedWoodenHaptics(WoodenHapticsEmulator):
