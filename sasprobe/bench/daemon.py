@@ -6,8 +6,8 @@ warm-up the daemon's statistics are reset; for the measured window this process
 subscribes on both endpoints from one thread (timestamping each message as it is
 received) and at the end asks the daemon for its loop figures (`status`).
 Publish→receive latency compares the pose's publish_t_ns with the receive time on the
-same host's monotonic clock. Then the worst pose gap while a client loads 6ZU5
-(sasprobe/bench/daemon_loading.py).
+same host's monotonic clock. Then one row per emulated device (`daemon_devices`), and
+the worst pose gap while a client loads 6ZU5 (`daemon_loading`).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sasprobe.bench import BenchContext, BenchResult
+from sasprobe.bench import BenchContext, BenchResult, daemon_devices
 from sasprobe.bench.charts import figure, save
 from sasprobe.children import DaemonChild
 from sasprobe.paths import shared_structures
@@ -35,7 +35,9 @@ TARGETS = "1000 Hz, p99 period error ≤ 200 µs, no overrun in 10 s with ~60k a
 
 def add_arguments(parser) -> None:
     parser.add_argument("--seconds", type=float, default=None, help="measured window per run (default 10, quick 3)")
-    parser.add_argument("--no-realtime", action="store_true", help="skip the real-time (SCHED_FIFO, the default) runs: only --no-realtime daemons")
+    parser.add_argument("--no-realtime", action="store_true",
+                        help="skip the real-time (SCHED_FIFO, the default) runs: only --no-realtime daemons")
+    parser.add_argument("--no-devices", action="store_true", help="skip the rows on the emulated devices")
 
 
 def _free_port() -> int:
@@ -180,6 +182,9 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
         for name in ("tcp", "ipc"):
             r[name].pop("samples_us")
     data, text = {"targets": TARGETS, "runs": runs}, _markdown(runs, seconds)
+    if not getattr(args, "no_devices", False):
+        data["devices"] = daemon_devices.measure(ctx.quick, seconds)
+        text += "\n\n" + daemon_devices.markdown(data["devices"])
     if "6zu5" in by_id:  # the worst pose gap under a loading client
         from sasprobe.bench.daemon_loading import loading_gap, markdown
         from sasprobe.molecule import load_default
