@@ -18,9 +18,9 @@ from sasprobe.devices.registry import SCHEMES, DeviceScheme
 from sasprobe.devices.simulated import SimulatedDevice, make_simulated
 from sasprobe.protocol.client import Subscriber
 from tests.daemon_process import DaemonProcess
-from tests.emulators.physics import MovableHand
+from tests.emulators.pty_serial import Rig
 from tests.emulators.woodenhaptics_serial import WoodenHapticsEmulator
-from tests.test_devices_daemon import exchanges, poses_until, pushing
+from tests.test_devices_daemon import SERIAL_ARM_RATE, poses_until, pushing, wait_for
 
 STALL_TICK, STALL_S = 1500, 0.2  # after the 1 s ramp, while the press script pushes into the molecule
 SLACK_MS = 10.0  # scheduling on a shared machine: the bound is 3 ms; unguarded, the zero came after 200 ms
@@ -66,61 +66,66 @@ def test_a_stalled_loop_has_its_force_zeroed_within_the_bound(tmp_path, monkeypa
           f"stall of {stalls['longest_ms']:.1f} ms reported")
 
 
-def _stall_in(commands: list) -> tuple:
-    """(the loop's last command, the first after it) around the stall: the longest-lasting run of
-    zero-current commands that came sparsely (the loop sends one a millisecond, the watchdog one
-    every REZERO_PERIODS; the zeros before calibration come at the loop's pace)."""
+def _stall_in(commands: list, period_ns: int) -> tuple:
+    """(the loop's last command, the first after it) around the stall: the longest run of
+    zero-current commands that came sparsely (the loop sends one a period, the watchdog one
+    every REZERO_PERIODS; the zeros of a calibrating arm come at the loop's pace)."""
+    zero = (0, 0, 0)
     runs, start = [], None
-    for i, (_, line) in enumerate(commands + [(0, b"end")]):
-        if line == b"[0,0,0]" and start is None:
+    for i, (_, currents) in enumerate(commands + [(0, None)]):
+        if currents == zero and start is None:
             start = i
-        elif line != b"[0,0,0]" and start is not None:
+        elif currents != zero and start is not None:
             runs.append((start, i - 1))
             start = None
-    sparse = [(a, b) for a, b in runs if b - a >= 10 and commands[b][0] - commands[a][0] > 0.2e9
-              and (commands[b][0] - commands[a][0]) / (b - a) > 2e6]
+    sparse = [(a, b) for a, b in runs if b - a >= 5 and commands[b][0] - commands[a][0] > 0.2e9
+              and (commands[b][0] - commands[a][0]) / (b - a) > 1.5 * period_ns]
     assert sparse and sparse[0][0] > 0, "no stall in the commands the arm received"
     first = sparse[0][0]
     return commands[first - 1], commands[first]
 
 
-class LoggedWoodenHaptics(WoodenHapticsEmulator):
-    """The emulated Teensy, noting when each command arrived and the currents it asked for."""
-
-    commands: list = []  # set per instance before the emulator thread starts (class default: the first use)
+class LoggedWoody(WoodenHapticsEmulator):
+    """The emulated board, noting when each accepted command arrived and its currents."""
 
     def __init__(self, *args, **kwargs) -> None:
-        self.commands = []
+        self.commands: list = []
         super().__init__(*args, **kwargs)
 
-    def _command(self, line: bytes) -> None:
-        self.commands.append((time.monotonic_ns(), line))
-        super()._command(line)
+    def loop(self) -> None:
+        accepted = self.accepted
+        super().loop()
+        if self.accepted != accepted:
+            self.commands.append((time.monotonic_ns(), tuple(self.last_command_ma)))
 
 
 def test_the_serial_arm_gets_zero_current_from_the_watchdog_thread(tmp_path):
-    """The real WoodenHaptics driver written from the watchdog thread while the loop sleeps."""
-    hand = MovableHand()
-    emu = LoggedWoodenHaptics(tmp_path, hand=hand)
-    hand.target = tuple(emu.stylus.position)  # at home: the driver calibrates
-    stall_tick = 3000
+    """The real WoodenHaptics driver written from the watchdog thread while the loop sleeps
+    (at the serial arms' test rate, 250 Hz: the bound is 3 periods, 12 ms)."""
+    board = LoggedWoody(tmp_path)
+    rig = Rig(board, f"woodenhaptics:{board.path}")
+    rate_hz, stall_tick = float(SERIAL_ARM_RATE[1]), 1250  # 5 s in: pressing by then
     try:
-        with DaemonProcess("--inject-fault", f"stall@{stall_tick}+300", device=f"woodenhaptics:{emu.path}") as daemon:
+        rig.hand.target = (0.0, 35.0, 0.0)  # above the molecule before the daemon starts
+        wait_for(lambda: np.linalg.norm(board.stylus.now() - rig.hand.target) < 0.5)
+        with DaemonProcess(*SERIAL_ARM_RATE, "--inject-fault", f"stall@{stall_tick}+300",
+                           device=rig.device_spec) as daemon:
             sub = Subscriber(daemon.pub)
-            poses_until(sub, lambda p: True, daemon)
-            exchanges(emu, 100)
-            hand.target = (0.0, 0.0, 0.0)  # into the molecule: pushing before the stall
-            poses_until(sub, pushing, daemon)
-            poses_until(sub, lambda p: p.seq > stall_tick + 400, daemon)
-            trips = emu.watchdog_trips  # (stopping the daemon leaves the arm silent: the firmware's trips then)
+            poses_until(sub, lambda p: np.linalg.norm(p.tip_mm - board.stylus.now()) < 1.0, daemon)
+            rig.hand.target = (0.0, 0.0, 0.0)  # down into the molecule
+            pressing = poses_until(sub, pushing, daemon)
+            assert pressing.seq < stall_tick, "not pressing yet when the loop stalled (machine too slow)"
+            poses_until(sub, lambda p: p.seq > stall_tick + 100, daemon)
+            trips = board.watchdog_trips  # (stopping the daemon leaves the board silent: its trips then)
             sub.close()
             daemon.stop()
     finally:
-        emu.stop()
-    before, first_zero = _stall_in(emu.commands)
-    assert before[1] != b"[0,0,0]", "the arm was not pushing when the loop stalled"
-    assert first_zero[1] == b"[0,0,0]", f"the watchdog's command was {first_zero[1]!r}"
+        rig.close()
+    period_ns = int(1e9 / rate_hz)
+    before, first_zero = _stall_in(board.commands, period_ns)
     gap_ms = (first_zero[0] - before[0]) / 1e6
-    assert gap_ms <= STALL_PERIODS + 1 + SLACK_MS, f"zero current came {gap_ms:.1f} ms after the last command"
+    bound_ms = (STALL_PERIODS + 1) * period_ns / 1e6
+    assert gap_ms <= bound_ms + SLACK_MS, f"zero current came {gap_ms:.1f} ms after the last command"
     assert trips == 0  # the thread kept it fed with zeros: the firmware's 100 ms watchdog never tripped
-    print(f"\nWoodenHaptics: zero current {gap_ms:.2f} ms after the loop's last command")
+    print(f"\nWoodenHaptics at {rate_hz:g} Hz: zero current {gap_ms:.2f} ms after the loop's last command "
+          f"(bound {bound_ms:g} ms)")
