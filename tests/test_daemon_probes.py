@@ -90,9 +90,9 @@ def test_probes_are_answered_and_do_not_stall_the_loop(setup):
     probe("20,000-deep nesting", lambda: _raw(daemon, [b'{"cmd": "ping", "id": ' + b"[" * 20000 + b"]" * 20000
                                                        + b"}"]), "deeper than")
     probe("1 MiB request", lambda: _raw(daemon, [b" " * (1 << 20)]), "larger than")
-    third = bytes(MAX_MESSAGE_BYTES // 2 + 1)
-    probe("3-frame message over the limit", lambda: _raw(daemon, [b'{"cmd": "load"}', third, third]), "in 3 frames")
-    del third
+    half = bytes(MAX_MESSAGE_BYTES // 2 + 1)  # two of these and the JSON: just over the limit
+    probe("3-frame message over the limit", lambda: _raw(daemon, [b'{"cmd": "load"}', half, half]), "in 3 frames")
+    half = None
 
     # The publisher: a 16 MiB subscription (the trie once cost 110 B per topic byte, on the loop).
     # In a process of its own: libzmq 4.3.5 crashes closing a SUB whose 16 MiB subscription the

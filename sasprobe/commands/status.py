@@ -53,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
     if stalls.get("stalls"):
         zero = stalls["worst_zero_after_ms"]
         print(f"  stalls      {stalls['stalls']} (longest {stalls['longest_ms']:.1f} ms); the watchdog zeroed the force "
-              + ("-" if zero is None else f"at worst {zero:.1f} ms") + f" after the last tick")
+              + ("-" if zero is None else f"at worst {zero:.1f} ms") + " after the last tick")
     print(f"  publisher   {', '.join(pub['endpoints'])}: {pub['subscribers']} subscriber(s), "
           f"{pub['poses_sent']} poses sent")
     if rec is None:
