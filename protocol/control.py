@@ -187,7 +187,7 @@ def plain_id(value):
     return value if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
 
-def encode_reply(reply: Reply) -> list[bytes]:
+def encode_reply(reply: Reply) -> list:
     obj: dict = {"version": CONTROL_VERSION, "ok": reply.ok}
     if reply.id is not None:
         obj["id"] = reply.id
@@ -195,7 +195,7 @@ def encode_reply(reply: Reply) -> list[bytes]:
         obj["result"] = reply.result
     else:
         obj["error"] = reply.error or "error"
-    return [_dumps(obj)] + ([bytes(reply.data)] if reply.data is not None else [])
+    return [_dumps(obj)] + ([reply.data] if reply.data is not None else [])  # any buffer: sent without a copy
 
 
 def decode_reply(frames: list[bytes]) -> Reply:
