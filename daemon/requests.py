@@ -1,9 +1,10 @@
 """The daemon's answers to control requests; they run on the control thread.
 
 One method per command of the protocol (protocol/control.py COMMANDS). A request
-that changes state does the slow part here (parsing a structure, building an engine,
-checking settings) and hands the loop a closure through `Daemon.submit`, so the loop
-only ever swaps finished objects in.
+that changes state does the slow part away from the loop (parsing a structure and
+building an engine happen in the daemon's worker process, daemon/structure_worker.py;
+settings are checked here) and hands the loop a closure through `Daemon.submit`, so the
+loop only ever swaps finished objects in.
 """
 
 from __future__ import annotations
@@ -11,10 +12,12 @@ from __future__ import annotations
 import logging
 import os
 import time
+from pathlib import Path
 
 from sasprobe import __version__
+from sasprobe.daemon.access import path_below
 from sasprobe.daemon.buttons import KEY_CLUTCH_LEASE_S
-from sasprobe.daemon.haptics import build_engine, validate_settings
+from sasprobe.daemon.haptics import validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.devices.workspace import validate_rotation
 from sasprobe.errors import UserError
@@ -60,6 +63,9 @@ class RequestHandlers:
         cpu_s = d.loop_cpu_since_reset_ns() / 1e9
         summary["cpu_percent"] = 100.0 * cpu_s / summary["window_s"] if summary["window_s"] > 0 else None
         summary["target_rate_hz"] = d.rate_hz
+        summary["stalls"] = d.watchdog.as_dict()
+        summary["lost_ticks"] = d.timing.lost
+        summary["realtime"] = d.realtime
         guard = d.pipeline.guard
         rec = d.recorder
         return {
@@ -77,7 +83,7 @@ class RequestHandlers:
                           "poses_sent": d.publisher.poses_sent, "scenes_sent": d.publisher.scenes_sent,
                           "send_failures": d.publisher.send_failures},
             "control": {"endpoints": d.control.endpoints, "requests": d.control.requests,
-                        "errors": d.control.errors},
+                        "errors": d.control.errors, "restarts": d.control.restarts},
             "recording": None if rec is None else {**rec.stats().as_dict(), "error": rec.error},
         }, None
 
@@ -91,16 +97,20 @@ class RequestHandlers:
 
     # ------------------------------------------------------------------ changing
     def load(self, request):
-        from sasprobe.molecule import load_structure_or_default, parse_structure
+        from sasprobe.molecule.fetch import pdb_id, resolve
+        from sasprobe.molecule.structure import MAX_FILE_BYTES, read_regular_file, structure_name
 
         d = self.daemon
         keep_water = request.args.get("keep_water", False)
         if request.data is not None:
             name = request.args.get("name") or "uploaded"
-            structure = parse_structure(request.data, name=name, source=f"control:{name}", keep_water=keep_water)
+            data, source = request.data, f"control:{name}"
         else:
-            structure = load_structure_or_default(request.args["path"], keep_water=keep_water)  # a file or a PDB id
-        engine = build_engine(structure, d.limits, d.settings)  # off the loop: grids take time
+            text = request.args["path"]
+            # a PDB id comes through the user's fetch cache; a file only from below --load-dir
+            path = Path(resolve(text)) if pdb_id(text) else path_below(d.config.load_dir, text, "--load-dir", "load")
+            data, name, source = read_regular_file(path, MAX_FILE_BYTES), structure_name(path.name), str(path)
+        structure, engine = d.structure_worker.build(data, name, source, keep_water, d.limits, d.settings)
         seq = d.submit(lambda seq: d.swap_structure(structure, keep_water, engine, seq))
         log.warning("loaded %s (%d atoms) at tick %d", structure.source, structure.n_atoms, seq)
         return {"structure": {"name": structure.name, "sha256": structure.sha256, "n_atoms": structure.n_atoms},
@@ -111,7 +121,7 @@ class RequestHandlers:
         haptic, scene_only = split_changes(dict(request.args))
         settings = validate_settings({**d.settings, **haptic}, d.limits) if haptic else d.settings
         lights = merge_lights(d.lights, scene_only["lights"]) if "lights" in scene_only else None
-        engine = build_engine(d.structure, d.limits, settings) if needs_rebuild(haptic) else None
+        engine = self._engine(settings) if needs_rebuild(haptic) else None
         seq = d.submit(lambda seq: d.apply_settings(haptic, scene_only, settings, lights, engine, seq))
         return {"seq": seq, "settings": settings, "revision": d.scene_revision}, None
 
@@ -119,14 +129,22 @@ class RequestHandlers:
         d = self.daemon
         if d.recorder is not None:
             raise UserError(f"already recording to {d.recorder.path}")
-        recorder = d.new_recorder(request.args["path"])
-        engine = build_engine(d.structure, d.limits, d.settings)  # the replay starts from this
+        recorder = d.new_recorder(path_below(d.config.record_dir, request.args["path"], "--record-dir",
+                                             "record_start"))
+        engine = self._engine(d.settings)  # the replay starts from this
         try:
             seq = d.submit(lambda seq: d.attach_recorder(recorder, seq, engine))
         except UserError:
             recorder.close()
             raise
         return {"path": str(recorder.path), "seq": seq}, None
+
+    def _engine(self, settings: dict):
+        """A new engine for the current structure, built in the worker process."""
+        d = self.daemon
+        s = d.structure
+        return d.structure_worker.build(s.source_bytes, s.name, s.source, d.structure_keep_water, d.limits,
+                                        settings)[1]
 
     def record_stop(self, request):
         recorder = self.daemon.submit(self.daemon.detach_recorder)

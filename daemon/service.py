@@ -1,8 +1,10 @@
 """`sasprobe daemon`: the one process that owns the device, its lifecycle and its loop.
 
 Threads: the main thread runs the fixed-rate loop (read → haptic force → safety →
-write → publish → hand to the recorder) and is the only one that touches the device,
-the engine and the PUB socket. The control thread answers requests (daemon/requests.py);
+write → publish → hand to the recorder) and is the only one that touches the engine
+and the PUB socket, and the device but for one exception: the watchdog thread
+(daemon/watchdog.py) writes zero force when no tick has completed in time, under the
+lock the loop writes with. The control thread answers requests (daemon/requests.py);
 anything that changes state is prepared there (parsing a structure, building an engine)
 and handed to the loop as a small closure, applied at the start of the next tick. The
 recorder thread writes the MCAP file. ZeroMQ's own I/O threads do the network sending.
@@ -31,16 +33,17 @@ import numpy as np
 from sasprobe import __version__
 from sasprobe.daemon import events
 from sasprobe.daemon.buttons import ButtonMap, WorkspaceInputs
-from sasprobe.daemon.config import DaemonConfig, check_bind_security
-from sasprobe.daemon.control import ControlServer
-from sasprobe.daemon.faults import FaultLog, Reconnector
+from sasprobe.daemon.config import DaemonConfig, check_config
+from sasprobe.daemon.faults import LoopLog, Reconnector
 from sasprobe.daemon.loop import FixedRateLoop, enter_realtime
-from sasprobe.daemon.publisher import Publisher
+from sasprobe.daemon.network import Network
 from sasprobe.daemon.recording.replay import REPLAY_SCHEME, REPLAYED_COMMANDS, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
 from sasprobe.daemon.requests import RequestHandlers
 from sasprobe.daemon.scene import rotation_rows, scene_message
 from sasprobe.daemon.session import open_session
+from sasprobe.daemon.structure_worker import StructureWorker
+from sasprobe.daemon.watchdog import StallWatchdog
 from sasprobe.devices.base import DeviceFault
 from sasprobe.devices.registry import register_scheme
 from sasprobe.devices.workspace import IDENTITY
@@ -60,10 +63,7 @@ SWITCH_INTERVAL_S = 1e-4  # how long another Python thread may hold the GIL befo
 
 class Daemon:
     def __init__(self, config: DaemonConfig) -> None:
-        self.config = config
-        check_bind_security(config.pub + config.ctl, config.keys)
-        if config.record and Path(config.record).exists():
-            raise UserError(f"{config.record}: already exists; record to a new file")
+        self.config = check_config(config)
         start = open_session(config)
         self.structure, self.structure_keep_water, self.device = start.structure, start.keep_water, start.device
         self.rate_hz, self.limits, self.settings, self.pipeline = start.rate_hz, start.limits, start.settings, start.pipeline
@@ -76,6 +76,7 @@ class Daemon:
         self.requests = RequestHandlers(self)
         self.inputs = WorkspaceInputs(ButtonMap.from_options(config.buttons),
                                       map_device_buttons=self.device.recorded_session() is None)
+        self.structure_worker = StructureWorker()  # `load` parses there, started on first use
         self.last_force_written = np.zeros(3)
         self.write_failures = 0
         self.started_ns = time.monotonic_ns()
@@ -87,12 +88,15 @@ class Daemon:
         self._stop_reason: str | None = None
         self._carry_error: str | None = None  # a failed force write, reported on the next tick
         self._reconnector = Reconnector(self.device)
-        self._fault_log = FaultLog()
+        self.write_lock = threading.Lock()  # the loop's force writes and the watchdog's zeros
+        self.watchdog = StallWatchdog(self.device, self.write_lock, self.loop.period_ns,
+                                      supervise=self._supervise)
         self._loop_cpu_clock: int | None = None
         self._cpu_at_reset = 0
-        self.control = self.publisher = self.auth = self.context = None
+        self._network = self.control = self.publisher = None
         try:
             self.realtime = enter_realtime() if config.realtime else False
+            self.timing = LoopLog(self.realtime)
             self.device.open()
             self._open_network()
             self.rebuild_scene()
@@ -105,31 +109,14 @@ class Daemon:
 
     # ------------------------------------------------------------------ start and stop
     def _open_network(self) -> None:
-        import zmq
-
-        from sasprobe.protocol.security import load_server_keys, start_authenticator
-
-        keys = load_server_keys(Path(self.config.keys)) if self.config.keys else None
-        self.context = zmq.Context()  # its I/O thread inherits the loop's scheduling (--realtime)
-        self.auth = start_authenticator(self.context, keys) if keys else None
-        try:
-            self.publisher = Publisher(self.context, self.config.pub, keys)
-            self.control = ControlServer(self.context, self.config.ctl, self.requests.handle, keys)
-        except zmq.ZMQError as exc:
-            endpoints = " / ".join(self.config.pub + self.config.ctl)
-            raise UserError(f"cannot bind {endpoints}: {exc}") from None
+        self._network = Network(self.config, self.requests.handle)
+        self.publisher, self.control = self._network.publisher, self._network.control
 
     def _close_network(self) -> None:
-        """Stop the control thread, close the sockets and the authenticator (safe to repeat)."""
-        if self.control is not None:
-            self.control.stop()
-        if self.publisher is not None:
-            self.publisher.close()
-        if self.auth is not None:
-            self.auth.stop()
-        if self.context is not None:
-            self.context.term()
-        self.control = self.publisher = self.auth = self.context = None
+        """Stop serving (safe to repeat)."""
+        if self._network is not None:
+            self._network.close()
+        self._network = self.control = self.publisher = None
 
     def _close_device(self) -> None:
         """Zero force and close the device; a failing device is logged, never raised."""
@@ -156,6 +143,7 @@ class Daemon:
         device_last = self.device.last_force_n  # what the device itself holds (None: it cannot tell)
         publisher_stats = {"poses_sent": self.publisher.poses_sent, "subscribers": self.publisher.subscribers}
         self._close_network()
+        self.structure_worker.close()
         recording = None
         if self.recorder is not None:
             recorder, self.recorder = self.recorder, None
@@ -166,6 +154,8 @@ class Daemon:
             "ticks": stats["total"]["ticks"],
             "overruns": stats["total"]["overruns"],
             "faults": self.pipeline.guard.faults,
+            "lost_ticks": self.timing.lost,
+            "stalls": self.watchdog.as_dict(),
             "last_force_written_n": np.asarray(self.last_force_written).tolist(),
             "device_last_force_n": None if device_last is None else np.asarray(device_last, dtype=float).tolist(),
             "publisher": publisher_stats,
@@ -195,18 +185,27 @@ class Daemon:
             self._loop()
         finally:
             sys.setswitchinterval(old_switch)
+            self.watchdog.stop()
             self._shutdown()
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
         return 0
 
+    def _supervise(self) -> None:
+        """On the watchdog thread, twice a second: the control thread must be alive."""
+        if self.control is not None:
+            self.control.ensure_running()
+
     def _loop(self) -> None:
-        loop, device, publisher = self.loop, self.device, self.publisher
+        loop, device, publisher, watchdog, write_lock = self.loop, self.device, self.publisher, self.watchdog, \
+            self.write_lock
         clock = time.monotonic_ns
+        stall_at = dict(self.config.loop_stalls)  # test hook: tick -> seconds the loop sleeps there
         # A free-running loop (replay at --speed max) has no period to be late against.
         late_read_ns = int(LATE_READ_PERIODS * loop.period_ns) if loop.period_ns else None
         stop_at_ns = clock() + int(self.config.max_seconds * 1e9) if self.config.max_seconds else None
         self._cpu_at_reset = self.loop_cpu_ns()
+        watchdog.start()
         loop.start()
         while self._stop_reason is None:
             tick = loop.wait()
@@ -231,18 +230,23 @@ class Daemon:
                 self._apply_recorded_event(event, tick.seq)
             for action, args in self.inputs.tick(state.buttons if state is not None else None, tick.start_ns):
                 self.workspace_action(action, args, tick.seq)
-            late_periods = max(tick.late_periods, device.recorded_late_periods())
+            if stall_at and tick.seq in stall_at:
+                time.sleep(stall_at.pop(tick.seq))
+            # A tick the watchdog found overdue counts as late by as long: the guard zeroes it.
+            late_periods = max(tick.late_periods, device.recorded_late_periods(), watchdog.overdue_periods(clock()))
             pipeline = self.pipeline
             was_faulted = pipeline.guard.faulted
             result = pipeline.step(state, error, late_periods)
-            try:
-                device.write_force(result.force_n)
-                self.last_force_written = result.force_n
-            except Exception as exc:
-                self.write_failures += 1
-                self._carry_error = f"force write failed: {exc}"
-            if result.guard.fault != was_faulted:
-                self._fault_log.note(result.guard.reason if result.guard.fault else None, tick.start_ns)
+            with write_lock:
+                try:
+                    device.write_force(result.force_n)
+                    self.last_force_written = result.force_n
+                except Exception as exc:
+                    self.write_failures += 1
+                    self._carry_error = f"force write failed: {exc}"
+                stall = watchdog.heartbeat(clock())  # under the lock: the watchdog never zeroes this write
+            self.timing.tick(tick.start_ns, tick.missed, error is None and late_periods > pipeline.guard.late_limit_periods,
+                             result.guard.fault != was_faulted, result.guard, stall)
             if error is None or state is not None:
                 self._reconnector.answered()
             elif self._reconnector.failed(tick.start_ns):
@@ -253,7 +257,7 @@ class Daemon:
             publisher.publish_pose(encode_pose(pose))
             if self.recorder is not None:
                 self.recorder.offer_tick(now, tick.seq, state, error, late_periods, read_ns, pose)
-            if publisher.poll_subscriptions() or now >= self._next_scene_ns:
+            if publisher.poll_subscriptions(now) or now >= self._next_scene_ns:
                 self._publish_scene(now)
             loop.stats.record_work(clock() - tick.start_ns)
             if stop_at_ns is not None and now >= stop_at_ns:
@@ -382,7 +386,7 @@ class Daemon:
             recorder.offer_json("control", time.monotonic_ns(), {"seq": seq, "cmd": "record_stop", "args": {}})
         return recorder
 
-    def new_recorder(self, path: str) -> Recorder:
+    def new_recorder(self, path: str | Path) -> Recorder:
         return Recorder(path, self._recording_metadata())
 
     def _recording_metadata(self) -> dict:

@@ -221,6 +221,16 @@ class SerialArm(HardwareDevice):
         if self._sent_at is None and self._resync_reason is None and self._lost is None:
             self._send(self._command())
 
+    def zero_force_now(self) -> None:
+        """The daemon's watchdog while its loop is stalled: the zero command goes out now, even
+        with a command in flight (sent before the stall, so answered long since: nothing can
+        merge). The reply it draws is one too many, so the next read resynchronises first (a
+        fault tick or two, force zero meanwhile)."""
+        self.force = np.zeros(3)
+        if self._lost is None:
+            self._io(self.transport.write, self._zero_command())
+            self._start_resync("the watchdog's zero command while the loop stalled")
+
     # handshake helpers ----------------------------------------------------------------
     def _probe(self, timeout_s: float, describe) -> Reply:
         """Send the zero command every PROBE_INTERVAL_S until a reply comes; drop the rest.

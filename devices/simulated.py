@@ -104,7 +104,7 @@ class SimulatedDevice(HapticDevice):
         self.work_mj = 0.0
         self.peak_hand_force_n = 0.0  # the largest force the model hand applied
         self.is_open = False
-        self._scheduled = sorted((_parse_fault(f) for f in faults), key=lambda f: f[1])
+        self._scheduled = sorted((parse_fault(f) for f in faults), key=lambda f: f[1])
         self._raise_reads = 0
         self._nan_reads = 0
         self._disconnected = False
@@ -192,6 +192,11 @@ class SimulatedDevice(HapticDevice):
             return
         self._advance(f)
 
+    def zero_force_now(self) -> None:
+        """The watchdog's zero: the arm holds no force from now on, and its clock does not move
+        (it advances one period per write of the loop, so a run stays a function of those)."""
+        self.last_force_n = np.zeros(3)
+
     # ----------------------------------------------------------------- physics
     @property
     def position_mm(self) -> np.ndarray:
@@ -251,18 +256,27 @@ def _parse_press(spec) -> tuple[int, int, int]:
     return parsed  # type: ignore[return-value]
 
 
-def _parse_fault(spec) -> tuple[str, int, int]:
-    """'kind@tick+count' or (kind, tick[, count]) -> (kind, tick, count)."""
+def parse_fault(spec, kinds: tuple[str, ...] = FAULT_KINDS) -> tuple[str, int, int]:
+    """'kind@tick+count' or (kind, tick[, count]) -> (kind, tick, count); ValueError in one line
+    unless kind is known, tick a whole number ≥ 0 and count a whole number ≥ 1."""
     if isinstance(spec, str):
-        kind, _, rest = spec.partition("@")
-        tick, _, count = rest.partition("+")
-        parsed = (kind.strip(), int(tick or 0), int(count or 1))
+        kind, at, rest = spec.strip().partition("@")
+        tick, plus, count = rest.partition("+")
+        if not at or not _whole(tick) or (plus and not _whole(count)):
+            raise ValueError(f"fault '{spec}' is not KIND@TICK or KIND@TICK+COUNT (whole numbers)")
+        parsed = (kind, int(tick), int(count) if plus else 1)
     else:
         items = tuple(spec)
         parsed = (str(items[0]), int(items[1]), int(items[2]) if len(items) > 2 else 1)
-    if parsed[0] not in FAULT_KINDS:
-        raise ValueError(f"unknown fault kind {parsed[0]!r} (known: {', '.join(FAULT_KINDS)})")
+    if parsed[0] not in kinds:
+        raise ValueError(f"unknown fault kind {parsed[0]!r} (known: {', '.join(kinds)})")
+    if parsed[1] < 0 or parsed[2] < 1:
+        raise ValueError(f"fault '{spec}': the tick must be ≥ 0 and the count ≥ 1")
     return parsed
+
+
+def _whole(text: str) -> bool:
+    return text.isdigit() and text.isascii()
 
 
 def make_simulated(argument: str | None, **options) -> SimulatedDevice:

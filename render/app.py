@@ -67,6 +67,7 @@ class RenderOptions:
     preset: str = "default"  # lighting preset (render/lighting/presets.py): light intensities, background
     background: tuple[float, float, float] | None = None  # None: the preset's
     light_frame: str = "camera"  # "camera": lights turn with the view; "molecule": fixed in the molecule frame
+    keys: Path | None = None  # with connect: CURVE client keys from `sasprobe keys DIR` (a keyed daemon)
 
     def effects(self):
         """The scene's switches: the options' FXAA, probe plane (on in the workspace view) and
@@ -130,7 +131,12 @@ def open_source(opts: RenderOptions) -> RenderSource:
         return StaticSource(load_structure_or_default(opts.molecule, keep_water=opts.keep_water))
     from sasprobe.render.link import DaemonLink
 
-    return DaemonLink(opts.connect or None, opts.control, keep_water=opts.keep_water)
+    keys = None
+    if opts.keys is not None:
+        from sasprobe.protocol.security import load_client_keys
+
+        keys = load_client_keys(opts.keys)
+    return DaemonLink(opts.connect or None, opts.control, keep_water=opts.keep_water, keys=keys)
 
 
 def render_main(opts: RenderOptions) -> int:

@@ -19,8 +19,9 @@ COALESCED = frozenset({"view"})  # only the newest one matters
 
 
 class RequestSender:
-    def __init__(self, ctl_endpoint: str) -> None:
+    def __init__(self, ctl_endpoint: str, keys=None) -> None:
         self.endpoint = ctl_endpoint
+        self.keys = keys  # protocol.security.ClientKeys of a keyed daemon; None: as ControlClient defaults
         self._queue: deque[tuple[str, dict]] = deque()
         self._wake = threading.Condition()
         self._closed = False
@@ -43,7 +44,7 @@ class RequestSender:
     def _run(self) -> None:
         from sasprobe.protocol.client import ControlClient, ControlError
 
-        client = ControlClient(self.endpoint, timeout_s=REQUEST_TIMEOUT_S)
+        client = ControlClient(self.endpoint, keys=self.keys, timeout_s=REQUEST_TIMEOUT_S)
         try:
             while True:
                 with self._wake:

@@ -31,6 +31,7 @@ from sasprobe.protocol.client import Subscriber, fetch_structure
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
 from sasprobe.protocol.pose import FLAG_CLUTCHED, FLAG_DRIFTING
 from sasprobe.render.daemon_requests import RequestSender
+from sasprobe.protocol.security import ClientKeys
 from sasprobe.render.scene import NavCube, Probe, normalise_plane
 from sasprobe.render.source import Readout, RenderSource
 
@@ -98,12 +99,14 @@ def touched_label(structure: Structure | None, atom: int) -> str | None:
 class DaemonLink(RenderSource):
     follows_daemon = True
 
-    def __init__(self, pub: str | None = None, ctl: str | None = None, keep_water: bool = False):
+    def __init__(self, pub: str | None = None, ctl: str | None = None, keep_water: bool = False,
+                 keys: ClientKeys | None = None):
         self.pub = pub or DEFAULT_PUB_ENDPOINT
         self.ctl = ctl or DEFAULT_CTL_ENDPOINT
         self.keep_water = keep_water
-        self.subscriber = Subscriber(self.pub)
-        self.requests = RequestSender(self.ctl)
+        self.keys = keys  # None: the local keys for loopback TCP, none for ipc (protocol/client.py)
+        self.subscriber = Subscriber(self.pub, keys=keys)
+        self.requests = RequestSender(self.ctl, keys)
         self.structure: Structure | None = None  # the one handed out last
         self._fetched: Structure | None = None
         self._fetch_error: str | None = None
@@ -119,7 +122,7 @@ class DaemonLink(RenderSource):
     # ------------------------------------------------------------ structure
     def _fetch(self) -> None:
         try:
-            served = fetch_structure(self.ctl, timeout_s=FETCH_TIMEOUT_S)
+            served = fetch_structure(self.ctl, keys=self.keys, timeout_s=FETCH_TIMEOUT_S)
             self._fetched = parse_structure(served.data, name=served.name, source=served.source,
                                             keep_water=self.keep_water or served.keep_water)
             self._fetch_error = None
@@ -218,8 +221,8 @@ class DaemonLink(RenderSource):
         deadline = time.monotonic() + timeout_s
         while self._fetched is None or self.subscriber.pose is None:
             if time.monotonic() > deadline:
-                why = self._fetch_error or f"no pose on {self.pub}"
-                raise UserError(f"no daemon answered within {timeout_s:g} s: {why} (start one with `sasprobe daemon`)")
+                why = self._fetch_error or f"no pose on {self.pub}: {self.subscriber.watch.explain()}"
+                raise UserError(f"no daemon answered within {timeout_s:g} s: {why}")
             self.poll()
             time.sleep(0.02)
 

@@ -15,10 +15,11 @@ class ForceMonitor:
     touched (device time from the first pose seen). Polled without blocking from the
     demo's main loop."""
 
-    def __init__(self, endpoint: str, continuous_force_n: float | None = None, rate_hz: float | None = None) -> None:
+    def __init__(self, endpoint: str, continuous_force_n: float | None = None, rate_hz: float | None = None,
+                 keys=None) -> None:
         from sasprobe.protocol.client import Subscriber
 
-        self.subscriber = Subscriber(endpoint)
+        self.subscriber = Subscriber(endpoint, keys=keys)
         self.continuous_force_n = continuous_force_n
         self.rate_hz = rate_hz
         self.force_n = array("f")

@@ -19,6 +19,7 @@ import zmq
 from sasprobe.protocol.client import ControlClient, Subscriber
 from sasprobe.protocol.pose import Pose, encode_pose
 from sasprobe.protocol.scene import encode_scene
+from sasprobe.protocol.security import ensure_local_keys, load_server_keys, make_curve_server
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.lighting.settings import AOSettings
@@ -115,6 +116,7 @@ def test_malformed_messages_are_dropped_and_counted(daemon, crambin):
     endpoint = free_tcp_endpoint()
     sock = zmq.Context.instance().socket(zmq.PUB)
     sock.linger = 0
+    make_curve_server(sock, load_server_keys(ensure_local_keys()))  # as a daemon on loopback TCP does
     sock.bind(endpoint)
     link = DaemonLink(endpoint, free_tcp_endpoint())
     try:

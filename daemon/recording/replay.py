@@ -16,6 +16,8 @@ recorded control command.
 
 from __future__ import annotations
 
+import os
+
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,6 +28,7 @@ from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState, HapticDevice
 from sasprobe.devices.registry import DeviceScheme
 from sasprobe.devices.workspace import validate_rotation
+from sasprobe.files import open_regular
 from sasprobe.protocol.recording import RecordingError, iter_items, scan
 
 
@@ -244,8 +247,9 @@ class ReplayDevice(HapticDevice):
 def open_replay(argument: str | None, speed: float | None = 1.0, **options) -> ReplayDevice:
     if not argument:
         raise DeviceOpenError("replay needs a file: --device replay:FILE")
-    if not Path(argument).is_file():
+    if not os.path.lexists(argument):
         raise DeviceOpenError(f"replay file {argument}: no such file")
+    open_regular(argument, "recording", DeviceOpenError).close()  # a FIFO or a device: one line, no hang
     return ReplayDevice(argument, speed=speed)
 
 

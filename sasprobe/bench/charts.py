@@ -1,7 +1,8 @@
 """Matplotlib set-up shared by the benchmark charts (headless Agg backend).
 
-Matplotlib is imported on the first chart, not with this module: `sasprobe --help` builds
-every benchmark's options, and a plotting library costs start-up time it does not use."""
+Matplotlib is imported on the first chart, not with this module: every `sasprobe` command
+registers the benchmarks' options at start-up, and pyplot alone took a second of it (and
+complains about an unusable $HOME)."""
 
 from __future__ import annotations
 

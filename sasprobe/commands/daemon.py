@@ -34,6 +34,23 @@ def button(text: str) -> str:
     return text
 
 
+def fault_spec(text: str) -> tuple[str, int, int]:
+    """--inject-fault: KIND@TICK[+COUNT], checked now (a typo is one line, not a silent no-op)."""
+    from sasprobe.devices.simulated import FAULT_KINDS, parse_fault
+
+    try:
+        kind, tick, count = parse_fault(text, FAULT_KINDS + (LOOP_STALL,))
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if kind == LOOP_STALL and count > MAX_STALL_MS:
+        raise argparse.ArgumentTypeError(f"fault '{text}': a stall lasts at most {MAX_STALL_MS} ms")
+    return kind, tick, count
+
+
+LOOP_STALL = "stall"  # the daemon's own: the loop sleeps COUNT ms at TICK (any device); the others are the sim arm's
+MAX_STALL_MS = 60_000
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.daemon.buttons import ACTIONS, DEFAULT_BUTTONS
     from sasprobe.daemon.haptics import HapticSettings
@@ -65,6 +82,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"control endpoint, repeatable (default {DEFAULT_CTL_ENDPOINT})")
     p.add_argument("--keys", metavar="DIR", help="CURVE keys from `sasprobe keys DIR` (required beyond loopback)")
     p.add_argument("--record", metavar="FILE", help="record the session to this MCAP file")
+    p.add_argument("--record-dir", metavar="DIR",
+                   help="let the control command record_start create recordings below this folder (default: refused)")
+    p.add_argument("--load-dir", metavar="DIR",
+                   help="let the control command load read structure files below this folder (default: bytes only)")
     p.add_argument("--probe-radius", type=probe_radius, default=None,
                    help=f"probe radius in Å (default {defaults.probe_radius_A:g})")
     p.add_argument("--method", choices=HAPTIC_METHODS, default=None,
@@ -80,10 +101,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--button", action="append", type=button, metavar="ACTION=N",
                    help=f"which device button does what (repeatable; actions {', '.join(ACTIONS)}; default "
                         + ", ".join(f"{a}={i}" for a, i in DEFAULT_BUTTONS.items()) + ")")
-    p.add_argument("--realtime", action="store_true",
-                   help="run the loop with SCHED_FIFO priority (needs CAP_SYS_NICE or root; steadier timing)")
-    p.add_argument("--inject-fault", action="append", metavar="KIND@TICK[+COUNT]",
-                   help="simulated arm only, to try the watchdog: raise, nan or disconnect at a tick (repeatable)")
+    p.add_argument("--no-realtime", action="store_true",
+                   help="do not ask for SCHED_FIFO (by default the loop asks for it, and warns when it is refused)")
+    p.add_argument("--inject-fault", action="append", type=fault_spec, metavar="KIND@TICK[+COUNT]",
+                   help="to try the watchdogs: raise, nan or disconnect at a tick (simulated arm), or stall@TICK+MS "
+                        "(the loop sleeps MS ms; any device); repeatable")
     p.add_argument("--inject-button", action="append", metavar="BUTTON@TICK+COUNT",
                    help="simulated arm only: hold a button down from a tick for COUNT ticks (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="seed of the simulated arm")
@@ -108,6 +130,13 @@ def run(args: argparse.Namespace) -> int:
         )
         if value is not None
     }
+    faults = args.inject_fault or []
+    device_faults = [f"{kind}@{tick}+{count}" for kind, tick, count in faults if kind != LOOP_STALL]
+    if device_faults and args.device.split(":", 1)[0].strip().lower() != "sim":
+        from sasprobe.errors import UserError
+
+        raise UserError(f"--inject-fault {device_faults[0]}: only the simulated arm (--device sim...) takes "
+                        f"raise, nan and disconnect faults; stall@TICK+MS works on any device")
     config = DaemonConfig(
         device=args.device,
         molecule=resolve_molecule(args, args.molecule),
@@ -116,14 +145,17 @@ def run(args: argparse.Namespace) -> int:
         pub=args.pub or [DEFAULT_PUB_ENDPOINT],
         ctl=args.ctl or [DEFAULT_CTL_ENDPOINT],
         record=args.record,
+        record_dir=args.record_dir,
+        load_dir=args.load_dir,
         keys=args.keys,
         settings=settings,
         speed=args.speed,
         seed=args.seed,
         report=args.report,
         max_seconds=args.seconds,
-        realtime=args.realtime,
-        faults=args.inject_fault or [],
+        realtime=not args.no_realtime,
+        faults=device_faults,
+        loop_stalls=[(tick, ms / 1000.0) for kind, tick, ms in faults if kind == LOOP_STALL],
         buttons=args.button or [],
         button_presses=args.inject_button or [],
         color_scheme=args.color,

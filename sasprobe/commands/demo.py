@@ -46,6 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "gracefully without the privilege)")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
     add_fetch_options(p)
+    p.add_argument("--keys", type=Path, metavar="DIR",
+                   help="CURVE keys from `sasprobe keys DIR` for both processes (the daemon's pair, the renderer's "
+                        "client pair), as a lab with remote renderers runs them")
     p.add_argument("--render-args", metavar="'OPTIONS'",
                    help="extra `sasprobe render` options, e.g. --render-args=--no-fxaa (with the =)")
     p.add_argument("--daemon-args", metavar="'OPTIONS'",
@@ -67,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
         record=args.record,
         realtime=not args.no_realtime,
         keep_water=args.keep_water,
+        keys=args.keys,
         render_args=split_extra_args(args.render_args, RESERVED_RENDER, "--render-args"),
         daemon_args=split_extra_args(args.daemon_args, RESERVED_DAEMON, "--daemon-args"),
     )

@@ -83,6 +83,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     src.add_argument("--connect", nargs="?", const="", metavar="PUB_ENDPOINT",
                      help="follow a running daemon (default endpoint from the protocol); the structure comes from it")
     p.add_argument("--control", metavar="ENDPOINT", help="the daemon's control endpoint (with --connect)")
+    p.add_argument("--keys", type=Path, metavar="DIR",
+                   help="with --connect: client keys from `sasprobe keys DIR`, for a daemon started with --keys "
+                        "(a loopback daemon of your own needs none)")
     p.add_argument("--headless", action="store_true", help="render offscreen through EGL (default when no display)")
     p.add_argument("--size", type=size_type, default=size, metavar="WxH", help=f"image/window size (default {size})")
     p.add_argument("--frames", type=positive_int, metavar="N", help="stop after N frames")
@@ -267,7 +270,7 @@ def render_options(args: argparse.Namespace):
         fxaa=not args.no_fxaa, keep_water=args.keep_water, lighting=lighting, lighting_required=required,
         probe_light_range=args.probe_light_range or DEFAULT_PROBE_RANGE, snapshot=args.snapshot,
         report=args.report, view=args.view, gbuffer_dir=args.gbuffer_dir, color=args.color, preset=args.preset,
-        background=args.background, light_frame=args.light_frame,
+        background=args.background, light_frame=args.light_frame, keys=args.keys,
     )
 
 
@@ -281,6 +284,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("give --frames or --seconds, not both")
     if args.control and args.connect is None:
         raise UserError("--control needs --connect")
+    if args.keys and args.connect is None:
+        raise UserError("--keys needs --connect")
     if args.connect is not None and (args.probe or args.nav_cube or args.touched >= 0):
         raise UserError("--probe, --touched and --nav-cube are for standalone use; with --connect the daemon sets them")
     if args.connect is not None and args.clip:

@@ -49,7 +49,13 @@ def run(args: argparse.Namespace) -> int:
     print(f"  jitter      period error p50 {_us(err['p50'])}, p99 {_us(err['p99'])}, max {_us(err['max'])} "
           f"over {loop['window_s']:.0f} s; last second p99 {_us(recent['period_error_p99_us'])}")
     print(f"  overruns    {loop['total']['overruns']} ({loop['total']['missed_deadlines']} deadlines missed) "
-          f"in {loop['total']['ticks']} ticks; loop CPU {loop['cpu_percent']:.0f} %")
+          f"in {loop['total']['ticks']} ticks; loop CPU {loop['cpu_percent']:.0f} %, "
+          f"{'real-time' if loop.get('realtime') else 'normal'} scheduling")
+    stalls = loop.get("stalls") or {}
+    if stalls.get("stalls"):
+        zero = stalls["worst_zero_after_ms"]
+        print(f"  stalls      {stalls['stalls']} (longest {stalls['longest_ms']:.1f} ms); the watchdog zeroed the force "
+              + ("-" if zero is None else f"at worst {zero:.1f} ms") + " after the last tick")
     print(f"  publisher   {', '.join(pub['endpoints'])}: {pub['subscribers']} subscriber(s), "
           f"{pub['poses_sent']} poses sent")
     if rec is None:
