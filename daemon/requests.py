@@ -13,8 +13,10 @@ import os
 import time
 
 from sasprobe import __version__
+from sasprobe.daemon.findings_job import FindingsJob
 from sasprobe.daemon.haptics import build_engine, validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
+from sasprobe.daemon.marks import drop_mark
 from sasprobe.errors import UserError
 from sasprobe.protocol.control import COMMANDS, Reply, Request
 from sasprobe.protocol.scene import merge_lights
@@ -35,7 +37,10 @@ class RequestHandlers:
             "record_start": self.record_start,
             "record_stop": self.record_stop,
             "shutdown": self.shutdown,
+            "mark": self.mark,
+            "findings": self.findings,
         }
+        self.findings_job: FindingsJob | None = None  # the newest `findings` analysis
         assert set(self._handlers) == set(COMMANDS), "every protocol command needs its handler"
 
     def handle(self, request: Request) -> Reply:
@@ -74,6 +79,7 @@ class RequestHandlers:
             "control": {"endpoints": d.control.endpoints, "requests": d.control.requests,
                         "errors": d.control.errors},
             "recording": None if rec is None else {**rec.stats().as_dict(), "error": rec.error},
+            "findings": None if self.findings_job is None else self.findings_job.as_dict(),
         }, None
 
     def get_scene(self, request):
@@ -128,6 +134,23 @@ class RequestHandlers:
         if recorder is None:
             raise UserError("not recording")
         return recorder.close().as_dict(), None
+
+    def mark(self, request):
+        d = self.daemon
+        label = request.args.get("label")
+        mark = d.submit(lambda seq: drop_mark(d, seq, label, "control"))
+        return {"mark": mark, "seq": mark["seq"]}, None
+
+    def findings(self, request):
+        """Start the analysis of the recording so far; `status` says when it is done."""
+        recorder = self.daemon.recorder
+        if recorder is None:
+            raise UserError("findings are read from the session's recording: start one first "
+                            "(record_start, or sasprobe daemon --record FILE)")
+        if self.findings_job is not None and self.findings_job.running:
+            raise UserError(f"a findings analysis is still running (into {self.findings_job.out_dir})")
+        self.findings_job = FindingsJob(recorder.path, request.args["dir"], request.args.get("probe_radius_A"))
+        return self.findings_job.as_dict(), None
 
     def shutdown(self, request):
         self.daemon.request_stop("shutdown request")

@@ -8,7 +8,7 @@ from sasprobe.protocol.scene import SCENE_VERSION
 
 
 def scene_message(revision: int, structure, settings: dict, nav_cube_enabled: bool, clip_planes: list,
-                  lights: dict, device: DeviceInfo, rate_hz: float | None) -> dict:
+                  lights: dict, device: DeviceInfo, rate_hz: float | None, marks) -> dict:
     return {
         "version": SCENE_VERSION,
         "revision": revision,
@@ -22,4 +22,5 @@ def scene_message(revision: int, structure, settings: dict, nav_cube_enabled: bo
         "haptics": {"method": settings["method"], "stiffness_n_per_mm": settings["stiffness_n_per_mm"],
                     "damping_n_s_per_m": settings["damping_n_s_per_m"]},
         "rate_hz": rate_hz,
+        "marks": marks.scene(structure.sha256),
     }

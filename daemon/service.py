@@ -35,6 +35,7 @@ from sasprobe.daemon.control import ControlServer
 from sasprobe.daemon.faults import FaultLog, Reconnector
 from sasprobe.daemon.haptics import HapticPipeline, SafetyGuard, build_engine, validate_settings
 from sasprobe.daemon.loop import FixedRateLoop, enter_realtime
+from sasprobe.daemon.marks import Marks
 from sasprobe.daemon.publisher import Publisher
 from sasprobe.daemon.recording.replay import REPLAY_SCHEME, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
@@ -67,6 +68,7 @@ class Daemon:
         self.clip_planes: list[list[float]] = []
         self.lights = json.loads(json.dumps(DEFAULT_LIGHTS))
         self.nav_cube_enabled = True
+        self.marks = Marks()  # daemon/marks.py drops them
         self.recorder: Recorder | None = None
         self.requests = RequestHandlers(self)
         self.last_force_written = np.zeros(3)
@@ -279,9 +281,11 @@ class Daemon:
 
     def _apply_recorded_event(self, event: dict, seq: int) -> None:
         """A replayed control command, applied as it was live."""
-        if event.get("cmd") not in ("set", "load", "reconnect"):
+        if event.get("cmd") not in ("set", "load", "reconnect", "mark"):
             return
-        self.structure, self.settings = apply_recorded_event(
+        if event["cmd"] == "mark":
+            self.marks.restore(event["args"])
+        self.structure, self.settings = apply_recorded_event(  # a mark changes neither
             event, self.pipeline, self.structure, self.settings, self.limits,
             self.device.recorded_session().structure)
         if event["cmd"] == "load" and self.recorder is not None:
@@ -341,7 +345,7 @@ class Daemon:
         """The scene message of the current state; published at the next tick, and recorded."""
         self.scene_revision += 1
         self.scene = scene_message(self.scene_revision, self.structure, self.settings, self.nav_cube_enabled,
-                                   self.clip_planes, self.lights, self.device.info, self.rate_hz)
+                                   self.clip_planes, self.lights, self.device.info, self.rate_hz, self.marks)
         self._scene_bytes = encode_scene(self.scene)
         self._next_scene_ns = 0
         if self.recorder is not None:

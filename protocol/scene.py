@@ -14,6 +14,8 @@ SCENE_TOPIC = b"scene"
 SCENE_VERSION = 2  # 2: nav_cube.half_A and lights.probe.radius_A are gone (the pose and probe_radius_A carry them)
 MAX_SCENE_BYTES = 1 << 20  # a scene is a few KiB; anything this big is not one
 MAX_CLIP_PLANES = 8
+MAX_MARKS = 500  # marks a scene carries (a session's findings, not a point cloud)
+MAX_MARK_LABEL = 80  # characters of a mark's label
 HAPTIC_METHODS = ("proxy", "penalty")  # the `method` a scene reports and a `set` may ask for; the first is the default
 
 # The direction the key light travels (from the light towards the molecule), molecule frame,
@@ -75,6 +77,33 @@ def validate_clip_planes(value) -> list[list[float]]:
     return planes
 
 
+def validate_mark_label(value) -> str:
+    """A mark's label: a string of at most MAX_MARK_LABEL printable characters."""
+    if not isinstance(value, str):
+        raise SceneError("a mark label must be a string")
+    if len(value) > MAX_MARK_LABEL or not value.isprintable():
+        raise SceneError(f"a mark label is at most {MAX_MARK_LABEL} printable characters")
+    return value
+
+
+def validate_marks(value) -> list:
+    """The scene's `marks`: [{"id", "label", "position_A", "seq", "source"}, ...] in id order."""
+    if not isinstance(value, list):
+        raise SceneError("marks must be a list")
+    if len(value) > MAX_MARKS:
+        raise SceneError(f"at most {MAX_MARKS} marks, got {len(value)}")
+    for i, mark in enumerate(value):
+        mark = _object(mark, f"marks[{i}]")
+        for key in ("id", "seq"):
+            if isinstance(mark.get(key), bool) or not isinstance(mark.get(key), int) or mark[key] < 0:
+                raise SceneError(f"marks[{i}].{key} must be a non-negative integer")
+        validate_mark_label(mark.get("label"))
+        _vector(mark.get("position_A"), 3, f"marks[{i}].position_A")
+        if not isinstance(mark.get("source"), str):
+            raise SceneError(f"marks[{i}].source must be a string")
+    return value
+
+
 def merge_lights(current: dict, changes) -> dict:
     """Apply a (possibly partial) lights object to the current one, validating every value."""
     changes = _object(changes, "lights")
@@ -125,6 +154,8 @@ def validate_scene(scene) -> dict:
     _number(haptics.get("damping_n_s_per_m"), "haptics.damping_n_s_per_m")
     if not isinstance(scene.get("daemon_version"), str):
         raise SceneError("daemon_version must be a string")
+    if "marks" in scene:  # optional: daemons before marks do not send it
+        validate_marks(scene["marks"])
     return scene
 
 

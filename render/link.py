@@ -21,9 +21,10 @@ import numpy as np
 
 from sasprobe.errors import UserError
 from sasprobe.molecule import Structure, parse_structure
-from sasprobe.protocol.client import Subscriber, fetch_structure
+from sasprobe.protocol.client import ControlClient, Subscriber, fetch_structure
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
-from sasprobe.render.scene import NavCube, Probe, normalise_plane
+from sasprobe.render.live_clearance import LiveClearance
+from sasprobe.render.scene import Mark, NavCube, Probe, normalise_plane
 from sasprobe.render.source import Readout, RenderSource
 
 log = logging.getLogger("sasprobe")
@@ -32,10 +33,11 @@ STALE_S = 1.5  # the daemon sends a scene at least once a second and poses at ~1
 RETRY_S = 1.0  # between structure fetch attempts
 FETCH_TIMEOUT_S = 2.0
 RATE_WINDOW_S = 0.5  # haptic rate: poses over this much device time
+NOTE_S = 3.0  # how long the answer to a dropped mark stays in the readout
 
 
 def apply_scene_message(scene, state: dict) -> bool:
-    """A `scene` message's probe radius, clip planes and light direction into a SceneState
+    """A `scene` message's probe radius, clip planes, light direction and marks into a SceneState
     (its grid then follows the daemon's probe radius); returns whether the daemon has the
     probe light on (the caller decides whether to follow)."""
     scene.probe_radius = float(state["probe_radius_A"])
@@ -45,6 +47,9 @@ def apply_scene_message(scene, state: dict) -> bool:
     lights = state["lights"]
     direction = np.asarray(lights["directional"]["direction"], dtype=np.float64)
     scene.light_direction = direction / np.linalg.norm(direction)
+    marks = [Mark(int(m["id"]), m["label"], tuple(map(float, m["position_A"]))) for m in state.get("marks", [])]
+    if marks != scene.marks:
+        scene.marks = marks
     return bool(lights["probe"]["enabled"])
 
 
@@ -77,6 +82,8 @@ class DaemonLink(RenderSource):
         self._seen = 0
         self._recent: deque[tuple[int, int]] = deque()  # (device_t_ns, seq) of recent poses
         self._daemon_probe_light: bool | None = None
+        self.live = LiveClearance()
+        self._note = ("", 0.0)  # (text, until when)
 
     # ------------------------------------------------------------ structure
     def _fetch(self) -> None:
@@ -110,6 +117,9 @@ class DaemonLink(RenderSource):
         now = time.monotonic()
         if seen != self._seen:
             self._seen, self._last_data = seen, now
+        scene = self.subscriber.scene
+        if self.structure is not None and scene is not None and scene["structure"]["sha256"] == self.structure.sha256:
+            self.live.update(self.structure, float(scene["probe_radius_A"]), poses)
         for pose in poses:
             self._recent.append((pose.device_t_ns, pose.seq))
         while len(self._recent) > 2 and self._recent[-1][0] - self._recent[0][0] > RATE_WINDOW_S * 1e9:
@@ -145,8 +155,25 @@ class DaemonLink(RenderSource):
             (t0, s0), (t1, s1) = self._recent[0], self._recent[-1]
             rate = (s1 - s0) / ((t1 - t0) * 1e-9)
         force = float(np.linalg.norm(pose.force_N)) if pose is not None else None
+        live = self.live if self.connected else LiveClearance()
+        note, until = self._note
         return Readout(status=status, haptic_hz=rate if self.connected else None,
-                       force_n=force if self.connected else None, dropped=self.subscriber.malformed)
+                       force_n=force if self.connected else None, dropped=self.subscriber.malformed,
+                       clearance_A=live.clearance_A, passage_A=live.passage_A, bottleneck_A=live.bottleneck_A,
+                       note=note if time.monotonic() < until else "")
+
+    def drop_mark(self) -> None:
+        """Ask the daemon for a mark (control `mark`) on a thread, so the window never waits."""
+        def ask() -> None:
+            try:
+                with ControlClient(self.ctl, timeout_s=FETCH_TIMEOUT_S) as client:
+                    mark = client.mark()["mark"]
+                text = f"mark {mark['id']} dropped"
+            except UserError as exc:
+                text = f"no mark: {exc}"
+            self._note = (text, time.monotonic() + NOTE_S)
+
+        threading.Thread(target=ask, name="sasprobe-mark", daemon=True).start()
 
     def wait_ready(self, timeout_s: float = 10.0) -> None:
         """Block until the structure and a first pose are in (headless start), or one clear line."""

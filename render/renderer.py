@@ -1,7 +1,7 @@
 """The renderer: GL objects created once, and the pass chain run each frame.
 
     clear -> spheres -> probe -> backbone -> [lighting: fills the visibility buffer]
-          -> shading -> [path_trace] -> navcube -> fxaa
+          -> shading -> [path_trace] -> navcube -> fxaa -> marks
 
 `passes` is a plain list; `insert_before(name, pass)` slots a pass in (the lighting
 passes go before "shading" and "navcube", render/passes/lighting.py).
@@ -23,6 +23,7 @@ from sasprobe.render.passes.backbone import BackbonePass
 from sasprobe.render.passes.base import Frame, Pass
 from sasprobe.render.passes.clear import ClearPass
 from sasprobe.render.passes.fxaa import FxaaPass
+from sasprobe.render.passes.marks import MarksPass
 from sasprobe.render.passes.navcube import NavCubePass
 from sasprobe.render.passes.probe import ProbePass
 from sasprobe.render.passes.shading import ShadingPass
@@ -47,6 +48,7 @@ class Renderer:
             ShadingPass(ctx, self.programs, shading),
             NavCubePass(ctx, self.programs),
             FxaaPass(ctx, self.programs),
+            MarksPass(ctx, self.programs),
         ]
         self.frame_index = 0
         self.last_frame: Frame | None = None

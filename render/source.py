@@ -24,6 +24,10 @@ class Readout:
     haptic_hz: float | None = None
     force_n: float | None = None
     dropped: int = 0  # malformed messages dropped
+    clearance_A: float | None = None  # at the probe centre (render/live_clearance.py)
+    passage_A: float | None = None  # widest sphere across the probe's path; None: open
+    bottleneck_A: float | None = None  # the narrowest passage in contact so far
+    note: str = ""  # a passing message, e.g. the answer to a dropped mark
 
 
 class RenderSource(abc.ABC):
@@ -41,6 +45,9 @@ class RenderSource(abc.ABC):
 
     def readout(self) -> Readout:
         return Readout()
+
+    def drop_mark(self) -> None:
+        """The window's Enter key: mark the probe's position (only a daemon keeps marks)."""
 
     def stream_report(self) -> dict | None:
         """What arrived and what was lost, for `--report`; None without a stream."""

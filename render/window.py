@@ -44,7 +44,15 @@ HELP = [
     "drag: rotate   right/middle drag or shift+drag: pan   wheel: zoom",
     *[f"{k}: {label}" for k, (_, label) in TOGGLES.items()],
     "M: sphere mode (quad/sprite)   C: AO method   R: reset camera   H: help   Q/Esc: quit",
+    "Enter: drop a mark at the probe (with a daemon)",
 ]
+
+
+def clearance_line(ro: Readout) -> str:
+    """Room at the probe (Å): clearance at its centre, passage across its path, narrowest so far."""
+    passage = "open" if ro.passage_A is None else f"{ro.passage_A:.2f} Å"
+    bottleneck = "-" if ro.bottleneck_A is None else f"{ro.bottleneck_A:.2f} Å"
+    return f"clearance {ro.clearance_A:.2f} Å   passage {passage}   bottleneck {bottleneck}"
 
 
 class WindowApp:
@@ -88,6 +96,8 @@ class WindowApp:
         fx = self.effects
         if key in (glfw.KEY_ESCAPE,) or name == "Q":
             glfw.set_window_should_close(window, True)
+        elif key in (glfw.KEY_ENTER, glfw.KEY_KP_ENTER):
+            self.source.drop_mark()
         elif name in TOGGLES:
             field_name = TOGGLES[name][0]
             setattr(fx, field_name, not getattr(fx, field_name))
@@ -144,6 +154,10 @@ class WindowApp:
         if ro.haptic_hz is not None:
             force = f"{ro.force_n:.2f} N" if ro.force_n is not None else "-"
             lines.append(f"haptic {ro.haptic_hz:6.0f} Hz   force {force}")
+        if ro.clearance_A is not None:
+            lines.append(clearance_line(ro))
+        if ro.note:
+            lines.append(ro.note)
         if ro.dropped:
             lines.append(f"dropped malformed messages: {ro.dropped}")
         lines += HELP if self.show_help else ["H: help"]

@@ -52,6 +52,8 @@ class ReplaySession:
     errors: dict  # tick index -> read error
     force_n: np.ndarray  # (N, 3) the recorded (published) force
     flags: np.ndarray  # (N,)
+    proxy_A: np.ndarray  # (N, 3) the recorded probe centre
+    touched_atom: np.ndarray  # (N,) the recorded touched atom, -1 for none
     events: list = field(default_factory=list)  # control records after `start`, in order
 
     @property
@@ -169,6 +171,8 @@ def load_session(path: str | Path) -> ReplaySession:
         errors=errors,
         force_n=np.array([_vector(poses[s]["force_N"], 3) for s in seqs]),
         flags=np.array([poses[s]["flags"] for s in seqs], dtype=np.int64),
+        proxy_A=np.array([_vector(poses[s]["proxy_A"], 3) for s in seqs]),
+        touched_atom=np.array([poses[s]["touched_atom"] for s in seqs], dtype=np.int64),
         events=events,
     )
 
