@@ -47,9 +47,8 @@ def draw_chart(out: FilePath, title: str, path: Path, prof: Profile, probe_radiu
     top.plot(x, np.minimum(prof.clearance_A, OPEN_RADIUS_A), color="0.45", lw=0.9,
              label="clearance at the probe centre")
     top.axhline(probe_radius_A, color=PROBE_COLOR, ls="--", lw=1.2, label=f"probe radius {probe_radius_A:g} Å")
-    top.axhspan(OPEN_RADIUS_A, OPEN_RADIUS_A * 1.08, color="0.9", lw=0)
-    top.text(x[0], OPEN_RADIUS_A * 1.04, f" ≥ {OPEN_RADIUS_A:g} Å: open surface", va="center", fontsize=8,
-             color="0.35")
+    top.axhspan(OPEN_RADIUS_A, OPEN_RADIUS_A * 1.08, color="0.88", lw=0,
+                label=f"≥ {OPEN_RADIUS_A:g} Å: open, no passage around the path")
     if bottleneck is not None:
         bx, by = bottleneck["path_length_A"], bottleneck["radius_A"]
         right = bx > (x[0] + x[-1]) / 2  # the label goes toward the middle of the chart
@@ -73,9 +72,10 @@ def draw_chart(out: FilePath, title: str, path: Path, prof: Profile, probe_radiu
         top.annotate(str(mark["id"]), (mx, OPEN_RADIUS_A * 1.04), ha="center", va="center", fontsize=8,
                      color="white", bbox={"boxstyle": "circle,pad=0.25", "fc": MARK_COLOR, "ec": "none"})
     if marks:
-        names = "; ".join(f"{m['id']}: {m['label']}" for m in marks[:8]) + (" …" if len(marks) > 8 else "")
+        names = "; ".join(f"{m['id']} ({m['t_s']:.1f} s) {m['label']}" for m in marks[:8]) + \
+            (" …" if len(marks) > 8 else "")
         fig.text(0.01, 0.005, f"marks  {names}", fontsize=8, color=MARK_COLOR, va="bottom")
-    top.legend(loc="lower left", bbox_to_anchor=(0.0, 1.01), ncol=4, fontsize=8, frameon=False,
+    top.legend(loc="lower left", bbox_to_anchor=(0.0, 1.01), ncol=3, fontsize=8, frameon=False,
                borderaxespad=0.0, handlelength=1.6)
     top.set_xlim(x[0], max(x[-1], x[0] + path.spacing_A))
     fig.savefig(out, dpi=110)

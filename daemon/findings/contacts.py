@@ -2,8 +2,8 @@
 
 A contact tick touches every atom whose SAS sphere (vdW + probe radius) the probe centre
 lies on, within CONTACT_TOLERANCE_A (the proxy rests on one, two or three spheres; the
-pose names only the first, which is always counted). A residue's contact time is its
-contact ticks over the rate (a tick touching two of its atoms counts once), its largest
+pose names only the first, which is always counted). A residue's contact time is the
+time of its contact ticks (a tick touching two of its atoms counts once), its largest
 force the largest |force| of those ticks. The residues at a mark are those with an atom
 centre within MARK_RADIUS_A of it.
 """
@@ -63,20 +63,19 @@ def touched_residues(track: Track, per_tick: dict[int, list[int]]) -> list[dict]
             key = _residue_key(s, atom)
             row = rows.get(key)
             if row is None:
-                row = rows[key] = {**residue_of(s, atom), "atoms": {}, "ticks": 0, "max_force_N": 0.0,
+                row = rows[key] = {**residue_of(s, atom), "atoms": {}, "contact_s": 0.0, "max_force_N": 0.0,
                                    "first_s": t, "last_s": t}
             name = str(s.atom_names[atom])
             row["atoms"][name] = row["atoms"].get(name, 0) + 1
             if key not in seen:
                 seen.add(key)
-                row["ticks"] += 1
+                row["contact_s"] += float(track.dt_s[i])
                 row["max_force_N"] = max(row["max_force_N"], force)
                 row["first_s"], row["last_s"] = min(row["first_s"], t), max(row["last_s"], t)
     out = []
     for row in sorted(rows.values(), key=lambda r: r["first_s"]):
         atoms = sorted(row.pop("atoms").items(), key=lambda kv: (-kv[1], kv[0]))
-        ticks = row.pop("ticks")
-        out.append({**row, "atoms": [name for name, _ in atoms], "contact_s": ticks / track.rate_hz})
+        out.append({**row, "atoms": [name for name, _ in atoms]})
     return out
 
 

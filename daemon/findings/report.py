@@ -65,7 +65,7 @@ def analyse(track: Track, probe_radius_A: float | None = None) -> dict:
     neck, path, prof = find_bottleneck(track, path, prof, field)
     marks = [{**m, "residues_within_4A": residues_near(track.structure, m["position_A"])} for m in track.marks]
     s = track.structure
-    contact_s = float(np.count_nonzero(track.contact)) / track.rate_hz
+    contact_s = float(track.dt_s[track.contact].sum())
     return {
         "recording": track.source,
         "structure": {"name": s.name, "sha256": s.sha256, "n_atoms": s.n_atoms},
@@ -92,8 +92,8 @@ def analyse(track: Track, probe_radius_A: float | None = None) -> dict:
 
 def write_findings(recording: str | FilePath, out_dir: str | FilePath, probe_radius_A: float | None = None) -> dict:
     """Analyse a recording and write every file into out_dir; returns findings.json's content."""
+    track = read_track(recording)  # a bad file ends here, before any folder is made
     folder = prepare_folder(out_dir)
-    track = read_track(recording)
     found = analyse(track, probe_radius_A)
     path, prof = found.pop("_path"), found.pop("_profile")
     radius = found["verdict"]["probe_radius_A"]
