@@ -61,9 +61,6 @@ class FindingsJob:
             self.state = "failed"
         log.warning("findings into %s: %s", self.out_dir, self.state if self.error is None else self.error)
 
-    def wait(self, timeout_s: float | None = None) -> None:
-        self._thread.join(timeout_s)
-
     def as_dict(self) -> dict:
         return {"dir": self.out_dir, "recording": str(self.recording), "state": self.state, "pid": self._proc.pid,
                 "started_unix_s": self.started_unix_s, "error": self.error, "result": self.result}

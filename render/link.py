@@ -83,6 +83,7 @@ class DaemonLink(RenderSource):
         self._recent: deque[tuple[int, int]] = deque()  # (device_t_ns, seq) of recent poses
         self._daemon_probe_light: bool | None = None
         self.live = LiveClearance()
+        self._live_wanted = False
         self._note = ("", 0.0)  # (text, until when)
 
     # ------------------------------------------------------------ structure
@@ -118,7 +119,8 @@ class DaemonLink(RenderSource):
         if seen != self._seen:
             self._seen, self._last_data = seen, now
         scene = self.subscriber.scene
-        if self.structure is not None and scene is not None and scene["structure"]["sha256"] == self.structure.sha256:
+        if self._live_wanted and self.structure is not None and scene is not None \
+                and scene["structure"]["sha256"] == self.structure.sha256:
             self.live.update(self.structure, float(scene["probe_radius_A"]), poses)
         for pose in poses:
             self._recent.append((pose.device_t_ns, pose.seq))
@@ -161,6 +163,9 @@ class DaemonLink(RenderSource):
                        force_n=force if self.connected else None, dropped=self.subscriber.malformed,
                        clearance_A=live.clearance_A, passage_A=live.passage_A, bottleneck_A=live.bottleneck_A,
                        note=note if time.monotonic() < until else "")
+
+    def show_live_clearance(self) -> None:
+        self._live_wanted = True
 
     def drop_mark(self) -> None:
         """Ask the daemon for a mark (control `mark`) on a thread, so the window never waits."""

@@ -49,6 +49,10 @@ class RenderSource(abc.ABC):
     def drop_mark(self) -> None:
         """The window's Enter key: mark the probe's position (only a daemon keeps marks)."""
 
+    def show_live_clearance(self) -> None:
+        """A window shows the readout: work out the room at the probe from now on
+        (render/live_clearance.py; headless runs never pay for it)."""
+
     def stream_report(self) -> dict | None:
         """What arrived and what was lost, for `--report`; None without a stream."""
         return None

@@ -76,6 +76,7 @@ class WindowApp:
         self.programs = ProgramCache(ctx)
         self.overlay = TextOverlay(ctx, self.programs)
         self.readout = Readout()
+        source.show_live_clearance()
         self.show_help = False
         self.frame_times: deque[float] = deque(maxlen=60)
         self._drag: str | None = None

@@ -86,8 +86,8 @@ def ring_track(probe_radius: float = CARBON):
     n = z.size
     proxy = np.stack([np.full(n, INNER - probe_radius), np.zeros(n), z], axis=1)
     return Track(structure=structure, structure_file=data, probe_radius_A=probe_radius, rate_hz=1000.0,
-                 t_s=np.arange(n) / 1000.0, dt_s=np.full(n, 1e-3), seq=np.arange(n), proxy_A=proxy, force_N=np.full(n, 0.5),
-                 contact=np.ones(n, dtype=bool), touched_atom=np.zeros(n, dtype=np.int64))
+                 t_s=np.arange(n) / 1000.0, dt_s=np.full(n, 1e-3), seq=np.arange(n), proxy_A=proxy,
+                 force_N=np.full(n, 0.5), contact=np.ones(n, dtype=bool), touched_atom=np.zeros(n, dtype=np.int64))
 
 
 def test_a_ring_channel_gives_its_inner_radius_and_the_verdicts_either_side():
@@ -97,7 +97,7 @@ def test_a_ring_channel_gives_its_inner_radius_and_the_verdicts_either_side():
     track = ring_track()
     s = track.structure
     assert np.allclose(s.vdw_radii, CARBON)
-    found = analyse(track)
+    found = analyse(track).found
     neck = found["bottleneck"]
     assert neck["radius_A"] == pytest.approx(INNER, abs=1e-9)
     assert np.allclose(neck["center_A"], [0.0, 0.0, 0.0], atol=1e-6)  # on the axis, in the ring plane

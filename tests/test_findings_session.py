@@ -1,6 +1,7 @@
 """Findings of a real session (issue 18): one recording daemon (simulated arm on 1CRN) gets a
-mark from a window's Enter key (under Xvfb) and one through the control command, analyses
-itself through `findings`, and is killed with SIGKILL; the cut file gives findings up to
+mark from a window's Enter key (under Xvfb) and one from `sasprobe mark` (the control
+command), analyses itself through `sasprobe findings` (the control command `findings`),
+and is killed with SIGKILL; the cut file gives findings up to
 its last record, and replaying it through a second daemon gives the same marks. The
 exports read back with gemmi and load in PyMOL where it is installed.
 
@@ -45,13 +46,13 @@ def session(tmp_path_factory, request):
                 assert r.returncode == 0 and r.stdout.strip().endswith("keys ok"), r.stdout + r.stderr
                 marks.append(client.get_scene()["marks"][0])
             time.sleep(0.7)
-            marks.append(client.mark("groove between two side chains")["mark"])
-            time.sleep(0.7)
-            job = client.findings(str(folder / "live"))
-            deadline = time.monotonic() + 120
-            while job["state"] == "running" and time.monotonic() < deadline:
-                time.sleep(0.25)
-                job = client.status()["findings"]
+            r = run_cli("mark", "groove between two side chains", "--ctl", d.ctl, "--json")  # the control command
+            assert r.returncode == 0, r.stderr
+            marks.append(json.loads(r.stdout)["mark"])
+            r = run_cli("findings", str(folder / "live"), "--ctl", d.ctl, "--json")  # waits for the daemon's job
+            assert r.returncode == 0, r.stderr
+            job = json.loads(r.stdout)
+            assert job == client.status()["findings"]
             time.sleep(0.5)
         d.stop(signal.SIGKILL)
     return {"folder": folder, "recording": recording, "marks": marks, "job": job, "window": display is not None}

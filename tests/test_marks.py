@@ -65,6 +65,35 @@ def test_marks_are_numbered_belong_to_one_structure_and_are_bounded():
         marks.drop(0, np.zeros(3), None, "control", "sha-b")
 
 
+def test_the_mark_button_marks_the_newest_proxy_except_in_a_replay():
+    from types import SimpleNamespace
+
+    from sasprobe.daemon.marks import drop_mark, mark_button
+
+    recorded, scenes = [], []
+
+    def daemon(replay: bool, proxy):
+        return SimpleNamespace(
+            pipeline=SimpleNamespace(last_output=None if proxy is None else SimpleNamespace(proxy_A=np.array(proxy))),
+            marks=Marks(), structure=SimpleNamespace(sha256="s"),
+            device=SimpleNamespace(recorded_session=lambda: object() if replay else None),
+            record_control=lambda seq, cmd, args: recorded.append((seq, cmd, args)),
+            rebuild_scene=lambda: scenes.append(1))
+
+    live = daemon(False, [1.0, 2.0, 3.0])
+    mark_button(live, 42)
+    assert recorded == [(42, "mark", {"id": 1, "label": "mark 1", "position_A": [1.0, 2.0, 3.0], "seq": 42,
+                                      "source": "button"})] and scenes == [1]
+    assert live.marks.scene("s")[0]["position_A"] == [1.0, 2.0, 3.0]
+    replay = daemon(True, [1.0, 2.0, 3.0])
+    mark_button(replay, 43)  # the recorded `mark` records bring a replay's marks
+    assert replay.marks.scene("s") == [] and len(recorded) == 1
+    mark_button(daemon(False, None), 44)  # no valid reading yet: logged, nothing marked
+    assert len(recorded) == 1
+    with pytest.raises(UserError, match="no probe position"):
+        drop_mark(daemon(False, None), 45, "x", "control")
+
+
 def _frame(gl, crambin, marks, enabled=True):
     from sasprobe.render.camera import Camera
     from sasprobe.render.renderer import Renderer

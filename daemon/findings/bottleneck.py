@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 from sasprobe.daemon.findings.contacts import residue_of
-from sasprobe.daemon.findings.path import Path
+from sasprobe.daemon.findings.path import ExploredPath
 from sasprobe.daemon.findings.session import Track
 from sasprobe.molecule.clearance import OPEN_RADIUS_A, ClearanceField, Passage, persistent
 
@@ -41,7 +41,8 @@ class Profile:
         return np.where(self.bounded, [p.radius_A for p in self.passage], OPEN_RADIUS_A)
 
 
-def profile(path: Path, field: ClearanceField, progress: Callable[[int], None] | None = None) -> Profile:
+def profile(path: ExploredPath, field: ClearanceField,
+            progress: Callable[[int], None] | None = None) -> Profile:
     clearance, _ = field.clearance(path.position_A)
     passages = []
     for point, direction in zip(path.position_A, path.direction):
@@ -52,7 +53,8 @@ def profile(path: Path, field: ClearanceField, progress: Callable[[int], None] |
     return Profile(clearance, passages, bounded)
 
 
-def bottleneck(track: Track, path: Path, prof: Profile, field: ClearanceField) -> tuple[dict | None, Path, Profile]:
+def bottleneck(track: Track, path: ExploredPath, prof: Profile,
+               field: ClearanceField) -> tuple[dict | None, ExploredPath, Profile]:
     """The narrowest counted passage in contact (None when there is none), and the path and
     profile with its refined tick in them."""
     candidates = np.flatnonzero(path.contact & prof.bounded)
@@ -92,8 +94,8 @@ def bottleneck(track: Track, path: Path, prof: Profile, field: ClearanceField) -
     return neck, path, prof
 
 
-def _with_tick(track: Track, path: Path, prof: Profile, field: ClearanceField, tick: int, direction: np.ndarray,
-               passage: Passage) -> tuple[Path, Profile, int]:
+def _with_tick(track: Track, path: ExploredPath, prof: Profile, field: ClearanceField, tick: int,
+               direction: np.ndarray, passage: Passage) -> tuple[ExploredPath, Profile, int]:
     """The path and profile with one more point, at a raw tick (and its index)."""
     k = int(np.searchsorted(path.ticks, tick))
     ticks = np.insert(path.ticks, k, tick)

@@ -10,12 +10,12 @@ through both.
 
 from __future__ import annotations
 
-from pathlib import Path as FilePath
+from pathlib import Path
 
 import numpy as np
 
 from sasprobe.daemon.findings.bottleneck import Profile
-from sasprobe.daemon.findings.path import Path
+from sasprobe.daemon.findings.path import ExploredPath
 from sasprobe.molecule.clearance import OPEN_RADIUS_A
 
 PASSAGE_COLOR = "#1f5fa8"
@@ -29,20 +29,18 @@ def atom_names(atoms: list[dict], limit: int = 4) -> str:
     return ", ".join(names) + (f" +{len(atoms) - limit}" if len(atoms) > limit else "")
 
 
-def draw_chart(out: FilePath, title: str, path: Path, prof: Profile, probe_radius_A: float,
+def draw_chart(out: Path, title: str, path: ExploredPath, prof: Profile, probe_radius_A: float,
                bottleneck: dict | None, marks: list[dict], verdict: str) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # no pyplot: no global state, no display
 
     x = path.length_A
     passage = np.minimum(prof.passage_A, OPEN_RADIUS_A)
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(10, 6.2), sharex=True, height_ratios=(3, 1.3),
-                                      constrained_layout=True)
+    fig = Figure(figsize=(10, 6.2), layout="constrained")
+    top, bottom = fig.subplots(2, 1, sharex=True, height_ratios=(3, 1.3))
     for ax in (top, bottom):  # the stretches in contact, as one shaded band per axis
         ax.fill_between(x, 0, 1, where=path.contact, step="mid", transform=ax.get_xaxis_transform(),
-                        color=CONTACT_COLOR, alpha=0.45, lw=0, label="probe touching the surface" if ax is top else None)
+                        color=CONTACT_COLOR, alpha=0.45, lw=0,
+                        label="probe touching the surface" if ax is top else None)
     top.plot(x, passage, color=PASSAGE_COLOR, lw=1.8, label="passage radius (widest sphere across the path)")
     top.plot(x, np.minimum(prof.clearance_A, OPEN_RADIUS_A), color="0.45", lw=0.9,
              label="clearance at the probe centre")
@@ -79,4 +77,3 @@ def draw_chart(out: FilePath, title: str, path: Path, prof: Profile, probe_radiu
                borderaxespad=0.0, handlelength=1.6)
     top.set_xlim(x[0], max(x[-1], x[0] + path.spacing_A))
     fig.savefig(out, dpi=110)
-    plt.close(fig)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import gzip
 import re
-from pathlib import Path as FilePath
+from pathlib import Path
 
 import gemmi
 import numpy as np
@@ -24,7 +24,7 @@ from sasprobe.molecule.clearance import OPEN_RADIUS_A
 PATH_CHAIN, MARK_CHAIN = "P", "M"
 
 
-def write_structure(data: bytes, folder: FilePath) -> FilePath:
+def write_structure(data: bytes, folder: Path) -> Path:
     """The recording's structure file, uncompressed, as structure.pdb or structure.cif."""
     if data[:2] == b"\x1f\x8b":
         data = gzip.decompress(data)
@@ -63,7 +63,7 @@ def path_structure(points: np.ndarray, b_factors: np.ndarray, marks: list[dict])
     return st
 
 
-def write_path(folder: FilePath, points: np.ndarray, passage_A: np.ndarray, marks: list[dict]) -> dict:
+def write_path(folder: Path, points: np.ndarray, passage_A: np.ndarray, marks: list[dict]) -> dict:
     st = path_structure(points, np.minimum(passage_A, OPEN_RADIUS_A), marks)
     pdb, cif = folder / "path.pdb", folder / "path.cif"
     st.write_pdb(str(pdb))
@@ -82,7 +82,7 @@ def _quoted(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', "'") + '"'
 
 
-def pymol_script(folder: FilePath, structure_file: str, probe_radius_A: float, residues: list[dict],
+def pymol_script(folder: Path, structure_file: str, probe_radius_A: float, residues: list[dict],
                  marks: list[dict], bottleneck: dict | None, title: str) -> str:
     lines = [f"# {title}", "# written by sasprobe replay --findings (open it with: pymol session.pml)",
              f"cd {folder.resolve()}", f"load {structure_file}, structure", "load path.pdb, path",
@@ -96,7 +96,8 @@ def pymol_script(folder: FilePath, structure_file: str, probe_radius_A: float, r
         lines += [f"label path and chain {MARK_CHAIN} and resi {m['id']}, {_quoted(str(m['id']) + ': ' + m['label'])}"
                   for m in marks]
     if residues:
-        terms = [f"({'chain ' + c + ' and ' if c else ''}resi {'+'.join(nums)})" for c, nums in _grouped(residues).items()]
+        terms = [f"({'chain ' + c + ' and ' if c else ''}resi {'+'.join(nums)})"
+                 for c, nums in _grouped(residues).items()]
         lines += [f"select touched, structure and ({' or '.join(terms)})", "show sticks, touched"]
     if bottleneck is not None:
         terms = [f"({'chain ' + a['chain'].strip() + ' and ' if a['chain'].strip() else ''}resi "
@@ -109,7 +110,7 @@ def pymol_script(folder: FilePath, structure_file: str, probe_radius_A: float, r
     return "\n".join(lines) + "\n"
 
 
-def chimerax_script(folder: FilePath, structure_file: str, probe_radius_A: float, residues: list[dict],
+def chimerax_script(folder: Path, structure_file: str, probe_radius_A: float, residues: list[dict],
                     marks: list[dict], bottleneck: dict | None, title: str) -> str:
     lines = [f"# {title}", "# written by sasprobe replay --findings (open it with: chimerax session.cxc)",
              f"cd {_quoted(str(folder.resolve()))}", f"open {structure_file}", "open path.pdb",

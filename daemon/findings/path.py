@@ -22,7 +22,7 @@ MAX_POINTS = 4000  # path points (the PDB export numbers them; the passage analy
 
 
 @dataclass
-class Path:
+class ExploredPath:
     ticks: np.ndarray  # (M,) indices into the track of the kept ticks
     position_A: np.ndarray  # (M, 3)
     t_s: np.ndarray  # (M,)
@@ -37,7 +37,7 @@ class Path:
         return int(self.ticks.size)
 
 
-def explored_path(track: Track, spacing_A: float = SPACING_A) -> Path:
+def explored_path(track: Track, spacing_A: float = SPACING_A) -> ExploredPath:
     p = track.proxy_A
     n = track.n_ticks
     steps = np.linalg.norm(np.diff(p, axis=0), axis=1)
@@ -61,7 +61,7 @@ def explored_path(track: Track, spacing_A: float = SPACING_A) -> Path:
     force = np.maximum.reduceat(track.force_N, np.concatenate(([0], ticks[:-1] + 1)))
     pos = p[ticks]
     length = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(pos, axis=0), axis=1))))
-    return Path(ticks=ticks, position_A=pos, t_s=track.t_s[ticks], contact=track.contact[ticks],
+    return ExploredPath(ticks=ticks, position_A=pos, t_s=track.t_s[ticks], contact=track.contact[ticks],
                 force_max_N=force, length_A=length, direction=travel_directions(pos), spacing_A=spacing)
 
 

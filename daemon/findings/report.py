@@ -16,23 +16,24 @@ from __future__ import annotations
 
 import csv
 import json
-from pathlib import Path as FilePath
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from sasprobe.daemon.findings.bottleneck import bottleneck as find_bottleneck, profile, verdict
+from sasprobe.daemon.findings.bottleneck import Profile, bottleneck as find_bottleneck, profile, verdict
 from sasprobe.daemon.findings.chart import draw_chart
 from sasprobe.daemon.findings.contacts import residues_near, touched_atoms_per_tick, touched_residues
 from sasprobe.daemon.findings.exports import chimerax_script, pymol_script, write_path, write_structure
-from sasprobe.daemon.findings.path import explored_path
+from sasprobe.daemon.findings.path import ExploredPath, explored_path
 from sasprobe.daemon.findings.session import Track, read_track
 from sasprobe.errors import UserError
 from sasprobe.molecule.clearance import MIN_RUN_A, OPEN_RADIUS_A, ClearanceField
 from sasprobe.progress import progress_bar
 
 
-def prepare_folder(out_dir: str | FilePath) -> FilePath:
-    folder = FilePath(out_dir)
+def prepare_folder(out_dir: str | Path) -> Path:
+    folder = Path(out_dir)
     if folder.exists() and not folder.is_dir():
         raise UserError(f"--findings {folder}: exists and is not a folder")
     try:
@@ -42,22 +43,24 @@ def prepare_folder(out_dir: str | FilePath) -> FilePath:
     return folder
 
 
-def _stage(total: int, desc: str, unit: str):
-    return progress_bar(total, desc=desc, unit=unit)
+@dataclass
+class Analysis:
+    found: dict  # findings.json's content (plain JSON)
+    path: ExploredPath  # for the chart and the exports
+    profile: Profile
 
 
-def analyse(track: Track, probe_radius_A: float | None = None) -> dict:
-    """Every finding of a track, as findings.json holds it (arrays as lists), plus the
-    path and profile under private keys for the chart and the exports."""
+def analyse(track: Track, probe_radius_A: float | None = None) -> Analysis:
+    """Every finding of a track; the verdict is about probe_radius_A (default: the session's)."""
     radius = track.probe_radius_A if probe_radius_A is None else float(probe_radius_A)
     field = ClearanceField.of(track.structure)
-    bar = _stage(int(np.count_nonzero(track.contact)), "findings: contacts", "tick")
+    bar = progress_bar(int(np.count_nonzero(track.contact)), desc="findings: contacts", unit="tick")
     try:
         per_tick = touched_atoms_per_tick(track, field, progress=bar.update)
     finally:
         bar.close()
     path = explored_path(track)
-    bar = _stage(path.n_points, "findings: passage", "point")
+    bar = progress_bar(path.n_points, desc="findings: passage", unit="point")
     try:
         prof = profile(path, field, progress=bar.update)
     finally:
@@ -65,39 +68,40 @@ def analyse(track: Track, probe_radius_A: float | None = None) -> dict:
     neck, path, prof = find_bottleneck(track, path, prof, field)
     marks = [{**m, "residues_within_4A": residues_near(track.structure, m["position_A"])} for m in track.marks]
     s = track.structure
-    contact_s = float(track.dt_s[track.contact].sum())
-    return {
+    found = {
         "recording": track.source,
         "structure": {"name": s.name, "sha256": s.sha256, "n_atoms": s.n_atoms},
         "session": {"duration_s": track.duration_s, "ticks": track.n_ticks, "rate_hz": track.rate_hz,
                     "finished": track.finished, "probe_radius_A": track.probe_radius_A,
-                    "contact_s": contact_s, "path_length_A": float(path.length_A[-1])},
+                    "contact_s": float(track.dt_s[track.contact].sum()), "path_length_A": float(path.length_A[-1])},
         "touched_residues": touched_residues(track, per_tick),
         "marks": marks,
         "bottleneck": neck,
         "verdict": verdict(None if neck is None else neck["radius_A"], radius),
-        "path": {"spacing_A": path.spacing_A, "open_radius_A": OPEN_RADIUS_A, "min_run_A": MIN_RUN_A, "points": [
-            {"t_s": float(path.t_s[k]), "seq": int(track.seq[path.ticks[k]]),
+        "path": {"spacing_A": path.spacing_A, "open_radius_A": OPEN_RADIUS_A, "min_run_A": MIN_RUN_A,
+                 "points": _points(track, path, prof)},
+        "notes": track.notes,
+    }
+    return Analysis(found, path, prof)
+
+
+def _points(track: Track, path: ExploredPath, prof: Profile) -> list[dict]:
+    return [{"t_s": float(path.t_s[k]), "seq": int(track.seq[path.ticks[k]]),
              "position_A": path.position_A[k].tolist(), "contact": bool(path.contact[k]),
              "force_max_N": float(path.force_max_N[k]), "length_A": float(path.length_A[k]),
              "clearance_A": float(prof.clearance_A[k]), "passage_A": float(prof.passage_A[k]),
              "bounded": bool(prof.bounded[k]), "widest_sphere_A": prof.passage[k].radius_A,
-             "widest_sphere_center_A": prof.passage[k].center_A.tolist()}
-            for k in range(path.n_points)]},
-        "notes": track.notes,
-        "_path": path,
-        "_profile": prof,
-    }
+             "widest_sphere_center_A": prof.passage[k].center_A.tolist()} for k in range(path.n_points)]
 
 
-def write_findings(recording: str | FilePath, out_dir: str | FilePath, probe_radius_A: float | None = None) -> dict:
+def write_findings(recording: str | Path, out_dir: str | Path, probe_radius_A: float | None = None) -> dict:
     """Analyse a recording and write every file into out_dir; returns findings.json's content."""
     track = read_track(recording)  # a bad file ends here, before any folder is made
     folder = prepare_folder(out_dir)
-    found = analyse(track, probe_radius_A)
-    path, prof = found.pop("_path"), found.pop("_profile")
+    analysis = analyse(track, probe_radius_A)
+    found, path, prof = analysis.found, analysis.path, analysis.profile
     radius = found["verdict"]["probe_radius_A"]
-    title = f"{track.structure.name}: {FilePath(track.source).name}, {track.duration_s:.1f} s"
+    title = f"{track.structure.name}: {Path(track.source).name}, {track.duration_s:.1f} s"
     files = {"json": "findings.json", "residues": "touched_residues.tsv", "marks": "marks.tsv", "chart": "chart.png"}
     structure_file = write_structure(track.structure_file, folder).name
     files["structure"] = structure_file
@@ -114,13 +118,13 @@ def write_findings(recording: str | FilePath, out_dir: str | FilePath, probe_rad
     return found
 
 
-def _write_tables(folder: FilePath, found: dict) -> None:
+def _write_tables(folder: Path, found: dict) -> None:
     with open(folder / "touched_residues.tsv", "w", newline="") as fh:
         w = csv.writer(fh, delimiter="\t", lineterminator="\n")
         w.writerow(["chain", "residue", "number", "atoms", "contact_s", "max_force_N", "first_s", "last_s"])
         for r in found["touched_residues"]:
             w.writerow([r["chain"], r["name"], f"{r['number']}{r['icode']}", ",".join(r["atoms"]),
-                        f"{r['contact_s']:.3f}", f"{r['max_force_N']:.3f}", f"{r['first_s']:.3f}", f"{r['last_s']:.3f}"])
+                        *(f"{r[k]:.3f}" for k in ("contact_s", "max_force_N", "first_s", "last_s"))])
     with open(folder / "marks.tsv", "w", newline="") as fh:
         w = csv.writer(fh, delimiter="\t", lineterminator="\n")
         w.writerow(["mark", "label", "t_s", "x_A", "y_A", "z_A", "residues_within_4A"])
@@ -139,8 +143,8 @@ def summary_lines(found: dict, limit: int = 20) -> list[str]:
     neck = found["bottleneck"]
     if neck is not None:
         atoms = ", ".join(f"{a['chain']}:{a['name']}{a['number']}{a['icode']} {a['atom']}" for a in neck["atoms"][:6])
-        lines.append(f"  bottleneck {neck['radius_A']:.2f} Å at {neck['t_s']:.2f} s (path {neck['path_length_A']:.1f} Å), "
-                     f"lined by {atoms}")
+        lines.append(f"  bottleneck {neck['radius_A']:.2f} Å at {neck['t_s']:.2f} s "
+                     f"(path {neck['path_length_A']:.1f} Å), lined by {atoms}")
     lines.append(f"  verdict    {v['verdict']}")
     for m in found["marks"]:
         near = ", ".join(f"{r['chain']}:{r['name']}{r['number']}{r['icode']}" for r in m["residues_within_4A"][:6])
