@@ -18,7 +18,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser("findings", help="a running daemon's findings so far (path, residues, marks, bottleneck) "
                                         "into DIR on its host")
-    p.add_argument("dir", help="folder on the daemon's host (made if missing)")
+    p.add_argument("dir", help="folder on the daemon's host, relative to the daemon's working directory "
+                               "(made if missing)")
     p.add_argument("--probe-radius", type=probe_radius, default=None, metavar="ANGSTROM",
                    help="the probe whose passage the verdict is about (default: the session's)")
     p.add_argument("--ctl", default=DEFAULT_CTL_ENDPOINT, metavar="ENDPOINT",
