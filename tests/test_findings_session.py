@@ -1,4 +1,4 @@
-"""Findings of a real session (issue 18): one recording daemon (simulated arm on 1CRN) gets a
+"""Findings of a real session (issue 18): one recording daemon (simulated arm diving into 1CRN) gets a
 mark from a window's Enter key (under Xvfb) and one from `sasprobe mark` (the control
 command), analyses itself through `sasprobe findings` (the control command `findings`),
 and is killed with SIGKILL; the cut file gives findings up to
@@ -36,7 +36,9 @@ def session(tmp_path_factory, request):
     recording = folder / "session.mcap"
     display = _display(request)
     marks = []
-    with DaemonProcess("--record", str(recording), device="sim:scan") as d:
+    # The arm dives into a groove and rocks there: a short path, so the analysis takes seconds
+    # however long the window part keeps the session going on a busy machine.
+    with DaemonProcess("--record", str(recording), device="sim:dive") as d:
         with ControlClient(d.ctl) as client:
             time.sleep(1.0)
             if display is not None:  # a window following the daemon: its Enter key drops mark 1
@@ -46,10 +48,12 @@ def session(tmp_path_factory, request):
                 assert r.returncode == 0 and r.stdout.strip().endswith("keys ok"), r.stdout + r.stderr
                 marks.append(client.get_scene()["marks"][0])
             time.sleep(0.7)
-            r = run_cli("mark", "groove between two side chains", "--ctl", d.ctl, "--json")  # the control command
+            r = run_cli("mark", "groove between two side chains", "--ctl", d.ctl, "--json",  # the control command
+                        timeout=300)
             assert r.returncode == 0, r.stderr
             marks.append(json.loads(r.stdout)["mark"])
-            r = run_cli("findings", str(folder / "live"), "--ctl", d.ctl, "--json")  # waits for the daemon's job
+            r = run_cli("findings", str(folder / "live"), "--ctl", d.ctl, "--json",  # waits for the daemon's job
+                        timeout=300)
             assert r.returncode == 0, r.stderr
             job = json.loads(r.stdout)
             assert job == client.status()["findings"]
@@ -70,7 +74,7 @@ def _display(request) -> str | None:
 def findings(session):
     """`sasprobe replay CUT --findings DIR` through the real CLI."""
     out = session["folder"] / "cut"
-    r = run_cli("replay", str(session["recording"]), "--findings", str(out), "--json")
+    r = run_cli("replay", str(session["recording"]), "--findings", str(out), "--json", timeout=300)
     assert r.returncode == 0, r.stderr
     assert "findings: passage" in r.stderr  # the long step shows progress
     return out, json.loads((out / "findings.json").read_text()), json.loads(r.stdout)
@@ -103,7 +107,7 @@ def test_a_killed_session_still_gives_findings_up_to_its_last_record(session, fi
     for name in ("findings.json", "touched_residues.tsv", "marks.tsv", "chart.png", "path.pdb", "path.cif",
                  "session.pml", "session.cxc", "structure.pdb"):
         assert (out / name).stat().st_size > 0, name
-    assert found["touched_residues"], "the scan presses into the surface: residues are touched"
+    assert found["touched_residues"], "the dive presses into the surface: residues are touched"
     rows = (out / "touched_residues.tsv").read_text().splitlines()
     assert len(rows) == len(found["touched_residues"]) + 1
     for r in found["touched_residues"]:

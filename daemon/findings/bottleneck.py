@@ -100,10 +100,12 @@ def _with_tick(track: Track, path: ExploredPath, prof: Profile, field: Clearance
     k = int(np.searchsorted(path.ticks, tick))
     ticks = np.insert(path.ticks, k, tick)
     pos = track.proxy_A[ticks]
-    force = np.maximum.reduceat(track.force_N, np.concatenate(([0], ticks[:-1] + 1)))
+    starts = np.concatenate(([0], ticks[:-1] + 1))
     length = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(pos, axis=0), axis=1))))
-    new_path = replace(path, ticks=ticks, position_A=pos, t_s=track.t_s[ticks], contact=track.contact[ticks],
-                       force_max_N=force, length_A=length, direction=np.insert(path.direction, k, direction, axis=0))
+    new_path = replace(path, ticks=ticks, position_A=pos, t_s=track.t_s[ticks],
+                       contact=np.logical_or.reduceat(track.contact, starts),
+                       force_max_N=np.maximum.reduceat(track.force_N, starts), length_A=length,
+                       direction=np.insert(path.direction, k, direction, axis=0))
     clearance = np.insert(prof.clearance_A, k, field.clearance(track.proxy_A[tick])[0][0])
     new_prof = Profile(clearance, [*prof.passage[:k], passage, *prof.passage[k:]], np.insert(prof.bounded, k, True))
     return new_path, new_prof, k

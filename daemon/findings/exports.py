@@ -8,6 +8,12 @@ they were written in (PyMOL resolves file names against its working directory), 
 structure and the path, colour the path by B-factor (red where it is as tight as the
 probe, blue where open), label the marks, select the touched residues (`touched`) and
 show the atoms that form the bottleneck.
+
+Command syntax from the programs' own documentation: ChimeraX's user guide (atom
+specifiers `#model/chain:residue@atom`, `label ... atoms text`, `name`, `size ...
+atomRadius`) and its gallery sample bfactor.cxc (`color bfactor ... palette A:B:C range
+lo,hi`), www.cgl.ucsf.edu/chimerax/docs/user/commands/; PyMOL's `spectrum`, `pseudoatom`,
+`label` and `select`. PyMOL runs the script in the tests; ChimeraX is not installed here.
 """
 
 from __future__ import annotations

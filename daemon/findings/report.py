@@ -59,7 +59,7 @@ def analyse(track: Track, probe_radius_A: float | None = None) -> Analysis:
         per_tick = touched_atoms_per_tick(track, field, progress=bar.update)
     finally:
         bar.close()
-    path = explored_path(track)
+    path = explored_path(track, per_tick)
     bar = progress_bar(path.n_points, desc="findings: passage", unit="point")
     try:
         prof = profile(path, field, progress=bar.update)
