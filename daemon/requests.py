@@ -17,8 +17,10 @@ from pathlib import Path
 from sasprobe import __version__
 from sasprobe.daemon.access import path_below
 from sasprobe.daemon.buttons import KEY_CLUTCH_LEASE_S
+from sasprobe.daemon.findings_job import FindingsJob
 from sasprobe.daemon.haptics import validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
+from sasprobe.daemon.marks import drop_mark
 from sasprobe.devices.workspace import validate_rotation
 from sasprobe.errors import UserError
 from sasprobe.protocol.control import COMMANDS, Reply, Request
@@ -43,7 +45,10 @@ class RequestHandlers:
             "view": self.view,
             "clutch": self.clutch,
             "recentre": self.recentre,
+            "mark": self.mark,
+            "findings": self.findings,
         }
+        self.findings_job: FindingsJob | None = None  # the newest `findings` analysis
         assert set(self._handlers) == set(COMMANDS), "every protocol command needs its handler"
 
     def handle(self, request: Request) -> Reply:
@@ -85,6 +90,7 @@ class RequestHandlers:
             "control": {"endpoints": d.control.endpoints, "requests": d.control.requests,
                         "errors": d.control.errors, "restarts": d.control.restarts},
             "recording": None if rec is None else {**rec.stats().as_dict(), "error": rec.error},
+            "findings": None if self.findings_job is None else self.findings_job.as_dict(),
         }, None
 
     def get_scene(self, request):
@@ -171,6 +177,23 @@ class RequestHandlers:
         d = self.daemon
         seq = d.submit(lambda seq: (d.workspace_action("recentre", {}, seq), seq)[1])
         return {"seq": seq}, None
+
+    def mark(self, request):
+        d = self.daemon
+        label = request.args.get("label")
+        mark = d.submit(lambda seq: drop_mark(d, seq, label, "control"))
+        return {"mark": mark, "seq": mark["seq"]}, None
+
+    def findings(self, request):
+        """Start the analysis of the recording so far; `status` says when it is done."""
+        recorder = self.daemon.recorder
+        if recorder is None:
+            raise UserError("findings are read from the session's recording: start one first "
+                            "(record_start, or sasprobe daemon --record FILE)")
+        if self.findings_job is not None and self.findings_job.running:
+            raise UserError(f"a findings analysis is still running (into {self.findings_job.out_dir})")
+        self.findings_job = FindingsJob(recorder.path, request.args["dir"], request.args.get("probe_radius_A"))
+        return self.findings_job.as_dict(), None
 
     def shutdown(self, request):
         self.daemon.request_stop("shutdown request")

@@ -14,7 +14,7 @@ def rotation_rows(rotation) -> list[list[float]]:
 
 
 def scene_message(revision: int, structure, settings: dict, nav_cube_enabled: bool, clip_planes: list,
-                  lights: dict, device: DeviceInfo, rate_hz: float | None, view_rotation,
+                  lights: dict, device: DeviceInfo, rate_hz: float | None, view_rotation, marks,
                   color_scheme: str | None = None) -> dict:
     return {
         "version": SCENE_VERSION,
@@ -31,4 +31,5 @@ def scene_message(revision: int, structure, settings: dict, nav_cube_enabled: bo
         "rate_hz": rate_hz,
         "view": {"rotation": rotation_rows(view_rotation)},
         "color_scheme": color_scheme,
+        "marks": marks.scene(structure.sha256),
     }

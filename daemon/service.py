@@ -36,6 +36,7 @@ from sasprobe.daemon.buttons import ButtonMap, WorkspaceInputs
 from sasprobe.daemon.config import DaemonConfig, check_config
 from sasprobe.daemon.faults import LoopLog, Reconnector
 from sasprobe.daemon.loop import FixedRateLoop, enter_realtime
+from sasprobe.daemon.marks import Marks, mark_button
 from sasprobe.daemon.network import Network
 from sasprobe.daemon.recording.replay import REPLAY_SCHEME, REPLAYED_COMMANDS, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
@@ -72,6 +73,7 @@ class Daemon:
         self.lights = json.loads(json.dumps(DEFAULT_LIGHTS))
         self.nav_cube_enabled = True
         self.color_scheme = config.color_scheme
+        self.marks = Marks()  # daemon/marks.py drops them
         self.recorder: Recorder | None = None
         self.requests = RequestHandlers(self)
         self.inputs = WorkspaceInputs(ButtonMap.from_options(config.buttons),
@@ -267,7 +269,9 @@ class Daemon:
         """A replayed control command, applied as it was live."""
         if event.get("cmd") not in REPLAYED_COMMANDS:
             return
-        self.structure, self.settings = apply_recorded_event(
+        if event["cmd"] == "mark":
+            self.marks.restore(event["args"])
+        self.structure, self.settings = apply_recorded_event(  # a mark changes neither
             event, self.pipeline, self.structure, self.settings, self.limits,
             self.device.recorded_session().structure)
         if event["cmd"] == "load" and self.recorder is not None:
@@ -330,8 +334,11 @@ class Daemon:
             self.pipeline.set_clutch(args["held"])
         elif action == "recentre":
             self.pipeline.recentre()
+        elif action == "mark":
+            mark_button(self, seq)  # records its own `mark`
+            return
         else:
-            return  # "mark": issue 18's marks
+            return
         self.record_control(seq, action, args)
 
     def turn_view(self, rotation: tuple[float, ...], seq: int) -> int:
@@ -347,7 +354,7 @@ class Daemon:
         self.scene_revision += 1
         self.scene = scene_message(self.scene_revision, self.structure, self.settings, self.nav_cube_enabled,
                                    self.clip_planes, self.lights, self.device.info, self.rate_hz,
-                                   self.pipeline.view_rotation, self.color_scheme)
+                                   self.pipeline.view_rotation, self.marks, self.color_scheme)
         self._scene_bytes = encode_scene(self.scene)
         self._next_scene_ns = 0
         if self.recorder is not None:

@@ -237,6 +237,15 @@ class ControlClient:
     def shutdown(self) -> dict:
         return self.call("shutdown")
 
+    def mark(self, label: str | None = None) -> dict:
+        """Drop a mark at the probe's position: {"mark": {...}, "seq"}."""
+        return self.call("mark", **({"label": label} if label else {}))
+
+    def findings(self, out_dir: str | Path, probe_radius_A: float | None = None) -> dict:
+        """Start the analysis of the daemon's recording so far into a folder on its host."""
+        extra = {} if probe_radius_A is None else {"probe_radius_A": probe_radius_A}
+        return self.call("findings", dir=str(out_dir), **extra)
+
     def _reset(self) -> None:
         if self._watch is not None:
             self._watch.close()

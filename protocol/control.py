@@ -26,6 +26,7 @@ from sasprobe.protocol.scene import (
     reject_constant,
     validate_clip_planes,
     validate_color_scheme,
+    validate_mark_label,
 )
 
 CONTROL_VERSION = 1
@@ -49,6 +50,8 @@ COMMANDS = (
     "view",
     "clutch",
     "recentre",
+    "mark",
+    "findings",
 )
 
 # `set` fields and the JSON types they take (semantic limits, such as the probe radius's
@@ -316,6 +319,24 @@ def _check_args(req: Request) -> None:
             raise ProtocolError("'clutch' takes 'held' (true or false)")
     elif req.cmd == "recentre":
         _no_args(req)
+
+    elif req.cmd == "mark":
+        if set(req.args) - {"label"}:
+            raise ProtocolError("'mark' takes only 'label'")
+        if "label" in req.args:
+            try:
+                validate_mark_label(req.args["label"])
+            except SceneError as exc:
+                raise ProtocolError(str(exc)) from None
+    elif req.cmd == "findings":
+        _string(req.args, "dir", req.cmd)
+        if set(req.args) - {"dir", "probe_radius_A"}:
+            raise ProtocolError("'findings' takes 'dir' and 'probe_radius_A'")
+        if "probe_radius_A" in req.args:
+            value = req.args["probe_radius_A"]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                    or value <= 0:
+                raise ProtocolError("'probe_radius_A' must be a number > 0")
 
 
 def _is_matrix3(value) -> bool:

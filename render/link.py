@@ -27,12 +27,13 @@ import numpy as np
 
 from sasprobe.errors import UserError
 from sasprobe.molecule import Structure, parse_structure
-from sasprobe.protocol.client import Subscriber, fetch_structure
+from sasprobe.protocol.client import ControlClient, Subscriber, fetch_structure
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
 from sasprobe.protocol.pose import FLAG_CLUTCHED, FLAG_DRIFTING
-from sasprobe.render.daemon_requests import RequestSender
 from sasprobe.protocol.security import ClientKeys
-from sasprobe.render.scene import NavCube, Probe, normalise_plane
+from sasprobe.render.daemon_requests import RequestSender
+from sasprobe.render.live_clearance import LiveClearance
+from sasprobe.render.scene import Mark, NavCube, Probe, normalise_plane
 from sasprobe.render.source import Readout, RenderSource
 
 log = logging.getLogger("sasprobe")
@@ -42,6 +43,7 @@ RETRY_S = 1.0  # between structure fetch attempts
 FETCH_TIMEOUT_S = 2.0
 RATE_WINDOW_S = 0.5  # haptic rate: poses over this much device time ...
 RATE_WINDOW_POSES = 4096  # ... and never more poses than this
+NOTE_S = 3.0  # how long the answer to a dropped mark stays in the readout
 
 
 def view_axes(state: dict | None) -> np.ndarray:
@@ -54,9 +56,9 @@ def view_axes(state: dict | None) -> np.ndarray:
 
 
 def apply_scene_message(scene, state: dict) -> bool:
-    """A `scene` message's probe radius, clip planes, light direction and force ratings into a
-    SceneState (its grid then follows the daemon's probe radius); returns whether the daemon
-    has the probe light on (the caller decides whether to follow)."""
+    """A `scene` message's probe radius, clip planes, light direction, force ratings and marks
+    into a SceneState (its grid then follows the daemon's probe radius); returns whether the
+    daemon has the probe light on (the caller decides whether to follow)."""
     scene.probe_radius = float(state["probe_radius_A"])
     planes = [normalise_plane(p) for p in state["clip_planes"]]
     if len(planes) != len(scene.clip_planes) or any(not np.array_equal(a, b) for a, b in zip(planes, scene.clip_planes)):
@@ -67,6 +69,9 @@ def apply_scene_message(scene, state: dict) -> bool:
     limits = state["device"].get("limits") or {}
     if "continuous_force_n" in limits and "max_force_n" in limits:
         scene.force_ratings_n = (float(limits["continuous_force_n"]), float(limits["max_force_n"]))
+    marks = [Mark(int(m["id"]), m["label"], tuple(map(float, m["position_A"]))) for m in state.get("marks", [])]
+    if marks != scene.marks:
+        scene.marks = marks
     return bool(lights["probe"]["enabled"])
 
 
@@ -118,6 +123,9 @@ class DaemonLink(RenderSource):
         self._recent: deque[tuple[int, int]] = deque(maxlen=RATE_WINDOW_POSES)  # (device_t_ns, seq)
         self._daemon_probe_light: bool | None = None
         self._daemon_scheme: str | None = None
+        self.live = LiveClearance()
+        self._live_wanted = False
+        self._note = ("", 0.0)  # (text, until when)
 
     # ------------------------------------------------------------ structure
     def _fetch(self) -> None:
@@ -152,6 +160,10 @@ class DaemonLink(RenderSource):
         if seen != self._seen:
             self._seen, self._last_data = seen, now
             self._ever_connected = True
+        scene = self.subscriber.scene
+        if self._live_wanted and self.structure is not None and scene is not None \
+                and scene["structure"]["sha256"] == self.structure.sha256:
+            self.live.update(self.structure, float(scene["probe_radius_A"]), poses)
         recent = self._recent
         for pose in poses:
             if recent and (pose.device_t_ns < recent[-1][0] or pose.seq < recent[-1][1]):
@@ -208,13 +220,33 @@ class DaemonLink(RenderSource):
             rate = (s1 - s0) / ((t1 - t0) * 1e-9)
         live = connected and pose is not None
         limits = ((self.subscriber.scene or {}).get("device") or {}).get("limits") or {}
+        clearance = self.live if connected else LiveClearance()
+        note, until = self._note
         return Readout(
             status=status, haptic_hz=rate if connected else None,
             force_n=float(np.linalg.norm(pose.force_N)) if live else None, dropped=self.subscriber.malformed,
             touched=touched_label(self.structure, pose.touched_atom) if live else None,
             continuous_force_n=limits.get("continuous_force_n"), peak_force_n=limits.get("max_force_n"),
             clutched=live and pose.has(FLAG_CLUTCHED), drifting=live and pose.has(FLAG_DRIFTING),
+            clearance_A=clearance.clearance_A, passage_A=clearance.passage_A, bottleneck_A=clearance.bottleneck_A,
+            note=note if time.monotonic() < until else "",
         )
+
+    def show_live_clearance(self) -> None:
+        self._live_wanted = True
+
+    def drop_mark(self) -> None:
+        """Ask the daemon for a mark (control `mark`) on a thread, so the window never waits."""
+        def ask() -> None:
+            try:
+                with ControlClient(self.ctl, keys=self.keys, timeout_s=FETCH_TIMEOUT_S) as client:
+                    mark = client.mark()["mark"]
+                text = f"mark {mark['id']} dropped"
+            except UserError as exc:
+                text = f"no mark: {exc}"
+            self._note = (text, time.monotonic() + NOTE_S)
+
+        threading.Thread(target=ask, name="sasprobe-mark", daemon=True).start()
 
     def wait_ready(self, timeout_s: float = 10.0) -> None:
         """Block until the structure and a first pose are in (headless start), or one clear line."""

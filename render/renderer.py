@@ -1,7 +1,7 @@
 """The renderer: GL objects created once, and the pass chain run each frame.
 
     clear -> spheres -> probe -> backbone -> [lighting: fills the visibility buffer]
-          -> shading -> [path_trace] -> navcube -> probe_cues -> fxaa -> legend
+          -> shading -> [path_trace] -> navcube -> probe_cues -> fxaa -> legend -> marks
 
 Before the chain runs, the atoms' colours follow the scene's colour scheme
 (render/colors.py; rewritten in the sphere buffer only when the scheme changes).
@@ -28,6 +28,7 @@ from sasprobe.render.passes.base import Frame, Pass
 from sasprobe.render.passes.clear import ClearPass
 from sasprobe.render.passes.fxaa import FxaaPass
 from sasprobe.render.passes.legend import LegendPass
+from sasprobe.render.passes.marks import MarksPass
 from sasprobe.render.passes.navcube import NavCubePass
 from sasprobe.render.passes.probe import ProbePass
 from sasprobe.render.passes.probe_cues import ProbeCuesPass
@@ -59,6 +60,7 @@ class Renderer:
             ProbeCuesPass(ctx, self.programs),
             FxaaPass(ctx, self.programs),
             LegendPass(ctx, self.programs),
+            MarksPass(ctx, self.programs),
         ]
         self.frame_index = 0
         self.last_frame: Frame | None = None

@@ -81,6 +81,15 @@ class NavCube:
         return np.array(out)
 
 
+@dataclass(frozen=True)
+class Mark:
+    """A mark the daemon's scene carries (protocol/README.md `marks`)."""
+
+    id: int
+    label: str
+    position: tuple[float, float, float]  # Å, molecule frame
+
+
 @dataclass
 class Effects:
     """Switches the window's keys toggle (each effect can be turned off)."""
@@ -96,6 +105,7 @@ class Effects:
     clip_planes: bool = True
     probe_plane: bool = False  # a plane through the probe centre, facing the camera
     readout: bool = True  # on-screen fps / haptic rate / force (window only)
+    marks: bool = True  # the session's numbered marks
     # lighting (render/passes/lighting.py; how each is computed: LightingSettings)
     shadows: bool = False
     soft_shadows: bool = False
@@ -112,6 +122,7 @@ class SceneState:
     probe: Probe | None = None
     nav_cube: NavCube | None = None
     clip_planes: list[np.ndarray] = field(default_factory=list)
+    marks: list[Mark] = field(default_factory=list)
     light_direction: np.ndarray = field(default_factory=lambda: _unit(DEFAULT_LIGHT_DIRECTION))
     effects: Effects = field(default_factory=Effects)
     force_ratings_n: tuple[float, float] | None = None  # the device's (continuous, peak) force, N

@@ -29,6 +29,10 @@ class Readout:
     peak_force_n: float | None = None
     clutched: bool = False
     drifting: bool = False
+    clearance_A: float | None = None  # at the probe centre (render/live_clearance.py)
+    passage_A: float | None = None  # widest sphere across the probe's path; None: open
+    bottleneck_A: float | None = None  # the narrowest passage in contact so far
+    note: str = ""  # a passing message, e.g. the answer to a dropped mark
 
 
 class RenderSource(abc.ABC):
@@ -47,6 +51,13 @@ class RenderSource(abc.ABC):
 
     def readout(self) -> Readout:
         return Readout()
+
+    def drop_mark(self) -> None:
+        """The window's Enter key: mark the probe's position (only a daemon keeps marks)."""
+
+    def show_live_clearance(self) -> None:
+        """A window shows the readout: work out the room at the probe from now on
+        (render/live_clearance.py; headless runs never pay for it)."""
 
     def stream_report(self) -> dict | None:
         """What arrived and what was lost, for `--report`; None without a stream."""

@@ -62,9 +62,17 @@ HELP = [
     "C: colour scheme   I: lighting preset   Shift+A: AO method   Z: centre on the probe",
     "Ctrl+S: screenshot   Ctrl+R: start/stop a video   M: sphere mode (quad/sprite)",
     "R: reset camera   H: help   Q/Esc: quit",
+    "Enter: drop a mark at the probe (with a daemon)",
 ]
 CLICK_PIXELS = 3.0  # a press and release closer than this is a click (a pick), not a drag
 LABEL_OFFSET = (14.0, -10.0)  # the label's corner from the picked atom's centre on screen, pixels
+
+
+def clearance_line(ro: Readout) -> str:
+    """Room at the probe (Å): clearance at its centre, passage across its path, narrowest so far."""
+    passage = "open" if ro.passage_A is None else f"{ro.passage_A:.2f} Å"
+    bottleneck = "-" if ro.bottleneck_A is None else f"{ro.bottleneck_A:.2f} Å"
+    return f"clearance {ro.clearance_A:.2f} Å   passage {passage}   bottleneck {bottleneck}"
 
 
 class WindowApp:
@@ -95,6 +103,7 @@ class WindowApp:
         self.overlay = TextOverlay(ctx, self.programs)
         self.label_overlay = TextOverlay(ctx, self.programs)
         self.readout = Readout()
+        source.show_live_clearance()
         self.show_help = False
         self.frame_times: deque[float] = deque(maxlen=60)
         self.picked: tuple[int, str] | None = None  # (atom, label)
@@ -141,6 +150,8 @@ class WindowApp:
         elif shift and name == "A":
             if self.renderer is not None and lighting_of(self.renderer) is not None:
                 lighting_of(self.renderer).cycle_ao_mode()
+        elif key in (glfw.KEY_ENTER, glfw.KEY_KP_ENTER):
+            self.source.drop_mark()
         elif name in TOGGLES:
             field_name = TOGGLES[name][0]
             setattr(fx, field_name, not getattr(fx, field_name))
@@ -321,6 +332,10 @@ class WindowApp:
             lines += state
         if r is not None and self.source.view_axes() is not None:
             lines.append("workspace view (Tab: overview)" if self.view.workspace else "overview (Tab: workspace view)")
+        if ro.clearance_A is not None:
+            lines.append(clearance_line(ro))
+        if ro.note:
+            lines.append(ro.note)
         if ro.dropped:
             lines.append(f"dropped malformed messages: {ro.dropped}")
         if self.message:

@@ -56,6 +56,8 @@ class ReplaySession:
     errors: dict  # tick index -> read error
     force_n: np.ndarray  # (N, 3) the recorded (published) force
     flags: np.ndarray  # (N,)
+    proxy_A: np.ndarray  # (N, 3) the recorded probe centre
+    touched_atom: np.ndarray  # (N,) the recorded touched atom, -1 for none
     events: list = field(default_factory=list)  # control records after `start`, in order
 
     @property
@@ -173,6 +175,8 @@ def load_session(path: str | Path) -> ReplaySession:
         errors=errors,
         force_n=np.array([_vector(poses[s]["force_N"], 3) for s in seqs]),
         flags=np.array([poses[s]["flags"] for s in seqs], dtype=np.int64),
+        proxy_A=np.array([_vector(poses[s]["proxy_A"], 3) for s in seqs]),
+        touched_atom=np.array([poses[s]["touched_atom"] for s in seqs], dtype=np.int64),
         events=events,
     )
 
@@ -256,7 +260,7 @@ def open_replay(argument: str | None, speed: float | None = 1.0, **options) -> R
 REPLAY_SCHEME = DeviceScheme(f"{__name__}:open_replay", "a recorded session (--speed X|max)", "replay:session.mcap")
 
 
-REPLAYED_COMMANDS = ("set", "load", "reconnect", "view", "clutch", "recentre")  # what a replay repeats
+REPLAYED_COMMANDS = ("set", "load", "reconnect", "view", "clutch", "recentre", "mark")  # what a replay repeats
 
 
 def apply_recorded_event(event: dict, pipeline: HapticPipeline, structure, settings: dict, limits: DeviceLimits,

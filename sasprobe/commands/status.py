@@ -63,4 +63,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(f"  recording   {rec['path']}: {rec['messages']} messages, {rec['bytes'] / 1e6:.1f} MB, "
               f"{rec['dropped']} dropped" + (f", FAILED: {rec['error']}" if rec.get("error") else ""))
+    job = status.get("findings")
+    if job is not None:
+        outcome = {"running": "running", "failed": f"FAILED: {job['error']}",
+                   "done": f"done: {(job.get('result') or {}).get('verdict', {}).get('verdict', '')}"}[job["state"]]
+        print(f"  findings    {job['dir']}: {outcome}")
     return 0
