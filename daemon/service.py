@@ -6,7 +6,7 @@ and the PUB socket, and the device but for one exception: the watchdog thread
 (daemon/watchdog.py) writes zero force when no tick has completed in time, under the
 lock the loop writes with. The control thread answers requests (daemon/requests.py);
 anything that changes state is prepared there (parsing a structure, building an engine)
-and handed to the loop as a small closure, applied at the start of the next tick. The
+and handed to the loop as a small closure (daemon/changes.py), applied at the start of the next tick. The
 recorder thread writes the MCAP file. ZeroMQ's own I/O threads do the network sending.
 
 A replayed session is a device like any other: the loop asks every device for its
@@ -25,7 +25,6 @@ import signal
 import sys
 import threading
 import time
-from concurrent.futures import Future, TimeoutError as FutureTimeout
 from pathlib import Path
 
 import numpy as np
@@ -33,10 +32,11 @@ import numpy as np
 from sasprobe import __version__
 from sasprobe.daemon import events
 from sasprobe.daemon.buttons import ButtonMap, WorkspaceInputs
+from sasprobe.daemon.changes import LoopChanges
 from sasprobe.daemon.config import DaemonConfig, check_config
 from sasprobe.daemon.faults import LoopLog, Reconnector
 from sasprobe.daemon.loop import FixedRateLoop, enter_realtime
-from sasprobe.daemon.marks import Marks, mark_button
+from sasprobe.daemon.marks import Marks
 from sasprobe.daemon.network import Network
 from sasprobe.daemon.recording.replay import REPLAY_SCHEME, REPLAYED_COMMANDS, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
@@ -48,7 +48,6 @@ from sasprobe.daemon.watchdog import StallWatchdog
 from sasprobe.devices.base import DeviceFault
 from sasprobe.devices.registry import register_scheme
 from sasprobe.devices.workspace import IDENTITY
-from sasprobe.errors import UserError
 from sasprobe.protocol.pose import encode_pose
 from sasprobe.protocol.scene import DEFAULT_LIGHTS, encode_scene
 
@@ -58,11 +57,10 @@ register_scheme("replay", REPLAY_SCHEME)  # the daemon's own recordings, played 
 
 SCENE_INTERVAL_NS = 1_000_000_000  # re-publish the scene at least this often (late joiners)
 LATE_READ_PERIODS = 3.0  # a read slower than this many periods counts as failed
-SUBMIT_TIMEOUT_S = 5.0
 SWITCH_INTERVAL_S = 1e-4  # how long another Python thread may hold the GIL before the loop gets it
 
 
-class Daemon:
+class Daemon(LoopChanges):
     def __init__(self, config: DaemonConfig) -> None:
         self.config = check_config(config)
         start = open_session(config)
@@ -278,75 +276,6 @@ class Daemon:
             self.recorder.offer_structure(time.monotonic_ns(), self.structure.name, self.structure.source_bytes)
         self.record_control(seq, event["cmd"], event.get("args", {}))
         self.rebuild_scene()
-
-    # ------------------------------------------------------------------ changes from the control thread
-    def submit(self, fn):
-        """Run fn(seq) on the loop thread at the start of the next tick and return its result."""
-        future: Future = Future()
-        self._pending.append((fn, future))
-        try:
-            return future.result(timeout=SUBMIT_TIMEOUT_S)
-        except FutureTimeout:
-            raise UserError("the daemon loop did not take the change in time (is it shutting down?)") from None
-
-    def _apply_pending(self, seq: int) -> None:
-        while self._pending:
-            fn, future = self._pending.popleft()
-            try:
-                future.set_result(fn(seq))
-            except Exception as exc:
-                future.set_exception(exc)
-
-    def swap_structure(self, structure, keep_water: bool, engine, seq: int) -> int:
-        """On the loop thread: a new structure and its engine (built off the loop)."""
-        self.structure = structure
-        self.structure_keep_water = keep_water
-        self.pipeline.replace_engine(engine)
-        if self.recorder is not None:
-            self.recorder.offer_structure(time.monotonic_ns(), structure.name, structure.source_bytes)
-        self.record_control(seq, "load", {"sha256": structure.sha256, "name": structure.name, "keep_water": keep_water})
-        self.rebuild_scene()
-        return seq
-
-    def apply_settings(self, haptic: dict, scene_only: dict, settings: dict, lights: dict | None, engine,
-                       seq: int) -> int:
-        """On the loop thread: a checked `set` (a new engine when one had to be built)."""
-        if engine is not None:
-            self.pipeline.replace_engine(engine)
-        elif haptic:
-            self.pipeline.engine.update(**haptic)
-        self.settings = settings
-        if "clip_planes" in scene_only:
-            self.clip_planes = scene_only["clip_planes"]
-        if lights is not None:
-            self.lights = lights
-        if "nav_cube_enabled" in scene_only:
-            self.nav_cube_enabled = scene_only["nav_cube_enabled"]
-        if "color_scheme" in scene_only:
-            self.color_scheme = scene_only["color_scheme"]
-        self.record_control(seq, "set", {**haptic, **scene_only})
-        self.rebuild_scene()
-        return seq
-
-    def workspace_action(self, action: str, args: dict, seq: int) -> None:
-        """On the loop thread: a clutch change or a pressed action (device button, window key), recorded."""
-        if action == "clutch":
-            self.pipeline.set_clutch(args["held"])
-        elif action == "recentre":
-            self.pipeline.recentre()
-        elif action == "mark":
-            mark_button(self, seq)  # records its own `mark`
-            return
-        else:
-            return
-        self.record_control(seq, action, args)
-
-    def turn_view(self, rotation: tuple[float, ...], seq: int) -> int:
-        """On the loop thread: the workspace view turned (control `view`); the mapping turns with it."""
-        self.pipeline.set_view(rotation)
-        self.record_control(seq, "view", {"rotation": rotation_rows(rotation)})
-        self.rebuild_scene()
-        return seq
 
     # ------------------------------------------------------------------ scene
     def rebuild_scene(self) -> None:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import logging
 import time
 from datetime import datetime
 from pathlib import Path
@@ -11,6 +12,8 @@ import numpy as np
 
 from sasprobe.molecule import Structure
 from sasprobe.render.output import FrameWriter
+
+log = logging.getLogger("sasprobe")
 
 VIDEO_FPS = 30.0
 
@@ -52,6 +55,47 @@ class PacedRecorder:
     def close(self) -> Path:
         self.writer.close()
         return self.path
+
+
+class WindowCapture:
+    """The window's Ctrl+S and Ctrl+R: what is due, what is being recorded, what was written."""
+
+    def __init__(self, folder: Path):
+        self.folder = folder
+        self.recorder: PacedRecorder | None = None
+        self.screenshot_due = False  # taken after the next frame is drawn, before it is shown
+        self.saved: list[Path] = []  # screenshots and videos written, in order
+        self.message = ""  # the last capture's line in the readout
+
+    @property
+    def wants_frame(self) -> bool:
+        return self.screenshot_due or self.recorder is not None
+
+    def toggle_recording(self) -> None:
+        if self.recorder is None:
+            self.recorder = PacedRecorder(self.folder)
+            self.message = f"recording {self.recorder.path.name} (Ctrl+R stops)"
+        else:
+            path = self.recorder.close()
+            self.recorder = None
+            self._wrote(path)
+
+    def take(self, image: np.ndarray) -> None:
+        """The frame just drawn: the due screenshot, and the video's next frames."""
+        if self.screenshot_due:
+            self.screenshot_due = False
+            self._wrote(save_screenshot(self.folder, image))
+        if self.recorder is not None:
+            self.recorder.add(image)
+
+    def close(self) -> None:
+        if self.recorder is not None:
+            self.toggle_recording()  # finish the video
+
+    def _wrote(self, path: Path) -> None:
+        self.saved.append(path)
+        self.message = f"saved {path}"
+        log.info("wrote %s", path)
 
 
 def atom_label(structure: Structure, atom: int, sas_area: float) -> str:

@@ -18,7 +18,7 @@ import numpy as np
 
 from sasprobe.molecule.sas import atom_areas
 from sasprobe.render.camera import Camera
-from sasprobe.render.capture import PacedRecorder, atom_label, save_screenshot
+from sasprobe.render.capture import WindowCapture, atom_label
 from sasprobe.render.colors import SCHEMES
 from sasprobe.render.gbuffer_export import gbuffer_arrays, save_gbuffer
 from sasprobe.render.gl.programs import ProgramCache
@@ -27,6 +27,7 @@ from sasprobe.render.gl.textures import read_image
 from sasprobe.render.lighting.presets import PRESET_NAMES, PRESETS
 from sasprobe.render.passes.lighting import apply_preset, lighting_of, lighting_status
 from sasprobe.render.passes.overlay import TextOverlay
+from sasprobe.render.picking import label_position, pixel_under, point_under
 from sasprobe.render.scene import Effects
 from sasprobe.render.source import Readout
 from sasprobe.render.workspace_view import OVERVIEW, WORKSPACE, WorkspaceView, overview_camera
@@ -65,7 +66,6 @@ HELP = [
     "Enter: drop a mark at the probe (with a daemon)",
 ]
 CLICK_PIXELS = 3.0  # a press and release closer than this is a click (a pick), not a drag
-LABEL_OFFSET = (14.0, -10.0)  # the label's corner from the picked atom's centre on screen, pixels
 
 
 def clearance_line(ro: Readout) -> str:
@@ -95,7 +95,6 @@ class WindowApp:
         self.effects = effects  # kept across rebuilds: the user's toggles and colour scheme
         self.preset = preset
         self.background = background
-        self.shots = Path.cwd() if shots is None else Path(shots)
         self.renderer = None
         self.camera: Camera | None = None
         self.home: Camera | None = None
@@ -107,10 +106,7 @@ class WindowApp:
         self.show_help = False
         self.frame_times: deque[float] = deque(maxlen=60)
         self.picked: tuple[int, str] | None = None  # (atom, label)
-        self.recorder: PacedRecorder | None = None
-        self.saved: list[Path] = []  # screenshots and videos written, in order
-        self.message = ""  # the last capture's line in the readout
-        self._screenshot_due = False
+        self.capture = WindowCapture(Path.cwd() if shots is None else Path(shots))
         self._drag: str | None = None
         self._press_pos = (0.0, 0.0)
         self._last_pos = (0.0, 0.0)
@@ -144,9 +140,9 @@ class WindowApp:
         if key in (glfw.KEY_ESCAPE,) or name == "Q":
             glfw.set_window_should_close(window, True)
         elif ctrl and name == "S":
-            self._screenshot_due = True  # after the next frame is drawn, before it is shown
+            self.capture.screenshot_due = True
         elif ctrl and name == "R":
-            self._toggle_recording()
+            self.capture.toggle_recording()
         elif shift and name == "A":
             if self.renderer is not None and lighting_of(self.renderer) is not None:
                 lighting_of(self.renderer).cycle_ao_mode()
@@ -238,29 +234,13 @@ class WindowApp:
         self._stop = True
 
     # ------------------------------------------------------------ picking
-    def _pixel(self, x: float, y: float) -> tuple[int, int, np.ndarray] | None:
-        """The last frame's G-buffer under a cursor position (window coordinates)."""
-        if self.renderer is None or self.renderer.last_frame is None:
-            return None
-        ww, wh = self.glfw.get_window_size(self.window)
-        fw, fh = self.renderer.targets.size
-        return self.renderer.targets.read_pixel(x * fw / max(ww, 1), y * fh / max(wh, 1))
-
     def point_under(self, x: float, y: float) -> np.ndarray:
-        """The surface point under the cursor, else the cursor's ray at the target's depth."""
-        hit = self._pixel(x, y)
-        if hit is not None and hit[1] != KIND_BACKGROUND:
-            return hit[2]
-        ww, wh = self.glfw.get_window_size(self.window)
-        cam = self.camera
-        ray = cam.ray((2.0 * x / max(ww, 1) - 1.0, 1.0 - 2.0 * y / max(wh, 1)), ww / max(wh, 1))
-        forward = -cam.basis()[:, 2]
-        return cam.eye + ray * (cam.distance / max(float(ray @ forward), 1e-6))
+        return point_under(self.renderer, self.camera, self.glfw.get_window_size(self.window), x, y)
 
     def pick(self, x: float, y: float) -> int | None:
         """Name the atom under the cursor (the G-buffer's atom id there); clicking the
         background or the probe clears the label. Returns the atom or None."""
-        hit = self._pixel(x, y)
+        hit = pixel_under(self.renderer, self.glfw.get_window_size(self.window), x, y)
         if hit is None or hit[0] < 0 or hit[1] in (KIND_BACKGROUND, KIND_PROBE):
             self.picked = None
             return None
@@ -269,46 +249,6 @@ class WindowApp:
         self.picked = (atom, atom_label(scene.structure, atom, area))
         log.info("picked atom %d: %s", atom, self.picked[1])
         return atom
-
-    def _label_position(self, size: tuple[int, int]) -> tuple[float, float] | None:
-        """Where the picked atom's label goes (pixels from the top left), or None when the
-        atom is behind the camera."""
-        atom = self.picked[0]
-        frame = self.renderer.last_frame
-        centre = self.renderer.scene.structure.positions[atom]
-        clip = frame.viewproj @ np.array([*centre, 1.0])
-        if clip[3] <= 0:
-            return None
-        x = (clip[0] / clip[3] * 0.5 + 0.5) * size[0] + LABEL_OFFSET[0]
-        y = (0.5 - clip[1] / clip[3] * 0.5) * size[1] + LABEL_OFFSET[1]
-        w, h = self.label_overlay.size
-        return min(max(x, 0.0), max(size[0] - w, 0.0)), min(max(y, 0.0), max(size[1] - h, 0.0))
-
-    # ------------------------------------------------------------ capture
-    def _toggle_recording(self) -> None:
-        if self.recorder is None:
-            self.recorder = PacedRecorder(self.shots)
-            self.message = f"recording {self.recorder.path.name} (Ctrl+R stops)"
-        else:
-            path = self.recorder.close()
-            self.recorder = None
-            self.saved.append(path)
-            self.message = f"saved {path}"
-            log.info("wrote %s", path)
-
-    def _capture(self, size: tuple[int, int]) -> None:
-        """Screenshot and video frames of what was just drawn (the back buffer, before it is shown)."""
-        if not (self._screenshot_due or self.recorder is not None):
-            return
-        image = self._screenshot(size)
-        if self._screenshot_due:
-            self._screenshot_due = False
-            path = save_screenshot(self.shots, image)
-            self.saved.append(path)
-            self.message = f"saved {path}"
-            log.info("wrote %s", path)
-        if self.recorder is not None:
-            self.recorder.add(image)
 
     # ------------------------------------------------------------ loop
     def text(self) -> list[str]:
@@ -338,8 +278,8 @@ class WindowApp:
             lines.append(ro.note)
         if ro.dropped:
             lines.append(f"dropped malformed messages: {ro.dropped}")
-        if self.message:
-            lines.append(self.message)
+        if self.capture.message:
+            lines.append(self.capture.message)
         lines += HELP if self.show_help else ["H: help"]
         return lines
 
@@ -370,7 +310,8 @@ class WindowApp:
             self.overlay.draw(screen, size, text)
         if self.picked is not None and self.renderer is not None:
             self.label_overlay.prepare([self.picked[1]])
-            at = self._label_position(size)
+            centre = self.renderer.scene.structure.positions[self.picked[0]]
+            at = label_position(self.renderer.last_frame.viewproj, centre, size, self.label_overlay.size)
             if at is not None:
                 self.label_overlay.draw(screen, size, [self.picked[1]], at=at)
 
@@ -399,7 +340,8 @@ class WindowApp:
                 if t0 - last_text > 0.25:
                     text, last_text = self.text(), t0
                 self._draw(size, text)
-                self._capture(size)
+                if self.capture.wants_frame:  # what was just drawn: the back buffer, before it is shown
+                    self.capture.take(self._screenshot(size))
                 done = (frames is not None and count + 1 >= frames) or (
                     frames is None and seconds is not None and time.perf_counter() - start >= seconds)
                 if writer is not None and (done or writer.is_video):  # PNG: a screenshot of the last frame
@@ -426,8 +368,7 @@ class WindowApp:
     def release(self) -> None:
         if self._clutch_renewed is not None:
             self._clutch_key(False)  # never leave the daemon clutched
-        if self.recorder is not None:
-            self._toggle_recording()  # finish the video
+        self.capture.close()
         if self.renderer is not None:
             self.renderer.release()
         self.overlay.release()

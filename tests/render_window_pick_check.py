@@ -135,7 +135,7 @@ def main() -> int:
         app.run(frames=3)
         press(app, glfw.KEY_R, glfw.MOD_CONTROL)
         videos = sorted(shots.glob("sasprobe-*.mp4"))
-        assert len(videos) == 1 and videos[0] in app.saved, videos
+        assert len(videos) == 1 and videos[0] in app.capture.saved, videos
         reader = iio2.get_reader(str(videos[0]))
         first = reader.get_data(0)
         reader.close()
