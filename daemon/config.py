@@ -1,5 +1,5 @@
-"""What a daemon is started with (DaemonConfig, from `sasprobe daemon`'s options), and the
-check that keeps it on this machine unless it has CURVE keys."""
+"""What a daemon is started with (DaemonConfig, from `sasprobe daemon`'s options), the check
+that keeps it on this machine unless it has CURVE keys, and which keys each socket uses."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 from sasprobe.daemon.loop import DEFAULT_RATE_HZ
 from sasprobe.errors import UserError
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
+from sasprobe.protocol.security import ServerKeys, ensure_local_keys, load_server_keys
 
 
 @dataclass
@@ -26,8 +27,28 @@ class DaemonConfig:
     spin_s: float = 200e-6
     report: str | None = None  # write a JSON exit report here
     max_seconds: float | None = None  # stop by itself after this long (benchmarks, demos)
-    realtime: bool = False  # SCHED_FIFO for the loop and ZeroMQ's I/O thread
+    realtime: bool = True  # ask for SCHED_FIFO for the loop and ZeroMQ's I/O thread (fall back with a warning)
     faults: list[str] = field(default_factory=list)  # simulated-arm fault injection, e.g. "nan@900+5"
+    buttons: list[str] = field(default_factory=list)  # --button ACTION=N (daemon/buttons.py)
+    button_presses: list[str] = field(default_factory=list)  # simulated arm: "BUTTON@TICK+COUNT" held down
+    color_scheme: str | None = None  # the scene's colour scheme (None: each renderer's default by structure)
+    load_dir: str | None = None  # `load` may read files below this folder (None: bytes only)
+    record_dir: str | None = None  # `record_start` writes below this folder (None: refused)
+    loop_stalls: list[tuple[int, float]] = field(default_factory=list)  # test hook: (tick, seconds) the loop sleeps
+
+
+def check_config(config: DaemonConfig) -> DaemonConfig:
+    """What can be checked before anything opens: binds, folders, a new recording file."""
+    from pathlib import Path
+
+    from sasprobe.daemon.access import check_folder
+
+    check_bind_security(config.pub + config.ctl, config.keys)
+    config.load_dir = check_folder(config.load_dir, "--load-dir")
+    config.record_dir = check_folder(config.record_dir, "--record-dir")
+    if config.record and Path(config.record).exists():
+        raise UserError(f"{config.record}: already exists; record to a new file")
+    return config
 
 
 def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:
@@ -39,3 +60,16 @@ def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:
                 f"refusing to bind {text} without encryption: an address other machines can reach needs "
                 f"--keys DIR (CURVE keys with a client allow-list; create them with `sasprobe keys DIR`)"
             )
+
+
+def socket_keys(endpoints: list[str], keys_dir: str | None) -> ServerKeys | None:
+    """The CURVE keys of a socket: the given folder's; else, when it binds TCP (loopback: every
+    user of the machine can reach it), this user's local keys; else (ipc:// only, guarded by
+    file permissions) none."""
+    from pathlib import Path
+
+    if keys_dir:
+        return load_server_keys(Path(keys_dir))
+    if any(parse_endpoint(text).transport == "tcp" for text in endpoints):
+        return load_server_keys(ensure_local_keys())
+    return None

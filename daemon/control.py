@@ -1,8 +1,14 @@
 """The control server: a ROUTER socket on its own thread, so requests never touch the loop.
 
 Every request gets exactly one reply: the handler's result, or an error line for
-anything malformed, unknown or failing (which is also logged). REQ clients and DEALER
-clients both work: the reply goes back with the request's envelope.
+anything malformed, unknown or failing (which is also logged) — encoding the reply
+included, so no request can end the thread. Should the thread end anyway (an
+exception from outside Python's ordinary errors), `ensure_running()`, which the
+daemon's watchdog thread calls, starts a new one on the same socket. REQ clients and
+DEALER clients both work: the reply goes back with the request's envelope.
+
+Frames are received without copying (a 256 MiB `load` is not memcpy'd under the GIL);
+every frame of a message counts against the protocol's size limit.
 """
 
 from __future__ import annotations
@@ -14,14 +20,23 @@ from typing import Callable
 import zmq
 
 from sasprobe.daemon.loop import helper_priority
-
+from sasprobe.daemon.monitor import SocketMonitor
 from sasprobe.errors import UserError
-from sasprobe.protocol.control import MAX_MESSAGE_BYTES, ProtocolError, Reply, Request, decode_request, encode_reply
+from sasprobe.protocol.control import (
+    MAX_MESSAGE_BYTES,
+    ProtocolError,
+    Reply,
+    Request,
+    decode_request,
+    encode_reply,
+    plain_id,
+)
 from sasprobe.protocol.security import ServerKeys, bind_server_socket
 
 log = logging.getLogger("sasprobe")
 
 REPLY_LINGER_MS = 1000  # a reply (e.g. to `shutdown`) still goes out while the socket closes
+POLL_MS = 100
 
 
 class ControlServer:
@@ -30,36 +45,66 @@ class ControlServer:
         self._handler = handler
         self._socket = context.socket(zmq.ROUTER)
         self._socket.linger = REPLY_LINGER_MS
-        self._socket.setsockopt(zmq.MAXMSGSIZE, MAX_MESSAGE_BYTES)  # larger frames drop the connection
-        self.endpoints = bind_server_socket(self._socket, endpoints, keys)
+        self._socket.setsockopt(zmq.MAXMSGSIZE, MAX_MESSAGE_BYTES)  # a larger frame drops the connection
+        self._monitor = SocketMonitor(self._socket, "control socket", keys is not None)
+        try:
+            self.endpoints = bind_server_socket(self._socket, endpoints, keys)
+        except BaseException:
+            self._monitor.close()
+            raise
         self.requests = 0
         self.errors = 0
+        self.restarts = 0  # threads started again after one ended
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="sasprobe-control", daemon=True)
+        self._thread: threading.Thread | None = None
 
     def start(self) -> None:
+        self._thread = threading.Thread(target=self._run, name="sasprobe-control", daemon=True)
         self._thread.start()
+
+    def alive(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def ensure_running(self) -> bool:
+        """Start the thread again if it ended while the daemon still runs; True when it did."""
+        if self._stop.is_set() or self._thread is None or self._thread.is_alive():
+            return False
+        self.restarts += 1
+        log.warning("control thread ended unexpectedly; started again (%d restart(s))", self.restarts)
+        self.start()
+        return True
 
     def _run(self) -> None:
         helper_priority()
         poller = zmq.Poller()
         poller.register(self._socket, zmq.POLLIN)
         while not self._stop.is_set():
-            if not poller.poll(100):
+            self._monitor.drain()
+            if not poller.poll(POLL_MS):
                 continue
             try:
-                frames = self._socket.recv_multipart(zmq.NOBLOCK)
+                frames = self._socket.recv_multipart(zmq.NOBLOCK, copy=False)
             except zmq.Again:
                 continue
-            envelope, body = _split_envelope(frames)
-            reply = self.handle(body)
+            envelope, body = split_envelope(frames)
+            reply = self.answer(body)
             try:
-                self._socket.send_multipart(envelope + encode_reply(reply), zmq.NOBLOCK)
+                self._socket.send_multipart(envelope + reply, zmq.NOBLOCK)
             except zmq.ZMQError as exc:  # the client went away; nothing to answer
                 log.info("control reply not sent: %s", exc)
-        self._socket.close()
 
-    def handle(self, frames: list[bytes]) -> Reply:
+    def answer(self, frames: list) -> list[bytes]:
+        """The encoded reply to a request's frames; never raises an ordinary exception."""
+        reply = self.handle(frames)
+        try:
+            return encode_reply(reply)
+        except Exception as exc:  # a result that is not plain JSON: a bug, answered as one
+            log.exception("control reply could not be encoded")
+            self.errors += 1
+            return encode_reply(Reply(ok=False, error=f"internal error: the reply could not be encoded "
+                                                       f"({type(exc).__name__})", id=plain_id(reply.id)))
+
+    def handle(self, frames: list) -> Reply:
         """Decode, dispatch and turn every failure into an error reply."""
         self.requests += 1
         request_id = None
@@ -69,11 +114,11 @@ class ControlServer:
             reply = self._handler(request)
             reply.id = request.id
         except (ProtocolError, UserError, ValueError) as exc:
-            reply = Reply(ok=False, error=_one_line(str(exc)) or type(exc).__name__, id=_safe_id(request_id))
+            reply = Reply(ok=False, error=one_line(str(exc)) or type(exc).__name__, id=request_id)
         except Exception as exc:  # a bug: answer, log, keep serving
             log.exception("control request failed")
-            reply = Reply(ok=False, error=f"internal error: {type(exc).__name__}: {_one_line(str(exc))}",
-                          id=_safe_id(request_id))
+            reply = Reply(ok=False, error=f"internal error: {type(exc).__name__}: {one_line(str(exc))}",
+                          id=request_id)
         if not reply.ok:
             self.errors += 1
             log.warning("control: %s", reply.error)
@@ -81,29 +126,24 @@ class ControlServer:
 
     def stop(self) -> None:
         self._stop.set()
-        if self._thread.is_alive():
+        if self._thread is not None and self._thread.is_alive():
             self._thread.join()
-        else:
-            self._socket.close()
+        self._monitor.close()
+        self._socket.close()
 
 
-def _split_envelope(frames: list[bytes]) -> tuple[list[bytes], list[bytes]]:
+def split_envelope(frames: list) -> tuple[list, list]:
     """ROUTER frames → (routing envelope to send back, request frames).
 
-    A REQ client's envelope ends with an empty delimiter frame; a DEALER client may send
-    none, in which case the envelope is just its identity.
+    The first frame is the peer's identity. A REQ client (or a DEALER imitating one) puts
+    an empty delimiter right after it; a DEALER may send none. Only that position is a
+    delimiter: an empty frame later on belongs to the request (and makes it malformed).
     """
-    for i in range(1, len(frames)):
-        if frames[i] == b"":
-            return frames[: i + 1], frames[i + 1 :]
+    if len(frames) > 1 and len(frames[1]) == 0:
+        return frames[:2], frames[2:]
     return frames[:1], frames[1:]
 
 
-def _one_line(text: str) -> str:
+def one_line(text: str) -> str:
     line = text.strip().splitlines()[0] if text.strip() else ""
     return line if len(line) <= 300 else line[:297] + "..."
-
-
-def _safe_id(value):
-    """Echo a request id only when it is plain JSON (it goes back into the reply)."""
-    return value if isinstance(value, (str, int, float)) and not isinstance(value, bool) else None

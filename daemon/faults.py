@@ -1,8 +1,10 @@
-"""The loop's fault bookkeeping: a log that does not flood, and when to try reconnect().
+"""The loop's fault bookkeeping: logs that do not flood, and when to try reconnect().
 
 A device that fails for RECONNECT_AFTER_NS (a blip does not count) gets `reconnect()`
-every RECONNECT_INTERVAL_NS until it answers again. Both run on the loop thread and take
-the tick's time as an argument.
+every RECONNECT_INTERVAL_NS until it answers again. Ticks lost to timing (late starts,
+skipped deadlines, stalls) are told once, with what fixes them, rather than once per
+fault; a long stall is told with its length. All run on the loop thread and take the
+tick's time as an argument.
 """
 
 from __future__ import annotations
@@ -26,16 +28,80 @@ class FaultLog:
         self._suppressed = 0
 
     def note(self, reason: str | None, now_ns: int) -> None:
+        self.say("device fault cleared, force back on" if reason is None else f"device fault: {reason}; force zeroed",
+                 now_ns)
+
+    def say(self, line: str, now_ns: int) -> None:
         if now_ns - self._last_ns < self.interval_ns:
             self._suppressed += 1
             return
-        more = f" ({self._suppressed} more fault changes in the last second)" if self._suppressed else ""
-        if reason is None:
-            log.warning("device fault cleared, force back on%s", more)
-        else:
-            log.warning("device fault: %s; force zeroed%s", reason, more)
+        more = f" ({self._suppressed} more in the last second)" if self._suppressed else ""
+        log.warning("%s%s", line, more)
         self._last_ns = now_ns
         self._suppressed = 0
+
+
+LOST_TICKS_WARN = 10  # lost ticks within LOST_WINDOW_NS before the loop says so (a hiccup does not count)
+LOST_WINDOW_NS = 1_000_000_000
+STALL_LOG_NS = 20_000_000  # a stall this long gets its own line (shorter ones count as lost ticks)
+
+REALTIME_FIX = ("allow real-time scheduling: run as root, grant CAP_SYS_NICE (`sudo setcap cap_sys_nice+ep "
+                "$(readlink -f $(which python3))`), or give your user an rtprio limit "
+                "(`@USER - rtprio 60` in /etc/security/limits.conf, then log in again)")
+
+
+class LoopLog:
+    """What the loop says about its ticks: device faults (FaultLog), ticks lost to timing
+    (once, with the fix), long stalls (with their length)."""
+
+    def __init__(self, realtime: bool) -> None:
+        self.realtime = realtime
+        self.lost = 0  # ticks lost to timing since start
+        self.warned = False
+        self._window: list[tuple[int, int]] = []  # (tick time, lost) within the last window
+        self._stalls = FaultLog()
+        self._faults = FaultLog()
+        self._fault_logged = False  # the fault in progress was told (a timing fault is not: lost_ticks tells it)
+
+    def tick(self, now_ns: int, missed: int, timing_only: bool, fault_changed: bool, guard, stall) -> None:
+        """After each tick: `timing_only` when the tick was faulted for lateness alone."""
+        self.lost_ticks(now_ns, missed + (1 if timing_only else 0))
+        if stall is not None:
+            self.stall(stall.length_ns, stall.zeroed_after_ns, now_ns)
+        if fault_changed and (self._fault_logged or not timing_only):
+            self._fault_logged = guard.fault
+            self._faults.note(guard.reason if guard.fault else None, now_ns)
+
+    def lost_ticks(self, now_ns: int, count: int) -> None:
+        if count <= 0:
+            return
+        self.lost += count
+        if self.warned:
+            return
+        window = self._window
+        window.append((now_ns, count))
+        while window and now_ns - window[0][0] > LOST_WINDOW_NS:
+            window.pop(0)
+        recent = sum(n for _, n in window)
+        if recent < LOST_TICKS_WARN:
+            return
+        self.warned = True
+        window.clear()
+        if self.realtime:
+            log.warning("the haptic loop is losing ticks (%d in the last second) even with real-time scheduling: "
+                        "another real-time task or the machine (a VM's stolen time) takes its CPU; each lost "
+                        "tick zeroes the force. `sasprobe status` counts them; this is said once", recent)
+        else:
+            log.warning("the haptic loop is losing ticks (%d in the last second): it shares the CPU with every "
+                        "other process, and each lost tick zeroes the force. To fix it, %s. This is said once; "
+                        "`sasprobe status` counts them", recent, REALTIME_FIX)
+
+    def stall(self, length_ns: int, zeroed_after_ns: int | None, now_ns: int) -> None:
+        if length_ns < STALL_LOG_NS:
+            return
+        zero = ("could not write zero force (a driver call held the device)" if zeroed_after_ns is None
+                else f"the watchdog zeroed the force {zeroed_after_ns / 1e6:.1f} ms after the last tick")
+        self._stalls.say(f"the haptic loop stalled for {length_ns / 1e6:.1f} ms; {zero}", now_ns)
 
 
 class Reconnector:

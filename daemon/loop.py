@@ -20,7 +20,7 @@ import numpy as np
 log = logging.getLogger("sasprobe")
 
 DEFAULT_RATE_HZ = 1000.0  # the control rate haptics needs (1 kHz)
-REALTIME_PRIORITY = 50  # SCHED_FIFO priority with --realtime (1-99)
+REALTIME_PRIORITY = 50  # SCHED_FIFO priority of the loop (1-99), asked for unless --no-realtime
 HIST_BIN_NS = 1_000  # period-error histogram: 1 µs bins ...
 HIST_BINS = 100_000  # ... up to 100 ms (larger errors land in the last bin)
 RECENT_TICKS = 1024  # the window `sasprobe status` shows (about a second at 1 kHz)
@@ -197,12 +197,31 @@ class FixedRateLoop:
 
 
 def enter_realtime(priority: int = REALTIME_PRIORITY) -> bool:
-    """SCHED_FIFO for the calling thread (and the threads it starts); False when not permitted."""
+    """SCHED_FIFO for the calling thread (and the threads it starts); False, with one line
+    saying what that costs and how to allow it, when not permitted.
+
+    Without root or CAP_SYS_NICE an rtprio resource limit still allows SCHED_FIFO up to
+    its value, so the priority asked for is capped there (the soft limit raised to the
+    hard one first)."""
+    import resource
+
+    from sasprobe.daemon.faults import REALTIME_FIX
+
     try:
+        if os.geteuid() != 0:
+            soft, hard = resource.getrlimit(resource.RLIMIT_RTPRIO)
+            if soft < hard:
+                resource.setrlimit(resource.RLIMIT_RTPRIO, (hard, hard))
+                soft = hard
+            if 0 < soft < priority:
+                priority = int(soft)
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
         return True
-    except (OSError, AttributeError) as exc:
-        log.warning("--realtime: cannot use SCHED_FIFO (%s); running with normal scheduling", exc)
+    except (OSError, AttributeError, ValueError) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc)
+        log.warning("real-time scheduling refused (%s): the haptic loop competes with every other process and "
+                    "loses ticks (zero force) whenever the CPU is busy; to allow it, %s; --no-realtime says you "
+                    "know", reason, REALTIME_FIX)
         return False
 
 

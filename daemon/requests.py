@@ -1,9 +1,10 @@
 """The daemon's answers to control requests; they run on the control thread.
 
 One method per command of the protocol (protocol/control.py COMMANDS). A request
-that changes state does the slow part here (parsing a structure, building an engine,
-checking settings) and hands the loop a closure through `Daemon.submit`, so the loop
-only ever swaps finished objects in.
+that changes state does the slow part away from the loop (parsing a structure and
+building an engine happen in the daemon's worker process, daemon/structure_worker.py;
+settings are checked here) and hands the loop a closure through `Daemon.submit`, so the
+loop only ever swaps finished objects in.
 """
 
 from __future__ import annotations
@@ -11,10 +12,16 @@ from __future__ import annotations
 import logging
 import os
 import time
+from pathlib import Path
 
 from sasprobe import __version__
-from sasprobe.daemon.haptics import build_engine, validate_settings
+from sasprobe.daemon.access import path_below
+from sasprobe.daemon.buttons import KEY_CLUTCH_LEASE_S
+from sasprobe.daemon.findings_job import FindingsJob
+from sasprobe.daemon.haptics import validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
+from sasprobe.daemon.marks import drop_mark
+from sasprobe.devices.workspace import validate_rotation
 from sasprobe.errors import UserError
 from sasprobe.protocol.control import COMMANDS, Reply, Request
 from sasprobe.protocol.scene import merge_lights
@@ -35,7 +42,13 @@ class RequestHandlers:
             "record_start": self.record_start,
             "record_stop": self.record_stop,
             "shutdown": self.shutdown,
+            "view": self.view,
+            "clutch": self.clutch,
+            "recentre": self.recentre,
+            "mark": self.mark,
+            "findings": self.findings,
         }
+        self.findings_job: FindingsJob | None = None  # the newest `findings` analysis
         assert set(self._handlers) == set(COMMANDS), "every protocol command needs its handler"
 
     def handle(self, request: Request) -> Reply:
@@ -55,6 +68,9 @@ class RequestHandlers:
         cpu_s = d.loop_cpu_since_reset_ns() / 1e9
         summary["cpu_percent"] = 100.0 * cpu_s / summary["window_s"] if summary["window_s"] > 0 else None
         summary["target_rate_hz"] = d.rate_hz
+        summary["stalls"] = d.watchdog.as_dict()
+        summary["lost_ticks"] = d.timing.lost
+        summary["realtime"] = d.realtime
         guard = d.pipeline.guard
         rec = d.recorder
         return {
@@ -72,8 +88,9 @@ class RequestHandlers:
                           "poses_sent": d.publisher.poses_sent, "scenes_sent": d.publisher.scenes_sent,
                           "send_failures": d.publisher.send_failures},
             "control": {"endpoints": d.control.endpoints, "requests": d.control.requests,
-                        "errors": d.control.errors},
+                        "errors": d.control.errors, "restarts": d.control.restarts},
             "recording": None if rec is None else {**rec.stats().as_dict(), "error": rec.error},
+            "findings": None if self.findings_job is None else self.findings_job.as_dict(),
         }, None
 
     def get_scene(self, request):
@@ -86,16 +103,20 @@ class RequestHandlers:
 
     # ------------------------------------------------------------------ changing
     def load(self, request):
-        from sasprobe.molecule import load_structure, parse_structure
+        from sasprobe.molecule.fetch import pdb_id, resolve
+        from sasprobe.molecule.structure import MAX_FILE_BYTES, read_regular_file, structure_name
 
         d = self.daemon
         keep_water = request.args.get("keep_water", False)
         if request.data is not None:
             name = request.args.get("name") or "uploaded"
-            structure = parse_structure(request.data, name=name, source=f"control:{name}", keep_water=keep_water)
+            data, source = request.data, f"control:{name}"
         else:
-            structure = load_structure(request.args["path"], keep_water=keep_water)
-        engine = build_engine(structure, d.limits, d.settings)  # off the loop: grids take time
+            text = request.args["path"]
+            # a PDB id comes through the user's fetch cache; a file only from below --load-dir
+            path = Path(resolve(text)) if pdb_id(text) else path_below(d.config.load_dir, text, "--load-dir", "load")
+            data, name, source = read_regular_file(path, MAX_FILE_BYTES), structure_name(path.name), str(path)
+        structure, engine = d.structure_worker.build(data, name, source, keep_water, d.limits, d.settings)
         seq = d.submit(lambda seq: d.swap_structure(structure, keep_water, engine, seq))
         log.warning("loaded %s (%d atoms) at tick %d", structure.source, structure.n_atoms, seq)
         return {"structure": {"name": structure.name, "sha256": structure.sha256, "n_atoms": structure.n_atoms},
@@ -106,7 +127,7 @@ class RequestHandlers:
         haptic, scene_only = split_changes(dict(request.args))
         settings = validate_settings({**d.settings, **haptic}, d.limits) if haptic else d.settings
         lights = merge_lights(d.lights, scene_only["lights"]) if "lights" in scene_only else None
-        engine = build_engine(d.structure, d.limits, settings) if needs_rebuild(haptic) else None
+        engine = self._engine(settings) if needs_rebuild(haptic) else None
         seq = d.submit(lambda seq: d.apply_settings(haptic, scene_only, settings, lights, engine, seq))
         return {"seq": seq, "settings": settings, "revision": d.scene_revision}, None
 
@@ -114,8 +135,9 @@ class RequestHandlers:
         d = self.daemon
         if d.recorder is not None:
             raise UserError(f"already recording to {d.recorder.path}")
-        recorder = d.new_recorder(request.args["path"])
-        engine = build_engine(d.structure, d.limits, d.settings)  # the replay starts from this
+        recorder = d.new_recorder(path_below(d.config.record_dir, request.args["path"], "--record-dir",
+                                             "record_start"))
+        engine = self._engine(d.settings)  # the replay starts from this
         try:
             seq = d.submit(lambda seq: d.attach_recorder(recorder, seq, engine))
         except UserError:
@@ -123,11 +145,55 @@ class RequestHandlers:
             raise
         return {"path": str(recorder.path), "seq": seq}, None
 
+    def _engine(self, settings: dict):
+        """A new engine for the current structure, built in the worker process."""
+        d = self.daemon
+        s = d.structure
+        return d.structure_worker.build(s.source_bytes, s.name, s.source, d.structure_keep_water, d.limits,
+                                        settings)[1]
+
     def record_stop(self, request):
         recorder = self.daemon.submit(self.daemon.detach_recorder)
         if recorder is None:
             raise UserError("not recording")
         return recorder.close().as_dict(), None
+
+    # ------------------------------------------------------------------ the workspace
+    def view(self, request):
+        """The workspace view turned: the mapping turns with it, about the probe."""
+        rotation = validate_rotation(request.args["rotation"])
+        d = self.daemon
+        seq = d.submit(lambda seq: d.turn_view(rotation, seq))
+        return {"seq": seq, "revision": d.scene_revision}, None
+
+    def clutch(self, request):
+        """The window's clutch key: held for KEY_CLUTCH_LEASE_S unless renewed, or let go."""
+        d = self.daemon
+        held = request.args["held"]
+        seq = d.submit(lambda seq: (d.inputs.key_clutch(held, time.monotonic_ns()), seq)[1])
+        return {"seq": seq, "held": held, "lease_s": KEY_CLUTCH_LEASE_S if held else None}, None
+
+    def recentre(self, request):
+        d = self.daemon
+        seq = d.submit(lambda seq: (d.workspace_action("recentre", {}, seq), seq)[1])
+        return {"seq": seq}, None
+
+    def mark(self, request):
+        d = self.daemon
+        label = request.args.get("label")
+        mark = d.submit(lambda seq: drop_mark(d, seq, label, "control"))
+        return {"mark": mark, "seq": mark["seq"]}, None
+
+    def findings(self, request):
+        """Start the analysis of the recording so far; `status` says when it is done."""
+        recorder = self.daemon.recorder
+        if recorder is None:
+            raise UserError("findings are read from the session's recording: start one first "
+                            "(record_start, or sasprobe daemon --record FILE)")
+        if self.findings_job is not None and self.findings_job.running:
+            raise UserError(f"a findings analysis is still running (into {self.findings_job.out_dir})")
+        self.findings_job = FindingsJob(recorder.path, request.args["dir"], request.args.get("probe_radius_A"))
+        return self.findings_job.as_dict(), None
 
     def shutdown(self, request):
         self.daemon.request_stop("shutdown request")

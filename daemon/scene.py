@@ -7,8 +7,15 @@ from sasprobe.devices.base import DeviceInfo
 from sasprobe.protocol.scene import SCENE_VERSION
 
 
+def rotation_rows(rotation) -> list[list[float]]:
+    """A view rotation's 9 floats (row-major) as the 3 rows the wire carries."""
+    r = [float(v) for v in rotation]
+    return [r[0:3], r[3:6], r[6:9]]
+
+
 def scene_message(revision: int, structure, settings: dict, nav_cube_enabled: bool, clip_planes: list,
-                  lights: dict, device: DeviceInfo, rate_hz: float | None) -> dict:
+                  lights: dict, device: DeviceInfo, rate_hz: float | None, view_rotation, marks,
+                  color_scheme: str | None = None) -> dict:
     return {
         "version": SCENE_VERSION,
         "revision": revision,
@@ -22,4 +29,7 @@ def scene_message(revision: int, structure, settings: dict, nav_cube_enabled: bo
         "haptics": {"method": settings["method"], "stiffness_n_per_mm": settings["stiffness_n_per_mm"],
                     "damping_n_s_per_m": settings["damping_n_s_per_m"]},
         "rate_hz": rate_hz,
+        "view": {"rotation": rotation_rows(view_rotation)},
+        "color_scheme": color_scheme,
+        "marks": marks.scene(structure.sha256),
     }

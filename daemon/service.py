@@ -1,10 +1,12 @@
 """`sasprobe daemon`: the one process that owns the device, its lifecycle and its loop.
 
 Threads: the main thread runs the fixed-rate loop (read → haptic force → safety →
-write → publish → hand to the recorder) and is the only one that touches the device,
-the engine and the PUB socket. The control thread answers requests (daemon/requests.py);
+write → publish → hand to the recorder) and is the only one that touches the engine
+and the PUB socket, and the device but for one exception: the watchdog thread
+(daemon/watchdog.py) writes zero force when no tick has completed in time, under the
+lock the loop writes with. The control thread answers requests (daemon/requests.py);
 anything that changes state is prepared there (parsing a structure, building an engine)
-and handed to the loop as a small closure, applied at the start of the next tick. The
+and handed to the loop as a small closure (daemon/changes.py), applied at the start of the next tick. The
 recorder thread writes the MCAP file. ZeroMQ's own I/O threads do the network sending.
 
 A replayed session is a device like any other: the loop asks every device for its
@@ -23,26 +25,29 @@ import signal
 import sys
 import threading
 import time
-from concurrent.futures import Future, TimeoutError as FutureTimeout
 from pathlib import Path
 
 import numpy as np
 
 from sasprobe import __version__
 from sasprobe.daemon import events
-from sasprobe.daemon.config import DaemonConfig, check_bind_security
-from sasprobe.daemon.control import ControlServer
-from sasprobe.daemon.faults import FaultLog, Reconnector
-from sasprobe.daemon.haptics import HapticPipeline, SafetyGuard, build_engine, validate_settings
+from sasprobe.daemon.buttons import ButtonMap, WorkspaceInputs
+from sasprobe.daemon.changes import LoopChanges
+from sasprobe.daemon.config import DaemonConfig, check_config
+from sasprobe.daemon.faults import LoopLog, Reconnector
 from sasprobe.daemon.loop import FixedRateLoop, enter_realtime
-from sasprobe.daemon.publisher import Publisher
-from sasprobe.daemon.recording.replay import REPLAY_SCHEME, apply_recorded_event
+from sasprobe.daemon.marks import Marks
+from sasprobe.daemon.network import Network
+from sasprobe.daemon.recording.replay import REPLAY_SCHEME, REPLAYED_COMMANDS, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
 from sasprobe.daemon.requests import RequestHandlers
-from sasprobe.daemon.scene import scene_message
+from sasprobe.daemon.scene import rotation_rows, scene_message
+from sasprobe.daemon.session import open_session
+from sasprobe.daemon.structure_worker import StructureWorker
+from sasprobe.daemon.watchdog import StallWatchdog
 from sasprobe.devices.base import DeviceFault
 from sasprobe.devices.registry import register_scheme
-from sasprobe.errors import UserError
+from sasprobe.devices.workspace import IDENTITY
 from sasprobe.protocol.pose import encode_pose
 from sasprobe.protocol.scene import DEFAULT_LIGHTS, encode_scene
 
@@ -52,23 +57,26 @@ register_scheme("replay", REPLAY_SCHEME)  # the daemon's own recordings, played 
 
 SCENE_INTERVAL_NS = 1_000_000_000  # re-publish the scene at least this often (late joiners)
 LATE_READ_PERIODS = 3.0  # a read slower than this many periods counts as failed
-SUBMIT_TIMEOUT_S = 5.0
 SWITCH_INTERVAL_S = 1e-4  # how long another Python thread may hold the GIL before the loop gets it
 
 
-class Daemon:
+class Daemon(LoopChanges):
     def __init__(self, config: DaemonConfig) -> None:
-        self.config = config
-        check_bind_security(config.pub + config.ctl, config.keys)
-        if config.record and Path(config.record).exists():
-            raise UserError(f"{config.record}: already exists; record to a new file")
-        self._open_device_and_engine()
+        self.config = check_config(config)
+        start = open_session(config)
+        self.structure, self.structure_keep_water, self.device = start.structure, start.keep_water, start.device
+        self.rate_hz, self.limits, self.settings, self.pipeline = start.rate_hz, start.limits, start.settings, start.pipeline
         self.loop = FixedRateLoop(self.rate_hz, spin_s=config.spin_s)
         self.clip_planes: list[list[float]] = []
         self.lights = json.loads(json.dumps(DEFAULT_LIGHTS))
         self.nav_cube_enabled = True
+        self.color_scheme = config.color_scheme
+        self.marks = Marks()  # daemon/marks.py drops them
         self.recorder: Recorder | None = None
         self.requests = RequestHandlers(self)
+        self.inputs = WorkspaceInputs(ButtonMap.from_options(config.buttons),
+                                      map_device_buttons=self.device.recorded_session() is None)
+        self.structure_worker = StructureWorker()  # `load` parses there, started on first use
         self.last_force_written = np.zeros(3)
         self.write_failures = 0
         self.started_ns = time.monotonic_ns()
@@ -80,12 +88,15 @@ class Daemon:
         self._stop_reason: str | None = None
         self._carry_error: str | None = None  # a failed force write, reported on the next tick
         self._reconnector = Reconnector(self.device)
-        self._fault_log = FaultLog()
+        self.write_lock = threading.Lock()  # the loop's force writes and the watchdog's zeros
+        self.watchdog = StallWatchdog(self.device, self.write_lock, self.loop.period_ns,
+                                      supervise=self._supervise)
         self._loop_cpu_clock: int | None = None
         self._cpu_at_reset = 0
-        self.control = self.publisher = self.auth = self.context = None
+        self._network = self.control = self.publisher = None
         try:
             self.realtime = enter_realtime() if config.realtime else False
+            self.timing = LoopLog(self.realtime)
             self.device.open()
             self._open_network()
             self.rebuild_scene()
@@ -97,59 +108,15 @@ class Daemon:
             raise
 
     # ------------------------------------------------------------------ start and stop
-    def _open_device_and_engine(self) -> None:
-        """The structure, the (unopened) device, the validated settings and the engine."""
-        from sasprobe.devices.registry import open_device
-        from sasprobe.molecule import load_structure_or_default, parse_structure
-
-        config = self.config
-        self.structure = load_structure_or_default(config.molecule, keep_water=config.keep_water)
-        self.structure_keep_water = config.keep_water
-        self.device = open_device(config.device, structure=self.structure, rate_hz=config.rate_hz,
-                                  seed=config.seed, speed=config.speed, faults=config.faults,
-                                  probe_radius_A=config.settings.get("probe_radius_A"),
-                                  cube_half_A=config.settings.get("cube_half_A"))
-        settings = dict(config.settings)
-        self.rate_hz = config.rate_hz
-        session = self.device.recorded_session()
-        if session is not None:  # a replay: the recording's structure (unless given), settings and rate
-            if config.molecule is None:
-                self.structure = parse_structure(session.structure_bytes, name=session.structure_name,
-                                                 source=f"{config.device} (recorded)", keep_water=session.keep_water)
-                self.structure_keep_water = session.keep_water
-            settings = {**session.settings, **settings}
-            self.rate_hz = None if config.speed is None else session.rate_hz * config.speed
-        self.limits = self.device.info.limits
-        self.settings = validate_settings(settings, self.limits)
-        self.pipeline = HapticPipeline(build_engine(self.structure, self.limits, self.settings),
-                                       SafetyGuard(self.limits))
-
     def _open_network(self) -> None:
-        import zmq
-
-        from sasprobe.protocol.security import load_server_keys, start_authenticator
-
-        keys = load_server_keys(Path(self.config.keys)) if self.config.keys else None
-        self.context = zmq.Context()  # its I/O thread inherits the loop's scheduling (--realtime)
-        self.auth = start_authenticator(self.context, keys) if keys else None
-        try:
-            self.publisher = Publisher(self.context, self.config.pub, keys)
-            self.control = ControlServer(self.context, self.config.ctl, self.requests.handle, keys)
-        except zmq.ZMQError as exc:
-            endpoints = " / ".join(self.config.pub + self.config.ctl)
-            raise UserError(f"cannot bind {endpoints}: {exc}") from None
+        self._network = Network(self.config, self.requests.handle)
+        self.publisher, self.control = self._network.publisher, self._network.control
 
     def _close_network(self) -> None:
-        """Stop the control thread, close the sockets and the authenticator (safe to repeat)."""
-        if self.control is not None:
-            self.control.stop()
-        if self.publisher is not None:
-            self.publisher.close()
-        if self.auth is not None:
-            self.auth.stop()
-        if self.context is not None:
-            self.context.term()
-        self.control = self.publisher = self.auth = self.context = None
+        """Stop serving (safe to repeat)."""
+        if self._network is not None:
+            self._network.close()
+        self._network = self.control = self.publisher = None
 
     def _close_device(self) -> None:
         """Zero force and close the device; a failing device is logged, never raised."""
@@ -176,6 +143,7 @@ class Daemon:
         device_last = self.device.last_force_n  # what the device itself holds (None: it cannot tell)
         publisher_stats = {"poses_sent": self.publisher.poses_sent, "subscribers": self.publisher.subscribers}
         self._close_network()
+        self.structure_worker.close()
         recording = None
         if self.recorder is not None:
             recorder, self.recorder = self.recorder, None
@@ -186,6 +154,8 @@ class Daemon:
             "ticks": stats["total"]["ticks"],
             "overruns": stats["total"]["overruns"],
             "faults": self.pipeline.guard.faults,
+            "lost_ticks": self.timing.lost,
+            "stalls": self.watchdog.as_dict(),
             "last_force_written_n": np.asarray(self.last_force_written).tolist(),
             "device_last_force_n": None if device_last is None else np.asarray(device_last, dtype=float).tolist(),
             "publisher": publisher_stats,
@@ -215,18 +185,27 @@ class Daemon:
             self._loop()
         finally:
             sys.setswitchinterval(old_switch)
+            self.watchdog.stop()
             self._shutdown()
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
         return 0
 
+    def _supervise(self) -> None:
+        """On the watchdog thread, twice a second: the control thread must be alive."""
+        if self.control is not None:
+            self.control.ensure_running()
+
     def _loop(self) -> None:
-        loop, device, publisher = self.loop, self.device, self.publisher
+        loop, device, publisher, watchdog, write_lock = self.loop, self.device, self.publisher, self.watchdog, \
+            self.write_lock
         clock = time.monotonic_ns
+        stall_at = dict(self.config.loop_stalls)  # test hook: tick -> seconds the loop sleeps there
         # A free-running loop (replay at --speed max) has no period to be late against.
         late_read_ns = int(LATE_READ_PERIODS * loop.period_ns) if loop.period_ns else None
         stop_at_ns = clock() + int(self.config.max_seconds * 1e9) if self.config.max_seconds else None
         self._cpu_at_reset = self.loop_cpu_ns()
+        watchdog.start()
         loop.start()
         while self._stop_reason is None:
             tick = loop.wait()
@@ -249,18 +228,25 @@ class Daemon:
                 error = f"device read took {read_ns / 1e6:.1f} ms"
             for event in device.take_recorded_events():  # a replay repeats its control changes here
                 self._apply_recorded_event(event, tick.seq)
-            late_periods = max(tick.late_periods, device.recorded_late_periods())
+            for action, args in self.inputs.tick(state.buttons if state is not None else None, tick.start_ns):
+                self.workspace_action(action, args, tick.seq)
+            if stall_at and tick.seq in stall_at:
+                time.sleep(stall_at.pop(tick.seq))
+            # A tick the watchdog found overdue counts as late by as long: the guard zeroes it.
+            late_periods = max(tick.late_periods, device.recorded_late_periods(), watchdog.overdue_periods(clock()))
             pipeline = self.pipeline
             was_faulted = pipeline.guard.faulted
             result = pipeline.step(state, error, late_periods)
-            try:
-                device.write_force(result.force_n)
-                self.last_force_written = result.force_n
-            except Exception as exc:
-                self.write_failures += 1
-                self._carry_error = f"force write failed: {exc}"
-            if result.guard.fault != was_faulted:
-                self._fault_log.note(result.guard.reason if result.guard.fault else None, tick.start_ns)
+            with write_lock:
+                try:
+                    device.write_force(result.force_n)
+                    self.last_force_written = result.force_n
+                except Exception as exc:
+                    self.write_failures += 1
+                    self._carry_error = f"force write failed: {exc}"
+                stall = watchdog.heartbeat(clock())  # under the lock: the watchdog never zeroes this write
+            self.timing.tick(tick.start_ns, tick.missed, error is None and late_periods > pipeline.guard.late_limit_periods,
+                             result.guard.fault != was_faulted, result.guard, stall)
             if error is None or state is not None:
                 self._reconnector.answered()
             elif self._reconnector.failed(tick.start_ns):
@@ -271,7 +257,7 @@ class Daemon:
             publisher.publish_pose(encode_pose(pose))
             if self.recorder is not None:
                 self.recorder.offer_tick(now, tick.seq, state, error, late_periods, read_ns, pose)
-            if publisher.poll_subscriptions() or now >= self._next_scene_ns:
+            if publisher.poll_subscriptions(now) or now >= self._next_scene_ns:
                 self._publish_scene(now)
             loop.stats.record_work(clock() - tick.start_ns)
             if stop_at_ns is not None and now >= stop_at_ns:
@@ -279,9 +265,11 @@ class Daemon:
 
     def _apply_recorded_event(self, event: dict, seq: int) -> None:
         """A replayed control command, applied as it was live."""
-        if event.get("cmd") not in ("set", "load", "reconnect"):
+        if event.get("cmd") not in REPLAYED_COMMANDS:
             return
-        self.structure, self.settings = apply_recorded_event(
+        if event["cmd"] == "mark":
+            self.marks.restore(event["args"])
+        self.structure, self.settings = apply_recorded_event(  # a mark changes neither
             event, self.pipeline, self.structure, self.settings, self.limits,
             self.device.recorded_session().structure)
         if event["cmd"] == "load" and self.recorder is not None:
@@ -289,59 +277,13 @@ class Daemon:
         self.record_control(seq, event["cmd"], event.get("args", {}))
         self.rebuild_scene()
 
-    # ------------------------------------------------------------------ changes from the control thread
-    def submit(self, fn):
-        """Run fn(seq) on the loop thread at the start of the next tick and return its result."""
-        future: Future = Future()
-        self._pending.append((fn, future))
-        try:
-            return future.result(timeout=SUBMIT_TIMEOUT_S)
-        except FutureTimeout:
-            raise UserError("the daemon loop did not take the change in time (is it shutting down?)") from None
-
-    def _apply_pending(self, seq: int) -> None:
-        while self._pending:
-            fn, future = self._pending.popleft()
-            try:
-                future.set_result(fn(seq))
-            except Exception as exc:
-                future.set_exception(exc)
-
-    def swap_structure(self, structure, keep_water: bool, engine, seq: int) -> int:
-        """On the loop thread: a new structure and its engine (built off the loop)."""
-        self.structure = structure
-        self.structure_keep_water = keep_water
-        self.pipeline.replace_engine(engine)
-        if self.recorder is not None:
-            self.recorder.offer_structure(time.monotonic_ns(), structure.name, structure.source_bytes)
-        self.record_control(seq, "load", {"sha256": structure.sha256, "name": structure.name, "keep_water": keep_water})
-        self.rebuild_scene()
-        return seq
-
-    def apply_settings(self, haptic: dict, scene_only: dict, settings: dict, lights: dict | None, engine,
-                       seq: int) -> int:
-        """On the loop thread: a checked `set` (a new engine when one had to be built)."""
-        if engine is not None:
-            self.pipeline.replace_engine(engine)
-        elif haptic:
-            self.pipeline.engine.update(**haptic)
-        self.settings = settings
-        if "clip_planes" in scene_only:
-            self.clip_planes = scene_only["clip_planes"]
-        if lights is not None:
-            self.lights = lights
-        if "nav_cube_enabled" in scene_only:
-            self.nav_cube_enabled = scene_only["nav_cube_enabled"]
-        self.record_control(seq, "set", {**haptic, **scene_only})
-        self.rebuild_scene()
-        return seq
-
     # ------------------------------------------------------------------ scene
     def rebuild_scene(self) -> None:
         """The scene message of the current state; published at the next tick, and recorded."""
         self.scene_revision += 1
         self.scene = scene_message(self.scene_revision, self.structure, self.settings, self.nav_cube_enabled,
-                                   self.clip_planes, self.lights, self.device.info, self.rate_hz)
+                                   self.clip_planes, self.lights, self.device.info, self.rate_hz,
+                                   self.pipeline.view_rotation, self.marks, self.color_scheme)
         self._scene_bytes = encode_scene(self.scene)
         self._next_scene_ns = 0
         if self.recorder is not None:
@@ -367,6 +309,10 @@ class Daemon:
             "structure_name": self.structure.name, "keep_water": self.structure_keep_water,
             "rate_hz": self.rate_hz, "device": self.device.info.as_dict(),
         })
+        if self.pipeline.view_rotation != IDENTITY:  # the fresh engine took the view over: so will the replay
+            self.record_control(seq, "view", {"rotation": rotation_rows(self.pipeline.view_rotation)})
+        if self.pipeline.clutched:
+            self.record_control(seq, "clutch", {"held": True})
         self.rebuild_scene()
         return seq
 
@@ -376,7 +322,7 @@ class Daemon:
             recorder.offer_json("control", time.monotonic_ns(), {"seq": seq, "cmd": "record_stop", "args": {}})
         return recorder
 
-    def new_recorder(self, path: str) -> Recorder:
+    def new_recorder(self, path: str | Path) -> Recorder:
         return Recorder(path, self._recording_metadata())
 
     def _recording_metadata(self) -> dict:

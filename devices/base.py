@@ -140,6 +140,12 @@ class HapticDevice(abc.ABC):
     @abc.abstractmethod
     def write_force(self, force_n: np.ndarray) -> None: ...
 
+    def zero_force_now(self) -> None:
+        """Zero force from another thread while the loop is stalled (the daemon's watchdog calls it,
+        holding the lock the loop writes with). A driver whose write is safe from a second thread
+        needs nothing more than this default; devices/README.md says, per driver, what holds."""
+        self.write_force(np.zeros(3))
+
     def reconnect(self) -> None:
         """Try to re-establish a lost link; raises DeviceFault while the device is still gone."""
         self.close()

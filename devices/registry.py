@@ -25,13 +25,16 @@ class DeviceScheme:
 # Drivers add one line here.
 SCHEMES: dict[str, DeviceScheme] = {
     "falcon": DeviceScheme("sasprobe.devices.falcon:create", "Novint Falcon over USB", "falcon:FIRMWARE"),
-    "woodenhaptics": DeviceScheme("sasprobe.devices.woodenhaptics:create", "WoodenHaptics/Polhem serial arm", "woodenhaptics:/dev/ttyACM0"),
-    "haply": DeviceScheme("sasprobe.devices.haply:create", "Haply 2DIY over serial", "haply:/dev/ttyACM0"),
+    "woodenhaptics": DeviceScheme("sasprobe.devices.woodenhaptics:create",
+                                  "WoodenHaptics Woody, vintage PHANTOM retrofit or Polhem (Teensy serial)",
+                                  "woodenhaptics:/dev/ttyACM0"),
+    "haply": DeviceScheme("sasprobe.devices.haply:create", "Haply 2DIY on an M0/M3 board (gen 3; haply:gen2:PORT)",
+                          "haply:/dev/ttyACM0"),
     "spacemouse": DeviceScheme("sasprobe.devices.spacemouse:create", "3Dconnexion SpaceMouse (input only)", "spacemouse"),
     "openhaptics": DeviceScheme("sasprobe.devices.openhaptics:create", "PHANTOM Omni/Touch via OpenHaptics", "openhaptics"),
     "sim": DeviceScheme(
         "sasprobe.devices.simulated:make_simulated",
-        "simulated arm driven by a scripted hand (scan, dive, press, orbit, random)",
+        "simulated arm driven by a scripted hand (scan, dive, press, orbit, random, sweep)",
         "sim:scan",
     ),
 }

@@ -17,10 +17,15 @@ expanded spheres (vdW + probe) and the uniform grid:
 - `orbit`: spiral in to a horizontal circle around the molecule's middle, rubbing
   along its sides;
 - `random`: a seeded smooth wander (a sum of sinusoids) through the cube, in and out
-  of the molecule.
+  of the molecule;
+- `sweep`: hover over the middle of the cube and sweep the hand along device +x, -x,
+  +y and -y in turn (the check that the probe moves on screen as the hand does).
 
 Everything starts hovering in free space above the molecule, so the haptic engine seats
-its proxy at once.
+its proxy at once, and comes back to the start the way a hand would, lifting over the
+surface rather than through it. The scripts set where the hand goes; how hard it may
+push is the hand model's (devices/simulated.py: never beyond the device's continuous
+rating, as a person does not lean on the arm).
 """
 
 from __future__ import annotations
@@ -31,18 +36,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sasprobe.devices.surface import Surface
 from sasprobe.devices.workspace import WorkspaceMapping
 from sasprobe.molecule.grid import UniformGrid
 from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
 
-SCRIPTS = ("scan", "dive", "press", "orbit", "random")
+SCRIPTS = ("scan", "dive", "press", "orbit", "random", "sweep")
 
-HOVER_MM = 4.0  # above the surface before touching
+HOVER_MM = 4.0  # above the surface before touching ...
+HOVER_MIN_A = 2.0  # ... and never closer than this (a small cube's few Å per 4 mm)
 SCAN_PRESS_MM = 1.5
 SCAN_SPEED_MM_S = 20.0
 DIVE_DEPTH_MM = 8.0
 PRESS_DEPTH_MM = 20.0
 ORBIT_SPEED_MM_S = 25.0
+SWEEP_FRACTION = 0.3  # of the drift-free core's half edge
+SWEEP_SPEED_MM_S = 20.0
 
 
 @dataclass
@@ -95,78 +104,30 @@ class _PathBuilder:
         return Script(name, self.times, self.points, info)
 
 
-class _Surface:
-    """Column queries on the expanded spheres (molecule frame, Å)."""
-
-    def __init__(self, grid: UniformGrid):
-        self.grid = grid
-        self.zlo = float(grid.origin[2])
-        self.zhi = float(grid.upper[2])
-
-    def intervals(self, x: float, y: float) -> list[tuple[float, float, list[int]]]:
-        """Solid intervals along z of the column at (x, y), top first: (z_low, z_high, atoms)."""
-        cand = self.grid.candidates_in_box((x, y, self.zlo), (x, y, self.zhi))
-        if cand.size == 0:
-            return []
-        c = self.grid.centers[cand]
-        h2 = self.grid.radii[cand] ** 2 - (c[:, 0] - x) ** 2 - (c[:, 1] - y) ** 2
-        keep = h2 > 0
-        if not np.any(keep):
-            return []
-        half = np.sqrt(h2[keep])
-        lows, highs, atoms = c[keep, 2] - half, c[keep, 2] + half, cand[keep]
-        order = np.argsort(-highs, kind="stable")
-        merged: list[tuple[float, float, list[int]]] = []
-        for i in order:
-            lo, hi = float(lows[i]), float(highs[i])
-            if merged and hi >= merged[-1][0]:
-                top_lo, top_hi, members = merged[-1]
-                merged[-1] = (min(top_lo, lo), top_hi, members + [int(atoms[i])])
-            else:
-                merged.append((lo, hi, [int(atoms[i])]))
-        return merged
-
-    def top(self, x: float, y: float) -> float | None:
-        cols = self.intervals(x, y)
-        return cols[0][1] if cols else None
-
-
-def surface_site(structure, probe_radius: float = DEFAULT_PROBE_RADIUS) -> tuple[float, float, float]:
-    """The top of the SAS above the middle of the molecule (a centre for a zoomed-in cube)."""
-    grid = UniformGrid(structure.positions, structure.expanded_radii(probe_radius))
-    lo, hi = structure.positions.min(axis=0), structure.positions.max(axis=0)
-    x, y = float((lo[0] + hi[0]) / 2), float((lo[1] + hi[1]) / 2)
-    surface = _Surface(grid)
-    top = surface.top(x, y)
-    if top is None:  # a hole through the middle: use the nearest atom column instead
-        i = int(np.argmin((structure.positions[:, 0] - x) ** 2 + (structure.positions[:, 1] - y) ** 2))
-        x, y = float(structure.positions[i, 0]), float(structure.positions[i, 1])
-        top = surface.top(x, y)
-    return x, y, float(top)
-
-
 def make_script(
     name: str,
     structure,
     mapping: WorkspaceMapping,
     probe_radius: float = DEFAULT_PROBE_RADIUS,
     seed: int = 0,
+    surface: Surface | None = None,
 ) -> Script:
-    """The script `name` placed on `structure` through `mapping` (its initial state)."""
+    """The script `name` placed on `structure` through `mapping` (its initial state); `surface`:
+    the structure's Surface at this probe radius, when the caller has one."""
     if name not in SCRIPTS:
         raise ValueError(f"unknown simulated-arm script {name!r} (known: {', '.join(SCRIPTS)})")
-    grid = UniformGrid(structure.positions, structure.expanded_radii(probe_radius))
-    placer = _Placer(_Surface(grid), mapping)
+    placer = _Placer(surface or Surface.of(structure, probe_radius), mapping)
     return placer.random(seed) if name == "random" else getattr(placer, name)()
 
 
 class _Placer:
-    def __init__(self, surface: _Surface, mapping: WorkspaceMapping):
+    def __init__(self, surface: Surface, mapping: WorkspaceMapping):
         self.surface = surface
         self.mapping = mapping.copy()
         self.s = mapping.scale_A_per_mm
         self.center = mapping.cube_center_A
         self.core = mapping.core_half_mm - 0.5  # stay clear of the drift margin
+        self.hover = max(HOVER_MM * self.s, HOVER_MIN_A)  # Å
         self.wc = np.asarray(mapping.workspace_center_mm)
 
     # --------------------------------------------------------------- helpers
@@ -182,11 +143,12 @@ class _Placer:
         top = self.surface.top(x, y)
         return top if top is not None else self.center[2] - self.region(0.5)
 
-    def exposed_columns(self, limit: int = 400) -> list[tuple[int, list]]:
-        """Atoms near the region's axis whose top point is the top of their column."""
+    def exposed_columns(self, limit: int = 400, fraction: float = 0.45) -> list[tuple[int, list]]:
+        """Atoms within `fraction` of the cube's half edge of its axis whose top point is the
+        top of their column."""
         grid = self.surface.grid
         c = grid.centers
-        w = self.region(0.45)
+        w = self.region(fraction)
         near = np.flatnonzero((np.abs(c[:, 0] - self.center[0]) <= w) & (np.abs(c[:, 1] - self.center[1]) <= w))
         if near.size == 0:
             near = np.arange(c.shape[0])
@@ -211,17 +173,49 @@ class _Placer:
             for x in xs if k % 2 == 0 else xs[::-1]:
                 waypoints.append((cx + x, cy + y, self.top_or_floor(cx + x, cy + y) - press))
         first = waypoints[0]
-        hover = self.dev((first[0], first[1], first[2] + press + HOVER_MM * self.s))
+        hover = self.dev((first[0], first[1], first[2] + press + self.hover))
         path = _PathBuilder(hover)
         for p in waypoints:
             path.move(self.dev(p), speed_mm_s=SCAN_SPEED_MM_S)
         last = waypoints[-1]
-        path.move(self.dev((last[0], last[1], last[2] + press + HOVER_MM * self.s)), speed_mm_s=SCAN_SPEED_MM_S)
+        clear = max(p[2] for p in waypoints) + press + self.hover  # above every point of the region
+        path.move(self.dev((last[0], last[1], clear)), speed_mm_s=SCAN_SPEED_MM_S)
+        path.move(self.dev((first[0], first[1], clear)), speed_mm_s=SCAN_SPEED_MM_S)
         return path.script("scan", {"region_half_A": w, "lines": lines, "press_mm": SCAN_PRESS_MM})
 
     def dive(self) -> Script:
+        best = None
+        for fraction in (0.45, 0.8):  # a small cube may have no groove near its axis: look wider
+            best = self._groove(fraction)
+            if best is not None:
+                break
+        if best is None:
+            raise ValueError("no groove between two top-exposed atoms found for the dive script")
         grid = self.surface.grid
-        exposed = self.exposed_columns()
+        _, i, j, crease = best
+        across = grid.centers[j] - grid.centers[i]
+        across[2] = 0.0
+        across = across / (np.linalg.norm(across) or 1.0)
+        hover = self.dev(crease + np.array([0, 0, self.hover]))
+        bottom = crease - np.array([0, 0, DIVE_DEPTH_MM * self.s])
+        rock = across * 1.5 * self.s
+        path = _PathBuilder(hover)
+        path.hold(0.3)
+        path.move(self.dev(crease + np.array([0, 0, 0.5 * self.s])), duration_s=0.5)
+        path.move(self.dev(bottom), duration_s=1.0)
+        path.hold(0.5)
+        for _ in range(2):
+            path.move(self.dev(bottom + rock), duration_s=0.4)
+            path.move(self.dev(bottom - rock), duration_s=0.8)
+            path.move(self.dev(bottom), duration_s=0.4)
+        path.move(hover, duration_s=0.6)
+        info = {"atoms": (i, j), "crease_A": [float(v) for v in crease], "push_direction": (0.0, 0.0, -1.0)}
+        return path.script("dive", info)
+
+    def _groove(self, fraction: float):
+        """(depth, i, j, crease) of the deepest uncovered crease between two top-exposed atoms."""
+        grid = self.surface.grid
+        exposed = self.exposed_columns(fraction=fraction)
         best = None
         tops = {i: cols[0][1] for i, cols in exposed}
         ids = np.array(sorted(tops), dtype=np.int64)
@@ -239,27 +233,7 @@ class _Placer:
             depth = min(tops[i], tops[j]) - crease[2]
             if best is None or depth > best[0]:
                 best = (depth, i, j, crease)
-        if best is None:
-            raise ValueError("no groove between two top-exposed atoms found for the dive script")
-        _, i, j, crease = best
-        across = grid.centers[j] - grid.centers[i]
-        across[2] = 0.0
-        across = across / (np.linalg.norm(across) or 1.0)
-        hover = self.dev(crease + np.array([0, 0, HOVER_MM * self.s]))
-        bottom = crease - np.array([0, 0, DIVE_DEPTH_MM * self.s])
-        rock = across * 1.5 * self.s
-        path = _PathBuilder(hover)
-        path.hold(0.3)
-        path.move(self.dev(crease + np.array([0, 0, 0.5 * self.s])), duration_s=0.5)
-        path.move(self.dev(bottom), duration_s=1.0)
-        path.hold(0.5)
-        for _ in range(2):
-            path.move(self.dev(bottom + rock), duration_s=0.4)
-            path.move(self.dev(bottom - rock), duration_s=0.8)
-            path.move(self.dev(bottom), duration_s=0.4)
-        path.move(hover, duration_s=0.6)
-        info = {"atoms": (i, j), "crease_A": [float(v) for v in crease], "push_direction": (0.0, 0.0, -1.0)}
-        return path.script("dive", info)
+        return best
 
     def press(self) -> Script:
         grid = self.surface.grid
@@ -280,7 +254,7 @@ class _Placer:
         thickness, i, top_hi, top_lo, gap = chosen
         x, y = float(grid.centers[i, 0]), float(grid.centers[i, 1])
         surface = np.array([x, y, top_hi])
-        hover = self.dev(surface + np.array([0, 0, HOVER_MM * self.s]))
+        hover = self.dev(surface + np.array([0, 0, self.hover]))
         path = _PathBuilder(hover)
         path.hold(0.3)
         path.move(self.dev(surface + np.array([0, 0, 0.5 * self.s])), duration_s=0.5)
@@ -300,13 +274,17 @@ class _Placer:
 
     def orbit(self) -> Script:
         cx, cy, cz = (float(v) for v in self.center)
-        extents = []
-        for a in np.linspace(0, 2 * math.pi, 36, endpoint=False):
-            extents.append(self._radial_extent(cx, cy, cz, math.cos(a), math.sin(a)))
-        extents = np.array(extents)
+        # The cube's middle height, or higher where the molecule fills the cube there (a
+        # zoomed-in cube on a surface): the lowest height with free space to start from.
+        for z in np.arange(cz, cz + self.region(0.8), 0.5):
+            extents = np.array([self._radial_extent(cx, cy, float(z), math.cos(a), math.sin(a))
+                                for a in np.linspace(0, 2 * math.pi, 36, endpoint=False)])
+            if extents.max() + self.hover <= self.region(0.8):
+                break
+        cz = float(z)
         reach = float(extents.max()) if extents.max() > 0 else self.region(0.5)
         radius = 0.85 * float(np.median(extents)) if np.median(extents) > 0 else 0.5 * reach
-        outside = min(reach + HOVER_MM * self.s, self.region(0.8))
+        outside = min(reach + self.hover, self.region(0.8))
         path = _PathBuilder(self.dev((cx + outside, cy, cz)))
         path.hold(0.3)
         steps = 72
@@ -337,13 +315,28 @@ class _Placer:
         amps = rng.uniform(0.2, 0.33, size=(3, 3)) * core
         duration = 30.0
         top = self.top_or_floor(float(self.center[0]), float(self.center[1]))
-        hover = np.asarray(self.dev((self.center[0], self.center[1], top + HOVER_MM * self.s)))
+        hover = np.asarray(self.dev((self.center[0], self.center[1], top + self.hover)))
         path = _PathBuilder(hover)
         for t in np.arange(0.02, duration, 0.02):
             wander = self.wc + (amps * np.sin(2 * math.pi * freqs * t + phases)).sum(axis=1)
             blend = min(1.0, t / 1.5)  # leave the hover point gently
             path.move(np.clip(hover + blend * (wander - hover), self.wc - core, self.wc + core), duration_s=0.02)
         return path.script("random", {"seed": seed})
+
+
+    def sweep(self) -> Script:
+        top = self.top_or_floor(float(self.center[0]), float(self.center[1]))
+        hover = np.asarray(self.dev((self.center[0], self.center[1], top + self.hover)))
+        reach = SWEEP_FRACTION * self.core
+        path = _PathBuilder(hover)
+        path.hold(0.3)
+        for axis, sign in ((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)):
+            end = hover.copy()
+            end[axis] += sign * reach
+            path.move(end, speed_mm_s=SWEEP_SPEED_MM_S)
+            path.hold(0.2)
+            path.move(hover, speed_mm_s=SWEEP_SPEED_MM_S)
+        return path.script("sweep", {"reach_mm": reach, "hover_mm": [float(v) for v in hover]})
 
 
 def _circle_top(grid: UniformGrid, i: int, j: int):

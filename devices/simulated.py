@@ -1,11 +1,16 @@
-"""The simulated arm, `--device sim[:SCRIPT]` (scripts: scan (default), dive, press, orbit, random).
+"""The simulated arm, `--device sim[:SCRIPT]` (scripts: scan (default), dive, press, orbit, random, sweep).
 
 Model (no more than haptic rendering needs): the stylus tip is a point mass with the
 arm's viscous damping, moved by a model hand and by the rendered force:
 
     m a = k_h (target - x) + b_h (target' - v) - b_arm v + F_rendered
 
-The hand is a spring-damper pulling toward the scripted target (devices/scripts.py).
+The hand is a spring-damper pulling toward the scripted target (devices/scripts.py),
+whose force never exceeds `max_hand_force_n` (default: HAND_RATING_FRACTION of the
+device's continuous rating, 0.79 N for the Omni-class arm's 0.88 N): a person does not
+lean on the arm harder than its motors can hold, so wherever the script's target lies,
+the rendered force that balances the hand stays under the rating (a target far inside
+the molecule makes the hand push just under it, not at the amplifier's peak).
 The rendered force is held constant over a control period (zero-order hold, as a real
 amplifier does) while the motion is integrated in substeps of at most 0.1 ms
 (semi-implicit Euler), so sample-and-hold effects (energy gain, instability at low
@@ -28,6 +33,9 @@ Fault injection (for the daemon's tests), by option or method:
   (kind, tick, count): at simulated tick `tick` (count of write_force calls) the fault
   starts;
 - `inject_fault(kind, count=1)` starts one now.
+Buttons (option `button_presses=["0@2000+1500"]`): button 0 is held down from simulated
+tick 2000 for 1500 ticks (the clutch, by the daemon's default button map).
+
 Kinds: `raise` - the next `count` reads raise DeviceFault; `nan` - the next `count`
 reads return NaN position and velocity; `disconnect` - reads raise DeviceFault until
 `reconnect()` is called (with option `failed_reconnects=N`, the first N reconnects
@@ -42,6 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sasprobe.devices.surface import Surface
 from sasprobe.devices.workspace import WorkspaceMapping
 from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
 from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo, DeviceLimits, DeviceState, HapticDevice
@@ -49,6 +58,7 @@ from sasprobe.devices.scripts import SCRIPTS, Script, make_script
 
 FAULT_KINDS = ("raise", "nan", "disconnect")
 MAX_SUBSTEP_S = 1e-4
+HAND_RATING_FRACTION = 0.9  # the model hand pushes at most this fraction of the continuous rating
 
 
 @dataclass(frozen=True)
@@ -57,6 +67,7 @@ class ArmModel:
     arm_damping_n_s_per_m: float = 0.3
     hand_stiffness_n_per_mm: float = 0.2  # a light grip
     hand_damping_n_s_per_m: float = 1.0
+    max_hand_force_n: float | None = None  # None: HAND_RATING_FRACTION of the device's continuous rating
 
 
 class SimulatedDevice(HapticDevice):
@@ -70,6 +81,7 @@ class SimulatedDevice(HapticDevice):
         faults=(),
         failed_reconnects: int = 0,
         seed: int = 0,
+        button_presses=(),
     ):
         rate_hz = float(rate_hz)
         if not math.isfinite(rate_hz) or rate_hz <= 0 or rate_hz > 100_000:
@@ -90,12 +102,16 @@ class SimulatedDevice(HapticDevice):
         self.forces_written = 0
         self.nan_writes = 0
         self.work_mj = 0.0
+        self.peak_hand_force_n = 0.0  # the largest force the model hand applied
         self.is_open = False
-        self._scheduled = sorted((_parse_fault(f) for f in faults), key=lambda f: f[1])
+        self._scheduled = sorted((parse_fault(f) for f in faults), key=lambda f: f[1])
         self._raise_reads = 0
         self._nan_reads = 0
         self._disconnected = False
         self._failed_reconnects = int(failed_reconnects)
+        self._presses = [_parse_press(p) for p in button_presses]
+        self.max_hand_force_n = float(arm.max_hand_force_n if arm.max_hand_force_n is not None
+                                      else HAND_RATING_FRACTION * limits.continuous_force_n)
 
     # --------------------------------------------------------------- interface
     @property
@@ -113,6 +129,7 @@ class SimulatedDevice(HapticDevice):
                 "arm_damping_n_s_per_m": self.arm.arm_damping_n_s_per_m,
                 "hand_stiffness_n_per_mm": self.arm.hand_stiffness_n_per_mm,
                 "hand_damping_n_s_per_m": self.arm.hand_damping_n_s_per_m,
+                "max_hand_force_n": self.max_hand_force_n,
             },
         )
 
@@ -155,7 +172,11 @@ class SimulatedDevice(HapticDevice):
         if self._nan_reads > 0:
             self._nan_reads -= 1
             return DeviceState(t_ns=t_ns, position_mm=np.full(3, np.nan), velocity_mm_s=np.full(3, np.nan))
-        return DeviceState(t_ns=t_ns, position_mm=np.array(self._x), velocity_mm_s=np.array(self._v))
+        buttons = 0
+        for button, first, count in self._presses:
+            if first <= self.ticks < first + count:
+                buttons |= 1 << button
+        return DeviceState(t_ns=t_ns, position_mm=np.array(self._x), velocity_mm_s=np.array(self._v), buttons=buttons)
 
     def write_force(self, force_n) -> None:
         f = [float(v) for v in np.asarray(force_n, dtype=np.float64).reshape(3)]
@@ -170,6 +191,11 @@ class SimulatedDevice(HapticDevice):
         if not self.is_open:
             return
         self._advance(f)
+
+    def zero_force_now(self) -> None:
+        """The watchdog's zero: the arm holds no force from now on, and its clock does not move
+        (it advances one period per write of the loop, so a run stays a function of those)."""
+        self.last_force_n = np.zeros(3)
 
     # ----------------------------------------------------------------- physics
     @property
@@ -191,6 +217,7 @@ class SimulatedDevice(HapticDevice):
         kh = arm.hand_stiffness_n_per_mm
         bh = arm.hand_damping_n_s_per_m * 1e-3  # N per mm/s
         ba = arm.arm_damping_n_s_per_m * 1e-3
+        limit = self.max_hand_force_n
         x, v = self._x, self._v
         x0 = list(x)
         t0 = self.time_s
@@ -198,28 +225,58 @@ class SimulatedDevice(HapticDevice):
         a = target(t0)
         for k in range(self.substeps):
             b = target(t0 + (k + 1) * h)
+            hand = [kh * (a[i] - x[i]) + bh * ((b[i] - a[i]) / h - v[i]) for i in range(3)]
+            magnitude = math.sqrt(hand[0] ** 2 + hand[1] ** 2 + hand[2] ** 2)
+            if magnitude > limit:  # the person yields rather than push harder
+                hand = [c * limit / magnitude for c in hand]
+            self.peak_hand_force_n = max(self.peak_hand_force_n, min(magnitude, limit))
             for i in range(3):
-                vt = (b[i] - a[i]) / h
-                force = kh * (a[i] - x[i]) + bh * (vt - v[i]) - ba * v[i] + f[i]
-                v[i] += force * inv_m * h
+                v[i] += (hand[i] - ba * v[i] + f[i]) * inv_m * h
                 x[i] += v[i] * h
             a = b
         self.work_mj += f[0] * (x[0] - x0[0]) + f[1] * (x[1] - x0[1]) + f[2] * (x[2] - x0[2])
         self.ticks += 1
 
 
-def _parse_fault(spec) -> tuple[str, int, int]:
-    """'kind@tick+count' or (kind, tick[, count]) -> (kind, tick, count)."""
+def _parse_press(spec) -> tuple[int, int, int]:
+    """'BUTTON@TICK+COUNT' or (button, tick, count) -> (button, tick, count); ValueError otherwise."""
+    try:
+        if isinstance(spec, str):
+            button, _, rest = spec.partition("@")
+            tick, _, count = rest.partition("+")
+            parsed = (int(button), int(tick or 0), int(count or 1))
+        else:
+            parsed = tuple(int(v) for v in spec)
+            if len(parsed) != 3:
+                raise ValueError
+    except ValueError:
+        raise ValueError(f"button press {spec!r}: expected BUTTON@TICK+COUNT, e.g. 0@2000+1500") from None
+    if not 0 <= parsed[0] <= 31 or parsed[1] < 0 or parsed[2] < 1:
+        raise ValueError(f"button press {spec!r}: button 0..31, tick >= 0, count >= 1")
+    return parsed  # type: ignore[return-value]
+
+
+def parse_fault(spec, kinds: tuple[str, ...] = FAULT_KINDS) -> tuple[str, int, int]:
+    """'kind@tick+count' or (kind, tick[, count]) -> (kind, tick, count); ValueError in one line
+    unless kind is known, tick a whole number ≥ 0 and count a whole number ≥ 1."""
     if isinstance(spec, str):
-        kind, _, rest = spec.partition("@")
-        tick, _, count = rest.partition("+")
-        parsed = (kind.strip(), int(tick or 0), int(count or 1))
+        kind, at, rest = spec.strip().partition("@")
+        tick, plus, count = rest.partition("+")
+        if not at or not _whole(tick) or (plus and not _whole(count)):
+            raise ValueError(f"fault '{spec}' is not KIND@TICK or KIND@TICK+COUNT (whole numbers)")
+        parsed = (kind, int(tick), int(count) if plus else 1)
     else:
         items = tuple(spec)
         parsed = (str(items[0]), int(items[1]), int(items[2]) if len(items) > 2 else 1)
-    if parsed[0] not in FAULT_KINDS:
-        raise ValueError(f"unknown fault kind {parsed[0]!r} (known: {', '.join(FAULT_KINDS)})")
+    if parsed[0] not in kinds:
+        raise ValueError(f"unknown fault kind {parsed[0]!r} (known: {', '.join(kinds)})")
+    if parsed[1] < 0 or parsed[2] < 1:
+        raise ValueError(f"fault '{spec}': the tick must be ≥ 0 and the count ≥ 1")
     return parsed
+
+
+def _whole(text: str) -> bool:
+    return text.isdigit() and text.isascii()
 
 
 def make_simulated(argument: str | None, **options) -> SimulatedDevice:
@@ -227,8 +284,8 @@ def make_simulated(argument: str | None, **options) -> SimulatedDevice:
 
     Options: structure (default: embedded 1CRN), rate_hz (1000), seed (0), limits,
     probe_radius_A, cube_half_A, cube_center_A (so the scripts are placed with the
-    haptic engine's mapping), arm (ArmModel), start_ns, faults, failed_reconnects.
-    Unknown options are ignored.
+    haptic engine's mapping), arm (ArmModel), start_ns, faults, failed_reconnects,
+    button_presses. Unknown options are ignored.
     """
     from sasprobe.devices.base import DeviceOpenError
 
@@ -243,10 +300,11 @@ def make_simulated(argument: str | None, **options) -> SimulatedDevice:
     limits = options.get("limits") or PHANTOM_OMNI_LIMITS
     probe = float(options.get("probe_radius_A") or DEFAULT_PROBE_RADIUS)
     seed = int(options.get("seed") or 0)
+    surface = Surface.of(structure, probe)
     mapping = WorkspaceMapping.initial(
-        structure, limits, options.get("cube_half_A"), probe, options.get("cube_center_A")
+        structure, limits, options.get("cube_half_A"), probe, options.get("cube_center_A"), surface
     )
-    script = make_script(name, structure, mapping, probe_radius=probe, seed=seed)
+    script = make_script(name, structure, mapping, probe_radius=probe, seed=seed, surface=surface)
     return SimulatedDevice(
         script,
         limits=limits,
@@ -256,4 +314,5 @@ def make_simulated(argument: str | None, **options) -> SimulatedDevice:
         faults=options.get("faults") or (),
         failed_reconnects=int(options.get("failed_reconnects") or 0),
         seed=seed,
+        button_presses=options.get("button_presses") or (),
     )

@@ -330,35 +330,3 @@ class UsbTransport(Transport):
             if exc.errno == errno.ETIMEDOUT:
                 return b""
             raise DeviceFault(f"the {self.label} lost: {exc}") from None
-
-
-class LineReader:
-    """Newline-terminated frames from a transport, resynchronising on junk.
-
-    `read_line` returns one line without its terminator, None when the deadline passes
-    first, or raises DeviceFault when the transport is lost. A run of more than `max_len`
-    bytes without a newline comes back as one over-long line for the caller to reject.
-    """
-
-    def __init__(self, transport: Transport, max_len: int = 256, terminator: bytes = b"\n"):
-        self.transport = transport
-        self.max_len = max_len
-        self.terminator = terminator
-        self.buffer = b""
-
-    def clear(self) -> None:
-        self.buffer = b""
-
-    def read_line(self, deadline: float) -> bytes | None:
-        while True:
-            end = self.buffer.find(self.terminator)
-            if end >= 0:
-                line, self.buffer = self.buffer[:end], self.buffer[end + len(self.terminator):]
-                return line.rstrip(b"\r")
-            if len(self.buffer) > self.max_len:
-                line, self.buffer = self.buffer, b""
-                return line
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                return None
-            self.buffer += self.transport.read(4096, remaining)

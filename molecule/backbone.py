@@ -8,11 +8,11 @@ Segments of one atom are kept, so a lone residue is still shown.
 
 from __future__ import annotations
 
-from functools import lru_cache
 from typing import TYPE_CHECKING
 
-import gemmi
 import numpy as np
+
+from sasprobe.molecule.residues import residue_kind
 
 if TYPE_CHECKING:
     from sasprobe.molecule.structure import Structure
@@ -21,25 +21,13 @@ MAX_CA_GAP = 4.2  # Å
 MAX_P_GAP = 8.0  # Å
 
 
-@lru_cache(maxsize=None)
-def _residue_kind(name: str) -> str:
-    info = gemmi.find_tabulated_residue(name)
-    if info is None:
-        return ""
-    if info.is_amino_acid():
-        return "protein"
-    if info.is_nucleic_acid():
-        return "nucleic"
-    return ""
-
-
 def trace_segments(structure: Structure) -> tuple[list[np.ndarray], list[str]]:
     """Segments of trace-atom indices (in file order) and the chain of each."""
     names = structure.atom_names
     candidates = np.flatnonzero((names == "CA") | (names == "P"))
     if candidates.size == 0:
         return [], []
-    kinds = np.array([_residue_kind(str(r)) for r in structure.residue_names[candidates]])
+    kinds = np.array([residue_kind(str(r)) for r in structure.residue_names[candidates]])
     is_ca = (names[candidates] == "CA") & (kinds == "protein") & (structure.elements[candidates] == "C")
     is_p = (names[candidates] == "P") & (kinds == "nucleic")
     trace = candidates[is_ca | is_p]

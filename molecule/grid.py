@@ -26,7 +26,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sasprobe.errors import UserError
+
 MAX_CELLS = 1 << 27  # 134M cells (0.5 GiB of offsets): beyond this a cell size is a mistake
+
+
+class GridTooLarge(UserError, ValueError):
+    """Spheres spread so far (or cells so small) that the grid would not fit; one line."""
 
 
 @dataclass(frozen=True)
@@ -78,8 +84,10 @@ class UniformGrid:
         dims = np.floor((hi - lo) / cell_size).astype(np.int64) + 1
         n_cells = int(np.prod(dims))
         if n_cells > MAX_CELLS:
-            raise ValueError(
-                f"cell size {cell_size:g} Å gives {n_cells} cells (limit {MAX_CELLS}); use a larger cell size"
+            extent = " x ".join(f"{v:.0f}" for v in hi - lo)
+            raise GridTooLarge(
+                f"the spheres span {extent} Å: {n_cells} grid cells of {cell_size:g} Å exceed the limit of "
+                f"{MAX_CELLS} (atoms far apart, or too small a cell size)"
             )
         self.dims = dims
         self.n_cells = n_cells

@@ -68,21 +68,47 @@ def shrake_rupley(
     non-zero are sampled again with `refine_points`, so areas near the accessibility
     threshold are precise without paying the fine resolution everywhere.
     """
-    if n_points < 2 or refine_points < 2:
-        raise ValueError("at least 2 test points per atom are needed")
     i, j = grid.overlapping_pairs()
-    everyone = np.ones(grid.centers.shape[0], dtype=bool)
-    areas = _sample(grid, i, j, everyone, n_points)
-    refine = (areas > 0.0) & (areas < REFINE_BELOW)
-    if refine_points > n_points and refine.any():
-        areas[refine] = _sample(grid, i, j, refine, refine_points)[refine]
+    areas, refined = _areas(grid, i, j, np.ones(grid.centers.shape[0], dtype=bool), n_points, refine_points)
     return SasResult(
         areas=areas,
         expanded_radii=grid.radii.copy(),
         n_points=n_points,
         refine_points=refine_points,
-        n_refined=int(refine.sum()),
+        n_refined=int(refined.sum()),
     )
+
+
+def atom_areas(grid: UniformGrid, atoms, n_points: int = DEFAULT_POINTS,
+               refine_points: int = REFINE_POINTS) -> np.ndarray:
+    """SAS areas (Å^2) of some atoms only, sampled and refined as `shrake_rupley` does;
+    their overlapping neighbours come from the grid's sphere query (a clicked atom's area
+    without computing the whole structure's)."""
+    atoms = np.unique(np.asarray(atoms, dtype=np.int64).reshape(-1))
+    owners, others = [], []
+    for a in atoms:  # sorted, so the pairs come out sorted by owner as _sample needs
+        near = grid.spheres_within(grid.centers[a], float(grid.radii[a]))
+        near = near[near != a]
+        owners.append(np.full(near.size, a, dtype=np.int64))
+        others.append(near)
+    mask = np.zeros(grid.centers.shape[0], dtype=bool)
+    mask[atoms] = True
+    i = np.concatenate(owners) if owners else np.empty(0, dtype=np.int64)
+    j = np.concatenate(others) if others else np.empty(0, dtype=np.int64)
+    return _areas(grid, i, j, mask, n_points, refine_points)[0][atoms]
+
+
+def _areas(grid: UniformGrid, i: np.ndarray, j: np.ndarray, atoms: np.ndarray, n_points: int,
+           refine_points: int) -> tuple[np.ndarray, np.ndarray]:
+    """(areas, refined mask): every selected atom sampled with `n_points`; those with a
+    small non-zero area sampled again with `refine_points`."""
+    if n_points < 2 or refine_points < 2:
+        raise ValueError("at least 2 test points per atom are needed")
+    areas = _sample(grid, i, j, atoms, n_points)
+    refine = atoms & (areas > 0.0) & (areas < REFINE_BELOW)
+    if refine_points > n_points and refine.any():
+        areas[refine] = _sample(grid, i, j, refine, refine_points)[refine]
+    return areas, refine
 
 
 def _sample(grid: UniformGrid, i: np.ndarray, j: np.ndarray, atoms: np.ndarray, n_points: int) -> np.ndarray:

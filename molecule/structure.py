@@ -8,15 +8,18 @@ Rules (the same for every command, so what is felt and what is drawn agree):
 - hydrogens, ligands and ions are kept.
 
 Every problem a user can cause (missing, empty, garbage, truncated file, nothing left
-after filtering) raises StructureError with one line naming the file.
+after filtering) raises StructureError with one line naming the file. What is read is
+bounded before it can hurt: only regular files are opened (a FIFO, device or folder is
+refused before any read), gzip is inflated to at most `inflate_limit()` bytes (a
+gzip bomb stops there), and every coordinate must be finite and within
+±MAX_COORDINATE_A Å (the uniform grid indexes cells from them).
 """
 
 from __future__ import annotations
 
-import gzip
-import re
 import hashlib
 import logging
+import re
 import zlib
 from dataclasses import dataclass, field
 from importlib import resources
@@ -26,6 +29,7 @@ import gemmi
 import numpy as np
 
 from sasprobe.errors import UserError
+from sasprobe.files import read_regular
 from sasprobe.molecule.backbone import trace_segments
 from sasprobe.molecule.elements import FALLBACK_RADIUS, colors_for, has_bondi_radius, radii_for
 from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
@@ -33,6 +37,12 @@ from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
 log = logging.getLogger("sasprobe")
 
 DEFAULT_STRUCTURE = "1crn.pdb.gz"
+MAX_FILE_BYTES = 1 << 30  # a structure file (gzipped or not) larger than this is not read
+MAX_COORDINATE_A = 10_000.0  # |x|, |y|, |z| in Å: the PDB format's own reach (8.3f), far beyond any assembly
+INFLATE_RATIO = 32  # gzip: structures inflate 4-6x (the shared entries); a bomb inflates ~1000x
+INFLATE_FLOOR = 64 << 20  # ... but a small file may always inflate to this
+INFLATE_CEILING = 2 << 30  # ... and nothing beyond this
+_INFLATE_CHUNK = 1 << 20
 
 
 class StructureError(UserError):
@@ -57,6 +67,7 @@ class Structure:
     insertion_codes: np.ndarray  # (N,) str ("" when none)
     atom_names: np.ndarray  # (N,) str
     is_hetero: np.ndarray  # (N,) bool (HETATM)
+    b_factors: np.ndarray  # (N,) float64, isotropic B (Å²) as the file gives it
     backbone: list[np.ndarray]  # per segment: atom indices of the trace (CA or P), in order
     backbone_chains: list[str]  # chain id of each segment
     warnings: list[str] = field(default_factory=list)
@@ -90,28 +101,31 @@ class Structure:
 def load_structure(path: str | Path, keep_water: bool = False) -> Structure:
     """Load a PDB or mmCIF file (optionally .gz); raises StructureError on bad input."""
     path = Path(path)
-    label = str(path)
-    if not path.exists():
-        raise StructureError(f"{label}: no such file")
-    if path.is_dir():
-        raise StructureError(f"{label}: is a directory, not a structure file")
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise StructureError(f"{label}: cannot read ({exc.strerror or exc})") from None
-    return parse_structure(data, name=_stem(path.name), source=label, keep_water=keep_water)
+    return parse_structure(read_regular_file(path, MAX_FILE_BYTES), name=structure_name(path.name), source=str(path),
+                           keep_water=keep_water)
+
+
+def read_regular_file(path: str | Path, limit: int) -> bytes:
+    """A structure file's bytes: a regular file of at most `limit` bytes, else StructureError."""
+    return read_regular(path, limit, "structure file", StructureError)
 
 
 def load_default(keep_water: bool = False) -> Structure:
     """The embedded default structure (crambin, 1CRN)."""
     data = resources.files("sasprobe.molecule").joinpath("data", DEFAULT_STRUCTURE).read_bytes()
     return parse_structure(
-        data, name=_stem(DEFAULT_STRUCTURE), source=f"embedded:{DEFAULT_STRUCTURE}", keep_water=keep_water
+        data, name=structure_name(DEFAULT_STRUCTURE), source=f"embedded:{DEFAULT_STRUCTURE}", keep_water=keep_water
     )
 
 
-def load_structure_or_default(path: str | Path | None, keep_water: bool = False) -> Structure:
-    return load_default(keep_water) if path is None else load_structure(path, keep_water)
+def load_structure_or_default(path: str | Path | None, keep_water: bool = False, fetch=None) -> Structure:
+    """The embedded default (None), a file, or a PDB id (`4hhb`, `pdb:4hhb`: molecule/fetch.py,
+    with `fetch`'s FetchSettings or the environment's)."""
+    if path is None:
+        return load_default(keep_water)
+    from sasprobe.molecule.fetch import resolve
+
+    return load_structure(resolve(str(path), fetch), keep_water)
 
 
 def parse_structure(data: bytes, name: str, source: str, keep_water: bool = False) -> Structure:
@@ -149,6 +163,7 @@ def parse_structure(data: bytes, name: str, source: str, keep_water: bool = Fals
 def _to_arrays(model: gemmi.Model, data: bytes, name: str, source: str) -> Structure:
     xyz: list[tuple[float, float, float]] = []
     occupancy: list[float] = []
+    b_iso: list[float] = []
     altloc: list[str] = []
     elements: list[str] = []
     atom_names: list[str] = []
@@ -170,6 +185,7 @@ def _to_arrays(model: gemmi.Model, data: bytes, name: str, source: str) -> Struc
                 p = atom.pos
                 xyz.append((p.x, p.y, p.z))
                 occupancy.append(atom.occ)
+                b_iso.append(atom.b_iso)
                 altloc.append(atom.altloc)
                 elements.append(atom.element.name)
                 atom_names.append(atom.name)
@@ -184,6 +200,7 @@ def _to_arrays(model: gemmi.Model, data: bytes, name: str, source: str) -> Struc
     )
     res_index = res_index[keep]
     positions = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)[keep]
+    _check_coordinates(positions, np.asarray(atom_names)[keep], res_index, chains, res_names, res_nums, source)
     element_arr = np.asarray(elements)[keep]
     warnings: list[str] = []
     unknown = int(np.count_nonzero(element_arr == "X"))
@@ -212,12 +229,31 @@ def _to_arrays(model: gemmi.Model, data: bytes, name: str, source: str) -> Struc
         insertion_codes=np.asarray(icodes)[res_index],
         atom_names=np.asarray(atom_names)[keep],
         is_hetero=np.asarray(hetero, dtype=bool)[res_index],
+        b_factors=np.asarray(b_iso, dtype=np.float64)[keep],
         backbone=[],
         backbone_chains=[],
         warnings=warnings,
     )
     structure.backbone, structure.backbone_chains = trace_segments(structure)
     return structure
+
+
+def _check_coordinates(positions: np.ndarray, atom_names, res_index, chains, res_names, res_nums,
+                       source: str) -> None:
+    """Finite and within ±MAX_COORDINATE_A, or StructureError naming the first bad atom."""
+    finite = np.isfinite(positions).all(axis=1)
+    inside = finite.copy()
+    inside[finite] = (np.abs(positions[finite]) <= MAX_COORDINATE_A).all(axis=1)
+    if inside.all():
+        return
+    if not finite.all():
+        bad, why = np.flatnonzero(~finite), "non-finite coordinates (NaN or infinite)"
+    else:
+        bad, why = np.flatnonzero(~inside), f"coordinates beyond ±{MAX_COORDINATE_A:g} Å"
+    first = int(bad[0])
+    r = int(res_index[first])
+    raise StructureError(f"{source}: {bad.size} atom(s) with {why}; first: atom {atom_names[first]} of "
+                         f"{res_names[r]} {res_nums[r]} chain {chains[r]}")
 
 
 def _choose_conformers(
@@ -248,13 +284,41 @@ def _choose_conformers(
     return keep
 
 
+def inflate_limit(compressed_bytes: int) -> int:
+    """How far gzip data of this size may inflate: INFLATE_RATIO times, within floor and ceiling."""
+    return min(max(INFLATE_RATIO * compressed_bytes, INFLATE_FLOOR), INFLATE_CEILING)
+
+
 def _decompress(data: bytes, source: str) -> bytes:
-    if data[:2] != b"\x1f\x8b":
-        return data
+    """gzip (every member, as gzip.decompress does) inflated in bounded steps; plain data as is."""
+    if bytes(data[:2]) != b"\x1f\x8b":
+        return bytes(data)
+    limit = inflate_limit(len(data))
+    out: list[bytes] = []
+    total = 0
+    rest = memoryview(data)
     try:
-        return gzip.decompress(data)
-    except (EOFError, OSError, zlib.error) as exc:
+        while rest.nbytes:
+            inflater = zlib.decompressobj(16 + zlib.MAX_WBITS)
+            pending = rest
+            while True:
+                chunk = inflater.decompress(pending, min(_INFLATE_CHUNK, limit - total + 1))
+                total += len(chunk)
+                out.append(chunk)
+                if total > limit:
+                    raise StructureError(f"{source}: gzip data inflates beyond {limit >> 20} MiB "
+                                         f"({INFLATE_RATIO}x its {len(data)} bytes; a gzip bomb?)")
+                if inflater.eof:
+                    break
+                pending = inflater.unconsumed_tail
+                if not pending and not chunk:
+                    raise StructureError(f"{source}: corrupt or truncated gzip data (ends inside a member)")
+            rest = memoryview(inflater.unused_data)
+            if rest.nbytes and bytes(rest[:2]) != b"\x1f\x8b":
+                break  # trailing garbage after the last member, as gzip tolerates padding
+    except zlib.error as exc:
         raise StructureError(f"{source}: corrupt or truncated gzip data ({exc})") from None
+    return b"".join(out)
 
 
 def _looks_like_cif(text: bytes) -> bool:
@@ -284,7 +348,8 @@ def _check_pdb_not_truncated(text: bytes, source: str) -> None:
         raise StructureError(f"{source}: truncated PDB file (wwPDB entry without its END record)")
 
 
-def _stem(filename: str) -> str:
+def structure_name(filename: str) -> str:
+    """A structure's name from its file name: the stem without .gz/.pdb/.ent/.cif/.mmcif."""
     for suffix in (".gz", ".pdb", ".ent", ".cif", ".mmcif"):
         if filename.lower().endswith(suffix):
             filename = filename[: -len(suffix)]

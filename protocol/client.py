@@ -3,6 +3,11 @@
 The subscriber never blocks its caller longer than asked: `poll()` drains whatever has
 arrived and returns, so a renderer calls it once per frame and draws the newest pose.
 Messages that break the protocol are dropped and counted, never raised.
+
+Keys: without explicit ones, a client of a loopback TCP endpoint uses this user's local
+CURVE keys (protocol/security.py), as the daemon does; when nothing comes, the error
+line says why (protocol/handshake.py): a refused key, a missing one, a wrong server
+key, or no daemon at all.
 """
 
 from __future__ import annotations
@@ -17,13 +22,22 @@ import zmq
 from sasprobe.errors import UserError
 from sasprobe.protocol.control import ProtocolError, Reply, decode_reply, encode_request
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
+from sasprobe.protocol.handshake import ConnectionWatch
 from sasprobe.protocol.pose import POSE_TOPIC, Pose, PoseDecodeError, decode_pose
 from sasprobe.protocol.scene import SCENE_TOPIC, SceneError, decode_scene
-from sasprobe.protocol.security import ClientKeys, make_curve_client
+from sasprobe.protocol.security import ClientKeys, local_client_keys, make_curve_client
 
 
 class ControlError(UserError):
     """The daemon did not answer, or answered with an error (the message says which)."""
+
+
+def keys_for(endpoint: str, keys: ClientKeys | None) -> ClientKeys | None:
+    """The keys a client uses: the given ones; for loopback TCP, else this user's local keys."""
+    if keys is not None:
+        return keys
+    parsed = parse_endpoint(endpoint)
+    return local_client_keys() if parsed.transport == "tcp" and parsed.is_loopback else None
 
 
 class Subscriber:
@@ -36,7 +50,8 @@ class Subscriber:
         context: zmq.Context | None = None,
         rcvhwm: int = 10000,
     ) -> None:
-        parse_endpoint(endpoint)
+        local = keys is None
+        keys = keys_for(endpoint, keys)
         self.endpoint = endpoint
         self._context = context or zmq.Context.instance()
         self._socket = self._context.socket(zmq.SUB)
@@ -44,6 +59,7 @@ class Subscriber:
         self._socket.rcvhwm = rcvhwm
         if keys is not None:
             make_curve_client(self._socket, keys)
+        self.watch = ConnectionWatch(self._socket, endpoint, keys is not None, local and keys is not None)
         self._socket.setsockopt(zmq.SUBSCRIBE, POSE_TOPIC)
         self._socket.setsockopt(zmq.SUBSCRIBE, SCENE_TOPIC)
         self._socket.connect(endpoint)
@@ -101,11 +117,12 @@ class Subscriber:
         while self.scene is None:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
-                raise ControlError(f"no scene from {self.endpoint} within {timeout_s:g} s (is the daemon running?)")
+                raise ControlError(f"no scene from {self.endpoint} within {timeout_s:g} s: {self.watch.explain()}")
             self.poll(min(remaining, 0.1))
         return self.scene
 
     def close(self) -> None:
+        self.watch.close()
         self._socket.close(linger=0)
 
     def __enter__(self) -> Subscriber:
@@ -125,13 +142,14 @@ class ControlClient:
         timeout_s: float = 3.0,
         context: zmq.Context | None = None,
     ) -> None:
-        parse_endpoint(endpoint)
+        self._local_keys = keys is None  # None asks for this user's local keys where they apply
+        self._keys = keys_for(endpoint, keys)
         self.endpoint = endpoint
         self.timeout_s = timeout_s
-        self._keys = keys
         self._context = context or zmq.Context.instance()
         self._ids = itertools.count(1)
         self._socket: zmq.Socket | None = None
+        self._watch: ConnectionWatch | None = None
 
     def _open(self) -> zmq.Socket:
         if self._socket is None:
@@ -139,6 +157,8 @@ class ControlClient:
             sock.linger = 0
             if self._keys is not None:
                 make_curve_client(sock, self._keys)
+            self._watch = ConnectionWatch(sock, self.endpoint, self._keys is not None,
+                                          self._local_keys and self._keys is not None)
             sock.connect(self.endpoint)
             self._socket = sock
         return self._socket
@@ -151,8 +171,9 @@ class ControlClient:
         sock.send_multipart(encode_request(cmd, args, id=request_id, data=data))
         timeout = self.timeout_s if timeout_s is None else timeout_s
         if not sock.poll(int(timeout * 1000)):
+            why = self._watch.explain()
             self._reset()
-            raise ControlError(f"no reply from the daemon at {self.endpoint} within {timeout:g} s (is it running?)")
+            raise ControlError(f"no reply from the daemon at {self.endpoint} within {timeout:g} s: {why}")
         try:
             reply = decode_reply(sock.recv_multipart())
         except ProtocolError as exc:
@@ -189,10 +210,20 @@ class ControlClient:
         return reply.result, reply.data
 
     def load(self, path: str | Path | None = None, data: bytes | None = None, name: str | None = None,
-             timeout_s: float = 60.0) -> dict:
-        if data is not None:
-            return self.call("load", data=data, timeout_s=timeout_s, **({"name": name} if name else {}))
-        return self.call("load", timeout_s=timeout_s, path=str(path))
+             timeout_s: float = 60.0, daemon_path: str | None = None) -> dict:
+        """Load a structure: a local `path` (read here, sent as bytes), `data` bytes, or
+        `daemon_path`, a file the daemon reads itself (only below its --load-dir)."""
+        if daemon_path is not None:
+            return self.call("load", timeout_s=timeout_s, path=str(daemon_path))
+        if path is not None:
+            path = Path(path)
+            try:
+                if not path.is_file():
+                    raise ControlError(f"{path}: not a regular file")
+                data, name = path.read_bytes(), name or path.name
+            except OSError as exc:
+                raise ControlError(f"{path}: cannot read ({exc.strerror or exc})") from None
+        return self.call("load", data=data, timeout_s=timeout_s, **({"name": name} if name else {}))
 
     def set(self, **changes) -> dict:
         return self.call("set", **changes)
@@ -206,7 +237,19 @@ class ControlClient:
     def shutdown(self) -> dict:
         return self.call("shutdown")
 
+    def mark(self, label: str | None = None) -> dict:
+        """Drop a mark at the probe's position: {"mark": {...}, "seq"}."""
+        return self.call("mark", **({"label": label} if label else {}))
+
+    def findings(self, out_dir: str | Path, probe_radius_A: float | None = None) -> dict:
+        """Start the analysis of the daemon's recording so far into a folder on its host."""
+        extra = {} if probe_radius_A is None else {"probe_radius_A": probe_radius_A}
+        return self.call("findings", dir=str(out_dir), **extra)
+
     def _reset(self) -> None:
+        if self._watch is not None:
+            self._watch.close()
+            self._watch = None
         if self._socket is not None:
             self._socket.close(linger=0)
             self._socket = None

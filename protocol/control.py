@@ -4,6 +4,11 @@ A request is one or two frames: a UTF-8 JSON object, then (only for `load`) the 
 bytes of a structure file. A reply has the same shape: a JSON object saying ok or
 giving an error, then (only for `get_structure`) the file's bytes. Every malformed
 request gets an error reply; see protocol/README.md for each command.
+
+What the JSON may hold is bounded so that no request can make its reader misbehave:
+numbers must be finite doubles (`1e400` is refused, not read as inf), integers at most
+MAX_INTEGER_DIGITS digits, nesting at most MAX_NESTING deep; each limit is refused by
+name. Every frame of a message counts against MAX_MESSAGE_BYTES.
 """
 
 from __future__ import annotations
@@ -13,18 +18,24 @@ import math
 from dataclasses import dataclass, field
 
 from sasprobe.protocol.scene import (
+    COLOR_SCHEMES,
     DEFAULT_LIGHTS,
     HAPTIC_METHODS,
     SceneError,
     merge_lights,
     reject_constant,
     validate_clip_planes,
+    validate_color_scheme,
+    validate_mark_label,
 )
 
 CONTROL_VERSION = 1
 MAX_REQUEST_JSON_BYTES = 64 * 1024  # the JSON frame; structure bytes travel in frame 2
 MAX_STRUCTURE_BYTES = 256 * 1024 * 1024  # the largest structure file `load` accepts
-MAX_MESSAGE_BYTES = MAX_STRUCTURE_BYTES + MAX_REQUEST_JSON_BYTES  # larger frames drop the connection
+MAX_MESSAGE_BYTES = MAX_STRUCTURE_BYTES + MAX_REQUEST_JSON_BYTES  # all frames together; a larger frame drops the connection
+MAX_NESTING = 16  # arrays/objects inside each other (a `set` needs 4)
+MAX_INTEGER_DIGITS = 18  # any int64 of 18 digits; a longer integer is refused
+MAX_NAME_CHARS = 200  # `load`'s name and other short strings
 
 COMMANDS = (
     "ping",
@@ -36,19 +47,25 @@ COMMANDS = (
     "record_start",
     "record_stop",
     "shutdown",
+    "view",
+    "clutch",
+    "recentre",
+    "mark",
+    "findings",
 )
 
 # `set` fields and the JSON types they take (semantic limits, such as the probe radius's
 # upper bound and the device's stiffness limit, are checked by the daemon).
 SET_FIELDS = {
     "probe_radius_A": "number > 0",
-    "stiffness_n_per_mm": "number ≥ 0",
+    "stiffness_n_per_mm": "number > 0",
     "damping_n_s_per_m": "number ≥ 0",
     "method": f"one of {', '.join(HAPTIC_METHODS)}",
-    "cube_half_A": "number > 0, or null to fit the molecule",
+    "cube_half_A": "number > 0, \"fit\" (the whole molecule) or null (the default size)",
     "nav_cube_enabled": "true or false",
     "clip_planes": "list of [a, b, c, d]",
     "lights": "object (partial updates merge)",
+    "color_scheme": f"one of {', '.join(COLOR_SCHEMES)}, or null for each renderer's default",
 }
 
 
@@ -79,15 +96,48 @@ def _dumps(obj: dict) -> bytes:
     return json.dumps(obj, separators=(",", ":"), allow_nan=False).encode()
 
 
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ProtocolError(f"number {text[:24]} is not finite (larger than a double holds)")
+    return value
+
+
+def _bounded_int(text: str) -> int:
+    digits = len(text.lstrip("-"))
+    if digits > MAX_INTEGER_DIGITS:
+        raise ProtocolError(f"integer of {digits} digits is out of range (at most {MAX_INTEGER_DIGITS} digits)")
+    return int(text)
+
+
+def _depth(obj) -> int:
+    """How deeply arrays and objects nest in a parsed JSON value (iterative: no recursion)."""
+    deepest, stack = 0, [(obj, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if isinstance(value, (dict, list)):
+            deepest = max(deepest, depth)
+            if depth <= MAX_NESTING:
+                stack.extend((child, depth + 1) for child in (value.values() if isinstance(value, dict) else value))
+    return deepest
+
+
 def _loads(frame: bytes, what: str) -> dict:
     try:
-        obj = json.loads(frame.decode("utf-8"), parse_constant=reject_constant)
+        obj = json.loads(frame.decode("utf-8"), parse_constant=reject_constant, parse_float=_finite_float,
+                         parse_int=_bounded_int)
     except UnicodeDecodeError:
         raise ProtocolError(f"{what} is not UTF-8 text") from None
+    except ProtocolError as exc:
+        raise ProtocolError(f"{what}: {exc}") from None
+    except RecursionError:
+        raise ProtocolError(f"{what} nests arrays/objects deeper than {MAX_NESTING} levels") from None
     except ValueError as exc:
         raise ProtocolError(f"{what} is not valid JSON ({str(exc).splitlines()[0]})") from None
     if not isinstance(obj, dict):
         raise ProtocolError(f"{what} must be a JSON object, not {type(obj).__name__}")
+    if _depth(obj) > MAX_NESTING:
+        raise ProtocolError(f"{what} nests arrays/objects deeper than {MAX_NESTING} levels")
     return obj
 
 
@@ -107,15 +157,19 @@ def encode_request(cmd: str, args: dict | None = None, id: object = None, data: 
     return [_dumps(obj)] + ([bytes(data)] if data is not None else [])
 
 
-def decode_request(frames: list[bytes]) -> Request:
-    """Parse and check a request's frames; ProtocolError says what is wrong in one line."""
+def decode_request(frames: list) -> Request:
+    """Parse and check a request's frames (bytes or any buffer, e.g. zmq.Frame); ProtocolError
+    says what is wrong in one line. The data frame comes back as a memoryview (no copy)."""
     if not frames:
         raise ProtocolError("empty request")
+    total = sum(len(f) for f in frames)
+    if total > MAX_MESSAGE_BYTES:
+        raise ProtocolError(f"request of {total} bytes in {len(frames)} frames is larger than {MAX_MESSAGE_BYTES}")
     if len(frames) > 2:
         raise ProtocolError(f"a request has 1 or 2 frames, got {len(frames)}")
     if len(frames[0]) > MAX_REQUEST_JSON_BYTES:
         raise ProtocolError(f"request of {len(frames[0])} bytes is larger than {MAX_REQUEST_JSON_BYTES}")
-    obj = _loads(frames[0], "request")
+    obj = _loads(bytes(frames[0]), "request")
     version = _check_version(obj, "request")
     cmd = obj.get("cmd")
     if not isinstance(cmd, str):
@@ -125,17 +179,24 @@ def decode_request(frames: list[bytes]) -> Request:
     args = obj.get("args", {})
     if not isinstance(args, dict):
         raise ProtocolError(f"'args' must be a JSON object, not {type(args).__name__}")
-    data = frames[1] if len(frames) == 2 else None
+    data = memoryview(frames[1]) if len(frames) == 2 else None
     if data is not None and cmd != "load":
         raise ProtocolError(f"'{cmd}' takes no data frame")
     if data is not None and len(data) > MAX_STRUCTURE_BYTES:
         raise ProtocolError(f"structure data of {len(data)} bytes is larger than {MAX_STRUCTURE_BYTES}")
-    req = Request(cmd=cmd, args=args, id=obj.get("id"), data=data, version=version)
+    req = Request(cmd=cmd, args=args, id=plain_id(obj.get("id")), data=data, version=version)
     _check_args(req)
     return req
 
 
-def encode_reply(reply: Reply) -> list[bytes]:
+def plain_id(value):
+    """A request id worth echoing: a short string or a number; anything else is dropped."""
+    if isinstance(value, str):
+        return value if len(value) <= MAX_NAME_CHARS else None
+    return value if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+
+
+def encode_reply(reply: Reply) -> list:
     obj: dict = {"version": CONTROL_VERSION, "ok": reply.ok}
     if reply.id is not None:
         obj["id"] = reply.id
@@ -143,7 +204,7 @@ def encode_reply(reply: Reply) -> list[bytes]:
         obj["result"] = reply.result
     else:
         obj["error"] = reply.error or "error"
-    return [_dumps(obj)] + ([bytes(reply.data)] if reply.data is not None else [])
+    return [_dumps(obj)] + ([reply.data] if reply.data is not None else [])  # any buffer: sent without a copy
 
 
 def decode_reply(frames: list[bytes]) -> Reply:
@@ -164,12 +225,14 @@ def decode_reply(frames: list[bytes]) -> Reply:
                  data=frames[1] if len(frames) == 2 else None, version=version)
 
 
-def _string(args: dict, key: str, cmd: str, required: bool = True) -> str | None:
+def _string(args: dict, key: str, cmd: str, required: bool = True, limit: int = 4096) -> str | None:
     value = args.get(key)
     if value is None and not required:
         return None
     if not isinstance(value, str) or not value:
         raise ProtocolError(f"'{cmd}' needs a non-empty string '{key}'")
+    if len(value) > limit or "\x00" in value:
+        raise ProtocolError(f"'{cmd}': '{key}' must be at most {limit} characters, without NUL")
     return value
 
 
@@ -195,12 +258,12 @@ def validate_set_args(args: dict) -> dict:
         raise ProtocolError(f"'set' does not know {', '.join(unknown)} (known: {', '.join(SET_FIELDS)})")
     out: dict = {}
     for key, value in args.items():
-        if key == "probe_radius_A":
+        if key in ("probe_radius_A", "stiffness_n_per_mm"):
             out[key] = _number(value, key, 0.0, True)
-        elif key in ("stiffness_n_per_mm", "damping_n_s_per_m"):
+        elif key == "damping_n_s_per_m":
             out[key] = _number(value, key, 0.0, False)
         elif key == "cube_half_A":
-            out[key] = None if value is None else _number(value, key, 0.0, True)
+            out[key] = value if value is None or value == "fit" else _number(value, key, 0.0, True)
         elif key == "method":
             if value not in HAPTIC_METHODS:
                 raise ProtocolError(f"'method' must be {SET_FIELDS[key]}, got {str(value)[:40]!r}")
@@ -209,9 +272,11 @@ def validate_set_args(args: dict) -> dict:
             if not isinstance(value, bool):
                 raise ProtocolError("'nav_cube_enabled' must be true or false")
             out[key] = value
-        else:  # clip_planes, lights: checked against the scene schema
+        else:  # clip_planes, lights, color_scheme: checked against the scene schema
             try:
-                if key == "clip_planes":
+                if key == "color_scheme":
+                    out[key] = validate_color_scheme(value)
+                elif key == "clip_planes":
                     out[key] = validate_clip_planes(value)
                 else:
                     merge_lights(DEFAULT_LIGHTS, value)  # type check only: the daemon merges into its own
@@ -242,6 +307,40 @@ def _check_args(req: Request) -> None:
         else:
             if "path" in req.args:
                 raise ProtocolError("'load' takes either 'path' or a data frame, not both")
-            _string(req.args, "name", req.cmd, required=False)
+            _string(req.args, "name", req.cmd, required=False, limit=MAX_NAME_CHARS)
     elif req.cmd == "set":
         req.args = validate_set_args(req.args)
+    elif req.cmd == "view":
+        rotation = req.args.get("rotation")
+        if set(req.args) != {"rotation"} or not _is_matrix3(rotation):
+            raise ProtocolError("'view' takes 'rotation': 3 rows of 3 finite numbers (device frame -> molecule frame)")
+    elif req.cmd == "clutch":
+        if set(req.args) != {"held"} or not isinstance(req.args["held"], bool):
+            raise ProtocolError("'clutch' takes 'held' (true or false)")
+    elif req.cmd == "recentre":
+        _no_args(req)
+
+    elif req.cmd == "mark":
+        if set(req.args) - {"label"}:
+            raise ProtocolError("'mark' takes only 'label'")
+        if "label" in req.args:
+            try:
+                validate_mark_label(req.args["label"])
+            except SceneError as exc:
+                raise ProtocolError(str(exc)) from None
+    elif req.cmd == "findings":
+        _string(req.args, "dir", req.cmd)
+        if set(req.args) - {"dir", "probe_radius_A"}:
+            raise ProtocolError("'findings' takes 'dir' and 'probe_radius_A'")
+        if "probe_radius_A" in req.args:
+            value = req.args["probe_radius_A"]
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                    or value <= 0:
+                raise ProtocolError("'probe_radius_A' must be a number > 0")
+
+
+def _is_matrix3(value) -> bool:
+    return (isinstance(value, list) and len(value) == 3 and all(
+        isinstance(row, list) and len(row) == 3 and all(
+            not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x) for x in row)
+        for row in value))

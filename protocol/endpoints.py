@@ -3,12 +3,18 @@
 Endpoints are ZeroMQ addresses: `tcp://HOST:PORT` or `ipc://PATH`. The daemon binds
 loopback by default; any other TCP address (a LAN address, `*`, `0.0.0.0`, a host or
 interface name) is reachable from other machines and needs CURVE keys (see security.py).
-ipc:// endpoints are local sockets guarded by file permissions and need no keys.
+ipc:// endpoints are local sockets guarded by file permissions (the daemon creates them
+0600) and need no keys; binding one never replaces a file or a live socket.
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import ipaddress
+import os
+import socket
+import stat
 from dataclasses import dataclass
 
 from sasprobe.errors import UserError
@@ -63,3 +69,38 @@ def parse_endpoint(text: str) -> Endpoint:
         if not port.isdigit() or not 1 <= int(port) <= 65535:
             raise EndpointError(f"endpoint '{text}': port '{port}' is not a number from 1 to 65535")
     return Endpoint(text=text, transport="tcp", host=host, port=port)
+
+
+@contextlib.contextmanager
+def private_umask():
+    """umask 077 for the duration (process-wide, so only around a bind at start-up)."""
+    old = os.umask(0o077)
+    try:
+        yield
+    finally:
+        os.umask(old)
+
+
+def check_ipc_path(path: str) -> None:
+    """Refuse to bind an ipc:// path that holds anything but a dead socket.
+
+    libzmq unlinks whatever is at the path before binding: a regular file would be lost,
+    and a live socket would be stolen from the daemon that serves it."""
+    try:
+        info = os.lstat(path)
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise EndpointError(f"ipc://{path}: cannot use this path ({exc.strerror or exc})") from None
+    if not stat.S_ISSOCK(info.st_mode):
+        raise EndpointError(f"ipc://{path}: the path exists and is not a socket; refusing to replace it")
+    probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        probe.connect(path)
+    except OSError as exc:
+        if exc.errno in (errno.ECONNREFUSED, errno.ENOENT):
+            return  # a socket left behind by a daemon that is gone
+        raise EndpointError(f"ipc://{path}: cannot use this path ({exc.strerror or exc})") from None
+    finally:
+        probe.close()
+    raise EndpointError(f"ipc://{path}: another process is listening there (another daemon?)")

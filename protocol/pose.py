@@ -24,6 +24,7 @@ FLAG_CLAMPED = 1 << 1  # the force was clamped to the device limit
 FLAG_FAULT = 1 << 2  # the watchdog zeroed the force (device fault, late tick, bad values)
 FLAG_DRIFTING = 1 << 3  # the navigation cube is drifting (tip in the workspace margin)
 FLAG_RAMPING = 1 << 4  # forces are still ramping up after start or reconnect
+FLAG_CLUTCHED = 1 << 5  # the clutch is held: the probe stays, the cube follows the hand, no force
 
 
 class PoseDecodeError(ValueError):

@@ -27,6 +27,7 @@ from typing import Iterator
 import numpy as np
 
 from sasprobe.errors import UserError
+from sasprobe.files import open_regular
 from sasprobe.protocol.pose import Pose
 
 MAGIC = b"\x89MCAP0\r\n"
@@ -116,11 +117,7 @@ class Scan:
 def scan(path: Path) -> Scan:
     """Find where the complete records end, reading only record headers."""
     path = Path(path)
-    try:
-        fh = open(path, "rb")
-    except OSError as exc:
-        raise RecordingError(f"{path}: cannot open ({exc.strerror or exc})") from None
-    with fh:
+    with open_regular(path, "recording", RecordingError) as fh:
         size = fh.seek(0, io.SEEK_END)
         fh.seek(0)
         if fh.read(len(MAGIC)) != MAGIC:
@@ -172,14 +169,14 @@ class Item:
 
 def iter_items(path: Path, decode: bool = True) -> Iterator[Item]:
     """Messages and attachments of a recording, finished or not, in file order."""
-    from mcap.exceptions import EndOfFile, McapError
+    from mcap.exceptions import EndOfFile
     from mcap.records import Attachment, Channel, Message, Metadata
     from mcap.stream_reader import StreamReader
 
     path = Path(path)
     info = scan(path)
     channels: dict[int, str] = {}
-    with open(path, "rb") as fh:
+    with open_regular(path, "recording", RecordingError) as fh:
         reader = StreamReader(io.BufferedReader(_Prefix(fh, info.end)), skip_magic=False)
         try:
             for record in reader.records:
@@ -197,8 +194,8 @@ def iter_items(path: Path, decode: bool = True) -> Iterator[Item]:
                     yield Item("metadata", 0, {"name": record.name, **record.metadata})
         except EndOfFile:
             return  # an unfinished file: everything complete has been read
-        except (McapError, ValueError, struct.error) as exc:
-            raise RecordingError(f"{path}: damaged recording ({exc})") from None
+        except Exception as exc:  # mcap's, zstd's, json's and struct's errors alike: the file is damaged
+            raise RecordingError(f"{path}: damaged recording ({type(exc).__name__}: {_first_line(exc)})") from None
 
 
 @dataclass
@@ -254,38 +251,57 @@ def summarize(path: Path) -> Summary:
 
 def recover(path: Path, out: Path) -> Summary:
     """Write the readable part of a (possibly unfinished) recording as a finished MCAP file."""
+    path, out = Path(path), Path(out)
+    if out.exists():
+        raise RecordingError(f"{out}: already exists")
+    info = scan(path)
+    try:
+        dst = open(out, "xb")
+    except OSError as exc:
+        raise RecordingError(f"{out}: cannot create ({exc.strerror or exc})") from None
+    try:
+        with open_regular(path, "recording", RecordingError) as src, dst:
+            _copy_records(src, dst, info.end, path)
+    except BaseException:
+        out.unlink(missing_ok=True)  # no half-written copy is left behind
+        raise
+    return summarize(out)
+
+
+def _copy_records(src, dst, end: int, path: Path) -> None:
     from mcap.exceptions import EndOfFile
     from mcap.records import Attachment, Channel, Message, Metadata, Schema
     from mcap.stream_reader import StreamReader
     from mcap.writer import CompressionType, Writer
 
-    path, out = Path(path), Path(out)
-    if out.exists():
-        raise RecordingError(f"{out}: already exists")
-    info = scan(path)
-    with open(path, "rb") as src, open(out, "xb") as dst:
-        writer = Writer(dst, compression=CompressionType.ZSTD)
-        writer.start(profile=PROFILE, library="sasprobe recover")
-        schema_ids: dict[int, int] = {}
-        channel_ids: dict[int, int] = {}
-        try:
-            for record in StreamReader(io.BufferedReader(_Prefix(src, info.end))).records:
-                if isinstance(record, Schema):
-                    schema_ids[record.id] = writer.register_schema(record.name, record.encoding, record.data)
-                elif isinstance(record, Channel):
-                    channel_ids[record.id] = writer.register_channel(
-                        record.topic, record.message_encoding, schema_ids.get(record.schema_id, 0), record.metadata
-                    )
-                elif isinstance(record, Message):
-                    writer.add_message(channel_ids[record.channel_id], record.log_time, record.data,
-                                       record.publish_time, record.sequence)
-                elif isinstance(record, Attachment):
-                    writer.flush()
-                    writer.add_attachment(record.create_time, record.log_time, record.name, record.media_type,
-                                          record.data)
-                elif isinstance(record, Metadata):
-                    writer.add_metadata(record.name, record.metadata)
-        except EndOfFile:
-            pass
-        writer.finish()
-    return summarize(out)
+    writer = Writer(dst, compression=CompressionType.ZSTD)
+    writer.start(profile=PROFILE, library="sasprobe recover")
+    schema_ids: dict[int, int] = {}
+    channel_ids: dict[int, int] = {}
+    try:
+        for record in StreamReader(io.BufferedReader(_Prefix(src, end))).records:
+            if isinstance(record, Schema):
+                schema_ids[record.id] = writer.register_schema(record.name, record.encoding, record.data)
+            elif isinstance(record, Channel):
+                channel_ids[record.id] = writer.register_channel(
+                    record.topic, record.message_encoding, schema_ids.get(record.schema_id, 0), record.metadata
+                )
+            elif isinstance(record, Message):
+                writer.add_message(channel_ids[record.channel_id], record.log_time, record.data,
+                                   record.publish_time, record.sequence)
+            elif isinstance(record, Attachment):
+                writer.flush()
+                writer.add_attachment(record.create_time, record.log_time, record.name, record.media_type,
+                                      record.data)
+            elif isinstance(record, Metadata):
+                writer.add_metadata(record.name, record.metadata)
+    except EndOfFile:
+        pass
+    except Exception as exc:  # mcap's, zstd's and struct's errors alike: a damaged file
+        raise RecordingError(f"{path}: damaged recording ({type(exc).__name__}: {_first_line(exc)})") from None
+    writer.finish()
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0][:200] if text else ""

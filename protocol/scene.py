@@ -11,10 +11,15 @@ import json
 import math
 
 SCENE_TOPIC = b"scene"
-SCENE_VERSION = 2  # 2: nav_cube.half_A and lights.probe.radius_A are gone (the pose and probe_radius_A carry them)
+SCENE_VERSION = 3  # 3: view, color_scheme, marks; 2: nav_cube.half_A and lights.probe.radius_A are gone
 MAX_SCENE_BYTES = 1 << 20  # a scene is a few KiB; anything this big is not one
 MAX_CLIP_PLANES = 8
+MAX_MARKS = 500  # marks a scene carries (a session's findings, not a point cloud)
+MAX_MARK_LABEL = 80  # characters of a mark's label
 HAPTIC_METHODS = ("proxy", "penalty")  # the `method` a scene reports and a `set` may ask for; the first is the default
+# How renderers colour the atoms (render/colors.py says what each means); the optional scene
+# key `color_scheme` is one of these, or null for the renderer's default by structure.
+COLOR_SCHEMES = ("element", "chain", "chain-all", "polymer", "residue", "hydrophobicity", "bfactor", "sas")
 
 # The direction the key light travels (from the light towards the molecule), molecule frame,
 # not normalised: from the upper left front of a view down -z (the renderer's fitted view).
@@ -75,6 +80,39 @@ def validate_clip_planes(value) -> list[list[float]]:
     return planes
 
 
+def validate_color_scheme(value) -> str | None:
+    """A colour scheme name, or None (each renderer picks its default by structure)."""
+    if value is not None and value not in COLOR_SCHEMES:
+        raise SceneError(f"color_scheme must be one of {', '.join(COLOR_SCHEMES)} or null, got {str(value)[:40]!r}")
+
+
+def validate_mark_label(value) -> str:
+    """A mark's label: a string of at most MAX_MARK_LABEL printable characters."""
+    if not isinstance(value, str):
+        raise SceneError("a mark label must be a string")
+    if len(value) > MAX_MARK_LABEL or not value.isprintable():
+        raise SceneError(f"a mark label is at most {MAX_MARK_LABEL} printable characters")
+    return value
+
+
+def validate_marks(value) -> list:
+    """The scene's `marks`: [{"id", "label", "position_A", "seq", "source"}, ...] in id order."""
+    if not isinstance(value, list):
+        raise SceneError("marks must be a list")
+    if len(value) > MAX_MARKS:
+        raise SceneError(f"at most {MAX_MARKS} marks, got {len(value)}")
+    for i, mark in enumerate(value):
+        mark = _object(mark, f"marks[{i}]")
+        for key in ("id", "seq"):
+            if isinstance(mark.get(key), bool) or not isinstance(mark.get(key), int) or mark[key] < 0:
+                raise SceneError(f"marks[{i}].{key} must be a non-negative integer")
+        validate_mark_label(mark.get("label"))
+        _vector(mark.get("position_A"), 3, f"marks[{i}].position_A")
+        if not isinstance(mark.get("source"), str):
+            raise SceneError(f"marks[{i}].source must be a string")
+    return value
+
+
 def merge_lights(current: dict, changes) -> dict:
     """Apply a (possibly partial) lights object to the current one, validating every value."""
     changes = _object(changes, "lights")
@@ -123,8 +161,11 @@ def validate_scene(scene) -> dict:
         raise SceneError(f"haptics.method must be one of {', '.join(HAPTIC_METHODS)}")
     _number(haptics.get("stiffness_n_per_mm"), "haptics.stiffness_n_per_mm")
     _number(haptics.get("damping_n_s_per_m"), "haptics.damping_n_s_per_m")
+    validate_color_scheme(scene.get("color_scheme"))  # optional: absent reads as null
     if not isinstance(scene.get("daemon_version"), str):
         raise SceneError("daemon_version must be a string")
+    if "marks" in scene:  # optional: daemons before marks do not send it
+        validate_marks(scene["marks"])
     return scene
 
 

@@ -1,10 +1,15 @@
-"""`sasprobe render` put together: options -> structure and scene -> context -> loop."""
+"""`sasprobe render` put together: options -> structure and scene -> context -> loop.
+
+Following a daemon the picture starts in the workspace view (render/workspace_view.py),
+with the clip plane at the probe on; standalone it starts in the overview. A headless
+run whose daemon stops sending for DAEMON_GONE_S ends with one line (exit status 2),
+its video finished."""
 
 from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +19,8 @@ from sasprobe.render.lighting.settings import DEFAULT_PROBE_RANGE, LightingSetti
 from sasprobe.render.source import RenderSource
 
 log = logging.getLogger("sasprobe")
+
+DAEMON_GONE_S = 3.0  # a headless --connect run ends when the daemon has been silent this long
 
 
 @dataclass
@@ -47,13 +54,38 @@ class RenderOptions:
     snapshot: Path | None = None  # also write the last frame as a PNG (headless)
     report: Path | None = None  # write frame and pose counts as JSON at the end
     frame_cache: bool = True  # keep the molecule layer while only the probe moves (render/frame_cache.py)
+    view: str | None = None  # "workspace" or "overview"; None: workspace with --connect, else overview
+    gbuffer_dir: Path | None = None  # headless: every frame's G-buffer into this folder
+
+    @property
+    def start_view(self) -> str:
+        from sasprobe.render.workspace_view import OVERVIEW, WORKSPACE
+
+        if self.view is not None:
+            return self.view
+        return WORKSPACE if self.connect is not None and self.camera is None else OVERVIEW
+    color: str | None = None  # colour scheme (render/colors.py); None: the default by structure
+    preset: str = "default"  # lighting preset (render/lighting/presets.py): light intensities, background
+    background: tuple[float, float, float] | None = None  # None: the preset's
+    light_frame: str = "camera"  # "camera": lights turn with the view; "molecule": fixed in the molecule frame
+    keys: Path | None = None  # with connect: CURVE client keys from `sasprobe keys DIR` (a keyed daemon)
 
     def effects(self):
-        """The scene's switches: the options' FXAA, probe plane and initial lighting."""
+        """The scene's switches: the options' FXAA, probe plane (on in the workspace view) and
+        initial lighting."""
         from sasprobe.render.scene import Effects
+        from sasprobe.render.workspace_view import WORKSPACE
 
         lighting = self.lighting.effects() if self.lighting is not None else {}
-        return Effects(fxaa=self.fxaa, probe_plane=self.probe_plane, **lighting)
+        return Effects(fxaa=self.fxaa, probe_plane=self.probe_plane or self.start_view == WORKSPACE, color_scheme=self.color, **lighting)
+
+    def shading(self):
+        """The shading pass's settings: the preset's lights and background (or --background)."""
+        from sasprobe.render.lighting.presets import PRESETS
+        from sasprobe.render.lighting.settings import ShadingSettings
+
+        shading = PRESETS[self.preset].shading(ShadingSettings(probe_range=self.probe_light_range))
+        return shading if self.background is None else replace(shading, background=tuple(self.background))
 
 
 def build_scene(structure, opts: RenderOptions, effects=None):
@@ -69,7 +101,8 @@ def build_scene(structure, opts: RenderOptions, effects=None):
             opts.lighting.check_soft_shell(radius)
         except ValueError as exc:
             raise UserError(f"--soft-shell: {exc}") from None
-    scene = SceneState(structure, probe_radius=radius, clip_planes=[np.array(p) for p in opts.clip], effects=effects)
+    scene = SceneState(structure, probe_radius=radius, clip_planes=[np.array(p) for p in opts.clip], effects=effects,
+                       lights_follow_camera=opts.light_frame == "camera")
     if opts.touched >= structure.n_atoms:
         raise UserError(f"--touched {opts.touched}: {structure.name} has atoms 0..{structure.n_atoms - 1}")
     if opts.probe is not None:
@@ -83,13 +116,11 @@ def build_scene(structure, opts: RenderOptions, effects=None):
 
 
 def initial_camera(scene, opts: RenderOptions):
-    from sasprobe.render.camera import Camera, camera_from_spec
+    """The --camera spec, what it leaves out framed to the molecule's atoms."""
+    from sasprobe.render.camera import camera_from_spec
 
-    center, radius = scene.bounding_sphere()
-    aspect = opts.size[0] / opts.size[1]
-    if opts.camera:
-        return camera_from_spec(opts.camera, center, radius, aspect)
-    return Camera.fitted(center, radius, aspect)
+    centers, radii = scene.framing_spheres()
+    return camera_from_spec(opts.camera or {}, centers, radii, opts.size[0] / opts.size[1])
 
 
 def open_source(opts: RenderOptions) -> RenderSource:
@@ -101,7 +132,12 @@ def open_source(opts: RenderOptions) -> RenderSource:
         return StaticSource(load_structure_or_default(opts.molecule, keep_water=opts.keep_water))
     from sasprobe.render.link import DaemonLink
 
-    return DaemonLink(opts.connect or None, opts.control, keep_water=opts.keep_water)
+    keys = None
+    if opts.keys is not None:
+        from sasprobe.protocol.security import load_client_keys
+
+        keys = load_client_keys(opts.keys)
+    return DaemonLink(opts.connect or None, opts.control, keep_water=opts.keep_water, keys=keys)
 
 
 def render_main(opts: RenderOptions) -> int:
@@ -117,14 +153,14 @@ def render_main(opts: RenderOptions) -> int:
         source.close()
 
 
-def make_renderer(ctx, scene, size, opts: RenderOptions):
-    """The renderer of the options, lighting included when asked for and supported."""
-    from sasprobe.render.lighting.settings import ShadingSettings
+def make_renderer(ctx, scene, size, opts: RenderOptions, wait_for_areas: bool = True):
+    """The renderer of the options, lighting included when asked for and supported;
+    `wait_for_areas`: False in a window (the sas colours come once computed)."""
     from sasprobe.render.passes.lighting import install_lighting
     from sasprobe.render.renderer import Renderer
 
     renderer = Renderer(ctx, scene, size, sphere_mode=opts.spheres, backbone_always=opts.backbone,
-                        shading=ShadingSettings(probe_range=opts.probe_light_range), frame_cache=opts.frame_cache)
+                        shading=opts.shading(), wait_for_areas=wait_for_areas, frame_cache=opts.frame_cache)
     if opts.lighting is not None:
         try:
             install_lighting(renderer, opts.lighting, required=opts.lighting_required)
@@ -145,8 +181,11 @@ def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
     from sasprobe.render.gl.context import create_headless_context
     from sasprobe.render.headless import run_headless
 
+    from sasprobe.render.workspace_view import WorkspaceView
+
     source.wait_ready()  # a daemon: its structure and a first pose, or one clear line
     scene = build_scene(source.take_new_structure(), opts)
+    view = WorkspaceView(opts.start_view)  # headless never turns the view: it follows the daemon's
     ctx = create_headless_context()
     try:
         renderer = make_renderer(ctx, scene, opts.size, opts)
@@ -158,15 +197,23 @@ def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
     writer = _writer(opts, frames)
     bar = progress_bar(frames, "render", unit="frame") if frames and frames > 1 else None
 
+    aspect = opts.size[0] / opts.size[1]
+
     def update() -> None:
         source.poll()
+        if source.lost_for_s() > DAEMON_GONE_S:
+            raise UserError(f"the daemon stopped sending (nothing for {DAEMON_GONE_S:g} s): ending the render")
         source.apply(scene)
+        follow = view.camera(scene, aspect, source.view_axes())
+        if follow is not None:
+            camera.eye, camera.target, camera.up, camera.fov_y = follow.eye, follow.target, follow.up, follow.fov_y
 
     # A live daemon into a video: keep the video in wall-clock time (see run_headless).
     pace = opts.fps if opts.connect is not None and writer is not None and writer.is_video else None
     try:
         stats = run_headless(renderer, camera, frames, opts.seconds, writer=writer, gbuffer_path=opts.gbuffer,
-                             orbit_deg=opts.orbit, update=update, progress=bar, pace_fps=pace)
+                             orbit_deg=opts.orbit, update=update, progress=bar, pace_fps=pace,
+                             gbuffer_dir=opts.gbuffer_dir)
         if opts.snapshot is not None:
             from sasprobe.render.output import FrameWriter
 
@@ -198,12 +245,14 @@ def _run_window(opts: RenderOptions, source: RenderSource) -> int:
     try:
         def build(structure, effects):
             scene = build_scene(structure, opts, effects)
-            renderer = make_renderer(ctx, scene, glfw.get_framebuffer_size(window), opts)
+            renderer = make_renderer(ctx, scene, glfw.get_framebuffer_size(window), opts, wait_for_areas=False)
             glfw.set_window_title(window, f"sasprobe render: {structure.name} ({structure.n_atoms} atoms)")
             return renderer, initial_camera(scene, opts)
 
-        app = WindowApp(window, ctx, source, build, "sasprobe render", opts.effects())
-        writer = _writer(opts, 1)
+        folder = opts.out if opts.out is not None and opts.out.is_dir() else None  # Ctrl+S / Ctrl+R go there
+        app = WindowApp(window, ctx, source, build, "sasprobe render", opts.effects(), opts.start_view,
+                        preset=opts.preset, background=opts.background, shots=folder)
+        writer = _writer(opts, 1) if folder is None else None
         log.info("window open: %dx%d framebuffer", *glfw.get_framebuffer_size(window))
         start = time.perf_counter()
         try:

@@ -1,4 +1,9 @@
-"""Perspective camera: auto-fit, `--camera` specs, arcball rotate, zoom and pan.
+"""Perspective camera: framing, `--camera` specs, arcball rotate, zoom (to a point) and pan.
+
+`Camera.framing` (and `fit_camera`) frame a set of spheres exactly: every sphere lies in the
+view frustum narrowed to `fill` of the image, so the molecule spans that fraction of the
+image's limiting side whatever its shape (`Camera.fitted` frames a bounding sphere, which
+leaves a molecule that is not round small in the picture).
 
 Matrices follow OpenGL conventions with column vectors (clip = proj @ view @ [x, y, z, 1]),
 as numpy float64 arrays; `gl_bytes` gives the column-major float32 bytes a uniform wants.
@@ -14,6 +19,7 @@ import numpy as np
 
 DEFAULT_FOV = 40.0  # degrees, vertical
 FIT_MARGIN = 1.05  # a little air around the fitted bounding sphere
+FIT_FILL = 0.9  # the framed spheres span this fraction of the image's limiting side
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -95,6 +101,42 @@ class Camera:
         cam.fit_clip_range(center, radius)
         return cam
 
+    @classmethod
+    def framing(cls, centers, radii, aspect: float, fov_y: float = DEFAULT_FOV, direction=(0.0, 0.0, 1.0),
+                up=(0.0, 1.0, 0.0), fill: float = FIT_FILL) -> "Camera":
+        """A camera looking from `direction` (from the spheres towards the eye) at the
+        nearest distance where every sphere lies inside the frustum narrowed to `fill`:
+        a sphere at view coordinates (x, y, z) (z towards the eye, relative to the target)
+        is inside the side plane x = t·(D − z) of an eye at distance D when
+        D ≥ z + (|x| + r·√(1 + t²)) / t, with t = fill·tan(half angle); likewise for y.
+        The target is moved sideways so the spheres' projection is centred."""
+        centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+        radii = np.broadcast_to(np.asarray(radii, dtype=np.float64), centers.shape[:1])
+        back = _unit(np.asarray(direction, dtype=np.float64))
+        probe = cls(eye=back, target=np.zeros(3), up=np.asarray(up, dtype=np.float64), fov_y=fov_y)
+        basis = probe.basis()  # right, up, back
+        local = centers @ basis
+        ty = float(fill) * math.tan(math.radians(fov_y) / 2.0)
+        tx = ty * float(aspect)
+        middle = ((local - radii[:, None]).min(axis=0) + (local + radii[:, None]).max(axis=0)) / 2.0
+        for _ in range(3):  # centre the projection (perspective shifts it), then fit again
+            rel = local - middle
+            distance = float(max(np.max(rel[:, 2] + (np.abs(rel[:, 0]) + radii * math.hypot(1.0, tx)) / tx),
+                                 np.max(rel[:, 2] + (np.abs(rel[:, 1]) + radii * math.hypot(1.0, ty)) / ty)))
+            depth = distance - rel[:, 2]
+            for axis, t in ((0, tx), (1, ty)):
+                lo = np.min((rel[:, axis] - radii * math.hypot(1.0, t)) / depth)
+                hi = np.max((rel[:, axis] + radii * math.hypot(1.0, t)) / depth)
+                middle[axis] += (lo + hi) / 2.0 * distance  # the angular centre, at the target's depth
+        rel = local - middle
+        distance = float(max(np.max(rel[:, 2] + (np.abs(rel[:, 0]) + radii * math.hypot(1.0, tx)) / tx),
+                             np.max(rel[:, 2] + (np.abs(rel[:, 1]) + radii * math.hypot(1.0, ty)) / ty)))
+        target = basis @ middle
+        cam = cls(eye=target + back * distance, target=target, up=np.asarray(up, dtype=np.float64), fov_y=fov_y)
+        span = float(np.max(np.linalg.norm(centers - target, axis=1) + radii)) if centers.size else 1.0
+        cam.fit_clip_range(target, span)
+        return cam
+
     # ------------------------------------------------------------ interaction
     def orbit(self, axis_world: np.ndarray, angle: float) -> None:
         """Rotate the eye (and up) about the target by `angle` radians around a world axis."""
@@ -116,6 +158,24 @@ class Camera:
     def zoom(self, factor: float) -> None:
         """Move the eye towards (factor < 1) or away from the target."""
         self.eye = self.target + (self.eye - self.target) * float(factor)
+
+    def zoom_towards(self, point, factor: float) -> None:
+        """Zoom about a world point (the one under the cursor): eye and target move towards
+        it (factor < 1) or away, so it stays where it is on the screen."""
+        p = np.asarray(point, dtype=np.float64)
+        self.eye = p + (self.eye - p) * float(factor)
+        self.target = p + (self.target - p) * float(factor)
+
+    def centre_on(self, point) -> None:
+        """Look at a point from the same direction and distance."""
+        shift = np.asarray(point, dtype=np.float64) - self.target
+        self.eye = self.eye + shift
+        self.target = self.target + shift
+
+    def ray(self, ndc: tuple[float, float], aspect: float) -> np.ndarray:
+        """Unit direction (world) of the ray from the eye through a point in NDC (y up)."""
+        t = math.tan(math.radians(self.fov_y) / 2.0)
+        return _unit(self.basis() @ np.array([ndc[0] * t * aspect, ndc[1] * t, -1.0]))
 
     def pan(self, dx_px: float, dy_px: float, viewport_height: int) -> None:
         """Slide eye and target so the picture follows the pointer (pixels, y down)."""
@@ -143,13 +203,14 @@ def _arcball_point(p: tuple[float, float]) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- --camera
-_CAMERA_KEYS = {"eye": 3, "target": 3, "up": 3, "fov": 1}
+_CAMERA_KEYS = {"eye": 3, "target": 3, "up": 3, "dir": 3, "fov": 1}
 
 
 def parse_camera(text: str) -> dict:
-    """Parse 'eye=X,Y,Z target=X,Y,Z up=X,Y,Z fov=DEG' (any subset, spaces or ';').
+    """Parse 'eye=X,Y,Z target=X,Y,Z up=X,Y,Z dir=X,Y,Z fov=DEG' (any subset, spaces or ';';
+    `dir` is the direction from the target towards the eye, at the framing distance).
 
-    Raises ValueError with one line. Missing keys are auto-fitted later.
+    Raises ValueError with one line. Missing keys are framed later.
     """
     spec: dict = {}
     parts = [p for p in re.split(r"[;\s]+", text.strip()) if p]
@@ -159,7 +220,7 @@ def parse_camera(text: str) -> dict:
         key, sep, value = part.partition("=")
         key = key.lower()
         if not sep or key not in _CAMERA_KEYS:
-            raise ValueError(f"'{part}' is not one of eye=X,Y,Z target=X,Y,Z up=X,Y,Z fov=DEG")
+            raise ValueError(f"'{part}' is not one of eye=X,Y,Z target=X,Y,Z up=X,Y,Z dir=X,Y,Z fov=DEG")
         if key in spec:
             raise ValueError(f"'{key}' is given twice")
         try:
@@ -171,44 +232,64 @@ def parse_camera(text: str) -> dict:
         spec[key] = numbers[0] if key == "fov" else np.array(numbers)
     if "fov" in spec and not 1.0 <= spec["fov"] <= 170.0:
         raise ValueError(f"fov={spec['fov']:g} is outside 1..170 degrees")
-    if "up" in spec and np.linalg.norm(spec["up"]) == 0.0:
-        raise ValueError("up=0,0,0 has no direction")
+    for key in ("up", "dir"):
+        if key in spec and np.linalg.norm(spec[key]) == 0.0:
+            raise ValueError(f"{key}=0,0,0 has no direction")
+    if "eye" in spec and "dir" in spec:
+        raise ValueError("give eye=X,Y,Z or dir=X,Y,Z, not both")
+    view = None
     if "eye" in spec and "target" in spec:
         view = spec["target"] - spec["eye"]
         if np.linalg.norm(view) == 0.0:
             raise ValueError("eye and target are the same point")
-        up = spec.get("up", np.array([0.0, 1.0, 0.0]))
-        if np.linalg.norm(np.cross(view, up)) < 1e-9 * np.linalg.norm(view) * np.linalg.norm(up) and "up" in spec:
+    elif "dir" in spec:
+        view = -spec["dir"]
+    if view is not None and "up" in spec:
+        if np.linalg.norm(np.cross(view, spec["up"])) < 1e-9 * np.linalg.norm(view) * np.linalg.norm(spec["up"]):
             raise ValueError("up is parallel to the viewing direction")
     return spec
 
 
-def camera_from_spec(spec: dict, center: np.ndarray, radius: float, aspect: float) -> Camera:
-    """A camera from a parsed spec; what it leaves out is fitted to the bounding sphere."""
+def camera_from_spec(spec: dict, centers, radii, aspect: float) -> Camera:
+    """A camera from a parsed spec; what it leaves out is framed to the spheres (Camera.framing)."""
     fov = float(spec.get("fov", DEFAULT_FOV))
-    target = spec.get("target", np.asarray(center, dtype=np.float64))
     up = spec.get("up", np.array([0.0, 1.0, 0.0]))
     if "eye" in spec:
-        cam = Camera(eye=spec["eye"], target=target, up=up, fov_y=fov)
-    else:
-        fitted = Camera.fitted(center, radius, aspect, fov_y=fov, up=up)
-        cam = Camera(eye=target + (fitted.eye - fitted.target), target=target, up=up, fov_y=fov)
-    cam.fit_clip_range(center, radius)
-    return cam
+        if "target" in spec:
+            target = spec["target"]
+        else:
+            centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+            target = (centers.min(axis=0) + centers.max(axis=0)) / 2.0
+        return Camera(eye=spec["eye"], target=target, up=up, fov_y=fov)
+    framed = Camera.framing(centers, radii, aspect, fov_y=fov, direction=spec.get("dir", (0.0, 0.0, 1.0)), up=up)
+    if "target" not in spec:
+        return framed
+    return Camera(eye=spec["target"] + (framed.eye - framed.target), target=spec["target"], up=up, fov_y=fov)
+
+
+def _view_up(direction: np.ndarray) -> tuple[float, float, float]:
+    return (0.0, 1.0, 0.0) if abs(direction[1]) < 0.9 * np.linalg.norm(direction) else (0.0, 0.0, 1.0)
+
+
+def fit_bounding_sphere(centers, radii, aspect: float, direction=(0.0, 0.0, 1.0), fov_y_deg: float = 30.0,
+                        fill: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """(view, proj) showing the spheres' bounding sphere (whatever the view turns to) from
+    `direction`; fill > 1 zooms in by that factor (the lighting tests' and benchmarks' views)."""
+    centers = np.asarray(centers, dtype=np.float64)
+    radii = np.asarray(radii, dtype=np.float64)
+    middle = ((centers - radii[:, None]).min(axis=0) + (centers + radii[:, None]).max(axis=0)) / 2.0
+    radius = float(np.max(np.linalg.norm(centers - middle, axis=1) + radii))
+    direction = np.asarray(direction, dtype=np.float64)
+    camera = Camera.fitted(middle, radius / fill, aspect, fov_y=fov_y_deg, direction=direction, up=_view_up(direction))
+    camera.fit_clip_range(middle, radius)
+    return camera.view(), camera.projection(aspect)
 
 
 def fit_camera(centers, radii, aspect: float, direction=(0.0, 0.0, 1.0), fov_y_deg: float = 30.0,
-               fill: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """(view, proj) looking at the spheres' bounding sphere from `direction` (from the
-    centre towards the eye); fill > 1 zooms in by that factor."""
-    centers = np.asarray(centers, dtype=np.float64)
-    radii = np.asarray(radii, dtype=np.float64)
-    lo = (centers - radii[:, None]).min(axis=0)
-    hi = (centers + radii[:, None]).max(axis=0)
-    middle = (lo + hi) / 2.0
-    radius = float(np.max(np.linalg.norm(centers - middle, axis=1) + radii))
+               fill: float = FIT_FILL) -> tuple[np.ndarray, np.ndarray]:
+    """(view, proj) of `Camera.framing`: the spheres seen from `direction` (from them towards
+    the eye) spanning `fill` of the image's limiting side (above 1: zoomed in past the edges)."""
     direction = np.asarray(direction, dtype=np.float64)
-    up = (0.0, 1.0, 0.0) if abs(direction[1]) < 0.9 * np.linalg.norm(direction) else (0.0, 0.0, 1.0)
-    camera = Camera.fitted(middle, radius / fill, aspect, fov_y=fov_y_deg, direction=direction, up=up)
-    camera.fit_clip_range(middle, radius)
+    camera = Camera.framing(centers, radii, aspect, fov_y=fov_y_deg, direction=direction, up=_view_up(direction),
+                            fill=fill)
     return camera.view(), camera.projection(aspect)

@@ -59,6 +59,7 @@ def molecule_key(frame, passes) -> tuple:
         state_key(frame.camera),
         tuple(frame.size),
         state_key(frame.view), state_key(frame.proj), state_key(frame.planes), state_key(frame.cube),
+        state_key(frame.light_direction), frame.buffers.color_version,
         tuple((type(p).__name__, state_key(p.state())) for p in passes),
     )
 

@@ -12,6 +12,10 @@ Keys (row 0 is the top row of the image; H x W is the frame size):
                                    clip = proj @ view @ [x, y, z, 1]
     viewport    int32   (2,)       (W, H)
     nav_cube    float64 (4,)       centre x, y, z and half edge, Å; absent when no cube is in effect
+    nav_cube_axes float64 3 x 3    the cube's axes (columns; the device's x, y, z), with nav_cube
+    probe       float64 (4,)       probe centre x, y, z and radius, Å; absent without a probe
+    probe_goal  float64 (3,)       where the device tip maps (Å), when following a daemon
+    device_tip_mm float64 (3,)     the device tip in the device frame (mm), when following a daemon
     clip_planes float64 N x 4      planes in effect (the user's, then the probe plane);
                                    a·x + b·y + c·z + d >= 0 is kept; unit normals
 Lighting passes add their own layers under their own names; the lighting
@@ -50,17 +54,26 @@ def gbuffer_arrays(renderer, frame=None) -> dict[str, np.ndarray]:
     }
     if frame.cube is not None:
         arrays["nav_cube"] = np.array([*frame.cube.center, frame.cube.half], dtype=np.float64)
+        arrays["nav_cube_axes"] = np.asarray(frame.cube.axes, dtype=np.float64)
+    probe = frame.scene.probe
+    if probe is not None:
+        arrays["probe"] = np.array([*probe.center, probe.radius], dtype=np.float64)
+        if probe.goal is not None:
+            arrays["probe_goal"] = np.asarray(probe.goal, dtype=np.float64)
+        if probe.tip_mm is not None:
+            arrays["device_tip_mm"] = np.asarray(probe.tip_mm, dtype=np.float64)
     for p in renderer.passes:
         if p.enabled(frame):
             arrays.update(p.gbuffer_layers(frame))
     return arrays
 
 
-def save_gbuffer(path: str | Path, arrays: dict[str, np.ndarray]) -> Path:
+def save_gbuffer(path: str | Path, arrays: dict[str, np.ndarray], compress: bool = True) -> Path:
+    """Write the arrays as .npz (`compress=False`: faster, for a G-buffer every frame)."""
     path = Path(path)
     try:
         with open(path, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
+            (np.savez_compressed if compress else np.savez)(fh, **arrays)
     except OSError as exc:
         raise UserError(f"{path}: cannot write the G-buffer ({exc.strerror or exc})") from None
     return path

@@ -9,6 +9,7 @@ import threading
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Callable, Iterator
 
 from sasprobe.render.camera import Camera
@@ -64,15 +65,18 @@ def stop_on_signals() -> Iterator[dict]:
 
 def run_headless(renderer, camera: Camera, frames: int | None, seconds: float | None, writer=None,
                  gbuffer_path=None, orbit_deg: float = 0.0, update: Callable[[], None] | None = None,
-                 progress=None, pace_fps: float | None = None) -> RunStats:
+                 progress=None, pace_fps: float | None = None, gbuffer_dir: Path | None = None) -> RunStats:
     """Render until `frames` are done or `seconds` have passed (at least one frame).
 
     `orbit_deg` turns the camera that many degrees per frame about its up axis;
     `update` runs before each frame (e.g. to take the latest pose from the daemon).
     `pace_fps` (a live source into a video) keeps the video in wall-clock time: frame
-    slot k is due k/pace_fps after the start, a frame is rendered when its slot is due,
-    and one that took longer than a slot is written once per slot it covered, so the
-    video has exactly round(seconds * pace_fps) (or `frames`) frames.
+    slot k is due k/pace_fps after the first frame is ready (so the first frame's set-up,
+    seconds for a large structure's lighting, is not filmed as a still), a frame is
+    rendered when its slot is due, and one that took longer than a slot is written once
+    per slot it covered, so the
+    video has exactly round(seconds * pace_fps) (or `frames`) frames. `gbuffer_dir` gets
+    every rendered frame's G-buffer as gbuffer_0000.npz, ... (uncompressed: quick to write).
     """
     stats = RunStats()
     step = math.radians(orbit_deg)
@@ -81,6 +85,7 @@ def run_headless(renderer, camera: Camera, frames: int | None, seconds: float | 
     if pace_fps:
         slots = frames if frames is not None else max(1, round((seconds or 0.0) * pace_fps))
     start = time.perf_counter()
+    video_start = start  # a paced video's slot 0: when its first frame is ready
     with stop_on_signals() as stop:
         while stop["signal"] is None:
             if update is not None:
@@ -89,10 +94,15 @@ def run_headless(renderer, camera: Camera, frames: int | None, seconds: float | 
             renderer.render(camera)
             renderer.ctx.finish()
             stats.frame_times.append(time.perf_counter() - t0)
+            if gbuffer_dir is not None:
+                save_gbuffer(Path(gbuffer_dir) / f"gbuffer_{stats.frames:04d}.npz", gbuffer_arrays(renderer),
+                             compress=False)
             stats.frames += 1
             image = renderer.read_image() if writer is not None else None
             if slots is not None:
-                covered = int((time.perf_counter() - start) * pace_fps)  # slots whose start has passed
+                if stats.frames == 1:
+                    video_start = time.perf_counter()  # a large structure's set-up is not filmed
+                covered = int((time.perf_counter() - video_start) * pace_fps)  # slots whose start has passed
                 n = min(max(1, covered - stats.video_frames), slots - stats.video_frames)
                 for _ in range(n):
                     if image is not None:
@@ -102,7 +112,7 @@ def run_headless(renderer, camera: Camera, frames: int | None, seconds: float | 
                     progress.update(n)
                 if stats.video_frames >= slots:
                     break
-                wait = start + stats.video_frames / pace_fps - time.perf_counter()
+                wait = video_start + stats.video_frames / pace_fps - time.perf_counter()
                 if wait > 0:
                     time.sleep(wait)
             else:

@@ -8,6 +8,12 @@ STALE_S the daemon counts as gone and the readout says 'waiting for daemon'; Zer
 reconnects by itself when it returns, and a daemon serving another structure (its
 scene's sha256 changed) makes the link fetch that one. Malformed messages are dropped
 and counted by the Subscriber.
+
+The haptic rate shown is poses over RATE_WINDOW_S of the daemon's device time, in a
+window of at most RATE_WINDOW_POSES poses that starts again whenever the device clock
+or the sequence number goes back (a restarted daemon starts both again). Requests the
+window makes (the view's turn, the clutch key, recentre) go through render/daemon_requests.py,
+never blocking a frame.
 """
 
 from __future__ import annotations
@@ -21,9 +27,13 @@ import numpy as np
 
 from sasprobe.errors import UserError
 from sasprobe.molecule import Structure, parse_structure
-from sasprobe.protocol.client import Subscriber, fetch_structure
+from sasprobe.protocol.client import ControlClient, Subscriber, fetch_structure
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
-from sasprobe.render.scene import NavCube, Probe, normalise_plane
+from sasprobe.protocol.pose import FLAG_CLUTCHED, FLAG_DRIFTING
+from sasprobe.protocol.security import ClientKeys
+from sasprobe.render.daemon_requests import RequestSender
+from sasprobe.render.live_clearance import LiveClearance
+from sasprobe.render.scene import Mark, NavCube, Probe, normalise_plane
 from sasprobe.render.source import Readout, RenderSource
 
 log = logging.getLogger("sasprobe")
@@ -31,13 +41,24 @@ log = logging.getLogger("sasprobe")
 STALE_S = 1.5  # the daemon sends a scene at least once a second and poses at ~1 kHz
 RETRY_S = 1.0  # between structure fetch attempts
 FETCH_TIMEOUT_S = 2.0
-RATE_WINDOW_S = 0.5  # haptic rate: poses over this much device time
+RATE_WINDOW_S = 0.5  # haptic rate: poses over this much device time ...
+RATE_WINDOW_POSES = 4096  # ... and never more poses than this
+NOTE_S = 3.0  # how long the answer to a dropped mark stays in the readout
+
+
+def view_axes(state: dict | None) -> np.ndarray:
+    """The workspace view's rotation of a scene message (identity for a daemon without one)."""
+    view = (state or {}).get("view")
+    if not isinstance(view, dict) or "rotation" not in view:
+        return np.eye(3)
+    axes = np.asarray(view["rotation"], dtype=np.float64)
+    return axes if axes.shape == (3, 3) and np.all(np.isfinite(axes)) else np.eye(3)
 
 
 def apply_scene_message(scene, state: dict) -> bool:
-    """A `scene` message's probe radius, clip planes and light direction into a SceneState
-    (its grid then follows the daemon's probe radius); returns whether the daemon has the
-    probe light on (the caller decides whether to follow)."""
+    """A `scene` message's probe radius, clip planes, light direction, force ratings and marks
+    into a SceneState (its grid then follows the daemon's probe radius); returns whether the
+    daemon has the probe light on (the caller decides whether to follow)."""
     scene.probe_radius = float(state["probe_radius_A"])
     planes = [normalise_plane(p) for p in state["clip_planes"]]
     if len(planes) != len(scene.clip_planes) or any(not np.array_equal(a, b) for a, b in zip(planes, scene.clip_planes)):
@@ -45,43 +66,71 @@ def apply_scene_message(scene, state: dict) -> bool:
     lights = state["lights"]
     direction = np.asarray(lights["directional"]["direction"], dtype=np.float64)
     scene.light_direction = direction / np.linalg.norm(direction)
+    limits = state["device"].get("limits") or {}
+    if "continuous_force_n" in limits and "max_force_n" in limits:
+        scene.force_ratings_n = (float(limits["continuous_force_n"]), float(limits["max_force_n"]))
+    marks = [Mark(int(m["id"]), m["label"], tuple(map(float, m["position_A"]))) for m in state.get("marks", [])]
+    if marks != scene.marks:
+        scene.marks = marks
     return bool(lights["probe"]["enabled"])
 
 
-def apply_pose(scene, pose, cube_enabled: bool) -> None:
-    """A pose's probe, touched atom and navigation cube into a SceneState."""
+def apply_pose(scene, pose, cube_enabled: bool, axes: np.ndarray | None = None) -> None:
+    """A pose's probe (with the device tip's goal and the force in the molecule frame), touched
+    atom and navigation cube (turned with the view's `axes`) into a SceneState."""
+    axes = np.eye(3) if axes is None else axes
     touched = pose.touched_atom if 0 <= pose.touched_atom < scene.structure.n_atoms else -1
     scene.probe = Probe(center=np.array(pose.proxy_A, dtype=np.float64), radius=scene.probe_radius,
-                        touched_atom=touched)
+                        touched_atom=touched, goal=np.array(pose.goal_A, dtype=np.float64),
+                        force_n=axes @ np.asarray(pose.force_N, dtype=np.float64),
+                        tip_mm=np.array(pose.tip_mm, dtype=np.float64))
     if cube_enabled and pose.cube_half_A > 0 and np.all(np.isfinite(pose.cube_center_A)):
-        center = np.array(pose.cube_center_A, dtype=np.float64)
-        if scene.nav_cube is None or not np.array_equal(scene.nav_cube.center, center) \
-                or scene.nav_cube.half != pose.cube_half_A:
-            scene.nav_cube = NavCube(center=center, half=float(pose.cube_half_A))
+        cube = NavCube(center=np.array(pose.cube_center_A, dtype=np.float64), half=float(pose.cube_half_A), axes=axes)
+        if scene.nav_cube is None or scene.nav_cube.key() != cube.key():
+            scene.nav_cube = cube
     else:
         scene.nav_cube = None
 
 
+def touched_label(structure: Structure | None, atom: int) -> str | None:
+    """'A THR 2 OG1' for an atom index (chain, residue name, number and insertion code, atom)."""
+    if structure is None or not 0 <= atom < structure.n_atoms:
+        return None
+    s = structure
+    number = f"{s.residue_numbers[atom]}{s.insertion_codes[atom]}"
+    return f"{s.chain_ids[atom]} {s.residue_names[atom]} {number} {s.atom_names[atom]}"
+
+
 class DaemonLink(RenderSource):
-    def __init__(self, pub: str | None = None, ctl: str | None = None, keep_water: bool = False):
+    follows_daemon = True
+
+    def __init__(self, pub: str | None = None, ctl: str | None = None, keep_water: bool = False,
+                 keys: ClientKeys | None = None):
         self.pub = pub or DEFAULT_PUB_ENDPOINT
         self.ctl = ctl or DEFAULT_CTL_ENDPOINT
         self.keep_water = keep_water
-        self.subscriber = Subscriber(self.pub)
+        self.keys = keys  # None: the local keys for loopback TCP, none for ipc (protocol/client.py)
+        self.subscriber = Subscriber(self.pub, keys=keys)
+        self.requests = RequestSender(self.ctl, keys)
         self.structure: Structure | None = None  # the one handed out last
         self._fetched: Structure | None = None
         self._fetch_error: str | None = None
         self._thread: threading.Thread | None = None
         self._last_attempt = -np.inf
         self._last_data = -np.inf
+        self._ever_connected = False
         self._seen = 0
-        self._recent: deque[tuple[int, int]] = deque()  # (device_t_ns, seq) of recent poses
+        self._recent: deque[tuple[int, int]] = deque(maxlen=RATE_WINDOW_POSES)  # (device_t_ns, seq)
         self._daemon_probe_light: bool | None = None
+        self._daemon_scheme: str | None = None
+        self.live = LiveClearance()
+        self._live_wanted = False
+        self._note = ("", 0.0)  # (text, until when)
 
     # ------------------------------------------------------------ structure
     def _fetch(self) -> None:
         try:
-            served = fetch_structure(self.ctl, timeout_s=FETCH_TIMEOUT_S)
+            served = fetch_structure(self.ctl, keys=self.keys, timeout_s=FETCH_TIMEOUT_S)
             self._fetched = parse_structure(served.data, name=served.name, source=served.source,
                                             keep_water=self.keep_water or served.keep_water)
             self._fetch_error = None
@@ -110,10 +159,18 @@ class DaemonLink(RenderSource):
         now = time.monotonic()
         if seen != self._seen:
             self._seen, self._last_data = seen, now
+            self._ever_connected = True
+        scene = self.subscriber.scene
+        if self._live_wanted and self.structure is not None and scene is not None \
+                and scene["structure"]["sha256"] == self.structure.sha256:
+            self.live.update(self.structure, float(scene["probe_radius_A"]), poses)
+        recent = self._recent
         for pose in poses:
-            self._recent.append((pose.device_t_ns, pose.seq))
-        while len(self._recent) > 2 and self._recent[-1][0] - self._recent[0][0] > RATE_WINDOW_S * 1e9:
-            self._recent.popleft()
+            if recent and (pose.device_t_ns < recent[-1][0] or pose.seq < recent[-1][1]):
+                recent.clear()  # a restarted daemon: its clock and its ticks start again
+            recent.append((pose.device_t_ns, pose.seq))
+        while len(recent) > 2 and recent[-1][0] - recent[0][0] > RATE_WINDOW_S * 1e9:
+            recent.popleft()
         if self._want_structure() and now - self._last_attempt >= RETRY_S:
             self._last_attempt = now
             self._thread = threading.Thread(target=self._fetch, name="sasprobe-fetch-structure", daemon=True)
@@ -123,6 +180,10 @@ class DaemonLink(RenderSource):
     def connected(self) -> bool:
         return time.monotonic() - self._last_data < STALE_S
 
+    def lost_for_s(self) -> float:
+        """Seconds since a daemon that was sending stopped (0 while it sends or before it ever did)."""
+        return 0.0 if not self._ever_connected or self.connected else time.monotonic() - self._last_data
+
     def apply(self, scene) -> None:
         """The daemon's probe, cube, planes and lights into the renderer's SceneState."""
         state, pose = self.subscriber.scene, self.subscriber.pose
@@ -130,31 +191,70 @@ class DaemonLink(RenderSource):
             probe_light = apply_scene_message(scene, state)
             if probe_light != self._daemon_probe_light:  # follow the daemon's changes; keys still toggle
                 scene.effects.probe_light = self._daemon_probe_light = probe_light
+            scheme = state.get("color_scheme")  # null: every renderer keeps its own (--color, or its default)
+            if scheme is not None and scheme != self._daemon_scheme:
+                scene.effects.color_scheme = self._daemon_scheme = scheme
         if pose is not None:
-            apply_pose(scene, pose, cube_enabled=state is None or state["nav_cube"]["enabled"])
+            apply_pose(scene, pose, cube_enabled=state is None or state["nav_cube"]["enabled"], axes=view_axes(state))
+
+    def view_axes(self) -> np.ndarray:
+        return view_axes(self.subscriber.scene)
+
+    def request(self, cmd: str, **args) -> bool:
+        self.requests.send(cmd, **args)
+        return True
 
     def readout(self) -> Readout:
         pose = self.subscriber.pose
+        connected = self.connected
         status = ""
-        if not self.connected or self.structure is None:
+        if not connected:
             status = f"waiting for daemon at {self.pub}"
             if self._fetch_error and self.structure is None:
                 status += f" ({self._fetch_error})"
+        elif self.structure is None:  # it is running (poses arrive): its structure is on the way
+            status = f"fetching the structure from {self.ctl}"
         rate = None
         if len(self._recent) >= 2 and self._recent[-1][0] > self._recent[0][0]:
             (t0, s0), (t1, s1) = self._recent[0], self._recent[-1]
             rate = (s1 - s0) / ((t1 - t0) * 1e-9)
-        force = float(np.linalg.norm(pose.force_N)) if pose is not None else None
-        return Readout(status=status, haptic_hz=rate if self.connected else None,
-                       force_n=force if self.connected else None, dropped=self.subscriber.malformed)
+        live = connected and pose is not None
+        limits = ((self.subscriber.scene or {}).get("device") or {}).get("limits") or {}
+        clearance = self.live if connected else LiveClearance()
+        note, until = self._note
+        return Readout(
+            status=status, haptic_hz=rate if connected else None,
+            force_n=float(np.linalg.norm(pose.force_N)) if live else None, dropped=self.subscriber.malformed,
+            touched=touched_label(self.structure, pose.touched_atom) if live else None,
+            continuous_force_n=limits.get("continuous_force_n"), peak_force_n=limits.get("max_force_n"),
+            clutched=live and pose.has(FLAG_CLUTCHED), drifting=live and pose.has(FLAG_DRIFTING),
+            clearance_A=clearance.clearance_A, passage_A=clearance.passage_A, bottleneck_A=clearance.bottleneck_A,
+            note=note if time.monotonic() < until else "",
+        )
+
+    def show_live_clearance(self) -> None:
+        self._live_wanted = True
+
+    def drop_mark(self) -> None:
+        """Ask the daemon for a mark (control `mark`) on a thread, so the window never waits."""
+        def ask() -> None:
+            try:
+                with ControlClient(self.ctl, keys=self.keys, timeout_s=FETCH_TIMEOUT_S) as client:
+                    mark = client.mark()["mark"]
+                text = f"mark {mark['id']} dropped"
+            except UserError as exc:
+                text = f"no mark: {exc}"
+            self._note = (text, time.monotonic() + NOTE_S)
+
+        threading.Thread(target=ask, name="sasprobe-mark", daemon=True).start()
 
     def wait_ready(self, timeout_s: float = 10.0) -> None:
         """Block until the structure and a first pose are in (headless start), or one clear line."""
         deadline = time.monotonic() + timeout_s
         while self._fetched is None or self.subscriber.pose is None:
             if time.monotonic() > deadline:
-                why = self._fetch_error or f"no pose on {self.pub}"
-                raise UserError(f"no daemon answered within {timeout_s:g} s: {why} (start one with `sasprobe daemon`)")
+                why = self._fetch_error or f"no pose on {self.pub}: {self.subscriber.watch.explain()}"
+                raise UserError(f"no daemon answered within {timeout_s:g} s: {why}")
             self.poll()
             time.sleep(0.02)
 
@@ -164,4 +264,5 @@ class DaemonLink(RenderSource):
                 "scenes_received": sub.scenes_received, "malformed": sub.malformed}
 
     def close(self) -> None:
+        self.requests.close()
         self.subscriber.close()

@@ -85,14 +85,17 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
     from sasprobe.render.gl.context import create_headless_context
     from sasprobe.render.lighting.settings import LightingSettings
-    from sasprobe.render.link import apply_pose, apply_scene_message
+    from sasprobe.render.link import apply_pose, apply_scene_message, view_axes
     from sasprobe.render.output import FrameWriter
+    from sasprobe.render.workspace_view import WORKSPACE, WorkspaceView
 
     time_range = pose_time_range(path)
     if time_range is None:
         raise UserError(f"{path}: no recorded poses to draw")
-    # `sasprobe render`'s defaults, lighting included (where the GL driver offers OpenGL 4.3)
-    opts = RenderOptions(headless=True, size=size, fps=fps, lighting=LightingSettings())
+    # `sasprobe render --connect`'s defaults: the workspace view, lighting included (where the
+    # GL driver offers OpenGL 4.3)
+    opts = RenderOptions(headless=True, size=size, fps=fps, lighting=LightingSettings(), view=WORKSPACE)
+    view = WorkspaceView(WORKSPACE)
     ctx = create_headless_context()
     writer = FrameWriter(out, None, fps)
     renderer = camera = None
@@ -113,8 +116,11 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
                 camera = initial_camera(scene, opts)
             scene = renderer.scene
             scene.effects.probe_light = apply_scene_message(scene, frame.scene)
-            apply_pose(scene, frame.pose, cube_enabled=frame.scene["nav_cube"]["enabled"])
-            renderer.render(camera)
+            if frame.scene.get("color_scheme"):  # the session's colours, as its renderers showed them
+                scene.effects.color_scheme = frame.scene["color_scheme"]
+            axes = view_axes(frame.scene)
+            apply_pose(scene, frame.pose, cube_enabled=frame.scene["nav_cube"]["enabled"], axes=axes)
+            renderer.render(view.camera(scene, size[0] / size[1], axes) or camera)
             writer.write(renderer.read_image())
             frames += 1
             if progress is not None:

@@ -1,7 +1,11 @@
 """The renderer: GL objects created once, and the pass chain run each frame.
 
     clear -> spheres -> backbone -> [molecule lighting] -> probe -> [lighting: fills the
-          visibility buffer] -> shading -> [path_trace] -> navcube -> fxaa
+          visibility buffer] -> shading -> [path_trace] -> navcube -> probe_cues -> fxaa
+          -> legend -> marks
+
+Before the chain runs, the atoms' colours follow the scene's colour scheme
+(render/colors.py; rewritten in the sphere buffer only when the scheme changes).
 
 `passes` is a plain list; `insert_before(name, pass)` slots a pass in (the lighting
 passes go before "probe", "shading" and "navcube", render/passes/lighting.py).
@@ -21,6 +25,7 @@ import numpy as np
 
 from sasprobe.render.camera import Camera
 from sasprobe.render.frame_cache import MoleculeCache
+from sasprobe.render.colors import chain_colors, scheme_colors
 from sasprobe.render.gl.buffers import MoleculeBuffers
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import RenderTargets
@@ -30,8 +35,11 @@ from sasprobe.render.passes.backbone import BackbonePass
 from sasprobe.render.passes.base import MOLECULE, Frame, Pass
 from sasprobe.render.passes.clear import ClearPass
 from sasprobe.render.passes.fxaa import FxaaPass
+from sasprobe.render.passes.legend import LegendPass
+from sasprobe.render.passes.marks import MarksPass
 from sasprobe.render.passes.navcube import NavCubePass
 from sasprobe.render.passes.probe import ProbePass
+from sasprobe.render.passes.probe_cues import ProbeCuesPass
 from sasprobe.render.passes.shading import ShadingPass
 from sasprobe.render.passes.spheres import SpherePass
 from sasprobe.render.scene import SceneState
@@ -39,11 +47,16 @@ from sasprobe.render.scene import SceneState
 
 class Renderer:
     def __init__(self, ctx, scene: SceneState, size: tuple[int, int], sphere_mode: str = "quad",
-                 backbone_always: bool = False, shading: ShadingSettings | None = None, frame_cache: bool = True):
+                 backbone_always: bool = False, shading: ShadingSettings | None = None, frame_cache: bool = True,
+                 wait_for_areas: bool = True):
         self.ctx = ctx
         self.scene = scene
         self.programs = ProgramCache(ctx)
-        self.buffers = MoleculeBuffers(ctx, scene.structure)
+        self.buffers = MoleculeBuffers(ctx, scene.structure, chain_colors(scene.structure))
+        # The sas scheme's areas: computed at once (headless), or in the background (a window
+        # keeps the previous colours meanwhile).
+        self.wait_for_areas = wait_for_areas
+        self._color_key: tuple | None = ("element", None)  # what the buffers hold: CPK, as sphere_records writes
         self.targets = RenderTargets(ctx, size)
         self.sphere_pass = self._sphere_pass(sphere_mode)
         self.cache = MoleculeCache(ctx, self.programs) if frame_cache else None
@@ -54,7 +67,10 @@ class Renderer:
             ProbePass(ctx, self.programs, self.buffers),
             ShadingPass(ctx, self.programs, shading),
             NavCubePass(ctx, self.programs),
+            ProbeCuesPass(ctx, self.programs),
             FxaaPass(ctx, self.programs),
+            LegendPass(ctx, self.programs),
+            MarksPass(ctx, self.programs),
         ]
         self.frame_index = 0
         self.last_frame: Frame | None = None
@@ -96,6 +112,7 @@ class Renderer:
 
         With `pass_times`, the GPU is drained (glFinish) after every pass and each pass's
         wall time is added under its name (for benchmarks; it serialises the pipeline)."""
+        self.sync_colors()
         camera.fit_clip_range(*self._clip_sphere())
         w, h = self.targets.size
         frame = Frame(
@@ -110,6 +127,7 @@ class Renderer:
             planes=self.scene.active_planes(camera.eye),
             cube=self.scene.active_cube(),
             output_fbo=output_fbo if output_fbo is not None else self.targets.final_fbo,
+            light_direction=self.scene.world_light_direction(camera),
             index=self.frame_index,
             cache=self.cache,
         )
@@ -141,6 +159,24 @@ class Renderer:
         if scene.probe is not None:
             radius = max(radius, float(np.linalg.norm(scene.probe.center - center)) + scene.probe.radius)
         return center, radius
+
+    def sync_colors(self) -> None:
+        """The atoms' colours of the scene's scheme (sas: once its areas are known)."""
+        scene = self.scene
+        scheme = scene.color_scheme()
+        key = (scheme, scene.probe_radius if scheme == "sas" else None)
+        if key == self._color_key:
+            return
+        areas = scene.atom_areas.get(scene.grid, wait=self.wait_for_areas) if scheme == "sas" else None
+        if scheme == "sas" and areas is None:
+            return  # still being computed: keep what is drawn
+        self.buffers.set_colors(scheme_colors(scene.structure, scheme, areas))
+        self._color_key = key
+
+    @property
+    def colors_pending(self) -> bool:
+        """The sas scheme is chosen and its areas are still being computed."""
+        return self.scene.color_scheme() == "sas" and self._color_key[0] != "sas"
 
     def read_image(self, frame: Frame | None = None) -> np.ndarray:
         """The final image of a frame as H x W x 3 uint8, row 0 = top."""

@@ -1,9 +1,10 @@
 """What the renderer draws: the structure plus the live state (probe, navigation cube,
-clipping planes, lights, effect switches), and the CPU culling that picks the atoms
-drawn as spheres.
+clipping planes, lights, colour scheme, effect switches), and the CPU culling that picks
+the atoms drawn as spheres.
 
 Planes are (a, b, c, d) with a·x + b·y + c·z + d >= 0 kept, normalised so that the
-value is a signed distance in Å.
+value is a signed distance in Å. The navigation cube turns with the workspace view: its
+axes are the device's axes in the molecule frame (identity until the view is turned).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import numpy as np
 
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, Structure, UniformGrid
 from sasprobe.protocol.scene import DEFAULT_LIGHT_DIRECTION
+from sasprobe.render.colors import AtomAreas, default_scheme
 
 
 def normalise_plane(plane) -> np.ndarray:
@@ -30,26 +32,62 @@ class Probe:
     center: np.ndarray  # Å, molecule frame
     radius: float = DEFAULT_PROBE_RADIUS
     touched_atom: int = -1
+    goal: np.ndarray | None = None  # where the device tip maps (Å); differs from `center` in contact
+    force_n: np.ndarray | None = None  # the force on the hand, N, in the molecule frame
+    tip_mm: np.ndarray | None = None  # the device tip, mm, device frame (what the hand does)
 
 
 @dataclass
 class NavCube:
     center: np.ndarray
     half: float  # half the edge, Å
+    axes: np.ndarray = field(default_factory=lambda: np.eye(3))  # columns: the cube's x, y, z (device axes)
+
+    def __post_init__(self) -> None:
+        self.axes = np.asarray(self.axes, dtype=np.float64).reshape(3, 3)
+
+    @property
+    def axis_aligned(self) -> bool:
+        """Whether the cube's faces are the molecule frame's planes (no turn, or quarter turns)."""
+        a = np.abs(self.axes)
+        return bool(np.all((a < 1e-12) | (np.abs(a - 1.0) < 1e-12)))
+
+    def key(self) -> bytes:
+        """Bytes that change whenever the cube does (for caches)."""
+        return np.array([*self.center, self.half, *self.axes.ravel()]).tobytes()
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        return self.center - self.half, self.center + self.half
+        """The axis-aligned box holding the cube."""
+        reach = self.half * np.abs(self.axes).sum(axis=1)
+        return self.center - reach, self.center + reach
+
+    def local(self, points) -> np.ndarray:
+        """Points in the cube's own frame (relative to its centre, along its axes)."""
+        return (np.asarray(points, dtype=np.float64) - self.center) @ self.axes
+
+    def corners(self) -> np.ndarray:
+        """(8, 3) corners, molecule frame."""
+        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+        return self.center + self.half * signs @ self.axes.T
 
     def planes(self) -> np.ndarray:
         """The six faces as planes that keep the inside."""
         c, h = self.center, self.half
         out = []
         for axis in range(3):
-            n = np.zeros(3)
-            n[axis] = 1.0
-            out.append([*n, -(c[axis] - h)])  # x >= c - h
-            out.append([*(-n), c[axis] + h])  # x <= c + h
+            n = self.axes[:, axis]
+            out.append([*n, -(float(n @ c) - h)])  # n·x >= n·c - h
+            out.append([*(-n), float(n @ c) + h])  # n·x <= n·c + h
         return np.array(out)
+
+
+@dataclass(frozen=True)
+class Mark:
+    """A mark the daemon's scene carries (protocol/README.md `marks`)."""
+
+    id: int
+    label: str
+    position: tuple[float, float, float]  # Å, molecule frame
 
 
 @dataclass
@@ -67,12 +105,14 @@ class Effects:
     clip_planes: bool = True
     probe_plane: bool = False  # a plane through the probe centre, facing the camera
     readout: bool = True  # on-screen fps / haptic rate / force (window only)
+    marks: bool = True  # the session's numbered marks
     # lighting (render/passes/lighting.py; how each is computed: LightingSettings)
     shadows: bool = False
     soft_shadows: bool = False
     ambient_occlusion: bool = False
     edge_cueing: bool = False
     path_tracing: bool = False
+    color_scheme: str | None = None  # render/colors.py SCHEMES; None: the default by structure (C key)
 
 
 @dataclass
@@ -82,8 +122,13 @@ class SceneState:
     probe: Probe | None = None
     nav_cube: NavCube | None = None
     clip_planes: list[np.ndarray] = field(default_factory=list)
+    marks: list[Mark] = field(default_factory=list)
     light_direction: np.ndarray = field(default_factory=lambda: _unit(DEFAULT_LIGHT_DIRECTION))
     effects: Effects = field(default_factory=Effects)
+    force_ratings_n: tuple[float, float] | None = None  # the device's (continuous, peak) force, N
+    # True: light_direction is in the camera's frame (x right, y up, z towards the viewer) and
+    # the light turns with the camera; False: it is fixed in the molecule frame.
+    lights_follow_camera: bool = False
 
     def __post_init__(self) -> None:
         self._grid: UniformGrid | None = None
@@ -92,6 +137,8 @@ class SceneState:
         self._selection_key: bytes | None = None
         self._selection = np.empty(0, dtype=np.uint32)
         self._atoms_sphere: tuple[np.ndarray, float] | None = None
+        self.atom_areas = AtomAreas()  # per-atom SAS of self.grid, for the sas colours
+        self._default_scheme: str | None = None
 
     @property
     def grid(self) -> UniformGrid:
@@ -104,6 +151,20 @@ class SceneState:
             self._grid = UniformGrid(self.structure.positions, self.structure.expanded_radii(self.probe_radius))
             self._grid_key = key
         return self._grid
+
+    def color_scheme(self) -> str:
+        """The scheme in effect: the one chosen, else the structure's default."""
+        if self.effects.color_scheme is not None:
+            return self.effects.color_scheme
+        if self._default_scheme is None:
+            self._default_scheme = default_scheme(self.structure)
+        return self._default_scheme
+
+    def world_light_direction(self, camera) -> np.ndarray:
+        """The direction the directional light travels, in the molecule frame, for this camera."""
+        if not self.lights_follow_camera:
+            return self.light_direction
+        return camera.basis() @ self.light_direction
 
     # ---------------------------------------------------------------- planes
     def active_cube(self) -> NavCube | None:
@@ -133,14 +194,21 @@ class SceneState:
         """Sorted uint32 ids of the atoms drawn as spheres (cached while nothing changes)."""
         planes = self.active_planes(eye)
         cube = self.active_cube()
-        key = planes.tobytes() + (b"" if cube is None else np.array([*cube.center, cube.half]).tobytes())
+        key = planes.tobytes() + (b"" if cube is None else cube.key())
         if key != self._selection_key:
             self._selection = select_spheres(self.structure, self.grid, planes, cube)
             self._selection_key = key
         return self._selection
 
+    def framing_spheres(self) -> tuple[np.ndarray, np.ndarray]:
+        """(centres, radii) the whole-molecule view frames: every atom, whatever the probe
+        and the cube do (the navigation cube, often larger than the molecule, is the
+        workspace view's to frame)."""
+        return self.structure.positions, self.structure.vdw_radii
+
     def bounding_sphere(self, with_probe: bool = True) -> tuple[np.ndarray, float]:
-        """Centre and radius holding every atom, the probe (unless not `with_probe`) and the cube."""
+        """Centre and radius holding every atom, the probe (unless not `with_probe`) and the cube
+        (for fitting and clip range)."""
         if self._atoms_sphere is None:
             s = self.structure
             lo = (s.positions - s.vdw_radii[:, None]).min(axis=0)
@@ -163,8 +231,8 @@ def select_spheres(structure: Structure, grid: UniformGrid, planes: np.ndarray, 
     if cube is not None:
         lo, hi = cube.bounds()
         cand = grid.candidates_in_box(lo, hi)
-        c = structure.positions[cand]
-        gap = c - np.clip(c, lo, hi)
+        q = cube.local(structure.positions[cand])  # an exact sphere-box test in the cube's frame
+        gap = q - np.clip(q, -cube.half, cube.half)
         cand = cand[np.einsum("ij,ij->i", gap, gap) <= structure.vdw_radii[cand] ** 2]
     else:
         cand = np.arange(structure.n_atoms)

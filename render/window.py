@@ -1,24 +1,38 @@
-"""The interactive window (glfw): arcball rotate, zoom, pan, a key per effect and an
-on-screen readout of fps, haptic rate and force."""
+"""The interactive window (glfw): arcball rotate, zoom to the cursor, pan, a key per effect,
+colour schemes and lighting presets, clicking an atom to name it, screenshots and videos,
+and an on-screen readout of fps, haptic rate, force against the device's ratings and the
+touched residue. Following a daemon it starts in the workspace view (a drag turns the
+view, and with it the hand's frame); Tab switches to the whole-molecule overview and
+back, Home recentres the cube on the probe, Space held is the clutch."""
 
 from __future__ import annotations
 
+import logging
 import signal
 import time
 from collections import deque
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
+from sasprobe.molecule.sas import atom_areas
 from sasprobe.render.camera import Camera
+from sasprobe.render.capture import WindowCapture, atom_label
+from sasprobe.render.colors import SCHEMES
 from sasprobe.render.gbuffer_export import gbuffer_arrays, save_gbuffer
-from sasprobe.render.lighting.settings import ShadingSettings
-from sasprobe.render.passes.lighting import lighting_of, lighting_status
-from sasprobe.render.passes.overlay import TextOverlay
-from sasprobe.render.scene import Effects
 from sasprobe.render.gl.programs import ProgramCache
+from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE
 from sasprobe.render.gl.textures import read_image
+from sasprobe.render.lighting.presets import PRESET_NAMES, PRESETS
+from sasprobe.render.passes.lighting import apply_preset, lighting_of, lighting_status
+from sasprobe.render.passes.overlay import TextOverlay
+from sasprobe.render.picking import label_position, pixel_under, point_under
+from sasprobe.render.scene import Effects
 from sasprobe.render.source import Readout
+from sasprobe.render.workspace_view import OVERVIEW, WORKSPACE, WorkspaceView, overview_camera
+
+log = logging.getLogger("sasprobe")
 
 # key -> (Effects field, label); sphere mode and camera keys are handled separately
 TOGGLES = {
@@ -40,19 +54,36 @@ TOGGLES = {
     "G": ("path_tracing", "path tracing"),
 }
 SPHERE_MODES = ("quad", "sprite")
+CLUTCH_RENEW_S = 0.3  # the clutch key's lease is renewed this often while Space is down
 HELP = [
-    "drag: rotate   right/middle drag or shift+drag: pan   wheel: zoom",
+    "drag: rotate (workspace view: turns the hand's frame too)   right/middle drag or shift+drag: pan",
+    "wheel: zoom (overview: to the cursor)   click: name an atom",
+    "Tab: workspace view / overview   Home: recentre the cube on the probe   Space (held): clutch",
     *[f"{k}: {label}" for k, (_, label) in TOGGLES.items()],
-    "M: sphere mode (quad/sprite)   C: AO method   R: reset camera   H: help   Q/Esc: quit",
+    "C: colour scheme   I: lighting preset   Shift+A: AO method   Z: centre on the probe",
+    "Ctrl+S: screenshot   Ctrl+R: start/stop a video   M: sphere mode (quad/sprite)",
+    "R: reset camera   H: help   Q/Esc: quit",
+    "Enter: drop a mark at the probe (with a daemon)",
 ]
+CLICK_PIXELS = 3.0  # a press and release closer than this is a click (a pick), not a drag
+
+
+def clearance_line(ro: Readout) -> str:
+    """Room at the probe (Å): clearance at its centre, passage across its path, narrowest so far."""
+    passage = "open" if ro.passage_A is None else f"{ro.passage_A:.2f} Å"
+    bottleneck = "-" if ro.bottleneck_A is None else f"{ro.bottleneck_A:.2f} Å"
+    return f"clearance {ro.clearance_A:.2f} Å   passage {passage}   bottleneck {bottleneck}"
 
 
 class WindowApp:
     """The window's loop. `build(structure, effects)` makes a (renderer, camera) for a
     structure; it runs again when the source brings a new one (a daemon that loaded
-    another molecule). Until the first structure arrives, the window shows the text."""
+    another molecule). Until the first structure arrives, the window shows the text.
+    `preset`, `background`: the lighting the renderer starts with (I cycles the presets);
+    `shots`: where Ctrl+S and Ctrl+R write."""
 
-    def __init__(self, window, ctx, source, build: Callable, title: str, effects: Effects):
+    def __init__(self, window, ctx, source, build: Callable, title: str, effects: Effects,
+                 view: str = OVERVIEW, preset: str = "default", background=None, shots: Path | None = None):
         import glfw
 
         self.glfw = glfw
@@ -61,43 +92,85 @@ class WindowApp:
         self.source = source
         self.build = build
         self.title = title
-        self.effects = effects  # kept across rebuilds: the user's toggles
+        self.effects = effects  # kept across rebuilds: the user's toggles and colour scheme
+        self.preset = preset
+        self.background = background
         self.renderer = None
         self.camera: Camera | None = None
         self.home: Camera | None = None
         self.programs = ProgramCache(ctx)
         self.overlay = TextOverlay(ctx, self.programs)
+        self.label_overlay = TextOverlay(ctx, self.programs)
         self.readout = Readout()
+        source.show_live_clearance()
         self.show_help = False
         self.frame_times: deque[float] = deque(maxlen=60)
+        self.picked: tuple[int, str] | None = None  # (atom, label)
+        self.capture = WindowCapture(Path.cwd() if shots is None else Path(shots))
         self._drag: str | None = None
+        self._press_pos = (0.0, 0.0)
         self._last_pos = (0.0, 0.0)
         self._stop = False
+        self.view = WorkspaceView(view, send_view=self._send_view if source.follows_daemon else None)
+        self._clutch_renewed: float | None = None  # when the clutch key's lease was last renewed (None: up)
         glfw.set_key_callback(window, self._on_key)
         glfw.set_mouse_button_callback(window, self._on_button)
         glfw.set_cursor_pos_callback(window, self._on_cursor)
         glfw.set_scroll_callback(window, self._on_scroll)
 
     # ------------------------------------------------------------ input
+    def _send_view(self, axes) -> None:
+        self.source.request("view", rotation=np.asarray(axes, dtype=float).tolist())
+
+    def _clutch_key(self, held: bool) -> None:
+        self._clutch_renewed = time.perf_counter() if held else None
+        self.source.request("clutch", held=held)
+
     def _on_key(self, window, key, scancode, action, mods) -> None:
         glfw = self.glfw
+        if key == glfw.KEY_SPACE and action in (glfw.PRESS, glfw.RELEASE):
+            self._clutch_key(action == glfw.PRESS)
+            return
         if action != glfw.PRESS:
             return
         name = glfw.get_key_name(key, scancode)
         name = name.upper() if name else ""
         fx = self.effects
+        ctrl, shift = bool(mods & glfw.MOD_CONTROL), bool(mods & glfw.MOD_SHIFT)
         if key in (glfw.KEY_ESCAPE,) or name == "Q":
             glfw.set_window_should_close(window, True)
+        elif ctrl and name == "S":
+            self.capture.screenshot_due = True
+        elif ctrl and name == "R":
+            self.capture.toggle_recording()
+        elif shift and name == "A":
+            if self.renderer is not None and lighting_of(self.renderer) is not None:
+                lighting_of(self.renderer).cycle_ao_mode()
+        elif key in (glfw.KEY_ENTER, glfw.KEY_KP_ENTER):
+            self.source.drop_mark()
         elif name in TOGGLES:
             field_name = TOGGLES[name][0]
             setattr(fx, field_name, not getattr(fx, field_name))
         elif name == "M" and self.renderer is not None:
             i = SPHERE_MODES.index(self.renderer.sphere_mode) if self.renderer.sphere_mode in SPHERE_MODES else -1
             self.renderer.set_sphere_mode(SPHERE_MODES[(i + 1) % len(SPHERE_MODES)])
-        elif name == "C" and self.renderer is not None and lighting_of(self.renderer) is not None:
-            lighting_of(self.renderer).cycle_ao_mode()
+        elif name == "C" and self.renderer is not None:
+            current = self.renderer.scene.color_scheme()
+            fx.color_scheme = SCHEMES[(SCHEMES.index(current) + 1) % len(SCHEMES)]
+        elif name == "I" and self.renderer is not None:
+            self.preset = PRESET_NAMES[(PRESET_NAMES.index(self.preset) + 1) % len(PRESET_NAMES)]
+            apply_preset(self.renderer, PRESETS[self.preset], self.background)
+        elif name == "Z" and self.camera is not None and self.renderer is not None:
+            probe = self.renderer.scene.probe
+            if probe is not None:
+                self.camera.centre_on(probe.center)
+        elif key == glfw.KEY_TAB:
+            self._toggle_view()
+        elif key == glfw.KEY_HOME:
+            self.source.request("recentre")
         elif name == "R" and self.camera is not None:
             self.camera.eye, self.camera.target, self.camera.up = self.home.eye.copy(), self.home.target.copy(), self.home.up.copy()
+            self.view.reset()
         elif name == "H" or key == glfw.KEY_F1:
             self.show_help = not self.show_help
 
@@ -106,8 +179,13 @@ class WindowApp:
         if action == glfw.PRESS:
             pan = button in (glfw.MOUSE_BUTTON_RIGHT, glfw.MOUSE_BUTTON_MIDDLE) or (mods & glfw.MOD_SHIFT)
             self._drag = "pan" if pan else "rotate"
-            self._last_pos = glfw.get_cursor_pos(window)
+            self._press_pos = self._last_pos = glfw.get_cursor_pos(window)
         elif action == glfw.RELEASE:
+            x, y = glfw.get_cursor_pos(window)
+            if self._drag == "rotate" and np.hypot(x - self._press_pos[0], y - self._press_pos[1]) < CLICK_PIXELS:
+                self.pick(x, y)
+            elif self._drag == "rotate" and self._workspace_camera() is not None:
+                self.view.end_turn()
             self._drag = None
 
     def _on_cursor(self, window, x: float, y: float) -> None:
@@ -116,18 +194,61 @@ class WindowApp:
         w, h = self.glfw.get_window_size(window)
         x0, y0 = self._last_pos
         self._last_pos = (x, y)
-        if self._drag == "rotate":
-            ndc = lambda px, py: (2.0 * px / max(w, 1) - 1.0, 1.0 - 2.0 * py / max(h, 1))  # noqa: E731
+        ndc = lambda px, py: (2.0 * px / max(w, 1) - 1.0, 1.0 - 2.0 * py / max(h, 1))  # noqa: E731
+        workspace = self._workspace_camera() is not None
+        if self._drag == "rotate" and workspace:
+            self.view.turn(self.source.view_axes(), ndc(x0, y0), ndc(x, y))
+        elif self._drag == "rotate":
             self.camera.arcball(ndc(x0, y0), ndc(x, y))
-        else:
+        elif not workspace:  # the workspace view follows the cube: no pan there
             self.camera.pan(x - x0, y - y0, h)
 
     def _on_scroll(self, window, dx: float, dy: float) -> None:
-        if self.camera is not None:
-            self.camera.zoom(0.9 ** dy)
+        if self._workspace_camera() is not None:  # the workspace view stays on the cube
+            self.view.zoom_by(0.9 ** dy)
+        elif self.camera is not None:
+            point = self.point_under(*self.glfw.get_cursor_pos(window))
+            self.camera.zoom_towards(point, 0.9 ** dy)
+
+    def _aspect(self) -> float:
+        w, h = self.glfw.get_framebuffer_size(self.window)
+        return w / h if w and h else 16 / 9
+
+    def _workspace_camera(self) -> Camera | None:
+        """This frame's workspace camera; None in the overview (or with no cube to frame)."""
+        if self.renderer is None:
+            return None
+        return self.view.camera(self.renderer.scene, self._aspect(), self.source.view_axes())
+
+    def _toggle_view(self) -> None:
+        mode = self.view.toggle()
+        if self.renderer is None:
+            return
+        self.effects.probe_plane = mode == WORKSPACE
+        if mode == OVERVIEW:  # the whole molecule, from where the workspace view looked
+            axes = self.view.axes(self.source.view_axes())
+            self.camera = overview_camera(self.renderer.scene, self._aspect(), axes)
+            self.home = Camera(self.camera.eye, self.camera.target, self.camera.up, self.camera.fov_y)
 
     def request_stop(self, *_args) -> None:
         self._stop = True
+
+    # ------------------------------------------------------------ picking
+    def point_under(self, x: float, y: float) -> np.ndarray:
+        return point_under(self.renderer, self.camera, self.glfw.get_window_size(self.window), x, y)
+
+    def pick(self, x: float, y: float) -> int | None:
+        """Name the atom under the cursor (the G-buffer's atom id there); clicking the
+        background or the probe clears the label. Returns the atom or None."""
+        hit = pixel_under(self.renderer, self.glfw.get_window_size(self.window), x, y)
+        if hit is None or hit[0] < 0 or hit[1] in (KIND_BACKGROUND, KIND_PROBE):
+            self.picked = None
+            return None
+        atom, scene = hit[0], self.renderer.scene
+        area = float(atom_areas(scene.grid, [atom])[0])
+        self.picked = (atom, atom_label(scene.structure, atom, area))
+        log.info("picked atom %d: %s", atom, self.picked[1])
+        return atom
 
     # ------------------------------------------------------------ loop
     def text(self) -> list[str]:
@@ -136,16 +257,29 @@ class WindowApp:
         lines = [self.title if r is None else f"{self.title}: {r.scene.structure.name} ({r.scene.structure.n_atoms} atoms)"]
         if r is not None:
             lines.append(f"{fps:5.1f} fps   {r.buffers.n_selected} spheres ({r.sphere_mode})")
+            scheme = r.scene.color_scheme()
+            lines.append(f"colour: {scheme}" + (" (computing SAS areas...)" if r.colors_pending else "")
+                         + f"   lighting preset: {self.preset}")
             if lighting_of(r) is not None:
                 lines.append(lighting_status(r))
         ro = self.readout
         if ro.status:
             lines.append(ro.status)
         if ro.haptic_hz is not None:
-            force = f"{ro.force_n:.2f} N" if ro.force_n is not None else "-"
-            lines.append(f"haptic {ro.haptic_hz:6.0f} Hz   force {force}")
+            lines.append(f"haptic {ro.haptic_hz:6.0f} Hz   {force_text(ro)}")
+            state = [s for s, on in (("CLUTCH (Space/button held)", ro.clutched), ("cube drifting", ro.drifting)) if on]
+            lines.append(f"touching {ro.touched}" if ro.touched else "not touching")
+            lines += state
+        if r is not None and self.source.view_axes() is not None:
+            lines.append("workspace view (Tab: overview)" if self.view.workspace else "overview (Tab: workspace view)")
+        if ro.clearance_A is not None:
+            lines.append(clearance_line(ro))
+        if ro.note:
+            lines.append(ro.note)
         if ro.dropped:
             lines.append(f"dropped malformed messages: {ro.dropped}")
+        if self.capture.message:
+            lines.append(self.capture.message)
         lines += HELP if self.show_help else ["H: help"]
         return lines
 
@@ -156,6 +290,8 @@ class WindowApp:
         if self.renderer is not None:
             self.renderer.release()
         self.renderer, camera = self.build(structure, self.effects)
+        apply_preset(self.renderer, PRESETS[self.preset], self.background)
+        self.picked = None
         self.camera = camera
         self.home = Camera(camera.eye, camera.target, camera.up, camera.fov_y)
 
@@ -164,13 +300,20 @@ class WindowApp:
         if self.renderer is not None:
             self.source.apply(self.renderer.scene)
             self.renderer.resize(size)
-            self.renderer.render(self.camera, output_fbo=screen)
+            self.renderer.render(self._workspace_camera() or self.camera, output_fbo=screen)
         else:
             screen.use()
             screen.viewport = (0, 0, *size)
-            screen.clear(*ShadingSettings().background, 1.0)
+            background = self.background or PRESETS[self.preset].background
+            screen.clear(*background, 1.0)
         if self.effects.readout and text is not None:
             self.overlay.draw(screen, size, text)
+        if self.picked is not None and self.renderer is not None:
+            self.label_overlay.prepare([self.picked[1]])
+            centre = self.renderer.scene.structure.positions[self.picked[0]]
+            at = label_position(self.renderer.last_frame.viewproj, centre, size, self.label_overlay.size)
+            if at is not None:
+                self.label_overlay.draw(screen, size, [self.picked[1]], at=at)
 
     def run(self, frames: int | None = None, seconds: float | None = None, writer=None, gbuffer_path=None) -> int:
         """Show frames until the window closes, Ctrl-C/SIGTERM, or `frames`/`seconds` are done."""
@@ -185,6 +328,8 @@ class WindowApp:
             while not glfw.window_should_close(self.window) and not self._stop:
                 t0 = time.perf_counter()
                 glfw.poll_events()
+                if self._clutch_renewed is not None and t0 - self._clutch_renewed > CLUTCH_RENEW_S:
+                    self._clutch_key(True)  # Space still down: keep the lease
                 self.source.poll()
                 self._take_structure()
                 self.readout = self.source.readout()
@@ -195,6 +340,8 @@ class WindowApp:
                 if t0 - last_text > 0.25:
                     text, last_text = self.text(), t0
                 self._draw(size, text)
+                if self.capture.wants_frame:  # what was just drawn: the back buffer, before it is shown
+                    self.capture.take(self._screenshot(size))
                 done = (frames is not None and count + 1 >= frames) or (
                     frames is None and seconds is not None and time.perf_counter() - start >= seconds)
                 if writer is not None and (done or writer.is_video):  # PNG: a screenshot of the last frame
@@ -219,7 +366,22 @@ class WindowApp:
         return read_image(self.ctx.screen, size)
 
     def release(self) -> None:
+        if self._clutch_renewed is not None:
+            self._clutch_key(False)  # never leave the daemon clutched
+        self.capture.close()
         if self.renderer is not None:
             self.renderer.release()
         self.overlay.release()
+        self.label_overlay.release()
         self.programs.release()
+
+
+def force_text(readout: Readout) -> str:
+    """'force 0.42 N (continuous 0.88 N, peak 3.30 N)', or what of it is known."""
+    if readout.force_n is None:
+        return "force -"
+    text = f"force {readout.force_n:.2f} N"
+    if readout.continuous_force_n is not None and readout.peak_force_n is not None:
+        over = "  ABOVE CONTINUOUS" if readout.force_n > readout.continuous_force_n else ""
+        text += f" (continuous {readout.continuous_force_n:.2f} N, peak {readout.peak_force_n:.2f} N){over}"
+    return text

@@ -1,7 +1,10 @@
 """`sasprobe`: one command with subcommands.
 
 Each module in sasprobe/commands/ defines `register(subparsers)`; it is found here
-without being listed, so adding a command touches one file.
+without being listed, so adding a command touches one file. A module that also defines
+`HELP` (its one-line summary) and keeps its heavy imports inside functions is only
+registered in full when it runs (or a config file has its section): `sasprobe --help`
+then lists it without importing numpy, gemmi, GL or plotting libraries.
 """
 
 from __future__ import annotations
@@ -13,7 +16,7 @@ import pkgutil
 import sys
 
 import sasprobe.commands
-from sasprobe import __version__, config
+from sasprobe import config
 from sasprobe.errors import UserError
 
 
@@ -29,19 +32,54 @@ class _StderrFormatter(logging.Formatter):
         return f"sasprobe: {record.levelname.lower()}: {record.getMessage()}"
 
 
-def build_parser() -> argparse.ArgumentParser:
+class _Version(argparse.Action):
+    """--version, with the version looked up only when asked (importlib.metadata is slow to import)."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+        super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from sasprobe import __version__
+
+        parser.exit(message=f"sasprobe {__version__}\n")
+
+
+def command_names() -> list[str]:
+    return sorted(m.name for m in pkgutil.iter_modules(sasprobe.commands.__path__))
+
+
+def build_parser(full: set[str] | None = None) -> argparse.ArgumentParser:
+    """The CLI's parser; the commands in `full` (default: all) with every option, the
+    others that define HELP only by name and summary."""
     parser = OneLineParser(
         prog="sasprobe",
         description="Feel and see a protein's solvent accessible surface with a haptic arm.",
     )
-    parser.add_argument("--version", action="version", version=f"sasprobe {__version__}")
+    parser.add_argument("--version", action=_Version, help="show the version and exit")
     parser.add_argument("-v", "--verbose", action="store_true", help="print informational messages")
     parser.add_argument("--config", metavar="FILE", help=f"TOML settings (default: {config.default_path()} if present)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
-    for info in sorted(pkgutil.iter_modules(sasprobe.commands.__path__), key=lambda m: m.name):
-        module = importlib.import_module(f"sasprobe.commands.{info.name}")
-        module.register(sub)
+    for name in command_names():
+        module = importlib.import_module(f"sasprobe.commands.{name}")
+        if full is None or name in full or not hasattr(module, "HELP"):
+            module.register(sub)
+        else:
+            sub.add_parser(name, help=module.HELP)
     return parser
+
+
+def invoked_command(argv: list[str]) -> str | None:
+    """The subcommand a command line runs (the first word that is not a global option)."""
+    names = set(command_names())
+    skip = False
+    for word in argv:
+        if skip:
+            skip = False
+        elif word == "--config":
+            skip = True
+        elif not word.startswith("-"):
+            return word if word in names else None
+    return None
 
 
 def _configure_logging(verbose: bool) -> None:
@@ -60,20 +98,22 @@ def subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentP
     return {}
 
 
-def _apply_config(parser: argparse.ArgumentParser, argv: list[str] | None) -> None:
-    """Settings from the TOML file become defaults, so flags on the command line win."""
+def _config_file(argv: list[str]) -> tuple:
+    """(path, contents) of the TOML settings in use, or (None, {})."""
     pre = argparse.ArgumentParser(add_help=False)
     pre.add_argument("--config")
     known, _ = pre.parse_known_args(argv)
     path = config.find_config(known.config)
-    if path is not None:
-        config.apply(path, config.load(path), subcommands(parser))
+    return (path, config.load(path)) if path is not None else (None, {})
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
     try:
-        _apply_config(parser, argv)
+        path, settings = _config_file(argv)
+        parser = build_parser(full={invoked_command(argv), *settings})
+        if path is not None:  # the file's values become defaults, so flags on the command line win
+            config.apply(path, settings, subcommands(parser))
     except UserError as exc:
         print(f"sasprobe: error: {exc}", file=sys.stderr)
         return 2

@@ -24,36 +24,45 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 
+MAX_CONFIG_BYTES = 1 << 20
+
+
 def default_path() -> Path:
-    base = os.environ.get("XDG_CONFIG_HOME") or str(Path.home() / ".config")
+    base = os.environ.get("XDG_CONFIG_HOME")
+    if not base:
+        try:
+            base = str(Path.home() / ".config")
+        except (RuntimeError, KeyError):  # no $HOME and no passwd entry: there is no default file
+            base = "~/.config"
     return Path(base) / "sasprobe" / "config.toml"
 
 
 def find_config(explicit: str | None) -> Path | None:
-    """The config file to use, or None. An explicitly named file must exist."""
-    if explicit:
-        path = Path(explicit)
-        if not path.is_file():
-            raise UserError(f"{path}: config file not found")
-        return path
-    env = os.environ.get("SASPROBE_CONFIG")
-    if env:
-        path = Path(env)
-        if not path.is_file():
-            raise UserError(f"{path}: config file not found (from SASPROBE_CONFIG)")
-        return path
+    """The config file to use, or None. An explicitly named file must exist (load() checks what it is)."""
+    for named, where in ((explicit, ""), (os.environ.get("SASPROBE_CONFIG"), " (from SASPROBE_CONFIG)")):
+        if named:
+            if not os.path.lexists(named):
+                raise UserError(f"{named}: config file not found{where}")
+            return Path(named)
     path = default_path()
-    return path if path.is_file() else None
+    try:
+        return path if path.exists() else None
+    except OSError as exc:  # e.g. an unreadable $HOME: say so once and go on without a config file
+        print(f"sasprobe: warning: cannot look for {path} ({exc.strerror or exc}); no config file used",
+              file=sys.stderr)
+        return None
 
 
 def load(path: Path) -> dict:
+    from sasprobe.files import read_regular
+
+    data = read_regular(path, MAX_CONFIG_BYTES, "config file")
     try:
-        data = tomllib.loads(path.read_text())
+        return tomllib.loads(data.decode("utf-8"))
     except tomllib.TOMLDecodeError as exc:
         raise UserError(f"{path}: not valid TOML ({exc})") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:
         raise UserError(f"{path}: cannot read ({exc})") from None
-    return data
 
 
 def _settable(parser: argparse.ArgumentParser) -> dict[str, argparse.Action]:

@@ -8,7 +8,7 @@ rate and jitter), shows progress, stops both children (the daemon first: it writ
 force before it exits) and writes summary.json.
 
 On a shared, small machine the software rasteriser would take every core from the
-1 kHz loop, so the daemon asks for SCHED_FIFO (`--realtime`), which no ordinary process
+1 kHz loop, so the daemon asks for SCHED_FIFO (its default), which no ordinary process
 can preempt. Where that is refused (no root or CAP_SYS_NICE) the renderer runs at a
 lower priority and, headless, with one llvmpipe thread.
 """
@@ -44,9 +44,9 @@ STATUS_EVERY_S = 1.0
 
 # Options the demo sets itself; passing them through --render-args/--daemon-args would break it.
 RESERVED_RENDER = ("--connect", "--control", "--molecule", "--headless", "--out", "--snapshot", "--report",
-                   "--seconds", "--frames", "--size", "--fps")
+                   "--seconds", "--frames", "--size", "--fps", "--keys")
 RESERVED_DAEMON = ("--device", "--molecule", "--pub", "--ctl", "--record", "--report", "--seconds",
-                   "--realtime", "--keep-water")
+                   "--no-realtime", "--keep-water", "--keys")
 
 
 @dataclass
@@ -61,6 +61,7 @@ class DemoOptions:
     record: Path | None = None
     realtime: bool = True
     keep_water: bool = False
+    keys: Path | None = None  # CURVE keys for both children (and the demo's own clients)
     render_args: list[str] = field(default_factory=list)
     daemon_args: list[str] = field(default_factory=list)
 
@@ -114,8 +115,10 @@ class DemoSession:
             argv += ["--molecule", str(Path(o.molecule).resolve())]
         if o.keep_water:
             argv.append("--keep-water")
-        if o.realtime:
-            argv.append("--realtime")
+        if not o.realtime:
+            argv.append("--no-realtime")
+        if o.keys:
+            argv += ["--keys", str(Path(o.keys).resolve())]
         if o.record:
             argv += ["--record", str(Path(o.record).resolve())]
         self.daemon = DaemonChild(argv + o.daemon_args, self.sockets / "daemon.log", registry=self.children)
@@ -123,8 +126,15 @@ class DemoSession:
         if o.realtime and not ready.get("realtime"):
             self.notes.append("real-time scheduling was refused (needs root or CAP_SYS_NICE): the haptic rate "
                               "may drop while the renderer runs")
-        self.monitor = ForceMonitor(self.pub)
-        self.control = ControlClient(self.ctl, timeout_s=3.0)
+        keys = None
+        if o.keys:
+            from sasprobe.protocol.security import load_client_keys
+
+            keys = load_client_keys(Path(o.keys))
+        self.control = ControlClient(self.ctl, keys=keys, timeout_s=3.0)
+        device = self.control.status()["device"]  # the ratings the forces are measured against
+        self.monitor = ForceMonitor(self.pub, device["limits"]["continuous_force_n"],
+                                    device["limits"]["nominal_rate_hz"], keys)
 
     def _render_argv(self, headless: bool, seconds: float | None) -> list[str]:
         o = self.opts
@@ -133,6 +143,8 @@ class DemoSession:
                 "--size", f"{size[0]}x{size[1]}", "--report", str(self.render_report)]
         if o.keep_water:
             argv.append("--keep-water")
+        if o.keys:
+            argv += ["--keys", str(Path(o.keys).resolve())]
         if headless:
             argv += ["--headless", "--seconds", f"{seconds:g}", "--fps", f"{o.fps:g}",
                      "--out", str(self.video), "--snapshot", str(self.snapshot)]

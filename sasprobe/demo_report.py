@@ -10,29 +10,44 @@ import numpy as np
 
 
 class ForceMonitor:
-    """Every pose the daemon publishes (as a renderer sees them): force magnitudes,
-    contacts, touched atoms. Polled without blocking from the demo's main loop."""
+    """Every pose the daemon publishes (as a renderer sees them): force magnitudes against
+    the device's continuous rating, contacts, touched atoms and when the first one was
+    touched (device time from the first pose seen). Polled without blocking from the
+    demo's main loop."""
 
-    def __init__(self, endpoint: str) -> None:
+    def __init__(self, endpoint: str, continuous_force_n: float | None = None, rate_hz: float | None = None,
+                 keys=None) -> None:
         from sasprobe.protocol.client import Subscriber
 
-        self.subscriber = Subscriber(endpoint)
+        self.subscriber = Subscriber(endpoint, keys=keys)
+        self.continuous_force_n = continuous_force_n
+        self.rate_hz = rate_hz
         self.force_n = array("f")
         self.contact_ticks = 0
         self.clamped_ticks = 0
         self.fault_ticks = 0
+        self.above_continuous_ticks = 0
         self.touched: set[int] = set()
+        self._first_t_ns: int | None = None
+        self.first_touch_s: float | None = None
 
     def poll(self) -> None:
         from sasprobe.protocol.pose import FLAG_CLAMPED, FLAG_CONTACT, FLAG_FAULT
 
         for pose in self.subscriber.poll():
-            self.force_n.append(float(np.linalg.norm(pose.force_N)))
+            force = float(np.linalg.norm(pose.force_N))
+            self.force_n.append(force)
             self.contact_ticks += bool(pose.flags & FLAG_CONTACT)
             self.clamped_ticks += bool(pose.flags & FLAG_CLAMPED)
             self.fault_ticks += bool(pose.flags & FLAG_FAULT)
+            if self.continuous_force_n is not None and force > self.continuous_force_n:
+                self.above_continuous_ticks += 1
+            if self._first_t_ns is None:
+                self._first_t_ns = pose.device_t_ns
             if pose.touched_atom >= 0:
                 self.touched.add(pose.touched_atom)
+                if self.first_touch_s is None:
+                    self.first_touch_s = (pose.device_t_ns - self._first_t_ns) / 1e9
 
     def last_force(self) -> float | None:
         return float(self.force_n[-1]) if self.force_n else None
@@ -53,6 +68,10 @@ class ForceMonitor:
             "atoms_touched": len(self.touched),
             "clamped_ticks": self.clamped_ticks,
             "fault_ticks": self.fault_ticks,
+            "continuous_force_n": self.continuous_force_n,
+            "above_continuous_ticks": self.above_continuous_ticks,
+            "above_continuous_s": self.above_continuous_ticks / self.rate_hz if self.rate_hz else None,
+            "first_touch_s": self.first_touch_s,
         }
 
     def close(self) -> None:
@@ -74,7 +93,13 @@ def print_summary(summary: dict, path: Path) -> None:
     if f and f["poses"]:
         print(f"  forces    mean {f['force_n']['mean']:.2f} N, p95 {f['force_n']['p95']:.2f} N, "
               f"max {f['force_n']['max']:.2f} N; in contact {100 * f['contact_fraction']:.0f} % of ticks, "
-              f"{f['atoms_touched']} atoms touched")
+              f"{f['atoms_touched']} atoms touched"
+              + (f" (the first after {f['first_touch_s']:.1f} s)" if f["first_touch_s"] is not None else ""))
+        if f["continuous_force_n"] is not None:
+            above = f["above_continuous_s"]
+            print(f"            {f['clamped_ticks']} ticks clamped to the peak rating; above the continuous rating "
+                  f"({f['continuous_force_n']:g} N) for " + (f"{above:.2f} s" if above is not None else
+                                                          f"{f['above_continuous_ticks']} ticks"))
     r = s["renderer"]
     if r:
         lost = (r.get("daemon") or {}).get("poses_missed")

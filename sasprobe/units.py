@@ -48,3 +48,23 @@ def size_type(text: str) -> tuple[int, int]:
     if not (16 <= w <= MAX_IMAGE_SIZE and 16 <= h <= MAX_IMAGE_SIZE):
         raise argparse.ArgumentTypeError(f"'{text}': width and height must be 16..{MAX_IMAGE_SIZE} pixels")
     return w, h
+
+
+def colour_type(text: str) -> tuple[float, float, float]:
+    """A colour: a CSS name (white, black, lightgrey, ...), #RRGGBB, or R,G,B in 0..1."""
+    if "," in text:
+        try:
+            rgb = tuple(float(v) for v in text.split(","))
+        except ValueError:
+            rgb = ()
+        if len(rgb) != 3 or not all(0.0 <= v <= 1.0 for v in rgb):
+            raise argparse.ArgumentTypeError(f"'{text}': R,G,B needs three numbers from 0 to 1")
+        return rgb  # type: ignore[return-value]
+    from PIL import ImageColor
+
+    try:
+        r, g, b = ImageColor.getrgb(text)[:3]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a colour (a name such as white, #RRGGBB, or R,G,B "
+                                         "in 0..1)") from None
+    return (r / 255.0, g / 255.0, b / 255.0)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
-from sasprobe.render.camera import fit_camera
+from sasprobe.render.camera import fit_bounding_sphere
 from sasprobe.render.lighting.grid import Culling, GpuGrid
 from sasprobe.render.lighting.gbuffer import RaycastGBuffer
 
@@ -27,7 +27,7 @@ def cullings(structure) -> dict[str, Culling]:
 
 
 def camera(structure, width=WIDTH, height=HEIGHT, fill=1.25):
-    return fit_camera(structure.positions, structure.vdw_radii, width / height, VIEW_DIRECTION, fill=fill)
+    return fit_bounding_sphere(structure.positions, structure.vdw_radii, width / height, VIEW_DIRECTION, fill=fill)
 
 
 def gbuffer_arrays(gpu_grid, view, proj, width=WIDTH, height=HEIGHT):

@@ -46,10 +46,10 @@ def main() -> None:
         lighting = lighting_of(app.renderer)
         modes = [lighting.ao_mode]
         for _ in range(len(AO_MODES) - 2):
-            press(app, glfw.KEY_C)
+            press(app, glfw.KEY_A, glfw.MOD_SHIFT)
             modes.append(lighting.ao_mode)
         assert sorted(modes) == sorted(m for m in AO_MODES if m != "off"), modes
-        press(app, glfw.KEY_C)
+        press(app, glfw.KEY_A, glfw.MOD_SHIFT)
         assert lighting.ao_mode == modes[0]
         assert any("lighting: hard shadows, AO analytic" in line for line in app.text()), app.text()
         press(app, glfw.KEY_S)  # shadows off: the picture changes

@@ -28,7 +28,7 @@ from tests.test_protocol_pose import reference_decode
 
 @pytest.fixture(scope="module")
 def daemon():
-    with DaemonProcess() as d:
+    with DaemonProcess("--record-dir", ".") as d:  # its private working folder
         yield d
         rc, report = d.stop()
         assert rc == 0, d.stderr
@@ -219,14 +219,14 @@ def fetch_raw_default() -> bytes:
     return load_default().source_bytes
 
 
-def test_recording_started_mid_session_replays_exactly(daemon, tmp_path):
-    path = tmp_path / "mid.mcap"
+def test_recording_started_mid_session_replays_exactly(daemon):
+    path = daemon.sockets / "mid.mcap"
     with ControlClient(daemon.ctl) as client:
         with pytest.raises(ControlError, match="not recording"):
             client.record_stop()
-        started = client.record_start(path)
+        started = client.record_start("mid.mcap")  # below its --record-dir
         with pytest.raises(ControlError, match="already recording"):
-            client.record_start(tmp_path / "second.mcap")
+            client.record_start("second.mcap")
         time.sleep(0.6)
         client.set(damping_n_s_per_m=0.3, method="penalty")
         time.sleep(0.6)
@@ -265,26 +265,35 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def test_curve_keys_admit_allowed_clients_and_reject_unknown_ones(tmp_path):
+def test_curve_keys_admit_allowed_clients_and_reject_unknown_ones(tmp_path, gl):
+    """A keyed daemon: status and a renderer with the keys follow it; a client whose key is not
+    allowed, or who has none, gets one line saying so (and the daemon logs the refusal)."""
     keys, other = tmp_path / "keys", tmp_path / "other"
     assert run_cli("keys", str(keys)).returncode == 0
     assert run_cli("keys", str(other)).returncode == 0
     (other / "server.key").write_bytes((keys / "server.key").read_bytes())
     pub_port, ctl_port = _free_port(), _free_port()
     with DaemonProcess("--keys", str(keys), pub=f"tcp://0.0.0.0:{pub_port}", ctl=f"tcp://0.0.0.0:{ctl_port}") as d:
-        ctl = f"tcp://127.0.0.1:{ctl_port}"
-        ok = run_cli("status", "--ctl", ctl, "--keys", str(keys), "--json")
-        assert ok.returncode == 0, ok.stderr
+        pub, ctl = f"tcp://127.0.0.1:{pub_port}", f"tcp://127.0.0.1:{ctl_port}"
         from sasprobe.protocol.security import load_client_keys
 
-        with Subscriber(f"tcp://127.0.0.1:{pub_port}", keys=load_client_keys(keys)) as sub:
+        with Subscriber(pub, keys=load_client_keys(keys)) as sub:
             sub.wait_for_scene(5.0)
-        rejected = run_cli("status", "--ctl", ctl, "--keys", str(other), "--timeout", "1")
-        assert rejected.returncode == 2 and "no reply" in rejected.stderr
-        plain = run_cli("status", "--ctl", ctl, "--timeout", "1")
-        assert plain.returncode == 2
+        render = ("render", "--headless", "--connect", pub, "--control", ctl, "--frames", "2", "--size", "64x48")
+        ok, followed, rejected, plain, refused_render = cli_many(
+            ("status", "--ctl", ctl, "--keys", str(keys), "--json"), (*render, "--keys", str(keys)),
+            ("status", "--ctl", ctl, "--keys", str(other), "--timeout", "1"), ("status", "--ctl", ctl, "--timeout", "1"),
+            (*render, "--keys", str(other)))
+        assert ok.returncode == 0, ok.stderr
+        assert followed.returncode == 0, followed.stderr  # render --keys follows the keyed daemon
+        for out in (rejected, refused_render):
+            assert out.returncode == 2 and out.stderr.count("\n") == 1, out.stderr
+            assert "refused this client's CURVE key" in out.stderr, out.stderr
+        # no --keys on loopback: this user's local keys, whose server key is not this daemon's
+        assert plain.returncode == 2 and "give the same --keys DIR" in plain.stderr, plain.stderr
         rc, _ = d.stop()
     assert rc == 0
+    assert "refused a client whose CURVE public key" in d.stderr  # the daemon's side of it
 
 
 def test_user_errors_end_in_one_line(tmp_path):

@@ -1,8 +1,9 @@
 """`sasprobe demo` end to end through the real CLI: daemon and renderer as real processes.
 
-The video is read back with imageio's ffmpeg reader; the snapshot is compared with an
-independent numpy ray cast of the same structure from the same fitted camera (the
-renderer fits its camera to the structure alone); the haptic rate is the daemon's own
+The video is read back with imageio's ffmpeg reader; the snapshot (the whole molecule in
+the cube, `--cube-half fit`, seen in the overview) is compared with an independent numpy
+ray cast of the same structure from the same fitted camera (the renderer fits its
+camera to the structure alone); the haptic rate is the daemon's own
 measurement; the recording is replayed (forces recomputed, exactly) and rendered to a
 video whose frame count and timing are checked against the recording read with the
 `mcap` library directly; and a Ctrl+C (SIGINT) mid-run must leave no process of the
@@ -34,8 +35,11 @@ BACKGROUND = np.array([0.08, 0.09, 0.11]) * 255  # ShadingSettings().background
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory, gl):  # gl: skips where no headless OpenGL exists
     out = tmp_path_factory.mktemp("demo")
+    # The whole of crambin in the cube, seen whole (the overview), so that the snapshot can be
+    # checked against a ray cast of every atom; the workspace view is tests/test_workspace_session.py's.
     result = run_cli("demo", "--headless", "--seconds", str(SECONDS), "--out", str(out),
-                     "--record", str(out / "session.mcap"), timeout=300)
+                     "--record", str(out / "session.mcap"), "--daemon-args=--cube-half fit",
+                     "--render-args=--view overview", timeout=300)
     assert result.returncode == 0, result.stderr
     return out, result
 
@@ -72,8 +76,8 @@ def test_snapshot_shows_the_molecule(demo):
     image = imageio.imread(out / "snapshot.png")[..., :3].astype(float)
     assert image.shape == (SIZE[1], SIZE[0], 3)
     structure = load_default()
+    camera = Camera.framing(structure.positions, structure.vdw_radii, SIZE[0] / SIZE[1])  # the renderer's fitted view
     center, radius = SceneState(structure).bounding_sphere()
-    camera = Camera.fitted(center, radius, SIZE[0] / SIZE[1])
     camera.fit_clip_range(center, radius)
     ids, _, _, _ = reference_cast(camera.view(), camera.projection(SIZE[0] / SIZE[1]), SIZE[0], SIZE[1],
                                   structure.positions, structure.vdw_radii, np.arange(structure.n_atoms))

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.support import VelocityFilter, clamp_force, quaternion_from_matrix
-from sasprobe.devices.transports import LineReader, SerialTransport, UsbTransport
+from sasprobe.devices.transports import SerialTransport, UsbTransport
 from tests.emulators.falcon_usb import EmulatedUsbBackend, FalconHardware
 from tests.emulators.pty_serial import PtySerialDevice
 
@@ -20,9 +20,11 @@ from tests.emulators.pty_serial import PtySerialDevice
 class Echo(PtySerialDevice):
     """Answers every byte with itself: enough to exercise the transport."""
 
-    def consume(self, inbox: bytes) -> bytes:
-        self.send(inbox)
-        return b""
+    def loop(self) -> None:
+        data = bytes([self.wait_byte()])
+        while self.available():
+            data += bytes([self.read()])
+        self.write(data)
 
 
 def read_at_least(port, n, timeout_s=2.0) -> bytes:
@@ -46,18 +48,6 @@ def test_serial_round_trip_and_read_timeout(echo):
         t0 = time.monotonic()
         assert port.read(64, 0.05) == b""  # nothing came: empty, not a hang
         assert time.monotonic() - t0 < 1.0
-
-
-def test_line_reader_joins_splits_and_bounds_lines(echo):
-    with SerialTransport(echo.path) as port:
-        lines = LineReader(port, max_len=32)
-        port.write(b"[1,2")
-        port.write(b",3]\r\n[4]\n" + b"x" * 40 + b"\n")
-        deadline = time.monotonic() + 2
-        assert lines.read_line(deadline) == b"[1,2,3]"
-        assert lines.read_line(deadline) == b"[4]"
-        assert lines.read_line(deadline) == b"x" * 40  # handed back whole for the caller to reject
-        assert lines.read_line(time.monotonic() + 0.05) is None
 
 
 def test_a_pulled_serial_cable_is_a_fault_and_the_port_comes_back(echo):

@@ -1,4 +1,5 @@
-"""WoodenHaptics driver against the emulated Teensy firmware behind a real pty."""
+"""WoodenHaptics/Polhem driver in closed loop against the emulated Teensy firmware and
+mechanism behind a real pty (known answers: test_devices_woodenhaptics_known.py)."""
 
 from __future__ import annotations
 
@@ -7,174 +8,234 @@ import time
 import numpy as np
 import pytest
 
-from sasprobe.devices import woodenhaptics as W
-from sasprobe.devices.base import DeviceOpenError
-from tests import device_loop as loop
-from tests.emulators.physics import MovableHand
-from tests.emulators.woodenhaptics_serial import WoodenHapticsEmulator
+from sasprobe.devices.base import DeviceFault, DeviceOpenError
+from sasprobe.devices.woodenhaptics import WoodenHapticsDevice
+from tests.emulators import woodenhaptics_serial
+from tests.emulators.pty_serial import PtySerialDevice
+from tests.serial_arm_session import Session, cosine
 
 
-def test_command_and_reply_lines_follow_the_public_format():
-    assert W.encode_command([12.4, -300.0, 0.0]) == b"[12,-300,0]\n"
-    assert W.parse_reply(b"[3,10,-20,30,1,2,3,0]") == (3, [10, -20, 30, 1, 2, 3], 0)
-    assert W.parse_reply(b"[2,0,0,0,0,0,0,1536]\r") == (2, [0] * 6, 1536)
-
-
-@pytest.mark.parametrize("line", [b"3,0,0,0,0,0,0,0]", b"[3,0,0,0,0,0,0,0", b"[3,0,0,0]", b"[3,0,0,0,0,0,0,0,0]",
-                                  b"[3,x,0,0,0,0,0,0]", b"[3,0.5,0,0,0,0,0,0]", b"\xff\xfe", b""])
-def test_malformed_reply_lines_are_rejected(line):
-    with pytest.raises(W.LineError):
-        W.parse_reply(line)
-
-
-def test_error_bits_are_named():
-    assert W.describe_errors(512 | 2) == "gimbal 1 I2C, wrong field count"
-    assert W.describe_errors(0) == "none"
-
+# --- against the emulated board ---------------------------------------------------------------
 
 @pytest.fixture
-def rig(tmp_path):
-    hand = MovableHand()
-    emu = WoodenHapticsEmulator(tmp_path, hand=hand)
-    hand.target = tuple(emu.stylus.position)  # resting in the home pose, where the button was pressed
-    dev = W.WoodenHapticsDevice(emu.path)
-    yield dev, emu, hand
+def rig(request):
+    options = getattr(request, "param", {})
+    rig = woodenhaptics_serial.launch(**options)
+    dev = WoodenHapticsDevice(rig.board.path)
+    yield dev, rig.board, rig.hand
     dev.close()
-    emu.stop()
+    rig.close()
 
 
-def centre_of(emu):
-    return emu.arm.forward(emu.arm.geometry.centre_joint_angles)
+MOVES = [(10, 0, 0), (-10, 0, 0), (0, 10, 0), (0, -10, 0), (0, 0, 10), (0, 0, -10), (7, -7, 7)]
+FORCES = [(2.0, 0.0, 0.0), (0.0, -2.0, 0.0), (0.0, 0.0, 2.0), (1.5, 1.0, -2.0)]
 
 
-def test_calibration_needs_the_home_pose_and_gates_force(rig):
-    dev, emu, hand = rig
+def check_forces(session, board, forces) -> None:
+    """The force the emulated motors exert is the force written (cos ≥ 0.99, within 5 %)."""
+    for force in forces:
+        session.run(0.02, force)
+        made = board.motor_force()
+        assert cosine(made, force) >= 0.99, (force, made)
+        assert np.linalg.norm(made) == pytest.approx(np.linalg.norm(force), rel=0.05), (force, made)
+
+
+@pytest.mark.parametrize("rig", [{"model": 1}, {"model": 2}, {"model": 3}], indirect=True,
+                         ids=["polhem", "vintage", "woody"])
+def test_displacements_and_forces_in_the_device_frame(rig):
+    dev, board, hand = rig
     dev.open()
-    assert dev.info.model == "WoodenHaptics Woody" and dev.info.limits == W.WOODEN_MODELS[3].limits
-    state = dev.read()
-    assert not state.calibrated
-    dev.write_force([0.0, 2.0, 0.0])
-    dev.read()
-    assert emu.currents.tolist() == [0, 0, 0]  # refused while uncalibrated
-    state = loop.until(dev, lambda s: s.calibrated)
-    dev.write_force([0.0, 2.0, 0.0])
-    dev.read()  # the reply means the emulator has taken the command
-    assert np.any(emu.currents != 0)
-
-
-def test_an_arm_away_from_home_stays_uncalibrated_until_it_returns(rig):
-    dev, emu, hand = rig
-    hand.target = tuple(centre_of(emu))
-    time.sleep(0.05)
-    dev.open()
-    states = loop.run(dev, 0.3)
-    assert not any(s.calibrated for s in states)
-    hand.target = tuple(emu.arm.forward(emu.model.home_joint_angles))
-    loop.until(dev, lambda s: s.calibrated)
-
-
-def test_positions_and_forces_round_trip(rig):
-    dev, emu, hand = rig
-    dev.open()
-    loop.until(dev, lambda s: s.calibrated)
-    for offset in [(0.0, 0.0, 0.0), (40.0, -20.0, 10.0), (-50.0, 30.0, -25.0)]:
-        hand.target = tuple(np.asarray(offset) + 0.0)  # the device frame's origin is the workspace centre
-        loop.run(dev, 0.6)
-        state = dev.read()
-        np.testing.assert_allclose(state.position_mm, emu.stylus.position, atol=0.1)  # ≈0.04 mm per count
-        for force in ([1.0, 2.0, -1.5], [-3.0, 0.5, 2.0]):
-            dev.write_force(force)
-            dev.read()
-            np.testing.assert_allclose(emu.last_force_n, force, atol=0.02)  # currents are whole mA
-    assert emu.bad_lines == 0  # every command the driver sent was well-formed
-
-
-def test_forces_never_exceed_the_declared_limit(rig):
-    dev, emu, hand = rig
-    dev.open()
-    loop.until(dev, lambda s: s.calibrated)
+    session = Session(dev)
+    home = session.until(lambda s: True)
+    np.testing.assert_allclose(home.position_mm, board.stylus.now(), atol=0.5)  # the home pose, where counts are 0
+    hand.target = (0.0, 0.0, 0.0)  # the workspace centre
+    centre = session.settle(board.stylus, hand)
+    np.testing.assert_allclose(centre.position_mm, board.stylus.now(), atol=0.5)
+    centre_true = board.stylus.now()
+    for move in MOVES:
+        hand.target = move
+        state = session.settle(board.stylus, hand)
+        true_move = board.stylus.now() - centre_true
+        np.testing.assert_allclose(true_move, move, atol=0.1)  # with no force the stylus rests in the hand
+        np.testing.assert_allclose(state.position_mm - centre.position_mm, true_move, atol=0.5)
     hand.target = (0.0, 0.0, 0.0)
-    loop.run(dev, 0.5)
-    rng = np.random.default_rng(3)
-    limit = W.WOODEN_MODELS[3].limits.max_force_n
-    for command in [rng.normal(size=3) * 50 for _ in range(150)] + [[np.nan, 0, 0], [-np.inf, 1, 1]]:
-        dev.read()
-        currents = dev.currents_for(command)
-        assert np.all(np.abs(currents) <= W.WOODEN_MODELS[3].max_current_ma)
-        dev.write_force(command)
-        dev.read()
-        assert np.linalg.norm(emu.last_force_n) <= limit + 0.02
-    assert emu.max_force_n <= limit + 0.02
+    session.settle(board.stylus, hand)
+    check_forces(session, board, FORCES)
+    assert board.refused == 0, "the firmware refused a command in a normal session"
 
 
-def test_closed_loop_virtual_wall(rig):
-    dev, emu, hand = rig
+def test_a_press_is_pushed_back_out(rig):
+    dev, board, hand = rig
     dev.open()
-    loop.until(dev, lambda s: s.calibrated)
-    hand.target = (20.0, 0.0, 0.0)
-    states = loop.run(dev, 2.0, force_of=loop.wall(axis=0, at_mm=10.0, stiffness_n_per_mm=1.0))
-    expected = (emu.stylus.hand_k * 20.0 + 1.0 * 10.0) / (emu.stylus.hand_k + 1.0)
+    session = Session(dev)
+    hand.target = (0.0, 0.0, 0.0)
+    session.settle(board.stylus, hand)
+    hand.target = (20.0, 0.0, 0.0)  # the hand pushes through a wall at x = 10 mm (1 N/mm)
+
+    def wall(state):
+        return (-1.0 * max(state.position_mm[0] - 10.0, 0.0), 0.0, 0.0) if state is not None else (0.0, 0.0, 0.0)
+    states = session.run(1.5, wall)
+    k = board.stylus.hand_k
+    expected = (k * 20.0 + 1.0 * 10.0) / (k + 1.0)  # where the hand's spring and the wall balance
     assert np.mean([s.position_mm[0] for s in states[-100:]]) == pytest.approx(expected, abs=0.3)
+    assert board.refused == 0
 
 
-def test_device_error_bits_are_surfaced(rig):
-    dev, emu, _hand = rig
+def test_opening_resends_until_the_board_answers(rig):
+    dev, board, _hand = rig
+    board.stall(0.35)  # still booting: the firmware reads nothing for 350 ms
+    t0 = time.monotonic()
     dev.open()
-    emu.gimbal_error_bits = 2 | 512
-    dev.read()
-    assert dev.device_error_bits == 2 | 512
-    assert dev.info.details["device_errors"] == "gimbal 1 I2C, wrong field count"
-    assert dev.refused_commands == 1 and dev.gimbal_errors == 1
+    assert time.monotonic() - t0 >= 0.3
+    refused_at_open = board.refused  # copies that piled up while it booted may have merged
+    session = Session(dev)
+    session.run(0.3)
+    assert board.refused == refused_at_open, "the session must start in step"
+    assert dev.info.details["model_code"] == 3
 
 
-def test_the_100_ms_watchdog_is_respected(rig):
-    dev, emu, _hand = rig
-    dev.open()
-    loop.until(dev, lambda s: s.calibrated)
-    dev.write_force([0.0, 2.0, 0.0])
-    dev.read()
-    assert emu.amplifiers_on
-    time.sleep(0.3)  # the host falls silent
-    assert not emu.amplifiers_on and emu.watchdog_trips == 1
-    dev.write_force([0.0, 2.0, 0.0])  # first command after the gap: zero, so nothing jumps
-    dev.read()
-    assert dev.watchdog_gaps == 1 and emu.currents.tolist() == [0, 0, 0]
-    dev.write_force([0.0, 2.0, 0.0])
-    dev.read()
-    assert np.any(emu.currents != 0)
+def test_a_board_that_never_answers_is_one_line_and_no_hang(rig):
+    dev, board, _hand = rig
+    board.go_silent()
+    dev.handshake_timeout_s = 0.5
+    t0 = time.monotonic()
+    with pytest.raises(DeviceOpenError, match="never answered the woodenhaptics handshake within 0.5 s") as err:
+        dev.open()
+    assert time.monotonic() - t0 < 2.0
+    assert "\n" not in str(err.value)
 
 
-def test_malformed_replies_are_counted_and_skipped(rig):
-    dev, emu, _hand = rig
-    dev.open()
-    dev.read()
-    injected = [b"junk\n", b"[3,1,2]\n", b"[3,a,0,0,0,0,0,0]\n", b"3,0,0,0,0,0,0,0]\n", b"\xff\xfe\n",
-                b"[2,0,0,0,0,0,0,0]\n", b"x" * 300 + b"\n"]
-    for bad in injected:
-        emu.inject_before_reply = [bad]
-        dev.write_force([0, 0, 0])
-        state = dev.read()
-        np.testing.assert_allclose(state.position_mm, emu.stylus.position, atol=0.1)
-    assert dev.rejected_frames == len(injected)
+class OtherLineBoard(PtySerialDevice):
+    """A board that speaks another line protocol."""
+
+    def loop(self) -> None:
+        if self.wait_byte() == ord("\n"):
+            self.write(b"ERR unknown command\r\n")
 
 
-def test_pulling_the_cable_faults_at_once_and_recovers(rig):
-    dev, emu, _hand = rig
-    dev.open()
-    loop.until(dev, lambda s: s.calibrated)
-    # replugged, the Teensy restarts: torque off until its button is pressed again
-    state = loop.pull_the_cable(dev, emu.unplug, emu.replug, command=[0.0, 1.0, 0.0])
-    assert not state.calibrated
-    emu.press_calibration_button()
-    loop.until(dev, lambda s: s.calibrated)
-
-
-@pytest.mark.parametrize("code, message", [(1, "kinematics are not publicly described"), (7, "does not know")])
-def test_unknown_and_undescribed_models_are_refused(tmp_path, code, message):
-    emu = WoodenHapticsEmulator(tmp_path)
-    emu.reported_model = code
+def test_a_board_of_another_protocol_is_one_line(tmp_path):
+    board = OtherLineBoard(tmp_path, "ttyOTHER0")
     try:
-        with pytest.raises(DeviceOpenError, match=message):
-            W.WoodenHapticsDevice(emu.path).open()
+        with pytest.raises(DeviceOpenError, match="not in the WoodenHaptics line format.*ERR unknown") as err:
+            WoodenHapticsDevice(board.path).open()
+        assert "\n" not in str(err.value)
     finally:
-        emu.stop()
+        board.stop()
+
+
+@pytest.mark.parametrize("rig", [{"reported_model": 7}], indirect=True)
+def test_an_unknown_model_code_is_refused_by_name(rig):
+    dev, _board, _hand = rig
+    with pytest.raises(DeviceOpenError, match=r"reports model code 7.*known: 1 Polhem, 2 vintage PHANTOM.*3 Wooden"):
+        dev.open()
+
+
+def test_a_stall_of_the_board_is_survived_without_merged_commands_or_stale_reads(rig):
+    dev, board, hand = rig
+    dev.open()
+    session = Session(dev)
+    hand.target = (0.0, 0.0, 0.0)
+    session.settle(board.stylus, hand)
+    board.stall(0.2)
+    hand.target = (15.0, 0.0, 0.0)  # the hand moves on while the board is stalled
+    t0 = time.monotonic()
+    session.run(0.2)
+    assert session.faults > 0  # reads fail while it is stalled (the daemon writes zero force)
+    last_t = 0
+    for _ in range(300):
+        state = session.tick()
+        if state is None or state.t_ns == last_t:  # nothing yet, or the last pose again (a little late)
+            continue
+        last_t = state.t_ns
+        assert dev.counts == tuple(board.counters), "a reply older than the board's newest was used"
+        np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)
+    assert time.monotonic() - t0 < 5.0
+    assert board.refused == 0, "two commands merged"
+
+
+def test_a_stalled_host_gets_a_fresh_reply_not_the_waiting_one(rig):
+    dev, board, hand = rig
+    dev.open()
+    session = Session(dev)
+    hand.target = (0.0, 0.0, 0.0)
+    session.settle(board.stylus, hand)
+    dev.write_force((0.0, 0.0, 0.0))  # its reply arrives and waits while the host is away
+    hand.target = (0.0, 15.0, 0.0)
+    time.sleep(0.2)
+    assert board.watchdog_trips >= 1  # the firmware switched its amplifiers off meanwhile
+    state = session.until(lambda s: True)
+    np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)
+    assert dev.stale_replies >= 1
+    check_forces(session, board, FORCES[:1])  # the next command switched them on again
+    assert board.refused == 0
+
+
+def test_a_board_that_stops_mid_session_faults_at_once_and_its_watchdog_zeroes_force(rig):
+    dev, board, _hand = rig
+    dev.open()
+    session = Session(dev)
+    check_forces(session, board, FORCES[:1])
+    board.go_silent()
+    session.run(0.01)  # a reply already on its way may still come
+    for _ in range(200):
+        t0 = time.monotonic()
+        with pytest.raises(DeviceFault, match="no reply from the woodenhaptics arm"):
+            dev.read()
+        assert time.monotonic() - t0 < 0.05  # each read returns at once
+        dev.write_force(FORCES[0])
+        time.sleep(0.001)
+    assert np.allclose(board.motor_force(), 0.0)  # the 100 ms watchdog cut the amplifiers
+
+
+def test_garbage_on_the_line_is_dropped_and_the_session_resynchronises(rig):
+    dev, board, hand = rig
+    dev.open()
+    session = Session(dev)
+    session.run(0.05)
+    for junk in [b"junk\n", b"[3,1,2]\n", b"\xff\xfe\n", b"[2,0,0,0,0,0,0,0]\n", b"x" * 300]:
+        board.inject(junk)
+        session.run(0.05)
+    assert dev.rejected_frames >= 4
+    state = session.until(lambda s: True)
+    np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)
+    assert board.refused == 0
+
+
+@pytest.mark.parametrize("rig", [{"gimbal_error_bits": 2}], indirect=True)
+def test_gimbal_sensor_errors_are_named_but_do_not_stop_the_session(rig):
+    dev, board, _hand = rig
+    dev.open()
+    session = Session(dev)
+    assert len(session.run(0.1)) > 10
+    assert dev.info.details["device_errors"] == "gimbal sensor 1 unread"
+    assert dev.refused_commands == 0
+
+
+def test_pulling_the_cable_faults_at_once_and_reconnects(rig):
+    dev, board, _hand = rig
+    dev.open()
+    session = Session(dev)
+    session.run(0.05)
+    board.unplug()
+    t0 = time.monotonic()
+    with pytest.raises(DeviceFault, match="lost"):
+        for _ in range(3):  # a reply that came before the cable went may still be read
+            dev.write_force((0.0, 1.0, 0.0))
+            dev.read()
+    assert time.monotonic() - t0 < 0.1
+    with pytest.raises(DeviceFault, match="still unavailable"):
+        dev.reconnect()
+    board.replug()
+    dev.reconnect()
+    state = session.until(lambda s: True)
+    np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)  # it restarted where it was
+
+
+def test_closing_leaves_the_motors_at_zero(rig):
+    dev, board, _hand = rig
+    dev.open()
+    session = Session(dev)
+    check_forces(session, board, FORCES[:1])
+    dev.close()
+    assert board.last_command_ma == [0, 0, 0] and dev.last_force_n.tolist() == [0.0, 0.0, 0.0]
+    assert np.linalg.norm(board.motor_force()) < 0.01  # 0 mA is half a PWM step off centre

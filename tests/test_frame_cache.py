@@ -19,7 +19,7 @@ from sasprobe.render.gl.targets import KIND_PROBE
 from sasprobe.render.lighting.settings import AOSettings, LightingSettings
 from sasprobe.render.passes.lighting import install_lighting, lighting_of
 from sasprobe.render.renderer import Renderer
-from sasprobe.render.scene import Effects, NavCube, Probe, SceneState
+from sasprobe.render.scene import Effects, Mark, NavCube, Probe, SceneState
 from tests.lighting_support import probe_on_surface
 
 pytestmark = pytest.mark.needs_gl(430)
@@ -183,8 +183,11 @@ def test_every_effect_camera_and_setting_but_the_probe_invalidates_the_layer(gl,
         assert misses_after(lambda: setattr(r.scene, "probe", Probe(center=probe_path(crambin)[5]))) == 0
         assert misses_after(lambda: setattr(r.scene.probe, "touched_atom", 7)) == 0
         for f in dataclasses.fields(Effects):
-            assert misses_after(lambda f=f: setattr(r.scene.effects, f.name, not getattr(r.scene.effects, f.name))) \
-                == 1, f.name
+            value = getattr(r.scene.effects, f.name)
+            changed = (not value) if isinstance(value, bool) else ("polymer" if value != "polymer" else "element")
+            assert misses_after(lambda f=f, v=changed: setattr(r.scene.effects, f.name, v)) == 1, f.name
+        assert misses_after(lambda: setattr(r.scene, "lights_follow_camera", not r.scene.lights_follow_camera)) == 1
+        assert misses_after(lambda: r.scene.marks.append(Mark(1, "pocket", tuple(crambin.positions[2])))) == 1
         assert misses_after(lambda: setattr(r.scene, "light_direction", -r.scene.light_direction)) == 1
         assert misses_after(lambda: setattr(r.scene, "nav_cube", NavCube(crambin.positions[0].copy(), 6.0))) == 1
         assert misses_after(lambda: setattr(r.scene.nav_cube, "half", 7.0)) == 1

@@ -16,6 +16,7 @@ from tests.haptics_reference import synthetic_structure
 
 CRAMBIN = load_default()
 LIMITS = PHANTOM_OMNI_LIMITS
+FIT = HapticSettings(cube_half_A="fit")  # the whole of crambin in the cube (these tests press on any atom)
 
 
 def state(k: int, tip, velocity=(0.0, 0.0, 0.0), **kw) -> DeviceState:
@@ -81,7 +82,7 @@ def test_default_settings_are_valid_and_well_under_the_device_limit():
     ],
 )
 def test_non_finite_or_malformed_input_gives_zero_force_and_a_fault(bad):
-    engine = HapticEngine(CRAMBIN, LIMITS)
+    engine = HapticEngine(CRAMBIN, LIMITS, FIT)
     m = engine.mapping
     inside = np.array(m.to_device(*CRAMBIN.positions[0]))
     outside = inside + [0, 0, 60.0]
@@ -100,7 +101,7 @@ def test_non_finite_or_malformed_input_gives_zero_force_and_a_fault(bad):
 
 
 def test_uncalibrated_device_gets_no_force():
-    engine = HapticEngine(CRAMBIN, LIMITS)
+    engine = HapticEngine(CRAMBIN, LIMITS, FIT)
     inside = np.array(engine.mapping.to_device(*CRAMBIN.positions[0]))
     out = engine.step(state(0, inside, calibrated=False))
     assert np.array_equal(out.force_n, np.zeros(3)) and not out.fault and not out.seated
@@ -172,7 +173,7 @@ def test_step_is_deterministic_bit_for_bit(method):
 
 
 def test_reset_unseats_the_proxy_until_the_goal_is_free():
-    engine = HapticEngine(CRAMBIN, LIMITS)
+    engine = HapticEngine(CRAMBIN, LIMITS, FIT)
     m = engine.mapping
     inside = np.array(m.to_device(*CRAMBIN.positions[0]))
     outside = inside + [0, 0, 60.0]
@@ -280,7 +281,7 @@ def test_drift_moves_the_cube_without_a_force_jump():
 
 
 def test_mapping_round_trip_and_fit():
-    m = WorkspaceMapping.initial(CRAMBIN, LIMITS)
+    m = WorkspaceMapping.initial(CRAMBIN, LIMITS, "fit")
     p = np.array([3.0, -7.0, 12.5])
     assert np.allclose(m.to_molecule(*m.to_device(*p)), p)
     # the fitted cube's drift-free core holds every expanded sphere

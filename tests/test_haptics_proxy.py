@@ -3,6 +3,8 @@ brute-force constrained nearest point, and the penalty baseline's pop-through.""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -168,8 +170,8 @@ def test_proxy_never_enters_the_sas_in_scripted_sessions():
 
     centers, radii = CRAMBIN.positions, CRAMBIN.expanded_radii(1.4)
     for script in ("scan", "dive", "press", "orbit", "random"):
-        device = open_device(f"sim:{script}", structure=CRAMBIN, seed=5)
-        engine = HapticEngine(CRAMBIN, PHANTOM_OMNI_LIMITS, HapticSettings())
+        device = open_device(f"sim:{script}", structure=CRAMBIN, seed=5, cube_half_A="fit")
+        engine = HapticEngine(CRAMBIN, PHANTOM_OMNI_LIMITS, HapticSettings(cube_half_A="fit"))
         device.open()
         proxies = []
         contacts = 0
@@ -223,11 +225,14 @@ def test_press_script_on_crambin_pops_through_with_penalty_not_with_proxy():
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices import PHANTOM_OMNI_LIMITS, open_device
 
+    from sasprobe.devices.simulated import ArmModel
+
     along = {}
     for method in ("proxy", "penalty"):
-        device = open_device("sim:press", structure=CRAMBIN)
+        # A hand that pushes without limit (a person stops at the arm's rating): the test of a wall
+        device = open_device("sim:press", structure=CRAMBIN, cube_half_A="fit", arm=ArmModel(max_hand_force_n=math.inf))
         push = np.array(device.script.info["push_direction"])
-        engine = HapticEngine(CRAMBIN, PHANTOM_OMNI_LIMITS, HapticSettings(method=method))
+        engine = HapticEngine(CRAMBIN, PHANTOM_OMNI_LIMITS, HapticSettings(method=method, cube_half_A="fit"))
         device.open()
         worst = -np.inf
         for _ in range(int(device.script.duration_s * 1000)):

@@ -31,9 +31,9 @@ ALLOWED = {
     "render": {"molecule", "protocol"},
 }
 # The root package `sasprobe/` is the CLI (nothing imports it) except these: the version,
-# the one-line user error and the progress bar, which every layer may use and which import
-# nothing of ours.
-FOUNDATION = {"sasprobe", "sasprobe.errors", "sasprobe.progress"}
+# the one-line user error, the progress bar and opening a user's file, which every layer
+# may use and which import nothing of ours but each other.
+FOUNDATION = {"sasprobe", "sasprobe.errors", "sasprobe.progress", "sasprobe.files"}
 # Layers inside a subsystem: (package, what of its subsystem it may import besides itself).
 INNER = {
     "sasprobe.daemon.haptics": set(),  # the tick's computation, below the process

@@ -10,7 +10,7 @@ from sasprobe.molecule import DEFAULT_PROBE_RADIUS
 from sasprobe.render.lighting.ao import AmbientOcclusion
 from sasprobe.render.lighting.ao.analytic import AnalyticAO
 from sasprobe.render.lighting.ao.raytraced import RayTracedAO
-from sasprobe.render.camera import fit_camera
+from sasprobe.render.camera import fit_bounding_sphere
 from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.settings import AO_MODES, AOSettings
@@ -149,7 +149,7 @@ def test_ssao_leaves_convex_surfaces_unoccluded_and_darkens_a_crevice(gl):
     for centers, radii, crevice in (([[0.0, 0.0, 0.0]], [6.0], False),
                                     ([[-3.0, 0.0, 0.0], [3.0, 0.0, 0.0]], [3.2, 3.2], True)):
         grid = sphere_grid(gl, centers, radii)
-        view, proj = fit_camera(np.array(centers), np.array(radii), 4 / 3, (0.0, 0.0, 1.0), fill=0.8)
+        view, proj = fit_bounding_sphere(np.array(centers), np.array(radii), 4 / 3, (0.0, 0.0, 1.0), fill=0.8)
         gbuffer, position, normal, atom = gbuffer_arrays(grid, view, proj, 96, 72)
         ao = AmbientOcclusion(grid)
         valid = atom != -1

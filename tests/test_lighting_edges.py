@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sasprobe.render.camera import fit_camera
+from sasprobe.render.camera import fit_bounding_sphere
 from sasprobe.render.lighting.edges import EdgeCueingPass
 from sasprobe.render.lighting.settings import EdgeCueing
 from sasprobe.render.gl.textures import read_texture
@@ -42,7 +42,7 @@ def test_lines_trace_depth_jumps_and_halos_fall_behind(gl):
     centers = np.array([[0.0, 0.0, 0.0], [2.0, 1.0, 9.0]])
     radii = np.array([6.0, 2.0])
     grid = sphere_grid(gl, centers, radii)
-    view, proj = fit_camera(centers, radii, 4 / 3, (0.0, 0.0, 1.0), fill=0.8)
+    view, proj = fit_bounding_sphere(centers, radii, 4 / 3, (0.0, 0.0, 1.0), fill=0.8)
     gbuffer, position, normal, atom = gbuffer_arrays(grid, view, proj, 128, 96)
     edges = EdgeCueingPass(gl)
     lines = read_texture(edges.compute(gbuffer, view, proj, EdgeCueing()))

@@ -9,7 +9,7 @@ import zmq
 from zmq.utils.monitor import recv_monitor_message
 
 from sasprobe.daemon.publisher import Publisher
-from sasprobe.daemon.service import check_bind_security
+from sasprobe.daemon.config import check_bind_security
 from sasprobe.errors import UserError
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.endpoints import EndpointError, parse_endpoint

@@ -42,13 +42,16 @@ def test_png_and_gbuffer_file_format(tmp_path):
     expected = {"atom_id": (np.int32, (150, 200)), "kind": (np.uint8, (150, 200)),
                 "position": (np.float32, (150, 200, 3)), "normal": (np.float32, (150, 200, 3)),
                 "view": (np.float64, (4, 4)), "proj": (np.float64, (4, 4)), "viewport": (np.int32, (2,)),
-                "nav_cube": (np.float64, (4,)), "clip_planes": (np.float64, (2, 4))}
+                "nav_cube": (np.float64, (4,)), "nav_cube_axes": (np.float64, (3, 3)), "probe": (np.float64, (4,)),
+                "clip_planes": (np.float64, (2, 4))}
     lighting = {"shadow_dir", "shadow_probe", "ao", "light_direction", "probe_light"}  # tests/test_lighting_render.py
     assert set(expected) <= set(g.files) and set(g.files) - set(expected) <= lighting
     for key, (dtype, shape) in expected.items():
         assert g[key].dtype == dtype and g[key].shape == shape, key
     assert tuple(g["viewport"]) == (200, 150)
     np.testing.assert_allclose(g["nav_cube"], [9, 11, 7, 6])
+    np.testing.assert_array_equal(g["nav_cube_axes"], np.eye(3))  # standalone: the cube is not turned
+    np.testing.assert_allclose(g["probe"], [8, 12, 6, 1.4])
     np.testing.assert_allclose(g["clip_planes"][0], [0, 0, 1, -3])  # the user's, then the probe plane
     probe_plane = g["clip_planes"][1]
     assert abs(probe_plane[:3] @ [8, 12, 6] + probe_plane[3]) < 1e-9

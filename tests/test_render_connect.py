@@ -19,6 +19,7 @@ import zmq
 from sasprobe.protocol.client import ControlClient, Subscriber
 from sasprobe.protocol.pose import Pose, encode_pose
 from sasprobe.protocol.scene import encode_scene
+from sasprobe.protocol.security import ensure_local_keys, load_server_keys, make_curve_server
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.lighting.settings import AOSettings
@@ -115,6 +116,7 @@ def test_malformed_messages_are_dropped_and_counted(daemon, crambin):
     endpoint = free_tcp_endpoint()
     sock = zmq.Context.instance().socket(zmq.PUB)
     sock.linger = 0
+    make_curve_server(sock, load_server_keys(ensure_local_keys()))  # as a daemon on loopback TCP does
     sock.bind(endpoint)
     link = DaemonLink(endpoint, free_tcp_endpoint())
     try:
@@ -184,3 +186,43 @@ def test_the_grid_follows_the_daemons_probe_radius(gl):
         assert lighting.grid.max_shell == pytest.approx(radius)
     finally:
         renderer.release()
+
+
+def test_renderers_follow_the_daemons_colour_scheme(daemon, crambin):
+    """`set color_scheme` reaches every renderer through the scene; a renderer's own choice
+    stands while the daemon says null, and a bad name is refused."""
+    from sasprobe.protocol.control import ProtocolError, validate_set_args
+
+    pub, ctl = daemon
+    link = DaemonLink(pub, ctl)
+    scene = SceneState(crambin, effects=Effects(color_scheme="residue"))  # this renderer's --color
+    try:
+        with ControlClient(ctl) as client:
+            def settled(expected) -> dict:
+                deadline = time.monotonic() + 20
+                while time.monotonic() < deadline:
+                    link.poll()
+                    state = link.subscriber.scene
+                    if state is not None and state.get("color_scheme") == expected:
+                        return state
+                    time.sleep(0.02)
+                raise AssertionError(f"the scene never said color_scheme={expected}")
+
+            settled(None)
+            link.apply(scene)
+            assert scene.color_scheme() == "residue"  # null: the renderer keeps its own
+            client.set(color_scheme="polymer")
+            settled("polymer")
+            link.apply(scene)
+            assert scene.color_scheme() == "polymer"
+            scene.effects.color_scheme = "sas"  # the window's C key still works ...
+            link.apply(scene)
+            assert scene.color_scheme() == "sas"  # ... until the daemon changes it again
+            with pytest.raises(ProtocolError, match="color_scheme must be one of"):
+                validate_set_args({"color_scheme": "rainbow"})
+            client.set(color_scheme=None)
+            settled(None)
+            link.apply(scene)
+            assert scene.color_scheme() == "sas"
+    finally:
+        link.close()

@@ -40,6 +40,7 @@ def scene_with_probe(s):
 
 def render(gl, scene, camera, extra_pass=None):
     renderer = Renderer(gl, scene, SIZE)
+    renderer.passes.remove(renderer.pass_named("probe_cues"))  # drawn over the lit image: not the shading's
     if extra_pass is not None:
         renderer.insert_before("shading", extra_pass)
     try:
@@ -70,7 +71,7 @@ def reference_light(g, albedo, scene, camera, s, vis):
         touched = (g["atom_id"] == scene.probe.touched_atom) & (g["kind"] != 3)
         albedo = albedo.copy()
         albedo[touched] = 0.4 * albedo[touched] + 0.6 * np.array(s.highlight)
-    color = s.ambient * vis[..., 2:3] * albedo
+    color = s.ambient * vis[..., 2:3] ** s.ao_power * albedo
     if fx.directional_light:
         color += vis[..., 0:1] * s.directional_intensity * phong(albedo, n, v, -scene.light_direction, s)
     if fx.probe_light and scene.probe is not None:

@@ -4,8 +4,6 @@ own screenshot (--out) matches what the X server shows."""
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import os
 import signal
 import subprocess
@@ -15,39 +13,10 @@ import time
 import imageio.v3 as iio
 import numpy as np
 
-from tests.conftest import REPO_ROOT, X_SCREEN as SCREEN, run_window_check
+from tests.conftest import REPO_ROOT, run_window_check
+from tests.window_support import x_screenshot
 WINDOW = (320, 240)
 BACKGROUND = np.array([20, 23, 28])  # ShadingSettings.background * 255
-
-
-class _XImage(ctypes.Structure):
-    _fields_ = [("width", ctypes.c_int), ("height", ctypes.c_int), ("xoffset", ctypes.c_int),
-                ("format", ctypes.c_int), ("data", ctypes.c_void_p), ("byte_order", ctypes.c_int),
-                ("bitmap_unit", ctypes.c_int), ("bitmap_bit_order", ctypes.c_int), ("bitmap_pad", ctypes.c_int),
-                ("depth", ctypes.c_int), ("bytes_per_line", ctypes.c_int), ("bits_per_pixel", ctypes.c_int)]
-
-
-def x_screenshot(display: str) -> np.ndarray:
-    """The root window's pixels through Xlib's XGetImage (H, W, 3 uint8)."""
-    lib = ctypes.CDLL(ctypes.util.find_library("X11") or "libX11.so.6")
-    lib.XOpenDisplay.restype = ctypes.c_void_p
-    lib.XOpenDisplay.argtypes = [ctypes.c_char_p]
-    lib.XDefaultRootWindow.restype = ctypes.c_ulong
-    lib.XDefaultRootWindow.argtypes = [ctypes.c_void_p]
-    lib.XGetImage.restype = ctypes.POINTER(_XImage)
-    lib.XGetImage.argtypes = [ctypes.c_void_p, ctypes.c_ulong, ctypes.c_int, ctypes.c_int, ctypes.c_uint,
-                              ctypes.c_uint, ctypes.c_ulong, ctypes.c_int]
-    lib.XCloseDisplay.argtypes = [ctypes.c_void_p]
-    dpy = lib.XOpenDisplay(display.encode())
-    assert dpy, f"cannot open X display {display}"
-    try:
-        img = lib.XGetImage(dpy, lib.XDefaultRootWindow(dpy), 0, 0, SCREEN[0], SCREEN[1], 0xFFFFFFFF, 2).contents
-        assert img.bits_per_pixel == 32, img.bits_per_pixel
-        raw = ctypes.string_at(img.data, img.bytes_per_line * img.height)
-        pixels = np.frombuffer(raw, dtype=np.uint8).reshape(img.height, img.bytes_per_line // 4, 4)
-        return pixels[:, : img.width, 2::-1].copy()  # BGRX -> RGB
-    finally:
-        lib.XCloseDisplay(dpy)
 
 
 def _start_window(display: str, *args: str) -> subprocess.Popen:
@@ -167,3 +136,11 @@ def test_every_render_key_and_the_mouse_change_the_picture(xvfb):
     they restore it exactly; M swaps quads for sprites, H shows the help, a drag turns,
     the wheel zooms, R resets the camera, Q closes (tests/render_window_keys_check.py)."""
     run_window_check(xvfb, "tests.render_window_keys_check")
+
+
+def test_click_names_the_atom_and_capture_keys_write_what_the_window_shows(xvfb):
+    """A click names the atom a numpy ray cast finds under the cursor (with its SAS area),
+    Ctrl+S writes a PNG equal to the X server's copy of the window, Ctrl+R a video, the
+    wheel zooms about the cursor's point, C and I recolour and relight, Z centres on the
+    probe (tests/render_window_pick_check.py)."""
+    run_window_check(xvfb, "tests.render_window_pick_check")

@@ -37,7 +37,8 @@ from sasprobe.daemon.haptics.penalty import penalty_contact
 from sasprobe.daemon.haptics.proxy import ProxySolver
 from sasprobe.daemon.haptics.settings import HapticSettings
 from sasprobe.devices.base import DeviceLimits, DeviceState
-from sasprobe.devices.workspace import WorkspaceMapping
+from sasprobe.devices.surface import Surface
+from sasprobe.devices.workspace import WorkspaceMapping, initial_half
 from sasprobe.molecule.grid import UniformGrid
 from sasprobe.molecule.structure import Structure
 
@@ -72,6 +73,7 @@ class HapticOutput:
     cube_half_A: float
     seated: bool = True  # False while the proxy waits for the goal to reach free space
     iterations: int = 0  # proxy path steps this tick
+    clutched: bool = False  # the clutch is held: the probe stays, the cube follows the hand, no force
 
 
 class HapticEngine:
@@ -85,6 +87,8 @@ class HapticEngine:
         self._last_tip: tuple[float, float, float] | None = None
         self._last_goal = (0.0, 0.0, 0.0)
         self._last_proxy = (0.0, 0.0, 0.0)
+        self._last_touched: tuple[int, ...] = ()
+        self._clutched = False
         self._build_geometry()
         self._mapping = self._initial_mapping()
 
@@ -135,16 +139,39 @@ class HapticEngine:
         if new.method != old.method:
             self._solver.unseat()
         if new.cube_center_A != old.cube_center_A:
-            self._mapping = self._initial_mapping()
+            rotation, self._mapping = self._mapping.rotation, self._initial_mapping()
+            self._mapping.turn(rotation)
         elif new.cube_half_A != old.cube_half_A:
-            half = new.cube_half_A if new.cube_half_A is not None else self._initial_mapping().cube_half_A
+            half = initial_half(self._structure, self._limits, new.cube_half_A, new.probe_radius_A)
             self._mapping.rescale(half, self._last_tip)
 
+    def set_view(self, rotation) -> None:
+        """Turn the workspace with the view (devices.workspace.validate_rotation's 9 floats),
+        about the goal: the probe stays where it is and the molecule turns around it."""
+        self._mapping.turn(rotation, self._last_tip)
+
+    def set_clutch(self, held: bool) -> None:
+        """Hold (True) or release the clutch: while held the goal stays where it was, the cube
+        follows the hand and no force is rendered, so the arm can be re-centred without moving
+        the probe."""
+        self._clutched = bool(held)
+
+    @property
+    def clutched(self) -> bool:
+        return self._clutched
+
+    def recentre(self) -> None:
+        """Centre the cube on the probe. The hand then maps elsewhere, so the proxy is unseated
+        (no force until the probe is in free space, as after a reconnect)."""
+        self._mapping.recentre(self._last_proxy)
+        self._solver.unseat()
+
     def set_structure(self, structure: Structure) -> None:
-        """Switch molecule: new grid, refitted navigation cube, unseated proxy."""
+        """Switch molecule: new grid, a new navigation cube (the view's turn kept), unseated proxy."""
         self._structure = structure
         self._build_geometry()
-        self._mapping = self._initial_mapping()
+        rotation, self._mapping = self._mapping.rotation, self._initial_mapping()
+        self._mapping.turn(rotation)
         self._last_t_ns = None
 
     def _build_geometry(self) -> None:
@@ -156,7 +183,7 @@ class HapticEngine:
     def _initial_mapping(self) -> WorkspaceMapping:
         s = self._settings
         return WorkspaceMapping.initial(
-            self._structure, self._limits, s.cube_half_A, s.probe_radius_A, s.cube_center_A
+            self._structure, self._limits, s.cube_half_A, s.probe_radius_A, s.cube_center_A, Surface(self._grid)
         )
 
     # -------------------------------------------------------------------- tick
@@ -180,10 +207,14 @@ class HapticEngine:
         tip = (tx, ty, tz)
         self._last_tip = tip
         mapping = self._mapping
+        solver = self._solver
+        if self._clutched:  # the probe stays; the cube follows the hand
+            mapping.hold(self._last_goal, tip)
+            return self._output(ZERO, self._last_proxy, self._last_goal, self._last_touched, False,
+                                seated=solver.seated, clutched=True)
         drifting = mapping.advance(tx, ty, tz, dt)
         goal = mapping.to_molecule(tx, ty, tz)
         previous_goal, self._last_goal = self._last_goal, goal
-        solver = self._solver
         if not state.calibrated:
             solver.unseat()
             return self._output(ZERO, goal, goal, (), drifting, seated=False)
@@ -216,8 +247,10 @@ class HapticEngine:
                 return self._fault()
         return self._output(force, proxy, goal, touched, drifting, iterations=solver.iterations)
 
-    def _output(self, force, proxy, goal, touched, drifting, seated=True, iterations=0) -> HapticOutput:
+    def _output(self, force, proxy, goal, touched, drifting, seated=True, iterations=0,
+                clutched=False) -> HapticOutput:
         self._last_proxy = proxy
+        self._last_touched = touched
         m = self._mapping
         c = m.cube_center
         # one array, four views: a numpy call costs more than these twelve floats
@@ -235,6 +268,7 @@ class HapticEngine:
             cube_half_A=m.cube_half_A,
             seated=seated,
             iterations=iterations if self._settings.method == "proxy" else 0,
+            clutched=clutched,
         )
 
     def _fault(self) -> HapticOutput:

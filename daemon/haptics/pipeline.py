@@ -14,8 +14,10 @@ import numpy as np
 
 from sasprobe.daemon.haptics.safety import GuardResult, SafetyGuard, state_is_finite
 from sasprobe.devices.base import DeviceState
+from sasprobe.devices.workspace import IDENTITY
 from sasprobe.protocol.pose import (
     FLAG_CLAMPED,
+    FLAG_CLUTCHED,
     FLAG_CONTACT,
     FLAG_DRIFTING,
     FLAG_FAULT,
@@ -47,11 +49,42 @@ class HapticPipeline:
         self.guard = guard
         self.last_output = None  # newest engine output (poses keep showing it during faults)
         self.engine_errors = 0
+        self.view_rotation = IDENTITY  # the workspace view's turn, kept across engines
+        self.clutched = False
 
     def replace_engine(self, engine) -> None:
-        """Swap in an engine built elsewhere (new structure or settings); forces ramp in again."""
+        """Swap in an engine built elsewhere (new structure or settings); forces ramp in again.
+        The view's turn and the clutch carry over to it."""
         self.engine = engine
+        self._carry_workspace()
         self.last_output = None
+        self.guard.restart_ramp()
+
+    def _carry_workspace(self) -> None:
+        if self.view_rotation != IDENTITY:
+            self.engine.set_view(self.view_rotation)
+        self.engine.set_clutch(self.clutched)
+
+    # ------------------------------------------------------------ the workspace (view, clutch, recentre)
+    def set_view(self, rotation) -> None:
+        """The view turned: the workspace turns with it (validate_rotation's 9 floats)."""
+        self.view_rotation = tuple(rotation)
+        self.engine.set_view(self.view_rotation)
+
+    def set_clutch(self, held: bool) -> None:
+        """Clutch held or released; on release forces ramp in again (the hand may have moved
+        while nothing pushed back)."""
+        held = bool(held)
+        if held == self.clutched:
+            return
+        self.clutched = held
+        self.engine.set_clutch(held)
+        if not held:
+            self.guard.restart_ramp()
+
+    def recentre(self) -> None:
+        """The cube centred on the probe; the proxy is unseated and forces ramp in again."""
+        self.engine.recentre()
         self.guard.restart_ramp()
 
     def reconnected(self) -> None:
@@ -64,6 +97,7 @@ class HapticPipeline:
     def restart(self, engine) -> None:
         """A fresh engine and guard: all haptic state re-anchored (a recording starts here)."""
         self.engine = engine
+        self._carry_workspace()
         self.guard = SafetyGuard(self.guard.limits, self.guard.ramp_ns / 1e9, self.guard.late_limit_periods)
         self.last_output = None
 
@@ -98,6 +132,7 @@ class HapticPipeline:
         if output is not None:
             flags |= (FLAG_CONTACT if output.contact else 0) | (FLAG_DRIFTING if output.drifting else 0)
             flags |= FLAG_CLAMPED if output.clamped else 0
+            flags |= FLAG_CLUTCHED if output.clutched else 0
         return TickResult(guard.force_n, flags, guard, output)
 
     def pose(self, seq: int, state: DeviceState | None, result: TickResult, publish_t_ns: int) -> Pose:

@@ -30,7 +30,7 @@ class HapticSettings:
     # 100 Hz up on the simulated arm (see the stability map in the README).
     stiffness_n_per_mm: float = 0.3
     damping_n_s_per_m: float = 0.2
-    cube_half_A: float | None = None  # navigation-cube half edge; None = fit the molecule
+    cube_half_A: float | str | None = None  # navigation-cube half edge (Å); None: the default size; "fit": the molecule
     cube_center_A: tuple[float, float, float] | None = None  # None = centre of the molecule
 
     def validated(self, limits: DeviceLimits) -> "HapticSettings":

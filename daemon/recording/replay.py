@@ -16,6 +16,8 @@ recorded control command.
 
 from __future__ import annotations
 
+import os
+
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,6 +27,8 @@ from sasprobe.daemon.haptics import HapticPipeline, build_engine, validate_setti
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState, HapticDevice
 from sasprobe.devices.registry import DeviceScheme
+from sasprobe.devices.workspace import validate_rotation
+from sasprobe.files import open_regular
 from sasprobe.protocol.recording import RecordingError, iter_items, scan
 
 
@@ -52,6 +56,8 @@ class ReplaySession:
     errors: dict  # tick index -> read error
     force_n: np.ndarray  # (N, 3) the recorded (published) force
     flags: np.ndarray  # (N,)
+    proxy_A: np.ndarray  # (N, 3) the recorded probe centre
+    touched_atom: np.ndarray  # (N,) the recorded touched atom, -1 for none
     events: list = field(default_factory=list)  # control records after `start`, in order
 
     @property
@@ -169,6 +175,8 @@ def load_session(path: str | Path) -> ReplaySession:
         errors=errors,
         force_n=np.array([_vector(poses[s]["force_N"], 3) for s in seqs]),
         flags=np.array([poses[s]["flags"] for s in seqs], dtype=np.int64),
+        proxy_A=np.array([_vector(poses[s]["proxy_A"], 3) for s in seqs]),
+        touched_atom=np.array([poses[s]["touched_atom"] for s in seqs], dtype=np.int64),
         events=events,
     )
 
@@ -243,17 +251,22 @@ class ReplayDevice(HapticDevice):
 def open_replay(argument: str | None, speed: float | None = 1.0, **options) -> ReplayDevice:
     if not argument:
         raise DeviceOpenError("replay needs a file: --device replay:FILE")
-    if not Path(argument).is_file():
+    if not os.path.lexists(argument):
         raise DeviceOpenError(f"replay file {argument}: no such file")
+    open_regular(argument, "recording", DeviceOpenError).close()  # a FIFO or a device: one line, no hang
     return ReplayDevice(argument, speed=speed)
 
 
 REPLAY_SCHEME = DeviceScheme(f"{__name__}:open_replay", "a recorded session (--speed X|max)", "replay:session.mcap")
 
 
+REPLAYED_COMMANDS = ("set", "load", "reconnect", "view", "clutch", "recentre", "mark")  # what a replay repeats
+
+
 def apply_recorded_event(event: dict, pipeline: HapticPipeline, structure, settings: dict, limits: DeviceLimits,
                          structure_for_sha) -> tuple[object, dict]:
-    """Apply a recorded `set`/`load`/`reconnect` as the live daemon did; return (structure, settings).
+    """Apply a recorded `set`/`load`/`reconnect`/`view`/`clutch`/`recentre` as the live daemon
+    did; return (structure, settings).
 
     Live, the control thread builds new engines and the loop swaps them in; a replay
     (live or `--verify`) does the same steps in line, so the forces come out identical.
@@ -272,4 +285,10 @@ def apply_recorded_event(event: dict, pipeline: HapticPipeline, structure, setti
         pipeline.replace_engine(build_engine(structure, limits, settings))
     elif cmd == "reconnect":
         pipeline.reconnected()
+    elif cmd == "view":
+        pipeline.set_view(validate_rotation(args["rotation"]))
+    elif cmd == "clutch":
+        pipeline.set_clutch(bool(args["held"]))
+    elif cmd == "recentre":
+        pipeline.recentre()
     return structure, settings

@@ -20,6 +20,7 @@ from __future__ import annotations
 import collections
 import json
 import logging
+import os
 import threading
 import time
 from dataclasses import dataclass
@@ -78,12 +79,13 @@ class Recorder:
         from mcap.writer import CompressionType, Writer
 
         self.path = Path(path)
-        if self.path.exists():
-            raise UserError(f"{self.path}: already exists; record to a new file")
-        try:
-            self._file = open(self.path, "xb")
+        try:  # a new file, 0600 whatever the umask, never through a symlink
+            fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
+        except FileExistsError:
+            raise UserError(f"{self.path}: already exists; record to a new file") from None
         except OSError as exc:
             raise UserError(f"{self.path}: cannot create ({exc.strerror or exc})") from None
+        self._file = os.fdopen(fd, "wb")
         self._writer = Writer(self._file, compression=CompressionType.ZSTD)
         self._writer.start(profile=PROFILE, library=f"sasprobe {__version__}")
         self._channels = {}

@@ -6,20 +6,12 @@ per atom) as a storage buffer too.
 
 from __future__ import annotations
 
-import colorsys
-
 import numpy as np
 
 from sasprobe.molecule import Structure
 
 SPHERE_FORMAT = "4f 4f"  # centre xyz + radius, colour rgb + unused
 BACKBONE_FORMAT = "3f 3f 1i"  # position, chain colour, trace atom id
-
-
-def chain_palette(n: int) -> np.ndarray:
-    """n distinct, saturated colours (golden-angle hues), float32 rgb."""
-    hues = (np.arange(n) * 0.61803398875) % 1.0
-    return np.array([colorsys.hsv_to_rgb(h, 0.65, 0.95) for h in hues], dtype=np.float32).reshape(n, 3)
 
 
 def sphere_records(structure: Structure) -> np.ndarray:
@@ -32,23 +24,20 @@ def sphere_records(structure: Structure) -> np.ndarray:
     return rec
 
 
-def backbone_vertices(structure: Structure) -> np.ndarray:
-    """Line-list vertices of the trace (two per segment), in BACKBONE_FORMAT as a record array."""
-    chains = sorted(set(structure.backbone_chains))
-    palette = chain_palette(max(len(chains), 1))
-    colour_of = {c: palette[i] for i, c in enumerate(chains)}
-    starts, ends, colours = [], [], []
-    for seg, chain in zip(structure.backbone, structure.backbone_chains):
+def backbone_vertices(structure: Structure, chain_colors: np.ndarray) -> np.ndarray:
+    """Line-list vertices of the trace (two per segment), in BACKBONE_FORMAT as a record array;
+    each segment in its chain's colour (`chain_colors`: per atom, render/colors.py)."""
+    starts, ends = [], []
+    for seg in structure.backbone:
         if len(seg) < 2:
             continue
         starts.append(seg[:-1])
         ends.append(seg[1:])
-        colours.append(np.repeat(colour_of[chain][None, :], len(seg) - 1, axis=0))
     dtype = np.dtype([("position", "<f4", 3), ("color", "<f4", 3), ("atom", "<i4")])
     if not starts:
         return np.zeros(0, dtype=dtype)
     a, b = np.concatenate(starts), np.concatenate(ends)
-    col = np.concatenate(colours)
+    col = np.asarray(chain_colors, dtype=np.float32)[a]
     out = np.zeros(2 * a.size, dtype=dtype)
     out["position"][0::2] = structure.positions[a]
     out["position"][1::2] = structure.positions[b]
@@ -60,7 +49,7 @@ def backbone_vertices(structure: Structure) -> np.ndarray:
 
 
 class MoleculeBuffers:
-    def __init__(self, ctx, structure: Structure):
+    def __init__(self, ctx, structure: Structure, chain_colors: np.ndarray):
         self.ctx = ctx
         self.n_atoms = structure.n_atoms
         self.records = sphere_records(structure)
@@ -68,10 +57,22 @@ class MoleculeBuffers:
         self.selection = ctx.buffer(reserve=max(self.n_atoms, 1) * 4)
         self.n_selected = 0
         self._last_selection: np.ndarray | None = None
-        trace = backbone_vertices(structure)
+        trace = backbone_vertices(structure, chain_colors)
         self.backbone = ctx.buffer(trace.tobytes() if trace.size else b"\x00" * 28)
         self.n_backbone_vertices = int(trace.size)
         self.probe = ctx.buffer(reserve=32)
+        self.color_version = 0  # +1 whenever set_colors rewrites the atoms' colours
+
+    @property
+    def colors(self) -> np.ndarray:
+        """The atoms' colours as drawn, (N, 3) float32."""
+        return self.records[:, 4:7]
+
+    def set_colors(self, colors: np.ndarray) -> None:
+        """New per-atom colours (a colour scheme), written into the sphere buffer."""
+        self.records[:, 4:7] = colors
+        self.spheres.write(self.records.tobytes())
+        self.color_version += 1
 
     def set_selection(self, ids: np.ndarray) -> None:
         """Write the ids of the atoms drawn as spheres (skipped when unchanged)."""

@@ -19,6 +19,8 @@ passes import them.
 
 from __future__ import annotations
 
+import numpy as np
+
 from sasprobe.render.gl.textures import read_texture
 
 ATOM_BACKGROUND = -1  # atom id of background pixels
@@ -56,6 +58,18 @@ class RenderTargets:
     def clear_visibility(self) -> None:
         self.visibility_fbo.use()
         self.visibility_fbo.clear(1.0, 1.0, 1.0, 1.0)
+
+    def read_pixel(self, x: int, y: int) -> tuple[int, int, np.ndarray]:
+        """(atom id, kind, world position) of the G-buffer at pixel (x, y), y from the top:
+        what a click on the image shows (clicks and zooms read one texel, not the buffer)."""
+        w, h = self.size
+        x, y = min(max(int(x), 0), w - 1), min(max(int(y), 0), h - 1)
+        viewport = (x, h - 1 - y, 1, 1)
+        ids = np.frombuffer(self.gbuffer_fbo.read(viewport=viewport, components=2, attachment=3, dtype="i4"),
+                            dtype=np.int32)
+        position = np.frombuffer(self.gbuffer_fbo.read(viewport=viewport, components=3, attachment=1, dtype="f4"),
+                                 dtype=np.float32)
+        return int(ids[0]), int(ids[1]), position.astype(np.float64)
 
     def read(self, texture) -> np.ndarray:
         """One of these textures as H x W (x components), row 0 = top of the image."""

@@ -36,6 +36,11 @@ class PathTracer(ProgressivePass):
     def for_structure(cls, gpu_grid, structure) -> "PathTracer":
         return cls(gpu_grid, atom_materials(structure.elements, structure.colors))
 
+    def set_colors(self, elements: np.ndarray, colors: np.ndarray) -> None:
+        """The atoms' albedos from new colours (a colour scheme); accumulation starts over."""
+        self.materials.write(np.ascontiguousarray(atom_materials(elements, colors), dtype=np.float32).tobytes())
+        self.reset()
+
     def accumulate(self, gbuffer: GBuffer, eye, sun: DirectionalLight | None, probe_light: PointLight | None,
                    settings: PathTracing = PathTracing()):
         self.materials.bind_to_storage_buffer(BINDING_MATERIALS)

@@ -58,6 +58,7 @@ class ShadingSettings:
     specular: float = 0.25
     background: tuple[float, float, float] = (0.08, 0.09, 0.11)
     highlight: tuple[float, float, float] = (0.1, 1.0, 0.5)  # mint: no CPK element looks like it
+    ao_power: float = 1.0  # the ambient term takes accessibility ** ao_power (> 1: stronger occlusion)
 
 
 @dataclass(frozen=True)

@@ -1,8 +1,12 @@
 """G-buffer pass of the backbone trace: C-alpha (P) segments per chain, chain-coloured,
 shaded as thin tubes, outside the navigation cube only (inside it the spheres show
-the atoms). Drawn when a navigation cube is in effect, or always with `show_always`."""
+the atoms), and nowhere over the cube's projection, so context never hides the work
+(the cube is a window: only what is in it shows through it). Drawn when a navigation
+cube is in effect, or always with `show_always`."""
 
 from __future__ import annotations
+
+import numpy as np
 
 from sasprobe.render.gl.buffers import BACKBONE_FORMAT
 from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
@@ -37,11 +41,8 @@ class BackbonePass(Pass):
         apply_uniforms(self.prog, frame.raster_camera_uniforms())
         apply_uniforms(self.prog, line_width_uniforms(frame, TRACE_RADIUS, MIN_WIDTH_PX))
         apply_planes(self.prog, frame.planes)
-        cube = frame.cube
-        apply_uniforms(self.prog, {
-            "u_cube_enabled": int(cube is not None),
-            "u_cube": (*map(float, cube.center), float(cube.half)) if cube is not None else (0.0, 0.0, 0.0, 0.0),
-        })
+        apply_uniforms(self.prog, cube_uniforms(frame.cube))
+        apply_uniforms(self.prog, {"u_cube_enabled": int(frame.cube is not None), "u_cube_window": 1})
         frame.targets.gbuffer_fbo.use()
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<"
@@ -49,6 +50,14 @@ class BackbonePass(Pass):
 
     def release(self) -> None:
         self.vao.release()
+
+
+def cube_uniforms(cube) -> dict:
+    """The navigation cube as shaders take it: u_cube (centre, half edge) and u_cube_axes."""
+    if cube is None:
+        return {"u_cube": (0.0, 0.0, 0.0, 0.0), "u_cube_axes": np.eye(3, dtype=np.float32).tobytes()}
+    return {"u_cube": (*map(float, cube.center), float(cube.half)),
+            "u_cube_axes": np.ascontiguousarray(cube.axes.T, dtype=np.float32).tobytes()}  # column-major
 
 
 def line_width_uniforms(frame: Frame, radius: float, min_width_px: float) -> dict:

@@ -30,6 +30,7 @@ class Frame:
     planes: np.ndarray  # N x 4: user planes (+ probe plane) in effect
     cube: NavCube | None  # the navigation cube in effect
     output_fbo: object  # where the final image goes
+    light_direction: np.ndarray  # where the directional light travels (molecule frame), for this camera
     index: int = 0  # frame number
     cache: object = None  # the renderer's MoleculeCache (render/frame_cache.py), None when it redraws all
     cached: bool = False  # the molecule layer of the last frame holds: its passes do not run

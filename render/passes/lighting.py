@@ -90,6 +90,7 @@ class LightingPass(LayeredLighting, Pass):
         self._culling_key: bytes | None = None
         self._probe_key: bytes | None = None
         self._still_key: bytes | None = None
+        self._color_version: int | None = None  # the buffers' colours the path tracer has
         self.textures = TextureCache(ctx)
         self.layers: dict[str, object] = {}  # textures of the last frame's terms (for the G-buffer export)
         self.lights: tuple[DirectionalLight | None, PointLight | None] = (None, None)
@@ -125,15 +126,19 @@ class LightingPass(LayeredLighting, Pass):
             self.ao = AmbientOcclusion(self.grid, self.settings.ao)
             self.tracer = PathTracer.for_structure(self.grid, scene.structure)
             self.compose = ComputePass(self.ctx, "visibility_compose.comp", self.grid)
-            self._culling_key = self._probe_key = None
+            self._culling_key = self._probe_key = self._color_version = None
+        if frame.buffers.color_version != self._color_version:  # a colour scheme: the path tracer's albedos
+            if frame.buffers.color_version:
+                self.tracer.set_colors(scene.structure.elements, frame.buffers.colors)
+            self._color_version = frame.buffers.color_version
         cube = frame.cube
-        culling_key = frame.planes.tobytes() + (b"" if cube is None else np.array([*cube.center, cube.half]).tobytes())
+        culling_key = frame.planes.tobytes() + (b"" if cube is None else cube.key())
         if culling_key != self._culling_key:
-            self.grid.set_culling(Culling(frame.planes, None if cube is None else (cube.center, cube.half)))
+            self.grid.set_culling(cube_culling(frame.planes, cube))
             self._culling_key = culling_key
         s = self.shading
-        sun = DirectionalLight(tuple(-scene.light_direction), np.pi * s.directional_intensity) \
-            if fx.directional_light else None
+        sun = DirectionalLight(tuple(-frame.light_direction), np.pi * s.directional_intensity) \
+            if fx.directional_light and s.directional_intensity > 0 else None
         lamp = PointLight(tuple(scene.probe.center), s.probe_range, np.pi * s.probe_intensity,
                           tuple(s.probe_attenuation)) if (fx.probe_light and scene.probe is not None) else None
         self.lights = (sun, lamp)
@@ -284,6 +289,16 @@ class MoleculeLightingPass(Pass):
         self.lighting.run_molecule(frame)
 
 
+def cube_culling(planes: np.ndarray, cube) -> Culling:
+    """The lighting's culling for the frame's planes and cube: an axis-aligned cube as the
+    grid's box (its walk range shrinks to the cube), a turned one as its six face planes."""
+    if cube is None:
+        return Culling(planes, None)
+    if cube.axis_aligned:
+        return Culling(planes, (cube.center, cube.half))
+    return Culling(np.concatenate([planes.reshape(-1, 4), cube.planes()]), None)
+
+
 def install_lighting(renderer, settings: LightingSettings, required: bool = True) -> LightingPass | None:
     """Slot the lighting into a renderer's chain (layered when the renderer keeps the
     molecule layer). Without OpenGL 4.3: GLUnavailable when `required`, else a warning and
@@ -324,3 +339,21 @@ def lighting_status(renderer) -> str:
     if fx.path_tracing and lighting.tracer is not None:
         parts.append(f"path tracing {lighting.tracer.samples} spp")
     return "lighting: " + (", ".join(parts) if parts else "off")
+
+
+def apply_preset(renderer, preset, background=None) -> None:
+    """Switch a running renderer to a lighting preset (render/lighting/presets.py): its light
+    intensities and background (`background` overrides it) and which effects are on."""
+    shading = renderer.pass_named("shading").settings
+    for key, value in vars(preset.shading(shading)).items():  # in place: the lighting pass shares it
+        setattr(shading, key, value)
+    if background is not None:
+        shading.background = tuple(background)
+    lighting = lighting_of(renderer)
+    if lighting is None:
+        return
+    lighting.settings = replace(preset.lighting, samples=lighting.settings.samples)
+    if preset.lighting.ao.mode != "off":
+        lighting.ao_mode = preset.lighting.ao.mode
+    for key, value in preset.lighting.effects().items():
+        setattr(renderer.scene.effects, key, value)

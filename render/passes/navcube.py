@@ -7,7 +7,7 @@ import itertools
 
 import numpy as np
 
-from sasprobe.render.passes.backbone import line_width_uniforms
+from sasprobe.render.passes.backbone import cube_uniforms, line_width_uniforms
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.passes.base import Frame, Pass
 
@@ -37,7 +37,8 @@ class NavCubePass(Pass):
         ctx, cube = frame.ctx, frame.scene.nav_cube
         apply_uniforms(self.prog, frame.raster_camera_uniforms())
         apply_uniforms(self.prog, line_width_uniforms(frame, 0.0, WIRE_WIDTH_PX))
-        apply_uniforms(self.prog, {"u_cube": (*map(float, cube.center), float(cube.half)), "u_wire_color": WIRE_COLOR})
+        apply_uniforms(self.prog, cube_uniforms(cube))
+        apply_uniforms(self.prog, {"u_wire_color": WIRE_COLOR})
         fbo = frame.targets.lit_fbo
         fbo.use()
         ctx.enable_only(ctx.DEPTH_TEST)

@@ -1,7 +1,8 @@
 #version 410 core
 // Navigation-cube wire: the unit cube's 12 edges, scaled and moved to the cube.
 in vec3 in_position;  // corners of [-1, 1]^3
-uniform vec4 u_cube;  // centre xyz, half edge (Å)
+uniform vec4 u_cube;       // centre xyz, half edge (Å)
+uniform mat3 u_cube_axes;  // the cube's axes (columns) in the world frame
 
 out LineVertex {
     vec3 position;
@@ -10,7 +11,7 @@ out LineVertex {
 } vs_out;
 
 void main() {
-    vs_out.position = u_cube.xyz + in_position * u_cube.w;
+    vs_out.position = u_cube.xyz + u_cube_axes * in_position * u_cube.w;
     vs_out.color = vec3(0.0);
     vs_out.id = -1;
 }

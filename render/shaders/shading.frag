@@ -3,7 +3,7 @@
 // (attenuated with distance), CPK albedo, the touched atom highlighted, the probe glowing.
 // Every light term is multiplied by its own visibility factor, read from u_visibility:
 //   r: directional-light visibility (shadow), g: probe-light visibility (shadow),
-//   b: ambient accessibility (ambient occlusion); and the whole colour, background
+//   b: ambient accessibility (ambient occlusion, raised to u_ao_power); and the whole colour, background
 //   included, by a: edge cueing (contour lines, halos).
 // The targets clear it to 1.0; lighting passes that run before this one fill it.
 // The probe light reaches u_probe_range Å: its attenuation is windowed to 0 there.
@@ -18,6 +18,7 @@ uniform sampler2D u_visibility;
 uniform vec3 u_eye;
 uniform vec3 u_background;
 uniform float u_ambient;
+uniform float u_ao_power;        // accessibility ** power: > 1 strengthens the occlusion
 uniform int u_dir_enabled;
 uniform vec3 u_light_dir;        // direction the light travels (unit, world)
 uniform float u_dir_intensity;
@@ -58,7 +59,7 @@ void main() {
     }
     if (u_touched_atom >= 0 && ids.x == u_touched_atom && ids.y != KIND_BACKBONE)
         albedo = mix(albedo, u_highlight, 0.6);
-    vec3 color = u_ambient * vis.b * albedo;
+    vec3 color = u_ambient * pow(vis.b, u_ao_power) * albedo;
     if (u_dir_enabled == 1)
         color += vis.r * u_dir_intensity * phong(albedo, n, v, -u_light_dir);
     if (u_probe_light_enabled == 1) {

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Callable
 
 # The order `sasprobe bench` runs them in; a name whose module is absent is skipped.
-ORDER = ["grid", "sas", "haptics", "daemon", "render", "lighting"]
+ORDER = ["startup", "grid", "sas", "haptics", "daemon", "render", "lighting"]
 
 
 @dataclass

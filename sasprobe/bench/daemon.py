@@ -6,7 +6,8 @@ warm-up the daemon's statistics are reset; for the measured window this process
 subscribes on both endpoints from one thread (timestamping each message as it is
 received) and at the end asks the daemon for its loop figures (`status`).
 Publish→receive latency compares the pose's publish_t_ns with the receive time on the
-same host's monotonic clock.
+same host's monotonic clock. Then one row per emulated device (`daemon_devices`), and
+the worst pose gap while a client loads 6ZU5 (`daemon_loading`).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sasprobe.bench import BenchContext, BenchResult
+from sasprobe.bench import BenchContext, BenchResult, daemon_devices
 from sasprobe.bench.charts import figure, save
 from sasprobe.children import DaemonChild
 from sasprobe.paths import shared_structures
@@ -34,7 +35,9 @@ TARGETS = "1000 Hz, p99 period error ≤ 200 µs, no overrun in 10 s with ~60k a
 
 def add_arguments(parser) -> None:
     parser.add_argument("--seconds", type=float, default=None, help="measured window per run (default 10, quick 3)")
-    parser.add_argument("--no-realtime", action="store_true", help="skip the --realtime (SCHED_FIFO) runs")
+    parser.add_argument("--no-realtime", action="store_true",
+                        help="skip the real-time (SCHED_FIFO, the default) runs: only --no-realtime daemons")
+    parser.add_argument("--no-devices", action="store_true", help="skip the rows on the emulated devices")
 
 
 def _free_port() -> int:
@@ -52,8 +55,8 @@ class _Daemon:
         args = ["--device", "sim", "--pub", self.tcp, "--pub", self.ipc, "--ctl", self.ctl]
         if molecule is not None:
             args += ["--molecule", str(molecule)]
-        if realtime:
-            args.append("--realtime")
+        if not realtime:
+            args.append("--no-realtime")
         self.child = DaemonChild(args, self.dir / "daemon.log")
         try:
             self.ready = self.child.wait_ready(READY_S)
@@ -72,13 +75,16 @@ def _measure(d: _Daemon, warmup_s: float, seconds: float, realtime_subscriber: b
     from sasprobe.daemon.loop import enter_realtime
     from sasprobe.protocol.client import ControlClient
     from sasprobe.protocol.pose import decode_pose
+    from sasprobe.protocol.security import local_client_keys, make_curve_client
 
     # The daemon is already running, so it does not inherit this; the context's I/O thread does.
     subscriber_rt = enter_realtime(priority=40) if realtime_subscriber else False
     context = zmq.Context()
     socks = {}
+    keys = local_client_keys()  # the publisher binds loopback TCP, so it uses CURVE (ipc:// on it too)
     for name, endpoint in (("tcp", d.tcp), ("ipc", d.ipc)):
         sock = context.socket(zmq.SUB)
+        make_curve_client(sock, keys)
         sock.rcvhwm = 1_000_000
         sock.setsockopt(zmq.SUBSCRIBE, b"pose")
         sock.connect(endpoint)
@@ -136,7 +142,7 @@ def _measure(d: _Daemon, warmup_s: float, seconds: float, realtime_subscriber: b
 
 def run(ctx: BenchContext, args=None) -> BenchResult:
     seconds = getattr(args, "seconds", None) or (3.0 if ctx.quick else 10.0)
-    # (daemon --realtime, subscriber in SCHED_FIFO): where the time goes on a busy machine
+    # (daemon real-time, subscriber in SCHED_FIFO): where the time goes on a busy machine
     modes = [(False, False)] if getattr(args, "no_realtime", False) else [(False, False), (True, False), (True, True)]
     by_id = {e.id: e for e in shared_structures()}
     structures = [("1crn (embedded)", None)]
@@ -175,7 +181,17 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     for r in runs:
         for name in ("tcp", "ipc"):
             r[name].pop("samples_us")
-    return BenchResult("daemon", {"targets": TARGETS, "runs": runs}, _markdown(runs, seconds), charts)
+    data, text = {"targets": TARGETS, "runs": runs}, _markdown(runs, seconds)
+    if not getattr(args, "no_devices", False):
+        data["devices"] = daemon_devices.measure(ctx.quick, seconds)
+        text += "\n\n" + daemon_devices.markdown(data["devices"])
+    if "6zu5" in by_id:  # the worst pose gap under a loading client
+        from sasprobe.bench.daemon_loading import loading_gap, markdown
+        from sasprobe.molecule import load_default
+
+        data["loading"] = loading_gap(by_id["6zu5"].path, load_default().source_bytes, seconds)
+        text += markdown(data["loading"], "6ZU5")
+    return BenchResult("daemon", data, text, charts)
 
 
 def _mode(r: dict) -> str:
@@ -211,8 +227,8 @@ def _markdown(runs: list[dict], seconds: float) -> str:
         "(the deadlines it skipped are the missed ticks); tick work is read + haptics + write + publish "
         "(last ~1000 ticks); loop CPU is the loop thread's CPU time over wall time; load avg is the machine's "
         f"1-minute load average at the end of the run ({os.cpu_count()} cores, shared with other work). "
-        "Scheduling: `normal` is the default; daemon `FIFO` is `--realtime` (SCHED_FIFO for its loop and ZeroMQ "
-        "I/O thread); subscriber `FIFO` puts the benchmark's receiving thread in SCHED_FIFO as well, which shows "
+        "Scheduling: daemon `FIFO` is its default (SCHED_FIFO for its loop; ZeroMQ's I/O thread stays at normal "
+        "priority), `normal` is `--no-realtime`; subscriber `FIFO` puts the benchmark's receiving thread in SCHED_FIFO as well, which shows "
         "how much of the latency is the receiver waiting for a core. "
         f"Targets: {TARGETS}.\n\n" + "\n".join(lines)
     )

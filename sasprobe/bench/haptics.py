@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import time
 
 import numpy as np
@@ -150,10 +151,11 @@ def _penetration(grid, points: np.ndarray) -> float:
 def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> dict:
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
-    from sasprobe.devices.scripts import surface_site
+    from sasprobe.devices.surface import surface_site
 
     limits = PHANTOM_OMNI_LIMITS
-    settings_kw = {"cube_half_A": cube_half, "cube_center_A": surface_site(structure)} if cube_half else {}
+    settings_kw = ({"cube_half_A": cube_half, "cube_center_A": surface_site(structure, cube_half)} if cube_half
+                   else {"cube_half_A": "fit"})
     t0 = time.perf_counter()
     engine = HapticEngine(structure, limits, HapticSettings(method=method, **settings_kw))
     setup_s = time.perf_counter() - t0
@@ -231,10 +233,13 @@ def _stability_map(entries, quick: bool) -> dict:
 
 def _stability_cell(structure, method, rate, stiffness, limits) -> dict:
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
-    from sasprobe.devices.simulated import make_simulated
+    from sasprobe.devices.simulated import ArmModel, make_simulated
 
-    device = make_simulated("press", structure=structure, rate_hz=rate, limits=limits)
-    engine = HapticEngine(structure, limits, HapticSettings(method=method, stiffness_n_per_mm=stiffness))
+    # The whole molecule, and a hand without a person's limit: where each method breaks.
+    fit = {"cube_half_A": "fit"}
+    device = make_simulated("press", structure=structure, rate_hz=rate, limits=limits,
+                            arm=ArmModel(max_hand_force_n=math.inf), **fit)
+    engine = HapticEngine(structure, limits, HapticSettings(method=method, stiffness_n_per_mm=stiffness, **fit))
     push = np.asarray(device.script.info["push_direction"])
     device.open()
     along = 0.0
@@ -261,7 +266,7 @@ def _force_trace() -> dict:
     structure = load_default()
     trace = {}
     for method in METHODS:
-        _, outputs, device = closed_loop_session(structure, "dive", method, {}, PHANTOM_OMNI_LIMITS, ticks=4000)
+        _, outputs, device = closed_loop_session(structure, "dive", method, {"cube_half_A": "fit"}, PHANTOM_OMNI_LIMITS, ticks=4000)
         trace[method] = [float(np.linalg.norm(o.force_n)) for o in outputs]
     return trace
 
@@ -305,7 +310,9 @@ def _charts(ctx: BenchContext, rows, stability, trace, cube_half) -> list:
 
 
 def _stability_figure(stability):
-    import matplotlib.pyplot as plt
+    from sasprobe.bench.charts import pyplot
+
+    plt = pyplot()
     from matplotlib.colors import ListedColormap
 
     rates, ks = stability["rates_hz"], stability["stiffness_n_per_mm"]

@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from sasprobe.bench.charts import figure, save
+from sasprobe.bench.charts import figure, pyplot, save
 from sasprobe.bench.lighting_scene import (
     Scene,
     cost_vs_size_chart,
@@ -132,7 +132,7 @@ def pareto_chart(rows: list[dict], path, renderer: str):
 
 
 def comparison_figure(images: dict, mask: np.ndarray, path):
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     shown = ["analytic K=32", "SSAO point 4 Å full", "SSAO line 4 Å full", "RT 1 spp + blur", "hybrid K=32 × RT 1 spp",
              PRECOMPUTED_SHOWN, "reference"]
@@ -167,7 +167,7 @@ def k_chart(k_rows: list[dict], path):
 
 
 def noise_chart(noise_rows: list[dict], images: dict, mask: np.ndarray, path):
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, axes = plt.subplots(1, 4, figsize=(11, 2.8), dpi=110, gridspec_kw={"width_ratios": [1.6, 1, 1, 1]})
     spp = [r["spp"] for r in noise_rows]

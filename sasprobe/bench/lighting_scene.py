@@ -10,7 +10,7 @@ import numpy as np
 from sasprobe.bench.charts import figure, save
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
 from sasprobe.render.camera import Camera
-from sasprobe.render.camera import fit_camera
+from sasprobe.render.camera import fit_bounding_sphere
 from sasprobe.render.lighting.grid import Culling, GpuGrid
 from sasprobe.render.lighting.gbuffer import GBuffer, RaycastGBuffer
 
@@ -96,7 +96,7 @@ def fitted_scene(grid: GpuGrid, size: tuple[int, int], fill: float = 1.0, cullin
     else:  # frame the cube: its corners as zero-radius points
         corners = np.array(np.meshgrid(*zip(box[0], box[1]), indexing="ij")).reshape(3, -1).T
         centers, radii = corners, np.zeros(8)
-    view, proj = fit_camera(centers, radii, size[0] / size[1], VIEW_DIRECTION, fill=fill)
+    view, proj = fit_bounding_sphere(centers, radii, size[0] / size[1], VIEW_DIRECTION, fill=fill)
     return trace_scene(grid, view, proj, size)
 
 

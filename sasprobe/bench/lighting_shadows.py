@@ -60,7 +60,9 @@ def cell_sweep(gl, name: str, structure, size, cell_sizes, repeats: int) -> list
 
 
 def sweep_chart(rows: list[dict], path):
-    import matplotlib.pyplot as plt
+    from sasprobe.bench.charts import pyplot
+
+    plt = pyplot()
 
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4), dpi=110)
     for name in dict.fromkeys(r["structure"] for r in rows):

@@ -16,13 +16,14 @@ import time
 from pathlib import Path
 
 from sasprobe import bench
-from sasprobe.bench.machine import describe, markdown
 from sasprobe.errors import UserError
 from sasprobe.units import size_type
 
+HELP = "run benchmarks (speed and accuracy), write JSON, charts and report.md"
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("bench", help="run benchmarks (speed and accuracy), write JSON, charts and report.md")
+    p = sub.add_parser("bench", help=HELP)
     _common(p)
     p.add_argument("--only", metavar="NAMES", help=f"comma-separated benchmarks to run (default all: "
                                                    f"{', '.join(bench.available())})")
@@ -54,6 +55,8 @@ def _common(p: argparse.ArgumentParser, suppress: bool = False) -> None:
 def run(args: argparse.Namespace) -> int:
     if args.gpu_quick:
         return _gpu_quick(args)
+    from sasprobe.bench.machine import describe
+
     names = [args.bench_name] if args.bench_name else _selected(getattr(args, "only", None))
     ctx = bench.BenchContext(quick=args.quick, out_dir=args.out)
     machine = describe(with_gl=True)  # the GL renderer string belongs in every report
@@ -92,6 +95,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _gpu_quick(args: argparse.Namespace) -> int:
     from sasprobe.bench import gpu_quick
+    from sasprobe.bench.machine import describe, markdown
 
     if args.bench_name or args.only:
         raise UserError("--gpu-quick runs on its own (no benchmark name, no --only)")
@@ -128,6 +132,8 @@ def _takes_args(name: str) -> bool:
 
 def _report(machine: dict, results: list[bench.BenchResult], quick: bool, skipped: dict[str, str],
             total_s: float) -> str:
+    from sasprobe.bench.machine import markdown
+
     parts = [
         "# sasprobe benchmark report",
         "",

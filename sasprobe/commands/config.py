@@ -7,9 +7,11 @@ import sys
 
 from sasprobe import config
 
+HELP = "show the settings file in use, or print a template of every option"
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("config", help="show the settings file in use, or print a template of every option")
+    p = sub.add_parser("config", help=HELP)
     p.add_argument("--template", action="store_true", help="print a commented TOML file listing every option")
     p.set_defaults(func=run)
 

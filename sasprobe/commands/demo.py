@@ -5,7 +5,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from sasprobe.structures import MOLECULE_HELP, add_fetch_options, resolve_molecule
 from sasprobe.units import positive_float
+
+HELP = ("the daemon with the simulated arm and a renderer following it: a window, or headless a video, "
+        "a snapshot and summary.json")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -16,14 +20,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser(
         "demo",
-        help="the daemon with the simulated arm and a renderer following it: a window, or headless a video, "
-             "a snapshot and summary.json",
+        help=HELP,
         description="Start `sasprobe daemon` (simulated arm scanning the molecule) and `sasprobe render --connect` "
                     "as two processes on private ipc:// sockets. With a display: a live window until you close it. "
                     "Without one (or --headless): --seconds of video, a PNG snapshot and summary.json (haptic rate "
                     "and jitter, forces, contacts, renderer fps, lost poses) in --out.",
     )
-    p.add_argument("--molecule", metavar="FILE", help="PDB or mmCIF file, optionally .gz (default: embedded 1CRN)")
+    p.add_argument("--molecule", metavar="FILE|ID", help=MOLECULE_HELP)
     p.add_argument("--device", default=defaults.device,
                    help=f"the daemon's device (default {defaults.device}: the simulated arm scanning the surface)")
     p.add_argument("--headless", action="store_true", help="no window even when a display exists")
@@ -42,6 +45,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="do not ask for SCHED_FIFO for the daemon's loop (by default it is asked for, and refused "
                         "gracefully without the privilege)")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
+    add_fetch_options(p)
+    p.add_argument("--keys", type=Path, metavar="DIR",
+                   help="CURVE keys from `sasprobe keys DIR` for both processes (the daemon's pair, the renderer's "
+                        "client pair), as a lab with remote renderers runs them")
     p.add_argument("--render-args", metavar="'OPTIONS'",
                    help="extra `sasprobe render` options, e.g. --render-args=--no-fxaa (with the =)")
     p.add_argument("--daemon-args", metavar="'OPTIONS'",
@@ -53,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     from sasprobe.demo import RESERVED_DAEMON, RESERVED_RENDER, DemoOptions, run_demo, split_extra_args
 
     opts = DemoOptions(
-        molecule=args.molecule,
+        molecule=resolve_molecule(args, args.molecule),
         device=args.device,
         headless=args.headless,
         seconds=args.seconds,
@@ -63,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
         record=args.record,
         realtime=not args.no_realtime,
         keep_water=args.keep_water,
+        keys=args.keys,
         render_args=split_extra_args(args.render_args, RESERVED_RENDER, "--render-args"),
         daemon_args=split_extra_args(args.daemon_args, RESERVED_DAEMON, "--daemon-args"),
     )

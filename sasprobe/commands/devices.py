@@ -12,9 +12,14 @@ from sasprobe.units import positive_float
 
 CHECK_SECONDS = 1.0  # how long --check reads by default
 
+# consecutive faults after which --check stops: a device that is gone, not one a little late
+GIVE_UP_AFTER_FAULTS = 10
+
+HELP = "list attached haptic/input devices and their --device strings"
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("devices", help="list attached haptic/input devices and their --device strings")
+    p = sub.add_parser("devices", help=HELP)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--check", metavar="DEVICE",
                    help="open DEVICE (a --device string), read it for --seconds with zero force, report")
@@ -52,7 +57,7 @@ def _check(spec: str, seconds: float, as_json: bool) -> int:
 
     device = open_device(spec)
     device.open()
-    reads = faults = 0
+    reads = faults = in_a_row = 0
     state = None
     first_fault = ""
     try:
@@ -64,11 +69,13 @@ def _check(spec: str, seconds: float, as_json: bool) -> int:
                 state = device.read()
                 device.write_force(np.zeros(3))
                 reads += 1
+                in_a_row = 0
             except DeviceFault as exc:
                 faults += 1
+                in_a_row += 1
                 first_fault = first_fault or str(exc)
-                if faults > 10:
-                    break
+                if in_a_row >= GIVE_UP_AFTER_FAULTS:
+                    break  # unplugged or dead: a late reply now and then is only counted
             next_tick += period
             time.sleep(max(0.0, next_tick - time.monotonic()))
         elapsed = time.monotonic() - start

@@ -6,24 +6,32 @@ import argparse
 import json
 import time
 
-from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid, load_structure_or_default
-from sasprobe.molecule.elements import FALLBACK_RADIUS, has_bondi_radius
+from sasprobe.structures import MOLECULE_HELP, add_fetch_options, resolve_molecule
 from sasprobe.units import positive_float, probe_radius
+
+HELP = "summarise a structure and its uniform grid"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("info", help="summarise a structure and its uniform grid")
-    p.add_argument("file", nargs="?", help="PDB or mmCIF file, optionally .gz (default: embedded 1CRN)")
+    from sasprobe.molecule import DEFAULT_PROBE_RADIUS
+
+    p = sub.add_parser("info", help=HELP)
+    p.add_argument("file", nargs="?", help=MOLECULE_HELP)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--probe-radius", type=probe_radius, default=DEFAULT_PROBE_RADIUS, help=f"Å (default {DEFAULT_PROBE_RADIUS:g})")
     p.add_argument("--cell-size", type=positive_float, default=None, help="grid cell edge in Å (default: largest expanded diameter)")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
+    add_fetch_options(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    from sasprobe.molecule import UniformGrid, load_structure_or_default
+    from sasprobe.molecule.elements import FALLBACK_RADIUS, has_bondi_radius
+
+    path = resolve_molecule(args, args.file)
     t0 = time.perf_counter()
-    structure = load_structure_or_default(args.file, keep_water=args.keep_water)
+    structure = load_structure_or_default(path, keep_water=args.keep_water)
     t1 = time.perf_counter()
     grid = UniformGrid(structure.positions, structure.expanded_radii(args.probe_radius), args.cell_size)
     t2 = time.perf_counter()

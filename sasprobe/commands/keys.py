@@ -5,9 +5,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+HELP = "create CURVE keys: the daemon's pair and allowed client pairs"
+
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("keys", help="create CURVE keys: the daemon's pair and allowed client pairs")
+    p = sub.add_parser("keys", help=HELP)
     p.add_argument("directory", type=Path, help="folder for the keys (created if missing)")
     p.add_argument("--client", action="append", metavar="NAME",
                    help="name of a client pair to create and allow (repeatable; default 'client')")

@@ -13,11 +13,14 @@ from dataclasses import replace
 from pathlib import Path
 
 from sasprobe.errors import UserError
-from sasprobe.units import positive_float, positive_int, probe_radius, size_type
+from sasprobe.structures import MOLECULE_HELP, add_fetch_options, resolve_molecule
+from sasprobe.units import colour_type, positive_float, positive_int, probe_radius, size_type
 
 log = logging.getLogger("sasprobe")
 
 MAX_USER_PLANES = 16
+
+HELP = "draw a structure (or follow the daemon) in a window or headless"
 
 
 def _floats(text: str, n: int, what: str) -> list[float]:
@@ -66,25 +69,39 @@ def cube_type(text: str) -> list[float]:
 
 def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS
+    from sasprobe.protocol.scene import COLOR_SCHEMES
     from sasprobe.render.app import RenderOptions
+    from sasprobe.render.lighting.presets import PRESET_NAMES
     from sasprobe.render.passes.spheres import SPHERE_MODES
+    from sasprobe.render.workspace_view import VIEWS
 
     defaults = RenderOptions()
     size = f"{defaults.size[0]}x{defaults.size[1]}"
-    p = sub.add_parser("render", help="draw a structure (or follow the daemon) in a window or headless")
+    p = sub.add_parser("render", help=HELP)
     src = p.add_mutually_exclusive_group()
-    src.add_argument("--molecule", metavar="FILE", help="PDB or mmCIF file, optionally .gz (default: embedded 1CRN)")
+    src.add_argument("--molecule", metavar="FILE|ID", help=MOLECULE_HELP)
     src.add_argument("--connect", nargs="?", const="", metavar="PUB_ENDPOINT",
                      help="follow a running daemon (default endpoint from the protocol); the structure comes from it")
     p.add_argument("--control", metavar="ENDPOINT", help="the daemon's control endpoint (with --connect)")
+    p.add_argument("--keys", type=Path, metavar="DIR",
+                   help="with --connect: client keys from `sasprobe keys DIR`, for a daemon started with --keys "
+                        "(a loopback daemon of your own needs none)")
     p.add_argument("--headless", action="store_true", help="render offscreen through EGL (default when no display)")
     p.add_argument("--size", type=size_type, default=size, metavar="WxH", help=f"image/window size (default {size})")
     p.add_argument("--frames", type=positive_int, metavar="N", help="stop after N frames")
     p.add_argument("--seconds", type=positive_float, metavar="S", help="stop after S seconds")
-    p.add_argument("--out", type=Path, metavar="FILE", help="write frames: .png (numbered when several) or .mp4")
+    p.add_argument("--out", type=Path, metavar="FILE|DIR",
+                   help="write frames: .png (numbered when several) or .mp4; in a window, a folder is where Ctrl+S "
+                        "(screenshot) and Ctrl+R (video) write (default: the working directory)")
     p.add_argument("--fps", type=positive_float, default=defaults.fps,
                    help=f"frame rate of a video --out (default {defaults.fps:g})")
     p.add_argument("--gbuffer", type=Path, metavar="FILE.npz", help="write the last frame's G-buffer")
+    p.add_argument("--gbuffer-dir", type=Path, metavar="DIR",
+                   help="headless: write every frame's G-buffer into DIR (gbuffer_0000.npz, ...)")
+    p.add_argument("--view", choices=VIEWS, default=None,
+                   help="start in the workspace view (the navigation cube framed, looking along the device's -z) "
+                        "or the overview (the whole molecule); default: workspace with --connect, else overview "
+                        "(the window's Tab switches)")
     p.add_argument("--camera", type=camera_type, metavar="SPEC",
                    help="'eye=X,Y,Z target=X,Y,Z up=X,Y,Z fov=DEG' (any subset; the rest is auto-fitted)")
     p.add_argument("--orbit", type=float, default=0.0, metavar="DEG", help="turn the camera DEG degrees per frame")
@@ -98,14 +115,32 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--nav-cube", type=cube_type, metavar="X,Y,Z,HALF",
                    help="standalone: navigation cube centre and half edge (Å)")
     p.add_argument("--clip", type=plane_type, action="append", default=None, metavar="A,B,C,D",
-                   help="clipping plane, a·x+b·y+c·z+d >= 0 kept (repeatable)")
+                   help="clipping plane, a·x+b·y+c·z+d >= 0 kept (repeatable; standalone: with --connect the "
+                        "daemon's planes are drawn, set them with `sasprobe set clip=A,B,C,D`)")
     p.add_argument("--probe-plane", action="store_true", help="clip with a plane through the probe facing the camera")
-    p.add_argument("--light", type=direction_type, metavar="X,Y,Z", help="direction the directional light travels")
-    p.add_argument("--backbone", action="store_true", help="draw the backbone trace even without a navigation cube")
+    p.add_argument("--light", type=direction_type, metavar="X,Y,Z",
+                   help="direction the key light travels: in the view (x right, y up, z towards you) while lights "
+                        "follow the camera, else in the molecule frame")
+    p.add_argument("--light-frame", choices=("camera", "molecule"), default=defaults.light_frame,
+                   help=f"lights turn with the camera, as in every viewer, or stay fixed in the molecule frame "
+                        f"(default {defaults.light_frame})")
+    p.add_argument("--color", choices=COLOR_SCHEMES, default=None,
+                   help="colour scheme (the window's C key; a daemon's scheme wins): element (CPK), chain (carbons "
+                        "by chain), chain-all (every atom by chain), polymer, residue, hydrophobicity (Kyte-Doolittle), "
+                        "bfactor, sas (exposed area per atom) (default: element for one polymer chain, chain for "
+                        "several, chain-all for several from 20000 atoms up)")
+    p.add_argument("--preset", choices=PRESET_NAMES, default=defaults.preset,
+                   help=f"lighting preset (the window's I key): {', '.join(PRESET_NAMES)} (default {defaults.preset})")
+    p.add_argument("--background", type=colour_type, metavar="COLOUR",
+                   help="background colour: a name (white, black, ...), #RRGGBB or R,G,B in 0..1 (default: the preset's)")
+    p.add_argument("--backbone", action="store_true",
+                   help="draw the backbone trace even without a navigation cube (with --connect: also when the "
+                        "daemon turns its cube off)")
     p.add_argument("--no-fxaa", action="store_true", help="skip the FXAA pass")
     p.add_argument("--no-frame-cache", action="store_true",
                    help="draw every frame whole (default: keep the molecule layer while only the probe moves)")
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
+    add_fetch_options(p)
     p.add_argument("--snapshot", type=Path, metavar="FILE.png", help="headless: also write the last frame as a PNG")
     p.add_argument("--report", type=Path, metavar="FILE.json",
                    help="write frame counts, fps and (with --connect) poses received and lost as JSON at the end")
@@ -139,7 +174,8 @@ def add_lighting_arguments(parser: argparse.ArgumentParser) -> None:
 
     base = LightingSettings()
     ao, soft, tracer = base.ao, base.soft, PathTracing()
-    g = parser.add_argument_group("lighting (OpenGL 4.3; the window's S, V, A, C, E, G keys switch them)")
+    g = parser.add_argument_group("lighting (OpenGL 4.3; the window's S, V, A, Shift+A, E, G keys switch them; "
+                                  "defaults are the default preset's, --preset changes them)")
     g.add_argument("--shadows", choices=SHADOW_MODES, default=None,
                    help=f"shadows of the directional and the probe light, traced through the grid; precomputed: "
                         f"the directional light's hard shadows from per-atom patches (for a light fixed in the "
@@ -186,11 +222,13 @@ def add_lighting_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def lighting_from_args(args, headless: bool):
-    """(LightingSettings, explicit): explicit when the user asked for a lighting effect, so
-    that a driver without OpenGL 4.3 is an error rather than a warning."""
-    from sasprobe.render.lighting.settings import HEADLESS_SAMPLES, LightingSettings, PathTracing
+    """(LightingSettings, explicit): the preset's lighting with the flags' changes; explicit
+    when the user asked for a lighting effect (or a preset), so that a driver without
+    OpenGL 4.3 is an error rather than a warning."""
+    from sasprobe.render.lighting.presets import DEFAULT_PRESET, PRESETS, headless_samples
+    from sasprobe.render.lighting.settings import HEADLESS_SAMPLES, PathTracing
 
-    base = LightingSettings()
+    base = PRESETS[args.preset].lighting
     ao = base.ao
     try:
         ao = replace(ao, **{k: v for k, v in {
@@ -206,6 +244,8 @@ def lighting_from_args(args, headless: bool):
             soft = replace(soft, growth=max(0.0, args.soft_growth))
         tracer = replace(PathTracing(), **{k: v for k, v in {"bounces": args.pt_bounces, "spp": args.pt_spp}.items()
                                            if v is not None})
+        settings = replace(base, shadows=args.shadows or base.shadows, soft=soft, ao=ao, edges=args.edges or base.edges,
+                           path_tracing=args.path_trace, path_tracer=tracer)
         samples = args.samples
         if samples is None:
             samples = 0
@@ -213,14 +253,13 @@ def lighting_from_args(args, headless: bool):
                 samples = HEADLESS_SAMPLES["path_tracing"]
             elif headless and ao.mode == "reference":
                 samples = HEADLESS_SAMPLES["reference"]
-        settings = LightingSettings(
-            shadows=args.shadows or base.shadows, soft=soft, ao=ao, edges=args.edges or base.edges,
-            path_tracing=args.path_trace, path_tracer=tracer, samples=samples,
-        )
+            elif headless:
+                samples = headless_samples(settings)
+        settings = replace(settings, samples=samples)
     except ValueError as exc:
         raise UserError(str(exc)) from None
     explicit = (args.shadows not in (None, "off") or args.ao not in (None, "off") or args.path_trace
-                or args.edges not in (None, "off"))
+                or args.edges not in (None, "off") or args.preset != DEFAULT_PRESET)
     return settings, explicit
 
 
@@ -232,7 +271,7 @@ def render_options(args: argparse.Namespace):
 
     lighting, required = lighting_from_args(args, headless=args.headless or not display_available())
     return RenderOptions(
-        molecule=args.molecule, connect=args.connect, control=args.control, headless=args.headless,
+        molecule=resolve_molecule(args, args.molecule), connect=args.connect, control=args.control, headless=args.headless,
         size=args.size, frames=args.frames, seconds=args.seconds, out=args.out, fps=args.fps,
         gbuffer=args.gbuffer, camera=args.camera, orbit=args.orbit, spheres=args.spheres,
         probe=args.probe, touched=args.touched, probe_radius=args.probe_radius, nav_cube=args.nav_cube,
@@ -240,7 +279,8 @@ def render_options(args: argparse.Namespace):
         fxaa=not args.no_fxaa, frame_cache=not args.no_frame_cache, keep_water=args.keep_water, lighting=lighting,
         lighting_required=required,
         probe_light_range=args.probe_light_range or DEFAULT_PROBE_RANGE, snapshot=args.snapshot,
-        report=args.report,
+        report=args.report, view=args.view, gbuffer_dir=args.gbuffer_dir, color=args.color, preset=args.preset,
+        background=args.background, light_frame=args.light_frame, keys=args.keys,
     )
 
 
@@ -254,9 +294,29 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("give --frames or --seconds, not both")
     if args.control and args.connect is None:
         raise UserError("--control needs --connect")
+    if args.keys and args.connect is None:
+        raise UserError("--keys needs --connect")
     if args.connect is not None and (args.probe or args.nav_cube or args.touched >= 0):
         raise UserError("--probe, --touched and --nav-cube are for standalone use; with --connect the daemon sets them")
-    if args.out is not None:
+    if args.connect is not None and args.clip:
+        raise UserError("--clip is for standalone use; with --connect the clip planes are the daemon's: "
+                        "set them with `sasprobe set clip=A,B,C,D`")
+    if args.gbuffer_dir is not None:
+        from sasprobe.render.gl.context import display_available
+
+        if not args.headless and display_available():
+            raise UserError("--gbuffer-dir is for headless rendering")
+        try:
+            args.gbuffer_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise UserError(f"--gbuffer-dir {args.gbuffer_dir}: cannot create ({exc.strerror or exc})") from None
+    if args.out is not None and args.out.is_dir():
+        from sasprobe.render.gl.context import display_available
+
+        if args.headless or not display_available():
+            raise UserError(f"--out {args.out}: a folder is where the window's Ctrl+S and Ctrl+R write; "
+                            "headless, give a .png or .mp4 file")
+    elif args.out is not None:
         from sasprobe.render.output import check_out_path
 
         check_out_path(args.out, args.frames)

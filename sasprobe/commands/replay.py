@@ -8,16 +8,17 @@ from pathlib import Path
 
 from sasprobe.errors import UserError
 
+HELP = "summarise a recording; --verify recomputes its forces; --recover repairs it; --video renders it"
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.render.app import RenderOptions
-    from sasprobe.units import positive_float, size_type
+    from sasprobe.units import positive_float, probe_radius, size_type
 
     video = RenderOptions()  # a replay's video is drawn with `sasprobe render`'s defaults
     size = f"{video.size[0]}x{video.size[1]}"
 
-    p = sub.add_parser("replay", help="summarise a recording; --verify recomputes its forces; --recover repairs it; "
-                                      "--video renders it")
+    p = sub.add_parser("replay", help=HELP)
     p.add_argument("file", type=Path, help="an MCAP recording (sasprobe daemon --record)")
     p.add_argument("--verify", action="store_true",
                    help="recompute every force from the recorded inputs and report the largest difference")
@@ -27,6 +28,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="render the session to a video at its recorded timing (headless)")
     p.add_argument("--fps", type=positive_float, default=video.fps, help=f"video frame rate (default {video.fps:g})")
     p.add_argument("--size", type=size_type, default=size, metavar="WxH", help=f"video size (default {size})")
+    p.add_argument("--findings", type=Path, metavar="DIR",
+                   help="what the session found: path, touched residues, marks, bottleneck; a chart, PDB/mmCIF, "
+                        "PyMOL and ChimeraX files and findings.json into DIR")
+    p.add_argument("--probe-radius", type=probe_radius, default=None, metavar="ANGSTROM",
+                   help="--findings: the probe whose passage the verdict is about (default: the session's)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -35,6 +41,10 @@ def run(args: argparse.Namespace) -> int:
     from sasprobe.protocol.recording import recover, summarize
 
     result: dict = {}
+    if args.probe_radius is not None and args.findings is None:
+        raise UserError("--probe-radius goes with --findings DIR")
+    if args.findings is not None and args.findings.exists() and not args.findings.is_dir():
+        raise UserError(f"--findings {args.findings}: exists and is not a folder")
     if args.video is not None:
         from sasprobe.render.output import VIDEO_SUFFIXES
 
@@ -68,6 +78,11 @@ def run(args: argparse.Namespace) -> int:
             result["video"] = render_recording(args.file, args.video, args.fps, args.size, progress=bar.update)
         finally:
             bar.close()
+    if args.findings is not None:
+        from sasprobe.daemon.findings import write_findings
+
+        found = write_findings(args.file, args.findings, args.probe_radius)
+        result["findings"] = {k: found[k] for k in ("files", "bottleneck", "verdict", "session", "notes")}
     if args.json:
         print(json.dumps(result))
         return status
@@ -84,6 +99,11 @@ def run(args: argparse.Namespace) -> int:
               f"{r['flag_mismatches']} flag mismatches -> {'OK' if r['ok'] else 'DIFFERENT'}")
         if r["missing_ticks"]:
             print(f"  note     {r['missing_ticks']} ticks were dropped while recording; forces after a gap can differ")
+    if args.findings is not None:
+        from sasprobe.daemon.findings import summary_lines
+
+        print("\n".join(summary_lines(found)))
+        print(f"  files      {args.findings}/: {', '.join(found['files'].values())}")
     if args.video is not None:
         v = result["video"]
         print(f"  video    {v['video']}: {v['frames']} frames at {v['fps']:g} fps, {v['size'][0]}x{v['size'][1]} "

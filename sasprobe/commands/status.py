@@ -5,11 +5,13 @@ from __future__ import annotations
 import argparse
 import json
 
+HELP = "rate, jitter, overruns, subscribers and recording of a running daemon"
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT
 
-    p = sub.add_parser("status", help="rate, jitter, overruns, subscribers and recording of a running daemon")
+    p = sub.add_parser("status", help=HELP)
     p.add_argument("--ctl", default=DEFAULT_CTL_ENDPOINT, metavar="ENDPOINT",
                    help=f"the daemon's control endpoint (default {DEFAULT_CTL_ENDPOINT})")
     p.add_argument("--keys", metavar="DIR", help="client keys (a daemon with --keys)")
@@ -47,7 +49,13 @@ def run(args: argparse.Namespace) -> int:
     print(f"  jitter      period error p50 {_us(err['p50'])}, p99 {_us(err['p99'])}, max {_us(err['max'])} "
           f"over {loop['window_s']:.0f} s; last second p99 {_us(recent['period_error_p99_us'])}")
     print(f"  overruns    {loop['total']['overruns']} ({loop['total']['missed_deadlines']} deadlines missed) "
-          f"in {loop['total']['ticks']} ticks; loop CPU {loop['cpu_percent']:.0f} %")
+          f"in {loop['total']['ticks']} ticks; loop CPU {loop['cpu_percent']:.0f} %, "
+          f"{'real-time' if loop.get('realtime') else 'normal'} scheduling")
+    stalls = loop.get("stalls") or {}
+    if stalls.get("stalls"):
+        zero = stalls["worst_zero_after_ms"]
+        print(f"  stalls      {stalls['stalls']} (longest {stalls['longest_ms']:.1f} ms); the watchdog zeroed the force "
+              + ("-" if zero is None else f"at worst {zero:.1f} ms") + " after the last tick")
     print(f"  publisher   {', '.join(pub['endpoints'])}: {pub['subscribers']} subscriber(s), "
           f"{pub['poses_sent']} poses sent")
     if rec is None:
@@ -55,4 +63,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(f"  recording   {rec['path']}: {rec['messages']} messages, {rec['bytes'] / 1e6:.1f} MB, "
               f"{rec['dropped']} dropped" + (f", FAILED: {rec['error']}" if rec.get("error") else ""))
+    job = status.get("findings")
+    if job is not None:
+        outcome = {"running": "running", "failed": f"FAILED: {job['error']}",
+                   "done": f"done: {(job.get('result') or {}).get('verdict', {}).get('verdict', '')}"}[job["state"]]
+        print(f"  findings    {job['dir']}: {outcome}")
     return 0

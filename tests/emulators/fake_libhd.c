@@ -231,6 +231,14 @@ void hdBeginFrame(HHD h) {
     if (in_frame) push_error(HD_ILLEGAL_BEGIN);
     in_frame = 1;
     if (!ctl->plugged) lose_calibration();
+    /* hdDevice.h: a frame's state is sampled as it begins. The stylus sits where the hand's
+       spring balances the force the motors rendered since the last frame (header: "Begin grabs
+       state information from the device. End sends information such as forces"). */
+    for (int i = 0; i < 3; i++) {
+        double p = ctl->hand[i] + ctl->force[i] / HAND_STIFFNESS - offset[i];
+        velocity[i] = (p - position[i]) * 1000.0;
+        position[i] = p;
+    }
     pthread_mutex_unlock(&lock);
 }
 void hdEndFrame(HHD h) {
@@ -249,12 +257,6 @@ void hdEndFrame(HHD h) {
     memcpy(ctl->force, applied, sizeof applied);
     double norm = sqrt(applied[0] * applied[0] + applied[1] * applied[1] + applied[2] * applied[2]);
     if (norm > ctl->max_force) ctl->max_force = norm;
-    /* the stylus settles where the hand's spring balances the motors */
-    for (int i = 0; i < 3; i++) {
-        double p = ctl->hand[i] + applied[i] / HAND_STIFFNESS - offset[i];
-        velocity[i] = (p - position[i]) * 1000.0;
-        position[i] = p;
-    }
     ctl->calibration = calibration_state();
     pthread_mutex_unlock(&lock);
 }

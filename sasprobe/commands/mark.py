@@ -1,0 +1,36 @@
+"""`sasprobe mark [LABEL]`: drop a labelled mark at the probe's position in a running daemon."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT
+
+    p = sub.add_parser("mark", help="drop a labelled mark at the probe's position (a running daemon)")
+    p.add_argument("label", nargs="?", default=None, help='what is there (default "mark N")')
+    p.add_argument("--ctl", default=DEFAULT_CTL_ENDPOINT, metavar="ENDPOINT",
+                   help=f"the daemon's control endpoint (default {DEFAULT_CTL_ENDPOINT})")
+    p.add_argument("--keys", metavar="DIR", help="client keys (a daemon with --keys)")
+    p.add_argument("--json", action="store_true", help="print the daemon's reply as JSON")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from sasprobe.protocol.client import ControlClient
+    from sasprobe.protocol.security import load_client_keys
+
+    keys = load_client_keys(Path(args.keys)) if args.keys else None
+    with ControlClient(args.ctl, keys=keys) as client:
+        reply = client.mark(args.label)
+    mark = reply["mark"]
+    if args.json:
+        print(json.dumps(reply))
+    else:
+        x, y, z = mark["position_A"]
+        print(f"mark {mark['id']} '{mark['label']}' at ({x:.2f}, {y:.2f}, {z:.2f}) Å, tick {mark['seq']}")
+    return 0

@@ -1,0 +1,74 @@
+"""A process that watches a daemon's pose stream and the machine itself, for the probe tests.
+
+`python -m tests.pose_watch PUB_ENDPOINT` subscribes to the poses with a plain ZeroMQ
+socket (nothing from sasprobe: `seq` and `publish_t_ns` are read at the byte offsets of
+protocol/README.md) and, in a real-time thread where the system allows one, sleeps
+0.5 ms at a time and notes every wake-up that came late: a pause of the whole machine
+(a VM's stolen time), which stalls the daemon too without being its fault. It prints
+"ready" once poses arrive and, when its stdin closes, one JSON line: the pose gaps and
+the machine pauses over 2 ms, as [start_ns, end_ns] on the monotonic clock, which the
+daemon shares.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import sys
+import threading
+import time
+
+import zmq
+
+GAP_NS = 2_000_000
+SEQ = struct.Struct("<Q")  # offset 8
+PUBLISH_T = struct.Struct("<q")  # offset 24
+
+
+def _sentinel(pauses: list, stop: threading.Event) -> None:
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(60))
+    except (OSError, AttributeError):
+        pass
+    last = time.monotonic_ns()
+    while not stop.is_set():
+        time.sleep(0.0005)
+        now = time.monotonic_ns()
+        if now - last > GAP_NS:
+            pauses.append((last, now))
+        last = now
+
+
+def main(endpoint: str) -> None:
+    sock = zmq.Context.instance().socket(zmq.SUB)
+    sock.rcvhwm = 1_000_000
+    sock.setsockopt(zmq.SUBSCRIBE, b"pose")
+    sock.connect(endpoint)
+    pauses: list = []
+    gaps: list = []
+    stop = threading.Event()
+    threading.Thread(target=_sentinel, args=(pauses, stop), daemon=True).start()
+    threading.Thread(target=lambda: (sys.stdin.read(), stop.set()), daemon=True).start()
+    last = None
+    poses = 0
+    while not stop.is_set():
+        if not sock.poll(50):
+            continue
+        while True:
+            try:
+                payload = sock.recv_multipart(zmq.NOBLOCK)[1]
+            except zmq.Again:
+                break
+            seq, t = SEQ.unpack_from(payload, 8)[0], PUBLISH_T.unpack_from(payload, 24)[0]
+            if last is not None and seq == last[0] + 1 and t - last[1] > GAP_NS:
+                gaps.append((last[1], t))
+            last = (seq, t)
+            poses += 1
+            if poses == 1:
+                print("ready", flush=True)
+    print(json.dumps({"poses": poses, "gaps": gaps, "pauses": pauses}), flush=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])

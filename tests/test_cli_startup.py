@@ -1,0 +1,35 @@
+"""The CLI starts without what it does not use: `sasprobe --help` loads neither numpy nor
+gemmi nor any GL or plotting library, `sasprobe info` no GL or plotting library, and the
+help still lists every command (each registered in full only when it runs). Start-up
+time is measured by `sasprobe bench startup`, not here."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+from tests.conftest import REPO_ROOT
+
+PLOTTING_AND_GL = {"matplotlib", "moderngl", "glcontext", "glfw", "PIL", "imageio"}
+PROBE = ("import runpy, sys, json\n"
+         "sys.argv = ['sasprobe'] + sys.argv[1:]\n"
+         "try:\n    runpy.run_module('sasprobe', run_name='__main__')\n"
+         "except SystemExit:\n    pass\n"
+         "print(json.dumps(sorted({m.split('.')[0] for m in sys.modules})), file=sys.stderr)\n")
+
+
+def loaded(*argv: str) -> tuple[set[str], str]:
+    r = subprocess.run([sys.executable, "-c", PROBE, *argv], capture_output=True, text=True, cwd=REPO_ROOT, timeout=60)
+    return set(json.loads(r.stderr.strip().splitlines()[-1])), r.stdout
+
+
+def test_help_and_info_load_only_what_they_use():
+    modules, out = loaded("--help")
+    assert not modules & (PLOTTING_AND_GL | {"numpy", "gemmi", "zmq"}), modules & (PLOTTING_AND_GL | {"numpy", "gemmi"})
+    from sasprobe.cli import command_names
+
+    for name in command_names():
+        assert f"    {name}" in out, f"--help does not list {name}"
+    modules, out = loaded("info")
+    assert "327" in out and not modules & PLOTTING_AND_GL, modules & PLOTTING_AND_GL

@@ -1,0 +1,167 @@
+"""Nothing a client sends can end the control server: the request limits by name, replies that
+cannot be encoded, a killed control thread, and a fuzz of the real handlers (in-process)."""
+
+from __future__ import annotations
+
+import ctypes
+import json
+import logging
+import sys
+import threading
+import time
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from sasprobe.daemon.control import ControlServer, split_envelope
+from sasprobe.daemon.service import Daemon, DaemonConfig
+from sasprobe.protocol.client import ControlClient
+from sasprobe.protocol.control import (
+    COMMANDS,
+    MAX_MESSAGE_BYTES,
+    MAX_NESTING,
+    ProtocolError,
+    Reply,
+    decode_reply,
+    decode_request,
+    encode_request,
+)
+
+
+class _Sized:
+    """A frame that only has a length: enough for the size check, without allocating it."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+
+    def __len__(self) -> int:
+        return self.n
+
+
+@pytest.mark.parametrize("frames, fragment", [
+    ([b'{"cmd": "ping", "id": 1e400}'], "not finite"),
+    ([b'{"cmd": "ping", "id": -1e400}'], "not finite"),
+    ([b'{"cmd": "ping", "id": ' + b"9" * 401 + b"}"], "401 digits"),
+    ([b'{"cmd": "set", "args": {"stiffness_n_per_mm": ' + b"1" * 30 + b"}}"], "30 digits"),
+    ([b'{"cmd": "ping", "id": ' + b"[" * 20000 + b"]" * 20000 + b"}"], "deeper than"),
+    ([b'{"cmd": "ping", "id": ' + b"[" * (MAX_NESTING + 1) + b"]" * (MAX_NESTING + 1) + b"}"], "deeper than"),
+    ([b"{}", _Sized(MAX_MESSAGE_BYTES // 2), _Sized(MAX_MESSAGE_BYTES // 2)], "in 3 frames"),
+    ([b'{"cmd": "load"}', _Sized(MAX_MESSAGE_BYTES)], "larger than"),
+    ([b'{"cmd": "load", "args": {"name": "' + b"n" * 300 + b'"}}', b"ATOM"], "at most 200"),
+])
+def test_limits_are_refused_by_name(frames, fragment):
+    with pytest.raises(ProtocolError) as info:
+        decode_request(frames)
+    assert fragment in str(info.value) and "\n" not in str(info.value)
+
+
+def test_an_id_is_echoed_only_when_plain():
+    assert decode_request([b'{"cmd": "ping", "id": {"a": 1}}']).id is None
+    assert decode_request([b'{"cmd": "ping", "id": "x"}']).id == "x"
+
+
+def test_a_dealer_request_with_an_empty_frame_is_framed_correctly():
+    # [identity, json, empty]: the empty frame belongs to the request, not to the envelope
+    envelope, body = split_envelope([b"id", b'{"cmd":"ping"}', b""])
+    assert envelope == [b"id"] and body == [b'{"cmd":"ping"}', b""]
+    assert split_envelope([b"id", b"", b'{"cmd":"ping"}']) == ([b"id", b""], [b'{"cmd":"ping"}'])
+
+
+def test_a_reply_that_cannot_be_encoded_is_an_error_reply(tmp_path):
+    import zmq
+
+    context = zmq.Context()
+    server = ControlServer(context, [f"ipc://{tmp_path}/c"], lambda r: Reply(ok=True, result={"x": float("inf")}))
+    try:
+        reply = decode_reply(server.answer(encode_request("ping", id=4)))
+        assert not reply.ok and "could not be encoded" in reply.error and reply.id == 4
+    finally:
+        server.stop()
+        context.term()
+
+
+@pytest.fixture(scope="module")
+def live(tmp_path_factory):
+    """A real daemon (simulated arm) in this process, its loop on a thread of its own; the
+    tests call its control server's request path directly."""
+    folder = tmp_path_factory.mktemp("fuzz")
+    daemon = Daemon(DaemonConfig(pub=[f"ipc://{folder}/p"], ctl=[f"ipc://{folder}/c"], realtime=False, spin_s=0))
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(1e-4)  # as Daemon.run() does: the loop and the requests share the GIL finely
+    logging.getLogger("sasprobe").setLevel(logging.ERROR)  # one warning per refused request otherwise
+    loop = threading.Thread(target=daemon._loop, name="loop", daemon=True)
+    loop.start()
+    yield daemon
+    sys.setswitchinterval(switch)
+    daemon.request_stop("test over")
+    loop.join(10)
+    daemon.watchdog.stop()
+    daemon._shutdown()
+
+
+# Requests assembled from fragments: every JSON type, the refused numbers, deep nesting, and
+# the values each command takes; and raw frames. Hypothesis supplies the random source of
+# each batch of 50 (drawing every message through strategies costs ~1 ms a message, which
+# 10,000 messages cannot afford); a failing batch is reported and replayed from its seed.
+VALUES = ["null", "true", "false", "0", "-1", "0.3", "1.4", "7", "1e400", "-1e400", "1" * 30, "NaN", "Infinity",
+          '""', '"x"', '"proxy"', '"penalty"', '"../../etc/passwd"', '"/dev/zero"', "[]", "{}", "[1, 2]",
+          "[[0, 0, 1, -5]]", "[[0, 0, 0, 1]]", '{"probe": {"enabled": false}}', '{"sun": {}}',
+          '{"directional": {"direction": [0, 0, 0]}}', "[" * 40 + "]" * 40, '{"a": ' * 20 + "1" + "}" * 20]
+KEYS = ["path", "name", "keep_water", "reset_stats", "probe_radius_A", "stiffness_n_per_mm", "damping_n_s_per_m",
+        "method", "cube_half_A", "nav_cube_enabled", "clip_planes", "lights", "x"]
+CMDS = [f'"{c}"' for c in COMMANDS if c != "shutdown"] + ['"nope"', '""', "3", "null"]
+DATA = [[], [], [b""], [b"ATOM"], [b"\x1f\x8b junk"], [b"x", b"y"]]
+FUZZ_BATCH = 50
+
+
+def random_message(rng) -> list[bytes]:
+    if rng.random() < 0.2:
+        return [rng.randbytes(rng.randrange(40)) for _ in range(rng.randrange(4))]
+    pairs = [(rng.choice(KEYS), rng.choice(VALUES)) for _ in range(rng.randrange(4))]
+    args = "{" + ", ".join(f'"{k}": {v}' for k, v in pairs) + "}" if rng.random() < 0.8 else rng.choice(VALUES)
+    text = '{"cmd": %s, "args": %s' % (rng.choice(CMDS), args)
+    if rng.random() < 0.5:
+        text += f', "id": {rng.choice(VALUES)}'
+    if rng.random() < 0.2:
+        text += f', "version": {rng.choice(["0", "1", "2", "1.5", "true"])}'
+    return [(text + "}").encode(), *rng.choice(DATA)]
+
+
+@settings(max_examples=200, deadline=None, database=None, suppress_health_check=list(HealthCheck))
+@given(rng=st.randoms(use_true_random=False))
+def test_fuzzed_requests_get_named_errors_from_the_real_handlers(live, rng):
+    """200 batches of 50: 10,000 messages through the daemon's real request path."""
+    for _ in range(FUZZ_BATCH):
+        frames = random_message(rng)
+        reply = decode_reply(live.control.answer(frames))
+        assert reply.ok or (reply.error and "\n" not in reply.error and not reply.error.startswith("internal")), \
+            (frames, reply.error)
+        if reply.ok:  # only a well-formed request of a known command succeeds
+            assert json.loads(frames[0])["cmd"] in COMMANDS
+            live.fuzz_ok = getattr(live, "fuzz_ok", 0) + 1
+
+
+def test_the_loop_and_the_server_outlive_the_fuzz(live):
+    assert live._stop_reason is None and live.control.errors > 5000 and live.fuzz_ok > 20
+    ticks = live.loop.stats.total_ticks
+    time.sleep(0.05)
+    assert live.loop.stats.total_ticks > ticks, "the loop stopped"
+
+
+def _kill_thread(thread: threading.Thread) -> None:
+    """Raise SystemExit inside another thread: what no `except Exception` can stop."""
+    done = ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(thread.ident), ctypes.py_object(SystemExit))
+    assert done == 1
+
+
+def test_a_killed_control_thread_is_started_again(live):
+    with ControlClient(live.config.ctl[0], timeout_s=5.0) as client:
+        live.control.start()  # this fixture called answer() directly so far
+        assert client.ping()["pong"]
+        _kill_thread(live.control._thread)
+        live.control._thread.join(5)
+        assert not live.control.alive()
+        t0 = time.monotonic()
+        assert client.ping()["pong"]  # the watchdog thread's supervision restarted it
+        assert live.control.restarts == 1 and time.monotonic() - t0 < 3.0
