@@ -84,6 +84,7 @@ def validate_color_scheme(value) -> str | None:
     """A colour scheme name, or None (each renderer picks its default by structure)."""
     if value is not None and value not in COLOR_SCHEMES:
         raise SceneError(f"color_scheme must be one of {', '.join(COLOR_SCHEMES)} or null, got {str(value)[:40]!r}")
+    return value
 
 
 def validate_mark_label(value) -> str:
