@@ -225,6 +225,21 @@ def enter_realtime(priority: int = REALTIME_PRIORITY) -> bool:
         return False
 
 
+def current_scheduling() -> tuple[int, int]:
+    """(policy, priority) of the calling thread, for `restore_scheduling`."""
+    return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+
+
+def restore_scheduling(saved: tuple[int, int]) -> None:
+    """Give the calling thread back the scheduling it had before `enter_realtime`: a daemon
+    run inside another program (a test, a notebook) must not leave it, and every process it
+    starts afterwards, at the loop's real-time priority."""
+    try:
+        os.sched_setscheduler(0, saved[0], os.sched_param(saved[1]))
+    except OSError as exc:
+        log.warning("could not restore the thread's scheduling after the loop: %s", exc)
+
+
 def helper_priority() -> None:
     """Helper threads (control, recorder) drop to the lowest real-time priority.
 

@@ -35,7 +35,7 @@ from sasprobe.daemon.buttons import ButtonMap, WorkspaceInputs
 from sasprobe.daemon.changes import LoopChanges
 from sasprobe.daemon.config import DaemonConfig, check_config
 from sasprobe.daemon.faults import LoopLog, Reconnector
-from sasprobe.daemon.loop import FixedRateLoop, enter_realtime
+from sasprobe.daemon.loop import FixedRateLoop, current_scheduling, enter_realtime, restore_scheduling
 from sasprobe.daemon.marks import Marks
 from sasprobe.daemon.network import Network
 from sasprobe.daemon.recording.replay import REPLAY_SCHEME, REPLAYED_COMMANDS, apply_recorded_event
@@ -94,6 +94,7 @@ class Daemon(LoopChanges):
         self._loop_cpu_clock: int | None = None
         self._cpu_at_reset = 0
         self._network = self.control = self.publisher = None
+        self._scheduling = current_scheduling()  # given back when the daemon stops
         try:
             self.realtime = enter_realtime() if config.realtime else False
             self.timing = LoopLog(self.realtime)
@@ -105,6 +106,7 @@ class Daemon(LoopChanges):
         except BaseException:
             self._close_network()
             self._close_device()
+            restore_scheduling(self._scheduling)
             raise
 
     # ------------------------------------------------------------------ start and stop
@@ -187,6 +189,7 @@ class Daemon(LoopChanges):
             sys.setswitchinterval(old_switch)
             self.watchdog.stop()
             self._shutdown()
+            restore_scheduling(self._scheduling)
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
         return 0

@@ -1,6 +1,7 @@
 """Shared fixtures: the shared PDB structures, the embedded structure, one headless GL
 context (checked for GL errors after every test that uses it), a real X server for the
-window tests, and a helper to run the real CLI."""
+window tests, a helper to run the real CLI, and a check that no test leaves the test
+process at a real-time priority."""
 
 from __future__ import annotations
 
@@ -87,6 +88,19 @@ def _drain_gl_errors(ctx) -> list[str]:
             break
         errors.append(error)
     return errors
+
+
+@pytest.fixture(autouse=True)
+def _scheduling_given_back():
+    """A daemon run in this process must give back the real-time priority its loop took:
+    otherwise every later test's processes (daemons, renderers, ffmpeg) inherit it and
+    compete with the next daemon's loop."""
+    before = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    yield
+    after = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    if after != before:
+        os.sched_setscheduler(0, before[0], os.sched_param(before[1]))
+        pytest.fail(f"the test left the test process at scheduling policy {after[0]}, priority {after[1]}")
 
 
 @pytest.fixture(autouse=True)

@@ -2,9 +2,11 @@
 
 `python -m tests.pose_watch PUB_ENDPOINT` subscribes to the poses with a plain ZeroMQ
 socket (nothing from sasprobe: `seq` and `publish_t_ns` are read at the byte offsets of
-protocol/README.md) and, in a real-time thread where the system allows one, sleeps
-0.5 ms at a time and notes every wake-up that came late: a pause of the whole machine
-(a VM's stolen time), which stalls the daemon too without being its fault. It prints
+protocol/README.md) and, in a real-time thread per CPU (pinned to it) where the system
+allows one, sleeps 0.5 ms at a time and notes every wake-up that came late: a pause of
+that CPU that no process chose (a VM's stolen time, the kernel's own work such as the
+loopback traffic of a 256 MiB request), which stalls the daemon too when its loop runs
+there, without being its fault. It prints
 "ready" once poses arrive and, when its stdin closes, one JSON line: the pose gaps and
 the machine pauses over 2 ms, as [start_ns, end_ns] on the monotonic clock, which the
 daemon shares.
@@ -26,8 +28,9 @@ SEQ = struct.Struct("<Q")  # offset 8
 PUBLISH_T = struct.Struct("<q")  # offset 24
 
 
-def _sentinel(pauses: list, stop: threading.Event) -> None:
+def _sentinel(cpu: int, pauses: list, stop: threading.Event) -> None:
     try:
+        os.sched_setaffinity(0, {cpu})  # 0: the calling thread
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(60))
     except (OSError, AttributeError):
         pass
@@ -48,7 +51,8 @@ def main(endpoint: str) -> None:
     pauses: list = []
     gaps: list = []
     stop = threading.Event()
-    threading.Thread(target=_sentinel, args=(pauses, stop), daemon=True).start()
+    for cpu in sorted(os.sched_getaffinity(0)):
+        threading.Thread(target=_sentinel, args=(cpu, pauses, stop), daemon=True).start()
     threading.Thread(target=lambda: (sys.stdin.read(), stop.set()), daemon=True).start()
     last = None
     poses = 0
