@@ -37,10 +37,6 @@ class ConnectionWatch:
                 return
             self._seen[int(message["event"])] = int(message["value"])
 
-    def handshake_ok(self) -> bool:
-        self._drain()
-        return zmq.EVENT_HANDSHAKE_SUCCEEDED in self._seen
-
     def explain(self) -> str:
         """Why nothing came: the worst thing the connection saw, in a few words."""
         self._drain()

@@ -43,7 +43,7 @@ class RenderOptions:
     probe_radius: float | None = None
     nav_cube: list[float] | None = None
     clip: list[list[float]] = field(default_factory=list)
-    probe_plane: bool = False
+    probe_plane: bool | None = None  # None: on in the workspace view, off in the overview
     light: list[float] | None = None
     backbone: bool = False
     fxaa: bool = True
@@ -77,7 +77,8 @@ class RenderOptions:
         from sasprobe.render.workspace_view import WORKSPACE
 
         lighting = self.lighting.effects() if self.lighting is not None else {}
-        return Effects(fxaa=self.fxaa, probe_plane=self.probe_plane or self.start_view == WORKSPACE, color_scheme=self.color, **lighting)
+        probe_plane = self.start_view == WORKSPACE if self.probe_plane is None else self.probe_plane
+        return Effects(fxaa=self.fxaa, probe_plane=probe_plane, color_scheme=self.color, **lighting)
 
     def shading(self):
         """The shading pass's settings: the preset's lights and background (or --background)."""

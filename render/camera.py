@@ -1,6 +1,6 @@
 """Perspective camera: framing, `--camera` specs, arcball rotate, zoom (to a point) and pan.
 
-`Camera.framing` (and `fit_camera`) frame a set of spheres exactly: every sphere lies in the
+`Camera.framing` frames a set of spheres exactly: every sphere lies in the
 view frustum narrowed to `fill` of the image, so the molecule spans that fraction of the
 image's limiting side whatever its shape (`Camera.fitted` frames a bounding sphere, which
 leaves a molecule that is not round small in the picture).
@@ -282,14 +282,4 @@ def fit_bounding_sphere(centers, radii, aspect: float, direction=(0.0, 0.0, 1.0)
     direction = np.asarray(direction, dtype=np.float64)
     camera = Camera.fitted(middle, radius / fill, aspect, fov_y=fov_y_deg, direction=direction, up=_view_up(direction))
     camera.fit_clip_range(middle, radius)
-    return camera.view(), camera.projection(aspect)
-
-
-def fit_camera(centers, radii, aspect: float, direction=(0.0, 0.0, 1.0), fov_y_deg: float = 30.0,
-               fill: float = FIT_FILL) -> tuple[np.ndarray, np.ndarray]:
-    """(view, proj) of `Camera.framing`: the spheres seen from `direction` (from them towards
-    the eye) spanning `fill` of the image's limiting side (above 1: zoomed in past the edges)."""
-    direction = np.asarray(direction, dtype=np.float64)
-    camera = Camera.framing(centers, radii, aspect, fov_y=fov_y_deg, direction=direction, up=_view_up(direction),
-                            fill=fill)
     return camera.view(), camera.projection(aspect)

@@ -8,6 +8,7 @@ subscriber); malformed messages are dropped and counted; no daemon gives one lin
 
 from __future__ import annotations
 
+import json
 import signal
 import time
 from dataclasses import replace
@@ -99,6 +100,22 @@ def test_cli_follows_the_daemon_headless(daemon, tmp_path):
     g = np.load(npz)
     assert (g["kind"] == KIND_PROBE).sum() > 0
     assert "nav_cube" in g.files and g["nav_cube"][3] > 0
+
+
+def test_without_the_probe_plane_the_workspace_view_keeps_the_molecule_layer(daemon, tmp_path):
+    """The probe plane (on by default in the workspace view) moves with the probe, so the
+    molecule layer is drawn again each frame; `--no-probe-plane` trades it for the cache."""
+    from sasprobe.render.app import RenderOptions
+
+    pub, ctl = daemon
+    assert RenderOptions(connect=pub).effects().probe_plane  # the default of the workspace view
+    assert not RenderOptions(connect=pub, probe_plane=False).effects().probe_plane
+    report = tmp_path / "r.json"
+    r = run_cli("render", "--headless", "--connect", pub, "--control", ctl, "--frames", "6", "--size", "160x120",
+                "--no-probe-plane", "--report", str(report), timeout=180)
+    assert r.returncode == 0, r.stderr
+    layer = json.loads(report.read_text())["molecule_layer"]
+    assert layer["drawn"] + layer["kept"] == 6 and layer["kept"] >= 4, layer  # the probe moved: the layer held
 
 
 def test_no_daemon_is_one_line():
