@@ -10,6 +10,7 @@ import time
 from concurrent.futures import Future, TimeoutError as FutureTimeout
 
 from sasprobe.daemon.marks import mark_button
+from sasprobe.daemon.retire import Retired
 from sasprobe.daemon.scene import rotation_rows
 from sasprobe.errors import UserError
 
@@ -18,6 +19,7 @@ SUBMIT_TIMEOUT_S = 5.0
 
 class LoopChanges:
     _pending: collections.deque  # (closure, Future) for the loop, made by Daemon
+    retired: Retired  # what a change replaced, made by Daemon
 
     def submit(self, fn):
         """Run fn(seq) on the loop thread at the start of the next tick and return its result."""
@@ -27,6 +29,8 @@ class LoopChanges:
             return future.result(timeout=SUBMIT_TIMEOUT_S)
         except FutureTimeout:
             raise UserError("the daemon loop did not take the change in time (is it shutting down?)") from None
+        finally:
+            self.retired.release()  # what the change replaced, freed here rather than on the loop
 
     def _apply_pending(self, seq: int) -> None:
         while self._pending:
@@ -38,6 +42,7 @@ class LoopChanges:
 
     def swap_structure(self, structure, keep_water: bool, engine, seq: int) -> int:
         """On the loop thread: a new structure and its engine (built off the loop)."""
+        self.retired.add(self.structure, self.pipeline.engine)
         self.structure = structure
         self.structure_keep_water = keep_water
         self.pipeline.replace_engine(engine)
@@ -51,6 +56,7 @@ class LoopChanges:
                        seq: int) -> int:
         """On the loop thread: a checked `set` (a new engine when one had to be built)."""
         if engine is not None:
+            self.retired.add(self.pipeline.engine)
             self.pipeline.replace_engine(engine)
         elif haptic:
             self.pipeline.engine.update(**haptic)

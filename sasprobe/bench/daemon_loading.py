@@ -3,9 +3,9 @@
 A daemon (simulated arm, embedded 1CRN, its default real-time scheduling) publishes on
 ipc://; this process subscribes and keeps, for every pair of consecutive poses, the gap
 between their publish times (the daemon's own clock: when the loop ran, whatever this
-process's scheduling). A sentinel thread here, at a real-time priority where allowed,
-sleeps 0.5 ms at a time and notes the machine's own pauses (a VM's stolen time stalls
-every process). Two windows of equal length: idle, then a client loading 6ZU5 (165k
+process's scheduling). A sentinel thread per CPU here, pinned to it, at a real-time
+priority where allowed, sleeps 0.5 ms at a time and notes that CPU's own pauses (a VM's
+stolen time, the kernel's own work: they stall whatever runs there, the loop included). Two windows of equal length: idle, then a client loading 6ZU5 (165k
 atoms) and 1CRN in turn by bytes. The longest gap and the longest part of a gap no
 machine pause explains are reported for both.
 """
@@ -36,7 +36,8 @@ class _Watch:
         self._sock.rcvhwm = 1_000_000
         self._sock.setsockopt(zmq.SUBSCRIBE, b"pose")
         self._sock.connect(pub)
-        self._threads = [threading.Thread(target=f, daemon=True) for f in (self._collect, self._sentinel)]
+        self._threads = [threading.Thread(target=self._collect, daemon=True)] + [
+            threading.Thread(target=self._sentinel, args=(cpu,), daemon=True) for cpu in sorted(os.sched_getaffinity(0))]
         for t in self._threads:
             t.start()
 
@@ -53,8 +54,9 @@ class _Watch:
             last = (pose.seq, pose.publish_t_ns)
             self.poses += 1
 
-    def _sentinel(self) -> None:
+    def _sentinel(self, cpu: int) -> None:
         try:
+            os.sched_setaffinity(0, {cpu})  # 0: the calling thread
             os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(60))
         except (OSError, AttributeError):
             pass
