@@ -124,7 +124,7 @@ class Renderer:
             camera=camera,
             view=camera.view(),
             proj=camera.projection(w / h),
-            planes=self.scene.active_planes(camera.eye),
+            planes=self.scene.active_planes(camera),
             cube=self.scene.active_cube(),
             output_fbo=output_fbo if output_fbo is not None else self.targets.final_fbo,
             light_direction=self.scene.world_light_direction(camera),

@@ -103,7 +103,7 @@ class Effects:
     directional_light: bool = True
     highlight: bool = True  # the touched atom
     clip_planes: bool = True
-    probe_plane: bool = False  # a plane through the probe centre, facing the camera
+    probe_plane: bool = False  # a plane at the probe, facing the camera (SceneState.probe_plane)
     readout: bool = True  # on-screen fps / haptic rate / force (window only)
     marks: bool = True  # the session's numbered marks
     # lighting (render/passes/lighting.py; how each is computed: LightingSettings)
@@ -170,29 +170,35 @@ class SceneState:
     def active_cube(self) -> NavCube | None:
         return self.nav_cube if (self.nav_cube is not None and self.effects.nav_cube) else None
 
-    def probe_plane(self, eye: np.ndarray) -> np.ndarray | None:
-        """The plane through the probe centre facing the camera (keeps what lies beyond
-        the probe), so nothing between the eye and the probe hides it."""
+    def probe_plane(self, camera) -> np.ndarray | None:
+        """The plane facing the camera (square to its view axis) that keeps what lies beyond
+        the probe, so nothing between the eye and the probe hides it. Its depth steps by the
+        probe's radius: the plane sits at most that far behind the probe centre, inside the
+        probe's back half, which covers what it cuts there; and it stands still while the
+        probe moves within one step, so the molecule layer, which it cuts, can be kept across
+        those frames (render/frame_cache.py)."""
         if self.probe is None or not self.effects.probe_plane:
             return None
-        n = self.probe.center - np.asarray(eye, dtype=np.float64)
+        n = np.asarray(camera.target, dtype=np.float64) - np.asarray(camera.eye, dtype=np.float64)
         if np.linalg.norm(n) == 0.0:
             return None
         n = _unit(n)
-        return np.array([*n, -float(n @ self.probe.center)])
+        step = self.probe.radius
+        depth = float(np.ceil(float(n @ self.probe.center) / step)) * step
+        return np.array([*n, -depth])
 
-    def active_planes(self, eye: np.ndarray) -> np.ndarray:
+    def active_planes(self, camera) -> np.ndarray:
         """User planes (when on) and the probe plane (when on), N x 4."""
         planes = list(self.clip_planes) if self.effects.clip_planes else []
-        pp = self.probe_plane(eye)
+        pp = self.probe_plane(camera)
         if pp is not None:
             planes.append(pp)
         return np.array(planes, dtype=np.float64).reshape(-1, 4)
 
     # ------------------------------------------------------------- culling
-    def sphere_selection(self, eye: np.ndarray) -> np.ndarray:
+    def sphere_selection(self, camera) -> np.ndarray:
         """Sorted uint32 ids of the atoms drawn as spheres (cached while nothing changes)."""
-        planes = self.active_planes(eye)
+        planes = self.active_planes(camera)
         cube = self.active_cube()
         key = planes.tobytes() + (b"" if cube is None else cube.key())
         if key != self._selection_key:

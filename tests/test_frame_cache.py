@@ -52,6 +52,8 @@ def make_renderer(gl, structure, size, settings, cache, setup="none"):
     centre = structure.positions.mean(axis=0)
     if setup == "cube":
         scene.nav_cube = NavCube(center=centre + [2.0, -1.0, 4.0], half=10.0)
+    elif setup == "probe-plane":  # the workspace view's: it cuts the molecule layer where the probe is
+        scene.effects.probe_plane = True
     elif setup == "plane":
         n = -np.array([1.0, 0.2, 0.5]) / np.linalg.norm([1.0, 0.2, 0.5])
         scene.clip_planes = [np.array([*n, -float(n @ centre) + 2.0])]
@@ -71,6 +73,7 @@ CASES = [
     ("1crn", (160, 120), LightingSettings(shadows="soft", edges="both", ao=AOSettings(k=16)), "cube"),
     ("1crn", (160, 120), LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed")), "plane"),
     ("1tii", (200, 150), LightingSettings(), "none"),
+    ("1tii", (200, 150), LightingSettings(), "probe-plane"),
 ]
 
 
@@ -82,10 +85,12 @@ def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings
     assert gaps[0] > 2.0 and min(abs(g) for g in gaps[3:]) < 0.06  # it comes in and touches
     cached, camera = make_renderer(gl, structure, size, settings, cache=True, setup=setup)
     full, full_camera = make_renderer(gl, structure, size, settings, cache=False, setup=setup)
+    planes = []  # the planes in effect, frame by frame
     try:
         for center in path:
             for r in (cached, full):
                 r.scene.probe = None if center is None else Probe(center=center.copy(), touched_atom=3)
+            planes.append(cached.scene.active_planes(camera).tobytes())
             cached.render(camera)
             full.render(full_camera)
             a, b = cached.read_image(), full.read_image()
@@ -99,7 +104,11 @@ def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings
                 if layer in ga:
                     off_probe = ga["kind"] != KIND_PROBE
                     assert np.abs(ga[layer] - gb[layer])[off_probe].max() <= 1e-5, (sid, setup, layer)
-        assert cached.cache.misses == 1 and cached.cache.hits == len(path) - 1  # the layer held throughout
+        if setup == "probe-plane":  # drawn again only when the plane stepped
+            changes = sum(a != b for a, b in zip(planes, planes[1:]))
+            assert cached.cache.misses == 1 + changes and cached.cache.hits == len(path) - 1 - changes >= 1
+        else:
+            assert cached.cache.misses == 1 and cached.cache.hits == len(path) - 1  # the layer held throughout
         assert full.cache is None
     finally:
         cached.release()

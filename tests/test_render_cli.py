@@ -53,8 +53,8 @@ def test_png_and_gbuffer_file_format(tmp_path):
     np.testing.assert_array_equal(g["nav_cube_axes"], np.eye(3))  # standalone: the cube is not turned
     np.testing.assert_allclose(g["probe"], [8, 12, 6, 1.4])
     np.testing.assert_allclose(g["clip_planes"][0], [0, 0, 1, -3])  # the user's, then the probe plane
-    probe_plane = g["clip_planes"][1]
-    assert abs(probe_plane[:3] @ [8, 12, 6] + probe_plane[3]) < 1e-9
+    probe_plane = g["clip_planes"][1]  # at most a probe radius behind the probe centre
+    assert -1.4 - 1e-9 <= probe_plane[:3] @ [8, 12, 6] + probe_plane[3] <= 1e-9
     assert (g["atom_id"] == -1).sum() > 0 and (g["atom_id"] >= 0).sum() > 0
     assert np.all((g["atom_id"] == -1) == (g["kind"] == 0))
     # Conventions: each ray-cast pixel's world position, projected with proj @ view

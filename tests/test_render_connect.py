@@ -102,9 +102,9 @@ def test_cli_follows_the_daemon_headless(daemon, tmp_path):
     assert "nav_cube" in g.files and g["nav_cube"][3] > 0
 
 
-def test_without_the_probe_plane_the_workspace_view_keeps_the_molecule_layer(daemon, tmp_path):
-    """The probe plane (on by default in the workspace view) moves with the probe, so the
-    molecule layer is drawn again each frame; `--no-probe-plane` trades it for the cache."""
+def test_the_probe_plane_is_the_workspace_views_default_and_can_be_turned_off(daemon, tmp_path):
+    """On by default in the workspace view; `--no-probe-plane` turns it off, and then the
+    molecule layer holds however the probe moves."""
     from sasprobe.render.app import RenderOptions
 
     pub, ctl = daemon

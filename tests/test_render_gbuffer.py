@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sasprobe.molecule import load_structure
+from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.renderer import Renderer
@@ -113,7 +113,7 @@ def test_clip_planes_cap_atoms_and_cull_those_behind(gl, crambin):
     try:
         renderer.render(camera)
         g = gbuffer_arrays(renderer)
-        drawn = set(scene.sphere_selection(camera.eye).tolist())
+        drawn = set(scene.sphere_selection(camera).tolist())
     finally:
         renderer.release()
     P = np.array(planes)
@@ -148,7 +148,7 @@ def test_navigation_cube_spheres_inside_backbone_outside(gl, shared_by_id):
     try:
         renderer.render(camera)
         g = gbuffer_arrays(renderer)
-        drawn = scene.sphere_selection(camera.eye)
+        drawn = scene.sphere_selection(camera)
     finally:
         renderer.release()
     lo, hi = cube.bounds()
@@ -199,13 +199,33 @@ def test_probe_drawn_unclipped_and_touched_atom_kept(gl, crambin):
     assert np.all(g["atom_id"][probe_px] == -2)
     r = np.linalg.norm(g["position"][probe_px] - probe_center, axis=1)
     np.testing.assert_allclose(r, 1.4, atol=1e-3)
-    # The probe plane (through the probe centre, facing the camera) is exported and
-    # nothing in front of it hides the probe's front half.
+    # The probe plane (square to the view axis, at most a probe radius behind the probe
+    # centre) is exported and nothing in front of it hides the probe's front half.
     assert g["clip_planes"].shape == (1, 4)
     pl = g["clip_planes"][0]
-    assert abs(pl[:3] @ probe_center + pl[3]) < 1e-9
+    np.testing.assert_allclose(pl[:3], (camera.target - camera.eye) / np.linalg.norm(camera.target - camera.eye))
+    assert -1.4 - 1e-9 <= pl[:3] @ probe_center + pl[3] <= 1e-9
     covered = g["atom_id"] >= 0
     assert (g["position"][covered] @ pl[:3] + pl[3]).min() >= -1e-3
+
+
+def test_the_probe_plane_stands_still_within_a_step(crambin):
+    """While the probe moves within one depth step (a probe radius; and anywhere across the
+    view) the plane is the same to the bit, so the layer it cuts can be kept; past the step
+    it moves on by one step."""
+    center = crambin.positions.mean(axis=0)
+    step = DEFAULT_PROBE_RADIUS
+    center[2] = (np.floor(center[2] / step) + 0.5) * step  # the view looks down -z: mid-step
+    camera = Camera(eye=center + np.array([0.0, 0.0, 40.0]), target=center)
+    scene = SceneState(crambin, probe=Probe(center=center.copy()))
+    scene.effects.probe_plane = True
+    first = scene.probe_plane(camera)
+    np.testing.assert_allclose(first[:3], [0.0, 0.0, -1.0])
+    for offset in ([3.0, -2.0, 0.4 * step], [-5.0, 4.0, -0.4 * step], [0.5, 0.5, 0.1 * step]):
+        scene.probe = Probe(center=center + offset)
+        assert scene.probe_plane(camera).tobytes() == first.tobytes(), offset
+    scene.probe = Probe(center=center + [0.0, 0.0, -0.6 * step])  # into the next step, away from the eye
+    assert scene.probe_plane(camera)[3] == pytest.approx(first[3] - step, abs=1e-12)
 
 
 @pytest.mark.parametrize("mode,min_agree", [("sprite", 0.995), ("mesh", 0.97)])

@@ -61,7 +61,7 @@ class MeshSpherePass(Pass):
 
     def run(self, frame: Frame) -> None:
         ctx = frame.ctx
-        ids = frame.scene.sphere_selection(frame.camera.eye)
+        ids = frame.scene.sphere_selection(frame.camera)
         if ids is not self._last:
             inst = np.zeros(len(ids), dtype=[("rec", "<f4", 8), ("atom", "<i4")])
             inst["rec"] = self.records[ids]

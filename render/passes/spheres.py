@@ -42,7 +42,7 @@ class SpherePass(Pass):
 
     def run(self, frame: Frame) -> None:
         ctx = frame.ctx
-        ids = frame.scene.sphere_selection(frame.camera.eye)
+        ids = frame.scene.sphere_selection(frame.camera)
         frame.buffers.set_selection(ids)
         if frame.buffers.n_selected == 0:
             return

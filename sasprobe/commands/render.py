@@ -118,8 +118,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="clipping plane, a·x+b·y+c·z+d >= 0 kept (repeatable; standalone: with --connect the "
                         "daemon's planes are drawn, set them with `sasprobe set clip=A,B,C,D`)")
     p.add_argument("--probe-plane", action=argparse.BooleanOptionalAction, default=None,
-                   help="clip with a plane through the probe facing the camera (default: on in the workspace view, "
-                        "where it moves with the probe, so the molecule layer is drawn again every frame)")
+                   help="clip with a plane square to the view axis at the probe, stepping by the probe radius "
+                        "(default: on in the workspace view, off in the overview)")
     p.add_argument("--light", type=direction_type, metavar="X,Y,Z",
                    help="direction the key light travels: in the view (x right, y up, z towards you) while lights "
                         "follow the camera, else in the molecule frame")
