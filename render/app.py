@@ -56,6 +56,11 @@ class RenderOptions:
     frame_cache: bool = True  # keep the molecule layer while only the probe moves (render/frame_cache.py)
     view: str | None = None  # "workspace" or "overview"; None: workspace with --connect, else overview
     gbuffer_dir: Path | None = None  # headless: every frame's G-buffer into this folder
+    color: str | None = None  # colour scheme (render/colors.py); None: the default by structure
+    preset: str = "default"  # lighting preset (render/lighting/presets.py): light intensities, background
+    background: tuple[float, float, float] | None = None  # None: the preset's
+    light_frame: str = "camera"  # "camera": lights turn with the view; "molecule": fixed in the molecule frame
+    keys: Path | None = None  # with connect: CURVE client keys from `sasprobe keys DIR` (a keyed daemon)
 
     @property
     def start_view(self) -> str:
@@ -64,11 +69,6 @@ class RenderOptions:
         if self.view is not None:
             return self.view
         return WORKSPACE if self.connect is not None and self.camera is None else OVERVIEW
-    color: str | None = None  # colour scheme (render/colors.py); None: the default by structure
-    preset: str = "default"  # lighting preset (render/lighting/presets.py): light intensities, background
-    background: tuple[float, float, float] | None = None  # None: the preset's
-    light_frame: str = "camera"  # "camera": lights turn with the view; "molecule": fixed in the molecule frame
-    keys: Path | None = None  # with connect: CURVE client keys from `sasprobe keys DIR` (a keyed daemon)
 
     def effects(self):
         """The scene's switches: the options' FXAA, probe plane (on in the workspace view) and

@@ -13,7 +13,7 @@ import time
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT
+    from sasprobe.daemon_client import add_daemon_options
     from sasprobe.units import probe_radius
 
     p = sub.add_parser("findings", help="a running daemon's findings so far (path, residues, marks, bottleneck) "
@@ -22,9 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                                "(made if missing)")
     p.add_argument("--probe-radius", type=probe_radius, default=None, metavar="ANGSTROM",
                    help="the probe whose passage the verdict is about (default: the session's)")
-    p.add_argument("--ctl", default=DEFAULT_CTL_ENDPOINT, metavar="ENDPOINT",
-                   help=f"the daemon's control endpoint (default {DEFAULT_CTL_ENDPOINT})")
-    p.add_argument("--keys", metavar="DIR", help="client keys (a daemon with --keys)")
+    add_daemon_options(p)
     p.add_argument("--no-wait", action="store_true", help="start the analysis and return (`sasprobe status` tells)")
     p.add_argument("--timeout", type=float, default=600.0, metavar="S", help="how long to wait for the analysis")
     p.add_argument("--json", action="store_true", help="print the job as JSON")
@@ -32,15 +30,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
+    from sasprobe.daemon_client import connect
     from sasprobe.errors import UserError
     from sasprobe.progress import progress_bar
-    from sasprobe.protocol.client import ControlClient
-    from sasprobe.protocol.security import load_client_keys
 
-    keys = load_client_keys(Path(args.keys)) if args.keys else None
-    with ControlClient(args.ctl, keys=keys) as client:
+    with connect(args) as client:
         job = client.findings(args.dir, args.probe_radius)
         if not args.no_wait:
             deadline = time.monotonic() + args.timeout

@@ -7,25 +7,19 @@ import json
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT
+    from sasprobe.daemon_client import add_daemon_options
 
     p = sub.add_parser("mark", help="drop a labelled mark at the probe's position (a running daemon)")
     p.add_argument("label", nargs="?", default=None, help='what is there (default "mark N")')
-    p.add_argument("--ctl", default=DEFAULT_CTL_ENDPOINT, metavar="ENDPOINT",
-                   help=f"the daemon's control endpoint (default {DEFAULT_CTL_ENDPOINT})")
-    p.add_argument("--keys", metavar="DIR", help="client keys (a daemon with --keys)")
+    add_daemon_options(p)
     p.add_argument("--json", action="store_true", help="print the daemon's reply as JSON")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
+    from sasprobe.daemon_client import connect
 
-    from sasprobe.protocol.client import ControlClient
-    from sasprobe.protocol.security import load_client_keys
-
-    keys = load_client_keys(Path(args.keys)) if args.keys else None
-    with ControlClient(args.ctl, keys=keys) as client:
+    with connect(args) as client:
         reply = client.mark(args.label)
     mark = reply["mark"]
     if args.json:

@@ -26,16 +26,14 @@ KEYS = {  # KEY: (what it takes, the `set` field)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT
+    from sasprobe.daemon_client import add_daemon_options
 
     keys = ", ".join(f"{k}={what}" for k, (what, _) in KEYS.items())
     p = sub.add_parser("set", help="change a running daemon's settings (stiffness, probe radius, clip planes, "
                                    "cube size, lights)",
                        description=f"KEY=VALUE pairs, applied together or not at all. Keys: {keys}.")
     p.add_argument("changes", nargs="+", metavar="KEY=VALUE")
-    p.add_argument("--ctl", default=DEFAULT_CTL_ENDPOINT, metavar="ENDPOINT",
-                   help=f"the daemon's control endpoint (default {DEFAULT_CTL_ENDPOINT})")
-    p.add_argument("--keys", metavar="DIR", help="client keys (a daemon with --keys)")
+    add_daemon_options(p)
     p.add_argument("--timeout", type=float, default=5.0, metavar="S", help="seconds to wait for the reply")
     p.add_argument("--json", action="store_true", help="print the daemon's reply as JSON")
     p.set_defaults(func=run)
@@ -99,14 +97,10 @@ def set_fields(pairs: list[str]) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from sasprobe.protocol.client import ControlClient
-    from sasprobe.protocol.security import load_client_keys
+    from sasprobe.daemon_client import connect
 
     fields = set_fields(args.changes)
-    keys = load_client_keys(Path(args.keys)) if args.keys else None
-    with ControlClient(args.ctl, keys=keys, timeout_s=args.timeout) as client:
+    with connect(args, timeout_s=args.timeout) as client:
         reply = client.set(**fields)
     if args.json:
         print(json.dumps(reply))

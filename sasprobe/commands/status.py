@@ -9,12 +9,10 @@ HELP = "rate, jitter, overruns, subscribers and recording of a running daemon"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT
+    from sasprobe.daemon_client import add_daemon_options
 
     p = sub.add_parser("status", help=HELP)
-    p.add_argument("--ctl", default=DEFAULT_CTL_ENDPOINT, metavar="ENDPOINT",
-                   help=f"the daemon's control endpoint (default {DEFAULT_CTL_ENDPOINT})")
-    p.add_argument("--keys", metavar="DIR", help="client keys (a daemon with --keys)")
+    add_daemon_options(p)
     p.add_argument("--timeout", type=float, default=2.0, metavar="S", help="seconds to wait for the reply")
     p.add_argument("--json", action="store_true", help="print the daemon's status reply as JSON")
     p.set_defaults(func=run)
@@ -25,13 +23,9 @@ def _us(value) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
+    from sasprobe.daemon_client import connect
 
-    from sasprobe.protocol.client import ControlClient
-    from sasprobe.protocol.security import load_client_keys
-
-    keys = load_client_keys(Path(args.keys)) if args.keys else None
-    with ControlClient(args.ctl, keys=keys, timeout_s=args.timeout) as client:
+    with connect(args, timeout_s=args.timeout) as client:
         status = client.status()
     if args.json:
         print(json.dumps(status))
