@@ -42,6 +42,15 @@ class Session:
                 states.append(state)
         return states
 
+    def hold(self, force, board, seconds: float = 0.02, replies: int = 2, timeout_s: float = 2.0) -> None:
+        """Render `force` for `seconds` and until the board has answered `replies` more
+        commands: a command already in flight when the force changed still carries the old
+        one, so the second reply is the first that surely took the new force (on a loaded
+        machine 20 ms may pass without one)."""
+        start, begun = board.replies_sent, time.monotonic()
+        self.until(lambda _s: board.replies_sent >= start + replies and time.monotonic() - begun >= seconds,
+                   timeout_s, force)
+
     def until(self, condition, timeout_s: float = 10.0, force=(0.0, 0.0, 0.0)):
         end = time.monotonic() + timeout_s
         while time.monotonic() < end:

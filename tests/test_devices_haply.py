@@ -151,7 +151,7 @@ FORCES = [(0.8, 0.0, 0.0), (0.0, 0.0, -0.8), (0.5, 0.0, 0.6)]
 
 def check_forces(session, board, forces) -> None:
     for force in forces:
-        session.run(0.02, force)
+        session.hold(force, board)
         made = board.motor_force()
         in_plane = np.array([force[0], 0.0, force[2]])
         assert cosine(made, in_plane) >= 0.99, (force, made)

@@ -34,7 +34,7 @@ FORCES = [(2.0, 0.0, 0.0), (0.0, -2.0, 0.0), (0.0, 0.0, 2.0), (1.5, 1.0, -2.0)]
 def check_forces(session, board, forces) -> None:
     """The force the emulated motors exert is the force written (cos ≥ 0.99, within 5 %)."""
     for force in forces:
-        session.run(0.02, force)
+        session.hold(force, board)
         made = board.motor_force()
         assert cosine(made, force) >= 0.99, (force, made)
         assert np.linalg.norm(made) == pytest.approx(np.linalg.norm(force), rel=0.05), (force, made)
