@@ -103,7 +103,7 @@ def test_daemon_presses_the_emulated_woody_into_the_molecule(tmp_path):
             poses_until(sub, lambda p: np.linalg.norm(p.tip_mm - board.stylus.now()) < 1.0, daemon)
             hand.target = (0.0, 0.0, 0.0)  # down into the molecule
             pressed_and_pushed_back(sub, daemon, board, hand)
-            assert board.refused == 0, "the firmware refused a command"
+            assert board.refused == 0, f"the firmware refused commands (error bits {board.refusals})"
 
             board.unplug()  # pull the cable: force zeroed, fault flagged
             fault = poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon)

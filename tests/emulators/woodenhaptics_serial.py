@@ -120,7 +120,8 @@ ARMS = {
 
 class WoodenHapticsEmulator(PtySerialDevice):
     """The board: `currents_ma` (what the amplifiers drive), `motor_force()` (N, room frame),
-    `refused` (commands answered with an error), `stylus` and `hand` (mm, room frame)."""
+    `refused` (commands answered with an error; `refusals` their error bits), `stylus` and
+    `hand` (mm, room frame)."""
 
     def __init__(self, directory, *, model: int = 3, reported_model: int | None = None, hand: MovableHand | None = None,
                  gimbal_counts=(0, 0, 0), gimbal_error_bits: int = 0, name: str = "ttyWOODY0"):
@@ -133,7 +134,7 @@ class WoodenHapticsEmulator(PtySerialDevice):
         self.hand = hand or MovableHand()
         self.hand.place(home_mm)
         self.stylus = HeldStylus(home_mm, self.hand, mass_kg=0.12)
-        self.refused = 0
+        self.refusals: list[int] = []  # the error bits of each refused command
         self.accepted = 0
         self.last_command_ma = None
         self.watchdog_trips = 0
@@ -142,6 +143,10 @@ class WoodenHapticsEmulator(PtySerialDevice):
         self._jacobian = numeric_jacobian(self.arm.tip_m, self.bodies)
         self._moved_at = 0.0
         super().__init__(directory, name)
+
+    @property
+    def refused(self) -> int:
+        return len(self.refusals)
 
     # the firmware ---------------------------------------------------------------------
     def power_on(self) -> None:
@@ -198,7 +203,7 @@ class WoodenHapticsEmulator(PtySerialDevice):
 
     def _answer(self, error: int, refused: bool = True) -> None:
         if refused:
-            self.refused += 1
+            self.refusals.append(error)
         c = self.counters
         self.write(f"[{self.reported_model},{c[0]},{c[1]},{c[2]},{c[3]},{c[4]},{c[5]},{error}]\n".encode())
 
