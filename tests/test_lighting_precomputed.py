@@ -38,7 +38,7 @@ def test_octahedral_reference_round_trips():
     assert np.abs(octa_decode(octa_encode(v)) - v).max() < 1e-12
 
 
-@pytest.mark.parametrize("setup", ["none", "cube"])
+@pytest.mark.parametrize("setup", ["none", "plane", "cube"])
 def test_patches_equal_the_cpu_bake(gl, crambin, crambin_grid, setup):
     crambin_grid.set_culling(cullings(crambin)[setup])
     occ = Occluders.of(crambin_grid)

@@ -11,8 +11,6 @@ uniform int u_tiles_x;  // patches per atlas row
 
 ivec2 tile_origin(int slot) { return ivec2(slot % u_tiles_x, slot / u_tiles_x) * u_patch; }
 
-vec3 texel_direction(ivec2 texel) { return octa_decode(vec2(texel) * (2.0 / float(u_patch - 1)) - 1.0); }
-
 // Fractional atlas texel coordinates (texel centres at .5) of a direction in a slot's patch.
 vec2 atlas_coord(int slot, vec3 direction) {
     return vec2(tile_origin(slot)) + (octa_encode(direction) * 0.5 + 0.5) * float(u_patch - 1) + 0.5;

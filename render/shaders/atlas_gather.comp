@@ -1,48 +1,69 @@
 #version 430 core
-// Occlusion atlas bake, step 1 of 3, one invocation per atom of the chunk: the atom's
-// neighbours within reach of its rays (centre distance < r_i + ray length + r_j), and those
-// overlapping it (centre distance < r_i + r_j, for the hidden-texel test), gathered from the
-// grid's cells around it (cells wholly out of reach are skipped). A sphere is stored in
-// every cell its expanded sphere overlaps; it is taken only from the cell that holds its
-// centre, so each is listed once. Only cells next to the walk range (the cube's cells, with
-// a cube) can hold the centre of an atom the culling keeps.
+// Occlusion atlas bake, step 1 of 4, one invocation per atom of the chunk: the atom's
+// neighbours within reach of its rays (centre distance < r_i + ray length + r_j; with
+// u_gather_neighbours 0 none, for a bake of the lights alone), and those overlapping it
+// (centre distance < r_i + r_j), and with those which of its texels lie inside another
+// atom (hidden: never seen, their rays not traced). They come from the kept atoms'
+// own cells (render/lighting/ao/precomputed.py KeptCells: the spheres the culling keeps,
+// each once, in the cell of its centre, stored in place), so every entry read is one load
+// of a sphere that counts; cells wholly out of reach are skipped.
 layout(local_size_x = 64) in;
 
-#include "grid_traversal.glsl"
 #include "atlas_bake_buffers.glsl"
+#include "atlas_common.glsl"
+
+layout(std430, binding = 13) readonly buffer KeptStart { uint kept_start[]; };     // CSR offsets per cell
+layout(std430, binding = 14) readonly buffer KeptSpheres { vec4 kept_spheres[]; };  // centre, vdW radius
+layout(std430, binding = 15) readonly buffer SlotEntry { uint slot_entry[]; };      // each patch's own entry
+
+uniform vec3 u_kept_origin;  // Å, corner of cell (0, 0, 0)
+uniform float u_kept_cell;   // Å
+uniform ivec3 u_kept_dims;
+uniform int u_gather_neighbours;
 
 void main() {
     int local_slot = int(gl_GlobalInvocationID.x);
     if (local_slot >= u_chunk_slots) return;
-    int atom = int(slot_atoms[chunk_slot(local_slot)]);
-    vec4 self_sphere = spheres[atom];
-    float reach = self_sphere.w + u_distance + u_max_radius;
-    vec3 local = self_sphere.xyz - u_grid_origin;
-    ivec3 first = max(u_walk_lo - 1, ivec3(0)), last = min(u_walk_hi + 1, u_grid_dims - 1);
-    ivec3 lo = clamp(ivec3(floor((local - reach) / u_cell_size)), first, last);
-    ivec3 hi = clamp(ivec3(floor((local + reach) / u_cell_size)), first, last);
+    uint self_entry = slot_entry[chunk_slot(local_slot)];
+    vec4 self_sphere = kept_spheres[self_entry];
+    float ray = u_gather_neighbours != 0 ? u_distance : 0.0;
+    float reach = self_sphere.w + ray + u_max_radius;
+    vec3 local = self_sphere.xyz - u_kept_origin;
+    ivec3 lo = clamp(ivec3(floor((local - reach) / u_kept_cell)), ivec3(0), u_kept_dims - 1);
+    ivec3 hi = clamp(ivec3(floor((local + reach) / u_kept_cell)), ivec3(0), u_kept_dims - 1);
+    ivec3 own = clamp(ivec3(floor(local / u_kept_cell)), ivec3(0), u_kept_dims - 1);
     int n = 0, n_over = 0;
+    for (int ring = 0; ring < 2; ++ring)  // the cells around the atom's own first: the nearest neighbours, which block most rays, lead the lists
     for (int z = lo.z; z <= hi.z; ++z)
     for (int y = lo.y; y <= hi.y; ++y)
     for (int x = lo.x; x <= hi.x; ++x) {
         ivec3 cell3 = ivec3(x, y, z);
-        vec3 gap = local - clamp(local, vec3(cell3) * u_cell_size, vec3(cell3 + 1) * u_cell_size);
+        ivec3 off = abs(cell3 - own);
+        if ((max(off.x, max(off.y, off.z)) <= 1) != (ring == 0)) continue;
+        vec3 gap = local - clamp(local, vec3(cell3) * u_kept_cell, vec3(cell3 + 1) * u_kept_cell);
         if (dot(gap, gap) >= reach * reach) continue;
-        int cell = x + u_grid_dims.x * (y + u_grid_dims.y * z);
-        for (uint k = cell_start[cell]; k < cell_start[cell + 1]; ++k) {
-            int other = int(cell_atoms[k]);
-            if (other == atom || (culled[other] & CULLED) != 0u) continue;
-            vec4 s = spheres[other];
-            if (clamp(ivec3(floor((s.xyz - u_grid_origin) / u_cell_size)), ivec3(0), u_grid_dims - 1) != cell3)
-                continue;
+        int cell = x + u_kept_dims.x * (y + u_kept_dims.y * z);
+        for (uint k = kept_start[cell]; k < kept_start[cell + 1]; ++k) {
+            vec4 s = kept_spheres[k];
             vec4 rel = vec4(s.xyz - self_sphere.xyz, s.w);
             float dist = length(rel.xyz);
+            if (k == self_entry || dist >= self_sphere.w + ray + s.w) continue;
             if (dist < self_sphere.w + s.w && n_over < MAX_OVERLAPS) overlaps[local_slot * MAX_OVERLAPS + n_over++] = rel;
-            if (dist >= self_sphere.w + u_distance + s.w) continue;
+            if (u_gather_neighbours == 0) continue;
             if (n < MAX_NEIGHBOURS) neighbours[local_slot * MAX_NEIGHBOURS + n++] = rel;
             else atomicAdd(overflow[0], 1u);
         }
     }
     counts[2 * local_slot] = n;
     counts[2 * local_slot + 1] = n_over;
+    int texels = u_patch * u_patch;
+    for (int texel = 0; texel < texels; ++texel) {
+        vec3 x_local = self_sphere.w * texel_normals[texel].xyz;  // the texel's point relative to the atom's centre
+        bool hidden = false;
+        for (int k = 0; k < n_over && !hidden; ++k) {
+            vec4 s = overlaps[local_slot * MAX_OVERLAPS + k];
+            hidden = distance(x_local, s.xyz) < s.w;
+        }
+        hidden_texels[local_slot * texels + texel] = hidden ? 1 : 0;
+    }
 }

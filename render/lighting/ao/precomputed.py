@@ -14,11 +14,16 @@ SetCsize: 16 texels for 1AON's 58,870 atoms in 4096², 53 for 1CRN's 327 in 1024
 centres on the patch border (python/OctaMap.py getDir), which is the layout here.
 
 Here the bake traces rays through the grid instead of rendering shadow maps
-(shaders/atlas_*.comp, in chunks of CHUNK_SLOTS atoms): each atom's neighbours within reach
-are gathered once from the grid, the ones that can meet a ray of each of the D directions
-(spherical Fibonacci points) are listed per direction, and each texel tests only those;
-the light channel is one ray per texel through the grid. The rays are `AOSettings.distance`
-long, as the ray-traced AO's, so the two converge to the same accessibility.
+(shaders/atlas_*.comp, in chunks of CHUNK_SLOTS atoms, four steps): (1) each atom's
+neighbours within reach are gathered once from the kept atoms' own cells (KeptCells), and
+its texels that lie inside a neighbour marked hidden; (2) per direction D (spherical
+Fibonacci points, in clusters of nearby ones) the neighbours that can meet one of its rays
+are marked; (3) per direction the unhidden texels facing it test those candidates, eight
+rays per candidate read; (4) per texel the open rays' cosine weights are summed, and the
+lights' channels are one ray per texel through the grid. The rays are `AOSettings.distance`
+long, as the ray-traced AO's, so the two converge to the same accessibility. On llvmpipe
+every storage-buffer read costs a loop over the SIMD lanes, so the steps are laid out to
+read each value once for many tests.
 """
 
 from __future__ import annotations
@@ -37,10 +42,15 @@ from sasprobe.render.lighting.settings import PointLight, light_uniforms, ray_ep
 
 log = logging.getLogger("sasprobe")
 
-CHUNK_SLOTS = 256  # atoms per bake dispatch (the candidate lists of a chunk: CHUNK_SLOTS x D x 96 spheres)
-MAX_NEIGHBOURS, MAX_OVERLAPS, MAX_CANDIDATES = 1024, 32, 95  # as shaders/atlas_bake_buffers.glsl
+CHUNK_SLOTS = 256  # atoms per bake dispatch
+MAX_NEIGHBOURS, MAX_OVERLAPS, BLOCK_TEXELS = 1024, 32, 8  # as shaders/atlas_bake_buffers.glsl
+MASK_WORDS, MAX_PATCH_TEXELS = MAX_NEIGHBOURS // 32, 64 * 64
+BINDING_TEXEL_NORMALS = 0  # a uniform block
+BINDING_FACING, BINDING_FACING_RANK = 16, 17
+CLUSTER = 8  # directions side by side in a SIMD pass (llvmpipe's 256-bit vectors): nearby ones skip and stop together
 MAX_ATLAS_BYTES = 512 * 2**20
 BINDING_SLOT_ATOMS, BINDING_ATOM_SLOTS = 4, 4
+BINDING_KEPT_START, BINDING_KEPT_SPHERES, BINDING_SLOT_ENTRY = 13, 14, 15  # shaders/atlas_gather.comp
 LOCAL = 64  # the bake shaders' local_size_x
 
 
@@ -54,6 +64,96 @@ def fibonacci_directions(n: int) -> np.ndarray:
     return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
 
 
+def texel_normals(patch: int) -> np.ndarray:
+    """(P*P, 4) float32: texel (i, j)'s direction at row i + P j, the octahedral decode
+    (Cigolle et al., JCGT 2014) of 2 (i, j) / (P - 1) - 1, as shaders/octahedral.glsl; the
+    same for every patch, uploaded once for the bake (shaders/atlas_bake_buffers.glsl)."""
+    j, i = np.divmod(np.arange(patch * patch), patch)
+    e = np.column_stack([i, j]).astype(np.float64) * (2.0 / (patch - 1)) - 1.0
+    v = np.column_stack([e, 1.0 - np.abs(e).sum(axis=1)])
+    lower = v[:, 2] < 0
+    sign = np.where(v[:, :2] >= 0, 1.0, -1.0)
+    v[lower, :2] = ((1.0 - np.abs(v[:, 1::-1])) * sign)[lower]
+    out = np.zeros((patch * patch, 4), dtype=np.float32)
+    out[:, :3] = v / np.linalg.norm(v, axis=1, keepdims=True)
+    return out
+
+
+def facing_texels(normals: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Per direction the texels facing it (n.d > 0 in float32, as the shaders compute it):
+    (D, P^2 + 1) int32 rows of count then indices, (D, P^2) int32 each texel's place in its
+    row (-1: facing away), and the most texels any direction has."""
+    n = normals[:, :3].astype(np.float32)
+    faces = (directions[:, :3].astype(np.float32) @ n.T) > 0  # (D, P^2)
+    texels = n.shape[0]
+    rows = np.zeros((faces.shape[0], texels + 1), dtype=np.int32)
+    rank = np.full(faces.shape, -1, dtype=np.int32)
+    for d, row in enumerate(faces):
+        index = np.flatnonzero(row)
+        rows[d, 0] = index.size
+        rows[d, 1:1 + index.size] = index
+        rank[d, index] = np.arange(index.size)
+    return rows, rank, int(rows[:, 0].max(initial=0))
+
+
+def clustered(directions: np.ndarray, size: int = CLUSTER) -> np.ndarray:
+    """The same directions in groups of `size` nearby ones (recursive halving along the
+    widest axis): the bake's invocations of a direction run side by side in groups, and a
+    group of close directions faces away from, and is blocked by, much the same. The sum
+    over directions is unchanged by their order."""
+    groups: list[np.ndarray] = []
+
+    def split(index: np.ndarray) -> None:
+        if index.size <= size:
+            groups.append(index)
+            return
+        left = (math.ceil(index.size / size) // 2) * size
+        points = directions[index]
+        axis = int(np.argmax(points.max(axis=0) - points.min(axis=0)))
+        order = index[np.argsort(points[:, axis], kind="stable")]
+        split(order[:left])
+        split(order[left:])
+
+    split(np.arange(directions.shape[0]))
+    return directions[np.concatenate(groups)]
+
+
+class KeptCells:
+    """The spheres the culling keeps, each stored once in the cell of its centre (cells of
+    the GPU grid's size over the kept atoms' box), for the bake's neighbour gather: the grid
+    proper stores every sphere in each cell its expanded sphere overlaps, and culled atoms
+    with the rest, so most of what a gather read there was thrown away."""
+
+    def __init__(self, ctx, centers: np.ndarray, radii: np.ndarray, cell: float):
+        n = centers.shape[0]
+        self.origin = centers.min(axis=0) if n else np.zeros(3)
+        self.cell = float(cell)
+        cells3 = np.floor((centers - self.origin) / self.cell).astype(np.int64)
+        self.dims = cells3.max(axis=0) + 1 if n else np.ones(3, dtype=np.int64)
+        flat = cells3[:, 0] + self.dims[0] * (cells3[:, 1] + self.dims[1] * cells3[:, 2])
+        order = np.argsort(flat, kind="stable")
+        start = np.zeros(int(np.prod(self.dims)) + 1, dtype=np.uint32)
+        np.cumsum(np.bincount(flat, minlength=start.size - 1), out=start[1:])
+        entry = np.empty(n, dtype=np.uint32)
+        entry[order] = np.arange(n, dtype=np.uint32)
+        spheres = np.column_stack([centers, radii]).astype(np.float32)[order]
+        self.buffers = {BINDING_KEPT_START: ctx.buffer(start.tobytes()),
+                        BINDING_KEPT_SPHERES: ctx.buffer(spheres.tobytes() if n else b"\0" * 16),
+                        BINDING_SLOT_ENTRY: ctx.buffer(entry.tobytes() if n else b"\0" * 4)}
+
+    def bind(self) -> None:
+        for binding, buffer in self.buffers.items():
+            buffer.bind_to_storage_buffer(binding)
+
+    def uniforms(self) -> dict:
+        return {"u_kept_origin": tuple(float(v) for v in self.origin), "u_kept_cell": self.cell,
+                "u_kept_dims": tuple(int(v) for v in self.dims)}
+
+    def release(self) -> None:
+        for buffer in self.buffers.values():
+            buffer.release()
+
+
 class OcclusionAtlas:
     """The patches of one GPU grid's drawn atoms, and the passes that bake and read them."""
 
@@ -62,19 +162,21 @@ class OcclusionAtlas:
         self.ctx = gpu_grid.ctx
         self.gather = ComputePass(self.ctx, "atlas_gather.comp", gpu_grid)
         self.candidates = ComputePass(self.ctx, "atlas_candidates.comp", gpu_grid)
+        self.rays = ComputePass(self.ctx, "atlas_rays.comp", gpu_grid)
         self.bake_pass = ComputePass(self.ctx, "atlas_bake.comp", gpu_grid)
         self.fill = ComputePass(self.ctx, "atlas_fill.comp")
         self.lookup_pass = ComputePass(self.ctx, "atlas_lookup.comp", gpu_grid)
         self.textures = TextureCache(self.ctx)
         self.texture = None  # rgba16f: r accessibility, g directional light, b probe light
         self.atom_slots = None  # int32 buffer: the patch of each atom (-1: culled, none)
+        self.kept = None  # KeptCells of the patches' atoms
         self.slot_atoms = None  # uint32 buffer: the atom of each patch
         self.layout_key = self.ambient_key = self.sun_key = self.probe_key = None
         self.n_slots = self.patch = self.tiles_x = 0
         self.bake_seconds = 0.0  # the last bake's wall time (GPU drained)
         self.baked_patches = 0  # how many patches the last bake covered
         self.overflows = 0
-        self._scratch: dict[int, object] = {}  # the bake's storage by binding, kept for the next bake
+        self._scratch: dict = {}  # the bake's storage by binding, kept for the next bake
 
     # ------------------------------------------------------------ layout
     def _layout(self, patch: int) -> None:
@@ -98,6 +200,7 @@ class OcclusionAtlas:
         self.texture.repeat_x = self.texture.repeat_y = False
         self.slot_atoms = self.ctx.buffer(kept.tobytes() if kept.size else b"\0" * 4)
         self.atom_slots = self.ctx.buffer(slots.tobytes())
+        self.kept = KeptCells(self.ctx, self.grid.grid.centers[kept], self.grid.vdw_radii[kept], self.grid.grid.cell_size)
         self.n_slots, self.patch, self.tiles_x = int(kept.size), patch, tiles_x
         self.layout_key = key
         self.ambient_key = self.sun_key = self.probe_key = None
@@ -146,19 +249,30 @@ class OcclusionAtlas:
         n = max(int(slots.size), 1)
         chunk = math.ceil(n / math.ceil(n / CHUNK_SLOTS))  # chunks of equal size
         dirs = np.zeros((directions, 4), dtype=np.float32)
-        dirs[:, :3] = fibonacci_directions(directions)
+        dirs[:, :3] = clustered(fibonacci_directions(directions))
         lists = chunk * directions if ambient else 1
+        normals = texel_normals(self.patch)
+        facing, rank, most_facing = facing_texels(normals, dirs)
+        blocks = max(math.ceil(most_facing / BLOCK_TEXELS), 1)
         buffers = {binding: self._buffer(binding, nbytes) for binding, nbytes in (
             (5, chunk * MAX_NEIGHBOURS * 16), (6, chunk * MAX_OVERLAPS * 16), (7, chunk * 2 * 4), (8, dirs.nbytes),
-            (9, lists * MAX_CANDIDATES * 16), (10, lists * 4), (11, 4), (12, max(slots.nbytes, 4)))}
+            (9, lists * MASK_WORDS * 4), (10, lists * blocks * 4), (11, 4), (12, max(slots.nbytes, 4)),
+            (18, chunk * self.patch * self.patch * 4))}
         buffers[8].write(dirs.tobytes())
+        tables = {BINDING_FACING: facing, BINDING_FACING_RANK: rank}
+        for binding, table in tables.items():
+            buffers[binding] = self._buffer(binding, table.nbytes)
+            buffers[binding].write(table.tobytes())
+        normals_block = self._buffer("texel normals", MAX_PATCH_TEXELS * 16)
+        normals_block.write(normals.tobytes())
         buffers[11].write(np.zeros(1, dtype=np.uint32).tobytes())
         if slots.size:
             buffers[12].write(slots.tobytes())
         common = {
             **ray_epsilon_uniforms(), **light_uniforms(None, probe_light), "u_directions": directions,
             "u_distance": float(distance), "u_max_radius": float(np.max(grid.vdw_radii)) if grid.n_atoms else 0.0,
-            "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_bake_ambient": int(ambient),
+            "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_blocks": blocks, "u_bake_ambient": int(ambient),
+            "u_gather_neighbours": int(ambient), **self.kept.uniforms(),
             "u_bake_sun": int(sun_direction is not None), "u_bake_probe": int(probe_light is not None),
         }
         if sun_direction is not None:
@@ -168,16 +282,19 @@ class OcclusionAtlas:
         grid.set_probe(None)  # the atlas is the molecule's own
         try:
             self.slot_atoms.bind_to_storage_buffer(BINDING_SLOT_ATOMS)
+            self.kept.bind()
             for binding, buffer in buffers.items():
                 buffer.bind_to_storage_buffer(binding)
+            normals_block.bind_to_uniform_block(BINDING_TEXEL_NORMALS)
             self.texture.bind_to_image(0, read=True, write=True)
             for first in range(0, int(slots.size), chunk):
                 count = min(chunk, int(slots.size) - first)
                 uniforms = {**common, "u_first_slot": first, "u_chunk_slots": count}
                 self._dispatch(self.gather, count, uniforms)  # the overlaps: the hidden-texel test needs them
-                if ambient:
-                    self._dispatch(self.candidates, count * directions, uniforms)
-                self._dispatch(self.bake_pass, count * self.patch * self.patch, uniforms)
+                if ambient:  # a work group per atom
+                    self._dispatch(self.candidates, count * LOCAL, uniforms)
+                    self._dispatch(self.rays, count * LOCAL, uniforms)
+                self._dispatch(self.bake_pass, count * LOCAL, uniforms)
                 if progress is not None:
                     progress((first + count) / slots.size)
             self.overflows = int(np.frombuffer(buffers[11].read(), dtype=np.uint32)[0])
@@ -188,13 +305,13 @@ class OcclusionAtlas:
             log.warning("occlusion atlas: %d neighbour lists were full; those texels may be too bright",
                         self.overflows)
 
-    def _buffer(self, binding: int, nbytes: int):
-        """The bake's storage at a binding, at least `nbytes` (made again only to grow)."""
-        buffer = self._scratch.get(binding)
+    def _buffer(self, key, nbytes: int):
+        """The bake's storage for `key` (its binding), at least `nbytes` (made again only to grow)."""
+        buffer = self._scratch.get(key)
         if buffer is None or buffer.size < nbytes:
             if buffer is not None:
                 buffer.release()
-            buffer = self._scratch[binding] = self.ctx.buffer(reserve=max(nbytes, 16))
+            buffer = self._scratch[key] = self.ctx.buffer(reserve=max(nbytes, 16))
         return buffer
 
     def _fill_unseen(self) -> None:
@@ -252,15 +369,15 @@ class OcclusionAtlas:
         return np.frombuffer(self.atom_slots.read(), dtype=np.int32).copy()
 
     def _release_layout(self) -> None:
-        for obj in (self.texture, self.atom_slots, self.slot_atoms):
+        for obj in (self.texture, self.atom_slots, self.slot_atoms, self.kept):
             if obj is not None:
                 obj.release()
-        self.texture = self.atom_slots = self.slot_atoms = None
+        self.texture = self.atom_slots = self.slot_atoms = self.kept = None
 
     def release(self) -> None:
         self._release_layout()
         self.textures.release()
         for buffer in self._scratch.values():
             buffer.release()
-        for p in (self.gather, self.candidates, self.bake_pass, self.fill, self.lookup_pass):
+        for p in (self.gather, self.candidates, self.rays, self.bake_pass, self.fill, self.lookup_pass):
             p.release()
