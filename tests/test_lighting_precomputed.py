@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from sasprobe.render.lighting.ao import AmbientOcclusion
-from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
+from sasprobe.render.lighting.ao.precomputed import (OcclusionAtlas, clustered, facing_texels, fibonacci_directions,
+                                                     texel_normals)
 from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.lighting.settings import AOSettings, DirectionalLight, HARD_SHADOW, LightingSettings, PointLight
 from sasprobe.render.gl.textures import read_texture
@@ -36,6 +37,34 @@ def test_octahedral_reference_round_trips():
     v = np.random.default_rng(1).normal(size=(500, 3))
     v /= np.linalg.norm(v, axis=1, keepdims=True)
     assert np.abs(octa_decode(octa_encode(v)) - v).max() < 1e-12
+
+
+def test_directions_are_clustered_without_changing_the_set():
+    d = fibonacci_directions(64)
+    c = clustered(d)
+    assert np.array_equal(np.sort(c, axis=0), np.sort(d, axis=0)) and len(np.unique(c, axis=0)) == 64
+
+    def spread(v):  # mean angle of a group of 8 from its mean direction
+        g = v.reshape(-1, 8, 3)
+        m = g.mean(axis=1, keepdims=True) / np.linalg.norm(g.mean(axis=1, keepdims=True), axis=2, keepdims=True)
+        return np.degrees(np.arccos(np.clip((g * m).sum(axis=2), -1, 1))).mean()
+
+    assert spread(c) < 0.5 * spread(d)  # the lattice's own order spreads each 8 around a band
+
+
+@pytest.mark.parametrize("patch, directions", [(5, 24), (8, 64)])
+def test_facing_lists_hold_exactly_the_texels_facing_each_direction(patch, directions):
+    normals = texel_normals(patch)
+    j, i = np.divmod(np.arange(patch * patch), patch)  # texel (i, j) at i + P j, centres on the border
+    expected = octa_decode(np.column_stack([i, j]) * (2.0 / (patch - 1)) - 1.0)
+    assert np.abs(normals[:, :3] - expected).max() < 1e-6
+    d = clustered(fibonacci_directions(directions))
+    rows, rank, most = facing_texels(normals, d)
+    faces = d @ normals[:, :3].T.astype(np.float64) > 0
+    for k in range(directions):
+        listed = rows[k, 1:1 + rows[k, 0]]
+        assert np.array_equal(listed, np.flatnonzero(faces[k])) and np.array_equal(rank[k, listed], np.arange(listed.size))
+    assert most == rows[:, 0].max() and np.array_equal(rank >= 0, faces)
 
 
 @pytest.mark.parametrize("setup", ["none", "plane", "cube"])

@@ -15,7 +15,7 @@
 layout(std430, binding = 4) readonly buffer SlotAtoms { uint slot_atoms[]; };   // atom of each patch
 layout(std430, binding = 5) buffer Neighbours { vec4 neighbours[]; };           // chunk x MAX_NEIGHBOURS
 layout(std430, binding = 6) buffer Overlaps { vec4 overlaps[]; };               // chunk x MAX_OVERLAPS
-layout(std430, binding = 7) buffer Counts { int counts[]; };                    // chunk x (neighbours, overlaps)
+layout(std430, binding = 7) buffer Counts { int counts[]; };                    // chunk: neighbours listed
 layout(std430, binding = 8) readonly buffer Directions { vec4 directions[]; };  // the D ray directions
 layout(std430, binding = 9) buffer CandidateMasks { uint candidate_masks[]; };  // chunk x D x MASK_WORDS
 layout(std430, binding = 10) buffer BlockedMasks { uint blocked_masks[]; };     // chunk x D x u_blocks

@@ -18,7 +18,7 @@ void main() {
     if (local_slot >= u_chunk_slots) return;
     float radius = spheres[int(slot_atoms[chunk_slot(local_slot)])].w;
     int first = local_slot * MAX_NEIGHBOURS;
-    int count = counts[2 * local_slot];
+    int count = counts[local_slot];
     for (int dir = 4 * int(gl_LocalInvocationIndex); dir < u_directions; dir += 4 * 64) {
         vec3 d0 = direction_or_none(dir), d1 = direction_or_none(dir + 1);
         vec3 d2 = direction_or_none(dir + 2), d3 = direction_or_none(dir + 3);

@@ -33,7 +33,9 @@ void main() {
     ivec3 hi = clamp(ivec3(floor((local + reach) / u_kept_cell)), ivec3(0), u_kept_dims - 1);
     ivec3 own = clamp(ivec3(floor(local / u_kept_cell)), ivec3(0), u_kept_dims - 1);
     int n = 0, n_over = 0;
-    for (int ring = 0; ring < 2; ++ring)  // the cells around the atom's own first: the nearest neighbours, which block most rays, lead the lists
+    // The cells around the atom's own first: the nearest neighbours, which block most rays,
+    // lead the lists (the rays step stops a block once all its rays are blocked).
+    for (int ring = 0; ring < 2; ++ring)
     for (int z = lo.z; z <= hi.z; ++z)
     for (int y = lo.y; y <= hi.y; ++y)
     for (int x = lo.x; x <= hi.x; ++x) {
@@ -54,8 +56,7 @@ void main() {
             else atomicAdd(overflow[0], 1u);
         }
     }
-    counts[2 * local_slot] = n;
-    counts[2 * local_slot + 1] = n_over;
+    counts[local_slot] = n;
     int texels = u_patch * u_patch;
     for (int texel = 0; texel < texels; ++texel) {
         vec3 x_local = self_sphere.w * texel_normals[texel].xyz;  // the texel's point relative to the atom's centre

@@ -82,7 +82,7 @@ void main() {
     if (local_slot >= u_chunk_slots) return;
     vec4 self_sphere = spheres[int(slot_atoms[chunk_slot(local_slot)])];
     int first = local_slot * MAX_NEIGHBOURS;
-    int count = counts[2 * local_slot];
+    int count = counts[local_slot];
     int hidden = local_slot * u_patch * u_patch;
     bool clipping = u_clip_count > 0 || u_cube_on != 0;
     for (int dir = int(gl_LocalInvocationIndex); dir < u_directions; dir += 64) {

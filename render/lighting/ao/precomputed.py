@@ -200,7 +200,8 @@ class OcclusionAtlas:
         self.texture.repeat_x = self.texture.repeat_y = False
         self.slot_atoms = self.ctx.buffer(kept.tobytes() if kept.size else b"\0" * 4)
         self.atom_slots = self.ctx.buffer(slots.tobytes())
-        self.kept = KeptCells(self.ctx, self.grid.grid.centers[kept], self.grid.vdw_radii[kept], self.grid.grid.cell_size)
+        self.kept = KeptCells(self.ctx, self.grid.grid.centers[kept], self.grid.vdw_radii[kept],
+                              self.grid.grid.cell_size)
         self.n_slots, self.patch, self.tiles_x = int(kept.size), patch, tiles_x
         self.layout_key = key
         self.ambient_key = self.sun_key = self.probe_key = None
@@ -255,7 +256,7 @@ class OcclusionAtlas:
         facing, rank, most_facing = facing_texels(normals, dirs)
         blocks = max(math.ceil(most_facing / BLOCK_TEXELS), 1)
         buffers = {binding: self._buffer(binding, nbytes) for binding, nbytes in (
-            (5, chunk * MAX_NEIGHBOURS * 16), (6, chunk * MAX_OVERLAPS * 16), (7, chunk * 2 * 4), (8, dirs.nbytes),
+            (5, chunk * MAX_NEIGHBOURS * 16), (6, chunk * MAX_OVERLAPS * 16), (7, chunk * 4), (8, dirs.nbytes),
             (9, lists * MASK_WORDS * 4), (10, lists * blocks * 4), (11, 4), (12, max(slots.nbytes, 4)),
             (18, chunk * self.patch * self.patch * 4))}
         buffers[8].write(dirs.tobytes())
