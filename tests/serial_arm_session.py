@@ -59,6 +59,12 @@ class Session:
                 return state
         raise AssertionError(f"condition not reached in {timeout_s} s (faults {self.faults}: {self.last_fault})")
 
+    def reads_the_stylus(self, stylus, atol_mm: float = 0.5, force=(0.0, 0.0, 0.0)):
+        """The next good read, asserted to be where the emulated stylus is (within `atol_mm`)."""
+        state = self.until(lambda _s: True, force=force)
+        np.testing.assert_allclose(state.position_mm, stylus.now(), atol=atol_mm)
+        return state
+
     def settle(self, stylus, hand, timeout_s: float = 10.0, force=(0.0, 0.0, 0.0), rest_s: float = 0.03):
         """Run until the hand has arrived and the stylus has rested for `rest_s`; the state read then."""
         since = [None]

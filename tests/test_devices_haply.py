@@ -165,8 +165,7 @@ def test_displacements_and_forces_in_the_device_frame(rig):
     dev, board, hand = rig
     dev.open()
     session = Session(dev)
-    start = session.until(lambda s: True)
-    np.testing.assert_allclose(start.position_mm, board.stylus.now(), atol=0.5)  # the start pose the setup declared
+    session.reads_the_stylus(board.stylus)  # the start pose the setup declared
     hand.target = (0.0, 0.0, 0.0)
     centre = session.settle(board.stylus, hand)
     centre_true = board.stylus.now()
@@ -198,8 +197,7 @@ def test_opening_resends_until_the_board_answers(rig):
     dev.open()
     assert time.monotonic() - t0 >= 0.3
     session = Session(dev)
-    state = session.until(lambda s: True)
-    np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)
+    session.reads_the_stylus(board.stylus)
 
 
 def test_a_board_that_never_answers_is_one_line_and_no_hang(rig):
@@ -239,8 +237,7 @@ def test_a_board_that_missed_the_setup_is_set_up_again(tmp_path):
     try:
         dev.open()
         assert dev.setups_sent == 2 and board.owner == {1: 5, 2: 5}
-        state = Session(dev).until(lambda s: True)
-        np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)
+        Session(dev).reads_the_stylus(board.stylus)
     finally:
         dev.close()
         board.stop()
@@ -273,8 +270,7 @@ def test_a_stalled_host_gets_a_fresh_reply_not_the_waiting_one(rig):
     dev.write_force((0.0, 0.0, 0.0))
     hand.target = (0.0, 0.0, 15.0)
     time.sleep(0.2)
-    state = session.until(lambda s: True)
-    np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)
+    session.reads_the_stylus(board.stylus)
     assert dev.stale_replies >= 1
 
 
@@ -293,8 +289,7 @@ def test_a_board_that_stops_mid_session_is_one_line_and_gets_zero_when_back(rig)
         dev.write_force((0.0, 0.0, 0.0))  # what the daemon writes on a fault
         time.sleep(0.001)
     board.resume()
-    state = session.until(lambda s: True, force=(0.0, 0.0, 0.0))
-    np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)
+    session.reads_the_stylus(board.stylus)
     assert np.allclose(board.motor_force(), 0.0)  # the board has no watchdog: zero had to be written
 
 
@@ -307,8 +302,7 @@ def test_garbage_on_the_line_is_dropped_and_the_session_resynchronises(rig):
         board.inject(junk)
         session.run(0.05)
     assert dev.rejected_frames >= 2
-    state = session.until(lambda s: True)
-    np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)
+    session.reads_the_stylus(board.stylus)
 
 
 def test_pulling_the_cable_faults_at_once_and_reconnects(rig):
@@ -326,8 +320,7 @@ def test_pulling_the_cable_faults_at_once_and_reconnects(rig):
     board.replug()  # a replugged board restarted: it needs the setup again (handle in the start pose)
     dev.reconnect()
     assert dev.setups_sent == 2
-    state = session.until(lambda s: True)
-    np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)
+    session.reads_the_stylus(board.stylus)
 
 
 def test_closing_leaves_the_motors_at_zero(rig):

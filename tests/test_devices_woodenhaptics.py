@@ -46,8 +46,7 @@ def test_displacements_and_forces_in_the_device_frame(rig):
     dev, board, hand = rig
     dev.open()
     session = Session(dev)
-    home = session.until(lambda s: True)
-    np.testing.assert_allclose(home.position_mm, board.stylus.now(), atol=0.5)  # the home pose, where counts are 0
+    session.reads_the_stylus(board.stylus)  # the home pose, where counts are 0
     hand.target = (0.0, 0.0, 0.0)  # the workspace centre
     centre = session.settle(board.stylus, hand)
     np.testing.assert_allclose(centre.position_mm, board.stylus.now(), atol=0.5)
@@ -163,8 +162,7 @@ def test_a_stalled_host_gets_a_fresh_reply_not_the_waiting_one(rig):
     hand.target = (0.0, 15.0, 0.0)
     time.sleep(0.2)
     assert board.watchdog_trips >= 1  # the firmware switched its amplifiers off meanwhile
-    state = session.until(lambda s: True)
-    np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)
+    session.reads_the_stylus(board.stylus)
     assert dev.stale_replies >= 1
     check_forces(session, board, FORCES[:1])  # the next command switched them on again
     assert board.refused == 0
@@ -196,8 +194,7 @@ def test_garbage_on_the_line_is_dropped_and_the_session_resynchronises(rig):
         board.inject(junk)
         session.run(0.05)
     assert dev.rejected_frames >= 4
-    state = session.until(lambda s: True)
-    np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)
+    session.reads_the_stylus(board.stylus)
     assert board.refused == 0
 
 
@@ -227,8 +224,7 @@ def test_pulling_the_cable_faults_at_once_and_reconnects(rig):
         dev.reconnect()
     board.replug()
     dev.reconnect()
-    state = session.until(lambda s: True)
-    np.testing.assert_allclose(state.position_mm, board.stylus.now(), atol=0.5)  # it restarted where it was
+    session.reads_the_stylus(board.stylus)  # it restarted where it was
 
 
 def test_closing_leaves_the_motors_at_zero(rig):

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tests.emulators.physics import HeldStylus, MovableHand, follow, numeric_jacobian
+from tests.emulators.physics import ArmUnderStylus, HeldStylus, MovableHand, follow, numeric_jacobian
 from tests.emulators.pty_serial import PtySerialDevice, Rig
 
 MAX_TORQUE = 0.123
@@ -82,7 +82,7 @@ PANTOGRAPHS = {
 }
 
 
-class HaplyBoard(PtySerialDevice):
+class HaplyBoard(ArmUnderStylus, PtySerialDevice):
     """The board: `torques` (N·m per port after the clamp), `motor_force()` (N, room frame),
     `stylus` and `hand` (mm, room frame)."""
 
@@ -98,10 +98,7 @@ class HaplyBoard(PtySerialDevice):
         self.hand.place(start)
         self.stylus = HeldStylus(start, self.hand, mass_kg=0.08, hand_stiffness_n_per_mm=0.3, planar_axis=1)
         self.writes = 0
-        self.max_force_n = 0.0
-        self._force = np.zeros(3)
-        self._jacobian = numeric_jacobian(self.mech.handle, self.theta)
-        self._moved_at = 0.0
+        self._start_arm()
         super().__init__(directory, name)
 
     # the firmware ---------------------------------------------------------------------
@@ -202,22 +199,11 @@ class HaplyBoard(PtySerialDevice):
             self._move()
 
     # the mechanism --------------------------------------------------------------------
-    def _move(self) -> None:
-        """The links follow the handle (the hand and the motors move it)."""
-        self.stylus.advance(self._force)
-        where = self.stylus.now()
-        try:
-            self.theta = follow(lambda t: self.mech.room_mm(t)[[0, 2]], self.theta, where[[0, 2]])
-        except ValueError:
-            pass  # beyond the links' reach: they stay where they could go
-        self._jacobian = numeric_jacobian(self.mech.handle, self.theta)
-        self._moved_at = time.monotonic()
-        self._refresh_force()
+    def _follow(self, where_mm: np.ndarray) -> None:
+        self.theta = follow(lambda t: self.mech.room_mm(t)[[0, 2]], self.theta, where_mm[[0, 2]])
 
-    def _refresh_force(self) -> None:
-        self.stylus.advance(self._force)  # the old force acted until now
-        self._force = self.motor_force()
-        self.max_force_n = max(self.max_force_n, float(np.linalg.norm(self._force)))
+    def _jacobian_now(self) -> np.ndarray:
+        return numeric_jacobian(self.mech.handle, self.theta)
 
     def _own_angle(self, port: int) -> float:
         link_angle = self.theta[self.mech.port_link[port] - 1]

@@ -119,3 +119,42 @@ def tip_force(fk, q, joint_torques) -> np.ndarray:
     """The tip force joint torques make, for a forward kinematics in the units of the force's
     lever (a fk in metres and torques in N·m give N)."""
     return np.linalg.lstsq(numeric_jacobian(fk, q).T, np.asarray(joint_torques, dtype=float), rcond=None)[0]
+
+
+class ArmUnderStylus:
+    """The links of a serial board's arm under the held stylus (for PtySerialDevice boards):
+    every move the links follow the stylus (`_follow`, Newton's method from where they
+    were), the Jacobian is taken there (`_jacobian_now`), and the motors' force
+    (`motor_force`) is refreshed; it acts on the stylus until the next refresh. The board
+    calls `_start_arm()` once its links and stylus are in place."""
+
+    def _start_arm(self) -> None:
+        self.max_force_n = 0.0
+        self._force = np.zeros(3)
+        self._jacobian = self._jacobian_now()
+        self._moved_at = 0.0
+
+    def _follow(self, where_mm: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def _jacobian_now(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def motor_force(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _move(self) -> None:
+        """The links follow the stylus (the hand and the motors move it)."""
+        self.stylus.advance(self._force)
+        try:
+            self._follow(self.stylus.now())
+        except ValueError:
+            pass  # beyond the links' reach: they stay where they could go
+        self._jacobian = self._jacobian_now()
+        self._moved_at = time.monotonic()
+        self._refresh_force()
+
+    def _refresh_force(self) -> None:
+        self.stylus.advance(self._force)  # the old force acted until now
+        self._force = self.motor_force()
+        self.max_force_n = max(self.max_force_n, float(np.linalg.norm(self._force)))

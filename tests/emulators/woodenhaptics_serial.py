@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tests.emulators.physics import HeldStylus, MovableHand, follow, numeric_jacobian
+from tests.emulators.physics import ArmUnderStylus, HeldStylus, MovableHand, follow, numeric_jacobian
 from tests.emulators.pty_serial import PtySerialDevice, Rig
 
 ESCON_MAX_MA = 6000
@@ -118,7 +118,7 @@ ARMS = {
 }
 
 
-class WoodenHapticsEmulator(PtySerialDevice):
+class WoodenHapticsEmulator(ArmUnderStylus, PtySerialDevice):
     """The board: `currents_ma` (what the amplifiers drive), `motor_force()` (N, room frame),
     `refused` (commands answered with an error; `refusals` their error bits), `stylus` and
     `hand` (mm, room frame)."""
@@ -138,10 +138,7 @@ class WoodenHapticsEmulator(PtySerialDevice):
         self.accepted = 0
         self.last_command_ma = None
         self.watchdog_trips = 0
-        self.max_force_n = 0.0
-        self._force = np.zeros(3)
-        self._jacobian = numeric_jacobian(self.arm.tip_m, self.bodies)
-        self._moved_at = 0.0
+        self._start_arm()
         super().__init__(directory, name)
 
     @property
@@ -219,21 +216,11 @@ class WoodenHapticsEmulator(PtySerialDevice):
             self._move()
 
     # the mechanism --------------------------------------------------------------------
-    def _move(self) -> None:
-        """The arm follows the stylus (the hand and the motors move it)."""
-        self.stylus.advance(self._force)
-        try:
-            self.bodies = follow(lambda q: self.arm.tip_m(q) * 1000.0, self.bodies, self.stylus.now())
-        except ValueError:
-            pass  # beyond the arm's reach: it stays where it could go
-        self._jacobian = numeric_jacobian(self.arm.tip_m, self.bodies)
-        self._moved_at = time.monotonic()
-        self._refresh_force()
+    def _follow(self, where_mm: np.ndarray) -> None:
+        self.bodies = follow(lambda q: self.arm.tip_m(q) * 1000.0, self.bodies, where_mm)
 
-    def _refresh_force(self) -> None:
-        self.stylus.advance(self._force)  # the old force acted until now
-        self._force = self.motor_force()
-        self.max_force_n = max(self.max_force_n, float(np.linalg.norm(self._force)))
+    def _jacobian_now(self) -> np.ndarray:
+        return numeric_jacobian(self.arm.tip_m, self.bodies)
 
     def _motor_counts(self) -> np.ndarray:
         motor = self.bodies / self.arm.body_per_motor()
