@@ -253,14 +253,16 @@ class OcclusionAtlas:
         dirs[:, :3] = clustered(fibonacci_directions(directions))
         lists = chunk * directions if ambient else 1
         normals = texel_normals(self.patch)
-        facing, rank, most_facing = facing_texels(normals, dirs)
-        blocks = max(math.ceil(most_facing / BLOCK_TEXELS), 1)
+        tables, blocks = {}, 1  # the facing lists: only the accessibility's steps read them
+        if ambient:
+            facing, rank, most_facing = facing_texels(normals, dirs)
+            tables = {BINDING_FACING: facing, BINDING_FACING_RANK: rank}
+            blocks = max(math.ceil(most_facing / BLOCK_TEXELS), 1)
         buffers = {binding: self._buffer(binding, nbytes) for binding, nbytes in (
             (5, chunk * MAX_NEIGHBOURS * 16), (6, chunk * MAX_OVERLAPS * 16), (7, chunk * 4), (8, dirs.nbytes),
             (9, lists * MASK_WORDS * 4), (10, lists * blocks * 4), (11, 4), (12, max(slots.nbytes, 4)),
             (18, chunk * self.patch * self.patch * 4))}
         buffers[8].write(dirs.tobytes())
-        tables = {BINDING_FACING: facing, BINDING_FACING_RANK: rank}
         for binding, table in tables.items():
             buffers[binding] = self._buffer(binding, table.nbytes)
             buffers[binding].write(table.tobytes())
