@@ -188,7 +188,13 @@ class UniformGrid:
         rng = self.cell_range(lo, hi)
         if rng is None:
             return np.empty(0, dtype=np.int64)
-        return np.unique(self._gather(self.cells_in_range(*rng)))
+        stored = self._gather(self.cells_in_range(*rng))
+        n = self.centers.shape[0]
+        if stored.size * 16 < n:  # a few cells of many: sorting them is cheaper than a pass over all
+            return np.unique(stored)
+        seen = np.zeros(n, dtype=bool)
+        seen[stored] = True
+        return np.flatnonzero(seen)
 
     def spheres_in_box(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """Spheres that overlap the closed box [lo, hi] (exact sphere-box test)."""

@@ -69,9 +69,23 @@ def sphere_rect(center, radius: float, viewproj: np.ndarray, size: tuple[int, in
     """Pixels a sphere can cover: the bounding box of its enclosing cube's eight corners
     projected (the cube holds the sphere, so its image holds the sphere's), grown by
     `margin`. The whole frame when a corner lies behind the eye; None when off screen."""
-    corners = np.array(np.meshgrid(*[[c - radius, c + radius] for c in np.asarray(center, dtype=np.float64)],
-                                   indexing="ij")).reshape(3, -1).T
-    clip = np.column_stack([corners, np.ones(8)]) @ np.asarray(viewproj, dtype=np.float64).T
+    return _corners_rect(_cube_corners(center, radius), viewproj, size, margin)
+
+
+def capsule_rect(a, b, radius: float, viewproj: np.ndarray, size: tuple[int, int], margin: int = 2) -> Rect | None:
+    """Pixels a capsule (the segment a-b swept by a sphere) can cover: the bounding box of
+    the corners of both end spheres' cubes projected (the capsule lies in their convex
+    hull, and so does its image), grown by `margin`; as sphere_rect otherwise."""
+    return _corners_rect(np.vstack([_cube_corners(a, radius), _cube_corners(b, radius)]), viewproj, size, margin)
+
+
+def _cube_corners(center, radius: float) -> np.ndarray:
+    return np.array(np.meshgrid(*[[c - radius, c + radius] for c in np.asarray(center, dtype=np.float64)],
+                                indexing="ij")).reshape(3, -1).T
+
+
+def _corners_rect(corners: np.ndarray, viewproj: np.ndarray, size: tuple[int, int], margin: int) -> Rect | None:
+    clip = np.column_stack([corners, np.ones(len(corners))]) @ np.asarray(viewproj, dtype=np.float64).T
     w, h = size
     if np.any(clip[:, 3] <= 1e-9):
         return (0, 0, w, h)

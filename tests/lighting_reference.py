@@ -42,6 +42,7 @@ class Occluders:
     culled: np.ndarray = None  # (N,) bool
     culling: Culling = field(default_factory=Culling)
     probe: np.ndarray | None = None  # (4,) centre, radius
+    probe_reach: float = np.inf  # Å: the probe's share of the AO is windowed to 0 there
 
     def __post_init__(self) -> None:
         self.centers = np.asarray(self.centers, dtype=np.float64).reshape(-1, 3)
@@ -55,7 +56,7 @@ class Occluders:
         """The same occluders a GpuGrid holds (its culled flags, clipping and probe)."""
         probe = np.asarray(gpu_grid.probe_sphere, dtype=np.float64)
         return cls(gpu_grid.grid.centers, gpu_grid.vdw_radii, gpu_grid.culled_mask.copy(), gpu_grid.culling,
-                   probe if probe[3] > 0 else None)
+                   probe if probe[3] > 0 else None, gpu_grid.probe_reach)
 
 
 # ------------------------------------------------------------------ rays and clipping
@@ -200,6 +201,13 @@ def sphere_occlusion(p, n, centers, radii):
     return np.clip(np.maximum(cos, 0.0) * (radii / length) ** 2, 0.0, 1.0)
 
 
+def probe_occlusion(p, n, probe, reach):
+    """The probe's share: its sphere occlusion times (1 - (l / reach)^4)^2 clipped to 0
+    beyond `reach` (the probe light's window)."""
+    x = np.linalg.norm(p - probe[:3], axis=-1) / reach
+    return sphere_occlusion(p, n, probe[:3], probe[3]) * np.clip(1.0 - x ** 4, 0.0, 1.0) ** 2
+
+
 def analytic_ao(positions, normals, atom_ids, occ: Occluders, neighbours: np.ndarray, k: int,
                 probe_neighbour_ids: np.ndarray | None = None) -> np.ndarray:
     """Accessibility 1 - occlusion from each pixel's atom's first k neighbours (rows of
@@ -213,7 +221,7 @@ def analytic_ao(positions, normals, atom_ids, occ: Occluders, neighbours: np.nda
     lists = np.asarray(neighbours)[ids[atoms], :k]
     out[atoms] = _product_of_accessibility(p[atoms], n[atoms], lists, occ)
     if occ.probe is not None:
-        out[atoms] *= 1.0 - sphere_occlusion(p[atoms], n[atoms], occ.probe[:3], occ.probe[3])
+        out[atoms] *= 1.0 - probe_occlusion(p[atoms], n[atoms], occ.probe, occ.probe_reach)
         on_probe = np.flatnonzero(ids == ATOM_PROBE)
         if on_probe.size and probe_neighbour_ids is not None:
             lists = np.broadcast_to(np.asarray(probe_neighbour_ids)[:k], (on_probe.size, min(k, len(probe_neighbour_ids))))

@@ -86,6 +86,7 @@ def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings
     cached, camera = make_renderer(gl, structure, size, settings, cache=True, setup=setup)
     full, full_camera = make_renderer(gl, structure, size, settings, cache=False, setup=setup)
     planes = []  # the planes in effect, frame by frame
+    shaded = []  # the fraction of the pixels each frame shaded again
     try:
         for center in path:
             for r in (cached, full):
@@ -95,6 +96,8 @@ def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings
             full.render(full_camera)
             a, b = cached.read_image(), full.read_image()
             assert agreement(a, b) >= 0.999, (sid, setup, center)
+            rect = cached.pass_named("shading").shaded
+            shaded.append(0.0 if rect is None else rect[2] * rect[3] / (size[0] * size[1]))
             kinds = cached.targets.read(cached.targets.ids)[..., 1]
             assert (kinds == KIND_PROBE).any() == (center is not None)  # the probe is in the picture
             # the terms too, off the probe's own pixels (which the shading does not light)
@@ -109,6 +112,9 @@ def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings
             assert cached.cache.misses == 1 + changes and cached.cache.hits == len(path) - 1 - changes >= 1
         else:
             assert cached.cache.misses == 1 and cached.cache.hits == len(path) - 1  # the layer held throughout
+        assert shaded[0] == 1.0
+        if sid == "1tii" and setup == "none":  # the rest of the picture was kept, and still agrees
+            assert max(shaded[1:]) < 0.9, shaded
         assert full.cache is None
     finally:
         cached.release()

@@ -16,17 +16,26 @@ from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.lighting.settings import (
     AO_MODES,
+    DEFAULT_PROBE_RANGE,
     HARD_SHADOW,
     AOSettings,
     DirectionalLight,
     LightingSettings,
     PointLight,
 )
-from tests.lighting_reference import Occluders, analytic_ao, edge_cueing, light_visibility, view_depths
+from tests.lighting_reference import (
+    Occluders,
+    analytic_ao,
+    edge_cueing,
+    light_visibility,
+    probe_occlusion,
+    view_depths,
+)
 from sasprobe.render.passes.lighting import LightingPass, install_lighting, lighting_of
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import NavCube, Probe, SceneState
 from sasprobe.render.gl.targets import KIND_BACKBONE
+from sasprobe.render.gl.textures import read_texture
 from tests.conftest import run_cli, run_window_check
 from tests.lighting_support import away_from_boundaries, probe_on_surface
 
@@ -67,7 +76,7 @@ def occluders_of(g, scene) -> Occluders:
     cube = g.get("nav_cube")
     culling = Culling(g["clip_planes"], None if cube is None else (cube[:3], cube[3]))
     probe = np.array([*scene.probe.center, scene.probe.radius])
-    return Occluders(s.positions, s.vdw_radii, culling=culling, probe=probe)
+    return Occluders(s.positions, s.vdw_radii, culling=culling, probe=probe, probe_reach=DEFAULT_PROBE_RANGE)
 
 
 def shaded_ids(g) -> np.ndarray:
@@ -111,13 +120,46 @@ def test_pipeline_analytic_ao_equals_the_cpu_formula(frame):
     assert cpu[ids != -1].min() < 0.6
 
 
-def test_visibility_buffer_carries_the_terms_to_the_shading_pass(frame):
-    setup, scene, renderer, g = frame
+@pytest.mark.parametrize("cache", [True, False], ids=["layered", "whole"])
+def test_visibility_buffer_carries_the_terms_to_the_shading_pass(gl, crambin, cache):
+    """The shading pass's inputs hold the terms: the probe light's visibility texture it is
+    handed, and the visibility buffer's sun and ambient — on whole frames the terms as
+    traced; on layered frames (the frame cache) the molecule's own with the probe's shadow
+    of the sun taken in, and the ambient to which the shading pass adds the probe's share,
+    so that with the share taken in on the CPU (the probe sphere's shadow of the sun, its
+    analytic occlusion) they are the exported terms."""
+    scene = make_scene(crambin, "planes")
+    settings = LightingSettings(shadows="hard", ao=AOSettings(mode="analytic", k=16))
+    for name, on in settings.effects().items():
+        setattr(scene.effects, name, on)
+    renderer = Renderer(gl, scene, SIZE, frame_cache=cache)
+    install_lighting(renderer, settings)
+    center, radius = scene.bounding_sphere()
+    renderer.render(Camera.fitted(center, radius * 0.8, SIZE[0] / SIZE[1], direction=(0.2, 0.3, 1.0)))
+    g = gbuffer_arrays(renderer)
     t = renderer.targets
-    vis = t.read(t.visibility).astype(np.float32)
-    for channel, layer in enumerate(("shadow_dir", "shadow_probe", "ao")):
-        assert np.abs(vis[..., channel] - g[layer]).max() <= 1e-3, layer
+    vis = t.read(t.visibility).astype(np.float64)
+    lamp = renderer.last_frame.probe_lighting.visibility
+    assert np.array_equal(read_texture(lamp, top_first=True), g["shadow_probe"])
+    sun, ambient = vis[..., 0], vis[..., 2]
+    if cache:
+        ids = shaded_ids(g)
+        atoms = ids >= 0
+        probe = np.array([*scene.probe.center, scene.probe.radius])
+        probe_only = Occluders(np.zeros((0, 3)), np.zeros(0), probe=probe)
+        probe_sun = light_visibility(g["position"], g["normal"], ids, DirectionalLight(tuple(-g["light_direction"])),
+                                     probe_only)
+        probe_ambient = 1.0 - probe_occlusion(g["position"], g["normal"], probe,
+                                              renderer.pass_named("shading").settings.probe_range)
+        assert (probe_sun[atoms] == 0).any() and (probe_ambient[atoms] < 0.99).any()  # the share matters here
+        sun = np.where(atoms, np.minimum(sun, probe_sun), sun)
+        ambient = np.where(atoms, ambient * probe_ambient, ambient)
+    compared = away_from_boundaries(g["shadow_dir"] < 0.5, shaded_ids(g) != -1) | (shaded_ids(g) == -1)
+    assert np.abs(sun - g["shadow_dir"])[compared].max() <= 1e-3
+    assert np.abs(ambient - g["ao"]).max() <= 2e-3
+    assert np.all(vis[..., 1] == 1.0)  # the probe light's visibility has its own texture
     assert np.all(vis[..., 3] == 1.0)  # edge cueing off
+    renderer.release()
 
 
 def test_edge_cueing_reaches_the_visibility_alpha(gl, crambin):

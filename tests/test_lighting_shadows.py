@@ -13,6 +13,7 @@ from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.settings import HARD_SHADOW, DirectionalLight, PointLight, SoftShadow
 from tests.lighting_reference import Occluders, light_visibility
+from sasprobe.render.lighting.light_buffer import cell_cones
 from sasprobe.render.lighting.shadows import ShadowPass
 from tests.lighting_support import away_from_boundaries, camera, cullings, gbuffer_arrays, probe_on_surface, sphere_grid
 
@@ -135,3 +136,63 @@ def test_culled_and_clipped_occluders_cast_no_shadow(gl):
     assert read_texture(shadows.trace(gbuffer, sun))[0, 0] == 0.0
     for thing in (shadows, gbuffer, grid):
         thing.release()
+
+
+# ------------------------------------------------------------------ the probe light's light buffer
+@pytest.fixture(scope="module")
+def walking_pass(crambin_grid):
+    p = ShadowPass(crambin_grid, light_buffer=False)
+    yield p
+    p.release()
+
+
+def test_light_buffer_equals_the_grid_walk_to_the_bit(crambin, shadow_pass, walking_pass, scene):
+    """The light buffer tests only the atoms listed for a ray's direction: the same
+    occluders as the walk, so the same minimum, hard and soft, clipped or not."""
+    name, gbuffer, position, normal, atom, _ = scene
+    lamp = probe_light(crambin)
+    moved = PointLight(tuple(np.asarray(lamp.position) + [1.5, -2.0, 1.0]), 20.0)
+    for light in (lamp, moved):
+        for soft in (HARD_SHADOW, SoftShadow(inner=-0.4, outer=1.0, growth=4.0)):
+            listed = read_texture(shadow_pass.trace(gbuffer, light, soft))
+            walked = read_texture(walking_pass.trace(gbuffer, light, soft))
+            assert np.array_equal(listed, walked), (name, light, soft)
+            assert 0.05 < (walked[atom != -1] < 0.5).mean() < 0.95  # shadows to compare
+    counts = shadow_pass.light_buffer.counts()
+    assert counts.max() <= shadow_pass.light_buffer.capacity and shadow_pass.light_buffer.atoms_in_reach > 100
+
+
+def test_light_buffer_grows_until_every_list_fits(crambin, crambin_grid, walking_pass, scene):
+    name, gbuffer, *_ = scene
+    small = ShadowPass(crambin_grid, capacity=1)
+    try:
+        light = probe_light(crambin)
+        listed = read_texture(small.trace(gbuffer, light, HARD_SHADOW))
+        counts = small.light_buffer.counts()
+        assert counts.max() > 1 and small.light_buffer.capacity >= counts.max()
+        assert np.array_equal(listed, read_texture(walking_pass.trace(gbuffer, light, HARD_SHADOW)))
+    finally:
+        small.release()
+
+
+def test_light_buffer_cells_lie_within_their_cones():
+    """Every direction falls in the cell the documented cube layout gives it (face 2 axis +
+    negative, i and j along the next two axes), within that cell's cone."""
+    n = 8
+    cones = cell_cones(n)
+    rng = np.random.default_rng(11)
+    v = rng.normal(size=(20000, 3))
+    v = np.concatenate([v, np.eye(3), -np.eye(3), [[1, 1, 1], [1, -1, 0.5]]])  # face edges and corners too
+    axis = np.argmax(np.abs(v), axis=1)
+    rows = np.arange(v.shape[0])
+    major = v[rows, axis]
+    s = v[rows, (axis + 1) % 3] / np.abs(major)
+    t = v[rows, (axis + 2) % 3] / np.abs(major)
+    i = np.clip(np.floor((s * 0.5 + 0.5) * n), 0, n - 1).astype(int)
+    j = np.clip(np.floor((t * 0.5 + 0.5) * n), 0, n - 1).astype(int)
+    cell = ((2 * axis + (major < 0)) * n + j) * n + i
+    unit = v / np.linalg.norm(v, axis=1, keepdims=True)
+    angle = np.arccos(np.clip(np.sum(unit * cones[cell, :3], axis=1), -1.0, 1.0))
+    assert np.all(angle <= cones[cell, 3] + 1e-9)
+    assert np.allclose(np.linalg.norm(cones[:, :3], axis=1), 1.0) and cones[:, 3].max() < np.radians(12)
+    assert len(np.unique(cell)) == 6 * n * n  # every cell is reached

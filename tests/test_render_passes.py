@@ -8,7 +8,7 @@ import pytest
 
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer_export import gbuffer_arrays
-from sasprobe.render.passes.base import Pass
+from sasprobe.render.passes.base import Pass, ProbeLighting
 from sasprobe.render.passes.probe import PROBE_COLOR
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import Probe, SceneState
@@ -20,15 +20,26 @@ TOL = 2.5 / 255  # RGBA8 rounding plus float32 shading
 
 
 class FixedVisibility(Pass):
-    """Stands in for a shadow/AO pass: writes given visibility factors before the shading pass."""
+    """Stands in for a shadow/AO pass: writes given visibility factors before the shading
+    pass, the probe light's (channel 1) as the texture the lighting hands over."""
 
     name = "fixed_visibility"
 
     def __init__(self, values: np.ndarray):
         self.values = values  # (H, W, 4) float, row 0 = top
+        self.probe_light = None
 
     def run(self, frame) -> None:
-        frame.targets.visibility.write(np.ascontiguousarray(self.values[::-1], dtype=np.float16).tobytes())
+        rows_up = self.values[::-1]
+        frame.targets.visibility.write(np.ascontiguousarray(rows_up, dtype=np.float16).tobytes())
+        if self.probe_light is None:
+            self.probe_light = frame.ctx.texture(frame.size, 1, dtype="f4")
+        self.probe_light.write(np.ascontiguousarray(rows_up[..., 1], dtype=np.float32).tobytes())
+        frame.probe_lighting = ProbeLighting(self.probe_light)
+
+    def release(self) -> None:
+        if self.probe_light is not None:
+            self.probe_light.release()
 
 
 def scene_with_probe(s):

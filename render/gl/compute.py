@@ -19,10 +19,10 @@ class ComputePass:
     """A compute program over an image, with a GPU grid bound when it has one (the base of
     the lighting passes; the grid is anything with bind() and uniforms())."""
 
-    def __init__(self, ctx, shader: str, gpu_grid=None):
+    def __init__(self, ctx, shader: str, gpu_grid=None, defines: tuple[str, ...] = ()):
         self.ctx = ctx
         self.grid = gpu_grid
-        self.program = ctx.compute_shader(source(shader))
+        self.program = ctx.compute_shader(source(shader, defines))
 
     def run(self, width: int, height: int, uniforms: dict) -> None:
         if self.grid is not None:

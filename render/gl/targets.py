@@ -8,9 +8,10 @@ G-buffer attachments (shaders/gbuffer_out.glsl writes them in this order):
     2 normal    RGBA32F  world unit normal (caps: the cutting plane's outward normal)
     3 ids       RG32I    (atom id, kind): an atom index, ATOM_BACKGROUND or ATOM_PROBE; KIND_*
     depth       24-bit depth texture
-Visibility (RGBA16F, cleared to 1): r directional-light visibility, g probe-light
-visibility, b ambient accessibility, a edge factor. The lighting pass writes it before
-the shading pass reads it.
+Visibility (RGBA16F, cleared to 1): r directional-light visibility, g 1 (the probe light's
+visibility is a texture of the lighting's own, handed to the shading pass with the frame:
+render/passes/base.py ProbeLighting), b ambient accessibility, a edge factor. The lighting
+pass writes it before the shading pass reads it.
 
 The ids below are the one home of these numbers: the shaders get them as #defines
 (render/gl/programs.py generates constants.glsl from them), the export and the lighting

@@ -26,6 +26,7 @@ from sasprobe.render.gl.uniforms import MAX_CLIP_PLANES, padded_planes
 
 BINDING_CELL_START, BINDING_CELL_ATOMS, BINDING_SPHERES, BINDING_CULLED = 0, 1, 2, 3
 NO_PROBE = (0.0, 0.0, 0.0, 0.0)
+UNBOUNDED = 1e30  # Å: a probe whose share of the AO is not windowed
 CULLED, CENTRE_CLIPPED = 1, 2  # flag bits of the culled buffer
 
 
@@ -52,6 +53,11 @@ class Culling:
         if self.nav_cube is not None:
             centre, half = self.nav_cube
             self.nav_cube = (np.asarray(centre, dtype=np.float64).reshape(3), float(half))
+
+    @property
+    def clipping(self) -> bool:
+        """Whether anything is cut away (shaders compiled with NO_CLIPPING assume not)."""
+        return self.clip_planes.shape[0] > 0 or self.nav_cube is not None
 
     @property
     def cube_box(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -136,6 +142,7 @@ class GpuGrid:
         self.centre_clipped_mask = np.zeros(self.n_atoms, dtype=bool)
         self.walk_range = (np.zeros(3, dtype=np.int64), grid.dims - 1)
         self.probe_sphere = NO_PROBE
+        self.probe_reach = UNBOUNDED
         self.culling_version = 0  # counts set_culling calls (what depends on the culled flags follows it)
 
     @classmethod
@@ -162,9 +169,11 @@ class GpuGrid:
             rng = (np.zeros(3, dtype=np.int64), np.zeros(3, dtype=np.int64))
         self.walk_range = rng if rng is not None else (np.zeros(3, dtype=np.int64), self.grid.dims - 1)
 
-    def set_probe(self, center: np.ndarray | None, radius: float = 0.0) -> None:
-        """The probe sphere as an occluder (None: no probe)."""
+    def set_probe(self, center: np.ndarray | None, radius: float = 0.0, reach: float = UNBOUNDED) -> None:
+        """The probe sphere as an occluder (None: no probe); its analytic share of the AO is
+        windowed to 0 at `reach` Å from its centre (the renderer passes its light's range)."""
         self.probe_sphere = NO_PROBE if center is None else (*(float(v) for v in center), float(radius))
+        self.probe_reach = float(reach)
 
     def bind(self) -> None:
         self.cell_start.bind_to_storage_buffer(BINDING_CELL_START)
@@ -181,6 +190,7 @@ class GpuGrid:
             "u_walk_lo": tuple(int(v) for v in lo),
             "u_walk_hi": tuple(int(v) for v in hi),
             "u_probe_sphere": self.probe_sphere,
+            "u_probe_reach": self.probe_reach,
             **self.culling.uniforms(),
         }
 

@@ -1,25 +1,45 @@
 """Shadows traced per pixel through the grid: the directional light and the probe's point
 light, hard or Parker soft, written as a visibility texture (r32f, 1 = lit) the light
-pass multiplies in."""
+pass multiplies in. The point light's rays go through its light buffer
+(render/lighting/light_buffer.py), rebuilt when the light moves; the same visibility as the
+grid walk, which `light_buffer=False` keeps (tests, benchmarks)."""
 
 from __future__ import annotations
+
+import numpy as np
 
 from sasprobe.render.gl.compute import ComputePass
 from sasprobe.render.gl.textures import texture_2d
 from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.light_buffer import CAPACITY, FACE_CELLS, PointLightBuffer
 from sasprobe.render.lighting.settings import (
     HARD_SHADOW,
     DirectionalLight,
     PointLight,
     SoftShadow,
+    RAY_EPS_ABS,
+    RAY_EPS_REL,
     light_uniforms,
     ray_epsilon_uniforms,
 )
 
 
-class ShadowPass(ComputePass):
-    def __init__(self, gpu_grid):
-        super().__init__(gpu_grid.ctx, "shadows.comp", gpu_grid)
+class ShadowPass:
+    """Shadows of one GPU grid. shaders/shadows.comp is compiled per case (the walk or the
+    light buffer; with or without clipping), each program holding only its own code."""
+
+    def __init__(self, gpu_grid, light_buffer: bool = True, face_cells: int = FACE_CELLS, capacity: int = CAPACITY):
+        self.ctx = gpu_grid.ctx
+        self.grid = gpu_grid
+        self.light_buffer = PointLightBuffer(gpu_grid, face_cells, capacity) if light_buffer else None
+        self._programs: dict[tuple[bool, bool], ComputePass] = {}
+
+    def _program(self, buffered: bool) -> ComputePass:
+        key = (buffered, self.grid.culling.clipping)
+        if key not in self._programs:
+            defines = (("LIGHT_BUFFER",) if buffered else ()) + (() if key[1] else ("NO_CLIPPING",))
+            self._programs[key] = ComputePass(self.ctx, "shadows.comp", self.grid, defines)
+        return self._programs[key]
 
     def trace(self, gbuffer: GBuffer, light: DirectionalLight | PointLight, soft: SoftShadow = HARD_SHADOW,
               out=None, rect=None, only_probe: bool = False):
@@ -34,10 +54,15 @@ class ShadowPass(ComputePass):
         width, height = gbuffer.size
         out = out or texture_2d(self.ctx, width, height)
         x, y, w, h = rect if rect is not None else (0, 0, width, height)
+        point = isinstance(light, PointLight)
+        buffered = point and self.light_buffer is not None
+        if buffered:
+            self.light_buffer.build(light.position, light.radius + self._origin_slack(light), soft.outer)
+            self.light_buffer.bind()
         gbuffer.bind()
         out.bind_to_image(0, read=False, write=True)
-        point = isinstance(light, PointLight)
-        self.run(w, h, {
+        self._program(buffered).run(w, h, {
+            **(self.light_buffer.uniforms(soft.outer) if buffered else {}),
             "u_offset": (int(x), int(y)),
             "u_only_probe": int(only_probe),
             **light_uniforms(None if point else light, light if point else None),
@@ -48,3 +73,14 @@ class ShadowPass(ComputePass):
         })
         return out
 
+    def _origin_slack(self, light: PointLight) -> float:
+        """How much farther than its radius from the light a ray origin can lie: pixels are
+        traced within the radius, and their rays start a ray epsilon off the surface."""
+        return RAY_EPS_ABS + RAY_EPS_REL * (float(np.max(np.abs(light.position))) + light.radius)
+
+    def release(self) -> None:
+        for program in self._programs.values():
+            program.release()
+        self._programs.clear()
+        if self.light_buffer is not None:
+            self.light_buffer.release()

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -13,6 +13,22 @@ from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import RenderTargets
 from sasprobe.render.gl.uniforms import gl_bytes
 from sasprobe.render.scene import NavCube, SceneState
+
+
+WHOLE = "whole"  # ProbeLighting.changed: the whole picture
+
+
+@dataclass
+class ProbeLighting:
+    """What the lighting hands the shading pass about the probe (render/passes/lighting.py):
+    the probe light's visibility texture (r32f; None: unshadowed) and, on layered frames,
+    the uniforms of the probe's share of the sun and the ambient light (shaders/probe_share.glsl)
+    and where its terms changed the picture this frame (besides the probe's reach, which
+    the shading pass adds itself)."""
+
+    visibility: object = None
+    share: dict = field(default_factory=dict)
+    changed: object = None  # layered frames: the rectangle the lighting's terms changed this frame, or WHOLE
 
 
 @dataclass
@@ -34,6 +50,7 @@ class Frame:
     index: int = 0  # frame number
     cache: object = None  # the renderer's MoleculeCache (render/frame_cache.py), None when it redraws all
     cached: bool = False  # the molecule layer of the last frame holds: its passes do not run
+    probe_lighting: ProbeLighting = field(default_factory=ProbeLighting)  # the lighting's, for the shading pass
 
     @property
     def size(self) -> tuple[int, int]:

@@ -14,12 +14,13 @@ stillness). Two ways of computing one picture:
   directional light, its ambient occlusion — on the molecule layer, once per molecule
   key (progressive AO keeps adding samples while the key holds, whatever the probe
   does); LightingPass, after the probe pass, recomputes what the probe changes: the probe
-  light's shadows within its range, the probe's pixels, edge cueing around it, and, in
-  the compose pass, the probe's shadow of the directional light and its share of the
-  ambient occlusion as one analytic sphere (shaders/visibility_compose.comp). With hard or
-  soft shadows and analytic AO the result is the whole frame's; the traced, screen-space
-  and precomputed AO methods take the molecule's occlusion without the probe and the
-  probe's share analytically.
+  light's shadows within its range, the probe's pixels, edge cueing around it and the
+  probe's shadow of the directional light (composed into the visibility buffer over those
+  rectangles only, shaders/visibility_compose.comp), and hands the shading pass the probe's
+  share of the ambient occlusion as one analytic sphere, which it adds per pixel
+  (shaders/probe_share.glsl). With hard or soft shadows and analytic AO the result is the
+  whole frame's; the traced, screen-space and precomputed AO methods take the molecule's
+  occlusion without the probe and the probe's share analytically.
 
       clear -> spheres -> backbone -> molecule_lighting -> probe -> lighting -> shading -> ...
 
@@ -45,6 +46,7 @@ from sasprobe.render.lighting.grid import Culling, GpuGrid
 from sasprobe.render.lighting.path_tracer import PathTracer
 from sasprobe.render.lighting.settings import (
     AO_MODES,
+    DEFAULT_PROBE_RANGE,
     HARD_SHADOW,
     DirectionalLight,
     LightingSettings,
@@ -53,7 +55,7 @@ from sasprobe.render.lighting.settings import (
     SoftShadow,
 )
 from sasprobe.render.lighting.shadows import ShadowPass
-from sasprobe.render.passes.base import Frame, Pass
+from sasprobe.render.passes.base import Frame, Pass, ProbeLighting
 from sasprobe.render.passes.lighting_layers import NO_NEIGHBOURS, LayeredLighting
 
 log = logging.getLogger("sasprobe")
@@ -85,7 +87,7 @@ class LightingPass(LayeredLighting, Pass):
         self.ao_mode = settings.ao.mode if settings.ao.mode != "off" else "analytic"
         self.scene_grid = None  # the SceneState grid self.grid was uploaded from
         self.grid: GpuGrid | None = None
-        self.shadows = self.ao = self.tracer = self.compose = None
+        self.shadows = self.ao = self.tracer = self.compose = self.compose_layered = self.compose_export = None
         self.edges = EdgeCueingPass(ctx)
         self._culling_key: bytes | None = None
         self._probe_key: bytes | None = None
@@ -101,6 +103,7 @@ class LightingPass(LayeredLighting, Pass):
         self._composed = None  # layered: the last compose's inputs, run again for the G-buffer export
         self._looked_up = (-1, None)  # (frame index, accessibility) the atlas gave with the sun's visibility
         self._still_frames = 0  # layered: frames the probe has stood still
+        self._molecule_changed = True  # layered: the molecule's terms changed this frame (compose them whole)
         self._warned_shell = False
 
     # ------------------------------------------------------------ state
@@ -126,6 +129,9 @@ class LightingPass(LayeredLighting, Pass):
             self.ao = AmbientOcclusion(self.grid, self.settings.ao)
             self.tracer = PathTracer.for_structure(self.grid, scene.structure)
             self.compose = ComputePass(self.ctx, "visibility_compose.comp", self.grid)
+            if self.layered:
+                self.compose_layered = ComputePass(self.ctx, "visibility_compose.comp", self.grid, ("LAYERED",))
+                self.compose_export = ComputePass(self.ctx, "visibility_compose.comp", self.grid, ("LAYERED", "EXPORT"))
             self._culling_key = self._probe_key = self._color_version = None
         if frame.buffers.color_version != self._color_version:  # a colour scheme: the path tracer's albedos
             if frame.buffers.color_version:
@@ -147,7 +153,8 @@ class LightingPass(LayeredLighting, Pass):
     def _set_probe(self, frame: Frame) -> bytes:
         """The probe as the grid's occluder (or none); returns its key."""
         probe = frame.scene.probe if frame.scene.effects.probe else None
-        self.grid.set_probe(None if probe is None else probe.center, 0.0 if probe is None else probe.radius)
+        self.grid.set_probe(None if probe is None else probe.center, 0.0 if probe is None else probe.radius,
+                            self.probe_reach)
         return b"" if probe is None else np.array([*probe.center, probe.radius]).tobytes()
 
     def _stillness(self, frame: Frame, culling_key: bytes, probe_key: bytes) -> bool:
@@ -163,6 +170,12 @@ class LightingPass(LayeredLighting, Pass):
         return changed
 
     # ------------------------------------------------------------ terms
+    @property
+    def probe_reach(self) -> float:
+        """Å: how far the probe changes the picture: its light's range, where its share of the
+        AO is windowed to 0 too (shaders/occluders.glsl probe_occlusion)."""
+        return self.shading.probe_range if self.shading is not None else DEFAULT_PROBE_RANGE
+
     def _soft(self, frame: Frame) -> SoftShadow:
         return self._soft_shell() if frame.scene.effects.soft_shadows else HARD_SHADOW
 
@@ -199,13 +212,16 @@ class LightingPass(LayeredLighting, Pass):
         return self.edges.compute(gbuffer, frame.view, frame.proj, self.settings.edge_settings(),
                                   out=self.textures.get("edges", frame.size), rect=rect)
 
-    def _compose(self, frame: Frame, terms: dict, uniforms: dict) -> None:
+    def _compose(self, frame: Frame, terms: dict, uniforms: dict, program=None, rect=None) -> None:
+        """The visibility buffer from the terms (shaders/visibility_compose.comp; `program`
+        one of its variants, default the whole frame's), over `rect` or the whole frame."""
         ones = self.textures.get("ones", frame.size, fill=1.0)
-        for unit, name in enumerate(("shadow_dir", "shadow_probe", "ao", "edges", "probe_pixels_sun"), start=3):
+        for unit, name in ((3, "shadow_dir"), (5, "ao"), (6, "edges"), (7, "probe_pixels_sun")):
             terms.get(name, ones).use(location=unit)
         GBuffer.of_targets(frame.targets).bind()
         frame.targets.visibility.bind_to_image(0, read=False, write=True)
-        self.compose.run(*frame.size, {"u_layered": 0, "u_write_terms": 0, **uniforms})
+        x, y, w, h = rect if rect is not None else (0, 0, *frame.size)
+        (program or self.compose).run(w, h, {**uniforms, "u_offset": (int(x), int(y))})
 
     # ------------------------------------------------------------ whole frames
     def run(self, frame: Frame) -> None:
@@ -234,6 +250,7 @@ class LightingPass(LayeredLighting, Pass):
         if fx.edge_cueing:
             terms["edges"] = self._edges(gbuffer, frame)
         self._compose(frame, terms, {})
+        frame.probe_lighting = ProbeLighting(self.layers.get("shadow_probe"))
 
     # ------------------------------------------------------------ helpers
     def _soft_shell(self) -> SoftShadow:
@@ -261,7 +278,8 @@ class LightingPass(LayeredLighting, Pass):
         return out
 
     def _release_structure(self) -> None:
-        for thing in (self.shadows, self.ao, self.tracer, self.compose, self.grid):
+        for thing in (self.shadows, self.ao, self.tracer, self.compose, self.compose_layered, self.compose_export,
+                      self.grid):
             if thing is not None:
                 thing.release()
 

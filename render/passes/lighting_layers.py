@@ -4,8 +4,10 @@ the molecule layer before the probe is drawn (once per molecule key; progressive
 adding samples while it holds); `_run_probe_layer` then recomputes what the probe changes:
 the probe light's shadows where it reaches now and reached last frame (or, with
 --shadows precomputed and the probe standing still, its baked visibility), the probe's own
-pixels' sun, the edges around it, and the compose step that adds the probe's shadow of
-the sun and its analytic share of the AO (shaders/visibility_compose.comp).
+pixels' sun, the edges around it, the visibility buffer over the rectangle the probe's
+terms touched, the probe's shadow of the sun taken in where it can fall
+(shaders/visibility_compose.comp), and, for the shading pass, the probe's analytic share
+of the AO (shaders/probe_share.glsl, per pixel) and the rectangle it all changed.
 
 LayeredLighting is a mixin of LightingPass and uses its state (grid, shadows, ao, lights,
 textures, settings) and its helpers (_sync, _set_probe, _sun, _ambient, _edges, _compose).
@@ -15,14 +17,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.render.frame_cache import full_rect, grow_rect, union_rect
+from sasprobe.render.frame_cache import capsule_rect, full_rect, grow_rect, union_rect
 from sasprobe.render.lighting.ao.analytic import MAX_K, nearest_to_point
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.settings import light_uniforms, ray_epsilon_uniforms
-from sasprobe.render.passes.base import Frame
+from sasprobe.render.passes.base import WHOLE, Frame, ProbeLighting
 
 STILL_FRAMES = 3  # --shadows precomputed: frames the probe stands still before its light is baked
 NO_NEIGHBOURS = np.full(MAX_K, -1, dtype=np.int32)
+SHADOW_MARGIN = 0.05  # Å around the probe's shadow capsule
+NO_PROBE_SHARE = {"u_probe_share_ambient": 0}  # shaders/probe_share.glsl
 
 
 class LayeredLighting:
@@ -33,6 +37,7 @@ class LayeredLighting:
         self.grid.set_probe(None)
         fx = frame.scene.effects
         gbuffer = GBuffer.of_targets(frame.targets)
+        self._molecule_changed = not frame.cached  # the visibility buffer is then composed whole
         if not frame.cached:
             self.ao.view_changed()
             self.molecule_terms = {}
@@ -43,13 +48,15 @@ class LayeredLighting:
                 self.molecule_terms["ao"] = self._ambient(gbuffer, frame)
         elif fx.ambient_occlusion and not self.ao.converged:
             self.molecule_terms["ao"] = self.ao.compute(gbuffer, frame.view, frame.proj)
+            self._molecule_changed = True
 
-    def _dirty_rect(self, term: str, now, frame: Frame):
+    def _dirty_rect(self, term: str, now, frame: Frame, whole: bool = False):
         """Where a probe-dependent term must be recomputed: everywhere on a frame that drew
-        the molecule layer, else where the probe reaches now and where it reached last time."""
+        the molecule layer (or when `whole`), else where the probe reaches now and where it
+        reached last time."""
         last = self._dirty.get(term)
         self._dirty[term] = now
-        return full_rect(frame.size) if not frame.cached else union_rect(last, now)
+        return full_rect(frame.size) if whole or not frame.cached else union_rect(last, now)
 
     def _run_probe_layer(self, frame: Frame) -> None:
         fx, size = frame.scene.effects, frame.size
@@ -79,31 +86,64 @@ class LayeredLighting:
             if rect is not None:
                 terms["probe_pixels_sun"] = self.shadows.trace(
                     gbuffer, sun, soft, out=self.textures.get("probe_pixels_sun", size), rect=rect, only_probe=True)
+        touched = frame.probe_rect()  # what the visibility buffer changes by: the probe's pixels, its edges
         if fx.edge_cueing:
             reach = self.settings.edge_settings().reach_px() + 1
-            rect = self._dirty_rect("edges", grow_rect(frame.probe_rect(), reach, size), frame)
-            terms["edges"] = self._edges(gbuffer, frame, rect)
+            near_probe = grow_rect(frame.probe_rect(), reach, size)
+            terms["edges"] = self._edges(gbuffer, frame, self._dirty_rect("edges", near_probe, frame))
+            touched = union_rect(touched, near_probe)
         probe_ambient = fx.ambient_occlusion and probe is not None
+        probe_sun = probe_sun and "shadow_dir" in terms
         uniforms = {
-            **light_uniforms(sun, None), **ray_epsilon_uniforms(),
-            "u_probe_sun": int(probe_sun and "shadow_dir" in terms), "u_shell": soft.shell(),
-            "u_shell_growth": float(soft.growth), "u_probe_ambient": int(probe_ambient),
+            **ray_epsilon_uniforms(), **light_uniforms(sun, None), "u_probe_sun": int(probe_sun),
+            "u_shell": soft.shell(), "u_shell_growth": float(soft.growth), "u_probe_ambient": int(probe_ambient),
             "u_k": int(self.settings.ao.k), "u_probe_neighbours": self._neighbours(probe_key, probe).tobytes(),
         }
-        self._compose(frame, terms, {**uniforms, "u_layered": 1, "u_write_terms": 0})
-        self._composed = (frame, terms, uniforms, "shadow_dir" in terms, fx.ambient_occlusion)
+        share = {} if not probe_ambient else {
+            "u_probe_share_ambient": 1, "u_share_probe": tuple(self.grid.probe_sphere),
+            "u_share_probe_reach": self.grid.probe_reach,
+        }
+        # The molecule's terms where the probe's touched them now or last frame (everywhere
+        # when they changed), then, with the layered program, what the probe adds where it is
+        # and where its shadow of the sun falls.
+        near_probe = union_rect(frame.probe_rect(), self._probe_shadow_rect(frame, sun, soft) if probe_sun else None)
+        touched = union_rect(touched, near_probe)
+        rect = self._dirty_rect("compose", touched, frame, whole=self._molecule_changed)
+        if rect is not None:
+            self._compose(frame, terms, {}, self.compose, rect)
+        if near_probe is not None:
+            self._compose(frame, terms, uniforms, self.compose_layered, near_probe)
+        changed = WHOLE if self._molecule_changed else touched
+        frame.probe_lighting = ProbeLighting(terms.get("shadow_probe"), share, changed)
+        self._composed = (frame, terms, {**uniforms, **NO_PROBE_SHARE, **share}, "shadow_dir" in terms,
+                          fx.ambient_occlusion)
 
     def _export_composed(self) -> None:
-        """The last layered frame's composed sun and ambient terms, written for the export."""
+        """The last layered frame's composed sun and ambient terms (the probe's share added),
+        written for the export."""
         frame, terms, uniforms, with_sun, with_ambient = self._composed
         sun_out, ao_out = self.textures.get("shadow_dir", frame.size), self.textures.get("ao", frame.size)
         sun_out.bind_to_image(1, read=False, write=True)
         ao_out.bind_to_image(2, read=False, write=True)
-        self._compose(frame, terms, {**uniforms, "u_layered": 1, "u_write_terms": 1})
+        self._compose(frame, terms, uniforms, self.compose_export)
         if with_sun:
             self.layers["shadow_dir"] = sun_out
         if with_ambient:
             self.layers["ao"] = ao_out
+
+    def _probe_shadow_rect(self, frame: Frame, sun, soft):
+        """Pixels the probe's shadow of the sun can fall on: the capsule from the probe away
+        from the light to where that line leaves the molecule's bounding sphere, as wide as
+        the probe with the soft shell's outer offset (no drawn point lies beyond)."""
+        probe = frame.scene.probe
+        reach = probe.radius + max(soft.outer, 0.0) + SHADOW_MARGIN
+        centre, radius = frame.scene.bounding_sphere(with_probe=False)
+        away = -sun.unit()
+        w = np.asarray(probe.center, dtype=np.float64) - centre
+        along = float(w @ away)
+        disc = along * along - float(w @ w) + (radius + reach) ** 2
+        length = max(np.sqrt(disc) - along, 0.0) if disc > 0 else 0.0  # |w + s away| = radius + reach
+        return capsule_rect(probe.center, probe.center + length * away, reach, frame.viewproj, frame.size)
 
     def _neighbours(self, probe_key: bytes, probe) -> np.ndarray:
         """The atoms nearest the probe (for the AO of its own pixels), found again when it moves."""

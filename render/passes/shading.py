@@ -1,12 +1,22 @@
 """Deferred shading: G-buffer + visibility buffer -> lit colour (shaders/shading.frag),
-with the parameters of ShadingSettings (render/lighting/settings.py)."""
+with the parameters of ShadingSettings (render/lighting/settings.py) and what the lighting
+hands over about the probe (Frame.probe_lighting).
+
+With the frame cache the shaded picture is kept (before the cube wire and the cues are
+drawn over a copy of it), and a frame in which only the probe moved shades again only
+the rectangle the probe changes, now and last frame: beyond its light's range nothing of
+the probe reaches the picture (its light and its share of the AO are windowed to 0 there),
+and the lighting says where its shadow and edges fell."""
 
 from __future__ import annotations
 
+from sasprobe.render.frame_cache import Rect, full_rect, sphere_rect, union_rect
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.settings import ShadingSettings
-from sasprobe.render.passes.base import Frame, Pass
+from sasprobe.render.passes.base import WHOLE, Frame, Pass, ProbeLighting
 from sasprobe.render.passes.probe import PROBE_COLOR
+
+TEXTURES = ("u_albedo", "u_position", "u_normal", "u_ids", "u_visibility", "u_probe_visibility")  # units 0..5
 
 
 class ShadingPass(Pass):
@@ -14,19 +24,35 @@ class ShadingPass(Pass):
 
     def __init__(self, ctx, programs, settings: ShadingSettings | None = None):
         self.settings = settings or ShadingSettings()
-        self.prog = programs.get("fullscreen.vert", "shading.frag")
-        self.vao = ctx.vertex_array(self.prog, [])
-        for unit, name in enumerate(("u_albedo", "u_position", "u_normal", "u_ids", "u_visibility")):
-            if name in self.prog:
-                self.prog[name].value = unit
+        self.ctx = ctx
+        self.programs = programs
+        self._vaos: dict[tuple[str, ...], object] = {}
+        self._kept = None  # (texture, framebuffer): the shaded picture kept across frames (frame cache)
+        self._reached: Rect | None = None  # what the probe changed in the last frame
+        self.shaded: Rect | None = None  # the rectangle the last frame shaded (None: nothing)
+
+    def _vao(self, lit: ProbeLighting):
+        """The program for what the lighting hands over (shaders/shading.frag's variants)."""
+        defines = (("PROBE_SHADOWED",) if lit.visibility is not None else ()) + (("PROBE_SHARE",) if lit.share else ())
+        if defines not in self._vaos:
+            prog = self.programs.get("fullscreen.vert", "shading.frag", defines=defines)
+            for unit, name in enumerate(TEXTURES):
+                if name in prog:
+                    prog[name].value = unit
+            self._vaos[defines] = self.ctx.vertex_array(prog, [])
+        return self._vaos[defines]
 
     def run(self, frame: Frame) -> None:
         ctx, t, scene, s = frame.ctx, frame.targets, frame.scene, self.settings
         fx = scene.effects
-        for unit, tex in enumerate((t.albedo, t.position, t.normal, t.ids, t.visibility)):
-            tex.use(unit)
+        lit = frame.probe_lighting
+        for unit, tex in enumerate((t.albedo, t.position, t.normal, t.ids, t.visibility, lit.visibility)):
+            if tex is not None:
+                tex.use(unit)
         probe = scene.probe
-        apply_uniforms(self.prog, {
+        vao = self._vao(lit)
+        apply_uniforms(vao.program, {
+            **lit.share,
             "u_eye": tuple(float(v) for v in frame.camera.eye),
             "u_background": s.background,
             "u_ambient": s.ambient,
@@ -45,10 +71,57 @@ class ShadingPass(Pass):
             "u_highlight": s.highlight,
             "u_probe_color": PROBE_COLOR,
         })
-        t.lit_fbo.use()
-        # No depth test, so no depth write: the cube wire later tests against the G-buffer depth.
-        ctx.disable(ctx.DEPTH_TEST | ctx.BLEND)
-        self.vao.render(ctx.TRIANGLES, vertices=3)
+        target, self.shaded = t.lit_fbo, full_rect(frame.size)
+        if frame.cache is not None:
+            target = self._kept_picture(frame)
+            self.shaded = self._to_shade(frame)
+        if self.shaded is not None:
+            target.use()
+            target.scissor = self.shaded
+            # No depth test, so no depth write: the cube wire later tests against the G-buffer depth.
+            ctx.disable(ctx.DEPTH_TEST | ctx.BLEND)
+            vao.render(ctx.TRIANGLES, vertices=3)
+            target.scissor = None
+        if target is not t.lit_fbo:
+            ctx.copy_framebuffer(t.lit_fbo, target)  # the later passes draw over a copy
+
+    # ------------------------------------------------------------ frames that keep the molecule layer
+    def _kept_picture(self, frame: Frame):
+        if self._kept is None or self._kept[0].size != tuple(frame.size):
+            self._release_kept()
+            texture = self.ctx.texture(frame.size, 4, dtype="f1")
+            self._kept = (texture, self.ctx.framebuffer([texture]))
+        return self._kept[1]
+
+    def _to_shade(self, frame: Frame) -> Rect | None:
+        """What to shade again: everything on a frame that drew the molecule layer (or whose
+        lighting changed everywhere), else where the probe changes the picture now and did
+        last frame — its reach (its light and its share of the AO end there), its pixels,
+        the touched atom and what the lighting's terms changed (its shadow, its edges)."""
+        scene, lit = frame.scene, frame.probe_lighting
+        reached = lit.changed if lit.changed != WHOLE else None
+        probe = scene.probe
+        if probe is not None:
+            reached = union_rect(reached, frame.probe_rect(max(self.settings.probe_range, probe.radius)))
+            if 0 <= probe.touched_atom < scene.structure.n_atoms:
+                atom = probe.touched_atom
+                reached = union_rect(reached, sphere_rect(scene.structure.positions[atom],
+                                                          scene.structure.vdw_radii[atom], frame.viewproj, frame.size))
+        last, self._reached = self._reached, reached
+        if not frame.cached or lit.changed == WHOLE:
+            return full_rect(frame.size)
+        return union_rect(last, reached)
+
+    def _release_kept(self) -> None:
+        if self._kept is not None:
+            if self.ctx.fbo is self._kept[1]:  # not the bound one (see RenderTargets.release)
+                self.ctx.detect_framebuffer(0).use()
+            for obj in reversed(self._kept):
+                obj.release()
+            self._kept = None
 
     def release(self) -> None:
-        self.vao.release()
+        for vao in self._vaos.values():
+            vao.release()
+        self._vaos.clear()
+        self._release_kept()

@@ -24,7 +24,7 @@ void main() {
     if (gbuffer_fetch(px, p, n, atom)) {
         if (atom >= 0) {
             for (int j = 0; j < u_k; ++j) ao *= neighbour_accessibility(p, n, neighbours[atom * MAX_K + j]);
-            if (u_probe_sphere.w > 0.0) ao *= 1.0 - sphere_occlusion(p, n, u_probe_sphere);
+            if (u_probe_sphere.w > 0.0) ao *= 1.0 - probe_occlusion(p, n, u_probe_sphere, u_probe_reach);
         } else if (atom == ATOM_PROBE) {
             for (int j = 0; j < u_k; ++j) ao *= neighbour_accessibility(p, n, u_probe_neighbours[j]);
         }

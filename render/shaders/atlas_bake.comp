@@ -7,7 +7,8 @@
 // traces them; beyond the probe light's range 1). Clip planes and the cube cut the rays as
 // everywhere else.
 // A point inside another drawn atom is never seen; it is marked -1 and filled from the
-// seen texels around it (atlas_fill.comp). Channels the bake leaves alone keep their value.
+// seen texels around it (atlas_fill.comp). Channels the bake leaves alone keep their value;
+// the program is compiled per case (BAKE_AMBIENT, BAKE_SUN, BAKE_PROBE: the channels baked).
 layout(local_size_x = 64) in;
 
 #include "grid_traversal.glsl"
@@ -18,9 +19,6 @@ layout(local_size_x = 64) in;
 
 layout(rgba16f, binding = 0) uniform image2D u_atlas;
 
-uniform int u_bake_ambient;
-uniform int u_bake_sun;
-uniform int u_bake_probe;
 
 void bake_texel(int local_slot, int index) {
     ivec2 texel = ivec2(index % u_patch, index / u_patch);
@@ -33,7 +31,8 @@ void bake_texel(int local_slot, int index) {
     ivec2 at = tile_origin(slot) + texel;
     vec4 value = imageLoad(u_atlas, at);
     vec3 o = ray_origin(x, n);
-    if (u_bake_ambient != 0) {
+#ifdef BAKE_AMBIENT
+    {
         int texels = u_patch * u_patch;
         float weight = 0.0, open = 0.0;
         for (int i = 0; i < u_directions && !hidden; ++i) {
@@ -46,17 +45,20 @@ void bake_texel(int local_slot, int index) {
         }
         value.r = hidden ? -1.0 : (weight == 0.0 ? 0.0 : open / weight);
     }
-    if (u_bake_sun != 0) {
-        value.g = hidden ? -1.0 : (dot(n, u_sun_dir) > 0.0
-            ? trace_visibility(o, u_sun_dir, 0.0, BIG, atom, vec2(0.0), 0.0, false) : 0.0);
-    }
-    if (u_bake_probe != 0) {
+#endif
+#ifdef BAKE_SUN
+    value.g = hidden ? -1.0 : (dot(n, u_sun_dir) > 0.0
+        ? trace_visibility(o, u_sun_dir, 0.0, BIG, atom, vec2(0.0), 0.0, false) : 0.0);
+#endif
+#ifdef BAKE_PROBE
+    {
         vec3 to_light = u_probe_light_pos - o;
         float t_max = length(to_light);
         vec3 d = to_light / max(t_max, 1e-30);
         value.b = hidden ? -1.0 : (distance(u_probe_light_pos, x) > u_probe_light_radius ? 1.0
             : (dot(n, d) > 0.0 ? trace_visibility(o, d, 0.0, t_max, atom, vec2(0.0), 0.0, false) : 0.0));
     }
+#endif
     imageStore(u_atlas, at, value);
 }
 

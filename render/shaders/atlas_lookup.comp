@@ -6,8 +6,10 @@
 // its accessibility is 1 and it sees a light when it faces it. Pixels beyond the probe
 // light's range see it (1: unlit anyway, as shadows.comp writes them). With a probe in the
 // grid (whole frames), the probe's analytic share of the occlusion and its shadow of the
-// directional light are taken in as visibility_compose.comp does on layered frames. The
-// pass may cover a rectangle only (u_offset: its first pixel).
+// directional light are taken in as the shading pass adds them on layered frames (probe_share.glsl). The
+// pass may cover a rectangle only (u_offset: its first pixel). Compiled per case: WITH_PROBE
+// (a probe in the grid), and WRITE_AMBIENT / WRITE_SUN / WRITE_PROBE for the terms wanted
+// (the others keep what they hold).
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "grid_traversal.glsl"
@@ -23,9 +25,6 @@ layout(r32f, binding = 1) uniform writeonly image2D u_sun;
 layout(r32f, binding = 2) uniform writeonly image2D u_probe_light;
 
 uniform vec2 u_atlas_size;
-uniform int u_write_ambient;  // 0: the accessibility is not wanted (u_ambient keeps what it holds)
-uniform int u_write_sun;      // 0: nor the directional light's visibility
-uniform int u_write_probe;    // 0: nor the probe light's
 uniform ivec2 u_offset;
 
 void main() {
@@ -49,13 +48,19 @@ void main() {
             ambient = sun = lamp = 0.0;
         }
         if (distance(p, u_probe_light_pos) > u_probe_light_radius) lamp = 1.0;
-        if (u_probe_sphere.w > 0.0) {
-            ambient *= 1.0 - sphere_occlusion(p, n, u_probe_sphere);
-            if (sun > 0.0) sun = min(sun, occluder_visibility(ray_origin(p, n), u_sun_dir, 0.0, BIG, u_probe_sphere,
-                                                              vec2(0.0), 0.0));
-        }
+#ifdef WITH_PROBE
+        ambient *= 1.0 - probe_occlusion(p, n, u_probe_sphere, u_probe_reach);
+        if (sun > 0.0) sun = min(sun, occluder_visibility(ray_origin(p, n), u_sun_dir, 0.0, BIG, u_probe_sphere,
+                                                          vec2(0.0), 0.0));
+#endif
     }
-    if (u_write_ambient != 0) imageStore(u_ambient, px, vec4(ambient));
-    if (u_write_sun != 0) imageStore(u_sun, px, vec4(sun));
-    if (u_write_probe != 0) imageStore(u_probe_light, px, vec4(lamp));
+#ifdef WRITE_AMBIENT
+    imageStore(u_ambient, px, vec4(ambient));
+#endif
+#ifdef WRITE_SUN
+    imageStore(u_sun, px, vec4(sun));
+#endif
+#ifdef WRITE_PROBE
+    imageStore(u_probe_light, px, vec4(lamp));
+#endif
 }

@@ -94,10 +94,12 @@ void main() {
             int base = block * BLOCK_TEXELS;
             Quad a = quad_rays(texels + 1, n_facing, base, self_sphere, hidden);
             Quad b = quad_rays(texels + 1, n_facing, base + 4, self_sphere, hidden);
+#ifndef NO_CLIPPING
             if (clipping) {
                 clip_quad(a, self_sphere, d);
                 clip_quad(b, self_sphere, d);
             }
+#endif
             bool open = dot(a.keep + b.keep, vec4(1.0)) > 0.0;
             for (int word = 0; open && word * 32 < count; ++word) {
                 uint mask = candidate_masks[list + word];

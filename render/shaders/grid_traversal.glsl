@@ -27,12 +27,14 @@ uniform ivec3 u_walk_lo;      // inclusive cell range walks stay in: the whole g
 uniform ivec3 u_walk_hi;      // navigation cube's cells (nothing outside it is drawn)
 
 #include "constants.glsl"
+#include "occluders.glsl"
 uniform int u_clip_count;
 uniform vec4 u_clip_planes[MAX_CLIP_PLANES];  // kept where dot(xyz, p) + w >= 0
 uniform int u_cube_on;
 uniform vec3 u_cube_lo;
 uniform vec3 u_cube_hi;
 uniform vec4 u_probe_sphere;  // the probe as an occluder: centre, radius (w <= 0: none)
+uniform float u_probe_reach;  // Å: its share of the ambient occlusion ends there (probe_occlusion)
 
 const float BIG = 1e30;
 const uint CULLED = 1u;
@@ -56,8 +58,11 @@ bool ray_box(vec3 o, vec3 d, vec3 lo, vec3 hi, inout float t0, inout float t1) {
 
 // The kept part [t0, t1] of the ray after the clip planes and the navigation cube, and the
 // outward normal of the cut the ray enters through (zero when it starts inside).
+// Compiled with NO_CLIPPING (nothing is cut away), it only checks the interval: llvmpipe
+// runs a shader's every instruction whichever way a branch goes, uniform ones included.
 bool clip_ray(vec3 o, vec3 d, inout float t0, inout float t1, out vec3 entry_normal) {
     entry_normal = vec3(0.0);
+#ifndef NO_CLIPPING
     for (int i = 0; i < u_clip_count; ++i) {
         vec4 plane = u_clip_planes[i];
         float s = dot(plane.xyz, o) + plane.w;
@@ -88,6 +93,7 @@ bool clip_ray(vec3 o, vec3 d, inout float t0, inout float t1, out vec3 entry_nor
             t1 = min(t1, max(ta, tb));
         }
     }
+#endif
     return t0 < t1;
 }
 
@@ -147,25 +153,6 @@ int walk_flat_cell(GridWalk w) {
 }
 
 // ------------------------------------------------------- sphere queries
-// Visibility of one occluder seen along the segment o + t d, t in [t0, t1] (d unit), after
-// Parker et al. 1998: with b the distance from the centre to the segment, 0 inside the
-// inner sphere, 1 outside the outer one, smoothstep between. shell = (inner, outer) offsets
-// from the vdW radius in Å; growth > 0 widens the shell linearly from 0 at the receiver to
-// full at distance `growth` (penumbrae grow with occluder-receiver distance, and atoms
-// touching the receiver do not darken it). shell = (0, 0) is the hard shadow test.
-float occluder_visibility(vec3 o, vec3 d, float t0, float t1, vec4 sphere, vec2 shell, float growth) {
-    vec3 f = sphere.xyz - o;
-    float t = clamp(dot(f, d), t0, t1);
-    vec3 q = f - t * d;  // closest approach, the stable form (Haines et al., RTG ch. 7)
-    float b = length(q);
-    float s = growth > 0.0 ? clamp(t / growth, 0.0, 1.0) : 1.0;
-    float r_in = max(sphere.w + shell.x * s, 0.0);
-    float r_out = sphere.w + shell.y * s;
-    if (b < r_in) return 0.0;
-    if (b >= r_out) return 1.0;
-    return smoothstep(r_in, r_out, b);
-}
-
 // Visibility (0..1) of the segment o + t d, t in [t_min, t_max], through the grid: the
 // minimum over the spheres met (culled ones and skip_atom excluded; the probe sphere, which
 // clipping never cuts, when with_probe). Hard when shell == (0, 0): stops at the first

@@ -2,18 +2,27 @@
 // Deferred shading pass: Phong with a directional light and the probe's point light
 // (attenuated with distance), CPK albedo, the touched atom highlighted, the probe glowing.
 // Every light term is multiplied by its own visibility factor, read from u_visibility:
-//   r: directional-light visibility (shadow), g: probe-light visibility (shadow),
-//   b: ambient accessibility (ambient occlusion, raised to u_ao_power); and the whole colour, background
-//   included, by a: edge cueing (contour lines, halos).
-// The targets clear it to 1.0; lighting passes that run before this one fill it.
+//   r: directional-light visibility (shadow), b: ambient accessibility (ambient occlusion,
+//   raised to u_ao_power); and the whole colour, background included, by a: edge cueing
+//   (contour lines, halos). The targets clear it to 1.0; lighting passes that run before
+//   this one fill it. Compiled with PROBE_SHADOWED, the probe light's visibility comes
+//   from u_probe_visibility (the lighting traced it); with PROBE_SHARE (layered frames) the
+//   probe's share of the ambient occlusion is added here (probe_share.glsl). Each is its
+//   own program: llvmpipe runs every instruction of a shader, branches taken or not.
 // The probe light reaches u_probe_range Å: its attenuation is windowed to 0 there.
 #include "constants.glsl"
+#ifdef PROBE_SHARE
+#include "probe_share.glsl"
+#endif
 
 uniform sampler2D u_albedo;
 uniform sampler2D u_position;
 uniform sampler2D u_normal;
 uniform isampler2D u_ids;
 uniform sampler2D u_visibility;
+#ifdef PROBE_SHADOWED
+uniform sampler2D u_probe_visibility;
+#endif
 
 uniform vec3 u_eye;
 uniform vec3 u_background;
@@ -59,16 +68,25 @@ void main() {
     }
     if (u_touched_atom >= 0 && ids.x == u_touched_atom && ids.y != KIND_BACKBONE)
         albedo = mix(albedo, u_highlight, 0.6);
-    vec3 color = u_ambient * pow(vis.b, u_ao_power) * albedo;
+    float sun = vis.r, ambient = vis.b;
+#ifdef PROBE_SHARE
+    if ((ids.y == KIND_SPHERE || ids.y == KIND_CAP) && ids.x >= 0) add_probe_share(p, n, ambient);
+#endif
+    vec3 color = u_ambient * pow(ambient, u_ao_power) * albedo;
     if (u_dir_enabled == 1)
-        color += vis.r * u_dir_intensity * phong(albedo, n, v, -u_light_dir);
+        color += sun * u_dir_intensity * phong(albedo, n, v, -u_light_dir);
     if (u_probe_light_enabled == 1) {
         vec3 to_probe = u_probe_center - p;
         float dist = length(to_probe);
         float x = dist / u_probe_range;
         float window = clamp(1.0 - x * x * x * x, 0.0, 1.0);  // as render/lighting/settings.py probe_falloff
         float atten = window * window / (u_probe_atten.x + u_probe_atten.y * dist + u_probe_atten.z * dist * dist);
-        color += vis.g * u_probe_intensity * atten * phong(albedo, n, v, to_probe / max(dist, 1e-6));
+#ifdef PROBE_SHADOWED
+        float shadow = texelFetch(u_probe_visibility, px, 0).r;
+#else
+        float shadow = 1.0;
+#endif
+        color += shadow * u_probe_intensity * atten * phong(albedo, n, v, to_probe / max(dist, 1e-6));
     }
     o_color = vec4(min(color, vec3(1.0)) * vis.a, 1.0);
 }

@@ -162,10 +162,8 @@ class OcclusionAtlas:
         self.ctx = gpu_grid.ctx
         self.gather = ComputePass(self.ctx, "atlas_gather.comp", gpu_grid)
         self.candidates = ComputePass(self.ctx, "atlas_candidates.comp", gpu_grid)
-        self.rays = ComputePass(self.ctx, "atlas_rays.comp", gpu_grid)
-        self.bake_pass = ComputePass(self.ctx, "atlas_bake.comp", gpu_grid)
         self.fill = ComputePass(self.ctx, "atlas_fill.comp")
-        self.lookup_pass = ComputePass(self.ctx, "atlas_lookup.comp", gpu_grid)
+        self._variants: dict[tuple[str, tuple[str, ...]], ComputePass] = {}  # compiled per case (_variant)
         self.textures = TextureCache(self.ctx)
         self.texture = None  # rgba16f: r accessibility, g directional light, b probe light
         self.atom_slots = None  # int32 buffer: the patch of each atom (-1: culled, none)
@@ -274,14 +272,16 @@ class OcclusionAtlas:
         common = {
             **ray_epsilon_uniforms(), **light_uniforms(None, probe_light), "u_directions": directions,
             "u_distance": float(distance), "u_max_radius": float(np.max(grid.vdw_radii)) if grid.n_atoms else 0.0,
-            "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_blocks": blocks, "u_bake_ambient": int(ambient),
+            "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_blocks": blocks,
             "u_gather_neighbours": int(ambient), **self.kept.uniforms(),
-            "u_bake_sun": int(sun_direction is not None), "u_bake_probe": int(probe_light is not None),
         }
         if sun_direction is not None:
             d = np.asarray(sun_direction, dtype=np.float64)
             common["u_sun_dir"] = tuple(float(v) for v in d / np.linalg.norm(d))
-        probe = grid.probe_sphere
+        rays = self._variant("atlas_rays.comp", ())
+        bake = self._variant("atlas_bake.comp", (("BAKE_AMBIENT", ambient), ("BAKE_SUN", sun_direction is not None),
+                                                 ("BAKE_PROBE", probe_light is not None)))
+        probe, reach = grid.probe_sphere, grid.probe_reach
         grid.set_probe(None)  # the atlas is the molecule's own
         try:
             self.slot_atoms.bind_to_storage_buffer(BINDING_SLOT_ATOMS)
@@ -296,14 +296,14 @@ class OcclusionAtlas:
                 self._dispatch(self.gather, count, uniforms)  # the overlaps: the hidden-texel test needs them
                 if ambient:  # a work group per atom
                     self._dispatch(self.candidates, count * LOCAL, uniforms)
-                    self._dispatch(self.rays, count * LOCAL, uniforms)
-                self._dispatch(self.bake_pass, count * LOCAL, uniforms)
+                    self._dispatch(rays, count * LOCAL, uniforms)
+                self._dispatch(bake, count * LOCAL, uniforms)
                 if progress is not None:
                     progress((first + count) / slots.size)
             self.overflows = int(np.frombuffer(buffers[11].read(), dtype=np.uint32)[0])
             self._fill_unseen()
         finally:
-            grid.set_probe(None if probe[3] <= 0 else probe[:3], probe[3])
+            grid.set_probe(None if probe[3] <= 0 else probe[:3], probe[3], reach)
         if self.overflows:
             log.warning("occlusion atlas: %d neighbour lists were full; those texels may be too bright",
                         self.overflows)
@@ -327,6 +327,15 @@ class OcclusionAtlas:
                 self.fill.run(*self.texture.size, {"u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_last": last})
         finally:
             scratch.release()
+
+    def _variant(self, shader: str, cases: tuple[tuple[str, bool], ...]) -> ComputePass:
+        """`shader` compiled with the #defines of the cases that hold, and without clipping
+        code when nothing is cut away: llvmpipe runs every instruction of a program,
+        branches taken or not."""
+        defines = tuple(name for name, on in (*cases, ("NO_CLIPPING", not self.grid.culling.clipping)) if on)
+        if (shader, defines) not in self._variants:
+            self._variants[(shader, defines)] = ComputePass(self.ctx, shader, self.grid, defines)
+        return self._variants[(shader, defines)]
 
     def _dispatch(self, compute: ComputePass, invocations: int, uniforms: dict) -> None:
         self.slot_atoms.bind_to_storage_buffer(BINDING_SLOT_ATOMS)
@@ -354,11 +363,12 @@ class OcclusionAtlas:
         ambient.bind_to_image(0, read=False, write=True)
         sun.bind_to_image(1, read=False, write=True)
         lamp.bind_to_image(2, read=False, write=True)
-        self.lookup_pass.run(w, h, {
+        self._variant("atlas_lookup.comp", (
+            ("WITH_PROBE", self.grid.probe_sphere[3] > 0), ("WRITE_AMBIENT", want_ambient),
+            ("WRITE_SUN", sun_direction is not None), ("WRITE_PROBE", probe_light is not None),
+        )).run(w, h, {
             "u_offset": (int(x), int(y)), **ray_epsilon_uniforms(), **light_uniforms(None, probe_light),
             "u_sun_dir": tuple(float(v) for v in (sun_direction if sun_direction is not None else (0.0, 0.0, 1.0))),
-            "u_write_ambient": int(want_ambient), "u_write_sun": int(sun_direction is not None),
-            "u_write_probe": int(probe_light is not None),
             "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_atlas_size": tuple(float(v) for v in self.texture.size),
         })
         return ambient, sun, lamp
@@ -382,5 +392,5 @@ class OcclusionAtlas:
         self.textures.release()
         for buffer in self._scratch.values():
             buffer.release()
-        for p in (self.gather, self.candidates, self.rays, self.bake_pass, self.fill, self.lookup_pass):
+        for p in (self.gather, self.candidates, self.fill, *self._variants.values()):
             p.release()

@@ -1,0 +1,167 @@
+"""The probe light's shadow rays without the grid walk: a light buffer (Haines & Greenberg,
+"The Light Buffer: A Shadow-Testing Accelerator", IEEE CG&A 6(9), 1986).
+
+Every shadow ray of a point light ends at the light, so the rays are sorted by their
+direction as seen from it: a cube around the light, FACE_CELLS × FACE_CELLS cells a face,
+lists for each cell the atoms that can darken a ray leaving the light through that cell.
+An atom of radius R (vdW + the soft-shadow shell) at distance r from the light covers the
+cone of directions of half-angle asin(R / r); it is listed in every cell whose bounding
+cone meets that one (a conservative test, so a list holds every atom of the exact set).
+A pixel's ray then tests only its cell's list instead of walking the grid's cells and
+every atom stored in them, and since lists run nearest first, it stops at the first atom
+farther from the light than the pixel. The visibility is the minimum over the same
+occluders as the grid walk (shaders/grid_traversal.glsl trace_visibility): culled atoms
+are left out of the lists and the ray is clipped as there, so the result is the walk's to
+the bit. Lists have room for `capacity` atoms; a build that finds a longer one grows the
+room and builds again (a 4-byte read-back each build tells).
+
+Built anew whenever the light, its reach, the shell or the culling change (every frame
+the probe moves): the CPU picks the atoms within reach and sorts them (numpy, a few
+thousand at most at 20 Å), the GPU fills the lists (shaders/light_buffer_build.comp).
+Read by shaders/light_buffer.glsl.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sasprobe.render.gl.programs import source
+from sasprobe.render.gl.uniforms import apply_uniforms
+
+FACE_CELLS = 8  # cells along a cube face's edge: 6 × 8² = 384 lists (finer ones cost more to fill than they save)
+CAPACITY = 64  # atoms a list has room for at first (it grows to the longest list met)
+ANGLE_MARGIN = 1e-4  # rad added to both cones: float32 lookups may land a cell off by rounding
+RADIUS_MARGIN = 1e-3  # Å added to each atom's reach: float32 distances in the shader
+BUILD_LOCAL_SIZE = 64
+# Shader-storage bindings (the grid holds 0-3).
+BINDING_SLOT_SPHERES, BINDING_SLOT_ATOMS, BINDING_SLOT_CONES, BINDING_CELL_CONES = 4, 5, 6, 7
+BINDING_LIST_SPHERES, BINDING_LIST_ATOMS, BINDING_LIST_COUNTS, BINDING_LONGEST = 8, 9, 10, 11
+
+
+def cell_cones(face_cells: int = FACE_CELLS) -> np.ndarray:
+    """(6 n², 4) float64: each cell's centre direction and the half-angle of the smallest
+    cone about it holding the cell (its farthest corner: a cap is convex, so the farthest
+    point of a cell, a spherical quadrilateral, is a corner). Cell id = (face n + j) n + i,
+    face = 2 axis + (direction negative); i, j along the axes (axis+1) % 3 and (axis+2) % 3,
+    as light_cell in shaders/light_buffer.glsl."""
+    n = face_cells
+    edges = np.linspace(-1.0, 1.0, n + 1)
+    mids = 0.5 * (edges[:-1] + edges[1:])
+    out = np.empty((6, n, n, 4))
+    for face in range(6):
+        axis, sign = face // 2, (-1.0 if face % 2 else 1.0)
+
+        def direction(s, t):
+            v = np.zeros(np.broadcast(s, t).shape + (3,))
+            v[..., axis] = sign
+            v[..., (axis + 1) % 3] = s
+            v[..., (axis + 2) % 3] = t
+            return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+        jj, ii = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+        centre = direction(mids[ii], mids[jj])
+        half = np.zeros((n, n))
+        for di in (0, 1):
+            for dj in (0, 1):
+                corner = direction(edges[ii + di], edges[jj + dj])
+                half = np.maximum(half, np.arccos(np.clip(np.sum(corner * centre, axis=-1), -1.0, 1.0)))
+        out[face, ..., :3] = centre
+        out[face, ..., 3] = half
+    return out.reshape(-1, 4)
+
+
+class PointLightBuffer:
+    """The light buffer of one GPU grid, rebuilt for each light it is asked for."""
+
+    def __init__(self, gpu_grid, face_cells: int = FACE_CELLS, capacity: int = CAPACITY):
+        self.grid = gpu_grid
+        self.ctx = gpu_grid.ctx
+        self.face_cells = int(face_cells)
+        self.capacity = int(capacity)
+        self.n_cells = 6 * self.face_cells ** 2
+        self.max_vdw = float(np.max(gpu_grid.vdw_radii, initial=0.0))
+        cones = cell_cones(self.face_cells)
+        cones[:, 3] = np.cos(np.minimum(cones[:, 3] + ANGLE_MARGIN, np.pi))
+        self.cell_cones = self.ctx.buffer(cones.astype(np.float32).tobytes())
+        self.list_spheres = self.ctx.buffer(reserve=self.n_cells * self.capacity * 16)
+        self.list_atoms = self.ctx.buffer(reserve=self.n_cells * self.capacity * 4)
+        self.list_counts = self.ctx.buffer(reserve=self.n_cells * 4)
+        self.longest = self.ctx.buffer(reserve=4)
+        self.slots = [self.ctx.buffer(reserve=16) for _ in range(3)]  # spheres, atoms, cones of the atoms in reach
+        self.program = self.ctx.compute_shader(source("light_buffer_build.comp"))
+        self.key: tuple | None = None
+        self.atoms_in_reach = 0
+
+    def build(self, position, reach: float, shell_outer: float) -> None:
+        """Lists for a point light at `position` whose rays are at most `reach` Å long,
+        occluders widened by `shell_outer` Å (the soft shell's outer offset; 0: hard)."""
+        position = np.asarray(position, dtype=np.float64).reshape(3)
+        shell_outer = max(float(shell_outer), 0.0)
+        key = (position.tobytes(), float(reach), shell_outer, self.grid.culling_version)
+        if key == self.key:
+            return
+        self.key = key
+        grid = self.grid.grid
+        pad = shell_outer + RADIUS_MARGIN
+        box = reach + self.max_vdw + pad
+        atoms = grid.candidates_in_box(position - box, position + box)
+        atoms = atoms[~self.grid.culled_mask[atoms]]
+        radii = self.grid.vdw_radii[atoms] + pad
+        offset = grid.centers[atoms] - position
+        distance = np.linalg.norm(offset, axis=1)
+        near = distance - radii
+        order = np.flatnonzero(near <= reach)
+        order = order[np.argsort(near[order], kind="stable")]  # lists run nearest first
+        atoms, radii, offset, distance = atoms[order], radii[order], offset[order], distance[order]
+        inside = distance <= radii
+        half = np.where(inside, np.pi, np.arcsin(np.minimum(radii / np.maximum(distance, 1e-30), 1.0)))
+        directions = np.where(inside[:, None], 0.0, offset / np.maximum(distance, 1e-30)[:, None])
+        self.atoms_in_reach = int(atoms.size)
+        spheres = np.column_stack([grid.centers[atoms], self.grid.vdw_radii[atoms]]).astype(np.float32)
+        cones = np.column_stack([directions, np.cos(np.minimum(half + ANGLE_MARGIN, np.pi))]).astype(np.float32)
+        for buffer, data in zip(self.slots, (spheres, atoms.astype(np.uint32), cones)):
+            data = data.tobytes() or b"\0" * 16
+            if buffer.size < len(data):
+                buffer.orphan(len(data))
+            buffer.write(data)
+        for binding, buffer in zip((BINDING_SLOT_SPHERES, BINDING_SLOT_ATOMS, BINDING_SLOT_CONES), self.slots):
+            buffer.bind_to_storage_buffer(binding)
+        self.cell_cones.bind_to_storage_buffer(BINDING_CELL_CONES)
+        while not self._fill():
+            pass
+
+    def _fill(self) -> bool:
+        """Fill the lists; False (after growing them) when one did not fit."""
+        self.bind()
+        self.longest.write(b"\0" * 4)
+        self.longest.bind_to_storage_buffer(BINDING_LONGEST)
+        apply_uniforms(self.program, {"u_slots": self.atoms_in_reach, "u_cells": self.n_cells,
+                                      "u_capacity": self.capacity})
+        self.program.run(group_x=(self.n_cells + BUILD_LOCAL_SIZE - 1) // BUILD_LOCAL_SIZE)
+        self.ctx.memory_barrier()
+        longest = int(np.frombuffer(self.longest.read(), dtype=np.uint32)[0])
+        if longest <= self.capacity:
+            return True
+        self.capacity = max(longest, 2 * self.capacity)
+        self.list_spheres.orphan(self.n_cells * self.capacity * 16)
+        self.list_atoms.orphan(self.n_cells * self.capacity * 4)
+        return False
+
+    def bind(self) -> None:
+        """The lists (for shaders/light_buffer.glsl, and for the build to fill)."""
+        self.list_spheres.bind_to_storage_buffer(BINDING_LIST_SPHERES)
+        self.list_atoms.bind_to_storage_buffer(BINDING_LIST_ATOMS)
+        self.list_counts.bind_to_storage_buffer(BINDING_LIST_COUNTS)
+
+    def uniforms(self, shell_outer: float) -> dict[str, object]:
+        return {"u_lb_face_cells": self.face_cells, "u_lb_capacity": self.capacity,
+                "u_lb_reach_pad": float(max(shell_outer, 0.0) + RADIUS_MARGIN)}
+
+    def counts(self) -> np.ndarray:
+        """Each list's length (for tests and benchmarks)."""
+        return np.frombuffer(self.list_counts.read(), dtype=np.uint32).copy()
+
+    def release(self) -> None:
+        for b in (self.cell_cones, self.list_spheres, self.list_atoms, self.list_counts, self.longest, *self.slots):
+            b.release()
+        self.program.release()

@@ -1,0 +1,47 @@
+// Shadow rays of the probe's point light through its light buffer
+// (render/lighting/light_buffer.py, built by light_buffer_build.comp): the ray from o to
+// the light tests the atoms listed for its direction seen from the light, nearest first,
+// and stops at the first farther from the light than o. The same occluders and the same
+// minimum as trace_visibility (grid_traversal.glsl, included before this): the lists are
+// complete (the buffer grows until no cell overflows).
+layout(std430, binding = 8) readonly buffer ListSpheres { vec4 list_spheres[]; };
+layout(std430, binding = 9) readonly buffer ListAtoms { uint list_atoms[]; };
+layout(std430, binding = 10) readonly buffer ListCounts { uint list_counts[]; };
+
+uniform int u_lb_face_cells;
+uniform uint u_lb_capacity;    // entries a list has room for
+uniform float u_lb_reach_pad;  // the shell's outer offset and the margin the lists were built with
+
+// The cube cell holding direction v: face 2 axis + (v negative), i and j along the next
+// two axes (cell_cones in light_buffer.py).
+uint light_cell(vec3 v) {
+    vec3 a = abs(v);
+    int axis = (a.x >= a.y && a.x >= a.z) ? 0 : (a.y >= a.z ? 1 : 2);
+    float major = a[axis];
+    vec2 st = vec2(v[(axis + 1) % 3], v[(axis + 2) % 3]) / max(major, 1e-30);
+    ivec2 ij = clamp(ivec2(floor((st * 0.5 + 0.5) * float(u_lb_face_cells))), ivec2(0), ivec2(u_lb_face_cells - 1));
+    int face = 2 * axis + (v[axis] < 0.0 ? 1 : 0);
+    return uint((face * u_lb_face_cells + ij.y) * u_lb_face_cells + ij.x);
+}
+
+float trace_point_visibility(vec3 o, vec3 light, int skip_atom, vec2 shell, float growth) {
+    vec3 to_light = light - o;
+    float t_max = length(to_light);
+    vec3 d = to_light / max(t_max, 1e-30);
+    uint cell = light_cell(o - light);
+    uint n = list_counts[cell];
+    float reach = t_max + u_lb_reach_pad;
+    float t0 = 0.0, t1 = t_max;
+    vec3 cut_normal;
+    if (!clip_ray(o, d, t0, t1, cut_normal)) return 1.0;
+    float vis = 1.0;
+    uint base = cell * u_lb_capacity;
+    for (uint k = 0u; k < n; ++k) {
+        vec4 sphere = list_spheres[base + k];
+        if (distance(sphere.xyz, light) - sphere.w > reach) break;  // this one and every later one
+        if (int(list_atoms[base + k]) == skip_atom) continue;
+        vis = min(vis, occluder_visibility(o, d, t0, t1, sphere, shell, growth));
+        if (vis <= 0.0) return 0.0;
+    }
+    return vis;
+}
