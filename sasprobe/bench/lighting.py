@@ -28,19 +28,26 @@ from sasprobe.render.lighting.path_tracer import PathTracer
 TITLE = "Lighting: shadows and ambient occlusion, speed vs accuracy"
 
 
+def add_arguments(parser) -> None:
+    parser.add_argument("--probe-light-only", action="store_true",
+                        help="only the probe light's shadows: grid walk vs light buffer")
+
+
 def _plan(quick: bool) -> dict:
     if quick:
         return {"ao_size": (160, 120), "ref_spp": 256, "repeats": 3, "sweep_size": (96, 72),
                 "sweep_ids": ("1crn", "3sn6"), "cells": (3.2, 12.8), "scaling_ids": ("1crn", "3sn6", "1aon"),
                 "heights": (1.0, 4.0, 8.0), "distant_size": (96, 72), "distant_spp": 64,  # keeps --quick < 5 min
-                "bake_ids": ("1crn", "1tii"), "patches": (4, 8, 16)}
+                "bake_ids": ("1crn", "1tii"), "patches": (4, 8, 16), "probe_ids": ("1crn", "3sn6"),
+                "probe_size": (160, 120)}
     return {"ao_size": (320, 240), "ref_spp": 1024, "repeats": 7, "sweep_size": (200, 150),
             "sweep_ids": ("1crn", "1oky", "3sn6"), "cells": (2.0, 3.2, 4.8, 9.6, 16.0, 32.0), "scaling_ids": None,
             "heights": (0.5, 1.0, 2.0, 4.0, 6.0, 8.0, 12.0), "distant_size": (192, 144), "distant_spp": 256,
-            "bake_ids": None, "patches": (4, 6, 8, 12, 16, 24, 32)}
+            "bake_ids": None, "patches": (4, 6, 8, 12, 16, 24, 32), "probe_ids": ("1crn", "1tii", "1aon", "6zu5"),
+            "probe_size": (800, 600)}
 
 
-def run(ctx: BenchContext) -> BenchResult:
+def run(ctx: BenchContext, args=None) -> BenchResult:
     entries = shared_structures()
     if not entries:
         raise UserError("no shared structures found (expected ../shared/data/pdb/ or SASPROBE_DATA)")
@@ -58,7 +65,14 @@ def run(ctx: BenchContext) -> BenchResult:
             structures[sid] = load_structure(by_id[sid].path)
         return structures[sid]
 
-    steps = progress(range(6), desc="bench lighting", total=6)
+    if getattr(args, "probe_light_only", False):
+        rows = shadow_bench.probe_light(gl, [(i, structure(i)) for i in plan["probe_ids"] if i in by_id],
+                                        plan["probe_size"], plan["repeats"])
+        gl.release()
+        data = {"gl_renderer": renderer, "probe_light": rows, "probe_light_size": list(plan["probe_size"])}
+        return BenchResult("lighting", data, "\n".join([f"GL renderer: **{renderer}**.", "",
+                                                        *shadow_bench.probe_light_markdown(rows, plan["probe_size"])]))
+    steps = progress(range(7), desc="bench lighting", total=7)
     # --- AO: every method vs the reference, on a mid-size protein filling the view
     next(steps)
     ao_id = "1oky" if "1oky" in by_id else entries[0].id
@@ -101,6 +115,10 @@ def run(ctx: BenchContext) -> BenchResult:
     next(steps)
     cube = shadow_bench.cube_bounded(gl, [(sid, structure(sid)) for sid in ids if sid in by_id], plan["sweep_size"],
                                      plan["repeats"])
+    # --- the probe light: grid walk vs light buffer
+    next(steps)
+    probe = shadow_bench.probe_light(gl, [(i, structure(i)) for i in plan["probe_ids"] if i in by_id],
+                                     plan["probe_size"], plan["repeats"])
     # --- precomputed occlusion: bake time against molecule size
     next(steps)
     bake_ids = [i for i in (plan["bake_ids"] or tuple(e.id for e in entries)) if i in by_id]
@@ -139,6 +157,8 @@ def run(ctx: BenchContext) -> BenchResult:
         "shadow_cells": sweep,
         "shadow_size": list(plan["sweep_size"]),
         "cube_shadows": cube,
+        "probe_light": probe,
+        "probe_light_size": list(plan["probe_size"]),
         "precomputed_bake": bakes,
         "precomputed_patches": sweep_patches,
         **_checks(scaling, sweep, cube),
@@ -244,6 +264,7 @@ def _markdown(d: dict, plan: dict) -> str:
                      f"{r['cube_soft_ms']:.2f} | {r['whole_hard_ms']:.2f} |")
     lines += ["", f"Cube-bounded hard shadows: largest / smallest time {d['cube_spread']:.2f}; largest deviation "
               f"from {d['cube_shadows'][0]['structure']} {100 * d['cube_max_deviation_from_smallest']:.0f} %."]
+    lines += ["", *shadow_bench.probe_light_markdown(d["probe_light"], d["probe_light_size"])]
     lines += ["", precomputed_bench.markdown(d["precomputed_bake"], d["precomputed_patches"], d["ao_structure"],
                                              d["ao_size"])]
     return "\n".join(lines)

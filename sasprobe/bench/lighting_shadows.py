@@ -1,6 +1,7 @@
 """Shadow part of `sasprobe bench lighting`: time and grid memory against the number of
-cells (cell-size sweep down to one cell = brute force), soft over hard, and shadows bounded
-by the navigation cube against molecule size."""
+cells (cell-size sweep down to one cell = brute force), soft over hard, shadows bounded
+by the navigation cube against molecule size, and the probe light's shadows through the
+grid walk against its light buffer (render/lighting/light_buffer.py)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,8 @@ import numpy as np
 from sasprobe.bench.lighting_scene import cost_vs_size_chart, fitted_scene, interleaved_times, scene_with_coverage
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
 from sasprobe.render.lighting.grid import Culling, GpuGrid
-from sasprobe.render.lighting.settings import HARD_SHADOW, DirectionalLight, SoftShadow
+from sasprobe.render.gl.textures import read_texture
+from sasprobe.render.lighting.settings import DEFAULT_PROBE_RANGE, HARD_SHADOW, DirectionalLight, PointLight, SoftShadow
 from sasprobe.render.lighting.shadows import ShadowPass
 
 SUN = DirectionalLight((0.45, 0.8, 0.4))
@@ -124,3 +126,73 @@ def cube_chart(rows: list[dict], path):
               ("whole_hard_ms", "whole molecule: hard", "s--")]
     return cost_vs_size_chart(rows, series, f"Shadows bounded by a {2 * CUBE_HALF:g} Å navigation cube",
                               "shadow pass (ms, median)", path)
+
+
+# ------------------------------------------------------------------ the probe light
+def probe_on_view(scene) -> np.ndarray:
+    """Where the probe rests in a scene: touching the surface at the atom pixel nearest the
+    middle of the view, its centre a probe radius out along the normal."""
+    position, normal, atom = scene.gbuffer.download()
+    rows, cols = np.nonzero(atom >= 0)
+    h, w = atom.shape
+    k = int(np.argmin((rows - h / 2) ** 2 + (cols - w / 2) ** 2))
+    n = normal[rows[k], cols[k]] / np.linalg.norm(normal[rows[k], cols[k]])
+    return position[rows[k], cols[k]].astype(np.float64) + n * DEFAULT_PROBE_RADIUS
+
+
+def probe_light(gl, structures: list[tuple[str, object]], size, repeats: int) -> list[dict]:
+    """The probe's point light (the default reach) at the surface in the middle of the view,
+    at equal screen coverage: shadows through the grid walk and through the light buffer,
+    hard and soft, timed in the same rounds; the light buffer's build (every frame the probe
+    moves) apart; the largest difference between the two (0: the same occluders)."""
+    rows = []
+    for name, structure in structures:
+        grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+        scene = scene_with_coverage(grid, size, COVERAGE)
+        lamp = PointLight(tuple(probe_on_view(scene)), DEFAULT_PROBE_RANGE)
+        walk, listed = ShadowPass(grid, light_buffer=False), ShadowPass(grid)
+        buffer = listed.light_buffer
+
+        def build():
+            buffer.key = None  # as when the probe has moved
+            listed.trace(scene.gbuffer, lamp, HARD_SHADOW, rect=(0, 0, 1, 1))
+
+        calls = {("walk", "hard"): lambda: walk.trace(scene.gbuffer, lamp, HARD_SHADOW),
+                 ("walk", "soft"): lambda: walk.trace(scene.gbuffer, lamp, SOFT),
+                 ("buffer", "hard"): lambda: listed.trace(scene.gbuffer, lamp, HARD_SHADOW),
+                 ("buffer", "soft"): lambda: listed.trace(scene.gbuffer, lamp, SOFT),
+                 ("build", "hard"): build}
+        seconds = interleaved_times(gl, calls, repeats)
+        difference = max(float(np.abs(read_texture(walk.trace(scene.gbuffer, lamp, soft))
+                                      - read_texture(listed.trace(scene.gbuffer, lamp, soft))).max())
+                         for soft in (HARD_SHADOW, SOFT))
+        counts = buffer.counts()
+        lit = np.linalg.norm(scene.gbuffer.download()[0] - np.asarray(lamp.position), axis=-1)
+        rows.append({
+            "structure": name, "atoms": structure.n_atoms, "coverage": scene.coverage,
+            "pixels_in_reach": int(((scene.atom >= 0) & (lit <= lamp.radius)).sum()),
+            "atoms_in_reach": buffer.atoms_in_reach, "mean_list": float(counts.mean()), "longest_list": int(counts.max()),
+            "walk_hard_ms": seconds[("walk", "hard")] * 1e3, "walk_soft_ms": seconds[("walk", "soft")] * 1e3,
+            "buffer_hard_ms": seconds[("buffer", "hard")] * 1e3, "buffer_soft_ms": seconds[("buffer", "soft")] * 1e3,
+            "build_ms": seconds[("build", "hard")] * 1e3, "max_difference": difference,
+        })
+        for thing in (walk, listed, scene, grid):
+            thing.release()
+    return rows
+
+
+def probe_light_markdown(rows: list[dict], size) -> list[str]:
+    w, h = size
+    lines = [f"### The probe light's shadows: grid walk vs light buffer ({w}×{h}, reach {DEFAULT_PROBE_RANGE:g} Å, "
+             "the probe on the surface in the middle of the view; medians, same rounds)", "",
+             "| structure | atoms | pixels in reach | atoms in reach | mean / longest list | walk hard (ms) | "
+             "buffer hard (ms) | walk soft (ms) | buffer soft (ms) | build (ms) | hard: walk / (buffer + build) | "
+             "largest difference |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        speedup = r["walk_hard_ms"] / (r["buffer_hard_ms"] + r["build_ms"])
+        lines.append(f"| {r['structure']} | {r['atoms']} | {r['pixels_in_reach']} | {r['atoms_in_reach']} | "
+                     f"{r['mean_list']:.1f} / {r['longest_list']} | {r['walk_hard_ms']:.1f} | {r['buffer_hard_ms']:.1f} | "
+                     f"{r['walk_soft_ms']:.1f} | {r['buffer_soft_ms']:.1f} | {r['build_ms']:.1f} | {speedup:.2f}× | "
+                     f"{r['max_difference']:.0e} |")
+    return lines
