@@ -31,7 +31,7 @@ class FixedVisibility(Pass):
 
     def run(self, frame) -> None:
         rows_up = self.values[::-1]
-        frame.targets.visibility.write(np.ascontiguousarray(rows_up, dtype=np.float16).tobytes())
+        frame.targets.visibility.write(np.ascontiguousarray(rows_up, dtype=np.float32).tobytes())
         if self.probe_light is None:
             self.probe_light = frame.ctx.texture(frame.size, 1, dtype="f4")
         self.probe_light.write(np.ascontiguousarray(rows_up[..., 1], dtype=np.float32).tobytes())
@@ -103,7 +103,7 @@ def test_shading_pass_matches_phong_reference_with_visibility_factors(gl, crambi
     scene, atom = scene_with_probe(crambin)
     camera = Camera(eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0)
     rng = np.random.default_rng(3)
-    vis = rng.uniform(0.0, 1.0, size=(SIZE[1], SIZE[0], 4)).astype(np.float16).astype(np.float64)
+    vis = rng.uniform(0.0, 1.0, size=(SIZE[1], SIZE[0], 4)).astype(np.float32).astype(np.float64)
     g, lit, albedo, _, settings = render(gl, scene, camera, FixedVisibility(vis))
     assert (g["kind"] == KIND_PROBE).sum() > 100
     expected = reference_light(g, albedo, scene, camera, settings, vis)

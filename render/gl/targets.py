@@ -8,10 +8,13 @@ G-buffer attachments (shaders/gbuffer_out.glsl writes them in this order):
     2 normal    RGBA32F  world unit normal (caps: the cutting plane's outward normal)
     3 ids       RG32I    (atom id, kind): an atom index, ATOM_BACKGROUND or ATOM_PROBE; KIND_*
     depth       24-bit depth texture
-Visibility (RGBA16F, cleared to 1): r directional-light visibility, g 1 (the probe light's
+Visibility (RGBA32F, cleared to 1): r directional-light visibility, g 1 (the probe light's
 visibility is a texture of the lighting's own, handed to the shading pass with the frame:
 render/passes/base.py ProbeLighting), b ambient accessibility, a edge factor. The lighting
-pass writes it before the shading pass reads it.
+pass writes it before the shading pass reads it. Float32, not 16: a frame drawn from the
+kept molecule layer multiplies the probe's share of the AO in after it, a whole frame
+before, and only at full precision do both round alike (FXAA turns a 1/255 difference at
+an edge into several).
 
 The ids below are the one home of these numbers: the shaders get them as #defines
 (render/gl/programs.py generates constants.glsl from them), the export and the lighting
@@ -43,7 +46,7 @@ class RenderTargets:
         self.normal = ctx.texture(w_h, 4, dtype="f4")
         self.ids = ctx.texture(w_h, 2, dtype="i4")
         self.depth = ctx.depth_texture(w_h)
-        self.visibility = ctx.texture(w_h, 4, dtype="f2")
+        self.visibility = ctx.texture(w_h, 4, dtype="f4")
         self.lit = ctx.texture(w_h, 4, dtype="f1")  # shading pass output, FXAA input
         self.final = ctx.texture(w_h, 4, dtype="f1")  # headless output
         for tex in (self.albedo, self.position, self.normal, self.ids, self.visibility):

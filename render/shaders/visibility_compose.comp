@@ -1,5 +1,5 @@
 #version 430 core
-// The renderer's visibility buffer (render/gl/targets.py, RGBA16F) from the lighting terms:
+// The renderer's visibility buffer (render/gl/targets.py, RGBA32F) from the lighting terms:
 // r directional-light visibility, g 1 (the probe light's visibility is a texture of its
 // own, which the shading pass reads: render/passes/base.py ProbeLighting), b ambient
 // accessibility, a edge cueing (contour lines, halos); the shading pass multiplies each
@@ -30,7 +30,7 @@ layout(binding = 3) uniform sampler2D u_shadow_dir;
 layout(binding = 5) uniform sampler2D u_ambient;
 layout(binding = 6) uniform sampler2D u_edges;
 layout(binding = 7) uniform sampler2D u_probe_pixels_sun;
-layout(rgba16f, binding = 0) uniform writeonly image2D u_visibility;
+layout(rgba32f, binding = 0) uniform writeonly image2D u_visibility;
 layout(r32f, binding = 1) uniform writeonly image2D u_sun_out;
 layout(r32f, binding = 2) uniform writeonly image2D u_ambient_out;
 
