@@ -31,10 +31,9 @@ void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy) + u_offset;
     if (any(greaterThanEqual(px, imageSize(u_ambient)))) return;
     vec3 p, n;
-    int atom;
+    int atom, kind;
     float ambient = 1.0, sun = 1.0, lamp = 1.0;
-    if (gbuffer_fetch(px, p, n, atom) && atom >= 0) {
-        int kind = texelFetch(u_gb_ids, px, 0).g;
+    if (gbuffer_fetch(px, p, n, atom, kind) && atom >= 0) {
         int slot = atom_slots[atom];
         if (kind == KIND_CAP) {
             sun = dot(n, u_sun_dir) > 0.0 ? 1.0 : 0.0;

@@ -12,18 +12,29 @@ layout(binding = 1) uniform sampler2D u_gb_normal;
 layout(binding = 2) uniform isampler2D u_gb_ids;
 
 
-// Whether a pixel shows a surface the lighting shades (a sphere, a cap or the probe).
-bool gbuffer_lit(ivec2 px) {
-    int kind = texelFetch(u_gb_ids, px, 0).g;
+// Whether a pixel of this kind shows a surface the lighting shades (a sphere, a cap or the probe).
+bool kind_lit(int kind) {
     return kind == KIND_SPHERE || kind == KIND_CAP || kind == KIND_PROBE;
 }
 
-// False for pixels the lighting leaves alone.
-bool gbuffer_fetch(ivec2 px, out vec3 position, out vec3 normal, out int atom) {
-    atom = texelFetch(u_gb_ids, px, 0).r;
+bool gbuffer_lit(ivec2 px) {
+    return kind_lit(texelFetch(u_gb_ids, px, 0).g);
+}
+
+// False for pixels the lighting leaves alone. The ids are fetched once: on llvmpipe each
+// fetch is paid for every pixel of the pass.
+bool gbuffer_fetch(ivec2 px, out vec3 position, out vec3 normal, out int atom, out int kind) {
+    ivec2 ids = texelFetch(u_gb_ids, px, 0).rg;
+    atom = ids.x;
+    kind = ids.y;
     position = texelFetch(u_gb_position, px, 0).xyz;
     normal = normalize(texelFetch(u_gb_normal, px, 0).xyz);
-    return gbuffer_lit(px);
+    return kind_lit(kind);
+}
+
+bool gbuffer_fetch(ivec2 px, out vec3 position, out vec3 normal, out int atom) {
+    int kind;
+    return gbuffer_fetch(px, position, normal, atom, kind);
 }
 
 #include "ray_origin.glsl"
