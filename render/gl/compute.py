@@ -1,4 +1,5 @@
-"""Compute programs over an image: the dispatch every lighting pass uses."""
+"""Compute programs over an image: the dispatch every lighting pass uses, and a shader
+compiled per case."""
 
 from __future__ import annotations
 
@@ -33,3 +34,27 @@ class ComputePass:
 
     def release(self) -> None:
         self.program.release()
+
+
+class ComputeVariants:
+    """One compute shader compiled per set of #defines, each on first use. llvmpipe runs
+    every instruction of a program for each group of lanes whichever way its branches go,
+    uniform ones included, so each case gets a program holding only its own code."""
+
+    def __init__(self, ctx, shader: str, gpu_grid=None):
+        self.ctx = ctx
+        self.shader = shader
+        self.grid = gpu_grid
+        self._passes: dict[tuple[str, ...], ComputePass] = {}
+
+    def get(self, *cases: tuple[str, bool]) -> ComputePass:
+        """The program with the defines whose case holds, e.g. get(("LIGHT_BUFFER", True))."""
+        defines = tuple(name for name, on in cases if on)
+        if defines not in self._passes:
+            self._passes[defines] = ComputePass(self.ctx, self.shader, self.grid, defines)
+        return self._passes[defines]
+
+    def release(self) -> None:
+        for compute in self._passes.values():
+            compute.release()
+        self._passes.clear()

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.compute import ComputeVariants
 from sasprobe.render.gl.textures import texture_2d
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.light_buffer import CAPACITY, FACE_CELLS, PointLightBuffer
@@ -32,14 +32,7 @@ class ShadowPass:
         self.ctx = gpu_grid.ctx
         self.grid = gpu_grid
         self.light_buffer = PointLightBuffer(gpu_grid, face_cells, capacity) if light_buffer else None
-        self._programs: dict[tuple[bool, bool], ComputePass] = {}
-
-    def _program(self, buffered: bool) -> ComputePass:
-        key = (buffered, self.grid.culling.clipping)
-        if key not in self._programs:
-            defines = (("LIGHT_BUFFER",) if buffered else ()) + (() if key[1] else ("NO_CLIPPING",))
-            self._programs[key] = ComputePass(self.ctx, "shadows.comp", self.grid, defines)
-        return self._programs[key]
+        self.programs = ComputeVariants(self.ctx, "shadows.comp", gpu_grid)
 
     def trace(self, gbuffer: GBuffer, light: DirectionalLight | PointLight, soft: SoftShadow = HARD_SHADOW,
               out=None, rect=None, only_probe: bool = False):
@@ -61,7 +54,7 @@ class ShadowPass:
             self.light_buffer.bind()
         gbuffer.bind()
         out.bind_to_image(0, read=False, write=True)
-        self._program(buffered).run(w, h, {
+        self.programs.get(("LIGHT_BUFFER", buffered), ("NO_CLIPPING", not self.grid.culling.clipping)).run(w, h, {
             **(self.light_buffer.uniforms(soft.outer) if buffered else {}),
             "u_offset": (int(x), int(y)),
             "u_only_probe": int(only_probe),
@@ -79,8 +72,6 @@ class ShadowPass:
         return RAY_EPS_ABS + RAY_EPS_REL * (float(np.max(np.abs(light.position))) + light.radius)
 
     def release(self) -> None:
-        for program in self._programs.values():
-            program.release()
-        self._programs.clear()
+        self.programs.release()
         if self.light_buffer is not None:
             self.light_buffer.release()

@@ -36,7 +36,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.compute import ComputeVariants
 from sasprobe.render.gl.context import GLUnavailable
 from sasprobe.render.gl.textures import TextureCache, read_texture
 from sasprobe.render.lighting.ao import AmbientOcclusion
@@ -87,7 +87,7 @@ class LightingPass(LayeredLighting, Pass):
         self.ao_mode = settings.ao.mode if settings.ao.mode != "off" else "analytic"
         self.scene_grid = None  # the SceneState grid self.grid was uploaded from
         self.grid: GpuGrid | None = None
-        self.shadows = self.ao = self.tracer = self.compose = self.compose_layered = self.compose_export = None
+        self.shadows = self.ao = self.tracer = self.compose = None
         self.edges = EdgeCueingPass(ctx)
         self._culling_key: bytes | None = None
         self._probe_key: bytes | None = None
@@ -128,10 +128,7 @@ class LightingPass(LayeredLighting, Pass):
             self.shadows = ShadowPass(self.grid)
             self.ao = AmbientOcclusion(self.grid, self.settings.ao)
             self.tracer = PathTracer.for_structure(self.grid, scene.structure)
-            self.compose = ComputePass(self.ctx, "visibility_compose.comp", self.grid)
-            if self.layered:
-                self.compose_layered = ComputePass(self.ctx, "visibility_compose.comp", self.grid, ("LAYERED",))
-                self.compose_export = ComputePass(self.ctx, "visibility_compose.comp", self.grid, ("LAYERED", "EXPORT"))
+            self.compose = ComputeVariants(self.ctx, "visibility_compose.comp", self.grid)
             self._culling_key = self._probe_key = self._color_version = None
         if frame.buffers.color_version != self._color_version:  # a colour scheme: the path tracer's albedos
             if frame.buffers.color_version:
@@ -212,16 +209,18 @@ class LightingPass(LayeredLighting, Pass):
         return self.edges.compute(gbuffer, frame.view, frame.proj, self.settings.edge_settings(),
                                   out=self.textures.get("edges", frame.size), rect=rect)
 
-    def _compose(self, frame: Frame, terms: dict, uniforms: dict, program=None, rect=None) -> None:
-        """The visibility buffer from the terms (shaders/visibility_compose.comp; `program`
-        one of its variants, default the whole frame's), over `rect` or the whole frame."""
+    def _compose(self, frame: Frame, terms: dict, uniforms: dict, layered: bool = False, export: bool = False,
+                 rect=None) -> None:
+        """The visibility buffer from the terms (shaders/visibility_compose.comp, the whole
+        frame's program unless `layered`, with `export` the export's), over `rect` or the
+        whole frame."""
         ones = self.textures.get("ones", frame.size, fill=1.0)
         for unit, name in ((3, "shadow_dir"), (5, "ao"), (6, "edges"), (7, "probe_pixels_sun")):
             terms.get(name, ones).use(location=unit)
         GBuffer.of_targets(frame.targets).bind()
         frame.targets.visibility.bind_to_image(0, read=False, write=True)
         x, y, w, h = rect if rect is not None else (0, 0, *frame.size)
-        (program or self.compose).run(w, h, {**uniforms, "u_offset": (int(x), int(y))})
+        self.compose.get(("LAYERED", layered), ("EXPORT", export)).run(w, h, {**uniforms, "u_offset": (int(x), int(y))})
 
     # ------------------------------------------------------------ whole frames
     def run(self, frame: Frame) -> None:
@@ -278,8 +277,7 @@ class LightingPass(LayeredLighting, Pass):
         return out
 
     def _release_structure(self) -> None:
-        for thing in (self.shadows, self.ao, self.tracer, self.compose, self.compose_layered, self.compose_export,
-                      self.grid):
+        for thing in (self.shadows, self.ao, self.tracer, self.compose, self.grid):
             if thing is not None:
                 thing.release()
 

@@ -80,18 +80,17 @@ class LayeredLighting:
                 terms["shadow_probe"] = self.shadows.trace(
                     gbuffer, lamp, soft, out=self.textures.get("shadow_probe", size), rect=rect)
             self.layers["shadow_probe"] = terms["shadow_probe"]
+        probe_rect = frame.probe_rect()
         probe_sun = fx.shadows and sun is not None and probe is not None
-        if probe_sun:
-            rect = frame.probe_rect()
-            if rect is not None:
-                terms["probe_pixels_sun"] = self.shadows.trace(
-                    gbuffer, sun, soft, out=self.textures.get("probe_pixels_sun", size), rect=rect, only_probe=True)
-        touched = frame.probe_rect()  # what the visibility buffer changes by: the probe's pixels, its edges
+        if probe_sun and probe_rect is not None:
+            terms["probe_pixels_sun"] = self.shadows.trace(
+                gbuffer, sun, soft, out=self.textures.get("probe_pixels_sun", size), rect=probe_rect, only_probe=True)
+        touched = probe_rect  # what the visibility buffer changes by: the probe's pixels, its edges, its shadow
         if fx.edge_cueing:
             reach = self.settings.edge_settings().reach_px() + 1
-            near_probe = grow_rect(frame.probe_rect(), reach, size)
-            terms["edges"] = self._edges(gbuffer, frame, self._dirty_rect("edges", near_probe, frame))
-            touched = union_rect(touched, near_probe)
+            around = grow_rect(probe_rect, reach, size)
+            terms["edges"] = self._edges(gbuffer, frame, self._dirty_rect("edges", around, frame))
+            touched = union_rect(touched, around)
         probe_ambient = fx.ambient_occlusion and probe is not None
         probe_sun = probe_sun and "shadow_dir" in terms
         uniforms = {
@@ -106,13 +105,13 @@ class LayeredLighting:
         # The molecule's terms where the probe's touched them now or last frame (everywhere
         # when they changed), then, with the layered program, what the probe adds where it is
         # and where its shadow of the sun falls.
-        near_probe = union_rect(frame.probe_rect(), self._probe_shadow_rect(frame, sun, soft) if probe_sun else None)
+        near_probe = union_rect(probe_rect, self._probe_shadow_rect(frame, sun, soft) if probe_sun else None)
         touched = union_rect(touched, near_probe)
         rect = self._dirty_rect("compose", touched, frame, whole=self._molecule_changed)
         if rect is not None:
-            self._compose(frame, terms, {}, self.compose, rect)
+            self._compose(frame, terms, {}, rect=rect)
         if near_probe is not None:
-            self._compose(frame, terms, uniforms, self.compose_layered, near_probe)
+            self._compose(frame, terms, uniforms, layered=True, rect=near_probe)
         changed = WHOLE if self._molecule_changed else touched
         frame.probe_lighting = ProbeLighting(terms.get("shadow_probe"), share, changed)
         self._composed = (frame, terms, {**uniforms, **NO_PROBE_SHARE, **share}, "shadow_dir" in terms,
@@ -125,7 +124,7 @@ class LayeredLighting:
         sun_out, ao_out = self.textures.get("shadow_dir", frame.size), self.textures.get("ao", frame.size)
         sun_out.bind_to_image(1, read=False, write=True)
         ao_out.bind_to_image(2, read=False, write=True)
-        self._compose(frame, terms, uniforms, self.compose_export)
+        self._compose(frame, terms, uniforms, layered=True, export=True)
         if with_sun:
             self.layers["shadow_dir"] = sun_out
         if with_ambient:

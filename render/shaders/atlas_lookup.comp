@@ -6,8 +6,9 @@
 // its accessibility is 1 and it sees a light when it faces it. Pixels beyond the probe
 // light's range see it (1: unlit anyway, as shadows.comp writes them). With a probe in the
 // grid (whole frames), the probe's analytic share of the occlusion and its shadow of the
-// directional light are taken in as the shading pass adds them on layered frames (probe_share.glsl). The
-// pass may cover a rectangle only (u_offset: its first pixel). Compiled per case: WITH_PROBE
+// directional light are taken in, as on layered frames visibility_compose.comp takes in its
+// shadow and the shading pass its share (probe_share.glsl). The pass may cover a rectangle
+// only (u_offset: its first pixel). Compiled per case: WITH_PROBE
 // (a probe in the grid), and WRITE_AMBIENT / WRITE_SUN / WRITE_PROBE for the terms wanted
 // (the others keep what they hold).
 layout(local_size_x = 8, local_size_y = 8) in;

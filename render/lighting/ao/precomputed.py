@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.compute import ComputePass, ComputeVariants
 from sasprobe.render.gl.textures import TextureCache
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.gbuffer import GBuffer
@@ -163,7 +163,8 @@ class OcclusionAtlas:
         self.gather = ComputePass(self.ctx, "atlas_gather.comp", gpu_grid)
         self.candidates = ComputePass(self.ctx, "atlas_candidates.comp", gpu_grid)
         self.fill = ComputePass(self.ctx, "atlas_fill.comp")
-        self._variants: dict[tuple[str, tuple[str, ...]], ComputePass] = {}  # compiled per case (_variant)
+        self._variants = {shader: ComputeVariants(self.ctx, shader, gpu_grid)  # per case: _variant
+                          for shader in ("atlas_rays.comp", "atlas_bake.comp", "atlas_lookup.comp")}
         self.textures = TextureCache(self.ctx)
         self.texture = None  # rgba16f: r accessibility, g directional light, b probe light
         self.atom_slots = None  # int32 buffer: the patch of each atom (-1: culled, none)
@@ -329,13 +330,8 @@ class OcclusionAtlas:
             scratch.release()
 
     def _variant(self, shader: str, cases: tuple[tuple[str, bool], ...]) -> ComputePass:
-        """`shader` compiled with the #defines of the cases that hold, and without clipping
-        code when nothing is cut away: llvmpipe runs every instruction of a program,
-        branches taken or not."""
-        defines = tuple(name for name, on in (*cases, ("NO_CLIPPING", not self.grid.culling.clipping)) if on)
-        if (shader, defines) not in self._variants:
-            self._variants[(shader, defines)] = ComputePass(self.ctx, shader, self.grid, defines)
-        return self._variants[(shader, defines)]
+        """`shader` for these cases, and without clipping code when nothing is cut away."""
+        return self._variants[shader].get(*cases, ("NO_CLIPPING", not self.grid.culling.clipping))
 
     def _dispatch(self, compute: ComputePass, invocations: int, uniforms: dict) -> None:
         self.slot_atoms.bind_to_storage_buffer(BINDING_SLOT_ATOMS)
