@@ -151,6 +151,22 @@ def test_it_bakes_once_per_culling_and_light(gl, crambin, crambin_grid):
         crambin_grid.set_culling(Culling())
 
 
+
+def test_the_benchmark_times_a_bake_for_every_figure(gl, crambin, crambin_grid):
+    """sasprobe bench lighting's bake times (bench/lighting_precomputed.py bake_seconds) each
+    come from a bake that ran: both channels at a culling change, the accessibility alone,
+    the light alone (a stale time, from an update that baked nothing, is an error there)."""
+    from sasprobe.bench.lighting_precomputed import bake_seconds
+
+    settings = AOSettings(patch=PATCH, directions=DIRECTIONS, distance=DISTANCE)
+    try:
+        for culling, repeats in ((Culling(), 1), (cullings(crambin)["cube"], 2)):
+            row = bake_seconds(crambin_grid, culling, settings, repeats=repeats)
+            assert row["patches"] == int((~crambin_grid.culled_mask).sum()) and row["bakes"] == repeats
+            assert min(row["total_s"], row["ambient_s"], row["sun_s"]) > 0 and row["overflows"] == 0
+    finally:
+        crambin_grid.set_culling(Culling())
+
 def test_accuracy_against_the_converged_reference_and_the_exact_shadow(gl, crambin, crambin_grid):
     """At the default patch and directions the precomputed AO is closer to converged
     ray-traced AO than analytic AO with 32 neighbours, and its shadow agrees with the exact
