@@ -69,14 +69,14 @@ def sphere_rect(center, radius: float, viewproj: np.ndarray, size: tuple[int, in
     """Pixels a sphere can cover: the bounding box of its enclosing cube's eight corners
     projected (the cube holds the sphere, so its image holds the sphere's), grown by
     `margin`. The whole frame when a corner lies behind the eye; None when off screen."""
-    return _corners_rect(_cube_corners(center, radius), viewproj, size, margin)
+    return points_rect(_cube_corners(center, radius), viewproj, size, margin)
 
 
 def capsule_rect(a, b, radius: float, viewproj: np.ndarray, size: tuple[int, int], margin: int = 2) -> Rect | None:
     """Pixels a capsule (the segment a-b swept by a sphere) can cover: the bounding box of
     the corners of both end spheres' cubes projected (the capsule lies in their convex
     hull, and so does its image), grown by `margin`; as sphere_rect otherwise."""
-    return _corners_rect(np.vstack([_cube_corners(a, radius), _cube_corners(b, radius)]), viewproj, size, margin)
+    return points_rect(np.vstack([_cube_corners(a, radius), _cube_corners(b, radius)]), viewproj, size, margin)
 
 
 def _cube_corners(center, radius: float) -> np.ndarray:
@@ -84,15 +84,48 @@ def _cube_corners(center, radius: float) -> np.ndarray:
                                 indexing="ij")).reshape(3, -1).T
 
 
-def _corners_rect(corners: np.ndarray, viewproj: np.ndarray, size: tuple[int, int], margin: int) -> Rect | None:
-    clip = np.column_stack([corners, np.ones(len(corners))]) @ np.asarray(viewproj, dtype=np.float64).T
-    w, h = size
+def points_rect(points: np.ndarray, viewproj: np.ndarray, size: tuple[int, int], margin: int) -> Rect | None:
+    """The bounding box of points (N x 3, world) projected, grown by `margin`; the whole
+    frame when one lies behind the eye, None when the box is off screen."""
+    clip = np.column_stack([points, np.ones(len(points))]) @ np.asarray(viewproj, dtype=np.float64).T
     if np.any(clip[:, 3] <= 1e-9):
-        return (0, 0, w, h)
-    ndc = clip[:, :2] / clip[:, 3:4]
+        return full_rect(size)
+    return ndc_rect(clip[:, :2] / clip[:, 3:4], size, margin)
+
+
+def ndc_rect(ndc: np.ndarray, size: tuple[int, int], margin: int) -> Rect | None:
+    """The bounding box of points in normalised device coordinates (N x 2), in pixels,
+    grown by `margin` and clamped to the frame."""
+    w, h = size
     x0, y0 = np.floor((ndc.min(axis=0) * 0.5 + 0.5) * (w, h)).astype(int) - margin
     x1, y1 = np.ceil((ndc.max(axis=0) * 0.5 + 0.5) * (w, h)).astype(int) + margin
     return clamp_rect((int(x0), int(y0), int(x1 - x0), int(y1 - y0)), size)
+
+
+def atoms_rect(positions: np.ndarray, radius: float, viewproj: np.ndarray, size: tuple[int, int]) -> Rect | None:
+    """Pixels spheres of at most `radius` around `positions` can cover (the whole frame when
+    one reaches the eye's plane). A point moved by d, |d| <= r, moves in clip space by at
+    most r |row| per row of viewproj, so its x / w by at most r (|x row| + |x/w| |w row|) /
+    (w - r |w row|) (y alike): each centre's box, one projection for all."""
+    if len(positions) == 0:
+        return None
+    viewproj = np.asarray(viewproj, dtype=np.float64)
+    clip = np.asarray(positions, dtype=np.float64) @ viewproj[:, :3].T + viewproj[:, 3]
+    rows = np.linalg.norm(viewproj[:, :3], axis=1) * radius
+    depth = clip[:, 3] - rows[3]
+    if depth.min() <= 1e-9:
+        return full_rect(size)
+    ndc = clip[:, :2] / clip[:, 3:4]
+    reach = (rows[:2] + np.abs(ndc) * rows[3]) / depth[:, None]
+    return ndc_rect(np.vstack([(ndc - reach).min(axis=0), (ndc + reach).max(axis=0)]), size, 1)
+
+
+def intersect_rect(a: Rect | None, b: Rect | None) -> Rect | None:
+    if a is None or b is None:
+        return None
+    x0, y0 = max(a[0], b[0]), max(a[1], b[1])
+    x1, y1 = min(a[0] + a[2], b[0] + b[2]), min(a[1] + a[3], b[1] + b[3])
+    return (x0, y0, x1 - x0, y1 - y0) if x1 > x0 and y1 > y0 else None
 
 
 def clamp_rect(rect: Rect | None, size: tuple[int, int]) -> Rect | None:
@@ -134,6 +167,7 @@ class MoleculeCache:
         self.stash: GBufferStash | None = None
         self.key: tuple | None = None
         self.stashed: Rect | None = None  # what the stash holds: the probe's rectangle of the last frame
+        self.layer_rect: tuple | None = None  # (key, the pixels the molecule layer can cover), see Frame.molecule_rect
         self.hits = self.misses = 0
 
     def begin(self, frame, passes) -> bool:

@@ -13,10 +13,12 @@ import pytest
 
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
 from sasprobe.render.camera import Camera
-from sasprobe.render.frame_cache import sphere_rect, state_key, union_rect
+from sasprobe.render.frame_cache import atoms_rect, sphere_rect, state_key, union_rect
 from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.gl.targets import KIND_PROBE
-from sasprobe.render.lighting.settings import AOSettings, LightingSettings
+from sasprobe.render.gl.textures import read_image
+from sasprobe.render.lighting.settings import AOSettings, LightingSettings, ShadingSettings
+from sasprobe.render.passes.fxaa import FxaaPass
 from sasprobe.render.passes.lighting import install_lighting, lighting_of
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import Effects, Mark, NavCube, Probe, SceneState
@@ -60,7 +62,8 @@ def make_renderer(gl, structure, size, settings, cache, setup="none"):
     renderer = Renderer(gl, scene, size, frame_cache=cache)
     install_lighting(renderer, settings)
     c, r = scene.bounding_sphere()
-    return renderer, Camera.fitted(c, r * 0.8, size[0] / size[1], direction=DIRECTION)
+    fit = 2.0 if setup == "far" else 0.8  # far: the probe light's reach overhangs the molecule's pixels
+    return renderer, Camera.fitted(c, r * fit, size[0] / size[1], direction=DIRECTION)
 
 
 def agreement(a: np.ndarray, b: np.ndarray) -> float:
@@ -70,6 +73,7 @@ def agreement(a: np.ndarray, b: np.ndarray) -> float:
 
 CASES = [
     ("1crn", (160, 120), LightingSettings(), "none"),  # the default lighting: hard shadows, analytic AO
+    ("1crn", (160, 120), LightingSettings(), "far"),
     ("1crn", (160, 120), LightingSettings(shadows="soft", edges="both", ao=AOSettings(k=16)), "cube"),
     ("1crn", (160, 120), LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed")), "plane"),
     ("1tii", (200, 150), LightingSettings(), "none"),
@@ -86,7 +90,7 @@ def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings
     cached, camera = make_renderer(gl, structure, size, settings, cache=True, setup=setup)
     full, full_camera = make_renderer(gl, structure, size, settings, cache=False, setup=setup)
     planes = []  # the planes in effect, frame by frame
-    shaded = []  # the fraction of the pixels each frame shaded again
+    shaded, antialiased = [], []  # the fractions of the pixels each frame shaded and antialiased again
     try:
         for center in path:
             for r in (cached, full):
@@ -96,8 +100,9 @@ def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings
             full.render(full_camera)
             a, b = cached.read_image(), full.read_image()
             assert agreement(a, b) >= 0.999, (sid, setup, center)
-            rect = cached.pass_named("shading").shaded
-            shaded.append(0.0 if rect is None else rect[2] * rect[3] / (size[0] * size[1]))
+            for fractions, rect in ((shaded, cached.pass_named("shading").shaded),
+                                    (antialiased, cached.pass_named("fxaa").redone)):
+                fractions.append(0.0 if rect is None else rect[2] * rect[3] / (size[0] * size[1]))
             kinds = cached.targets.read(cached.targets.ids)[..., 1]
             assert (kinds == KIND_PROBE).any() == (center is not None)  # the probe is in the picture
             # the terms too, off the probe's own pixels (which the shading does not light)
@@ -112,13 +117,52 @@ def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings
             assert cached.cache.misses == 1 + changes and cached.cache.hits == len(path) - 1 - changes >= 1
         else:
             assert cached.cache.misses == 1 and cached.cache.hits == len(path) - 1  # the layer held throughout
-        assert shaded[0] == 1.0
+        assert shaded[0] == antialiased[0] == 1.0
+        if setup == "far":  # only the molecule's pixels within the probe's reach were shaded again
+            assert max(shaded[1:]) < 0.5, shaded
         if sid == "1tii" and setup == "none":  # the rest of the picture was kept, and still agrees
-            assert max(shaded[1:]) < 0.9, shaded
+            assert max(shaded[1:]) < 0.9 and max(antialiased[1:]) < 0.95, (shaded, antialiased)
         assert full.cache is None
     finally:
         cached.release()
         full.release()
+
+
+def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(gl, shared_by_id):
+    """FXAA run again only where the lit picture changed, and where the probe's cues are and
+    were, gives what FXAA over the whole lit picture gives, bit for bit: the probe sliding
+    with its ghost, spring and force arrow, then leaving. The molecule fills the frame and
+    the probe light reaches 6 Å, so the redone rectangle's edges cross the atoms' outlines,
+    and the cues reach beyond what the shading does again."""
+    structure = load_structure(shared_by_id["1tii"].path, keep_water=True)
+    size = (200, 150)
+    scene = SceneState(structure)
+    scene.force_ratings_n = (3.3, 8.5)
+    renderer = Renderer(gl, scene, size, shading=ShadingSettings(probe_range=6.0))
+    install_lighting(renderer, LightingSettings())
+    c, r = scene.bounding_sphere()
+    camera = Camera.fitted(c, r * 0.5, size[0] / size[1], direction=DIRECTION)
+    whole = FxaaPass(gl, renderer.programs)
+    picture = gl.texture(size, 4)
+    out = gl.framebuffer([picture])
+    redone = []
+    try:
+        for k, center in enumerate(probe_path(structure)):
+            scene.probe = None if center is None else Probe(
+                center=center, touched_atom=3, goal=center + (k % 3) * np.array([6.0, -4.5, 3.0]),
+                force_n=np.array([1.5 * k, 1.0 + k, -0.5]))  # the ghost and the arrow reach beyond the light
+            frame = renderer.render(camera)
+            whole.run(dataclasses.replace(frame, cache=None, output_fbo=out))
+            assert np.array_equal(renderer.read_image(), read_image(out, size)), k
+            rect = renderer.pass_named("fxaa").redone
+            redone.append(0.0 if rect is None else rect[2] * rect[3] / (size[0] * size[1]))
+        assert renderer.cache.hits == len(redone) - 1 and redone[0] == 1.0 and max(redone[1:]) < 0.75, redone
+    finally:
+        whole.release()
+        gl.detect_framebuffer(0).use()  # not a framebuffer about to be deleted (see RenderTargets.release)
+        out.release()
+        picture.release()
+        renderer.release()
 
 
 def test_a_probe_that_moved_leaves_no_trace(gl, crambin):
@@ -267,3 +311,44 @@ def test_rectangles_hold_the_sphere():
     assert sphere_rect((500.0, 0.0, 0.0), 1.0, proj @ view, size) is None  # off screen
     assert union_rect(None, (1, 2, 3, 4)) == (1, 2, 3, 4)
     assert union_rect((0, 0, 2, 2), (5, 5, 1, 1)) == (0, 0, 6, 6)
+
+
+def test_the_molecules_rectangle_holds_every_atom_and_little_more():
+    """atoms_rect (what the probe's reach is clipped to) against brute force: points on every
+    sphere projected lie inside, for cameras near and far, on and off the molecule, and the
+    rectangle is no more than 6 pixels wider on a side than what they cover (3 at the median)
+    where no sphere comes within ten radii of the eye."""
+    rng = np.random.default_rng(3)
+    size = (160, 120)
+    directions = rng.normal(size=(2000, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    slacks = []
+    for trial in range(30):
+        centres = rng.normal(size=(40, 3)) * 8.0
+        camera = Camera.fitted(centres.mean(axis=0) + rng.normal(size=3) * 6.0, 20.0 * rng.uniform(0.3, 1.5),
+                               size[0] / size[1], direction=rng.normal(size=3))
+        viewproj = camera.projection(size[0] / size[1]) @ camera.view()
+        rect = atoms_rect(centres, 1.8, viewproj, size)
+        points = (centres[:, None, :] + 1.8 * directions[None]).reshape(-1, 3)
+        clip = np.column_stack([points, np.ones(len(points))]) @ viewproj.T
+        if not (clip[:, 3] > 0).all():  # a sphere reaches behind the eye
+            assert rect == (0, 0, *size)
+            continue
+        pixels = (clip[:, :2] / clip[:, 3:4] * 0.5 + 0.5) * size
+        on_screen = pixels[np.all((pixels >= 0) & (pixels < size), axis=1)]
+        if rect is None:
+            assert on_screen.size == 0
+            continue
+        x, y, w, h = rect
+        assert np.all(on_screen >= (x, y)) and np.all(on_screen <= (x + w, y + h)), trial
+        lo = np.clip(np.floor(pixels.min(axis=0)), 0, size)  # every point's box, cut by the frame
+        hi = np.clip(np.ceil(pixels.max(axis=0)), 0, size)
+        slack = np.concatenate([lo - (x, y), (x + w, y + h) - hi])
+        slack = slack[np.concatenate([lo > 0, hi < size])]  # sides the frame does not cut
+        if clip[:, 3].min() > 10 * 1.8:  # loose only for spheres close to the eye, beside it
+            slacks.extend(slack)
+    assert len(slacks) > 20 and max(slacks) <= 6 and np.median(slacks) <= 3, slacks
+    eye_plane = Camera(eye=(0.0, 0.0, 30.0), target=(0.0, 0.0, 0.0))
+    viewproj = eye_plane.projection(4 / 3) @ eye_plane.view()
+    assert atoms_rect(np.array([[0.0, 0.0, 29.5]]), 1.0, viewproj, size) == (0, 0, 160, 120)  # reaches the eye
+    assert atoms_rect(np.zeros((0, 3)), 1.0, viewproj, size) is None

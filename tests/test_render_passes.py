@@ -166,3 +166,47 @@ def test_fxaa_only_softens_edges(gl, crambin):
     scene.effects.fxaa = False
     _, lit2, _, final2, _ = render(gl, scene, camera)
     assert np.abs(final2 - lit2).max() <= 1 / 255
+
+
+def test_fxaa_reads_no_further_than_its_reach(gl):
+    """FXAA_REACH_PX, what the frame cache grows a changed rectangle by before running FXAA
+    again there, holds the shader: on a high-contrast random picture, changing one pixel
+    changes the output only within that many pixels of it (and the reach is not far above
+    what the shader reads)."""
+    from types import SimpleNamespace
+
+    from sasprobe.render.gl.programs import ProgramCache
+    from sasprobe.render.gl.textures import read_image
+    from sasprobe.render.passes.fxaa import FXAA_REACH_PX, FxaaPass
+
+    size = (64, 64)
+    rng = np.random.default_rng(7)
+    picture = (rng.random((size[1], size[0], 4)) > 0.5).astype(np.uint8) * 255
+    lit, out = gl.texture(size, 4), gl.texture(size, 4)
+    lit_fbo, out_fbo = gl.framebuffer([lit]), gl.framebuffer([out])
+    programs = ProgramCache(gl)
+    fxaa = FxaaPass(gl, programs)
+    frame = SimpleNamespace(ctx=gl, targets=SimpleNamespace(lit=lit, lit_fbo=lit_fbo), size=size, cache=None,
+                            output_fbo=out_fbo, scene=SimpleNamespace(effects=SimpleNamespace(fxaa=True)))
+
+    def antialiased(image: np.ndarray) -> np.ndarray:
+        lit.write(np.ascontiguousarray(image[::-1]).tobytes())
+        fxaa.run(frame)
+        return read_image(out_fbo, size).astype(int)
+
+    try:
+        before = antialiased(picture)
+        farthest = 0
+        for y, x in rng.integers(16, 48, size=(24, 2)):
+            changed = picture.copy()
+            changed[y, x, :3] = 255 - changed[y, x, :3]
+            rows, cols = np.nonzero(np.abs(antialiased(changed) - before).max(axis=2))
+            assert rows.size  # the pixel itself, at least
+            farthest = max(farthest, int(np.max(np.maximum(np.abs(rows - y), np.abs(cols - x)))))
+        assert FXAA_REACH_PX - 3 <= farthest <= FXAA_REACH_PX, farthest
+    finally:
+        fxaa.release()
+        programs.release()
+        gl.detect_framebuffer(0).use()  # not a framebuffer about to be deleted (see RenderTargets.release)
+        for obj in (lit_fbo, out_fbo, lit, out):
+            obj.release()

@@ -87,3 +87,31 @@ class RenderTargets:
         for obj in (self.gbuffer_fbo, self.visibility_fbo, self.lit_fbo, self.final_fbo, self.albedo,
                     self.position, self.normal, self.ids, self.depth, self.visibility, self.lit, self.final):
             obj.release()
+
+
+class KeptPicture:
+    """An RGBA8 picture a pass keeps across frames (the frame cache: the shaded picture,
+    the antialiased one), made again when the frame size changes."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.texture = self.fbo = None
+        self.fresh = True  # made anew by the last framebuffer() call: it holds nothing yet
+
+    def framebuffer(self, size: tuple[int, int]):
+        """The picture's framebuffer at `size`; `fresh` tells whether it was just made (it
+        holds nothing yet)."""
+        self.fresh = self.texture is None or self.texture.size != tuple(size)
+        if self.fresh:
+            self.release()
+            self.texture = self.ctx.texture(tuple(size), 4, dtype="f1")
+            self.fbo = self.ctx.framebuffer([self.texture])
+        return self.fbo
+
+    def release(self) -> None:
+        if self.fbo is not None:
+            if self.ctx.fbo is self.fbo:  # not the bound one (see RenderTargets.release)
+                self.ctx.detect_framebuffer(0).use()
+            self.fbo.release()
+            self.texture.release()
+            self.texture = self.fbo = None

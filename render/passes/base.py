@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sasprobe.render.camera import Camera
-from sasprobe.render.frame_cache import sphere_rect
+from sasprobe.render.frame_cache import atoms_rect, intersect_rect, sphere_rect
 from sasprobe.render.gl.buffers import MoleculeBuffers
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import RenderTargets
@@ -51,6 +51,11 @@ class Frame:
     cache: object = None  # the renderer's MoleculeCache (render/frame_cache.py), None when it redraws all
     cached: bool = False  # the molecule layer of the last frame holds: its passes do not run
     probe_lighting: ProbeLighting = field(default_factory=ProbeLighting)  # the lighting's, for the shading pass
+    # What of the lit picture differs from the last frame's, for the FXAA pass to redo only
+    # that: WHOLE, a rectangle or None, as the shading pass (and a path-traced frame) leave
+    # it; and the rectangle the probe's cues drew over it this frame (ProbeCuesPass).
+    lit_changed: object = WHOLE
+    overlay: object = None
 
     @property
     def size(self) -> tuple[int, int]:
@@ -66,6 +71,24 @@ class Frame:
         if probe is None:
             return None
         return sphere_rect(probe.center, probe.radius if radius is None else radius, self.viewproj, self.size)
+
+    def reach_rect(self, radius: float):
+        """The molecule's pixels within `radius` of the probe's centre can lie in: what the
+        probe's light and its share of the AO can change (the probe's own pixels aside)."""
+        return intersect_rect(self.probe_rect(radius), self.molecule_rect())
+
+    def molecule_rect(self):
+        """Pixels the molecule layer can cover: every atom's sphere (culled ones too: the
+        backbone trace runs through them), once per molecule layer (render/frame_cache.py)."""
+        cache, key = self.cache, (id(self.scene.structure), self.viewproj.tobytes(), self.size)
+        if cache is not None and cache.layer_rect is not None and cache.layer_rect[0] == key:
+            return cache.layer_rect[1]
+        structure = self.scene.structure
+        radius = float(structure.vdw_radii.max(initial=0.0))
+        rect = atoms_rect(structure.positions, radius, self.viewproj, self.size)
+        if cache is not None:
+            cache.layer_rect = (key, rect)
+        return rect
 
     def near_plane(self) -> np.ndarray:
         """The camera's near plane as a clip plane (spheres crossing it get a cap)."""

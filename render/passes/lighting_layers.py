@@ -73,12 +73,14 @@ class LayeredLighting:
         if fx.shadows and lamp is not None:
             if self._precomputed(frame) and self._still_frames >= STILL_FRAMES:
                 self._configure_ao()  # the probe stands still: its light is fixed in the molecule frame
-                terms["shadow_probe"] = self.ao.baked(gbuffer, ambient=False, probe_light=lamp,
-                                                      rect=frame.probe_rect(lamp.radius))[2]
+                reach = frame.reach_rect(lamp.radius) or (0, 0, 0, 0)  # none: no molecule within its range
+                terms["shadow_probe"] = self.ao.baked(gbuffer, ambient=False, probe_light=lamp, rect=reach)[2]
             else:
-                rect = self._dirty_rect("shadow_probe", frame.probe_rect(lamp.radius), frame)
-                terms["shadow_probe"] = self.shadows.trace(
-                    gbuffer, lamp, soft, out=self.textures.get("shadow_probe", size), rect=rect)
+                rect = self._dirty_rect("shadow_probe", frame.reach_rect(lamp.radius), frame)
+                traced = self.textures.get("shadow_probe", size)
+                if rect is not None:  # else no molecule within its range, now or last frame: as it was
+                    self.shadows.trace(gbuffer, lamp, soft, out=traced, rect=rect)
+                terms["shadow_probe"] = traced
             self.layers["shadow_probe"] = terms["shadow_probe"]
         probe_rect = frame.probe_rect()
         probe_sun = fx.shadows and sun is not None and probe is not None

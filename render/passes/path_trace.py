@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 from sasprobe.render.gl.compute import ComputePass
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.passes.base import Frame, Pass
+from sasprobe.render.passes.base import WHOLE, Frame, Pass
 
 if TYPE_CHECKING:
     from sasprobe.render.passes.lighting import LightingPass
@@ -47,6 +47,7 @@ class PathTracePass(Pass):
         frame.targets.visibility.use(location=4)
         frame.targets.lit.bind_to_image(0, read=False, write=True)
         self.output.run(*frame.size, {})
+        frame.lit_changed = WHOLE  # it adds samples: every pixel may change
 
     def release(self) -> None:
         self.output.release()

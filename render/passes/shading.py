@@ -11,6 +11,7 @@ and the lighting says where its shadow and edges fell."""
 from __future__ import annotations
 
 from sasprobe.render.frame_cache import Rect, full_rect, sphere_rect, union_rect
+from sasprobe.render.gl.targets import KeptPicture
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.settings import ShadingSettings
 from sasprobe.render.passes.base import WHOLE, Frame, Pass, ProbeLighting
@@ -27,7 +28,7 @@ class ShadingPass(Pass):
         self.ctx = ctx
         self.programs = programs
         self._vaos: dict[tuple[str, ...], object] = {}
-        self._kept = None  # (texture, framebuffer): the shaded picture kept across frames (frame cache)
+        self._kept = KeptPicture(ctx)  # the shaded picture kept across frames (frame cache)
         self._reached: Rect | None = None  # what the probe changed in the last frame
         self.shaded: Rect | None = None  # the rectangle the last frame shaded (None: nothing)
 
@@ -73,8 +74,11 @@ class ShadingPass(Pass):
         })
         target, self.shaded = t.lit_fbo, full_rect(frame.size)
         if frame.cache is not None:
-            target = self._kept_picture(frame)
+            target = self._kept.framebuffer(frame.size)
             self.shaded = self._to_shade(frame)
+            if self._kept.fresh:  # it holds nothing yet
+                self.shaded = full_rect(frame.size)
+            frame.lit_changed = self.shaded  # what FXAA redoes (the cube wire is the same on a cached frame)
         if self.shaded is not None:
             target.use()
             target.scissor = self.shaded
@@ -86,23 +90,17 @@ class ShadingPass(Pass):
             ctx.copy_framebuffer(t.lit_fbo, target)  # the later passes draw over a copy
 
     # ------------------------------------------------------------ frames that keep the molecule layer
-    def _kept_picture(self, frame: Frame):
-        if self._kept is None or self._kept[0].size != tuple(frame.size):
-            self._release_kept()
-            texture = self.ctx.texture(frame.size, 4, dtype="f1")
-            self._kept = (texture, self.ctx.framebuffer([texture]))
-        return self._kept[1]
-
     def _to_shade(self, frame: Frame) -> Rect | None:
         """What to shade again: everything on a frame that drew the molecule layer (or whose
         lighting changed everywhere), else where the probe changes the picture now and did
-        last frame — its reach (its light and its share of the AO end there), its pixels,
-        the touched atom and what the lighting's terms changed (its shadow, its edges)."""
+        last frame — its reach over the molecule (its light and its share of the AO end
+        there), its pixels, the touched atom and what the lighting's terms changed (its
+        shadow, its edges)."""
         scene, lit = frame.scene, frame.probe_lighting
         reached = lit.changed if lit.changed != WHOLE else None
         probe = scene.probe
         if probe is not None:
-            reached = union_rect(reached, frame.probe_rect(max(self.settings.probe_range, probe.radius)))
+            reached = union_rect(reached, union_rect(frame.probe_rect(), frame.reach_rect(self.settings.probe_range)))
             if 0 <= probe.touched_atom < scene.structure.n_atoms:
                 atom = probe.touched_atom
                 reached = union_rect(reached, sphere_rect(scene.structure.positions[atom],
@@ -112,16 +110,8 @@ class ShadingPass(Pass):
             return full_rect(frame.size)
         return union_rect(last, reached)
 
-    def _release_kept(self) -> None:
-        if self._kept is not None:
-            if self.ctx.fbo is self._kept[1]:  # not the bound one (see RenderTargets.release)
-                self.ctx.detect_framebuffer(0).use()
-            for obj in reversed(self._kept):
-                obj.release()
-            self._kept = None
-
     def release(self) -> None:
         for vao in self._vaos.values():
             vao.release()
         self._vaos.clear()
-        self._release_kept()
+        self._kept.release()
