@@ -22,6 +22,7 @@ SUN = np.array([0.45, 0.8, 0.4]) / np.linalg.norm([0.45, 0.8, 0.4])  # towards t
 
 
 CUBE_BAKES = 5  # a cube's bake takes tens of milliseconds: the median of a few
+SMALL_BAKES, SMALL_ATOMS = 3, 20_000  # structures below SMALL_ATOMS whole: the median of a few bakes too
 
 
 def bake_seconds(grid: GpuGrid, culling: Culling, settings: AOSettings = DEFAULT, sun: bool = True,
@@ -30,8 +31,9 @@ def bake_seconds(grid: GpuGrid, culling: Culling, settings: AOSettings = DEFAULT
     after its first bake): `total_s`, the accessibility and the light channel in one bake
     (what a culling change costs the renderer with both precomputed); `ambient_s`, the
     accessibility alone (--ao precomputed with traced shadows); `sun_s`, the light channel
-    alone (what the light moving costs). With `repeats` (a cube), the medians of that many,
-    the cube moved 0.01 Å between them (each a bake anew, as when it drifts)."""
+    alone (what the light moving costs). With `repeats`, the medians of that many, each a
+    bake anew: a cube moved 0.01 Å between them (as when it drifts), a whole structure's
+    culling set again."""
     atlas = OcclusionAtlas(grid)
 
     def bake(light: bool) -> float:
@@ -67,7 +69,9 @@ def bake_scaling(gl, structures: list[tuple[str, object]], cube_of) -> list[dict
     rows = []
     for sid, structure in structures:
         grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
-        rows.append({"structure": sid, "atoms": structure.n_atoms, "cube": False, **bake_seconds(grid, Culling())})
+        repeats = SMALL_BAKES if structure.n_atoms < SMALL_ATOMS else 1
+        rows.append({"structure": sid, "atoms": structure.n_atoms, "cube": False,
+                     **bake_seconds(grid, Culling(), repeats=repeats)})
         grid.release()
     sid, structure = max(structures, key=lambda s: s[1].n_atoms)
     cube, inside = cube_of(structure)
