@@ -2,7 +2,8 @@
 definition and the mathematics, sharing no code with it: the octahedral map (Cigolle et
 al., JCGT 2014), the spherical Fibonacci directions, QuteMol's patch layout (texel centres
 on the patch border), the baked values (brute force over every sphere, rays clipped as
-everywhere else) and the fill of texels inside other atoms."""
+everywhere else; texels inside other atoms or cut away are never seen) and the fill of
+those unseen texels."""
 
 from __future__ import annotations
 
@@ -44,6 +45,19 @@ def texel_normals(patch: int) -> np.ndarray:
     return octa_decode(np.stack([i, j], axis=-1) * (2.0 / (patch - 1)) - 1.0)
 
 
+def points_kept(points: np.ndarray, culling) -> np.ndarray:
+    """Whether each point survives the culling: on the kept side (a·x + b·y + c·z + d >= 0)
+    of every clip plane and inside the navigation cube (what is drawn of a sphere)."""
+    x = np.asarray(points, dtype=np.float64)
+    kept = np.ones(x.shape[0], dtype=bool)
+    for plane in culling.clip_planes:
+        kept &= x @ plane[:3] + plane[3] >= 0
+    if culling.nav_cube is not None:
+        centre, half = culling.nav_cube
+        kept &= np.all(np.abs(x - centre) <= half, axis=1)
+    return kept
+
+
 def bake_atom(atom: int, occ: Occluders, patch: int, n_directions: int, distance: float, sun=None, lamp=None):
     """(accessibility, sun visibility, probe-light visibility, hidden) of one atom's patch,
     each (patch, patch): NaN where not computed (no `sun`, no `lamp`: (position, range))."""
@@ -52,7 +66,7 @@ def bake_atom(atom: int, occ: Occluders, patch: int, n_directions: int, distance
     x = c + r * n
     others = np.flatnonzero(~occ.culled & (np.arange(len(occ.radii)) != atom))
     inside = np.linalg.norm(x[:, None, :] - occ.centers[others][None], axis=-1) < occ.radii[others][None]
-    hidden = inside.any(axis=1)
+    hidden = inside.any(axis=1) | ~points_kept(x, occ.culling)  # never seen: inside another atom, or cut away
     o = x + n * ray_epsilon(x)[:, None]
     dirs = directions(n_directions)
     w = np.maximum(n @ dirs.T, 0.0)  # (texels, D)

@@ -6,9 +6,10 @@
 // light's visibility and the probe light's (one ray through the grid each, as shadows.comp
 // traces them; beyond the probe light's range 1). Clip planes and the cube cut the rays as
 // everywhere else.
-// A point inside another drawn atom is never seen; it is marked -1 and filled from the
-// seen texels around it (atlas_fill.comp). Channels the bake leaves alone keep their value;
-// the program is compiled per case (BAKE_AMBIENT, BAKE_SUN, BAKE_PROBE: the channels baked).
+// A hidden point (inside another drawn atom, or cut away) is never seen; it is marked -1
+// and filled from the seen texels around it (atlas_fill.comp). Channels the bake leaves
+// alone keep their value; the program is compiled per case (BAKE_AMBIENT, BAKE_SUN,
+// BAKE_PROBE: the channels baked).
 layout(local_size_x = 64) in;
 
 #include "grid_traversal.glsl"

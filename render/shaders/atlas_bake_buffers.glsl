@@ -27,7 +27,7 @@ layout(std430, binding = 12) readonly buffer SlotList { uint slot_list[]; };    
 layout(std430, binding = 16) readonly buffer FacingTexels { int facing[]; };
 layout(std430, binding = 17) readonly buffer FacingRank { int facing_rank[]; };
 // Per patch texel of the chunk (slot x P^2 + texel), 1 where its point lies inside another
-// kept atom: never seen, its rays not traced (step 1 marks them).
+// kept atom or is cut away: never seen, its rays not traced (step 1 marks them).
 layout(std430, binding = 18) buffer HiddenTexels { int hidden_texels[]; };
 
 // Each texel's direction, texel (i, j) at i + P j: the same for every patch, computed once

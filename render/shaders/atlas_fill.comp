@@ -1,7 +1,8 @@
 #version 430 core
-// Occlusion atlas bake, after step 3: a texel inside another atom (marked -1, never seen)
-// takes the mean of the seen texels around it in its patch, so that a bilinear lookup next
-// to the seam between two atoms reads the seam's own values rather than a dark rim
+// Occlusion atlas bake, after step 4: a hidden texel (marked -1, never seen: inside another
+// atom, or cut away) takes the mean of the seen texels around it in its patch, so that a
+// bilinear lookup next to the seam between two atoms reads the seam's own values rather
+// than a dark rim
 // (QuteMol smooths its patches over the bright texels only, pyQuteMol OctaMap.py Smooth).
 // Run twice, from one texture into another; what is still unseen after that becomes 0.
 layout(local_size_x = 8, local_size_y = 8) in;

@@ -2,13 +2,15 @@
 // Occlusion atlas bake, step 1 of 4, one invocation per atom of the chunk: the atom's
 // neighbours within reach of its rays (centre distance < r_i + ray length + r_j; with
 // u_gather_neighbours 0 none, for a bake of the lights alone), and those overlapping it
-// (centre distance < r_i + r_j), and with those which of its texels lie inside another
-// atom (hidden: never seen, their rays not traced). They come from the kept atoms'
-// own cells (render/lighting/ao/precomputed.py KeptCells: the spheres the culling keeps,
-// each once, in the cell of its centre, stored in place), so every entry read is one load
-// of a sphere that counts; cells wholly out of reach are skipped.
+// (centre distance < r_i + r_j), and with those which of its texels are hidden — never
+// seen, their rays not traced: inside another atom, or cut away by a clip plane or the
+// cube (an atom crossing a face shows its cap there, not its sphere). They come from the
+// kept atoms' own cells (render/lighting/ao/precomputed.py KeptCells: the spheres the
+// culling keeps, each once, in the cell of its centre, stored in place), so every entry
+// read is one load of a sphere that counts; cells wholly out of reach are skipped.
 layout(local_size_x = 64) in;
 
+#include "culling.glsl"
 #include "atlas_bake_buffers.glsl"
 #include "atlas_common.glsl"
 
@@ -60,7 +62,7 @@ void main() {
     int texels = u_patch * u_patch;
     for (int texel = 0; texel < texels; ++texel) {
         vec3 x_local = self_sphere.w * texel_normals[texel].xyz;  // the texel's point relative to the atom's centre
-        bool hidden = false;
+        bool hidden = point_cut(self_sphere.xyz + x_local);
         for (int k = 0; k < n_over && !hidden; ++k) {
             vec4 s = overlaps[local_slot * MAX_OVERLAPS + k];
             hidden = distance(x_local, s.xyz) < s.w;

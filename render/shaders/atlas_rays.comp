@@ -4,10 +4,10 @@
 // long from the texel's surface point, cut by the clip planes and the cube as everywhere
 // else), BLOCK_TEXELS texels at a time held as two vec4 quads, so each candidate read from
 // memory is tested against eight rays (four quads were slower: registers ran out), and
-// only rays that count are tested (texels facing away, or hidden inside another atom, never
-// are). Rays the culling removes whole are left unblocked: they are open. Directions are
-// uploaded in clusters of nearby ones, so the invocations that run side by side stop
-// together.
+// only rays that count are tested (texels facing away, or hidden — inside another atom or
+// cut away — never are). Rays the culling removes whole are left unblocked: they are open.
+// Directions are uploaded in clusters of nearby ones, so the invocations that run side by
+// side stop together.
 layout(local_size_x = 64) in;
 
 #include "grid_traversal.glsl"
@@ -22,7 +22,7 @@ struct Quad { vec4 x, y, z, t0, t1, keep, blocked; };
 
 // Entry k of a facing list of `count` texels (`list`: where it starts): the texel's ray
 // origin relative to the atom's centre, and whether its ray is traced (there is such an
-// entry, and the texel is not hidden inside another atom; `hidden`: the patch's flags).
+// entry, and the texel is not hidden; `hidden`: the patch's flags).
 vec4 facing_origin(int list, int count, int k, vec4 self_sphere, int hidden) {
     bool inside = k < count;
     int texel = inside ? facing[list + k] : 0;

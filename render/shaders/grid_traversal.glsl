@@ -28,11 +28,7 @@ uniform ivec3 u_walk_hi;      // navigation cube's cells (nothing outside it is 
 
 #include "constants.glsl"
 #include "occluders.glsl"
-uniform int u_clip_count;
-uniform vec4 u_clip_planes[MAX_CLIP_PLANES];  // kept where dot(xyz, p) + w >= 0
-uniform int u_cube_on;
-uniform vec3 u_cube_lo;
-uniform vec3 u_cube_hi;
+#include "culling.glsl"
 uniform vec4 u_probe_sphere;  // the probe as an occluder: centre, radius (w <= 0: none)
 uniform float u_probe_reach;  // Å: its share of the ambient occlusion ends there (probe_occlusion)
 
@@ -53,47 +49,6 @@ bool ray_box(vec3 o, vec3 d, vec3 lo, vec3 hi, inout float t0, inout float t1) {
         t0 = max(t0, min(ta, tb));
         t1 = min(t1, max(ta, tb));
     }
-    return t0 < t1;
-}
-
-// The kept part [t0, t1] of the ray after the clip planes and the navigation cube, and the
-// outward normal of the cut the ray enters through (zero when it starts inside).
-// Compiled with NO_CLIPPING (nothing is cut away), it only checks the interval: llvmpipe
-// runs a shader's every instruction whichever way a branch goes, uniform ones included.
-bool clip_ray(vec3 o, vec3 d, inout float t0, inout float t1, out vec3 entry_normal) {
-    entry_normal = vec3(0.0);
-#ifndef NO_CLIPPING
-    for (int i = 0; i < u_clip_count; ++i) {
-        vec4 plane = u_clip_planes[i];
-        float s = dot(plane.xyz, o) + plane.w;
-        float dn = dot(plane.xyz, d);
-        if (dn > 0.0) {
-            float t = -s / dn;
-            if (t > t0) { t0 = t; entry_normal = -plane.xyz; }
-        } else if (dn < 0.0) {
-            t1 = min(t1, -s / dn);
-        } else if (s < 0.0) {
-            return false;
-        }
-    }
-    if (u_cube_on != 0) {
-        for (int a = 0; a < 3; ++a) {
-            if (d[a] == 0.0) {
-                if (o[a] < u_cube_lo[a] || o[a] > u_cube_hi[a]) return false;
-                continue;
-            }
-            float ta = (u_cube_lo[a] - o[a]) / d[a];
-            float tb = (u_cube_hi[a] - o[a]) / d[a];
-            float t_in = min(ta, tb);
-            if (t_in > t0) {
-                t0 = t_in;
-                entry_normal = vec3(0.0);
-                entry_normal[a] = d[a] > 0.0 ? -1.0 : 1.0;
-            }
-            t1 = min(t1, max(ta, tb));
-        }
-    }
-#endif
     return t0 < t1;
 }
 

@@ -16,9 +16,9 @@ centres on the patch border (python/OctaMap.py getDir), which is the layout here
 Here the bake traces rays through the grid instead of rendering shadow maps
 (shaders/atlas_*.comp, in chunks of CHUNK_SLOTS atoms, four steps): (1) each atom's
 neighbours within reach are gathered once from the kept atoms' own cells (KeptCells), and
-its texels that lie inside a neighbour marked hidden; (2) per direction D (spherical
-Fibonacci points, in clusters of nearby ones) the neighbours that can meet one of its rays
-are marked; (3) per direction the unhidden texels facing it test those candidates, eight
+its texels that lie inside a neighbour or are cut away (clip planes, cube) marked hidden,
+never seen; (2) per direction D (spherical Fibonacci points, in clusters of nearby ones)
+the neighbours that can meet one of its rays are marked; (3) per direction the unhidden texels facing it test those candidates, eight
 rays per candidate read; (4) per texel the open rays' cosine weights are summed, and the
 lights' channels are one ray per texel through the grid. The rays are `AOSettings.distance`
 long, as the ray-traced AO's, so the two converge to the same accessibility. On llvmpipe
