@@ -176,6 +176,8 @@ class OcclusionAtlas:
         self.baked_patches = 0  # how many patches the last bake covered
         self.overflows = 0
         self._scratch: dict = {}  # the bake's storage by binding, kept for the next bake
+        self._tables: tuple = (None, None)  # ((patch, directions), what _tables_for gives)
+        self._fill_scratch = None  # rgba16f, the atlas's size: the fill's other texture
 
     # ------------------------------------------------------------ layout
     def _layout(self, patch: int) -> None:
@@ -197,6 +199,7 @@ class OcclusionAtlas:
         slots[kept] = np.arange(kept.size, dtype=np.int32)
         self.texture = self.ctx.texture((width, height), 4, dtype="f2")
         self.texture.repeat_x = self.texture.repeat_y = False
+        self._fill_scratch = self.ctx.texture((width, height), 4, dtype="f2")
         self.slot_atoms = self.ctx.buffer(kept.tobytes() if kept.size else b"\0" * 4)
         self.atom_slots = self.ctx.buffer(slots.tobytes())
         self.kept = KeptCells(self.ctx, self.grid.grid.centers[kept], self.grid.vdw_radii[kept],
@@ -248,13 +251,10 @@ class OcclusionAtlas:
         grid = self.grid
         n = max(int(slots.size), 1)
         chunk = math.ceil(n / math.ceil(n / CHUNK_SLOTS))  # chunks of equal size
-        dirs = np.zeros((directions, 4), dtype=np.float32)
-        dirs[:, :3] = clustered(fibonacci_directions(directions))
+        dirs, normals, facing, rank, most_facing = self._tables_for(directions)
         lists = chunk * directions if ambient else 1
-        normals = texel_normals(self.patch)
         tables, blocks = {}, 1  # the facing lists: only the accessibility's steps read them
         if ambient:
-            facing, rank, most_facing = facing_texels(normals, dirs)
             tables = {BINDING_FACING: facing, BINDING_FACING_RANK: rank}
             blocks = max(math.ceil(most_facing / BLOCK_TEXELS), 1)
         buffers = {binding: self._buffer(binding, nbytes) for binding, nbytes in (
@@ -309,6 +309,17 @@ class OcclusionAtlas:
             log.warning("occlusion atlas: %d neighbour lists were full; those texels may be too bright",
                         self.overflows)
 
+    def _tables_for(self, directions: int) -> tuple:
+        """The directions (clustered, vec4), the texel normals and the facing tables of this
+        patch size, computed once per (patch, directions)."""
+        key = (self.patch, directions)
+        if self._tables[0] != key:
+            dirs = np.zeros((directions, 4), dtype=np.float32)
+            dirs[:, :3] = clustered(fibonacci_directions(directions))
+            normals = texel_normals(self.patch)
+            self._tables = (key, (dirs, normals, *facing_texels(normals, dirs)))
+        return self._tables[1]
+
     def _buffer(self, key, nbytes: int):
         """The bake's storage for `key` (its binding), at least `nbytes` (made again only to grow)."""
         buffer = self._scratch.get(key)
@@ -320,14 +331,11 @@ class OcclusionAtlas:
 
     def _fill_unseen(self) -> None:
         """Texels inside other atoms take their seen neighbours' mean (shaders/atlas_fill.comp)."""
-        scratch = self.ctx.texture(self.texture.size, 4, dtype="f2")
-        try:
-            for last, (source, target) in enumerate(((self.texture, scratch), (scratch, self.texture))):
-                source.bind_to_image(0, read=True, write=False)
-                target.bind_to_image(1, read=False, write=True)
-                self.fill.run(*self.texture.size, {"u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_last": last})
-        finally:
-            scratch.release()
+        scratch = self._fill_scratch
+        for last, (source, target) in enumerate(((self.texture, scratch), (scratch, self.texture))):
+            source.bind_to_image(0, read=True, write=False)
+            target.bind_to_image(1, read=False, write=True)
+            self.fill.run(*self.texture.size, {"u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_last": last})
 
     def _variant(self, shader: str, cases: tuple[tuple[str, bool], ...]) -> ComputePass:
         """`shader` for these cases, and without clipping code when nothing is cut away."""
@@ -378,10 +386,10 @@ class OcclusionAtlas:
         return np.frombuffer(self.atom_slots.read(), dtype=np.int32).copy()
 
     def _release_layout(self) -> None:
-        for obj in (self.texture, self.atom_slots, self.slot_atoms, self.kept):
+        for obj in (self.texture, self._fill_scratch, self.atom_slots, self.slot_atoms, self.kept):
             if obj is not None:
                 obj.release()
-        self.texture = self.atom_slots = self.slot_atoms = self.kept = None
+        self.texture = self._fill_scratch = self.atom_slots = self.slot_atoms = self.kept = None
 
     def release(self) -> None:
         self._release_layout()
