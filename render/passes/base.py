@@ -73,8 +73,8 @@ class Frame:
         return sphere_rect(probe.center, probe.radius if radius is None else radius, self.viewproj, self.size)
 
     def reach_rect(self, radius: float):
-        """The molecule's pixels within `radius` of the probe's centre can lie in: what the
-        probe's light and its share of the AO can change (the probe's own pixels aside)."""
+        """A rectangle holding the molecule's pixels within `radius` of the probe's centre:
+        what the probe's light and its share of the AO can change (its own pixels aside)."""
         return intersect_rect(self.probe_rect(radius), self.molecule_rect())
 
     def molecule_rect(self):

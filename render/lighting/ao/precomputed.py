@@ -18,12 +18,12 @@ Here the bake traces rays through the grid instead of rendering shadow maps
 neighbours within reach are gathered once from the kept atoms' own cells (KeptCells), and
 its texels that lie inside a neighbour or are cut away (clip planes, cube) marked hidden,
 never seen; (2) per direction D (spherical Fibonacci points, in clusters of nearby ones)
-the neighbours that can meet one of its rays are marked; (3) per direction the unhidden texels facing it test those candidates, eight
-rays per candidate read; (4) per texel the open rays' cosine weights are summed, and the
-lights' channels are one ray per texel through the grid. The rays are `AOSettings.distance`
-long, as the ray-traced AO's, so the two converge to the same accessibility. On llvmpipe
-every storage-buffer read costs a loop over the SIMD lanes, so the steps are laid out to
-read each value once for many tests.
+the neighbours that can meet one of its rays are marked; (3) per direction the unhidden
+texels facing it test those candidates, eight rays per candidate read; (4) per texel the
+open rays' cosine weights are summed, and the lights' channels are one ray per texel
+through the grid. The rays are `AOSettings.distance` long, as the ray-traced AO's, so the
+two converge to the same accessibility. On llvmpipe every storage-buffer read costs a loop
+over the SIMD lanes, so the steps are laid out to read each value once for many tests.
 """
 
 from __future__ import annotations
@@ -330,7 +330,7 @@ class OcclusionAtlas:
         return buffer
 
     def _fill_unseen(self) -> None:
-        """Texels inside other atoms take their seen neighbours' mean (shaders/atlas_fill.comp)."""
+        """Hidden texels take their seen neighbours' mean (shaders/atlas_fill.comp)."""
         scratch = self._fill_scratch
         for last, (source, target) in enumerate(((self.texture, scratch), (scratch, self.texture))):
             source.bind_to_image(0, read=True, write=False)
