@@ -175,6 +175,54 @@ def test_light_buffer_grows_until_every_list_fits(crambin, crambin_grid, walking
         small.release()
 
 
+def test_sun_buffer_equals_the_grid_walk_to_the_bit(crambin, crambin_grid, shadow_pass, walking_pass, scene):
+    """The directional light's buffer tests only the atoms listed across the light at a
+    ray's point: the same occluders as the walk (the probe too), so the same minimum, hard
+    and soft, clipped or not, from several directions (one along an axis)."""
+    name, gbuffer, position, normal, atom, _ = scene
+    shadowed = []
+    for direction in ((0.45, 0.8, 0.4), (-0.3, 0.2, 0.93), (0.0, 0.0, 1.0), (-0.7, -0.1, -0.7)):
+        sun = DirectionalLight(direction)
+        # growth 0: the shell is full width at the receiver, so atoms just behind it darken it too
+        for soft in (HARD_SHADOW, SoftShadow(inner=-0.4, outer=1.0, growth=4.0), SoftShadow(-0.4, 1.0, 0.0)):
+            listed = read_texture(shadow_pass.trace(gbuffer, sun, soft))
+            walked = read_texture(walking_pass.trace(gbuffer, sun, soft))
+            assert np.array_equal(listed, walked), (name, direction, soft)
+        shadowed.append((walked[atom != -1] < 0.5).mean())
+    assert sum(0.05 < f < 0.95 for f in shadowed) >= 3, shadowed  # shadows to compare (the last light is behind)
+    kept = int((~crambin_grid.culled_mask).sum())
+    assert shadow_pass.sun_buffer.entries >= kept  # every kept atom is listed, in a cell at least
+
+
+def test_sun_buffer_on_a_larger_structure(gl, shared_by_id):
+    """1TII with its waters, framed whole and through a navigation cube: the buffer's
+    shadows are the walk's, bit for bit."""
+    from sasprobe.molecule import load_structure
+    from sasprobe.render.lighting.grid import GpuGrid
+
+    structure = load_structure(shared_by_id["1tii"].path, keep_water=True)
+    grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+    listing, walking = ShadowPass(grid), ShadowPass(grid, light_buffer=False)
+    try:
+        centre = structure.positions.mean(axis=0)
+        for culling in (Culling(), Culling(nav_cube=(centre + [3.0, -2.0, 1.0], 9.0))):
+            grid.set_culling(culling)
+            view, proj = camera(structure)
+            gbuffer, _, _, atom = gbuffer_arrays(grid, view, proj)
+            try:
+                sun = DirectionalLight((0.45, 0.8, 0.4))
+                listed = read_texture(listing.trace(gbuffer, sun, HARD_SHADOW))
+                walked = read_texture(walking.trace(gbuffer, sun, HARD_SHADOW))
+                assert np.array_equal(listed, walked)
+                assert 0.05 < (walked[atom >= 0] < 0.5).mean() < 0.95
+            finally:
+                gbuffer.release()
+    finally:
+        listing.release()
+        walking.release()
+        grid.release()
+
+
 def test_light_buffer_cells_lie_within_their_cones():
     """Every direction falls in the cell the documented cube layout gives it (face 2 axis +
     negative, i and j along the next two axes), within that cell's cone."""

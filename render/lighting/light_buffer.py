@@ -165,3 +165,93 @@ class PointLightBuffer:
         for b in (self.cell_cones, self.list_spheres, self.list_atoms, self.list_counts, self.longest, *self.slots):
             b.release()
         self.program.release()
+
+
+# ------------------------------------------------------------------ the directional light
+SUN_CELL = 2.0  # Å: the directional buffer's cells across the light (finer: more entries, shorter lists)
+MAX_SUN_CELLS = 65535  # cell ids fit in uint16, which numpy sorts by radix
+BINDING_SUN_START, BINDING_SUN_SPHERES, BINDING_SUN_ATOMS = 4, 5, 6  # shaders/sun_buffer.glsl
+
+
+class DirectionalLightBuffer:
+    """The directional light's shadow rays without the grid walk. Every ray runs parallel
+    to the light, so it can only meet the atoms whose disc, seen along the light, holds the
+    ray's own point there: a grid of SUN_CELL cells across the light lists, per cell, the
+    kept atoms whose disc (vdW + the soft shell's outer offset + a margin) meets the cell,
+    nearest the light first. A pixel's ray tests its cell's list and stops at the first atom
+    wholly behind its origin (shaders/sun_buffer.glsl). The visibility is the minimum over
+    the same occluders as the walk, with the same function: the walk's to the bit.
+
+    Built on the CPU (numpy: the atoms sorted along the light once, their cells expanded and
+    sorted by cell with a stable radix sort, which keeps that order in each cell) whenever
+    the light direction, the shell or the culling changes."""
+
+    def __init__(self, gpu_grid, cell: float = SUN_CELL):
+        self.grid = gpu_grid
+        self.ctx = gpu_grid.ctx
+        self.cell = float(cell)
+        self.buffers = [self.ctx.buffer(reserve=16) for _ in range(3)]  # cell starts, spheres, atoms
+        self.key: tuple | None = None
+        self._uniforms: dict = {}
+        self.entries = 0
+
+    def build(self, towards_light, shell_outer: float) -> None:
+        """Lists for a light in direction `towards_light` (unit, from the scene towards it),
+        occluders widened by `shell_outer` Å (0: hard)."""
+        d = np.asarray(towards_light, dtype=np.float64).reshape(3)
+        shell_outer = max(float(shell_outer), 0.0)
+        key = (d.tobytes(), shell_outer, self.grid.culling_version)
+        if key == self.key:
+            return
+        self.key = key
+        helper = np.eye(3)[int(np.argmin(np.abs(d)))]
+        u = np.cross(d, helper)
+        u /= np.linalg.norm(u)
+        v = np.cross(d, u)
+        pad = shell_outer + RADIUS_MARGIN
+        atoms = np.flatnonzero(~self.grid.culled_mask)
+        centres = self.grid.grid.centers[atoms]
+        atoms = atoms[np.argsort(-(centres @ d), kind="stable")]  # nearest the light first
+        centres, vdw = self.grid.grid.centers[atoms], self.grid.vdw_radii[atoms]
+        reach = vdw + pad
+        across = np.column_stack([centres @ u, centres @ v])
+        if atoms.size:
+            lo, hi = (across - reach[:, None]).min(axis=0), (across + reach[:, None]).max(axis=0)
+        else:
+            lo, hi = np.zeros(2), np.ones(2)
+        cell = max(self.cell, float(np.sqrt(np.prod(hi - lo) / MAX_SUN_CELLS)) * 1.01)
+        dims = np.maximum(np.ceil((hi - lo) / cell).astype(np.int64), 1)
+        first = np.clip(np.floor((across - reach[:, None] - lo) / cell).astype(np.int64), 0, dims - 1)
+        last = np.clip(np.floor((across + reach[:, None] - lo) / cell).astype(np.int64), 0, dims - 1)
+        span = last - first + 1  # cells per atom along u and v
+        per_atom = span[:, 0] * span[:, 1]
+        owner = np.repeat(np.arange(atoms.size), per_atom)
+        local = np.arange(owner.size) - np.repeat(np.cumsum(per_atom) - per_atom, per_atom)
+        i = first[owner, 0] + local % span[owner, 0]
+        j = first[owner, 1] + local // span[owner, 0]
+        cell_id = (i + dims[0] * j).astype(np.uint16)
+        order = np.argsort(cell_id, kind="stable")  # by cell, nearest the light first within one
+        starts = np.zeros(int(dims[0] * dims[1]) + 1, dtype=np.uint32)
+        np.cumsum(np.bincount(cell_id, minlength=starts.size - 1), out=starts[1:])
+        listed = owner[order]
+        spheres = np.column_stack([centres, vdw]).astype(np.float32)[listed]
+        for buffer, data in zip(self.buffers, (starts, spheres, atoms[listed].astype(np.uint32))):
+            data = data.tobytes() or b"\0" * 16
+            if buffer.size < len(data):
+                buffer.orphan(len(data))
+            buffer.write(data)
+        self.entries = int(listed.size)
+        self._uniforms = {"u_sb_u": tuple(u), "u_sb_v": tuple(v), "u_sb_origin": tuple(float(x) for x in lo),
+                          "u_sb_cell": float(cell), "u_sb_dims": tuple(int(x) for x in dims),
+                          "u_sb_behind": float(np.max(vdw, initial=0.0) + pad)}
+
+    def bind(self) -> None:
+        for binding, buffer in zip((BINDING_SUN_START, BINDING_SUN_SPHERES, BINDING_SUN_ATOMS), self.buffers):
+            buffer.bind_to_storage_buffer(binding)
+
+    def uniforms(self) -> dict[str, object]:
+        return dict(self._uniforms)
+
+    def release(self) -> None:
+        for b in self.buffers:
+            b.release()

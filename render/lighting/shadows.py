@@ -11,7 +11,7 @@ import numpy as np
 from sasprobe.render.gl.compute import ComputeVariants
 from sasprobe.render.gl.textures import texture_2d
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.light_buffer import CAPACITY, FACE_CELLS, PointLightBuffer
+from sasprobe.render.lighting.light_buffer import CAPACITY, FACE_CELLS, DirectionalLightBuffer, PointLightBuffer
 from sasprobe.render.lighting.settings import (
     HARD_SHADOW,
     DirectionalLight,
@@ -32,6 +32,7 @@ class ShadowPass:
         self.ctx = gpu_grid.ctx
         self.grid = gpu_grid
         self.light_buffer = PointLightBuffer(gpu_grid, face_cells, capacity) if light_buffer else None
+        self.sun_buffer = DirectionalLightBuffer(gpu_grid) if light_buffer else None
         self.programs = ComputeVariants(self.ctx, "shadows.comp", gpu_grid)
 
     def trace(self, gbuffer: GBuffer, light: DirectionalLight | PointLight, soft: SoftShadow = HARD_SHADOW,
@@ -49,13 +50,21 @@ class ShadowPass:
         x, y, w, h = rect if rect is not None else (0, 0, width, height)
         point = isinstance(light, PointLight)
         buffered = point and self.light_buffer is not None
+        sun_buffered = not point and self.sun_buffer is not None
+        buffer_uniforms = {}
         if buffered:
             self.light_buffer.build(light.position, light.radius + self._origin_slack(light), soft.outer)
             self.light_buffer.bind()
+            buffer_uniforms = self.light_buffer.uniforms(soft.outer)
+        if sun_buffered:
+            self.sun_buffer.build(light.unit(), soft.outer)
+            self.sun_buffer.bind()
+            buffer_uniforms = self.sun_buffer.uniforms()
         gbuffer.bind()
         out.bind_to_image(0, read=False, write=True)
-        self.programs.get(("LIGHT_BUFFER", buffered), ("NO_CLIPPING", not self.grid.culling.clipping)).run(w, h, {
-            **(self.light_buffer.uniforms(soft.outer) if buffered else {}),
+        self.programs.get(("LIGHT_BUFFER", buffered), ("SUN_BUFFER", sun_buffered),
+                          ("NO_CLIPPING", not self.grid.culling.clipping)).run(w, h, {
+            **buffer_uniforms,
             "u_offset": (int(x), int(y)),
             "u_only_probe": int(only_probe),
             **light_uniforms(None if point else light, light if point else None),
@@ -73,5 +82,6 @@ class ShadowPass:
 
     def release(self) -> None:
         self.programs.release()
-        if self.light_buffer is not None:
-            self.light_buffer.release()
+        for buffer in (self.light_buffer, self.sun_buffer):
+            if buffer is not None:
+                buffer.release()

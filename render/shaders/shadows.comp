@@ -6,8 +6,9 @@
 // attenuation radius are not traced (written 1), and the probe sphere holding the light
 // does not occlude it. Pixels facing away from the light are 0: their own atom blocks it.
 // Compiled with LIGHT_BUFFER, the program traces the probe light's rays through its light
-// buffer (light_buffer.glsl) and nothing else: llvmpipe runs every instruction of a shader
-// for each group of pixels, whichever way they branch, so the walk is left out of it.
+// buffer (light_buffer.glsl) and nothing else; with SUN_BUFFER the directional light's
+// through its own (sun_buffer.glsl): llvmpipe runs every instruction of a shader for each
+// group of pixels, whichever way they branch, so the walk is left out of them.
 // The pass may cover a rectangle only (u_offset: its first pixel), and only the probe's
 // own pixels (u_only_probe; the others keep what they hold).
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -17,6 +18,9 @@ layout(local_size_x = 8, local_size_y = 8) in;
 #include "lights.glsl"
 #ifdef LIGHT_BUFFER
 #include "light_buffer.glsl"
+#endif
+#ifdef SUN_BUFFER
+#include "sun_buffer.glsl"
 #endif
 
 layout(r32f, binding = 0) uniform writeonly image2D u_visibility;
@@ -48,8 +52,10 @@ void main() {
         }
         if (traced) {
             vis = dot(n, d) > 0.0
-#ifdef LIGHT_BUFFER
+#if defined(LIGHT_BUFFER)
                 ? trace_point_visibility(o, u_probe_light_pos, atom, u_shell, u_shell_growth)
+#elif defined(SUN_BUFFER)
+                ? trace_sun_visibility(o, d, atom, u_shell, u_shell_growth, atom != ATOM_PROBE)
 #else
                 ? trace_visibility(o, d, 0.0, t_max, atom, u_shell, u_shell_growth,
                                    u_point_light == 0 && atom != ATOM_PROBE)

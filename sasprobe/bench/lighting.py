@@ -30,7 +30,7 @@ TITLE = "Lighting: shadows and ambient occlusion, speed vs accuracy"
 
 def add_arguments(parser) -> None:
     parser.add_argument("--probe-light-only", action="store_true",
-                        help="only the probe light's shadows: grid walk vs light buffer")
+                        help="only the lights' shadows: grid walk vs their light buffers")
 
 
 def _plan(quick: bool) -> dict:
@@ -66,12 +66,14 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
         return structures[sid]
 
     if getattr(args, "probe_light_only", False):
-        rows = shadow_bench.probe_light(gl, [(i, structure(i)) for i in plan["probe_ids"] if i in by_id],
-                                        plan["probe_size"], plan["repeats"])
+        ids = [(i, structure(i)) for i in plan["probe_ids"] if i in by_id]
+        rows = shadow_bench.probe_light(gl, ids, plan["probe_size"], plan["repeats"])
+        suns = shadow_bench.sun_light(gl, ids, plan["probe_size"], plan["repeats"])
         gl.release()
-        data = {"gl_renderer": renderer, "probe_light": rows, "probe_light_size": list(plan["probe_size"])}
+        data = {"gl_renderer": renderer, "probe_light": rows, "sun_light": suns, "probe_light_size": list(plan["probe_size"])}
         return BenchResult("lighting", data, "\n".join([f"GL renderer: **{renderer}**.", "",
-                                                        *shadow_bench.probe_light_markdown(rows, plan["probe_size"])]))
+                                                        *shadow_bench.probe_light_markdown(rows, plan["probe_size"]), "",
+                                                        *shadow_bench.sun_light_markdown(suns, plan["probe_size"])]))
     steps = progress(range(7), desc="bench lighting", total=7)
     # --- AO: every method vs the reference, on a mid-size protein filling the view
     next(steps)
@@ -117,8 +119,9 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
                                      plan["repeats"])
     # --- the probe light: grid walk vs light buffer
     next(steps)
-    probe = shadow_bench.probe_light(gl, [(i, structure(i)) for i in plan["probe_ids"] if i in by_id],
-                                     plan["probe_size"], plan["repeats"])
+    probe_structures = [(i, structure(i)) for i in plan["probe_ids"] if i in by_id]
+    probe = shadow_bench.probe_light(gl, probe_structures, plan["probe_size"], plan["repeats"])
+    suns = shadow_bench.sun_light(gl, probe_structures, plan["probe_size"], plan["repeats"])
     # --- precomputed occlusion: bake time against molecule size
     next(steps)
     bake_ids = [i for i in (plan["bake_ids"] or tuple(e.id for e in entries)) if i in by_id]
@@ -158,6 +161,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
         "shadow_size": list(plan["sweep_size"]),
         "cube_shadows": cube,
         "probe_light": probe,
+        "sun_light": suns,
         "probe_light_size": list(plan["probe_size"]),
         "precomputed_bake": bakes,
         "precomputed_patches": sweep_patches,
@@ -264,7 +268,8 @@ def _markdown(d: dict, plan: dict) -> str:
                      f"{r['cube_soft_ms']:.2f} | {r['whole_hard_ms']:.2f} |")
     lines += ["", f"Cube-bounded hard shadows: largest / smallest time {d['cube_spread']:.2f}; largest deviation "
               f"from {d['cube_shadows'][0]['structure']} {100 * d['cube_max_deviation_from_smallest']:.0f} %."]
-    lines += ["", *shadow_bench.probe_light_markdown(d["probe_light"], d["probe_light_size"])]
+    lines += ["", *shadow_bench.probe_light_markdown(d["probe_light"], d["probe_light_size"]),
+              "", *shadow_bench.sun_light_markdown(d["sun_light"], d["probe_light_size"])]
     lines += ["", precomputed_bench.markdown(d["precomputed_bake"], d["precomputed_patches"], d["ao_structure"],
                                              d["ao_size"])]
     return "\n".join(lines)

@@ -181,6 +181,57 @@ def probe_light(gl, structures: list[tuple[str, object]], size, repeats: int) ->
     return rows
 
 
+def sun_light(gl, structures: list[tuple[str, object]], size, repeats: int) -> list[dict]:
+    """The directional light at equal screen coverage: shadows through the grid walk and
+    through its buffer across the light, hard and soft, timed in the same rounds; the
+    buffer's build (every frame the light turns with the camera) apart; the largest
+    difference between the two (0: the same occluders)."""
+    rows = []
+    for name, structure in structures:
+        grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+        scene = scene_with_coverage(grid, size, COVERAGE)
+        walk, listed = ShadowPass(grid, light_buffer=False), ShadowPass(grid)
+        buffer = listed.sun_buffer
+
+        def build():
+            buffer.key = None  # as when the light has turned
+            listed.trace(scene.gbuffer, SUN, HARD_SHADOW, rect=(0, 0, 1, 1))
+
+        calls = {("walk", "hard"): lambda: walk.trace(scene.gbuffer, SUN, HARD_SHADOW),
+                 ("walk", "soft"): lambda: walk.trace(scene.gbuffer, SUN, SOFT),
+                 ("buffer", "hard"): lambda: listed.trace(scene.gbuffer, SUN, HARD_SHADOW),
+                 ("buffer", "soft"): lambda: listed.trace(scene.gbuffer, SUN, SOFT),
+                 ("build", "hard"): build}
+        seconds = interleaved_times(gl, calls, repeats)
+        difference = max(float(np.abs(read_texture(walk.trace(scene.gbuffer, SUN, soft))
+                                      - read_texture(listed.trace(scene.gbuffer, SUN, soft))).max())
+                         for soft in (HARD_SHADOW, SOFT))
+        rows.append({
+            "structure": name, "atoms": structure.n_atoms, "coverage": scene.coverage, "entries": buffer.entries,
+            "walk_hard_ms": seconds[("walk", "hard")] * 1e3, "walk_soft_ms": seconds[("walk", "soft")] * 1e3,
+            "buffer_hard_ms": seconds[("buffer", "hard")] * 1e3, "buffer_soft_ms": seconds[("buffer", "soft")] * 1e3,
+            "build_ms": seconds[("build", "hard")] * 1e3, "max_difference": difference,
+        })
+        for thing in (walk, listed, scene, grid):
+            thing.release()
+    return rows
+
+
+def sun_light_markdown(rows: list[dict], size) -> list[str]:
+    w, h = size
+    lines = [f"### The directional light's shadows: grid walk vs its buffer across the light ({w}×{h}; medians, "
+             "same rounds)", "",
+             "| structure | atoms | entries | walk hard (ms) | buffer hard (ms) | walk soft (ms) | buffer soft (ms) | "
+             "build (ms) | hard: walk / buffer | walk / (buffer + build) | largest difference |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['structure']} | {r['atoms']} | {r['entries']} | {r['walk_hard_ms']:.1f} | "
+                     f"{r['buffer_hard_ms']:.1f} | {r['walk_soft_ms']:.1f} | {r['buffer_soft_ms']:.1f} | "
+                     f"{r['build_ms']:.1f} | {r['walk_hard_ms'] / r['buffer_hard_ms']:.2f}× | "
+                     f"{r['walk_hard_ms'] / (r['buffer_hard_ms'] + r['build_ms']):.2f}× | {r['max_difference']:.0e} |")
+    return lines
+
+
 def probe_light_markdown(rows: list[dict], size) -> list[str]:
     w, h = size
     lines = [f"### The probe light's shadows: grid walk vs light buffer ({w}×{h}, reach {DEFAULT_PROBE_RANGE:g} Å, "
