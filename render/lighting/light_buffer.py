@@ -1,5 +1,7 @@
-"""The probe light's shadow rays without the grid walk: a light buffer (Haines & Greenberg,
-"The Light Buffer: A Shadow-Testing Accelerator", IEEE CG&A 6(9), 1986).
+"""The lights' shadow rays without the grid walk: light buffers (Haines & Greenberg,
+"The Light Buffer: A Shadow-Testing Accelerator", IEEE CG&A 6(9), 1986) — the probe's
+point light's (PointLightBuffer, below) and the directional light's (DirectionalLightBuffer,
+at the end: cells across the light instead of directions around it).
 
 Every shadow ray of a point light ends at the light, so the rays are sorted by their
 direction as seen from it: a cube around the light, FACE_CELLS × FACE_CELLS cells a face,
