@@ -140,6 +140,28 @@ def probe_on_view(scene) -> np.ndarray:
     return position[rows[k], cols[k]].astype(np.float64) + n * DEFAULT_PROBE_RADIUS
 
 
+def _walk_against_buffer(gl, scene, light, walk: ShadowPass, listed: ShadowPass, buffer, repeats: int) -> dict:
+    """`light`'s shadows through the walk and through `listed`'s buffer, hard and soft, timed
+    in the same rounds; the buffer's build apart (its key dropped, as when the light moved);
+    and the largest difference between the two (0: the same occluders)."""
+    def build():
+        buffer.key = None
+        listed.trace(scene.gbuffer, light, HARD_SHADOW, rect=(0, 0, 1, 1))
+
+    calls = {("walk", "hard"): lambda: walk.trace(scene.gbuffer, light, HARD_SHADOW),
+             ("walk", "soft"): lambda: walk.trace(scene.gbuffer, light, SOFT),
+             ("buffer", "hard"): lambda: listed.trace(scene.gbuffer, light, HARD_SHADOW),
+             ("buffer", "soft"): lambda: listed.trace(scene.gbuffer, light, SOFT),
+             ("build", "hard"): build}
+    seconds = interleaved_times(gl, calls, repeats)
+    difference = max(float(np.abs(read_texture(walk.trace(scene.gbuffer, light, soft))
+                                  - read_texture(listed.trace(scene.gbuffer, light, soft))).max())
+                     for soft in (HARD_SHADOW, SOFT))
+    return {"walk_hard_ms": seconds[("walk", "hard")] * 1e3, "walk_soft_ms": seconds[("walk", "soft")] * 1e3,
+            "buffer_hard_ms": seconds[("buffer", "hard")] * 1e3, "buffer_soft_ms": seconds[("buffer", "soft")] * 1e3,
+            "build_ms": seconds[("build", "hard")] * 1e3, "max_difference": difference}
+
+
 def probe_light(gl, structures: list[tuple[str, object]], size, repeats: int) -> list[dict]:
     """The probe's point light (the default reach) at the surface in the middle of the view,
     at equal screen coverage: shadows through the grid walk and through the light buffer,
@@ -152,29 +174,14 @@ def probe_light(gl, structures: list[tuple[str, object]], size, repeats: int) ->
         lamp = PointLight(tuple(probe_on_view(scene)), DEFAULT_PROBE_RANGE)
         walk, listed = ShadowPass(grid, light_buffer=False), ShadowPass(grid)
         buffer = listed.light_buffer
-
-        def build():
-            buffer.key = None  # as when the probe has moved
-            listed.trace(scene.gbuffer, lamp, HARD_SHADOW, rect=(0, 0, 1, 1))
-
-        calls = {("walk", "hard"): lambda: walk.trace(scene.gbuffer, lamp, HARD_SHADOW),
-                 ("walk", "soft"): lambda: walk.trace(scene.gbuffer, lamp, SOFT),
-                 ("buffer", "hard"): lambda: listed.trace(scene.gbuffer, lamp, HARD_SHADOW),
-                 ("buffer", "soft"): lambda: listed.trace(scene.gbuffer, lamp, SOFT),
-                 ("build", "hard"): build}
-        seconds = interleaved_times(gl, calls, repeats)
-        difference = max(float(np.abs(read_texture(walk.trace(scene.gbuffer, lamp, soft))
-                                      - read_texture(listed.trace(scene.gbuffer, lamp, soft))).max())
-                         for soft in (HARD_SHADOW, SOFT))
+        timed = _walk_against_buffer(gl, scene, lamp, walk, listed, buffer, repeats)  # build: as when the probe moved
         counts = buffer.counts()
         lit = np.linalg.norm(scene.gbuffer.download()[0] - np.asarray(lamp.position), axis=-1)
         rows.append({
             "structure": name, "atoms": structure.n_atoms, "coverage": scene.coverage,
             "pixels_in_reach": int(((scene.atom >= 0) & (lit <= lamp.radius)).sum()),
             "atoms_in_reach": buffer.atoms_in_reach, "mean_list": float(counts.mean()), "longest_list": int(counts.max()),
-            "walk_hard_ms": seconds[("walk", "hard")] * 1e3, "walk_soft_ms": seconds[("walk", "soft")] * 1e3,
-            "buffer_hard_ms": seconds[("buffer", "hard")] * 1e3, "buffer_soft_ms": seconds[("buffer", "soft")] * 1e3,
-            "build_ms": seconds[("build", "hard")] * 1e3, "max_difference": difference,
+            **timed,
         })
         for thing in (walk, listed, scene, grid):
             thing.release()
@@ -191,27 +198,9 @@ def sun_light(gl, structures: list[tuple[str, object]], size, repeats: int) -> l
         grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
         scene = scene_with_coverage(grid, size, COVERAGE)
         walk, listed = ShadowPass(grid, light_buffer=False), ShadowPass(grid)
-        buffer = listed.sun_buffer
-
-        def build():
-            buffer.key = None  # as when the light has turned
-            listed.trace(scene.gbuffer, SUN, HARD_SHADOW, rect=(0, 0, 1, 1))
-
-        calls = {("walk", "hard"): lambda: walk.trace(scene.gbuffer, SUN, HARD_SHADOW),
-                 ("walk", "soft"): lambda: walk.trace(scene.gbuffer, SUN, SOFT),
-                 ("buffer", "hard"): lambda: listed.trace(scene.gbuffer, SUN, HARD_SHADOW),
-                 ("buffer", "soft"): lambda: listed.trace(scene.gbuffer, SUN, SOFT),
-                 ("build", "hard"): build}
-        seconds = interleaved_times(gl, calls, repeats)
-        difference = max(float(np.abs(read_texture(walk.trace(scene.gbuffer, SUN, soft))
-                                      - read_texture(listed.trace(scene.gbuffer, SUN, soft))).max())
-                         for soft in (HARD_SHADOW, SOFT))
-        rows.append({
-            "structure": name, "atoms": structure.n_atoms, "coverage": scene.coverage, "entries": buffer.entries,
-            "walk_hard_ms": seconds[("walk", "hard")] * 1e3, "walk_soft_ms": seconds[("walk", "soft")] * 1e3,
-            "buffer_hard_ms": seconds[("buffer", "hard")] * 1e3, "buffer_soft_ms": seconds[("buffer", "soft")] * 1e3,
-            "build_ms": seconds[("build", "hard")] * 1e3, "max_difference": difference,
-        })
+        timed = _walk_against_buffer(gl, scene, SUN, walk, listed, listed.sun_buffer, repeats)  # build: the light turned
+        rows.append({"structure": name, "atoms": structure.n_atoms, "coverage": scene.coverage,
+                     "entries": listed.sun_buffer.entries, **timed})
         for thing in (walk, listed, scene, grid):
             thing.release()
     return rows
