@@ -172,7 +172,7 @@ class PointLightBuffer:
 # ------------------------------------------------------------------ the directional light
 SUN_CELL = 2.0  # Å: the directional buffer's cells across the light (finer: more entries, shorter lists)
 MAX_SUN_CELLS = 65535  # cell ids fit in uint16, which numpy sorts by radix
-BINDING_SUN_START, BINDING_SUN_SPHERES, BINDING_SUN_ATOMS = 4, 5, 6  # shaders/sun_buffer.glsl
+BINDING_SUN_START, BINDING_SUN_SPHERES, BINDING_SUN_ATOMS = 19, 20, 21  # shaders/sun_buffer.glsl
 
 
 class DirectionalLightBuffer:

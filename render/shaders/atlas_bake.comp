@@ -3,9 +3,9 @@
 // per texel: at the atom's surface point in the texel's direction, the ambient
 // accessibility over the D fixed directions (cosine-weighted: sum of n.d over the rays
 // step 3 found open, over the sum of n.d over all rays above the surface), the directional
-// light's visibility and the probe light's (one ray through the grid each, as shadows.comp
-// traces them; beyond the probe light's range 1). Clip planes and the cube cut the rays as
-// everywhere else.
+// light's visibility and the probe light's (one ray each, as shadows.comp traces them: the
+// sun's through its light buffer, the probe light's through the grid; beyond the probe
+// light's range 1). Clip planes and the cube cut the rays as everywhere else.
 // A hidden point (inside another drawn atom, or cut away) is never seen; it is marked -1
 // and filled from the seen texels around it (atlas_fill.comp). Channels the bake leaves
 // alone keep their value; the program is compiled per case (BAKE_AMBIENT, BAKE_SUN,
@@ -15,6 +15,12 @@ layout(local_size_x = 64) in;
 #include "grid_traversal.glsl"
 #include "gbuffer_input.glsl"
 #include "atlas_bake_buffers.glsl"
+#ifdef BAKE_AMBIENT
+#include "atlas_sum_buffers.glsl"
+#endif
+#ifdef BAKE_SUN
+#include "sun_buffer.glsl"
+#endif
 #include "atlas_common.glsl"
 #include "lights.glsl"
 
@@ -49,7 +55,7 @@ void bake_texel(int local_slot, int index) {
 #endif
 #ifdef BAKE_SUN
     value.g = hidden ? -1.0 : (dot(n, u_sun_dir) > 0.0
-        ? trace_visibility(o, u_sun_dir, 0.0, BIG, atom, vec2(0.0), 0.0, false) : 0.0);
+        ? trace_sun_visibility(o, u_sun_dir, atom, vec2(0.0), 0.0, false) : 0.0);
 #endif
 #ifdef BAKE_PROBE
     {

@@ -10,6 +10,7 @@ layout(local_size_x = 64) in;
 
 #include "grid_traversal.glsl"
 #include "atlas_bake_buffers.glsl"
+#include "atlas_ray_buffers.glsl"
 
 vec3 direction_or_none(int dir) { return dir < u_directions ? directions[dir].xyz : vec3(0.0); }
 

@@ -12,6 +12,7 @@ layout(local_size_x = 64) in;
 
 #include "culling.glsl"
 #include "atlas_bake_buffers.glsl"
+#include "atlas_ray_buffers.glsl"
 #include "atlas_common.glsl"
 
 layout(std430, binding = 13) readonly buffer KeptStart { uint kept_start[]; };     // CSR offsets per cell

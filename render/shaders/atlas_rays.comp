@@ -13,6 +13,7 @@ layout(local_size_x = 64) in;
 #include "grid_traversal.glsl"
 #include "gbuffer_input.glsl"
 #include "atlas_bake_buffers.glsl"
+#include "atlas_ray_buffers.glsl"
 #include "atlas_common.glsl"
 
 // Four texels' rays, one per component: origins relative to the atom's centre, the kept

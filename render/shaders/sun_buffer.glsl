@@ -3,10 +3,10 @@
 // cell across the light holding o, nearest the light first, and stops at the first wholly
 // behind o. The same occluders and the same minimum as trace_visibility (grid_traversal.glsl,
 // included before this): the probe first (never clipped), then the kept atoms along the
-// clipped ray.
-layout(std430, binding = 4) readonly buffer SunCellStart { uint sun_start[]; };  // CSR offsets per cell
-layout(std430, binding = 5) readonly buffer SunSpheres { vec4 sun_spheres[]; };  // centre, vdW radius
-layout(std430, binding = 6) readonly buffer SunAtoms { uint sun_atoms[]; };
+// clipped ray. Bound at 19-21, past the occlusion atlas's bake buffers (which read it too).
+layout(std430, binding = 19) readonly buffer SunCellStart { uint sun_start[]; };  // CSR offsets per cell
+layout(std430, binding = 20) readonly buffer SunSpheres { vec4 sun_spheres[]; };  // centre, vdW radius
+layout(std430, binding = 21) readonly buffer SunAtoms { uint sun_atoms[]; };
 
 uniform vec3 u_sb_u;         // the axes across the light
 uniform vec3 u_sb_v;

@@ -20,9 +20,10 @@ its texels that lie inside a neighbour or are cut away (clip planes, cube) marke
 never seen; (2) per direction D (spherical Fibonacci points, in clusters of nearby ones)
 the neighbours that can meet one of its rays are marked; (3) per direction the unhidden
 texels facing it test those candidates, eight rays per candidate read; (4) per texel the
-open rays' cosine weights are summed, and the lights' channels are one ray per texel
-through the grid. The rays are `AOSettings.distance` long, as the ray-traced AO's, so the
-two converge to the same accessibility. On llvmpipe every storage-buffer read costs a loop
+open rays' cosine weights are summed, and the lights' channels are one ray per texel (the
+sun's through its light buffer, render/lighting/light_buffer.py; the probe light's through
+the grid). The rays are `AOSettings.distance` long, as the ray-traced AO's, so the two
+converge to the same accessibility. On llvmpipe every storage-buffer read costs a loop
 over the SIMD lanes, so the steps are laid out to read each value once for many tests.
 """
 
@@ -38,12 +39,13 @@ from sasprobe.render.gl.compute import ComputePass, ComputeVariants
 from sasprobe.render.gl.textures import TextureCache
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.light_buffer import DirectionalLightBuffer
 from sasprobe.render.lighting.settings import PointLight, light_uniforms, ray_epsilon_uniforms
 
 log = logging.getLogger("sasprobe")
 
 CHUNK_SLOTS = 256  # atoms per bake dispatch
-MAX_NEIGHBOURS, MAX_OVERLAPS, BLOCK_TEXELS = 1024, 32, 8  # as shaders/atlas_bake_buffers.glsl
+MAX_NEIGHBOURS, MAX_OVERLAPS, BLOCK_TEXELS = 1024, 32, 8  # as shaders/atlas_ray_buffers.glsl, atlas_sum_buffers.glsl
 MASK_WORDS, MAX_PATCH_TEXELS = MAX_NEIGHBOURS // 32, 64 * 64
 BINDING_TEXEL_NORMALS = 0  # a uniform block
 BINDING_FACING, BINDING_FACING_RANK = 16, 17
@@ -178,6 +180,7 @@ class OcclusionAtlas:
         self._scratch: dict = {}  # the bake's storage by binding, kept for the next bake
         self._tables: tuple = (None, None)  # ((patch, directions), what _tables_for gives)
         self._fill_scratch = None  # rgba16f, the atlas's size: the fill's other texture
+        self.sun_buffer = None  # DirectionalLightBuffer, made for the first bake of the light's channel
 
     # ------------------------------------------------------------ layout
     def _layout(self, patch: int) -> None:
@@ -278,7 +281,13 @@ class OcclusionAtlas:
         }
         if sun_direction is not None:
             d = np.asarray(sun_direction, dtype=np.float64)
-            common["u_sun_dir"] = tuple(float(v) for v in d / np.linalg.norm(d))
+            d = d / np.linalg.norm(d)
+            common["u_sun_dir"] = tuple(float(v) for v in d)
+            if self.sun_buffer is None:
+                self.sun_buffer = DirectionalLightBuffer(grid)
+            self.sun_buffer.build(d, 0.0)  # hard: the patches hold hard shadows
+            self.sun_buffer.bind()
+            common.update(self.sun_buffer.uniforms())
         rays = self._variant("atlas_rays.comp", ())
         bake = self._variant("atlas_bake.comp", (("BAKE_AMBIENT", ambient), ("BAKE_SUN", sun_direction is not None),
                                                  ("BAKE_PROBE", probe_light is not None)))
@@ -393,6 +402,8 @@ class OcclusionAtlas:
 
     def release(self) -> None:
         self._release_layout()
+        if self.sun_buffer is not None:
+            self.sun_buffer.release()
         self.textures.release()
         for buffer in self._scratch.values():
             buffer.release()
