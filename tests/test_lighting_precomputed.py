@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from sasprobe.render.lighting.ao import AmbientOcclusion
-from sasprobe.render.lighting.ao.precomputed import (OcclusionAtlas, clustered, facing_texels, fibonacci_directions,
-                                                     texel_normals)
+from sasprobe.render.lighting.ao.atlas_tables import clustered, facing_texels, fibonacci_directions, texel_normals
+from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
 from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.lighting.settings import AOSettings, DirectionalLight, HARD_SHADOW, LightingSettings, PointLight
 from sasprobe.render.gl.textures import read_texture

@@ -1,0 +1,75 @@
+"""The occlusion atlas's geometry, the same for every patch (render/lighting/ao/precomputed.py):
+the ray directions (a spherical Fibonacci lattice, in clusters of nearby ones), each
+texel's direction (the octahedral map) and, per direction, the texels facing it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+CLUSTER = 8  # directions side by side in a SIMD pass (llvmpipe's 256-bit vectors): nearby ones skip and stop together
+
+
+def fibonacci_directions(n: int) -> np.ndarray:
+    """(n, 3) unit vectors spread evenly over the sphere: z = 1 - (2k + 1)/n, the azimuth
+    turning by the golden angle pi (3 - sqrt 5) per point (spherical Fibonacci lattice)."""
+    k = np.arange(n, dtype=np.float64)
+    z = 1.0 - (2.0 * k + 1.0) / n
+    phi = k * math.pi * (3.0 - math.sqrt(5.0))
+    r = np.sqrt(1.0 - z * z)
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi), z])
+
+
+def texel_normals(patch: int) -> np.ndarray:
+    """(P*P, 4) float32: texel (i, j)'s direction at row i + P j, the octahedral decode
+    (Cigolle et al., JCGT 2014) of 2 (i, j) / (P - 1) - 1, as shaders/octahedral.glsl; the
+    same for every patch, uploaded once for the bake (shaders/atlas_bake_buffers.glsl)."""
+    j, i = np.divmod(np.arange(patch * patch), patch)
+    e = np.column_stack([i, j]).astype(np.float64) * (2.0 / (patch - 1)) - 1.0
+    v = np.column_stack([e, 1.0 - np.abs(e).sum(axis=1)])
+    lower = v[:, 2] < 0
+    sign = np.where(v[:, :2] >= 0, 1.0, -1.0)
+    v[lower, :2] = ((1.0 - np.abs(v[:, 1::-1])) * sign)[lower]
+    out = np.zeros((patch * patch, 4), dtype=np.float32)
+    out[:, :3] = v / np.linalg.norm(v, axis=1, keepdims=True)
+    return out
+
+
+def facing_texels(normals: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Per direction the texels facing it (n.d > 0 in float32, as the shaders compute it):
+    (D, P^2 + 1) int32 rows of count then indices, (D, P^2) int32 each texel's place in its
+    row (-1: facing away), and the most texels any direction has."""
+    n = normals[:, :3].astype(np.float32)
+    faces = (directions[:, :3].astype(np.float32) @ n.T) > 0  # (D, P^2)
+    texels = n.shape[0]
+    rows = np.zeros((faces.shape[0], texels + 1), dtype=np.int32)
+    rank = np.full(faces.shape, -1, dtype=np.int32)
+    for d, row in enumerate(faces):
+        index = np.flatnonzero(row)
+        rows[d, 0] = index.size
+        rows[d, 1:1 + index.size] = index
+        rank[d, index] = np.arange(index.size)
+    return rows, rank, int(rows[:, 0].max(initial=0))
+
+
+def clustered(directions: np.ndarray, size: int = CLUSTER) -> np.ndarray:
+    """The same directions in groups of `size` nearby ones (recursive halving along the
+    widest axis): the bake's invocations of a direction run side by side in groups, and a
+    group of close directions faces away from, and is blocked by, much the same. The sum
+    over directions is unchanged by their order."""
+    groups: list[np.ndarray] = []
+
+    def split(index: np.ndarray) -> None:
+        if index.size <= size:
+            groups.append(index)
+            return
+        left = (math.ceil(index.size / size) // 2) * size
+        points = directions[index]
+        axis = int(np.argmax(points.max(axis=0) - points.min(axis=0)))
+        order = index[np.argsort(points[:, axis], kind="stable")]
+        split(order[:left])
+        split(order[left:])
+
+    split(np.arange(directions.shape[0]))
+    return directions[np.concatenate(groups)]
