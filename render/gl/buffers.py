@@ -14,6 +14,15 @@ SPHERE_FORMAT = "4f 4f"  # centre xyz + radius, colour rgb + unused
 BACKBONE_FORMAT = "3f 3f 1i"  # position, chain colour, trace atom id
 
 
+def upload(buffer, data: np.ndarray) -> None:
+    """`data` into `buffer`, grown (orphaned) first when it is too small; an empty array
+    leaves 16 zero bytes, so the buffer can still be bound."""
+    raw = data.tobytes() or b"\0" * 16
+    if buffer.size < len(raw):
+        buffer.orphan(len(raw))
+    buffer.write(raw)
+
+
 def sphere_records(structure: Structure) -> np.ndarray:
     """(N, 8) float32: centre, vdW radius, CPK colour, 1."""
     n = structure.n_atoms

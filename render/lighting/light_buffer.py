@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from sasprobe.render.gl.buffers import upload
 from sasprobe.render.gl.programs import source
 from sasprobe.render.gl.uniforms import apply_uniforms
 
@@ -122,10 +123,7 @@ class PointLightBuffer:
         spheres = np.column_stack([grid.centers[atoms], self.grid.vdw_radii[atoms]]).astype(np.float32)
         cones = np.column_stack([directions, np.cos(np.minimum(half + ANGLE_MARGIN, np.pi))]).astype(np.float32)
         for buffer, data in zip(self.slots, (spheres, atoms.astype(np.uint32), cones)):
-            data = data.tobytes() or b"\0" * 16
-            if buffer.size < len(data):
-                buffer.orphan(len(data))
-            buffer.write(data)
+            upload(buffer, data)
         for binding, buffer in zip((BINDING_SLOT_SPHERES, BINDING_SLOT_ATOMS, BINDING_SLOT_CONES), self.slots):
             buffer.bind_to_storage_buffer(binding)
         self.cell_cones.bind_to_storage_buffer(BINDING_CELL_CONES)
@@ -238,10 +236,7 @@ class DirectionalLightBuffer:
         listed = owner[order]
         spheres = np.column_stack([centres, vdw]).astype(np.float32)[listed]
         for buffer, data in zip(self.buffers, (starts, spheres, atoms[listed].astype(np.uint32))):
-            data = data.tobytes() or b"\0" * 16
-            if buffer.size < len(data):
-                buffer.orphan(len(data))
-            buffer.write(data)
+            upload(buffer, data)
         self.entries = int(listed.size)
         self._uniforms = {"u_sb_u": tuple(u), "u_sb_v": tuple(v), "u_sb_origin": tuple(float(x) for x in lo),
                           "u_sb_cell": float(cell), "u_sb_dims": tuple(int(x) for x in dims),
