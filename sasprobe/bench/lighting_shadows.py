@@ -206,17 +206,25 @@ def sun_light(gl, structures: list[tuple[str, object]], size, repeats: int) -> l
     return rows
 
 
+TIMING_COLUMNS = "walk hard (ms) | buffer hard (ms) | walk soft (ms) | buffer soft (ms) | build (ms)"
+
+
+def _timing_cells(r: dict) -> str:
+    """A row's TIMING_COLUMNS (from _walk_against_buffer)."""
+    return (f"{r['walk_hard_ms']:.1f} | {r['buffer_hard_ms']:.1f} | {r['walk_soft_ms']:.1f} | "
+            f"{r['buffer_soft_ms']:.1f} | {r['build_ms']:.1f}")
+
+
 def sun_light_markdown(rows: list[dict], size) -> list[str]:
     w, h = size
     lines = [f"### The directional light's shadows: grid walk vs its buffer across the light ({w}×{h}; medians, "
              "same rounds)", "",
-             "| structure | atoms | entries | walk hard (ms) | buffer hard (ms) | walk soft (ms) | buffer soft (ms) | "
-             "build (ms) | hard: walk / buffer | walk / (buffer + build) | largest difference |",
+             f"| structure | atoms | entries | {TIMING_COLUMNS} | hard: walk / buffer | walk / (buffer + build) | "
+             "largest difference |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['structure']} | {r['atoms']} | {r['entries']} | {r['walk_hard_ms']:.1f} | "
-                     f"{r['buffer_hard_ms']:.1f} | {r['walk_soft_ms']:.1f} | {r['buffer_soft_ms']:.1f} | "
-                     f"{r['build_ms']:.1f} | {r['walk_hard_ms'] / r['buffer_hard_ms']:.2f}× | "
+        lines.append(f"| {r['structure']} | {r['atoms']} | {r['entries']} | {_timing_cells(r)} | "
+                     f"{r['walk_hard_ms'] / r['buffer_hard_ms']:.2f}× | "
                      f"{r['walk_hard_ms'] / (r['buffer_hard_ms'] + r['build_ms']):.2f}× | {r['max_difference']:.0e} |")
     return lines
 
@@ -225,14 +233,12 @@ def probe_light_markdown(rows: list[dict], size) -> list[str]:
     w, h = size
     lines = [f"### The probe light's shadows: grid walk vs light buffer ({w}×{h}, reach {DEFAULT_PROBE_RANGE:g} Å, "
              "the probe on the surface in the middle of the view; medians, same rounds)", "",
-             "| structure | atoms | pixels in reach | atoms in reach | mean / longest list | walk hard (ms) | "
-             "buffer hard (ms) | walk soft (ms) | buffer soft (ms) | build (ms) | hard: walk / (buffer + build) | "
-             "largest difference |",
+             f"| structure | atoms | pixels in reach | atoms in reach | mean / longest list | {TIMING_COLUMNS} | "
+             "hard: walk / (buffer + build) | largest difference |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         speedup = r["walk_hard_ms"] / (r["buffer_hard_ms"] + r["build_ms"])
         lines.append(f"| {r['structure']} | {r['atoms']} | {r['pixels_in_reach']} | {r['atoms_in_reach']} | "
-                     f"{r['mean_list']:.1f} / {r['longest_list']} | {r['walk_hard_ms']:.1f} | {r['buffer_hard_ms']:.1f} | "
-                     f"{r['walk_soft_ms']:.1f} | {r['buffer_soft_ms']:.1f} | {r['build_ms']:.1f} | {speedup:.2f}× | "
+                     f"{r['mean_list']:.1f} / {r['longest_list']} | {_timing_cells(r)} | {speedup:.2f}× | "
                      f"{r['max_difference']:.0e} |")
     return lines
