@@ -167,7 +167,7 @@ class MoleculeCache:
         self.stash: GBufferStash | None = None
         self.key: tuple | None = None
         self.stashed: Rect | None = None  # what the stash holds: the probe's rectangle of the last frame
-        self.layer_rect: tuple | None = None  # (key, the pixels the molecule layer can cover), see Frame.molecule_rect
+        self.layer_rect: tuple | None = None  # (the pixels the molecule layer can cover,): Frame.molecule_rect, per key
         self.hits = self.misses = 0
 
     def begin(self, frame, passes) -> bool:
@@ -176,6 +176,8 @@ class MoleculeCache:
         key = molecule_key(frame, passes)
         held = key == self.key
         self.key = key
+        if not held:
+            self.layer_rect = None  # the layer's rectangle is found again when asked for
         if held and self.stashed is not None:
             self.stash.restore(frame.targets, self.stashed)
         if held:

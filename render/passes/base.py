@@ -80,14 +80,14 @@ class Frame:
     def molecule_rect(self):
         """Pixels the molecule layer can cover: every atom's sphere (culled ones too: the
         backbone trace runs through them), once per molecule layer (render/frame_cache.py)."""
-        cache, key = self.cache, (id(self.scene.structure), self.viewproj.tobytes(), self.size)
-        if cache is not None and cache.layer_rect is not None and cache.layer_rect[0] == key:
-            return cache.layer_rect[1]
+        cache = self.cache
+        if cache is not None and cache.layer_rect is not None:
+            return cache.layer_rect[0]
         structure = self.scene.structure
         radius = float(structure.vdw_radii.max(initial=0.0))
         rect = atoms_rect(structure.positions, radius, self.viewproj, self.size)
         if cache is not None:
-            cache.layer_rect = (key, rect)
+            cache.layer_rect = (rect,)
         return rect
 
     def near_plane(self) -> np.ndarray:
