@@ -23,6 +23,7 @@ import numpy as np
 
 from sasprobe.molecule.grid import UniformGrid
 from sasprobe.render.gl.uniforms import MAX_CLIP_PLANES, padded_planes
+from sasprobe.render.lighting.light_buffer import DirectionalLightBuffer
 
 BINDING_CELL_START, BINDING_CELL_ATOMS, BINDING_SPHERES, BINDING_CULLED = 0, 1, 2, 3
 NO_PROBE = (0.0, 0.0, 0.0, 0.0)
@@ -143,6 +144,7 @@ class GpuGrid:
         self.walk_range = (np.zeros(3, dtype=np.int64), grid.dims - 1)
         self.probe_sphere = NO_PROBE
         self.probe_reach = UNBOUNDED
+        self._sun_buffer: DirectionalLightBuffer | None = None  # see sun_buffer()
         self.culling_version = 0  # counts set_culling calls (what depends on the culled flags follows it)
 
     @classmethod
@@ -194,9 +196,19 @@ class GpuGrid:
             **self.culling.uniforms(),
         }
 
+    def sun_buffer(self) -> DirectionalLightBuffer:
+        """The directional light's buffer of these spheres (render/lighting/light_buffer.py),
+        made on first use and shared by every pass that traces the sun (the shadow pass, the
+        occlusion atlas's bake), so a light and a culling are listed once."""
+        if self._sun_buffer is None:
+            self._sun_buffer = DirectionalLightBuffer(self)
+        return self._sun_buffer
+
     def release(self) -> None:
         for b in (self.cell_start, self.cell_atoms, self.spheres, self.culled):
             b.release()
+        if self._sun_buffer is not None:
+            self._sun_buffer.release()
 
 
 @dataclass

@@ -11,7 +11,7 @@ import numpy as np
 from sasprobe.render.gl.compute import ComputeVariants
 from sasprobe.render.gl.textures import texture_2d
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.light_buffer import CAPACITY, FACE_CELLS, DirectionalLightBuffer, PointLightBuffer
+from sasprobe.render.lighting.light_buffer import CAPACITY, FACE_CELLS, PointLightBuffer
 from sasprobe.render.lighting.settings import (
     HARD_SHADOW,
     DirectionalLight,
@@ -32,7 +32,7 @@ class ShadowPass:
         self.ctx = gpu_grid.ctx
         self.grid = gpu_grid
         self.light_buffer = PointLightBuffer(gpu_grid, face_cells, capacity) if light_buffer else None
-        self.sun_buffer = DirectionalLightBuffer(gpu_grid) if light_buffer else None
+        self.sun_buffer = gpu_grid.sun_buffer() if light_buffer else None  # the grid's: shared with the atlas
         self.programs = ComputeVariants(self.ctx, "shadows.comp", gpu_grid)
 
     def trace(self, gbuffer: GBuffer, light: DirectionalLight | PointLight, soft: SoftShadow = HARD_SHADOW,
@@ -82,6 +82,5 @@ class ShadowPass:
 
     def release(self) -> None:
         self.programs.release()
-        for buffer in (self.light_buffer, self.sun_buffer):
-            if buffer is not None:
-                buffer.release()
+        if self.light_buffer is not None:
+            self.light_buffer.release()

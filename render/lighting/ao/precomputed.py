@@ -40,7 +40,6 @@ from sasprobe.render.lighting.ao.atlas_tables import clustered, facing_texels, f
 from sasprobe.render.gl.textures import TextureCache
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.light_buffer import DirectionalLightBuffer
 from sasprobe.render.lighting.settings import PointLight, light_uniforms, ray_epsilon_uniforms
 
 log = logging.getLogger("sasprobe")
@@ -116,7 +115,6 @@ class OcclusionAtlas:
         self._scratch: dict = {}  # the bake's storage by binding, kept for the next bake
         self._tables: tuple = (None, None)  # ((patch, directions), what _tables_for gives)
         self._fill_scratch = None  # rgba16f, the atlas's size: the fill's other texture
-        self.sun_buffer = None  # DirectionalLightBuffer, made for the first bake of the light's channel
 
     # ------------------------------------------------------------ layout
     def _layout(self, patch: int) -> None:
@@ -219,11 +217,10 @@ class OcclusionAtlas:
             d = np.asarray(sun_direction, dtype=np.float64)
             d = d / np.linalg.norm(d)
             common["u_sun_dir"] = tuple(float(v) for v in d)
-            if self.sun_buffer is None:
-                self.sun_buffer = DirectionalLightBuffer(grid)
-            self.sun_buffer.build(d, 0.0)  # hard: the patches hold hard shadows
-            self.sun_buffer.bind()
-            common.update(self.sun_buffer.uniforms())
+            sun_buffer = grid.sun_buffer()  # the grid's: shared with the shadow pass
+            sun_buffer.build(d, 0.0)  # hard: the patches hold hard shadows
+            sun_buffer.bind()
+            common.update(sun_buffer.uniforms())
         rays = self._variant("atlas_rays.comp", ())
         bake = self._variant("atlas_bake.comp", (("BAKE_AMBIENT", ambient), ("BAKE_SUN", sun_direction is not None),
                                                  ("BAKE_PROBE", probe_light is not None)))
@@ -338,8 +335,6 @@ class OcclusionAtlas:
 
     def release(self) -> None:
         self._release_layout()
-        if self.sun_buffer is not None:
-            self.sun_buffer.release()
         self.textures.release()
         for buffer in self._scratch.values():
             buffer.release()
