@@ -122,7 +122,8 @@ def segment_visibility(o, d, t0, t1, skip, centers, radii, ids, soft: SoftShadow
         sl = slice(a, min(r, a + chunk))
         f = centers[None, :, :] - o[sl, None, :]
         t = np.clip(np.einsum("rmk,rk->rm", f, d[sl]), t0[sl, None], t1[sl, None])
-        q = f - t[..., None] * d[sl, None, :]
+        with np.errstate(invalid="ignore"):  # a segment culled whole (t1 = -inf) gives NaN: `live` drops it
+            q = f - t[..., None] * d[sl, None, :]
         b2 = np.einsum("rmk,rmk->rm", q, q)
         if soft.inner == soft.outer == 0.0:  # hard: blocked where b < r
             v = np.where(b2 < radii[None, :] ** 2, 0.0, 1.0)

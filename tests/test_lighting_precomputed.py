@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from sasprobe.render.lighting.ao import AmbientOcclusion
-from sasprobe.render.lighting.ao.atlas_tables import clustered, facing_texels, fibonacci_directions, texel_normals
+from sasprobe.render.lighting.ao.atlas_tables import clustered, facing_masks, fibonacci_directions, texel_normals
 from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
 from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.lighting.settings import AOSettings, DirectionalLight, HARD_SHADOW, LightingSettings, PointLight
@@ -52,36 +52,44 @@ def test_directions_are_clustered_without_changing_the_set():
     assert spread(c) < 0.5 * spread(d)  # the lattice's own order spreads each 8 around a band
 
 
-@pytest.mark.parametrize("patch, directions", [(5, 24), (8, 64)])
-def test_facing_lists_hold_exactly_the_texels_facing_each_direction(patch, directions):
+@pytest.mark.parametrize("patch, directions", [(5, 24), (8, 64), (9, 40)])
+def test_facing_bits_mark_exactly_the_texels_facing_each_direction(patch, directions):
     normals = texel_normals(patch)
     j, i = np.divmod(np.arange(patch * patch), patch)  # texel (i, j) at i + P j, centres on the border
     expected = octa_decode(np.column_stack([i, j]) * (2.0 / (patch - 1)) - 1.0)
     assert np.abs(normals[:, :3] - expected).max() < 1e-6
     d = clustered(fibonacci_directions(directions))
-    rows, rank, most = facing_texels(normals, d)
-    faces = d @ normals[:, :3].T.astype(np.float64) > 0
+    by_direction, by_texel, weight = facing_masks(normals, d)
+    faces = d @ normals[:, :3].T.astype(np.float64) > 0  # (D, P^2)
+
+    def bit(words, row, k):  # bit k % 32 of word k / 32, read one at a time
+        return (int(words[row, k // 32]) >> (k % 32)) & 1 == 1
+
+    assert by_direction.shape == (directions, -(-patch * patch // 32)) and by_texel.shape == (patch * patch, -(-directions // 32))
     for k in range(directions):
-        listed = rows[k, 1:1 + rows[k, 0]]
-        assert np.array_equal(listed, np.flatnonzero(faces[k])) and np.array_equal(rank[k, listed], np.arange(listed.size))
-    assert most == rows[:, 0].max() and np.array_equal(rank >= 0, faces)
+        for t in range(patch * patch):
+            assert bit(by_direction, k, t) == bit(by_texel, t, k) == faces[k, t], (k, t)
+    assert np.allclose(weight, np.where(faces, d @ normals[:, :3].T.astype(np.float64), 0.0).sum(axis=0))
+    spare = by_direction.shape[1] * 32 - patch * patch  # the last word's bits past the last texel are 0
+    assert spare == 0 or not np.any(by_direction[:, -1] >> np.uint32(32 - spare))
 
 
-@pytest.mark.parametrize("setup", ["none", "plane", "cube"])
-def test_patches_equal_the_cpu_bake(gl, crambin, crambin_grid, setup):
+@pytest.mark.parametrize("setup, patch", [("none", PATCH), ("plane", PATCH), ("cube", PATCH), ("none", 9), ("cube", 9)])
+def test_patches_equal_the_cpu_bake(gl, crambin, crambin_grid, setup, patch):
+    """Patch 5 fits its texels' bits in one word; patch 9 spreads them over three."""
     crambin_grid.set_culling(cullings(crambin)[setup])
     occ = Occluders.of(crambin_grid)
     atlas = OcclusionAtlas(crambin_grid)
     try:
         lamp = PointLight(tuple(crambin.positions[40] + [0.0, 0.0, 3.5]), 12.0)
-        assert atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN, probe_light=lamp)
+        assert atlas.update(patch, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN, probe_light=lamp)
         values = atlas.read()
         kept = np.flatnonzero(~crambin_grid.culled_mask)
         assert atlas.n_slots == kept.size and np.array_equal(np.flatnonzero(atlas.slot_of() >= 0), kept)
         rng = np.random.default_rng(5)
         close = seen = partly_seen = 0
         for atom in rng.choice(kept, size=min(24, kept.size), replace=False):
-            ambient, sun, light, hidden = bake_atom(int(atom), occ, PATCH, DIRECTIONS, DISTANCE, SUN,
+            ambient, sun, light, hidden = bake_atom(int(atom), occ, patch, DIRECTIONS, DISTANCE, SUN,
                                                     (lamp.position, lamp.radius))
             gpu = patch_of(atlas, values, int(atom))
             for channel, cpu in ((0, ambient), (1, sun), (2, light)):

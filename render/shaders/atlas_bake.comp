@@ -1,6 +1,6 @@
 #version 430 core
 // Occlusion atlas bake, step 4 of 4, one work group per patch of the chunk, an invocation
-// per texel: at the atom's surface point in the texel's direction, the ambient
+// per seen texel: at the atom's surface point in the texel's direction, the ambient
 // accessibility over the D fixed directions (cosine-weighted: sum of n.d over the rays
 // step 3 found open, over the sum of n.d over all rays above the surface), the directional
 // light's visibility and the probe light's (one ray each, as shadows.comp traces them: the
@@ -27,6 +27,7 @@ layout(local_size_x = 64) in;
 layout(rgba16f, binding = 0) uniform image2D u_atlas;
 
 
+// A seen texel's channels.
 void bake_texel(int local_slot, int index) {
     ivec2 texel = ivec2(index % u_patch, index / u_patch);
     int slot = chunk_slot(local_slot);
@@ -34,43 +35,77 @@ void bake_texel(int local_slot, int index) {
     vec4 self_sphere = spheres[atom];
     vec3 n = texel_normals[index].xyz;
     vec3 x = self_sphere.xyz + self_sphere.w * n;
-    bool hidden = hidden_texels[local_slot * u_patch * u_patch + index] != 0;
     ivec2 at = tile_origin(slot) + texel;
     vec4 value = imageLoad(u_atlas, at);
     vec3 o = ray_origin(x, n);
 #ifdef BAKE_AMBIENT
-    {
-        int texels = u_patch * u_patch;
-        float weight = 0.0, open = 0.0;
-        for (int i = 0; i < u_directions && !hidden; ++i) {
-            int rank = facing_rank[i * texels + index];
-            if (rank < 0) continue;
-            float w = dot(n, directions[i].xyz);
-            weight += w;
-            uint word = blocked_masks[(local_slot * u_directions + i) * u_blocks + rank / BLOCK_TEXELS];
-            if ((word & (1u << uint(rank % BLOCK_TEXELS))) == 0u) open += w;
+    {   // the open rays' cosine weights over all rays' (texel_normals' w, the sum of n.d over the directions facing it)
+        float open = 0.0;
+        int row = (local_slot * u_patch * u_patch + index) * u_direction_words;
+        for (int word = 0; word < u_direction_words; ++word) {
+            uint bits = facing_directions[index * u_direction_words + word] & ~blocked_directions[row + word];
+            while (bits != 0u) {
+                open += dot(n, directions[word * 32 + findLSB(bits)].xyz);
+                bits &= bits - 1u;
+            }
         }
-        value.r = hidden ? -1.0 : (weight == 0.0 ? 0.0 : open / weight);
+        float weight = texel_normals[index].w;
+        value.r = weight == 0.0 ? 0.0 : min(open / weight, 1.0);
     }
 #endif
 #ifdef BAKE_SUN
-    value.g = hidden ? -1.0 : (dot(n, u_sun_dir) > 0.0
-        ? trace_sun_visibility(o, u_sun_dir, atom, vec2(0.0), 0.0, false) : 0.0);
+    value.g = dot(n, u_sun_dir) > 0.0 ? trace_sun_visibility(o, u_sun_dir, atom, vec2(0.0), 0.0, false) : 0.0;
 #endif
 #ifdef BAKE_PROBE
     {
         vec3 to_light = u_probe_light_pos - o;
         float t_max = length(to_light);
         vec3 d = to_light / max(t_max, 1e-30);
-        value.b = hidden ? -1.0 : (distance(u_probe_light_pos, x) > u_probe_light_radius ? 1.0
-            : (dot(n, d) > 0.0 ? trace_visibility(o, d, 0.0, t_max, atom, vec2(0.0), 0.0, false) : 0.0));
+        value.b = distance(u_probe_light_pos, x) > u_probe_light_radius ? 1.0
+            : (dot(n, d) > 0.0 ? trace_visibility(o, d, 0.0, t_max, atom, vec2(0.0), 0.0, false) : 0.0);
     }
 #endif
     imageStore(u_atlas, at, value);
 }
 
+// An unseen texel: -1 in the channels baked, for atlas_fill.comp.
+void mark_unseen(int local_slot, int index) {
+    ivec2 at = tile_origin(chunk_slot(local_slot)) + ivec2(index % u_patch, index / u_patch);
+    vec4 value = imageLoad(u_atlas, at);
+#ifdef BAKE_AMBIENT
+    value.r = -1.0;
+#endif
+#ifdef BAKE_SUN
+    value.g = -1.0;
+#endif
+#ifdef BAKE_PROBE
+    value.b = -1.0;
+#endif
+    imageStore(u_atlas, at, value);
+}
+
+// The patch's seen texels, in order, so the invocations that trace run side by side and
+// the unseen ones take no lane of a traced pass.
+shared int seen_list[MAX_PATCH_TEXELS];
+shared int seen_count;
+
 void main() {
     int local_slot = int(gl_WorkGroupID.x);
     if (local_slot >= u_chunk_slots) return;
-    for (int index = int(gl_LocalInvocationIndex); index < u_patch * u_patch; index += 64) bake_texel(local_slot, index);
+    int texels = u_patch * u_patch;
+    if (gl_LocalInvocationIndex == 0u) {
+        int n = 0;
+        for (int word = 0; word < u_texel_words; ++word) {
+            uint bits = seen_masks[local_slot * u_texel_words + word];
+            while (bits != 0u) {
+                seen_list[n++] = word * 32 + findLSB(bits);
+                bits &= bits - 1u;
+            }
+        }
+        seen_count = n;
+    }
+    barrier();
+    for (int k = int(gl_LocalInvocationIndex); k < seen_count; k += 64) bake_texel(local_slot, seen_list[k]);
+    for (int index = int(gl_LocalInvocationIndex); index < texels; index += 64)
+        if (!texel_seen(local_slot, index)) mark_unseen(local_slot, index);
 }

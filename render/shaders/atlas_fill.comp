@@ -17,17 +17,19 @@ void main() {
     ivec2 at = ivec2(gl_GlobalInvocationID.xy);
     if (any(greaterThanEqual(at, imageSize(u_from)))) return;
     vec4 value = imageLoad(u_from, at);
-    ivec2 origin = (at / u_patch) * u_patch;
-    for (int c = 0; c < 3; ++c) {
-        if (value[c] >= 0.0) continue;
-        float sum = 0.0, count = 0.0;
+    bvec3 unseen = lessThan(value.rgb, vec3(0.0));
+    if (any(unseen)) {  // each neighbour read once for every channel
+        ivec2 origin = (at / u_patch) * u_patch;
+        vec3 sum = vec3(0.0), count = vec3(0.0);
         for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
-            ivec2 q = clamp(at + ivec2(dx, dy), origin, origin + u_patch - 1);
-            float v = imageLoad(u_from, q)[c];
-            if (v >= 0.0) { sum += v; count += 1.0; }
+            vec3 v = imageLoad(u_from, clamp(at + ivec2(dx, dy), origin, origin + u_patch - 1)).rgb;
+            vec3 seen = vec3(greaterThanEqual(v, vec3(0.0)));
+            sum += v * seen;
+            count += seen;
         }
-        value[c] = count > 0.0 ? sum / count : (u_last != 0 ? 0.0 : -1.0);
+        vec3 filled = mix(vec3(u_last != 0 ? 0.0 : -1.0), sum / max(count, vec3(1.0)), greaterThan(count, vec3(0.0)));
+        value.rgb = mix(value.rgb, filled, unseen);
     }
     imageStore(u_to, at, value);
 }

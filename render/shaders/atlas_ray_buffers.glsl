@@ -13,9 +13,9 @@ layout(std430, binding = 6) buffer Overlaps { vec4 overlaps[]; };               
 layout(std430, binding = 7) buffer Counts { int counts[]; };                    // chunk: neighbours listed
 layout(std430, binding = 9) buffer CandidateMasks { uint candidate_masks[]; };  // chunk x D x MASK_WORDS
 layout(std430, binding = 11) buffer Overflow { uint overflow[]; };              // lists that were full
-// Per direction, the texels facing it (n.d > 0; the same for every patch): at d (P^2 + 1)
-// their count, then their indices.
-layout(std430, binding = 16) readonly buffer FacingTexels { int facing[]; };
+// Per direction, the texels facing it (n.d > 0; the same for every patch): u_texel_words
+// words a direction, bit t % 32 of word t / 32 for texel t.
+layout(std430, binding = 16) readonly buffer FacingMasks { uint facing_masks[]; };
 
 uniform float u_distance;    // Å, the rays' length
 uniform float u_max_radius;  // Å, the largest van der Waals radius

@@ -1,13 +1,13 @@
 #version 430 core
 // Occlusion atlas bake, step 3 of 4, one work group per atom of the chunk, an invocation per
-// direction: which of the texels facing that direction have their ray blocked (u_distance
-// long from the texel's surface point, cut by the clip planes and the cube as everywhere
-// else), BLOCK_TEXELS texels at a time held as two vec4 quads, so each candidate read from
-// memory is tested against eight rays (four quads were slower: registers ran out), and
-// only rays that count are tested (texels facing away, or hidden — inside another atom or
-// cut away — never are). Rays the culling removes whole are left unblocked: they are open.
-// Directions are uploaded in clusters of nearby ones, so the invocations that run side by
-// side stop together.
+// direction: which of the seen texels facing that direction have their ray blocked
+// (u_distance long from the texel's surface point, cut by the clip planes and the cube as
+// everywhere else). The texels are taken from the bits of (facing the direction) and (seen),
+// eight at a time held as two vec4 quads, so each candidate read from memory is tested
+// against eight rays that all count (four quads were slower: registers ran out); texels
+// facing away or hidden — inside another atom or cut away — never take a place. Rays the
+// culling removes whole are left unblocked: they are open. Directions are uploaded in
+// clusters of nearby ones, so the invocations that run side by side stop together.
 layout(local_size_x = 64) in;
 
 #include "grid_traversal.glsl"
@@ -17,27 +17,20 @@ layout(local_size_x = 64) in;
 #include "atlas_common.glsl"
 
 // Four texels' rays, one per component: origins relative to the atom's centre, the kept
-// part [t0, t1] of each, whether it counts at all (a texel of the patch facing the
-// direction, not culled whole), and whether a candidate has blocked it.
+// part [t0, t1] of each, whether it counts at all (a texel was taken, not culled whole), and
+// whether a candidate has blocked it.
 struct Quad { vec4 x, y, z, t0, t1, keep, blocked; };
 
-// Entry k of a facing list of `count` texels (`list`: where it starts): the texel's ray
-// origin relative to the atom's centre, and whether its ray is traced (there is such an
-// entry, and the texel is not hidden; `hidden`: the patch's flags).
-vec4 facing_origin(int list, int count, int k, vec4 self_sphere, int hidden) {
-    bool inside = k < count;
-    int texel = inside ? facing[list + k] : 0;
-    vec3 n = texel_normals[texel].xyz;
-    bool traced = inside && hidden_texels[hidden + texel] == 0;
-    return vec4(ray_origin(self_sphere.xyz + self_sphere.w * n, n) - self_sphere.xyz, traced ? 1.0 : 0.0);
+// Texel t's ray origin relative to the atom's centre, and whether there is such a texel (t >= 0).
+vec4 texel_origin(int t, vec4 self_sphere) {
+    vec3 n = texel_normals[max(t, 0)].xyz;
+    return vec4(ray_origin(self_sphere.xyz + self_sphere.w * n, n) - self_sphere.xyz, t >= 0 ? 1.0 : 0.0);
 }
 
-// Entries first..first+3 (written out: a loop writing components by index was much slower).
-Quad quad_rays(int list, int count, int first, vec4 self_sphere, int hidden) {
-    vec4 p0 = facing_origin(list, count, first, self_sphere, hidden);
-    vec4 p1 = facing_origin(list, count, first + 1, self_sphere, hidden);
-    vec4 p2 = facing_origin(list, count, first + 2, self_sphere, hidden);
-    vec4 p3 = facing_origin(list, count, first + 3, self_sphere, hidden);
+// Texels t.x..t.w (written out: a loop writing components by index was much slower).
+Quad quad_rays(ivec4 t, vec4 self_sphere) {
+    vec4 p0 = texel_origin(t.x, self_sphere), p1 = texel_origin(t.y, self_sphere);
+    vec4 p2 = texel_origin(t.z, self_sphere), p3 = texel_origin(t.w, self_sphere);
     Quad r;
     r.x = vec4(p0.x, p1.x, p2.x, p3.x);
     r.y = vec4(p0.y, p1.y, p2.y, p3.y);
@@ -47,6 +40,29 @@ Quad quad_rays(int list, int count, int first, vec4 self_sphere, int hidden) {
     r.t1 = vec4(u_distance);
     r.blocked = vec4(0.0);
     return r;
+}
+
+// The texels still to take, as a stream over the words of (facing & seen): the word being
+// read and its bits not yet taken.
+struct Texels { int word; uint bits; int facing; int seen; };
+
+uint texel_word(Texels s) { return facing_masks[s.facing + s.word] & seen_masks[s.seen + s.word]; }
+
+// The next texel of the stream, or -1 once it is empty.
+int next_texel(inout Texels s) {
+    while (s.bits == 0u && s.word + 1 < u_texel_words) {
+        ++s.word;
+        s.bits = texel_word(s);
+    }
+    if (s.bits == 0u) return -1;
+    int t = s.word * 32 + findLSB(s.bits);
+    s.bits &= s.bits - 1u;
+    return t;
+}
+
+ivec4 next_four(inout Texels s) {
+    int a = next_texel(s), b = next_texel(s), c = next_texel(s), d = next_texel(s);
+    return ivec4(a, b, c, d);
 }
 
 // The clip planes and the cube cut the quad's rays (clip_ray; a ray they remove whole no
@@ -73,9 +89,19 @@ float block_quad(inout Quad r, vec4 s, vec3 d) {
     return dot(r.keep - r.blocked, vec4(1.0));
 }
 
-uint quad_bits(Quad r, int shift) {
-    uvec4 b = uvec4(greaterThan(r.blocked, vec4(0.0))) << (uvec4(0u, 1u, 2u, 3u) + uint(shift));
-    return b.x | b.y | b.z | b.w;
+// Marks direction `dir` blocked for the texels of the quad whose ray a candidate stopped (each
+// texel's bits are shared by the invocations of all directions, hence the atomic or).
+void record(int row, int t, float blocked, int word, uint bit) {
+    if (blocked > 0.0) atomicOr(blocked_directions[(row + t) * u_direction_words + word], bit);
+}
+
+void record_quad(int local_slot, ivec4 t, Quad r, int dir) {
+    int row = local_slot * u_patch * u_patch, word = dir / 32;
+    uint bit = 1u << uint(dir % 32);
+    record(row, t.x, r.blocked.x, word, bit);  // written out, as in quad_rays
+    record(row, t.y, r.blocked.y, word, bit);
+    record(row, t.z, r.blocked.z, word, bit);
+    record(row, t.w, r.blocked.w, word, bit);
 }
 
 void main() {
@@ -84,17 +110,18 @@ void main() {
     vec4 self_sphere = spheres[int(slot_atoms[chunk_slot(local_slot)])];
     int first = local_slot * MAX_NEIGHBOURS;
     int count = counts[local_slot];
-    int hidden = local_slot * u_patch * u_patch;
     bool clipping = u_clip_count > 0 || u_cube_on != 0;
     for (int dir = int(gl_LocalInvocationIndex); dir < u_directions; dir += 64) {
         vec3 d = directions[dir].xyz;
         int list = (local_slot * u_directions + dir) * MASK_WORDS;
-        int texels = dir * (u_patch * u_patch + 1);
-        int n_facing = facing[texels];
-        for (int block = 0; block * BLOCK_TEXELS < n_facing; ++block) {
-            int base = block * BLOCK_TEXELS;
-            Quad a = quad_rays(texels + 1, n_facing, base, self_sphere, hidden);
-            Quad b = quad_rays(texels + 1, n_facing, base + 4, self_sphere, hidden);
+        Texels texels = Texels(0, 0u, dir * u_texel_words, local_slot * u_texel_words);
+        texels.bits = texel_word(texels);
+        for (;;) {
+            ivec4 ta = next_four(texels);
+            if (ta.x < 0) break;
+            ivec4 tb = next_four(texels);
+            Quad a = quad_rays(ta, self_sphere);
+            Quad b = quad_rays(tb, self_sphere);
 #ifndef NO_CLIPPING
             if (clipping) {
                 clip_quad(a, self_sphere, d);
@@ -111,8 +138,8 @@ void main() {
                     open = block_quad(a, s, d) + block_quad(b, s, d) > 0.0;
                 }
             }
-            blocked_masks[(local_slot * u_directions + dir) * u_blocks + block] =
-                quad_bits(a, 0) | quad_bits(b, 4);
+            record_quad(local_slot, ta, a, dir);
+            record_quad(local_slot, tb, b, dir);
         }
     }
 }

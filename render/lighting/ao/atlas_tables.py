@@ -1,6 +1,6 @@
 """The occlusion atlas's geometry, the same for every patch (render/lighting/ao/precomputed.py):
 the ray directions (a spherical Fibonacci lattice, in clusters of nearby ones), each
-texel's direction (the octahedral map) and, per direction, the texels facing it."""
+texel's direction (the octahedral map) and which texels face which direction."""
 
 from __future__ import annotations
 
@@ -36,21 +36,24 @@ def texel_normals(patch: int) -> np.ndarray:
     return out
 
 
-def facing_texels(normals: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """Per direction the texels facing it (n.d > 0 in float32, as the shaders compute it):
-    (D, P^2 + 1) int32 rows of count then indices, (D, P^2) int32 each texel's place in its
-    row (-1: facing away), and the most texels any direction has."""
-    n = normals[:, :3].astype(np.float32)
-    faces = (directions[:, :3].astype(np.float32) @ n.T) > 0  # (D, P^2)
-    texels = n.shape[0]
-    rows = np.zeros((faces.shape[0], texels + 1), dtype=np.int32)
-    rank = np.full(faces.shape, -1, dtype=np.int32)
-    for d, row in enumerate(faces):
-        index = np.flatnonzero(row)
-        rows[d, 0] = index.size
-        rows[d, 1:1 + index.size] = index
-        rank[d, index] = np.arange(index.size)
-    return rows, rank, int(rows[:, 0].max(initial=0))
+def facing_masks(normals: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Which texels face which direction (n.d > 0 in float32, as the shaders compute it), as
+    bits both ways — (D, ceil(P^2 / 32)) uint32, bit t % 32 of word t / 32 of row d when
+    texel t faces direction d (the rays step's), and its transpose (P^2, ceil(D / 32)), bit
+    d % 32 of word d / 32 of row t (the sums step's): one table, so both steps agree — and
+    each texel's sum of n.d over the directions it faces (the weight of all its rays)."""
+    dots = directions[:, :3].astype(np.float32) @ normals[:, :3].astype(np.float32).T  # (D, P^2)
+    faces = dots > 0
+    return bit_rows(faces), bit_rows(faces.T), np.where(faces, dots.astype(np.float64), 0.0).sum(axis=0)
+
+
+def bit_rows(flags: np.ndarray) -> np.ndarray:
+    """(R, C) bool -> (R, ceil(C / 32)) uint32: bit c % 32 of word c / 32 set where flags[r, c]."""
+    rows, columns = flags.shape
+    padded = np.zeros((rows, -(-columns // 32) * 32), dtype=np.uint64)
+    padded[:, :columns] = flags
+    words = padded.reshape(rows, -1, 32) << np.arange(32, dtype=np.uint64)
+    return words.sum(axis=2).astype(np.uint32)
 
 
 def clustered(directions: np.ndarray, size: int = CLUSTER) -> np.ndarray:

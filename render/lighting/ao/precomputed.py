@@ -36,7 +36,7 @@ import time
 import numpy as np
 
 from sasprobe.render.gl.compute import ComputePass, ComputeVariants
-from sasprobe.render.lighting.ao.atlas_tables import clustered, facing_texels, fibonacci_directions, texel_normals
+from sasprobe.render.lighting.ao.atlas_tables import clustered, facing_masks, fibonacci_directions, texel_normals
 from sasprobe.render.gl.textures import TextureCache
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.gbuffer import GBuffer
@@ -44,11 +44,11 @@ from sasprobe.render.lighting.settings import PointLight, light_uniforms, ray_ep
 
 log = logging.getLogger("sasprobe")
 
-CHUNK_SLOTS = 256  # atoms per bake dispatch
-MAX_NEIGHBOURS, MAX_OVERLAPS, BLOCK_TEXELS = 1024, 32, 8  # as shaders/atlas_ray_buffers.glsl, atlas_sum_buffers.glsl
+CHUNK_SLOTS = 1024  # atoms per bake dispatch
+MAX_NEIGHBOURS, MAX_OVERLAPS = 1024, 32  # as shaders/atlas_ray_buffers.glsl
 MASK_WORDS, MAX_PATCH_TEXELS = MAX_NEIGHBOURS // 32, 64 * 64
 BINDING_TEXEL_NORMALS = 0  # a uniform block
-BINDING_FACING, BINDING_FACING_RANK = 16, 17
+BINDING_FACING_MASKS, BINDING_FACING_DIRECTIONS = 16, 17
 MAX_ATLAS_BYTES = 512 * 2**20
 BINDING_SLOT_ATOMS, BINDING_ATOM_SLOTS = 4, 4
 BINDING_KEPT_START, BINDING_KEPT_SPHERES, BINDING_SLOT_ENTRY = 13, 14, 15  # shaders/atlas_gather.comp
@@ -188,16 +188,15 @@ class OcclusionAtlas:
         grid = self.grid
         n = max(int(slots.size), 1)
         chunk = math.ceil(n / math.ceil(n / CHUNK_SLOTS))  # chunks of equal size
-        dirs, normals, facing, rank, most_facing = self._tables_for(directions)
+        dirs, normals, facing, facing_directions = self._tables_for(directions)
         lists = chunk * directions if ambient else 1
-        tables, blocks = {}, 1  # the facing lists: only the accessibility's steps read them
-        if ambient:
-            tables = {BINDING_FACING: facing, BINDING_FACING_RANK: rank}
-            blocks = max(math.ceil(most_facing / BLOCK_TEXELS), 1)
+        texel_words = math.ceil(self.patch * self.patch / 32)
+        # the facing bits: only the accessibility's steps read them
+        tables = {BINDING_FACING_MASKS: facing, BINDING_FACING_DIRECTIONS: facing_directions} if ambient else {}
         buffers = {binding: self._buffer(binding, nbytes) for binding, nbytes in (
             (5, chunk * MAX_NEIGHBOURS * 16), (6, chunk * MAX_OVERLAPS * 16), (7, chunk * 4), (8, dirs.nbytes),
-            (9, lists * MASK_WORDS * 4), (10, lists * blocks * 4), (11, 4), (12, max(slots.nbytes, 4)),
-            (18, chunk * self.patch * self.patch * 4))}
+            (9, lists * MASK_WORDS * 4), (10, chunk * self.patch * self.patch * math.ceil(directions / 32) * 4 if ambient else 4), (11, 4), (12, max(slots.nbytes, 4)),
+            (18, chunk * texel_words * 4))}
         buffers[8].write(dirs.tobytes())
         for binding, table in tables.items():
             buffers[binding] = self._buffer(binding, table.nbytes)
@@ -210,7 +209,8 @@ class OcclusionAtlas:
         common = {
             **ray_epsilon_uniforms(), **light_uniforms(None, probe_light), "u_directions": directions,
             "u_distance": float(distance), "u_max_radius": float(np.max(grid.vdw_radii)) if grid.n_atoms else 0.0,
-            "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_blocks": blocks,
+            "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_texel_words": texel_words,
+            "u_direction_words": math.ceil(directions / 32),
             "u_gather_neighbours": int(ambient), **self.kept.uniforms(),
         }
         if sun_direction is not None:
@@ -252,14 +252,16 @@ class OcclusionAtlas:
                         self.overflows)
 
     def _tables_for(self, directions: int) -> tuple:
-        """The directions (clustered, vec4), the texel normals and the facing tables of this
-        patch size, computed once per (patch, directions)."""
+        """The directions (clustered, vec4), the texel normals (w: the sum of n.d over the
+        directions facing the texel) and the facing bits of this patch size
+        (atlas_tables.facing_masks), computed once per (patch, directions)."""
         key = (self.patch, directions)
         if self._tables[0] != key:
             dirs = np.zeros((directions, 4), dtype=np.float32)
             dirs[:, :3] = clustered(fibonacci_directions(directions))
             normals = texel_normals(self.patch)
-            self._tables = (key, (dirs, normals, *facing_texels(normals, dirs)))
+            by_direction, by_texel, normals[:, 3] = facing_masks(normals, dirs)
+            self._tables = (key, (dirs, normals, by_direction, by_texel))
         return self._tables[1]
 
     def _buffer(self, key, nbytes: int):
