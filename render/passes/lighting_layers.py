@@ -105,15 +105,19 @@ class LayeredLighting:
             "u_share_probe_reach": self.grid.probe_reach,
         }
         # The molecule's terms where the probe's touched them now or last frame (everywhere
-        # when they changed), then, with the layered program, what the probe adds where it is
-        # and where its shadow of the sun falls.
+        # when they changed), and, with the layered program, what the probe adds where it is
+        # and where its shadow of the sun falls. Beyond those the layered program composes
+        # what the plain one does, so but for a whole frame one pass does both.
         near_probe = union_rect(probe_rect, self._probe_shadow_rect(frame, sun, soft) if probe_sun else None)
         touched = union_rect(touched, near_probe)
         rect = self._dirty_rect("compose", touched, frame, whole=self._molecule_changed)
-        if rect is not None:
-            self._compose(frame, terms, {}, rect=rect)
-        if near_probe is not None:
-            self._compose(frame, terms, uniforms, layered=True, rect=near_probe)
+        if near_probe is not None and not self._molecule_changed:
+            self._compose(frame, terms, uniforms, layered=True, rect=union_rect(rect, near_probe))
+        else:
+            if rect is not None:
+                self._compose(frame, terms, {}, rect=rect)
+            if near_probe is not None:
+                self._compose(frame, terms, uniforms, layered=True, rect=near_probe)
         changed = WHOLE if self._molecule_changed else touched
         frame.probe_lighting = ProbeLighting(terms.get("shadow_probe"), share, changed)
         self._composed = (frame, terms, {**uniforms, **NO_PROBE_SHARE, **share}, "shadow_dir" in terms,
