@@ -165,27 +165,38 @@ class MoleculeCache:
         self.ctx = ctx
         self.programs = programs
         self.stash: GBufferStash | None = None
-        self.key: tuple | None = None
+        self.key: tuple | None = None  # the kept layer's key (None: none kept)
+        self.last_key: tuple | None = None  # the last frame's key, layer kept or not
+        self.last_held = False  # whether the last frame used the kept layer
         self.stashed: Rect | None = None  # what the stash holds: the probe's rectangle of the last frame
         self.layer_rect: tuple | None = None  # (the pixels the molecule layer can cover,): Frame.molecule_rect, per key
-        self.hits = self.misses = 0
+        self.hits = self.misses = self.plain = 0  # plain: misses drawn whole, no layer kept
 
-    def begin(self, frame, passes) -> bool:
-        """True when the molecule layer drawn last frame is this frame's too; its G-buffer
-        then gets back what the probe covered. False: the molecule layer is drawn anew."""
+    def begin(self, frame, passes) -> bool | None:
+        """True when the molecule layer kept from the last frame is this frame's too; its
+        G-buffer then gets back what the probe covered. False: the layer is drawn anew and
+        kept. None: the frame is drawn whole, as without the cache, and nothing is kept —
+        the last frame missed too and this one's key differs from its (the camera turning,
+        the cube drifting): a layer kept now would most likely not be used, and drawing the
+        layer apart from the probe costs more than a whole frame. The layer is drawn again
+        once the key holds for a frame."""
         key = molecule_key(frame, passes)
-        held = key == self.key
-        self.key = key
-        if not held:
-            self.layer_rect = None  # the layer's rectangle is found again when asked for
-        if held and self.stashed is not None:
+        last, self.last_key = self.last_key, key
+        last_held, self.last_held = self.last_held, key == self.key
+        if self.stashed is not None and key == self.key:
             self.stash.restore(frame.targets, self.stashed)
-        if held:
-            self.hits += 1
-        else:
-            self.misses += 1
         self.stashed = None
-        return held
+        if key == self.key:
+            self.hits += 1
+            return True
+        self.misses += 1
+        self.layer_rect = None  # the layer's rectangle is found again when asked for
+        if not last_held and last is not None and key != last:
+            self.key = None
+            self.plain += 1
+            return None
+        self.key = key
+        return False
 
     def save_under(self, frame, rect: Rect | None) -> None:
         """Keep the molecule layer's pixels of `rect` (about to be drawn over by the probe)."""

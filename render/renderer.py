@@ -13,8 +13,10 @@ passes go before "probe", "shading" and "navcube", render/passes/lighting.py).
 With `frame_cache` (the default) the molecule layer — the passes whose `layer` is
 MOLECULE, and the lighting terms that do not depend on the probe — is kept while its
 key holds (render/frame_cache.py): a frame in which only the probe moved puts back what
-the probe covered, draws the probe and recomputes what the probe changes. Without it
-every frame is drawn whole (the benchmarks' full redraw).
+the probe covered, draws the probe and recomputes what the probe changes; while the key
+changes frame after frame (the camera turning, the cube drifting) frames are drawn whole,
+and the layer is kept again once the key holds. Without it every frame is drawn whole
+(the benchmarks' full redraw).
 """
 
 from __future__ import annotations
@@ -132,7 +134,11 @@ class Renderer:
             cache=self.cache,
         )
         if self.cache is not None:
-            frame.cached = self.cache.begin(frame, self.passes)
+            cached = self.cache.begin(frame, self.passes)
+            if cached is None:
+                frame.cache = None  # drawn whole this frame (MoleculeCache.begin)
+            else:
+                frame.cached = cached
         for p in self.passes:
             if not p.enabled(frame) or (frame.cached and p.layer == MOLECULE):
                 continue

@@ -87,6 +87,8 @@ def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings
     path = probe_path(structure)
     gaps = [sas_gap(structure, p) for p in path if p is not None]
     assert gaps[0] > 2.0 and min(abs(g) for g in gaps[3:]) < 0.06  # it comes in and touches
+    if setup == "probe-plane":  # the plane steps with the probe; standing still, the cut layer is kept and used
+        path += [path[-2]] * 3
     cached, camera = make_renderer(gl, structure, size, settings, cache=True, setup=setup)
     full, full_camera = make_renderer(gl, structure, size, settings, cache=False, setup=setup)
     planes = []  # the planes in effect, frame by frame
@@ -112,9 +114,11 @@ def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings
                 if layer in ga:
                     off_probe = ga["kind"] != KIND_PROBE
                     assert np.abs(ga[layer] - gb[layer])[off_probe].max() <= 1e-5, (sid, setup, layer)
-        if setup == "probe-plane":  # drawn again only when the plane stepped
+        if setup == "probe-plane":  # drawn again only when the plane stepped, kept once it held a frame
             changes = sum(a != b for a, b in zip(planes, planes[1:]))
-            assert cached.cache.misses == 1 + changes and cached.cache.hits == len(path) - 1 - changes >= 1
+            held = sum(a == b == c for a, b, c in zip(planes, planes[1:], planes[2:]))
+            assert cached.cache.misses >= 1 + changes and cached.cache.hits >= held >= 1
+            assert cached.cache.hits + cached.cache.misses == len(path)
         else:
             assert cached.cache.misses == 1 and cached.cache.hits == len(path) - 1  # the layer held throughout
         assert shaded[0] == antialiased[0] == 1.0
@@ -212,6 +216,35 @@ def test_progressive_ao_keeps_accumulating_while_only_the_probe_moves(gl, crambi
         still.release()
 
 
+def test_a_turning_camera_draws_whole_frames_and_the_layer_is_kept_once_it_stops(gl, crambin):
+    """While the layer's key changes frame after frame (the camera turning) the frames are
+    drawn whole, as without the cache, and equal a full redraw; the first frame after a
+    held one still keeps its layer (a single change: the probe plane stepping), and once
+    the camera stops the layer is drawn again and then used."""
+    settings = LightingSettings()
+    cached, camera = make_renderer(gl, crambin, (128, 96), settings, cache=True)
+    full, full_camera = make_renderer(gl, crambin, (128, 96), settings, cache=False)
+    try:
+        states = []  # per frame: hit (True), layer drawn and kept (False), drawn whole (None)
+        for k in range(9):
+            if 2 <= k <= 5:  # turning for four frames, then still
+                for c in (camera, full_camera):
+                    c.orbit(np.array([0.0, 1.0, 0.0]), 0.05)
+            for r in (cached, full):
+                r.scene.probe = Probe(center=probe_path(crambin)[3 + k % 4])
+            before = (cached.cache.hits, cached.cache.misses, cached.cache.plain)
+            cached.render(camera)
+            full.render(full_camera)
+            hits, misses, plain = (after - b for after, b in zip((cached.cache.hits, cached.cache.misses,
+                                                                  cached.cache.plain), before))
+            states.append(True if hits else (None if plain else False))
+            assert agreement(cached.read_image(), full.read_image()) >= 0.999, k
+        assert states == [False, True, False, None, None, None, False, True, True], states
+    finally:
+        cached.release()
+        full.release()
+
+
 # ------------------------------------------------------------------ the key
 def _changed(value):
     """A different value of the same kind (for the generic invalidation test)."""
@@ -262,6 +295,7 @@ def test_every_effect_camera_and_setting_but_the_probe_invalidates_the_layer(gl,
         assert misses_after(lambda: setattr(lighting, "settings", replace(lighting.settings, samples=3))) == 1
         assert misses_after(lambda: r.resize((72, 48))) == 1
         assert misses_after(lambda: r.set_sphere_mode("sprite")) == 1
+        assert misses_after(lambda: None) == 1  # after a run of changes the layer is drawn again once the key holds
         assert misses_after(lambda: None) == 0
     finally:
         r.release()

@@ -37,6 +37,7 @@ class FxaaPass(Pass):
             self._kept_holds = False
             return
         target, self.redone = frame.output_fbo, full_rect(frame.size)
+        self._kept_holds = self._kept_holds and frame.cache is not None  # a frame drawn whole leaves it behind
         if frame.cache is not None:
             target = self._kept.framebuffer(frame.size)
             self.redone = self._to_redo(frame)

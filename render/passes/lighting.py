@@ -3,9 +3,10 @@ fill the visibility buffer before the shading pass, and progressive path tracing
 the lit image after it (passes/path_trace.py, sharing this pass's grid, lights and
 stillness). Two ways of computing one picture:
 
-- **whole frames** (a renderer without the frame cache): LightingPass, after the probe is
-  drawn, traces every term on the G-buffer the probe is in, the probe an occluder of the
-  directional light and of the ambient occlusion like any atom;
+- **whole frames** (a renderer without the frame cache, or a frame the cache draws whole:
+  the camera or culling changing frame after frame, render/frame_cache.py): LightingPass,
+  after the probe is drawn, traces every term on the G-buffer the probe is in, the probe
+  an occluder of the directional light and of the ambient occlusion like any atom;
 
       clear -> spheres -> backbone -> probe -> lighting -> shading -> path_trace -> navcube -> fxaa
 
@@ -102,7 +103,7 @@ class LightingPass(LayeredLighting, Pass):
         self._last_probe_key: bytes | None = None
         self._composed = None  # layered: the last compose's inputs, run again for the G-buffer export
         self._looked_up = (-1, None)  # (frame index, accessibility) the atlas gave with the sun's visibility
-        self._still_frames = 0  # layered: frames the probe has stood still
+        self._still_frames = 0  # frames the probe has stood still
         self._molecule_changed = True  # layered: the molecule's terms changed this frame (compose them whole)
         self._warned_shell = False
 
@@ -224,9 +225,10 @@ class LightingPass(LayeredLighting, Pass):
 
     # ------------------------------------------------------------ whole frames
     def run(self, frame: Frame) -> None:
-        if self.layered:
+        if frame.cache is not None:
             self._run_probe_layer(frame)
             return
+        self._composed = None  # a whole frame: the export reads its terms as they are
         culling_key = self._sync(frame)
         probe_key = self._set_probe(frame)
         if probe_key != self._probe_key:
@@ -234,6 +236,7 @@ class LightingPass(LayeredLighting, Pass):
             self._probe_key = probe_key
         if self._stillness(frame, culling_key, probe_key):
             self.ao.view_changed()
+        self._count_still_frames(probe_key)
         fx, size = frame.scene.effects, frame.size
         gbuffer = GBuffer.of_targets(frame.targets)
         sun, lamp = self.lights
@@ -241,8 +244,9 @@ class LightingPass(LayeredLighting, Pass):
         if fx.shadows and sun is not None:
             self.layers["shadow_dir"] = self._sun(gbuffer, frame, sun, "shadow_dir")
         if fx.shadows and lamp is not None:
-            self.layers["shadow_probe"] = self.shadows.trace(gbuffer, lamp, self._soft(frame),
-                                                             out=self.textures.get("shadow_probe", size))
+            baked = self._baked_probe_light(frame, gbuffer, lamp)
+            self.layers["shadow_probe"] = baked if baked is not None else self.shadows.trace(
+                gbuffer, lamp, self._soft(frame), out=self.textures.get("shadow_probe", size))
         if fx.ambient_occlusion:
             self.layers["ao"] = self._ambient(gbuffer, frame)
         terms = dict(self.layers)
@@ -266,7 +270,7 @@ class LightingPass(LayeredLighting, Pass):
     def gbuffer_layers(self, frame: Frame) -> dict[str, np.ndarray]:
         """The last frame's lighting terms for the G-buffer export (row 0 = top) and the
         lights they were traced for."""
-        if self.layered and self._composed is not None:
+        if self._composed is not None:
             self._export_composed()
         out = {name: read_texture(tex, top_first=True).astype(np.float32) for name, tex in self.layers.items()}
         sun, lamp = self.lights
@@ -299,7 +303,7 @@ class MoleculeLightingPass(Pass):
         return None  # the lighting pass's settings are keyed under it
 
     def enabled(self, frame: Frame) -> bool:
-        return self.lighting.enabled(frame)
+        return frame.cache is not None and self.lighting.enabled(frame)
 
     def run(self, frame: Frame) -> None:
         self.lighting.run_molecule(frame)

@@ -68,13 +68,11 @@ class LayeredLighting:
         terms = dict(self.molecule_terms)
         self.layers = {}
         soft = self._soft(frame)
-        self._still_frames = self._still_frames + 1 if probe_key == self._last_probe_key else 0
-        self._last_probe_key = probe_key
+        self._count_still_frames(probe_key)
         if fx.shadows and lamp is not None:
-            if self._precomputed(frame) and self._still_frames >= STILL_FRAMES:
-                self._configure_ao()  # the probe stands still: its light is fixed in the molecule frame
-                reach = frame.reach_rect(lamp.radius) or (0, 0, 0, 0)  # none: no molecule within its range
-                terms["shadow_probe"] = self.ao.baked(gbuffer, ambient=False, probe_light=lamp, rect=reach)[2]
+            baked = self._baked_probe_light(frame, gbuffer, lamp)
+            if baked is not None:
+                terms["shadow_probe"] = baked
             else:
                 rect = self._dirty_rect("shadow_probe", frame.reach_rect(lamp.radius), frame)
                 traced = self.textures.get("shadow_probe", size)
@@ -135,6 +133,20 @@ class LayeredLighting:
             self.layers["shadow_dir"] = sun_out
         if with_ambient:
             self.layers["ao"] = ao_out
+
+    def _count_still_frames(self, probe_key) -> None:
+        self._still_frames = self._still_frames + 1 if probe_key == self._last_probe_key else 0
+        self._last_probe_key = probe_key
+
+    def _baked_probe_light(self, frame: Frame, gbuffer: GBuffer, lamp):
+        """With --shadows precomputed and the probe standing still STILL_FRAMES frames, the
+        probe light's visibility from the atlas (its light is then fixed in the molecule
+        frame, whatever the camera does); else None (traced per pixel)."""
+        if not (self._precomputed(frame) and self._still_frames >= STILL_FRAMES):
+            return None
+        self._configure_ao()
+        reach = frame.reach_rect(lamp.radius) or (0, 0, 0, 0)  # none: no molecule within its range
+        return self.ao.baked(gbuffer, ambient=False, probe_light=lamp, rect=reach)[2]
 
     def _probe_shadow_rect(self, frame: Frame, sun, soft):
         """Pixels the probe's shadow of the sun can fall on: the capsule from the probe away
