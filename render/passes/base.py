@@ -56,6 +56,9 @@ class Frame:
     # it; and the rectangle the probe's cues drew over it this frame (ProbeCuesPass).
     lit_changed: object = WHOLE
     overlay: object = None
+    # What several passes ask of the frame, found once (the camera and the probe hold
+    # still within a frame): the view-projection, the camera's basis, the probe's rectangles.
+    _found: dict = field(default_factory=dict, repr=False)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -63,14 +66,25 @@ class Frame:
 
     @property
     def viewproj(self) -> np.ndarray:
-        return self.proj @ self.view
+        if "viewproj" not in self._found:
+            self._found["viewproj"] = self.proj @ self.view
+        return self._found["viewproj"]
+
+    def camera_basis(self) -> np.ndarray:
+        if "basis" not in self._found:
+            self._found["basis"] = self.camera.basis()
+        return self._found["basis"]
 
     def probe_rect(self, radius: float | None = None):
         """Pixels the probe (or a sphere of `radius` around its centre) can cover; None without a probe."""
         probe = self.scene.probe
         if probe is None:
             return None
-        return sphere_rect(probe.center, probe.radius if radius is None else radius, self.viewproj, self.size)
+        radius = probe.radius if radius is None else float(radius)
+        key = ("probe_rect", radius, probe.center.tobytes())
+        if key not in self._found:
+            self._found[key] = sphere_rect(probe.center, radius, self.viewproj, self.size)
+        return self._found[key]
 
     def reach_rect(self, radius: float):
         """A rectangle holding the molecule's pixels within `radius` of the probe's centre:
@@ -92,7 +106,7 @@ class Frame:
 
     def near_plane(self) -> np.ndarray:
         """The camera's near plane as a clip plane (spheres crossing it get a cap)."""
-        forward = -self.camera.basis()[:, 2]
+        forward = -self.camera_basis()[:, 2]
         return np.array([*forward, -float(forward @ self.camera.eye) - self.camera.near])
 
     def raster_camera_uniforms(self) -> dict:
@@ -102,7 +116,7 @@ class Frame:
         return {
             "u_viewproj": gl_bytes(self.viewproj),
             "u_eye": tuple(float(v) for v in self.camera.eye),
-            "u_cam_basis": np.ascontiguousarray(self.camera.basis().T, dtype=np.float32).tobytes(),
+            "u_cam_basis": np.ascontiguousarray(self.camera_basis().T, dtype=np.float32).tobytes(),
             "u_ray_scale": (1.0 / p[0, 0], 1.0 / p[1, 1], float(p[0, 2]), float(p[1, 2])),
             "u_viewport": (0.0, 0.0, float(w), float(h)),
         }
