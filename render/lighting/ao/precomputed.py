@@ -16,15 +16,17 @@ centres on the patch border (python/OctaMap.py getDir), which is the layout here
 Here the bake traces rays through the grid instead of rendering shadow maps
 (shaders/atlas_*.comp, in chunks of CHUNK_SLOTS atoms, four steps): (1) each atom's
 neighbours within reach are gathered once from the kept atoms' own cells (KeptCells), and
-its texels that lie inside a neighbour or are cut away (clip planes, cube) marked hidden,
-never seen; (2) per direction D (spherical Fibonacci points, in clusters of nearby ones)
-the neighbours that can meet one of its rays are marked; (3) per direction the unhidden
-texels facing it test those candidates, eight rays per candidate read; (4) per texel the
-open rays' cosine weights are summed, and the lights' channels are one ray per texel (the
-sun's through its light buffer, render/lighting/light_buffer.py; the probe light's through
-the grid). The rays are `AOSettings.distance` long, as the ray-traced AO's, so the two
-converge to the same accessibility. On llvmpipe every storage-buffer read costs a loop
-over the SIMD lanes, so the steps are laid out to read each value once for many tests.
+its texels seen (neither inside a neighbour nor cut away by a clip plane or the cube) marked
+in a bit mask; (2) per direction D (spherical Fibonacci points, in clusters of nearby ones)
+the neighbours that can meet one of its rays are marked; (3) per direction the texels both
+seen and facing it (the AND of two bit masks, atlas_tables.facing_masks) test those
+candidates, eight rays per candidate read, and mark the direction in each blocked texel's
+bits; (4) per seen texel the cosine weights of its facing directions less its blocked ones
+are summed, and the lights' channels are one ray per texel (the sun's through its light
+buffer, render/lighting/light_buffer.py; the probe light's through the grid). The rays
+are `AOSettings.distance` long, as the ray-traced AO's, so the two converge to the same
+accessibility. On llvmpipe every instruction runs for each group of SIMD lanes, so the
+steps read each value once for many tests and fill the lanes with rays that count.
 """
 
 from __future__ import annotations
@@ -190,12 +192,13 @@ class OcclusionAtlas:
         chunk = math.ceil(n / math.ceil(n / CHUNK_SLOTS))  # chunks of equal size
         dirs, normals, facing, facing_directions = self._tables_for(directions)
         lists = chunk * directions if ambient else 1
-        texel_words = math.ceil(self.patch * self.patch / 32)
+        texel_words, direction_words = math.ceil(self.patch * self.patch / 32), math.ceil(directions / 32)
+        blocked_words = chunk * self.patch * self.patch * direction_words if ambient else 1
         # the facing bits: only the accessibility's steps read them
         tables = {BINDING_FACING_MASKS: facing, BINDING_FACING_DIRECTIONS: facing_directions} if ambient else {}
         buffers = {binding: self._buffer(binding, nbytes) for binding, nbytes in (
             (5, chunk * MAX_NEIGHBOURS * 16), (6, chunk * MAX_OVERLAPS * 16), (7, chunk * 4), (8, dirs.nbytes),
-            (9, lists * MASK_WORDS * 4), (10, chunk * self.patch * self.patch * math.ceil(directions / 32) * 4 if ambient else 4), (11, 4), (12, max(slots.nbytes, 4)),
+            (9, lists * MASK_WORDS * 4), (10, blocked_words * 4), (11, 4), (12, max(slots.nbytes, 4)),
             (18, chunk * texel_words * 4))}
         buffers[8].write(dirs.tobytes())
         for binding, table in tables.items():
@@ -210,7 +213,7 @@ class OcclusionAtlas:
             **ray_epsilon_uniforms(), **light_uniforms(None, probe_light), "u_directions": directions,
             "u_distance": float(distance), "u_max_radius": float(np.max(grid.vdw_radii)) if grid.n_atoms else 0.0,
             "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_texel_words": texel_words,
-            "u_direction_words": math.ceil(directions / 32),
+            "u_direction_words": direction_words,
             "u_gather_neighbours": int(ambient), **self.kept.uniforms(),
         }
         if sun_direction is not None:
