@@ -106,6 +106,27 @@ def test_patches_equal_the_cpu_bake(gl, crambin, crambin_grid, setup, patch):
         crambin_grid.set_culling(Culling())
 
 
+def test_the_atlas_does_not_depend_on_how_the_atoms_are_chunked(gl, crambin_grid, monkeypatch):
+    """Bakes of many directions or large patches go in smaller chunks, so their storage stays
+    bounded (MAX_SCRATCH_BYTES); chunks of a few dozen atoms give the one chunk's atlas."""
+    from sasprobe.render.lighting.ao import precomputed
+
+    crambin_grid.set_culling(Culling())
+    atlases = []
+    try:
+        for budget, one_chunk in ((precomputed.MAX_SCRATCH_BYTES, True), (2 * 2**20, False)):  # 2 MiB: ~50 atoms
+            monkeypatch.setattr(precomputed, "MAX_SCRATCH_BYTES", budget)
+            atlas = OcclusionAtlas(crambin_grid)
+            atlases.append(atlas)
+            chunks = []
+            assert atlas.update(PATCH, 256, DISTANCE, ambient=True, sun_direction=SUN, progress=chunks.append)
+            assert (len(chunks) == 1) == one_chunk and chunks[-1] == 1.0, chunks
+        assert np.array_equal(atlases[0].read(), atlases[1].read())
+    finally:
+        for atlas in atlases:
+            atlas.release()
+
+
 def test_lookup_is_the_bilinear_patch_value_and_caps_are_open(gl, crambin, crambin_grid):
     crambin_grid.set_culling(cullings(crambin)["plane"])
     view, proj = camera(crambin)

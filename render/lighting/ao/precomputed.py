@@ -46,7 +46,8 @@ from sasprobe.render.lighting.settings import PointLight, light_uniforms, ray_ep
 
 log = logging.getLogger("sasprobe")
 
-CHUNK_SLOTS = 1024  # atoms per bake dispatch
+CHUNK_SLOTS = 1024  # atoms per bake dispatch, at most
+MAX_SCRATCH_BYTES = 256 * 2**20  # the bake's storage per chunk, at most
 MAX_NEIGHBOURS, MAX_OVERLAPS = 1024, 32  # as shaders/atlas_ray_buffers.glsl
 MASK_WORDS, MAX_PATCH_TEXELS = MAX_NEIGHBOURS // 32, 64 * 64
 BINDING_TEXEL_NORMALS = 0  # a uniform block
@@ -189,10 +190,13 @@ class OcclusionAtlas:
               probe_light, progress) -> None:
         grid = self.grid
         n = max(int(slots.size), 1)
-        chunk = math.ceil(n / math.ceil(n / CHUNK_SLOTS))  # chunks of equal size
+        texel_words, direction_words = math.ceil(self.patch * self.patch / 32), math.ceil(directions / 32)
+        per_atom = (MAX_NEIGHBOURS + MAX_OVERLAPS) * 16 + texel_words * 4 + (
+            directions * MASK_WORDS * 4 + self.patch * self.patch * direction_words * 4 if ambient else 0)
+        most = max(1, min(CHUNK_SLOTS, MAX_SCRATCH_BYTES // per_atom))  # large patches and many directions: fewer
+        chunk = math.ceil(n / math.ceil(n / most))  # chunks of equal size
         dirs, normals, facing, facing_directions = self._tables_for(directions)
         lists = chunk * directions if ambient else 1
-        texel_words, direction_words = math.ceil(self.patch * self.patch / 32), math.ceil(directions / 32)
         blocked_words = chunk * self.patch * self.patch * direction_words if ambient else 1
         # the facing bits: only the accessibility's steps read them
         tables = {BINDING_FACING_MASKS: facing, BINDING_FACING_DIRECTIONS: facing_directions} if ambient else {}
