@@ -181,12 +181,13 @@ class MoleculeCache:
         layer apart from the probe costs more than a whole frame. The layer is drawn again
         once the key holds for a frame."""
         key = molecule_key(frame, passes)
-        last, self.last_key = self.last_key, key
-        last_held, self.last_held = self.last_held, key == self.key
-        if self.stashed is not None and key == self.key:
+        held = key == self.key
+        last, last_held = self.last_key, self.last_held
+        self.last_key, self.last_held = key, held
+        if held and self.stashed is not None:
             self.stash.restore(frame.targets, self.stashed)
         self.stashed = None
-        if key == self.key:
+        if held:
             self.hits += 1
             return True
         self.misses += 1

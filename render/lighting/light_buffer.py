@@ -211,8 +211,9 @@ class DirectionalLightBuffer:
         pad = shell_outer + RADIUS_MARGIN
         atoms = np.flatnonzero(~self.grid.culled_mask)
         centres = self.grid.grid.centers[atoms]
-        atoms = atoms[np.argsort(-(centres @ d), kind="stable")]  # nearest the light first
-        centres, vdw = self.grid.grid.centers[atoms], self.grid.vdw_radii[atoms]
+        by_depth = np.argsort(-(centres @ d), kind="stable")  # nearest the light first
+        atoms, centres = atoms[by_depth], centres[by_depth]
+        vdw = self.grid.vdw_radii[atoms]
         reach = vdw + pad
         across = np.column_stack([centres @ u, centres @ v])
         if atoms.size:

@@ -62,6 +62,7 @@ from sasprobe.render.passes.lighting_layers import NO_NEIGHBOURS, LayeredLightin
 log = logging.getLogger("sasprobe")
 
 REQUIRED_GL = 430
+STILL_FRAMES = 3  # --shadows precomputed: frames the probe stands still before its light is baked
 CYCLED_AO_MODES = tuple(m for m in AO_MODES if m != "off")
 
 
@@ -191,6 +192,20 @@ class LightingPass(LayeredLighting, Pass):
     def _precomputed(self, frame: Frame) -> bool:
         """Whether the lights' shadows come from the occlusion atlas (--shadows precomputed; hard only)."""
         return self.settings.shadows == "precomputed" and not frame.scene.effects.soft_shadows
+
+    def _count_still_frames(self, probe_key) -> None:
+        self._still_frames = self._still_frames + 1 if probe_key == self._last_probe_key else 0
+        self._last_probe_key = probe_key
+
+    def _baked_probe_light(self, frame: Frame, gbuffer: GBuffer, lamp):
+        """With --shadows precomputed and the probe standing still STILL_FRAMES frames, the
+        probe light's visibility from the atlas (its light is then fixed in the molecule
+        frame, whatever the camera does); else None (traced per pixel)."""
+        if not (self._precomputed(frame) and self._still_frames >= STILL_FRAMES):
+            return None
+        self._configure_ao()
+        reach = frame.reach_rect(lamp.radius) or (0, 0, 0, 0)  # none: no molecule within its range
+        return self.ao.baked(gbuffer, ambient=False, probe_light=lamp, rect=reach)[2]
 
     def _configure_ao(self) -> None:
         self.ao.configure(replace(self.settings.ao, mode=self.ao_mode,

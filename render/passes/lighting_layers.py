@@ -10,7 +10,8 @@ terms touched, the probe's shadow of the sun taken in where it can fall
 of the AO (shaders/probe_share.glsl, per pixel) and the rectangle it all changed.
 
 LayeredLighting is a mixin of LightingPass and uses its state (grid, shadows, ao, lights,
-textures, settings) and its helpers (_sync, _set_probe, _sun, _ambient, _edges, _compose).
+textures, settings) and its helpers (_sync, _set_probe, _sun, _ambient, _edges, _compose,
+_count_still_frames, _baked_probe_light).
 """
 
 from __future__ import annotations
@@ -23,7 +24,6 @@ from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.settings import light_uniforms, ray_epsilon_uniforms
 from sasprobe.render.passes.base import WHOLE, Frame, ProbeLighting
 
-STILL_FRAMES = 3  # --shadows precomputed: frames the probe stands still before its light is baked
 NO_NEIGHBOURS = np.full(MAX_K, -1, dtype=np.int32)
 SHADOW_MARGIN = 0.05  # Å around the probe's shadow capsule
 NO_PROBE_SHARE = {"u_probe_share_ambient": 0}  # shaders/probe_share.glsl
@@ -109,8 +109,8 @@ class LayeredLighting:
         near_probe = union_rect(probe_rect, self._probe_shadow_rect(frame, sun, soft) if probe_sun else None)
         touched = union_rect(touched, near_probe)
         rect = self._dirty_rect("compose", touched, frame, whole=self._molecule_changed)
-        if near_probe is not None and not self._molecule_changed:
-            self._compose(frame, terms, uniforms, layered=True, rect=union_rect(rect, near_probe))
+        if near_probe is not None and not self._molecule_changed:  # rect holds near_probe: touched does
+            self._compose(frame, terms, uniforms, layered=True, rect=rect)
         else:
             if rect is not None:
                 self._compose(frame, terms, {}, rect=rect)
@@ -133,20 +133,6 @@ class LayeredLighting:
             self.layers["shadow_dir"] = sun_out
         if with_ambient:
             self.layers["ao"] = ao_out
-
-    def _count_still_frames(self, probe_key) -> None:
-        self._still_frames = self._still_frames + 1 if probe_key == self._last_probe_key else 0
-        self._last_probe_key = probe_key
-
-    def _baked_probe_light(self, frame: Frame, gbuffer: GBuffer, lamp):
-        """With --shadows precomputed and the probe standing still STILL_FRAMES frames, the
-        probe light's visibility from the atlas (its light is then fixed in the molecule
-        frame, whatever the camera does); else None (traced per pixel)."""
-        if not (self._precomputed(frame) and self._still_frames >= STILL_FRAMES):
-            return None
-        self._configure_ao()
-        reach = frame.reach_rect(lamp.radius) or (0, 0, 0, 0)  # none: no molecule within its range
-        return self.ao.baked(gbuffer, ambient=False, probe_light=lamp, rect=reach)[2]
 
     def _probe_shadow_rect(self, frame: Frame, sun, soft):
         """Pixels the probe's shadow of the sun can fall on: the capsule from the probe away

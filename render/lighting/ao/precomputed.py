@@ -191,19 +191,18 @@ class OcclusionAtlas:
         grid = self.grid
         n = max(int(slots.size), 1)
         texel_words, direction_words = math.ceil(self.patch * self.patch / 32), math.ceil(directions / 32)
-        per_atom = (MAX_NEIGHBOURS + MAX_OVERLAPS) * 16 + texel_words * 4 + (
-            directions * MASK_WORDS * 4 + self.patch * self.patch * direction_words * 4 if ambient else 0)
-        most = max(1, min(CHUNK_SLOTS, MAX_SCRATCH_BYTES // per_atom))  # large patches and many directions: fewer
+        per_atom = {  # bytes of each chunk-sized buffer per atom (the candidates and blocked bits: ambient only)
+            5: MAX_NEIGHBOURS * 16, 6: MAX_OVERLAPS * 16, 7: 4, 18: texel_words * 4,
+            9: directions * MASK_WORDS * 4 if ambient else 0,
+            10: self.patch * self.patch * direction_words * 4 if ambient else 0}
+        most = max(1, min(CHUNK_SLOTS, MAX_SCRATCH_BYTES // sum(per_atom.values())))  # large patches, many directions
         chunk = math.ceil(n / math.ceil(n / most))  # chunks of equal size
         dirs, normals, facing, facing_directions = self._tables_for(directions)
-        lists = chunk * directions if ambient else 1
-        blocked_words = chunk * self.patch * self.patch * direction_words if ambient else 1
         # the facing bits: only the accessibility's steps read them
         tables = {BINDING_FACING_MASKS: facing, BINDING_FACING_DIRECTIONS: facing_directions} if ambient else {}
-        buffers = {binding: self._buffer(binding, nbytes) for binding, nbytes in (
-            (5, chunk * MAX_NEIGHBOURS * 16), (6, chunk * MAX_OVERLAPS * 16), (7, chunk * 4), (8, dirs.nbytes),
-            (9, lists * MASK_WORDS * 4), (10, blocked_words * 4), (11, 4), (12, max(slots.nbytes, 4)),
-            (18, chunk * texel_words * 4))}
+        sizes = {**{binding: chunk * nbytes for binding, nbytes in per_atom.items()},
+                 8: dirs.nbytes, 11: 4, 12: max(slots.nbytes, 4)}
+        buffers = {binding: self._buffer(binding, nbytes) for binding, nbytes in sizes.items()}
         buffers[8].write(dirs.tobytes())
         for binding, table in tables.items():
             buffers[binding] = self._buffer(binding, table.nbytes)
