@@ -5,6 +5,8 @@ lighting options, and the window's keys switch the effects."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import imageio.v3 as iio
 import numpy as np
 import pytest
@@ -34,8 +36,9 @@ from tests.lighting_reference import (
 from sasprobe.render.passes.lighting import LightingPass, install_lighting, lighting_of
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import NavCube, Probe, SceneState
-from sasprobe.render.gl.targets import KIND_BACKBONE
-from sasprobe.render.gl.textures import read_texture
+from sasprobe.render.gl.targets import KIND_BACKBONE, KIND_BACKGROUND, KIND_CAP, KIND_PROBE
+from sasprobe.render.gl.textures import read_texture, texture_2d
+from sasprobe.render.lighting.gbuffer import GBuffer
 from tests.conftest import run_cli, run_window_check
 from tests.lighting_support import away_from_boundaries, probe_on_surface
 
@@ -118,6 +121,48 @@ def test_pipeline_analytic_ao_equals_the_cpu_formula(frame):
     cpu = analytic_ao(g["position"], g["normal"], ids, occluders_of(g, scene), neighbours, 16, probe_list)
     assert np.abs(g["ao"] - cpu).max() <= 1e-4, setup
     assert cpu[ids != -1].min() < 0.6
+
+
+def test_the_depth_test_picks_exactly_the_background(frame):
+    """The drawn passes (render/gl/depth_picked.py: shading, the traced shadows, the layered
+    compose) tell the background from the surfaces by the G-buffer's depth alone: it must be
+    1 exactly where the ids say background, caps, backbone trace and probe included."""
+    setup, scene, renderer, g = frame
+    t = renderer.targets
+    depth = np.frombuffer(t.depth.read(), dtype=np.float32).reshape(SIZE[1], SIZE[0])[::-1]
+    kinds = g["kind"]
+    assert np.array_equal(depth == 1.0, kinds == KIND_BACKGROUND), setup
+    assert (kinds == KIND_BACKGROUND).any() and (kinds == KIND_PROBE).any()
+    if setup == "planes":
+        assert (kinds == KIND_CAP).any()
+    if setup == "cube":
+        assert (kinds == KIND_BACKBONE).any()
+
+
+def test_drawn_shadows_equal_the_compute_pass_to_the_bit(frame):
+    """On the renderer's G-buffer the shadows are drawn over the pixels the depth test picks;
+    shaders/shadows.comp traces every pixel of the same G-buffer (without its depth), whole
+    and over a rectangle."""
+    setup, scene, renderer, g = frame
+    lighting = lighting_of(renderer)
+    drawn = GBuffer.of_targets(renderer.targets)
+    computed = replace(drawn, depth=None)
+    rect = (SIZE[0] // 4, SIZE[1] // 3, SIZE[0] // 2, SIZE[1] // 2)
+    x, y, w, h = rect
+    for light in lighting.lights:
+        whole = [read_texture(lighting.shadows.trace(gb, light)) for gb in (drawn, computed)]
+        assert np.array_equal(whole[0], whole[1]), (setup, light)
+        assert (whole[0] < 0.5).any() and (whole[0] == 1.0).any()
+        parts = []
+        for gb in (drawn, computed):
+            out = texture_2d(renderer.ctx, *SIZE, data=np.full(SIZE[::-1], 0.25, dtype=np.float32).tobytes())
+            parts.append(read_texture(lighting.shadows.trace(gb, light, out=out, rect=rect)))
+            out.release()
+        inside = np.zeros(SIZE[::-1], dtype=bool)
+        inside[y:y + h, x:x + w] = True  # rows from the bottom, as the textures are
+        assert np.array_equal(parts[0][inside], parts[1][inside]), (setup, light)
+        assert np.array_equal(parts[0][inside], whole[0][inside])
+        assert np.all(parts[0][~inside] == 0.25)  # (the compute pass rounds the rectangle up to its work groups)
 
 
 @pytest.mark.parametrize("cache", [True, False], ids=["layered", "whole"])

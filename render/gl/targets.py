@@ -54,6 +54,7 @@ class RenderTargets:
         self.lit.filter = (ctx.LINEAR, ctx.LINEAR)
         self.lit.repeat_x = self.lit.repeat_y = False
         self.gbuffer_fbo = ctx.framebuffer([self.albedo, self.position, self.normal, self.ids], self.depth)
+        self.ids_fbo = ctx.framebuffer([self.ids])  # the clear pass's: ids cannot take a float clear
         self.visibility_fbo = ctx.framebuffer([self.visibility])
         # Forward passes after lighting (the cube wire) test against the G-buffer depth.
         self.lit_fbo = ctx.framebuffer([self.lit], self.depth)
@@ -82,9 +83,10 @@ class RenderTargets:
     def release(self) -> None:
         # moderngl binds the framebuffer it last used again when it makes a new one: leave the
         # default one bound, not one of these about to be deleted (a GL_INVALID_OPERATION).
-        if any(self.ctx.fbo is fbo for fbo in (self.gbuffer_fbo, self.visibility_fbo, self.lit_fbo, self.final_fbo)):
+        fbos = (self.gbuffer_fbo, self.ids_fbo, self.visibility_fbo, self.lit_fbo, self.final_fbo)
+        if any(self.ctx.fbo is fbo for fbo in fbos):
             self.ctx.detect_framebuffer(0).use()
-        for obj in (self.gbuffer_fbo, self.visibility_fbo, self.lit_fbo, self.final_fbo, self.albedo,
+        for obj in (*fbos, self.albedo,
                     self.position, self.normal, self.ids, self.depth, self.visibility, self.lit, self.final):
             obj.release()
 

@@ -29,6 +29,7 @@ class GBuffer:
     normal: object
     ids: object
     owned: bool = True  # False: the renderer's targets (released by it)
+    depth: object = None  # the renderer's depth texture (1 on background pixels), where there is one
 
     @property
     def size(self) -> tuple[int, int]:
@@ -37,7 +38,7 @@ class GBuffer:
     @classmethod
     def of_targets(cls, targets) -> "GBuffer":
         """The renderer's G-buffer (render/gl/targets.py), read in place."""
-        return cls(targets.position, targets.normal, targets.ids, owned=False)
+        return cls(targets.position, targets.normal, targets.ids, owned=False, depth=targets.depth)
 
     @classmethod
     def allocate(cls, ctx, width: int, height: int) -> "GBuffer":

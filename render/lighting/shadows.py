@@ -2,13 +2,20 @@
 light, hard or Parker soft, written as a visibility texture (r32f, 1 = lit) the light
 pass multiplies in. The point light's rays go through its light buffer
 (render/lighting/light_buffer.py), rebuilt when the light moves; the same visibility as the
-grid walk, which `light_buffer=False` keeps (tests, benchmarks)."""
+grid walk, which `light_buffer=False` keeps (tests, benchmarks).
+
+On the renderer's G-buffer, which has a depth buffer, the trace is drawn (shaders/shadows.frag)
+over the surfaces a depth test picks, the rest cleared to 1: llvmpipe skips the blocks of
+pixels a depth test rejects, and would run the trace's code for background pixels of a
+compute pass. Other G-buffers (uploaded, ray cast) and the probe's own pixels are traced by
+shaders/shadows.comp."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from sasprobe.render.gl.compute import ComputeVariants
+from sasprobe.render.gl.depth_picked import DepthPickedPass
 from sasprobe.render.gl.textures import texture_2d
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.light_buffer import CAPACITY, FACE_CELLS, PointLightBuffer
@@ -34,6 +41,7 @@ class ShadowPass:
         self.light_buffer = PointLightBuffer(gpu_grid, face_cells, capacity) if light_buffer else None
         self.sun_buffer = gpu_grid.sun_buffer() if light_buffer else None  # the grid's: shared with the atlas
         self.programs = ComputeVariants(self.ctx, "shadows.comp", gpu_grid)
+        self.drawn = DepthPickedPass(self.ctx, "shadows.frag", gpu_grid)  # the renderer's G-buffer
 
     def trace(self, gbuffer: GBuffer, light: DirectionalLight | PointLight, soft: SoftShadow = HARD_SHADOW,
               out=None, rect=None, only_probe: bool = False):
@@ -61,18 +69,21 @@ class ShadowPass:
             self.sun_buffer.bind()
             buffer_uniforms = self.sun_buffer.uniforms()
         gbuffer.bind()
-        out.bind_to_image(0, read=False, write=True)
-        self.programs.get(("LIGHT_BUFFER", buffered), ("SUN_BUFFER", sun_buffered),
-                          ("NO_CLIPPING", not self.grid.culling.clipping)).run(w, h, {
+        cases = (("LIGHT_BUFFER", buffered), ("SUN_BUFFER", sun_buffered),
+                 ("NO_CLIPPING", not self.grid.culling.clipping))
+        uniforms = {
             **buffer_uniforms,
-            "u_offset": (int(x), int(y)),
-            "u_only_probe": int(only_probe),
             **light_uniforms(None if point else light, light if point else None),
             "u_point_light": int(point),
             **ray_epsilon_uniforms(),
             "u_shell": soft.shell(),
             "u_shell_growth": float(soft.growth),
-        })
+        }
+        if gbuffer.depth is not None and not only_probe:  # 1 on the background, the surfaces traced
+            self.drawn.run(out, gbuffer.depth, (x, y, w, h), [(cases, ">")], uniforms, clear=1.0)
+            return out
+        out.bind_to_image(0, read=False, write=True)
+        self.programs.get(*cases).run(w, h, {**uniforms, "u_offset": (int(x), int(y)), "u_only_probe": int(only_probe)})
         return out
 
     def _origin_slack(self, light: PointLight) -> float:
@@ -82,5 +93,6 @@ class ShadowPass:
 
     def release(self) -> None:
         self.programs.release()
+        self.drawn.release()
         if self.light_buffer is not None:
             self.light_buffer.release()

@@ -18,9 +18,12 @@ class ClearPass(Pass):
         self.vao = ctx.vertex_array(self.prog, [])
 
     def run(self, frame: Frame) -> None:
+        # A clear is a fill of each tile; a full-screen draw runs a shader per pixel, so it
+        # writes only what a clear cannot: the ids' -1.
         t = frame.targets
         t.gbuffer_fbo.use()
-        t.gbuffer_fbo.clear(depth=1.0)
+        t.gbuffer_fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)  # the ids too, drawn over below
+        t.ids_fbo.use()
         frame.ctx.disable(frame.ctx.DEPTH_TEST | frame.ctx.BLEND)
         self.vao.render(frame.ctx.TRIANGLES, vertices=3)
         t.clear_visibility()

@@ -39,6 +39,7 @@ import numpy as np
 
 from sasprobe.render.gl.compute import ComputeVariants
 from sasprobe.render.gl.context import GLUnavailable
+from sasprobe.render.gl.depth_picked import DepthPickedPass
 from sasprobe.render.gl.textures import TextureCache, read_texture
 from sasprobe.render.lighting.ao import AmbientOcclusion
 from sasprobe.render.lighting.edges import EdgeCueingPass
@@ -89,7 +90,7 @@ class LightingPass(LayeredLighting, Pass):
         self.ao_mode = settings.ao.mode if settings.ao.mode != "off" else "analytic"
         self.scene_grid = None  # the SceneState grid self.grid was uploaded from
         self.grid: GpuGrid | None = None
-        self.shadows = self.ao = self.tracer = self.compose = None
+        self.shadows = self.ao = self.tracer = self.compose = self.compose_drawn = None
         self.edges = EdgeCueingPass(ctx)
         self._culling_key: bytes | None = None
         self._probe_key: bytes | None = None
@@ -131,6 +132,7 @@ class LightingPass(LayeredLighting, Pass):
             self.ao = AmbientOcclusion(self.grid, self.settings.ao)
             self.tracer = PathTracer.for_structure(self.grid, scene.structure)
             self.compose = ComputeVariants(self.ctx, "visibility_compose.comp", self.grid)
+            self.compose_drawn = DepthPickedPass(self.ctx, "visibility_compose.frag", self.grid)
             self._culling_key = self._probe_key = self._color_version = None
         if frame.buffers.color_version != self._color_version:  # a colour scheme: the path tracer's albedos
             if frame.buffers.color_version:
@@ -227,15 +229,21 @@ class LightingPass(LayeredLighting, Pass):
 
     def _compose(self, frame: Frame, terms: dict, uniforms: dict, layered: bool = False, export: bool = False,
                  rect=None) -> None:
-        """The visibility buffer from the terms (shaders/visibility_compose.comp, the whole
+        """The visibility buffer from the terms (shaders/visibility_terms.glsl, the whole
         frame's program unless `layered`, with `export` the export's), over `rect` or the
-        whole frame."""
+        whole frame. A layered compose is drawn, the background with the whole frame's
+        program (render/gl/depth_picked.py); the others are a compute pass."""
         ones = self.textures.get("ones", frame.size, fill=1.0)
         for unit, name in ((3, "shadow_dir"), (5, "ao"), (6, "edges"), (7, "probe_pixels_sun")):
             terms.get(name, ones).use(location=unit)
-        GBuffer.of_targets(frame.targets).bind()
-        frame.targets.visibility.bind_to_image(0, read=False, write=True)
+        t = frame.targets
+        GBuffer.of_targets(t).bind()
         x, y, w, h = rect if rect is not None else (0, 0, *frame.size)
+        if layered and not export:
+            self.compose_drawn.run(t.visibility, t.depth, (x, y, w, h),
+                                   [((("LAYERED", False),), "=="), ((("LAYERED", True),), ">")], uniforms)
+            return
+        t.visibility.bind_to_image(0, read=False, write=True)
         self.compose.get(("LAYERED", layered), ("EXPORT", export)).run(w, h, {**uniforms, "u_offset": (int(x), int(y))})
 
     # ------------------------------------------------------------ whole frames
@@ -296,7 +304,7 @@ class LightingPass(LayeredLighting, Pass):
         return out
 
     def _release_structure(self) -> None:
-        for thing in (self.shadows, self.ao, self.tracer, self.compose, self.grid):
+        for thing in (self.shadows, self.ao, self.tracer, self.compose, self.compose_drawn, self.grid):
             if thing is not None:
                 thing.release()
 

@@ -6,11 +6,17 @@ With the frame cache the shaded picture is kept (before the cube wire and the cu
 drawn over a copy of it), and a frame in which only the probe moved shades again only
 the rectangle the probe changes, now and last frame: beyond its light's range nothing of
 the probe reaches the picture (its light and its share of the AO are windowed to 0 there),
-and the lighting says where its shadow and edges fell."""
+and the lighting says where its shadow and edges fell.
+
+The surfaces and the background are two draws, each picked by a depth test against the
+G-buffer before its fragment shader runs (shaders/fullscreen.vert AT_FAR_PLANE): the
+background's shader reads one texel, the surfaces' six, and on llvmpipe a pixel would
+pay for both branches of one shader."""
 
 from __future__ import annotations
 
 from sasprobe.render.frame_cache import Rect, full_rect, sphere_rect, union_rect
+from sasprobe.render.gl.depth_picked import DepthTestedTarget
 from sasprobe.render.gl.targets import KeptPicture
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.settings import ShadingSettings
@@ -29,12 +35,18 @@ class ShadingPass(Pass):
         self.programs = programs
         self._vaos: dict[tuple[str, ...], object] = {}
         self._kept = KeptPicture(ctx)  # the shaded picture kept across frames (frame cache)
+        self._depth_tested = DepthTestedTarget(ctx)  # the target with the G-buffer's depth
         self._reached: Rect | None = None  # what the probe changed in the last frame
         self.shaded: Rect | None = None  # the rectangle the last frame shaded (None: nothing)
 
-    def _vao(self, lit: ProbeLighting):
-        """The program for what the lighting hands over (shaders/shading.frag's variants)."""
-        defines = (("PROBE_SHADOWED",) if lit.visibility is not None else ()) + (("PROBE_SHARE",) if lit.share else ())
+    def _vao(self, lit: ProbeLighting | None):
+        """The surfaces' program for what the lighting hands over (shaders/shading.frag's
+        variants), or with None the background's."""
+        if lit is None:
+            defines = ("AT_FAR_PLANE", "BACKGROUND_ONLY")
+        else:
+            defines = ("AT_FAR_PLANE",) + (("PROBE_SHADOWED",) if lit.visibility is not None else ()) \
+                + (("PROBE_SHARE",) if lit.share else ())
         if defines not in self._vaos:
             prog = self.programs.get("fullscreen.vert", "shading.frag", defines=defines)
             for unit, name in enumerate(TEXTURES):
@@ -51,7 +63,8 @@ class ShadingPass(Pass):
             if tex is not None:
                 tex.use(unit)
         probe = scene.probe
-        vao = self._vao(lit)
+        vao, background = self._vao(lit), self._vao(None)
+        apply_uniforms(background.program, {"u_background": s.background})
         apply_uniforms(vao.program, {
             **lit.share,
             "u_eye": tuple(float(v) for v in frame.camera.eye),
@@ -80,12 +93,13 @@ class ShadingPass(Pass):
                 self.shaded = full_rect(frame.size)
             frame.lit_changed = self.shaded  # what FXAA redoes (the cube wire is the same on a cached frame)
         if self.shaded is not None:
-            target.use()
-            target.scissor = self.shaded
-            # No depth test, so no depth write: the cube wire later tests against the G-buffer depth.
-            ctx.disable(ctx.DEPTH_TEST | ctx.BLEND)
-            vao.render(ctx.TRIANGLES, vertices=3)
-            target.scissor = None
+            # The depth is tested, not written: the cube wire later tests against it.
+            tested = self._depth_tested.framebuffer(target.color_attachments[0], t.depth)
+            tested.use()
+            tested.scissor = self.shaded
+            self._depth_tested.draw(background, "==")
+            self._depth_tested.draw(vao, ">")
+            tested.scissor = None
         if target is not t.lit_fbo:
             ctx.copy_framebuffer(t.lit_fbo, target)  # the later passes draw over a copy
 
@@ -114,4 +128,5 @@ class ShadingPass(Pass):
         for vao in self._vaos.values():
             vao.release()
         self._vaos.clear()
+        self._depth_tested.release()
         self._kept.release()

@@ -10,6 +10,7 @@
 //   probe's share of the ambient occlusion is added here (probe_share.glsl). Each is its
 //   own program: llvmpipe runs every instruction of a shader, branches taken or not.
 // The probe light reaches u_probe_range Å: its attenuation is windowed to 0 there.
+// BACKGROUND_ONLY: the program for background pixels (the pass picks them by depth).
 #include "constants.glsl"
 #ifdef PROBE_SHARE
 #include "probe_share.glsl"
@@ -52,12 +53,11 @@ vec3 phong(vec3 albedo, vec3 n, vec3 v, vec3 l) {
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-    ivec2 ids = texelFetch(u_ids, px, 0).xy;
     vec4 vis = texelFetch(u_visibility, px, 0);
-    if (ids.y == KIND_BACKGROUND) {
-        o_color = vec4(u_background * vis.a, 1.0);
-        return;
-    }
+#ifdef BACKGROUND_ONLY
+    o_color = vec4(u_background * vis.a, 1.0);
+#else
+    ivec2 ids = texelFetch(u_ids, px, 0).xy;
     vec3 albedo = texelFetch(u_albedo, px, 0).rgb;
     vec3 p = texelFetch(u_position, px, 0).xyz;
     vec3 n = normalize(texelFetch(u_normal, px, 0).xyz);
@@ -89,4 +89,5 @@ void main() {
         color += shadow * u_probe_intensity * atten * phong(albedo, n, v, to_probe / max(dist, 1e-6));
     }
     o_color = vec4(min(color, vec3(1.0)) * vis.a, 1.0);
+#endif
 }
