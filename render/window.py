@@ -25,7 +25,8 @@ from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE
 from sasprobe.render.gl.textures import read_image
 from sasprobe.render.lighting.presets import PRESET_NAMES, PRESETS
-from sasprobe.render.passes.lighting import apply_preset, lighting_of, lighting_status
+from sasprobe.render.passes.lighting import lighting_of
+from sasprobe.render.passes.lighting_controls import apply_preset, lighting_status
 from sasprobe.render.passes.overlay import TextOverlay
 from sasprobe.render.picking import label_position, pixel_under, point_under
 from sasprobe.render.scene import Effects

@@ -38,6 +38,7 @@ from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import NavCube, Probe, SceneState
 from sasprobe.render.gl.targets import KIND_BACKBONE, KIND_BACKGROUND, KIND_CAP, KIND_PROBE
 from sasprobe.render.gl.textures import read_texture, texture_2d
+from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
 from sasprobe.render.lighting.gbuffer import GBuffer
 from tests.conftest import run_cli, run_window_check
 from tests.lighting_support import away_from_boundaries, probe_on_surface
@@ -139,10 +140,11 @@ def test_the_depth_test_picks_exactly_the_background(frame):
         assert (kinds == KIND_BACKBONE).any()
 
 
-def test_drawn_shadows_equal_the_compute_pass_to_the_bit(frame):
-    """On the renderer's G-buffer the shadows are drawn over the pixels the depth test picks;
-    shaders/shadows.comp traces every pixel of the same G-buffer (without its depth), whole
-    and over a rectangle."""
+def test_drawn_passes_equal_their_compute_passes_to_the_bit(frame):
+    """On the renderer's G-buffer the shadows, the analytic AO and the atlas lookup are drawn
+    over the pixels the depth test picks; their compute programs run every pixel of the same
+    G-buffer (without its depth): the shadows whole and over a rectangle, the AO with the
+    probe, the atlas's accessibility and both lights' channels with the probe's share."""
     setup, scene, renderer, g = frame
     lighting = lighting_of(renderer)
     drawn = GBuffer.of_targets(renderer.targets)
@@ -163,6 +165,19 @@ def test_drawn_shadows_equal_the_compute_pass_to_the_bit(frame):
         assert np.array_equal(parts[0][inside], parts[1][inside]), (setup, light)
         assert np.array_equal(parts[0][inside], whole[0][inside])
         assert np.all(parts[0][~inside] == 0.25)  # (the compute pass rounds the rectangle up to its work groups)
+    analytic = lighting.ao._pass("analytic")
+    ao = [read_texture(analytic.compute(gb, 16, out=texture_2d(renderer.ctx, *SIZE))) for gb in (drawn, computed)]
+    assert np.array_equal(ao[0], ao[1]) and (ao[0] < 0.6).any()
+    atlas = OcclusionAtlas(lighting.grid)
+    sun, lamp = lighting.lights
+    try:
+        atlas.update(8, 32, 8.0, True, sun.unit(), lamp)
+        looked = [[read_texture(t) for t in atlas.lookup(gb, True, sun.unit(), lamp)] for gb in (drawn, computed)]
+    finally:
+        atlas.release()
+    for one, other in zip(*looked):
+        assert np.array_equal(one, other), setup
+        assert (one < 0.5).any() and (one == 1.0).any()
 
 
 @pytest.mark.parametrize("cache", [True, False], ids=["layered", "whole"])

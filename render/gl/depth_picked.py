@@ -24,10 +24,11 @@ class DepthTestedTarget:
         self.fbo = None
 
     def framebuffer(self, colour, depth):
-        key = (colour.glo, depth.glo)
+        """`colour` None: no colour attachment (a shader that writes images)."""
+        key = (None if colour is None else colour.glo, depth.glo)
         if key != self.key:
             self.release()
-            self.fbo = self.ctx.framebuffer([colour], depth)
+            self.fbo = self.ctx.framebuffer([] if colour is None else [colour], depth)
             self.fbo.depth_mask = False
             self.key = key
         return self.fbo
@@ -72,7 +73,9 @@ class DepthPickedPass:
 
     def run(self, colour, depth, rect, picks, uniforms: dict, clear: float | None = None) -> None:
         """Into `colour` over `rect` (x, y, w, h): cleared to `clear` if given, then each of
-        `picks`, (cases, depth func), drawn in turn."""
+        `picks`, (cases, depth func), drawn in turn. With `colour` None the shader writes
+        images (its depth test declared early, or rejected pixels would write too), made
+        visible to what reads them next."""
         if self.grid is not None:
             self.grid.bind()
             uniforms = {**self.grid.uniforms(), **uniforms}
@@ -87,6 +90,8 @@ class DepthPickedPass:
             apply_uniforms(vao.program, uniforms)
             self.target.draw(vao, depth_func)
         fbo.scissor = None
+        if colour is None:
+            self.ctx.memory_barrier()
 
     def release(self) -> None:
         for vao in self._vaos.values():

@@ -104,7 +104,7 @@ class LightingPass(LayeredLighting, Pass):
         self._probe_neighbours = (None, NO_NEIGHBOURS)  # layered: (probe key, atoms nearest the probe)
         self._last_probe_key: bytes | None = None
         self._composed = None  # layered: the last compose's inputs, run again for the G-buffer export
-        self._looked_up = (-1, None)  # (frame index, accessibility) the atlas gave with the sun's visibility
+        self._looked_up = (-1, None, None)  # (frame index, accessibility, probe light) given with the sun's
         self._still_frames = 0  # frames the probe has stood still
         self._molecule_changed = True  # layered: the molecule's terms changed this frame (compose them whole)
         self._warned_shell = False
@@ -186,8 +186,10 @@ class LightingPass(LayeredLighting, Pass):
         if self._precomputed(frame):
             self._configure_ao()
             both = frame.scene.effects.ambient_occlusion and self.ao_mode == "precomputed"
-            ambient, visibility, _ = self.ao.baked(gbuffer, ambient=both, sun_direction=sun.unit())
-            self._looked_up = (frame.index, ambient if both else None)  # one lookup gives both terms
+            # A whole frame whose probe light comes from the atlas too looks all three up at once.
+            lamp = self.lights[1] if frame.cache is None and self._probe_light_baked(frame) else None
+            ambient, visibility, lit = self.ao.baked(gbuffer, ambient=both, sun_direction=sun.unit(), probe_light=lamp)
+            self._looked_up = (frame.index, ambient if both else None, lit if lamp is not None else None)
             return visibility
         return self.shadows.trace(gbuffer, sun, self._soft(frame), out=self.textures.get(name, frame.size))
 
@@ -203,11 +205,17 @@ class LightingPass(LayeredLighting, Pass):
         """With --shadows precomputed and the probe standing still STILL_FRAMES frames, the
         probe light's visibility from the atlas (its light is then fixed in the molecule
         frame, whatever the camera does); else None (traced per pixel)."""
-        if not (self._precomputed(frame) and self._still_frames >= STILL_FRAMES):
+        if not self._probe_light_baked(frame):
             return None
+        if self._looked_up[0] == frame.index and self._looked_up[2] is not None:
+            return self._looked_up[2]
         self._configure_ao()
         reach = frame.reach_rect(lamp.radius) or (0, 0, 0, 0)  # none: no molecule within its range
         return self.ao.baked(gbuffer, ambient=False, probe_light=lamp, rect=reach)[2]
+
+    def _probe_light_baked(self, frame: Frame) -> bool:
+        """Whether the probe light's shadows come from the atlas this frame (_baked_probe_light)."""
+        return self._precomputed(frame) and self._still_frames >= STILL_FRAMES and frame.scene.effects.shadows
 
     def _configure_ao(self) -> None:
         self.ao.configure(replace(self.settings.ao, mode=self.ao_mode,
@@ -231,18 +239,17 @@ class LightingPass(LayeredLighting, Pass):
                  rect=None) -> None:
         """The visibility buffer from the terms (shaders/visibility_terms.glsl, the whole
         frame's program unless `layered`, with `export` the export's), over `rect` or the
-        whole frame. A layered compose is drawn, the background with the whole frame's
-        program (render/gl/depth_picked.py); the others are a compute pass."""
+        whole frame, drawn (render/gl/depth_picked.py) but for the export."""
         ones = self.textures.get("ones", frame.size, fill=1.0)
         for unit, name in ((3, "shadow_dir"), (5, "ao"), (6, "edges"), (7, "probe_pixels_sun")):
             terms.get(name, ones).use(location=unit)
         t = frame.targets
         GBuffer.of_targets(t).bind()
         x, y, w, h = rect if rect is not None else (0, 0, *frame.size)
-        if layered and not export:
-            self.compose_drawn.run(t.visibility, t.depth, (x, y, w, h),
-                                   [((("LAYERED", False),), "=="), ((("LAYERED", True),), ">")], uniforms)
-            return
+        if not export:  # drawn (faster than a compute pass on llvmpipe); layered: on the surfaces only
+            picks = [((("LAYERED", False),), "=="), ((("LAYERED", True),), ">")] if layered \
+                else [((("LAYERED", False),), "1")]
+            return self.compose_drawn.run(t.visibility, t.depth, (x, y, w, h), picks, uniforms)
         t.visibility.bind_to_image(0, read=False, write=True)
         self.compose.get(("LAYERED", layered), ("EXPORT", export)).run(w, h, {**uniforms, "u_offset": (int(x), int(y))})
 
@@ -364,39 +371,3 @@ def install_lighting(renderer, settings: LightingSettings, required: bool = True
 
 def lighting_of(renderer) -> LightingPass | None:
     return next((p for p in renderer.passes if isinstance(p, LightingPass)), None)
-
-
-def lighting_status(renderer) -> str:
-    """One line for the window's readout: which lighting effects are on, and how far the
-    progressive ones have got."""
-    lighting = lighting_of(renderer)
-    fx = renderer.scene.effects
-    parts = []
-    if fx.shadows:
-        parts.append("soft shadows" if fx.soft_shadows else "hard shadows")
-    if fx.ambient_occlusion:
-        progressive = lighting.ao_mode in ("rt", "hybrid", "reference") and lighting.ao is not None
-        parts.append(f"AO {lighting.ao_mode}" + (f" {lighting.ao.samples} spp" if progressive else ""))
-    if fx.edge_cueing:
-        parts.append("edges")
-    if fx.path_tracing and lighting.tracer is not None:
-        parts.append(f"path tracing {lighting.tracer.samples} spp")
-    return "lighting: " + (", ".join(parts) if parts else "off")
-
-
-def apply_preset(renderer, preset, background=None) -> None:
-    """Switch a running renderer to a lighting preset (render/lighting/presets.py): its light
-    intensities and background (`background` overrides it) and which effects are on."""
-    shading = renderer.pass_named("shading").settings
-    for key, value in vars(preset.shading(shading)).items():  # in place: the lighting pass shares it
-        setattr(shading, key, value)
-    if background is not None:
-        shading.background = tuple(background)
-    lighting = lighting_of(renderer)
-    if lighting is None:
-        return
-    lighting.settings = replace(preset.lighting, samples=lighting.settings.samples)
-    if preset.lighting.ao.mode != "off":
-        lighting.ao_mode = preset.lighting.ao.mode
-    for key, value in preset.lighting.effects().items():
-        setattr(renderer.scene.effects, key, value)

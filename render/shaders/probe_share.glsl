@@ -1,7 +1,7 @@
 // The probe's share of an atom pixel's ambient occlusion on a layered frame (the frame
 // cache, render/passes/lighting_layers.py): the molecule's accessibility is kept without
 // the probe and multiplied here by 1 - the analytic occlusion of the one probe sphere,
-// windowed at its reach (probe_occlusion), as ao_analytic.comp multiplies it in on whole
+// windowed at its reach (probe_occlusion), as ao_analytic.glsl multiplies it in on whole
 // frames. The shading pass applies it (it reaches every pixel within the probe light's
 // range, where the shading runs anyway); visibility_compose.comp too, for the export.
 // (The probe's shadow of the sun, a hard edge, is taken in by visibility_compose.comp,

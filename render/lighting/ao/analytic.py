@@ -1,17 +1,20 @@
 """Analytic sphere ambient occlusion (Quilez) from each atom's K nearest neighbours plus the
-probe (shaders/ao_analytic.comp). The neighbour lists (32 per atom, nearest first) are
+probe (shaders/ao_analytic.glsl). The neighbour lists (32 per atom, nearest first) are
 computed once per molecule on the CPU through the grid and uploaded; K ≤ 32 is chosen per
-frame. Cost per pixel is K sphere terms, independent of the molecule's size."""
+frame. Cost per pixel is K sphere terms, independent of the molecule's size. On the
+renderer's G-buffer it is drawn on the surfaces alone (render/gl/depth_picked.py); other
+G-buffers are a compute pass."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.depth_picked import DepthPickedPass
 from sasprobe.render.gl.textures import texture_2d
 from sasprobe.render.lighting.gbuffer import GBuffer
 
-MAX_K = 32  # matches ao_analytic.comp
+MAX_K = 32  # matches ao_analytic.glsl
 BINDING_NEIGHBOURS = 4
 
 
@@ -34,6 +37,7 @@ class AnalyticAO(ComputePass):
         self.neighbours = neighbours  # (N, 32) int64, -1 padded
         self.buffer = self.ctx.buffer(neighbours.astype(np.int32).tobytes())
         self.probe_neighbours = np.full(MAX_K, -1, dtype=np.int64)
+        self.drawn = DepthPickedPass(self.ctx, "ao_analytic.frag", gpu_grid)
 
     def update_probe(self) -> None:
         """Refresh the probe's neighbour list after the probe moved (GpuGrid.set_probe)."""
@@ -49,10 +53,15 @@ class AnalyticAO(ComputePass):
         out = out or texture_2d(self.ctx, width, height)
         gbuffer.bind()
         self.buffer.bind_to_storage_buffer(BINDING_NEIGHBOURS)
+        uniforms = {"u_k": int(k), "u_probe_neighbours": self.probe_neighbours.astype(np.int32).tobytes()}
+        if gbuffer.depth is not None:
+            self.drawn.run(out, gbuffer.depth, (0, 0, width, height), [((), ">")], uniforms, clear=1.0)
+            return out
         out.bind_to_image(0, read=False, write=True)
-        self.run(width, height, {"u_k": int(k), "u_probe_neighbours": self.probe_neighbours.astype(np.int32).tobytes()})
+        self.run(width, height, uniforms)
         return out
 
     def release(self) -> None:
         super().release()
+        self.drawn.release()
         self.buffer.release()

@@ -38,6 +38,7 @@ import time
 import numpy as np
 
 from sasprobe.render.gl.compute import ComputePass, ComputeVariants
+from sasprobe.render.gl.depth_picked import DepthPickedPass
 from sasprobe.render.lighting.ao.atlas_tables import clustered, facing_masks, fibonacci_directions, texel_normals
 from sasprobe.render.gl.textures import TextureCache
 from sasprobe.render.gl.uniforms import apply_uniforms
@@ -105,6 +106,7 @@ class OcclusionAtlas:
         self.fill = ComputePass(self.ctx, "atlas_fill.comp")
         self._variants = {shader: ComputeVariants(self.ctx, shader, gpu_grid)  # per case: _variant
                           for shader in ("atlas_rays.comp", "atlas_bake.comp", "atlas_lookup.comp")}
+        self._drawn_lookup = DepthPickedPass(self.ctx, "atlas_lookup.frag", gpu_grid)  # the renderer's G-buffer
         self.textures = TextureCache(self.ctx)
         self.texture = None  # rgba16f: r accessibility, g directional light, b probe light
         self.atom_slots = None  # int32 buffer: the patch of each atom (-1: culled, none)
@@ -317,14 +319,20 @@ class OcclusionAtlas:
         ambient.bind_to_image(0, read=False, write=True)
         sun.bind_to_image(1, read=False, write=True)
         lamp.bind_to_image(2, read=False, write=True)
-        self._variant("atlas_lookup.comp", (
-            ("WITH_PROBE", self.grid.probe_sphere[3] > 0), ("WRITE_AMBIENT", want_ambient),
-            ("WRITE_SUN", sun_direction is not None), ("WRITE_PROBE", probe_light is not None),
-        )).run(w, h, {
-            "u_offset": (int(x), int(y)), **ray_epsilon_uniforms(), **light_uniforms(None, probe_light),
+        writes = (("WRITE_AMBIENT", want_ambient), ("WRITE_SUN", sun_direction is not None),
+                  ("WRITE_PROBE", probe_light is not None))
+        cases = (("WITH_PROBE", self.grid.probe_sphere[3] > 0), *writes)
+        uniforms = {
+            **ray_epsilon_uniforms(), **light_uniforms(None, probe_light),
             "u_sun_dir": tuple(float(v) for v in (sun_direction if sun_direction is not None else (0.0, 0.0, 1.0))),
             "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_atlas_size": tuple(float(v) for v in self.texture.size),
-        })
+        }
+        if gbuffer.depth is not None:  # the renderer's: the surfaces look up, the background is 1
+            clipping = ("NO_CLIPPING", not self.grid.culling.clipping)
+            picks = [((("BACKGROUND_ONLY", True), *writes), "=="), ((*cases, clipping), ">")]
+            self._drawn_lookup.run(None, gbuffer.depth, (x, y, w, h), picks, uniforms)
+        else:
+            self._variant("atlas_lookup.comp", cases).run(w, h, {**uniforms, "u_offset": (int(x), int(y))})
         return ambient, sun, lamp
 
     def read(self) -> np.ndarray:
@@ -346,5 +354,5 @@ class OcclusionAtlas:
         self.textures.release()
         for buffer in self._scratch.values():
             buffer.release()
-        for p in (self.gather, self.candidates, self.fill, *self._variants.values()):
+        for p in (self.gather, self.candidates, self.fill, self._drawn_lookup, *self._variants.values()):
             p.release()
