@@ -210,3 +210,25 @@ def test_fxaa_reads_no_further_than_its_reach(gl):
         gl.detect_framebuffer(0).use()  # not a framebuffer about to be deleted (see RenderTargets.release)
         for obj in (lit_fbo, out_fbo, lit, out):
             obj.release()
+
+
+def test_a_depth_tested_target_follows_its_textures(gl):
+    """DepthTestedTarget keeps a framebuffer per (colour, depth) pair: the same textures
+    give the same one, and a texture made after another's release (which may get its GL
+    name) gets a framebuffer of its own that draws into it, tests against the depth and
+    does not write it."""
+    from sasprobe.render.gl.depth_picked import DepthTestedTarget
+
+    target = DepthTestedTarget(gl)
+    depth = gl.depth_texture((8, 4))
+    first = gl.texture((8, 4), 4, dtype="f1")
+    fbo = target.framebuffer(first, depth)
+    assert target.framebuffer(first, depth) is fbo
+    first.release()
+    second = gl.texture((8, 4), 4, dtype="f1")
+    other = target.framebuffer(second, depth)
+    assert other is not fbo and other.color_attachments[0] is second and other.depth_attachment is depth
+    assert other.depth_mask is False
+    target.release()
+    second.release()
+    depth.release()
