@@ -1,7 +1,8 @@
 #version 430 core
 // The visibility buffer from the lighting terms over a rectangle (visibility_terms.glsl;
-// u_offset: its first pixel). EXPORT (with LAYERED) also writes the sun and ambient terms
-// with the probe's share added (r32f), for the G-buffer export only.
+// u_offset: its first pixel), for the G-buffer export: EXPORT (with LAYERED) also writes
+// the sun and ambient terms with the probe's share added (r32f). The frames themselves
+// are composed by visibility_compose.frag.
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #include "visibility_terms.glsl"

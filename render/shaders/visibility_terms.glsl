@@ -13,9 +13,10 @@
 // of the molecule's visibility and the probe sphere's along the same ray (as the whole
 // frame's trace takes it); the shading pass adds the probe's share of the AO
 // (probe_share.glsl).
-// The value for one pixel is composed_visibility (visibility_compose.comp over a rectangle,
-// visibility_compose.frag over the pixels a depth test picks: on a layered frame the
-// background takes the plain program, the surfaces the layered one).
+// The value for one pixel is composed_visibility: drawn by visibility_compose.frag (on a
+// layered frame the background takes the plain program and the surfaces the layered one,
+// picked by a depth test; on a whole frame the plain one takes every pixel), computed by
+// visibility_compose.comp for the export.
 
 #include "grid_traversal.glsl"
 #include "gbuffer_input.glsl"
