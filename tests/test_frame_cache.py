@@ -16,7 +16,7 @@ from sasprobe.render.camera import Camera
 from sasprobe.render.frame_cache import atoms_rect, sphere_rect, state_key, union_rect
 from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.gl.targets import KIND_PROBE
-from sasprobe.render.gl.textures import read_image
+from sasprobe.render.gl.textures import read_image, release_framebuffers
 from sasprobe.render.lighting.settings import AOSettings, LightingSettings, ShadingSettings
 from sasprobe.render.passes.fxaa import FxaaPass
 from sasprobe.render.passes.lighting import install_lighting, lighting_of
@@ -163,8 +163,7 @@ def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(gl, sha
         assert renderer.cache.hits == len(redone) - 1 and redone[0] == 1.0 and max(redone[1:]) < 0.75, redone
     finally:
         whole.release()
-        gl.detect_framebuffer(0).use()  # not a framebuffer about to be deleted (see RenderTargets.release)
-        out.release()
+        release_framebuffers(gl, out)
         picture.release()
         renderer.release()
 

@@ -13,6 +13,7 @@ from sasprobe.render.passes.probe import PROBE_COLOR
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene import Probe, SceneState
 from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE
+from sasprobe.render.gl.textures import release_framebuffers
 from tests.render_support import edge_mask
 
 SIZE = (160, 120)
@@ -207,9 +208,9 @@ def test_fxaa_reads_no_further_than_its_reach(gl):
     finally:
         fxaa.release()
         programs.release()
-        gl.detect_framebuffer(0).use()  # not a framebuffer about to be deleted (see RenderTargets.release)
-        for obj in (lit_fbo, out_fbo, lit, out):
-            obj.release()
+        release_framebuffers(gl, lit_fbo, out_fbo)
+        lit.release()
+        out.release()
 
 
 def test_a_depth_tested_target_follows_its_textures(gl):

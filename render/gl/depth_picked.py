@@ -13,6 +13,7 @@ fragment pass also runs faster than the same compute pass there (a whole frame's
 from __future__ import annotations
 
 from sasprobe.render.gl.programs import program
+from sasprobe.render.gl.textures import release_framebuffers
 from sasprobe.render.gl.uniforms import apply_uniforms
 
 
@@ -40,7 +41,7 @@ class DepthTestedTarget:
         fbo.depth_mask = False
         self._kept.append((colour, depth, fbo))
         if len(self._kept) > self.KEPT:
-            self._release(self._kept.pop(0)[2])
+            release_framebuffers(self.ctx, self._kept.pop(0)[2])
         return fbo
 
     def draw(self, vao, depth_func: str) -> None:
@@ -54,14 +55,8 @@ class DepthTestedTarget:
         finally:
             ctx.depth_func = "<"
 
-    def _release(self, fbo) -> None:
-        if self.ctx.fbo is fbo:  # not the bound one (see RenderTargets.release)
-            self.ctx.detect_framebuffer(0).use()
-        fbo.release()
-
     def release(self) -> None:
-        for _, _, fbo in self._kept:
-            self._release(fbo)
+        release_framebuffers(self.ctx, *(fbo for _, _, fbo in self._kept))
         self._kept.clear()
 
 

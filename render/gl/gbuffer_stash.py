@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import RenderTargets
+from sasprobe.render.gl.textures import release_framebuffers
 
 LAYERS = ("albedo", "position", "normal", "ids", "depth")
 
@@ -56,7 +57,6 @@ class GBufferStash:
             ctx.depth_func = "<"
 
     def release(self) -> None:
-        if self.ctx.fbo is self.fbo:
-            self.ctx.detect_framebuffer(0).use()
-        for obj in (self.vao, self.fbo, self.albedo, self.position, self.normal, self.ids, self.depth):
+        release_framebuffers(self.ctx, self.fbo)
+        for obj in (self.vao, self.albedo, self.position, self.normal, self.ids, self.depth):
             obj.release()

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.render.gl.textures import read_texture
+from sasprobe.render.gl.textures import read_texture, release_framebuffers
 
 ATOM_BACKGROUND = -1  # atom id of background pixels
 ATOM_PROBE = -2  # atom id of the probe sphere's pixels
@@ -81,14 +81,11 @@ class RenderTargets:
         return read_texture(texture, top_first=True)
 
     def release(self) -> None:
-        # moderngl binds the framebuffer it last used again when it makes a new one: leave the
-        # default one bound, not one of these about to be deleted (a GL_INVALID_OPERATION).
-        fbos = (self.gbuffer_fbo, self.ids_fbo, self.visibility_fbo, self.lit_fbo, self.final_fbo)
-        if any(self.ctx.fbo is fbo for fbo in fbos):
-            self.ctx.detect_framebuffer(0).use()
-        for obj in (*fbos, self.albedo,
-                    self.position, self.normal, self.ids, self.depth, self.visibility, self.lit, self.final):
-            obj.release()
+        release_framebuffers(self.ctx, self.gbuffer_fbo, self.ids_fbo, self.visibility_fbo, self.lit_fbo,
+                             self.final_fbo)
+        for tex in (self.albedo, self.position, self.normal, self.ids, self.depth, self.visibility, self.lit,
+                    self.final):
+            tex.release()
 
 
 class KeptPicture:
@@ -112,8 +109,6 @@ class KeptPicture:
 
     def release(self) -> None:
         if self.fbo is not None:
-            if self.ctx.fbo is self.fbo:  # not the bound one (see RenderTargets.release)
-                self.ctx.detect_framebuffer(0).use()
-            self.fbo.release()
+            release_framebuffers(self.ctx, self.fbo)
             self.texture.release()
             self.texture = self.fbo = None

@@ -1,4 +1,5 @@
-"""Textures made for compute passes, reused per size, and the one way pixels come back to numpy.
+"""Textures made for compute passes, reused per size, the one way pixels come back to numpy,
+and the one way framebuffers are released.
 
 GL keeps row 0 at the bottom of an image; `read_texture(..., top_first=True)` and
 `read_image` return row 0 = the top row, as images and the G-buffer export are stored.
@@ -7,6 +8,16 @@ GL keeps row 0 at the bottom of an image; `read_texture(..., top_first=True)` an
 from __future__ import annotations
 
 import numpy as np
+
+
+def release_framebuffers(ctx, *fbos) -> None:
+    """Release framebuffers, leaving the default one bound if one of them is: moderngl
+    binds the framebuffer it last used again when it makes a new one, and binding a deleted
+    one is a GL_INVALID_OPERATION."""
+    if any(ctx.fbo is fbo for fbo in fbos):
+        ctx.detect_framebuffer(0).use()
+    for fbo in fbos:
+        fbo.release()
 
 
 def texture_2d(ctx, width: int, height: int, components: int = 1, dtype: str = "f4", data: bytes | None = None):
@@ -45,10 +56,9 @@ class TextureCache:
         return self._textures[key]
 
     def release(self) -> None:
-        if any(self.ctx.fbo is fbo for fbo in self._framebuffers.values()):
-            self.ctx.detect_framebuffer(0).use()
-        for obj in (*self._framebuffers.values(), *self._textures.values()):
-            obj.release()
+        release_framebuffers(self.ctx, *self._framebuffers.values())
+        for tex in self._textures.values():
+            tex.release()
         self._framebuffers.clear()
         self._textures.clear()
 
