@@ -16,10 +16,12 @@ layout(local_size_x = 64) in;
 #include "atlas_ray_buffers.glsl"
 #include "atlas_common.glsl"
 
-// Four texels' rays, one per component: origins relative to the atom's centre, the kept
-// part [t0, t1] of each, whether it counts at all (a texel was taken, not culled whole), and
-// whether a candidate has blocked it.
-struct Quad { vec4 x, y, z, t0, t1, keep, blocked; };
+// Four texels' rays, one per component: origins relative to the atom's centre (x, y, z,
+// until block_ready splits them), the kept part [t0, t1] of each, whether it counts at all
+// (a texel was taken, not culled whole), and whether a candidate has blocked it. For the
+// candidates' tests each origin is held as its part across the direction (x, y, z) and its
+// distance along it (along).
+struct Quad { vec4 x, y, z, along, t0, t1, keep, blocked; };
 
 // Texel t's ray origin relative to the atom's centre, and whether there is such a texel (t >= 0).
 vec4 texel_origin(int t, vec4 self_sphere) {
@@ -36,10 +38,20 @@ Quad quad_rays(ivec4 t, vec4 self_sphere) {
     r.y = vec4(p0.y, p1.y, p2.y, p3.y);
     r.z = vec4(p0.z, p1.z, p2.z, p3.z);
     r.keep = vec4(p0.w, p1.w, p2.w, p3.w);
+    r.along = vec4(0.0);
     r.t0 = vec4(0.0);
     r.t1 = vec4(u_distance);
     r.blocked = vec4(0.0);
     return r;
+}
+
+// The origins split along and across d, once per quad, so a candidate's test needs no
+// projection of its own: |f - t d|^2 = |f across d|^2 + (f.d - t)^2 for f = centre - origin.
+void block_ready(inout Quad r, vec3 d) {
+    r.along = r.x * d.x + r.y * d.y + r.z * d.z;
+    r.x -= r.along * d.x;
+    r.y -= r.along * d.y;
+    r.z -= r.along * d.z;
 }
 
 // The texels still to take, as a stream over the words of (facing & seen): the word being
@@ -79,13 +91,15 @@ void clip_quad(inout Quad r, vec4 self_sphere, vec3 d) {
     }
 }
 
-// occluder_visibility's hard test of sphere s (relative to the atom's centre), without
-// its square root, for the quad's four rays; returns how many kept rays are still open.
-float block_quad(inout Quad r, vec4 s, vec3 d) {
-    vec4 fx = s.x - r.x, fy = s.y - r.y, fz = s.z - r.z;
-    vec4 t = clamp(fx * d.x + fy * d.y + fz * d.z, r.t0, r.t1);
-    vec4 qx = fx - t * d.x, qy = fy - t * d.y, qz = fz - t * d.z;
-    r.blocked = max(r.blocked, vec4(lessThan(qx * qx + qy * qy + qz * qz, vec4(s.w * s.w))) * r.keep);
+// occluder_visibility's hard test of sphere s (relative to the atom's centre; `across` its
+// centre's part across d, `along` its distance along d), without its square root, for the
+// quad's four rays; returns how many kept rays are still open.
+float block_quad(inout Quad r, vec4 s, vec3 across, float along) {
+    vec4 fx = across.x - r.x, fy = across.y - r.y, fz = across.z - r.z;
+    vec4 a = along - r.along;
+    vec4 beyond = a - clamp(a, r.t0, r.t1);
+    vec4 d2 = fx * fx + fy * fy + fz * fz + beyond * beyond;
+    r.blocked = max(r.blocked, vec4(lessThan(d2, vec4(s.w * s.w))) * r.keep);
     return dot(r.keep - r.blocked, vec4(1.0));
 }
 
@@ -128,6 +142,8 @@ void main() {
                 clip_quad(b, self_sphere, d);
             }
 #endif
+            block_ready(a, d);
+            block_ready(b, d);
             bool open = dot(a.keep + b.keep, vec4(1.0)) > 0.0;
             for (int word = 0; open && word * 32 < count; ++word) {
                 uint mask = candidate_masks[list + word];
@@ -135,7 +151,9 @@ void main() {
                     int bit = findLSB(mask);
                     mask &= mask - 1u;
                     vec4 s = neighbours[first + word * 32 + bit];
-                    open = block_quad(a, s, d) + block_quad(b, s, d) > 0.0;
+                    float along = dot(s.xyz, d);
+                    vec3 across = s.xyz - along * d;
+                    open = block_quad(a, s, across, along) + block_quad(b, s, across, along) > 0.0;
                 }
             }
             record_quad(local_slot, ta, a, dir);
