@@ -146,6 +146,21 @@ def union_rect(a: Rect | None, b: Rect | None) -> Rect | None:
     return (x0, y0, x1 - x0, y1 - y0)
 
 
+def subtract_rect(a: Rect | None, b: Rect | None) -> list[Rect]:
+    """The pixels of `a` outside `b`, as at most four rectangles (the bands below, above,
+    left and right of b's part of a)."""
+    if a is None:
+        return []
+    cut = intersect_rect(a, b)
+    if cut is None:
+        return [a]
+    ax0, ay0, ax1, ay1 = a[0], a[1], a[0] + a[2], a[1] + a[3]
+    cx0, cy0, cx1, cy1 = cut[0], cut[1], cut[0] + cut[2], cut[1] + cut[3]
+    bands = [(ax0, ay0, ax1 - ax0, cy0 - ay0), (ax0, cy1, ax1 - ax0, ay1 - cy1),
+             (ax0, cy0, cx0 - ax0, cy1 - cy0), (cx1, cy0, ax1 - cx1, cy1 - cy0)]
+    return [band for band in bands if band[2] > 0 and band[3] > 0]
+
+
 def grow_rect(rect: Rect | None, pixels: int, size: tuple[int, int]) -> Rect | None:
     if rect is None:
         return None

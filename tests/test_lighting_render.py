@@ -182,8 +182,9 @@ def test_drawn_passes_equal_their_compute_passes_to_the_bit(frame):
 
 @pytest.mark.parametrize("cache", [True, False], ids=["layered", "whole"])
 def test_visibility_buffer_carries_the_terms_to_the_shading_pass(gl, crambin, cache):
-    """The shading pass's inputs hold the terms: the probe light's visibility texture it is
-    handed, and the visibility buffer's sun and ambient — on whole frames the terms as
+    """The shading pass's inputs hold the terms: the probe light's rays it is handed to trace
+    (test_the_shading_pass_traces_the_probe_light_as_the_shadow_pass_does), and the
+    visibility buffer's sun and ambient — on whole frames the terms as
     traced; on layered frames (the frame cache) the molecule's own with the probe's shadow
     of the sun taken in, and the ambient to which the shading pass adds the probe's share,
     so that with the share taken in on the CPU (the probe sphere's shadow of the sun, its
@@ -199,8 +200,8 @@ def test_visibility_buffer_carries_the_terms_to_the_shading_pass(gl, crambin, ca
     g = gbuffer_arrays(renderer)
     t = renderer.targets
     vis = t.read(t.visibility).astype(np.float64)
-    lamp = renderer.last_frame.probe_lighting.visibility
-    assert np.array_equal(read_texture(lamp, top_first=True), g["shadow_probe"])
+    handed = renderer.last_frame.probe_lighting
+    assert handed.visibility is None and handed.traced is not None  # the shading pass traces the probe light
     sun, ambient = vis[..., 0], vis[..., 2]
     if cache:
         ids = shaded_ids(g)
@@ -220,6 +221,39 @@ def test_visibility_buffer_carries_the_terms_to_the_shading_pass(gl, crambin, ca
     assert np.all(vis[..., 1] == 1.0)  # the probe light's visibility has its own texture
     assert np.all(vis[..., 3] == 1.0)  # edge cueing off
     renderer.release()
+
+
+@pytest.mark.parametrize("setup", SETUPS)
+@pytest.mark.parametrize("cache", [False, True], ids=["whole", "layered"])
+def test_the_shading_pass_traces_the_probe_light_as_the_shadow_pass_does(gl, crambin, setup, cache):
+    """The shading pass traces the probe light's shadow rays itself (shaders/shading_traced.frag):
+    its picture is the one it shades from the shadow pass's visibility texture of the same
+    light (the export's, whose CPU reference is test_renderer_terms_match_the_cpu_references),
+    bit for bit, with clip planes and a cube too, on whole and layered frames."""
+    scene = make_scene(crambin, setup)
+    settings = LightingSettings(shadows="hard", ao=AOSettings(mode="analytic", k=16))
+    for name, on in settings.effects().items():
+        setattr(scene.effects, name, on)
+    renderer = Renderer(gl, scene, SIZE, frame_cache=cache)
+    install_lighting(renderer, settings)
+    center, radius = scene.bounding_sphere()
+    frame = renderer.render(Camera.fitted(center, radius * 0.8, SIZE[0] / SIZE[1], direction=(0.2, 0.3, 1.0)))
+    t, shading = renderer.targets, renderer.pass_named("shading")
+
+    def shaded(probe_lighting) -> np.ndarray:  # the lit picture before the later passes draw over it
+        shading.run(replace(frame, probe_lighting=probe_lighting))
+        return t.read(t.lit)
+
+    try:
+        g = gbuffer_arrays(renderer)  # the export traces the probe light into a texture of its own
+        atoms = shaded_ids(g) >= 0
+        assert (g["shadow_probe"][atoms] < 0.5).any() and (g["shadow_probe"][atoms] > 0.5).any()  # both occur
+        traced = shaded(frame.probe_lighting)
+        lamp = lighting_of(renderer).layers["shadow_probe"]
+        assert np.array_equal(traced, shaded(replace(frame.probe_lighting, visibility=lamp, traced=None)))
+        assert not np.array_equal(traced, shaded(replace(frame.probe_lighting, traced=None)))  # its shadows show
+    finally:
+        renderer.release()
 
 
 def test_edge_cueing_reaches_the_visibility_alpha(gl, crambin):

@@ -187,7 +187,7 @@ def test_fxaa_reads_no_further_than_its_reach(gl):
     lit_fbo, out_fbo = gl.framebuffer([lit]), gl.framebuffer([out])
     programs = ProgramCache(gl)
     fxaa = FxaaPass(gl, programs)
-    frame = SimpleNamespace(ctx=gl, targets=SimpleNamespace(lit=lit, lit_fbo=lit_fbo), size=size, cache=None,
+    frame = SimpleNamespace(ctx=gl, targets=SimpleNamespace(lit=lit, lit_fbo=lit_fbo), size=size, cache=None, cached=False,
                             output_fbo=out_fbo, scene=SimpleNamespace(effects=SimpleNamespace(fxaa=True)))
 
     def antialiased(image: np.ndarray) -> np.ndarray:

@@ -48,14 +48,27 @@ class ShadowPass:
         """Visibility texture (r32f) of `light` at every G-buffer pixel; `out` is reused when given.
         `rect` (x, y, width, height) traces only those pixels, `only_probe` only the probe's
         (the others keep what `out` holds)."""
+        width, height = gbuffer.size
+        out = out or texture_2d(self.ctx, width, height)
+        x, y, w, h = rect if rect is not None else (0, 0, width, height)
+        cases, uniforms = self.prepared(light, soft)
+        gbuffer.bind()
+        if gbuffer.depth is not None and not only_probe:  # 1 on the background, the surfaces traced
+            self.drawn.run(out, gbuffer.depth, (x, y, w, h), [(cases, ">")], uniforms, clear=1.0)
+            return out
+        out.bind_to_image(0, read=False, write=True)
+        self.programs.get(*cases).run(w, h, {**uniforms, "u_offset": (int(x), int(y)), "u_only_probe": int(only_probe)})
+        return out
+
+    def prepared(self, light: DirectionalLight | PointLight, soft: SoftShadow = HARD_SHADOW) -> tuple[tuple, dict]:
+        """The light's buffer built and bound, and what a program tracing it per pixel with
+        shaders/light_visibility.glsl takes: its cases (#defines, as ComputeVariants.get
+        takes them) and uniforms (the grid's besides; the grid is bound by the caller)."""
         if soft.outer > self.grid.max_shell + 1e-9:
             raise ValueError(
                 f"soft-shadow outer radius +{soft.outer:g} Å exceeds the grid's expansion "
                 f"({self.grid.max_shell:g} Å, the probe radius): shells would be cut at cell borders"
             )
-        width, height = gbuffer.size
-        out = out or texture_2d(self.ctx, width, height)
-        x, y, w, h = rect if rect is not None else (0, 0, width, height)
         point = isinstance(light, PointLight)
         buffered = point and self.light_buffer is not None
         sun_buffered = not point and self.sun_buffer is not None
@@ -68,9 +81,8 @@ class ShadowPass:
             self.sun_buffer.build(light.unit(), soft.outer)
             self.sun_buffer.bind()
             buffer_uniforms = self.sun_buffer.uniforms()
-        gbuffer.bind()
         cases = (("LIGHT_BUFFER", buffered), ("SUN_BUFFER", sun_buffered),
-                 ("NO_CLIPPING", not self.grid.culling.clipping))
+                 ("NO_CLIPPING", not self.grid.culling.clipping), ("HARD_SHADOWS", soft == HARD_SHADOW))
         uniforms = {
             **buffer_uniforms,
             **light_uniforms(None if point else light, light if point else None),
@@ -79,12 +91,13 @@ class ShadowPass:
             "u_shell": soft.shell(),
             "u_shell_growth": float(soft.growth),
         }
-        if gbuffer.depth is not None and not only_probe:  # 1 on the background, the surfaces traced
-            self.drawn.run(out, gbuffer.depth, (x, y, w, h), [(cases, ">")], uniforms, clear=1.0)
-            return out
-        out.bind_to_image(0, read=False, write=True)
-        self.programs.get(*cases).run(w, h, {**uniforms, "u_offset": (int(x), int(y)), "u_only_probe": int(only_probe)})
-        return out
+        return cases, uniforms
+
+    def bind(self) -> None:
+        """The buffers `prepared` built, bound again (the grid's, and the light buffer's)."""
+        self.grid.bind()
+        if self.light_buffer is not None:
+            self.light_buffer.bind()
 
     def _origin_slack(self, light: PointLight) -> float:
         """How much farther than its radius from the light a ray origin can lie: pixels are

@@ -19,16 +19,32 @@ WHOLE = "whole"  # ProbeLighting.changed: the whole picture
 
 
 @dataclass
+class ProbeLightTrace:
+    """The probe light's shadow rays for the shading pass to trace itself, per pixel
+    (shaders/shading_traced.frag): the ShadowPass whose buffers it binds, and the program's
+    cases (#defines) and uniforms (ShadowPass.prepared; the grid's are added)."""
+
+    shadows: object
+    cases: tuple
+    uniforms: dict
+
+
+@dataclass
 class ProbeLighting:
     """What the lighting hands the shading pass about the probe (render/passes/lighting.py):
-    the probe light's visibility texture (r32f; None: unshadowed) and, on layered frames,
-    the uniforms of the probe's share of the sun and the ambient light (shaders/probe_share.glsl)
-    and where its terms changed the picture this frame (besides the probe's reach, which
-    the shading pass adds itself)."""
+    the probe light's visibility, as a texture (r32f: from the occlusion atlas) or as rays
+    for the shading to trace (`traced`), neither when it is unshadowed; on layered frames,
+    the uniforms of the probe's share of the sun and the ambient light
+    (shaders/probe_share.glsl) and where its terms changed the picture this frame (besides
+    the probe's reach, which the shading pass adds itself), and of that where they changed
+    the background's (the probe's pixels and the halos around them: the background shows
+    nothing else of the lighting)."""
 
     visibility: object = None
     share: dict = field(default_factory=dict)
     changed: object = None  # layered frames: the rectangle the lighting's terms changed this frame, or WHOLE
+    traced: ProbeLightTrace | None = None
+    background_changed: object = None  # layered frames: the part of `changed` the background shows, or WHOLE
 
 
 @dataclass
@@ -53,8 +69,10 @@ class Frame:
     probe_lighting: ProbeLighting = field(default_factory=ProbeLighting)  # the lighting's, for the shading pass
     # What of the lit picture differs from the last frame's, for the FXAA pass to redo only
     # that: WHOLE, a rectangle or None, as the shading pass (and a path-traced frame) leave
-    # it; and the rectangle the probe's cues drew over it this frame (ProbeCuesPass).
+    # it — its surfaces within `lit_changed`, its background within `lit_background_changed`;
+    # and the rectangle the probe's cues drew over it this frame (ProbeCuesPass).
     lit_changed: object = WHOLE
+    lit_background_changed: object = WHOLE
     overlay: object = None
     # What several passes ask of the frame, found once (the camera and the probe hold
     # still within a frame): the view-projection, the camera's basis, the probe's rectangles.

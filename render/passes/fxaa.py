@@ -1,14 +1,19 @@
 """Final pass: FXAA from the lit image to the output (or a plain copy when off).
 
 With the frame cache the antialiased picture is kept, and a frame whose lit picture
-changed only in a rectangle (Frame.lit_changed, with the probe's cues of this frame and
-the last, Frame.overlay) runs FXAA again only there, grown by the shader's reach; the
+changed only in part (Frame.lit_changed and lit_background_changed, with the probe's cues
+of this frame and the last, Frame.overlay) runs FXAA again only there, grown by the
+shader's reach: over the changed background and the cues whole, and over the changed
+surfaces only at the pixels within that reach of a surface (NearSurfaces: the others read
+nothing but background, which did not change, so the kept picture holds their FXAA). The
 kept picture is then copied to the output."""
 
 from __future__ import annotations
 
-from sasprobe.render.frame_cache import Rect, full_rect, grow_rect, union_rect
+from sasprobe.render.frame_cache import Rect, full_rect, grow_rect, subtract_rect, union_rect
+from sasprobe.render.gl.depth_picked import DepthTestedTarget
 from sasprobe.render.gl.targets import KeptPicture
+from sasprobe.render.gl.textures import release_framebuffers
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.passes.base import WHOLE, Frame, Pass
 
@@ -17,54 +22,136 @@ from sasprobe.render.passes.base import WHOLE, Frame, Pass
 FXAA_REACH_PX = 6
 
 
+class NearSurfaces:
+    """A depth texture of the frame: 0 within FXAA_REACH_PX pixels of a G-buffer surface,
+    1 elsewhere (shaders/near_surfaces.frag), made when a frame asks and kept while the
+    molecule layer holds. Made from a frame with the probe drawn in, it also marks what lies
+    around that probe: a wider mask, never a narrower one."""
+
+    def __init__(self, ctx, programs):
+        self.ctx = ctx
+        self._rows_vao = ctx.vertex_array(programs.get("fullscreen.vert", "near_surfaces.frag", defines=("ROWS",)), [])
+        self._columns_vao = ctx.vertex_array(programs.get("fullscreen.vert", "near_surfaces.frag"), [])
+        for vao, sampler in ((self._rows_vao, "u_ids"), (self._columns_vao, "u_rows")):
+            apply_uniforms(vao.program, {sampler: 0, "u_reach": FXAA_REACH_PX})
+        self.depth = self._rows = self._rows_fbo = self._depth_fbo = None
+        self.holds = False  # it holds the kept molecule layer's
+
+    def get(self, frame: Frame):
+        """The mask of the frame's G-buffer (made again unless it holds)."""
+        ctx, size = self.ctx, frame.size
+        if self.depth is None or self.depth.size != tuple(size):
+            self.release()
+            self._rows = ctx.texture(size, 1, dtype="f1")
+            self.depth = ctx.depth_texture(size)
+            self._rows_fbo = ctx.framebuffer([self._rows])
+            self._depth_fbo = ctx.framebuffer([], self.depth)
+            self.holds = False
+        if not self.holds:
+            # Nothing lies near a surface beyond the molecule's pixels grown by the reach (the
+            # probe's pixels beyond them are antialiased whole: the shading's background rectangle).
+            area = grow_rect(frame.molecule_rect(), FXAA_REACH_PX, size)
+            ctx.disable(ctx.BLEND)
+            ctx.disable(ctx.DEPTH_TEST)
+            frame.targets.ids.use(0)
+            self._rows_fbo.use()
+            self._rows_fbo.scissor = area
+            self._rows_vao.render(ctx.TRIANGLES, vertices=3)
+            self._rows_fbo.scissor = None
+            self._depth_fbo.use()
+            self._depth_fbo.clear(depth=1.0)
+            if area is not None:
+                self._rows.use(0)
+                self._depth_fbo.scissor = area
+                ctx.enable_only(ctx.DEPTH_TEST)
+                ctx.depth_func = "1"  # written whatever it held
+                self._columns_vao.render(ctx.TRIANGLES, vertices=3)
+                ctx.depth_func = "<"
+                ctx.disable(ctx.DEPTH_TEST)
+                self._depth_fbo.scissor = None
+            self.holds = True
+        return self.depth
+
+    def release(self) -> None:
+        if self.depth is not None:
+            release_framebuffers(self.ctx, self._rows_fbo, self._depth_fbo)
+            self._rows.release()
+            self.depth.release()
+            self.depth = self._rows = self._rows_fbo = self._depth_fbo = None
+
+
 class FxaaPass(Pass):
     name = "fxaa"
 
     def __init__(self, ctx, programs):
         self.prog = programs.get("fullscreen.vert", "fxaa.frag")
         self.vao = ctx.vertex_array(self.prog, [])
-        if "u_color" in self.prog:
-            self.prog["u_color"].value = 0
+        self.near_vao = ctx.vertex_array(programs.get("fullscreen.vert", "fxaa.frag", defines=("AT_FAR_PLANE",)), [])
+        for vao in (self.vao, self.near_vao):
+            if "u_color" in vao.program:
+                vao.program["u_color"].value = 0
         self._kept = KeptPicture(ctx)  # the antialiased picture kept across frames (frame cache)
         self._kept_holds = False  # it holds the last frame's output
+        self._near = NearSurfaces(ctx, programs)
+        self._depth_tested = DepthTestedTarget(ctx)  # the kept picture tested against the near-surface mask
         self._last_overlay: Rect | None = None
-        self.redone: Rect | None = None  # what the last frame ran FXAA over (None: nothing)
+        self.redone: Rect | None = None  # the rectangle the last frame ran FXAA within (None: nothing)
+        self.redone_near: Rect | None = None  # of it, where it ran only near the surfaces
 
     def run(self, frame: Frame) -> None:
         ctx, t = frame.ctx, frame.targets
+        if not frame.cached:  # the molecule layer is drawn anew (or not kept)
+            self._near.holds = False
         if not frame.scene.effects.fxaa:
             ctx.copy_framebuffer(frame.output_fbo, t.lit_fbo)
             self._kept_holds = False
             return
-        target, self.redone = frame.output_fbo, full_rect(frame.size)
+        target, whole, self.redone_near = frame.output_fbo, full_rect(frame.size), None
         self._kept_holds = self._kept_holds and frame.cache is not None  # a frame drawn whole leaves it behind
         if frame.cache is not None:
             target = self._kept.framebuffer(frame.size)
-            self.redone = self._to_redo(frame)
+            whole, self.redone_near = self._to_redo(frame)
+        self.redone = union_rect(whole, self.redone_near)
         if self.redone is not None:
             t.lit.use(0)
             w, h = frame.size
-            apply_uniforms(self.prog, {"u_texel": (1.0 / w, 1.0 / h)})
-            target.use()
-            target.viewport = (0, 0, w, h)
-            target.scissor = self.redone
+            for vao in (self.vao, self.near_vao):
+                apply_uniforms(vao.program, {"u_texel": (1.0 / w, 1.0 / h)})
             ctx.disable(ctx.DEPTH_TEST | ctx.BLEND)
-            self.vao.render(ctx.TRIANGLES, vertices=3)
-            target.scissor = None
+            if whole is not None:
+                target.use()
+                target.viewport = (0, 0, w, h)
+                target.scissor = whole
+                self.vao.render(ctx.TRIANGLES, vertices=3)
+                target.scissor = None
+            near = subtract_rect(self.redone_near, whole)  # what the whole draw did not cover
+            if near:
+                tested = self._depth_tested.framebuffer(target.color_attachments[0], self._near.get(frame))
+                t.lit.use(0)
+                tested.use()
+                for rect in near:
+                    tested.scissor = rect
+                    self._depth_tested.draw(self.near_vao, ">")
+                tested.scissor = None
         if target is not frame.output_fbo:
             ctx.copy_framebuffer(frame.output_fbo, target)
 
-    def _to_redo(self, frame: Frame) -> Rect | None:
-        """Where the lit picture changed since the last frame (its cues there too: they are
-        drawn over a fresh copy each frame), grown by FXAA's reach; all of it when the kept
+    def _to_redo(self, frame: Frame) -> tuple[Rect | None, Rect | None]:
+        """Where the lit picture changed since the last frame, grown by FXAA's reach: (what
+        to antialias whole: the changed background and the cues, now and last frame; what
+        to antialias near the surfaces only: the changed surfaces). All of it when the kept
         picture does not hold the last frame's output."""
         last_overlay, self._last_overlay = self._last_overlay, frame.overlay
         holds, self._kept_holds = self._kept_holds and not self._kept.fresh, True
-        if not holds or frame.lit_changed == WHOLE:
-            return full_rect(frame.size)
-        changed = union_rect(frame.lit_changed, union_rect(frame.overlay, last_overlay))
-        return grow_rect(changed, FXAA_REACH_PX, frame.size)
+        if not holds or WHOLE in (frame.lit_changed, frame.lit_background_changed):
+            return full_rect(frame.size), None
+        overlays = union_rect(frame.overlay, last_overlay)
+        return (grow_rect(union_rect(frame.lit_background_changed, overlays), FXAA_REACH_PX, frame.size),
+                grow_rect(frame.lit_changed, FXAA_REACH_PX, frame.size))
 
     def release(self) -> None:
         self.vao.release()
+        self.near_vao.release()
+        self._near.release()
+        self._depth_tested.release()
         self._kept.release()

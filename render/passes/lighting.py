@@ -1,7 +1,10 @@
 """The lighting in the renderer's pass chain: shadows, ambient occlusion and edge cueing
 fill the visibility buffer before the shading pass, and progressive path tracing replaces
 the lit image after it (passes/path_trace.py, sharing this pass's grid, lights and
-stillness). Two ways of computing one picture:
+stillness). The probe light's shadow rays are the one term not handed over as a texture:
+the lighting builds their light buffer and the shading pass traces them per pixel, as it
+fetches the G-buffer anyway (shaders/shading_traced.frag; unless they come from the
+occlusion atlas). Two ways of computing one picture:
 
 - **whole frames** (a renderer without the frame cache, or a frame the cache draws whole:
   the camera or culling changing frame after frame, render/frame_cache.py): LightingPass,
@@ -15,7 +18,8 @@ stillness). Two ways of computing one picture:
   directional light, its ambient occlusion — on the molecule layer, once per molecule
   key (progressive AO keeps adding samples while the key holds, whatever the probe
   does); LightingPass, after the probe pass, recomputes what the probe changes: the probe
-  light's shadows within its range, the probe's pixels, edge cueing around it and the
+  light's shadows within its range (traced by the shading pass where it shades again),
+  the probe's pixels, edge cueing around it and the
   probe's shadow of the directional light (composed into the visibility buffer over those
   rectangles only, shaders/visibility_compose.comp), and hands the shading pass the probe's
   share of the ambient occlusion as one analytic sphere, which it adds per pixel
@@ -57,7 +61,7 @@ from sasprobe.render.lighting.settings import (
     SoftShadow,
 )
 from sasprobe.render.lighting.shadows import ShadowPass
-from sasprobe.render.passes.base import Frame, Pass, ProbeLighting
+from sasprobe.render.passes.base import Frame, Pass, ProbeLighting, ProbeLightTrace
 from sasprobe.render.passes.lighting_layers import NO_NEIGHBOURS, LayeredLighting
 
 log = logging.getLogger("sasprobe")
@@ -65,6 +69,7 @@ log = logging.getLogger("sasprobe")
 REQUIRED_GL = 430
 STILL_FRAMES = 3  # --shadows precomputed: frames the probe stands still before its light is baked
 CYCLED_AO_MODES = tuple(m for m in AO_MODES if m != "off")
+SAME_RECT = object()  # LightingPass._compose: the background over the same rectangle as the surfaces
 
 
 def lighting_supported(ctx) -> bool:
@@ -108,6 +113,7 @@ class LightingPass(LayeredLighting, Pass):
         self._still_frames = 0  # frames the probe has stood still
         self._molecule_changed = True  # layered: the molecule's terms changed this frame (compose them whole)
         self._warned_shell = False
+        self._untraced: tuple | None = None  # (light, soft) of the probe light the last frame's shading traced
 
     # ------------------------------------------------------------ state
     def state(self):
@@ -213,6 +219,14 @@ class LightingPass(LayeredLighting, Pass):
         reach = frame.reach_rect(lamp.radius) or (0, 0, 0, 0)  # none: no molecule within its range
         return self.ao.baked(gbuffer, ambient=False, probe_light=lamp, rect=reach)[2]
 
+    def _probe_light_traced(self, frame: Frame, lamp: PointLight) -> ProbeLightTrace:
+        """The probe light's shadow rays, for the shading pass to trace per pixel (it fetches
+        the G-buffer anyway; a pass of their own would fetch it again). The export traces
+        them into a texture of their own when it asks (gbuffer_layers)."""
+        soft = self._soft(frame)
+        self._untraced = (lamp, soft)
+        return ProbeLightTrace(self.shadows, *self.shadows.prepared(lamp, soft))
+
     def _probe_light_baked(self, frame: Frame) -> bool:
         """Whether the probe light's shadows come from the atlas this frame (_baked_probe_light)."""
         return self._precomputed(frame) and self._still_frames >= STILL_FRAMES and frame.scene.effects.shadows
@@ -236,22 +250,31 @@ class LightingPass(LayeredLighting, Pass):
                                   out=self.textures.get("edges", frame.size), rect=rect)
 
     def _compose(self, frame: Frame, terms: dict, uniforms: dict, layered: bool = False, export: bool = False,
-                 rect=None) -> None:
+                 rect=None, background=SAME_RECT) -> None:
         """The visibility buffer from the terms (shaders/visibility_terms.glsl, the whole
         frame's program unless `layered`, with `export` the export's), over `rect` or the
-        whole frame, drawn (render/gl/depth_picked.py) but for the export."""
+        whole frame, drawn (render/gl/depth_picked.py) but for the export; a layered frame's
+        background over `background` (None: none of it) when that is given."""
         ones = self.textures.get("ones", frame.size, fill=1.0)
         for unit, name in ((3, "shadow_dir"), (5, "ao"), (6, "edges"), (7, "probe_pixels_sun")):
             terms.get(name, ones).use(location=unit)
         t = frame.targets
         GBuffer.of_targets(t).bind()
         x, y, w, h = rect if rect is not None else (0, 0, *frame.size)
-        if not export:  # drawn (faster than a compute pass on llvmpipe); layered: on the surfaces only
-            picks = [((("LAYERED", False),), "=="), ((("LAYERED", True),), ">")] if layered \
-                else [((("LAYERED", False),), "1")]
-            return self.compose_drawn.run(t.visibility, t.depth, (x, y, w, h), picks, uniforms)
-        t.visibility.bind_to_image(0, read=False, write=True)
-        self.compose.get(("LAYERED", layered), ("EXPORT", export)).run(w, h, {**uniforms, "u_offset": (int(x), int(y))})
+        if export:
+            t.visibility.bind_to_image(0, read=False, write=True)
+            self.compose.get(("LAYERED", layered), ("EXPORT", export)).run(w, h, {**uniforms, "u_offset": (int(x), int(y))})
+        elif not layered:  # drawn: faster than a compute pass on llvmpipe
+            self.compose_drawn.run(t.visibility, t.depth, (x, y, w, h), [((("LAYERED", False),), "1")], uniforms)
+        else:  # the plain program on the background, the layered one on the surfaces
+            plain = ((("LAYERED", False),), "==")
+            if background is SAME_RECT:
+                self.compose_drawn.run(t.visibility, t.depth, (x, y, w, h), [plain, ((("LAYERED", True),), ">")],
+                                       uniforms)
+                return
+            if background is not None:
+                self.compose_drawn.run(t.visibility, t.depth, background, [plain], uniforms)
+            self.compose_drawn.run(t.visibility, t.depth, (x, y, w, h), [((("LAYERED", True),), ">")], uniforms)
 
     # ------------------------------------------------------------ whole frames
     def run(self, frame: Frame) -> None:
@@ -259,6 +282,7 @@ class LightingPass(LayeredLighting, Pass):
             self._run_probe_layer(frame)
             return
         self._composed = None  # a whole frame: the export reads its terms as they are
+        self._untraced = None
         culling_key = self._sync(frame)
         probe_key = self._set_probe(frame)
         if probe_key != self._probe_key:
@@ -267,23 +291,26 @@ class LightingPass(LayeredLighting, Pass):
         if self._stillness(frame, culling_key, probe_key):
             self.ao.view_changed()
         self._count_still_frames(probe_key)
-        fx, size = frame.scene.effects, frame.size
+        fx = frame.scene.effects
         gbuffer = GBuffer.of_targets(frame.targets)
         sun, lamp = self.lights
         self.layers = {}
         if fx.shadows and sun is not None:
             self.layers["shadow_dir"] = self._sun(gbuffer, frame, sun, "shadow_dir")
+        traced = None
         if fx.shadows and lamp is not None:
             baked = self._baked_probe_light(frame, gbuffer, lamp)
-            self.layers["shadow_probe"] = baked if baked is not None else self.shadows.trace(
-                gbuffer, lamp, self._soft(frame), out=self.textures.get("shadow_probe", size))
+            if baked is not None:
+                self.layers["shadow_probe"] = baked
+            else:
+                traced = self._probe_light_traced(frame, lamp)
         if fx.ambient_occlusion:
             self.layers["ao"] = self._ambient(gbuffer, frame)
         terms = dict(self.layers)
         if fx.edge_cueing:
             terms["edges"] = self._edges(gbuffer, frame)
         self._compose(frame, terms, {})
-        frame.probe_lighting = ProbeLighting(self.layers.get("shadow_probe"))
+        frame.probe_lighting = ProbeLighting(self.layers.get("shadow_probe"), traced=traced)
 
     # ------------------------------------------------------------ helpers
     def _soft_shell(self) -> SoftShadow:
@@ -302,6 +329,12 @@ class LightingPass(LayeredLighting, Pass):
         lights they were traced for."""
         if self._composed is not None:
             self._export_composed()
+        if self._untraced is not None:  # the shading pass traced the probe light: traced here too
+            lamp, soft = self._untraced
+            self.shadows.bind()
+            self.layers["shadow_probe"] = self.shadows.trace(GBuffer.of_targets(frame.targets), lamp, soft,
+                                                             out=self.textures.get("shadow_probe", frame.size))
+            self._untraced = None
         out = {name: read_texture(tex, top_first=True).astype(np.float32) for name, tex in self.layers.items()}
         sun, lamp = self.lights
         if sun is not None:

@@ -2,8 +2,8 @@
 frame cache (render/frame_cache.py). `run_molecule` computes the molecule's own terms on
 the molecule layer before the probe is drawn (once per molecule key; progressive AO keeps
 adding samples while it holds); `_run_probe_layer` then recomputes what the probe changes:
-the probe light's shadows where it reaches now and reached last frame (or, with
---shadows precomputed and the probe standing still, its baked visibility), the probe's own
+the probe light's shadow rays, for the shading pass to trace where it shades again (or,
+with --shadows precomputed and the probe standing still, its baked visibility), the probe's own
 pixels' sun, the edges around it, the visibility buffer over the rectangle the probe's
 terms touched, the probe's shadow of the sun taken in where it can fall
 (shaders/visibility_compose.comp), and, for the shading pass, the probe's analytic share
@@ -69,17 +69,13 @@ class LayeredLighting:
         self.layers = {}
         soft = self._soft(frame)
         self._count_still_frames(probe_key)
+        self._untraced = traced = None
         if fx.shadows and lamp is not None:
             baked = self._baked_probe_light(frame, gbuffer, lamp)
             if baked is not None:
-                terms["shadow_probe"] = baked
-            else:
-                rect = self._dirty_rect("shadow_probe", frame.reach_rect(lamp.radius), frame)
-                traced = self.textures.get("shadow_probe", size)
-                if rect is not None:  # else no molecule within its range, now or last frame: as it was
-                    self.shadows.trace(gbuffer, lamp, soft, out=traced, rect=rect)
-                terms["shadow_probe"] = traced
-            self.layers["shadow_probe"] = terms["shadow_probe"]
+                terms["shadow_probe"] = self.layers["shadow_probe"] = baked
+            else:  # traced by the shading pass, where it shades again
+                traced = self._probe_light_traced(frame, lamp)
         probe_rect = frame.probe_rect()
         probe_sun = fx.shadows and sun is not None and probe is not None
         if probe_sun and probe_rect is not None:
@@ -91,6 +87,7 @@ class LayeredLighting:
             around = grow_rect(probe_rect, reach, size)
             terms["edges"] = self._edges(gbuffer, frame, self._dirty_rect("edges", around, frame))
             touched = union_rect(touched, around)
+        background = touched  # the background shows the probe's pixels and the halos, not the sun's shadows
         probe_ambient = fx.ambient_occlusion and probe is not None
         probe_sun = probe_sun and "shadow_dir" in terms
         uniforms = {
@@ -109,15 +106,16 @@ class LayeredLighting:
         near_probe = union_rect(probe_rect, self._probe_shadow_rect(frame, sun, soft) if probe_sun else None)
         touched = union_rect(touched, near_probe)
         rect = self._dirty_rect("compose", touched, frame, whole=self._molecule_changed)
+        background_rect = self._dirty_rect("compose background", background, frame, whole=self._molecule_changed)
         if near_probe is not None and not self._molecule_changed:  # rect holds near_probe: touched does
-            self._compose(frame, terms, uniforms, layered=True, rect=rect)
+            self._compose(frame, terms, uniforms, layered=True, rect=rect, background=background_rect)
         else:
             if rect is not None:
                 self._compose(frame, terms, {}, rect=rect)
             if near_probe is not None:
                 self._compose(frame, terms, uniforms, layered=True, rect=near_probe)
-        changed = WHOLE if self._molecule_changed else touched
-        frame.probe_lighting = ProbeLighting(terms.get("shadow_probe"), share, changed)
+        changed, background = (WHOLE, WHOLE) if self._molecule_changed else (touched, background)
+        frame.probe_lighting = ProbeLighting(terms.get("shadow_probe"), share, changed, traced, background)
         self._composed = (frame, terms, {**uniforms, **NO_PROBE_SHARE, **share}, "shadow_dir" in terms,
                           fx.ambient_occlusion)
 

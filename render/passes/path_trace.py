@@ -47,7 +47,7 @@ class PathTracePass(Pass):
         frame.targets.visibility.use(location=4)
         frame.targets.lit.bind_to_image(0, read=False, write=True)
         self.output.run(*frame.size, {})
-        frame.lit_changed = WHOLE  # it adds samples: every pixel may change
+        frame.lit_changed = frame.lit_background_changed = WHOLE  # it adds samples: every pixel may change
 
     def release(self) -> None:
         self.output.release()

@@ -1,12 +1,15 @@
-"""Deferred shading: G-buffer + visibility buffer -> lit colour (shaders/shading.frag),
+"""Deferred shading: G-buffer + visibility buffer -> lit colour (shaders/shading.glsl),
 with the parameters of ShadingSettings (render/lighting/settings.py) and what the lighting
-hands over about the probe (Frame.probe_lighting).
+hands over about the probe (Frame.probe_lighting): its light's visibility as a texture, or
+its light's shadow rays, which the pass then traces itself (shaders/shading_traced.frag).
 
 With the frame cache the shaded picture is kept (before the cube wire and the cues are
 drawn over a copy of it), and a frame in which only the probe moved shades again only
 the rectangle the probe changes, now and last frame: beyond its light's range nothing of
 the probe reaches the picture (its light and its share of the AO are windowed to 0 there),
-and the lighting says where its shadow and edges fell.
+and the lighting says where its shadow and edges fell. The background shows only the
+probe's pixels and the halos around them, so it is shaded again only where those were and
+are.
 
 The surfaces and the background are two draws, each picked by a depth test against the
 G-buffer before its fragment shader runs (shaders/fullscreen.vert AT_FAR_PLANE): the
@@ -37,23 +40,31 @@ class ShadingPass(Pass):
         self._kept = KeptPicture(ctx)  # the shaded picture kept across frames (frame cache)
         self._depth_tested = DepthTestedTarget(ctx)  # the target with the G-buffer's depth
         self._reached: Rect | None = None  # what the probe changed in the last frame
+        self._background_reached: Rect | None = None  # of that, what it changed on the background
         self.shaded: Rect | None = None  # the rectangle the last frame shaded (None: nothing)
+        self.background_shaded: Rect | None = None  # the part of it whose background was shaded
 
     def _vao(self, lit: ProbeLighting | None):
         """The surfaces' program for what the lighting hands over (shaders/shading.frag's
-        variants), or with None the background's."""
+        variants, or shading_traced.frag's when the probe light is traced here), or with
+        None the background's."""
+        fragment = "shading.frag"
         if lit is None:
             defines = ("AT_FAR_PLANE", "BACKGROUND_ONLY")
         else:
             defines = ("AT_FAR_PLANE",) + (("PROBE_SHADOWED",) if lit.visibility is not None else ()) \
                 + (("PROBE_SHARE",) if lit.share else ())
-        if defines not in self._vaos:
-            prog = self.programs.get("fullscreen.vert", "shading.frag", defines=defines)
+            if lit.traced is not None:
+                fragment = "shading_traced.frag"
+                defines += tuple(name for name, on in lit.traced.cases if on)
+        key = (fragment, defines)
+        if key not in self._vaos:
+            prog = self.programs.get("fullscreen.vert", fragment, defines=defines)
             for unit, name in enumerate(TEXTURES):
                 if name in prog:
                     prog[name].value = unit
-            self._vaos[defines] = self.ctx.vertex_array(prog, [])
-        return self._vaos[defines]
+            self._vaos[key] = self.ctx.vertex_array(prog, [])
+        return self._vaos[key]
 
     def run(self, frame: Frame) -> None:
         ctx, t, scene, s = frame.ctx, frame.targets, frame.scene, self.settings
@@ -65,7 +76,12 @@ class ShadingPass(Pass):
         probe = scene.probe
         vao, background = self._vao(lit), self._vao(None)
         apply_uniforms(background.program, {"u_background": s.background})
+        traced = {}
+        if lit.traced is not None:  # its buffers bound again: passes since the lighting bound others
+            lit.traced.shadows.bind()
+            traced = {**lit.traced.shadows.grid.uniforms(), **lit.traced.uniforms}
         apply_uniforms(vao.program, {
+            **traced,
             **lit.share,
             "u_eye": tuple(float(v) for v in frame.camera.eye),
             "u_background": s.background,
@@ -86,43 +102,51 @@ class ShadingPass(Pass):
             "u_probe_color": PROBE_COLOR,
         })
         target, self.shaded = t.lit_fbo, full_rect(frame.size)
+        self.background_shaded = self.shaded
         if frame.cache is not None:
             target = self._kept.framebuffer(frame.size)
-            self.shaded = self._to_shade(frame)
+            self.shaded, self.background_shaded = self._to_shade(frame)
             if self._kept.fresh:  # it holds nothing yet
-                self.shaded = full_rect(frame.size)
-            frame.lit_changed = self.shaded  # what FXAA redoes (the cube wire is the same on a cached frame)
-        if self.shaded is not None:
-            # The depth is tested, not written: the cube wire later tests against it.
-            tested = self._depth_tested.framebuffer(target.color_attachments[0], t.depth)
-            tested.use()
-            tested.scissor = self.shaded
-            self._depth_tested.draw(background, "==")
-            self._depth_tested.draw(vao, ">")
-            tested.scissor = None
+                self.shaded = self.background_shaded = full_rect(frame.size)
+            # what FXAA redoes (the cube wire is the same on a cached frame)
+            frame.lit_changed, frame.lit_background_changed = self.shaded, self.background_shaded
+        # The depth is tested, not written: the cube wire later tests against it.
+        tested = self._depth_tested.framebuffer(target.color_attachments[0], t.depth)
+        tested.use()
+        for rect, program, depth_func in ((self.background_shaded, background, "=="), (self.shaded, vao, ">")):
+            if rect is not None:
+                tested.scissor = rect
+                self._depth_tested.draw(program, depth_func)
+        tested.scissor = None
         if target is not t.lit_fbo:
             ctx.copy_framebuffer(t.lit_fbo, target)  # the later passes draw over a copy
 
     # ------------------------------------------------------------ frames that keep the molecule layer
-    def _to_shade(self, frame: Frame) -> Rect | None:
-        """What to shade again: everything on a frame that drew the molecule layer (or whose
-        lighting changed everywhere), else where the probe changes the picture now and did
-        last frame — its reach over the molecule (its light and its share of the AO end
-        there), its pixels, the touched atom and what the lighting's terms changed (its
-        shadow, its edges)."""
+    def _to_shade(self, frame: Frame) -> tuple[Rect | None, Rect | None]:
+        """What to shade again, (all of it, its background): everything on a frame that drew
+        the molecule layer (or whose lighting changed everywhere), else where the probe
+        changes the picture now and did last frame — its reach over the molecule (its light
+        and its share of the AO end there), its pixels, the touched atom and what the
+        lighting's terms changed (its shadow, its edges). The background shows only the
+        visibility buffer's halo term and the probe's pixels, so it is shaded again only
+        where those changed (a pass over background pixels costs llvmpipe as much as a
+        light one over surfaces)."""
         scene, lit = frame.scene, frame.probe_lighting
-        reached = lit.changed if lit.changed != WHOLE else None
+        changed = lit.changed if lit.changed != WHOLE else None
         probe = scene.probe
+        background = union_rect(lit.background_changed if changed is not None else None, frame.probe_rect())
+        reached = union_rect(changed, frame.probe_rect())
         if probe is not None:
-            reached = union_rect(reached, union_rect(frame.probe_rect(), frame.reach_rect(self.settings.probe_range)))
+            reached = union_rect(reached, frame.reach_rect(self.settings.probe_range))
             if 0 <= probe.touched_atom < scene.structure.n_atoms:
                 atom = probe.touched_atom
                 reached = union_rect(reached, sphere_rect(scene.structure.positions[atom],
                                                           scene.structure.vdw_radii[atom], frame.viewproj, frame.size))
         last, self._reached = self._reached, reached
+        last_background, self._background_reached = self._background_reached, background
         if not frame.cached or lit.changed == WHOLE:
-            return full_rect(frame.size)
-        return union_rect(last, reached)
+            return full_rect(frame.size), full_rect(frame.size)
+        return union_rect(last, reached), union_rect(last_background, background)
 
     def release(self) -> None:
         for vao in self._vaos.values():

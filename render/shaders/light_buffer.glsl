@@ -38,7 +38,9 @@ float trace_point_visibility(vec3 o, vec3 light, int skip_atom, vec2 shell, floa
     uint base = cell * u_lb_capacity;
     for (uint k = 0u; k < n; ++k) {
         vec4 sphere = list_spheres[base + k];
-        if (distance(sphere.xyz, light) - sphere.w > reach) break;  // this one and every later one
+        vec3 from_light = sphere.xyz - light;
+        float beyond = reach + sphere.w;
+        if (dot(from_light, from_light) > beyond * beyond) break;  // this one and every later one
         if (int(list_atoms[base + k]) == skip_atom) continue;
         vis = min(vis, occluder_visibility(o, d, t0, t1, sphere, shell, growth));
         if (vis <= 0.0) return 0.0;

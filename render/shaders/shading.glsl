@@ -1,0 +1,104 @@
+// Deferred shading pass: Phong with a directional light and the probe's point light
+// (attenuated with distance), CPK albedo, the touched atom highlighted, the probe glowing.
+// Every light term is multiplied by its own visibility factor, read from u_visibility:
+//   r: directional-light visibility (shadow), b: ambient accessibility (ambient occlusion,
+//   raised to u_ao_power); and the whole colour, background included, by a: edge cueing
+//   (contour lines, halos). The targets clear it to 1.0; lighting passes that run before
+//   this one fill it. Compiled with PROBE_SHADOWED, the probe light's visibility comes
+//   from u_probe_visibility (the lighting traced it or took it from the occlusion atlas);
+//   with TRACE_PROBE_LIGHT (shading_traced.frag, GL 4.3) it is traced here, per pixel, through
+//   the light buffer the lighting built (light_visibility.glsl): a pass of its own would
+//   fetch the same G-buffer texels again, which costs llvmpipe more than the trace's
+//   arithmetic; with PROBE_SHARE (layered frames) the probe's share of the ambient
+//   occlusion is added here (probe_share.glsl). Each is its own program: llvmpipe runs
+//   every instruction of a shader, branches taken or not.
+// The probe light reaches u_probe_range Å: its attenuation is windowed to 0 there.
+// BACKGROUND_ONLY: the program for background pixels (the pass picks them by depth).
+#include "constants.glsl"
+// occluders.glsl here, not only through the cases' files below: an include is expanded
+// once, where it first appears, whether its #ifdef holds or not.
+#include "occluders.glsl"
+#ifdef PROBE_SHARE
+#include "probe_share.glsl"
+#endif
+#ifdef TRACE_PROBE_LIGHT
+#include "light_visibility.glsl"
+#endif
+
+uniform sampler2D u_albedo;
+uniform sampler2D u_position;
+uniform sampler2D u_normal;
+uniform isampler2D u_ids;
+uniform sampler2D u_visibility;
+#ifdef PROBE_SHADOWED
+uniform sampler2D u_probe_visibility;
+#endif
+
+uniform vec3 u_eye;
+uniform vec3 u_background;
+uniform float u_ambient;
+uniform float u_ao_power;        // accessibility ** power: > 1 strengthens the occlusion
+uniform int u_dir_enabled;
+uniform vec3 u_light_dir;        // direction the light travels (unit, world)
+uniform float u_dir_intensity;
+uniform int u_probe_light_enabled;
+uniform vec3 u_probe_center;
+uniform float u_probe_intensity;
+uniform vec3 u_probe_atten;      // constant, linear, quadratic (distance from the probe centre, Å)
+uniform float u_probe_range;     // Å
+uniform float u_shininess;
+uniform float u_specular;
+uniform int u_touched_atom;      // -1: none
+uniform vec3 u_highlight;        // touched-atom colour
+uniform vec3 u_probe_color;
+
+out vec4 o_color;
+
+vec3 phong(vec3 albedo, vec3 n, vec3 v, vec3 l) {
+    float diffuse = max(dot(n, l), 0.0);
+    float spec = diffuse > 0.0 ? pow(max(dot(reflect(-l, n), v), 0.0), u_shininess) : 0.0;
+    return diffuse * albedo + spec * u_specular;
+}
+
+void main() {
+    ivec2 px = ivec2(gl_FragCoord.xy);
+    vec4 vis = texelFetch(u_visibility, px, 0);
+#ifdef BACKGROUND_ONLY
+    o_color = vec4(u_background * vis.a, 1.0);
+#else
+    ivec2 ids = texelFetch(u_ids, px, 0).xy;
+    vec3 albedo = texelFetch(u_albedo, px, 0).rgb;
+    vec3 p = texelFetch(u_position, px, 0).xyz;
+    vec3 n = normalize(texelFetch(u_normal, px, 0).xyz);
+    vec3 v = normalize(u_eye - p);
+    if (ids.y == KIND_PROBE) {  // the light source itself: bright, lightly shaded
+        o_color = vec4(u_probe_color * (0.75 + 0.25 * max(dot(n, v), 0.0)) * vis.a, 1.0);
+        return;
+    }
+    if (u_touched_atom >= 0 && ids.x == u_touched_atom && ids.y != KIND_BACKBONE)
+        albedo = mix(albedo, u_highlight, 0.6);
+    float sun = vis.r, ambient = vis.b;
+#ifdef PROBE_SHARE
+    if ((ids.y == KIND_SPHERE || ids.y == KIND_CAP) && ids.x >= 0) add_probe_share(p, n, ambient);
+#endif
+    vec3 color = u_ambient * pow(ambient, u_ao_power) * albedo;
+    if (u_dir_enabled == 1)
+        color += sun * u_dir_intensity * phong(albedo, n, v, -u_light_dir);
+    if (u_probe_light_enabled == 1) {
+        vec3 to_probe = u_probe_center - p;
+        float dist = length(to_probe);
+        float x = dist / u_probe_range;
+        float window = clamp(1.0 - x * x * x * x, 0.0, 1.0);  // as render/lighting/settings.py probe_falloff
+        float atten = window * window / (u_probe_atten.x + u_probe_atten.y * dist + u_probe_atten.z * dist * dist);
+#if defined(PROBE_SHADOWED)
+        float shadow = texelFetch(u_probe_visibility, px, 0).r;
+#elif defined(TRACE_PROBE_LIGHT)  // as shadow_pixel.glsl has it: spheres and caps are traced
+        float shadow = light_visibility(ids.y == KIND_SPHERE || ids.y == KIND_CAP, p, n, ids.x);
+#else
+        float shadow = 1.0;
+#endif
+        color += shadow * u_probe_intensity * atten * phong(albedo, n, v, to_probe / max(dist, 1e-6));
+    }
+    o_color = vec4(min(color, vec3(1.0)) * vis.a, 1.0);
+#endif
+}
