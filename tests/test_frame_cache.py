@@ -132,20 +132,24 @@ def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings
         full.release()
 
 
-def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(gl, shared_by_id):
+@pytest.mark.parametrize("sid, fit, probe_range", [("1tii", 0.5, 6.0), ("1crn", 1.6, 20.0)], ids=["1tii-fills", "1crn-amid"])
+def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(gl, shared_by_id, sid, fit, probe_range):
     """FXAA run again only where the lit picture changed, and where the probe's cues are and
     were, gives what FXAA over the whole lit picture gives, bit for bit: the probe sliding
-    with its ghost, spring and force arrow, then leaving. The molecule fills the frame and
-    the probe light reaches 6 Å, so the redone rectangle's edges cross the atoms' outlines,
-    and the cues reach beyond what the shading does again."""
-    structure = load_structure(shared_by_id["1tii"].path, keep_water=True)
+    with its ghost, spring and force arrow, then leaving. 1TII fills the frame and the probe
+    light reaches 6 Å, so the redone rectangle's edges cross the atoms' outlines, and the
+    cues reach beyond what the shading does again; 1CRN lies amid the background, most of
+    which its changed surfaces' rectangle holds, and FXAA runs there only near the surfaces
+    (the near-surface mask)."""
+    structure = load_structure(shared_by_id[sid].path, keep_water=True)
     size = (200, 150)
     scene = SceneState(structure)
     scene.force_ratings_n = (3.3, 8.5)
-    renderer = Renderer(gl, scene, size, shading=ShadingSettings(probe_range=6.0))
+    renderer = Renderer(gl, scene, size, shading=ShadingSettings(probe_range=probe_range))
     install_lighting(renderer, LightingSettings())
     c, r = scene.bounding_sphere()
-    camera = Camera.fitted(c, r * 0.5, size[0] / size[1], direction=DIRECTION)
+    camera = Camera.fitted(c, r * fit, size[0] / size[1], direction=DIRECTION)
+    skipped = []  # per frame, the fraction of the pixels FXAA ran near the surfaces only that the mask left out
     whole = FxaaPass(gl, renderer.programs)
     picture = gl.texture(size, 4)
     out = gl.framebuffer([picture])
@@ -158,9 +162,16 @@ def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(gl, sha
             frame = renderer.render(camera)
             whole.run(dataclasses.replace(frame, cache=None, output_fbo=out))
             assert np.array_equal(renderer.read_image(), read_image(out, size)), k
-            rect = renderer.pass_named("fxaa").redone
+            fxaa = renderer.pass_named("fxaa")
+            rect = fxaa.redone
             redone.append(0.0 if rect is None else rect[2] * rect[3] / (size[0] * size[1]))
+            if fxaa.redone_near is not None:
+                x, y, w, h = fxaa.redone_near
+                mask = np.frombuffer(fxaa.near_surfaces.depth.read(), dtype=np.float32).reshape(size[1], size[0])
+                skipped.append(float((mask[y:y + h, x:x + w] > 0.5).mean()))
         assert renderer.cache.hits == len(redone) - 1 and redone[0] == 1.0 and max(redone[1:]) < 0.75, redone
+        if sid == "1crn":  # the mask left out much of what the rectangle of the changed surfaces holds
+            assert skipped and min(skipped) > 0.2, skipped
     finally:
         whole.release()
         release_framebuffers(gl, out)

@@ -169,6 +169,34 @@ def test_fxaa_only_softens_edges(gl, crambin):
     assert np.abs(final2 - lit2).max() <= 1 / 255
 
 
+def test_near_surface_mask_is_the_surfaces_grown_by_fxaas_reach(gl, crambin):
+    """The FXAA pass's mask (NearSurfaces) marks exactly the pixels within FXAA_REACH_PX
+    (Chebyshev distance) of a pixel that is not background, against a box dilation of the
+    G-buffer's kinds on the CPU; the molecule lies amid the background, so both occur."""
+    from sasprobe.render.passes.fxaa import FXAA_REACH_PX, NearSurfaces
+
+    size = (160, 120)
+    scene = SceneState(crambin)
+    renderer = Renderer(gl, scene, size)
+    c, r = scene.bounding_sphere()
+    frame = renderer.render(Camera.fitted(c, r * 1.6, size[0] / size[1]))
+    near = NearSurfaces(gl, renderer.programs)
+    try:
+        mask = np.frombuffer(near.get(frame).read(), dtype=np.float32).reshape(size[1], size[0]) < 0.5
+        surface = renderer.targets.read(renderer.targets.ids)[::-1, :, 1] != KIND_BACKGROUND  # row 0 = bottom
+        reach = FXAA_REACH_PX
+        padded = np.pad(surface, reach)
+        expected = np.zeros_like(surface)
+        for dy in range(2 * reach + 1):
+            for dx in range(2 * reach + 1):
+                expected |= padded[dy:dy + size[1], dx:dx + size[0]]
+        assert 0.1 < expected.mean() < 0.9
+        assert np.array_equal(mask, expected)
+    finally:
+        near.release()
+        renderer.release()
+
+
 def test_fxaa_reads_no_further_than_its_reach(gl):
     """FXAA_REACH_PX, what the frame cache grows a changed rectangle by before running FXAA
     again there, holds the shader: on a high-contrast random picture, changing one pixel

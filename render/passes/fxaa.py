@@ -92,7 +92,7 @@ class FxaaPass(Pass):
                 vao.program["u_color"].value = 0
         self._kept = KeptPicture(ctx)  # the antialiased picture kept across frames (frame cache)
         self._kept_holds = False  # it holds the last frame's output
-        self._near = NearSurfaces(ctx, programs)
+        self.near_surfaces = NearSurfaces(ctx, programs)
         self._depth_tested = DepthTestedTarget(ctx)  # the kept picture tested against the near-surface mask
         self._last_overlay: Rect | None = None
         self.redone: Rect | None = None  # the rectangle the last frame ran FXAA within (None: nothing)
@@ -101,7 +101,7 @@ class FxaaPass(Pass):
     def run(self, frame: Frame) -> None:
         ctx, t = frame.ctx, frame.targets
         if not frame.cached:  # the molecule layer is drawn anew (or not kept)
-            self._near.holds = False
+            self.near_surfaces.holds = False
         if not frame.scene.effects.fxaa:
             ctx.copy_framebuffer(frame.output_fbo, t.lit_fbo)
             self._kept_holds = False
@@ -126,7 +126,7 @@ class FxaaPass(Pass):
                 target.scissor = None
             near = subtract_rect(self.redone_near, whole)  # what the whole draw did not cover
             if near:
-                tested = self._depth_tested.framebuffer(target.color_attachments[0], self._near.get(frame))
+                tested = self._depth_tested.framebuffer(target.color_attachments[0], self.near_surfaces.get(frame))
                 t.lit.use(0)
                 tested.use()
                 for rect in near:
@@ -152,6 +152,6 @@ class FxaaPass(Pass):
     def release(self) -> None:
         self.vao.release()
         self.near_vao.release()
-        self._near.release()
+        self.near_surfaces.release()
         self._depth_tested.release()
         self._kept.release()
