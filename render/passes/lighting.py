@@ -69,7 +69,6 @@ log = logging.getLogger("sasprobe")
 REQUIRED_GL = 430
 STILL_FRAMES = 3  # --shadows precomputed: frames the probe stands still before its light is baked
 CYCLED_AO_MODES = tuple(m for m in AO_MODES if m != "off")
-SAME_RECT = object()  # LightingPass._compose: the background over the same rectangle as the surfaces
 
 
 def lighting_supported(ctx) -> bool:
@@ -250,31 +249,26 @@ class LightingPass(LayeredLighting, Pass):
                                   out=self.textures.get("edges", frame.size), rect=rect)
 
     def _compose(self, frame: Frame, terms: dict, uniforms: dict, layered: bool = False, export: bool = False,
-                 rect=None, background=SAME_RECT) -> None:
+                 rect=None, background=None) -> None:
         """The visibility buffer from the terms (shaders/visibility_terms.glsl, the whole
         frame's program unless `layered`, with `export` the export's), over `rect` or the
         whole frame, drawn (render/gl/depth_picked.py) but for the export; a layered frame's
-        background over `background` (None: none of it) when that is given."""
+        background over `background` if given, else over `rect` too."""
         ones = self.textures.get("ones", frame.size, fill=1.0)
         for unit, name in ((3, "shadow_dir"), (5, "ao"), (6, "edges"), (7, "probe_pixels_sun")):
             terms.get(name, ones).use(location=unit)
         t = frame.targets
         GBuffer.of_targets(t).bind()
-        x, y, w, h = rect if rect is not None else (0, 0, *frame.size)
+        rect = rect if rect is not None else (0, 0, *frame.size)
         if export:
             t.visibility.bind_to_image(0, read=False, write=True)
-            self.compose.get(("LAYERED", layered), ("EXPORT", export)).run(w, h, {**uniforms, "u_offset": (int(x), int(y))})
+            offset = {"u_offset": (int(rect[0]), int(rect[1]))}
+            self.compose.get(("LAYERED", layered), ("EXPORT", export)).run(rect[2], rect[3], {**uniforms, **offset})
         elif not layered:  # drawn: faster than a compute pass on llvmpipe
-            self.compose_drawn.run(t.visibility, t.depth, (x, y, w, h), [((("LAYERED", False),), "1")], uniforms)
+            self.compose_drawn.run(t.visibility, t.depth, rect, [((("LAYERED", False),), "1")], uniforms)
         else:  # the plain program on the background, the layered one on the surfaces
-            plain = ((("LAYERED", False),), "==")
-            if background is SAME_RECT:
-                self.compose_drawn.run(t.visibility, t.depth, (x, y, w, h), [plain, ((("LAYERED", True),), ">")],
-                                       uniforms)
-                return
-            if background is not None:
-                self.compose_drawn.run(t.visibility, t.depth, background, [plain], uniforms)
-            self.compose_drawn.run(t.visibility, t.depth, (x, y, w, h), [((("LAYERED", True),), ">")], uniforms)
+            self.compose_drawn.run(t.visibility, t.depth, background or rect, [((("LAYERED", False),), "==")], uniforms)
+            self.compose_drawn.run(t.visibility, t.depth, rect, [((("LAYERED", True),), ">")], uniforms)
 
     # ------------------------------------------------------------ whole frames
     def run(self, frame: Frame) -> None:
