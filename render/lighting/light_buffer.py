@@ -14,8 +14,9 @@ every atom stored in them, and since lists run nearest first, it stops at the fi
 farther from the light than the pixel. The visibility is the minimum over the same
 occluders as the grid walk (shaders/grid_traversal.glsl trace_visibility): culled atoms
 are left out of the lists and the ray is clipped as there, so the result is the walk's to
-the bit. Lists have room for `capacity` atoms; a build that finds a longer one grows the
-room and builds again (a 4-byte read-back each build tells).
+the bit. Every list has room for every atom in reach, so none can overflow and a build
+waits for nothing: a read-back of the longest list, to grow the room and build again, was
+a sync point in the middle of every frame.
 
 Built anew whenever the light, its reach, the shell or the culling change (every frame
 the probe moves): the CPU picks the atoms within reach and sorts them (numpy, a few
@@ -32,13 +33,13 @@ from sasprobe.render.gl.programs import source
 from sasprobe.render.gl.uniforms import apply_uniforms
 
 FACE_CELLS = 8  # cells along a cube face's edge: 6 × 8² = 384 lists (finer ones cost more to fill than they save)
-CAPACITY = 64  # atoms a list has room for at first (it grows to the longest list met)
+CAPACITY = 64  # atoms a list has room for at first (it grows with the atoms in reach)
 ANGLE_MARGIN = 1e-4  # rad added to both cones: float32 lookups may land a cell off by rounding
 RADIUS_MARGIN = 1e-3  # Å added to each atom's reach: float32 distances in the shader
 BUILD_LOCAL_SIZE = 64
 # Shader-storage bindings (the grid holds 0-3).
 BINDING_SLOT_SPHERES, BINDING_SLOT_ATOMS, BINDING_SLOT_CONES, BINDING_CELL_CONES = 4, 5, 6, 7
-BINDING_LIST_SPHERES, BINDING_LIST_ATOMS, BINDING_LIST_COUNTS, BINDING_LONGEST = 8, 9, 10, 11
+BINDING_LIST_SPHERES, BINDING_LIST_ATOMS, BINDING_LIST_COUNTS = 8, 9, 10
 
 
 def cell_cones(face_cells: int = FACE_CELLS) -> np.ndarray:
@@ -89,7 +90,6 @@ class PointLightBuffer:
         self.list_spheres = self.ctx.buffer(reserve=self.n_cells * self.capacity * 16)
         self.list_atoms = self.ctx.buffer(reserve=self.n_cells * self.capacity * 4)
         self.list_counts = self.ctx.buffer(reserve=self.n_cells * 4)
-        self.longest = self.ctx.buffer(reserve=4)
         self.slots = [self.ctx.buffer(reserve=16) for _ in range(3)]  # spheres, atoms, cones of the atoms in reach
         self.program = self.ctx.compute_shader(source("light_buffer_build.comp"))
         self.key: tuple | None = None
@@ -127,25 +127,15 @@ class PointLightBuffer:
         for binding, buffer in zip((BINDING_SLOT_SPHERES, BINDING_SLOT_ATOMS, BINDING_SLOT_CONES), self.slots):
             buffer.bind_to_storage_buffer(binding)
         self.cell_cones.bind_to_storage_buffer(BINDING_CELL_CONES)
-        while not self._fill():
-            pass
-
-    def _fill(self) -> bool:
-        """Fill the lists; False (after growing them) when one did not fit."""
+        if self.atoms_in_reach > self.capacity:  # room for all of them in every list
+            self.capacity = max(self.atoms_in_reach, 2 * self.capacity)
+            self.list_spheres.orphan(self.n_cells * self.capacity * 16)
+            self.list_atoms.orphan(self.n_cells * self.capacity * 4)
         self.bind()
-        self.longest.write(b"\0" * 4)
-        self.longest.bind_to_storage_buffer(BINDING_LONGEST)
         apply_uniforms(self.program, {"u_slots": self.atoms_in_reach, "u_cells": self.n_cells,
                                       "u_capacity": self.capacity})
         self.program.run(group_x=(self.n_cells + BUILD_LOCAL_SIZE - 1) // BUILD_LOCAL_SIZE)
         self.ctx.memory_barrier()
-        longest = int(np.frombuffer(self.longest.read(), dtype=np.uint32)[0])
-        if longest <= self.capacity:
-            return True
-        self.capacity = max(longest, 2 * self.capacity)
-        self.list_spheres.orphan(self.n_cells * self.capacity * 16)
-        self.list_atoms.orphan(self.n_cells * self.capacity * 4)
-        return False
 
     def bind(self) -> None:
         """The lists (for shaders/light_buffer.glsl, and for the build to fill)."""
@@ -162,7 +152,7 @@ class PointLightBuffer:
         return np.frombuffer(self.list_counts.read(), dtype=np.uint32).copy()
 
     def release(self) -> None:
-        for b in (self.cell_cones, self.list_spheres, self.list_atoms, self.list_counts, self.longest, *self.slots):
+        for b in (self.cell_cones, self.list_spheres, self.list_atoms, self.list_counts, *self.slots):
             b.release()
         self.program.release()
 

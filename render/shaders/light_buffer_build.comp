@@ -2,9 +2,8 @@
 // The probe light's light buffer (render/lighting/light_buffer.py): one invocation per
 // cube cell lists, nearest first, the atoms in reach whose cone of directions seen from
 // the light meets the cell's bounding cone. The atoms come sorted by their nearest
-// distance to the light, and every invocation reads the same one at a time. A list longer
-// than u_capacity is counted on without being stored, and the longest count goes to
-// `longest`: the buffer then grows and is built again.
+// distance to the light, and every invocation reads the same one at a time. A list has room
+// for every atom in reach (u_capacity), so it never overflows.
 layout(local_size_x = 64) in;
 
 layout(std430, binding = 4) readonly buffer SlotSpheres { vec4 slot_spheres[]; };  // centre, vdW radius
@@ -14,7 +13,6 @@ layout(std430, binding = 7) readonly buffer CellCones { vec4 cell_cones[]; };   
 layout(std430, binding = 8) writeonly buffer ListSpheres { vec4 list_spheres[]; };
 layout(std430, binding = 9) writeonly buffer ListAtoms { uint list_atoms[]; };
 layout(std430, binding = 10) writeonly buffer ListCounts { uint list_counts[]; };
-layout(std430, binding = 11) buffer Longest { uint longest; };
 
 uniform int u_slots;
 uniform int u_cells;
@@ -34,12 +32,9 @@ void main() {
         // that angle is at least cos(a + b) = cos a cos b - sin a sin b.
         float cos_sum = cone.w * cc.w - sqrt(max(1.0 - cone.w * cone.w, 0.0)) * sin_cell;
         if (cone.w > -cc.w && dot(cone.xyz, cc.xyz) < cos_sum) continue;
-        if (n < u_capacity) {
-            list_spheres[base + n] = slot_spheres[j];
-            list_atoms[base + n] = slot_atoms[j];
-        }
+        list_spheres[base + n] = slot_spheres[j];
+        list_atoms[base + n] = slot_atoms[j];
         ++n;
     }
     list_counts[cell] = n;
-    atomicMax(longest, n);
 }
