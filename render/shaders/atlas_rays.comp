@@ -18,10 +18,11 @@ layout(local_size_x = 64) in;
 
 // Four texels' rays, one per component: origins relative to the atom's centre (x, y, z,
 // until block_ready splits them), the kept part [t0, t1] of each, whether it counts at all
-// (a texel was taken, not culled whole), and whether a candidate has blocked it. For the
+// (a texel was taken, not culled whole), and whether it is still open (kept, and no
+// candidate has blocked it). For the
 // candidates' tests each origin is held as its part across the direction (x, y, z) and its
 // distance along it (along).
-struct Quad { vec4 x, y, z, along, t0, t1, keep, blocked; };
+struct Quad { vec4 x, y, z, along, t0, t1, keep, open; };
 
 // Texel t's ray origin relative to the atom's centre, and whether there is such a texel (t >= 0).
 vec4 texel_origin(int t, vec4 self_sphere) {
@@ -41,7 +42,7 @@ Quad quad_rays(ivec4 t, vec4 self_sphere) {
     r.along = vec4(0.0);
     r.t0 = vec4(0.0);
     r.t1 = vec4(u_distance);
-    r.blocked = vec4(0.0);
+    r.open = r.keep;
     return r;
 }
 
@@ -89,6 +90,7 @@ void clip_quad(inout Quad r, vec4 self_sphere, vec3 d) {
         r.t1[j] = max(a, b);
         r.keep[j] = kept ? r.keep[j] : 0.0;
     }
+    r.open = r.keep;
 }
 
 // occluder_visibility's hard test of sphere s (relative to the atom's centre; `across` its
@@ -99,8 +101,8 @@ float block_quad(inout Quad r, vec4 s, vec3 across, float along) {
     vec4 a = along - r.along;
     vec4 beyond = a - clamp(a, r.t0, r.t1);
     vec4 d2 = fx * fx + fy * fy + fz * fz + beyond * beyond;
-    r.blocked = max(r.blocked, vec4(lessThan(d2, vec4(s.w * s.w))) * r.keep);
-    return dot(r.keep - r.blocked, vec4(1.0));
+    r.open = min(r.open, step(vec4(s.w * s.w), d2));
+    return dot(r.open, vec4(1.0));
 }
 
 // Marks direction `dir` blocked for the texels of the quad whose ray a candidate stopped (each
@@ -112,10 +114,15 @@ void record(int row, int t, float blocked, int word, uint bit) {
 void record_quad(int local_slot, ivec4 t, Quad r, int dir) {
     int row = local_slot * u_patch * u_patch, word = dir / 32;
     uint bit = 1u << uint(dir % 32);
-    record(row, t.x, r.blocked.x, word, bit);  // written out, as in quad_rays
-    record(row, t.y, r.blocked.y, word, bit);
-    record(row, t.z, r.blocked.z, word, bit);
-    record(row, t.w, r.blocked.w, word, bit);
+#ifdef NO_CLIPPING  // kept: taken (so the quad holds no `keep` through the candidates' loop)
+    vec4 blocked = vec4(greaterThanEqual(t, ivec4(0))) - r.open;
+#else
+    vec4 blocked = r.keep - r.open;
+#endif
+    record(row, t.x, blocked.x, word, bit);  // written out, as in quad_rays
+    record(row, t.y, blocked.y, word, bit);
+    record(row, t.z, blocked.z, word, bit);
+    record(row, t.w, blocked.w, word, bit);
 }
 
 void main() {
@@ -144,7 +151,7 @@ void main() {
 #endif
             block_ready(a, d);
             block_ready(b, d);
-            bool open = dot(a.keep + b.keep, vec4(1.0)) > 0.0;
+            bool open = dot(a.open + b.open, vec4(1.0)) > 0.0;
             for (int word = 0; open && word * 32 < count; ++word) {
                 uint mask = candidate_masks[list + word];
                 while (open && mask != 0u) {
