@@ -75,6 +75,18 @@ def render_frame(ctx, scene, settings: LightingSettings, camera=None):
     return renderer, gbuffer_arrays(renderer)
 
 
+def render_lit(ctx, scene, cache: bool):
+    """(renderer, frame): one frame of `scene` with hard shadows and analytic AO (k 16), the
+    frame cache on or off."""
+    settings = LightingSettings(shadows="hard", ao=AOSettings(mode="analytic", k=16))
+    for name, on in settings.effects().items():
+        setattr(scene.effects, name, on)
+    renderer = Renderer(ctx, scene, SIZE, frame_cache=cache)
+    install_lighting(renderer, settings)
+    center, radius = scene.bounding_sphere()
+    return renderer, renderer.render(Camera.fitted(center, radius * 0.8, SIZE[0] / SIZE[1], direction=(0.2, 0.3, 1.0)))
+
+
 def occluders_of(g, scene) -> Occluders:
     s = scene.structure
     cube = g.get("nav_cube")
@@ -190,13 +202,7 @@ def test_visibility_buffer_carries_the_terms_to_the_shading_pass(gl, crambin, ca
     so that with the share taken in on the CPU (the probe sphere's shadow of the sun, its
     analytic occlusion) they are the exported terms."""
     scene = make_scene(crambin, "planes")
-    settings = LightingSettings(shadows="hard", ao=AOSettings(mode="analytic", k=16))
-    for name, on in settings.effects().items():
-        setattr(scene.effects, name, on)
-    renderer = Renderer(gl, scene, SIZE, frame_cache=cache)
-    install_lighting(renderer, settings)
-    center, radius = scene.bounding_sphere()
-    renderer.render(Camera.fitted(center, radius * 0.8, SIZE[0] / SIZE[1], direction=(0.2, 0.3, 1.0)))
+    renderer, _ = render_lit(gl, scene, cache)
     g = gbuffer_arrays(renderer)
     t = renderer.targets
     vis = t.read(t.visibility).astype(np.float64)
@@ -230,14 +236,7 @@ def test_the_shading_pass_traces_the_probe_light_as_the_shadow_pass_does(gl, cra
     its picture is the one it shades from the shadow pass's visibility texture of the same
     light (the export's, whose CPU reference is test_renderer_terms_match_the_cpu_references),
     bit for bit, with clip planes and a cube too, on whole and layered frames."""
-    scene = make_scene(crambin, setup)
-    settings = LightingSettings(shadows="hard", ao=AOSettings(mode="analytic", k=16))
-    for name, on in settings.effects().items():
-        setattr(scene.effects, name, on)
-    renderer = Renderer(gl, scene, SIZE, frame_cache=cache)
-    install_lighting(renderer, settings)
-    center, radius = scene.bounding_sphere()
-    frame = renderer.render(Camera.fitted(center, radius * 0.8, SIZE[0] / SIZE[1], direction=(0.2, 0.3, 1.0)))
+    renderer, frame = render_lit(gl, make_scene(crambin, setup), cache)
     t, shading = renderer.targets, renderer.pass_named("shading")
 
     def shaded(probe_lighting) -> np.ndarray:  # the lit picture before the later passes draw over it

@@ -325,7 +325,6 @@ class LightingPass(LayeredLighting, Pass):
             self._export_composed()
         if self._untraced is not None:  # the shading pass traced the probe light: traced here too
             lamp, soft = self._untraced
-            self.shadows.bind()
             self.layers["shadow_probe"] = self.shadows.trace(GBuffer.of_targets(frame.targets), lamp, soft,
                                                              out=self.textures.get("shadow_probe", frame.size))
             self._untraced = None
