@@ -18,14 +18,16 @@ def view_proj_uniforms(view: np.ndarray, proj: np.ndarray) -> dict:
 
 
 def apply_uniforms(prog, values: dict) -> None:
-    """Set uniforms (bytes are written raw: matrices); unused names are skipped."""
+    """Set uniforms (bytes are written raw: matrices); unused names are skipped. Looked up
+    with Program.get: `name in prog` walks every member of the program."""
     for name, value in values.items():
-        if name not in prog:
+        member = prog.get(name, None)
+        if member is None:
             continue
         if isinstance(value, bytes):
-            prog[name].write(value)
+            member.write(value)
         else:
-            prog[name].value = value
+            member.value = value
 
 
 def padded_planes(planes: np.ndarray) -> np.ndarray:
@@ -41,7 +43,4 @@ def padded_planes(planes: np.ndarray) -> np.ndarray:
 def apply_planes(prog, planes: np.ndarray) -> None:
     padded = padded_planes(planes)
     count = int(np.asarray(planes).size // 4)
-    if "u_n_planes" in prog:
-        prog["u_n_planes"].value = count
-    if "u_planes" in prog and count:
-        prog["u_planes"].write(padded.tobytes())
+    apply_uniforms(prog, {"u_n_planes": count, **({"u_planes": padded.tobytes()} if count else {})})
