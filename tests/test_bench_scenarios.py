@@ -43,10 +43,15 @@ def test_render_scenarios_print_every_case_with_its_ratios(shared_entries, tmp_p
         assert "pymol-open-source is not installed" in report
 
 
-def test_gpu_check_runs_here_at_a_small_size(shared_by_id):
+def test_gpu_check_runs_here_at_a_small_size(shared_by_id, gl):
     """The check's code path, shortened: 1CRN whole and 1OKY with a ~300-atom cube (the full
     check: 1CRN, 1TII, 1AON whole, 6ZU5 with a cube, at 1920x1080)."""
-    result = gpu_quick.run(size=(64, 36), frames=3, structures=("1crn", "1oky"), cube_id="1oky")
+    try:
+        result = gpu_quick.run(size=(64, 36), frames=3, structures=("1crn", "1oky"), cube_id="1oky")
+    finally:
+        # The check makes a context of its own and releases it, which leaves none current:
+        # the session's is made current again, or every later test's GL calls would fail.
+        gl.__enter__()
     text = gpu_quick.markdown(result, None)
     assert [r["id"] for r in result["rows"]] == ["1crn", "1oky"]
     for row in result["rows"]:
