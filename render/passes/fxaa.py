@@ -51,8 +51,7 @@ class NearSurfaces:
             # Nothing lies near a surface beyond the molecule's pixels grown by the reach (the
             # probe's pixels beyond them are antialiased whole: the shading's background rectangle).
             area = grow_rect(frame.molecule_rect(), FXAA_REACH_PX, size)
-            ctx.disable(ctx.BLEND)
-            ctx.disable(ctx.DEPTH_TEST)
+            ctx.disable(ctx.BLEND | ctx.DEPTH_TEST)
             frame.targets.ids.use(0)
             self._rows_fbo.use()
             self._rows_fbo.scissor = area
@@ -127,7 +126,7 @@ class FxaaPass(Pass):
             near = subtract_rect(self.redone_near, whole)  # what the whole draw did not cover
             if near:
                 tested = self._depth_tested.framebuffer(target.color_attachments[0], self.near_surfaces.get(frame))
-                t.lit.use(0)
+                t.lit.use(0)  # again: making the mask used unit 0
                 tested.use()
                 for rect in near:
                     tested.scissor = rect

@@ -16,12 +16,11 @@ layout(local_size_x = 64) in;
 #include "atlas_ray_buffers.glsl"
 #include "atlas_common.glsl"
 
-// Four texels' rays, one per component: origins relative to the atom's centre (x, y, z,
-// until block_ready splits them), the kept part [t0, t1] of each, whether it counts at all
-// (a texel was taken, not culled whole), and whether it is still open (kept, and no
-// candidate has blocked it). For the
-// candidates' tests each origin is held as its part across the direction (x, y, z) and its
-// distance along it (along).
+// Four texels' rays, one per component: origins relative to the atom's centre (x, y, z),
+// the kept part [t0, t1] of each, whether it counts at all (a texel was taken, not culled
+// whole), and whether it is still open (kept, and no candidate has blocked it). For the
+// candidates' tests block_ready holds each origin as its part across the direction
+// (x, y, z) and its distance along it (along).
 struct Quad { vec4 x, y, z, along, t0, t1, keep, open; };
 
 // Texel t's ray origin relative to the atom's centre, and whether there is such a texel (t >= 0).

@@ -9,14 +9,13 @@
 // full at distance `growth` (penumbrae grow with occluder-receiver distance, and atoms
 // touching the receiver do not darken it). shell = (0, 0) is the hard shadow test.
 float occluder_visibility(vec3 o, vec3 d, float t0, float t1, vec4 sphere, vec2 shell, float growth) {
-#ifdef HARD_SHADOWS  // shell (0, 0): what the lines below give then, without the shell's arithmetic
-    vec3 f_hard = sphere.xyz - o;
-    return length(f_hard - clamp(dot(f_hard, d), t0, t1) * d) < sphere.w ? 0.0 : 1.0;
-#endif
     vec3 f = sphere.xyz - o;
     float t = clamp(dot(f, d), t0, t1);
     vec3 q = f - t * d;  // closest approach, the stable form (Haines et al., RTG ch. 7)
     float b = length(q);
+#ifdef HARD_SHADOWS  // shell (0, 0): what the lines below give then, without the shell's arithmetic
+    return b < sphere.w ? 0.0 : 1.0;
+#endif
     float s = growth > 0.0 ? clamp(t / growth, 0.0, 1.0) : 1.0;
     float r_in = max(sphere.w + shell.x * s, 0.0);
     float r_out = sphere.w + shell.y * s;
