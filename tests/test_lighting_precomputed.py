@@ -74,9 +74,11 @@ def test_facing_bits_mark_exactly_the_texels_facing_each_direction(patch, direct
     assert spare == 0 or not np.any(by_direction[:, -1] >> np.uint32(32 - spare))
 
 
-@pytest.mark.parametrize("setup, patch", [("none", PATCH), ("plane", PATCH), ("cube", PATCH), ("none", 9), ("cube", 9)])
+@pytest.mark.parametrize("setup, patch", [("none", PATCH), ("plane", PATCH), ("cube", PATCH), ("plane", 8), ("none", 9),
+                                          ("cube", 9)])
 def test_patches_equal_the_cpu_bake(gl, crambin, crambin_grid, setup, patch):
-    """Patch 5 fits its texels' bits in one word; patch 9 spreads them over three."""
+    """Patch 5 fits its texels' bits in one word, patch 8 (the default) in two: the rays step
+    takes both at once; patch 9 spreads them over three, taken as a stream of words."""
     crambin_grid.set_culling(cullings(crambin)[setup])
     occ = Occluders.of(crambin_grid)
     atlas = OcclusionAtlas(crambin_grid)

@@ -31,6 +31,25 @@ def texture_2d(ctx, width: int, height: int, components: int = 1, dtype: str = "
     return tex
 
 
+TABLE_ROW = 4096  # entries a row of a table image (shaders/table_image.glsl TABLE_ROW_BITS)
+
+
+def table_image(ctx, texture, table: np.ndarray, dtype: str = "f4"):
+    """`table` (n, components) as an image that shaders read entry by entry
+    (shaders/table_image.glsl: entry k at (k % TABLE_ROW, k // TABLE_ROW)), written into
+    `texture` when it has the rows (else it is released and made again); returns the texture."""
+    n, components = table.shape[0], table.shape[1] if table.ndim > 1 else 1
+    rows = max(1, -(-n // TABLE_ROW))
+    if texture is None or texture.height < rows or texture.components != components or texture.dtype != dtype:
+        if texture is not None:
+            texture.release()
+        texture = texture_2d(ctx, TABLE_ROW, rows, components, dtype)
+    padded = np.zeros((rows * TABLE_ROW, components), dtype=table.dtype)
+    padded[:n] = table.reshape(n, components)
+    texture.write(padded.tobytes(), viewport=(0, 0, TABLE_ROW, rows))
+    return texture
+
+
 class TextureCache:
     """r32f textures by (name, size), made on first use and reused every frame (creating
     GL objects per frame is what slows moderngl programs down)."""

@@ -30,6 +30,7 @@ import numpy as np
 
 from sasprobe.render.gl.buffers import upload
 from sasprobe.render.gl.programs import source
+from sasprobe.render.gl.textures import table_image
 from sasprobe.render.gl.uniforms import apply_uniforms
 
 FACE_CELLS = 8  # cells along a cube face's edge: 6 × 8² = 384 lists (finer ones cost more to fill than they save)
@@ -160,7 +161,7 @@ class PointLightBuffer:
 # ------------------------------------------------------------------ the directional light
 SUN_CELL = 2.0  # Å: the directional buffer's cells across the light (finer: more entries, shorter lists)
 MAX_SUN_CELLS = 65535  # cell ids fit in uint16, which numpy sorts by radix
-BINDING_SUN_START, BINDING_SUN_SPHERES, BINDING_SUN_ATOMS = 19, 20, 21  # shaders/sun_buffer.glsl
+BINDING_SUN_START, IMAGE_SUN_SPHERES, IMAGE_SUN_ATOMS = 19, 6, 7  # shaders/sun_buffer.glsl
 
 
 class DirectionalLightBuffer:
@@ -180,7 +181,10 @@ class DirectionalLightBuffer:
         self.grid = gpu_grid
         self.ctx = gpu_grid.ctx
         self.cell = float(cell)
-        self.buffers = [self.ctx.buffer(reserve=16) for _ in range(3)]  # cell starts, spheres, atoms
+        self.starts = self.ctx.buffer(reserve=16)  # per cell, its first entry
+        # the entries: tables in images (gl/textures.py table_image)
+        self.spheres = table_image(self.ctx, None, np.zeros((1, 4), dtype=np.float32))
+        self.atoms = table_image(self.ctx, None, np.zeros(1, dtype=np.int32), "i4")
         self.key: tuple | None = None
         self._uniforms: dict = {}
         self.entries = 0
@@ -226,20 +230,22 @@ class DirectionalLightBuffer:
         np.cumsum(np.bincount(cell_id, minlength=starts.size - 1), out=starts[1:])
         listed = owner[order]
         spheres = np.column_stack([centres, vdw]).astype(np.float32)[listed]
-        for buffer, data in zip(self.buffers, (starts, spheres, atoms[listed].astype(np.uint32))):
-            upload(buffer, data)
+        upload(self.starts, starts)
+        self.spheres = table_image(self.ctx, self.spheres, spheres)
+        self.atoms = table_image(self.ctx, self.atoms, atoms[listed].astype(np.int32), "i4")
         self.entries = int(listed.size)
         self._uniforms = {"u_sb_u": tuple(u), "u_sb_v": tuple(v), "u_sb_origin": tuple(float(x) for x in lo),
                           "u_sb_cell": float(cell), "u_sb_dims": tuple(int(x) for x in dims),
                           "u_sb_behind": float(np.max(vdw, initial=0.0) + pad)}
 
     def bind(self) -> None:
-        for binding, buffer in zip((BINDING_SUN_START, BINDING_SUN_SPHERES, BINDING_SUN_ATOMS), self.buffers):
-            buffer.bind_to_storage_buffer(binding)
+        self.starts.bind_to_storage_buffer(BINDING_SUN_START)
+        self.spheres.bind_to_image(IMAGE_SUN_SPHERES, read=True, write=False)
+        self.atoms.bind_to_image(IMAGE_SUN_ATOMS, read=True, write=False)
 
     def uniforms(self) -> dict[str, object]:
         return dict(self._uniforms)
 
     def release(self) -> None:
-        for b in self.buffers:
-            b.release()
+        for obj in (self.starts, self.spheres, self.atoms):
+            obj.release()

@@ -1,13 +1,17 @@
 #version 430 core
 // Occlusion atlas bake, step 2 of 4, one work group per atom of the chunk, an invocation per
 // eight directions: the neighbours that can stop a ray of a direction from anywhere on the
-// atom. Every such ray lies in the capsule of the atom's radius around the segment from its
-// centre along the direction for the ray length, so a neighbour farther than r_i + r_j from
-// that segment cannot meet one; nor can one whose centre lies more than its radius behind
-// the atom's centre along the direction (a ray starts on the half of the atom facing it, so
-// every point of it lies ahead of the centre). The rest are marked (the test is
-// conservative, never exact). Each neighbour read from memory is tested against eight directions at once, and
-// each invocation writes one word per 32 neighbours and direction.
+// atom. A point o + t d of such a ray (|o| = r_i, o.d >= 0, 0 <= t <= L) lies within r_i of
+// the half-line from the atom's centre along d, so a neighbour that can stop it lies within
+// R = r_i + r_j of that half-line: true for exactly the directions with s.d > sqrt(|s|^2 - R^2)
+// (a cone about the neighbour's centre s; every direction when |s| < R). Nor can one stop it
+// whose centre lies more than its radius behind the atom's centre along d (every point of
+// the ray lies ahead of the centre: it starts on the half of the atom facing d). The rest
+// are marked: a few more than the capsule about the ray length's segment would keep (past
+// its end, within the gather's reach), for one comparison per direction after one square
+// root per neighbour; the rays step tests each exactly. Each neighbour read from memory is
+// tested against eight directions at once, and each invocation writes one word per 32
+// neighbours and direction.
 layout(local_size_x = 64) in;
 
 #include "grid_traversal.glsl"
@@ -25,13 +29,10 @@ Four four_directions(int dir) {
     return Four(vec4(d0.x, d1.x, d2.x, d3.x), vec4(d0.y, d1.y, d2.y, d3.y), vec4(d0.z, d1.z, d2.z, d3.z));
 }
 
-// Which of the four directions' capsules sphere s (relative to the atom's centre; `s2` its
-// centre's squared distance) meets: the squared distance to the segment is |s|^2 - 2 t a + t^2
-// for the clamped projection t of the projection a.
-uvec4 meets(Four d, vec4 s, float s2, float reach2) {
-    vec4 along = s.x * d.x + s.y * d.y + s.z * d.z;
-    vec4 t = clamp(along, 0.0, u_distance);
-    return uvec4(lessThan(s2 + t * (t - 2.0 * along), vec4(reach2))) & uvec4(greaterThan(along, vec4(-s.w)));
+// Which of the four directions' cones hold sphere s (relative to the atom's centre): its
+// centre's distance along the direction is above `least`.
+uvec4 meets(Four d, vec4 s, float least) {
+    return uvec4(greaterThan(s.x * d.x + s.y * d.y + s.z * d.z, vec4(least)));
 }
 
 void write_masks(int local_slot, int dir, int word, uvec4 mask) {
@@ -43,17 +44,17 @@ void main() {
     int local_slot = int(gl_WorkGroupID.x);
     if (local_slot >= u_chunk_slots) return;
     float radius = spheres[int(slot_atoms[chunk_slot(local_slot)])].w;
-    int first = local_slot * MAX_NEIGHBOURS;
     int count = counts[local_slot];
     for (int dir = 8 * int(gl_LocalInvocationIndex); dir < u_directions; dir += 8 * 64) {
         Four a = four_directions(dir), b = four_directions(dir + 4);
         for (int word = 0; word * 32 < count; ++word) {
             uvec4 mask_a = uvec4(0u), mask_b = uvec4(0u);
             for (int bit = 0; bit < 32 && word * 32 + bit < count; ++bit) {
-                vec4 s = neighbours[first + word * 32 + bit];
+                vec4 s = imageLoad(u_neighbours, ivec2(word * 32 + bit, local_slot));
                 float s2 = dot(s.xyz, s.xyz), reach = radius + s.w + 1e-3;  // a hair wider: float rounding
-                mask_a |= meets(a, s, s2, reach * reach) << uint(bit);
-                mask_b |= meets(b, s, s2, reach * reach) << uint(bit);
+                float least = s2 > reach * reach ? sqrt(s2 - reach * reach) - 1e-3 : -s.w;
+                mask_a |= meets(a, s, least) << uint(bit);
+                mask_b |= meets(b, s, least) << uint(bit);
             }
             write_masks(local_slot, dir, word, mask_a);
             write_masks(local_slot, dir + 4, word, mask_b);

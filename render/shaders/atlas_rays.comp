@@ -54,11 +54,37 @@ void block_ready(inout Quad r, vec3 d) {
     r.z -= r.along * d.z;
 }
 
-// The texels still to take, as a stream over the words of (facing & seen): the word being
-// read and its bits not yet taken.
+// The texels still to take, as a stream over the words of (facing & seen).
+#ifdef TWO_TEXEL_WORDS
+// At most 64 texels a patch (P <= 8): both words at once, each texel taken without a loop
+// (on llvmpipe a loop costs every call, even when it never turns).
+struct Texels { uvec2 bits; };
+
+Texels texel_stream(int dir, int local_slot) {
+    int f = dir * u_texel_words, s = local_slot * u_texel_words;
+    uint high = u_texel_words > 1 ? facing_masks[f + 1] & seen_masks[s + 1] : 0u;
+    return Texels(uvec2(facing_masks[f] & seen_masks[s], high));
+}
+
+// The next texel of the stream, or -1 once it is empty.
+int next_texel(inout Texels s) {
+    bool low = s.bits.x != 0u;
+    int t = low ? findLSB(s.bits.x) : (s.bits.y != 0u ? 32 + findLSB(s.bits.y) : -1);
+    uvec2 taken = s.bits & (s.bits - 1u);  // each word less its lowest bit
+    s.bits = low ? uvec2(taken.x, s.bits.y) : uvec2(0u, taken.y);
+    return t;
+}
+#else
+// The word being read and its bits not yet taken.
 struct Texels { int word; uint bits; int facing; int seen; };
 
 uint texel_word(Texels s) { return facing_masks[s.facing + s.word] & seen_masks[s.seen + s.word]; }
+
+Texels texel_stream(int dir, int local_slot) {
+    Texels s = Texels(0, 0u, dir * u_texel_words, local_slot * u_texel_words);
+    s.bits = texel_word(s);
+    return s;
+}
 
 // The next texel of the stream, or -1 once it is empty.
 int next_texel(inout Texels s) {
@@ -71,6 +97,7 @@ int next_texel(inout Texels s) {
     s.bits &= s.bits - 1u;
     return t;
 }
+#endif
 
 ivec4 next_four(inout Texels s) {
     int a = next_texel(s), b = next_texel(s), c = next_texel(s), d = next_texel(s);
@@ -128,14 +155,12 @@ void main() {
     int local_slot = int(gl_WorkGroupID.x);
     if (local_slot >= u_chunk_slots) return;
     vec4 self_sphere = spheres[int(slot_atoms[chunk_slot(local_slot)])];
-    int first = local_slot * MAX_NEIGHBOURS;
     int count = counts[local_slot];
     bool clipping = u_clip_count > 0 || u_cube_on != 0;
     for (int dir = int(gl_LocalInvocationIndex); dir < u_directions; dir += 64) {
         vec3 d = directions[dir].xyz;
         int list = (local_slot * u_directions + dir) * MASK_WORDS;
-        Texels texels = Texels(0, 0u, dir * u_texel_words, local_slot * u_texel_words);
-        texels.bits = texel_word(texels);
+        Texels texels = texel_stream(dir, local_slot);
         for (;;) {
             ivec4 ta = next_four(texels);
             if (ta.x < 0) break;
@@ -156,7 +181,7 @@ void main() {
                 while (open && mask != 0u) {
                     int bit = findLSB(mask);
                     mask &= mask - 1u;
-                    vec4 s = neighbours[first + word * 32 + bit];
+                    vec4 s = imageLoad(u_neighbours, ivec2(word * 32 + bit, local_slot));
                     float along = dot(s.xyz, d);
                     vec3 across = s.xyz - along * d;
                     open = block_quad(a, s, across, along) + block_quad(b, s, across, along) > 0.0;

@@ -3,10 +3,13 @@
 // cell across the light holding o, nearest the light first, and stops at the first wholly
 // behind o. The same occluders and the same minimum as trace_visibility (grid_traversal.glsl,
 // included before this): the probe first (never clipped), then the kept atoms along the
-// clipped ray. Bound at 19-21, past the occlusion atlas's bake buffers (which read it too).
+// clipped ray. The cells' starts are bound at 19, past the occlusion atlas's bake buffers
+// (which read it too); the entries are tables in images 6 and 7 (table_image.glsl), past the
+// images of the passes that include this.
+#include "table_image.glsl"
 layout(std430, binding = 19) readonly buffer SunCellStart { uint sun_start[]; };  // CSR offsets per cell
-layout(std430, binding = 20) readonly buffer SunSpheres { vec4 sun_spheres[]; };  // centre, vdW radius
-layout(std430, binding = 21) readonly buffer SunAtoms { uint sun_atoms[]; };
+layout(rgba32f, binding = 6) readonly uniform image2D u_sun_spheres;  // centre, vdW radius
+layout(r32i, binding = 7) readonly uniform iimage2D u_sun_atoms;
 
 uniform vec3 u_sb_u;         // the axes across the light
 uniform vec3 u_sb_v;
@@ -30,9 +33,9 @@ float trace_sun_visibility(vec3 o, vec3 d, int skip_atom, vec2 shell, float grow
     uint id = uint(cell.x + u_sb_dims.x * cell.y);
     float behind = dot(o, d) - u_sb_behind;
     for (uint k = sun_start[id]; k < sun_start[id + 1u]; ++k) {
-        vec4 sphere = sun_spheres[k];
+        vec4 sphere = imageLoad(u_sun_spheres, table_texel(k));
         if (dot(sphere.xyz, d) < behind) break;  // this one and every later one
-        if (int(sun_atoms[k]) == skip_atom) continue;
+        if (imageLoad(u_sun_atoms, table_texel(k)).x == skip_atom) continue;
         vis = min(vis, occluder_visibility(o, d, t0, t1, sphere, shell, growth));
         if (vis <= 0.0) return 0.0;
     }

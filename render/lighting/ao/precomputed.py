@@ -26,7 +26,10 @@ are summed, and the lights' channels are one ray per texel (the sun's through it
 buffer, render/lighting/light_buffer.py; the probe light's through the grid). The rays
 are `AOSettings.distance` long, as the ray-traced AO's, so the two converge to the same
 accessibility. On llvmpipe every instruction runs for each group of SIMD lanes, so the
-steps read each value once for many tests and fill the lanes with rays that count.
+steps read each value once for many tests and fill the lanes with rays that count; what
+their loops read many times lies in images and uniform blocks, which llvmpipe loads a
+vector at a time (a storage buffer it loads lane by lane, a component at a time: a vec4
+about 12x slower, `sasprobe bench lighting` notes in the README).
 """
 
 from __future__ import annotations
@@ -40,10 +43,10 @@ import numpy as np
 from sasprobe.render.gl.compute import ComputePass, ComputeVariants
 from sasprobe.render.gl.depth_picked import DepthPickedPass
 from sasprobe.render.lighting.ao.atlas_tables import clustered, facing_masks, fibonacci_directions, texel_normals
-from sasprobe.render.gl.textures import TextureCache
+from sasprobe.render.gl.textures import TextureCache, table_image
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.settings import PointLight, light_uniforms, ray_epsilon_uniforms
+from sasprobe.render.lighting.settings import DIRECTION_RANGE, PointLight, light_uniforms, ray_epsilon_uniforms
 
 log = logging.getLogger("sasprobe")
 
@@ -51,11 +54,15 @@ CHUNK_SLOTS = 1024  # atoms per bake dispatch, at most
 MAX_SCRATCH_BYTES = 256 * 2**20  # the bake's storage per chunk, at most
 MAX_NEIGHBOURS, MAX_OVERLAPS = 1024, 32  # as shaders/atlas_ray_buffers.glsl
 MASK_WORDS, MAX_PATCH_TEXELS = MAX_NEIGHBOURS // 32, 64 * 64
-BINDING_TEXEL_NORMALS = 0  # a uniform block
+BINDING_TEXEL_NORMALS, BINDING_DIRECTIONS = 0, 1  # uniform blocks
+MAX_DIRECTIONS = DIRECTION_RANGE[1]  # as shaders/atlas_sum_buffers.glsl
 BINDING_FACING_MASKS, BINDING_FACING_DIRECTIONS = 16, 17
 MAX_ATLAS_BYTES = 512 * 2**20
 BINDING_SLOT_ATOMS, BINDING_ATOM_SLOTS = 4, 4
-BINDING_KEPT_START, BINDING_KEPT_SPHERES, BINDING_SLOT_ENTRY = 13, 14, 15  # shaders/atlas_gather.comp
+BINDING_KEPT_START, BINDING_SLOT_ENTRY = 13, 15  # shaders/atlas_gather.comp
+# Image units (the atlas itself is unit 0): the neighbours (shaders/atlas_ray_buffers.glsl),
+# the overlaps and the kept spheres (shaders/atlas_gather.comp).
+IMAGE_NEIGHBOURS, IMAGE_OVERLAPS, IMAGE_KEPT_SPHERES = 1, 2, 3
 LOCAL = 64  # the bake shaders' local_size_x
 
 
@@ -77,14 +84,14 @@ class KeptCells:
         np.cumsum(np.bincount(flat, minlength=start.size - 1), out=start[1:])
         entry = np.empty(n, dtype=np.uint32)
         entry[order] = np.arange(n, dtype=np.uint32)
-        spheres = np.column_stack([centers, radii]).astype(np.float32)[order]
+        self.spheres = table_image(ctx, None, np.column_stack([centers, radii]).astype(np.float32)[order])
         self.buffers = {BINDING_KEPT_START: ctx.buffer(start.tobytes()),
-                        BINDING_KEPT_SPHERES: ctx.buffer(spheres.tobytes() if n else b"\0" * 16),
                         BINDING_SLOT_ENTRY: ctx.buffer(entry.tobytes() if n else b"\0" * 4)}
 
     def bind(self) -> None:
         for binding, buffer in self.buffers.items():
             buffer.bind_to_storage_buffer(binding)
+        self.spheres.bind_to_image(IMAGE_KEPT_SPHERES, read=True, write=False)
 
     def uniforms(self) -> dict:
         return {"u_kept_origin": tuple(float(v) for v in self.origin), "u_kept_cell": self.cell,
@@ -93,6 +100,7 @@ class KeptCells:
     def release(self) -> None:
         for buffer in self.buffers.values():
             buffer.release()
+        self.spheres.release()
 
 
 class OcclusionAtlas:
@@ -194,23 +202,27 @@ class OcclusionAtlas:
         n = max(int(slots.size), 1)
         texel_words, direction_words = math.ceil(self.patch * self.patch / 32), math.ceil(directions / 32)
         per_atom = {  # bytes of each chunk-sized buffer per atom (the candidates and blocked bits: ambient only)
-            5: MAX_NEIGHBOURS * 16, 6: MAX_OVERLAPS * 16, 7: 4, 18: texel_words * 4,
+            7: 4, 18: texel_words * 4,
             9: directions * MASK_WORDS * 4 if ambient else 0,
             10: self.patch * self.patch * direction_words * 4 if ambient else 0}
-        most = max(1, min(CHUNK_SLOTS, MAX_SCRATCH_BYTES // sum(per_atom.values())))  # large patches, many directions
+        image_bytes = (MAX_NEIGHBOURS + MAX_OVERLAPS) * 16  # a row of the neighbours and overlaps images per atom
+        most = max(1, min(CHUNK_SLOTS, MAX_SCRATCH_BYTES // (sum(per_atom.values()) + image_bytes)))
         chunk = math.ceil(n / math.ceil(n / most))  # chunks of equal size
         dirs, normals, facing, facing_directions = self._tables_for(directions)
         # the facing bits: only the accessibility's steps read them
         tables = {BINDING_FACING_MASKS: facing, BINDING_FACING_DIRECTIONS: facing_directions} if ambient else {}
         sizes = {**{binding: chunk * nbytes for binding, nbytes in per_atom.items()},
-                 8: dirs.nbytes, 11: 4, 12: max(slots.nbytes, 4)}
+                 11: 4, 12: max(slots.nbytes, 4)}
         buffers = {binding: self._buffer(binding, nbytes) for binding, nbytes in sizes.items()}
-        buffers[8].write(dirs.tobytes())
         for binding, table in tables.items():
             buffers[binding] = self._buffer(binding, table.nbytes)
             buffers[binding].write(table.tobytes())
+        images = {unit: self._chunk_image(unit, width, chunk)
+                  for unit, width in ((IMAGE_NEIGHBOURS, MAX_NEIGHBOURS), (IMAGE_OVERLAPS, MAX_OVERLAPS))}
         normals_block = self._buffer("texel normals", MAX_PATCH_TEXELS * 16)
         normals_block.write(normals.tobytes())
+        directions_block = self._buffer("directions", MAX_DIRECTIONS * 16)
+        directions_block.write(dirs.tobytes())
         buffers[11].write(np.zeros(1, dtype=np.uint32).tobytes())
         if slots.size:
             buffers[12].write(slots.tobytes())
@@ -229,7 +241,7 @@ class OcclusionAtlas:
             sun_buffer.build(d, 0.0)  # hard: the patches hold hard shadows
             sun_buffer.bind()
             common.update(sun_buffer.uniforms())
-        rays = self._variant("atlas_rays.comp", ())
+        rays = self._variant("atlas_rays.comp", (("TWO_TEXEL_WORDS", texel_words <= 2),))
         bake = self._variant("atlas_bake.comp", (("BAKE_AMBIENT", ambient), ("BAKE_SUN", sun_direction is not None),
                                                  ("BAKE_PROBE", probe_light is not None)))
         probe, reach = grid.probe_sphere, grid.probe_reach
@@ -240,7 +252,10 @@ class OcclusionAtlas:
             for binding, buffer in buffers.items():
                 buffer.bind_to_storage_buffer(binding)
             normals_block.bind_to_uniform_block(BINDING_TEXEL_NORMALS)
+            directions_block.bind_to_uniform_block(BINDING_DIRECTIONS)
             self.texture.bind_to_image(0, read=True, write=True)
+            for unit, image in images.items():
+                image.bind_to_image(unit, read=True, write=True)
             for first in range(0, int(slots.size), chunk):
                 count = min(chunk, int(slots.size) - first)
                 uniforms = {**common, "u_first_slot": first, "u_chunk_slots": count}
@@ -280,6 +295,17 @@ class OcclusionAtlas:
                 buffer.release()
             buffer = self._scratch[key] = self.ctx.buffer(reserve=max(nbytes, 16))
         return buffer
+
+    def _chunk_image(self, unit: int, width: int, chunk: int):
+        """The bake's image for image `unit`, a row of `width` spheres per atom of the chunk
+        (rgba32f; made again only to grow)."""
+        key = ("image", unit)
+        image = self._scratch.get(key)
+        if image is None or image.height < chunk:
+            if image is not None:
+                image.release()
+            image = self._scratch[key] = self.ctx.texture((width, chunk), 4, dtype="f4")
+        return image
 
     def _fill_unseen(self) -> None:
         """Hidden texels take their seen neighbours' mean (shaders/atlas_fill.comp)."""
