@@ -2,14 +2,16 @@
 navigation cube remove.
 
 `GpuGrid` uploads, once per molecule, the grid built with the *expanded* radii (vdW +
-probe, the grid the daemon uses) as std430 shader-storage buffers:
+probe, the grid the daemon uses) as std430 shader-storage buffers, and the per-atom
+tables as images (render/gl/textures.py table_image: llvmpipe reads an image far faster
+than a storage buffer):
 
-| binding | buffer | layout |
+| binding | buffer / image | layout |
 |---|---|---|
-| 0 | cell_start | uint32[n_cells + 1], CSR offsets |
-| 1 | cell_atoms | uint32[], sphere indices per cell |
-| 2 | spheres | vec4[n_atoms]: centre (Å, float32), van der Waals radius |
-| 3 | culled | uint32[n_atoms] flags: bit 0 = nothing of the atom is kept (it casts no shadow and occludes nothing); bit 1 = its centre is clipped away (analytic AO skips it) |
+| buffer 0 | cell_start | uint32[n_cells + 1], CSR offsets |
+| buffer 1 | cell_atoms | uint32[], sphere indices per cell |
+| image 4 | spheres | rgba32f per atom: centre (Å, float32), van der Waals radius |
+| image 5 | culled | r32ui per atom, flags: bit 0 = nothing of the atom is kept (it casts no shadow and occludes nothing); bit 1 = its centre is clipped away (analytic AO skips it) |
 
 `culled` is rewritten (n_atoms × 4 bytes) whenever a clip plane or the cube moves; the rest
 stays until the molecule changes. Shaders read them through shaders/grid_traversal.glsl.
@@ -22,10 +24,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sasprobe.molecule.grid import UniformGrid
+from sasprobe.render.gl.textures import table_image
 from sasprobe.render.gl.uniforms import MAX_CLIP_PLANES, padded_planes
 from sasprobe.render.lighting.light_buffer import DirectionalLightBuffer
 
-BINDING_CELL_START, BINDING_CELL_ATOMS, BINDING_SPHERES, BINDING_CULLED = 0, 1, 2, 3
+BINDING_CELL_START, BINDING_CELL_ATOMS = 0, 1  # storage buffers
+IMAGE_SPHERES, IMAGE_CULLED = 4, 5  # image units (shaders/grid_traversal.glsl)
 NO_PROBE = (0.0, 0.0, 0.0, 0.0)
 UNBOUNDED = 1e30  # Å: a probe whose share of the AO is not windowed
 CULLED, CENTRE_CLIPPED = 1, 2  # flag bits of the culled buffer
@@ -136,8 +140,8 @@ class GpuGrid:
         atoms = grid.cell_atoms if grid.cell_atoms.size else np.zeros(1, dtype=np.uint32)
         self.cell_start = ctx.buffer(grid.cell_start.astype(np.uint32).tobytes())
         self.cell_atoms = ctx.buffer(atoms.astype(np.uint32).tobytes())
-        self.spheres = ctx.buffer(spheres.tobytes())
-        self.culled = ctx.buffer(np.zeros(self.n_atoms, dtype=np.uint32).tobytes())
+        self.spheres = table_image(ctx, None, spheres)
+        self.culled = table_image(ctx, None, np.zeros(self.n_atoms, dtype=np.uint32), "u4")
         self.culling = Culling()
         self.culled_mask = np.zeros(self.n_atoms, dtype=bool)
         self.centre_clipped_mask = np.zeros(self.n_atoms, dtype=bool)
@@ -155,7 +159,8 @@ class GpuGrid:
     @property
     def nbytes(self) -> int:
         """GPU memory of the grid and sphere buffers (bytes)."""
-        return sum(b.size for b in (self.cell_start, self.cell_atoms, self.spheres, self.culled))
+        tables = sum(t.width * t.height * t.components * 4 for t in (self.spheres, self.culled))
+        return self.cell_start.size + self.cell_atoms.size + tables
 
     def set_culling(self, culling: Culling) -> None:
         """Clip planes / navigation cube moved: refresh the culled flags and the walk range."""
@@ -164,7 +169,7 @@ class GpuGrid:
         self.culled_mask = culling.culled_atoms(self.grid.centers, self.vdw_radii, self.grid)
         self.centre_clipped_mask = culling.centre_clipped(self.grid.centers)
         flags = np.where(self.culled_mask, CULLED, 0) | np.where(self.centre_clipped_mask, CENTRE_CLIPPED, 0)
-        self.culled.write(flags.astype(np.uint32).tobytes())
+        self.culled = table_image(self.ctx, self.culled, flags.astype(np.uint32), "u4")
         box = culling.cube_box
         rng = self.grid.cell_range(*box) if box is not None else None
         if box is not None and rng is None:  # the cube is off the molecule: walk one cell
@@ -180,8 +185,8 @@ class GpuGrid:
     def bind(self) -> None:
         self.cell_start.bind_to_storage_buffer(BINDING_CELL_START)
         self.cell_atoms.bind_to_storage_buffer(BINDING_CELL_ATOMS)
-        self.spheres.bind_to_storage_buffer(BINDING_SPHERES)
-        self.culled.bind_to_storage_buffer(BINDING_CULLED)
+        self.spheres.bind_to_image(IMAGE_SPHERES, read=True, write=False)
+        self.culled.bind_to_image(IMAGE_CULLED, read=True, write=False)
 
     def uniforms(self) -> dict[str, object]:
         lo, hi = self.walk_range

@@ -30,7 +30,7 @@ import numpy as np
 
 from sasprobe.render.gl.buffers import upload
 from sasprobe.render.gl.programs import source
-from sasprobe.render.gl.textures import table_image
+from sasprobe.render.gl.textures import TABLE_ROW, table_image, texture_2d
 from sasprobe.render.gl.uniforms import apply_uniforms
 
 FACE_CELLS = 8  # cells along a cube face's edge: 6 × 8² = 384 lists (finer ones cost more to fill than they save)
@@ -39,8 +39,8 @@ ANGLE_MARGIN = 1e-4  # rad added to both cones: float32 lookups may land a cell 
 RADIUS_MARGIN = 1e-3  # Å added to each atom's reach: float32 distances in the shader
 BUILD_LOCAL_SIZE = 64
 # Shader-storage bindings (the grid holds 0-3).
-BINDING_SLOT_SPHERES, BINDING_SLOT_ATOMS, BINDING_SLOT_CONES, BINDING_CELL_CONES = 4, 5, 6, 7
-BINDING_LIST_SPHERES, BINDING_LIST_ATOMS, BINDING_LIST_COUNTS = 8, 9, 10
+BINDING_SLOT_ATOMS, BINDING_CELL_CONES, BINDING_LIST_COUNTS = 5, 7, 10  # storage buffers
+IMAGE_SLOT_SPHERES, IMAGE_SLOT_CONES, IMAGE_LIST_SPHERES, IMAGE_LIST_ATOMS = 0, 1, 2, 3  # image units
 
 
 def cell_cones(face_cells: int = FACE_CELLS) -> np.ndarray:
@@ -88,10 +88,12 @@ class PointLightBuffer:
         cones = cell_cones(self.face_cells)
         cones[:, 3] = np.cos(np.minimum(cones[:, 3] + ANGLE_MARGIN, np.pi))
         self.cell_cones = self.ctx.buffer(cones.astype(np.float32).tobytes())
-        self.list_spheres = self.ctx.buffer(reserve=self.n_cells * self.capacity * 16)
-        self.list_atoms = self.ctx.buffer(reserve=self.n_cells * self.capacity * 4)
+        self.list_spheres = self.list_atoms = None  # tables in images (gl/textures.py table_image)
+        self._make_lists()
         self.list_counts = self.ctx.buffer(reserve=self.n_cells * 4)
-        self.slots = [self.ctx.buffer(reserve=16) for _ in range(3)]  # spheres, atoms, cones of the atoms in reach
+        # the atoms in reach: spheres and cones as tables in images, atom ids in a buffer
+        self.slot_spheres = self.slot_cones = None
+        self.slot_atoms = self.ctx.buffer(reserve=16)
         self.program = self.ctx.compute_shader(source("light_buffer_build.comp"))
         self.key: tuple | None = None
         self.atoms_in_reach = 0
@@ -123,25 +125,35 @@ class PointLightBuffer:
         self.atoms_in_reach = int(atoms.size)
         spheres = np.column_stack([grid.centers[atoms], self.grid.vdw_radii[atoms]]).astype(np.float32)
         cones = np.column_stack([directions, np.cos(np.minimum(half + ANGLE_MARGIN, np.pi))]).astype(np.float32)
-        for buffer, data in zip(self.slots, (spheres, atoms.astype(np.uint32), cones)):
-            upload(buffer, data)
-        for binding, buffer in zip((BINDING_SLOT_SPHERES, BINDING_SLOT_ATOMS, BINDING_SLOT_CONES), self.slots):
-            buffer.bind_to_storage_buffer(binding)
+        self.slot_spheres = table_image(self.ctx, self.slot_spheres, spheres)
+        self.slot_cones = table_image(self.ctx, self.slot_cones, cones)
+        upload(self.slot_atoms, atoms.astype(np.uint32))
+        self.slot_spheres.bind_to_image(IMAGE_SLOT_SPHERES, read=True, write=False)
+        self.slot_cones.bind_to_image(IMAGE_SLOT_CONES, read=True, write=False)
+        self.slot_atoms.bind_to_storage_buffer(BINDING_SLOT_ATOMS)
         self.cell_cones.bind_to_storage_buffer(BINDING_CELL_CONES)
         if self.atoms_in_reach > self.capacity:  # room for all of them in every list
             self.capacity = max(self.atoms_in_reach, 2 * self.capacity)
-            self.list_spheres.orphan(self.n_cells * self.capacity * 16)
-            self.list_atoms.orphan(self.n_cells * self.capacity * 4)
+            self._make_lists()
         self.bind()
         apply_uniforms(self.program, {"u_slots": self.atoms_in_reach, "u_cells": self.n_cells,
                                       "u_capacity": self.capacity})
         self.program.run(group_x=(self.n_cells + BUILD_LOCAL_SIZE - 1) // BUILD_LOCAL_SIZE)
         self.ctx.memory_barrier()
 
+    def _make_lists(self) -> None:
+        """Room for `capacity` entries in each list (shaders/table_image.glsl's layout)."""
+        rows = -(-self.n_cells * self.capacity // TABLE_ROW)
+        for old in (self.list_spheres, self.list_atoms):
+            if old is not None:
+                old.release()
+        self.list_spheres = texture_2d(self.ctx, TABLE_ROW, rows, 4, "f4")
+        self.list_atoms = texture_2d(self.ctx, TABLE_ROW, rows, 1, "i4")
+
     def bind(self) -> None:
         """The lists (for shaders/light_buffer.glsl, and for the build to fill)."""
-        self.list_spheres.bind_to_storage_buffer(BINDING_LIST_SPHERES)
-        self.list_atoms.bind_to_storage_buffer(BINDING_LIST_ATOMS)
+        self.list_spheres.bind_to_image(IMAGE_LIST_SPHERES, read=True, write=True)
+        self.list_atoms.bind_to_image(IMAGE_LIST_ATOMS, read=True, write=True)
         self.list_counts.bind_to_storage_buffer(BINDING_LIST_COUNTS)
 
     def uniforms(self, shell_outer: float) -> dict[str, object]:
@@ -153,8 +165,10 @@ class PointLightBuffer:
         return np.frombuffer(self.list_counts.read(), dtype=np.uint32).copy()
 
     def release(self) -> None:
-        for b in (self.cell_cones, self.list_spheres, self.list_atoms, self.list_counts, *self.slots):
-            b.release()
+        for obj in (self.cell_cones, self.list_spheres, self.list_atoms, self.list_counts, self.slot_atoms,
+                    self.slot_spheres, self.slot_cones):
+            if obj is not None:
+                obj.release()
         self.program.release()
 
 

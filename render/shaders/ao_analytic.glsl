@@ -8,7 +8,8 @@
 #include "ao_sphere.glsl"
 
 #define MAX_K 32
-layout(std430, binding = 4) readonly buffer Neighbours { int neighbours[]; };  // n_atoms x MAX_K, -1 padded
+// n_atoms x MAX_K atom ids, -1 padded: a table in an image (table_image.glsl)
+layout(r32i, binding = 1) readonly uniform iimage2D u_ao_neighbours;
 
 uniform int u_k;
 uniform int u_probe_neighbours[MAX_K];  // atoms nearest the probe, for the probe's own pixels
@@ -19,7 +20,7 @@ float analytic_accessibility(ivec2 px) {
     float ao = 1.0;
     if (gbuffer_fetch(px, p, n, atom)) {
         if (atom >= 0) {
-            for (int j = 0; j < u_k; ++j) ao *= neighbour_accessibility(p, n, neighbours[atom * MAX_K + j]);
+            for (int j = 0; j < u_k; ++j) ao *= neighbour_accessibility(p, n, imageLoad(u_ao_neighbours, table_texel(uint(atom * MAX_K + j))).x);
             if (u_probe_sphere.w > 0.0) ao *= 1.0 - probe_occlusion(p, n, u_probe_sphere, u_probe_reach);
         } else if (atom == ATOM_PROBE) {
             for (int j = 0; j < u_k; ++j) ao *= neighbour_accessibility(p, n, u_probe_neighbours[j]);

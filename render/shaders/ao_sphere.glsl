@@ -4,6 +4,6 @@
 // Culling.centre_clipped), are skipped. Needs grid_traversal.glsl.
 
 float neighbour_accessibility(vec3 p, vec3 n, int other) {
-    if (other < 0 || culled[other] != 0u) return 1.0;
-    return 1.0 - sphere_occlusion(p, n, spheres[other]);
+    if (other < 0 || culled_flags(other) != 0u) return 1.0;
+    return 1.0 - sphere_occlusion(p, n, grid_sphere(other));
 }

@@ -32,7 +32,7 @@ void bake_texel(int local_slot, int index) {
     ivec2 texel = ivec2(index % u_patch, index / u_patch);
     int slot = chunk_slot(local_slot);
     int atom = int(slot_atoms[slot]);
-    vec4 self_sphere = spheres[atom];
+    vec4 self_sphere = grid_sphere(atom);
     vec3 n = texel_normals[index].xyz;
     vec3 x = self_sphere.xyz + self_sphere.w * n;
     ivec2 at = tile_origin(slot) + texel;

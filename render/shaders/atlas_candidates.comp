@@ -43,7 +43,7 @@ void write_masks(int local_slot, int dir, int word, uvec4 mask) {
 void main() {
     int local_slot = int(gl_WorkGroupID.x);
     if (local_slot >= u_chunk_slots) return;
-    float radius = spheres[int(slot_atoms[chunk_slot(local_slot)])].w;
+    float radius = grid_sphere(int(slot_atoms[chunk_slot(local_slot)])).w;
     int count = counts[local_slot];
     for (int dir = 8 * int(gl_LocalInvocationIndex); dir < u_directions; dir += 8 * 64) {
         Four a = four_directions(dir), b = four_directions(dir + 4);

@@ -49,7 +49,7 @@ void look_up(ivec2 px) {
             sun = dot(n, u_sun_dir) > 0.0 ? 1.0 : 0.0;
             lamp = dot(n, u_probe_light_pos - p) > 0.0 ? 1.0 : 0.0;
         } else if (slot >= 0) {
-            vec3 baked = textureLod(u_atlas, atlas_coord(slot, normalize(p - spheres[atom].xyz)) / u_atlas_size, 0.0).rgb;
+            vec3 baked = textureLod(u_atlas, atlas_coord(slot, normalize(p - grid_sphere(atom).xyz)) / u_atlas_size, 0.0).rgb;
             ambient = baked.r;
             sun = baked.g;
             lamp = baked.b;

@@ -154,7 +154,7 @@ void record_quad(int local_slot, ivec4 t, Quad r, int dir) {
 void main() {
     int local_slot = int(gl_WorkGroupID.x);
     if (local_slot >= u_chunk_slots) return;
-    vec4 self_sphere = spheres[int(slot_atoms[chunk_slot(local_slot)])];
+    vec4 self_sphere = grid_sphere(int(slot_atoms[chunk_slot(local_slot)]));
     int count = counts[local_slot];
     bool clipping = u_clip_count > 0 || u_cube_on != 0;
     for (int dir = int(gl_LocalInvocationIndex); dir < u_directions; dir += 64) {

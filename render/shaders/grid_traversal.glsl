@@ -1,12 +1,14 @@
 // The uniform grid of molecule/grid.py on the GPU: 3D-DDA (Amanatides & Woo 1987) and the
 // sphere queries shadows, ambient occlusion and path tracing share.
 //
-// Buffers (std430, uploaded by render/lighting/grid.py, layout as in molecule/grid.py):
-//   cell_start  uint[n_cells + 1]  CSR offsets, flat cell id = ix + nx * (iy + ny * iz)
-//   cell_atoms  uint[]             sphere indices per cell
-//   spheres     vec4[n_atoms]      centre (Å, world frame), van der Waals radius
-//   culled      uint[n_atoms]      flags: CULLED (nothing kept by the clip planes and the
-//                                  navigation cube), CENTRE_CLIPPED (centre cut away)
+// Buffers (std430) and tables in images (table_image.glsl: llvmpipe reads an image far
+// faster than a storage buffer), uploaded by render/lighting/grid.py, layout as in
+// molecule/grid.py:
+//   cell_start    uint[n_cells + 1]  CSR offsets, flat cell id = ix + nx * (iy + ny * iz)
+//   cell_atoms    uint[]             sphere indices per cell
+//   grid_sphere   vec4 per atom      centre (Å, world frame), van der Waals radius
+//   culled_flags  uint per atom      CULLED (nothing kept by the clip planes and the
+//                                    navigation cube), CENTRE_CLIPPED (centre cut away)
 // The grid is built with the *expanded* radii (vdW + probe), so every vdW sphere, and every
 // soft-shadow shell up to the probe radius thick, lies in the cells it is stored in.
 //
@@ -17,8 +19,12 @@
 
 layout(std430, binding = 0) readonly buffer GridCellStart { uint cell_start[]; };
 layout(std430, binding = 1) readonly buffer GridCellAtoms { uint cell_atoms[]; };
-layout(std430, binding = 2) readonly buffer GridSpheres { vec4 spheres[]; };
-layout(std430, binding = 3) readonly buffer GridCulled { uint culled[]; };
+#include "table_image.glsl"
+layout(rgba32f, binding = 4) readonly uniform image2D u_grid_spheres;
+layout(r32ui, binding = 5) readonly uniform uimage2D u_grid_culled;
+
+vec4 grid_sphere(int atom) { return imageLoad(u_grid_spheres, table_texel(uint(atom))); }
+uint culled_flags(int atom) { return imageLoad(u_grid_culled, table_texel(uint(atom))).x; }
 
 uniform vec3 u_grid_origin;   // Å, corner of cell (0, 0, 0)
 uniform float u_cell_size;    // Å
@@ -127,8 +133,8 @@ float trace_visibility(vec3 o, vec3 d, float t_min, float t_max, int skip_atom, 
         int cell = walk_flat_cell(w);
         for (uint k = cell_start[cell]; k < cell_start[cell + 1]; ++k) {
             int atom = int(cell_atoms[k]);
-            if (atom == skip_atom || (culled[atom] & CULLED) != 0u) continue;
-            vis = min(vis, occluder_visibility(o, d, t_min, t_max, spheres[atom], shell, growth));
+            if (atom == skip_atom || (culled_flags(atom) & CULLED) != 0u) continue;
+            vis = min(vis, occluder_visibility(o, d, t_min, t_max, grid_sphere(atom), shell, growth));
             if (vis <= 0.0) return 0.0;
         }
     } while (walk_next(w));
@@ -173,8 +179,8 @@ bool trace_closest(vec3 o, vec3 d, float t_min, float t_max, int skip_atom, bool
             int cell = walk_flat_cell(w);
             for (uint k = cell_start[cell]; k < cell_start[cell + 1]; ++k) {
                 int atom = int(cell_atoms[k]);
-                if (atom == skip_atom || (culled[atom] & CULLED) != 0u) continue;
-                vec4 sphere = spheres[atom];
+                if (atom == skip_atom || (culled_flags(atom) & CULLED) != 0u) continue;
+                vec4 sphere = grid_sphere(atom);
                 if (!sphere_interval(o, d, sphere, t_in, t_out)) continue;
                 float t = max(t_in, t_min);
                 if (t > min(t_out, t_max) || t >= t_hit) continue;

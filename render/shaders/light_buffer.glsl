@@ -3,9 +3,11 @@
 // the light tests the atoms listed for its direction seen from the light, nearest first,
 // and stops at the first farther from the light than o. The same occluders and the same
 // minimum as trace_visibility (grid_traversal.glsl, included before this): the lists are
-// complete (the buffer grows until no cell overflows).
-layout(std430, binding = 8) readonly buffer ListSpheres { vec4 list_spheres[]; };
-layout(std430, binding = 9) readonly buffer ListAtoms { uint list_atoms[]; };
+// complete (the buffer grows until no cell overflows). The lists' entries are tables in
+// images 2 and 3 (table_image.glsl), entry k of a list at cell * u_lb_capacity + k.
+#include "table_image.glsl"
+layout(rgba32f, binding = 2) readonly uniform image2D u_list_spheres;  // centre, vdW radius
+layout(r32i, binding = 3) readonly uniform iimage2D u_list_atoms;
 layout(std430, binding = 10) readonly buffer ListCounts { uint list_counts[]; };
 
 uniform int u_lb_face_cells;
@@ -37,11 +39,11 @@ float trace_point_visibility(vec3 o, vec3 light, int skip_atom, vec2 shell, floa
     float vis = 1.0;
     uint base = cell * u_lb_capacity;
     for (uint k = 0u; k < n; ++k) {
-        vec4 sphere = list_spheres[base + k];
+        vec4 sphere = imageLoad(u_list_spheres, table_texel(base + k));
         vec3 from_light = sphere.xyz - light;
         float beyond = reach + sphere.w;
         if (dot(from_light, from_light) > beyond * beyond) break;  // this one and every later one
-        if (int(list_atoms[base + k]) == skip_atom) continue;
+        if (imageLoad(u_list_atoms, table_texel(base + k)).x == skip_atom) continue;
         vis = min(vis, occluder_visibility(o, d, t0, t1, sphere, shell, growth));
         if (vis <= 0.0) return 0.0;
     }

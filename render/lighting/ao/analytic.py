@@ -11,11 +11,11 @@ import numpy as np
 
 from sasprobe.render.gl.compute import ComputePass
 from sasprobe.render.gl.depth_picked import DepthPickedPass
-from sasprobe.render.gl.textures import texture_2d
+from sasprobe.render.gl.textures import table_image, texture_2d
 from sasprobe.render.lighting.gbuffer import GBuffer
 
 MAX_K = 32  # matches ao_analytic.glsl
-BINDING_NEIGHBOURS = 4
+IMAGE_NEIGHBOURS = 1  # image unit (shaders/ao_analytic.glsl; the compute pass writes unit 0)
 
 
 def nearest_to_point(centers: np.ndarray, point, k: int = MAX_K) -> np.ndarray:
@@ -35,7 +35,7 @@ class AnalyticAO(ComputePass):
         super().__init__(gpu_grid.ctx, "ao_analytic.comp", gpu_grid)
         neighbours, _ = gpu_grid.grid.nearest_neighbors(MAX_K)
         self.neighbours = neighbours  # (N, 32) int64, -1 padded
-        self.buffer = self.ctx.buffer(neighbours.astype(np.int32).tobytes())
+        self.table = table_image(self.ctx, None, neighbours.astype(np.int32).reshape(-1), "i4")
         self.probe_neighbours = np.full(MAX_K, -1, dtype=np.int64)
         self.drawn = DepthPickedPass(self.ctx, "ao_analytic.frag", gpu_grid)
 
@@ -52,7 +52,7 @@ class AnalyticAO(ComputePass):
         width, height = gbuffer.size
         out = out or texture_2d(self.ctx, width, height)
         gbuffer.bind()
-        self.buffer.bind_to_storage_buffer(BINDING_NEIGHBOURS)
+        self.table.bind_to_image(IMAGE_NEIGHBOURS, read=True, write=False)
         uniforms = {"u_k": int(k), "u_probe_neighbours": self.probe_neighbours.astype(np.int32).tobytes()}
         if gbuffer.depth is not None:
             self.drawn.run(out, gbuffer.depth, (0, 0, width, height), [((), ">")], uniforms, clear=1.0)
@@ -64,4 +64,4 @@ class AnalyticAO(ComputePass):
     def release(self) -> None:
         super().release()
         self.drawn.release()
-        self.buffer.release()
+        self.table.release()
