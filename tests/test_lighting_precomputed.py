@@ -129,13 +129,14 @@ def test_the_atlas_does_not_depend_on_how_the_atoms_are_chunked(gl, crambin_grid
             atlas.release()
 
 
-def test_lookup_is_the_bilinear_patch_value_and_caps_are_open(gl, crambin, crambin_grid):
-    crambin_grid.set_culling(cullings(crambin)["plane"])
+def assert_lookup_reads_the_patches(crambin, grid, patch: int) -> None:
+    """Each sphere pixel reads its atom's patch bilinearly in the octahedral direction of its
+    point; caps are open (accessibility 1, lit where they face the light)."""
     view, proj = camera(crambin)
-    gbuffer, pos, nrm, atom = gbuffer_arrays(crambin_grid, view, proj)
-    atlas = OcclusionAtlas(crambin_grid)
+    gbuffer, pos, nrm, atom = gbuffer_arrays(grid, view, proj)
+    atlas = OcclusionAtlas(grid)
     try:
-        atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN)
+        atlas.update(patch, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN)
         ambient_tex, sun_tex, _ = atlas.lookup(gbuffer, True, SUN)
         ambient, sun = read_texture(ambient_tex), read_texture(sun_tex)
         values, slots = atlas.read(), atlas.slot_of()
@@ -151,9 +152,9 @@ def test_lookup_is_the_bilinear_patch_value_and_caps_are_open(gl, crambin, cramb
             a = atom[y, x]
             slot = slots[a]
             e = octa_encode((pos[y, x] - crambin.positions[a]) / np.linalg.norm(pos[y, x] - crambin.positions[a]))
-            tx, ty = (slot % atlas.tiles_x) * PATCH, (slot // atlas.tiles_x) * PATCH
-            u = tx + (e[0] * 0.5 + 0.5) * (PATCH - 1) + 0.5
-            v = ty + (e[1] * 0.5 + 0.5) * (PATCH - 1) + 0.5
+            tx, ty = (slot % atlas.tiles_x) * patch, (slot // atlas.tiles_x) * patch
+            u = tx + (e[0] * 0.5 + 0.5) * (patch - 1) + 0.5
+            v = ty + (e[1] * 0.5 + 0.5) * (patch - 1) + 0.5
             expected = bilinear(values, u, v)
             good += np.abs(expected[:2] - np.array([ambient[y, x], sun[y, x]])).max() <= 1e-2
         assert good / len(ys) >= 0.995
@@ -161,6 +162,37 @@ def test_lookup_is_the_bilinear_patch_value_and_caps_are_open(gl, crambin, cramb
     finally:
         atlas.release()
         gbuffer.release()
+
+
+def test_lookup_is_the_bilinear_patch_value_and_caps_are_open(gl, crambin, crambin_grid):
+    crambin_grid.set_culling(cullings(crambin)["plane"])
+    try:
+        assert_lookup_reads_the_patches(crambin, crambin_grid, PATCH)
+    finally:
+        crambin_grid.set_culling(Culling())
+
+
+def test_an_atlas_of_power_of_two_sides_is_padded_and_reads_the_same(gl, crambin, crambin_grid):
+    """llvmpipe compiles a shader variant per power-of-two-ness of a texture's sides, so the
+    atlas never takes such a side (gl/textures.py steady_side): 57-64 patches of 8 texels,
+    8 tiles each way, make a 64x64 atlas, which takes a texel more each way and is read as
+    before."""
+    centre = crambin.positions.mean(axis=0)
+    try:
+        for half in np.arange(1.0, 10.0, 0.05):  # a cube that keeps 57-64 atoms
+            crambin_grid.set_culling(Culling(nav_cube=(centre, float(half))))
+            if 57 <= (~crambin_grid.culled_mask).sum() <= 64:
+                break
+        else:
+            pytest.fail("no cube of crambin keeps 57-64 atoms")
+        atlas = OcclusionAtlas(crambin_grid)
+        try:
+            atlas.update(8, DIRECTIONS, DISTANCE, ambient=True)
+            assert atlas.tiles_x == 8 and atlas.texture.size == (65, 65)
+        finally:
+            atlas.release()
+        assert_lookup_reads_the_patches(crambin, crambin_grid, 8)
+    finally:
         crambin_grid.set_culling(Culling())
 
 

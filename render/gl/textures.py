@@ -31,6 +31,14 @@ def texture_2d(ctx, width: int, height: int, components: int = 1, dtype: str = "
     return tex
 
 
+def steady_side(n: int) -> int:
+    """A side of `n` texels, or a little more where n is a power of two, for textures whose
+    size follows the scene (a cube's atoms, a light's lists): llvmpipe compiles a variant of
+    every shader that reads a texture per power-of-two-ness of its sides (its sampler key's
+    pot bits), 0.2-0.7 s each, so a cube moving across such a size stalled the frame."""
+    return max(n + 1, 3) if n & (n - 1) == 0 else n
+
+
 TABLE_ROW = 4096  # entries a row of a table image (shaders/table_image.glsl TABLE_ROW_BITS)
 
 
@@ -39,7 +47,7 @@ def table_image(ctx, texture, table: np.ndarray, dtype: str = "f4"):
     (shaders/table_image.glsl: entry k at (k % TABLE_ROW, k // TABLE_ROW)), written into
     `texture` when it has the rows (else it is released and made again); returns the texture."""
     n, components = table.shape[0], table.shape[1] if table.ndim > 1 else 1
-    rows = max(1, -(-n // TABLE_ROW))
+    rows = steady_side(max(1, -(-n // TABLE_ROW)))
     if texture is None or texture.height < rows or texture.components != components or texture.dtype != dtype:
         if texture is not None:
             texture.release()

@@ -43,8 +43,12 @@ def bake_seconds(grid: GpuGrid, culling: Culling, settings: AOSettings = DEFAULT
         return atlas.bake_seconds
 
     try:
-        grid.set_culling(Culling(nav_cube=(grid.grid.centers[0], 2.0)))
-        bake(True)
+        few = Culling(nav_cube=(grid.grid.centers[0], 2.0))
+        grid.set_culling(few)
+        bake(True)  # each kind of bake timed below compiles its own programs: both channels,
+        grid.set_culling(few)
+        bake(False)  # the accessibility alone
+        bake(True)  # and the light alone
         both, ambient, light = [], [], []
         for k in range(repeats):
             moved = culling if culling.nav_cube is None else \

@@ -43,7 +43,7 @@ import numpy as np
 from sasprobe.render.gl.compute import ComputePass, ComputeVariants
 from sasprobe.render.gl.depth_picked import DepthPickedPass
 from sasprobe.render.lighting.ao.atlas_tables import clustered, facing_masks, fibonacci_directions, texel_normals
-from sasprobe.render.gl.textures import TextureCache, table_image
+from sasprobe.render.gl.textures import TextureCache, steady_side, table_image
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.settings import DIRECTION_RANGE, PointLight, light_uniforms, ray_epsilon_uniforms
@@ -138,7 +138,7 @@ class OcclusionAtlas:
         kept = np.flatnonzero(~self.grid.culled_mask).astype(np.uint32)
         n = max(int(kept.size), 1)
         tiles_x = math.ceil(math.sqrt(n))
-        width, height = tiles_x * patch, math.ceil(n / tiles_x) * patch
+        width, height = steady_side(tiles_x * patch), steady_side(math.ceil(n / tiles_x) * patch)
         limit = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
         if max(width, height) > limit or width * height * 4 > MAX_ATLAS_BYTES:
             raise ValueError(f"precomputed AO: {kept.size} patches of {patch}x{patch} texels need a "
@@ -304,7 +304,7 @@ class OcclusionAtlas:
         if image is None or image.height < chunk:
             if image is not None:
                 image.release()
-            image = self._scratch[key] = self.ctx.texture((width, chunk), 4, dtype="f4")
+            image = self._scratch[key] = self.ctx.texture((width, steady_side(chunk)), 4, dtype="f4")
         return image
 
     def _fill_unseen(self) -> None:
