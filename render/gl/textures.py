@@ -45,16 +45,18 @@ TABLE_ROW = 4096  # entries a row of a table image (shaders/table_image.glsl TAB
 def table_image(ctx, texture, table: np.ndarray, dtype: str = "f4"):
     """`table` (n, components) as an image that shaders read entry by entry
     (shaders/table_image.glsl: entry k at (k % TABLE_ROW, k // TABLE_ROW)), written into
-    `texture` when it has the rows (else it is released and made again); returns the texture."""
+    `texture` when it has the rows (else it is released and made again); returns the texture.
+    Only the rows that hold entries are written: shaders never read past the table's end."""
     n, components = table.shape[0], table.shape[1] if table.ndim > 1 else 1
-    rows = steady_side(max(1, -(-n // TABLE_ROW)))
+    used = max(1, -(-n // TABLE_ROW))
+    rows = steady_side(used)
     if texture is None or texture.height < rows or texture.components != components or texture.dtype != dtype:
         if texture is not None:
             texture.release()
         texture = texture_2d(ctx, TABLE_ROW, rows, components, dtype)
-    padded = np.zeros((rows * TABLE_ROW, components), dtype=table.dtype)
+    padded = np.zeros((used * TABLE_ROW, components), dtype=table.dtype)
     padded[:n] = table.reshape(n, components)
-    texture.write(padded.tobytes(), viewport=(0, 0, TABLE_ROW, rows))
+    texture.write(padded.tobytes(), viewport=(0, 0, TABLE_ROW, used))
     return texture
 
 
