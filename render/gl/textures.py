@@ -42,14 +42,18 @@ def steady_side(n: int) -> int:
 TABLE_ROW = 4096  # entries a row of a table image (shaders/table_image.glsl TABLE_ROW_BITS)
 
 
+def table_rows(entries: int) -> int:
+    """The rows of a table image with room for `entries` (a steady side: see steady_side)."""
+    return steady_side(max(1, -(-entries // TABLE_ROW)))
+
+
 def table_image(ctx, texture, table: np.ndarray, dtype: str = "f4"):
     """`table` (n, components) as an image that shaders read entry by entry
     (shaders/table_image.glsl: entry k at (k % TABLE_ROW, k // TABLE_ROW)), written into
     `texture` when it has the rows (else it is released and made again); returns the texture.
     Only the rows that hold entries are written: shaders never read past the table's end."""
     n, components = table.shape[0], table.shape[1] if table.ndim > 1 else 1
-    used = max(1, -(-n // TABLE_ROW))
-    rows = steady_side(used)
+    used, rows = max(1, -(-n // TABLE_ROW)), table_rows(n)
     if texture is None or texture.height < rows or texture.components != components or texture.dtype != dtype:
         if texture is not None:
             texture.release()

@@ -30,7 +30,7 @@ import numpy as np
 
 from sasprobe.render.gl.buffers import upload
 from sasprobe.render.gl.programs import source
-from sasprobe.render.gl.textures import TABLE_ROW, steady_side, table_image, texture_2d
+from sasprobe.render.gl.textures import TABLE_ROW, table_image, table_rows, texture_2d
 from sasprobe.render.gl.uniforms import apply_uniforms
 
 FACE_CELLS = 8  # cells along a cube face's edge: 6 × 8² = 384 lists (finer ones cost more to fill than they save)
@@ -143,7 +143,7 @@ class PointLightBuffer:
 
     def _make_lists(self) -> None:
         """Room for `capacity` entries in each list (shaders/table_image.glsl's layout)."""
-        rows = steady_side(-(-self.n_cells * self.capacity // TABLE_ROW))  # grows with the probe's reach
+        rows = table_rows(self.n_cells * self.capacity)  # grows with the probe's reach
         for old in (self.list_spheres, self.list_atoms):
             if old is not None:
                 old.release()
