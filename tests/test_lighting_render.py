@@ -197,10 +197,9 @@ def test_visibility_buffer_carries_the_terms_to_the_shading_pass(gl, crambin, ca
     """The shading pass's inputs hold the terms: the probe light's rays it is handed to trace
     (test_the_shading_pass_traces_the_probe_light_as_the_shadow_pass_does), and the
     visibility buffer's sun and ambient — on whole frames the terms as
-    traced; on layered frames (the frame cache) the molecule's own with the probe's shadow
-    of the sun taken in, and the ambient to which the shading pass adds the probe's share,
-    so that with the share taken in on the CPU (the probe sphere's shadow of the sun, its
-    analytic occlusion) they are the exported terms."""
+    traced; on layered frames (the frame cache) the molecule's own, to which the shading
+    pass adds the probe's share (its shadow of the sun, its analytic occlusion), so that
+    with the share taken in on the CPU they are the exported terms."""
     scene = make_scene(crambin, "planes")
     renderer, _ = render_lit(gl, scene, cache)
     g = gbuffer_arrays(renderer)

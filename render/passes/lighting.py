@@ -19,11 +19,11 @@ occlusion atlas). Two ways of computing one picture:
   key (progressive AO keeps adding samples while the key holds, whatever the probe
   does); LightingPass, after the probe pass, recomputes what the probe changes: the probe
   light's shadows within its range (traced by the shading pass where it shades again),
-  the probe's pixels, edge cueing around it and the
-  probe's shadow of the directional light (composed into the visibility buffer over those
-  rectangles only, shaders/visibility_compose.comp), and hands the shading pass the probe's
-  share of the ambient occlusion as one analytic sphere, which it adds per pixel
-  (shaders/probe_share.glsl). With hard or soft shadows and analytic AO the result is the
+  the probe's pixels and edge cueing around them (composed into the visibility buffer over
+  those rectangles only, shaders/visibility_compose.frag), and hands the shading pass the
+  probe's shadow of the directional light and its share of the ambient occlusion as one
+  sphere, which it takes in per pixel (shaders/probe_share.glsl), and where the shadow can
+  fall, which it shades again. With hard or soft shadows and analytic AO the result is the
   whole frame's; the traced, screen-space and precomputed AO methods take the molecule's
   occlusion without the probe and the probe's share analytically.
 

@@ -5,9 +5,10 @@ adding samples while it holds); `_run_probe_layer` then recomputes what the prob
 the probe light's shadow rays, for the shading pass to trace where it shades again (or,
 with --shadows precomputed and the probe standing still, its baked visibility), the probe's own
 pixels' sun, the edges around it, the visibility buffer over the rectangle the probe's
-terms touched, the probe's shadow of the sun taken in where it can fall
-(shaders/visibility_compose.comp), and, for the shading pass, the probe's analytic share
-of the AO (shaders/probe_share.glsl, per pixel) and the rectangle it all changed.
+terms touched (shaders/visibility_compose.frag), and, for the shading pass, the probe's
+share of the atoms' light — its shadow of the sun and its analytic share of the AO
+(shaders/probe_share.glsl, per pixel) — and the rectangle it all changed, the pixels the
+shadow can fall on among them.
 
 LayeredLighting is a mixin of LightingPass and uses its state (grid, shadows, ao, lights,
 textures, settings) and its helpers (_sync, _set_probe, _sun, _ambient, _edges, _compose,
@@ -26,7 +27,7 @@ from sasprobe.render.passes.base import WHOLE, Frame, ProbeLighting
 
 NO_NEIGHBOURS = np.full(MAX_K, -1, dtype=np.int32)
 SHADOW_MARGIN = 0.05  # Å around the probe's shadow capsule
-NO_PROBE_SHARE = {"u_probe_share_ambient": 0}  # shaders/probe_share.glsl
+NO_PROBE_SHARE = {"u_probe_share_ambient": 0, "u_probe_share_sun": 0}  # shaders/probe_share.glsl
 
 
 class LayeredLighting:
@@ -92,29 +93,31 @@ class LayeredLighting:
         probe_sun = probe_sun and "shadow_dir" in terms
         uniforms = {
             **ray_epsilon_uniforms(), **light_uniforms(sun, None), "u_probe_sun": int(probe_sun),
-            "u_shell": soft.shell(), "u_shell_growth": float(soft.growth), "u_probe_ambient": int(probe_ambient),
-            "u_k": int(self.settings.ao.k), "u_probe_neighbours": self._neighbours(probe_key, probe).tobytes(),
+            "u_probe_ambient": int(probe_ambient), "u_k": int(self.settings.ao.k),
+            "u_probe_neighbours": self._neighbours(probe_key, probe).tobytes(),
         }
-        share = {} if not probe_ambient else {
-            "u_probe_share_ambient": 1, "u_share_probe": tuple(self.grid.probe_sphere),
-            "u_share_probe_reach": self.grid.probe_reach,
+        share = {} if not (probe_ambient or probe_sun) else {
+            **ray_epsilon_uniforms(), "u_probe_share_ambient": int(probe_ambient), "u_probe_share_sun": int(probe_sun),
+            "u_share_probe": tuple(self.grid.probe_sphere), "u_share_probe_reach": self.grid.probe_reach,
+            "u_share_sun_dir": uniforms["u_sun_dir"], "u_share_shell": soft.shell(),
+            "u_share_shell_growth": float(soft.growth),
         }
         # The molecule's terms where the probe's touched them now or last frame (everywhere
-        # when they changed), and, with the layered program, what the probe adds where it is
-        # and where its shadow of the sun falls. Beyond those the layered program composes
-        # what the plain one does, so but for a whole frame one pass does both.
-        near_probe = union_rect(probe_rect, self._probe_shadow_rect(frame, sun, soft) if probe_sun else None)
-        touched = union_rect(touched, near_probe)
+        # when they changed), and, with the layered program, what the probe's own pixels
+        # bring. Beyond those the layered program composes what the plain one does, so but
+        # for a whole frame one pass does both. The probe's shadow of the sun on the atoms is
+        # the shading pass's (probe_share.glsl): it shades again where the shadow can fall.
         rect = self._dirty_rect("compose", touched, frame, whole=self._molecule_changed)
         background_rect = self._dirty_rect("compose background", background, frame, whole=self._molecule_changed)
-        if near_probe is not None and not self._molecule_changed:  # rect holds near_probe: touched does
+        if probe_rect is not None and not self._molecule_changed:  # rect holds probe_rect: touched does
             self._compose(frame, terms, uniforms, layered=True, rect=rect, background=background_rect)
         else:
             if rect is not None:
                 self._compose(frame, terms, {}, rect=rect)
-            if near_probe is not None:
-                self._compose(frame, terms, uniforms, layered=True, rect=near_probe)
-        changed, background = (WHOLE, WHOLE) if self._molecule_changed else (touched, background)
+            if probe_rect is not None:
+                self._compose(frame, terms, uniforms, layered=True, rect=probe_rect)
+        shadow = self._probe_shadow_rect(frame, sun, soft) if probe_sun else None
+        changed, background = (WHOLE, WHOLE) if self._molecule_changed else (union_rect(touched, shadow), background)
         frame.probe_lighting = ProbeLighting(terms.get("shadow_probe"), share, changed, traced, background)
         self._composed = (frame, terms, {**uniforms, **NO_PROBE_SHARE, **share}, "shadow_dir" in terms,
                           fx.ambient_occlusion)

@@ -9,15 +9,16 @@
 //   with TRACE_PROBE_LIGHT (shading_traced.frag, GL 4.3) it is traced here, per pixel, through
 //   the light buffer the lighting built (light_visibility.glsl): a pass of its own would
 //   fetch the same G-buffer texels again, which costs llvmpipe more than the trace's
-//   arithmetic; with PROBE_SHARE (layered frames) the probe's share of the ambient
-//   occlusion is added here (probe_share.glsl). Each is its own program: llvmpipe runs
-//   every instruction of a shader, branches taken or not.
+//   arithmetic; with PROBE_SHARE (layered frames) the probe's shadow of the sun and its
+//   share of the ambient occlusion are taken in here (probe_share.glsl). Each is its own
+//   program: llvmpipe runs every instruction of a shader, branches taken or not.
 // The probe light reaches u_probe_range Å: its attenuation is windowed to 0 there.
 // BACKGROUND_ONLY: the program for background pixels (the pass picks them by depth).
 #include "constants.glsl"
-// occluders.glsl here, not only through the cases' files below: an include is expanded
-// once, where it first appears, whether its #ifdef holds or not.
+// occluders.glsl and ray_origin.glsl here, not only through the cases' files below: an
+// include is expanded once, where it first appears, whether its #ifdef holds or not.
 #include "occluders.glsl"
+#include "ray_origin.glsl"
 #ifdef PROBE_SHARE
 #include "probe_share.glsl"
 #endif
@@ -79,7 +80,7 @@ void main() {
         albedo = mix(albedo, u_highlight, 0.6);
     float sun = vis.r, ambient = vis.b;
 #ifdef PROBE_SHARE
-    if ((ids.y == KIND_SPHERE || ids.y == KIND_CAP) && ids.x >= 0) add_probe_share(p, n, ambient);
+    if ((ids.y == KIND_SPHERE || ids.y == KIND_CAP) && ids.x >= 0) add_probe_share(p, n, sun, ambient);
 #endif
     vec3 color = u_ambient * pow(ambient, u_ao_power) * albedo;
     if (u_dir_enabled == 1)

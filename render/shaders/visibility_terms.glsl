@@ -7,12 +7,11 @@
 // The terms as given: on whole frames as traced, the probe among the occluders; on layered
 // frames (the frame cache: render/passes/lighting_layers.py) the molecule's own, computed
 // without the probe, over the rectangle the probe's terms touched this frame or the last.
-// LAYERED, over the probe's rectangle and that of its shadow: the probe's own pixels bring
-// their terms, the sun traced (u_probe_pixels_sun), the ambient the analytic occlusion of
-// the atoms nearest the probe; atom pixels take the probe's shadow of the sun, the minimum
-// of the molecule's visibility and the probe sphere's along the same ray (as the whole
-// frame's trace takes it); the shading pass adds the probe's share of the AO
-// (probe_share.glsl).
+// LAYERED, over the probe's rectangle: the probe's own pixels bring their terms, the sun
+// traced (u_probe_pixels_sun), the ambient the analytic occlusion of the atoms nearest the
+// probe. What the probe does to the atoms' pixels — its shadow of the sun, its share of the
+// AO (probe_share.glsl) — the shading pass adds, as it shades every pixel they reach anyway;
+// the buffer keeps the molecule's own terms there.
 // The value for one pixel is composed_visibility: drawn by visibility_compose.frag (on a
 // layered frame the background takes the plain program and the surfaces the layered one,
 // picked by a depth test; on a whole frame the plain one takes every pixel), computed by
@@ -29,9 +28,7 @@ layout(binding = 3) uniform sampler2D u_shadow_dir;
 layout(binding = 5) uniform sampler2D u_ambient;
 layout(binding = 6) uniform sampler2D u_edges;
 layout(binding = 7) uniform sampler2D u_probe_pixels_sun;
-uniform int u_probe_sun;        // the probe's pixels bring their own sun, it shadows the atoms'
-uniform vec2 u_shell;           // the sun's soft-shadow shell (shadows.comp)
-uniform float u_shell_growth;
+uniform int u_probe_sun;        // the probe's pixels bring their own sun
 uniform int u_probe_ambient;    // the probe's pixels get the ambient of the atoms nearest it
 uniform int u_k;
 uniform int u_probe_neighbours[MAX_K];
@@ -51,15 +48,12 @@ vec4 composed_visibility(ivec2 px, out float sun_out, out float ambient_out) {
             ambient = 1.0;
             for (int j = 0; j < u_k; ++j) ambient *= neighbour_accessibility(p, n, u_probe_neighbours[j]);
         }
-    } else if (lit && atom >= 0 && u_probe_sun != 0 && sun > 0.0) {
-        sun = min(sun, occluder_visibility(ray_origin(p, n), u_sun_dir, 0.0, BIG, u_probe_sphere, u_shell,
-                                           u_shell_growth));
     }
 #endif
     sun_out = sun;
     ambient_out = ambient;
 #if defined(LAYERED) && defined(EXPORT)
-    if (lit && atom >= 0) add_probe_share(p, n, ambient_out);
+    if (lit && atom >= 0) add_probe_share(p, n, sun_out, ambient_out);
 #endif
     return vec4(sun, 1.0, ambient, texelFetch(u_edges, px, 0).r);
 }
