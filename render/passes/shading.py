@@ -27,6 +27,7 @@ from sasprobe.render.passes.base import WHOLE, Frame, Pass, ProbeLighting
 from sasprobe.render.passes.probe import PROBE_COLOR
 
 TEXTURES = ("u_albedo", "u_position", "u_normal", "u_ids", "u_visibility", "u_probe_visibility")  # units 0..5
+GBUFFER_IMAGES = {0: "position", 1: "normal", 6: "visibility", 7: "ids"}  # image units (shaders/shading.glsl)
 
 
 class ShadingPass(Pass):
@@ -79,6 +80,8 @@ class ShadingPass(Pass):
         traced = {}
         if lit.traced is not None:  # its buffers bound again: passes since the lighting bound others
             lit.traced.shadows.bind()
+            for unit, tex in GBUFFER_IMAGES.items():  # shading_traced.frag reads these as images
+                getattr(t, tex).bind_to_image(unit, read=True, write=False)
             traced = {**lit.traced.shadows.grid.uniforms(), **lit.traced.uniforms}
         apply_uniforms(vao.program, {
             **traced,

@@ -53,6 +53,16 @@ uniform int u_touched_atom;      // -1: none
 uniform vec3 u_highlight;        // touched-atom colour
 uniform vec3 u_probe_color;
 
+#ifdef GBUFFER_IMAGES  // the layers read as images: llvmpipe loads those at half the cost of a texelFetch
+layout(rgba32f, binding = 0) readonly uniform image2D u_position_image;
+layout(rgba32f, binding = 1) readonly uniform image2D u_normal_image;
+layout(rgba32f, binding = 6) readonly uniform image2D u_visibility_image;
+layout(rg32i, binding = 7) readonly uniform iimage2D u_ids_image;
+#define LOAD(layer, px) imageLoad(layer##_image, px)
+#else
+#define LOAD(layer, px) texelFetch(layer, px, 0)
+#endif
+
 out vec4 o_color;
 
 vec3 phong(vec3 albedo, vec3 n, vec3 v, vec3 l) {
@@ -63,14 +73,14 @@ vec3 phong(vec3 albedo, vec3 n, vec3 v, vec3 l) {
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-    vec4 vis = texelFetch(u_visibility, px, 0);
+    vec4 vis = LOAD(u_visibility, px);
 #ifdef BACKGROUND_ONLY
     o_color = vec4(u_background * vis.a, 1.0);
 #else
-    ivec2 ids = texelFetch(u_ids, px, 0).xy;
+    ivec2 ids = LOAD(u_ids, px).xy;
     vec3 albedo = texelFetch(u_albedo, px, 0).rgb;
-    vec3 p = texelFetch(u_position, px, 0).xyz;
-    vec3 n = normalize(texelFetch(u_normal, px, 0).xyz);
+    vec3 p = LOAD(u_position, px).xyz;
+    vec3 n = normalize(LOAD(u_normal, px).xyz);
     vec3 v = normalize(u_eye - p);
     if (ids.y == KIND_PROBE) {  // the light source itself: bright, lightly shaded
         o_color = vec4(u_probe_color * (0.75 + 0.25 * max(dot(n, v), 0.0)) * vis.a, 1.0);
