@@ -177,6 +177,41 @@ def test_light_buffer_grows_so_every_list_fits(crambin, crambin_grid, walking_pa
         small.release()
 
 
+def test_light_buffer_holds_while_the_light_stays_within_its_slack(crambin, crambin_grid, walking_pass, scene):
+    """Lists built for one point serve every light within their slack of it (the probe
+    sliding along the surface): the same shadows as the walk, bit for bit, hard and soft,
+    without being built again; a light beyond the slack builds them anew."""
+    name, gbuffer, *_ = scene
+    listing = ShadowPass(crambin_grid)
+    lists = listing.light_buffer
+    try:
+        lamp = probe_light(crambin)
+        centre = np.asarray(lamp.position, dtype=np.float64)
+        listing.trace(gbuffer, lamp, HARD_SHADOW)
+        assert lists.builds == 1 and lists.slack > 0
+        rng = np.random.default_rng(3)
+        offsets = rng.normal(size=(4, 3))
+        offsets *= (lists.slack * np.array([1.0, 0.999, 0.6, 0.3]) / np.linalg.norm(offsets, axis=1))[:, None]
+        shadowed = []
+        for offset in offsets:
+            light = PointLight(tuple(centre + offset), lamp.radius)
+            listed = read_texture(listing.trace(gbuffer, light, HARD_SHADOW))
+            walked = read_texture(walking_pass.trace(gbuffer, light, HARD_SHADOW))
+            assert np.array_equal(listed, walked), (name, offset)
+            shadowed.append(float((walked < 0.5).mean()))
+        assert lists.builds == 1 and len(set(shadowed)) > 1  # kept, and the shadows moved with the light
+        soft = SoftShadow(inner=-0.4, outer=1.0, growth=4.0)
+        light = PointLight(tuple(centre + offsets[1]), lamp.radius)
+        assert np.array_equal(read_texture(listing.trace(gbuffer, light, soft)),
+                              read_texture(walking_pass.trace(gbuffer, light, soft)))
+        assert lists.builds == 2  # a new shell: built again
+        beyond = PointLight(tuple(centre + offsets[1] + offsets[0] * 2.5), lamp.radius)
+        listing.trace(gbuffer, beyond, soft)
+        assert lists.builds == 3
+    finally:
+        listing.release()
+
+
 def test_sun_buffer_equals_the_grid_walk_to_the_bit(crambin, crambin_grid, shadow_pass, walking_pass, scene):
     """The directional light's buffer tests only the atoms listed across the light at a
     ray's point: the same occluders as the walk (the probe too), so the same minimum, hard

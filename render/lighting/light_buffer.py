@@ -18,10 +18,17 @@ the bit. Every list has room for every atom in reach, so none can overflow and a
 waits for nothing: a read-back of the longest list, to grow the room and build again, was
 a sync point in the middle of every frame.
 
-Built anew whenever the light, its reach, the shell or the culling change (every frame
-the probe moves): the CPU picks the atoms within reach and sorts them (numpy, a few
-thousand at most at 20 Å), the GPU fills the lists (shaders/light_buffer_build.comp).
-Read by shaders/light_buffer.glsl.
+The lists hold for a light anywhere within SLACK Å of the point they were built for (their
+centre), so a probe sliding along the surface rebuilds them only every few frames: a ray
+from a light within s of the centre that meets an atom of radius R runs, shifted to start
+at the centre, within R + s of it, so each atom's cone is taken about the centre with its
+radius grown by s; and since an atom's nearest distance to the light is at most s less
+than to the centre, a list sorted by the centre's distances may stop at the first atom
+whose distance from the centre, less its grown radius, is beyond the ray. Built anew
+whenever the light leaves that ball, or its reach, the shell or the culling change: the
+CPU picks the atoms within reach and sorts them (numpy, a few thousand at most at 20 Å),
+the GPU fills the lists (shaders/light_buffer_build.comp). Read by
+shaders/light_buffer.glsl.
 """
 
 from __future__ import annotations
@@ -37,6 +44,7 @@ FACE_CELLS = 8  # cells along a cube face's edge: 6 × 8² = 384 lists (finer on
 CAPACITY = 64  # atoms a list has room for at first (it grows with the atoms in reach)
 ANGLE_MARGIN = 1e-4  # rad added to both cones: float32 lookups may land a cell off by rounding
 RADIUS_MARGIN = 1e-3  # Å added to each atom's reach: float32 distances in the shader
+SLACK = 0.6  # Å the light may move before the lists are built again (wider cones, longer lists)
 BUILD_LOCAL_SIZE = 64
 # Shader-storage bindings (the grid holds 0-3).
 BINDING_SLOT_ATOMS, BINDING_CELL_CONES, BINDING_LIST_COUNTS = 5, 7, 10  # storage buffers
@@ -78,8 +86,9 @@ def cell_cones(face_cells: int = FACE_CELLS) -> np.ndarray:
 class PointLightBuffer:
     """The light buffer of one GPU grid, rebuilt for each light it is asked for."""
 
-    def __init__(self, gpu_grid, face_cells: int = FACE_CELLS, capacity: int = CAPACITY):
+    def __init__(self, gpu_grid, face_cells: int = FACE_CELLS, capacity: int = CAPACITY, slack: float = SLACK):
         self.grid = gpu_grid
+        self.slack = float(slack)
         self.ctx = gpu_grid.ctx
         self.face_cells = int(face_cells)
         self.capacity = int(capacity)
@@ -96,6 +105,9 @@ class PointLightBuffer:
         self.slot_atoms = self.ctx.buffer(reserve=16)
         self.program = self.ctx.compute_shader(source("light_buffer_build.comp"))
         self.key: tuple | None = None
+        self.centre = np.zeros(3)  # where the lists were built for
+        self.reach = 0.0  # and how far their rays reach
+        self.builds = 0
         self.atoms_in_reach = 0
 
     def build(self, position, reach: float, shell_outer: float) -> None:
@@ -103,12 +115,15 @@ class PointLightBuffer:
         occluders widened by `shell_outer` Å (the soft shell's outer offset; 0: hard)."""
         position = np.asarray(position, dtype=np.float64).reshape(3)
         shell_outer = max(float(shell_outer), 0.0)
-        key = (position.tobytes(), float(reach), shell_outer, self.grid.culling_version)
-        if key == self.key:
-            return
-        self.key = key
+        key = (shell_outer, self.grid.culling_version)
+        if key == self.key and reach <= self.reach and float(np.linalg.norm(position - self.centre)) <= self.slack:
+            return  # the lists hold for this light too
+        # (the reach a little longer: it follows the ray origins' epsilon, which follows the light)
+        self.key, self.centre, self.reach = key, position, float(reach) + RADIUS_MARGIN
+        reach = self.reach
+        self.builds += 1
         grid = self.grid.grid
-        pad = shell_outer + RADIUS_MARGIN
+        pad = shell_outer + RADIUS_MARGIN + self.slack
         box = reach + self.max_vdw + pad
         atoms = grid.candidates_in_box(position - box, position + box)
         atoms = atoms[~self.grid.culled_mask[atoms]]
@@ -158,7 +173,8 @@ class PointLightBuffer:
 
     def uniforms(self, shell_outer: float) -> dict[str, object]:
         return {"u_lb_face_cells": self.face_cells, "u_lb_capacity": self.capacity,
-                "u_lb_reach_pad": float(max(shell_outer, 0.0) + RADIUS_MARGIN)}
+                "u_lb_centre": tuple(float(v) for v in self.centre),
+                "u_lb_reach_pad": float(max(shell_outer, 0.0) + RADIUS_MARGIN + self.slack)}
 
     def counts(self) -> np.ndarray:
         """Each list's length (for tests and benchmarks)."""

@@ -1,8 +1,9 @@
 // Shadow rays of the probe's point light through its light buffer
 // (render/lighting/light_buffer.py, built by light_buffer_build.comp): the ray from o to
 // the light tests the atoms listed for its direction seen from the light, nearest first,
-// and stops at the first farther from the light than o. The same occluders and the same
-// minimum as trace_visibility (grid_traversal.glsl, included before this): the lists are
+// and stops at the first too far from the lists' centre to reach the ray (the light lies
+// within the lists' slack of it). The same occluders and the same minimum as
+// trace_visibility (grid_traversal.glsl, included before this): the lists are
 // complete (the buffer grows until no cell overflows). The lists' entries are tables in
 // images 2 and 3 (table_image.glsl), entry k of a list at cell * u_lb_capacity + k.
 #include "table_image.glsl"
@@ -12,7 +13,8 @@ layout(std430, binding = 10) readonly buffer ListCounts { uint list_counts[]; };
 
 uniform int u_lb_face_cells;
 uniform uint u_lb_capacity;    // entries a list has room for
-uniform float u_lb_reach_pad;  // the shell's outer offset and the margin the lists were built with
+uniform vec3 u_lb_centre;      // where the lists were built for (the light lies within their slack of it)
+uniform float u_lb_reach_pad;  // the shell's outer offset, the margin and the slack the lists were built with
 
 // The cube cell holding direction v: face 2 axis + (v negative), i and j along the next
 // two axes (cell_cones in light_buffer.py).
@@ -40,9 +42,9 @@ float trace_point_visibility(vec3 o, vec3 light, int skip_atom, vec2 shell, floa
     uint base = cell * u_lb_capacity;
     for (uint k = 0u; k < n; ++k) {
         vec4 sphere = imageLoad(u_list_spheres, table_texel(base + k));
-        vec3 from_light = sphere.xyz - light;
+        vec3 from_centre = sphere.xyz - u_lb_centre;
         float beyond = reach + sphere.w;
-        if (dot(from_light, from_light) > beyond * beyond) break;  // this one and every later one
+        if (dot(from_centre, from_centre) > beyond * beyond) break;  // this one and every later one
         if (imageLoad(u_list_atoms, table_texel(base + k)).x == skip_atom) continue;
         vis = min(vis, occluder_visibility(o, d, t0, t1, sphere, shell, growth));
         if (vis <= 0.0) return 0.0;
