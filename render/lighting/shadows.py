@@ -1,8 +1,8 @@
 """Shadows traced per pixel through the grid: the directional light and the probe's point
 light, hard or Parker soft, written as a visibility texture (r32f, 1 = lit) the light
 pass multiplies in. The point light's rays go through its light buffer
-(render/lighting/light_buffer.py), rebuilt when the light moves out of its slack; the same visibility as the
-grid walk, which `light_buffer=False` keeps (tests, benchmarks).
+(render/lighting/light_buffer.py), rebuilt when the light moves beyond its slack; the same
+visibility as the grid walk, which `light_buffer=False` keeps (tests, benchmarks).
 
 On the renderer's G-buffer, which has a depth buffer, the trace is drawn (shaders/shadows.frag)
 over the surfaces a depth test picks, the rest cleared to 1: llvmpipe skips the blocks of
