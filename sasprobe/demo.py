@@ -309,6 +309,18 @@ class DemoSession:
 
 
 def run_demo(opts: DemoOptions) -> int:
+    # Ctrl+C (SIGINT) stops the demo even when it was started with SIGINT ignored, as a
+    # script's background job is: the daemon and the renderer take it the same way.
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler) if main else None
+    try:
+        return _run_demo(opts)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _run_demo(opts: DemoOptions) -> int:
     from sasprobe.render.gl.context import display_available
 
     window = not opts.headless and display_available()

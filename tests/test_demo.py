@@ -207,11 +207,16 @@ def _running(pid: int, start_time: str) -> bool:
     return stat is not None and stat[19] == start_time and stat[0] not in ("Z", "X")
 
 
-def test_sigint_stops_every_process_and_leaves_the_arm_at_zero_force(tmp_path, gl):
+@pytest.mark.parametrize("inherited", ["default", "ignored"])
+def test_sigint_stops_every_process_and_leaves_the_arm_at_zero_force(tmp_path, gl, inherited):
+    """SIGINT mid-run stops the demo, its daemon and its renderer, the force at zero and the
+    video finished — also when the demo was started with SIGINT ignored, as a script's
+    background job is."""
     out = tmp_path / "demo"
+    ignore = (lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)) if inherited == "ignored" else None
     proc = subprocess.Popen([sys.executable, "-m", "sasprobe", "demo", "--headless", "--seconds", "120",
                              "--out", str(out)], cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
+                            text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"), preexec_fn=ignore)
     try:
         deadline = time.monotonic() + 120
         tree: dict[int, str] = {}
