@@ -213,10 +213,12 @@ def test_sigint_stops_every_process_and_leaves_the_arm_at_zero_force(tmp_path, g
     video finished — also when the demo was started with SIGINT ignored, as a script's
     background job is."""
     out = tmp_path / "demo"
-    ignore = (lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)) if inherited == "ignored" else None
-    proc = subprocess.Popen([sys.executable, "-m", "sasprobe", "demo", "--headless", "--seconds", "120",
-                             "--out", str(out)], cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"), preexec_fn=ignore)
+    argv = [sys.executable, "-m", "sasprobe", "demo", "--headless", "--seconds", "120", "--out", str(out)]
+    if inherited == "ignored":  # ignored, then exec'd: the demo starts with SIGINT ignored, in the same process
+        argv = [sys.executable, "-c", ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN); "
+                                       f"os.execv(sys.executable, {argv!r})")]
+    proc = subprocess.Popen(argv, cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
     try:
         deadline = time.monotonic() + 120
         tree: dict[int, str] = {}
