@@ -42,9 +42,13 @@ def steady_side(n: int) -> int:
 TABLE_ROW = 4096  # entries a row of a table image (shaders/table_image.glsl TABLE_ROW_BITS)
 
 
+def _filled_rows(entries: int) -> int:
+    return max(1, -(-entries // TABLE_ROW))
+
+
 def table_rows(entries: int) -> int:
     """The rows of a table image with room for `entries` (a steady side: see steady_side)."""
-    return steady_side(max(1, -(-entries // TABLE_ROW)))
+    return steady_side(_filled_rows(entries))
 
 
 def table_image(ctx, texture, table: np.ndarray, dtype: str = "f4"):
@@ -53,7 +57,7 @@ def table_image(ctx, texture, table: np.ndarray, dtype: str = "f4"):
     `texture` when it has the rows (else it is released and made again); returns the texture.
     Only the rows that hold entries are written: shaders never read past the table's end."""
     n, components = table.shape[0], table.shape[1] if table.ndim > 1 else 1
-    used, rows = max(1, -(-n // TABLE_ROW)), table_rows(n)
+    used, rows = _filled_rows(n), table_rows(n)
     if texture is None or texture.height < rows or texture.components != components or texture.dtype != dtype:
         if texture is not None:
             texture.release()

@@ -25,7 +25,7 @@ at the centre, within R + s of it, so each atom's cone is taken about the centre
 radius grown by s; and since an atom's nearest distance to the light is at most s less
 than to the centre, a list sorted by the centre's distances may stop at the first atom
 whose distance from the centre, less its grown radius, is beyond the ray. Built anew
-whenever the light leaves that ball, or its reach, the shell or the culling change: the
+whenever the light leaves that ball, its reach grows, or the shell or the culling change: the
 CPU picks the atoms within reach and sorts them (numpy, a few thousand at most at 20 Å),
 the GPU fills the lists (shaders/light_buffer_build.comp). Read by
 shaders/light_buffer.glsl.

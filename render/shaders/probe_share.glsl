@@ -23,7 +23,7 @@ uniform vec2 u_share_shell;         // the sun's soft-shadow shell and its growt
 uniform float u_share_shell_growth;
 
 void add_probe_share(vec3 p, vec3 n, inout float sun, inout float ambient) {
-    if (u_probe_share_sun != 0 && sun > 0.0)  // the ray as the trace has it, to the far end
+    if (u_probe_share_sun != 0 && sun > 0.0)  // the ray as the trace has it, to BIG (grid_traversal.glsl)
         sun = min(sun, occluder_visibility(ray_origin(p, n), u_share_sun_dir, 0.0, 1e30, u_share_probe,
                                            u_share_shell, u_share_shell_growth));
     if (u_probe_share_ambient != 0) ambient *= 1.0 - probe_occlusion(p, n, u_share_probe, u_share_probe_reach);

@@ -42,24 +42,28 @@ def bake_seconds(grid: GpuGrid, culling: Culling, settings: AOSettings = DEFAULT
             raise RuntimeError("bake_seconds: the atlas had nothing to bake")  # a stale time would be reported
         return atlas.bake_seconds
 
+    def bake_round(c: Culling) -> tuple[float | None, float, float | None]:
+        """Both channels after a culling change, the accessibility alone after another (the
+        same culling set again: a new version, so the atlas is baked anew), then the light
+        alone (the accessibility holds)."""
+        both = light = None
+        if sun:
+            grid.set_culling(c)
+            both = bake(True)
+        grid.set_culling(c)
+        ambient = bake(False)
+        if sun:
+            light = bake(True)
+        return both, ambient, light
+
     try:
-        few = Culling(nav_cube=(grid.grid.centers[0], 2.0))
-        grid.set_culling(few)
-        bake(True)  # each kind of bake timed below compiles its own programs: both channels,
-        grid.set_culling(few)
-        bake(False)  # the accessibility alone
-        bake(True)  # and the light alone
-        both, ambient, light = [], [], []
+        bake_round(Culling(nav_cube=(grid.grid.centers[0], 2.0)))  # each kind of bake's programs compiled first
+        rounds = []
         for k in range(repeats):
             moved = culling if culling.nav_cube is None else \
                 Culling(culling.clip_planes, (culling.nav_cube[0] + 0.01 * k, culling.nav_cube[1]))
-            if sun:
-                grid.set_culling(moved)  # a culling change: both channels baked anew
-                both.append(bake(True))
-            grid.set_culling(moved)  # set again: a new culling version, so the atlas is baked anew
-            ambient.append(bake(False))
-            if sun:
-                light.append(bake(True))  # the accessibility holds: the light channel alone
+            rounds.append(bake_round(moved))
+        both, ambient, light = ([r[i] for r in rounds if r[i] is not None] for i in range(3))
         median = lambda values: float(np.median(values)) if values else 0.0  # noqa: E731
         ambient_s = median(ambient)
         return {"patches": atlas.n_slots, "ambient_s": ambient_s, "sun_s": median(light),
