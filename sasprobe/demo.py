@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from sasprobe import __version__
+from sasprobe.bench.machine import cpu_steal_ticks, steal_between
 from sasprobe.children import Child, DaemonChild, child_env
 from sasprobe.demo_report import ForceMonitor, print_summary
 from sasprobe.errors import UserError
@@ -98,6 +99,7 @@ class DemoSession:
         self.control = None
         self.ready: dict = {}
         self.status_end: dict | None = None
+        self.steal_from = self.steal_to = None  # the machine's CPU times over the measured window
         self.last_status: dict | None = None  # the newest answer, should the daemon end by itself
         self.exit_report: dict | None = None
         self.renderer_rc: int | None = None
@@ -160,6 +162,10 @@ class DemoSession:
         self.renderer = Child("render", self._render_argv(headless, seconds), self.sockets / "render.log",
                               env=env, nice=0 if protected else RENDERER_NICE, registry=self.children)
         self._status(reset=True)  # the measured window is the demo proper, renderer included
+        self.steal_from = cpu_steal_ticks()
+
+    def end_window(self) -> None:
+        self.status_end, self.steal_to = self._status(), cpu_steal_ticks()
 
     def _status(self, reset: bool = False) -> dict | None:
         if self.control is None or self.daemon is None or not self.daemon.alive():
@@ -226,7 +232,7 @@ class DemoSession:
             if self.monitor is not None:
                 self.monitor.poll()
             if self.status_end is None:
-                self.status_end = self._status()
+                self.end_window()
             for child in self.children:
                 child.signal(signal.SIGTERM)
             for child in self.children:
@@ -282,6 +288,7 @@ class DemoSession:
                 "tick_work_us": loop["work_us"],
                 "loop_cpu_percent": loop.get("cpu_percent"),
                 "realtime": bool(self.ready.get("realtime")),
+                "cpu_steal": steal_between(self.steal_from, self.steal_to),
                 "device_faults": end["device"]["faults"],
             }
         files = {}
@@ -354,7 +361,7 @@ def _run_demo(opts: DemoOptions) -> int:
                 session.renderer.finish(0)
                 session.start_renderer(True, seconds)
                 session.watch(True, seconds)
-            session.status_end = session._status()
+            session.end_window()
         except KeyboardInterrupt:
             interrupted = True
         finally:

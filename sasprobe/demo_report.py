@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+STEAL_WORTH_TELLING_PERCENT = 1.0  # below it the loop's own misses dominate
+
 
 class ForceMonitor:
     """Every pose the daemon publishes (as a renderer sees them): force magnitudes against
@@ -89,6 +91,10 @@ def print_summary(summary: dict, path: Path) -> None:
         print(f"  haptics   {h['rate_hz']:.1f} Hz (nominal {h['nominal_rate_hz']:g}) over {h['window_s']:.1f} s, "
               f"period error p99 {h['period_error_us']['p99']:.0f} µs, {h['overruns']} overruns, "
               f"{'real-time' if h['realtime'] else 'normal'} scheduling")
+        stolen = h.get("cpu_steal")
+        if stolen is not None and stolen["percent"] >= STEAL_WORTH_TELLING_PERCENT:
+            print(f"            the hypervisor took {stolen['percent']:.1f} % of the CPUs' time (steal): deadlines "
+                  f"lost to it are the virtual machine's, not the loop's")
     f = s["forces"]
     if f and f["poses"]:
         print(f"  forces    mean {f['force_n']['mean']:.2f} N, p95 {f['force_n']['p95']:.2f} N, "

@@ -21,7 +21,7 @@ from sasprobe.protocol.client import Subscriber
 from tests.daemon_process import DaemonProcess
 from tests.emulators.pty_serial import Rig
 from tests.emulators.woodenhaptics_serial import WoodenHapticsEmulator
-from tests.test_devices_daemon import SERIAL_ARM_RATE, WHOLE, poses_until, pushing, wait_for
+from tests.test_devices_daemon import EMULATED_ARM_RATE, WHOLE, poses_until, pushing, wait_for
 
 STALL_TICK, STALL_S = 1500, 0.2  # after the 1 s ramp, while the press script pushes into the molecule
 SLACK_MS = 10.0  # scheduling on a shared machine: the bound is 3 ms; unguarded, the zero came after 200 ms
@@ -109,11 +109,11 @@ def test_the_serial_arm_gets_zero_current_from_the_watchdog_thread(tmp_path):
     (at the serial arms' test rate, 250 Hz: the bound is 3 periods, 12 ms)."""
     board = LoggedWoody(tmp_path)
     rig = Rig(board, f"woodenhaptics:{board.path}")
-    rate_hz, stall_tick = float(SERIAL_ARM_RATE[1]), 1250  # 5 s in: pressing by then
+    rate_hz, stall_tick = float(EMULATED_ARM_RATE[1]), 1250  # 5 s in: pressing by then
     try:
         rig.hand.target = (0.0, 35.0, 0.0)  # above the molecule before the daemon starts
         wait_for(lambda: np.linalg.norm(board.stylus.now() - rig.hand.target) < 0.5)
-        with DaemonProcess(*SERIAL_ARM_RATE, *WHOLE, "--inject-fault", f"stall@{stall_tick}+300",
+        with DaemonProcess(*EMULATED_ARM_RATE, *WHOLE, "--inject-fault", f"stall@{stall_tick}+300",
                            device=rig.device_spec) as daemon:
             sub = Subscriber(daemon.pub)
             poses_until(sub, lambda p: np.linalg.norm(p.tip_mm - board.stylus.now()) < 1.0, daemon)

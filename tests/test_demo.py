@@ -32,22 +32,37 @@ SIZE = (640, 360)  # and size
 BACKGROUND = np.array([0.08, 0.09, 0.11]) * 255  # ShadingSettings().background
 
 
+def cpu_times() -> tuple[int, int] | None:
+    """(steal, total) CPU time of the whole machine so far, in clock ticks, from the kernel's
+    /proc/stat; None where it is not told. Steal is time a hypervisor gave this machine's
+    CPUs to others: no scheduling policy inside the machine gets it back."""
+    try:
+        with open("/proc/stat") as f:
+            fields = [int(v) for v in f.readline().split()[1:9]]  # user … steal
+    except (OSError, ValueError):
+        return None
+    return (fields[7], sum(fields)) if len(fields) == 8 else None
+
+
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory, gl):  # gl: skips where no headless OpenGL exists
+    """(out folder, the CLI's result, the machine's (steal, all) CPU ticks before and after or None)."""
     out = tmp_path_factory.mktemp("demo")
+    before = cpu_times()
     # The whole of crambin in the cube, seen whole (the overview), so that the snapshot can be
     # checked against a ray cast of every atom; the workspace view is tests/test_workspace_session.py's.
     result = run_cli("demo", "--headless", "--seconds", str(SECONDS), "--out", str(out),
                      "--record", str(out / "session.mcap"), "--daemon-args=--cube-half fit",
                      "--render-args=--view overview", timeout=300)
+    after = cpu_times()
     assert result.returncode == 0, result.stderr
-    return out, result
+    return out, result, (before, after) if before and after else None
 
 
 def test_demo_writes_a_playable_video_of_the_requested_length(demo):
     import imageio.v2 as imageio
 
-    out, result = demo
+    out, result, _ = demo
     assert str(out / "demo.mp4") in result.stdout and str(out / "summary.json") in result.stdout
     summary = json.loads((out / "summary.json").read_text())
     reader = imageio.get_reader(out / "demo.mp4")
@@ -72,7 +87,7 @@ def test_snapshot_shows_the_molecule(demo):
     from sasprobe.render.camera import Camera
     from sasprobe.render.scene import SceneState
 
-    out, _ = demo
+    out, _, _ = demo
     image = imageio.imread(out / "snapshot.png")[..., :3].astype(float)
     assert image.shape == (SIZE[1], SIZE[0], 3)
     structure = load_default()
@@ -98,12 +113,29 @@ def test_snapshot_shows_the_molecule(demo):
 
 
 def test_summary_reports_the_haptic_rate_forces_and_a_clean_stop(demo):
-    out, _ = demo
+    out, result, cpu = demo
     s = json.loads((out / "summary.json").read_text())
     h = s["haptics"]
-    assert h["nominal_rate_hz"] == 1000.0
-    assert abs(h["rate_hz"] - h["nominal_rate_hz"]) <= 0.05 * h["nominal_rate_hz"], h
-    assert h["window_s"] >= SECONDS and h["ticks"] >= 0.95 * h["window_s"] * 1000
+    assert h["nominal_rate_hz"] == 1000.0 and h["window_s"] >= SECONDS
+    # The loop keeps its 1 kHz schedule and counts every deadline it misses: the ticks it ran
+    # and the deadlines it missed fill the window.
+    assert h["ticks"] + h["missed_deadlines"] == pytest.approx(h["window_s"] * 1000, rel=0.01), h
+    assert h["rate_hz"] == pytest.approx(h["ticks"] / h["window_s"], rel=1e-3), h
+    # How many it misses depends on the machine. A SCHED_FIFO loop keeps 1 kHz against other
+    # processes, not against a hypervisor that takes the CPUs away (a virtual machine's
+    # steal). On one 2-core VM, three demos with 0.1-0.7 % stolen ran at 990-998 Hz, and
+    # with 3.0, 4.5 and 6.5 % stolen at 971, 949 and 922 Hz. So the rate is held to 5 %
+    # wherever the hypervisor took less than 2 %.
+    if cpu is not None:
+        (steal_0, all_0), (steal_1, all_1) = cpu
+        stolen = (steal_1 - steal_0) / (all_1 - all_0)
+        if stolen < 0.02:
+            assert abs(h["rate_hz"] - h["nominal_rate_hz"]) <= 0.05 * h["nominal_rate_hz"], (h, stolen)
+        # The summary tells the steal over its window, which lies inside this test's: no more
+        # CPU-seconds than this test counted; the closing lines name it from 1 %.
+        told = h["cpu_steal"]
+        assert 0 <= told["seconds"] <= (steal_1 - steal_0) / os.sysconf("SC_CLK_TCK") and 0 <= told["percent"] <= 100
+        assert ("the hypervisor took" in result.stdout) == (told["percent"] >= 1.0), result.stdout
     f = s["forces"]
     assert f["poses"] >= 0.9 * h["ticks"]  # the demo's own subscriber saw nearly every tick
     assert f["contact_ticks"] > 0 and f["atoms_touched"] > 0, "the scan script presses on the surface"
@@ -119,7 +151,7 @@ def test_recorded_demo_replays_to_video_with_identical_forces(demo, tmp_path):
     import imageio.v2 as imageio
     from mcap.reader import make_reader
 
-    out, _ = demo
+    out, _, _ = demo
     fps = 8
     result = run_cli("replay", str(out / "session.mcap"), "--verify", "--video", str(tmp_path / "replay.mp4"),
                      "--fps", str(fps), "--size", "160x96", "--json", timeout=300)
@@ -147,7 +179,7 @@ def test_replay_frames_follow_the_recorded_timing(demo):
 
     from sasprobe.render.playback import recorded_frames
 
-    out, _ = demo
+    out, _, _ = demo
     fps = 25.0
     with open(out / "session.mcap", "rb") as fh:
         poses = [(m.log_time, json.loads(m.data)["seq"]) for _, _, m in make_reader(fh).iter_messages(topics=["pose"])]

@@ -44,6 +44,27 @@ def _gpu() -> str | None:
     return out.stdout.strip() or None
 
 
+def cpu_steal_ticks() -> tuple[int, int] | None:
+    """(steal, all) CPU time of the machine so far, in the kernel's clock ticks (/proc/stat);
+    None where the kernel does not tell it. Steal is time a hypervisor gave this virtual
+    machine's CPUs to others: a real-time loop loses deadlines to it that no scheduling
+    policy inside the machine can win back."""
+    try:
+        with open("/proc/stat") as fh:
+            fields = [int(v) for v in fh.readline().split()[1:9]]  # user nice system idle iowait irq softirq steal
+    except (OSError, ValueError):
+        return None
+    return (fields[7], sum(fields)) if len(fields) == 8 else None
+
+
+def steal_between(before: tuple[int, int] | None, after: tuple[int, int] | None) -> dict | None:
+    """What the hypervisor took between two cpu_steal_ticks(): CPU-seconds and % of the CPU time."""
+    if before is None or after is None or after[1] <= before[1]:
+        return None
+    stolen = after[0] - before[0]
+    return {"seconds": stolen / os.sysconf("SC_CLK_TCK"), "percent": 100.0 * stolen / (after[1] - before[1])}
+
+
 def gl_renderer() -> str | None:
     """The OpenGL renderer string of a headless EGL context, or None without one."""
     try:
