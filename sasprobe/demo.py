@@ -165,6 +165,7 @@ class DemoSession:
         self.steal_from = cpu_steal_ticks()
 
     def end_window(self) -> None:
+        """The measured window ends: the daemon's last status, and the machine's CPU times."""
         self.status_end, self.steal_to = self._status(), cpu_steal_ticks()
 
     def _status(self, reset: bool = False) -> dict | None:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-STEAL_WORTH_TELLING_PERCENT = 1.0  # below it the loop's own misses dominate
+STEAL_WORTH_TELLING_PERCENT = 1.0  # below it, steal costs no more deadlines than the loop misses on its own
 
 
 class ForceMonitor:

@@ -12,6 +12,10 @@ buffer as they would in the USB stack), `go_silent()` (it stops reading and answ
 until `resume()`), `unplug()` / `replug()` (the cable: the driver's next read or write
 fails with EIO; replugging makes a fresh pty, and the firmware restarts from
 `power_on()`, as a USB-powered board does).
+
+A board's UART never waits for the host's scheduler; this thread does. `longest_deaf_s`
+is the longest the port went unread outside the faults above (the test machine starved
+the thread), so a test can tell the emulator's hiccups from the driver's.
 """
 
 from __future__ import annotations
@@ -39,6 +43,8 @@ class PtySerialDevice:
         self._stall_until = 0.0
         self.silent = False
         self.replies_sent = 0
+        self.longest_deaf_s = 0.0
+        self._looked_at: float | None = None  # when the port was last read; None across a fault
         self._plug()
         self.power_on()
         self._thread = threading.Thread(target=self._run, name=f"firmware-{name}", daemon=True)
@@ -121,6 +127,7 @@ class PtySerialDevice:
                 self._idle(0.002)
 
     def _idle(self, seconds: float) -> None:
+        self._looked_at = None  # a fault (stall, silence, cable) is deaf on purpose
         end = time.monotonic() + seconds
         while time.monotonic() < end and not self._stop.is_set():
             self.tick()
@@ -146,6 +153,10 @@ class PtySerialDevice:
             if not self.plugged:
                 raise Unplugged from None
             time.sleep(0.001)
+        looked_at = time.monotonic()
+        if self._looked_at is not None:  # beyond the wait asked for: the thread was not running
+            self.longest_deaf_s = max(self.longest_deaf_s, looked_at - self._looked_at - max(timeout_s, 0.0))
+        self._looked_at = looked_at
 
     def available(self) -> int:
         if not self._rx:
