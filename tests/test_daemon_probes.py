@@ -72,9 +72,11 @@ def _subscribers(daemon) -> int:
 def test_probes_are_answered_and_do_not_stall_the_loop(setup):
     daemon, watch, records, shared = setup
     windows: list[tuple[str, int, int]] = []
+    actions: dict = {}  # name -> (action, fragments): each probe can run again
     pid = daemon.proc.pid
 
-    def probe(name: str, action, *fragments: str) -> None:
+    def probe(name: str, action, *fragments: str, into: list | None = None) -> None:
+        actions[name] = (action, *fragments)
         t0 = now_ns()
         reply = action()
         t1 = now_ns()
@@ -83,16 +85,16 @@ def test_probes_are_answered_and_do_not_stall_the_loop(setup):
             assert all(f in reply.error for f in fragments) and "\n" not in reply.error, f"{name}: {reply.error}"
         with ControlClient(daemon.ctl, timeout_s=5) as client:
             assert client.ping()["pong"], f"the control server stopped answering after {name}"
-        windows.append((name, t0, t1 + int(SETTLE_S * 1e9)))
+        (windows if into is None else into).append((name, t0, t1 + int(SETTLE_S * 1e9)))
 
     probe("inf id", lambda: _raw(daemon, [b'{"cmd": "ping", "id": 1e400}']), "not finite")
     probe("401-digit integer", lambda: _raw(daemon, [b'{"cmd": "ping", "id": ' + b"9" * 401 + b"}"]), "401 digits")
     probe("20,000-deep nesting", lambda: _raw(daemon, [b'{"cmd": "ping", "id": ' + b"[" * 20000 + b"]" * 20000
                                                        + b"}"]), "deeper than")
     probe("1 MiB request", lambda: _raw(daemon, [b" " * (1 << 20)]), "larger than")
-    half = bytes(MAX_MESSAGE_BYTES // 2 + 1)  # two of these and the JSON: just over the limit
-    probe("3-frame message over the limit", lambda: _raw(daemon, [b'{"cmd": "load"}', half, half]), "in 3 frames")
-    half = None
+    half = MAX_MESSAGE_BYTES // 2 + 1  # two of these and the JSON: just over the limit
+    probe("3-frame message over the limit", lambda: _raw(daemon, [b'{"cmd": "load"}', *[bytes(half)] * 2]),
+          "in 3 frames")
 
     # The publisher: a 16 MiB subscription (the trie once cost 110 B per topic byte, on the loop).
     # In a process of its own: libzmq 4.3.5 crashes closing a SUB whose 16 MiB subscription the
@@ -122,12 +124,12 @@ def test_probes_are_answered_and_do_not_stall_the_loop(setup):
     bomb = gzip.compress(bytes(1 << 20), 9) * 1024  # 1,024 gzip members of 1 MiB of zeros: 1 MiB -> 1 GiB
     probe("gzip bomb", lambda: _raw(daemon, [encode_request("load", {"name": "bomb"})[0], bomb]), "inflates beyond")
     for path in ("/etc/passwd", "../crambin.pdb.gz", "passwd.pdb"):
-        probe(f"load path {path}", lambda: _raw(daemon, encode_request("load", {"path": path})), "not below")
+        probe(f"load path {path}", lambda path=path: _raw(daemon, encode_request("load", {"path": path})), "not below")
     probe("load a FIFO", lambda: _raw(daemon, encode_request("load", {"path": "pipe.pdb"})), "is a FIFO")
     loaded = _raw(daemon, encode_request("load", {"path": "crambin.pdb.gz"}))
     assert loaded.ok and loaded.result["structure"]["n_atoms"] == 327  # the opt-in folder works
     for path in ("/tmp/x.mcap", "../x.mcap", "out/x.mcap"):
-        probe(f"record_start {path}", lambda: _raw(daemon, encode_request("record_start", {"path": path})),
+        probe(f"record_start {path}", lambda path=path: _raw(daemon, encode_request("record_start", {"path": path})),
               "not below")
     started = _raw(daemon, encode_request("record_start", {"path": "ok.mcap"}))
     assert started.ok and (records / "ok.mcap").stat().st_mode & 0o777 == 0o600
@@ -141,11 +143,35 @@ def test_probes_are_answered_and_do_not_stall_the_loop(setup):
     assert _raw(daemon, [encode_request("load", {"name": "1crn"})[0], shared["1crn"].path.read_bytes()]).ok
 
     result = watch.finish()
-    limit = LIMIT_MS[bool(daemon.ready.get("realtime"))]
-    table = [(name, *unexplained_ms(result, a, b)) for name, a, b in windows]
-    print("\nprobe: longest pose gap / not explained by a machine pause (ms)")
-    for name, longest, rest in table:
-        print(f"  {name}: {longest:.1f} / {rest:.1f}")
-    stalled = [f"{name} ({rest:.1f} ms)" for name, _, rest in table if rest >= limit]
-    assert not stalled, f"the loop stalled ≥ {limit:g} ms during: {', '.join(stalled)}"
     assert result["poses"] > 1000
+    limit = LIMIT_MS[bool(daemon.ready.get("realtime"))]
+    stalled = _stalls(result, windows, limit)
+    if stalled:
+        # A probe that stalls the loop does so every time it runs (unprotected, each of these
+        # took 0.3-2 s, run after run). A stall from elsewhere does not follow the probe: on
+        # one machine, stalls of 110 and 22 ms fell across the burst of quick path probes and
+        # one of 234 ms on the 16 MiB subscription, in 2 of 8 runs (CI once saw 24 ms on the
+        # 6ZU5 load), yet 6 runs of the subscription alone and 3 of the path probes stalled
+        # nothing. So a probe whose window held a stall runs once more, alone, watched
+        # afresh, and fails if the loop stalls again.
+        again: list = []
+        with PoseWatch(daemon.pub) as watch_again:
+            for name in stalled:
+                probe(name, *actions[name], into=again)
+                time.sleep(SETTLE_S)  # windows that do not overlap
+            second = watch_again.finish()
+        still = _stalls(second, again, limit)
+        assert not still, f"the loop stalled ≥ {limit:g} ms during, twice: " + \
+            ", ".join(f"{name} ({stalled[name]:.1f} and {rest:.1f} ms)" for name, rest in still.items())
+
+
+def _stalls(result: dict, windows: list, limit_ms: float) -> dict[str, float]:
+    """Each probe's longest pose gap a machine pause does not explain, printed; those ≥ the limit."""
+    print("\nprobe: longest pose gap / not explained by a machine pause (ms)")
+    stalled = {}
+    for name, start, end in windows:
+        longest, rest = unexplained_ms(result, start, end)
+        print(f"  {name}: {longest:.1f} / {rest:.1f}")
+        if rest >= limit_ms:
+            stalled[name] = rest
+    return stalled
