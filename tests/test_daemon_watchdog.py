@@ -50,8 +50,9 @@ def test_slow_reads_and_driver_exceptions_zero_the_force(tmp_path, monkeypatch):
     # (each read's own time is in the recording, read here with the mcap library).
     with open(path, "rb") as f:
         read_ns = {m.sequence: json.loads(m.data)["read_ns"] for _, _, m in make_reader(f).iter_messages(topics=["device"])}
-    assert set(SLOW_TICKS) <= {int(s.seq[i]) for i in slow}
-    assert all(read_ns[int(s.seq[i])] > 3_000_000 for i in slow)
+    slow_seqs = {int(s.seq[i]) for i in slow}
+    assert set(SLOW_TICKS) <= slow_seqs
+    assert all(read_ns[q] > 3_000_000 for q in slow_seqs)
     faulted = {int(s.seq[i]) for i in s.errors}
     assert not [q for q, t in read_ns.items() if t > 3_000_000 and q not in faulted], "a slow read went unflagged"
     assert [s.seq[i] for i in broken] == list(BROKEN_TICKS)
