@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 
 
 def check_folder(path: str | None, flag: str) -> str | None:

@@ -12,7 +12,7 @@ from concurrent.futures import Future, TimeoutError as FutureTimeout
 from sasprobe.daemon.marks import mark_button
 from sasprobe.daemon.retire import Retired
 from sasprobe.daemon.scene import rotation_rows
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 
 SUBMIT_TIMEOUT_S = 5.0
 

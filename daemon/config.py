@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from sasprobe.daemon.loop import DEFAULT_RATE_HZ
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
 from sasprobe.protocol.security import ServerKeys, ensure_local_keys, load_server_keys
 

@@ -21,7 +21,7 @@ import zmq
 
 from sasprobe.daemon.loop import helper_priority
 from sasprobe.daemon.monitor import SocketMonitor
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.protocol.control import (
     MAX_MESSAGE_BYTES,
     ProtocolError,

@@ -15,7 +15,7 @@ import logging
 
 import numpy as np
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.protocol.recording import json_floats
 from sasprobe.protocol.scene import MAX_MARKS
 

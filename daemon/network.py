@@ -15,7 +15,7 @@ from sasprobe.daemon.config import DaemonConfig, socket_keys
 from sasprobe.daemon.control import ControlServer
 from sasprobe.daemon.monitor import raise_fd_limit
 from sasprobe.daemon.publisher import Publisher
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.protocol.security import start_authenticator
 
 

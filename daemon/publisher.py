@@ -23,7 +23,7 @@ import time
 import zmq
 
 from sasprobe.daemon.monitor import SocketMonitor
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.protocol.pose import POSE_TOPIC
 from sasprobe.protocol.scene import SCENE_TOPIC
 from sasprobe.protocol.security import ServerKeys, bind_server_socket

@@ -22,7 +22,7 @@ from sasprobe.daemon.haptics import validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.daemon.marks import drop_mark
 from sasprobe.devices.workspace import validate_rotation
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.protocol.control import COMMANDS, Reply, Request
 from sasprobe.protocol.scene import merge_lights
 

@@ -40,7 +40,7 @@ import time
 
 import numpy as np
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 
 PARSE_TIMEOUT_S = 120.0
 WORKER_ADDRESS_SPACE = 8 << 30  # the worker's RLIMIT_AS: a parse that needs more fails in one line

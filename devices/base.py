@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 
 IDENTITY_QUATERNION = (1.0, 0.0, 0.0, 0.0)  # (w, x, y, z)
 

@@ -24,7 +24,7 @@ import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 
 # The wwPDB archive's layout, data/structures/divided/mmCIF/<mid>/<id>.cif.gz, on the
 # partners' servers; the RCSB's own download service by default.
@@ -151,7 +151,7 @@ def _read_body(response, ident: str) -> bytes:
     total = int(length) if length and length.isdigit() else None
     bar = None
     if total is None or total > PROGRESS_ABOVE_BYTES:
-        from sasprobe.progress import progress_bar
+        from sasprobe.common.progress import progress_bar
 
         bar = progress_bar(total, f"fetch {ident}", unit="B", unit_scale=True)
     chunks, size = [], 0

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 
 MAX_CELLS = 1 << 27  # 134M cells (0.5 GiB of offsets): beyond this a cell size is a mistake
 

@@ -28,8 +28,8 @@ from pathlib import Path
 import gemmi
 import numpy as np
 
-from sasprobe.errors import UserError
-from sasprobe.files import read_regular
+from sasprobe.common.errors import UserError
+from sasprobe.common.files import read_regular
 from sasprobe.molecule.backbone import trace_segments
 from sasprobe.molecule.elements import FALLBACK_RADIUS, colors_for, has_bondi_radius, radii_for
 from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS

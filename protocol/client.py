@@ -19,7 +19,7 @@ from pathlib import Path
 
 import zmq
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.protocol.control import ProtocolError, Reply, decode_reply, encode_request
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
 from sasprobe.protocol.handshake import ConnectionWatch

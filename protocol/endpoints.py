@@ -17,7 +17,7 @@ import socket
 import stat
 from dataclasses import dataclass
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 
 DEFAULT_PUB_ENDPOINT = "tcp://127.0.0.1:5555"  # PUB: pose and scene
 DEFAULT_CTL_ENDPOINT = "tcp://127.0.0.1:5556"  # control requests and replies

@@ -26,8 +26,8 @@ from typing import Iterator
 
 import numpy as np
 
-from sasprobe.errors import UserError
-from sasprobe.files import open_regular
+from sasprobe.common.errors import UserError
+from sasprobe.common.files import open_regular
 from sasprobe.protocol.pose import Pose
 
 MAGIC = b"\x89MCAP0\r\n"

@@ -30,7 +30,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 
 log = logging.getLogger("sasprobe")
 
@@ -153,7 +153,7 @@ def local_client_keys() -> ClientKeys | None:
 def _load(path: Path, need_secret: bool) -> tuple[bytes, bytes | None]:
     import zmq.auth
 
-    from sasprobe.files import open_regular
+    from sasprobe.common.files import open_regular
 
     if not path.exists():
         raise KeyFileError(f"{path}: no such key file (create keys with `sasprobe keys DIR`)")

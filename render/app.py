@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.render.lighting.settings import DEFAULT_PROBE_RANGE, LightingSettings
 from sasprobe.render.source import RenderSource
 
@@ -178,7 +178,7 @@ def _writer(opts: RenderOptions, frames: int | None):
 
 
 def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
-    from sasprobe.progress import progress_bar
+    from sasprobe.common.progress import progress_bar
     from sasprobe.render.gl.context import create_headless_context
     from sasprobe.render.headless import run_headless
 

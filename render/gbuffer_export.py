@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 
 
 def gbuffer_arrays(renderer, frame=None) -> dict[str, np.ndarray]:

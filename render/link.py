@@ -25,7 +25,7 @@ from collections import deque
 
 import numpy as np
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.molecule import Structure, parse_structure
 from sasprobe.protocol.client import ControlClient, Subscriber, fetch_structure
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT

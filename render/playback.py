@@ -80,7 +80,7 @@ def recorded_frames(path: Path, fps: float, time_range: tuple[int, int] | None =
 def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
                      progress: Callable[[int], None] | None = None) -> dict:
     """Write the session as a video at its recorded timing; returns frame counts and duration."""
-    from sasprobe.errors import UserError
+    from sasprobe.common.errors import UserError
     from sasprobe.molecule import parse_structure
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
     from sasprobe.render.gl.context import create_headless_context

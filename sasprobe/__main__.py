@@ -1,5 +1,5 @@
 import sys
 
-from sasprobe.cli import main
+from sasprobe.cli.main import main
 
 sys.exit(main())

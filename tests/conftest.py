@@ -1,4 +1,4 @@
-"""Shared fixtures: the shared PDB structures, the embedded structure, one headless GL
+"""Shared fixtures: the reference PDB structures (tests/data/pdb), the embedded structure, one headless GL
 context (checked for GL errors after every test that uses it), a real X server for the
 window tests, a helper to run the real CLI, and a check that no test leaves the test
 process at a real-time priority."""
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from sasprobe.paths import shared_structures
+from sasprobe.cli.reference_data import reference_structures
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 X_SCREEN = (640, 480)
@@ -23,7 +23,7 @@ X_SCREEN = (640, 480)
 
 def in_ci() -> bool:
     """CI sets CI=true (.ci/run does): there every test must run, so what would be a skip for a
-    missing dependency (an X server, OpenGL, the shared structures) is a failure."""
+    missing dependency (an X server, OpenGL, the reference structures) is a failure."""
     return os.environ.get("CI", "").lower() == "true"
 
 
@@ -34,16 +34,16 @@ def skip_or_fail(reason: str) -> None:
 
 
 @pytest.fixture(scope="session")
-def shared_entries():
-    entries = shared_structures()
+def reference_entries():
+    entries = reference_structures()
     if not entries:
-        skip_or_fail("shared structures (../shared/data/pdb) are not beside this checkout")
+        skip_or_fail("the reference structures (tests/data/pdb) are missing from this checkout")
     return entries
 
 
 @pytest.fixture(scope="session")
-def shared_by_id(shared_entries):
-    return {e.id: e for e in shared_entries}
+def reference_by_id(reference_entries):
+    return {e.id: e for e in reference_entries}
 
 
 @pytest.fixture(scope="session")

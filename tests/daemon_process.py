@@ -11,8 +11,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from sasprobe.children import DaemonChild
-from sasprobe.errors import UserError
+from sasprobe.cli.children import DaemonChild
+from sasprobe.common.errors import UserError
 from tests.conftest import REPO_ROOT
 
 CLI = [sys.executable, "-m", "sasprobe"]
@@ -31,7 +31,7 @@ def cli_many(*commands: tuple[str, ...], timeout: float = 120) -> list[subproces
 
 
 class DaemonProcess:
-    """The daemon as the tests use it: sasprobe.children.DaemonChild on ipc:// sockets in a
+    """The daemon as the tests use it: sasprobe.cli.children.DaemonChild on ipc:// sockets in a
     private folder that is also its working directory (nothing a test asks it to write lands
     in the checkout); AssertionError with its stderr when it does not become ready."""
 

@@ -1,7 +1,7 @@
 """`sasprobe bench --quick` assembles one report from several real benchmarks.
 
 The whole quick run takes minutes (it is timed in the README), so the test runs the
-real `grid` and `sas` benchmarks on two small shared structures (a private MANIFEST)
+real `grid` and `sas` benchmarks on two small reference structures (a private MANIFEST)
 and `haptics`, whose quick set needs structures that folder lacks: it must be listed as
 skipped with its reason while the others still make the report.
 """
@@ -17,11 +17,11 @@ from tests.conftest import run_cli
 SMALL = ("1crn", "1oky")
 
 
-def _small_data(shared_entries, folder):
+def _small_data(reference_entries, folder):
     folder.mkdir()
     header = "id\tfile\tformat\tatoms\tprotein_heavy_atoms_or_note"
     rows = [header]
-    for entry in shared_entries:
+    for entry in reference_entries:
         if entry.id in SMALL:
             (folder / entry.path.name).symlink_to(entry.path)
             rows.append(f"{entry.id}\t{entry.path.name}\t{entry.format}\t{entry.atoms}\t{entry.note}")
@@ -29,8 +29,8 @@ def _small_data(shared_entries, folder):
     return folder
 
 
-def test_quick_report_joins_benchmarks_machine_and_charts(shared_entries, tmp_path):
-    data = _small_data(shared_entries, tmp_path / "pdb")
+def test_quick_report_joins_benchmarks_machine_and_charts(reference_entries, tmp_path):
+    data = _small_data(reference_entries, tmp_path / "pdb")
     out = tmp_path / "report"
     result = run_cli("bench", "--quick", "--only", "grid,sas,haptics", "--out", str(out),
                      env=dict(os.environ, SASPROBE_DATA=str(data)), timeout=300)
@@ -39,7 +39,7 @@ def test_quick_report_joins_benchmarks_machine_and_charts(shared_entries, tmp_pa
     report = (out / "report.md").read_text()
     summary = json.loads((out / "report.json").read_text())
     assert summary["quick"] is True and set(summary["benchmarks"]) == {"grid", "sas"}
-    assert "unknown shared structure" in summary["skipped"]["haptics"]
+    assert "unknown reference structure" in summary["skipped"]["haptics"]
     # The machine: CPU, cores and the GL renderer string (Mesa's llvmpipe here, a GPU elsewhere).
     machine = summary["machine"]
     assert machine["cpu"] and machine["cores"] >= 1 and machine["gl_renderer"]
@@ -49,7 +49,7 @@ def test_quick_report_joins_benchmarks_machine_and_charts(shared_entries, tmp_pa
         per_benchmark = json.loads((out / f"{name}.json").read_text())
         assert {s["id"] for s in per_benchmark["structures"]} == set(SMALL)
         assert re.search(rf"\| {name} \| \d+\.\d \|", report)
-    assert re.search(r"\| haptics \| skipped: .*unknown shared structure", report)
+    assert re.search(r"\| haptics \| skipped: .*unknown reference structure", report)
     charts = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", report)
     assert set(charts) == {"grid_build.png", "sas_speed_accuracy.png"}
     for chart in charts:

@@ -10,15 +10,15 @@ import re
 
 import pytest
 
-from sasprobe.bench import gpu_quick, render_scenarios
+from sasprobe.cli.bench import gpu_quick, render_scenarios
 from tests.conftest import run_cli
 from tests.test_bench_report import _small_data
 
 pytestmark = pytest.mark.needs_gl(430)
 
 
-def test_render_scenarios_print_every_case_with_its_ratios(shared_entries, tmp_path):
-    data = _small_data(shared_entries, tmp_path / "pdb")  # 1CRN and 1OKY
+def test_render_scenarios_print_every_case_with_its_ratios(reference_entries, tmp_path):
+    data = _small_data(reference_entries, tmp_path / "pdb")  # 1CRN and 1OKY
     out = tmp_path / "report"
     r = run_cli("bench", "render", "--quick", "--scenarios-only", "--scenario-size", "64x48", "--out", str(out),
                 env=dict(os.environ, SASPROBE_DATA=str(data)), timeout=300)
@@ -43,7 +43,7 @@ def test_render_scenarios_print_every_case_with_its_ratios(shared_entries, tmp_p
         assert "pymol-open-source is not installed" in report
 
 
-def test_gpu_check_runs_here_at_a_small_size(shared_by_id, gl):
+def test_gpu_check_runs_here_at_a_small_size(reference_by_id, gl):
     """The check's code path, shortened: 1CRN whole and 1OKY with a ~300-atom cube (the full
     check: 1CRN, 1TII, 1AON whole, 6ZU5 with a cube, at 1920x1080)."""
     try:

@@ -24,8 +24,8 @@ def test_info_default_human_and_json():
     assert data["n_atoms"] == 327 and data["grid"]["cell_size"] == 5.0 and data["probe_radius"] == 1.2
 
 
-def test_info_json_on_every_shared_structure(shared_entries):
-    for entry in shared_entries:
+def test_info_json_on_every_shared_structure(reference_entries):
+    for entry in reference_entries:
         out = run_cli("info", str(entry.path), "--json")
         assert out.returncode == 0, (entry.id, out.stderr)
         data = json.loads(out.stdout)
@@ -44,10 +44,10 @@ def _assert_one_line_error(result, *needles):
 
 
 @pytest.fixture(scope="module")
-def bad_files(tmp_path_factory, shared_by_id):
+def bad_files(tmp_path_factory, reference_by_id):
     d = tmp_path_factory.mktemp("bad")
-    pdb = gzip.decompress(shared_by_id["1crn"].path.read_bytes())
-    cif = gzip.decompress(shared_by_id["6zu5"].path.read_bytes())
+    pdb = gzip.decompress(reference_by_id["1crn"].path.read_bytes())
+    cif = gzip.decompress(reference_by_id["6zu5"].path.read_bytes())
     files = {
         "empty": (b"", "empty"),
         "garbage_binary": (bytes(range(256)) * 20, "not a PDB or mmCIF"),

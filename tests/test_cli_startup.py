@@ -27,7 +27,7 @@ def loaded(*argv: str) -> tuple[set[str], str]:
 def test_help_and_info_load_only_what_they_use():
     modules, out = loaded("--help")
     assert not modules & (PLOTTING_AND_GL | {"numpy", "gemmi", "zmq"}), modules & (PLOTTING_AND_GL | {"numpy", "gemmi"})
-    from sasprobe.cli import command_names
+    from sasprobe.cli.main import command_names
 
     for name in command_names():
         assert f"    {name}" in out, f"--help does not list {name}"

@@ -31,17 +31,17 @@ SETTLE_S = 0.3  # a probe's window extends this far past its reply (a stall righ
 
 
 @pytest.fixture(scope="module")
-def setup(tmp_path_factory, shared_by_id):
+def setup(tmp_path_factory, reference_by_id):
     root = tmp_path_factory.mktemp("probes")
     loads, records = root / "loads", root / "records"
     loads.mkdir()
     records.mkdir()
-    (loads / "crambin.pdb.gz").write_bytes(shared_by_id["1crn"].path.read_bytes())
+    (loads / "crambin.pdb.gz").write_bytes(reference_by_id["1crn"].path.read_bytes())
     os.mkfifo(loads / "pipe.pdb")
     (loads / "passwd.pdb").symlink_to("/etc/passwd")
     (records / "out").symlink_to(root)
     with DaemonProcess("--load-dir", str(loads), "--record-dir", str(records)) as daemon, PoseWatch(daemon.pub) as w:
-        yield daemon, w, records, shared_by_id
+        yield daemon, w, records, reference_by_id
 
 
 def _raw(daemon, frames: list, timeout_s: float = 20.0, kind=zmq.REQ):

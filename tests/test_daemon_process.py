@@ -199,8 +199,8 @@ def test_control_commands_change_the_scene_and_serve_the_structure(daemon, tmp_p
     assert structure.sha256 == scene["structure"]["sha256"] and structure.n_atoms == scene["structure"]["n_atoms"]
 
 
-def test_load_by_bytes_switches_the_structure(daemon, shared_by_id):
-    data = shared_by_id["1oky"].path.read_bytes()
+def test_load_by_bytes_switches_the_structure(daemon, reference_by_id):
+    data = reference_by_id["1oky"].path.read_bytes()
     with ControlClient(daemon.ctl) as client:
         old = client.get_scene()["structure"]
         result = client.load(data=data, name="1oky")

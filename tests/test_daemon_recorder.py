@@ -97,7 +97,7 @@ def test_not_a_recording(tmp_path):
 def test_recorder_refuses_to_overwrite(tmp_path):
     path = tmp_path / "exists.mcap"
     path.write_bytes(b"")
-    from sasprobe.errors import UserError
+    from sasprobe.common.errors import UserError
 
     with pytest.raises(UserError, match="already exists"):
         Recorder(path)

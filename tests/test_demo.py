@@ -293,7 +293,7 @@ def test_sigint_stops_every_process_and_leaves_the_arm_at_zero_force(tmp_path, g
 
 def test_a_child_that_ignores_signals_is_killed_with_its_own_children(tmp_path):
     """The last resort: a hung child (SIGTERM ignored) and the process it started both go."""
-    from sasprobe.children import Child
+    from sasprobe.cli.children import Child
 
     code = ("import signal, subprocess, sys, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
             "g = subprocess.Popen([sys.executable, '-c', 'import signal, time; "

@@ -1,5 +1,5 @@
 """Structures by PDB id against a real HTTP server on loopback (started here) serving the
-shared data's gzipped mmCIF: a miss downloads into the cache (with a progress bar for a
+reference data's gzipped mmCIF: a miss downloads into the cache (with a progress bar for a
 large file), a hit works with the server gone, and being offline without a cache, an
 unknown id, a server error or a page that is not mmCIF each end in one line."""
 
@@ -43,11 +43,11 @@ class Archive(BaseHTTPRequestHandler):
 
 
 @pytest.fixture(scope="module")
-def archive(shared_by_id, crambin):
-    crn = gemmi.read_structure(str(shared_by_id["1crn"].path))
+def archive(reference_by_id, crambin):
+    crn = gemmi.read_structure(str(reference_by_id["1crn"].path))
     crn.setup_entities()
     Archive.entries = {
-        "6ZU5.cif.gz": shared_by_id["6zu5"].path.read_bytes(),
+        "6ZU5.cif.gz": reference_by_id["6zu5"].path.read_bytes(),
         "1CRN.cif.gz": gzip.compress(crn.make_mmcif_document().as_string().encode()),
     }
     server = ThreadingHTTPServer(("127.0.0.1", 0), Archive)

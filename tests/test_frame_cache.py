@@ -82,8 +82,8 @@ CASES = [
 
 
 @pytest.mark.parametrize("sid, size, settings, setup", CASES, ids=[f"{c[0]}-{c[3]}-{c[2].shadows}" for c in CASES])
-def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings, setup):
-    structure = load_structure(shared_by_id[sid].path, keep_water=True)
+def test_cached_frames_equal_a_full_redraw(gl, reference_by_id, sid, size, settings, setup):
+    structure = load_structure(reference_by_id[sid].path, keep_water=True)
     path = probe_path(structure)
     gaps = [sas_gap(structure, p) for p in path if p is not None]
     assert gaps[0] > 2.0 and min(abs(g) for g in gaps[3:]) < 0.06  # it comes in and touches
@@ -133,7 +133,7 @@ def test_cached_frames_equal_a_full_redraw(gl, shared_by_id, sid, size, settings
 
 
 @pytest.mark.parametrize("sid, fit, probe_range", [("1tii", 0.5, 6.0), ("1crn", 1.6, 20.0)], ids=["1tii-fills", "1crn-amid"])
-def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(gl, shared_by_id, sid, fit, probe_range):
+def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(gl, reference_by_id, sid, fit, probe_range):
     """FXAA run again only where the lit picture changed, and where the probe's cues are and
     were, gives what FXAA over the whole lit picture gives, bit for bit: the probe sliding
     with its ghost, spring and force arrow, then leaving. 1TII fills the frame and the probe
@@ -141,7 +141,7 @@ def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(gl, sha
     cues reach beyond what the shading does again; 1CRN lies amid the background, most of
     which its changed surfaces' rectangle holds, and FXAA runs there only near the surfaces
     (the near-surface mask)."""
-    structure = load_structure(shared_by_id[sid].path, keep_water=True)
+    structure = load_structure(reference_by_id[sid].path, keep_water=True)
     size = (200, 150)
     scene = SceneState(structure)
     scene.force_ratings_n = (3.3, 8.5)

@@ -148,8 +148,8 @@ def test_nearest_neighbours_pad_when_too_few_spheres():
     assert np.isinf(dist[0, 2:]).all()
 
 
-def test_stats_match_the_arrays(shared_by_id):
-    s = load_structure(shared_by_id["1tii"].path)
+def test_stats_match_the_arrays(reference_by_id):
+    s = load_structure(reference_by_id["1tii"].path)
     grid = UniformGrid(s.positions, s.expanded_radii(1.4))
     stats = grid.stats()
     counts = np.array([len(grid.atoms_in_cell(c)) for c in range(grid.n_cells)])

@@ -5,13 +5,13 @@ from __future__ import annotations
 import dataclasses
 import json
 
-from sasprobe.bench.haptics import _stability_cell
+from sasprobe.cli.bench.haptics import _stability_cell
 from sasprobe.devices import PHANTOM_OMNI_LIMITS
 from sasprobe.molecule import load_default
 from tests.conftest import run_cli
 
 
-def test_bench_haptics_quick_json(shared_entries, tmp_path):
+def test_bench_haptics_quick_json(reference_entries, tmp_path):
     result = run_cli(
         "bench", "haptics", "--quick", "--json", "--structures", "1crn", "--ticks", "1500", "--repeats", "1",
         "--no-map", "--out", str(tmp_path), timeout=600,
@@ -31,10 +31,10 @@ def test_bench_haptics_quick_json(shared_entries, tmp_path):
     assert (tmp_path / "haptics_dive_force.png").stat().st_size > 0
 
 
-def test_bench_haptics_rejects_unknown_structures(shared_entries):
+def test_bench_haptics_rejects_unknown_structures(reference_entries):
     result = run_cli("bench", "haptics", "--structures", "9zzz")
     assert result.returncode == 2
-    assert "unknown shared structure" in result.stderr and "Traceback" not in result.stderr
+    assert "unknown reference structure" in result.stderr and "Traceback" not in result.stderr
 
 
 def test_stability_cells_follow_the_sampled_wall_passivity_bound():

@@ -137,8 +137,8 @@ def test_pressing_straight_in_rests_at_the_global_nearest_point_on_crambin():
 
 
 @pytest.mark.parametrize("entry", ["1crn", "1oky"])
-def test_proxy_never_enters_the_sas_in_long_random_sessions(entry, shared_by_id):
-    structure = load_structure(shared_by_id[entry].path)
+def test_proxy_never_enters_the_sas_in_long_random_sessions(entry, reference_by_id):
+    structure = load_structure(reference_by_id[entry].path)
     centers, radii = structure.positions, structure.expanded_radii(1.4)
     grid = UniformGrid(centers, radii)
     solver = ProxySolver(NeighbourCache(grid))

@@ -30,10 +30,14 @@ ALLOWED = {
     "daemon": {"devices", "molecule", "protocol"},
     "render": {"molecule", "protocol"},
 }
-# The root package `sasprobe/` is the CLI (nothing imports it) except these: the version,
-# the one-line user error, the progress bar and opening a user's file, which every layer
-# may use and which import nothing of ours but each other.
-FOUNDATION = {"sasprobe", "sasprobe.errors", "sasprobe.progress", "sasprobe.files"}
+# The root package `sasprobe/` has two floors: `sasprobe/common/` is the ground (the
+# one-line user error, opening a user's file, the progress bar), which every layer may use
+# and which imports nothing of ours but itself; `sasprobe/cli/` is the top (the command,
+# its configuration and argument types, the demo, the benchmarks), which may import
+# everything and which nothing imports. The package itself (its version) is ground too.
+FOUNDATION_PACKAGE = "sasprobe.common"
+CLI_PACKAGE = "sasprobe.cli"
+ROOT_MODULES = {"sasprobe", "sasprobe.__main__"}  # the version; `python -m sasprobe`, which runs the CLI
 # Layers inside a subsystem: (package, what of its subsystem it may import besides itself).
 INNER = {
     "sasprobe.daemon.haptics": set(),  # the tick's computation, below the process
@@ -89,7 +93,9 @@ def subsystem(module: str) -> str | None:
         return None
     if len(parts) > 1 and parts[1] in ALLOWED:
         return parts[1]
-    return "foundation" if module in FOUNDATION else "cli"
+    if module == "sasprobe" or within(module, FOUNDATION_PACKAGE):
+        return "foundation"
+    return "cli"
 
 
 def within(module: str, package: str) -> bool:
@@ -141,8 +147,8 @@ def test_dependencies_run_one_way():
     (("sasprobe.render.scene", "sasprobe.daemon.service", 1), "render/ may import only molecule, protocol"),
     (("sasprobe.devices.simulated", "sasprobe.daemon.haptics.engine", 1), "devices/ may import only"),
     (("sasprobe.protocol.pose", "sasprobe.molecule.grid", 1), "protocol/ may import only nothing"),
-    (("sasprobe.daemon.service", "sasprobe.units", 1), "nothing imports the CLI package"),
-    (("sasprobe.errors", "sasprobe.molecule", 1), "the foundation imports nothing of ours"),
+    (("sasprobe.daemon.service", "sasprobe.cli.argtypes", 1), "nothing imports the CLI package"),
+    (("sasprobe.common.errors", "sasprobe.molecule", 1), "the foundation imports nothing of ours"),
     (("sasprobe.daemon.haptics.engine", "sasprobe.daemon.loop", 1), "sasprobe.daemon.haptics sits below"),
     (("sasprobe.render.gl.targets", "sasprobe.render.passes.base", 1), "sasprobe.render.gl sits below"),
     (("sasprobe.render.lighting.grid", "sasprobe.render.passes.base", 1), "sasprobe.render.lighting sits below"),
@@ -155,9 +161,17 @@ def test_the_rule_catches_a_wrong_arrow(edge, message):
 
 def test_nothing_needs_the_cli_from_below_even_in_the_right_direction():
     known = set(modules())
-    allowed = [("sasprobe.commands.render", "sasprobe.render.app", 1), ("sasprobe.daemon.service", "sasprobe.errors", 1),
+    allowed = [("sasprobe.cli.commands.render", "sasprobe.render.app", 1), ("sasprobe.daemon.service", "sasprobe.common.errors", 1),
+               ("sasprobe.common.files", "sasprobe.common.errors", 1),
                ("sasprobe.render.link", "sasprobe.protocol.client", 1), ("sasprobe.daemon.service", "numpy", 1)]
     assert violations(allowed, known) == []
+
+
+def test_the_root_package_holds_only_its_two_floors():
+    """Every module of sasprobe/ is on the ground floor (common/) or the top one (cli/)."""
+    loose = [name for name in modules() if subsystem(name) in ("foundation", "cli")
+             and name not in ROOT_MODULES and not within(name, FOUNDATION_PACKAGE) and not within(name, CLI_PACKAGE)]
+    assert loose == [], f"modules of sasprobe/ outside common/ and cli/: {loose}"
 
 
 def test_the_haptic_computation_reads_no_clock_and_opens_no_socket_or_thread():

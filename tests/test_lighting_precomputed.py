@@ -221,7 +221,7 @@ def test_the_benchmark_times_a_bake_for_every_figure(gl, crambin, crambin_grid):
     """sasprobe bench lighting's bake times (bench/lighting_precomputed.py bake_seconds) each
     come from a bake that ran: both channels at a culling change, the accessibility alone,
     the light alone (a stale time, from an update that baked nothing, is an error there)."""
-    from sasprobe.bench.lighting_precomputed import bake_seconds
+    from sasprobe.cli.bench.lighting_precomputed import bake_seconds
 
     settings = AOSettings(patch=PATCH, directions=DIRECTIONS, distance=DISTANCE)
     try:

@@ -231,13 +231,13 @@ def test_sun_buffer_equals_the_grid_walk_to_the_bit(crambin, crambin_grid, shado
     assert shadow_pass.sun_buffer.entries >= kept  # every kept atom is listed, in a cell at least
 
 
-def test_sun_buffer_on_a_larger_structure(gl, shared_by_id):
+def test_sun_buffer_on_a_larger_structure(gl, reference_by_id):
     """1TII with its waters, framed whole and through a navigation cube: the buffer's
     shadows are the walk's, bit for bit."""
     from sasprobe.molecule import load_structure
     from sasprobe.render.lighting.grid import GpuGrid
 
-    structure = load_structure(shared_by_id["1tii"].path, keep_water=True)
+    structure = load_structure(reference_by_id["1tii"].path, keep_water=True)
     grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
     listing, walking = ShadowPass(grid), ShadowPass(grid, light_buffer=False)
     try:

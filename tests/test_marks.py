@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from sasprobe.daemon.marks import Marks
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.protocol.control import ProtocolError, decode_request, encode_request
 from sasprobe.protocol.scene import MAX_MARK_LABEL, MAX_MARKS, SceneError, validate_marks
 from tests.conftest import REPO_ROOT

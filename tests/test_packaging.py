@@ -55,7 +55,7 @@ def wheel(tmp_path_factory) -> Path:
 
 def test_wheel_holds_the_namespace_and_data(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
-    for module in ("sasprobe/cli.py", "sasprobe/molecule/grid.py", "sasprobe/devices/base.py",
+    for module in ("sasprobe/cli/main.py", "sasprobe/common/errors.py", "sasprobe/molecule/grid.py", "sasprobe/devices/base.py",
                    "sasprobe/protocol/pose.py", "sasprobe/molecule/data/1crn.pdb.gz",
                    "sasprobe/protocol/README.md"):
         assert module in names, module

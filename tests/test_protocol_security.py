@@ -10,7 +10,7 @@ from zmq.utils.monitor import recv_monitor_message
 
 from sasprobe.daemon.publisher import Publisher
 from sasprobe.daemon.config import check_bind_security
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.endpoints import EndpointError, parse_endpoint
 from sasprobe.protocol.security import generate_keys, load_client_keys, load_server_keys, start_authenticator

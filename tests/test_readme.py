@@ -18,7 +18,7 @@ import shlex
 
 import pytest
 
-from sasprobe.cli import build_parser
+from sasprobe.cli.main import build_parser
 from tests.conftest import REPO_ROOT
 
 FENCE = re.compile(r"^```[^\n]*\n(.*?)^```", re.M | re.S)

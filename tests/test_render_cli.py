@@ -1,5 +1,5 @@
 """`sasprobe render` through the real CLI: headless images, videos, the G-buffer file
-format, every shared structure, and one clear line for every bad input."""
+format, every reference structure, and one clear line for every bad input."""
 
 from __future__ import annotations
 
@@ -86,8 +86,8 @@ def test_camera_spec_is_used_verbatim(tmp_path):
     np.testing.assert_allclose(g["proj"][1, 1], 1 / np.tan(np.radians(15)), rtol=1e-12)
 
 
-def test_every_shared_structure_renders(tmp_path, shared_entries):
-    for entry in shared_entries:
+def test_every_reference_structure_renders(tmp_path, reference_entries):
+    for entry in reference_entries:
         png, npz = tmp_path / f"{entry.id}.png", tmp_path / f"{entry.id}.npz"
         r = run_cli("render", "--headless", "--molecule", str(entry.path), "--size", SMALL,
                     "--out", str(png), "--gbuffer", str(npz), timeout=300)

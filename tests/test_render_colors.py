@@ -81,13 +81,13 @@ def assert_drawn(image, atom, interior, expected: dict[int, np.ndarray], minimum
 
 
 @pytest.fixture(scope="module")
-def rb8(shared_by_id):
-    return load_structure(shared_by_id["1rb8"].path)  # protein and DNA, 4 chains
+def rb8(reference_by_id):
+    return load_structure(reference_by_id["1rb8"].path)  # protein and DNA, 4 chains
 
 
 @pytest.fixture(scope="module")
-def oky(shared_by_id):
-    return load_structure(shared_by_id["1oky"].path, keep_water=True)  # protein, ligands, waters
+def oky(reference_by_id):
+    return load_structure(reference_by_id["1oky"].path, keep_water=True)  # protein, ligands, waters
 
 
 def residue_kind(structure, i: int, sizes: dict) -> str:
@@ -146,7 +146,7 @@ def test_chain_colours_carbons_by_chain_and_chain_all_every_atom(gl, rb8):
     assert_drawn(image, atom, interior, {i: carbon_colour[c] for i, c in enumerate(s.chain_ids) if c in carbon_colour})
 
 
-def test_polymer_colours_protein_nucleic_ligand_water(gl, rb8, oky, shared_by_id):
+def test_polymer_colours_protein_nucleic_ligand_water(gl, rb8, oky, reference_by_id):
     dna = rb8.positions[np.isin(rb8.residue_names, list(NUCLEOTIDES))].mean(axis=0)
     for s, clip in ((rb8, [[0.0, 0.0, -1.0, float(dna[2])]]), (oky, [])):  # 1RB8 cut open at its DNA (view: -z)
         sizes = residue_sizes(s)
@@ -157,16 +157,16 @@ def test_polymer_colours_protein_nucleic_ligand_water(gl, rb8, oky, shared_by_id
         assert seen >= ({"protein", "nucleic"} if s is rb8 else {"protein", "ligand", "water"}), seen
     from sasprobe.render.colors import scheme_colors
 
-    aon = load_structure(shared_by_id["1aon"].path)  # its magnesium ions are buried: the colours, not the pixels
+    aon = load_structure(reference_by_id["1aon"].path)  # its magnesium ions are buried: the colours, not the pixels
     ions = np.flatnonzero(aon.residue_names == "MG")
     assert ions.size == 7
     np.testing.assert_allclose(scheme_colors(aon, "polymer")[ions] * 255, np.tile(POLYMER["ion"], (7, 1)), atol=0.5)
 
 
-def test_bfactor_and_sas_ramps_and_the_colour_bar(gl, rb8, shared_by_id):
+def test_bfactor_and_sas_ramps_and_the_colour_bar(gl, rb8, reference_by_id):
     s = rb8
     # B-factors are the file's (columns 61-66), in file order: 1RB8 has no alternate locations
-    text = gzip.decompress(shared_by_id["1rb8"].path.read_bytes()).decode().splitlines()
+    text = gzip.decompress(reference_by_id["1rb8"].path.read_bytes()).decode().splitlines()
     file_b = [float(l[60:66]) for l in text if l.startswith(("ATOM", "HETATM")) and l[17:20] != "HOH"]
     np.testing.assert_allclose(s.b_factors, file_b)
     low, high = np.percentile(file_b, [2, 98])
@@ -184,12 +184,12 @@ def test_bfactor_and_sas_ramps_and_the_colour_bar(gl, rb8, shared_by_id):
     assert_drawn(image, atom, interior, dict(enumerate(expected)))
 
 
-def test_default_scheme_by_structure(crambin, shared_by_id):
+def test_default_scheme_by_structure(crambin, reference_by_id):
     from sasprobe.render.colors import LARGE_STRUCTURE, default_scheme
 
     assert default_scheme(crambin) == "element"  # one chain
-    assert default_scheme(load_structure(shared_by_id["1oky"].path)) == "element"  # one chain and ligands
-    tii = load_structure(shared_by_id["1tii"].path)
+    assert default_scheme(load_structure(reference_by_id["1oky"].path)) == "element"  # one chain and ligands
+    tii = load_structure(reference_by_id["1tii"].path)
     assert tii.n_atoms < LARGE_STRUCTURE and default_scheme(tii) == "chain"
-    aon = load_structure(shared_by_id["1aon"].path)
+    aon = load_structure(reference_by_id["1aon"].path)
     assert aon.n_atoms >= LARGE_STRUCTURE and default_scheme(aon) == "chain-all"

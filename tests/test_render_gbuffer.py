@@ -76,8 +76,8 @@ def test_close_oblique_view_keeps_spheres_at_the_screen_edge(gl, crambin):
     assert np.count_nonzero(border >= 0) > 50, "the view should put spheres across the image border"
 
 
-def test_larger_structure_matches_reference(gl, shared_by_id):
-    s = load_structure(shared_by_id["1oky"].path)
+def test_larger_structure_matches_reference(gl, reference_by_id):
+    s = load_structure(reference_by_id["1oky"].path)
     scene = SceneState(s)
     g = render_gbuffer(gl, scene, fitted_camera(scene, direction=(0.3, 0.5, 0.8)))
     compare_with_reference(g, s.positions, s.vdw_radii, np.arange(s.n_atoms))
@@ -138,8 +138,8 @@ def test_clip_planes_cap_atoms_and_cull_those_behind(gl, crambin):
     assert (g["position"][covered] @ P[:, :3].T + P[:, 3]).min() >= -1e-3
 
 
-def test_navigation_cube_spheres_inside_backbone_outside(gl, shared_by_id):
-    s = load_structure(shared_by_id["1oky"].path)
+def test_navigation_cube_spheres_inside_backbone_outside(gl, reference_by_id):
+    s = load_structure(reference_by_id["1oky"].path)
     center = s.positions[s.n_atoms // 2]
     cube = NavCube(center=center.copy(), half=7.0)
     scene = SceneState(s, nav_cube=cube)

@@ -35,8 +35,8 @@ def preset_options(name: str, **lighting) -> RenderOptions:
 
 
 @pytest.fixture(scope="module")
-def tii(shared_by_id):
-    return load_structure(shared_by_id["1tii"].path)
+def tii(reference_by_id):
+    return load_structure(reference_by_id["1tii"].path)
 
 
 def test_presets_change_the_picture(gl, tii):
@@ -56,11 +56,11 @@ def test_presets_change_the_picture(gl, tii):
     np.testing.assert_array_equal(recoloured[0, 0], [255, 255, 0])  # --background wins over the preset
 
 
-def test_fitted_camera_fills_the_shorter_side_on_every_shared_structure(gl, shared_entries):
+def test_fitted_camera_fills_the_shorter_side_on_every_shared_structure(gl, reference_entries):
     """16:9 like the default window; the molecule's pixels span at least 70 % of the height
     and never touch the border (the fit leaves 5 % either side)."""
     size = (320, 180)
-    for entry in shared_entries:
+    for entry in reference_entries:
         structure = load_structure(entry.path)
         _, kind = render(gl, structure, RenderOptions(size=size, fxaa=False))
         rows = np.flatnonzero((kind != KIND_BACKGROUND).any(axis=1))

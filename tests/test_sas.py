@@ -21,8 +21,8 @@ def freesasa_areas(structure, probe=1.4) -> np.ndarray:
 
 
 @pytest.mark.parametrize("entry_id", ["1crn", "1oky", "1tii", "3sn6"])
-def test_sas_agrees_with_freesasa(shared_by_id, entry_id):
-    structure = load_structure(shared_by_id[entry_id].path)
+def test_sas_agrees_with_freesasa(reference_by_id, entry_id):
+    structure = load_structure(reference_by_id[entry_id].path)
     reference = freesasa_areas(structure)
     result = shrake_rupley(UniformGrid(structure.positions, structure.expanded_radii(1.4)))
     assert result.total == pytest.approx(reference.sum(), rel=0.01)

@@ -42,8 +42,8 @@ def independent_count(path, keep_water=False) -> int:
     return n
 
 
-def test_every_shared_structure_loads_with_the_expected_count(shared_entries):
-    for entry in shared_entries:
+def test_every_shared_structure_loads_with_the_expected_count(reference_entries):
+    for entry in reference_entries:
         s = load_structure(entry.path)
         assert s.n_atoms == independent_count(entry.path), entry.id
         if entry.id in UNFILTERED:
@@ -57,8 +57,8 @@ def test_every_shared_structure_loads_with_the_expected_count(shared_entries):
         assert len(s.sha256) == 64
 
 
-def test_waters_removed_unless_kept(shared_by_id):
-    entry = shared_by_id["1tii"]  # 215 waters in the file
+def test_waters_removed_unless_kept(reference_by_id):
+    entry = reference_by_id["1tii"]  # 215 waters in the file
     dry = load_structure(entry.path)
     wet = load_structure(entry.path, keep_water=True)
     assert not np.any(np.isin(dry.residue_names, ["HOH", "WAT", "DOD"]))
@@ -66,8 +66,8 @@ def test_waters_removed_unless_kept(shared_by_id):
     assert wet.n_atoms == independent_count(entry.path, keep_water=True)
 
 
-def test_ligands_and_ions_kept(shared_by_id):
-    s = load_structure(shared_by_id["1jb0"].path)  # chlorophylls with Mg, Fe-S clusters
+def test_ligands_and_ions_kept(reference_by_id):
+    s = load_structure(reference_by_id["1jb0"].path)  # chlorophylls with Mg, Fe-S clusters
     assert {"Fe", "Mg"} <= set(s.elements.tolist())
     assert s.is_hetero.sum() > 6000
     assert "CLA" in set(s.residue_names[s.is_hetero].tolist())
@@ -109,8 +109,8 @@ def test_first_model_only_and_hydrogens_kept():
     np.testing.assert_allclose(s.positions[0], [0, 0, 0])
 
 
-def test_mmcif_and_gzip_give_the_same_atoms_as_pdb(shared_by_id, tmp_path):
-    entry = shared_by_id["1crn"]
+def test_mmcif_and_gzip_give_the_same_atoms_as_pdb(reference_by_id, tmp_path):
+    entry = reference_by_id["1crn"]
     from_gz = load_structure(entry.path)
     plain = tmp_path / "1crn.pdb"
     plain.write_bytes(gzip.decompress(entry.path.read_bytes()))
@@ -136,11 +136,11 @@ def test_default_is_crambin():
     assert s.source.startswith("embedded:")
 
 
-def test_backbone_trace_segments(shared_by_id):
+def test_backbone_trace_segments(reference_by_id):
     crambin = load_default()
     assert len(crambin.backbone) == 1 and len(crambin.backbone[0]) == 46
     assert set(crambin.atom_names[crambin.backbone[0]].tolist()) == {"CA"}
-    dna = load_structure(shared_by_id["1rb8"].path)  # protein chains + DNA
+    dna = load_structure(reference_by_id["1rb8"].path)  # protein chains + DNA
     p_segments = [seg for seg in dna.backbone if dna.atom_names[seg[0]] == "P"]
     assert p_segments, "nucleic-acid P trace missing"
     for seg, chain in zip(dna.backbone, dna.backbone_chains):

@@ -39,8 +39,8 @@ def rotation(axis, degrees: float) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def big(shared_by_id):
-    return {i: load_structure(shared_by_id[i].path) for i in ("1aon", "6zu5")}
+def big(reference_by_id):
+    return {i: load_structure(reference_by_id[i].path) for i in ("1aon", "6zu5")}
 
 
 # ------------------------------------------------------------------ the default cube

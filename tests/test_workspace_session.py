@@ -83,10 +83,10 @@ def inside_by(polygon: np.ndarray, size, margin: float) -> np.ndarray:
 
 # ------------------------------------------------------------------ the demo on three structures
 @pytest.fixture(scope="module", params=["1crn", "1aon", "6zu5"])
-def demo(request, shared_by_id, tmp_path_factory, gl):
+def demo(request, reference_by_id, tmp_path_factory, gl):
     out = tmp_path_factory.mktemp(f"demo_{request.param}")
     frames = out / "g"
-    result = run_cli("demo", "--headless", "--seconds", str(SECONDS), "--molecule", str(shared_by_id[request.param].path),
+    result = run_cli("demo", "--headless", "--seconds", str(SECONDS), "--molecule", str(reference_by_id[request.param].path),
                      "--out", str(out), f"--render-args=--gbuffer-dir {frames} {FAST}", timeout=600)
     assert result.returncode == 0, result.stderr
     keep = ("kind", "view", "proj", "nav_cube", "nav_cube_axes")

@@ -28,7 +28,7 @@ def main() -> int:
     import sys
 
     from sasprobe.daemon.findings.report import summary_lines, write_findings
-    from sasprobe.errors import UserError
+    from sasprobe.common.errors import UserError
 
     p = argparse.ArgumentParser(prog="python -m sasprobe.daemon.findings")
     p.add_argument("recording")

@@ -27,9 +27,9 @@ from sasprobe.daemon.findings.contacts import residues_near, touched_atoms_per_t
 from sasprobe.daemon.findings.exports import chimerax_script, pymol_script, write_path, write_structure
 from sasprobe.daemon.findings.path import ExploredPath, explored_path
 from sasprobe.daemon.findings.session import Track, read_track
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.molecule.clearance import MIN_RUN_A, OPEN_RADIUS_A, ClearanceField
-from sasprobe.progress import progress_bar
+from sasprobe.common.progress import progress_bar
 
 
 def prepare_folder(out_dir: str | Path) -> Path:

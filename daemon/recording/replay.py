@@ -28,7 +28,7 @@ from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState, HapticDevice
 from sasprobe.devices.registry import DeviceScheme
 from sasprobe.devices.workspace import validate_rotation
-from sasprobe.files import open_regular
+from sasprobe.common.files import open_regular
 from sasprobe.protocol.recording import RecordingError, iter_items, scan
 
 

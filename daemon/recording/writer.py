@@ -29,7 +29,7 @@ from pathlib import Path
 from sasprobe import __version__
 from sasprobe.daemon.loop import helper_priority
 from sasprobe.devices.base import DeviceState
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 from sasprobe.protocol.pose import Pose
 from sasprobe.protocol.recording import PROFILE, SCHEMAS, json_floats, pose_record
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 
-from sasprobe.errors import UserError
+from sasprobe.common.errors import UserError
 
 REQUIRED_GL = 410  # OpenGL 4.1 core: geometry shaders, conservative depth via extension
 REQUIRED_GL_TEXT = "4.1"

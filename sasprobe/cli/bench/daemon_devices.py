@@ -1,0 +1,119 @@
+"""The daemon's 1 kHz loop on every emulated device: does any driver's read hold the tick?
+
+Each row starts one device-side emulator from the checkout's `tests/emulators/` (written
+from the makers' public firmware and host code, importing nothing from sasprobe) in this
+process, then `sasprobe daemon --device ...` on it as a subprocess, and reads the loop's
+figures from `status` after a warm-up. The simulated arm runs in the same run as the
+baseline, so each driver's cost is a difference and an overrun ratio measured side by
+side. Without a checkout (an installed wheel has no tests/) the rows are skipped.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from sasprobe.cli.children import DaemonChild
+from sasprobe.common.progress import progress
+
+READY_S = 90.0
+STOP_S = 30.0
+REPO_ROOT = Path(__file__).resolve().parents[2]
+
+# row label -> (emulator module under tests.emulators, launch options); None: the simulated arm
+DEVICES: dict[str, tuple[str, dict] | None] = {
+    "simulated arm (baseline)": None,
+    "Novint Falcon": ("falcon_usb", {}),
+    "WoodenHaptics Woody": ("woodenhaptics_serial", {"model": 3}),
+    "WoodenHaptics Polhem": ("woodenhaptics_serial", {"model": 1}),
+    "Haply 2DIY gen 3": ("haply_serial", {"generation": "gen3"}),
+    "SpaceMouse Compact": ("spacemouse_hid", {}),
+    "OpenHaptics (stand-in libHD)": ("libhd", {"inkwell": True}),
+}
+
+
+def emulators_available() -> bool:
+    return (REPO_ROOT / "tests" / "emulators" / "__init__.py").is_file()
+
+
+def _launch(module: str, options: dict):
+    if str(REPO_ROOT) not in sys.path:
+        sys.path.insert(0, str(REPO_ROOT))
+    return importlib.import_module(f"tests.emulators.{module}").launch(**options)
+
+
+def _measure_one(spec: tuple[str, dict] | None, warmup_s: float, seconds: float) -> dict:
+    from sasprobe.protocol.client import ControlClient
+
+    emulator = None if spec is None else _launch(*spec)
+    folder = Path(tempfile.mkdtemp(prefix="spbd"))
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH")])))
+    device = "sim"
+    if emulator is not None:
+        env.update(emulator.env)
+        device = emulator.device_spec
+    ctl = f"ipc://{folder}/ctl"
+    child = DaemonChild(["--device", device, "--pub", f"ipc://{folder}/pub", "--ctl", ctl], folder / "daemon.log",
+                        env=env, cwd=folder)
+    try:
+        child.wait_ready(READY_S)
+        with ControlClient(ctl, timeout_s=10) as client:
+            time.sleep(warmup_s)
+            client.status(reset_stats=True)
+            time.sleep(seconds)
+            status = client.status()
+        return {"device": status["device"]["model"], "loop": status["loop"]}
+    finally:
+        child.stop(STOP_S)
+        if emulator is not None:
+            emulator.close()
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def measure(quick: bool, seconds: float) -> dict:
+    """One row per emulated device (or why there are none)."""
+    if not emulators_available():
+        return {"skipped": "needs the repository's tests/emulators/ (run from a checkout)"}
+    rows = []
+    for label, spec in progress(list(DEVICES.items()), desc="bench daemon: devices", total=len(DEVICES)):
+        try:
+            result = _measure_one(spec, warmup_s=1.0, seconds=seconds)
+        except Exception as exc:  # one emulator that cannot start (no C compiler for libHD) skips its row
+            rows.append({"label": label, "error": str(exc).splitlines()[0][:200]})
+            continue
+        rows.append({"label": label, "load_average_1min": os.getloadavg()[0], **result})
+    return {"seconds": seconds, "rows": rows}
+
+
+def markdown(data: dict) -> str:
+    if "skipped" in data:
+        return f"Emulated devices: skipped ({data['skipped']})."
+    lines = ["| device | rate (Hz) | period error p99 / max (µs) | overruns | tick work p50 / p99 / max (µs) "
+             "| work vs simulated arm (p50) | load avg |",
+             "|---|---:|---|---:|---|---:|---:|"]
+    base = next((r for r in data["rows"] if r["label"].startswith("simulated") and "loop" in r), None)
+    for r in data["rows"]:
+        if "error" in r:
+            lines.append(f"| {r['label']} | not run: {r['error']} | | | | | |")
+            continue
+        loop, err, work = r["loop"], r["loop"]["period_error_us"], r["loop"]["work_us"]
+        ratio = (work["recent_p50"] / base["loop"]["work_us"]["recent_p50"]
+                 if base and work["recent_p50"] and base["loop"]["work_us"]["recent_p50"] else None)
+        lines.append(
+            f"| {r['label']} | {loop['rate_hz']:.1f} | {_f(err['p99'])} / {_f(err['max'])} | {loop['overruns']} | "
+            f"{_f(work['recent_p50'])} / {_f(work['recent_p99'])} / {_f(work['max'])} | "
+            f"{'-' if ratio is None else f'{ratio:.2f}×'} | {r['load_average_1min']:.1f} |")
+    return (
+        f"Emulated devices: `sasprobe daemon --device ...` at 1000 Hz for {data['seconds']:g} s (after a 1 s "
+        "warm-up) on each device-side emulator of `tests/emulators/`, the emulator running in the benchmark "
+        "process as the hardware would beside the host; tick work is read + haptics + write + publish. A driver "
+        "whose read waited on its link would show as overruns and a work p99 near 1000 µs.\n\n" + "\n".join(lines))
+
+
+def _f(v) -> str:
+    return "-" if v is None else f"{v:.0f}"

@@ -1,0 +1,400 @@
+"""`sasprobe bench haptics`: the proxy against the penalty baseline on the simulated arm.
+
+Per reference structure and method: per-tick force-computation time (p50/p99/max µs), the
+deepest the rendered contact point gets into the SAS, force continuity (largest force
+change between consecutive ticks), and the energy the rendering put into the arm
+(sum of F . dx over each held period). Then a stability map over control rate x
+stiffness: where each method injects energy (unstable) or pops through.
+
+Timing: sessions run closed-loop (sim arm <-> engine); the recorded device states
+are then replayed through fresh engines `repeats` times and each tick's time is the
+minimum over the replays. `step` is deterministic, so every replay does the same work
+and the minimum removes time stolen by other processes on a shared machine; the
+single-run p99 is reported beside it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import time
+
+import numpy as np
+
+from sasprobe.cli.bench import BenchContext, BenchResult
+from sasprobe.common.errors import UserError
+from sasprobe.molecule import load_structure
+from sasprobe.cli.reference_data import MISSING, reference_structures
+from sasprobe.common.progress import progress
+from sasprobe.protocol.scene import HAPTIC_METHODS as METHODS
+from sasprobe.cli.argtypes import positive_float
+
+TITLE = "Haptic rendering: per-tick cost, penetration, continuity, passivity, stability"
+
+SCRIPTS = ("scan", "random")  # timing and accuracy sessions
+CUBE_HALF_A = 20.0  # the same zoom (Å per mm) for every structure, so sizes compare fairly
+RATES_HZ = (100, 250, 500, 1000, 2000)
+STIFFNESS = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0)
+QUICK_STIFFNESS = (0.2, 0.5, 1.0, 2.0)
+QUICK_IDS = ("1crn", "1tii", "1aon", "6zu5")
+ENERGY_UNSTABLE_MJ = 1.0  # net energy put into the arm over a press-and-release cycle
+POP_THROUGH_N = 0.2  # force component along the push: the surface pulls the hand in
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"'{text}' must be positive")
+    return value
+
+
+def _cube_half(text: str) -> float:
+    value = 0.0 if text.strip() == "0" else positive_float(text)
+    return value
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--structures", help="comma-separated reference structure ids (default: all; --quick: 4)")
+    parser.add_argument("--ticks", type=_positive_int, help="control ticks per timing session (default 10000, --quick 3000)")
+    parser.add_argument("--repeats", type=_positive_int, help="timing replays per session (default 5, --quick 3)")
+    parser.add_argument("--no-map", action="store_true", help="skip the stability map")
+    parser.add_argument("--cube-half", type=_cube_half, default=CUBE_HALF_A,
+                        help=f"navigation cube half edge in Å on the top surface (default {CUBE_HALF_A:g}; 0 = fit the molecule)")
+
+
+def run(ctx: BenchContext, args: argparse.Namespace | None = None) -> BenchResult:
+    ticks = getattr(args, "ticks", None) or (3000 if ctx.quick else 10000)
+    repeats = getattr(args, "repeats", None) or (3 if ctx.quick else 5)
+    entries = _entries(getattr(args, "structures", None), ctx.quick)
+    cube_half = getattr(args, "cube_half", CUBE_HALF_A)
+    rows = []
+    for entry in progress(entries, desc="bench haptics", total=len(entries)):
+        structure = load_structure(entry.path)
+        for method in METHODS:
+            rows.append(_structure_row(entry.id, structure, method, ticks, repeats, cube_half))
+    stability = None if getattr(args, "no_map", False) else _stability_map(entries, ctx.quick)
+    trace = _force_trace()
+    charts = _charts(ctx, rows, stability, trace, cube_half)
+    data = {"ticks_per_session": ticks, "repeats": repeats, "cube_half_A": cube_half or None, "rows": rows}
+    if stability is not None:
+        data["stability"] = stability
+    return BenchResult("haptics", data, _markdown(rows, stability, ticks, repeats, cube_half), charts)
+
+
+def _entries(ids: str | None, quick: bool):
+    entries = reference_structures()
+    if not entries:
+        raise UserError(MISSING)
+    wanted = [i.strip() for i in ids.split(",")] if ids else (list(QUICK_IDS) if quick else None)
+    if wanted is None:
+        return entries
+    by_id = {e.id: e for e in entries}
+    unknown = [i for i in wanted if i not in by_id]
+    if unknown:
+        raise UserError(f"unknown reference structure(s): {', '.join(unknown)} (known: {', '.join(by_id)})")
+    return [by_id[i] for i in wanted]
+
+
+# ------------------------------------------------------------------ sessions
+def closed_loop_session(structure, script, method, settings_kw, limits, ticks, rate_hz=1000, seed=1):
+    """Closed loop sim arm <-> engine; returns the states, outputs and the arm."""
+    from sasprobe.daemon.haptics import HapticEngine, HapticSettings
+    from sasprobe.devices.simulated import make_simulated
+
+    device = make_simulated(script, structure=structure, rate_hz=rate_hz, seed=seed, limits=limits, **settings_kw)
+    engine = HapticEngine(structure, limits, HapticSettings(method=method, **settings_kw))
+    device.open()
+    states, outputs = [], []
+    for _ in range(ticks):
+        state = device.read()
+        out = engine.step(state)
+        device.write_force(out.force_n)
+        states.append(state)
+        outputs.append(out)
+    device.close()
+    return states, outputs, device
+
+
+def _replay_times(structure, method, settings_kw, limits, states, repeats) -> tuple[np.ndarray, np.ndarray]:
+    """(per-tick minimum over replays, first replay) in µs."""
+    from sasprobe.daemon.haptics import HapticEngine, HapticSettings
+
+    runs = []
+    for _ in range(repeats):
+        engine = HapticEngine(structure, limits, HapticSettings(method=method, **settings_kw))
+        step = engine.step
+        clock = time.perf_counter_ns
+        times = np.empty(len(states))
+        for k, state in enumerate(states):
+            t0 = clock()
+            step(state)
+            times[k] = clock() - t0
+        runs.append(times / 1e3)
+    return np.min(runs, axis=0), runs[0]
+
+
+def _penetration(grid, points: np.ndarray) -> float:
+    """Deepest any point is inside an expanded sphere (Å, 0 when none is)."""
+    worst = 0.0
+    for p in points:
+        idx = grid.spheres_within(p, 0.0)
+        if idx.size:
+            depth = grid.radii[idx] - np.linalg.norm(grid.centers[idx] - p, axis=1)
+            worst = max(worst, float(depth.max()))
+    return worst
+
+
+def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> dict:
+    from sasprobe.daemon.haptics import HapticEngine, HapticSettings
+    from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
+    from sasprobe.devices.surface import surface_site
+
+    limits = PHANTOM_OMNI_LIMITS
+    settings_kw = ({"cube_half_A": cube_half, "cube_center_A": surface_site(structure, cube_half)} if cube_half
+                   else {"cube_half_A": "fit"})
+    t0 = time.perf_counter()
+    engine = HapticEngine(structure, limits, HapticSettings(method=method, **settings_kw))
+    setup_s = time.perf_counter() - t0
+    best, single = [], []
+    penetration = jump_max = 0.0
+    jumps = []
+    energy = contact = clamped = 0.0
+    for script in SCRIPTS:
+        states, outputs, device = closed_loop_session(structure, script, method, settings_kw, limits, ticks)
+        b, s = _replay_times(structure, method, settings_kw, limits, states, repeats)
+        best.append(b)
+        single.append(s)
+        forces = np.array([o.force_n for o in outputs])
+        contacts = [o.proxy_A for o in outputs if o.contact]
+        penetration = max(penetration, _penetration(engine.grid, contacts))
+        d = np.linalg.norm(np.diff(forces, axis=0), axis=1)
+        jumps.append(d)
+        jump_max = max(jump_max, float(d.max()))
+        energy += device.work_mj
+        contact += sum(o.contact for o in outputs)
+        clamped += sum(o.clamped for o in outputs)
+    best_all, single_all, jumps_all = np.concatenate(best), np.concatenate(single), np.concatenate(jumps)
+    n = len(best_all)
+    return {
+        "id": entry_id,
+        "n_atoms": structure.n_atoms,
+        "method": method,
+        "scale_A_per_mm": engine.mapping.scale_A_per_mm,
+        "setup_s": setup_s,
+        "ticks": n,
+        "p50_us": float(np.percentile(best_all, 50)),
+        "p99_us": float(np.percentile(best_all, 99)),
+        "max_us": float(best_all.max()),
+        "single_run_p99_us": float(np.percentile(single_all, 99)),
+        "max_penetration_A": penetration,
+        "max_force_step_n": jump_max,
+        "p99_force_step_n": float(np.percentile(jumps_all, 99)),
+        "energy_mj": energy,
+        "contact_fraction": contact / n,
+        "clamped_fraction": clamped / n,
+    }
+
+
+# ------------------------------------------------------------- stability map
+def _stability_map(entries, quick: bool) -> dict:
+    """Press-and-release on crambin at each control rate x stiffness, per method."""
+    from sasprobe.daemon.haptics import HapticSettings
+    from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
+    from sasprobe.devices.simulated import ArmModel
+    from sasprobe.molecule import load_default
+
+    structure = load_default()
+    stiffness = QUICK_STIFFNESS if quick else STIFFNESS
+    # explore beyond the arm's rated stiffness to show where the frontier lies
+    limits = dataclasses.replace(PHANTOM_OMNI_LIMITS, max_stiffness_n_per_mm=max(stiffness))
+    cells = []
+    for method in METHODS:
+        for rate in RATES_HZ:
+            for k in stiffness:
+                cells.append(_stability_cell(structure, method, rate, k, limits))
+    arm = ArmModel()
+    return {
+        "structure": structure.name,
+        "script": "press",
+        "rates_hz": list(RATES_HZ),
+        "stiffness_n_per_mm": list(stiffness),
+        "device_max_stiffness_n_per_mm": PHANTOM_OMNI_LIMITS.max_stiffness_n_per_mm,
+        "virtual_damping_n_s_per_m": HapticSettings().damping_n_s_per_m,
+        "physical_damping_n_s_per_m": arm.arm_damping_n_s_per_m + arm.hand_damping_n_s_per_m,
+        "energy_unstable_mj": ENERGY_UNSTABLE_MJ,
+        "pop_through_n": POP_THROUGH_N,
+        "cells": cells,
+    }
+
+
+def _stability_cell(structure, method, rate, stiffness, limits) -> dict:
+    from sasprobe.daemon.haptics import HapticEngine, HapticSettings
+    from sasprobe.devices.simulated import ArmModel, make_simulated
+
+    # The whole molecule, and a hand without a person's limit: where each method breaks.
+    fit = {"cube_half_A": "fit"}
+    device = make_simulated("press", structure=structure, rate_hz=rate, limits=limits,
+                            arm=ArmModel(max_hand_force_n=math.inf), **fit)
+    engine = HapticEngine(structure, limits, HapticSettings(method=method, stiffness_n_per_mm=stiffness, **fit))
+    push = np.asarray(device.script.info["push_direction"])
+    device.open()
+    along = 0.0
+    for _ in range(int(round(device.script.duration_s * rate))):
+        out = engine.step(device.read())
+        device.write_force(out.force_n)
+        along = max(along, float(out.force_n @ push))
+    return {
+        "method": method,
+        "rate_hz": rate,
+        "stiffness_n_per_mm": stiffness,
+        "energy_mj": device.work_mj,
+        "max_force_along_push_n": along,
+        "unstable": device.work_mj > ENERGY_UNSTABLE_MJ,
+        "pop_through": along > POP_THROUGH_N,
+    }
+
+
+def _force_trace() -> dict:
+    """Force magnitude through a dive into a groove on crambin, both methods (for a chart)."""
+    from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
+    from sasprobe.molecule import load_default
+
+    structure = load_default()
+    trace = {}
+    for method in METHODS:
+        _, outputs, device = closed_loop_session(structure, "dive", method, {"cube_half_A": "fit"}, PHANTOM_OMNI_LIMITS, ticks=4000)
+        trace[method] = [float(np.linalg.norm(o.force_n)) for o in outputs]
+    return trace
+
+
+# -------------------------------------------------------------- charts, text
+def _charts(ctx: BenchContext, rows, stability, trace, cube_half) -> list:
+    from sasprobe.cli.bench.charts import figure, save
+
+    charts = []
+    path = ctx.chart_path("haptics_tick_time.png")
+    if path is not None:
+        fig, ax = figure()
+        for method, marker, color in zip(METHODS, "os", ("tab:blue", "tab:orange")):
+            sel = [r for r in rows if r["method"] == method]
+            atoms = [r["n_atoms"] for r in sel]
+            ax.semilogx(atoms, [r["p50_us"] for r in sel], marker + "-", color=color, label=f"{method} p50")
+            ax.semilogx(atoms, [r["p99_us"] for r in sel], marker + "--", color=color, mfc="none",
+                        label=f"{method} p99")
+        ax.axhline(100, color="red", lw=1, ls=":", label="target p99 100 µs")
+        ax.set_xlabel("atoms")
+        ax.set_ylabel("force computation per tick (µs)")
+        ax.set_title(f"Per-tick cost vs molecule size ({f'same {cube_half:g} Å cube' if cube_half else 'fitted cube'})")
+        ax.set_ylim(bottom=0)
+        ax.legend(fontsize=8)
+        charts.append(save(fig, path))
+    path = ctx.chart_path("haptics_stability.png")
+    if path is not None and stability is not None:
+        charts.append(save(_stability_figure(stability), path))
+    path = ctx.chart_path("haptics_dive_force.png")
+    if path is not None:
+        fig, ax = figure(6.4, 3.2)
+        for method in METHODS:
+            t = np.arange(len(trace[method])) / 1000.0
+            ax.plot(t, trace[method], lw=0.9, label=method)
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("|force| (N)")
+        ax.set_title("Dive into a groove on 1CRN and rock across it (1 kHz)")
+        ax.legend()
+        charts.append(save(fig, path))
+    return charts
+
+
+def _stability_figure(stability):
+    from sasprobe.cli.bench.charts import pyplot
+
+    plt = pyplot()
+    from matplotlib.colors import ListedColormap
+
+    rates, ks = stability["rates_hz"], stability["stiffness_n_per_mm"]
+    fig, axes = plt.subplots(1, 2, figsize=(9.6, 4.0), dpi=110, sharey=True)
+    cmap = ListedColormap(["#7fc97f", "#fdc086", "#e06666", "#a83232"])  # stable, pop, unstable, both
+    for ax, method in zip(axes, METHODS):
+        grid = np.zeros((len(ks), len(rates)))
+        for c in stability["cells"]:
+            if c["method"] != method:
+                continue
+            i, j = ks.index(c["stiffness_n_per_mm"]), rates.index(c["rate_hz"])
+            grid[i, j] = (1 if c["pop_through"] else 0) + (2 if c["unstable"] else 0)
+            ax.text(j, i, f"{c['energy_mj']:.1f}", ha="center", va="center", fontsize=7)
+        ax.imshow(grid, origin="lower", cmap=cmap, vmin=0, vmax=3, aspect="auto")
+        ax.set_xticks(range(len(rates)), [str(r) for r in rates])
+        ax.set_yticks(range(len(ks)), [f"{k:g}" for k in ks])
+        ax.set_xlabel("control rate (Hz)")
+        ax.set_title(method)
+        # passivity bound K < 2 (b - B) / T (Colgate & Schenkel) and the arm's rated stiffness
+        b = stability["physical_damping_n_s_per_m"] - stability["virtual_damping_n_s_per_m"]
+        bound = [2 * b * r / 1000.0 for r in rates]  # N/mm
+        ax.plot(range(len(rates)), np.interp(bound, ks, range(len(ks)), left=-0.5, right=len(ks) - 0.5), "k--", lw=1,
+                label="passivity bound 2(b-B)/T")
+        dev = np.interp(stability["device_max_stiffness_n_per_mm"], ks, range(len(ks)))
+        ax.axhline(dev, color="k", lw=1, ls=":", label="Omni rated max")
+    axes[0].set_ylabel("stiffness (N/mm)")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=2, fontsize=8, frameon=False)
+    fig.suptitle("Press into 1CRN: green stable, orange pop-through, red energy gain (mJ per cycle in cells)",
+                 fontsize=9)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    return fig
+
+
+def _markdown(rows, stability, ticks, repeats, cube_half) -> str:
+    cube = (
+        f"navigation cube half edge {cube_half:g} Å on the top surface of every structure (same Å/mm)"
+        if cube_half
+        else "navigation cube fitted to each molecule (Å/mm grows with size)"
+    )
+    lines = [
+        f"Simulated arm, 1 kHz, scripts {' + '.join(SCRIPTS)} ({ticks} ticks each), {cube}. Per-tick time: minimum over "
+        f"{repeats} replays of the recorded states (single-run p99 beside it). Penetration: deepest the rendered "
+        "contact point gets inside any expanded sphere. Force step: largest change between consecutive ticks. "
+        "Energy: sum of F·dx the rendering put into the arm (negative = it absorbed energy).",
+        "",
+        "| structure | atoms | Å/mm | method | p50 (µs) | p99 (µs) | max (µs) | single-run p99 (µs) | setup (s) | "
+        "max penetration (Å) | max force step (N) | p99 force step (N) | energy (mJ) | contact |",
+        "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['id']} | {r['n_atoms']} | {r['scale_A_per_mm']:.2f} | {r['method']} | {r['p50_us']:.1f} | {r['p99_us']:.1f} | "
+            f"{r['max_us']:.0f} | {r['single_run_p99_us']:.1f} | {r['setup_s']:.2f} | {r['max_penetration_A']:.2g} | "
+            f"{r['max_force_step_n']:.3f} | {r['p99_force_step_n']:.3f} | {r['energy_mj']:.1f} | "
+            f"{r['contact_fraction']:.0%} |"
+        )
+    if stability is not None:
+        lines += ["", _stability_markdown(stability)]
+    return "\n".join(lines)
+
+
+def _stability_markdown(stability) -> str:
+    rates = stability["rates_hz"]
+    out = [
+        f"Stability map: the `press` script on {stability['structure']} (push into the molecule, hold, release), "
+        f"per control rate and stiffness. Cell: energy put into the arm over the cycle (mJ); "
+        f"**U** = unstable (> {stability['energy_unstable_mj']:g} mJ gained), **P** = pop-through (force > "
+        f"{stability['pop_through_n']:g} N along the push). Arm damping + hand damping "
+        f"{stability['physical_damping_n_s_per_m']:g} N·s/m, virtual damping {stability['virtual_damping_n_s_per_m']:g} N·s/m.",
+        "",
+    ]
+    for method in METHODS:
+        out += [f"{method}:", "", "| N/mm | " + " | ".join(f"{r} Hz" for r in rates) + " |",
+                "|---:|" + "---:|" * len(rates)]
+        for k in stability["stiffness_n_per_mm"]:
+            cells = {c["rate_hz"]: c for c in stability["cells"] if c["method"] == method and c["stiffness_n_per_mm"] == k}
+            text = []
+            for r in rates:
+                c = cells[r]
+                flag = ("U" if c["unstable"] else "") + ("P" if c["pop_through"] else "")
+                text.append(f"{c['energy_mj']:.1f} {flag}".strip())
+            out.append(f"| {k:g} | " + " | ".join(text) + " |")
+        out.append("")
+    return "\n".join(out)

@@ -1,0 +1,381 @@
+"""The frames a session draws, by scenario (part of `sasprobe bench render`):
+
+(a) the haptic session: the camera still, the probe moving along the demo's path (the
+    simulated arm's `scan` script through the haptic engine, as `sasprobe demo` runs it,
+    one pose per 1/30 s), default lighting; the camera fitted to the molecule (as PyMOL's
+    `orient` frames it), and once as the demo draws it: framing the navigation cube the
+    poses carry, the cube's wire and trace drawn;
+(b) an orbit: the camera turning 1° a frame about the molecule, the probe still;
+(c) the cube drifting: a navigation cube holding about 300 atoms of the largest structure,
+    moved a little every frame, the probe at its centre, the camera framing it.
+
+Each is timed unlit (no lighting, every frame drawn whole), with the default lighting
+drawn whole every frame (the full redraw) and with the frame cache (render/frame_cache.py);
+the orbit and the drifting cube also with precomputed occlusion (AO and directional
+shadows from the per-atom atlas; light fixed in the molecule frame; the bake before the
+first frame is reported apart). Frames of the cases are taken in turn, so load from other
+processes falls on all alike, and the load average is recorded beside the figures; each
+frame's CPU time (this process, llvmpipe's threads included) is taken with its wall time,
+and on a machine shared with other work the CPU-time ratios are the steadier ones. Where
+`pymol-open-source` is importable, PyMOL's `ray` renders the session's structure at the
+same size with and without its shadows in the same run (in a child process), between two
+stretches of session frames, and is compared with their mean.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+PATH_FPS = 30.0  # poses per second of the demo path (a renderer's frame rate)
+PATH_SEARCH_S = 8.0  # the session simulated; the frames are its first stretch in contact at least half the time
+
+
+@dataclass
+class Case:
+    label: str
+    renderer: object
+    camera: object
+    step: Callable[[int], None]  # before frame k: move what the scenario moves
+    times: list[float] = field(default_factory=list)  # wall seconds per frame
+    cpu: list[float] = field(default_factory=list)  # CPU seconds of this process per frame
+
+
+def load_average() -> float:
+    return round(os.getloadavg()[0], 2)
+
+
+def demo_path(structure, frames: int, cube=None) -> list:
+    """Poses of the demo's session (sim:scan through the haptic engine), one per 1/PATH_FPS s:
+    the first `frames` of them in contact at least half the time (the probe comes in, touches
+    and slides; how soon depends on the structure). The workspace is mapped onto `cube` (a
+    NavCube) when given, else the demo's own."""
+    from sasprobe.cli.bench.haptics import closed_loop_session
+    from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
+
+    stride = int(1000 / PATH_FPS)
+    mapping = {} if cube is None else {"cube_half_A": cube.half, "cube_center_A": cube.center}
+    _, outputs, _ = closed_loop_session(structure, "scan", "proxy", mapping, PHANTOM_OMNI_LIMITS,
+                                        int(PATH_SEARCH_S * 1000) + stride * frames)
+    poses = outputs[::stride]
+    contact = np.convolve([p.contact for p in poses], np.ones(frames) / frames, mode="valid")
+    start = int(np.argmax(contact >= 0.5)) if np.any(contact >= 0.5) else int(np.argmax(contact))
+    return poses[start:start + frames]
+
+
+def first_cube(path):
+    from sasprobe.render.scene import NavCube
+
+    return NavCube(np.array(path[0].cube_center_A, dtype=np.float64), float(path[0].cube_half_A))
+
+
+def follow_path(scene, path, with_cube: bool = True) -> Callable[[int], None]:
+    """The step that puts pose k of the path into the scene: probe, touched atom and (with
+    `with_cube`) the navigation cube."""
+    from sasprobe.render.scene import NavCube, Probe
+
+    def step(k: int) -> None:
+        pose = path[k % len(path)]
+        scene.probe = Probe(center=np.array(pose.proxy_A, dtype=np.float64),
+                            touched_atom=pose.touched_atoms[0] if pose.touched_atoms else -1)
+        if not with_cube:
+            return
+        center = np.array(pose.cube_center_A, dtype=np.float64)
+        if not np.array_equal(center, scene.nav_cube.center) or pose.cube_half_A != scene.nav_cube.half:
+            scene.nav_cube = NavCube(center, float(pose.cube_half_A))
+    return step
+
+
+def make_case(gl, label: str, structure, size, lighting, cache: bool, nav_cube=None, camera=None):
+    from sasprobe.render.camera import Camera
+    from sasprobe.render.passes.lighting import install_lighting
+    from sasprobe.render.renderer import Renderer
+    from sasprobe.render.scene import SceneState
+
+    scene = SceneState(structure, nav_cube=nav_cube)
+    if lighting is not None:
+        for name, on in lighting.effects().items():
+            setattr(scene.effects, name, on)
+    renderer = Renderer(gl, scene, size, frame_cache=cache)
+    if lighting is not None:
+        install_lighting(renderer, lighting)
+    if camera is None:
+        center, radius = scene.bounding_sphere()
+        camera = Camera.fitted(center, radius, size[0] / size[1])
+    return Case(label, renderer, Camera(camera.eye, camera.target, camera.up, camera.fov_y), lambda k: None)
+
+
+def time_cases(gl, cases: list[Case], frames: int, warmup: int = 2) -> None:
+    """Frame k of every case, in turn, for k < frames (after `warmup` frames each, whose
+    steps are those of frames 0..warmup-1 again)."""
+    for k in range(warmup):
+        for case in cases:
+            case.step(k)
+            case.renderer.render(case.camera)
+    gl.finish()
+    for k in range(frames):
+        for case in cases:
+            case.step(k)
+            gl.finish()
+            t0, c0 = time.perf_counter(), time.process_time()
+            case.renderer.render(case.camera)
+            gl.finish()
+            case.times.append(time.perf_counter() - t0)
+            case.cpu.append(time.process_time() - c0)
+
+
+def summary(cases: list[Case], unlit: str, full: str) -> dict:
+    rows = {}
+    for case in cases:
+        cache = case.renderer.cache
+        rows[case.label] = {"ms": statistics.median(case.times) * 1e3, "cpu_ms": statistics.median(case.cpu) * 1e3,
+                            "frames": len(case.times),
+                            "cache_hits": None if cache is None else cache.hits,
+                            "cache_misses": None if cache is None else cache.misses}
+    for row in rows.values():
+        for key, suffix in (("ms", ""), ("cpu_ms", "_cpu")):
+            row["over_unlit" + suffix] = row[key] / rows[unlit][key]
+            row["full_over_this" + suffix] = rows[full][key] / row[key]
+    return rows
+
+
+def release(cases: list[Case]) -> None:
+    for case in cases:
+        case.renderer.release()
+
+
+# ------------------------------------------------------------------ the scenarios
+def session(gl, structure, size, frames: int, demo_view: bool = False, between=None) -> dict:
+    """(a): the probe along the demo path, camera still; fitted to the molecule, or (with
+    `demo_view`) to the poses' cube, which is drawn. `between()` (a peer's timing) runs
+    after the frames, and session frames are timed again after it."""
+    from sasprobe.render.lighting.settings import LightingSettings
+
+    path = demo_path(structure, frames)
+    cube = first_cube(path) if demo_view else None
+    lit = LightingSettings()
+    cases = [make_case(gl, "unlit", structure, size, None, False, cube),
+             make_case(gl, "full redraw", structure, size, lit, False, cube),
+             make_case(gl, "session (frame cache)", structure, size, lit, True, cube)]
+
+    for case in cases:
+        case.step = follow_path(case.renderer.scene, path, with_cube=demo_view)
+    try:
+        time_cases(gl, cases, frames)
+        full, kept = cases[1].renderer.read_image(), cases[2].renderer.read_image()  # the same last frame
+        diff = np.abs(full.astype(int) - kept.astype(int)).max(axis=2)
+        out = {"rows": summary(cases, "unlit", "full redraw"), "images": (full, kept), "demo_view": demo_view,
+               "pixels_within_2": float((diff <= 2).mean()), "max_difference": int(diff.max()),
+               "contact_fraction": float(np.mean([p.contact for p in path])),
+               "probe_travel_A": float(np.sum(np.linalg.norm(np.diff([p.proxy_A for p in path], axis=0), axis=1)))}
+        if between is not None:
+            out["peer"] = between()
+            kept_case = cases[2]
+            after = Case("after", kept_case.renderer, kept_case.camera, kept_case.step)
+            time_cases(gl, [after], max(frames // 2, 3), warmup=0)
+            out["session_after"] = {"ms": statistics.median(after.times) * 1e3,
+                                    "cpu_ms": statistics.median(after.cpu) * 1e3}
+    finally:
+        release(cases)
+    return out
+
+
+def orbit(gl, structure, size, frames: int, probe_center) -> dict:
+    """(b): the camera turning 1° a frame, the probe still."""
+    from sasprobe.render.lighting.settings import AOSettings, LightingSettings
+    from sasprobe.render.scene import Probe
+
+    lit = LightingSettings()
+    baked = LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed"))
+    cases = [make_case(gl, "unlit", structure, size, None, False),
+             make_case(gl, "full redraw", structure, size, lit, False),
+             make_case(gl, "frame cache", structure, size, lit, True),
+             make_case(gl, "precomputed AO + shadows", structure, size, baked, True)]
+    step_angle = np.radians(1.0)
+
+    def step_of(case):
+        axis = case.camera.up.copy()
+        case.renderer.scene.probe = Probe(center=np.array(probe_center, dtype=np.float64))
+        return lambda k: case.camera.orbit(axis, step_angle)
+
+    for case in cases:
+        case.step = step_of(case)
+    try:
+        bake_s = _first_frame_bake(gl, cases[-1])
+        time_cases(gl, cases, frames)
+        out = {"rows": summary(cases, "unlit", "full redraw"), "bake_s": bake_s}
+    finally:
+        release(cases)
+    return out
+
+
+def drifting_cube(gl, structure, size, frames: int) -> dict:
+    """(c): a ~300-atom cube of the largest structure moving every frame, the probe inside."""
+    from sasprobe.cli.bench.render import CUBE_TARGET_ATOMS, cube_for
+    from sasprobe.render.camera import Camera
+    from sasprobe.render.lighting.settings import AOSettings, LightingSettings
+    from sasprobe.render.scene import NavCube, Probe
+
+    cube, inside = cube_for(structure, CUBE_TARGET_ATOMS)
+    camera = Camera.fitted(cube.center, cube.half * np.sqrt(3.0), size[0] / size[1])
+    lit = LightingSettings()
+    baked = LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed"))
+    cases = [make_case(gl, label, structure, size, lighting, cache, NavCube(cube.center.copy(), cube.half), camera)
+             for label, lighting, cache in (("unlit", None, False), ("full redraw", lit, False),
+                                            ("frame cache", lit, True), ("precomputed AO + shadows", baked, True))]
+    drift = np.array([0.05, -0.03, 0.04])  # Å per frame: 1.5-2 Å/s at 30 fps
+
+    def step_of(scene):
+        def step(k: int) -> None:
+            scene.nav_cube = NavCube(cube.center + k * drift, cube.half)
+            scene.probe = Probe(center=scene.nav_cube.center + [0.0, 0.0, 0.5 * cube.half])
+        return step
+
+    for case in cases:
+        case.step = step_of(case.renderer.scene)
+    try:
+        time_cases(gl, cases, frames)
+        out = {"rows": summary(cases, "unlit", "full redraw"), "cube_half_A": cube.half, "atoms_in_cube": inside}
+    finally:
+        release(cases)
+    return out
+
+
+def _first_frame_bake(gl, case: Case) -> float:
+    """Draw the case's first frame with its atlas baking; the bake's own time (s)."""
+    from sasprobe.render.passes.lighting import lighting_of
+
+    case.renderer.render(case.camera)
+    gl.finish()
+    atlas = lighting_of(case.renderer).ao._pass("atlas")
+    return atlas.bake_seconds
+
+
+# ------------------------------------------------------------------ PyMOL
+PYMOL_SCRIPT = r"""
+import json, statistics, sys, time
+import pymol
+from pymol import cmd
+pymol.finish_launching(["pymol", "-qc"])
+cmd.feedback("disable", "all", "everything")
+path, w, h, repeats = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
+cmd.load(path, "m")
+cmd.hide("everything")
+cmd.show("spheres")
+cmd.orient()
+cmd.viewport(w, h)
+out = {"version": cmd.get_version()[0], "atoms": cmd.count_atoms("all"), "max_threads": cmd.get("max_threads"),
+       "antialias_default": int(cmd.get("antialias"))}
+for shadows in (1, 0):
+    for antialias in sorted({out["antialias_default"], 0}, reverse=True):
+        cmd.set("ray_shadows", shadows)
+        cmd.set("antialias", antialias)
+        cmd.ray(w, h)
+        times, cpu = [], []
+        for _ in range(repeats):
+            t0, c0 = time.perf_counter(), time.process_time()
+            cmd.ray(w, h)
+            times.append(time.perf_counter() - t0)
+            cpu.append(time.process_time() - c0)
+        out[f"shadows{shadows}_aa{antialias}_ms"] = statistics.median(times) * 1e3
+        out[f"shadows{shadows}_aa{antialias}_cpu_ms"] = statistics.median(cpu) * 1e3
+print("PYMOL_RESULT " + json.dumps(out))
+"""
+
+
+def pymol_available() -> bool:
+    import importlib.util
+
+    return importlib.util.find_spec("pymol") is not None
+
+
+def pymol_ray(path, size, repeats: int) -> dict | None:
+    """PyMOL's ray tracer on a structure file (spheres, oriented, w x h), with and without its
+    shadows and antialiasing; None where pymol-open-source is not installed."""
+    if not pymol_available():
+        return None
+    r = subprocess.run([sys.executable, "-c", PYMOL_SCRIPT, str(path), str(size[0]), str(size[1]), str(repeats)],
+                       capture_output=True, text=True, timeout=900)
+    for line in r.stdout.splitlines():
+        if line.startswith("PYMOL_RESULT "):
+            return json.loads(line.split(" ", 1)[1])
+    return {"error": (r.stderr.strip().splitlines() or ["no result"])[-1]}
+
+
+# ------------------------------------------------------------------ report
+def cache_figure(run: dict, path):
+    """The session's last frame drawn whole and from the kept molecule layer, and their difference."""
+    import matplotlib.pyplot as plt
+
+    full, kept = run["images"]
+    diff = np.abs(full.astype(int) - kept.astype(int)).max(axis=2)
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), dpi=110)
+    for ax, image, title in ((axes[0], full, "full redraw"), (axes[1], kept, "frame cache (probe moved)")):
+        ax.imshow(image)
+        ax.set_title(title, fontsize=8)
+    im = axes[2].imshow(diff, cmap="magma", vmin=0, vmax=8)
+    axes[2].set_title(f"|difference|: max {diff.max()}/255,\n{100 * (diff <= 2).mean():.3f} % of pixels within 2/255",
+                      fontsize=8)
+    fig.colorbar(im, ax=axes[2], shrink=0.8, label="/255")
+    for ax in axes:
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.suptitle(f"{run['id']}: a session frame, default lighting", fontsize=9)
+    fig.savefig(path, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def markdown(d: dict) -> str:
+    size = f"{d['size'][0]}x{d['size'][1]}"
+    lines = [f"**Scenarios** ({size}, medians of {d['frames']} frames per case, cases in turn; load average "
+             f"{d['load'][0]} at the start, {d['load'][1]} at the end):", "",
+             "| scenario | structure | case | ms / frame | CPU ms / frame | × unlit | full redraw / this | "
+             "× unlit (CPU) | full / this (CPU) | layer kept |",
+             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for key, title in (("session", "(a) haptic session"), ("orbit", "(b) orbit"), ("cube", "(c) cube drifting")):
+        for run in d[key]:
+            name = run["id"] + (" (the demo's view)" if run.get("demo_view") else "")
+            for label, r in run["rows"].items():
+                kept = "" if r["cache_hits"] is None else f"{r['cache_hits']}/{r['cache_hits'] + r['cache_misses']}"
+                lines.append(f"| {title} | {name} | {label} | {r['ms']:.1f} | {r['cpu_ms']:.1f} | "
+                             f"{r['over_unlit']:.2f} | {r['full_over_this']:.2f} | {r['over_unlit_cpu']:.2f} | "
+                             f"{r['full_over_this_cpu']:.2f} | {kept} |")
+    for run in d["session"]:
+        lines.append(f"\nSession, {run['id']}{' (the demo view)' if run['demo_view'] else ''}: the probe travelled {run['probe_travel_A']:.1f} Å, in contact "
+                     f"{100 * run['contact_fraction']:.0f} % of the frames; the last frame from the kept layer and "
+                     f"drawn whole agree within 2/255 on {100 * run['pixels_within_2']:.3f} % of the pixels "
+                     f"(largest difference {run['max_difference']}/255).")
+    for run in d["orbit"]:
+        lines.append(f"Orbit, {run['id']}: the atlas baked in {run['bake_s']:.2f} s before the first frame.")
+    for run in d["cube"]:
+        lines.append(f"Drifting cube, {run['id']}: half edge {run['cube_half_A']:.2f} Å, {run['atoms_in_cube']} atoms; "
+                     "the atlas is baked again every frame (the culling changes).")
+    around = next((r for r in d["session"] if "peer" in r), None)
+    p = None if around is None else around["peer"]
+    if p is None:
+        lines.append("\nPyMOL: pymol-open-source is not installed (`pip install -e '.[peers]'`).")
+    elif "error" in p:
+        lines.append(f"\nPyMOL could not run: {p['error']}")
+    else:
+        before, after = around["rows"]["session (frame cache)"], around["session_after"]
+        session = {key: (before[key] + after[key]) / 2 for key in ("ms", "cpu_ms")}
+        lines += ["", f"**PyMOL {p['version']}** `ray` on {around['id']} ({p['atoms']} atoms, spheres, {size}, "
+                  f"max_threads {p['max_threads']}), same run, between two stretches of session frames "
+                  f"({before['ms']:.1f} and {after['ms']:.1f} ms); ratio = PyMOL / their mean:", "",
+                  "| PyMOL setting | ms | CPU ms | PyMOL / session frame | (CPU) |", "|---|---:|---:|---:|---:|"]
+        aa = p["antialias_default"]
+        for shadows in (1, 0):
+            for antialias in sorted({aa, 0}, reverse=True):
+                ms, cpu = p[f"shadows{shadows}_aa{antialias}_ms"], p[f"shadows{shadows}_aa{antialias}_cpu_ms"]
+                lines.append(f"| ray_shadows {shadows}, antialias {antialias} | {ms:.0f} | {cpu:.0f} | "
+                             f"{ms / session['ms']:.1f}× | {cpu / session['cpu_ms']:.1f}× |")
+    return "\n".join(lines)
