@@ -10,8 +10,8 @@ import time
 from concurrent.futures import Future, TimeoutError as FutureTimeout
 
 from sasprobe.daemon.marks import mark_button
-from sasprobe.daemon.retire import Retired
-from sasprobe.daemon.scene import rotation_rows
+from sasprobe.daemon.deferred_release import DeferredRelease
+from sasprobe.daemon.scene_message import rotation_rows
 from sasprobe.common.errors import UserError
 
 SUBMIT_TIMEOUT_S = 5.0
@@ -19,7 +19,7 @@ SUBMIT_TIMEOUT_S = 5.0
 
 class LoopChanges:
     _pending: collections.deque  # (closure, Future) for the loop, made by Daemon
-    retired: Retired  # what a change replaced, made by Daemon
+    deferred_release: DeferredRelease  # what a change replaced, made by Daemon
 
     def submit(self, fn):
         """Run fn(seq) on the loop thread at the start of the next tick and return its result."""
@@ -30,7 +30,7 @@ class LoopChanges:
         except FutureTimeout:
             raise UserError("the daemon loop did not take the change in time (is it shutting down?)") from None
         finally:
-            self.retired.release()  # what the change replaced, freed here rather than on the loop
+            self.deferred_release.release()  # what the change replaced, freed here rather than on the loop
 
     def _apply_pending(self, seq: int) -> None:
         while self._pending:
@@ -42,7 +42,7 @@ class LoopChanges:
 
     def swap_structure(self, structure, keep_water: bool, engine, seq: int) -> int:
         """On the loop thread: a new structure and its engine (built off the loop)."""
-        self.retired.add(self.structure, self.pipeline.engine)
+        self.deferred_release.add(self.structure, self.pipeline.engine)
         self.structure = structure
         self.structure_keep_water = keep_water
         self.pipeline.replace_engine(engine)
@@ -56,7 +56,7 @@ class LoopChanges:
                        seq: int) -> int:
         """On the loop thread: a checked `set` (a new engine when one had to be built)."""
         if engine is not None:
-            self.retired.add(self.pipeline.engine)
+            self.deferred_release.add(self.pipeline.engine)
             self.pipeline.replace_engine(engine)
         elif haptic:
             self.pipeline.engine.update(**haptic)

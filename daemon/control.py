@@ -25,7 +25,7 @@ from sasprobe.common.errors import UserError
 from sasprobe.protocol.control import (
     MAX_MESSAGE_BYTES,
     ProtocolError,
-    Reply,
+    ControlReply,
     Request,
     decode_request,
     encode_reply,
@@ -40,7 +40,7 @@ POLL_MS = 100
 
 
 class ControlServer:
-    def __init__(self, context: zmq.Context, endpoints: list[str], handler: Callable[[Request], Reply],
+    def __init__(self, context: zmq.Context, endpoints: list[str], handler: Callable[[Request], ControlReply],
                  keys: ServerKeys | None = None) -> None:
         self._handler = handler
         self._socket = context.socket(zmq.ROUTER)
@@ -101,10 +101,10 @@ class ControlServer:
         except Exception as exc:  # a result that is not plain JSON: a bug, answered as one
             log.exception("control reply could not be encoded")
             self.errors += 1
-            return encode_reply(Reply(ok=False, error=f"internal error: the reply could not be encoded "
+            return encode_reply(ControlReply(ok=False, error=f"internal error: the reply could not be encoded "
                                                        f"({type(exc).__name__})", id=plain_id(reply.id)))
 
-    def handle(self, frames: list) -> Reply:
+    def handle(self, frames: list) -> ControlReply:
         """Decode, dispatch and turn every failure into an error reply."""
         self.requests += 1
         request_id = None
@@ -114,10 +114,10 @@ class ControlServer:
             reply = self._handler(request)
             reply.id = request.id
         except (ProtocolError, UserError, ValueError) as exc:
-            reply = Reply(ok=False, error=one_line(str(exc)) or type(exc).__name__, id=request_id)
+            reply = ControlReply(ok=False, error=one_line(str(exc)) or type(exc).__name__, id=request_id)
         except Exception as exc:  # a bug: answer, log, keep serving
             log.exception("control request failed")
-            reply = Reply(ok=False, error=f"internal error: {type(exc).__name__}: {one_line(str(exc))}",
+            reply = ControlReply(ok=False, error=f"internal error: {type(exc).__name__}: {one_line(str(exc))}",
                           id=request_id)
         if not reply.ok:
             self.errors += 1

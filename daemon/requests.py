@@ -23,7 +23,7 @@ from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.daemon.marks import drop_mark
 from sasprobe.devices.workspace import validate_rotation
 from sasprobe.common.errors import UserError
-from sasprobe.protocol.control import COMMANDS, Reply, Request
+from sasprobe.protocol.control import COMMANDS, ControlReply, Request
 from sasprobe.protocol.scene import merge_lights
 
 log = logging.getLogger("sasprobe")
@@ -51,10 +51,10 @@ class RequestHandlers:
         self.findings_job: FindingsJob | None = None  # the newest `findings` analysis
         assert set(self._handlers) == set(COMMANDS), "every protocol command needs its handler"
 
-    def handle(self, request: Request) -> Reply:
+    def handle(self, request: Request) -> ControlReply:
         """The reply to a decoded request (ControlServer turns exceptions into error replies)."""
         result, data = self._handlers[request.cmd](request)
-        return Reply(ok=True, result=result, data=data)
+        return ControlReply(ok=True, result=result, data=data)
 
     # ------------------------------------------------------------------ reading
     def ping(self, request):

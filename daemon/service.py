@@ -41,8 +41,8 @@ from sasprobe.daemon.network import Network
 from sasprobe.daemon.recording.replay import REPLAY_SCHEME, REPLAYED_COMMANDS, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
 from sasprobe.daemon.requests import RequestHandlers
-from sasprobe.daemon.retire import Retired
-from sasprobe.daemon.scene import rotation_rows, scene_message
+from sasprobe.daemon.deferred_release import DeferredRelease
+from sasprobe.daemon.scene_message import rotation_rows, scene_message
 from sasprobe.daemon.session import open_session
 from sasprobe.daemon.structure_worker import StructureWorker
 from sasprobe.daemon.watchdog import StallWatchdog
@@ -86,7 +86,7 @@ class Daemon(LoopChanges):
         self._scene_bytes = b""
         self._next_scene_ns = 0
         self._pending: collections.deque = collections.deque()  # (closure, Future) for the loop
-        self.retired = Retired()
+        self.deferred_release = DeferredRelease()
         self._stop_reason: str | None = None
         self._carry_error: str | None = None  # a failed force write, reported on the next tick
         self._reconnector = Reconnector(self.device)

@@ -16,7 +16,7 @@ from pathlib import Path
 from sasprobe.devices import falcon
 from sasprobe.devices.base import DeviceOpenError
 from sasprobe.devices.spacemouse import models as spacemouse_models
-from sasprobe.devices.support import factory_from_environment
+from sasprobe.devices.hardware import factory_from_environment
 from sasprobe.devices.transports import load_hidapi
 
 

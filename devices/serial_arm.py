@@ -42,7 +42,7 @@ import time
 import numpy as np
 
 from sasprobe.devices.base import DeviceFault, DeviceOpenError, DeviceState
-from sasprobe.devices.support import HardwareDevice, VelocityFilter, clamp_force
+from sasprobe.devices.hardware import HardwareDriver, VelocityFilter, clamp_force
 from sasprobe.devices.transports import SerialTransport
 
 REPLY_PERIODS = 2.5  # how many loop periods after its command a reply may take
@@ -69,7 +69,7 @@ def timing_options(options: dict) -> dict:
     return timing
 
 
-class Reply:
+class ArmReply:
     """One well-formed reply. `refused`: the board says it did not take our command."""
 
     refused = False
@@ -79,7 +79,7 @@ class BadFrame(Exception):
     """Bytes that are not a reply of this board's protocol (the message says what they were)."""
 
 
-class SerialArm(HardwareDevice):
+class SerialArm(HardwareDriver):
     scheme = ""  # the --device scheme, for messages
 
     def __init__(self, port: str | None, *, reply_timeout_s: float = 0.010, read_wait_s: float = 0.001,
@@ -129,11 +129,11 @@ class SerialArm(HardwareDevice):
         """The command that asks for no force (the probe)."""
 
     @abc.abstractmethod
-    def _split(self, inbox: bytes) -> tuple[Reply | None, bytes]:
+    def _split(self, inbox: bytes) -> tuple[ArmReply | None, bytes]:
         """(the first reply in `inbox`, the rest), (None, inbox) while incomplete; BadFrame for junk."""
 
     @abc.abstractmethod
-    def _take(self, reply: Reply) -> None:
+    def _take(self, reply: ArmReply) -> None:
         """Learn the pose a reply reports (used for the next force command)."""
 
     @abc.abstractmethod
@@ -232,7 +232,7 @@ class SerialArm(HardwareDevice):
             self._start_resync("the watchdog's zero command while the loop stalled")
 
     # handshake helpers ----------------------------------------------------------------
-    def _probe(self, timeout_s: float, describe) -> Reply:
+    def _probe(self, timeout_s: float, describe) -> ArmReply:
         """Send the zero command every PROBE_INTERVAL_S until a reply comes; drop the rest.
 
         `describe(junk)`: the open error's wording for bytes that are not a reply.
@@ -302,7 +302,7 @@ class SerialArm(HardwareDevice):
             self._sent_at = None
             raise
 
-    def _wait_reply(self, wait_s: float) -> tuple[Reply | None, bool]:
+    def _wait_reply(self, wait_s: float) -> tuple[ArmReply | None, bool]:
         """The reply to the command in flight (and whether it is fresh), waiting at most
         `wait_s` and never past the reply window; None when it has not come."""
         deadline = min(self._sent_at + self.reply_timeout_s, time.monotonic() + wait_s)

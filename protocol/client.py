@@ -20,7 +20,7 @@ from pathlib import Path
 import zmq
 
 from sasprobe.common.errors import UserError
-from sasprobe.protocol.control import ProtocolError, Reply, decode_reply, encode_request
+from sasprobe.protocol.control import ProtocolError, ControlReply, decode_reply, encode_request
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
 from sasprobe.protocol.handshake import ConnectionWatch
 from sasprobe.protocol.pose import POSE_TOPIC, Pose, PoseDecodeError, decode_pose
@@ -164,7 +164,7 @@ class ControlClient:
         return self._socket
 
     def request(self, cmd: str, args: dict | None = None, data: bytes | None = None,
-                timeout_s: float | None = None) -> Reply:
+                timeout_s: float | None = None) -> ControlReply:
         """One request and its reply (ok or not); ControlError when no valid reply comes in time."""
         sock = self._open()
         request_id = next(self._ids)

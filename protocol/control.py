@@ -83,7 +83,7 @@ class Request:
 
 
 @dataclass
-class Reply:
+class ControlReply:
     ok: bool
     result: dict = field(default_factory=dict)
     error: str | None = None
@@ -196,7 +196,7 @@ def plain_id(value):
     return value if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
 
-def encode_reply(reply: Reply) -> list:
+def encode_reply(reply: ControlReply) -> list:
     obj: dict = {"version": CONTROL_VERSION, "ok": reply.ok}
     if reply.id is not None:
         obj["id"] = reply.id
@@ -207,7 +207,7 @@ def encode_reply(reply: Reply) -> list:
     return [_dumps(obj)] + ([reply.data] if reply.data is not None else [])  # any buffer: sent without a copy
 
 
-def decode_reply(frames: list[bytes]) -> Reply:
+def decode_reply(frames: list[bytes]) -> ControlReply:
     if not frames or len(frames) > 2:
         raise ProtocolError(f"a reply has 1 or 2 frames, got {len(frames)}")
     obj = _loads(frames[0], "reply")
@@ -221,7 +221,7 @@ def decode_reply(frames: list[bytes]) -> Reply:
         raise ProtocolError("reply 'result' must be an object")
     if not ok and not isinstance(error, str):
         raise ProtocolError("an error reply needs a string 'error'")
-    return Reply(ok=ok, result=result if ok else {}, error=error, id=obj.get("id"),
+    return ControlReply(ok=ok, result=result if ok else {}, error=error, id=obj.get("id"),
                  data=frames[1] if len(frames) == 2 else None, version=version)
 
 

@@ -73,7 +73,7 @@ class RenderOptions:
     def effects(self):
         """The scene's switches: the options' FXAA, probe plane (on in the workspace view) and
         initial lighting."""
-        from sasprobe.render.scene import Effects
+        from sasprobe.render.scene_state import Effects
         from sasprobe.render.workspace_view import WORKSPACE
 
         lighting = self.lighting.effects() if self.lighting is not None else {}
@@ -92,7 +92,7 @@ class RenderOptions:
 def build_scene(structure, opts: RenderOptions, effects=None):
     """The SceneState for a structure: the options' planes, probe, cube and light."""
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS
-    from sasprobe.render.scene import NavCube, Probe, SceneState
+    from sasprobe.render.scene_state import NavCube, Probe, SceneState
 
     radius = opts.probe_radius or DEFAULT_PROBE_RADIUS
     if effects is None:

@@ -33,7 +33,7 @@ from sasprobe.protocol.pose import FLAG_CLUTCHED, FLAG_DRIFTING
 from sasprobe.protocol.security import ClientKeys
 from sasprobe.render.daemon_requests import RequestSender
 from sasprobe.render.live_clearance import LiveClearance
-from sasprobe.render.scene import Mark, NavCube, Probe, normalise_plane
+from sasprobe.render.scene_state import Mark, NavCube, Probe, normalise_plane
 from sasprobe.render.source import Readout, RenderSource
 
 log = logging.getLogger("sasprobe")

@@ -44,7 +44,7 @@ from sasprobe.render.passes.probe import ProbePass
 from sasprobe.render.passes.probe_cues import ProbeCuesPass
 from sasprobe.render.passes.shading import ShadingPass
 from sasprobe.render.passes.spheres import SpherePass
-from sasprobe.render.scene import SceneState
+from sasprobe.render.scene_state import SceneState
 
 
 class Renderer:

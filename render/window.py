@@ -29,7 +29,7 @@ from sasprobe.render.passes.lighting import lighting_of
 from sasprobe.render.passes.lighting_controls import apply_preset, lighting_status
 from sasprobe.render.passes.overlay import TextOverlay
 from sasprobe.render.picking import label_position, pixel_under, point_under
-from sasprobe.render.scene import Effects
+from sasprobe.render.scene_state import Effects
 from sasprobe.render.source import Readout
 from sasprobe.render.workspace_view import OVERVIEW, WORKSPACE, WorkspaceView, overview_camera
 

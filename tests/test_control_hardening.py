@@ -22,7 +22,7 @@ from sasprobe.protocol.control import (
     MAX_MESSAGE_BYTES,
     MAX_NESTING,
     ProtocolError,
-    Reply,
+    ControlReply,
     decode_reply,
     decode_request,
     encode_request,
@@ -72,7 +72,7 @@ def test_a_reply_that_cannot_be_encoded_is_an_error_reply(tmp_path):
     import zmq
 
     context = zmq.Context()
-    server = ControlServer(context, [f"ipc://{tmp_path}/c"], lambda r: Reply(ok=True, result={"x": float("inf")}))
+    server = ControlServer(context, [f"ipc://{tmp_path}/c"], lambda r: ControlReply(ok=True, result={"x": float("inf")}))
     try:
         reply = decode_reply(server.answer(encode_request("ping", id=4)))
         assert not reply.ok and "could not be encoded" in reply.error and reply.id == 4

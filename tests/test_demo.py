@@ -85,7 +85,7 @@ def test_snapshot_shows_the_molecule(demo):
 
     from sasprobe.molecule import load_default
     from sasprobe.render.camera import Camera
-    from sasprobe.render.scene import SceneState
+    from sasprobe.render.scene_state import SceneState
 
     out, _, _ = demo
     image = imageio.imread(out / "snapshot.png")[..., :3].astype(float)

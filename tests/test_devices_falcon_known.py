@@ -83,7 +83,7 @@ def test_reply_of_a_homed_falcon_is_accepted():
     status = 0x70 | 0x05  # all three axes homed, buttons 1 and 3
     frame = b"<JFKP" + b"AAAA" + b"PPPP" + bytes([0x41 + status]) + b"A>"
     assert frame[13] > ord("P")  # not a nibble byte
-    assert P.decode_reply(frame) == P.Reply((-1447, 0, -1), 0b111, 0b101)
+    assert P.decode_reply(frame) == P.FalconReply((-1447, 0, -1), 0b111, 0b101)
 
 
 @settings(max_examples=300, deadline=None)
@@ -91,7 +91,7 @@ def test_reply_of_a_homed_falcon_is_accepted():
 def test_replies_decode_whatever_the_values(encoders, homed, buttons):
     body = [((v & 0xFFFF) >> (4 * k)) & 0xF for v in encoders for k in range(4)]
     frame = bytes([0x3C, *(n + 0x41 for n in body), 0x41 + (homed << 4 | buttons), 0x41, 0x3E])
-    assert P.decode_reply(frame) == P.Reply(tuple(encoders), homed, buttons)
+    assert P.decode_reply(frame) == P.FalconReply(tuple(encoders), homed, buttons)
 
 
 @pytest.mark.parametrize("bad", [
@@ -115,7 +115,7 @@ def test_frame_reader_skips_and_counts_junk_and_bad_frames():
     replies = []
     while (reply := reader.next_reply()) is not None:
         replies.append(reply)
-    assert replies == [P.Reply((1, 2, 3), 0b001, 0)] * 3
+    assert replies == [P.FalconReply((1, 2, 3), 0b001, 0)] * 3
     assert reader.rejected == 3
 
 

@@ -11,7 +11,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
-from sasprobe.devices.support import VelocityFilter, clamp_force, quaternion_from_matrix
+from sasprobe.devices.hardware import VelocityFilter, clamp_force, quaternion_from_matrix
 from sasprobe.devices.transports import SerialTransport, UsbTransport
 from tests.emulators.falcon_usb import EmulatedUsbBackend, FalconHardware
 from tests.emulators.pty_serial import PtySerialDevice

@@ -21,7 +21,7 @@ from sasprobe.render.lighting.settings import AOSettings, LightingSettings, Shad
 from sasprobe.render.passes.fxaa import FxaaPass
 from sasprobe.render.passes.lighting import install_lighting, lighting_of
 from sasprobe.render.renderer import Renderer
-from sasprobe.render.scene import Effects, Mark, NavCube, Probe, SceneState
+from sasprobe.render.scene_state import Effects, Mark, NavCube, Probe, SceneState
 from tests.lighting_support import probe_on_surface
 
 pytestmark = pytest.mark.needs_gl(430)

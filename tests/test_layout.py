@@ -144,7 +144,7 @@ def test_dependencies_run_one_way():
 
 
 @pytest.mark.parametrize("edge, message", [
-    (("sasprobe.render.scene", "sasprobe.daemon.service", 1), "render/ may import only molecule, protocol"),
+    (("sasprobe.render.scene_state", "sasprobe.daemon.service", 1), "render/ may import only molecule, protocol"),
     (("sasprobe.devices.simulated", "sasprobe.daemon.haptics.engine", 1), "devices/ may import only"),
     (("sasprobe.protocol.pose", "sasprobe.molecule.grid", 1), "protocol/ may import only nothing"),
     (("sasprobe.daemon.service", "sasprobe.cli.argtypes", 1), "nothing imports the CLI package"),

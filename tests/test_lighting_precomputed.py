@@ -272,7 +272,7 @@ def test_a_still_probe_lights_from_the_atlas_and_a_moving_one_is_traced(gl, cram
     from sasprobe.render.passes.lighting import install_lighting, lighting_of
     from sasprobe.render.passes.lighting import STILL_FRAMES
     from sasprobe.render.renderer import Renderer
-    from sasprobe.render.scene import Probe, SceneState
+    from sasprobe.render.scene_state import Probe, SceneState
     from tests.lighting_support import probe_on_surface
 
     settings = LightingSettings(shadows="precomputed", ao=AOSettings(mode="off"))

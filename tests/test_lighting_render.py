@@ -35,7 +35,7 @@ from tests.lighting_reference import (
 )
 from sasprobe.render.passes.lighting import LightingPass, install_lighting, lighting_of
 from sasprobe.render.renderer import Renderer
-from sasprobe.render.scene import NavCube, Probe, SceneState
+from sasprobe.render.scene_state import NavCube, Probe, SceneState
 from sasprobe.render.gl.targets import KIND_BACKBONE, KIND_BACKGROUND, KIND_CAP, KIND_PROBE
 from sasprobe.render.gl.textures import read_texture, texture_2d
 from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas

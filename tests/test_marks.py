@@ -97,7 +97,7 @@ def test_the_mark_button_marks_the_newest_proxy_except_in_a_replay():
 def _frame(gl, crambin, marks, enabled=True):
     from sasprobe.render.camera import Camera
     from sasprobe.render.renderer import Renderer
-    from sasprobe.render.scene import Effects, Mark, SceneState
+    from sasprobe.render.scene_state import Effects, Mark, SceneState
 
     scene = SceneState(crambin, effects=Effects(fxaa=False, marks=enabled))
     scene.marks = [Mark(k + 1, f"m{k + 1}", tuple(map(float, p))) for k, p in enumerate(marks)]

@@ -14,7 +14,7 @@ from sasprobe.protocol.control import (
     COMMANDS,
     MAX_REQUEST_JSON_BYTES,
     ProtocolError,
-    Reply,
+    ControlReply,
     decode_reply,
     decode_request,
     encode_reply,
@@ -28,9 +28,9 @@ def test_round_trip_of_every_command_shape():
     assert (req.cmd, req.id, req.args) == ("set", 5, {"stiffness_n_per_mm": 0.2, "clip_planes": [[1.0, 0.0, 0.0, -2.0]]})
     req = decode_request(encode_request("load", {"name": "x"}, data=b"ATOM"))
     assert req.data == b"ATOM"
-    reply = decode_reply(encode_reply(Reply(ok=True, result={"a": 1}, id=3, data=b"\x00\x01")))
+    reply = decode_reply(encode_reply(ControlReply(ok=True, result={"a": 1}, id=3, data=b"\x00\x01")))
     assert reply.ok and reply.result == {"a": 1} and reply.id == 3 and reply.data == b"\x00\x01"
-    reply = decode_reply(encode_reply(Reply(ok=False, error="bad")))
+    reply = decode_reply(encode_reply(ControlReply(ok=False, error="bad")))
     assert not reply.ok and reply.error == "bad"
 
 
@@ -100,7 +100,7 @@ def server(tmp_path):
         seen.append(request.cmd)
         if request.cmd == "status":
             raise RuntimeError("boom")
-        return Reply(ok=True, result={"cmd": request.cmd})
+        return ControlReply(ok=True, result={"cmd": request.cmd})
 
     endpoint = f"ipc://{tmp_path}/ctl"
     srv = ControlServer(context, [endpoint], handler)

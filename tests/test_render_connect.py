@@ -26,7 +26,7 @@ from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.lighting.settings import AOSettings
 from sasprobe.render.link import DaemonLink
 from sasprobe.render.renderer import Renderer
-from sasprobe.render.scene import Effects, SceneState
+from sasprobe.render.scene_state import Effects, SceneState
 from sasprobe.render.gl.targets import KIND_PROBE
 from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess

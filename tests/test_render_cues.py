@@ -11,7 +11,7 @@ from sasprobe.render.camera import Camera
 from sasprobe.render.link import touched_label
 from sasprobe.render.passes.probe_cues import FORCE_COLORS, GHOST_COLOR, OUTLINE_COLOR
 from sasprobe.render.renderer import Renderer
-from sasprobe.render.scene import Effects, Probe, SceneState
+from sasprobe.render.scene_state import Effects, Probe, SceneState
 
 SIZE = (200, 150)
 

@@ -14,7 +14,7 @@ from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.renderer import Renderer
-from sasprobe.render.scene import NavCube, Probe, SceneState, normalise_plane
+from sasprobe.render.scene_state import NavCube, Probe, SceneState, normalise_plane
 from sasprobe.render.gl.targets import KIND_BACKBONE, KIND_CAP, KIND_PROBE, KIND_SPHERE
 from tests.render_support import edge_mask, reference_cast
 

@@ -11,7 +11,7 @@ from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.passes.base import Pass, ProbeLighting
 from sasprobe.render.passes.probe import PROBE_COLOR
 from sasprobe.render.renderer import Renderer
-from sasprobe.render.scene import Probe, SceneState
+from sasprobe.render.scene_state import Probe, SceneState
 from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE
 from sasprobe.render.gl.textures import release_framebuffers
 from tests.render_support import edge_mask

@@ -39,7 +39,7 @@ from sasprobe.devices.falcon import loader
 from sasprobe.devices.falcon import models as M
 from sasprobe.devices.falcon import protocol as P
 from sasprobe.devices.falcon.ftdi import FtdiLink
-from sasprobe.devices.support import HardwareDevice, VelocityFilter, clamp_force, factory_from_environment
+from sasprobe.devices.hardware import HardwareDriver, VelocityFilter, clamp_force, factory_from_environment
 from sasprobe.devices.transports import UsbTransport
 
 log = logging.getLogger("sasprobe.devices.falcon")
@@ -52,7 +52,7 @@ RESEND_AFTER_S = 0.005
 REPLY_TIMEOUT_S = 0.02
 
 
-class FalconDevice(HardwareDevice):
+class FalconDevice(HardwareDriver):
     """One Novint Falcon. `firmware` is the image uploaded when the device has none running."""
 
     def __init__(self, firmware: str | os.PathLike | None = None, *, usb_backend=None,

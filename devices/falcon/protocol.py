@@ -41,7 +41,7 @@ class FrameError(ValueError):
 
 
 @dataclass(frozen=True)
-class Reply:
+class FalconReply:
     encoders: tuple[int, int, int]
     homed: int  # bit i: axis i has passed its index mark (bit 0 = top leg)
     buttons: int  # bit 0 far right, 1 centre forward, 2 centre circle, 3 far left
@@ -61,7 +61,7 @@ def encode_command(motor, leds: int, homing: bool) -> bytes:
     return bytes([FRAME_START, *(b + BYTE_OFFSET for b in body), FRAME_END])
 
 
-def decode_reply(frame: bytes) -> Reply:
+def decode_reply(frame: bytes) -> FalconReply:
     """One 16-byte frame from the Falcon; FrameError if it is not one."""
     if len(frame) != FRAME_SIZE:
         raise FrameError(f"frame of {len(frame)} bytes, expected {FRAME_SIZE}")
@@ -77,7 +77,7 @@ def decode_reply(frame: bytes) -> Reply:
     for i in range(3):
         u = sum(nibbles[4 * i + k] << (4 * k) for k in range(4))
         encoders.append(u - 0x10000 if u & 0x8000 else u)
-    return Reply(tuple(encoders), (status >> HOMED_SHIFT) & ALL_HOMED, status & 0xF)
+    return FalconReply(tuple(encoders), (status >> HOMED_SHIFT) & ALL_HOMED, status & 0xF)
 
 
 class FrameReader:
@@ -93,7 +93,7 @@ class FrameReader:
     def feed(self, data: bytes) -> None:
         self.buffer += data
 
-    def next_reply(self) -> Reply | None:
+    def next_reply(self) -> FalconReply | None:
         while True:
             start = self.buffer.find(bytes([FRAME_START]))
             if start < 0:

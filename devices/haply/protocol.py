@@ -29,7 +29,7 @@ import math
 import struct
 from dataclasses import dataclass
 
-from sasprobe.devices.serial_arm import BadFrame, Reply
+from sasprobe.devices.serial_arm import BadFrame, ArmReply
 
 RESET, SETUP, WRITE = 0, 1, 2
 MAX_TORQUE_NM = 0.123  # MAX_TORQUE in both firmwares
@@ -37,7 +37,7 @@ DEFAULT_DEVICE_ID = 5  # Haply's examples use 5 (HaplyHAPI README, Haply-API-cpp
 
 
 @dataclass(frozen=True)
-class Angles(Reply):
+class Angles(ArmReply):
     degrees: tuple[float, ...]  # per active encoder, in port order
 
 

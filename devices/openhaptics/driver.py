@@ -38,7 +38,7 @@ from sasprobe.devices.base import (PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo,
                                    DeviceState)
 from sasprobe.devices.openhaptics import hdapi
 from sasprobe.devices.openhaptics.hdapi import error_name
-from sasprobe.devices.support import HardwareDevice, clamp_force, quaternion_from_matrix
+from sasprobe.devices.hardware import HardwareDriver, clamp_force, quaternion_from_matrix
 
 log = logging.getLogger("sasprobe.devices.openhaptics")
 
@@ -47,7 +47,7 @@ RESUME_BELOW_N = 0.01  # after a force error, force output resumes once the comm
 MAX_ERRORS_PER_FRAME = 16  # the error stack is drained, boundedly, after every frame
 
 
-class OpenHapticsDevice(HardwareDevice):
+class OpenHapticsDevice(HardwareDriver):
     def __init__(self, name: str | None = None, *, library: str | None = None, read_timeout_s: float = 0.05,
                  reset_encoders: bool = False):
         self.name = name or None  # None: HD_DEFAULT_DEVICE

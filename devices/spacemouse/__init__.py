@@ -7,7 +7,7 @@
 from __future__ import annotations
 
 from sasprobe.devices.spacemouse.driver import SpaceMouseDevice
-from sasprobe.devices.support import factory_from_environment
+from sasprobe.devices.hardware import factory_from_environment
 
 
 def create(argument: str | None = None, **options) -> SpaceMouseDevice:

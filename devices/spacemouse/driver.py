@@ -26,7 +26,7 @@ import numpy as np
 from sasprobe.devices.base import (PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError,
                                    DeviceState)
 from sasprobe.devices.spacemouse import models, protocol
-from sasprobe.devices.support import HardwareDevice, quaternion_about, quaternion_multiply
+from sasprobe.devices.hardware import HardwareDriver, quaternion_about, quaternion_multiply
 from sasprobe.devices.transports import HidTransport, load_hidapi
 
 # No force reaches the device. The daemon's engine still computes the contact so the
@@ -43,7 +43,7 @@ SPACEMOUSE_LIMITS = DeviceLimits(
 MAX_REPORTS_PER_READ = 64  # bounded: a flood of reports cannot stall the loop
 
 
-class SpaceMouseDevice(HardwareDevice):
+class SpaceMouseDevice(HardwareDriver):
     def __init__(self, path: bytes | str | None = None, *, hid_api=None, speed_mm_s: float = 100.0,
                  turn_rad_s: float = 1.5):
         self.path = path.encode() if isinstance(path, str) else path

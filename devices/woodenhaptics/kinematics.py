@@ -36,7 +36,7 @@ import math
 import numpy as np
 
 from sasprobe.devices.kinematics import KinematicsError, scale_to_limit
-from sasprobe.devices.support import quaternion_from_matrix
+from sasprobe.devices.hardware import quaternion_from_matrix
 from sasprobe.devices.woodenhaptics.models import POLHEM, POLHEM_LINKS_M, WoodenModel
 from sasprobe.devices.woodenhaptics.protocol import MAX_CURRENT_MA
 

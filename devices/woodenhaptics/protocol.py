@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sasprobe.devices.serial_arm import BadFrame, Reply
+from sasprobe.devices.serial_arm import BadFrame, ArmReply
 
 MAX_CURRENT_MA = 6000  # escon_max_milliamps
 WATCHDOG_S = 0.100  # wdTimer.begin(wdCallback, 100000)
@@ -40,7 +40,7 @@ MAX_LINE = 127  # the firmware's buffer; a longer reply cannot be one of its lin
 
 
 @dataclass(frozen=True)
-class WoodyReply(Reply):
+class WoodyReply(ArmReply):
     model: int
     counts: tuple[int, int, int, int, int, int]
     error: int

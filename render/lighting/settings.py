@@ -232,7 +232,7 @@ class LightingSettings:
             raise ValueError("samples must not be negative")
 
     def effects(self) -> dict[str, bool]:
-        """Initial values of the scene's lighting switches (render/scene.py Effects)."""
+        """Initial values of the scene's lighting switches (render/scene_state.py Effects)."""
         return {
             "shadows": self.shadows != "off",
             "soft_shadows": self.shadows == "soft",

@@ -12,7 +12,7 @@ from sasprobe.render.gl.buffers import MoleculeBuffers
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import RenderTargets
 from sasprobe.render.gl.uniforms import gl_bytes
-from sasprobe.render.scene import NavCube, SceneState
+from sasprobe.render.scene_state import NavCube, SceneState
 
 
 WHOLE = "whole"  # ProbeLighting.changed: the whole picture

@@ -148,7 +148,7 @@ def _measure(cases, repeats: int) -> list[tuple[float, dict[str, float]]]:
 def _renderer(gl, structure, size, mode="quad", nav_cube=None):
     from sasprobe.render.camera import Camera
     from sasprobe.render.renderer import Renderer
-    from sasprobe.render.scene import SceneState
+    from sasprobe.render.scene_state import SceneState
 
     scene = SceneState(structure, nav_cube=nav_cube)
     center, radius = scene.bounding_sphere()
@@ -193,7 +193,7 @@ def _modes(gl, structure, size, repeats) -> dict:
 def cube_for(structure, target: int):
     """A navigation cube around the atom nearest the centroid holding about `target`
     atoms (half edge found by bisection)."""
-    from sasprobe.render.scene import NavCube
+    from sasprobe.render.scene_state import NavCube
 
     pos, radii = structure.positions, structure.vdw_radii
     center = pos[np.argmin(np.linalg.norm(pos - pos.mean(axis=0), axis=1))].copy()

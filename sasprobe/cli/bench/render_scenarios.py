@@ -72,7 +72,7 @@ def demo_path(structure, frames: int, cube=None) -> list:
 
 
 def first_cube(path):
-    from sasprobe.render.scene import NavCube
+    from sasprobe.render.scene_state import NavCube
 
     return NavCube(np.array(path[0].cube_center_A, dtype=np.float64), float(path[0].cube_half_A))
 
@@ -80,7 +80,7 @@ def first_cube(path):
 def follow_path(scene, path, with_cube: bool = True) -> Callable[[int], None]:
     """The step that puts pose k of the path into the scene: probe, touched atom and (with
     `with_cube`) the navigation cube."""
-    from sasprobe.render.scene import NavCube, Probe
+    from sasprobe.render.scene_state import NavCube, Probe
 
     def step(k: int) -> None:
         pose = path[k % len(path)]
@@ -98,7 +98,7 @@ def make_case(gl, label: str, structure, size, lighting, cache: bool, nav_cube=N
     from sasprobe.render.camera import Camera
     from sasprobe.render.passes.lighting import install_lighting
     from sasprobe.render.renderer import Renderer
-    from sasprobe.render.scene import SceneState
+    from sasprobe.render.scene_state import SceneState
 
     scene = SceneState(structure, nav_cube=nav_cube)
     if lighting is not None:
@@ -191,7 +191,7 @@ def session(gl, structure, size, frames: int, demo_view: bool = False, between=N
 def orbit(gl, structure, size, frames: int, probe_center) -> dict:
     """(b): the camera turning 1° a frame, the probe still."""
     from sasprobe.render.lighting.settings import AOSettings, LightingSettings
-    from sasprobe.render.scene import Probe
+    from sasprobe.render.scene_state import Probe
 
     lit = LightingSettings()
     baked = LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed"))
@@ -222,7 +222,7 @@ def drifting_cube(gl, structure, size, frames: int) -> dict:
     from sasprobe.cli.bench.render import CUBE_TARGET_ATOMS, cube_for
     from sasprobe.render.camera import Camera
     from sasprobe.render.lighting.settings import AOSettings, LightingSettings
-    from sasprobe.render.scene import NavCube, Probe
+    from sasprobe.render.scene_state import NavCube, Probe
 
     cube, inside = cube_for(structure, CUBE_TARGET_ATOMS)
     camera = Camera.fitted(cube.center, cube.half * np.sqrt(3.0), size[0] / size[1])

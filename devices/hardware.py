@@ -1,4 +1,6 @@
-"""Small pieces every hardware driver shares: force clamping and velocity estimation."""
+"""What every driver of real hardware shares: the `HardwareDriver` base (a reconnect that
+reports a still-missing device as a fault), force clamping, velocity estimation,
+rotations as quaternions, and the hook that points a driver at an emulator."""
 
 from __future__ import annotations
 
@@ -115,7 +117,7 @@ def factory_from_environment(variable: str):
         raise DeviceOpenError(f"{variable}={spec} is not usable: {exc}") from None
 
 
-class HardwareDevice(HapticDevice):
+class HardwareDriver(HapticDevice):
     """A driver of real hardware: `reconnect()` reports a still-missing device as a fault.
 
     `open()` raises DeviceOpenError for the user to read; during a session the daemon

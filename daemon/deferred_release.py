@@ -3,7 +3,7 @@
 Freeing a large structure's arrays (6ZU5: about 20 arrays, 20 MB) returns their pages to
 the kernel one `munmap` at a time, 3–6 ms in all on this machine, with the GIL held
 throughout. Done on the loop thread, or in one go on any other, that is a pose gap. So
-the loop only hands what it replaced to `Retired`, and the control thread, once the
+the loop only hands what it replaced to `DeferredRelease`, and the control thread, once the
 change is applied, frees the arrays one at a time with a GIL break between: the loop
 waits at most for one array's free.
 """
@@ -42,7 +42,7 @@ def arrays_within(objects, depth: int = WALK_DEPTH) -> list[np.ndarray]:
     return found
 
 
-class Retired:
+class DeferredRelease:
     """What the loop replaced, waiting to be freed off the loop thread."""
 
     def __init__(self) -> None:

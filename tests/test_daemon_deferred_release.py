@@ -7,7 +7,7 @@ import weakref
 import numpy as np
 
 from sasprobe.daemon.haptics import build_engine
-from sasprobe.daemon.retire import Retired, arrays_within
+from sasprobe.daemon.deferred_release import DeferredRelease, arrays_within
 from sasprobe.devices.simulated import make_simulated
 
 
@@ -29,7 +29,7 @@ def test_release_frees_what_only_the_retired_held_and_keeps_what_others_hold():
     holder = Holder()
     kept = holder.nested["list"][0]  # someone else still uses this one
     refs = [weakref.ref(holder.big), weakref.ref(holder.nested["list"][1][0]), weakref.ref(kept)]
-    retired = Retired()
+    retired = DeferredRelease()
     retired.add(holder)
     del holder
     assert all(r() is not None for r in refs)  # retired: alive until released
