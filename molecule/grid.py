@@ -92,6 +92,7 @@ class UniformGrid:
         self.dims = dims
         self.n_cells = n_cells
         self.cell_start, self.cell_atoms = self._build()
+        self._bins: tuple | None = None  # centres binned once, for the nearest-neighbour queries
         # Plain-Python copies for the per-tick query (see spheres_within).
         self._origin_xyz = tuple(float(v) for v in self.origin)
         self._dims_xyz = tuple(int(v) for v in self.dims)
@@ -253,21 +254,25 @@ class UniformGrid:
         np.cumsum(counts, out=start[1:])
         return home, flat, order, counts, start
 
-    def nearest_neighbors(self, k: int) -> tuple[np.ndarray, np.ndarray]:
-        """The k nearest other spheres of every sphere, by centre distance.
+    def nearest_neighbors(self, k: int, of: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The k nearest other spheres of every sphere (or of the spheres `of`), by centre
+        distance.
 
-        Returns (indices, distances), each (N, k), sorted by distance; rows are padded
-        with -1 / inf when fewer than k other spheres exist. Ties break by index.
-        Candidates come from a block of cells around each centre's cell, grown until
-        the k-th distance is inside the block's guaranteed radius, so the result is exact.
+        Returns (indices, distances), each (N, k) (or (len(of), k), in the order of `of`),
+        sorted by distance; rows are padded with -1 / inf when fewer than k other spheres
+        exist. Ties break by index. Candidates come from a block of cells around each
+        centre's cell, grown until the k-th distance is inside the block's guaranteed
+        radius, so the result is exact.
         """
         n = self.centers.shape[0]
         if k <= 0:
             raise ValueError("k must be positive")
         out_idx = np.full((n, k), -1, dtype=np.int64)
         out_dist = np.full((n, k), np.inf, dtype=np.float64)
-        home, home_flat, order, counts, start = self._centre_bins()
-        pending = np.arange(n)
+        if self._bins is None:
+            self._bins = self._centre_bins()
+        home, home_flat, order, counts, start = self._bins
+        pending = np.arange(n) if of is None else np.unique(np.asarray(of, dtype=np.int64))
         ring = 1
         while pending.size:
             pending_sorted = pending[np.argsort(home_flat[pending], kind="stable")]
@@ -300,7 +305,28 @@ class UniformGrid:
                     still.append(members[unsure])
             pending = np.concatenate(still) if still else np.empty(0, dtype=np.int64)
             ring += 1
+        if of is not None:
+            of = np.asarray(of, dtype=np.int64)
+            return out_idx[of], out_dist[of]
         return out_idx, out_dist
+
+    def nearest_to_point(self, point, k: int) -> np.ndarray:
+        """The k spheres whose centres are nearest `point`, nearest first, ties by index
+        (-1 padded): the spheres within a distance doubled until k of them lie inside it."""
+        point = np.asarray(point, dtype=np.float64).reshape(3)
+        reach = float(np.linalg.norm(np.maximum(np.abs(point - self.origin), np.abs(point - self.upper))))
+        distance = self.cell_size
+        while True:
+            cand = self.spheres_within(point, distance)
+            diff = self.centers[cand] - point
+            dist = np.sqrt(np.einsum("ij,ij->i", diff, diff))
+            if np.count_nonzero(dist <= distance) >= k or distance >= reach:
+                break
+            distance *= 2.0
+        order = np.lexsort((cand, dist))[:k]
+        out = np.full(k, -1, dtype=np.int64)
+        out[: order.size] = cand[order]
+        return out
 
     def overlapping_pairs(self) -> tuple[np.ndarray, np.ndarray]:
         """All ordered pairs (i, j), i != j, of overlapping spheres, sorted by i then j.

@@ -23,7 +23,7 @@ class RunStats:
     frame_times: list[float] = field(default_factory=list)
     video_frames: int = 0  # frames written to a paced video (a late frame fills every slot it covered)
     interrupted: str | None = None  # "SIGINT" / "SIGTERM" when a signal ended the run early
-    molecule_layer: dict | None = None  # frame cache: frames that kept the molecule layer / drew it anew
+    molecule_layer: dict | None = None  # frame planner: frames that kept the molecule layer / drew it anew
 
     @property
     def median_ms(self) -> float:
@@ -129,8 +129,8 @@ def run_headless(renderer, camera: Camera, frames: int | None, seconds: float | 
                 camera.orbit(axis, step)
         stats.interrupted = stop["signal"]
     stats.seconds = time.perf_counter() - start
-    if renderer.cache is not None:
-        stats.molecule_layer = {"kept": renderer.cache.hits, "drawn": renderer.cache.misses}
+    if renderer.planner is not None:
+        stats.molecule_layer = renderer.planner.layer_counts()
     if gbuffer_path is not None:
         save_gbuffer(gbuffer_path, gbuffer_arrays(renderer))
     return stats

@@ -10,13 +10,14 @@ Before the chain runs, the atoms' colours follow the scene's colour scheme
 `passes` is a plain list; `insert_before(name, pass)` slots a pass in (the lighting
 passes go before "probe", "shading" and "navcube", render/passes/lighting.py).
 
-With `frame_cache` (the default) the molecule layer — the passes whose `layer` is
-MOLECULE, and the lighting terms that do not depend on the probe — is kept while its
-key holds (render/frame_cache.py): a frame in which only the probe moved puts back what
-the probe covered, draws the probe and recomputes what the probe changes; while the key
-changes frame after frame (the camera turning, the cube drifting) frames are drawn whole,
-and the layer is kept again once the key holds. Without it every frame is drawn whole
-(the benchmarks' full redraw).
+With `frame_cache` (the default) a frame planner (render/frame_planner.py) decides what
+each frame redraws: the molecule layer — the passes whose `layer` is MOLECULE, and the
+lighting terms that do not depend on the probe — is kept while its key holds, and a
+frame in which only the probe moved puts back what the probe covered, draws the probe
+and redoes only the regions the probe changes; while the key changes frame after frame
+(the camera turning, the cube drifting) frames are drawn whole, and the layer is kept
+again once the key holds. Without it every frame is drawn whole (the benchmarks' full
+redraw).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import time
 import numpy as np
 
 from sasprobe.render.camera import Camera
-from sasprobe.render.frame_cache import MoleculeCache
+from sasprobe.render.frame_planner import FramePlan, FramePlanner
 from sasprobe.render.colors import chain_colors, scheme_colors
 from sasprobe.render.gl.buffers import MoleculeBuffers
 from sasprobe.render.gl.programs import ProgramCache
@@ -61,7 +62,7 @@ class Renderer:
         self._color_key: tuple | None = ("element", None)  # what the buffers hold: CPK, as sphere_records writes
         self.targets = RenderTargets(ctx, size)
         self.sphere_pass = self._sphere_pass(sphere_mode)
-        self.cache = MoleculeCache(ctx, self.programs) if frame_cache else None
+        self.planner = FramePlanner(ctx, self.programs) if frame_cache else None
         self.passes: list[Pass] = [
             ClearPass(ctx, self.programs),
             self.sphere_pass,
@@ -131,16 +132,18 @@ class Renderer:
             output_fbo=output_fbo if output_fbo is not None else self.targets.final_fbo,
             light_direction=self.scene.world_light_direction(camera),
             index=self.frame_index,
-            cache=self.cache,
+            plan=FramePlan(size=(w, h)),
         )
-        if self.cache is not None:
-            cached = self.cache.begin(frame, self.passes)
-            if cached is None:
-                frame.cache = None  # drawn whole this frame (MoleculeCache.begin)
-            else:
-                frame.cached = cached
-        for p in self.passes:
-            if not p.enabled(frame) or (frame.cached and p.layer == MOLECULE):
+        if self.planner is not None:
+            self.planner.plan(frame, self.passes)  # sets frame.plan
+        plan = frame.plan
+        # The molecule layer is complete in the G-buffer before the first pass after its last
+        # one: what the probe will cover is stashed there, for the next frame to put back.
+        layer_end = max((i for i, p in enumerate(self.passes) if p.layer == MOLECULE), default=-1) + 1
+        for i, p in enumerate(self.passes):
+            if i == layer_end and plan.keeps:
+                self.planner.stash_under_probe(frame)
+            if not p.enabled(frame) or (plan.kept and p.layer == MOLECULE):
                 continue
             if pass_times is None:
                 p.run(frame)
@@ -192,8 +195,8 @@ class Renderer:
     def release(self) -> None:
         for p in self.passes:
             p.release()
-        if self.cache is not None:
-            self.cache.release()
+        if self.planner is not None:
+            self.planner.release()
         self.targets.release()
         self.buffers.release()
         self.programs.release()

@@ -176,7 +176,7 @@ class SceneState:
         probe's radius: the plane sits at most that far behind the probe centre, inside the
         probe's back half, which covers what it cuts there; and it stands still while the
         probe moves within one step, so the molecule layer, which it cuts, can be kept across
-        those frames (render/frame_cache.py)."""
+        those frames (render/frame_planner.py)."""
         if self.probe is None or not self.effects.probe_plane:
             return None
         n = np.asarray(camera.target, dtype=np.float64) - np.asarray(camera.eye, dtype=np.float64)

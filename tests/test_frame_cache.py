@@ -1,5 +1,5 @@
-"""The frame cache (render/frame_cache.py): frames in which only the probe moved, drawn from
-the kept molecule layer, equal a full redraw of the same scene; progressive AO keeps
+"""The frame planner (render/frame_planner.py): frames in which only the probe moved, drawn
+from the kept molecule layer, equal a full redraw of the same scene; progressive AO keeps
 accumulating while only the probe moves; anything but the probe invalidates the layer,
 including scene and settings fields that do not exist yet."""
 
@@ -13,13 +13,14 @@ import pytest
 
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
 from sasprobe.render.camera import Camera
-from sasprobe.render.frame_cache import atoms_rect, sphere_rect, state_key, union_rect
+from sasprobe.render.frame_planner import KEPT, LIT, PLAIN, FramePlan, state_key
 from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.gl.targets import KIND_PROBE
 from sasprobe.render.gl.textures import read_image, release_framebuffers
 from sasprobe.render.lighting.settings import AOSettings, LightingSettings, ShadingSettings
 from sasprobe.render.passes.fxaa import FxaaPass
 from sasprobe.render.passes.lighting import install_lighting, lighting_of
+from sasprobe.render.rects import atoms_rect, sphere_rect, union_rect
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import Effects, Mark, NavCube, Probe, SceneState
 from tests.lighting_support import probe_on_surface
@@ -102,8 +103,8 @@ def test_cached_frames_equal_a_full_redraw(gl, reference_by_id, sid, size, setti
             full.render(full_camera)
             a, b = cached.read_image(), full.read_image()
             assert agreement(a, b) >= 0.999, (sid, setup, center)
-            for fractions, rect in ((shaded, cached.pass_named("shading").shaded),
-                                    (antialiased, cached.pass_named("fxaa").redone)):
+            plan = cached.last_frame.plan
+            for fractions, rect in ((shaded, plan.region(LIT)), (antialiased, union_rect(*FxaaPass.regions(plan)))):
                 fractions.append(0.0 if rect is None else rect[2] * rect[3] / (size[0] * size[1]))
             kinds = cached.targets.read(cached.targets.ids)[..., 1]
             assert (kinds == KIND_PROBE).any() == (center is not None)  # the probe is in the picture
@@ -117,16 +118,17 @@ def test_cached_frames_equal_a_full_redraw(gl, reference_by_id, sid, size, setti
         if setup == "probe-plane":  # drawn again only when the plane stepped, kept once it held a frame
             changes = sum(a != b for a, b in zip(planes, planes[1:]))
             held = sum(a == b == c for a, b, c in zip(planes, planes[1:], planes[2:]))
-            assert cached.cache.misses >= 1 + changes and cached.cache.hits >= held >= 1
-            assert cached.cache.hits + cached.cache.misses == len(path)
+            counts = cached.planner.layer_counts()
+            assert counts["drawn"] >= 1 + changes and counts["kept"] >= held >= 1
+            assert counts["kept"] + counts["drawn"] == len(path)
         else:
-            assert cached.cache.misses == 1 and cached.cache.hits == len(path) - 1  # the layer held throughout
+            assert cached.planner.layer_counts() == {"kept": len(path) - 1, "drawn": 1}  # the layer held throughout
         assert shaded[0] == antialiased[0] == 1.0
         if setup == "far":  # only the molecule's pixels within the probe's reach were shaded again
             assert max(shaded[1:]) < 0.5, shaded
         if sid == "1tii" and setup == "none":  # the rest of the picture was kept, and still agrees
             assert max(shaded[1:]) < 0.9 and max(antialiased[1:]) < 0.95, (shaded, antialiased)
-        assert full.cache is None
+        assert full.planner is None
     finally:
         cached.release()
         full.release()
@@ -160,16 +162,17 @@ def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(gl, ref
                 center=center, touched_atom=3, goal=center + (k % 3) * np.array([6.0, -4.5, 3.0]),
                 force_n=np.array([1.5 * k, 1.0 + k, -0.5]))  # the ghost and the arrow reach beyond the light
             frame = renderer.render(camera)
-            whole.run(dataclasses.replace(frame, cache=None, output_fbo=out))
+            whole.run(dataclasses.replace(frame, plan=FramePlan(size=size), output_fbo=out))
             assert np.array_equal(renderer.read_image(), read_image(out, size)), k
             fxaa = renderer.pass_named("fxaa")
-            rect = fxaa.redone
+            whole_rect, near_rect = FxaaPass.regions(frame.plan)
+            rect = union_rect(whole_rect, near_rect)
             redone.append(0.0 if rect is None else rect[2] * rect[3] / (size[0] * size[1]))
-            if fxaa.redone_near is not None:
-                x, y, w, h = fxaa.redone_near
+            if frame.plan.kept and near_rect is not None:
+                x, y, w, h = near_rect
                 mask = np.frombuffer(fxaa.near_surfaces.depth.read(), dtype=np.float32).reshape(size[1], size[0])
                 skipped.append(float((mask[y:y + h, x:x + w] > 0.5).mean()))
-        assert renderer.cache.hits == len(redone) - 1 and redone[0] == 1.0 and max(redone[1:]) < 0.75, redone
+        assert renderer.planner.counts[KEPT] == len(redone) - 1 and redone[0] == 1.0 and max(redone[1:]) < 0.75, redone
         if sid == "1crn":  # the mask left out much of what the rectangle of the changed surfaces holds
             assert skipped and min(skipped) > 0.2, skipped
     finally:
@@ -194,7 +197,7 @@ def test_a_probe_that_moved_leaves_no_trace(gl, crambin):
         r.render(camera)
         fresh.scene.probe = Probe(center=last)
         fresh.render(fresh_camera)
-        assert r.cache.hits == 1
+        assert r.planner.counts[KEPT] == 1
         assert np.array_equal(r.read_image(), fresh.read_image())
         assert not np.array_equal(seen, r.read_image())
     finally:
@@ -242,12 +245,10 @@ def test_a_turning_camera_draws_whole_frames_and_the_layer_is_kept_once_it_stops
                     c.orbit(np.array([0.0, 1.0, 0.0]), 0.05)
             for r in (cached, full):
                 r.scene.probe = Probe(center=probe_path(crambin)[3 + k % 4])
-            before = (cached.cache.hits, cached.cache.misses, cached.cache.plain)
             cached.render(camera)
             full.render(full_camera)
-            hits, misses, plain = (after - b for after, b in zip((cached.cache.hits, cached.cache.misses,
-                                                                  cached.cache.plain), before))
-            states.append(True if hits else (None if plain else False))
+            layer = cached.last_frame.plan.layer
+            states.append(True if layer == KEPT else (None if layer == PLAIN else False))
             assert agreement(cached.read_image(), full.read_image()) >= 0.999, k
         assert states == [False, True, False, None, None, None, False, True, True], states
     finally:
@@ -277,10 +278,10 @@ def test_every_effect_camera_and_setting_but_the_probe_invalidates_the_layer(gl,
         r.render(camera)
 
         def misses_after(change) -> int:
-            before = r.cache.misses
+            before = r.planner.layer_counts()["drawn"]
             change()
             r.render(camera)
-            return r.cache.misses - before
+            return r.planner.layer_counts()["drawn"] - before
 
         assert misses_after(lambda: setattr(r.scene, "probe", Probe(center=probe_path(crambin)[5]))) == 0
         assert misses_after(lambda: setattr(r.scene.probe, "touched_atom", 7)) == 0

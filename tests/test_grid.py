@@ -141,6 +141,32 @@ def test_nearest_neighbours_equal_a_brute_force_sort(k, size):
     np.testing.assert_allclose(dist, np.take_along_axis(full, expected, axis=1))
 
 
+@pytest.mark.parametrize("size", [None, 2.0, 40.0])
+def test_nearest_neighbours_of_some_spheres_equal_a_brute_force_sort(size):
+    """Asked for a few spheres (in any order, repeated), the rows are those spheres' own."""
+    grid = GRIDS[size]
+    of = np.array([200, 3, 77, 3, 326, 0])
+    idx, dist = grid.nearest_neighbors(16, of=of)
+    full = np.linalg.norm(CENTERS[of, None] - CENTERS[None], axis=2)
+    full[np.arange(of.size), of] = np.inf
+    expected = np.argsort(full, axis=1, kind="stable")[:, :16]
+    np.testing.assert_array_equal(idx, expected)
+    np.testing.assert_allclose(dist, np.take_along_axis(full, expected, axis=1))
+
+
+@settings(max_examples=60, deadline=None)
+@given(point, cell_size, st.sampled_from([1, 5, 32]))
+def test_nearest_to_a_point_equals_a_brute_force_sort(p, size, k):
+    d = np.linalg.norm(CENTERS - p, axis=1)
+    expected = np.lexsort((np.arange(d.size), d))[:k]
+    np.testing.assert_array_equal(GRIDS[size].nearest_to_point(p, k), expected)
+
+
+def test_nearest_to_a_point_pads_when_too_few_spheres():
+    grid = UniformGrid(np.array([[0.0, 0, 0], [1.0, 0, 0]]), np.full(2, 1.0))
+    np.testing.assert_array_equal(grid.nearest_to_point((9.0, 0.0, 0.0), 4), [1, 0, -1, -1])
+
+
 def test_nearest_neighbours_pad_when_too_few_spheres():
     grid = UniformGrid(np.array([[0.0, 0, 0], [1.0, 0, 0], [5.0, 0, 0]]), np.full(3, 1.0))
     idx, dist = grid.nearest_neighbors(4)

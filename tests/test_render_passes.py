@@ -92,7 +92,8 @@ def reference_light(g, albedo, scene, camera, s, vis):
         c0, c1, c2 = s.probe_attenuation
         window = np.clip(1.0 - (dist / s.probe_range) ** 4, 0.0, 1.0) ** 2
         atten = window / (c0 + c1 * dist + c2 * dist ** 2)
-        color += vis[..., 1:2] * s.probe_intensity * atten * phong(albedo, n, v, to_probe / dist, s)
+        atoms = (g["kind"] != 3)[..., None]  # the backbone trace is context: the probe does not light it
+        color += atoms * vis[..., 1:2] * s.probe_intensity * atten * phong(albedo, n, v, to_probe / dist, s)
     color = np.minimum(color, 1.0)
     probe_px = g["kind"] == KIND_PROBE
     color[probe_px] = np.array(PROBE_COLOR) * (0.75 + 0.25 * np.clip(np.einsum("...i,...i", n, v), 0, None))[probe_px, None]
@@ -204,6 +205,7 @@ def test_fxaa_reads_no_further_than_its_reach(gl):
     what the shader reads)."""
     from types import SimpleNamespace
 
+    from sasprobe.render.frame_planner import FramePlan
     from sasprobe.render.gl.programs import ProgramCache
     from sasprobe.render.gl.textures import read_image
     from sasprobe.render.passes.fxaa import FXAA_REACH_PX, FxaaPass
@@ -215,8 +217,9 @@ def test_fxaa_reads_no_further_than_its_reach(gl):
     lit_fbo, out_fbo = gl.framebuffer([lit]), gl.framebuffer([out])
     programs = ProgramCache(gl)
     fxaa = FxaaPass(gl, programs)
-    frame = SimpleNamespace(ctx=gl, targets=SimpleNamespace(lit=lit, lit_fbo=lit_fbo), size=size, cache=None, cached=False,
-                            output_fbo=out_fbo, scene=SimpleNamespace(effects=SimpleNamespace(fxaa=True)))
+    frame = SimpleNamespace(ctx=gl, targets=SimpleNamespace(lit=lit, lit_fbo=lit_fbo), size=size,
+                            plan=FramePlan(size=size), output_fbo=out_fbo,
+                            scene=SimpleNamespace(effects=SimpleNamespace(fxaa=True)))
 
     def antialiased(image: np.ndarray) -> np.ndarray:
         lit.write(np.ascontiguousarray(image[::-1]).tobytes())

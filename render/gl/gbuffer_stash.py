@@ -1,6 +1,6 @@
 """A second G-buffer that holds one rectangle of the first: what the molecule layer has
 under the probe, saved before the probe is drawn and put back before the next frame
-draws it elsewhere (the frame cache, render/frame_cache.py). Copies are a fragment pass
+draws it elsewhere (the frame planner, render/frame_planner.py). Copies are a fragment pass
 that writes the four layers and the depth (gl_FragDepth, depth test "always") inside a
 scissor box, so they cost what the rectangle holds, not the frame."""
 

@@ -59,6 +59,15 @@ class RenderTargets:
         # Forward passes after lighting (the cube wire) test against the G-buffer depth.
         self.lit_fbo = ctx.framebuffer([self.lit], self.depth)
         self.final_fbo = ctx.framebuffer([self.final])
+        self._kept: dict[str, tuple[object, object]] = {}  # name -> (texture, framebuffer)
+
+    def kept_picture(self, name: str):
+        """The framebuffer of an RGBA8 picture of this size kept across frames under `name`
+        (the layered frames' shaded and antialiased pictures), made on first use."""
+        if name not in self._kept:
+            texture = self.ctx.texture(self.size, 4, dtype="f1")
+            self._kept[name] = (texture, self.ctx.framebuffer([texture]))
+        return self._kept[name][1]
 
     def clear_visibility(self) -> None:
         self.visibility_fbo.use()
@@ -82,33 +91,7 @@ class RenderTargets:
 
     def release(self) -> None:
         release_framebuffers(self.ctx, self.gbuffer_fbo, self.ids_fbo, self.visibility_fbo, self.lit_fbo,
-                             self.final_fbo)
+                             self.final_fbo, *(fbo for _, fbo in self._kept.values()))
         for tex in (self.albedo, self.position, self.normal, self.ids, self.depth, self.visibility, self.lit,
-                    self.final):
+                    self.final, *(tex for tex, _ in self._kept.values())):
             tex.release()
-
-
-class KeptPicture:
-    """An RGBA8 picture a pass keeps across frames (the frame cache: the shaded picture,
-    the antialiased one), made again when the frame size changes."""
-
-    def __init__(self, ctx):
-        self.ctx = ctx
-        self.texture = self.fbo = None
-        self.fresh = True  # made anew by the last framebuffer() call: it holds nothing yet
-
-    def framebuffer(self, size: tuple[int, int]):
-        """The picture's framebuffer at `size`; `fresh` tells whether it was just made (it
-        holds nothing yet)."""
-        self.fresh = self.texture is None or self.texture.size != tuple(size)
-        if self.fresh:
-            self.release()
-            self.texture = self.ctx.texture(tuple(size), 4, dtype="f1")
-            self.fbo = self.ctx.framebuffer([self.texture])
-        return self.fbo
-
-    def release(self) -> None:
-        if self.fbo is not None:
-            release_framebuffers(self.ctx, self.fbo)
-            self.texture.release()
-            self.texture = self.fbo = None

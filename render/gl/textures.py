@@ -68,6 +68,20 @@ def table_image(ctx, texture, table: np.ndarray, dtype: str = "f4"):
     return texture
 
 
+def write_table_rows(texture, table: np.ndarray, entries: np.ndarray) -> None:
+    """Write into a table image (table_image's layout) the rows holding `entries` (indices
+    into the flat, one-component `table`), each run of consecutive rows at once."""
+    rows = np.unique(np.asarray(entries, dtype=np.int64) // TABLE_ROW)
+    if rows.size == 0:
+        return
+    breaks = np.flatnonzero(np.diff(rows) > 1)
+    for first, last in zip(np.r_[rows[0], rows[breaks + 1]], np.r_[rows[breaks], rows[-1]]):
+        block = np.zeros((int(last - first) + 1) * TABLE_ROW, dtype=table.dtype)
+        piece = table[int(first) * TABLE_ROW:(int(last) + 1) * TABLE_ROW]
+        block[:piece.size] = piece
+        texture.write(block.tobytes(), viewport=(0, int(first), TABLE_ROW, int(last - first) + 1))
+
+
 class TextureCache:
     """r32f textures by (name, size), made on first use and reused every frame (creating
     GL objects per frame is what slows moderngl programs down)."""

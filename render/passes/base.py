@@ -7,15 +7,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from sasprobe.render.camera import Camera
-from sasprobe.render.frame_cache import atoms_rect, intersect_rect, sphere_rect
+from sasprobe.render.frame_planner import FramePlan
 from sasprobe.render.gl.buffers import MoleculeBuffers
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import RenderTargets
 from sasprobe.render.gl.uniforms import gl_bytes
+from sasprobe.render.rects import atoms_rect, intersect_rect, sphere_rect
 from sasprobe.render.scene_state import NavCube, SceneState
-
-
-WHOLE = "whole"  # ProbeLighting.changed: the whole picture
 
 
 @dataclass
@@ -33,18 +31,13 @@ class ProbeLightTrace:
 class ProbeLighting:
     """What the lighting hands the shading pass about the probe (render/passes/lighting.py):
     the probe light's visibility, as a texture (r32f: from the occlusion atlas) or as rays
-    for the shading to trace (`traced`), neither when it is unshadowed; on layered frames,
-    the uniforms of the probe's share of the sun and the ambient light
-    (shaders/probe_share.glsl) and where its terms changed the picture this frame (besides
-    the probe's reach, which the shading pass adds itself), and of that where they changed
-    the background's (the probe's pixels and the halos around them: the background shows
-    nothing else of the lighting)."""
+    for the shading to trace (`traced`), neither when it is unshadowed; and on layered
+    frames the uniforms of the probe's share of the sun and the ambient light
+    (shaders/probe_share.glsl)."""
 
     visibility: object = None
     share: dict = field(default_factory=dict)
-    changed: object = None  # layered frames: the rectangle the lighting's terms changed this frame, or WHOLE
     traced: ProbeLightTrace | None = None
-    background_changed: object = None  # layered frames: the part of `changed` the background shows, or WHOLE
 
 
 @dataclass
@@ -64,16 +57,8 @@ class Frame:
     output_fbo: object  # where the final image goes
     light_direction: np.ndarray  # where the directional light travels (molecule frame), for this camera
     index: int = 0  # frame number
-    cache: object = None  # the renderer's MoleculeCache (render/frame_cache.py), None when it redraws all
-    cached: bool = False  # the molecule layer of the last frame holds: its passes do not run
+    plan: FramePlan = field(default_factory=FramePlan)  # what this frame redraws (render/frame_planner.py)
     probe_lighting: ProbeLighting = field(default_factory=ProbeLighting)  # the lighting's, for the shading pass
-    # What of the lit picture differs from the last frame's, for the FXAA pass to redo only
-    # that: WHOLE, a rectangle or None, as the shading pass (and a path-traced frame) leave
-    # it — its surfaces within `lit_changed`, its background within `lit_background_changed`;
-    # and the rectangle the probe's cues drew over it this frame (ProbeCuesPass).
-    lit_changed: object = WHOLE
-    lit_background_changed: object = WHOLE
-    overlay: object = None
     # What several passes ask of the frame, found once (the camera and the probe hold
     # still within a frame): the view-projection, the camera's basis, the probe's rectangles.
     _found: dict = field(default_factory=dict, repr=False)
@@ -105,22 +90,31 @@ class Frame:
         return self._found[key]
 
     def reach_rect(self, radius: float):
-        """A rectangle holding the molecule's pixels within `radius` of the probe's centre:
-        what the probe's light and its share of the AO can change (its own pixels aside)."""
-        return intersect_rect(self.probe_rect(radius), self.molecule_rect())
+        """A rectangle holding the lit atoms' pixels within `radius` of the probe's centre:
+        what the probe's light and its share of the AO can change (its own pixels aside;
+        the backbone trace is context, which the probe does not light)."""
+        return intersect_rect(self.probe_rect(radius), self.lit_rect())
 
     def molecule_rect(self):
         """Pixels the molecule layer can cover: every atom's sphere (culled ones too: the
-        backbone trace runs through them), once per molecule layer (render/frame_cache.py)."""
-        cache = self.cache
-        if cache is not None and cache.layer_rect is not None:
-            return cache.layer_rect[0]
-        structure = self.scene.structure
-        radius = float(structure.vdw_radii.max(initial=0.0))
-        rect = atoms_rect(structure.positions, radius, self.viewproj, self.size)
-        if cache is not None:
-            cache.layer_rect = (rect,)
-        return rect
+        backbone trace runs through them), found once per molecule layer."""
+        memo = self.plan.layer_memo
+        if "molecule_rect" not in memo:
+            structure = self.scene.structure
+            memo["molecule_rect"] = atoms_rect(structure.positions, float(structure.vdw_radii.max(initial=0.0)),
+                                               self.viewproj, self.size)
+        return memo["molecule_rect"]
+
+    def lit_rect(self):
+        """Pixels the atoms drawn as spheres can cover (in the workspace view: the cube's),
+        found once per molecule layer."""
+        memo = self.plan.layer_memo
+        if "lit_rect" not in memo:
+            structure = self.scene.structure
+            drawn = self.scene.sphere_selection(self.camera)
+            radius = float(structure.vdw_radii[drawn].max(initial=0.0))
+            memo["lit_rect"] = atoms_rect(structure.positions[drawn], radius, self.viewproj, self.size)
+        return memo["lit_rect"]
 
     def near_plane(self) -> np.ndarray:
         """The camera's near plane as a clip plane (spheres crossing it get a cap)."""
@@ -147,10 +141,12 @@ class Pass:
     """Base of the passes: on by default, no G-buffer export layers, nothing to release.
 
     `layer` MOLECULE: the pass draws the molecule layer (what does not depend on the probe)
-    and does not run while that layer is cached (Frame.cached). `state()` is what of the
+    and does not run while that layer is kept (FramePlan.kept). `state()` is what of the
     pass's own configuration shapes the picture; it is part of the molecule layer's key
-    (render/frame_cache.py), so a setting added to a pass's `settings` dataclass is keyed
-    without being listed."""
+    (render/frame_planner.py), so a setting added to a pass's `settings` dataclass is keyed
+    without being listed. `footprint()` says where the probe can change what the pass
+    draws this frame, by name; the planner turns footprints into the regions passes redo
+    (FramePlan.region)."""
 
     name = "pass"
     layer = FRAME
@@ -160,6 +156,10 @@ class Pass:
 
     def enabled(self, frame: Frame) -> bool:
         return True
+
+    def footprint(self, frame: Frame) -> dict:
+        """{name: rectangle, None or EVERYWHERE} of this frame (on frames whose pictures are kept)."""
+        return {}
 
     def run(self, frame: Frame) -> None:  # pragma: no cover - abstract
         raise NotImplementedError

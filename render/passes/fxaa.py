@@ -1,21 +1,20 @@
 """Final pass: FXAA from the lit image to the output (or a plain copy when off).
 
-With the frame cache the antialiased picture is kept, and a frame whose lit picture
-changed only in part (Frame.lit_changed and lit_background_changed, with the probe's cues
-of this frame and the last, Frame.overlay) runs FXAA again only there, grown by the
-shader's reach: over the changed background and the cues whole, and over the changed
-surfaces only at the pixels within that reach of a surface (NearSurfaces: the others read
-nothing but background, which did not change, so the kept picture holds their FXAA). The
-kept picture is then copied to the output."""
+On frames whose pictures are kept (render/frame_planner.py) the antialiased picture is
+kept, and FXAA runs again only over the plan's regions of the lit picture, grown by the
+shader's reach: over the changed background and the probe's cues (OVERLAY) whole, and
+over the changed surfaces (LIT) only at the pixels within that reach of a surface
+(NearSurfaces: the others read nothing but background, which did not change, so the kept
+picture holds their FXAA). The kept picture is then copied to the output."""
 
 from __future__ import annotations
 
-from sasprobe.render.frame_cache import Rect, full_rect, grow_rect, subtract_rect, union_rect
+from sasprobe.render.frame_planner import LIT, LIT_BACKGROUND, OVERLAY
 from sasprobe.render.gl.depth_picked import DepthTestedTarget
-from sasprobe.render.gl.targets import KeptPicture
 from sasprobe.render.gl.textures import release_framebuffers
 from sasprobe.render.gl.uniforms import apply_uniforms
-from sasprobe.render.passes.base import WHOLE, Frame, Pass
+from sasprobe.render.passes.base import Frame, Pass
+from sasprobe.render.rects import Rect, full_rect, grow_rect, subtract_rect, union_rect
 
 # How far from a pixel shaders/fxaa.frag reads: its taps lie up to SPAN_MAX / 2 = 4 pixels
 # away, read bilinearly (one more), and its diagonal neighbours; one pixel to spare.
@@ -24,9 +23,10 @@ FXAA_REACH_PX = 6
 
 class NearSurfaces:
     """A depth texture of the frame: 0 within FXAA_REACH_PX pixels of a G-buffer surface,
-    1 elsewhere (shaders/near_surfaces.frag), made when a frame asks and kept while the
-    molecule layer holds. Made from a frame with the probe drawn in, it also marks what lies
-    around that probe: a wider mask, never a narrower one."""
+    1 elsewhere (shaders/near_surfaces.frag), made when a frame asks and kept for the
+    molecule layer it was made from (FramePlan.layer_version). Made from a frame with the
+    probe drawn in, it also marks what lies around that probe: a wider mask, never a
+    narrower one."""
 
     def __init__(self, ctx, programs):
         self.ctx = ctx
@@ -35,10 +35,10 @@ class NearSurfaces:
         for vao, sampler in ((self._rows_vao, "u_ids"), (self._columns_vao, "u_rows")):
             apply_uniforms(vao.program, {sampler: 0, "u_reach": FXAA_REACH_PX})
         self.depth = self._rows = self._rows_fbo = self._depth_fbo = None
-        self.holds = False  # it holds the kept molecule layer's
+        self.layer_version: int | None = None  # the molecule layer the mask was made from
 
     def get(self, frame: Frame):
-        """The mask of the frame's G-buffer (made again unless it holds)."""
+        """The mask of the frame's molecule layer (made again for a new one)."""
         ctx, size = self.ctx, frame.size
         if self.depth is None or self.depth.size != tuple(size):
             self.release()
@@ -46,8 +46,7 @@ class NearSurfaces:
             self.depth = ctx.depth_texture(size)
             self._rows_fbo = ctx.framebuffer([self._rows])
             self._depth_fbo = ctx.framebuffer([], self.depth)
-            self.holds = False
-        if not self.holds:
+        if self.layer_version != frame.plan.layer_version:
             # Nothing lies near a surface beyond the molecule's pixels grown by the reach (the
             # probe's pixels beyond them are antialiased whole: the shading's background rectangle).
             area = grow_rect(frame.molecule_rect(), FXAA_REACH_PX, size)
@@ -68,7 +67,7 @@ class NearSurfaces:
                 ctx.depth_func = "<"
                 ctx.disable(ctx.DEPTH_TEST)
                 self._depth_fbo.scissor = None
-            self.holds = True
+            self.layer_version = frame.plan.layer_version
         return self.depth
 
     def release(self) -> None:
@@ -77,6 +76,7 @@ class NearSurfaces:
             self._rows.release()
             self.depth.release()
             self.depth = self._rows = self._rows_fbo = self._depth_fbo = None
+            self.layer_version = None
 
 
 class FxaaPass(Pass):
@@ -89,29 +89,19 @@ class FxaaPass(Pass):
         for vao in (self.vao, self.near_vao):
             if "u_color" in vao.program:
                 vao.program["u_color"].value = 0
-        self._kept = KeptPicture(ctx)  # the antialiased picture kept across frames (frame cache)
-        self._kept_holds = False  # it holds the last frame's output
         self.near_surfaces = NearSurfaces(ctx, programs)
         self._depth_tested = DepthTestedTarget(ctx)  # the kept picture tested against the near-surface mask
-        self._last_overlay: Rect | None = None
-        self.redone: Rect | None = None  # the rectangle the last frame ran FXAA within (None: nothing)
-        self.redone_near: Rect | None = None  # of it, where it ran only near the surfaces
 
     def run(self, frame: Frame) -> None:
         ctx, t = frame.ctx, frame.targets
-        if not frame.cached:  # the molecule layer is drawn anew (or not kept)
-            self.near_surfaces.holds = False
         if not frame.scene.effects.fxaa:
             ctx.copy_framebuffer(frame.output_fbo, t.lit_fbo)
-            self._kept_holds = False
             return
-        target, whole, self.redone_near = frame.output_fbo, full_rect(frame.size), None
-        self._kept_holds = self._kept_holds and frame.cache is not None  # a frame drawn whole leaves it behind
-        if frame.cache is not None:
-            target = self._kept.framebuffer(frame.size)
-            whole, self.redone_near = self._to_redo(frame)
-        self.redone = union_rect(whole, self.redone_near)
-        if self.redone is not None:
+        target, whole, near = frame.output_fbo, full_rect(frame.size), None
+        if frame.plan.keeps:
+            target = t.kept_picture("antialiased")
+            whole, near = self.regions(frame.plan)
+        if whole is not None or near is not None:
             t.lit.use(0)
             w, h = frame.size
             for vao in (self.vao, self.near_vao):
@@ -123,7 +113,7 @@ class FxaaPass(Pass):
                 target.scissor = whole
                 self.vao.render(ctx.TRIANGLES, vertices=3)
                 target.scissor = None
-            near = subtract_rect(self.redone_near, whole)  # what the whole draw did not cover
+            near = subtract_rect(near, whole)  # what the whole draw did not cover
             if near:
                 tested = self._depth_tested.framebuffer(target.color_attachments[0], self.near_surfaces.get(frame))
                 t.lit.use(0)  # again: making the mask used unit 0
@@ -135,22 +125,17 @@ class FxaaPass(Pass):
         if target is not frame.output_fbo:
             ctx.copy_framebuffer(frame.output_fbo, target)
 
-    def _to_redo(self, frame: Frame) -> tuple[Rect | None, Rect | None]:
-        """Where the lit picture changed since the last frame, grown by FXAA's reach: (what
-        to antialias whole: the changed background and the cues, now and last frame; what
-        to antialias near the surfaces only: the changed surfaces). All of it when the kept
-        picture does not hold the last frame's output."""
-        last_overlay, self._last_overlay = self._last_overlay, frame.overlay
-        holds, self._kept_holds = self._kept_holds and not self._kept.fresh, True
-        if not holds or WHOLE in (frame.lit_changed, frame.lit_background_changed):
-            return full_rect(frame.size), None
-        overlays = union_rect(frame.overlay, last_overlay)
-        return (grow_rect(union_rect(frame.lit_background_changed, overlays), FXAA_REACH_PX, frame.size),
-                grow_rect(frame.lit_changed, FXAA_REACH_PX, frame.size))
+    @staticmethod
+    def regions(plan) -> tuple[Rect | None, Rect | None]:
+        """Where the plan has the lit picture change, grown by FXAA's reach: (what to
+        antialias whole: the changed background and the cues; what to antialias near the
+        surfaces only: the changed surfaces)."""
+        size = plan.size
+        whole = grow_rect(union_rect(plan.region(LIT_BACKGROUND), plan.region(OVERLAY)), FXAA_REACH_PX, size)
+        return whole, grow_rect(plan.region(LIT), FXAA_REACH_PX, size)
 
     def release(self) -> None:
         self.vao.release()
         self.near_vao.release()
         self.near_surfaces.release()
         self._depth_tested.release()
-        self._kept.release()

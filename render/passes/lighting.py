@@ -6,24 +6,24 @@ the lighting builds their light buffer and the shading pass traces them per pixe
 fetches the G-buffer anyway (shaders/shading_traced.frag; unless they come from the
 occlusion atlas). Two ways of computing one picture:
 
-- **whole frames** (a renderer without the frame cache, or a frame the cache draws whole:
-  the camera or culling changing frame after frame, render/frame_cache.py): LightingPass,
+- **whole frames** (a renderer without the frame planner, or a frame it draws whole:
+  the camera or culling changing frame after frame, render/frame_planner.py): LightingPass,
   after the probe is drawn, traces every term on the G-buffer the probe is in, the probe
   an occluder of the directional light and of the ambient occlusion like any atom;
 
       clear -> spheres -> backbone -> probe -> lighting -> shading -> path_trace -> navcube -> fxaa
 
-- **layered frames** (the frame cache, render/frame_cache.py): MoleculeLightingPass,
+- **layered frames** (frames whose pictures the planner keeps): MoleculeLightingPass,
   before the probe is drawn, computes the molecule's own terms — its shadows of the
   directional light, its ambient occlusion — on the molecule layer, once per molecule
   key (progressive AO keeps adding samples while the key holds, whatever the probe
   does); LightingPass, after the probe pass, recomputes what the probe changes: the probe
   light's shadows within its range (traced by the shading pass where it shades again),
   the probe's pixels and edge cueing around them (composed into the visibility buffer over
-  those rectangles only, shaders/visibility_compose.frag), and hands the shading pass the
+  the plan's regions only, shaders/visibility_compose.frag), and hands the shading pass the
   probe's shadow of the directional light and its share of the ambient occlusion as one
-  sphere, which it takes in per pixel (shaders/probe_share.glsl), and where the shadow can
-  fall, which it shades again. With hard or soft shadows and analytic AO the result is the
+  sphere, which it takes in per pixel (shaders/probe_share.glsl); its footprint says where
+  the shadow can fall, which is shaded again. With hard or soft shadows and analytic AO the result is the
   whole frame's; the traced, screen-space and precomputed AO methods take the molecule's
   occlusion without the probe and the probe's share analytically.
 
@@ -104,7 +104,6 @@ class LightingPass(LayeredLighting, Pass):
         self.layers: dict[str, object] = {}  # textures of the last frame's terms (for the G-buffer export)
         self.lights: tuple[DirectionalLight | None, PointLight | None] = (None, None)
         self.molecule_terms: dict[str, object] = {}  # layered: the molecule's own terms, kept with its layer
-        self._dirty: dict[str, tuple | None] = {}  # layered: the rectangle each probe term covered last
         self._probe_neighbours = (None, NO_NEIGHBOURS)  # layered: (probe key, atoms nearest the probe)
         self._last_probe_key: bytes | None = None
         self._composed = None  # layered: the last compose's inputs, run again for the G-buffer export
@@ -148,13 +147,17 @@ class LightingPass(LayeredLighting, Pass):
         if culling_key != self._culling_key:
             self.grid.set_culling(cube_culling(frame.planes, cube))
             self._culling_key = culling_key
-        s = self.shading
+        self.lights = self.frame_lights(frame)
+        return culling_key
+
+    def frame_lights(self, frame: Frame) -> tuple[DirectionalLight | None, PointLight | None]:
+        """The frame's directional light and probe light (None where off)."""
+        s, scene, fx = self.shading, frame.scene, frame.scene.effects
         sun = DirectionalLight(tuple(-frame.light_direction), np.pi * s.directional_intensity) \
             if fx.directional_light and s.directional_intensity > 0 else None
         lamp = PointLight(tuple(scene.probe.center), s.probe_range, np.pi * s.probe_intensity,
                           tuple(s.probe_attenuation)) if (fx.probe_light and scene.probe is not None) else None
-        self.lights = (sun, lamp)
-        return culling_key
+        return sun, lamp
 
     def _set_probe(self, frame: Frame) -> bytes:
         """The probe as the grid's occluder (or none); returns its key."""
@@ -192,7 +195,7 @@ class LightingPass(LayeredLighting, Pass):
             self._configure_ao()
             both = frame.scene.effects.ambient_occlusion and self.ao_mode == "precomputed"
             # A whole frame whose probe light comes from the atlas too looks all three up at once.
-            lamp = self.lights[1] if frame.cache is None and self._probe_light_baked(frame) else None
+            lamp = self.lights[1] if not frame.plan.keeps and self._probe_light_baked(frame) else None
             ambient, visibility, lit = self.ao.baked(gbuffer, ambient=both, sun_direction=sun.unit(), probe_light=lamp)
             self._looked_up = (frame.index, ambient if both else None, lit if lamp is not None else None)
             return visibility
@@ -239,9 +242,10 @@ class LightingPass(LayeredLighting, Pass):
         if self._looked_up[0] == frame.index and self._looked_up[1] is not None:
             return self._looked_up[1]
         self._configure_ao()
-        texture = self.ao.compute(gbuffer, frame.view, frame.proj)
+        drawn = frame.scene.sphere_selection(frame.camera)
+        texture = self.ao.compute(gbuffer, frame.view, frame.proj, drawn)
         while self.ao.samples < self.settings.samples and not self.ao.converged:
-            texture = self.ao.compute(gbuffer, frame.view, frame.proj)
+            texture = self.ao.compute(gbuffer, frame.view, frame.proj, drawn)
         return texture
 
     def _edges(self, gbuffer: GBuffer, frame: Frame, rect=None):
@@ -272,7 +276,7 @@ class LightingPass(LayeredLighting, Pass):
 
     # ------------------------------------------------------------ whole frames
     def run(self, frame: Frame) -> None:
-        if frame.cache is not None:
+        if frame.plan.keeps:
             self._run_probe_layer(frame)
             return
         self._composed = None  # a whole frame: the export reads its terms as they are
@@ -359,7 +363,7 @@ class MoleculeLightingPass(Pass):
         return None  # the lighting pass's settings are keyed under it
 
     def enabled(self, frame: Frame) -> bool:
-        return frame.cache is not None and self.lighting.enabled(frame)
+        return frame.plan.keeps and self.lighting.enabled(frame)
 
     def run(self, frame: Frame) -> None:
         self.lighting.run_molecule(frame)
@@ -376,9 +380,9 @@ def cube_culling(planes: np.ndarray, cube) -> Culling:
 
 
 def install_lighting(renderer, settings: LightingSettings, required: bool = True) -> LightingPass | None:
-    """Slot the lighting into a renderer's chain (layered when the renderer keeps the
-    molecule layer). Without OpenGL 4.3: GLUnavailable when `required`, else a warning and
-    no lighting."""
+    """Slot the lighting into a renderer's chain (layered when the renderer has a frame
+    planner). Without OpenGL 4.3: GLUnavailable when `required`, else a warning and no
+    lighting."""
     if not lighting_supported(renderer.ctx):
         if required:
             LightingPass(renderer.ctx, settings, None)  # raises the one-line error
@@ -386,7 +390,7 @@ def install_lighting(renderer, settings: LightingSettings, required: bool = True
         return None
     from sasprobe.render.passes.path_trace import PathTracePass
 
-    layered = renderer.cache is not None
+    layered = renderer.planner is not None
     lighting = LightingPass(renderer.ctx, settings, renderer.pass_named("shading").settings, layered=layered)
     if layered:
         renderer.insert_before("probe", MoleculeLightingPass(lighting))

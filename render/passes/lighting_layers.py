@@ -1,45 +1,48 @@
-"""The layered half of the lighting pass (render/passes/lighting.py): frames drawn with the
-frame cache (render/frame_cache.py). `run_molecule` computes the molecule's own terms on
-the molecule layer before the probe is drawn (once per molecule key; progressive AO keeps
-adding samples while it holds); `_run_probe_layer` then recomputes what the probe changes:
-the probe light's shadow rays, for the shading pass to trace where it shades again (or,
-with --shadows precomputed and the probe standing still, its baked visibility), the probe's own
-pixels' sun, the edges around it, the visibility buffer over the rectangle the probe's
-terms touched (shaders/visibility_compose.frag), and, for the shading pass, the probe's
-share of the atoms' light — its shadow of the sun and its analytic share of the AO
-(shaders/probe_share.glsl, per pixel) — and the rectangle it all changed, the pixels the
-shadow can fall on among them.
+"""The layered half of the lighting pass (render/passes/lighting.py): frames whose pictures
+the frame planner keeps (render/frame_planner.py). `run_molecule` computes the molecule's
+own terms on the molecule layer before the probe is drawn (when the plan draws the layer;
+progressive AO keeps adding samples while it is kept); `_run_probe_layer` then recomputes
+what the probe changes, over the plan's regions: the probe light's shadow rays, for the
+shading pass to trace where it shades again (or, with --shadows precomputed and the probe
+standing still, its baked visibility), the probe's own pixels' sun, the edges around it,
+the visibility buffer where the probe's terms touch (shaders/visibility_compose.frag),
+and, for the shading pass, the probe's share of the atoms' light — its shadow of the sun
+and its analytic share of the AO (shaders/probe_share.glsl, per pixel). Its footprint
+says where all that lies, the pixels the shadow can fall on among them.
 
 LayeredLighting is a mixin of LightingPass and uses its state (grid, shadows, ao, lights,
 textures, settings) and its helpers (_sync, _set_probe, _sun, _ambient, _edges, _compose,
-_count_still_frames, _baked_probe_light).
+_count_still_frames, _baked_probe_light, frame_lights).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.render.frame_cache import capsule_rect, full_rect, grow_rect, union_rect
-from sasprobe.render.lighting.ao.analytic import MAX_K, nearest_to_point
+from sasprobe.render.frame_planner import EVERYWHERE, LIT, LIT_BACKGROUND
+from sasprobe.render.lighting.ao.analytic import MAX_K
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.settings import light_uniforms, ray_epsilon_uniforms
-from sasprobe.render.passes.base import WHOLE, Frame, ProbeLighting
+from sasprobe.render.passes.base import Frame, ProbeLighting
+from sasprobe.render.rects import capsule_rect, grow_rect, union_rect
 
 NO_NEIGHBOURS = np.full(MAX_K, -1, dtype=np.int32)
 SHADOW_MARGIN = 0.05  # Å around the probe's shadow capsule
 NO_PROBE_SHARE = {"u_probe_share_ambient": 0, "u_probe_share_sun": 0}  # shaders/probe_share.glsl
+# This pass's own footprints (render/frame_planner.py)
+EDGES, COMPOSE, COMPOSE_BACKGROUND = "lighting edges", "lighting compose", "lighting compose background"
 
 
 class LayeredLighting:
     def run_molecule(self, frame: Frame) -> None:
         """The molecule's own terms, on the molecule layer (no probe in the G-buffer or the
-        grid): computed when the layer is drawn, and topped up with samples while it holds."""
+        grid): computed when the layer is drawn, and topped up with samples while it is kept."""
         self._sync(frame)
         self.grid.set_probe(None)
         fx = frame.scene.effects
         gbuffer = GBuffer.of_targets(frame.targets)
-        self._molecule_changed = not frame.cached  # the visibility buffer is then composed whole
-        if not frame.cached:
+        self._molecule_changed = not frame.plan.kept  # the visibility buffer is then composed whole
+        if not frame.plan.kept:
             self.ao.view_changed()
             self.molecule_terms = {}
             sun = self.lights[0]
@@ -47,20 +50,39 @@ class LayeredLighting:
                 self.molecule_terms["shadow_dir"] = self._sun(gbuffer, frame, sun, "molecule_sun")
             if fx.ambient_occlusion:
                 self.molecule_terms["ao"] = self._ambient(gbuffer, frame)
-        elif fx.ambient_occlusion and not self.ao.converged:
-            self.molecule_terms["ao"] = self.ao.compute(gbuffer, frame.view, frame.proj)
+        elif self._adding_samples(frame):
+            self.molecule_terms["ao"] = self.ao.compute(gbuffer, frame.view, frame.proj,
+                                                        frame.scene.sphere_selection(frame.camera))
             self._molecule_changed = True
 
-    def _dirty_rect(self, term: str, now, frame: Frame, whole: bool = False):
-        """Where a probe-dependent term must be recomputed: everywhere on a frame that drew
-        the molecule layer (or when `whole`), else where the probe reaches now and where it
-        reached last time."""
-        last = self._dirty.get(term)
-        self._dirty[term] = now
-        return full_rect(frame.size) if whole or not frame.cached else union_rect(last, now)
+    def _adding_samples(self, frame: Frame) -> bool:
+        """Whether the molecule's AO takes more samples this frame (a kept layer's progressive AO)."""
+        return frame.scene.effects.ambient_occlusion and self.ao is not None and not self.ao.converged
+
+    def footprint(self, frame: Frame) -> dict:
+        """Where the probe's terms lie this frame: its pixels, the edges around them and, on the
+        atoms, where its shadow of the sun can fall; everywhere while the molecule's AO still
+        takes samples (the molecule's terms then change everywhere)."""
+        self._sync(frame)
+        fx, size = frame.scene.effects, frame.size
+        probe_rect = frame.probe_rect()
+        touched, out = probe_rect, {}
+        if fx.edge_cueing:
+            out[EDGES] = grow_rect(probe_rect, self.settings.edge_settings().reach_px() + 1, size)
+            touched = union_rect(touched, out[EDGES])
+        if frame.plan.kept and self._adding_samples(frame):
+            return {**out, COMPOSE: EVERYWHERE, COMPOSE_BACKGROUND: EVERYWHERE, LIT: EVERYWHERE,
+                    LIT_BACKGROUND: EVERYWHERE}
+        sun = self.lights[0]
+        shadow = None
+        if fx.shadows and sun is not None and fx.probe and frame.scene.probe is not None:
+            shadow = self._probe_shadow_rect(frame, sun, self._soft(frame))
+        # the background shows the probe's pixels and the halos, not the sun's shadows
+        return {**out, COMPOSE: touched, COMPOSE_BACKGROUND: touched, LIT: union_rect(touched, shadow),
+                LIT_BACKGROUND: touched}
 
     def _run_probe_layer(self, frame: Frame) -> None:
-        fx, size = frame.scene.effects, frame.size
+        fx, size, plan = frame.scene.effects, frame.size, frame.plan
         probe_key = self._set_probe(frame)
         probe = self.grid.probe_sphere if probe_key else None
         self._stillness(frame, self._culling_key, probe_key)
@@ -82,13 +104,8 @@ class LayeredLighting:
         if probe_sun and probe_rect is not None:
             terms["probe_pixels_sun"] = self.shadows.trace(
                 gbuffer, sun, soft, out=self.textures.get("probe_pixels_sun", size), rect=probe_rect, only_probe=True)
-        touched = probe_rect  # what the visibility buffer changes by: the probe's pixels, its edges, its shadow
         if fx.edge_cueing:
-            reach = self.settings.edge_settings().reach_px() + 1
-            around = grow_rect(probe_rect, reach, size)
-            terms["edges"] = self._edges(gbuffer, frame, self._dirty_rect("edges", around, frame))
-            touched = union_rect(touched, around)
-        background = touched  # the background shows the probe's pixels and the halos, not the sun's shadows
+            terms["edges"] = self._edges(gbuffer, frame, plan.region(EDGES))
         probe_ambient = fx.ambient_occlusion and probe is not None
         probe_sun = probe_sun and "shadow_dir" in terms
         uniforms = {
@@ -107,18 +124,15 @@ class LayeredLighting:
         # bring. Beyond those the layered program composes what the plain one does, so but
         # for a whole frame one pass does both. The probe's shadow of the sun on the atoms is
         # the shading pass's (probe_share.glsl): it shades again where the shadow can fall.
-        rect = self._dirty_rect("compose", touched, frame, whole=self._molecule_changed)
-        background_rect = self._dirty_rect("compose background", background, frame, whole=self._molecule_changed)
-        if probe_rect is not None and not self._molecule_changed:  # rect holds probe_rect: touched does
+        rect, background_rect = plan.region(COMPOSE), plan.region(COMPOSE_BACKGROUND)
+        if probe_rect is not None and not self._molecule_changed:  # rect holds probe_rect: its footprint does
             self._compose(frame, terms, uniforms, layered=True, rect=rect, background=background_rect)
         else:
             if rect is not None:
                 self._compose(frame, terms, {}, rect=rect)
             if probe_rect is not None:
                 self._compose(frame, terms, uniforms, layered=True, rect=probe_rect)
-        shadow = self._probe_shadow_rect(frame, sun, soft) if probe_sun else None
-        changed, background = (WHOLE, WHOLE) if self._molecule_changed else (union_rect(touched, shadow), background)
-        frame.probe_lighting = ProbeLighting(terms.get("shadow_probe"), share, changed, traced, background)
+        frame.probe_lighting = ProbeLighting(terms.get("shadow_probe"), share, traced)
         self._composed = (frame, terms, {**uniforms, **NO_PROBE_SHARE, **share}, "shadow_dir" in terms,
                           fx.ambient_occlusion)
 
@@ -154,5 +168,5 @@ class LayeredLighting:
         if probe is None:
             return NO_NEIGHBOURS
         if self._probe_neighbours[0] != probe_key:
-            self._probe_neighbours = (probe_key, nearest_to_point(self.grid.grid.centers, probe[:3]).astype(np.int32))
+            self._probe_neighbours = (probe_key, self.grid.grid.nearest_to_point(probe[:3], MAX_K).astype(np.int32))
         return self._probe_neighbours[1]

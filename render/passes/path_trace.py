@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING
 
 from sasprobe.render.gl.compute import ComputePass
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.passes.base import WHOLE, Frame, Pass
+from sasprobe.render.frame_planner import EVERYWHERE, OVERLAY
+from sasprobe.render.passes.base import Frame, Pass
 
 if TYPE_CHECKING:
     from sasprobe.render.passes.lighting import LightingPass
@@ -47,7 +48,9 @@ class PathTracePass(Pass):
         frame.targets.visibility.use(location=4)
         frame.targets.lit.bind_to_image(0, read=False, write=True)
         self.output.run(*frame.size, {})
-        frame.lit_changed = frame.lit_background_changed = WHOLE  # it adds samples: every pixel may change
+
+    def footprint(self, frame: Frame) -> dict:
+        return {OVERLAY: EVERYWHERE}  # it replaces the lit picture, adding samples: every pixel may change
 
     def release(self) -> None:
         self.output.release()

@@ -1,6 +1,6 @@
 """G-buffer pass of the probe sphere (never clipped; atom id -2, kind PROBE), drawn over
-the molecule layer. With the frame cache, what the probe is about to cover is stashed
-first, so the next frame can put the molecule layer back there (render/frame_cache.py)."""
+the molecule layer (whose pixels under the probe the frame planner stashes first, so the
+next frame can put them back: render/frame_planner.py)."""
 
 from __future__ import annotations
 
@@ -24,8 +24,6 @@ class ProbePass(Pass):
 
     def run(self, frame: Frame) -> None:
         probe = frame.scene.probe
-        if frame.cache is not None:
-            frame.cache.save_under(frame, frame.probe_rect())
         frame.buffers.set_probe(probe.center, probe.radius, PROBE_COLOR)
         apply_uniforms(self.prog, frame.raster_camera_uniforms())
         apply_planes(self.prog, frame.near_plane()[None, :])

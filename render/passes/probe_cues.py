@@ -20,10 +20,11 @@ import math
 
 import numpy as np
 
-from sasprobe.render.frame_cache import ndc_rect, points_rect, union_rect
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.passes.backbone import line_width_uniforms
+from sasprobe.render.frame_planner import OVERLAY
 from sasprobe.render.passes.base import Frame, Pass
+from sasprobe.render.rects import ndc_rect, points_rect, union_rect
 
 OUTLINE_COLOR = (1.0, 0.85, 0.3)
 GHOST_COLOR = (0.55, 0.8, 1.0)
@@ -99,15 +100,49 @@ class ProbeCuesPass(Pass):
         self.vao = ctx.vertex_array(self.lines, [(self.vbo, "3f 3f 4x", "in_position", "in_color")])
         self.tri = ctx.buffer(reserve=3 * 8)
         self.tri_vao = ctx.vertex_array(self.screen, [(self.tri, "2f", "in_ndc")])
-        self._drawn = None  # the rectangle this frame's cues cover so far
 
     def enabled(self, frame: Frame) -> bool:
         return frame.scene.probe is not None and frame.scene.effects.probe
 
+    def footprint(self, frame: Frame) -> dict:
+        """What the cues cover (drawn over the lit picture)."""
+        outline, lines, arrow = self._shapes(frame)
+        drawn = None
+        for points, _, _ in [outline, *lines]:
+            if points.size:
+                drawn = union_rect(drawn, points_rect(points[:MAX_VERTICES], frame.viewproj, frame.size,
+                                                      DRAWN_MARGIN_PX))
+        if arrow is not None:
+            drawn = union_rect(drawn, ndc_rect(arrow, frame.size, DRAWN_MARGIN_PX))
+        return {OVERLAY: drawn}
+
+    def _shapes(self, frame: Frame):
+        """(the probe's outline, the other line lists, the off-screen arrow or None), lines
+        as (points, colour, alpha): found once a frame."""
+        key = "probe cues"
+        if key not in frame._found:
+            scene, probe, eye = frame.scene, frame.scene.probe, frame.camera.eye
+            outline = (silhouette(probe.center, probe.radius, eye), OUTLINE_COLOR, 1.0)
+            lines = []
+            if probe.goal is not None and np.linalg.norm(probe.goal - probe.center) > GHOST_MIN_RADII * probe.radius:
+                across = np.cross(probe.goal - probe.center, eye - probe.center)
+                norm = float(np.linalg.norm(across))
+                across = across / norm * 0.25 * probe.radius if norm > 0 else np.zeros(3)
+                lines.append((np.concatenate([silhouette(probe.goal, probe.radius, eye),
+                                              spring(probe.center, probe.goal, across)]), GHOST_COLOR, 0.8))
+            if probe.force_n is not None and scene.force_ratings_n is not None:
+                arrow = force_arrow(probe, eye, *scene.force_ratings_n)
+                if arrow is not None:
+                    lines.append(arrow)
+            clip = frame.viewproj @ np.array([*probe.center, 1.0])
+            w = float(clip[3])
+            ndc = np.array([clip[0] / w, clip[1] / w, w]) if w != 0 else np.array([0.0, -2.0, 1.0])
+            frame._found[key] = (outline, lines, edge_arrow(ndc))
+        return frame._found[key]
+
     def run(self, frame: Frame) -> None:
-        ctx, scene, probe = frame.ctx, frame.scene, frame.scene.probe
-        eye = frame.camera.eye
-        self._drawn = None  # what the cues cover, for the FXAA pass (Frame.overlay)
+        ctx = frame.ctx
+        outline, lines, arrow = self._shapes(frame)
         frame.targets.lit_fbo.use()
         ctx.enable_only(ctx.DEPTH_TEST | ctx.BLEND)
         ctx.blend_func = ctx.SRC_ALPHA, ctx.ONE_MINUS_SRC_ALPHA
@@ -116,53 +151,21 @@ class ProbeCuesPass(Pass):
         frame.targets.ids.use(0)
         apply_uniforms(self.lines, {"u_ids": 0, "u_hidden_only": 1})
         ctx.depth_func = ">"  # only where something nearer than the probe's rim covers it
-        self._draw(frame, silhouette(probe.center, probe.radius, eye), OUTLINE_COLOR, 1.0)
+        self._draw(*outline)
         apply_uniforms(self.lines, {"u_hidden_only": 0})
         ctx.disable(ctx.DEPTH_TEST)  # the rest shows through: the tip is inside the surface in contact
-        if probe.goal is not None and np.linalg.norm(probe.goal - probe.center) > GHOST_MIN_RADII * probe.radius:
-            across = np.cross(probe.goal - probe.center, eye - probe.center)
-            norm = float(np.linalg.norm(across))
-            across = across / norm * 0.25 * probe.radius if norm > 0 else np.zeros(3)
-            self._draw(frame, np.concatenate([silhouette(probe.goal, probe.radius, eye),
-                                              spring(probe.center, probe.goal, across)]), GHOST_COLOR, 0.8)
-        if probe.force_n is not None and scene.force_ratings_n is not None:
-            self._draw_force(frame, probe, eye, *scene.force_ratings_n)
-        self._draw_edge_arrow(frame, probe.center)
+        for line in lines:
+            self._draw(*line)
+        if arrow is not None:
+            self.tri.write(arrow.astype(np.float32).tobytes())
+            apply_uniforms(self.screen, {"u_color": (*OUTLINE_COLOR, 1.0)})
+            self.tri_vao.render(self.ctx.TRIANGLES, vertices=3)
         ctx.disable(ctx.BLEND)
-        frame.overlay = self._drawn
 
-    def _draw_force(self, frame: Frame, probe, eye, continuous: float, peak: float) -> None:
-        force = float(np.linalg.norm(probe.force_n))
-        if force <= 1e-6 or continuous <= 0:
-            return
-        direction = probe.force_n / force
-        start = probe.center + direction * probe.radius
-        end = start + direction * ARROW_RADII * probe.radius * min(force, peak) / continuous
-        side = np.cross(direction, eye - end)
-        n = float(np.linalg.norm(side))
-        head = 0.3 * np.linalg.norm(end - start)
-        side = side / n * head * 0.5 if n > 0 else np.zeros(3)
-        back = end - direction * head
-        self._draw(frame, np.array([start, end, end, back + side, end, back - side]),
-                   force_color(force, continuous), 1.0)
-
-    def _draw_edge_arrow(self, frame: Frame, point) -> None:
-        clip = frame.viewproj @ np.array([*point, 1.0])
-        w = float(clip[3])
-        ndc = np.array([clip[0] / w, clip[1] / w, w]) if w != 0 else np.array([0.0, -2.0, 1.0])
-        triangle = edge_arrow(ndc)
-        if triangle is None:
-            return
-        self._drawn = union_rect(self._drawn, ndc_rect(triangle, frame.size, DRAWN_MARGIN_PX))
-        self.tri.write(triangle.astype(np.float32).tobytes())
-        apply_uniforms(self.screen, {"u_color": (*OUTLINE_COLOR, 1.0)})
-        self.tri_vao.render(self.ctx.TRIANGLES, vertices=3)
-
-    def _draw(self, frame: Frame, points: np.ndarray, color, alpha: float) -> None:
+    def _draw(self, points: np.ndarray, color, alpha: float) -> None:
         if points.size == 0:
             return
         points = points[:MAX_VERTICES]
-        self._drawn = union_rect(self._drawn, points_rect(points, frame.viewproj, frame.size, DRAWN_MARGIN_PX))
         records = np.zeros(points.shape[0], dtype=[("p", "3f4"), ("c", "3f4"), ("id", "i4")])
         records["p"] = points
         records["c"] = color
@@ -174,3 +177,19 @@ class ProbeCuesPass(Pass):
     def release(self) -> None:
         for obj in (self.vao, self.vbo, self.tri_vao, self.tri):
             obj.release()
+
+
+def force_arrow(probe, eye, continuous: float, peak: float):
+    """The force arrow's line list, colour and alpha; None without a force."""
+    force = float(np.linalg.norm(probe.force_n))
+    if force <= 1e-6 or continuous <= 0:
+        return None
+    direction = probe.force_n / force
+    start = probe.center + direction * probe.radius
+    end = start + direction * ARROW_RADII * probe.radius * min(force, peak) / continuous
+    side = np.cross(direction, eye - end)
+    n = float(np.linalg.norm(side))
+    head = 0.3 * np.linalg.norm(end - start)
+    side = side / n * head * 0.5 if n > 0 else np.zeros(3)
+    back = end - direction * head
+    return np.array([start, end, end, back + side, end, back - side]), force_color(force, continuous), 1.0

@@ -3,13 +3,14 @@ with the parameters of ShadingSettings (render/lighting/settings.py) and what th
 hands over about the probe (Frame.probe_lighting): its light's visibility as a texture, or
 its light's shadow rays, which the pass then traces itself (shaders/shading_traced.frag).
 
-With the frame cache the shaded picture is kept (before the cube wire and the cues are
-drawn over a copy of it), and a frame in which only the probe moved shades again only
-the rectangle the probe changes, now and last frame: beyond its light's range nothing of
-the probe reaches the picture (its light and its share of the AO are windowed to 0 there),
-and the lighting says where its shadow and edges fell. The background shows only the
-probe's pixels and the halos around them, so it is shaded again only where those were and
-are.
+On frames whose pictures are kept (render/frame_planner.py) the shaded picture is kept
+(before the cube wire and the cues are drawn over a copy of it), and the pass shades the
+regions the plan gives. Its footprint: the probe's pixels, the touched atom and the lit
+atoms within the probe light's range (beyond it nothing of the probe reaches the
+picture: its light and its share of the AO are windowed to 0 there; the backbone trace
+is context, which the probe does not light), to which the lighting adds where its terms
+change (the probe's shadow, its edges). The background shows only the probe's pixels and
+the halos around them, so its footprint is those.
 
 The surfaces and the background are two draws, each picked by a depth test against the
 G-buffer before its fragment shader runs (shaders/fullscreen.vert AT_FAR_PLANE): the
@@ -18,12 +19,12 @@ pay for both branches of one shader."""
 
 from __future__ import annotations
 
-from sasprobe.render.frame_cache import Rect, full_rect, sphere_rect, union_rect
+from sasprobe.render.frame_planner import LIT, LIT_BACKGROUND
 from sasprobe.render.gl.depth_picked import DepthTestedTarget
-from sasprobe.render.gl.targets import KeptPicture
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.settings import ShadingSettings
-from sasprobe.render.passes.base import WHOLE, Frame, Pass, ProbeLighting
+from sasprobe.render.passes.base import Frame, Pass, ProbeLighting
+from sasprobe.render.rects import sphere_rect, union_rect
 from sasprobe.render.passes.probe import PROBE_COLOR
 
 TEXTURES = ("u_albedo", "u_position", "u_normal", "u_ids", "u_visibility", "u_probe_visibility")  # units 0..5
@@ -38,12 +39,7 @@ class ShadingPass(Pass):
         self.ctx = ctx
         self.programs = programs
         self._vaos: dict[tuple[str, ...], object] = {}
-        self._kept = KeptPicture(ctx)  # the shaded picture kept across frames (frame cache)
         self._depth_tested = DepthTestedTarget(ctx)  # the target with the G-buffer's depth
-        self._reached: Rect | None = None  # what the probe changed in the last frame
-        self._background_reached: Rect | None = None  # of that, what it changed on the background
-        self.shaded: Rect | None = None  # the rectangle the last frame shaded (None: nothing)
-        self.background_shaded: Rect | None = None  # the part of it whose background was shaded
 
     def _vao(self, lit: ProbeLighting | None):
         """The surfaces' program for what the lighting hands over (shaders/shading.frag's
@@ -104,19 +100,12 @@ class ShadingPass(Pass):
             "u_highlight": s.highlight,
             "u_probe_color": PROBE_COLOR,
         })
-        target, self.shaded = t.lit_fbo, full_rect(frame.size)
-        self.background_shaded = self.shaded
-        if frame.cache is not None:
-            target = self._kept.framebuffer(frame.size)
-            self.shaded, self.background_shaded = self._to_shade(frame)
-            if self._kept.fresh:  # it holds nothing yet
-                self.shaded = self.background_shaded = full_rect(frame.size)
-            # what FXAA redoes (the cube wire is the same on a cached frame)
-            frame.lit_changed, frame.lit_background_changed = self.shaded, self.background_shaded
+        plan = frame.plan
+        target = t.kept_picture("shaded") if plan.keeps else t.lit_fbo
         # The depth is tested, not written: the cube wire later tests against it.
         tested = self._depth_tested.framebuffer(target.color_attachments[0], t.depth)
         tested.use()
-        for rect, program, depth_func in ((self.background_shaded, background, "=="), (self.shaded, vao, ">")):
+        for rect, program, depth_func in ((plan.region(LIT_BACKGROUND), background, "=="), (plan.region(LIT), vao, ">")):
             if rect is not None:
                 tested.scissor = rect
                 self._depth_tested.draw(program, depth_func)
@@ -124,36 +113,21 @@ class ShadingPass(Pass):
         if target is not t.lit_fbo:
             ctx.copy_framebuffer(t.lit_fbo, target)  # the later passes draw over a copy
 
-    # ------------------------------------------------------------ frames that keep the molecule layer
-    def _to_shade(self, frame: Frame) -> tuple[Rect | None, Rect | None]:
-        """What to shade again, (all of it, its background): everything on a frame that drew
-        the molecule layer (or whose lighting changed everywhere), else where the probe
-        changes the picture now and did last frame — its reach over the molecule (its light
-        and its share of the AO end there), its pixels, the touched atom and what the
-        lighting's terms changed (its shadow, its edges). The background shows only the
-        visibility buffer's halo term and the probe's pixels, so it is shaded again only
-        where those changed (a pass over background pixels costs llvmpipe as much as a
-        light one over surfaces)."""
-        scene, lit = frame.scene, frame.probe_lighting
-        changed = lit.changed if lit.changed != WHOLE else None
-        probe = scene.probe
-        background = union_rect(lit.background_changed if changed is not None else None, frame.probe_rect())
-        reached = union_rect(changed, frame.probe_rect())
+    def footprint(self, frame: Frame) -> dict:
+        """Where the probe changes the shaded picture: its pixels, the touched atom and the
+        lit atoms within its light's range; of the background, its pixels."""
+        scene, probe = frame.scene, frame.scene.probe
+        reached = frame.probe_rect()
         if probe is not None:
             reached = union_rect(reached, frame.reach_rect(self.settings.probe_range))
             if 0 <= probe.touched_atom < scene.structure.n_atoms:
                 atom = probe.touched_atom
                 reached = union_rect(reached, sphere_rect(scene.structure.positions[atom],
                                                           scene.structure.vdw_radii[atom], frame.viewproj, frame.size))
-        last, self._reached = self._reached, reached
-        last_background, self._background_reached = self._background_reached, background
-        if not frame.cached or lit.changed == WHOLE:
-            return full_rect(frame.size), full_rect(frame.size)
-        return union_rect(last, reached), union_rect(last_background, background)
+        return {LIT: reached, LIT_BACKGROUND: frame.probe_rect()}
 
     def release(self) -> None:
         for vao in self._vaos.values():
             vao.release()
         self._vaos.clear()
         self._depth_tested.release()
-        self._kept.release()

@@ -12,7 +12,8 @@
 //   arithmetic; with PROBE_SHARE (layered frames) the probe's shadow of the sun and its
 //   share of the ambient occlusion are taken in here (probe_share.glsl). Each is its own
 //   program: llvmpipe runs every instruction of a shader, branches taken or not.
-// The probe light reaches u_probe_range Å: its attenuation is windowed to 0 there.
+// The probe light reaches u_probe_range Å: its attenuation is windowed to 0 there. It lights
+// the atoms, not the backbone trace (context, lit by the directional and ambient light only).
 // BACKGROUND_ONLY: the program for background pixels (the pass picks them by depth).
 #include "constants.glsl"
 // occluders.glsl and ray_origin.glsl here, not only through the cases' files below: an
@@ -95,7 +96,7 @@ void main() {
     vec3 color = u_ambient * pow(ambient, u_ao_power) * albedo;
     if (u_dir_enabled == 1)
         color += sun * u_dir_intensity * phong(albedo, n, v, -u_light_dir);
-    if (u_probe_light_enabled == 1) {
+    if (u_probe_light_enabled == 1 && ids.y != KIND_BACKBONE) {  // the trace is context: not the probe's to light
         vec3 to_probe = u_probe_center - p;
         float dist = length(to_probe);
         float x = dist / u_probe_range;

@@ -10,7 +10,7 @@
     moved a little every frame, the probe at its centre, the camera framing it.
 
 Each is timed unlit (no lighting, every frame drawn whole), with the default lighting
-drawn whole every frame (the full redraw) and with the frame cache (render/frame_cache.py);
+drawn whole every frame (the full redraw) and with the frame planner (render/frame_planner.py);
 the orbit and the drifting cube also with precomputed occlusion (AO and directional
 shadows from the per-atom atlas; light fixed in the molecule frame; the bake before the
 first frame is reported apart). Frames of the cases are taken in turn, so load from other
@@ -135,11 +135,11 @@ def time_cases(gl, cases: list[Case], frames: int, warmup: int = 2) -> None:
 def summary(cases: list[Case], unlit: str, full: str) -> dict:
     rows = {}
     for case in cases:
-        cache = case.renderer.cache
+        counts = case.renderer.planner.layer_counts() if case.renderer.planner is not None else None
         rows[case.label] = {"ms": statistics.median(case.times) * 1e3, "cpu_ms": statistics.median(case.cpu) * 1e3,
                             "frames": len(case.times),
-                            "cache_hits": None if cache is None else cache.hits,
-                            "cache_misses": None if cache is None else cache.misses}
+                            "cache_hits": None if counts is None else counts["kept"],
+                            "cache_misses": None if counts is None else counts["drawn"]}
     for row in rows.values():
         for key, suffix in (("ms", ""), ("cpu_ms", "_cpu")):
             row["over_unlit" + suffix] = row[key] / rows[unlit][key]

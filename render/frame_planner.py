@@ -1,0 +1,187 @@
+"""The frame planner: the one place that decides what a frame redraws.
+
+A frame is two layers. The *molecule layer* is the G-buffer of the atoms and the
+backbone trace, with every lighting term that does not depend on the probe (the
+molecule's own shadows of the directional light, its ambient occlusion). It depends on
+everything the renderer knows except the probe, so its key is built from all of that:
+the scene field by field with only `probe` left out, the camera, the frame size, the
+planes and cube in effect, and every pass's `state()` (its settings). A field another
+part of the program adds to the scene, a camera or a pass's settings dataclass is in
+the key without being listed anywhere.
+
+Each frame the planner settles a FramePlan before any pass runs:
+
+- **the layer**: KEPT (the last frame's holds: the passes that draw it do not run, and
+  the G-buffer gets back, from a stash, what the probe covered), DRAWN (drawn anew and
+  kept), or PLAIN (drawn whole as without the planner, nothing kept: the key changed on
+  the last frame too and changes again, as while the camera turns, and a layer kept now
+  would most likely not be used, while drawing it apart from the probe costs more than a
+  whole frame; it is drawn again once the key holds for a frame);
+- **the regions**: for each name, the pixels a pass must redo. Passes declare their
+  *footprints* (Pass.footprint: where the probe can change what they draw this frame,
+  by name; EVERYWHERE when all of it may change, as while progressive ambient occlusion
+  adds samples); a region is everything unless the layer is KEPT, else where the
+  footprint of that name lies now and lay last frame (what the probe covered there must
+  be put back).
+
+Passes take the plan with the frame (Frame.plan) and draw what it says; they hold no
+caching policy.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sasprobe.molecule import Structure
+from sasprobe.render.gl.gbuffer_stash import GBufferStash
+from sasprobe.render.rects import Rect, full_rect, union_rect
+
+KEPT, DRAWN, PLAIN = "kept", "drawn", "plain"  # FramePlan.layer
+EVERYWHERE = "everywhere"  # a footprint covering the whole frame
+
+# Footprint names several passes share (a pass's own are prefixed with its name).
+LIT = "lit"  # lit surfaces whose colour the probe changes (the shading pass shades them again)
+LIT_BACKGROUND = "lit background"  # background pixels whose colour the probe changes
+OVERLAY = "overlay"  # what is drawn over the lit picture (the probe's cues)
+
+
+def state_key(value, skip: tuple[str, ...] = ()):
+    """A comparable snapshot of plain state. Dataclasses go field by field (the names in
+    `skip` are left out at the top level only), numpy arrays by dtype, shape and bytes,
+    containers element by element. A Structure counts by identity: structures are never
+    changed in place (a new one is loaded). Anything else counts by its type and identity,
+    so replacing it changes the key."""
+    if value is None or isinstance(value, (bool, int, float, str, bytes)):
+        return value
+    if isinstance(value, Structure):
+        return ("Structure", id(value))
+    if isinstance(value, np.ndarray):
+        return ("array", value.dtype.str, value.shape, value.tobytes())
+    if isinstance(value, np.generic):
+        return value.item()
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return (type(value).__name__,) + tuple(
+            (f.name, state_key(getattr(value, f.name))) for f in dataclasses.fields(value) if f.name not in skip)
+    if isinstance(value, (list, tuple)):
+        return tuple(state_key(v) for v in value)
+    if isinstance(value, dict):
+        return tuple(sorted((str(k), state_key(v)) for k, v in value.items()))
+    return (type(value).__name__, id(value))
+
+
+def molecule_key(frame, passes) -> tuple:
+    """The molecule layer's key of a frame: all it is drawn from, the probe excepted."""
+    return (
+        state_key(frame.scene, skip=("probe",)),
+        state_key(frame.camera),
+        tuple(frame.size),
+        state_key(frame.view), state_key(frame.proj), state_key(frame.planes), state_key(frame.cube),
+        state_key(frame.light_direction), frame.buffers.color_version,
+        tuple((type(p).__name__, state_key(p.state())) for p in passes),
+    )
+
+
+@dataclass
+class FramePlan:
+    """What one frame redraws (see the module's docstring)."""
+
+    layer: str = PLAIN
+    size: tuple[int, int] = (1, 1)
+    regions: dict[str, Rect | None] = field(default_factory=dict)  # KEPT frames: by footprint name
+    layer_memo: dict = field(default_factory=dict)  # what passes find once per molecule layer (its rectangles)
+    layer_version: int = 0  # counts the molecule layers drawn: a kept layer keeps its number
+
+    @property
+    def keeps(self) -> bool:
+        """Whether this frame's pictures are kept for the next (the layered passes run)."""
+        return self.layer != PLAIN
+
+    @property
+    def kept(self) -> bool:
+        """Whether the molecule layer is the last frame's (its passes do not run)."""
+        return self.layer == KEPT
+
+    def region(self, name: str) -> Rect | None:
+        """The pixels to redo for footprint `name`: all of them unless the layer is kept."""
+        if self.layer != KEPT:
+            return full_rect(self.size)
+        return self.regions.get(name)
+
+
+class FramePlanner:
+    """The renderer's frames across time: the kept layer's key, the stash of what lies
+    under the probe, and the footprints of the last frame."""
+
+    def __init__(self, ctx, programs):
+        self.ctx = ctx
+        self.programs = programs
+        self.stash: GBufferStash | None = None
+        self.key: tuple | None = None  # the kept layer's key (None: none kept)
+        self.last_key: tuple | None = None  # the last frame's key, layer kept or not
+        self.last_layer = PLAIN
+        self.stashed: Rect | None = None  # what the stash holds: the probe's rectangle of the last frame
+        self.footprints: dict[str, object] = {}  # the last frame's, by name
+        self.layer_memo: dict = {}
+        self.layer_version = 0
+        self.counts = {KEPT: 0, DRAWN: 0, PLAIN: 0}
+
+    def plan(self, frame, passes) -> FramePlan:
+        """This frame's plan; on a KEPT frame the G-buffer gets back what the probe covered."""
+        key = molecule_key(frame, passes)
+        if key == self.key:
+            layer = KEPT
+        elif self.last_layer != KEPT and self.last_key is not None and key != self.last_key:
+            layer = PLAIN
+        else:
+            layer = DRAWN
+        self.last_key, self.last_layer = key, layer
+        self.key = None if layer == PLAIN else key
+        self.counts[layer] += 1
+        if layer == KEPT and self.stashed is not None:
+            self.stash.restore(frame.targets, self.stashed)
+        self.stashed = None
+        if layer != KEPT:
+            self.layer_memo = {}
+            self.layer_version += 1
+        plan = FramePlan(layer, tuple(frame.size), layer_memo=self.layer_memo, layer_version=self.layer_version)
+        frame.plan = plan
+        now: dict[str, object] = {}
+        if plan.keeps:
+            for p in passes:
+                if p.enabled(frame):
+                    for name, rect in p.footprint(frame).items():
+                        now[name] = EVERYWHERE if EVERYWHERE in (rect, now.get(name)) else union_rect(now.get(name), rect)
+        if layer == KEPT:
+            plan.regions = {name: _region(self.footprints.get(name), now.get(name), plan.size)
+                            for name in set(now) | set(self.footprints)}
+        self.footprints = now
+        return plan
+
+    def layer_counts(self) -> dict[str, int]:
+        """Frames so far that kept the molecule layer, and that drew it (kept or not)."""
+        return {"kept": self.counts[KEPT], "drawn": self.counts[DRAWN] + self.counts[PLAIN]}
+
+    def stash_under_probe(self, frame) -> None:
+        """Keep the molecule layer's pixels the probe is about to cover (the layer is
+        complete in the G-buffer, the probe not drawn yet)."""
+        rect = frame.probe_rect()
+        if self.stash is None or self.stash.size != tuple(frame.size):
+            if self.stash is not None:
+                self.stash.release()
+            self.stash = GBufferStash(self.ctx, self.programs, frame.size)
+        self.stash.save(frame.targets, rect)
+        self.stashed = rect
+
+    def release(self) -> None:
+        if self.stash is not None:
+            self.stash.release()
+            self.stash = None
+
+
+def _region(last, now, size) -> Rect | None:
+    if EVERYWHERE in (last, now):
+        return full_rect(size)
+    return union_rect(last, now)
