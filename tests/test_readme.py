@@ -1,5 +1,6 @@
 """The documentation against the code and the tree: every `sasprobe …` command line of
-every page parses with the real argument parser, every relative link (and its #anchor)
+every page parses with the real argument parser, every `--option` a page names in inline
+code is one a command has, every relative link (and its #anchor)
 resolves, no page names a path outside the repository, and the README's set-up commands
 are the ones CI runs.
 
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import io
 import re
 import shlex
@@ -35,6 +37,7 @@ SAMPLES = ("1", "64x48", "0,0,1", "0,0,1,1", "sim", "tcp://127.0.0.1:5555", "out
 LINK = re.compile(r"!?\[(?:[^\]\[]|\[[^\]]*\])*\]\(([^)\s]+)\)")  # [text](target), ![alt](target)
 UPWARD = re.compile(r"(?<![\w.])(?:\.\./)+[\w.-]*")  # ../x, ../../x: resolved against the page's folder
 MACHINE_PATH = re.compile(r"(?<![\w.~])/work/")
+OPTION = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*")
 # Pages a command writes rather than a person: a link to one may precede its first run.
 GENERATED = {"docs/benchmarks.md": "sasprobe bench --out docs/"}
 
@@ -145,9 +148,21 @@ def fill_placeholders(parser: argparse.ArgumentParser, args: list[str]) -> list[
     return out
 
 
+def exact_parser() -> argparse.ArgumentParser:
+    """The real parser, taking options only as spelled in full: a page that wrote
+    `--cube-half` must fail once the option is called anything else, even `--cube-halfedge`."""
+    parser = build_parser()
+    pending = [parser]
+    while pending:
+        current = pending.pop()
+        current.allow_abbrev = False
+        pending += subparsers(current).values()
+    return parser
+
+
 def parse_error(args: list[str]) -> str | None:
     """None when the parser accepts the arguments (or shows their --help), else its message."""
-    parser = build_parser()
+    parser = exact_parser()
     stderr = io.StringIO()
     try:
         with contextlib.redirect_stderr(stderr), contextlib.redirect_stdout(io.StringIO()):
@@ -155,6 +170,29 @@ def parse_error(args: list[str]) -> str | None:
     except SystemExit as exc:
         return None if exc.code == 0 else stderr.getvalue().strip() or f"exit status {exc.code}"
     return None
+
+
+def every_option(parser: argparse.ArgumentParser, found: set[str] | None = None) -> set[str]:
+    """The long options of the parser and of all its subcommands, at any depth."""
+    found = set() if found is None else found
+    for action in parser._actions:
+        found.update(s for s in action.option_strings if s.startswith("--"))
+    for sub in subparsers(parser).values():
+        every_option(sub, found)
+    return found
+
+
+@functools.cache
+def known_options() -> frozenset[str]:
+    return frozenset(every_option(build_parser()))
+
+
+def unknown_options(text: str) -> list[str]:
+    """`--options` named in a page's inline code (option tables, prose) that no sasprobe
+    command has: a renamed flag shows here even where no whole command line names it."""
+    known = known_options()
+    return [f"{option} in `{span}`" for span in SPAN.findall(FENCE.sub("", text))
+            for option in OPTION.findall(span) if option not in known]
 
 
 def github_anchor(heading: str) -> str:
@@ -219,6 +257,11 @@ def test_every_command_line_parses(page):
     assert failures == []
 
 
+@pytest.mark.parametrize("page", command_pages(), ids=rel)
+def test_every_documented_option_exists(page):
+    assert unknown_options(page.read_text()) == []
+
+
 def test_the_command_lines_are_many():
     total = sum(len(readme_commands(p.read_text())) for p in command_pages())
     assert total >= 100, f"only {total} sasprobe command lines found: the extraction broke"
@@ -258,11 +301,18 @@ def test_the_readme_set_up_commands_are_what_ci_runs():
     ("```sh\nsasprobe daemon & sasprobe render \\\n    --spheres cubes\n```\n", "invalid choice: 'cubes'"),
     ("`sasprobe bench NAME --seconds S`", "unrecognized arguments: --seconds"),
     ("```sh\nsasprobe sas 1crn --per-atom > out.csv\n```\n", "unrecognized arguments: --per-atom"),
+    ("```sh\nsasprobe sas 1crn --per-res\n```\n", "unrecognized arguments: --per-res"),  # no abbreviations
 ])
 def test_a_wrong_line_is_caught(text, error):
     commands = readme_commands(text)
     errors = [parse_error(args) for _, args in commands]
     assert any(e is not None and error in e for e in errors), errors
+
+
+def test_a_renamed_option_in_a_table_is_caught():
+    table = "| option | meaning |\n|---|---|\n| `--probe-light-reach Å` | the probe light's reach |\n"
+    assert unknown_options(table) == ["--probe-light-reach in `--probe-light-reach Å`"]
+    assert unknown_options(table.replace("reach Å", "range Å")) == []
 
 
 def test_a_redirection_is_the_shells():
