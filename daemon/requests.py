@@ -9,6 +9,7 @@ loop only ever swaps finished objects in.
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
 import time
@@ -22,6 +23,7 @@ from sasprobe.daemon.haptics import validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.daemon.marks import drop_mark
 from sasprobe.devices.workspace import validate_rotation
+from sasprobe.molecule.packed import pack_structure
 from sasprobe.common.errors import UserError
 from sasprobe.protocol.control import COMMANDS, ControlReply, Request
 from sasprobe.protocol.scene import merge_lights
@@ -49,6 +51,7 @@ class RequestHandlers:
             "findings": self.findings,
         }
         self.findings_job: FindingsJob | None = None  # the newest `findings` analysis
+        self._packed: tuple = (None, b"", "")  # (structure, its arrays packed, their sha256) for get_structure
         assert set(self._handlers) == set(COMMANDS), "every protocol command needs its handler"
 
     def handle(self, request: Request) -> ControlReply:
@@ -98,8 +101,15 @@ class RequestHandlers:
 
     def get_structure(self, request):
         s = self.daemon.structure
-        return {"name": s.name, "sha256": s.sha256, "n_atoms": s.n_atoms, "bytes": len(s.source_bytes),
-                "gzip": s.source_bytes[:2] == b"\x1f\x8b", "keep_water": self.daemon.structure_keep_water}, s.source_bytes
+        header = {"name": s.name, "sha256": s.sha256, "n_atoms": s.n_atoms, "bytes": len(s.source_bytes),
+                  "gzip": s.source_bytes[:2] == b"\x1f\x8b", "keep_water": self.daemon.structure_keep_water}
+        if request.args.get("form", "file") == "file":
+            return header, s.source_bytes
+        if self._packed[0] is not s:  # packed once per structure, for every renderer that joins
+            packed = pack_structure(s)
+            self._packed = (s, packed, hashlib.sha256(packed).hexdigest())
+        _, packed, digest = self._packed
+        return {**header, "form": "arrays", "bytes": len(packed), "gzip": False, "arrays_sha256": digest}, packed
 
     # ------------------------------------------------------------------ changing
     def load(self, request):

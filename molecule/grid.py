@@ -267,12 +267,13 @@ class UniformGrid:
         n = self.centers.shape[0]
         if k <= 0:
             raise ValueError("k must be positive")
-        out_idx = np.full((n, k), -1, dtype=np.int64)
-        out_dist = np.full((n, k), np.inf, dtype=np.float64)
+        asked = np.arange(n) if of is None else np.unique(np.asarray(of, dtype=np.int64))  # sorted
+        out_idx = np.full((asked.size, k), -1, dtype=np.int64)  # a row per sphere asked for
+        out_dist = np.full((asked.size, k), np.inf, dtype=np.float64)
         if self._bins is None:
             self._bins = self._centre_bins()
         home, home_flat, order, counts, start = self._bins
-        pending = np.arange(n) if of is None else np.unique(np.asarray(of, dtype=np.int64))
+        pending = asked
         ring = 1
         while pending.size:
             pending_sorted = pending[np.argsort(home_flat[pending], kind="stable")]
@@ -291,23 +292,24 @@ class UniformGrid:
                 d = np.sqrt(np.einsum("ijk,ijk->ij", diff, diff))
                 d[members[:, None] == cand[None, :]] = np.inf  # not its own neighbour
                 kk = min(k, cand.size - 1)
+                rows = np.searchsorted(asked, members)
                 if kk > 0:
                     # stable sort by distance keeps lower index first on ties
                     best = np.argsort(d, axis=1, kind="stable")[:, :kk]
-                    out_idx[members, :kk] = cand[best]
-                    out_dist[members, :kk] = np.take_along_axis(d, best, axis=1)
+                    out_idx[rows, :kk] = cand[best]
+                    out_dist[rows, :kk] = np.take_along_axis(d, best, axis=1)
                 if whole_grid:
                     continue
                 # Exact only if the k-th neighbour lies within the block's guaranteed radius.
                 guaranteed = ring * self.cell_size
-                unsure = (kk < k) | (out_dist[members, max(kk - 1, 0)] > guaranteed)
+                unsure = (kk < k) | (out_dist[rows, max(kk - 1, 0)] > guaranteed)
                 if np.any(unsure):
                     still.append(members[unsure])
             pending = np.concatenate(still) if still else np.empty(0, dtype=np.int64)
             ring += 1
         if of is not None:
-            of = np.asarray(of, dtype=np.int64)
-            return out_idx[of], out_dist[of]
+            rows = np.searchsorted(asked, np.asarray(of, dtype=np.int64))
+            return out_idx[rows], out_dist[rows]
         return out_idx, out_dist
 
     def nearest_to_point(self, point, k: int) -> np.ndarray:

@@ -200,9 +200,10 @@ class ControlClient:
     def get_scene(self) -> dict:
         return self.call("get_scene")
 
-    def get_structure(self, timeout_s: float = 30.0) -> tuple[dict, bytes]:
-        """The structure file the daemon uses: (header with name, sha256, ..., the raw bytes)."""
-        reply = self.request("get_structure", timeout_s=timeout_s)
+    def get_structure(self, timeout_s: float = 30.0, form: str = "file") -> tuple[dict, bytes]:
+        """The structure the daemon uses: (header with name, sha256, ..., the bytes): the file
+        as loaded, or with `form` "arrays" its parsed arrays."""
+        reply = self.request("get_structure", {} if form == "file" else {"form": form}, timeout_s=timeout_s)
         if not reply.ok:
             raise ControlError(f"get_structure: {reply.error}")
         if reply.data is None:
@@ -266,25 +267,31 @@ class ControlClient:
 
 @dataclass(frozen=True)
 class StructureFile:
-    """The daemon's structure file as `get_structure` serves it, its sha256 checked. Parse it
-    with `sasprobe.molecule.parse_structure(data, name=name, source=source, keep_water=keep_water)`
-    to get the daemon's atoms (the protocol itself knows nothing of structures)."""
+    """The daemon's structure as `get_structure` serves it, its sha256 checked: the file
+    (form "file": parse it with `sasprobe.molecule.parse_structure(data, name=name,
+    source=source, keep_water=keep_water)`) or its parsed arrays (form "arrays":
+    `sasprobe.molecule.packed.unpack_structure(data, name, source, sha256)`), either way
+    the daemon's atoms (the protocol itself knows nothing of structures)."""
 
     name: str
     data: bytes
     keep_water: bool  # as the daemon loaded it
     source: str  # where it came from, for messages
+    form: str = "file"
+    sha256: str = ""  # of the file (the scene's structure.sha256)
 
 
 def fetch_structure(ctl_endpoint: str = DEFAULT_CTL_ENDPOINT, keys: ClientKeys | None = None,
-                    timeout_s: float = 30.0) -> StructureFile:
-    """The daemon's structure file (no shared disk needed); ControlError if it does not match its sha256."""
+                    timeout_s: float = 30.0, form: str = "file") -> StructureFile:
+    """The daemon's structure, as a file or (`form` "arrays") its parsed arrays (no shared disk
+    needed); ControlError if the bytes do not match their sha256."""
     import hashlib
 
     with ControlClient(ctl_endpoint, keys=keys, timeout_s=timeout_s) as client:
-        header, data = client.get_structure(timeout_s=timeout_s)
-    if hashlib.sha256(data).hexdigest() != header.get("sha256"):
+        header, data = client.get_structure(timeout_s=timeout_s, form=form)
+    digest = header.get("sha256") if form == "file" else header.get("arrays_sha256")
+    if hashlib.sha256(data).hexdigest() != digest:
         raise ControlError(f"structure from {ctl_endpoint} does not match its sha256")
     name = header.get("name", "structure")
     return StructureFile(name=name, data=data, keep_water=bool(header.get("keep_water", False)),
-                         source=f"{ctl_endpoint}:{name}")
+                         source=f"{ctl_endpoint}:{name}", form=form, sha256=str(header.get("sha256", "")))

@@ -37,6 +37,7 @@ MAX_NESTING = 16  # arrays/objects inside each other (a `set` needs 4)
 MAX_INTEGER_DIGITS = 18  # any int64 of 18 digits; a longer integer is refused
 MAX_NAME_CHARS = 200  # `load`'s name and other short strings
 
+STRUCTURE_FORMS = ("file", "arrays")  # what `get_structure` serves: the file as loaded, or its parsed arrays
 COMMANDS = (
     "ping",
     "status",
@@ -287,8 +288,11 @@ def validate_set_args(args: dict) -> dict:
 
 
 def _check_args(req: Request) -> None:
-    if req.cmd in ("ping", "get_scene", "get_structure", "record_stop", "shutdown"):
+    if req.cmd in ("ping", "get_scene", "record_stop", "shutdown"):
         _no_args(req)
+    elif req.cmd == "get_structure":
+        if set(req.args) - {"form"} or req.args.get("form", "file") not in STRUCTURE_FORMS:
+            raise ProtocolError(f"'get_structure' takes only 'form' ({' or '.join(map(repr, STRUCTURE_FORMS))})")
     elif req.cmd == "status":
         unknown = set(req.args) - {"reset_stats"}
         if unknown or not isinstance(req.args.get("reset_stats", False), bool):

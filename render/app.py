@@ -184,15 +184,16 @@ def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
 
     from sasprobe.render.workspace_view import WorkspaceView
 
-    source.wait_ready()  # a daemon: its structure and a first pose, or one clear line
-    scene = build_scene(source.take_new_structure(), opts)
-    view = WorkspaceView(opts.start_view)  # headless never turns the view: it follows the daemon's
+    source.poll()  # a daemon: its structure is fetched on a thread while the GL context is made
     ctx = create_headless_context()
     try:
+        source.wait_ready()  # a daemon: its structure and a first pose, or one clear line
+        scene = build_scene(source.take_new_structure(), opts)
         renderer = make_renderer(ctx, scene, opts.size, opts)
     except Exception:
         ctx.release()
         raise
+    view = WorkspaceView(opts.start_view)  # headless never turns the view: it follows the daemon's
     camera = initial_camera(scene, opts)
     frames = opts.frames if (opts.frames is not None or opts.seconds is not None) else 1
     writer = _writer(opts, frames)

@@ -1,8 +1,9 @@
 """Following a running daemon (`sasprobe render --connect`).
 
-The structure comes from the daemon's control endpoint (`get_structure`: the file bytes,
-so a remote renderer needs no shared disk), fetched on a background thread so a window
-stays responsive; the pose and scene come from its publisher through the protocol's
+The structure comes from the daemon's control endpoint (`get_structure` with form
+"arrays": the daemon's parsed atoms as flat arrays, which unpack far faster than the file
+parses, so a remote renderer needs no shared disk and a large structure is drawn soon
+after joining), fetched on a background thread so a window stays responsive; the pose and scene come from its publisher through the protocol's
 Subscriber, drained once per frame without blocking. When nothing arrives for
 STALE_S the daemon counts as gone and the readout says 'waiting for daemon'; ZeroMQ
 reconnects by itself when it returns, and a daemon serving another structure (its
@@ -26,8 +27,9 @@ from collections import deque
 import numpy as np
 
 from sasprobe.common.errors import UserError
-from sasprobe.molecule import Structure, parse_structure
-from sasprobe.protocol.client import ControlClient, Subscriber, fetch_structure
+from sasprobe.molecule import DEFAULT_PROBE_RADIUS, Structure, parse_structure
+from sasprobe.molecule.packed import unpack_structure
+from sasprobe.protocol.client import ControlClient, ControlError, Subscriber, fetch_structure
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
 from sasprobe.protocol.pose import FLAG_CLUTCHED, FLAG_DRIFTING
 from sasprobe.protocol.security import ClientKeys
@@ -130,9 +132,22 @@ class DaemonLink(RenderSource):
     # ------------------------------------------------------------ structure
     def _fetch(self) -> None:
         try:
-            served = fetch_structure(self.ctl, keys=self.keys, timeout_s=FETCH_TIMEOUT_S)
-            self._fetched = parse_structure(served.data, name=served.name, source=served.source,
-                                            keep_water=self.keep_water or served.keep_water)
+            # --keep-water: the file, parsed with the waters (the daemon may have removed them);
+            # a daemon that serves no arrays (an older version) refuses the form: the file then
+            served = None
+            if not self.keep_water:
+                try:
+                    served = fetch_structure(self.ctl, keys=self.keys, timeout_s=FETCH_TIMEOUT_S, form="arrays")
+                except ControlError as exc:
+                    if "get_structure" not in str(exc):
+                        raise
+            if served is None:
+                served = fetch_structure(self.ctl, keys=self.keys, timeout_s=FETCH_TIMEOUT_S)
+            if served.form == "arrays":
+                self._fetched = unpack_structure(served.data, served.name, served.source, served.sha256)
+            else:
+                self._fetched = parse_structure(served.data, name=served.name, source=served.source,
+                                                keep_water=self.keep_water or served.keep_water)
             self._fetch_error = None
         except UserError as exc:  # ControlError, or a StructureError from the bytes
             self._fetch_error = str(exc)
@@ -199,6 +214,17 @@ class DaemonLink(RenderSource):
 
     def view_axes(self) -> np.ndarray:
         return view_axes(self.subscriber.scene)
+
+    def preview(self):
+        """The cube and the probe of the newest pose, while the structure is on its way."""
+        state, pose = self.subscriber.scene, self.subscriber.pose
+        if pose is None or not self.connected or (state is not None and not state["nav_cube"]["enabled"]) \
+                or not (pose.cube_half_A > 0 and np.all(np.isfinite(pose.cube_center_A))):
+            return None, None
+        radius = float(state["probe_radius_A"]) if state is not None else DEFAULT_PROBE_RADIUS
+        cube = NavCube(center=np.array(pose.cube_center_A, dtype=np.float64), half=float(pose.cube_half_A),
+                       axes=view_axes(state))
+        return cube, Probe(center=np.array(pose.proxy_A, dtype=np.float64), radius=radius)
 
     def request(self, cmd: str, **args) -> bool:
         self.requests.send(cmd, **args)

@@ -63,6 +63,11 @@ class RenderSource(abc.ABC):
         """What arrived and what was lost, for `--report`; None without a stream."""
         return None
 
+    def preview(self):
+        """(navigation cube, probe) where the live state has them before a structure is
+        there to draw (render/waiting_view.py); (None, None) without."""
+        return None, None
+
     def view_axes(self):
         """The workspace view's axes (3 x 3, columns) as the daemon has them; None without a daemon."""
         return None

@@ -31,6 +31,7 @@ from sasprobe.render.passes.overlay import TextOverlay
 from sasprobe.render.picking import label_position, pixel_under, point_under
 from sasprobe.render.scene_state import Effects
 from sasprobe.render.source import Readout
+from sasprobe.render.waiting_view import WaitingView
 from sasprobe.render.workspace_view import OVERVIEW, WORKSPACE, WorkspaceView, overview_camera
 
 log = logging.getLogger("sasprobe")
@@ -56,15 +57,18 @@ TOGGLES = {
 }
 SPHERE_MODES = ("quad", "sprite")
 CLUTCH_RENEW_S = 0.3  # the clutch key's lease is renewed this often while Space is down
+TOGGLES_PER_LINE = 3
+_TOGGLE_TEXTS = [f"{k}: {label}" for k, (_, label) in TOGGLES.items()]
+# Short lines, the switches three to a line, so the readout and the help fit a 640x480 window.
 HELP = [
-    "drag: rotate (workspace view: turns the hand's frame too)   right/middle drag or shift+drag: pan",
-    "wheel: zoom (overview: to the cursor)   click: name an atom",
-    "Tab: workspace view / overview   Home: recentre the cube on the probe   Space (held): clutch",
-    *[f"{k}: {label}" for k, (_, label) in TOGGLES.items()],
+    "drag: rotate (workspace view: turns the hand's frame too)",
+    "right/middle drag or shift+drag: pan   wheel: zoom   click: name an atom",
+    "Tab: workspace view / overview   Home: recentre the cube on the probe",
+    "Space (held): clutch   Enter: drop a mark at the probe (with a daemon)",
+    *["   ".join(_TOGGLE_TEXTS[i:i + TOGGLES_PER_LINE]) for i in range(0, len(_TOGGLE_TEXTS), TOGGLES_PER_LINE)],
     "C: colour scheme   I: lighting preset   Shift+A: AO method   Z: centre on the probe",
     "Ctrl+S: screenshot   Ctrl+R: start/stop a video   M: sphere mode (quad/sprite)",
     "R: reset camera   H: help   Q/Esc: quit",
-    "Enter: drop a mark at the probe (with a daemon)",
 ]
 CLICK_PIXELS = 3.0  # a press and release closer than this is a click (a pick), not a drag
 
@@ -102,6 +106,7 @@ class WindowApp:
         self.programs = ProgramCache(ctx)
         self.overlay = TextOverlay(ctx, self.programs)
         self.label_overlay = TextOverlay(ctx, self.programs)
+        self.waiting = WaitingView(ctx, self.programs)
         self.readout = Readout()
         source.show_live_clearance()
         self.show_help = False
@@ -302,11 +307,15 @@ class WindowApp:
             self.source.apply(self.renderer.scene)
             self.renderer.resize(size)
             self.renderer.render(self._workspace_camera() or self.camera, output_fbo=screen)
-        else:
-            screen.use()
-            screen.viewport = (0, 0, *size)
+        else:  # no structure yet: the cube and the probe where the poses put them, if they came
             background = self.background or PRESETS[self.preset].background
-            screen.clear(*background, 1.0)
+            cube, probe = self.source.preview()
+            if cube is not None:
+                self.waiting.draw(screen, size, cube, probe, background)
+            else:
+                screen.use()
+                screen.viewport = (0, 0, *size)
+                screen.clear(*background, 1.0)
         if self.effects.readout and text is not None:
             self.overlay.draw(screen, size, text)
         if self.picked is not None and self.renderer is not None:
@@ -374,6 +383,7 @@ class WindowApp:
             self.renderer.release()
         self.overlay.release()
         self.label_overlay.release()
+        self.waiting.release()
         self.programs.release()
 
 

@@ -45,9 +45,22 @@ def workspace_camera(cube, aspect: float, zoom: float = 1.0, axes: np.ndarray | 
 
 
 def overview_camera(scene, aspect: float, axes: np.ndarray, fov_y: float = DEFAULT_FOV) -> Camera:
-    """The whole molecule (and cube and probe), seen from the workspace view's direction."""
-    center, radius = scene.bounding_sphere()
-    return Camera.fitted(center, radius, aspect, fov_y=fov_y, direction=axes[:, 2], up=axes[:, 1])
+    """What the picture shows of the whole molecule — with a cube, the cube's atoms and the
+    backbone trace of the rest; without, every atom — and the probe, seen from the workspace
+    view's direction and framed as tightly as the picture allows (Camera.framing: their
+    bounding sphere would leave them a third of the picture)."""
+    s = scene.structure
+    cube = scene.active_cube()
+    trace = np.concatenate(s.backbone) if s.backbone else np.zeros(0, dtype=np.int64)
+    if cube is None or trace.size == 0:
+        centers, radii = [s.positions], [s.vdw_radii]
+    else:  # the cube's atoms lie within the cube grown by their radius
+        centers, radii = [s.positions[trace], cube.corners()], [np.zeros(trace.size), np.full(8, s.vdw_radii.max())]
+    if scene.probe is not None:
+        centers.append(scene.probe.center[None, :])
+        radii.append(np.array([scene.probe.radius]))
+    return Camera.framing(np.concatenate(centers), np.concatenate(radii), aspect, fov_y=fov_y,
+                          direction=axes[:, 2], up=axes[:, 1])
 
 
 def turned_axes(axes: np.ndarray, p0: tuple[float, float], p1: tuple[float, float]) -> np.ndarray:

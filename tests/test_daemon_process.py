@@ -18,6 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sasprobe.molecule import parse_structure
+from sasprobe.molecule.packed import unpack_structure
 from sasprobe.protocol.client import ControlClient, ControlError, Subscriber, fetch_structure
 from sasprobe.protocol.control import decode_reply
 from sasprobe.protocol.scene import SCENE_VERSION
@@ -197,6 +198,11 @@ def test_control_commands_change_the_scene_and_serve_the_structure(daemon, tmp_p
     served = fetch_structure(daemon.ctl)
     structure = parse_structure(served.data, name=served.name, source=served.source, keep_water=served.keep_water)
     assert structure.sha256 == scene["structure"]["sha256"] and structure.n_atoms == scene["structure"]["n_atoms"]
+    arrays = fetch_structure(daemon.ctl, form="arrays")  # the same atoms, parsed by the daemon
+    unpacked = unpack_structure(arrays.data, arrays.name, arrays.source, arrays.sha256)
+    assert arrays.form == "arrays" and unpacked.sha256 == structure.sha256
+    assert np.array_equal(unpacked.positions, structure.positions)
+    assert np.array_equal(unpacked.atom_names, structure.atom_names)
 
 
 def test_load_by_bytes_switches_the_structure(daemon, reference_by_id):

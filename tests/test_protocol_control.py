@@ -54,6 +54,7 @@ def test_round_trip_of_every_command_shape():
         ([b'{"cmd": "set", "args": {"warp": 9}}'], "does not know"),
         ([b'{"cmd": "record_start", "args": {"path": 5}}'], "string 'path'"),
         ([b'{"cmd": "load", "args": {}}'], "string 'path'"),
+        ([b'{"cmd": "get_structure", "args": {"form": "xml"}}'], "takes only 'form'"),
         ([b'{"cmd": "ping"}', b"data"], "no data frame"),
         ([b"{}", b"", b""], "1 or 2 frames"),
         ([b" " * (MAX_REQUEST_JSON_BYTES + 1)], "larger than"),

@@ -131,6 +131,14 @@ def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
     assert proc.returncode == 0, err
 
 
+def test_the_help_is_whole_the_overview_fills_the_picture_and_a_waiting_window_shows_the_arm(xvfb):
+    """H's help panel fits the window with every line drawn; Tab's overview frames the
+    molecule, its cube and trace across the picture; before a daemon's structure arrives
+    the window shows the cube and the probe under its progress line
+    (tests/render_window_layout_check.py, read from the window's screenshots)."""
+    run_window_check(xvfb, "tests.render_window_layout_check")
+
+
 def test_every_render_key_and_the_mouse_change_the_picture(xvfb):
     """F B N W P L D T K X O each flip their switch and change the picture, pressed again
     they restore it exactly; M swaps quads for sprites, H shows the help, a drag turns,

@@ -123,15 +123,21 @@ class Frame:
 
     def raster_camera_uniforms(self) -> dict:
         """The camera as the impostor and line shaders take it (shaders/camera.glsl)."""
-        p = self.proj
-        w, h = self.size
-        return {
-            "u_viewproj": gl_bytes(self.viewproj),
-            "u_eye": tuple(float(v) for v in self.camera.eye),
-            "u_cam_basis": np.ascontiguousarray(self.camera_basis().T, dtype=np.float32).tobytes(),
-            "u_ray_scale": (1.0 / p[0, 0], 1.0 / p[1, 1], float(p[0, 2]), float(p[1, 2])),
-            "u_viewport": (0.0, 0.0, float(w), float(h)),
-        }
+        return raster_camera_uniforms(self.camera, self.viewproj, self.proj, self.size, self.camera_basis())
+
+
+def raster_camera_uniforms(camera: Camera, viewproj: np.ndarray, proj: np.ndarray, size: tuple[int, int],
+                           basis: np.ndarray | None = None) -> dict:
+    """A camera as the impostor and line shaders take it (shaders/camera.glsl)."""
+    w, h = size
+    basis = camera.basis() if basis is None else basis
+    return {
+        "u_viewproj": gl_bytes(viewproj),
+        "u_eye": tuple(float(v) for v in camera.eye),
+        "u_cam_basis": np.ascontiguousarray(basis.T, dtype=np.float32).tobytes(),
+        "u_ray_scale": (1.0 / proj[0, 0], 1.0 / proj[1, 1], float(proj[0, 2]), float(proj[1, 2])),
+        "u_viewport": (0.0, 0.0, float(w), float(h)),
+    }
 
 
 MOLECULE, FRAME = "molecule", "frame"  # Pass.layer

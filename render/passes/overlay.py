@@ -13,7 +13,7 @@ import numpy as np
 from sasprobe.render.gl.uniforms import apply_uniforms
 
 PADDING = 6
-MAX_SIZE = (640, 320)
+MAX_SIZE = (1024, 768)  # an overlay's texture: room for the readout with the window's help
 FONT_FILE, FONT_SIZE = "DejaVuSans.ttf", 12  # has Å and ²; Pillow finds it in the system's font folders
 _ASCII = str.maketrans({"Å": "A", "²": "^2", "·": ".", "≥": ">=", "…": "..."})
 
