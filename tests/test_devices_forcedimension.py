@@ -8,7 +8,9 @@ moved 10 mm toward the user (DHD +x) must read +10 mm on sasprobe's z.
 
 from __future__ import annotations
 
+import json
 import math
+import os
 import time
 
 import numpy as np
@@ -18,6 +20,7 @@ from sasprobe.devices import forcedimension
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.forcedimension import frame
 from sasprobe.devices.forcedimension.driver import ForceDimensionDevice
+from tests.conftest import run_cli
 from tests.emulators import libdhd
 
 
@@ -215,3 +218,32 @@ def test_the_device_string():
     assert forcedimension.create(None).index == 0 and forcedimension.create("2").index == 2
     with pytest.raises(DeviceOpenError, match="expected an arm index"):
         forcedimension.create("omega")
+
+
+def test_devices_lists_the_arms_the_library_counts_and_checks_one(library, tmp_path):
+    emu = libdhd.launch(library=library, types=(libdhd.OMEGA3, libdhd.SIGMA7_RIGHT), serials=(4711, 12),
+                        hand=(0.0, 0.01, 0.0))
+    env = dict(os.environ, **emu.env)
+    try:
+        listed = run_cli("devices", "--json", env=env)
+        assert listed.returncode == 0, listed.stderr
+        arms = [(d["path"], d["description"], d["device"]) for d in json.loads(listed.stdout)["devices"]
+                if d["transport"] == "dhd"]
+        assert arms == [("index 0", "Force Dimension omega.3 serial 4711", "forcedimension"),
+                        ("index 1", "Force Dimension sigma.7 (right) serial 12", "forcedimension:1")]
+        checked = run_cli("devices", "--check", "forcedimension:1", "--seconds", "0.3", "--json", env=env)
+        assert checked.returncode == 0, checked.stderr
+        report = json.loads(checked.stdout)
+        assert report["info"]["model"] == "sigma.7 (right)" and report["reads"] > 10 and report["faults"] == 0
+        # the hand holds the handle 10 mm right of DHD's origin; the sigma.7's offset adds 20 mm
+        np.testing.assert_allclose(report["position_mm"], [30.0, 0.0, -10.0], atol=0.1)
+        assert emu.control.open_id == -1 and emu.force_n == (0.0, 0.0, 0.0)  # closed, at zero
+    finally:
+        emu.close()
+
+
+def test_check_without_the_library_is_one_line(tmp_path):
+    result = run_cli("devices", "--check", "forcedimension",
+                     env=dict(os.environ, SASPROBE_DHD_LIBRARY=str(tmp_path / "libdhd.so")))
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2 and len(lines) == 1 and "SASPROBE_DHD_LIBRARY" in lines[0], result.stderr

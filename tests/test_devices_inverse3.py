@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import threading
 import time
 
@@ -22,6 +23,7 @@ from sasprobe.devices import inverse3
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.inverse3 import protocol
 from sasprobe.devices.inverse3.driver import Inverse3Device
+from tests.conftest import run_cli
 from tests.emulators.inverse_service import InverseService
 
 
@@ -221,3 +223,31 @@ def test_the_device_string_and_timing():
     dev = inverse3.create("ws://host:9000", rate_hz=250)
     assert dev.url == "ws://host:9000" and dev.reply_timeout_s == pytest.approx(0.010)
     assert dev.read_wait_s == pytest.approx(0.001)
+
+
+def test_devices_lists_the_services_arm_and_checks_it(service):
+    svc = service(calibrated=False)
+    svc.hand.target = (0.0, 0.0, 10.0)  # 10 mm up
+    env = dict(os.environ, **svc.env)
+    listed = run_cli("devices", "--json", env=env)
+    assert listed.returncode == 0, listed.stderr
+    arms = [(d["path"], d["description"], d["device"], d["note"]) for d in json.loads(listed.stdout)["devices"]
+            if d["transport"] == "websocket"]
+    assert arms == [(svc.url, "Haply Inverse3 049D", f"inverse3:{svc.url}", "not calibrated yet: let it self-calibrate")]
+    assert svc.messages == 0  # listing sends nothing
+    checked = run_cli("devices", "--check", f"inverse3:{svc.url}", "--seconds", "0.3", "--json", env=env)
+    assert checked.returncode == 0, checked.stderr
+    report = json.loads(checked.stdout)
+    assert report["info"]["model"] == "Haply Inverse3" and report["reads"] > 10 and report["calibrated"] is False
+    np.testing.assert_allclose(report["position_mm"], [0.0, 10.0, 0.0], atol=0.5)
+    assert np.allclose(svc.samples[-1][1], 0.0)  # the check wrote zero force
+
+
+def test_check_without_a_service_is_one_line(service):
+    svc = service()
+    url = svc.url
+    svc.close()
+    result = run_cli("devices", "--check", f"inverse3:{url}")
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2 and len(lines) == 1 and url in lines[0] and "Inverse Service" in lines[0], \
+        result.stderr

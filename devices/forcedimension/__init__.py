@@ -8,7 +8,7 @@ sasprobe's, `driver` the device.
 from __future__ import annotations
 
 from sasprobe.devices.base import DeviceOpenError
-from sasprobe.devices.forcedimension.driver import ForceDimensionDevice
+from sasprobe.devices.forcedimension.driver import ForceDimensionDevice, list_arms
 
 
 def create(argument: str | None = None, **options) -> ForceDimensionDevice:

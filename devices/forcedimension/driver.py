@@ -152,3 +152,23 @@ class ForceDimensionDevice(HardwareDriver):
             raise DeviceFault(f"dhdSetForce failed: {self._error()}")
         if result == dhd.DHD_MOTOR_SATURATED:
             self.saturations += 1
+
+
+def list_arms(library: str | None = None) -> list[dict]:
+    """Each arm the SDK counts: {index, model, serial} once opened and closed again (as
+    CHAI3D's constructor does), or {index, error} for one that would not open (in use by
+    another program, not ready). DeviceOpenError without the library."""
+    lib = dhd.load_library(library)
+    arms = []
+    for index in range(max(lib.dhdGetDeviceCount(), 0)):
+        device_id = lib.dhdOpenID(index)
+        if device_id < 0:
+            code = lib.dhdErrorGetLast()
+            arms.append({"index": index, "error": f"{dhd.error_name(code)} ({code})"})
+            continue
+        serial = ctypes.c_ushort(0)
+        has_serial = lib.dhdGetSerialNumber(ctypes.byref(serial), device_id) >= 0
+        arms.append({"index": index, "model": model_for(lib.dhdGetSystemType(device_id)).name,
+                     "serial": str(serial.value) if has_serial else ""})
+        lib.dhdClose(device_id)
+    return arms

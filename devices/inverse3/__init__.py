@@ -6,7 +6,7 @@ sasprobe's, `models` what is assumed of each arm, `driver` the device.
 
 from __future__ import annotations
 
-from sasprobe.devices.inverse3.driver import Inverse3Device
+from sasprobe.devices.inverse3.driver import Inverse3Device, list_arms
 from sasprobe.devices.inverse3.protocol import DEFAULT_URL
 
 READ_WAIT_PERIODS = 0.25  # how long a read waits for the reply in flight

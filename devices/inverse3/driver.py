@@ -47,6 +47,17 @@ def _service_missing(url: str, why: object) -> DeviceOpenError:
                            "runs it) or give its address as --device inverse3:ws://HOST:PORT")
 
 
+def _connect(url: str, timeout_s: float):
+    """A WebSocket to the service (no pings, no compression, no proxy), or DeviceOpenError."""
+    try:
+        return connect(url, open_timeout=timeout_s, close_timeout=0.2, ping_interval=None, compression=None,
+                       proxy=None, legacy=True)
+    except (OSError, TimeoutError, InvalidHandshake) as exc:
+        raise _service_missing(url, exc) from None
+    except InvalidURI as exc:
+        raise DeviceOpenError(f"inverse3:{url}: not a WebSocket address ({exc})") from None
+
+
 class Session:
     """One WebSocket connection to the service, and its reader thread."""
 
@@ -67,13 +78,7 @@ class Session:
     @classmethod
     def open(cls, url: str, timeout_s: float) -> "Session":
         """Connect, take the inventory, send the first message and take its answer."""
-        try:
-            ws = connect(url, open_timeout=timeout_s, close_timeout=0.2, ping_interval=None, compression=None,
-                         proxy=None, legacy=True)
-        except (OSError, TimeoutError, InvalidHandshake) as exc:
-            raise _service_missing(url, exc) from None
-        except InvalidURI as exc:
-            raise DeviceOpenError(f"inverse3:{url}: not a WebSocket address ({exc})") from None
+        ws = _connect(url, timeout_s)
         try:
             try:
                 session_id, devices = protocol.inventory(ws.recv(timeout=timeout_s))
@@ -267,3 +272,23 @@ class Inverse3Device(HardwareDriver):
         if s is None or s.lost is not None or s.in_flight():
             return  # the next message carries the newest force
         s.send(protocol.force_message(s.device_id, self.force))
+
+
+def list_arms(url: str, timeout_s: float = 0.5) -> list[dict]:
+    """The Inverse3 arms an Inverse Service lists in its inventory: {device_id, model,
+    calibrated}; DeviceOpenError when nothing answers at `url` or it speaks another format.
+    Nothing is sent: the session ends unused."""
+    ws = _connect(url, timeout_s)
+    try:
+        _session_id, devices = protocol.inventory(ws.recv(timeout=timeout_s))
+    except (TimeoutError, ConnectionClosed, protocol.FormatError) as exc:
+        raise DeviceOpenError(f"{url} answers, but not as the Inverse Service's 3.x channel ({exc})") from None
+    finally:
+        ws.close()
+    arms = []
+    for entry in devices:
+        config = entry.get("config") if isinstance(entry.get("config"), dict) else {}
+        status = entry.get("status") if isinstance(entry.get("status"), dict) else {}
+        arms.append({"device_id": entry["device_id"], "model": model_for(str(config.get("type", "inverse3"))).name,
+                     "calibrated": bool(status.get("calibrated", True))})
+    return arms
