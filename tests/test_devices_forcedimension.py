@@ -20,8 +20,14 @@ from sasprobe.devices import forcedimension
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.forcedimension import frame
 from sasprobe.devices.forcedimension.driver import ForceDimensionDevice
+from sasprobe.protocol.client import Subscriber
+from sasprobe.protocol.pose import FLAG_FAULT
+from tests.arm_outage import recorded_outage
 from tests.conftest import run_cli
+from tests.daemon_process import DaemonProcess
 from tests.emulators import libdhd
+from tests.serial_arm_session import cosine
+from tests.test_devices_daemon import EMULATED_ARM_RATE, WHOLE, poses_until, pushing, settled
 
 
 def to_dhd_m(device_mm):
@@ -247,3 +253,52 @@ def test_check_without_the_library_is_one_line(tmp_path):
                      env=dict(os.environ, SASPROBE_DHD_LIBRARY=str(tmp_path / "libdhd.so")))
     lines = result.stderr.strip().splitlines()
     assert result.returncode == 2 and len(lines) == 1 and "SASPROBE_DHD_LIBRARY" in lines[0], result.stderr
+
+
+def test_daemon_presses_the_emulated_omega_and_rides_out_a_lost_link(library, tmp_path, monkeypatch):
+    emu = libdhd.launch(library=library, hand=(0.0, 0.0, 0.03))  # 30 mm above the workspace centre: outside
+    for key, value in emu.env.items():
+        monkeypatch.setenv(key, value)
+    path = tmp_path / "session.mcap"
+    try:
+        with DaemonProcess(*EMULATED_ARM_RATE, *WHOLE, "--record", str(path), device=emu.device_spec) as daemon:
+            assert daemon.ready["device"] == "forcedimension"
+            sub = Subscriber(daemon.pub)
+            poses_until(sub, lambda p: p.tip_mm[1] > 29.0, daemon)
+            emu.move_hand((0.0, 0.0, 0.0))  # down to the centre, into the molecule
+            poses_until(sub, pushing, daemon)
+            settled(sub, daemon)
+            written, exerted, held = [], [], []
+            end = time.monotonic() + 0.5
+            while time.monotonic() < end:
+                poses = sub.poll(0.02)
+                if poses and not poses[-1].has(FLAG_FAULT):
+                    written.append(poses[-1].force_N)
+                    exerted.append(to_device(emu.force_n))
+                    held.append(to_device(np.subtract(emu.handle_m, emu.control.hand), 1000.0))
+            assert len(written) > 10, daemon.stderr[-1500:]
+            wrote, made = np.median(written, axis=0), np.median(exerted, axis=0)
+            assert cosine(made, wrote) >= 0.99 and np.linalg.norm(made) == pytest.approx(np.linalg.norm(wrote),
+                                                                                          rel=0.05), (made, wrote)
+            assert np.median(held, axis=0) @ wrote / np.linalg.norm(wrote) > 1.0  # pushed out of the surface
+
+            failed_at = time.monotonic_ns()
+            emu.link(up=False)  # the arm stops answering: every call fails with DHD_ERROR_COM
+            assert np.allclose(poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon).force_N, 0.0)
+            time.sleep(0.3)
+            emu.link(up=True)
+            poses_until(sub, lambda p: "device reconnected" in daemon.stderr, daemon)
+            emu.move_hand((0.0, 0.0, 0.03))  # out into free space (a reconnected probe starts unseated), back in
+            poses_until(sub, lambda p: p.tip_mm[1] > 29.0 and not p.has(FLAG_FAULT), daemon)
+            emu.move_hand((0.0, 0.0, 0.0))
+            poses_until(sub, pushing, daemon)
+            rc, report = daemon.stop()
+            assert rc == 0, daemon.stderr
+            assert report["device_last_force_n"] == [0.0, 0.0, 0.0]
+        assert emu.force_n == (0.0, 0.0, 0.0) and emu.control.open_id == -1
+        assert emu.control.timeguards > 0 and emu.control.enables >= 2  # force enabled again after the outage
+        outage = recorded_outage(path, failed_at)
+        assert any(e and "DHD_ERROR_COM" in e for e in outage["errors"])
+        assert "reconnect" in [e["cmd"] for e in outage["session"].events]
+    finally:
+        emu.close()

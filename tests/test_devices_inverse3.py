@@ -23,8 +23,14 @@ from sasprobe.devices import inverse3
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.inverse3 import protocol
 from sasprobe.devices.inverse3.driver import Inverse3Device
+from sasprobe.protocol.client import Subscriber
+from sasprobe.protocol.pose import FLAG_FAULT
+from tests.arm_outage import recorded_outage
 from tests.conftest import run_cli
+from tests.daemon_process import DaemonProcess
 from tests.emulators.inverse_service import InverseService
+from tests.serial_arm_session import cosine
+from tests.test_devices_daemon import EMULATED_ARM_RATE, WHOLE, poses_until, pushing, settled
 
 
 def to_haply_mm(device_mm):
@@ -146,7 +152,8 @@ def test_a_hung_service_is_a_fault_within_the_reply_timeout_and_recovers_when_it
             dev.read()
             dev.write_force((0.0, 0.5, 0.0))
             time.sleep(0.001)
-    dev.reconnect()  # too early to give the session up: nothing happens
+    with pytest.raises(DeviceFault, match="has not answered for"):
+        dev.reconnect()  # too early to give the session up: still a fault, the same session
     svc.resume()
     run(dev)
     assert dev.info.details["sessions"] == 1 and dev.late_replies >= 1
@@ -251,3 +258,56 @@ def test_check_without_a_service_is_one_line(service):
     lines = result.stderr.strip().splitlines()
     assert result.returncode == 2 and len(lines) == 1 and url in lines[0] and "Inverse Service" in lines[0], \
         result.stderr
+
+
+def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_service(service, tmp_path):
+    svc = service()
+    svc.hand.place((0.0, 0.0, 30.0))  # 30 mm above the workspace centre: outside the molecule
+    path = tmp_path / "session.mcap"
+    with DaemonProcess(*EMULATED_ARM_RATE, *WHOLE, "--record", str(path), device=svc.device_spec) as daemon:
+        assert daemon.ready["device"] == "inverse3"
+        sub = Subscriber(daemon.pub)
+        poses_until(sub, lambda p: p.tip_mm[1] > 29.0, daemon)
+        svc.hand.target = (0.0, 0.0, 0.0)  # down to the centre, into the molecule
+        poses_until(sub, pushing, daemon)
+        poses = settled(sub, daemon)
+        t_first, t_last = poses[0].publish_t_ns, poses[-1].publish_t_ns
+        samples = [x for x in list(svc.samples) if t_first <= x[0] <= t_last]
+        wrote = np.median([p.force_N for p in poses], axis=0)
+        made = np.median([to_device(x[1]) for x in samples], axis=0)  # on the service's own record
+        assert len(samples) > 50 and svc.ignored_commands == 0
+        assert cosine(made, wrote) >= 0.99 and np.linalg.norm(made) == pytest.approx(np.linalg.norm(wrote), rel=0.05)
+        held = np.median([to_device(x[2]) for x in samples], axis=0)  # the cursor, the hand at the origin
+        assert held @ wrote / np.linalg.norm(wrote) > 1.0  # pushed out of the surface
+
+        hung_at = time.monotonic_ns()
+        svc.hang()  # the service stops answering, then answers again: no new session needed
+        assert np.allclose(poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon).force_N, 0.0)
+        time.sleep(0.3)
+        svc.resume()
+        poses_until(sub, pushing, daemon)
+        closed_at = time.monotonic_ns()
+        svc.stop()  # the service goes away, connection and all, then comes back
+        assert np.allclose(poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon).force_N, 0.0)
+        time.sleep(0.3)
+        svc.start()
+        poses_until(sub, lambda p: "device reconnected" in daemon.stderr, daemon)
+        svc.hand.target = (0.0, 0.0, 30.0)  # out into free space (a reconnected probe starts unseated), back in
+        poses_until(sub, lambda p: p.tip_mm[1] > 29.0 and not p.has(FLAG_FAULT), daemon)
+        svc.hand.target = (0.0, 0.0, 0.0)
+        poses_until(sub, pushing, daemon)
+        rc, report = daemon.stop()
+        assert rc == 0, daemon.stderr
+        assert report["device_last_force_n"] == [0.0, 0.0, 0.0]
+    assert svc.sessions == 2
+    hung = recorded_outage(path, hung_at)
+    assert any(e and "has not answered" in e for e in hung["errors"])
+    closed = recorded_outage(path, closed_at)
+    assert any(e and "closed the connection" in e for e in closed["errors"])
+    assert [e["cmd"] for e in closed["session"].events].count("reconnect") == 1
+
+
+def to_device(haply):
+    """Haply's frame → sasprobe's device frame, from the conventions above (same units)."""
+    x, y, z = haply
+    return np.array([x, z, -y])

@@ -218,8 +218,10 @@ class Inverse3Device(HardwareDriver):
         s = self._session
         if s is not None and s.lost is None:
             silent_s = time.monotonic() - s.sent_at
-            if not (s.in_flight() and silent_s > SILENT_RECONNECT_S):
-                return  # a late reply may still come: read() says when it does
+            if not s.in_flight() or silent_s <= self.reply_timeout_s:
+                return  # answering: nothing to do
+            if silent_s <= SILENT_RECONNECT_S:  # the late reply may still come; read() takes it when it does
+                raise DeviceFault(f"the Inverse Service has not answered for {silent_s * 1000:.0f} ms")
             log.warning("the Inverse Service has not answered for %.1f s: opening a new session", silent_s)
             s.close()
         if self._connected is not None:
