@@ -30,7 +30,7 @@ from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess
 from tests.emulators.inverse_service import InverseService
 from tests.serial_arm_session import cosine
-from tests.test_devices_daemon import EMULATED_ARM_RATE, WHOLE, poses_until, pushing, settled
+from tests.test_devices_daemon import WHOLE, poses_until, pushing, settled
 
 
 def to_haply_mm(device_mm):
@@ -85,6 +85,13 @@ def run(dev, condition=lambda s: True, force=(0.0, 0.0, 0.0), timeout_s=5.0):
     raise AssertionError("condition not reached in time")
 
 
+def hold(dev, svc, force):
+    """Tick with `force` until the service has taken three more messages: a message in flight
+    when the force changed carried the old one, the ones after it carry this one."""
+    start = svc.messages
+    return run(dev, lambda s: svc.messages >= start + 3, force=force)
+
+
 def test_the_frame_mapping_gives_the_published_axes():
     np.testing.assert_allclose(protocol.position_mm((0.01, 0.0, 0.0)), [10.0, 0.0, 0.0])  # right
     np.testing.assert_allclose(protocol.position_mm((0.0, 0.01, 0.0)), [0.0, 0.0, -10.0])  # away from the user
@@ -121,7 +128,7 @@ def test_moves_along_each_axis_and_a_diagonal_read_within_half_a_millimetre(arm,
 def test_a_force_is_sent_as_a_vector_in_haplys_frame_and_moves_the_cursor(arm):
     dev, svc = arm()
     state = run(dev, lambda s: s.position_mm[2] > 1.99, force=(0.0, 0.0, 1.0))  # toward the user: Haply −Y
-    np.testing.assert_allclose(svc.motor_force(), [0.0, -1.0, 0.0])
+    np.testing.assert_allclose(svc.samples[-1][1], [0.0, -1.0, 0.0])
     np.testing.assert_allclose(state.position_mm, [0.0, 0.0, 2.0], atol=0.02)  # the hand's 0.5 N/mm gives 2 mm
     assert svc.ignored_commands == 0
 
@@ -134,12 +141,23 @@ def test_the_grips_buttons_and_orientation(arm):
     np.testing.assert_allclose(state.orientation, [math.cos(0.3), math.sin(0.3), 0.0, 0.0], atol=1e-12)
 
 
+def test_an_uncalibrated_arm_gets_no_force(arm):
+    dev, svc = arm(calibrated=False)
+    state = hold(dev, svc, (1.0, 0.0, 0.0))
+    assert not state.calibrated and np.allclose(svc.samples[-1][1], 0.0)
+    svc.calibrated = True
+    run(dev, lambda s: s.calibrated, force=(1.0, 0.0, 0.0))
+    hold(dev, svc, (1.0, 0.0, 0.0))
+    np.testing.assert_allclose(svc.samples[-1][1], [1.0, 0.0, 0.0])
+
+
 def test_forces_are_clamped_and_never_nan(arm):
     dev, svc = arm()
     for command in [(50.0, -80.0, 20.0), (np.nan, 0.0, 0.0), (np.inf, 1.0, 1.0)]:
-        run(dev, force=command)
-        run(dev, force=command)  # the second message surely carries this force
-        assert np.linalg.norm(svc.motor_force()) <= 2.0 + 1e-9 and np.all(np.isfinite(svc.motor_force()))
+        hold(dev, svc, command)
+        sent = svc.samples[-1][1]
+        assert np.linalg.norm(sent) <= 2.0 + 1e-9 and np.all(np.isfinite(sent))
+    assert np.linalg.norm(svc.samples[-1][1]) == 0.0  # inf: zero
 
 
 def test_a_hung_service_is_a_fault_within_the_reply_timeout_and_recovers_when_it_answers(arm):
@@ -264,7 +282,7 @@ def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_
     svc = service()
     svc.hand.place((0.0, 0.0, 30.0))  # 30 mm above the workspace centre: outside the molecule
     path = tmp_path / "session.mcap"
-    with DaemonProcess(*EMULATED_ARM_RATE, *WHOLE, "--record", str(path), device=svc.device_spec) as daemon:
+    with DaemonProcess(*PRESS_RATE, *WHOLE, "--record", str(path), device=svc.device_spec) as daemon:
         assert daemon.ready["device"] == "inverse3"
         sub = Subscriber(daemon.pub)
         poses_until(sub, lambda p: p.tip_mm[1] > 29.0, daemon)
@@ -275,7 +293,7 @@ def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_
         samples = [x for x in list(svc.samples) if t_first <= x[0] <= t_last]
         wrote = np.median([p.force_N for p in poses], axis=0)
         made = np.median([to_device(x[1]) for x in samples], axis=0)  # on the service's own record
-        assert len(samples) > 50 and svc.ignored_commands == 0
+        assert len(samples) > 20 and svc.ignored_commands == 0  # half a second at 100 Hz
         assert cosine(made, wrote) >= 0.99 and np.linalg.norm(made) == pytest.approx(np.linalg.norm(wrote), rel=0.05)
         held = np.median([to_device(x[2]) for x in samples], axis=0)  # the cursor, the hand at the origin
         assert held @ wrote / np.linalg.norm(wrote) > 1.0  # pushed out of the surface
@@ -305,6 +323,13 @@ def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_
     closed = recorded_outage(path, closed_at)
     assert any(e and "closed the connection" in e for e in closed["errors"])
     assert [e["cmd"] for e in closed["session"].events].count("reconnect") == 1
+
+
+# The stand-in service is a thread of this test process. With the 2-core machine loaded
+# (load average 13 seen), its replies came later than the driver's 2.5 periods at 250 Hz
+# (10 ms) many times a second, each a fault that restarts the daemon's force ramp, and the
+# press never held still for half a second. At 100 Hz a reply may take 25 ms.
+PRESS_RATE = ("--rate", "100")
 
 
 def to_device(haply):

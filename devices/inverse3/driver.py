@@ -273,10 +273,11 @@ class Inverse3Device(HardwareDriver):
         s = self._session
         if s is None or s.lost is not None or s.in_flight():
             return  # the next message carries the newest force
-        s.send(protocol.force_message(s.device_id, self.force))
+        calibrated = s.latest[1].calibrated  # an uncalibrated arm gets zero, whatever is asked
+        s.send(protocol.force_message(s.device_id, self.force if calibrated else np.zeros(3)))
 
 
-def list_arms(url: str, timeout_s: float = 0.5) -> list[dict]:
+def list_arms(url: str, timeout_s: float = HANDSHAKE_TIMEOUT_S) -> list[dict]:
     """The Inverse3 arms an Inverse Service lists in its inventory: {device_id, model,
     calibrated}; DeviceOpenError when nothing answers at `url` or it speaks another format.
     Nothing is sent: the session ends unused."""
