@@ -23,7 +23,7 @@ from sasprobe.devices.forcedimension.driver import ForceDimensionDevice
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.pose import FLAG_FAULT
 from tests.arm_outage import recorded_outage
-from tests.conftest import run_cli
+from tests.conftest import run_cli, skip_or_fail
 from tests.daemon_process import DaemonProcess
 from tests.emulators import libdhd
 from tests.serial_arm_session import cosine
@@ -46,7 +46,7 @@ def to_device(dhd_xyz, scale=1.0):
 def library(tmp_path_factory):
     out = libdhd.build(tmp_path_factory.mktemp("libdhd"))
     if out is None:
-        pytest.skip("no C compiler to build the stand-in DHD library")
+        skip_or_fail("no C compiler to build the stand-in DHD library")
     return out
 
 
@@ -215,7 +215,7 @@ def test_no_library_says_so_in_one_line(monkeypatch, tmp_path):
 
 def test_a_library_without_dhdsetforce_is_refused_by_name(tmp_path):
     if libdhd.build(tmp_path, "libnoforce.so", without_set_force=True) is None:
-        pytest.skip("no C compiler")
+        skip_or_fail("no C compiler to build the stand-in DHD library")
     with pytest.raises(DeviceOpenError, match="is not the Force Dimension DHD library: it lacks dhdSetForce"):
         ForceDimensionDevice(0, library=str(tmp_path / "libnoforce.so")).open()
 

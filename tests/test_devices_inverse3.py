@@ -177,6 +177,32 @@ def test_a_hung_service_is_a_fault_within_the_reply_timeout_and_recovers_when_it
     assert dev.info.details["sessions"] == 1 and dev.late_replies >= 1
 
 
+def test_a_session_silent_for_a_second_is_replaced(arm):
+    dev, svc = arm()
+    run(dev)
+    svc.hang()
+    with pytest.raises(DeviceFault, match="has not answered"):
+        deadline = time.monotonic() + 2
+        while time.monotonic() < deadline:
+            dev.read()
+            dev.write_force((0.0, 0.0, 0.0))
+            time.sleep(0.002)
+    time.sleep(1.1)  # silent past SILENT_RECONNECT_S
+    with pytest.raises(DeviceFault, match="reconnecting"):
+        dev.reconnect()  # gives the session up, opens a new one in the background
+    svc.resume()
+    deadline = time.monotonic() + 5
+    while True:
+        try:
+            dev.reconnect()
+            break
+        except DeviceFault:
+            assert time.monotonic() < deadline, "never reconnected"
+            time.sleep(0.05)
+    run(dev)
+    assert dev.info.details["sessions"] == 2 and svc.sessions == 2
+
+
 def test_a_closed_connection_is_a_fault_at_once_and_a_new_session_opens_when_the_service_is_back(arm):
     dev, svc = arm()
     run(dev)

@@ -18,12 +18,10 @@ import platform
 
 from sasprobe.devices.base import DeviceOpenError
 
-DHD_ON, DHD_OFF = 1, 0
+DHD_ON = 1
 DHD_TIMEGUARD = 1  # dhdGetPosition: a success, the position of the last refresh
 DHD_MOTOR_SATURATED = 2  # dhdSetForce: a success, the force was saturated
-DHD_ERROR_COM, DHD_ERROR_NO_DEVICE_FOUND, DHD_ERROR_TIMEOUT = 2, 5, 7
-STATUS_INTS = 17  # DHD_MAX_STATUS: 16 in 3.7, 17 in 3.17; the larger buffer serves both
-DHD_STATUS_FORCE = 5
+DHD_ERROR_TIMEOUT = 7
 
 ERROR_NAMES = (  # enum dhd_errors, in order
     "DHD_NO_ERROR", "DHD_ERROR", "DHD_ERROR_COM", "DHD_ERROR_DHC_BUSY", "DHD_ERROR_NO_DRIVER_FOUND",
@@ -49,7 +47,6 @@ _SIGNATURES = {
     "dhdGetSystemType": (ctypes.c_int, [_ID]),
     "dhdGetSystemName": (ctypes.c_char_p, [_ID]),
     "dhdGetSerialNumber": (ctypes.c_int, [ctypes.POINTER(ctypes.c_ushort), _ID]),
-    "dhdGetStatus": (ctypes.c_int, [ctypes.POINTER(ctypes.c_int), _ID]),
     "dhdEnableForce": (ctypes.c_int, [ctypes.c_ubyte, _ID]),
     "dhdGetPosition": (ctypes.c_int, [_D, _D, _D, _ID]),
     "dhdGetLinearVelocity": (ctypes.c_int, [_D, _D, _D, _ID]),

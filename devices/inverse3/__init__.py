@@ -8,9 +8,7 @@ from __future__ import annotations
 
 from sasprobe.devices.inverse3.driver import Inverse3Device, list_arms
 from sasprobe.devices.inverse3.protocol import DEFAULT_URL
-
-READ_WAIT_PERIODS = 0.25  # how long a read waits for the reply in flight
-REPLY_PERIODS = 2.5  # how late a reply may be before the read is a fault
+from sasprobe.devices.serial_arm import READ_WAIT_PERIODS, REPLY_PERIODS  # the same one-in-flight policy
 
 
 def create(argument: str | None = None, **options) -> Inverse3Device:
