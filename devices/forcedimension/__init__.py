@@ -10,6 +10,8 @@ from __future__ import annotations
 from sasprobe.devices.base import DeviceOpenError
 from sasprobe.devices.forcedimension.driver import ForceDimensionDevice, list_arms
 
+__all__ = ["ForceDimensionDevice", "create", "list_arms"]
+
 
 def create(argument: str | None = None, **options) -> ForceDimensionDevice:
     """`forcedimension[:INDEX]`: the INDEX-th arm the SDK counts (default 0). Option: library."""

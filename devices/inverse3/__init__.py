@@ -10,6 +10,8 @@ from sasprobe.devices.inverse3.driver import Inverse3Device, list_arms
 from sasprobe.devices.inverse3.protocol import DEFAULT_URL
 from sasprobe.devices.serial_arm import READ_WAIT_PERIODS, REPLY_PERIODS  # the same one-in-flight policy
 
+__all__ = ["Inverse3Device", "create", "list_arms"]
+
 
 def create(argument: str | None = None, **options) -> Inverse3Device:
     """`inverse3[:URL]` (default ws://localhost:10001). Options: rate_hz (the daemon's loop
