@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
+from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid, load_structure
 from sasprobe.render.camera import Camera
 from sasprobe.render.frame_planner import KEPT, LIT, PLAIN, FramePlan, state_key
 from sasprobe.render.gbuffer_export import gbuffer_arrays
@@ -23,6 +23,7 @@ from sasprobe.render.passes.lighting import install_lighting, lighting_of
 from sasprobe.render.rects import atoms_rect, sphere_rect, union_rect
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import Effects, Mark, NavCube, Probe, SceneState
+from sasprobe.render.workspace_view import workspace_camera
 from tests.lighting_support import probe_on_surface
 
 pytestmark = pytest.mark.needs_gl(430)
@@ -41,6 +42,33 @@ def probe_path(structure) -> list[np.ndarray | None]:
     return path + [None]
 
 
+def workspace_path(structure) -> list[np.ndarray | None]:
+    """As probe_path, in a large structure's workspace view: coming in 5 Å along the surface's
+    normal, touching, then moving a few Å across the picture at the touch's depth (the probe
+    plane holds while the probe keeps its depth), then leaving."""
+    path = [grid_surface(structure, DIRECTION, lift=lift) for lift in (5.0, 2.5, 0.5, 0.0)]
+    return path + [path[-1] + offset for offset in ([1.0, 0.0, 0.0], [2.0, -0.5, 0.0], [3.0, -1.0, 0.0])] + [None]
+
+
+def grid_surface(structure, direction, lift=0.0):
+    """A probe centre on the SAS as probe_on_surface finds it, through the grid (a large
+    structure's brute force would not fit in memory), lifted `lift` Å away from the atom
+    whose expanded sphere it lies on (along the direction a groove can swallow a lift)."""
+    grid = UniformGrid(structure.positions, structure.expanded_radii(DEFAULT_PROBE_RADIUS))
+    direction = np.asarray(direction, dtype=np.float64) / np.linalg.norm(direction)
+    centre = structure.positions.mean(axis=0)
+    far = float(np.linalg.norm(grid.upper - grid.origin))
+    for t in np.arange(far, 0.0, -0.05):  # inward: the first point inside an expanded sphere
+        if grid.spheres_within(centre + t * direction, 0.0).size:
+            point = centre + (t + 0.05) * direction
+            atom = grid.nearest_to_point(point, 1)[0]
+            normal = (point - structure.positions[atom]) / np.linalg.norm(point - structure.positions[atom])
+            return point + lift * normal
+    raise AssertionError("no surface along the direction")
+
+
+
+
 def sas_gap(structure, point) -> float:
     """Distance of a probe centre from the SAS (negative inside)."""
     return float(np.min(np.linalg.norm(structure.positions - point, axis=1) - structure.vdw_radii
@@ -57,11 +85,16 @@ def make_renderer(gl, structure, size, settings, cache, setup="none"):
         scene.nav_cube = NavCube(center=centre + [2.0, -1.0, 4.0], half=10.0)
     elif setup == "probe-plane":  # the workspace view's: it cuts the molecule layer where the probe is
         scene.effects.probe_plane = True
+    elif setup == "workspace":  # the daemon's default cube (14 Å) about the touch, the camera framing it
+        scene.effects.probe_plane = True
+        scene.nav_cube = NavCube(center=grid_surface(structure, DIRECTION), half=14.0)
     elif setup == "plane":
         n = -np.array([1.0, 0.2, 0.5]) / np.linalg.norm([1.0, 0.2, 0.5])
         scene.clip_planes = [np.array([*n, -float(n @ centre) + 2.0])]
     renderer = Renderer(gl, scene, size, frame_cache=cache)
     install_lighting(renderer, settings)
+    if setup == "workspace":
+        return renderer, workspace_camera(scene.nav_cube, size[0] / size[1])
     c, r = scene.bounding_sphere()
     fit = 2.0 if setup == "far" else 0.8  # far: the probe light's reach overhangs the molecule's pixels
     return renderer, Camera.fitted(c, r * fit, size[0] / size[1], direction=DIRECTION)
@@ -79,16 +112,18 @@ CASES = [
     ("1crn", (160, 120), LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed")), "plane"),
     ("1tii", (200, 150), LightingSettings(), "none"),
     ("1tii", (200, 150), LightingSettings(), "probe-plane"),
+    ("1aon", (160, 120), LightingSettings(), "workspace"),
+    ("1aon", (160, 120), LightingSettings(shadows="soft", edges="both"), "workspace"),
 ]
 
 
 @pytest.mark.parametrize("sid, size, settings, setup", CASES, ids=[f"{c[0]}-{c[3]}-{c[2].shadows}" for c in CASES])
 def test_cached_frames_equal_a_full_redraw(gl, reference_by_id, sid, size, settings, setup):
     structure = load_structure(reference_by_id[sid].path, keep_water=True)
-    path = probe_path(structure)
+    path = workspace_path(structure) if setup == "workspace" else probe_path(structure)
     gaps = [sas_gap(structure, p) for p in path if p is not None]
     assert gaps[0] > 2.0 and min(abs(g) for g in gaps[3:]) < 0.06  # it comes in and touches
-    if setup == "probe-plane":  # the plane steps with the probe; standing still, the cut layer is kept and used
+    if setup in ("probe-plane", "workspace"):  # the plane steps with the probe; standing still, the cut layer is kept and used
         path += [path[-2]] * 3
     cached, camera = make_renderer(gl, structure, size, settings, cache=True, setup=setup)
     full, full_camera = make_renderer(gl, structure, size, settings, cache=False, setup=setup)
@@ -115,7 +150,7 @@ def test_cached_frames_equal_a_full_redraw(gl, reference_by_id, sid, size, setti
                 if layer in ga:
                     off_probe = ga["kind"] != KIND_PROBE
                     assert np.abs(ga[layer] - gb[layer])[off_probe].max() <= 1e-5, (sid, setup, layer)
-        if setup == "probe-plane":  # drawn again only when the plane stepped, kept once it held a frame
+        if setup in ("probe-plane", "workspace"):  # drawn again only when the plane stepped, kept once it held a frame
             changes = sum(a != b for a, b in zip(planes, planes[1:]))
             held = sum(a == b == c for a, b, c in zip(planes, planes[1:], planes[2:]))
             counts = cached.planner.layer_counts()
@@ -126,6 +161,8 @@ def test_cached_frames_equal_a_full_redraw(gl, reference_by_id, sid, size, setti
         assert shaded[0] == antialiased[0] == 1.0
         if setup == "far":  # only the molecule's pixels within the probe's reach were shaded again
             assert max(shaded[1:]) < 0.5, shaded
+        if setup == "workspace":  # the trace around the cube is not shaded again: the probe does not light it
+            assert min(shaded[1:]) < 0.6, shaded
         if sid == "1tii" and setup == "none":  # the rest of the picture was kept, and still agrees
             assert max(shaded[1:]) < 0.9 and max(antialiased[1:]) < 0.95, (shaded, antialiased)
         assert full.planner is None

@@ -12,7 +12,7 @@ from sasprobe.render.gl.buffers import MoleculeBuffers
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import RenderTargets
 from sasprobe.render.gl.uniforms import gl_bytes
-from sasprobe.render.rects import atoms_rect, intersect_rect, sphere_rect
+from sasprobe.render.rects import atoms_rect, intersect_rect, sphere_rect, union_rect
 from sasprobe.render.scene_state import NavCube, SceneState
 
 
@@ -115,6 +115,11 @@ class Frame:
             radius = float(structure.vdw_radii[drawn].max(initial=0.0))
             memo["lit_rect"] = atoms_rect(structure.positions[drawn], radius, self.viewproj, self.size)
         return memo["lit_rect"]
+
+    def lit_region(self):
+        """Where the lighting has work: the atoms drawn as spheres and the probe (elsewhere the
+        picture shows only the backbone trace, which is context, and the background)."""
+        return union_rect(self.lit_rect(), self.probe_rect())
 
     def near_plane(self) -> np.ndarray:
         """The camera's near plane as a clip plane (spheres crossing it get a cap)."""

@@ -63,6 +63,7 @@ from sasprobe.render.lighting.settings import (
 from sasprobe.render.lighting.shadows import ShadowPass
 from sasprobe.render.passes.base import Frame, Pass, ProbeLighting, ProbeLightTrace
 from sasprobe.render.passes.lighting_layers import NO_NEIGHBOURS, LayeredLighting
+from sasprobe.render.rects import full_rect
 
 log = logging.getLogger("sasprobe")
 
@@ -199,7 +200,21 @@ class LightingPass(LayeredLighting, Pass):
             ambient, visibility, lit = self.ao.baked(gbuffer, ambient=both, sun_direction=sun.unit(), probe_light=lamp)
             self._looked_up = (frame.index, ambient if both else None, lit if lamp is not None else None)
             return visibility
-        return self.shadows.trace(gbuffer, sun, self._soft(frame), out=self.textures.get(name, frame.size))
+        area = self._lit_area(frame)
+        out = self.textures.fill(name, frame.size, 1.0) if area != full_rect(frame.size) else \
+            self.textures.get(name, frame.size)  # 1 beyond the area: there the picture shows no atom
+        return self.shadows.trace(gbuffer, sun, self._soft(frame), out=out, rect=area)
+
+    @staticmethod
+    def _lit_area(frame: Frame):
+        """Where the terms of the atoms are computed on a frame drawn whole (the rest is 1)."""
+        return frame.lit_region() or (0, 0, 0, 0)
+
+    @staticmethod
+    def _compose_area(frame: Frame):
+        """Where the visibility buffer is composed on a frame drawn whole: the lit area, or with
+        edge cueing (which darkens the trace and the background too) the whole frame."""
+        return full_rect(frame.size) if frame.scene.effects.edge_cueing else LightingPass._lit_area(frame)
 
     def _precomputed(self, frame: Frame) -> bool:
         """Whether the lights' shadows come from the occlusion atlas (--shadows precomputed; hard only)."""
@@ -242,10 +257,10 @@ class LightingPass(LayeredLighting, Pass):
         if self._looked_up[0] == frame.index and self._looked_up[1] is not None:
             return self._looked_up[1]
         self._configure_ao()
-        drawn = frame.scene.sphere_selection(frame.camera)
-        texture = self.ao.compute(gbuffer, frame.view, frame.proj, drawn)
+        drawn, area = frame.scene.sphere_selection(frame.camera), self._lit_area(frame)
+        texture = self.ao.compute(gbuffer, frame.view, frame.proj, drawn, area)
         while self.ao.samples < self.settings.samples and not self.ao.converged:
-            texture = self.ao.compute(gbuffer, frame.view, frame.proj, drawn)
+            texture = self.ao.compute(gbuffer, frame.view, frame.proj, drawn, area)
         return texture
 
     def _edges(self, gbuffer: GBuffer, frame: Frame, rect=None):
@@ -307,7 +322,7 @@ class LightingPass(LayeredLighting, Pass):
         terms = dict(self.layers)
         if fx.edge_cueing:
             terms["edges"] = self._edges(gbuffer, frame)
-        self._compose(frame, terms, {})
+        self._compose(frame, terms, {}, rect=self._compose_area(frame))
         frame.probe_lighting = ProbeLighting(self.layers.get("shadow_probe"), traced=traced)
 
     # ------------------------------------------------------------ helpers

@@ -24,7 +24,7 @@ from sasprobe.render.lighting.ao.analytic import MAX_K
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.settings import light_uniforms, ray_epsilon_uniforms
 from sasprobe.render.passes.base import Frame, ProbeLighting
-from sasprobe.render.rects import capsule_rect, grow_rect, union_rect
+from sasprobe.render.rects import capsule_rect, grow_rect, intersect_rect, union_rect
 
 NO_NEIGHBOURS = np.full(MAX_K, -1, dtype=np.int32)
 SHADOW_MARGIN = 0.05  # Å around the probe's shadow capsule
@@ -52,7 +52,7 @@ class LayeredLighting:
                 self.molecule_terms["ao"] = self._ambient(gbuffer, frame)
         elif self._adding_samples(frame):
             self.molecule_terms["ao"] = self.ao.compute(gbuffer, frame.view, frame.proj,
-                                                        frame.scene.sphere_selection(frame.camera))
+                                                        frame.scene.sphere_selection(frame.camera), self._lit_area(frame))
             self._molecule_changed = True
 
     def _adding_samples(self, frame: Frame) -> bool:
@@ -76,7 +76,8 @@ class LayeredLighting:
         sun = self.lights[0]
         shadow = None
         if fx.shadows and sun is not None and fx.probe and frame.scene.probe is not None:
-            shadow = self._probe_shadow_rect(frame, sun, self._soft(frame))
+            # it falls on the atoms drawn, nowhere else (the trace takes no shadow)
+            shadow = intersect_rect(self._probe_shadow_rect(frame, sun, self._soft(frame)), frame.lit_rect())
         # the background shows the probe's pixels and the halos, not the sun's shadows
         return {**out, COMPOSE: touched, COMPOSE_BACKGROUND: touched, LIT: union_rect(touched, shadow),
                 LIT_BACKGROUND: touched}
@@ -124,7 +125,8 @@ class LayeredLighting:
         # bring. Beyond those the layered program composes what the plain one does, so but
         # for a whole frame one pass does both. The probe's shadow of the sun on the atoms is
         # the shading pass's (probe_share.glsl): it shades again where the shadow can fall.
-        rect, background_rect = plan.region(COMPOSE), plan.region(COMPOSE_BACKGROUND)
+        area = self._compose_area(frame)
+        rect, background_rect = (intersect_rect(plan.region(name), area) for name in (COMPOSE, COMPOSE_BACKGROUND))
         if probe_rect is not None and not self._molecule_changed:  # rect holds probe_rect: its footprint does
             self._compose(frame, terms, uniforms, layered=True, rect=rect, background=background_rect)
         else:

@@ -24,7 +24,7 @@ from sasprobe.render.gl.depth_picked import DepthTestedTarget
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.settings import ShadingSettings
 from sasprobe.render.passes.base import Frame, Pass, ProbeLighting
-from sasprobe.render.rects import sphere_rect, union_rect
+from sasprobe.render.rects import intersect_rect, sphere_rect, subtract_rect, union_rect
 from sasprobe.render.passes.probe import PROBE_COLOR
 
 TEXTURES = ("u_albedo", "u_position", "u_normal", "u_ids", "u_visibility", "u_probe_visibility")  # units 0..5
@@ -41,13 +41,15 @@ class ShadingPass(Pass):
         self._vaos: dict[tuple[str, ...], object] = {}
         self._depth_tested = DepthTestedTarget(ctx)  # the target with the G-buffer's depth
 
-    def _vao(self, lit: ProbeLighting | None):
+    def _vao(self, lit: ProbeLighting | None, context: bool = False):
         """The surfaces' program for what the lighting hands over (shaders/shading.frag's
-        variants, or shading_traced.frag's when the probe light is traced here), or with
-        None the background's."""
+        variants, or shading_traced.frag's when the probe light is traced here), with
+        `context` the one for the backbone trace alone, or with None the background's."""
         fragment = "shading.frag"
         if lit is None:
             defines = ("AT_FAR_PLANE", "BACKGROUND_ONLY")
+        elif context:
+            defines = ("AT_FAR_PLANE", "CONTEXT")
         else:
             defines = ("AT_FAR_PLANE",) + (("PROBE_SHADOWED",) if lit.visibility is not None else ()) \
                 + (("PROBE_SHARE",) if lit.share else ())
@@ -79,9 +81,7 @@ class ShadingPass(Pass):
             for unit, tex in GBUFFER_IMAGES.items():  # shading_traced.frag reads these as images
                 getattr(t, tex).bind_to_image(unit, read=True, write=False)
             traced = {**lit.traced.shadows.grid.uniforms(), **lit.traced.uniforms}
-        apply_uniforms(vao.program, {
-            **traced,
-            **lit.share,
+        uniforms = {
             "u_eye": tuple(float(v) for v in frame.camera.eye),
             "u_background": s.background,
             "u_ambient": s.ambient,
@@ -99,13 +99,21 @@ class ShadingPass(Pass):
             "u_touched_atom": int(probe.touched_atom) if (probe is not None and fx.highlight) else -1,
             "u_highlight": s.highlight,
             "u_probe_color": PROBE_COLOR,
-        })
+        }
+        apply_uniforms(vao.program, {**traced, **lit.share, **uniforms})
         plan = frame.plan
         target = t.kept_picture("shaded") if plan.keeps else t.lit_fbo
+        # Beyond the atoms and the probe the surfaces are the trace: its own, light program.
+        lit_region, surfaces = frame.lit_region(), plan.region(LIT)
+        draws = [(plan.region(LIT_BACKGROUND), background, "=="), (intersect_rect(surfaces, lit_region), vao, ">")]
+        if surfaces is not None:
+            context = self._vao(lit, context=True)
+            apply_uniforms(context.program, uniforms)
+            draws += [(rect, context, ">") for rect in subtract_rect(surfaces, lit_region)]
         # The depth is tested, not written: the cube wire later tests against it.
         tested = self._depth_tested.framebuffer(target.color_attachments[0], t.depth)
         tested.use()
-        for rect, program, depth_func in ((plan.region(LIT_BACKGROUND), background, "=="), (plan.region(LIT), vao, ">")):
+        for rect, program, depth_func in draws:
             if rect is not None:
                 tested.scissor = rect
                 self._depth_tested.draw(program, depth_func)

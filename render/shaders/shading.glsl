@@ -15,6 +15,7 @@
 // The probe light reaches u_probe_range Å: its attenuation is windowed to 0 there. It lights
 // the atoms, not the backbone trace (context, lit by the directional and ambient light only).
 // BACKGROUND_ONLY: the program for background pixels (the pass picks them by depth).
+// CONTEXT: the program for the backbone trace, where no atom and no probe lie: no probe light.
 #include "constants.glsl"
 // occluders.glsl and ray_origin.glsl here, not only through the cases' files below: an
 // include is expanded once, where it first appears, whether its #ifdef holds or not.
@@ -90,12 +91,13 @@ void main() {
     if (u_touched_atom >= 0 && ids.x == u_touched_atom && ids.y != KIND_BACKBONE)
         albedo = mix(albedo, u_highlight, 0.6);
     float sun = vis.r, ambient = vis.b;
-#ifdef PROBE_SHARE
+#if defined(PROBE_SHARE) && !defined(CONTEXT)
     if ((ids.y == KIND_SPHERE || ids.y == KIND_CAP) && ids.x >= 0) add_probe_share(p, n, sun, ambient);
 #endif
     vec3 color = u_ambient * pow(ambient, u_ao_power) * albedo;
     if (u_dir_enabled == 1)
         color += sun * u_dir_intensity * phong(albedo, n, v, -u_light_dir);
+#ifndef CONTEXT
     if (u_probe_light_enabled == 1 && ids.y != KIND_BACKBONE) {  // the trace is context: not the probe's to light
         vec3 to_probe = u_probe_center - p;
         float dist = length(to_probe);
@@ -111,6 +113,7 @@ void main() {
 #endif
         color += shadow * u_probe_intensity * atten * phong(albedo, n, v, to_probe / max(dist, 1e-6));
     }
+#endif
     o_color = vec4(min(color, vec3(1.0)) * vis.a, 1.0);
 #endif
 }

@@ -84,15 +84,17 @@ class AmbientOcclusion:
             self._passes["analytic"].update_probe()
         self.view_changed()
 
-    def compute(self, gbuffer: GBuffer, view: np.ndarray, proj: np.ndarray, atoms: np.ndarray | None = None):
+    def compute(self, gbuffer: GBuffer, view: np.ndarray, proj: np.ndarray, atoms: np.ndarray | None = None,
+                rect=None):
         """The accessibility texture; `atoms`: those the G-buffer can show (None: any; analytic
-        AO finds neighbour lists for them)."""
+        AO finds neighbour lists for them); `rect`: analytic AO only there, 1 elsewhere (None:
+        everywhere; the other methods compute every pixel)."""
         s = self.settings
         size = gbuffer.size
         if s.mode == "off":
             return self.textures.get("ones", size, fill=1.0)
         if s.mode == "analytic":
-            return self._analytic(gbuffer, atoms)
+            return self._analytic(gbuffer, atoms, rect)
         if s.mode == "precomputed":
             return self.baked(gbuffer, ambient=True)[0]
         if s.mode == "ssao":
@@ -106,7 +108,7 @@ class AmbientOcclusion:
         traced = self._traced(gbuffer, s.rt_spp, blur=s.blur, view=view, proj=proj)
         if s.mode == "rt":
             return traced
-        analytic = self._analytic(gbuffer, atoms)
+        analytic = self._analytic(gbuffer, atoms, rect)
         product = self.textures.get("hybrid", size)
         analytic.use(location=3)
         traced.use(location=4)
@@ -123,11 +125,12 @@ class AmbientOcclusion:
         atlas.update(s.patch, s.directions, s.distance, ambient, sun_direction, probe_light, progress)
         return atlas.lookup(gbuffer, ambient, sun_direction, probe_light, rect)
 
-    def _analytic(self, gbuffer: GBuffer, atoms: np.ndarray | None):
+    def _analytic(self, gbuffer: GBuffer, atoms: np.ndarray | None, rect=None):
         analytic = self._pass("analytic")
         if self.grid.probe_sphere[3] > 0 and analytic.probe_neighbours[0] < 0:
             analytic.update_probe()
-        return analytic.compute(gbuffer, self.settings.k, out=self.textures.get("analytic", gbuffer.size), atoms=atoms)
+        return analytic.compute(gbuffer, self.settings.k, out=self.textures.get("analytic", gbuffer.size), atoms=atoms,
+                                rect=rect)
 
     def _traced(self, gbuffer: GBuffer, spp: int, blur: bool, view, proj):
         rt = self._pass("rt")

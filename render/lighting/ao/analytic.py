@@ -61,8 +61,9 @@ class AnalyticAO(ComputePass):
             self.grid.grid.nearest_to_point(probe[:3], MAX_K) if probe[3] > 0 else np.full(MAX_K, -1, dtype=np.int64)
         )
 
-    def compute(self, gbuffer: GBuffer, k: int, out=None, atoms: np.ndarray | None = None):
-        """The accessibility of the G-buffer's pixels; `atoms`: those it can show (None: any)."""
+    def compute(self, gbuffer: GBuffer, k: int, out=None, atoms: np.ndarray | None = None, rect=None):
+        """The accessibility of the G-buffer's pixels; `atoms`: those it can show (None: any);
+        `rect`: only there, 1 elsewhere (the renderer's G-buffer; None: everywhere)."""
         if not 1 <= k <= MAX_K:
             raise ValueError(f"analytic AO uses 1 to {MAX_K} neighbours, got {k}")
         self.find(atoms)
@@ -72,7 +73,10 @@ class AnalyticAO(ComputePass):
         self.table.bind_to_image(IMAGE_NEIGHBOURS, read=True, write=False)
         uniforms = {"u_k": int(k), "u_probe_neighbours": self.probe_neighbours.astype(np.int32).tobytes()}
         if gbuffer.depth is not None:
-            self.drawn.run(out, gbuffer.depth, (0, 0, width, height), [((), ">")], uniforms, clear=1.0)
+            whole = (0, 0, width, height)
+            if rect is not None and tuple(rect) != whole:
+                self.drawn.run(out, gbuffer.depth, whole, [], uniforms, clear=1.0)  # 1 beyond the rectangle
+            self.drawn.run(out, gbuffer.depth, whole if rect is None else rect, [((), ">")], uniforms, clear=1.0)
             return out
         out.bind_to_image(0, read=False, write=True)
         self.run(width, height, uniforms)

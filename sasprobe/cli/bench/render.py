@@ -1,5 +1,6 @@
 """`sasprobe bench render`: impostors against triangle meshes, the navigation cube on a
-large structure against a small one drawn whole, frame time against atom count, and the
+large structure against a small one drawn whole, frame time against atom count, the
+session frame by structure (bench/render_sessions.py; alone with --sessions), and the
 frames of a session by scenario (bench/render_scenarios.py: the haptic session, an orbit,
 the drifting cube; against PyMOL's `ray` where it is installed).
 
@@ -16,12 +17,12 @@ import time
 
 import numpy as np
 
-from sasprobe.cli.bench import BenchContext, BenchResult, render_scenarios
+from sasprobe.cli.bench import BenchContext, BenchResult, render_scenarios, render_sessions
 from sasprobe.cli.bench.charts import figure, save
 from sasprobe.common.errors import UserError
 from sasprobe.molecule import load_default, load_structure
 from sasprobe.cli.reference_data import MISSING, reference_structures
-from sasprobe.common.progress import progress
+from sasprobe.common.progress import progress, progress_bar
 
 TITLE = "Rendering: impostors vs meshes, navigation cube, frame time vs atoms, session scenarios"
 MESH_TARGET_ATOMS = 60_000
@@ -38,6 +39,9 @@ def add_arguments(parser) -> None:
                         help="frame size of the session scenarios (default 800x600, --quick 400x300)")
     parser.add_argument("--scenarios-only", action="store_true",
                         help="only the session scenarios (haptic session, orbit, drifting cube; PyMOL where installed)")
+    parser.add_argument("--sessions", action="store_true",
+                        help="only the session frame by structure: 1CRN, 1TII, 1AON, 6ZU5 at 1280x720 and 640x360, "
+                             "unlit and lit, with the time to the first frame (--quick: 1CRN and 1TII at 640x360)")
 
 
 def run(ctx: BenchContext, args=None) -> BenchResult:
@@ -55,6 +59,19 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     by_id = {e.id: e for e in entries}
     data = {"gl_renderer": renderer_name, "size": list(size), "repeats": repeats, "mesh_repeats": mesh_repeats}
     charts = []
+    if getattr(args, "sessions", False) or not only_scenarios:
+        try:
+            data["sessions"] = _sessions(gl, by_id, ctx.quick)
+        except BaseException:
+            gl.release()
+            raise
+        path = ctx.chart_path("render_sessions.png")
+        if path is not None:
+            charts.append(render_sessions.chart(data["sessions"], path, renderer_name))
+    if getattr(args, "sessions", False):
+        gl.release()
+        return BenchResult("render", data, f"GL renderer: **{renderer_name}**.\n\n"
+                           + render_sessions.markdown(data["sessions"]), charts)
     try:
         if not only_scenarios:
             structures = {e.id: load_structure(e.path) for e in progress(entries, "bench render: load", len(entries))}
@@ -80,7 +97,24 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     for run in data["scenarios"]["session"]:
         del run["images"]  # pictures, not figures: the JSON stays small
     text = _markdown(data) if not only_scenarios else f"GL renderer: **{renderer_name}**."
+    if "sessions" in data:
+        text += "\n\n" + render_sessions.markdown(data["sessions"])
     return BenchResult("render", data, text + "\n\n" + render_scenarios.markdown(data["scenarios"]), charts)
+
+
+def _sessions(gl, by_id, quick: bool) -> dict:
+    """The session frame by structure (bench/render_sessions.py), with a progress bar."""
+    wanted = render_sessions.QUICK_STRUCTURES if quick else render_sessions.STRUCTURES
+    missing = [sid for sid in wanted if sid not in by_id]
+    if missing:
+        raise UserError(f"bench render: the session table needs the reference structures {', '.join(missing)}")
+    sizes = render_sessions.QUICK_SIZES if quick else render_sessions.SIZES
+    rounds = render_sessions.QUICK_ROUNDS if quick else render_sessions.ROUNDS
+    bar = progress_bar(1 + len(sizes) * rounds + len(wanted), "bench render: sessions")
+    try:
+        return render_sessions.run_sessions(gl, by_id, quick, progress=lambda what: bar.update(1))
+    finally:
+        bar.close()
 
 
 def _scenarios(gl, by_id, size, frames: int, pymol_repeats: int) -> dict:
