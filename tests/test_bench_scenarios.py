@@ -47,7 +47,7 @@ def test_gpu_check_runs_here_at_a_small_size(reference_by_id, gl):
     """The check's code path, shortened: 1CRN whole and 1OKY with a ~300-atom cube (the full
     check: 1CRN, 1TII, 1AON whole, 6ZU5 with a cube, at 1920x1080)."""
     try:
-        result = gpu_quick.run(size=(64, 36), frames=3, structures=("1crn", "1oky"), cube_id="1oky")
+        result = gpu_quick.run(size=(64, 36), frames=3, structures=("1crn", "1oky"), cube_id="1oky", first_frames=False)
     finally:
         # The check makes a context of its own and releases it, which leaves none current:
         # the session's is made current again, or every later test's GL calls would fail.
@@ -60,6 +60,30 @@ def test_gpu_check_runs_here_at_a_small_size(reference_by_id, gl):
     assert 250 <= result["rows"][1]["cube_atoms"] <= 400 and "1oky + " in text
     assert [b["id"] for b in result["bakes"]] == ["1oky cube"] and result["bakes"][0]["patches"] >= 250
     assert "| 1crn whole | 327 |" in text
+    assert [(r["id"], r["lighting"]) for r in result["sessions"]["rows"]] == [
+        ("1crn", "unlit"), ("1crn", "lit"), ("1oky", "unlit"), ("1oky", "lit")] and "Session frames" in text
+
+
+def test_the_sessions_table_compares_each_structure_with_the_first_in_every_round(reference_by_id, gl):
+    """bench/render_sessions.py at a tiny size, two rounds: every structure's rows unlit and
+    lit, ratios to the first structure 1 for itself, kept layers counted, the first frame timed
+    in process and through `render --connect --frames 1` against a daemon it starts."""
+    from sasprobe.cli.bench import render_sessions
+
+    d = render_sessions.run_sessions(gl, reference_by_id, sizes=((64, 36),), structures=("1crn", "1oky"), frames=4,
+                                     rounds=2)
+    rows = {(r["id"], r["lighting"]): r for r in d["rows"]}
+    assert set(rows) == {(sid, lit) for sid in ("1crn", "1oky") for lit in ("unlit", "lit")}
+    for (sid, lighting), r in rows.items():
+        assert r["cpu_ms"] > 0 and r["ms"] > 0 and 0 <= r["kept"] <= 4 and r["first_frame_s"] > 0
+        assert 0 < r["connect_frames_1_s"] < 120, r  # the subprocess drew its frame and ended
+        lo, hi = r["over_1crn_cpu_range"]
+        assert lo <= r["over_1crn_cpu"] <= hi
+        if sid == "1crn":
+            assert r["over_1crn_cpu"] == r["over_1crn"] == 1.0
+    assert rows["1oky", "lit"]["lit_over_unlit_cpu"] > 0
+    text = render_sessions.markdown(d)
+    assert "| 1oky | " in text and "`--frames 1`" in text
 
 
 def test_gpu_check_runs_alone():

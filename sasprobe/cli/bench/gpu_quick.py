@@ -5,8 +5,10 @@ Frame times at 1920x1080 for 1CRN, 1TII (waters kept), 1AON whole and 6ZU5 with 
 ~300-atom navigation cube: unlit (every frame whole), the default lighting drawn whole
 every frame, and the session frame (frame cache; the probe along the demo path, the camera
 still), medians of FRAMES frames with the cases in turn; and the occlusion atlas's bake
-for 1AON whole and for the 6ZU5 cube (programs compiled first, so the bake is timed warm).
-The GL renderer and the GPU `nvidia-smi` names are printed with the table.
+for 1AON whole and for the 6ZU5 cube (programs compiled first, so the bake is timed warm);
+and the session frame by structure (bench/render_sessions.py) at the same size, one round,
+with the time to the first frame. The GL renderer and the GPU `nvidia-smi` names are
+printed with the tables.
 """
 
 from __future__ import annotations
@@ -14,9 +16,10 @@ from __future__ import annotations
 import time
 
 from sasprobe.cli.bench import render_scenarios as scenarios
+from sasprobe.cli.bench import render_sessions
 from sasprobe.common.errors import UserError
 
-TITLE = "GPU check: 1080p frame times (unlit, default lighting, session) and atlas bakes"
+TITLE = "GPU check: 1080p frame times (unlit, default lighting, session), atlas bakes, sessions by structure"
 STRUCTURES = ("1crn", "1tii", "1aon", "6zu5")
 CUBE_ID = "6zu5"
 FRAMES = 20
@@ -24,9 +27,9 @@ DEFAULT_SIZE = (1920, 1080)
 
 
 def run(size=DEFAULT_SIZE, frames: int = FRAMES, structures=STRUCTURES, cube_id: str = CUBE_ID,
-        progress=None) -> dict:
-    """The figures of the check; other `structures`, `cube_id` (the one drawn with a cube)
-    and `frames` only shorten it for tests."""
+        progress=None, first_frames: bool = True) -> dict:
+    """The figures of the check; other `structures`, `cube_id` (the one drawn with a cube),
+    `frames` and no `first_frames` (no daemons started) only shorten it for tests."""
     from sasprobe.cli.bench.lighting_precomputed import bake_seconds
     from sasprobe.cli.bench.machine import gl_renderer
     from sasprobe.cli.bench.render import CUBE_TARGET_ATOMS, cube_for
@@ -67,6 +70,10 @@ def run(size=DEFAULT_SIZE, frames: int = FRAMES, structures=STRUCTURES, cube_id:
                 grid.release()
             if progress is not None:
                 progress(sid)
+        out["sessions"] = render_sessions.run_sessions(
+            gl, by_id, sizes=(tuple(size),), structures=structures, frames=max(frames, 12), rounds=1,
+            first_frames=first_frames,
+            progress=(lambda what: progress(f"sessions: {what}")) if progress is not None else (lambda what: None))
     finally:
         gl.release()
     out["wall_s"] = time.perf_counter() - t_start
@@ -89,4 +96,6 @@ def markdown(d: dict, gpu: str | None) -> str:
               "|---|---:|---:|---:|---:|"]
     for b in d["bakes"]:
         lines.append(f"| {b['id']} | {b['patches']} | {b['ambient_s']:.3f} | {b['sun_s']:.3f} | {b['total_s']:.3f} |")
+    if "sessions" in d:
+        lines += ["", render_sessions.markdown(d["sessions"])]
     return "\n".join(lines)
