@@ -12,17 +12,22 @@ the key without being listed anywhere.
 Each frame the planner settles a FramePlan before any pass runs:
 
 - **the layer**: KEPT (the last frame's holds: the passes that draw it do not run, and
-  the G-buffer gets back, from a stash, what the probe covered), DRAWN (drawn anew and
-  kept), or PLAIN (drawn whole as without the planner, nothing kept: the key changed on
-  the last frame too and changes again, as while the camera turns, and a layer kept now
-  would most likely not be used, while drawing it apart from the probe costs more than a
-  whole frame; it is drawn again once the key holds for a frame);
+  the G-buffer gets back, from a stash, what the probe covered), ATOMS (only the probe
+  plane moved, with a navigation cube in effect: the plane cuts the cube's atoms and
+  nothing else, and the atoms and the backbone trace never share a pixel, the trace being
+  drawn only where the eye's ray misses the cube; so the trace and the background outside
+  the cube are kept, the context key holding, and the atoms are drawn anew within the
+  cube's rectangle, `redraw`), DRAWN (drawn anew and kept), or PLAIN (drawn whole as
+  without the planner, nothing kept: the key changed on the last frame too and changes
+  again, as while the camera turns, and a layer kept now would most likely not be used,
+  while drawing it apart from the probe costs more than a whole frame; it is drawn again
+  once the key holds for a frame);
 - **the regions**: for each name, the pixels a pass must redo. Passes declare their
   *footprints* (Pass.footprint: where the probe can change what they draw this frame,
   by name; EVERYWHERE when all of it may change, as while progressive ambient occlusion
-  adds samples); a region is everything unless the layer is KEPT, else where the
-  footprint of that name lies now and lay last frame (what the probe covered there must
-  be put back).
+  adds samples); a region is where the footprint of that name lies now and lay last frame
+  (what the probe covered there must be put back), with the cube's rectangle on an ATOMS
+  frame, and everything on a DRAWN or PLAIN one.
 
 Passes take the plan with the frame (Frame.plan) and draw what it says; they hold no
 caching policy.
@@ -37,9 +42,9 @@ import numpy as np
 
 from sasprobe.molecule import Structure
 from sasprobe.render.gl.gbuffer_stash import GBufferStash
-from sasprobe.render.rects import Rect, full_rect, union_rect
+from sasprobe.render.rects import Rect, full_rect, points_rect, union_rect
 
-KEPT, DRAWN, PLAIN = "kept", "drawn", "plain"  # FramePlan.layer
+KEPT, ATOMS, DRAWN, PLAIN = "kept", "atoms", "drawn", "plain"  # FramePlan.layer
 EVERYWHERE = "everywhere"  # a footprint covering the whole frame
 
 # Footprint names several passes share (a pass's own are prefixed with its name).
@@ -72,14 +77,15 @@ def state_key(value, skip: tuple[str, ...] = ()):
     return (type(value).__name__, id(value))
 
 
-def molecule_key(frame, passes) -> tuple:
-    """The molecule layer's key of a frame: all it is drawn from, the probe excepted."""
+def molecule_key(frame, passes, context: bool = False) -> tuple:
+    """The molecule layer's key of a frame: all it is drawn from, the probe excepted; with
+    `context`, of the part the probe plane does not cut (the trace, the background)."""
     return (
         state_key(frame.scene, skip=("probe",)),
         state_key(frame.camera),
         tuple(frame.size),
-        state_key(frame.view), state_key(frame.proj), state_key(frame.planes), state_key(frame.cube),
-        state_key(frame.light_direction), frame.buffers.color_version,
+        state_key(frame.view), state_key(frame.proj), state_key(frame.context_planes if context else frame.planes),
+        state_key(frame.cube), state_key(frame.light_direction), frame.buffers.color_version,
         tuple((type(p).__name__, state_key(p.state())) for p in passes),
     )
 
@@ -90,7 +96,8 @@ class FramePlan:
 
     layer: str = PLAIN
     size: tuple[int, int] = (1, 1)
-    regions: dict[str, Rect | None] = field(default_factory=dict)  # KEPT frames: by footprint name
+    regions: dict[str, Rect | None] = field(default_factory=dict)  # KEPT and ATOMS frames: by footprint name
+    redraw: Rect | None = None  # ATOMS frames: the rectangle the atoms are drawn anew in (the cube's)
     layer_memo: dict = field(default_factory=dict)  # what passes find once per molecule layer (its rectangles)
     layer_version: int = 0  # counts the molecule layers drawn: a kept layer keeps its number
 
@@ -104,11 +111,17 @@ class FramePlan:
         """Whether the molecule layer is the last frame's (its passes do not run)."""
         return self.layer == KEPT
 
+    @property
+    def context_kept(self) -> bool:
+        """Whether the trace and the background beyond the cube are the last frame's (only the
+        atoms are drawn anew, within `redraw`)."""
+        return self.layer == ATOMS
+
     def region(self, name: str) -> Rect | None:
-        """The pixels to redo for footprint `name`: all of them unless the layer is kept."""
-        if self.layer != KEPT:
+        """The pixels to redo for footprint `name` (see the module's docstring)."""
+        if self.layer in (DRAWN, PLAIN):
             return full_rect(self.size)
-        return self.regions.get(name)
+        return union_rect(self.regions.get(name), self.redraw)
 
 
 class FramePlanner:
@@ -120,33 +133,40 @@ class FramePlanner:
         self.programs = programs
         self.stash: GBufferStash | None = None
         self.key: tuple | None = None  # the kept layer's key (None: none kept)
+        self.context_key: tuple | None = None  # its context's (molecule_key's `context`)
         self.last_key: tuple | None = None  # the last frame's key, layer kept or not
         self.last_layer = PLAIN
         self.stashed: Rect | None = None  # what the stash holds: the probe's rectangle of the last frame
         self.footprints: dict[str, object] = {}  # the last frame's, by name
         self.layer_memo: dict = {}
         self.layer_version = 0
-        self.counts = {KEPT: 0, DRAWN: 0, PLAIN: 0}
+        self.counts = {KEPT: 0, ATOMS: 0, DRAWN: 0, PLAIN: 0}
 
     def plan(self, frame, passes) -> FramePlan:
-        """This frame's plan; on a KEPT frame the G-buffer gets back what the probe covered."""
+        """This frame's plan; on a KEPT or ATOMS frame the G-buffer gets back what the probe covered."""
         key = molecule_key(frame, passes)
+        context_key = molecule_key(frame, passes, context=True) if frame.cube is not None else None
         if key == self.key:
             layer = KEPT
-        elif self.last_layer != KEPT and self.last_key is not None and key != self.last_key:
+        elif self.key is not None and context_key is not None and context_key == self.context_key:
+            layer = ATOMS
+        elif self.last_layer not in (KEPT, ATOMS) and self.last_key is not None and key != self.last_key:
             layer = PLAIN
         else:
             layer = DRAWN
         self.last_key, self.last_layer = key, layer
         self.key = None if layer == PLAIN else key
+        self.context_key = None if layer == PLAIN else context_key
         self.counts[layer] += 1
-        if layer == KEPT and self.stashed is not None:
+        if layer in (KEPT, ATOMS) and self.stashed is not None:
             self.stash.restore(frame.targets, self.stashed)
         self.stashed = None
         if layer != KEPT:
             self.layer_memo = {}
             self.layer_version += 1
         plan = FramePlan(layer, tuple(frame.size), layer_memo=self.layer_memo, layer_version=self.layer_version)
+        if layer == ATOMS:  # the cube's pixels: the atoms' as they were and as they will be
+            plan.redraw = points_rect(frame.cube.corners(), frame.viewproj, frame.size, 2)
         frame.plan = plan
         now: dict[str, object] = {}
         if plan.keeps:
@@ -154,7 +174,7 @@ class FramePlanner:
                 if p.enabled(frame):
                     for name, rect in p.footprint(frame).items():
                         now[name] = EVERYWHERE if EVERYWHERE in (rect, now.get(name)) else union_rect(now.get(name), rect)
-        if layer == KEPT:
+        if layer in (KEPT, ATOMS):
             plan.regions = {name: _region(self.footprints.get(name), now.get(name), plan.size)
                             for name in set(now) | set(self.footprints)}
         self.footprints = now
@@ -162,7 +182,7 @@ class FramePlanner:
 
     def layer_counts(self) -> dict[str, int]:
         """Frames so far that kept the molecule layer, and that drew it (kept or not)."""
-        return {"kept": self.counts[KEPT], "drawn": self.counts[DRAWN] + self.counts[PLAIN]}
+        return {"kept": self.counts[KEPT], "drawn": self.counts[ATOMS] + self.counts[DRAWN] + self.counts[PLAIN]}
 
     def stash_under_probe(self, frame) -> None:
         """Keep the molecule layer's pixels the probe is about to cover (the layer is

@@ -35,7 +35,7 @@ from sasprobe.render.gl.targets import RenderTargets
 from sasprobe.render.gl.textures import read_image
 from sasprobe.render.lighting.settings import ShadingSettings
 from sasprobe.render.passes.backbone import BackbonePass
-from sasprobe.render.passes.base import MOLECULE, Frame, Pass
+from sasprobe.render.passes.base import CONTEXT, MOLECULE, Frame, Pass
 from sasprobe.render.passes.clear import ClearPass
 from sasprobe.render.passes.fxaa import FxaaPass
 from sasprobe.render.passes.legend import LegendPass
@@ -128,6 +128,7 @@ class Renderer:
             view=camera.view(),
             proj=camera.projection(w / h),
             planes=self.scene.active_planes(camera),
+            context_planes=self.scene.active_planes(camera, probe_plane=False),
             cube=self.scene.active_cube(),
             output_fbo=output_fbo if output_fbo is not None else self.targets.final_fbo,
             light_direction=self.scene.world_light_direction(camera),
@@ -139,11 +140,12 @@ class Renderer:
         plan = frame.plan
         # The molecule layer is complete in the G-buffer before the first pass after its last
         # one: what the probe will cover is stashed there, for the next frame to put back.
-        layer_end = max((i for i, p in enumerate(self.passes) if p.layer == MOLECULE), default=-1) + 1
+        layer_end = max((i for i, p in enumerate(self.passes) if p.layer in (MOLECULE, CONTEXT)), default=-1) + 1
         for i, p in enumerate(self.passes):
             if i == layer_end and plan.keeps:
                 self.planner.stash_under_probe(frame)
-            if not p.enabled(frame) or (plan.kept and p.layer == MOLECULE):
+            if not p.enabled(frame) or (plan.kept and p.layer in (MOLECULE, CONTEXT)) \
+                    or (plan.context_kept and p.layer == CONTEXT):
                 continue
             if pass_times is None:
                 p.run(frame)

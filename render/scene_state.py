@@ -187,10 +187,10 @@ class SceneState:
         depth = float(np.ceil(float(n @ self.probe.center) / step)) * step
         return np.array([*n, -depth])
 
-    def active_planes(self, camera) -> np.ndarray:
-        """User planes (when on) and the probe plane (when on), N x 4."""
+    def active_planes(self, camera, probe_plane: bool = True) -> np.ndarray:
+        """User planes (when on) and the probe plane (when on, unless not `probe_plane`), N x 4."""
         planes = list(self.clip_planes) if self.effects.clip_planes else []
-        pp = self.probe_plane(camera)
+        pp = self.probe_plane(camera) if probe_plane else None
         if pp is not None:
             planes.append(pp)
         return np.array(planes, dtype=np.float64).reshape(-1, 4)

@@ -83,8 +83,16 @@ def main() -> None:
 
         press(app, glfw.KEY_TAB)
         assert app.view.mode == OVERVIEW and not app.effects.probe_plane and app._workspace_camera() is None
-        center, radius = app.renderer.scene.bounding_sphere()
-        assert app.camera.distance > 2 * radius, "the overview frames the whole molecule"
+        # The overview frames what it shows of the whole molecule (the trace beyond the cube, the
+        # cube and its atoms), and the probe, and fills the picture.
+        scene = app.renderer.scene
+        trace = scene.structure.positions[np.concatenate(scene.structure.backbone)]
+        points = np.vstack([trace, scene.nav_cube.corners(), scene.probe.center])
+        clip = np.column_stack([points, np.ones(len(points))]) @ (app.camera.projection(SIZE[0] / SIZE[1])
+                                                                  @ app.camera.view()).T
+        ndc = clip[:, :2] / clip[:, 3:]
+        assert np.all(clip[:, 3] > 0) and np.abs(ndc).max() <= 1.0, "the overview frames the whole molecule"
+        assert (ndc.max(axis=0) - ndc.min(axis=0)).max() > 1.2, "the overview fills the picture"
         press(app, glfw.KEY_TAB)
         assert app.view.mode == WORKSPACE and app._workspace_camera() is not None
         text = "\n".join(app.text())

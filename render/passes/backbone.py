@@ -10,7 +10,7 @@ import numpy as np
 
 from sasprobe.render.gl.buffers import BACKBONE_FORMAT
 from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
-from sasprobe.render.passes.base import MOLECULE, Frame, Pass
+from sasprobe.render.passes.base import CONTEXT, Frame, Pass
 
 TRACE_RADIUS = 0.35  # Å
 MIN_WIDTH_PX = 2.0
@@ -18,7 +18,7 @@ MIN_WIDTH_PX = 2.0
 
 class BackbonePass(Pass):
     name = "backbone"
-    layer = MOLECULE
+    layer = CONTEXT
 
     def __init__(self, ctx, programs, buffers, show_always: bool = False):
         self.prog = programs.get("backbone.vert", "backbone.frag", "wide_line.geom")
@@ -40,7 +40,7 @@ class BackbonePass(Pass):
         ctx = frame.ctx
         apply_uniforms(self.prog, frame.raster_camera_uniforms())
         apply_uniforms(self.prog, line_width_uniforms(frame, TRACE_RADIUS, MIN_WIDTH_PX))
-        apply_planes(self.prog, frame.planes)
+        apply_planes(self.prog, frame.context_planes)  # the probe plane cuts atoms: the trace never hides the probe
         apply_uniforms(self.prog, cube_uniforms(frame.cube))
         apply_uniforms(self.prog, {"u_cube_enabled": int(frame.cube is not None), "u_cube_window": 1})
         frame.targets.gbuffer_fbo.use()

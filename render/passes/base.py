@@ -53,6 +53,7 @@ class Frame:
     view: np.ndarray  # 4x4 float64
     proj: np.ndarray  # 4x4 float64
     planes: np.ndarray  # N x 4: user planes (+ probe plane) in effect
+    context_planes: np.ndarray  # N x 4: the user planes in effect (the trace's: the probe plane cuts atoms only)
     cube: NavCube | None  # the navigation cube in effect
     output_fbo: object  # where the final image goes
     light_direction: np.ndarray  # where the directional light travels (molecule frame), for this camera
@@ -145,14 +146,16 @@ def raster_camera_uniforms(camera: Camera, viewproj: np.ndarray, proj: np.ndarra
     }
 
 
-MOLECULE, FRAME = "molecule", "frame"  # Pass.layer
+MOLECULE, CONTEXT, FRAME = "molecule", "context", "frame"  # Pass.layer
 
 
 class Pass:
     """Base of the passes: on by default, no G-buffer export layers, nothing to release.
 
     `layer` MOLECULE: the pass draws the molecule layer (what does not depend on the probe)
-    and does not run while that layer is kept (FramePlan.kept). `state()` is what of the
+    and does not run while that layer is kept (FramePlan.kept); CONTEXT: it draws the part
+    of that layer the probe plane does not cut (the backbone trace), and does not run while
+    that part is kept either (FramePlan.context_kept). `state()` is what of the
     pass's own configuration shapes the picture; it is part of the molecule layer's key
     (render/frame_planner.py), so a setting added to a pass's `settings` dataclass is keyed
     without being listed. `footprint()` says where the probe can change what the pass

@@ -19,6 +19,8 @@ time is the steadier on a shared machine).
 
 from __future__ import annotations
 
+import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -74,8 +76,8 @@ def _case(gl, structure, path, size, lit: bool):
 
 
 def _first_frames(by_id, ids, sizes, runs: int, progress) -> dict:
-    """`render --connect --headless --frames 1` wall seconds against a running sim:scan daemon,
-    by (structure, size): the median of `runs`."""
+    """`render --connect --headless --frames 1` against a running sim:scan daemon, by
+    (structure, size): (wall seconds, CPU seconds of the process), the medians of `runs`."""
     from sasprobe.cli.children import DaemonChild
 
     out = {}
@@ -87,14 +89,17 @@ def _first_frames(by_id, ids, sizes, runs: int, progress) -> dict:
         try:
             child.wait_ready(DAEMON_READY_S)
             for size in sizes:
-                walls = []
+                walls, cpus = [], []
                 for _ in range(runs):
-                    t0 = time.perf_counter()
+                    before, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
                     r = subprocess.run([sys.executable, "-m", "sasprobe", "render", "--connect", pub, "--control", ctl,
                                         "--headless", "--frames", "1", "--size", f"{size[0]}x{size[1]}"],
                                        capture_output=True, text=True, timeout=300)
-                    walls.append(time.perf_counter() - t0 if r.returncode == 0 else float("nan"))
-                out[(sid, tuple(size))] = statistics.median(walls)
+                    wall, after = time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_CHILDREN)
+                    cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+                    walls.append(wall if r.returncode == 0 else float("nan"))
+                    cpus.append(cpu if r.returncode == 0 else float("nan"))
+                out[(sid, tuple(size))] = (statistics.median(walls), statistics.median(cpus))
         finally:
             child.stop(30.0)
             shutil.rmtree(folder, ignore_errors=True)
@@ -108,6 +113,7 @@ def run_sessions(gl, by_id, quick: bool = False, sizes=None, structures=None, fr
     from sasprobe.cli.bench.render_scenarios import demo_path, time_cases
     from sasprobe.molecule import load_structure
 
+    load = [os.getloadavg()[0]]
     structures = structures or (QUICK_STRUCTURES if quick else STRUCTURES)
     sizes = [tuple(s) for s in (sizes or (QUICK_SIZES if quick else SIZES))]
     frames = frames or (QUICK_FRAMES if quick else FRAMES)
@@ -153,7 +159,7 @@ def run_sessions(gl, by_id, quick: bool = False, sizes=None, structures=None, fr
             for case in cases.values():
                 case.renderer.release()
     out = {"structures": list(structures), "sizes": [list(s) for s in sizes], "frames": frames, "rounds": rounds,
-           "rows": rows}
+           "rows": rows, "load": load}
     for row in rows:  # lit against unlit, same structure and size, same rounds
         unlit = next(r for r in rows if r["id"] == row["id"] and r["size"] == row["size"] and r["lighting"] == "unlit")
         row["lit_over_unlit"] = row["ms"] / unlit["ms"]
@@ -161,7 +167,8 @@ def run_sessions(gl, by_id, quick: bool = False, sizes=None, structures=None, fr
     if first_frames:
         firsts = _first_frames(by_id, structures, sizes, 1 if quick else FIRST_FRAME_RUNS, progress)
         for row in rows:
-            row["connect_frames_1_s"] = firsts[row["id"], tuple(row["size"])]
+            row["connect_frames_1_s"], row["connect_frames_1_cpu_s"] = firsts[row["id"], tuple(row["size"])]
+    load.append(os.getloadavg()[0])
     return out
 
 
@@ -173,19 +180,22 @@ def markdown(d: dict) -> str:
         f"of the same round: median [range]):",
         "",
         f"| structure | atoms | size | lighting | frame (ms) | CPU (ms) | / {base.upper()} (CPU) | / {base.upper()} (wall) "
-        "| lit / unlit (CPU) | layer kept | first frame in process (s) | `--frames 1` wall (s) |",
+        "| lit / unlit (CPU) | layer kept | first frame in process (s) | `--frames 1` wall (CPU) (s) |",
         "|---|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in d["rows"]:
         lo, hi = r[f"over_{base}_cpu_range"]
         wlo, whi = r[f"over_{base}_range"]
         lit = f"{r['lit_over_unlit_cpu']:.2f}" if r["lighting"] == "lit" else ""
-        first = f"{r['connect_frames_1_s']:.2f}" if "connect_frames_1_s" in r and r["lighting"] == "lit" else ""
+        first = f"{r['connect_frames_1_s']:.2f} ({r['connect_frames_1_cpu_s']:.2f})" \
+            if "connect_frames_1_s" in r and r["lighting"] == "lit" else ""
         lines.append(
             f"| {r['id']} | {r['atoms']} | {r['size'][0]}x{r['size'][1]} | {r['lighting']} | {r['ms']:.1f} | "
             f"{r['cpu_ms']:.1f} | {r[f'over_{base}_cpu']:.2f} [{lo:.2f}–{hi:.2f}] | {r[f'over_{base}']:.2f} "
             f"[{wlo:.2f}–{whi:.2f}] | {lit} | {r['kept']}/{r['frames']} | {r['first_frame_s']:.2f} | {first} |")
-    lines += ["", "`--frames 1`: the default lighting, process start to exit, the daemon already running."]
+    lines += ["", "`--frames 1`: the default lighting, process start to exit, the daemon already running; in "
+              "brackets the process's CPU time (llvmpipe's threads included), which other work on the machine "
+              f"does not stretch. Load average before and after: {d['load'][0]:.1f}, {d['load'][1]:.1f}."]
     return "\n".join(lines)
 
 
@@ -211,10 +221,11 @@ def chart(d: dict, path, renderer_name: str):
     axes[0].set_title(f"Session frame by structure\n{renderer_name.split(' / ')[0]}", fontsize=9)
     if all("connect_frames_1_s" in r for r in d["rows"]):
         for size in d["sizes"]:
-            axes[1].plot(ids, [next(r["connect_frames_1_s"] for r in d["rows"] if r["id"] == sid and r["size"] == size)
-                               for sid in ids], "o-", label=f"{size[0]}x{size[1]}")
-        axes[1].axhline(3.0, color="grey", lw=0.8, ls="--")
-        axes[1].set_ylabel("render --connect --frames 1, wall s")
+            for key, style, what in (("connect_frames_1_s", "o-", "wall"), ("connect_frames_1_cpu_s", "s--", "CPU")):
+                axes[1].plot(ids, [next(r[key] for r in d["rows"] if r["id"] == sid and r["size"] == size)
+                                   for sid in ids], style, label=f"{size[0]}x{size[1]}, {what}")
+        axes[1].axhline(3.0, color="grey", lw=0.8, ls=":")
+        axes[1].set_ylabel("render --connect --frames 1, s")
         axes[1].set_ylim(bottom=0)
         axes[1].legend(fontsize=7)
         axes[1].set_title("Time to the first frame (process start included)", fontsize=9)
