@@ -265,8 +265,10 @@ def _run_window(opts: RenderOptions, source: RenderSource) -> int:
             app.release()
         seconds = time.perf_counter() - start
         _report(f"{count} frame(s) shown", writer, opts)
+        planner = app.renderer.planner if app.renderer is not None else None
         _write_run_report(opts, {"frames": count, "seconds": seconds, "fps": count / seconds if count else None,
-                                 "window": True}, source)
+                                 "window": True, "molecule_layer": planner.layer_counts() if planner else None},
+                          source)
     finally:
         glfw.destroy_window(window)
         glfw.terminate()
