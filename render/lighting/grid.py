@@ -120,6 +120,17 @@ class Culling:
         }
 
 
+def cube_culling(planes: np.ndarray, cube) -> Culling:
+    """The lighting's culling for a frame's planes and navigation cube (a NavCube or None):
+    an axis-aligned cube as the grid's box (its walk range shrinks to the cube), a turned
+    one as its six face planes."""
+    if cube is None:
+        return Culling(planes, None)
+    if cube.axis_aligned:
+        return Culling(planes, (cube.center, cube.half))
+    return Culling(np.concatenate([planes.reshape(-1, 4), cube.planes()]), None)
+
+
 class GpuGrid:
     """The grid's buffers on one moderngl context, plus the per-atom culled flags."""
 

@@ -122,6 +122,14 @@ class Frame:
         picture shows only the backbone trace, which is context, and the background)."""
         return union_rect(self.lit_rect(), self.probe_rect())
 
+    def lighting_area(self, composed: bool = False):
+        """Where the lighting computes the atoms' terms on a frame drawn whole (1 elsewhere): the
+        lit region; with `composed`, where it composes the visibility buffer: that, or with edge
+        cueing (which darkens the trace and the background too) the whole frame."""
+        if composed and self.scene.effects.edge_cueing:
+            return (0, 0, *self.size)
+        return self.lit_region() or (0, 0, 0, 0)
+
     def near_plane(self) -> np.ndarray:
         """The camera's near plane as a clip plane (spheres crossing it get a cap)."""
         forward = -self.camera_basis()[:, 2]

@@ -48,7 +48,7 @@ from sasprobe.render.gl.textures import TextureCache, read_texture
 from sasprobe.render.lighting.ao import AmbientOcclusion
 from sasprobe.render.lighting.edges import EdgeCueingPass
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.lighting.grid import GpuGrid, cube_culling
 from sasprobe.render.lighting.path_tracer import PathTracer
 from sasprobe.render.lighting.settings import (
     AO_MODES,
@@ -200,21 +200,10 @@ class LightingPass(LayeredLighting, Pass):
             ambient, visibility, lit = self.ao.baked(gbuffer, ambient=both, sun_direction=sun.unit(), probe_light=lamp)
             self._looked_up = (frame.index, ambient if both else None, lit if lamp is not None else None)
             return visibility
-        area = self._lit_area(frame)
+        area = frame.lighting_area()
         out = self.textures.fill(name, frame.size, 1.0) if area != full_rect(frame.size) else \
             self.textures.get(name, frame.size)  # 1 beyond the area: there the picture shows no atom
         return self.shadows.trace(gbuffer, sun, self._soft(frame), out=out, rect=area)
-
-    @staticmethod
-    def _lit_area(frame: Frame):
-        """Where the terms of the atoms are computed on a frame drawn whole (the rest is 1)."""
-        return frame.lit_region() or (0, 0, 0, 0)
-
-    @staticmethod
-    def _compose_area(frame: Frame):
-        """Where the visibility buffer is composed on a frame drawn whole: the lit area, or with
-        edge cueing (which darkens the trace and the background too) the whole frame."""
-        return full_rect(frame.size) if frame.scene.effects.edge_cueing else LightingPass._lit_area(frame)
 
     def _precomputed(self, frame: Frame) -> bool:
         """Whether the lights' shadows come from the occlusion atlas (--shadows precomputed; hard only)."""
@@ -257,7 +246,7 @@ class LightingPass(LayeredLighting, Pass):
         if self._looked_up[0] == frame.index and self._looked_up[1] is not None:
             return self._looked_up[1]
         self._configure_ao()
-        drawn, area = frame.scene.sphere_selection(frame.camera), self._lit_area(frame)
+        drawn, area = frame.scene.sphere_selection(frame.camera), frame.lighting_area()
         texture = self.ao.compute(gbuffer, frame.view, frame.proj, drawn, area)
         while self.ao.samples < self.settings.samples and not self.ao.converged:
             texture = self.ao.compute(gbuffer, frame.view, frame.proj, drawn, area)
@@ -322,7 +311,7 @@ class LightingPass(LayeredLighting, Pass):
         terms = dict(self.layers)
         if fx.edge_cueing:
             terms["edges"] = self._edges(gbuffer, frame)
-        self._compose(frame, terms, {}, rect=self._compose_area(frame))
+        self._compose(frame, terms, {}, rect=frame.lighting_area(composed=True))
         frame.probe_lighting = ProbeLighting(self.layers.get("shadow_probe"), traced=traced)
 
     # ------------------------------------------------------------ helpers
@@ -382,16 +371,6 @@ class MoleculeLightingPass(Pass):
 
     def run(self, frame: Frame) -> None:
         self.lighting.run_molecule(frame)
-
-
-def cube_culling(planes: np.ndarray, cube) -> Culling:
-    """The lighting's culling for the frame's planes and cube: an axis-aligned cube as the
-    grid's box (its walk range shrinks to the cube), a turned one as its six face planes."""
-    if cube is None:
-        return Culling(planes, None)
-    if cube.axis_aligned:
-        return Culling(planes, (cube.center, cube.half))
-    return Culling(np.concatenate([planes.reshape(-1, 4), cube.planes()]), None)
 
 
 def install_lighting(renderer, settings: LightingSettings, required: bool = True) -> LightingPass | None:

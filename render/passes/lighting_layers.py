@@ -52,7 +52,7 @@ class LayeredLighting:
                 self.molecule_terms["ao"] = self._ambient(gbuffer, frame)
         elif self._adding_samples(frame):
             self.molecule_terms["ao"] = self.ao.compute(gbuffer, frame.view, frame.proj,
-                                                        frame.scene.sphere_selection(frame.camera), self._lit_area(frame))
+                                                        frame.scene.sphere_selection(frame.camera), frame.lighting_area())
             self._molecule_changed = True
 
     def _adding_samples(self, frame: Frame) -> bool:
@@ -125,7 +125,7 @@ class LayeredLighting:
         # bring. Beyond those the layered program composes what the plain one does, so but
         # for a whole frame one pass does both. The probe's shadow of the sun on the atoms is
         # the shading pass's (probe_share.glsl): it shades again where the shadow can fall.
-        area = self._compose_area(frame)
+        area = frame.lighting_area(composed=True)
         rect, background_rect = (intersect_rect(plan.region(name), area) for name in (COMPOSE, COMPOSE_BACKGROUND))
         if probe_rect is not None and not self._molecule_changed:  # rect holds probe_rect: its footprint does
             self._compose(frame, terms, uniforms, layered=True, rect=rect, background=background_rect)
