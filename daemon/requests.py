@@ -109,8 +109,8 @@ class RequestHandlers:
         d = self.daemon
         keep_water = request.args.get("keep_water", False)
         if request.data is not None:
-            name = request.args.get("name") or "uploaded"
-            data, source = request.data, f"control:{name}"
+            name = structure_name(request.args.get("name") or "uploaded")  # the stem, as for a path
+            data, source = request.data, f"control:{request.args.get('name') or name}"
         else:
             text = request.args["path"]
             # a PDB id comes through the user's fetch cache; a file only from below --load-dir

@@ -203,11 +203,11 @@ def test_load_by_bytes_switches_the_structure(daemon, reference_by_id):
     data = reference_by_id["1oky"].path.read_bytes()
     with ControlClient(daemon.ctl) as client:
         old = client.get_scene()["structure"]
-        result = client.load(data=data, name="1oky")
-        assert result["structure"]["n_atoms"] > 2000
+        result = client.load(data=data, name="1oky.pdb.gz")  # named as a file: the name is its stem
+        assert result["structure"]["n_atoms"] > 2000 and result["structure"]["name"] == "1oky"
         assert client.get_scene()["structure"]["name"] == "1oky"
         header, raw = client.get_structure()
-        assert raw == data and header["sha256"] != old["sha256"]
+        assert raw == data and header["sha256"] != old["sha256"] and header["name"] == "1oky"
         with pytest.raises(ControlError, match="load"):
             client.load(data=b"\x1f\x8b not really gzip", name="bad")
         client.load(data=fetch_raw_default(), name=old["name"])
