@@ -22,6 +22,7 @@ import math
 
 from sasprobe.protocol import schemas
 from sasprobe.protocol.control import COMMANDS
+from tests.test_protocol_pose import reference_decode  # imported here, not while poses pour in
 
 _FLAG = {f["name"]: 1 << f["bit"] for f in schemas.pose_layout()["flags"]}
 
@@ -72,8 +73,6 @@ def check_pose_payload(payload: bytes) -> dict:
     version, reserved word and flag bits, finite numbers, one tick's fields agreeing with its
     flags. (The JSON Schema validator is too slow for 1000 poses a second; the recording's
     `pose` records, the same fields, are checked with it.) Returns the decoded fields."""
-    from tests.test_protocol_pose import reference_decode
-
     layout = schemas.pose_layout()
     assert len(payload) >= layout["size"], f"pose of {len(payload)} bytes"
     raw = reference_decode(payload)
@@ -115,6 +114,8 @@ def checking_clients():
     from sasprobe.protocol import client
 
     original_request, original_handle = client.ControlClient.request, client.Subscriber._handle
+    for ref in ("scene", "control#/$defs/reply"):  # build the validators now, not while messages pour in
+        list(_validator(ref).iter_errors({}))
 
     def request(self, cmd, args=None, data=None, timeout_s=None):
         reply = original_request(self, cmd, args, data=data, timeout_s=timeout_s)
