@@ -38,7 +38,8 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps({"devices": [f.as_dict() for f in found], "notes": notes}))
         return 0
     if not found:
-        print("none found (no USB serial port, no SpaceMouse, no known USB arm)")
+        print("none found (no USB serial port, no SpaceMouse, no known USB arm, no Force Dimension arm, "
+              "no Inverse Service)")
     for f in found:
         ids = f"{f.vendor_id:04x}:{f.product_id:04x}" if f.vendor_id is not None else "-"
         line = f"{f.transport:6} {f.path:24} {ids:9}  {f.description}"
@@ -98,7 +99,7 @@ def _check(spec: str, seconds: float, as_json: bool) -> int:
           f"{lim.max_stiffness_n_per_mm:g} N/mm, force output {'yes' if lim.has_force_output else 'no'}")
     print(f"  read       {reads} states in {elapsed:.2f} s ({report['rate_hz']:.0f} Hz), {faults} faults")
     print(f"  position   ({', '.join(f'{v:.1f}' for v in state.position_mm)}) mm, buttons {state.buttons:#x}")
-    print(f"  calibrated {'yes' if state.calibrated else 'no: see the calibration steps in the README'}")
+    print(f"  calibrated {'yes' if state.calibrated else 'no: see the calibration steps in docs/connect-your-arm.md'}")
     rejected = info.details.get("rejected_frames")
     if rejected:
         print(f"  rejected   {rejected} malformed frames")
