@@ -37,7 +37,6 @@ PROFILE = "sasprobe"
 
 # Each channel's JSON Schema (protocol/schemas/), standalone, as the writer embeds it (encoding `jsonschema`).
 SCHEMAS = channel_schemas()
-CHANNELS = tuple(SCHEMAS)
 
 
 def json_floats(values) -> list:

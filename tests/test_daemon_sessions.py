@@ -49,7 +49,8 @@ def test_replay_verify_reproduces_every_force_exactly(tmp_path):
             time.sleep(0.5)
             client.set(stiffness_n_per_mm=0.25)
             time.sleep(0.3)
-            client.set(probe_radius_A=1.6, damping_n_s_per_m=0.1)
+            # a new radius builds a new engine in the worker process: on a busy machine, seconds
+            client.call("set", timeout_s=60, probe_radius_A=1.6, damping_n_s_per_m=0.1)
             time.sleep(0.8)
         rc, report = d.stop()
     assert rc == 0 and scan(path).finished
