@@ -64,6 +64,17 @@ def check_reply(cmd: str, reply_json: dict) -> None:
         assert_valid(f"control#/$defs/result.{cmd}", reply_json["result"])
 
 
+def check_raw_reply(request_frame: bytes, reply_frames: list) -> None:
+    """A reply to a request sent on a raw socket: checked as the reply to the command the
+    request names, or as a bare envelope when it names none."""
+    try:
+        request = json.loads(bytes(request_frame))
+    except (ValueError, RecursionError):
+        request = None
+    cmd = request.get("cmd") if isinstance(request, dict) else None
+    check_reply(cmd if isinstance(cmd, str) else "", json.loads(bytes(reply_frames[0])))
+
+
 def check_scene(scene: dict) -> None:
     assert_valid("scene", scene)
 

@@ -23,7 +23,7 @@ from sasprobe.protocol.control import decode_reply
 from sasprobe.protocol.scene import SCENE_VERSION
 from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess, cli_many
-from tests.test_protocol_pose import reference_decode
+from tests.schema_check import check_pose_payload, check_raw_reply
 
 
 @pytest.fixture(scope="module")
@@ -60,7 +60,7 @@ def collect_raw(endpoint: str, seconds: float, stop: threading.Event | None = No
 
 
 def _coverage(payloads: list[bytes]) -> tuple[float, list[dict]]:
-    decoded = [reference_decode(p) for p in payloads]
+    decoded = [check_pose_payload(p) for p in payloads]  # the README table's decoder, checked against pose.json
     seqs = [d["seq"] for d in decoded]
     assert seqs == sorted(seqs), "poses arrived out of order"
     return len(set(seqs)) / (seqs[-1] - seqs[0] + 1), decoded
@@ -124,7 +124,9 @@ def _raw_request(endpoint: str, frames: list[bytes]):
     try:
         sock.send_multipart(frames)
         assert sock.poll(15000), f"no reply to {frames[0][:60]!r}"
-        return decode_reply(sock.recv_multipart())
+        reply = sock.recv_multipart()
+        check_raw_reply(frames[0], reply)
+        return decode_reply(reply)
     finally:
         sock.close()
 

@@ -21,14 +21,14 @@ from sasprobe.protocol.recording import iter_items, scan
 from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess
 from tests.test_daemon_process import collect_raw
-from tests.test_protocol_pose import reference_decode
+from tests.schema_check import check_pose_payload
 
 
 def test_record_then_sigkill_leaves_a_readable_file_missing_at_most_100_ms(tmp_path):
     path = tmp_path / "killed.mcap"
     with DaemonProcess("--record", str(path)) as d:
         payloads = collect_raw(d.pub, 1.5)
-        last_seen = max(reference_decode(p)["publish_t_ns"] for p in payloads)
+        last_seen = max(check_pose_payload(p)["publish_t_ns"] for p in payloads)
         d.stop(signal.SIGKILL)
     assert not scan(path).finished
     poses = [item.data for item in iter_items(path) if item.topic == "pose"]
