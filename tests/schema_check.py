@@ -130,7 +130,7 @@ def checking_clients():
 
     def request(self, cmd, args=None, data=None, timeout_s=None):
         reply = original_request(self, cmd, args, data=data, timeout_s=timeout_s)
-        envelope = {"version": reply.version, "ok": reply.ok, "id": reply.id}
+        envelope = {"version": reply.version, "ok": reply.ok, **({} if reply.id is None else {"id": reply.id})}
         envelope.update({"result": reply.result} if reply.ok else {"error": reply.error})
         check_reply(cmd, envelope)
         return reply

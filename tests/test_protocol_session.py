@@ -26,7 +26,7 @@ from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
 from sasprobe.protocol.recording import iter_items
 from sasprobe.protocol.schemas import channel_schemas
 from tests.daemon_process import DaemonProcess
-from tests.schema_check import check_pose_payload, check_record, check_reply
+from tests.schema_check import check_record, check_reply
 
 TICKS = 3200  # the session's length in ticks
 FAULTS = ("raise@800+30", "nan@1100+20", "stall@1500+30")  # the first two while the scan script touches
