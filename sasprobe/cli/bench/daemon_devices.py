@@ -19,11 +19,11 @@ import time
 from pathlib import Path
 
 from sasprobe.cli.children import DaemonChild
+from sasprobe.cli.reference_data import REPO_ROOT
 from sasprobe.common.progress import progress
 
 READY_S = 90.0
 STOP_S = 30.0
-REPO_ROOT = Path(__file__).resolve().parents[2]
 
 # row label -> (emulator module under tests.emulators, launch options); None: the simulated arm
 DEVICES: dict[str, tuple[str, dict] | None] = {
