@@ -46,10 +46,14 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     entries = reference_structures()
     if not entries:
         raise UserError(MISSING)
-    size = getattr(args, "size", None) or ((640, 360) if ctx.quick else (1280, 720))
-    scenario_size = getattr(args, "scenario_size", None) or ((400, 300) if ctx.quick else (800, 600))
+    if ctx.smoke:
+        entries = entries[:2]
+    size = getattr(args, "size", None) or ((64, 36) if ctx.smoke else (640, 360) if ctx.quick else (1280, 720))
+    scenario_size = getattr(args, "scenario_size", None) or \
+        ((64, 48) if ctx.smoke else (400, 300) if ctx.quick else (800, 600))
     only_scenarios = getattr(args, "scenarios_only", False)
-    repeats, mesh_repeats = (3, 2) if ctx.quick else (9, 5)
+    repeats, mesh_repeats = (1, 1) if ctx.smoke else (3, 2) if ctx.quick else (9, 5)
+    frames = 3 if ctx.smoke else 10 if ctx.quick else 30
     gl = create_headless_context()
     renderer_name = f"{gl.info['GL_RENDERER']} / OpenGL {gl.info['GL_VERSION']}"
     by_id = {e.id: e for e in entries}
@@ -70,7 +74,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
             path = ctx.chart_path("render_frame_time.png")
             if path is not None:
                 charts.append(_chart(path, scaling, renderer_name, size))
-        data["scenarios"] = _scenarios(gl, by_id, scenario_size, 10 if ctx.quick else 30, 1 if ctx.quick else 3)
+        data["scenarios"] = _scenarios(gl, by_id, scenario_size, frames, 1 if ctx.quick else 3)
     finally:
         gl.release()
     path = ctx.chart_path("render_frame_cache.png")
