@@ -38,8 +38,7 @@ RATES_HZ = (100, 250, 500, 1000, 2000)
 STIFFNESS = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0)
 QUICK_STIFFNESS = (0.2, 0.5, 1.0, 2.0)
 QUICK_IDS = ("1crn", "1tii", "1aon", "6zu5")
-SMOKE_RATES_HZ = (1000,)
-SMOKE_STIFFNESS = (0.5, 2.0)
+SMOKE_RATES_HZ, SMOKE_STIFFNESS = (1000,), (0.5, 2.0)
 ENERGY_UNSTABLE_MJ = 1.0  # net energy put into the arm over a press-and-release cycle
 POP_THROUGH_N = 0.2  # force component along the push: the surface pulls the hand in
 
@@ -55,8 +54,7 @@ def _positive_int(text: str) -> int:
 
 
 def _cube_half(text: str) -> float:
-    value = 0.0 if text.strip() == "0" else positive_float(text)
-    return value
+    return 0.0 if text.strip() == "0" else positive_float(text)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -212,8 +210,8 @@ def _stability_map(ctx: BenchContext) -> dict:
     from sasprobe.molecule import load_default
 
     structure = load_default()
-    stiffness = SMOKE_STIFFNESS if ctx.smoke else QUICK_STIFFNESS if ctx.quick else STIFFNESS
-    rates = SMOKE_RATES_HZ if ctx.smoke else RATES_HZ
+    stiffness, rates = (SMOKE_STIFFNESS, SMOKE_RATES_HZ) if ctx.smoke else \
+        (QUICK_STIFFNESS if ctx.quick else STIFFNESS, RATES_HZ)
     # explore beyond the arm's rated stiffness to show where the frontier lies
     limits = dataclasses.replace(PHANTOM_OMNI_LIMITS, max_stiffness_n_per_mm=max(stiffness))
     cells = []
@@ -353,11 +351,8 @@ def _stability_figure(stability):
 
 
 def _markdown(rows, stability, ticks, repeats, cube_half) -> str:
-    cube = (
-        f"navigation cube half edge {cube_half:g} Å on the top surface of every structure (same Å/mm)"
-        if cube_half
-        else "navigation cube fitted to each molecule (Å/mm grows with size)"
-    )
+    cube = (f"navigation cube half edge {cube_half:g} Å on the top surface of every structure (same Å/mm)"
+            if cube_half else "navigation cube fitted to each molecule (Å/mm grows with size)")
     lines = [
         f"Simulated arm, 1 kHz, scripts {' + '.join(SCRIPTS)} ({ticks} ticks each), {cube}. Per-tick time: minimum over "
         f"{repeats} replays of the recorded states (single-run p99 beside it). Penetration: deepest the rendered "
