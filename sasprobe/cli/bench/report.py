@@ -19,7 +19,7 @@ from pathlib import Path
 
 from sasprobe.cli.bench.machine import markdown as machine_markdown
 
-PARTS = {"all": "Benchmarks", "gpu-quick": "GPU check"}  # in the page's order
+PARTS = {"all": "All benchmarks", "gpu-quick": "GPU check"}  # in the page's order
 MODES = {"full": "full size", "quick": "--quick: fewer repeats and structures",
          "smoke": "--smoke: every code path at its smallest size; the figures only show that it runs"}
 HEADER = """# Benchmarks
@@ -28,7 +28,9 @@ This page is written by `sasprobe bench --page docs/benchmarks.md` (every benchm
 size) and by `sasprobe bench --gpu-quick --page docs/benchmarks.md` (the GPU check, on a
 machine with a GPU); each part is rewritten whole by its own run, and names the machine, the
 date and the code it measured. Times are medians; every ratio compares figures measured in
-the same run.
+the same run. `sasprobe bench --quick` (minutes) and `sasprobe bench --smoke` (seconds: each
+benchmark's code path at its smallest, to check that it runs) write the same report with
+fewer figures; `--out DIR` keeps a run's JSON, charts and report.md apart from this page.
 """
 
 
@@ -95,7 +97,7 @@ def report_markdown(machine: dict, results, mode: str, date: str, skipped: dict[
 def all_part(machine: dict, results, mode: str, date: str, skipped: dict[str, str], failed: dict[str, str],
              total_s: float, chart_prefix: str) -> str:
     return "\n".join([f"## {PARTS['all']}", "", f"Run of {date} ({MODES[mode]}), {code_version()}; "
-                      f"{total_s / 60:.0f} min in all.", "", machine_markdown(machine), "",
+                      f"{total_s:.0f} s in all.", "", machine_markdown(machine), "",
                       *wall_time_table(results, skipped, failed, total_s), *sections(results, 3, chart_prefix)])
 
 

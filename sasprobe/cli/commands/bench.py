@@ -100,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
         if not results and not failed:
             raise UserError("no benchmark could run: " + "; ".join(f"{n}: {why}" for n, why in skipped.items()))
         total_s = time.perf_counter() - t_start
-        payload = {"machine": machine, "date": date, "mode": mode, "quick": mode != "full", "wall_seconds": total_s,
+        payload = {"machine": machine, "date": date, "mode": mode, "wall_seconds": total_s,
                    "skipped": skipped, "failed": failed, "benchmarks": {r.name: r.data for r in results}}
         _write(args, payload, results)
     if args.json:
@@ -118,9 +118,9 @@ def _mode(args: argparse.Namespace) -> str:
 def _failure(name: str, exc: Exception, out: Path | None) -> str:
     """One line for a benchmark that raised: the error and where in sasprobe it was raised
     (the whole traceback goes to OUT/NAME.error.txt with --out)."""
-    frames = [f for f, _ in traceback.walk_tb(exc.__traceback__)
-              if str(f.f_globals.get("__name__", "")).startswith("sasprobe.")]
-    where = f" at {frames[-1].f_globals['__name__']}:{frames[-1].f_lineno}" if frames else ""
+    ours = [(f.f_globals["__name__"], line) for f, line in traceback.walk_tb(exc.__traceback__)
+            if str(f.f_globals.get("__name__", "")).startswith("sasprobe.")]
+    where = f" at {ours[-1][0]}:{ours[-1][1]}" if ours else ""
     message = (str(exc).strip().splitlines() or [""])[0][:300]
     line = f"{type(exc).__name__}{': ' + message if message else ''}{where}"
     if out is not None:
