@@ -90,8 +90,9 @@ def run(args: argparse.Namespace) -> int:
                 print(f"sasprobe: warning: bench {name} skipped: {exc}", file=sys.stderr, flush=True)
                 continue
             except Exception as exc:  # a failed measurement: one line, and the other benchmarks still run
-                failed[name] = _failure(name, exc, args.out)
-                print(f"sasprobe: error: bench {name} failed: {failed[name]}", file=sys.stderr, flush=True)
+                failed[name] = _failure(exc)
+                print(f"sasprobe: error: bench {name} failed: {failed[name]}{_keep_traceback(name, exc, args.out)}",
+                      file=sys.stderr, flush=True)
                 continue
             result.data["wall_seconds"] = time.perf_counter() - t0
             results.append(result)
@@ -115,19 +116,22 @@ def _mode(args: argparse.Namespace) -> str:
     return "smoke" if getattr(args, "smoke", False) else "quick" if args.quick else "full"
 
 
-def _failure(name: str, exc: Exception, out: Path | None) -> str:
-    """One line for a benchmark that raised: the error and where in sasprobe it was raised
-    (the whole traceback goes to OUT/NAME.error.txt with --out)."""
+def _failure(exc: Exception) -> str:
+    """One line for a benchmark that raised: the error and where in sasprobe it was raised."""
     ours = [(f.f_globals["__name__"], line) for f, line in traceback.walk_tb(exc.__traceback__)
             if str(f.f_globals.get("__name__", "")).startswith("sasprobe.")]
     where = f" at {ours[-1][0]}:{ours[-1][1]}" if ours else ""
     message = (str(exc).strip().splitlines() or [""])[0][:300]
-    line = f"{type(exc).__name__}{': ' + message if message else ''}{where}"
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        (out / f"{name}.error.txt").write_text("".join(traceback.format_exception(exc)))
-        line += f" (traceback in {out / f'{name}.error.txt'})"
-    return line
+    return f"{type(exc).__name__}{': ' + message if message else ''}{where}"
+
+
+def _keep_traceback(name: str, exc: Exception, out: Path | None) -> str:
+    """With --out, the whole traceback goes to OUT/NAME.error.txt; where, for the stderr line."""
+    if out is None:
+        return ""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{name}.error.txt").write_text("".join(traceback.format_exception(exc)))
+    return f" (traceback in {out / f'{name}.error.txt'})"
 
 
 def _write(args: argparse.Namespace, payload: dict, results: list[bench.BenchResult]) -> None:
@@ -167,7 +171,8 @@ def _gpu_quick(args: argparse.Namespace) -> int:
     except UserError:
         raise
     except Exception as exc:  # a failed measurement: one line
-        print(f"sasprobe: error: bench --gpu-quick failed: {_failure('gpu_quick', exc, args.out)}", file=sys.stderr)
+        print(f"sasprobe: error: bench --gpu-quick failed: {_failure(exc)}{_keep_traceback('gpu_quick', exc, args.out)}",
+              file=sys.stderr)
         return 1
     text = gpu_quick.markdown(result, machine.get("gpu"))
     if args.out is not None:
