@@ -38,7 +38,8 @@ from sasprobe.daemon.faults import LoopLog, Reconnector
 from sasprobe.daemon.loop import FixedRateLoop, current_scheduling, enter_realtime, restore_scheduling
 from sasprobe.daemon.marks import Marks, mark_button
 from sasprobe.daemon.network import Network
-from sasprobe.daemon.recording.replay import REPLAY_SCHEME, REPLAYED_COMMANDS, apply_recorded_event
+from sasprobe.daemon.recording import replay_scheme
+from sasprobe.daemon.recording.replay import REPLAYED_COMMANDS, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
 from sasprobe.daemon.requests import RequestHandlers
 from sasprobe.daemon.scene_message import rotation_rows, scene_message
@@ -46,14 +47,13 @@ from sasprobe.daemon.session import open_session
 from sasprobe.daemon.structure_worker import StructureWorker
 from sasprobe.daemon.watchdog import StallWatchdog
 from sasprobe.devices.base import DeviceFault
-from sasprobe.devices.registry import register_scheme
 from sasprobe.devices.workspace import IDENTITY
 from sasprobe.protocol.pose import encode_pose
 from sasprobe.protocol.scene import DEFAULT_LIGHTS, encode_scene
 
 log = logging.getLogger("sasprobe")
 
-register_scheme("replay", REPLAY_SCHEME)  # the daemon's own recordings, played back as a device
+replay_scheme.register()  # the daemon's own recordings, played back as a device
 
 SCENE_INTERVAL_NS = 1_000_000_000  # re-publish the scene at least this often (late joiners)
 LATE_READ_PERIODS = 3.0  # a read slower than this many periods counts as failed

@@ -9,7 +9,7 @@ the last state read() raises ReplayFinished (an EOFError). The whole device chan
 loaded when the device is made, so the loop never waits on the disk.
 
 The replay device reads the daemon's own recordings, so it lives here rather than in
-devices/; the daemon registers its scheme (REPLAY_SCHEME) with the device registry.
+devices/; the daemon registers its scheme (replay_scheme.py) with the device registry.
 `apply_recorded_event` is how both a replaying daemon and `replay --verify` repeat a
 recorded control command.
 """
@@ -26,7 +26,6 @@ import numpy as np
 from sasprobe.daemon.haptics import HapticPipeline, build_engine, validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState, HapticDevice
-from sasprobe.devices.registry import DeviceScheme
 from sasprobe.devices.workspace import validate_rotation
 from sasprobe.common.files import open_regular
 from sasprobe.protocol.recording import RecordingError, iter_items, scan
@@ -255,9 +254,6 @@ def open_replay(argument: str | None, speed: float | None = 1.0, **options) -> R
         raise DeviceOpenError(f"replay file {argument}: no such file")
     open_regular(argument, "recording", DeviceOpenError).close()  # a FIFO or a device: one line, no hang
     return ReplayDevice(argument, speed=speed)
-
-
-REPLAY_SCHEME = DeviceScheme(f"{__name__}:open_replay", "a recorded session (--speed X|max)", "replay:session.mcap")
 
 
 REPLAYED_COMMANDS = ("set", "load", "reconnect", "view", "clutch", "recentre", "mark")  # what a replay repeats
