@@ -29,8 +29,8 @@ from sasprobe.protocol.control import (
     Request,
     decode_request,
     encode_reply,
-    plain_id,
 )
+from sasprobe.protocol.endpoints import remove_socket_files, socket_files
 from sasprobe.protocol.security import ServerKeys, bind_server_socket
 
 log = logging.getLogger("sasprobe")
@@ -52,6 +52,7 @@ class ControlServer:
         except BaseException:
             self._monitor.close()
             raise
+        self._files = socket_files(self.endpoints)
         self.requests = 0
         self.errors = 0
         self.restarts = 0  # threads started again after one ended
@@ -102,7 +103,7 @@ class ControlServer:
             log.exception("control reply could not be encoded")
             self.errors += 1
             return encode_reply(ControlReply(ok=False, error=f"internal error: the reply could not be encoded "
-                                                       f"({type(exc).__name__})", id=plain_id(reply.id)))
+                                                       f"({type(exc).__name__})", id=reply.id))
 
     def handle(self, frames: list) -> ControlReply:
         """Decode, dispatch and turn every failure into an error reply."""
@@ -113,7 +114,9 @@ class ControlServer:
             request_id = request.id
             reply = self._handler(request)
             reply.id = request.id
-        except (ProtocolError, UserError, ValueError) as exc:
+        except ProtocolError as exc:
+            reply = ControlReply(ok=False, error=one_line(str(exc)) or type(exc).__name__, id=exc.request_id)
+        except (UserError, ValueError) as exc:
             reply = ControlReply(ok=False, error=one_line(str(exc)) or type(exc).__name__, id=request_id)
         except Exception as exc:  # a bug: answer, log, keep serving
             log.exception("control request failed")
@@ -130,6 +133,7 @@ class ControlServer:
             self._thread.join()
         self._monitor.close()
         self._socket.close()
+        remove_socket_files(self._files)
 
 
 def split_envelope(frames: list) -> tuple[list, list]:

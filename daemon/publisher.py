@@ -24,6 +24,7 @@ import zmq
 
 from sasprobe.daemon.monitor import SocketMonitor
 from sasprobe.common.errors import UserError
+from sasprobe.protocol.endpoints import remove_socket_files, socket_files
 from sasprobe.protocol.pose import POSE_TOPIC
 from sasprobe.protocol.scene import SCENE_TOPIC
 from sasprobe.protocol.security import ServerKeys, bind_server_socket
@@ -67,6 +68,7 @@ class Publisher:
         except BaseException:
             self._monitor.close()
             raise
+        self._files = socket_files(bound)
         return sock, bound
 
     @property
@@ -142,6 +144,7 @@ class Publisher:
             self._monitor.close()
             self._socket.close(linger=0)
             self._socket = None
+            remove_socket_files(self._files)
 
     def close(self) -> None:
         self._close_socket()

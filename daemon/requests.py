@@ -3,8 +3,8 @@
 One method per command of the protocol (protocol/control.py COMMANDS). A request
 that changes state does the slow part away from the loop (parsing a structure and
 building an engine happen in the daemon's worker process, daemon/structure_worker.py;
-settings are checked here) and hands the loop a closure through `Daemon.submit`, so the
-loop only ever swaps finished objects in.
+settings are checked here) and hands the loop a closure through the daemon's change
+queue (daemon/changes.py), so the loop only ever swaps finished objects in.
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ class RequestHandlers:
     def status(self, request):
         d = self.daemon
         if request.args.get("reset_stats"):
-            d.submit(lambda seq: d.reset_stats())
+            d.changes.submit(lambda seq: d.reset_stats())
         summary = d.loop.stats.summary()
         cpu_s = d.loop_cpu_since_reset_ns() / 1e9
         summary["cpu_percent"] = 100.0 * cpu_s / summary["window_s"] if summary["window_s"] > 0 else None
@@ -119,15 +119,15 @@ class RequestHandlers:
         d = self.daemon
         keep_water = request.args.get("keep_water", False)
         if request.data is not None:
-            name = request.args.get("name") or "uploaded"
-            data, source = request.data, f"control:{name}"
+            name = structure_name(request.args.get("name") or "uploaded")  # the stem, as for a path
+            data, source = request.data, f"control:{request.args.get('name') or name}"
         else:
             text = request.args["path"]
             # a PDB id comes through the user's fetch cache; a file only from below --load-dir
             path = Path(resolve(text)) if pdb_id(text) else path_below(d.config.load_dir, text, "--load-dir", "load")
             data, name, source = read_regular_file(path, MAX_FILE_BYTES), structure_name(path.name), str(path)
         structure, engine = d.structure_worker.build(data, name, source, keep_water, d.limits, d.settings)
-        seq = d.submit(lambda seq: d.swap_structure(structure, keep_water, engine, seq))
+        seq = d.changes.submit(lambda seq: d.swap_structure(structure, keep_water, engine, seq))
         log.warning("loaded %s (%d atoms) at tick %d", structure.source, structure.n_atoms, seq)
         return {"structure": {"name": structure.name, "sha256": structure.sha256, "n_atoms": structure.n_atoms},
                 "seq": seq}, None
@@ -138,7 +138,7 @@ class RequestHandlers:
         settings = validate_settings({**d.settings, **haptic}, d.limits) if haptic else d.settings
         lights = merge_lights(d.lights, scene_only["lights"]) if "lights" in scene_only else None
         engine = self._engine(settings) if needs_rebuild(haptic) else None
-        seq = d.submit(lambda seq: d.apply_settings(haptic, scene_only, settings, lights, engine, seq))
+        seq = d.changes.submit(lambda seq: d.apply_settings(haptic, scene_only, settings, lights, engine, seq))
         return {"seq": seq, "settings": settings, "revision": d.scene_revision}, None
 
     def record_start(self, request):
@@ -149,7 +149,7 @@ class RequestHandlers:
                                              "record_start"))
         engine = self._engine(d.settings)  # the replay starts from this
         try:
-            seq = d.submit(lambda seq: d.attach_recorder(recorder, seq, engine))
+            seq = d.changes.submit(lambda seq: d.attach_recorder(recorder, seq, engine))
         except UserError:
             recorder.close()
             raise
@@ -163,7 +163,7 @@ class RequestHandlers:
                                         settings)[1]
 
     def record_stop(self, request):
-        recorder = self.daemon.submit(self.daemon.detach_recorder)
+        recorder = self.daemon.changes.submit(self.daemon.detach_recorder)
         if recorder is None:
             raise UserError("not recording")
         return recorder.close().as_dict(), None
@@ -173,25 +173,25 @@ class RequestHandlers:
         """The workspace view turned: the mapping turns with it, about the probe."""
         rotation = validate_rotation(request.args["rotation"])
         d = self.daemon
-        seq = d.submit(lambda seq: d.turn_view(rotation, seq))
+        seq = d.changes.submit(lambda seq: d.turn_view(rotation, seq))
         return {"seq": seq, "revision": d.scene_revision}, None
 
     def clutch(self, request):
         """The window's clutch key: held for KEY_CLUTCH_LEASE_S unless renewed, or let go."""
         d = self.daemon
         held = request.args["held"]
-        seq = d.submit(lambda seq: (d.inputs.key_clutch(held, time.monotonic_ns()), seq)[1])
+        seq = d.changes.submit(lambda seq: (d.inputs.key_clutch(held, time.monotonic_ns()), seq)[1])
         return {"seq": seq, "held": held, "lease_s": KEY_CLUTCH_LEASE_S if held else None}, None
 
     def recentre(self, request):
         d = self.daemon
-        seq = d.submit(lambda seq: (d.workspace_action("recentre", {}, seq), seq)[1])
+        seq = d.changes.submit(lambda seq: (d.workspace_action("recentre", {}, seq), seq)[1])
         return {"seq": seq}, None
 
     def mark(self, request):
         d = self.daemon
         label = request.args.get("label")
-        mark = d.submit(lambda seq: drop_mark(d, seq, label, "control"))
+        mark = d.changes.submit(lambda seq: drop_mark(d, seq, label, "control"))
         return {"mark": mark, "seq": mark["seq"]}, None
 
     def findings(self, request):

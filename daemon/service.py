@@ -6,7 +6,8 @@ and the PUB socket, and the device but for one exception: the watchdog thread
 (daemon/watchdog.py) writes zero force when no tick has completed in time, under the
 lock the loop writes with. The control thread answers requests (daemon/requests.py);
 anything that changes state is prepared there (parsing a structure, building an engine)
-and handed to the loop as a small closure (daemon/changes.py), applied at the start of the next tick. The
+and handed to the loop as a small closure through the daemon's change queue
+(daemon/changes.py), applied at the start of the next tick by the state changes below. The
 recorder thread writes the MCAP file. ZeroMQ's own I/O threads do the network sending.
 
 A replayed session is a device like any other: the loop asks every device for its
@@ -16,7 +17,6 @@ replay branch.
 
 from __future__ import annotations
 
-import collections
 import gc
 import json
 import logging
@@ -32,36 +32,35 @@ import numpy as np
 from sasprobe import __version__
 from sasprobe.daemon import events
 from sasprobe.daemon.buttons import ButtonMap, WorkspaceInputs
-from sasprobe.daemon.changes import LoopChanges
+from sasprobe.daemon.changes import ChangeQueue
 from sasprobe.daemon.config import DaemonConfig, check_config
 from sasprobe.daemon.faults import LoopLog, Reconnector
 from sasprobe.daemon.loop import FixedRateLoop, current_scheduling, enter_realtime, restore_scheduling
-from sasprobe.daemon.marks import Marks
+from sasprobe.daemon.marks import Marks, mark_button
 from sasprobe.daemon.network import Network
-from sasprobe.daemon.recording.replay import REPLAY_SCHEME, REPLAYED_COMMANDS, apply_recorded_event
+from sasprobe.daemon.recording import replay_scheme
+from sasprobe.daemon.recording.replay import REPLAYED_COMMANDS, apply_recorded_event
 from sasprobe.daemon.recording.writer import Recorder
 from sasprobe.daemon.requests import RequestHandlers
-from sasprobe.daemon.deferred_release import DeferredRelease
 from sasprobe.daemon.scene_message import rotation_rows, scene_message
 from sasprobe.daemon.session import open_session
 from sasprobe.daemon.structure_worker import StructureWorker
 from sasprobe.daemon.watchdog import StallWatchdog
 from sasprobe.devices.base import DeviceFault
-from sasprobe.devices.registry import register_scheme
 from sasprobe.devices.workspace import IDENTITY
 from sasprobe.protocol.pose import encode_pose
 from sasprobe.protocol.scene import DEFAULT_LIGHTS, encode_scene
 
 log = logging.getLogger("sasprobe")
 
-register_scheme("replay", REPLAY_SCHEME)  # the daemon's own recordings, played back as a device
+replay_scheme.register()  # the daemon's own recordings, played back as a device
 
 SCENE_INTERVAL_NS = 1_000_000_000  # re-publish the scene at least this often (late joiners)
 LATE_READ_PERIODS = 3.0  # a read slower than this many periods counts as failed
 SWITCH_INTERVAL_S = 1e-4  # how long another Python thread may hold the GIL before the loop gets it
 
 
-class Daemon(LoopChanges):
+class Daemon:
     def __init__(self, config: DaemonConfig) -> None:
         self.config = check_config(config)
         start = open_session(config)
@@ -85,8 +84,7 @@ class Daemon(LoopChanges):
         self.scene: dict = {}  # the scene as published (get_scene)
         self._scene_bytes = b""
         self._next_scene_ns = 0
-        self._pending: collections.deque = collections.deque()  # (closure, Future) for the loop
-        self.deferred_release = DeferredRelease()
+        self.changes = ChangeQueue()  # what the control thread asks of the loop
         self._stop_reason: str | None = None
         self._carry_error: str | None = None  # a failed force write, reported on the next tick
         self._reconnector = Reconnector(self.device)
@@ -214,8 +212,8 @@ class Daemon(LoopChanges):
         loop.start()
         while self._stop_reason is None:
             tick = loop.wait()
-            if self._pending:
-                self._apply_pending(tick.seq)
+            if self.changes:
+                self.changes.apply(tick.seq)
             state = None
             error, self._carry_error = self._carry_error, None
             t_read = clock()
@@ -281,6 +279,56 @@ class Daemon(LoopChanges):
             self.recorder.offer_structure(time.monotonic_ns(), self.structure.name, self.structure.source_bytes)
         self.record_control(seq, event["cmd"], event.get("args", {}))
         self.rebuild_scene()
+
+    # ------------------------------------------------------------------ state changes (on the loop thread)
+    def swap_structure(self, structure, keep_water: bool, engine, seq: int) -> int:
+        """A new structure and its engine (built off the loop)."""
+        self.changes.deferred_release.add(self.structure, self.pipeline.engine)
+        self.structure = structure
+        self.structure_keep_water = keep_water
+        self.pipeline.replace_engine(engine)
+        if self.recorder is not None:
+            self.recorder.offer_structure(time.monotonic_ns(), structure.name, structure.source_bytes)
+        self.record_control(seq, "load", {"sha256": structure.sha256, "name": structure.name, "keep_water": keep_water})
+        self.rebuild_scene()
+        return seq
+
+    def apply_settings(self, haptic: dict, scene_only: dict, settings: dict, lights: dict | None, engine,
+                       seq: int) -> int:
+        """A checked `set` (a new engine when one had to be built)."""
+        if engine is not None:
+            self.changes.deferred_release.add(self.pipeline.engine)
+            self.pipeline.replace_engine(engine)
+        elif haptic:
+            self.pipeline.engine.update(**haptic)
+        self.settings = settings
+        self.clip_planes = scene_only.get("clip_planes", self.clip_planes)
+        self.lights = lights if lights is not None else self.lights
+        self.nav_cube_enabled = scene_only.get("nav_cube_enabled", self.nav_cube_enabled)
+        self.color_scheme = scene_only.get("color_scheme", self.color_scheme)
+        self.record_control(seq, "set", {**haptic, **scene_only})
+        self.rebuild_scene()
+        return seq
+
+    def workspace_action(self, action: str, args: dict, seq: int) -> None:
+        """A clutch change or a pressed action (device button, window key), recorded."""
+        if action == "clutch":
+            self.pipeline.set_clutch(args["held"])
+        elif action == "recentre":
+            self.pipeline.recentre()
+        elif action == "mark":
+            mark_button(self, seq)  # records its own `mark`
+            return
+        else:
+            return
+        self.record_control(seq, action, args)
+
+    def turn_view(self, rotation: tuple[float, ...], seq: int) -> int:
+        """The workspace view turned (control `view`); the mapping turns with it."""
+        self.pipeline.set_view(rotation)
+        self.record_control(seq, "view", {"rotation": rotation_rows(rotation)})
+        self.rebuild_scene()
+        return seq
 
     # ------------------------------------------------------------------ scene
     def rebuild_scene(self) -> None:

@@ -9,6 +9,9 @@ onto this one. Time is integer nanoseconds on the monotonic clock
 Contract for the daemon's fixed-rate loop:
 - `read()` returns the newest state and must not block longer than the driver's read
   timeout; a lost, late or garbled device raises DeviceFault (never hangs);
+- a state's `t_ns` is when it was sampled on the host's monotonic clock: it never
+  decreases from one reading to the next and is never later than `read()`'s return
+  (clients get it as the pose's `device_t_ns`, protocol/README.md "Device time");
 - `write_force()` sends one force command; a device without force output ignores it;
 - on DeviceFault the daemon writes zero force, flags the fault and keeps calling
   `read()` (after `reconnect()` when the driver supports it) until the device answers;

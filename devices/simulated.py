@@ -20,8 +20,13 @@ Omni-class arm (45 g apparent mass) held by a light grip.
 Determinism and time: the device has its own clock. `read()` returns the state at
 the current simulated time, t_ns = start_ns + k * period_ns, where k counts the
 `write_force()` calls; each `write_force()` advances the physics by exactly one
-control period (1 / rate_hz) with that force held. No wall clock is read, so a run is
-a pure function of (structure, script, seed, options, forces written).
+control period (1 / rate_hz) with that force held. Unless `start_ns` is given, the
+clock starts on the host's monotonic clock, one period before the first reading: the
+daemon's loop reads once a period on a fixed grid, so however late its first read came
+within a period, no later reading is stamped after the host's time at that read. It
+falls behind the host's clock by the periods no force was written in (ticks the daemon
+lost to timing). Nothing else reads a clock, so the motion is a pure function of
+(structure, script, seed, options, forces written).
 
 Bookkeeping for tests and benchmarks: `last_force_n` (the last force written; zero
 after `close()`), `forces_written`, `nan_writes` (non-finite forces received; they
@@ -46,6 +51,7 @@ written (the daemon writes zero), so the hand keeps moving as a real one would.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,7 +83,7 @@ class SimulatedDevice(HapticDevice):
         limits: DeviceLimits = PHANTOM_OMNI_LIMITS,
         rate_hz: float = 1000.0,
         arm: ArmModel = ArmModel(),
-        start_ns: int = 0,
+        start_ns: int | None = None,
         faults=(),
         failed_reconnects: int = 0,
         seed: int = 0,
@@ -93,7 +99,7 @@ class SimulatedDevice(HapticDevice):
         self.period_ns = int(round(1e9 / rate_hz))
         self.period_s = self.period_ns * 1e-9
         self.substeps = max(1, math.ceil(self.period_s / MAX_SUBSTEP_S - 1e-9))
-        self.start_ns = int(start_ns)
+        self.start_ns = None if start_ns is None else int(start_ns)  # None: set at the first read
         self.seed = seed
         self.ticks = 0
         self._x = list(script.start)
@@ -168,6 +174,8 @@ class SimulatedDevice(HapticDevice):
         if self._raise_reads > 0:
             self._raise_reads -= 1
             raise DeviceFault("simulated arm: read timed out")
+        if self.start_ns is None:  # one period before the host's clock at the first reading (below)
+            self.start_ns = time.monotonic_ns() - (self.ticks + 1) * self.period_ns
         t_ns = self.start_ns + self.ticks * self.period_ns
         if self._nan_reads > 0:
             self._nan_reads -= 1
@@ -310,7 +318,7 @@ def make_simulated(argument: str | None, **options) -> SimulatedDevice:
         limits=limits,
         rate_hz=options.get("rate_hz") or 1000.0,
         arm=options.get("arm") or ArmModel(),
-        start_ns=int(options.get("start_ns") or 0),
+        start_ns=options.get("start_ns"),
         faults=options.get("faults") or (),
         failed_reconnects=int(options.get("failed_reconnects") or 0),
         seed=seed,

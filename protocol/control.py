@@ -71,7 +71,12 @@ SET_FIELDS = {
 
 
 class ProtocolError(ValueError):
-    """A request or reply that breaks the protocol; the message is the one-line error reply."""
+    """A request or reply that breaks the protocol; the message is the one-line error reply.
+    `request_id` is the request's id when it could be read, so the error reply echoes it."""
+
+    def __init__(self, message: str, request_id: object = None) -> None:
+        super().__init__(message)
+        self.request_id = request_id
 
 
 @dataclass
@@ -166,11 +171,35 @@ def decode_request(frames: list) -> Request:
     total = sum(len(f) for f in frames)
     if total > MAX_MESSAGE_BYTES:
         raise ProtocolError(f"request of {total} bytes in {len(frames)} frames is larger than {MAX_MESSAGE_BYTES}")
-    if len(frames) > 2:
-        raise ProtocolError(f"a request has 1 or 2 frames, got {len(frames)}")
     if len(frames[0]) > MAX_REQUEST_JSON_BYTES:
         raise ProtocolError(f"request of {len(frames[0])} bytes is larger than {MAX_REQUEST_JSON_BYTES}")
     obj = _loads(bytes(frames[0]), "request")
+    request_id = request_id_of(obj)
+    try:
+        req = _request(obj, frames)
+    except ProtocolError as exc:
+        raise ProtocolError(str(exc), request_id) from None
+    req.id = request_id
+    return req
+
+
+def request_id_of(obj: dict):
+    """The request's `id`, checked first so that every later error reply can echo it: a string
+    of at most MAX_NAME_CHARS characters or a number, or absent (None). Anything else is
+    refused, and that error reply carries no id."""
+    value = obj.get("id")
+    if value is None and "id" not in obj:
+        return None
+    if isinstance(value, str) and len(value) <= MAX_NAME_CHARS:
+        return value
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return value
+    raise ProtocolError(f"'id' must be a string of at most {MAX_NAME_CHARS} characters or a number")
+
+
+def _request(obj: dict, frames: list) -> Request:
+    if len(frames) > 2:
+        raise ProtocolError(f"a request has 1 or 2 frames, got {len(frames)}")
     version = _check_version(obj, "request")
     cmd = obj.get("cmd")
     if not isinstance(cmd, str):
@@ -185,16 +214,9 @@ def decode_request(frames: list) -> Request:
         raise ProtocolError(f"'{cmd}' takes no data frame")
     if data is not None and len(data) > MAX_STRUCTURE_BYTES:
         raise ProtocolError(f"structure data of {len(data)} bytes is larger than {MAX_STRUCTURE_BYTES}")
-    req = Request(cmd=cmd, args=args, id=plain_id(obj.get("id")), data=data, version=version)
+    req = Request(cmd=cmd, args=args, data=data, version=version)
     _check_args(req)
     return req
-
-
-def plain_id(value):
-    """A request id worth echoing: a short string or a number; anything else is dropped."""
-    if isinstance(value, str):
-        return value if len(value) <= MAX_NAME_CHARS else None
-    return value if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
 
 def encode_reply(reply: ControlReply) -> list:
@@ -307,6 +329,8 @@ def _check_args(req: Request) -> None:
         if not isinstance(req.args.get("keep_water", False), bool):
             raise ProtocolError("'keep_water' must be true or false")
         if req.data is None:
+            if "name" in req.args:
+                raise ProtocolError("'load' takes 'name' only with the file's bytes as frame 2")
             _string(req.args, "path", req.cmd)
         else:
             if "path" in req.args:

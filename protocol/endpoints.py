@@ -72,9 +72,11 @@ def parse_endpoint(text: str) -> Endpoint:
 
 
 @contextlib.contextmanager
-def private_umask():
-    """umask 077 for the duration (process-wide, so only around a bind at start-up)."""
-    old = os.umask(0o077)
+def socket_file_umask():
+    """umask 177 for the duration, so a socket file is made 0600: read and write (connecting
+    needs write) for its owner, nothing for anyone else, no execute bit. Process-wide, so
+    only around a bind at start-up."""
+    old = os.umask(0o177)
     try:
         yield
     finally:
@@ -104,3 +106,26 @@ def check_ipc_path(path: str) -> None:
     finally:
         probe.close()
     raise EndpointError(f"ipc://{path}: another process is listening there (another daemon?)")
+
+
+def socket_files(bound: list[str]) -> dict[str, tuple[int, int]]:
+    """The socket files of bound ipc:// endpoints and their identity (device, inode), taken
+    right after binding so that `remove_socket_files` removes only these."""
+    files = {}
+    for endpoint in bound:
+        parsed = parse_endpoint(endpoint)
+        if parsed.transport == "ipc":
+            with contextlib.suppress(OSError):
+                info = os.lstat(parsed.path)
+                files[parsed.path] = (info.st_dev, info.st_ino)
+    return files
+
+
+def remove_socket_files(files: dict[str, tuple[int, int]]) -> None:
+    """Remove socket files once their socket is closed (libzmq leaves them), unless the path
+    holds something else by now."""
+    for path, identity in files.items():
+        with contextlib.suppress(OSError):
+            info = os.lstat(path)
+            if stat.S_ISSOCK(info.st_mode) and (info.st_dev, info.st_ino) == identity:
+                os.unlink(path)

@@ -1,7 +1,8 @@
 """The `pose` message: one fixed-size little-endian record per daemon tick.
 
-The byte layout is documented in protocol/README.md; this module is its one
-implementation in Python and the tests check the two against each other.
+The byte layout and the flag bits are protocol/schemas/pose.json's (protocol/README.md
+shows them): the struct format and the flag values come from there, and the tests check
+this codec against a decoder built from the README's table.
 """
 
 from __future__ import annotations
@@ -11,20 +12,24 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sasprobe.protocol.schemas import pose_flag, pose_layout, pose_struct_format
+
 POSE_TOPIC = b"pose"
-POSE_VERSION = 1
+POSE_VERSION = pose_layout()["version"]
 
 # version, flags, buttons, seq, device_t_ns, publish_t_ns, proxy[3], goal[3], force[3],
-# tip[3], orientation[4], touched_atom, reserved, cube_center[3], cube_half
-_LAYOUT = struct.Struct("<HHIQqq3d3d3d3d4diI3dd")
+# tip[3], orientation[4], touched_atom, reserved, cube_center[3], cube_half (encode_pose's order)
+_LAYOUT = struct.Struct(pose_struct_format())
 POSE_SIZE = _LAYOUT.size  # 200 bytes
+if POSE_SIZE != pose_layout()["size"]:
+    raise ImportError(f"protocol/schemas/pose.json: its fields make {POSE_SIZE} bytes, not {pose_layout()['size']}")
 
-FLAG_CONTACT = 1 << 0  # the proxy touches the SAS
-FLAG_CLAMPED = 1 << 1  # the force was clamped to the device limit
-FLAG_FAULT = 1 << 2  # the watchdog zeroed the force (device fault, late tick, bad values)
-FLAG_DRIFTING = 1 << 3  # the navigation cube is drifting (tip in the workspace margin)
-FLAG_RAMPING = 1 << 4  # forces are still ramping up after start or reconnect
-FLAG_CLUTCHED = 1 << 5  # the clutch is held: the probe stays, the cube follows the hand, no force
+FLAG_CONTACT = pose_flag("contact")  # the proxy touches the SAS
+FLAG_CLAMPED = pose_flag("clamped")  # the force was clamped to the device limit
+FLAG_FAULT = pose_flag("fault")  # the watchdog zeroed the force (device fault, late tick, bad values)
+FLAG_DRIFTING = pose_flag("drifting")  # the navigation cube is drifting (tip in the workspace margin)
+FLAG_RAMPING = pose_flag("ramping")  # forces are still ramping up after start or reconnect
+FLAG_CLUTCHED = pose_flag("clutched")  # the clutch is held: the probe stays, the cube follows the hand, no force
 
 
 class PoseDecodeError(ValueError):

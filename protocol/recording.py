@@ -29,44 +29,14 @@ import numpy as np
 from sasprobe.common.errors import UserError
 from sasprobe.common.files import open_regular
 from sasprobe.protocol.pose import Pose
+from sasprobe.protocol.schemas import channel_schemas, pose_layout
 
 MAGIC = b"\x89MCAP0\r\n"
 _OPCODE_FOOTER = 0x02
 PROFILE = "sasprobe"
 
-_VEC = {"type": "array", "items": {"type": ["number", "null"]}}
-SCHEMAS = {
-    "device": {
-        "title": "sasprobe.DeviceTick",
-        "description": "Raw device input of one tick (null numbers: non-finite values)",
-        "type": "object",
-        "properties": {
-            "seq": {"type": "integer"}, "t_ns": {"type": "integer"}, "error": {"type": ["string", "null"]},
-            "late_periods": {"type": "number"}, "read_ns": {"type": "integer"},
-            "position_mm": _VEC, "orientation": _VEC, "velocity_mm_s": _VEC,
-            "buttons": {"type": "integer"}, "calibrated": {"type": "boolean"},
-        },
-    },
-    "pose": {
-        "title": "sasprobe.Pose",
-        "description": "The pose message as published (protocol/README.md), as JSON",
-        "type": "object",
-        "properties": {
-            "seq": {"type": "integer"}, "device_t_ns": {"type": "integer"}, "publish_t_ns": {"type": "integer"},
-            "proxy_A": _VEC, "goal_A": _VEC, "force_N": _VEC, "tip_mm": _VEC, "orientation": _VEC,
-            "buttons": {"type": "integer"}, "touched_atom": {"type": "integer"}, "flags": {"type": "integer"},
-            "cube_center_A": _VEC, "cube_half_A": {"type": "number"},
-        },
-    },
-    "scene": {"title": "sasprobe.Scene", "description": "The scene message (protocol/README.md)", "type": "object"},
-    "control": {
-        "title": "sasprobe.Control",
-        "description": "A state-changing control command and the tick it took effect at",
-        "type": "object",
-        "properties": {"seq": {"type": "integer"}, "cmd": {"type": "string"}, "args": {"type": "object"}},
-    },
-}
-CHANNELS = tuple(SCHEMAS)
+# Each channel's JSON Schema (protocol/schemas/), standalone, as the writer embeds it (encoding `jsonschema`).
+SCHEMAS = channel_schemas()
 
 
 def json_floats(values) -> list:
@@ -77,10 +47,9 @@ def json_floats(values) -> list:
     return [x if math.isfinite(x) else None for x in floats]
 
 
-# The `pose` channel's fields: the Pose's, in its order, without its version.
-POSE_RECORD_FIELDS = ("seq", "device_t_ns", "publish_t_ns", "proxy_A", "goal_A", "force_N", "tip_mm", "orientation",
-                      "buttons", "touched_atom", "flags", "cube_center_A", "cube_half_A")
-_POSE_VECTORS = frozenset({"proxy_A", "goal_A", "force_N", "tip_mm", "orientation", "cube_center_A"})
+# The `pose` channel's fields: pose.json's record names (neither the version nor the reserved word).
+POSE_RECORD_FIELDS = tuple(f["record"] for f in pose_layout()["fields"] if f["record"] is not None)
+_POSE_VECTORS = frozenset(f["record"] for f in pose_layout()["fields"] if f["record"] is not None and f["count"] > 1)
 
 
 def pose_record(pose: Pose) -> dict:

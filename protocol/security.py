@@ -247,7 +247,7 @@ def bind_server_socket(socket, endpoints: list[str], keys: ServerKeys | None) ->
     """
     import zmq
 
-    from sasprobe.protocol.endpoints import check_ipc_path, parse_endpoint, private_umask
+    from sasprobe.protocol.endpoints import check_ipc_path, parse_endpoint, socket_file_umask
 
     if keys is not None:
         make_curve_server(socket, keys)
@@ -257,7 +257,7 @@ def bind_server_socket(socket, endpoints: list[str], keys: ServerKeys | None) ->
             parsed = parse_endpoint(endpoint)
             if parsed.transport == "ipc":
                 check_ipc_path(parsed.path)
-                with private_umask():  # the socket file 0600 whatever the umask (connecting needs write)
+                with socket_file_umask():  # the socket file 0600 whatever the umask
                     socket.bind(endpoint)
             else:
                 socket.bind(endpoint)

@@ -1,7 +1,8 @@
 """Shared fixtures: the reference PDB structures (tests/data/pdb), the embedded structure, one headless GL
 context (checked for GL errors after every test that uses it), a real X server for the
-window tests, a helper to run the real CLI, and a check that no test leaves the test
-process at a real-time priority."""
+window tests, a helper to run the real CLI, a check that no test leaves the test
+process at a real-time priority, and every message received from a daemon checked against
+the protocol's schemas."""
 
 from __future__ import annotations
 
@@ -88,6 +89,16 @@ def _drain_gl_errors(ctx) -> list[str]:
             break
         errors.append(error)
     return errors
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _messages_checked_against_the_schemas():
+    """Every reply, scene and pose a test receives through sasprobe's clients is checked
+    against protocol/schemas/ (tests/schema_check.py)."""
+    from tests.schema_check import checking_clients
+
+    with checking_clients():
+        yield
 
 
 @pytest.fixture(autouse=True)

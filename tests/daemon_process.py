@@ -14,6 +14,7 @@ from pathlib import Path
 from sasprobe.cli.children import DaemonChild
 from sasprobe.common.errors import UserError
 from tests.conftest import REPO_ROOT
+from tests.schema_check import assert_valid
 
 CLI = [sys.executable, "-m", "sasprobe"]
 DEVICE = "sim"
@@ -33,7 +34,9 @@ def cli_many(*commands: tuple[str, ...], timeout: float = 120) -> list[subproces
 class DaemonProcess:
     """The daemon as the tests use it: sasprobe.cli.children.DaemonChild on ipc:// sockets in a
     private folder that is also its working directory (nothing a test asks it to write lands
-    in the checkout); AssertionError with its stderr when it does not become ready."""
+    in the checkout); AssertionError with its stderr when it does not become ready. Its
+    stdout events are checked against protocol/schemas/events.schema.json; `left_behind`
+    lists what the folder held once it stopped."""
 
     def __init__(self, *args: str, device: str = DEVICE, pub: str | None = None, ctl: str | None = None,
                  ready_timeout: float = 90.0) -> None:
@@ -41,6 +44,7 @@ class DaemonProcess:
         self.pub = pub or f"ipc://{self.sockets}/pub"
         self.ctl = ctl or f"ipc://{self.sockets}/ctl"
         self._stderr: str | None = None  # kept once the private folder is gone
+        self.left_behind: list[str] | None = None  # the folder's names after the daemon stopped
         self.child = DaemonChild(["--device", device, "--pub", self.pub, "--ctl", self.ctl, *args],
                                  self.sockets / "daemon.log", cwd=self.sockets)
         self.proc = self.child.proc
@@ -49,6 +53,7 @@ class DaemonProcess:
         except UserError as exc:
             self._cleanup()
             raise AssertionError(f"{exc}; stderr: {self.stderr}") from None
+        assert_valid("events", self.ready)
 
     @property
     def stderr(self) -> str:
@@ -63,6 +68,9 @@ class DaemonProcess:
         """Signal the daemon, wait for it, return (exit status, exit report or None)."""
         rc = self.child.stop(timeout, sig)
         report = self.child.exit_report
+        if report is not None:
+            assert_valid("events", report)
+        self.left_behind = sorted(os.listdir(self.sockets))
         self._cleanup()
         return rc, report
 

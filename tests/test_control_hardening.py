@@ -56,9 +56,12 @@ def test_limits_are_refused_by_name(frames, fragment):
     assert fragment in str(info.value) and "\n" not in str(info.value)
 
 
-def test_an_id_is_echoed_only_when_plain():
-    assert decode_request([b'{"cmd": "ping", "id": {"a": 1}}']).id is None
-    assert decode_request([b'{"cmd": "ping", "id": "x"}']).id == "x"
+@pytest.mark.parametrize("raw_id", [b'{"a": 1}', b"[1]", b"true", b"null", b'"' + b"i" * 201 + b'"'])
+def test_an_id_that_is_not_a_short_string_or_a_number_is_refused(raw_id):
+    with pytest.raises(ProtocolError, match="'id' must be a string of at most 200 characters or a number") as info:
+        decode_request([b'{"cmd": "ping", "id": ' + raw_id + b"}"])
+    assert info.value.request_id is None  # nothing to echo
+    assert decode_request([b'{"cmd": "ping", "id": "' + b"i" * 200 + b'"}']).id == "i" * 200
 
 
 def test_a_dealer_request_with_an_empty_frame_is_framed_correctly():

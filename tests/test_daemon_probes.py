@@ -24,6 +24,7 @@ import zmq
 from sasprobe.protocol.client import ControlClient
 from sasprobe.protocol.control import MAX_MESSAGE_BYTES, decode_reply, encode_request
 from tests.daemon_process import DaemonProcess
+from tests.schema_check import check_raw_reply
 from tests.probe_support import PoseWatch, now_ns, unexplained_ms
 
 LIMIT_MS = {True: 20.0, False: 60.0}  # by whether the daemon runs under SCHED_FIFO
@@ -52,7 +53,9 @@ def _raw(daemon, frames: list, timeout_s: float = 20.0, kind=zmq.REQ):
         sock.send_multipart(frames, copy=False)
         if not sock.poll(int(timeout_s * 1000)):
             return None
-        return decode_reply(sock.recv_multipart())
+        reply = sock.recv_multipart()
+        check_raw_reply(frames[0], reply)
+        return decode_reply(reply)
     finally:
         sock.close()
 

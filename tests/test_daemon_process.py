@@ -24,7 +24,7 @@ from sasprobe.protocol.control import decode_reply
 from sasprobe.protocol.scene import SCENE_VERSION
 from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess, cli_many
-from tests.test_protocol_pose import reference_decode
+from tests.schema_check import check_pose_payload, check_raw_reply
 
 
 @pytest.fixture(scope="module")
@@ -61,7 +61,7 @@ def collect_raw(endpoint: str, seconds: float, stop: threading.Event | None = No
 
 
 def _coverage(payloads: list[bytes]) -> tuple[float, list[dict]]:
-    decoded = [reference_decode(p) for p in payloads]
+    decoded = [check_pose_payload(p) for p in payloads]  # the README table's decoder, checked against pose.json
     seqs = [d["seq"] for d in decoded]
     assert seqs == sorted(seqs), "poses arrived out of order"
     return len(set(seqs)) / (seqs[-1] - seqs[0] + 1), decoded
@@ -125,7 +125,9 @@ def _raw_request(endpoint: str, frames: list[bytes]):
     try:
         sock.send_multipart(frames)
         assert sock.poll(15000), f"no reply to {frames[0][:60]!r}"
-        return decode_reply(sock.recv_multipart())
+        reply = sock.recv_multipart()
+        check_raw_reply(frames[0], reply)
+        return decode_reply(reply)
     finally:
         sock.close()
 
@@ -209,11 +211,11 @@ def test_load_by_bytes_switches_the_structure(daemon, reference_by_id):
     data = reference_by_id["1oky"].path.read_bytes()
     with ControlClient(daemon.ctl) as client:
         old = client.get_scene()["structure"]
-        result = client.load(data=data, name="1oky")
-        assert result["structure"]["n_atoms"] > 2000
+        result = client.load(data=data, name="1oky.pdb.gz")  # named as a file: the name is its stem
+        assert result["structure"]["n_atoms"] > 2000 and result["structure"]["name"] == "1oky"
         assert client.get_scene()["structure"]["name"] == "1oky"
         header, raw = client.get_structure()
-        assert raw == data and header["sha256"] != old["sha256"]
+        assert raw == data and header["sha256"] != old["sha256"] and header["name"] == "1oky"
         with pytest.raises(ControlError, match="load"):
             client.load(data=b"\x1f\x8b not really gzip", name="bad")
         client.load(data=fetch_raw_default(), name=old["name"])

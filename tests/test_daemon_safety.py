@@ -78,3 +78,27 @@ def test_uncalibrated_device_gets_no_force_and_restarts_the_ramp():
     assert run(guard, f, state(5.0, calibrated=False)).force_n[0] == 0.0
     assert run(guard, f, state(5.1)).force_n[0] == 0.0
     assert run(guard, f, state(5.6)).force_n[0] == pytest.approx(0.5)
+
+
+class _TouchingEngine:
+    """An engine that always touches atom 7 (the pipeline's view of an engine)."""
+
+    def step(self, st):
+        from types import SimpleNamespace
+
+        return SimpleNamespace(force_n=np.array([0.0, 0.0, 0.1]), fault=False, contact=True, drifting=False,
+                               clamped=False, clutched=False, touched_atoms=(7,), proxy_A=np.ones(3),
+                               goal_A=np.ones(3), cube_center_A=np.zeros(3), cube_half_A=5.0)
+
+
+def test_a_failed_read_repeats_the_device_time_and_touches_nothing():
+    from sasprobe.daemon.haptics.pipeline import HapticPipeline
+    from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
+
+    pipeline = HapticPipeline(_TouchingEngine(), SafetyGuard(PHANTOM_OMNI_LIMITS))
+    good = state(5.0)
+    touching = pipeline.pose(1, good, pipeline.step(good, None, 0.0), 6_000_000_000)
+    assert touching.touched_atom == 7 and touching.flags & FLAG_CONTACT and touching.device_t_ns == good.t_ns
+    failed = pipeline.pose(2, None, pipeline.step(None, "read timed out", 0.0), 6_001_000_000)
+    assert failed.flags & FLAG_FAULT and not failed.flags & FLAG_CONTACT and failed.touched_atom == -1
+    assert failed.device_t_ns == good.t_ns and np.array_equal(failed.proxy_A, touching.proxy_A)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -46,6 +47,17 @@ def test_clock_advances_one_period_per_force_write(rate):
         device.write_force(np.zeros(3))
     assert np.all(np.diff(stamps) == round(1e9 / rate)) and stamps[0] == 123
     assert device.period_s / device.substeps <= 1e-4 + 1e-15  # finer than the control period
+
+
+def test_the_clock_starts_on_the_hosts_monotonic_clock_a_period_before_the_first_reading():
+    device = SimulatedDevice(still(), rate_hz=1000)
+    device.open()
+    device.write_force(np.zeros(3))  # a write before any reading still counts one period
+    before = time.monotonic_ns()
+    first = device.read().t_ns  # one period before the host's time at this read
+    assert before <= first + 1_000_000 <= time.monotonic_ns()
+    device.write_force(np.zeros(3))
+    assert device.read().t_ns == first + 1_000_000
 
 
 def test_free_motion_matches_the_analytic_damped_oscillator():

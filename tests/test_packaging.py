@@ -50,7 +50,9 @@ def test_wheel_holds_the_namespace_and_data(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
     for module in ("sasprobe/cli/main.py", "sasprobe/common/errors.py", "sasprobe/molecule/grid.py", "sasprobe/devices/base.py",
                    "sasprobe/protocol/pose.py", "sasprobe/molecule/data/1crn.pdb.gz",
-                   "sasprobe/protocol/README.md"):
+                   "sasprobe/protocol/README.md", *(f"sasprobe/protocol/schemas/{name}" for name in (
+                       "pose.json", "scene.schema.json", "control.schema.json", "device.schema.json",
+                       "control-record.schema.json", "events.schema.json"))):
         assert module in names, module
     assert not any(n.startswith(("molecule/", "daemon/", "protocol/", "devices/", "render/")) for n in names)
 
@@ -59,7 +61,7 @@ def test_normal_install_imports_from_the_wheel(wheel, tmp_path):
     target = tmp_path / "site"
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target", str(target), str(wheel)],
                    check=True, capture_output=True, timeout=300)
-    code = ("import sasprobe.molecule as m, sasprobe.devices, sasprobe.protocol.pose; "
+    code = ("import sasprobe.molecule as m, sasprobe.devices, sasprobe.protocol.pose; "  # pose reads schemas/pose.json
             "print(m.__file__); print(m.load_default().n_atoms)")
     env = dict(os.environ, PYTHONPATH=str(target))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path,

@@ -138,9 +138,72 @@ def test_server_answers_good_bad_and_failing_requests(server):
     assert srv.errors == 2 and seen == ["ping", "status", "get_scene"]
 
 
+@pytest.mark.parametrize("frames", [
+    [b'{"cmd": "explode", "id": "r1"}'],
+    [b'{"cmd": "set", "args": {"stiffness_n_per_mm": "very"}, "id": "r1"}'],
+    [b'{"cmd": "set", "args": {"warp": 1}, "id": "r1"}'],
+    [b'{"cmd": "ping", "version": 99, "id": "r1"}'],
+    [b'{"cmd": "ping", "args": [], "id": "r1"}'],
+    [b'{"cmd": "ping", "id": "r1"}', b"data"],
+    [b'{"cmd": "ping", "id": "r1"}', b"", b""],
+    [b'{"cmd": "status", "id": "r1"}'],  # the handler fails
+])
+def test_every_error_reply_echoes_the_requests_id(server, frames):
+    endpoint, context, _, _ = server
+    for kind in (zmq.REQ, zmq.DEALER):
+        reply = _request(context, endpoint, frames, kind=kind)
+        assert not reply.ok and reply.id == "r1", (frames, reply)
+
+
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(frames=st.lists(st.binary(max_size=200), min_size=1, max_size=3))
 def test_server_replies_to_every_garbage_request(server, frames):
     endpoint, context, _, _ = server
     reply = _request(context, endpoint, frames)
     assert reply.ok or reply.error
+
+
+def test_every_command_and_set_field_is_in_the_schema_and_the_readme():
+    from pathlib import Path
+
+    from sasprobe.protocol.control import SET_FIELDS
+    from sasprobe.protocol.schemas import schema
+
+    defs = schema("control")["$defs"]
+    assert defs["request"]["properties"]["cmd"]["enum"] == list(COMMANDS)
+    readme = (Path(__file__).resolve().parent.parent / "protocol" / "README.md").read_text()
+    for cmd in COMMANDS:
+        assert f"args.{cmd}" in defs and f"result.{cmd}" in defs, cmd
+        assert f"| `{cmd}` |" in readme, f"command {cmd} is not in protocol/README.md's table"
+    assert list(defs["args.set"]["properties"]) == list(SET_FIELDS)
+    for name in SET_FIELDS:
+        assert f"| `{name}` |" in readme, f"set field {name} is not in protocol/README.md's table"
+
+
+@pytest.mark.parametrize("request_json", [
+    {"cmd": "ping"}, {"cmd": "status", "args": {"reset_stats": True}, "id": "a"},
+    {"cmd": "set", "args": {"probe_radius_A": 1.5, "cube_half_A": "fit", "lights": {"probe": {"enabled": False}}}},
+    {"cmd": "view", "args": {"rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}},
+    {"cmd": "load", "args": {"path": "1crn", "keep_water": True}}, {"cmd": "mark", "args": {"label": "site"}},
+    {"cmd": "findings", "args": {"dir": "out", "probe_radius_A": 1.2}},
+])
+def test_requests_the_decoder_takes_follow_the_schema(request_json):
+    from sasprobe.protocol.schemas import validation_errors
+
+    decode_request([json.dumps(request_json).encode()])
+    assert validation_errors("control#/$defs/request", request_json) == []
+
+
+@pytest.mark.parametrize("request_json", [
+    {"cmd": "fly"}, {"cmd": "ping", "args": {"x": 1}}, {"cmd": "set", "args": {}},
+    {"cmd": "set", "args": {"warp": 9}}, {"cmd": "set", "args": {"probe_radius_A": 0}},
+    {"cmd": "clutch", "args": {"held": "yes"}}, {"cmd": "record_start", "args": {}},
+    {"cmd": "load", "args": {"path": "a", "name": "b"}}, {"cmd": "ping", "id": {"a": 1}},
+    {"cmd": "ping", "id": "i" * 201}, {"cmd": "view", "args": {"rotation": [[1, 0], [0, 1]]}},
+])
+def test_requests_the_decoder_refuses_break_the_schema(request_json):
+    from sasprobe.protocol.schemas import validation_errors
+
+    with pytest.raises(ProtocolError):
+        decode_request([json.dumps(request_json).encode()])
+    assert validation_errors("control#/$defs/request", request_json)

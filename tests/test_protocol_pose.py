@@ -7,6 +7,7 @@ against each other.
 
 from __future__ import annotations
 
+import functools
 import re
 import struct
 from pathlib import Path
@@ -22,7 +23,8 @@ README = Path(__file__).resolve().parent.parent / "protocol" / "README.md"
 _FORMATS = {"uint16": "H", "uint32": "I", "uint64": "Q", "int32": "i", "int64": "q", "float64": "d"}
 
 
-def readme_pose_table() -> list[tuple[int, int, str, str]]:
+@functools.cache
+def readme_pose_table() -> tuple[tuple[int, int, str, str], ...]:
     """(offset, size, type, field) rows of the README's pose table."""
     text = README.read_text()
     section = text[text.index("## `pose`"):]
@@ -32,18 +34,26 @@ def readme_pose_table() -> list[tuple[int, int, str, str]]:
         m = re.match(r"\|\s*(\d+)\s*\|\s*(\d+)\s*\|\s*([a-z0-9]+(?:\[\d\])?)\s*\|\s*(`?[\w ]+`?)\s*\|", line)
         if m:
             rows.append((int(m.group(1)), int(m.group(2)), m.group(3), m.group(4).strip("` ")))
-    return rows
+    return tuple(rows)
+
+
+@functools.cache
+def _readers() -> tuple[tuple[str, int, struct.Struct, bool], ...]:
+    readers = []
+    for offset, size, typ, name in readme_pose_table():
+        base, _, count = typ.partition("[")
+        n = int(count[:-1]) if count else 1
+        fmt = struct.Struct("<" + _FORMATS[base] * n)
+        assert fmt.size == size, f"README row {name}: size {size} does not match {typ}"
+        readers.append((name, offset, fmt, n > 1))
+    return tuple(readers)
 
 
 def reference_decode(payload: bytes) -> dict:
     out = {}
-    for offset, size, typ, name in readme_pose_table():
-        base, _, count = typ.partition("[")
-        n = int(count[:-1]) if count else 1
-        fmt = "<" + _FORMATS[base] * n
-        assert struct.calcsize(fmt) == size, f"README row {name}: size {size} does not match {typ}"
-        values = struct.unpack_from(fmt, payload, offset)
-        out[name] = values if n > 1 else values[0]
+    for name, offset, fmt, is_vector in _readers():
+        values = fmt.unpack_from(payload, offset)
+        out[name] = values if is_vector else values[0]
     return out
 
 
@@ -103,3 +113,19 @@ def test_newer_versions_append_and_old_readers_skip_the_rest():
 def test_short_or_older_payloads_are_rejected(payload):
     with pytest.raises(PoseDecodeError):
         decode_pose(payload)
+
+
+def test_the_readme_tables_and_the_codec_come_from_pose_json():
+    from sasprobe.protocol import schemas
+    from sasprobe.protocol.recording import POSE_RECORD_FIELDS
+
+    text = README.read_text()
+    assert schemas.pose_table_markdown() in text, "protocol/README.md's pose table differs from schemas/pose.json"
+    assert schemas.flags_table_markdown() in text, "protocol/README.md's flags table differs from schemas/pose.json"
+    assert f"Python `struct` format: `{schemas.pose_struct_format()}`" in text
+    layout = schemas.pose_layout()
+    assert list(readme_pose_table()) == [
+        (f["offset"], schemas.field_size(f), f["type"] + (f"[{f['count']}]" if f["count"] > 1 else ""), f["name"])
+        for f in layout["fields"]]
+    pose_fields = set(Pose.__dataclass_fields__) - {"version"}
+    assert set(POSE_RECORD_FIELDS) == pose_fields == {f["record"] for f in layout["fields"] if f["record"]}

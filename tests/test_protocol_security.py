@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+import stat
 import time
 
 import pytest
@@ -72,6 +74,9 @@ def _free_port() -> int:
 
 
 def test_curve_allowed_client_receives_and_unknown_key_is_rejected(tmp_path):
+    """Over TCP, and over the ipc:// endpoint the same socket binds: CURVE is the socket's,
+    so a client without keys gets nothing there either. The socket file is 0600 and goes
+    with the socket."""
     allowed_dir = tmp_path / "daemon-keys"
     generate_keys(allowed_dir, ("client",))
     stranger_dir = tmp_path / "stranger"
@@ -81,8 +86,12 @@ def test_curve_allowed_client_receives_and_unknown_key_is_rejected(tmp_path):
     context = zmq.Context()
     auth = start_authenticator(context, load_server_keys(allowed_dir))
     port = _free_port()
-    pub = Publisher(context, [f"tcp://0.0.0.0:{port}"], load_server_keys(allowed_dir))
+    ipc = tmp_path / "pub"
+    pub = Publisher(context, [f"tcp://0.0.0.0:{port}", f"ipc://{ipc}"], load_server_keys(allowed_dir))
+    assert stat.S_IMODE(os.stat(ipc).st_mode) == 0o600
     friend = Subscriber(f"tcp://127.0.0.1:{port}", keys=load_client_keys(allowed_dir), context=context)
+    friend_ipc = Subscriber(f"ipc://{ipc}", keys=load_client_keys(allowed_dir), context=context)
+    plain_ipc = Subscriber(f"ipc://{ipc}", context=context)  # ipc:// alone would need no keys
     stranger_keys = load_client_keys(stranger_dir)
     stranger_sock = context.socket(zmq.SUB)
     stranger_sock.linger = 0
@@ -98,13 +107,15 @@ def test_curve_allowed_client_receives_and_unknown_key_is_rejected(tmp_path):
         deadline = time.monotonic() + 10
         received = []
         seq = 0
-        while time.monotonic() < deadline and len(received) < 20:
+        while time.monotonic() < deadline and (len(received) < 20 or friend_ipc.poses_received < 20):
             pub.poll_subscriptions()
             pub.publish_pose(encode_pose(Pose(seq=seq)))
             seq += 1
             received += friend.poll(0.01)
+            friend_ipc.poll()
             plain.poll()
-        assert len(received) >= 20, "the allowed client got no poses"
+            plain_ipc.poll()
+        assert len(received) >= 20 and friend_ipc.poses_received >= 20, "the allowed client got no poses"
         events = []
         deadline = time.monotonic() + 5
         while time.monotonic() < deadline and zmq.EVENT_HANDSHAKE_FAILED_AUTH not in events:
@@ -112,13 +123,16 @@ def test_curve_allowed_client_receives_and_unknown_key_is_rejected(tmp_path):
                 events.append(recv_monitor_message(monitor)["event"])
         assert zmq.EVENT_HANDSHAKE_FAILED_AUTH in events, f"unknown key was not refused: events {events}"
         assert stranger_sock.poll(0) == 0, "the unknown key received data"
-        assert plain.poses_received == 0
+        assert plain.poses_received == 0 and plain_ipc.poses_received == 0
     finally:
         friend.close()
+        friend_ipc.close()
         plain.close()
+        plain_ipc.close()
         stranger_sock.disable_monitor()
         monitor.close(linger=0)
         stranger_sock.close()
         pub.close()
         auth.stop()
         context.term()
+    assert not ipc.exists(), "the socket file outlived its socket"

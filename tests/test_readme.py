@@ -39,7 +39,7 @@ UPWARD = re.compile(r"(?<![\w.])(?:\.\./)+[\w.-]*")  # ../x, ../../x: resolved a
 MACHINE_PATH = re.compile(r"(?<![\w.~])/work/")
 OPTION = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*")
 # Pages a command writes rather than a person: a link to one may precede its first run.
-GENERATED = {"docs/benchmarks.md": "sasprobe bench --out docs/"}
+GENERATED = {"docs/benchmarks.md": "sasprobe bench --page docs/benchmarks.md"}
 
 
 def pages() -> list[Path]:

@@ -18,7 +18,7 @@ import pytest
 import zmq
 
 from sasprobe.protocol.client import ControlClient, Subscriber
-from sasprobe.protocol.pose import Pose, encode_pose
+from sasprobe.protocol.pose import FLAG_CONTACT, Pose, encode_pose
 from sasprobe.protocol.scene import encode_scene
 from sasprobe.protocol.security import ensure_local_keys, load_server_keys, make_curve_server
 from sasprobe.render.camera import Camera
@@ -137,8 +137,8 @@ def test_malformed_messages_are_dropped_and_counted(daemon, crambin):
     sock.bind(endpoint)
     link = DaemonLink(endpoint, free_tcp_endpoint())
     try:
-        first = Pose(seq=1, proxy_A=np.array([1.0, 2.0, 3.0]), touched_atom=5, cube_center_A=np.array([1.0, 2.0, 3.0]),
-                     cube_half_A=6.0)
+        first = Pose(seq=1, proxy_A=np.array([1.0, 2.0, 3.0]), touched_atom=5, flags=FLAG_CONTACT,
+                     cube_center_A=np.array([1.0, 2.0, 3.0]), cube_half_A=6.0)
         deadline = time.monotonic() + 20
         while link.subscriber.pose is None and time.monotonic() < deadline:  # until subscribed
             sock.send_multipart([b"pose", encode_pose(first)])
@@ -150,8 +150,8 @@ def test_malformed_messages_are_dropped_and_counted(daemon, crambin):
                    [b"posed", b"x"], [b"pose"]]  # (a topic outside pose/scene is filtered by ZeroMQ itself)
         for frames in garbage:
             sock.send_multipart(frames)
-        good = Pose(seq=2, proxy_A=np.array([4.0, 5.0, 6.0]), touched_atom=7, cube_center_A=np.array([4.0, 5.0, 6.0]),
-                    cube_half_A=5.0)
+        good = Pose(seq=2, proxy_A=np.array([4.0, 5.0, 6.0]), touched_atom=7, flags=FLAG_CONTACT,
+                    cube_center_A=np.array([4.0, 5.0, 6.0]), cube_half_A=5.0)
         sock.send_multipart([b"pose", encode_pose(good)])
         sock.send_multipart([b"scene", encode_scene(real_scene)])
         while link.subscriber.scene is None and time.monotonic() < deadline:

@@ -51,6 +51,7 @@ class HapticPipeline:
         self.engine_errors = 0
         self.view_rotation = IDENTITY  # the workspace view's turn, kept across engines
         self.clutched = False
+        self.device_t_ns = 0  # the newest device state's time (poses repeat it while reads fail)
 
     def replace_engine(self, engine) -> None:
         """Swap in an engine built elsewhere (new structure or settings); forces ramp in again.
@@ -136,12 +137,17 @@ class HapticPipeline:
         return TickResult(guard.force_n, flags, guard, output)
 
     def pose(self, seq: int, state: DeviceState | None, result: TickResult, publish_t_ns: int) -> Pose:
-        """The pose message of a tick; during faults it repeats the last known engine geometry."""
+        """The pose message of a tick. When the engine did not run (a failed read, non-finite
+        values) it repeats the last known geometry and device time, and touches nothing: the
+        contact flag and `touched_atom` always describe the same tick."""
         out = result.output if result.output is not None else self.last_output
         valid = state is not None and (result.output is not None or state_is_finite(state))  # no NaN on the wire
+        if state is not None:
+            self.device_t_ns = int(state.t_ns)
+        touched = result.output.touched_atoms if result.output is not None else ()
         return Pose(
             seq=seq,
-            device_t_ns=state.t_ns if state is not None else 0,
+            device_t_ns=self.device_t_ns,
             publish_t_ns=publish_t_ns,
             proxy_A=out.proxy_A if out is not None else _ZERO3,
             goal_A=out.goal_A if out is not None else _ZERO3,
@@ -149,7 +155,7 @@ class HapticPipeline:
             tip_mm=state.position_mm if valid else _ZERO3,
             orientation=state.orientation if valid else _IDENTITY,
             buttons=state.buttons if valid else 0,
-            touched_atom=out.touched_atoms[0] if out is not None and out.touched_atoms else -1,
+            touched_atom=touched[0] if touched else -1,
             flags=result.flags,
             cube_center_A=out.cube_center_A if out is not None else _ZERO3,
             cube_half_A=out.cube_half_A if out is not None else 0.0,

@@ -9,7 +9,7 @@ the last state read() raises ReplayFinished (an EOFError). The whole device chan
 loaded when the device is made, so the loop never waits on the disk.
 
 The replay device reads the daemon's own recordings, so it lives here rather than in
-devices/; the daemon registers its scheme (REPLAY_SCHEME) with the device registry.
+devices/; the daemon registers its scheme (replay_scheme.py) with the device registry.
 `apply_recorded_event` is how both a replaying daemon and `replay --verify` repeat a
 recorded control command.
 """
@@ -26,7 +26,6 @@ import numpy as np
 from sasprobe.daemon.haptics import HapticPipeline, build_engine, validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState, HapticDevice
-from sasprobe.devices.registry import DeviceScheme
 from sasprobe.devices.workspace import validate_rotation
 from sasprobe.common.files import open_regular
 from sasprobe.protocol.recording import RecordingError, iter_items, scan
@@ -164,13 +163,13 @@ def load_session(path: str | Path) -> ReplaySession:
         start=start,
         structures=structures,
         seq=np.array(seqs, dtype=np.int64),
-        t_ns=np.array([r.get("t_ns", 0) for r in rows], dtype=np.int64),
+        t_ns=np.array([r.get("t_ns") or 0 for r in rows], dtype=np.int64),
         position_mm=np.array([_vector(r.get("position_mm"), 3) for r in rows]),
         orientation=np.array([_vector(r.get("orientation"), 4) for r in rows]),
         velocity_mm_s=np.array([_vector(r.get("velocity_mm_s"), 3) for r in rows]),
-        buttons=np.array([r.get("buttons", 0) for r in rows], dtype=np.int64),
-        calibrated=np.array([r.get("calibrated", True) for r in rows], dtype=bool),
-        has_state=np.array(["t_ns" in r for r in rows], dtype=bool),
+        buttons=np.array([r.get("buttons") or 0 for r in rows], dtype=np.int64),
+        calibrated=np.array([r.get("calibrated", True) is not False for r in rows], dtype=bool),
+        has_state=np.array([r.get("t_ns") is not None for r in rows], dtype=bool),  # null or absent: no state
         late_periods=np.array([r.get("late_periods", 0.0) for r in rows]),
         errors=errors,
         force_n=np.array([_vector(poses[s]["force_N"], 3) for s in seqs]),
@@ -255,9 +254,6 @@ def open_replay(argument: str | None, speed: float | None = 1.0, **options) -> R
         raise DeviceOpenError(f"replay file {argument}: no such file")
     open_regular(argument, "recording", DeviceOpenError).close()  # a FIFO or a device: one line, no hang
     return ReplayDevice(argument, speed=speed)
-
-
-REPLAY_SCHEME = DeviceScheme(f"{__name__}:open_replay", "a recorded session (--speed X|max)", "replay:session.mcap")
 
 
 REPLAYED_COMMANDS = ("set", "load", "reconnect", "view", "clutch", "recentre", "mark")  # what a replay repeats

@@ -6,8 +6,8 @@ into JSON messages on four channels and finishes an MCAP chunk and flushes the f
 least every `flush_interval_s`, so a daemon killed with SIGKILL loses at most that much
 and leaves a file whose complete records `protocol.recording.iter_items()` still reads.
 
-Channels (message encoding `json`, schemas in JSON Schema; protocol/recording.py holds
-them and protocol/README.md describes them):
+Channels (message encoding `json`, each with its JSON Schema from protocol/schemas/;
+protocol/README.md describes them):
   device   raw device state per tick: the replay input (state or read error, lateness)
   pose     the published pose per tick (force, proxy, flags, ...)
   scene    every scene the daemon published
@@ -40,18 +40,20 @@ QUEUE_LIMIT = 20_000  # items (about 10 s of ticks at 1 kHz)
 _WAKE_S = 0.01
 
 
+_NO_STATE = {"t_ns": None, "position_mm": [None] * 3, "orientation": [None] * 4, "velocity_mm_s": [None] * 3,
+             "buttons": None, "calibrated": None}
+
+
 def device_record(seq: int, state: DeviceState | None, error: str | None, late_periods: float, read_ns: int) -> dict:
-    record = {"seq": seq, "error": error, "late_periods": float(late_periods), "read_ns": int(read_ns)}
-    if state is not None:
-        record.update(
-            t_ns=int(state.t_ns),
-            position_mm=json_floats(state.position_mm),
-            orientation=json_floats(state.orientation),
-            velocity_mm_s=json_floats(state.velocity_mm_s),
-            buttons=int(state.buttons),
-            calibrated=bool(state.calibrated),
-        )
-    return record
+    """The `device` channel's record of a tick: every field always present; a read that gave
+    no state has null device time, vectors, buttons and calibration."""
+    if state is None:
+        fields = _NO_STATE
+    else:
+        fields = {"t_ns": int(state.t_ns), "position_mm": json_floats(state.position_mm),
+                  "orientation": json_floats(state.orientation), "velocity_mm_s": json_floats(state.velocity_mm_s),
+                  "buttons": int(state.buttons), "calibrated": bool(state.calibrated)}
+    return {"seq": seq, **fields, "error": error, "late_periods": float(late_periods), "read_ns": int(read_ns)}
 
 
 def _media_type(data: bytes) -> str:

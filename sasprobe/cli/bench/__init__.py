@@ -21,6 +21,9 @@ ORDER = ["startup", "grid", "sas", "haptics", "daemon", "render", "lighting"]
 class BenchContext:
     quick: bool = False
     out_dir: Path | None = None  # charts go here when set
+    # Every code path once at its smallest (the smallest structure, tiny frames, one repeat):
+    # a check that the benchmark runs, in seconds; its figures measure nothing.
+    smoke: bool = False
 
     def chart_path(self, name: str) -> Path | None:
         if self.out_dir is None:

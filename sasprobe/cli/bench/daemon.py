@@ -7,7 +7,8 @@ subscribes on both endpoints from one thread (timestamping each message as it is
 received) and at the end asks the daemon for its loop figures (`status`).
 Publish→receive latency compares the pose's publish_t_ns with the receive time on the
 same host's monotonic clock. Then one row per emulated device (`daemon_devices`), and
-the worst pose gap while a client loads 6ZU5 (`daemon_loading`).
+the worst pose gap while a client loads the largest reference structure, 6ZU5
+(`daemon_loading`).
 """
 
 from __future__ import annotations
@@ -141,12 +142,14 @@ def _measure(d: _Daemon, warmup_s: float, seconds: float, realtime_subscriber: b
 
 
 def run(ctx: BenchContext, args=None) -> BenchResult:
-    seconds = getattr(args, "seconds", None) or (3.0 if ctx.quick else 10.0)
+    seconds = getattr(args, "seconds", None) or (0.5 if ctx.smoke else 3.0 if ctx.quick else 10.0)
     # (daemon real-time, subscriber in SCHED_FIFO): where the time goes on a busy machine
-    modes = [(False, False)] if getattr(args, "no_realtime", False) else [(False, False), (True, False), (True, True)]
-    by_id = {e.id: e for e in reference_structures()}
+    modes = [(False, False)] if getattr(args, "no_realtime", False) or ctx.smoke else \
+        [(False, False), (True, False), (True, True)]
+    entries = reference_structures()
+    by_id = {e.id: e for e in entries}
     structures = [("1crn (embedded)", None)]
-    if "1aon" in by_id:
+    if "1aon" in by_id and not ctx.smoke:
         structures.append(("1aon", by_id["1aon"].path))
     runs = []
     configs = [(label, path, rt, sub_rt) for label, path in structures for rt, sub_rt in modes]
@@ -183,14 +186,15 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
             r[name].pop("samples_us")
     data, text = {"targets": TARGETS, "runs": runs}, _markdown(runs, seconds)
     if not getattr(args, "no_devices", False):
-        data["devices"] = daemon_devices.measure(ctx.quick, seconds)
+        data["devices"] = daemon_devices.measure(seconds, smoke=ctx.smoke)
         text += "\n\n" + daemon_devices.markdown(data["devices"])
-    if "6zu5" in by_id:  # the worst pose gap under a loading client
+    if entries:  # the worst pose gap under a client loading the largest structure (--smoke: the smallest)
         from sasprobe.cli.bench.daemon_loading import loading_gap, markdown
         from sasprobe.molecule import load_default
 
-        data["loading"] = loading_gap(by_id["6zu5"].path, load_default().source_bytes, seconds)
-        text += markdown(data["loading"], "6ZU5")
+        big = entries[0] if ctx.smoke else entries[-1]
+        data["loading"] = loading_gap(big.path, load_default().source_bytes, seconds) | {"id": big.id}
+        text += markdown(data["loading"], big.id.upper())
     return BenchResult("daemon", data, text, charts)
 
 

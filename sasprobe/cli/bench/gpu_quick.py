@@ -19,11 +19,23 @@ from sasprobe.cli.bench import render_scenarios as scenarios
 from sasprobe.cli.bench import render_sessions
 from sasprobe.common.errors import UserError
 
-TITLE = "GPU check: 1080p frame times (unlit, default lighting, session), atlas bakes, sessions by structure"
+TITLE = "GPU check: frame times (unlit, default lighting, session), atlas bakes, sessions by structure"
 STRUCTURES = ("1crn", "1tii", "1aon", "6zu5")
 CUBE_ID = "6zu5"
 FRAMES = 20
 DEFAULT_SIZE = (1920, 1080)
+SMOKE_SIZE = (64, 36)
+
+
+def smoke_plan() -> dict:
+    """run()'s options for `--smoke`: the two smallest reference structures (the second with
+    the cube), three frames."""
+    from sasprobe.cli.reference_data import MISSING, reference_structures
+
+    ids = tuple(e.id for e in reference_structures()[:2])
+    if not ids:
+        raise UserError(MISSING)
+    return {"frames": 3, "structures": ids, "cube_id": ids[-1]}
 
 
 def run(size=DEFAULT_SIZE, frames: int = FRAMES, structures=STRUCTURES, cube_id: str = CUBE_ID,

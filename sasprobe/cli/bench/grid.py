@@ -18,7 +18,9 @@ def run(ctx: BenchContext) -> BenchResult:
     entries = reference_structures()
     if not entries:
         raise UserError(MISSING)
-    load_repeats, grid_repeats, query_points = (1, 3, 200) if ctx.quick else (3, 7, 2000)
+    if ctx.smoke:
+        entries = entries[:1]
+    load_repeats, grid_repeats, query_points = (1, 1, 20) if ctx.smoke else (1, 3, 200) if ctx.quick else (3, 7, 2000)
     rng = np.random.default_rng(7)
     rows = []
     for entry in progress(entries, desc="bench grid", total=len(entries)):

@@ -38,6 +38,7 @@ RATES_HZ = (100, 250, 500, 1000, 2000)
 STIFFNESS = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0)
 QUICK_STIFFNESS = (0.2, 0.5, 1.0, 2.0)
 QUICK_IDS = ("1crn", "1tii", "1aon", "6zu5")
+SMOKE_RATES_HZ, SMOKE_STIFFNESS = (1000,), (0.5, 2.0)
 ENERGY_UNSTABLE_MJ = 1.0  # net energy put into the arm over a press-and-release cycle
 POP_THROUGH_N = 0.2  # force component along the push: the surface pulls the hand in
 
@@ -53,8 +54,7 @@ def _positive_int(text: str) -> int:
 
 
 def _cube_half(text: str) -> float:
-    value = 0.0 if text.strip() == "0" else positive_float(text)
-    return value
+    return 0.0 if text.strip() == "0" else positive_float(text)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -67,17 +67,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(ctx: BenchContext, args: argparse.Namespace | None = None) -> BenchResult:
-    ticks = getattr(args, "ticks", None) or (3000 if ctx.quick else 10000)
-    repeats = getattr(args, "repeats", None) or (3 if ctx.quick else 5)
-    entries = _entries(getattr(args, "structures", None), ctx.quick)
+    ticks = getattr(args, "ticks", None) or (300 if ctx.smoke else 3000 if ctx.quick else 10000)
+    repeats = getattr(args, "repeats", None) or (1 if ctx.smoke else 3 if ctx.quick else 5)
+    entries = _entries(getattr(args, "structures", None), ctx)
     cube_half = getattr(args, "cube_half", CUBE_HALF_A)
     rows = []
     for entry in progress(entries, desc="bench haptics", total=len(entries)):
         structure = load_structure(entry.path)
         for method in METHODS:
             rows.append(_structure_row(entry.id, structure, method, ticks, repeats, cube_half))
-    stability = None if getattr(args, "no_map", False) else _stability_map(entries, ctx.quick)
-    trace = _force_trace()
+    stability = None if getattr(args, "no_map", False) else _stability_map(ctx)
+    trace = _force_trace(1000 if ctx.smoke else 4000)
     charts = _charts(ctx, rows, stability, trace, cube_half)
     data = {"ticks_per_session": ticks, "repeats": repeats, "cube_half_A": cube_half or None, "rows": rows}
     if stability is not None:
@@ -85,11 +85,13 @@ def run(ctx: BenchContext, args: argparse.Namespace | None = None) -> BenchResul
     return BenchResult("haptics", data, _markdown(rows, stability, ticks, repeats, cube_half), charts)
 
 
-def _entries(ids: str | None, quick: bool):
+def _entries(ids: str | None, ctx: BenchContext):
     entries = reference_structures()
     if not entries:
         raise UserError(MISSING)
-    wanted = [i.strip() for i in ids.split(",")] if ids else (list(QUICK_IDS) if quick else None)
+    if ctx.smoke and not ids:
+        return entries[:1]
+    wanted = [i.strip() for i in ids.split(",")] if ids else (list(QUICK_IDS) if ctx.quick else None)
     if wanted is None:
         return entries
     by_id = {e.id: e for e in entries}
@@ -200,7 +202,7 @@ def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> di
 
 
 # ------------------------------------------------------------- stability map
-def _stability_map(entries, quick: bool) -> dict:
+def _stability_map(ctx: BenchContext) -> dict:
     """Press-and-release on crambin at each control rate x stiffness, per method."""
     from sasprobe.daemon.haptics import HapticSettings
     from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
@@ -208,19 +210,20 @@ def _stability_map(entries, quick: bool) -> dict:
     from sasprobe.molecule import load_default
 
     structure = load_default()
-    stiffness = QUICK_STIFFNESS if quick else STIFFNESS
+    stiffness, rates = (SMOKE_STIFFNESS, SMOKE_RATES_HZ) if ctx.smoke else \
+        (QUICK_STIFFNESS if ctx.quick else STIFFNESS, RATES_HZ)
     # explore beyond the arm's rated stiffness to show where the frontier lies
     limits = dataclasses.replace(PHANTOM_OMNI_LIMITS, max_stiffness_n_per_mm=max(stiffness))
     cells = []
     for method in METHODS:
-        for rate in RATES_HZ:
+        for rate in rates:
             for k in stiffness:
                 cells.append(_stability_cell(structure, method, rate, k, limits))
     arm = ArmModel()
     return {
         "structure": structure.name,
         "script": "press",
-        "rates_hz": list(RATES_HZ),
+        "rates_hz": list(rates),
         "stiffness_n_per_mm": list(stiffness),
         "device_max_stiffness_n_per_mm": PHANTOM_OMNI_LIMITS.max_stiffness_n_per_mm,
         "virtual_damping_n_s_per_m": HapticSettings().damping_n_s_per_m,
@@ -258,7 +261,7 @@ def _stability_cell(structure, method, rate, stiffness, limits) -> dict:
     }
 
 
-def _force_trace() -> dict:
+def _force_trace(ticks: int) -> dict:
     """Force magnitude through a dive into a groove on crambin, both methods (for a chart)."""
     from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
     from sasprobe.molecule import load_default
@@ -266,7 +269,7 @@ def _force_trace() -> dict:
     structure = load_default()
     trace = {}
     for method in METHODS:
-        _, outputs, device = closed_loop_session(structure, "dive", method, {"cube_half_A": "fit"}, PHANTOM_OMNI_LIMITS, ticks=4000)
+        _, outputs, device = closed_loop_session(structure, "dive", method, {"cube_half_A": "fit"}, PHANTOM_OMNI_LIMITS, ticks=ticks)
         trace[method] = [float(np.linalg.norm(o.force_n)) for o in outputs]
     return trace
 
@@ -348,11 +351,8 @@ def _stability_figure(stability):
 
 
 def _markdown(rows, stability, ticks, repeats, cube_half) -> str:
-    cube = (
-        f"navigation cube half edge {cube_half:g} Å on the top surface of every structure (same Å/mm)"
-        if cube_half
-        else "navigation cube fitted to each molecule (Å/mm grows with size)"
-    )
+    cube = (f"navigation cube half edge {cube_half:g} Å on the top surface of every structure (same Å/mm)"
+            if cube_half else "navigation cube fitted to each molecule (Å/mm grows with size)")
     lines = [
         f"Simulated arm, 1 kHz, scripts {' + '.join(SCRIPTS)} ({ticks} ticks each), {cube}. Per-tick time: minimum over "
         f"{repeats} replays of the recorded states (single-run p99 beside it). Penetration: deepest the rendered "

@@ -33,8 +33,14 @@ def add_arguments(parser) -> None:
                         help="only the lights' shadows: grid walk vs their light buffers")
 
 
-def _plan(quick: bool) -> dict:
-    if quick:
+def _plan(ctx: BenchContext, smallest: str) -> dict:
+    if ctx.smoke:  # the smallest structure for every part, tiny frames, one repeat
+        one = (smallest,)
+        return {"ao_id": smallest, "ao_size": (32, 24), "ref_spp": 64, "repeats": 1, "sweep_size": (32, 24),
+                "sweep_ids": one, "cells": (3.2,), "scaling_ids": one, "heights": (1.0,), "distant_size": (24, 18),
+                "distant_spp": 64, "bake_ids": one, "cube_id": smallest, "patches": (4,), "probe_ids": one,
+                "probe_size": (32, 24)}
+    if ctx.quick:
         return {"ao_size": (160, 120), "ref_spp": 256, "repeats": 3, "sweep_size": (96, 72),
                 "sweep_ids": ("1crn", "3sn6"), "cells": (3.2, 12.8), "scaling_ids": ("1crn", "3sn6", "1aon"),
                 "heights": (1.0, 4.0, 8.0), "distant_size": (96, 72), "distant_spp": 64,  # keeps --quick < 5 min
@@ -55,7 +61,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
         gl = gl_context()
     except Exception as exc:
         raise UserError(f"bench lighting needs OpenGL 4.3 through EGL: {exc}") from None
-    plan = _plan(ctx.quick)
+    plan = _plan(ctx, entries[0].id)
     renderer = gl_renderer() or "unknown GL renderer"
     by_id = {e.id: e for e in entries}
     structures = {}
@@ -77,7 +83,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     steps = progress(range(7), desc="bench lighting", total=7)
     # --- AO: every method vs the reference, on a mid-size protein filling the view
     next(steps)
-    ao_id = "1oky" if "1oky" in by_id else entries[0].id
+    ao_id = plan.get("ao_id") or ("1oky" if "1oky" in by_id else entries[0].id)
     grid = GpuGrid.from_structure(gl, structure(ao_id), DEFAULT_PROBE_RADIUS)
     scene = fitted_scene(grid, plan["ao_size"], fill=1.3)
     ao = ao_bench.pareto(gl, scene, plan["ref_spp"], plan["repeats"])
@@ -125,7 +131,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     # --- precomputed occlusion: bake time against molecule size
     next(steps)
     bake_ids = [i for i in (plan["bake_ids"] or tuple(e.id for e in entries)) if i in by_id]
-    largest = max(by_id, key=lambda k: by_id[k].atoms)
+    largest = plan.get("cube_id") or max(by_id, key=lambda k: by_id[k].atoms)  # baked for its cube
     bake_structures = [(sid, structure(sid)) for sid in dict.fromkeys([*bake_ids, largest])]
     bakes = precomputed_bench.bake_scaling(gl, bake_structures, lambda s: cube_for(s, CUBE_TARGET_ATOMS))
     if plan["bake_ids"] is not None:  # quick: the largest only for its cube

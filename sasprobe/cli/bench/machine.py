@@ -32,6 +32,15 @@ def _memory_gib() -> float | None:
     return None
 
 
+def _os() -> str:
+    """The kernel and, where /etc/os-release names it, the distribution."""
+    kernel = f"{platform.system()} {platform.release()}"
+    try:
+        return f"{platform.freedesktop_os_release()['PRETTY_NAME']}, {kernel}"
+    except (OSError, KeyError):
+        return kernel
+
+
 def _gpu() -> str | None:
     if not shutil.which("nvidia-smi"):
         return None
@@ -84,7 +93,7 @@ def describe(with_gl: bool = False) -> dict:
         "cpu": _cpu_model(),
         "cores": os.cpu_count(),
         "memory_gib": _memory_gib(),
-        "os": f"{platform.system()} {platform.release()}",
+        "os": _os(),
         "python": platform.python_version(),
         "numpy": np.__version__,
         "gpu": _gpu(),

@@ -50,10 +50,14 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     entries = reference_structures()
     if not entries:
         raise UserError(MISSING)
-    size = getattr(args, "size", None) or ((640, 360) if ctx.quick else (1280, 720))
-    scenario_size = getattr(args, "scenario_size", None) or ((400, 300) if ctx.quick else (800, 600))
+    if ctx.smoke:
+        entries = entries[:2]
+    size = getattr(args, "size", None) or ((64, 36) if ctx.smoke else (640, 360) if ctx.quick else (1280, 720))
+    scenario_size = getattr(args, "scenario_size", None) or \
+        ((64, 48) if ctx.smoke else (400, 300) if ctx.quick else (800, 600))
     only_scenarios = getattr(args, "scenarios_only", False)
-    repeats, mesh_repeats = (3, 2) if ctx.quick else (9, 5)
+    repeats, mesh_repeats = (1, 1) if ctx.smoke else (3, 2) if ctx.quick else (9, 5)
+    frames = 3 if ctx.smoke else 10 if ctx.quick else 30
     gl = create_headless_context()
     renderer_name = f"{gl.info['GL_RENDERER']} / OpenGL {gl.info['GL_VERSION']}"
     by_id = {e.id: e for e in entries}
@@ -61,7 +65,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     charts = []
     if getattr(args, "sessions", False) or not only_scenarios:
         try:
-            data["sessions"] = _sessions(gl, by_id, ctx.quick)
+            data["sessions"] = _sessions(gl, by_id, ctx)
         except BaseException:
             gl.release()
             raise
@@ -87,7 +91,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
             path = ctx.chart_path("render_frame_time.png")
             if path is not None:
                 charts.append(_chart(path, scaling, renderer_name, size))
-        data["scenarios"] = _scenarios(gl, by_id, scenario_size, 10 if ctx.quick else 30, 1 if ctx.quick else 3)
+        data["scenarios"] = _scenarios(gl, by_id, scenario_size, frames, 1 if ctx.quick else 3)
     finally:
         gl.release()
     path = ctx.chart_path("render_frame_cache.png")
@@ -102,17 +106,23 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     return BenchResult("render", data, text + "\n\n" + render_scenarios.markdown(data["scenarios"]), charts)
 
 
-def _sessions(gl, by_id, quick: bool) -> dict:
-    """The session frame by structure (bench/render_sessions.py), with a progress bar."""
-    wanted = render_sessions.QUICK_STRUCTURES if quick else render_sessions.STRUCTURES
+def _sessions(gl, by_id, ctx: BenchContext) -> dict:
+    """The session frame by structure (bench/render_sessions.py), with a progress bar; --smoke:
+    the structures it has, tiny, one of them joined by `render --connect`."""
+    if ctx.smoke:
+        wanted, plan = tuple(by_id), {"sizes": ((64, 36),), "frames": 3, "rounds": 1}
+        plan["first_frames"] = wanted[:1]
+    else:
+        wanted, plan = render_sessions.QUICK_STRUCTURES if ctx.quick else render_sessions.STRUCTURES, {}
     missing = [sid for sid in wanted if sid not in by_id]
     if missing:
         raise UserError(f"bench render: the session table needs the reference structures {', '.join(missing)}")
-    sizes = render_sessions.QUICK_SIZES if quick else render_sessions.SIZES
-    rounds = render_sessions.QUICK_ROUNDS if quick else render_sessions.ROUNDS
+    sizes = plan.get("sizes") or (render_sessions.QUICK_SIZES if ctx.quick else render_sessions.SIZES)
+    rounds = plan.get("rounds") or (render_sessions.QUICK_ROUNDS if ctx.quick else render_sessions.ROUNDS)
     bar = progress_bar(1 + len(sizes) * rounds + len(wanted), "bench render: sessions")
     try:
-        return render_sessions.run_sessions(gl, by_id, quick, progress=lambda what: bar.update(1))
+        return render_sessions.run_sessions(gl, by_id, ctx.quick, structures=wanted, progress=lambda what: bar.update(1),
+                                            **plan)
     finally:
         bar.close()
 
@@ -174,9 +184,18 @@ def _measure(cases, repeats: int) -> list[tuple[float, dict[str, float]]]:
             frames[i].append(time.perf_counter() - t0)
             passes[i].append(per_pass)
     return [
-        (statistics.median(f), {n: statistics.median(p.get(n, 0.0) for p in ps) for n in ps[0]})
+        (statistics.median(f), {n: statistics.median(p.get(n, 0.0) for p in ps) for n in set().union(*ps)})
         for f, ps in zip(frames, passes)
     ]
+
+
+def _atoms_pass_s(renderer, passes: dict[str, float]) -> float:
+    """Median time of the renderer's atoms pass (quads, sprites or meshes, whatever its
+    name); a frame that skipped it (a cache, a renamed pass) is an error, not a zero."""
+    name = renderer.sphere_pass.name
+    if passes.get(name, 0.0) <= 0.0:
+        raise RuntimeError(f"the atoms pass {name!r} did not run in the timed frames (ran: {', '.join(sorted(passes))})")
+    return passes[name]
 
 
 def _renderer(gl, structure, size, mode="quad", nav_cube=None):
@@ -187,7 +206,8 @@ def _renderer(gl, structure, size, mode="quad", nav_cube=None):
     scene = SceneState(structure, nav_cube=nav_cube)
     center, radius = scene.bounding_sphere()
     camera = Camera.fitted(center, radius, size[0] / size[1])
-    return Renderer(gl, scene, size, sphere_mode=mode), camera
+    # Whole frames: the frame cache would skip the atoms pass while the camera stands still.
+    return Renderer(gl, scene, size, sphere_mode=mode, frame_cache=False), camera
 
 
 def _scaling(gl, structures, size, repeats) -> list[dict]:
@@ -197,8 +217,8 @@ def _scaling(gl, structures, size, repeats) -> list[dict]:
             renderer, camera = _renderer(gl, structure, size)
             cases.append((renderer, camera, None))
             rows.append({"id": name, "n_atoms": structure.n_atoms})
-        for row, (frame, passes) in zip(rows, _measure(cases, repeats)):
-            row.update(frame_s=frame, spheres_s=passes.get("spheres", 0.0), passes_s=passes)
+        for row, (renderer, _, _), (frame, passes) in zip(rows, cases, _measure(cases, repeats)):
+            row.update(frame_s=frame, spheres_s=_atoms_pass_s(renderer, passes), passes_s=passes)
     finally:
         for renderer, _, _ in cases:
             renderer.release()
@@ -214,8 +234,8 @@ def _modes(gl, structure, size, repeats) -> dict:
         for mode in ("quad", "sprite", "mesh"):
             renderer, camera = _renderer(gl, structure, size, mode)
             cases.append((renderer, camera, None))
-        for mode, (frame, passes) in zip(("quad", "sprite", "mesh"), _measure(cases, repeats)):
-            out[mode] = {"frame_s": frame, "atoms_pass_s": passes.get("mesh_spheres" if mode == "mesh" else "spheres", 0.0)}
+        for mode, (renderer, _, _), (frame, passes) in zip(("quad", "sprite", "mesh"), cases, _measure(cases, repeats)):
+            out[mode] = {"frame_s": frame, "atoms_pass_s": _atoms_pass_s(renderer, passes)}
     finally:
         for renderer, _, _ in cases:
             renderer.release()

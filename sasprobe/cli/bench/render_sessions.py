@@ -108,8 +108,9 @@ def _first_frames(by_id, ids, sizes, runs: int, progress) -> dict:
 
 
 def run_sessions(gl, by_id, quick: bool = False, sizes=None, structures=None, frames: int | None = None,
-                 rounds: int | None = None, first_frames: bool = True, progress=lambda what: None) -> dict:
-    """The figures of the sessions table (see the module's docstring)."""
+                 rounds: int | None = None, first_frames=True, progress=lambda what: None) -> dict:
+    """The figures of the sessions table (see the module's docstring); `first_frames`: True,
+    False, or the structures whose `render --connect --frames 1` is timed."""
     from sasprobe.cli.bench.render_scenarios import demo_path, time_cases
     from sasprobe.molecule import load_structure
 
@@ -164,10 +165,12 @@ def run_sessions(gl, by_id, quick: bool = False, sizes=None, structures=None, fr
         unlit = next(r for r in rows if r["id"] == row["id"] and r["size"] == row["size"] and r["lighting"] == "unlit")
         row["lit_over_unlit"] = row["ms"] / unlit["ms"]
         row["lit_over_unlit_cpu"] = row["cpu_ms"] / unlit["cpu_ms"]
-    if first_frames:
-        firsts = _first_frames(by_id, structures, sizes, 1 if quick else FIRST_FRAME_RUNS, progress)
+    joined = structures if first_frames is True else tuple(first_frames or ())
+    if joined:
+        firsts = _first_frames(by_id, joined, sizes, 1 if quick else FIRST_FRAME_RUNS, progress)
         for row in rows:
-            row["connect_frames_1_s"], row["connect_frames_1_cpu_s"] = firsts[row["id"], tuple(row["size"])]
+            if row["id"] in joined:
+                row["connect_frames_1_s"], row["connect_frames_1_cpu_s"] = firsts[row["id"], tuple(row["size"])]
     load.append(os.getloadavg()[0])
     return out
 

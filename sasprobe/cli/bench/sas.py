@@ -26,6 +26,8 @@ def run(ctx: BenchContext) -> BenchResult:
     entries = [e for e in reference_structures() if e.atoms <= max_atoms]
     if not entries:
         raise UserError(MISSING)
+    if ctx.smoke:
+        entries = entries[:1]
     repeats = 1 if ctx.quick else 3
     rows = []
     for entry in progress(entries, desc="bench sas", total=len(entries)):

@@ -48,10 +48,11 @@ def imported(argv: list[str]) -> list[str]:
 
 
 def run(ctx: BenchContext) -> BenchResult:
-    repeats = 5 if ctx.quick else 15
+    repeats = 1 if ctx.smoke else 5 if ctx.quick else 15
     times: dict[str, list[float]] = {label: [] for label in COMMANDS}
     for label, args in COMMANDS.items():
-        _wall(args)  # warm the file cache
+        if not ctx.smoke:
+            _wall(args)  # warm the file cache
     for _ in range(repeats):  # round robin: a change in the machine's load hits every command alike
         for label, args in COMMANDS.items():
             times[label].append(_wall(args))

@@ -6,6 +6,7 @@ import argparse
 
 from sasprobe.cli.structure_args import MOLECULE_HELP, add_fetch_options, resolve_molecule
 from sasprobe.cli.argtypes import positive_float, probe_radius
+from sasprobe.cli.device_help import with_device_list
 
 HELP = "run the device daemon: haptic loop, pose/scene publisher, control server"
 
@@ -65,8 +66,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     defaults = HapticSettings()
 
-    p = sub.add_parser("daemon", help=HELP)
-    p.add_argument("--device", default="sim", help="SCHEME[:ARG]: sim[:SCRIPT] (default), replay:FILE, ...")
+    p = sub.add_parser("daemon", help=HELP, **with_device_list())
+    p.add_argument("--device", default="sim", help="SCHEME[:ARG], one of the devices listed below (default sim)")
     p.add_argument("--molecule", metavar="FILE|ID", help=MOLECULE_HELP)
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
     add_fetch_options(p)

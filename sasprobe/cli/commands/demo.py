@@ -7,6 +7,7 @@ from pathlib import Path
 
 from sasprobe.cli.structure_args import MOLECULE_HELP, add_fetch_options, resolve_molecule
 from sasprobe.cli.argtypes import positive_float
+from sasprobe.cli.device_help import with_device_list
 
 HELP = ("the daemon with the simulated arm and a renderer following it: a window, or headless a video, "
         "a snapshot and summary.json")
@@ -21,6 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "demo",
         help=HELP,
+        **with_device_list(),
         description="Start `sasprobe daemon` (simulated arm scanning the molecule) and `sasprobe render --connect` "
                     "as two processes on private ipc:// sockets. With a display: a live window until you close it. "
                     "Without one (or --headless): --seconds of video, a PNG snapshot and summary.json (haptic rate "
@@ -28,7 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--molecule", metavar="FILE|ID", help=MOLECULE_HELP)
     p.add_argument("--device", default=defaults.device,
-                   help=f"the daemon's device (default {defaults.device}: the simulated arm scanning the surface)")
+                   help=f"the daemon's device, one of those listed below (default {defaults.device}: the simulated "
+                        "arm scanning the surface)")
     p.add_argument("--headless", action="store_true", help="no window even when a display exists")
     p.add_argument("--seconds", type=positive_float, default=None, metavar="S",
                    help=f"how long to render (default: {DEFAULT_SECONDS:g} headless; with a window, until it is closed)")

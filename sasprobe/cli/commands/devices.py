@@ -8,6 +8,7 @@ import time
 
 from sasprobe.common.errors import UserError
 from sasprobe.cli.argtypes import positive_float
+from sasprobe.cli.device_help import with_device_list
 
 
 CHECK_SECONDS = 1.0  # how long --check reads by default
@@ -19,10 +20,11 @@ HELP = "list attached haptic/input devices and their --device strings"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("devices", help=HELP)
+    p = sub.add_parser("devices", help=HELP, **with_device_list())
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--check", metavar="DEVICE",
-                   help="open DEVICE (a --device string), read it for --seconds with zero force, report")
+                   help="open DEVICE (a --device string, schemes listed below), read it for --seconds with zero force, "
+                        "report")
     p.add_argument("--seconds", type=positive_float, default=CHECK_SECONDS,
                    help=f"how long --check reads (default {CHECK_SECONDS:g})")
     p.set_defaults(func=run)

@@ -1,0 +1,151 @@
+"""Every message a test receives from a daemon, checked against protocol/schemas/.
+
+The schemas are made strict here (every object that lists its properties gets
+`additionalProperties: false`), so a key the daemon sends but no schema documents fails
+as well as a missing or mistyped one. Binary poses are decoded with the README-table
+decoder of tests/test_protocol_pose.py (not sasprobe's codec), then checked against
+pose.json and for the agreement of one tick's flags and fields.
+
+`checking_clients()` (installed for the whole run by tests/conftest.py) wraps
+`ControlClient.request` and `Subscriber._handle`, so every reply, scene and pose a test
+receives through sasprobe's clients is checked; raw-socket tests call `check_pose_payload`
+and `check_reply` themselves.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import functools
+import json
+import math
+
+from sasprobe.protocol import schemas
+from sasprobe.protocol.control import COMMANDS
+from tests.test_protocol_pose import reference_decode  # imported here, not while poses pour in
+
+_FLAG = {f["name"]: 1 << f["bit"] for f in schemas.pose_layout()["flags"]}
+
+
+def _strict(node):
+    if isinstance(node, dict):
+        out = {key: _strict(value) for key, value in node.items()}
+        if out.get("type") == "object" and "properties" in out and "additionalProperties" not in out:
+            out["additionalProperties"] = False
+        return out
+    if isinstance(node, list):
+        return [_strict(value) for value in node]
+    return node
+
+
+@functools.cache
+def _validator(ref: str):
+    from jsonschema import Draft202012Validator
+    from referencing import Registry, Resource
+
+    names = (*schemas.SCHEMA_FILES, "pose")
+    registry = Registry().with_resources(
+        (schemas.URN + name, Resource.from_contents(_strict(copy.deepcopy(schemas.schema(name))))) for name in names)
+    return Draft202012Validator({"$ref": schemas.URN + ref}, registry=registry)
+
+
+def assert_valid(ref: str, instance) -> None:
+    """AssertionError listing every way `instance` breaks the (strict) schema `ref`."""
+    errors = sorted(_validator(ref).iter_errors(instance), key=lambda e: list(e.absolute_path))
+    if errors:
+        lines = [f"{'/'.join(map(str, e.absolute_path)) or '(root)'}: {e.message[:200]}" for e in errors[:8]]
+        raise AssertionError(f"{ref}: {len(errors)} schema error(s):\n  " + "\n  ".join(lines))
+
+
+def check_reply(cmd: str, reply_json: dict) -> None:
+    """A decoded reply frame: the envelope, and for `ok` the command's result."""
+    assert_valid("control#/$defs/reply", reply_json)
+    if reply_json["ok"] and cmd in COMMANDS:
+        assert_valid(f"control#/$defs/result.{cmd}", reply_json["result"])
+
+
+def check_raw_reply(request_frame: bytes, reply_frames: list) -> None:
+    """A reply to a request sent on a raw socket: checked as the reply to the command the
+    request names, or as a bare envelope when it names none."""
+    try:
+        request = json.loads(bytes(request_frame))
+    except (ValueError, RecursionError):
+        request = None
+    cmd = request.get("cmd") if isinstance(request, dict) else None
+    check_reply(cmd if isinstance(cmd, str) else "", json.loads(bytes(reply_frames[0])))
+
+
+def check_scene(scene: dict) -> None:
+    assert_valid("scene", scene)
+
+
+def check_pose_payload(payload: bytes) -> dict:
+    """A pose as published, against pose.json: decoded with the README table's decoder, its
+    version, reserved word and flag bits, finite numbers, one tick's fields agreeing with its
+    flags. (The JSON Schema validator is too slow for 1000 poses a second; the recording's
+    `pose` records, the same fields, are checked with it.) Returns the decoded fields."""
+    layout = schemas.pose_layout()
+    assert len(payload) >= layout["size"], f"pose of {len(payload)} bytes"
+    raw = reference_decode(payload)
+    assert raw["version"] == layout["version"] and raw["reserved"] == 0, raw
+    assert raw["flags"] < 1 << len(layout["flags"]), f"seq {raw['seq']}: undocumented flag bits in {raw['flags']}"
+    record = {f["record"]: (list(raw[f["name"]]) if f["count"] > 1 else raw[f["name"]])
+              for f in layout["fields"] if f["record"] is not None}
+    for f in layout["fields"]:
+        if f["type"] == "float64":
+            values = record[f["record"]] if f["count"] > 1 else [record[f["record"]]]
+            assert all(map(math.isfinite, values)), f"seq {raw['seq']}: {f['name']} is not finite"
+    check_pose_agreement(record)
+    return raw
+
+
+def check_pose_agreement(p: dict) -> None:
+    """What the flags say of one tick holds in its fields (record names)."""
+    flags = p["flags"]
+    assert bool(flags & _FLAG["contact"]) == (p["touched_atom"] >= 0), \
+        f"seq {p['seq']}: contact flag {bool(flags & _FLAG['contact'])} with touched_atom {p['touched_atom']}"
+    if flags & (_FLAG["fault"] | _FLAG["clutched"]):
+        assert p["force_N"] == [0.0, 0.0, 0.0], f"seq {p['seq']}: force {p['force_N']} with flags {flags}"
+    assert not (flags & _FLAG["fault"] and flags & _FLAG["ramping"]), f"seq {p['seq']}: fault and ramping"
+    assert abs(math.sqrt(sum(q * q for q in p["orientation"])) - 1.0) < 1e-6, f"seq {p['seq']}: orientation"
+    assert 0 <= p["device_t_ns"] <= p["publish_t_ns"], \
+        f"seq {p['seq']}: device time {p['device_t_ns']} not on the host's clock before {p['publish_t_ns']}"
+
+
+def check_record(topic: str, record: dict) -> None:
+    """A recording's message by channel; a pose record also for the agreement of its fields."""
+    assert_valid({"device": "device", "pose": "pose", "scene": "scene", "control": "control-record"}[topic], record)
+    if topic == "pose":
+        check_pose_agreement(record)
+
+
+@contextlib.contextmanager
+def checking_clients():
+    """Wrap sasprobe's ControlClient and Subscriber so every received message is checked."""
+    from sasprobe.protocol import client
+
+    original_request, original_handle = client.ControlClient.request, client.Subscriber._handle
+    for ref in ("scene", "control#/$defs/reply"):  # build the validators now, not while messages pour in
+        list(_validator(ref).iter_errors({}))
+
+    def request(self, cmd, args=None, data=None, timeout_s=None):
+        reply = original_request(self, cmd, args, data=data, timeout_s=timeout_s)
+        envelope = {"version": reply.version, "ok": reply.ok, **({} if reply.id is None else {"id": reply.id})}
+        envelope.update({"result": reply.result} if reply.ok else {"error": reply.error})
+        check_reply(cmd, envelope)
+        return reply
+
+    def handle(self, frames):
+        scenes = self.scenes_received
+        pose = original_handle(self, frames)
+        if pose is not None:
+            check_pose_payload(bytes(frames[1]))
+        elif self.scenes_received > scenes:
+            check_scene(json.loads(bytes(frames[1])))
+        return pose
+
+    client.ControlClient.request, client.Subscriber._handle = request, handle
+    try:
+        yield
+    finally:
+        client.ControlClient.request, client.Subscriber._handle = original_request, original_handle

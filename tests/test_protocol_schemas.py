@@ -1,0 +1,34 @@
+"""protocol/schemas/: valid JSON Schema 2020-12, and standalone as a recording embeds them."""
+
+from __future__ import annotations
+
+import pytest
+from jsonschema import Draft202012Validator
+
+from sasprobe.protocol import schemas
+from tests.test_protocol_scene import example_scene
+
+
+@pytest.mark.parametrize("name", [*schemas.SCHEMA_FILES, "pose"])
+def test_every_schema_is_draft_2020_12_with_its_id(name):
+    schema = schemas.schema(name)
+    Draft202012Validator.check_schema(schema)
+    assert schema["$schema"] == schemas.DIALECT and schema["$id"] == schemas.URN + name and schema["title"]
+
+
+@pytest.mark.parametrize("name", [*schemas.SCHEMA_FILES, "pose"])
+def test_a_bundled_schema_stands_alone(name):
+    """What a recording carries resolves every reference without the other files."""
+    bundled = schemas.bundled(name)
+    Draft202012Validator.check_schema(bundled)
+    refs: set = set()
+    schemas._references(bundled, refs)
+    assert refs - {name} <= {key[len(schemas.URN):] for key in bundled.get("$defs", {})}
+
+
+def test_a_bundled_schema_validates_as_the_registry_does():
+    control = Draft202012Validator(schemas.bundled("control-record"))
+    mark = example_scene()["marks"][0]
+    assert control.is_valid({"seq": 3, "cmd": "mark", "args": mark})
+    assert not control.is_valid({"seq": 3, "cmd": "mark", "args": {**mark, "source": "nose"}})
+    assert schemas.validation_errors("control-record", {"seq": 3, "cmd": "mark", "args": {**mark, "source": "nose"}})

@@ -1,0 +1,218 @@
+"""One recorded daemon session with everything a client meets — injected faults (failed and
+non-finite reads, a loop stall), marks by button and by control, the clutch by button and by
+key, a recentre by button and by control, a view turn — checked against protocol/README.md
+and protocol/schemas/: every message received on the wire and every record of its recording.
+
+Per-tick facts are read from the recording (every tick, on the daemon's own clock); the wire
+is checked message by message as it arrives (tests/schema_check.py).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import stat
+import threading
+import time
+
+import numpy as np
+import pytest
+import zmq
+from mcap.reader import make_reader
+
+from sasprobe.protocol.client import ControlClient, Subscriber
+from sasprobe.protocol.control import decode_reply
+from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
+from sasprobe.protocol.recording import iter_items
+from sasprobe.protocol.schemas import channel_schemas
+from tests.daemon_process import DaemonProcess
+from tests.schema_check import check_record, check_reply
+
+TICKS = 3200  # the session's length in ticks
+FAULTS = ("raise@800+30", "nan@1100+20", "stall@1500+30")  # the first two while the scan script touches
+BUTTONS = ("2@400+5", "0@2200+300", "1@2700+5")  # mark, clutch held 300 ticks, recentre (the default map)
+TURN = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+
+
+def _wait_tick(client: ControlClient, tick: int, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while client.status()["loop"]["total"]["ticks"] < tick:
+        assert time.monotonic() < deadline, f"the daemon did not reach tick {tick}"
+        time.sleep(0.05)
+
+
+def _dealer(endpoint: str, frames: list[bytes]) -> dict:
+    """A DEALER request without the empty delimiter; the reply comes back without one."""
+    sock = zmq.Context.instance().socket(zmq.DEALER)
+    sock.linger = 0
+    sock.connect(endpoint)
+    try:
+        sock.send_multipart(frames)
+        assert sock.poll(10_000), "no reply"
+        reply = sock.recv_multipart()
+    finally:
+        sock.close()
+    assert reply[0] != b"", "a reply to a request without delimiter has none"
+    decode_reply(reply)
+    return json.loads(reply[0])
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    path = tmp_path_factory.mktemp("session") / "session.mcap"
+    args = ["--record", str(path), *[a for f in FAULTS for a in ("--inject-fault", f)],
+            *[a for b in BUTTONS for a in ("--inject-button", b)]]
+    started_ns = time.monotonic_ns()  # CLOCK_MONOTONIC is the host's: the daemon's clock too
+    out = {"path": path, "started_ns": started_ns, "replies": {}, "poses": [], "scenes": 0}
+    with DaemonProcess(*args) as d:
+        out["modes"] = {name: stat.S_IMODE(os.stat(ep[len("ipc://"):]).st_mode) for name, ep in
+                        (("pub", d.pub), ("ctl", d.ctl))}
+        stop = threading.Event()
+
+        def follow():
+            with Subscriber(d.pub, rcvhwm=100_000) as sub:  # checked message by message
+                while not stop.is_set():
+                    out["poses"] += sub.poll(0.05)
+                out["scenes"] = sub.scenes_received
+
+        follower = threading.Thread(target=follow)
+        follower.start()
+        try:
+            with ControlClient(d.ctl) as client:
+                r = out["replies"]
+                _wait_tick(client, 300)
+                r["set"] = client.set(stiffness_n_per_mm=0.25, clip_planes=[[0, 0, 1, 40]])
+                r["mark"] = client.mark("control mark")
+                r["clutch_held"] = client.call("clutch", held=True)
+                r["clutch_released"] = client.call("clutch", held=False)
+                _wait_tick(client, 1700)
+                r["recentre"] = client.call("recentre")
+                r["view"] = client.call("view", rotation=TURN)
+                r["get_structure"] = client.get_structure()[0]
+                r["ping"] = client.ping()
+                r["scene"] = client.get_scene()
+                r["dealer_error"] = _dealer(d.ctl, [b'{"cmd": "explode", "id": "d-1"}'])
+                r["dealer_ok"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": 7.5}'])
+                _wait_tick(client, TICKS)
+                r["status"] = client.status()
+        finally:
+            stop.set()
+            follower.join()
+        out["rc"], out["report"] = d.stop()
+        out["left_behind"] = d.left_behind
+        out["stderr"] = d.stderr
+    assert out["rc"] == 0, out["stderr"]
+    out["items"] = list(iter_items(path))
+    return out
+
+
+def _recorded(session, topic: str) -> list[dict]:
+    return [item.data for item in session["items"] if item.topic == topic]
+
+
+def _ticks(session) -> tuple[dict[int, dict], dict[int, dict]]:
+    return ({r["seq"]: r for r in _recorded(session, "device")}, {p["seq"]: p for p in _recorded(session, "pose")})
+
+
+def test_every_message_of_the_session_follows_the_schemas(session):
+    assert len(session["poses"]) > 1000 and session["scenes"] >= 3  # each checked as it arrived
+    for item in session["items"]:
+        if item.topic in ("device", "pose", "scene", "control"):
+            check_record(item.topic, item.data)
+    recorded = {t: len(_recorded(session, t)) for t in ("device", "pose", "scene", "control")}
+    assert recorded["device"] == recorded["pose"] >= TICKS and recorded["scene"] >= 5
+    commands = [c["cmd"] for c in _recorded(session, "control")]
+    for cmd in ("start", "set", "mark", "clutch", "recentre", "view"):
+        assert cmd in commands, f"no {cmd} in the recording"
+    check_reply("explode", session["replies"]["dealer_error"])
+    check_reply("ping", session["replies"]["dealer_ok"])
+    with open(session["path"], "rb") as f:  # the recording embeds the same schemas
+        summary = make_reader(f).get_summary()
+    embedded = {ch.topic: summary.schemas[ch.schema_id] for ch in summary.channels.values()}
+    for topic, schema in channel_schemas().items():
+        assert embedded[topic].encoding == "jsonschema" and json.loads(embedded[topic].data) == schema
+        assert schema["$schema"].endswith("2020-12/schema") and schema["required"]
+
+
+def test_device_time_is_monotonic_on_the_hosts_clock(session):
+    wire = [(p.device_t_ns, p.publish_t_ns) for p in session["poses"]]
+    assert all(session["started_ns"] < t <= tp for t, tp in wire), "device time is not the host's monotonic clock"
+    devices, poses = _ticks(session)
+    times = [poses[s]["device_t_ns"] for s in sorted(poses)]
+    assert all(b >= a for a, b in zip(times, times[1:])) and times[0] > session["started_ns"]
+    failed = [s for s, r in devices.items() if r["t_ns"] is None]
+    assert len(failed) >= 30
+    for s in failed:  # no state: the pose repeats the newest device time
+        assert poses[s]["device_t_ns"] == poses[s - 1]["device_t_ns"]
+
+
+def test_contact_flag_and_touched_atom_agree_on_every_tick(session):
+    devices, poses = _ticks(session)
+    for p in poses.values():
+        assert bool(p["flags"] & FLAG_CONTACT) == (p["touched_atom"] >= 0), p
+    touching_then_failing = [s for s, r in devices.items()
+                             if r["t_ns"] is None and poses.get(s - 1, {}).get("touched_atom", -1) >= 0]
+    assert touching_then_failing, "no failed read came while the probe touched: the case is not exercised"
+    for s in touching_then_failing:
+        assert poses[s]["touched_atom"] == -1 and poses[s]["flags"] & FLAG_FAULT
+
+
+def test_failed_reads_are_complete_records(session):
+    devices, _ = _ticks(session)
+    failed = [r for r in devices.values() if r["error"] and "timed out" in r["error"]]
+    assert len(failed) == 30
+    for r in failed:
+        assert r["t_ns"] is None and r["position_mm"] == [None] * 3 and r["orientation"] == [None] * 4
+        assert r["velocity_mm_s"] == [None] * 3 and r["buttons"] is None and r["calibrated"] is None
+    nans = [r for r in devices.values() if r["t_ns"] is not None and r["position_mm"][0] is None]
+    assert len(nans) == 20 and all(r["calibrated"] is True and isinstance(r["buttons"], int) for r in nans)
+
+
+def test_a_late_tick_still_runs_the_engine(session):
+    """A tick faulted for lateness alone (the stall) shows the device's state: the engine ran,
+    so proxy and goal follow the tip while the force is zeroed."""
+    devices, poses = _ticks(session)
+    late = [s for s, r in devices.items() if r["error"] is None and r["late_periods"] > 3]
+    assert late, "the stall made no late tick"
+    for s in late:
+        p = poses[s]
+        assert p["flags"] & FLAG_FAULT and p["force_N"] == [0.0, 0.0, 0.0]
+        assert p["tip_mm"] == devices[s]["position_mm"]
+    assert any(poses[s]["goal_A"] != poses[s - 1]["goal_A"] for s in late)
+
+
+def test_marks_lie_at_the_proxy_of_the_pose_before_their_tick(session):
+    _, poses = _ticks(session)
+    marks = session["replies"]["scene"]["marks"]
+    assert {m["source"] for m in marks} == {"button", "control"}
+    for m in marks:
+        assert m["position_A"] == poses[m["seq"] - 1]["proxy_A"], m
+
+
+def test_a_recentre_centres_the_cube_on_the_probe_which_then_follows_the_goal(session):
+    _, poses = _ticks(session)
+    recentres = [c["seq"] for c in _recorded(session, "control") if c["cmd"] == "recentre"]
+    assert len(recentres) == 2  # the control command and the device's button
+    for s in recentres:
+        before, at = poses[s - 1], poses[s]
+        assert np.allclose(at["cube_center_A"], before["proxy_A"], atol=1e-9)
+        assert at["proxy_A"] == at["goal_A"]  # unseated: the probe is where the hand maps
+
+
+def test_replies_echo_ids_and_the_clutch_lease(session):
+    r = session["replies"]
+    assert r["dealer_error"]["id"] == "d-1" and not r["dealer_error"]["ok"]
+    assert r["dealer_ok"]["id"] == 7.5 and r["dealer_ok"]["ok"]
+    assert r["clutch_held"]["lease_s"] == 1.0 and r["clutch_released"]["lease_s"] is None
+
+
+def test_socket_files_are_private_and_removed_at_exit(session):
+    assert session["modes"] == {"pub": 0o600, "ctl": 0o600}
+    assert "pub" not in session["left_behind"] and "ctl" not in session["left_behind"]
+
+
+def test_the_recording_says_who_wrote_it(session):
+    (metadata,) = _recorded(session, "metadata")
+    assert metadata["name"] == "sasprobe"
+    assert set(metadata) == {"name", "daemon_version", "device", "rate_hz", "started_unix_s"}
+    assert metadata["device"] == "sim" and float(metadata["rate_hz"]) == 1000.0
