@@ -82,9 +82,10 @@ EXPECTED = {
     "daemon": ({"runs", "devices", "loading"},
                lambda d: [r["loop"]["rate_hz"] for r in d["runs"] + d["devices"]["rows"]]
                + [r["tcp"]["received"] for r in d["runs"]] + [d["loading"]["poses"], d["loading"]["loads_of_big"]]),
-    "render": ({"modes", "cube", "scaling", "scenarios"},
+    "render": ({"modes", "cube", "scaling", "scenarios", "sessions"},
                lambda d: [m[k][t] for m in d["modes"] for k in ("quad", "sprite", "mesh")
                           for t in ("frame_s", "atoms_pass_s")]
+               + [r[k] for r in d["sessions"]["rows"] for k in ("cpu_ms", "first_frame_s", "connect_frames_1_s")]
                + [r[k] for r in d["scaling"] for k in ("frame_s", "spheres_s")]
                + [d["cube"]["frame_s"], d["cube"]["moving_frame_s"], d["cube"]["small_whole_frame_s"]]
                + [row["ms"] for key in ("session", "orbit", "cube") for s in d["scenarios"][key]

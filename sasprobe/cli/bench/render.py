@@ -119,7 +119,7 @@ def _sessions(gl, by_id, ctx: BenchContext) -> dict:
         raise UserError(f"bench render: the session table needs the reference structures {', '.join(missing)}")
     sizes = plan.get("sizes") or (render_sessions.QUICK_SIZES if ctx.quick else render_sessions.SIZES)
     rounds = plan.get("rounds") or (render_sessions.QUICK_ROUNDS if ctx.quick else render_sessions.ROUNDS)
-    bar = progress_bar(1 + len(sizes) * rounds + len(wanted), "bench render: sessions")
+    bar = progress_bar(1 + len(sizes) * rounds + len(plan.get("first_frames", wanted)), "bench render: sessions")
     try:
         return render_sessions.run_sessions(gl, by_id, ctx.quick, structures=wanted, progress=lambda what: bar.update(1),
                                             **plan)
