@@ -22,10 +22,14 @@ from sasprobe.devices import openhaptics
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.openhaptics import hdapi
 from sasprobe.devices.openhaptics.driver import OpenHapticsDevice
+from sasprobe.protocol.client import Subscriber
+from tests.conftest import run_cli
+from tests.daemon_process import DaemonProcess
 from tests.emulators import libhd
 from tests.emulators.libhd import (HD_CALIBRATION_AUTO, HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_INKWELL,
-                                   HD_COMM_ERROR, HD_DEVICE_FAULT, HD_EXCEEDED_MAX_VELOCITY, HD_INVALID_ENUM,
-                                   HD_WARM_MOTORS, UNCALIBRATED_OFFSET, USABLE_BOX_CENTRE)
+                                   HD_COMM_ERROR, HD_DEVICE_BUTTON_1, HD_DEVICE_FAULT, HD_EXCEEDED_MAX_FORCE,
+                                   HD_EXCEEDED_MAX_FORCE_IMPULSE, HD_EXCEEDED_MAX_VELOCITY, HD_FORCE_ERROR,
+                                   HD_INVALID_ENUM, HD_WARM_MOTORS, UNCALIBRATED_OFFSET, USABLE_BOX_CENTRE)
 
 
 @pytest.fixture(scope="module")
@@ -162,7 +166,8 @@ def calibrated_and_pushing(arm, force=(1.0, 0.0, 0.0)):
     return dev, emu
 
 
-@pytest.mark.parametrize("code", [HD_EXCEEDED_MAX_VELOCITY, HD_WARM_MOTORS, HD_DEVICE_FAULT])
+@pytest.mark.parametrize("code", [HD_WARM_MOTORS, HD_EXCEEDED_MAX_FORCE, HD_EXCEEDED_MAX_VELOCITY, HD_FORCE_ERROR,
+                                  HD_DEVICE_FAULT])
 def test_a_force_error_stops_only_force_output(arm, code):
     dev, emu = calibrated_and_pushing(arm)
     emu.inject(code)
@@ -176,10 +181,83 @@ def test_a_force_error_stops_only_force_output(arm, code):
     emu.wait_frames(5)
     assert emu.control.frames > frames
     assert dev.info.details["force_errors"] == 1 and dev.info.details["force_stopped"] is True
-    dev.write_force([0.0, 0.0, 0.0])  # the user left the contact
-    dev.write_force([0.5, 0.0, 0.0])
+
+
+# The daemon's wall in these tests: free space toward +x, the force pushing the stylus out
+# along +x. The hand holds the stylus 4 mm inside; 1 N moves it 2 mm out (the hand's 0.5 N/mm).
+INSIDE = np.add(USABLE_BOX_CENTRE, (-4.0, 0.0, 0.0))
+PUSH = (1.0, 0.0, 0.0)
+
+
+def stopped_by_a_force_error_while_pressed_in(arm):
+    dev, emu = arm(styles=HD_CALIBRATION_AUTO, hand=INSIDE)
+    dev.open()
+    wait_for(dev, lambda s: s.calibrated)
+    dev.write_force(PUSH)
+    wait_for(dev, lambda s: s.position_mm[0] == pytest.approx(-2.0))
+    emu.inject(HD_EXCEEDED_MAX_FORCE)
     emu.wait_frames(5)
-    assert emu.applied_force == (0.5, 0.0, 0.0)
+    assert emu.applied_force == (0.0, 0.0, 0.0) and dev.info.details["force_stopped"] is True
+    return dev, emu
+
+
+def render(dev, emu, force):
+    dev.write_force(force)
+    emu.wait_frames(5)
+    return emu.applied_force
+
+
+def test_a_zero_command_with_the_stylus_still_pressed_in_does_not_bring_force_back(arm):
+    """ErrorHandling.c l. 279-303: after a force error, contact comes back only once the device
+    has been on the free side. A loop stall writes zero while the stylus is still in."""
+    dev, emu = stopped_by_a_force_error_while_pressed_in(arm)
+    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)  # the watchdog's zero during a stall
+    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)  # the loop is back, the stylus still in: no force
+    # pulled out by 1 mm, less than 1 N could have pressed it in at the arm's stiffest
+    # (0.5 N/mm: 2 mm): not yet out
+    emu.hand.target = np.add(INSIDE, (3.0, 0.0, 0.0))
+    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
+    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)
+    emu.hand.target = np.add(INSIDE, (4.5, 0.0, 0.0))  # 2.5 mm out: on the free side
+    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)  # force comes back at a zero command only, never with a kick
+    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
+    assert render(dev, emu, (0.5, 0.0, 0.0)) == (0.5, 0.0, 0.0)
+    assert dev.info.details["force_stopped"] is False
+
+
+def test_a_new_button_press_brings_force_back_after_a_force_error(arm):
+    """AnchoredSpringForce.c l. 196-202, 227-233: a force error stops the force until the
+    button is pressed anew; a button held since before the error is no new press."""
+    emu_buttons = HD_DEVICE_BUTTON_1
+    dev, emu = arm(styles=HD_CALIBRATION_AUTO, hand=INSIDE)
+    emu.control.buttons = emu_buttons  # held all along
+    dev.open()
+    wait_for(dev, lambda s: s.calibrated)
+    dev.write_force(PUSH)
+    wait_for(dev, lambda s: s.position_mm[0] == pytest.approx(-2.0))
+    emu.inject(HD_EXCEEDED_MAX_FORCE)
+    emu.wait_frames(5)
+    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
+    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)  # the held button is no new press
+    emu.control.buttons = 0
+    emu.wait_frames(3)
+    emu.control.buttons = emu_buttons  # pressed again, the stylus still in
+    emu.wait_frames(3)
+    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)  # still no kick: force resumes at a zero command
+    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
+    assert render(dev, emu, (0.5, 0.0, 0.0)) == (0.5, 0.0, 0.0)
+
+
+def test_the_force_impulse_warning_is_not_a_force_error(arm):
+    """hduIsForceError (libHDU's hduError.o) names warm motors, max force, max velocity and
+    force errors, not HD_EXCEEDED_MAX_FORCE_IMPULSE: the library's own impulse check has
+    already limited the change in force."""
+    dev, emu = calibrated_and_pushing(arm)
+    emu.inject(HD_EXCEEDED_MAX_FORCE_IMPULSE)
+    emu.wait_frames(5)
+    dev.read()
+    assert render(dev, emu, (0.5, 0.0, 0.0)) == (0.5, 0.0, 0.0)
+    assert dev.info.details["other_errors"] == 1 and dev.info.details["force_errors"] == 0
 
 
 def test_other_errors_are_counted_and_force_goes_on(arm):
@@ -193,10 +271,17 @@ def test_other_errors_are_counted_and_force_goes_on(arm):
 
 def test_a_scheduler_error_ends_the_callback_and_is_a_fault(arm):
     dev, emu = calibrated_and_pushing(arm)
-    emu.inject(HD_COMM_ERROR)
+    emu.inject(HD_COMM_ERROR)  # the device itself stays powered: its motors keep what they were last sent
     with pytest.raises(DeviceFault, match=r"HD_COMM_ERROR \(0x0302"):
         _until_fault(dev)
-    assert emu.control.callback_done == 1
+    deadline = time.monotonic() + 2.0
+    while not emu.control.callback_done:
+        assert time.monotonic() < deadline, "the servo callback did not end"
+        time.sleep(0.001)
+    frames = emu.control.frames
+    time.sleep(0.02)
+    assert emu.control.frames == frames  # no frame runs any more ...
+    assert emu.applied_force == (0.0, 0.0, 0.0)  # ... and the last one the callback ran sent zero
 
 
 def test_a_vanished_arm_faults_and_recovers_when_back(arm):
@@ -303,3 +388,44 @@ def test_the_stand_in_and_the_driver_transcribed_hddefines_alike():
     assert shared == {name: getattr(hdapi, name) for name in shared} and len(shared) > 15
     named = {name: code for code, name in hdapi.HD_ERRORS.items()}
     assert all(named[name] == value for name, value in defines.items() if name in named)
+
+
+def test_open_reports_the_serial_number_the_library_serves(arm, library, monkeypatch):
+    dev, emu = arm(styles=HD_CALIBRATION_AUTO, serial="41150100123")
+    dev.open()
+    assert dev.info.serial == "41150100123"
+    dev.close()
+    for key, value in emu.env.items():
+        monkeypatch.setenv(key, value)
+    result = run_cli("devices", "--check", emu.device_spec, "--seconds", "0.2")
+    assert result.returncode == 0, result.stderr
+    assert "  serial     41150100123\n" in result.stdout
+
+
+# The makers' nominal workspaces: Touch/Omni 160 x 120 x 70 mm (the emulator's model 0 has
+# that size), Desktop 160 x 120 x 120 mm, Premium 1.5 381 x 267 x 191 mm; the navigation
+# cube maps onto the cube inscribed in the usable box, of half its smallest edge.
+@pytest.mark.parametrize("model, half_mm", [("touch", 35.0), ("desktop", 60.0), ("premium", 95.5)])
+def test_the_navigation_cube_maps_onto_the_cube_inscribed_in_the_arms_usable_box(library, monkeypatch, model,
+                                                                                  half_mm):
+    emu = libhd.launch(library=library, styles=HD_CALIBRATION_AUTO, model=model)  # the hand at the library origin
+    for key, value in emu.env.items():
+        monkeypatch.setenv(key, value)
+    try:
+        with DaemonProcess("--cube-half", "20", device=emu.device_spec) as daemon:
+            sub = Subscriber(daemon.pub)
+            box = sub.wait_for_scene(10.0)["device"]["limits"]
+            assert min(np.subtract(box["workspace_max_mm"], box["workspace_min_mm"])) / 2.0 == half_mm
+            deadline = time.monotonic() + 10.0
+            poses = []
+            while not poses and time.monotonic() < deadline:
+                poses = [p for p in sub.poll(0.1) if np.linalg.norm(p.tip_mm) > 10.0]
+            assert poses, daemon.stderr
+            pose = poses[-1]
+            # goal = cube centre + (cube half edge / inscribed half edge) · tip, the view unturned
+            mapped = pose.cube_half_A * np.linalg.norm(pose.tip_mm) / np.linalg.norm(pose.goal_A - pose.cube_center_A)
+            assert mapped == pytest.approx(half_mm, rel=1e-6)
+            np.testing.assert_allclose(pose.goal_A - pose.cube_center_A, pose.tip_mm * pose.cube_half_A / half_mm,
+                                       atol=1e-9)
+    finally:
+        emu.close()
