@@ -222,12 +222,24 @@ class SerialArm(HardwareDriver):
             self._send(self._command())
 
     def zero_force_now(self) -> None:
-        """The daemon's watchdog while its loop is stalled: the zero command goes out now, even
-        with a command in flight (sent before the stall, so answered long since: nothing can
-        merge). The reply it draws is one too many, so the next read resynchronises first (a
+        """The daemon's watchdog while its loop is stalled: the zero command goes out now.
+
+        The command in flight (sent before the stall) has normally been answered long
+        since: its reply is taken and the zero becomes the command in flight, whose reply
+        the loop's next read takes. A board that has not answered yet has not taken that
+        command either: a second line would meet it in the board's buffer and both be
+        refused (nothing would change), so on a line protocol the zero waits for the
+        watchdog's next try; binary frames queue behind each other, so the zero goes out
+        at once and the reply it draws, one too many, is dropped by resynchronising (a
         fault tick or two, force zero meanwhile)."""
         self.force = np.zeros(3)
-        if self._lost is None:
+        if self._lost is not None:
+            return
+        if self._sent_at is not None:
+            self._wait_reply(0.0)  # the answer, if it has come (its pose serves the next command)
+        if self._sent_at is None and (self._resync_reason is None or self._resync_step()):
+            self._send(self._zero_command())
+        elif self._zero_may_overlap():
             self._io(self.transport.write, self._zero_command())
             self._start_resync("the watchdog's zero command while the loop stalled")
 

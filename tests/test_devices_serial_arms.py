@@ -217,6 +217,28 @@ def test_a_stalled_host_gets_a_fresh_reply_not_the_waiting_one(rig):
 
 
 @every_arm
+def test_the_watchdogs_zero_never_meets_an_unanswered_command(rig):
+    """The daemon's watchdog writes zero (`zero_force_now`) while its loop is stalled. A board
+    that has not answered the command in flight has not taken it: on a line protocol a
+    second line would meet it in the board's buffer and the firmware would refuse both."""
+    arm, dev, board, _hand = rig
+    dev.open()
+    session = Session(dev)
+    check_forces(arm, session, board, arm.forces[:1])
+    board.stall(0.3)
+    time.sleep(0.01)
+    with pytest.raises(DeviceFault, match="no reply"):
+        for _ in range(5):  # until a command is in flight that the stalled board has not read
+            dev.read()
+    dev.zero_force_now()  # the loop stalls now: the watchdog's first zero
+    time.sleep(0.35)  # the board wakes and answers what it has read
+    dev.zero_force_now()  # the watchdog's next try, REZERO_PERIODS later
+    wait_until(lambda: np.linalg.norm(board.motor_force()) <= arm.zero_atol_n, what="zero force on the board")
+    assert arm.refused(board) == 0, "the watchdog's zero met the command in flight"
+    session.reads_the_stylus(board.stylus)  # and the loop, back, goes on in step
+
+
+@every_arm
 def test_a_board_that_stops_mid_session_faults_at_once_and_gets_zero_force(rig):
     arm, dev, board, _hand = rig
     dev.open()
