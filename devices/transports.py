@@ -21,7 +21,7 @@ import time
 
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 
-UDEV_HINT = "install the udev rule from the README's 'Connect your arm' section"
+UDEV_HINT = "install the udev rule from docs/connect-your-arm.md"
 
 
 def permission_hint(path: str, group: str = "dialout") -> str:

@@ -1,6 +1,6 @@
 """`sasprobe bench --quick` assembles one report from several real benchmarks.
 
-The whole quick run takes minutes (it is timed in the README), so the test runs the
+The whole quick run takes minutes (docs/benchmarks.md gives its wall time), so the test runs the
 real `grid` and `sas` benchmarks on two small reference structures (a private MANIFEST)
 and `haptics`, whose quick set needs structures that folder lacks: it must be listed as
 skipped with its reason while the others still make the report.

@@ -1,5 +1,5 @@
 """Clearance and passage radius (molecule/clearance.py) against brute force, and the findings'
-bottleneck on a synthetic channel of known radius (issue 18).
+bottleneck on a synthetic channel of known radius.
 
 Oracles: distances to every atom's vdW surface in numpy (no grid), dense samples of the
 plane around a reported passage centre, and the geometry of a closed ring of spheres.

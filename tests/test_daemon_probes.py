@@ -1,11 +1,11 @@
-"""The real daemon probed as an attacker or a careless script would (issue 17): each probe is
+"""The real daemon probed as an attacker or a careless script would: each probe is
 answered with an error or dropped, the control server answers afterwards, and the loop
 does not stall while it happens.
 
 The pose gaps come from tests/pose_watch.py, a process of its own, which also notes the
 machine's own pauses (a VM's stolen time stalls every process): a probe passes when the
-part of its longest pose gap that such a pause does not explain is under LIMIT_MS (the
-issue's 20 ms; 60 ms when the daemon could not get real-time scheduling, where ordinary
+part of its longest pose gap that such a pause does not explain is under LIMIT_MS (20 ms;
+60 ms when the daemon could not get real-time scheduling, where ordinary
 preemption alone takes several ms). Unprotected, these probes stalled the loop 0.3-2 s.
 """
 

@@ -1,7 +1,7 @@
 """The daemon as a real process shared by the module: poses over real sockets, control,
 recording, status, security, user errors (test_daemon_sessions.py: one daemon per test).
 
-Timing bars are the issue's own (≥ 95 % of poses); nothing tighter, because the machine
+The timing bar is ≥ 95 % of poses and nothing tighter, because the machine
 running the tests is shared.
 """
 

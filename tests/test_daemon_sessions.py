@@ -1,7 +1,7 @@
 """The daemon as a real process, one per test: a recording cut by SIGKILL, replay and
 `--verify`, SIGTERM, injected faults.
 
-Timing bars are the issue's own (≤ 100 ms lost at SIGKILL); nothing tighter, because the
+The timing bar is ≤ 100 ms lost at SIGKILL (docs/daemon.md) and nothing tighter, because the
 machine running the tests is shared.
 """
 

@@ -300,8 +300,8 @@ def test_the_driver_takes_exactly_spacenavds_list():
     assert models.is_six_dof(*RECEIVER, (0x01, 0x08)) and not models.is_six_dof(*RECEIVER, (0x01, 0x02))
 
 
-def test_the_readme_udev_rule_opens_only_the_listed_devices():
-    readme = (REPO_ROOT / "README.md").read_text()
+def test_the_documented_udev_rule_opens_only_the_listed_devices():
+    readme = (REPO_ROOT / "docs" / "connect-your-arm.md").read_text()
     hidraw_rules = [line for line in readme.splitlines() if line.startswith('KERNEL=="hidraw*"')]
     opened_ids = {(int(v, 16), int(p, 16)) for line in hidraw_rules
                   for v, p in re.findall(r"\*:([0-9A-F]{4}):([0-9A-F]{4})\.\*", line)}

@@ -1,4 +1,4 @@
-"""Findings of a real session (issue 18): one recording daemon (simulated arm diving into 1CRN) gets a
+"""Findings of a real session: one recording daemon (simulated arm diving into 1CRN) gets a
 mark from a window's Enter key (under Xvfb) and one from `sasprobe mark` (the control
 command), analyses itself through `sasprobe findings` (the control command `findings`),
 and is killed with SIGKILL; the cut file gives findings up to

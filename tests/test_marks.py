@@ -1,4 +1,4 @@
-"""Marks (issue 18) without a daemon process: their wire form (scene key, control commands),
+"""Marks without a daemon process: their wire form (scene key, control commands),
 the daemon's bookkeeping, the badges every renderer draws, and the CLI's one-line errors.
 
 The badge check projects each mark with the frame's own view and projection in numpy and

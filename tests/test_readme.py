@@ -1,20 +1,27 @@
-"""Every `sasprobe …` command line of the README parses with the real argument parser.
+"""The documentation against the code and the tree: every `sasprobe …` command line of
+every page parses with the real argument parser, every `--option` a page names in inline
+code is one a command has, every relative link (and its #anchor)
+resolves, no page names a path outside the repository, and the README's set-up commands
+are the ones CI runs.
 
-Found in two places: shell lines in fenced code blocks (continuations joined, `&&`, `&`,
-`|` and `;` split, comments dropped) and inline code spans. A span may be a synopsis
-(`sasprobe devices [--json] [--check DEVICE [--seconds S]]`): brackets are dropped, the
-first of `a|b` is taken, and an ALL-CAPS placeholder after an option becomes a value that
-option accepts (its first choice, or the first sample its type takes), so a synopsis is
-checked against the options the parser really has.
+Command lines are found in two places: shell lines in fenced code blocks (continuations
+joined, `&&`, `&`, `|` and `;` split, redirections and comments dropped) and inline code
+spans. A span may be a synopsis (`sasprobe devices [--json] [--check DEVICE [--seconds
+S]]`): brackets are dropped, the first of `a|b` is taken, and an ALL-CAPS placeholder
+after an option becomes a value that option accepts (its first choice, or the first
+sample its type takes), so a synopsis is checked against the options the parser really
+has.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import io
 import re
 import shlex
+from pathlib import Path
 
 import pytest
 
@@ -24,8 +31,29 @@ from tests.conftest import REPO_ROOT
 FENCE = re.compile(r"^```[^\n]*\n(.*?)^```", re.M | re.S)
 SPAN = re.compile(r"`([^`]+)`")  # inline code, paired left to right
 OPERATOR = re.compile(r"\s(?:&&|\|\||[&|;])(?:\s|$)|\s&$")
+REDIRECTION = re.compile(r"\d*[<>]")  # `> out.csv`, `2>&1`: the shell's, not the command's
 PLACEHOLDER = re.compile(r"[A-Z][A-Z0-9_]*(\.[a-z0-9]+)?|WxH|[A-Z](,[A-Z])+")
 SAMPLES = ("1", "64x48", "0,0,1", "0,0,1,1", "sim", "tcp://127.0.0.1:5555", "out.mp4")
+LINK = re.compile(r"!?\[(?:[^\]\[]|\[[^\]]*\])*\]\(([^)\s]+)\)")  # [text](target), ![alt](target)
+UPWARD = re.compile(r"(?<![\w.])(?:\.\./)+[\w.-]*")  # ../x, ../../x: resolved against the page's folder
+MACHINE_PATH = re.compile(r"(?<![\w.~])/work/")
+OPTION = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*")
+# Pages a command writes rather than a person: a link to one may precede its first run.
+GENERATED = {"docs/benchmarks.md": "sasprobe bench --out docs/"}
+
+
+def pages() -> list[Path]:
+    """The Markdown pages a reader meets: the README, CONTRIBUTING, CHANGELOG, docs/ and the
+    subsystems' own READMEs."""
+    found = [REPO_ROOT / name for name in ("README.md", "CONTRIBUTING.md", "CHANGELOG.md")]
+    found += sorted((REPO_ROOT / "docs").glob("*.md"))
+    found += sorted(REPO_ROOT.glob("[!.]*/README.md")) + sorted((REPO_ROOT / "tests" / "data").rglob("README.md"))
+    return [p for p in dict.fromkeys(found) if p.is_file()]
+
+
+def command_pages() -> list[Path]:
+    """Pages whose command lines must parse today (the changelog's describe past versions)."""
+    return [p for p in pages() if p.name != "CHANGELOG.md"]
 
 
 def sasprobe_args(words: list[str]) -> list[str] | None:
@@ -33,7 +61,9 @@ def sasprobe_args(words: list[str]) -> list[str] | None:
     for i, word in enumerate(words):
         if word == "sasprobe" or word.endswith("/sasprobe"):
             if i == 0 or words[i - 1] == "-m":
-                return words[i + 1:]
+                args = words[i + 1:]
+                cut = next((k for k, w in enumerate(args) if REDIRECTION.match(w)), len(args))
+                return args[:cut]
     return None
 
 
@@ -48,7 +78,7 @@ def commands_in(line: str) -> list[list[str]]:
 
 
 def readme_commands(text: str) -> list[tuple[str, list[str]]]:
-    """(where, arguments) of every sasprobe command line in a README's text."""
+    """(where, arguments) of every sasprobe command line in a page's text."""
     found = []
     for block in FENCE.findall(text):
         for line in block.replace("\\\n", " ").splitlines():
@@ -80,14 +110,15 @@ def subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentPa
     return {}
 
 
-def sample_value(action: argparse.Action) -> str:
-    """A value the option accepts: its first choice, else the first sample its type takes."""
-    if action.choices:
+def sample_value(action: argparse.Action, prefix: str = "") -> str:
+    """A value the option accepts: its first choice, else the first sample its type takes
+    (after `prefix`, for a placeholder inside a value such as `clutch=N`)."""
+    if action.choices and not prefix:
         return str(next(iter(action.choices)))
     for sample in SAMPLES:
         try:
-            (action.type or str)(sample)
-            return sample
+            (action.type or str)(prefix + sample)
+            return prefix + sample
         except (argparse.ArgumentTypeError, ValueError, TypeError):
             continue
     raise AssertionError(f"no sample value for {action.option_strings}")
@@ -102,8 +133,11 @@ def fill_placeholders(parser: argparse.ArgumentParser, args: list[str]) -> list[
         current = parser
         for earlier in out:  # descend into the subcommands named so far
             current = subparsers(current).get(earlier, current)
-        if PLACEHOLDER.fullmatch(word) or word == "...":
-            option = current._option_string_actions.get(out[-1]) if out else None
+        option = current._option_string_actions.get(out[-1]) if out else None
+        inner = re.fullmatch(r"([\w-]+=)(.+)", word)  # clutch=N
+        if option is not None and option.nargs != 0 and inner and PLACEHOLDER.fullmatch(inner.group(2)):
+            word = sample_value(option, inner.group(1))
+        elif PLACEHOLDER.fullmatch(word) or word == "...":
             if option is not None and option.nargs != 0:
                 word = sample_value(option)
             elif subparsers(current) and word not in subparsers(current) and word != "...":
@@ -114,9 +148,21 @@ def fill_placeholders(parser: argparse.ArgumentParser, args: list[str]) -> list[
     return out
 
 
+def exact_parser() -> argparse.ArgumentParser:
+    """The real parser, taking options only as spelled in full: a page that wrote
+    `--cube-half` must fail once the option is called anything else, even `--cube-halfedge`."""
+    parser = build_parser()
+    pending = [parser]
+    while pending:
+        current = pending.pop()
+        current.allow_abbrev = False
+        pending += subparsers(current).values()
+    return parser
+
+
 def parse_error(args: list[str]) -> str | None:
     """None when the parser accepts the arguments (or shows their --help), else its message."""
-    parser = build_parser()
+    parser = exact_parser()
     stderr = io.StringIO()
     try:
         with contextlib.redirect_stderr(stderr), contextlib.redirect_stdout(io.StringIO()):
@@ -126,11 +172,126 @@ def parse_error(args: list[str]) -> str | None:
     return None
 
 
-def test_every_readme_command_line_parses():
-    commands = readme_commands((REPO_ROOT / "README.md").read_text())
-    assert len(commands) >= 50, f"only {len(commands)} sasprobe command lines found: the extraction broke"
+def every_option(parser: argparse.ArgumentParser, found: set[str] | None = None) -> set[str]:
+    """The long options of the parser and of all its subcommands, at any depth."""
+    found = set() if found is None else found
+    for action in parser._actions:
+        found.update(s for s in action.option_strings if s.startswith("--"))
+    for sub in subparsers(parser).values():
+        every_option(sub, found)
+    return found
+
+
+@functools.cache
+def known_options() -> frozenset[str]:
+    return frozenset(every_option(build_parser()))
+
+
+def unknown_options(text: str) -> list[str]:
+    """`--options` named in a page's inline code (option tables, prose) that no sasprobe
+    command has: a renamed flag shows here even where no whole command line names it."""
+    known = known_options()
+    return [f"{option} in `{span}`" for span in SPAN.findall(FENCE.sub("", text))
+            for option in OPTION.findall(span) if option not in known]
+
+
+def github_anchor(heading: str) -> str:
+    """The id GitHub gives a heading: lower case, punctuation dropped, spaces as hyphens."""
+    text = re.sub(r"[`*_]|\[([^\]]*)\]\([^)]*\)", r"\1", heading.strip()).lower()
+    return re.sub(r"[^\w\- ]", "", text).replace(" ", "-")
+
+
+def anchors(page: Path) -> set[str]:
+    """The #anchors of a page's headings (a repeated heading gets -1, -2, ... as on GitHub)."""
+    seen: dict[str, int] = {}
+    out = set()
+    for heading in re.findall(r"^#{1,6} +(.+?) *#*$", FENCE.sub("", page.read_text()), re.M):
+        slug = github_anchor(heading)
+        out.add(slug if slug not in seen else f"{slug}-{seen[slug]}")
+        seen[slug] = seen.get(slug, 0) + 1
+    return out
+
+
+def link_problems(page: Path, text: str) -> list[str]:
+    """Relative links of a page that lead nowhere: a missing file or a missing #anchor."""
+    problems = []
+    for target in LINK.findall(FENCE.sub("", text)):
+        if re.match(r"[a-z][a-z0-9+.-]*:", target):  # https:, mailto:
+            continue
+        path, _, anchor = target.partition("#")
+        resolved = (page.parent / path).resolve() if path else page
+        rel = resolved.relative_to(REPO_ROOT).as_posix() if resolved.is_relative_to(REPO_ROOT) else None
+        if not resolved.exists():
+            if rel not in GENERATED:
+                problems.append(f"{target}: no such file")
+            continue
+        if anchor and resolved.suffix == ".md" and anchor not in anchors(resolved):
+            problems.append(f"{target}: no heading #{anchor} in {rel}")
+    return problems
+
+
+def outside_paths(page: Path, text: str) -> list[str]:
+    """Paths a page names that leave the repository (`../shared/...` from the root) or
+    belong to one machine (`/work/...`)."""
+    found = [f"{m.group(0)}: a path of one machine" for m in MACHINE_PATH.finditer(text)]
+    for token in UPWARD.findall(text):
+        if not (page.parent / token).resolve().is_relative_to(REPO_ROOT.resolve()):
+            found.append(f"{token}: outside the repository")
+    return found
+
+
+def rel(page: Path) -> str:
+    return page.relative_to(REPO_ROOT).as_posix()
+
+
+def test_the_pages_are_found():
+    names = {rel(p) for p in pages()}
+    assert {"README.md", "CONTRIBUTING.md", "docs/architecture.md", "docs/connect-your-arm.md",
+            "protocol/README.md", "devices/README.md"} <= names, names
+
+
+@pytest.mark.parametrize("page", command_pages(), ids=rel)
+def test_every_command_line_parses(page):
+    commands = readme_commands(page.read_text())
     failures = [f"{where}: {error}" for where, args in commands if (error := parse_error(args)) is not None]
     assert failures == []
+
+
+@pytest.mark.parametrize("page", command_pages(), ids=rel)
+def test_every_documented_option_exists(page):
+    assert unknown_options(page.read_text()) == []
+
+
+def test_the_command_lines_are_many():
+    total = sum(len(readme_commands(p.read_text())) for p in command_pages())
+    assert total >= 100, f"only {total} sasprobe command lines found: the extraction broke"
+
+
+@pytest.mark.parametrize("page", pages(), ids=rel)
+def test_every_relative_link_resolves(page):
+    assert link_problems(page, page.read_text()) == []
+
+
+@pytest.mark.parametrize("page", pages(), ids=rel)
+def test_no_page_names_a_path_outside_the_repository(page):
+    assert outside_paths(page, page.read_text()) == []
+
+
+def test_generated_pages_name_a_command_that_writes_them():
+    for page, command in GENERATED.items():
+        (_, args), = readme_commands(f"`{command}`")
+        assert parse_error(args) is None, (page, command)
+
+
+def test_the_readme_set_up_commands_are_what_ci_runs():
+    readme = (REPO_ROOT / "README.md").read_text()
+    blocks = [block.strip() for block in FENCE.findall(readme)]
+    demo = "python3 -m venv .venv && .venv/bin/pip install -q -e . && .venv/bin/sasprobe demo"
+    tests = "python3 -m venv .venv && .venv/bin/pip install -q -e '.[test]' && .venv/bin/python -m pytest"
+    assert demo in blocks and tests in blocks
+    ci = [line.strip() for line in (REPO_ROOT / ".ci" / "run").read_text().splitlines()
+          if line.strip() and not line.lstrip().startswith("#")]
+    assert tests in ci, "the README's test command is not what .ci/run runs"
 
 
 @pytest.mark.parametrize("text, error", [
@@ -139,11 +300,24 @@ def test_every_readme_command_line_parses():
     ("see `sasprobe render [--size WxH] [--frames N] [--nope]`\n", "unrecognized arguments: --nope"),
     ("```sh\nsasprobe daemon & sasprobe render \\\n    --spheres cubes\n```\n", "invalid choice: 'cubes'"),
     ("`sasprobe bench NAME --seconds S`", "unrecognized arguments: --seconds"),
+    ("```sh\nsasprobe sas 1crn --per-atom > out.csv\n```\n", "unrecognized arguments: --per-atom"),
+    ("```sh\nsasprobe sas 1crn --per-res\n```\n", "unrecognized arguments: --per-res"),  # no abbreviations
 ])
 def test_a_wrong_line_is_caught(text, error):
     commands = readme_commands(text)
     errors = [parse_error(args) for _, args in commands]
     assert any(e is not None and error in e for e in errors), errors
+
+
+def test_a_renamed_option_in_a_table_is_caught():
+    table = "| option | meaning |\n|---|---|\n| `--probe-light-reach Å` | the probe light's reach |\n"
+    assert unknown_options(table) == ["--probe-light-reach in `--probe-light-reach Å`"]
+    assert unknown_options(table.replace("reach Å", "range Å")) == []
+
+
+def test_a_redirection_is_the_shells():
+    (_, args), = readme_commands("```sh\nsasprobe sas 1crn --csv > out.csv 2>&1\n```\n")
+    assert args == ["sas", "1crn", "--csv"] and parse_error(args) is None
 
 
 def test_synopses_become_real_command_lines():
@@ -152,3 +326,30 @@ def test_synopses_become_real_command_lines():
     assert fill_placeholders(parser, args) == ["devices", "--json", "--check", "1", "--seconds", "1"]
     (_, args), = readme_commands("`sasprobe bench NAME --help`")
     assert fill_placeholders(parser, args)[:1] == ["bench"] and fill_placeholders(parser, args)[2] == "--help"
+
+
+@pytest.mark.parametrize("text, problem", [
+    ("[the daemon](docs/no-such-page.md)", "no such file"),
+    ("![a chart](docs/figures/no-such-chart.png)", "no such file"),
+    ("[safety](docs/daemon.md#no-such-heading)", "no heading #no-such-heading"),
+    ("[here](#nowhere)", "no heading #nowhere"),
+])
+def test_a_broken_link_is_caught(text, problem):
+    found = link_problems(REPO_ROOT / "README.md", text)
+    assert len(found) == 1 and problem in found[0], found
+
+
+def test_a_working_link_and_a_web_link_pass():
+    text = "[safety](docs/daemon.md#safety), [arm](docs/connect-your-arm.md#a-pulled-cable), [mcap](https://mcap.dev)"
+    assert link_problems(REPO_ROOT / "README.md", text) == []
+
+
+@pytest.mark.parametrize("page, text, caught", [
+    ("README.md", "the structures in `../shared/data/pdb/`", True),
+    ("docs/viewing.md", "see ../../shared/research/haptics.md", True),
+    ("docs/viewing.md", "a checkout in /work/main", True),
+    ("docs/viewing.md", "[protocol](../protocol/README.md)", False),
+    ("README.md", "`tests/data/pdb/1aon.pdb.gz`", False),
+])
+def test_a_path_outside_the_repository_is_caught(page, text, caught):
+    assert bool(outside_paths(REPO_ROOT / page, text)) == caught

@@ -1,5 +1,5 @@
 """Colour schemes as drawn: every atom pixel of a flat render (colour = the atom's colour,
-FXAA and edges off) shows the colour the README documents for that atom, read back per
+FXAA and edges off) shows the colour docs/viewing.md documents for that atom, read back per
 pixel through the G-buffer's atom ids. The expected colours are computed here from the
 documented tables and ramps (Jmol CPK, RasMol amino, Kyte-Doolittle, the polymer kinds),
 not from render/colors.py."""

@@ -31,7 +31,7 @@ def render_gbuffer(gl, scene, camera, size=SIZE, mode="quad"):
 
 
 def compare_with_reference(g, centers, radii, ids, planes=np.zeros((0, 4)), mask=None, min_agree=0.995):
-    """Assert the agreement the issue asks for; returns the reference for further checks."""
+    """Assert the agreement with the reference caster; returns the reference for further checks."""
     w, h = (int(v) for v in g["viewport"])
     ref_id, ref_pos, ref_nrm, ref_cap = reference_cast(g["view"], g["proj"], w, h, centers, radii, ids, planes)
     interior = ~edge_mask(ref_id)

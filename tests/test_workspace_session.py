@@ -30,7 +30,7 @@ from tests.render_support import free_tcp_endpoint
 SECONDS = 5
 SIZE = (640, 360)
 FAST = "--ao off --shadows off"
-KIND_BACKBONE, KIND_PROBE = 3, 4  # the G-buffer's kinds (README: G-buffer export)
+KIND_BACKBONE, KIND_PROBE = 3, 4  # the G-buffer's kinds (docs/viewing.md: G-buffer export)
 WIRE = np.array([0.55, 0.85, 1.0]) * 255  # the cube wire's colour
 TURN_Y = [[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]  # the view turned -90° about the screen's y
 

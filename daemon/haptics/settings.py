@@ -27,7 +27,7 @@ class HapticSettings:
     probe_radius_A: float = DEFAULT_PROBE_RADIUS
     method: str = HAPTIC_METHODS[0]  # the god-object proxy; "penalty" is the textbook baseline
     # Well under an Omni-class arm's 0.7 N/mm, and stable at every control rate from
-    # 100 Hz up on the simulated arm (see the stability map in the README).
+    # 100 Hz up on the simulated arm (see the stability map of `sasprobe bench haptics`).
     stiffness_n_per_mm: float = 0.3
     damping_n_s_per_m: float = 0.2
     cube_half_A: float | str | None = None  # navigation-cube half edge (Å); None: the default size; "fit": the molecule

@@ -35,7 +35,7 @@ from sasprobe.protocol.recording import PROFILE, SCHEMAS, json_floats, pose_reco
 
 log = logging.getLogger("sasprobe")
 
-FLUSH_INTERVAL_S = 0.05  # half the 100 ms the issue allows, leaving room for a busy machine
+FLUSH_INTERVAL_S = 0.05  # half the 100 ms a SIGKILL may lose, leaving room for a busy machine
 QUEUE_LIMIT = 20_000  # items (about 10 s of ticks at 1 kHz)
 _WAKE_S = 0.01
 

@@ -89,7 +89,7 @@ class SpaceMouseDevice(HardwareDriver):
                 raise DeviceOpenError(f"{self.path.decode(errors='replace')}: "
                                       f"{models.refusal(entries[0]['vendor_id'], entries[0]['product_id'])}")
             raise DeviceOpenError("no 3Dconnexion SpaceMouse found (is it plugged in? `sasprobe devices` lists HID "
-                                  "devices; without permission on /dev/hidraw* it is invisible: see the README)")
+                                  "devices; without permission on /dev/hidraw* it is invisible: see docs/connect-your-arm.md)")
         # a device's multi-axis controller interface when hidapi lists one
         usable.sort(key=lambda d: models.interface_usage(d) != models.MULTI_AXIS_CONTROLLER)
         return usable[0]

@@ -8,7 +8,7 @@ takes the model from the reply; an unknown model code is refused by name.
 Calibration: the firmware counts from the pose where it powered up or where its
 calibration button was last pressed, and nothing in the protocol says which; hfabapi
 assumes the model's home pose (its home counts) and so do we: `calibrated` is always
-True. Power the arm up, or press its button, in the home pose (README).
+True. Power the arm up, or press its button, in the home pose (docs/connect-your-arm.md).
 """
 
 from __future__ import annotations

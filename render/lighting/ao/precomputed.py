@@ -29,7 +29,7 @@ accessibility. On llvmpipe every instruction runs for each group of SIMD lanes, 
 steps read each value once for many tests and fill the lanes with rays that count; what
 their loops read many times lies in images and uniform blocks, which llvmpipe loads a
 vector at a time (a storage buffer it loads lane by lane, a component at a time: a vec4
-about 12x slower, `sasprobe bench lighting` notes in the README).
+about 12x slower; docs/viewing.md, "Tables in images").
 """
 
 from __future__ import annotations

@@ -171,7 +171,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
 
 
 def _checks(scaling, sweep, cube) -> dict:
-    """The issue's targets, as measured ratios."""
+    """The targets, as measured ratios."""
     analytic = np.array([r["analytic_ms"] for r in scaling])
     per_structure = {}
     for r in sweep:

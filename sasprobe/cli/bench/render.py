@@ -84,7 +84,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
 
 
 def _scenarios(gl, by_id, size, frames: int, pymol_repeats: int) -> dict:
-    """(a) on 1CRN and 1TII (waters kept, as the issue measured; PyMOL's ray between two
+    """(a) on 1CRN and 1TII (waters kept; PyMOL's ray between two
     stretches of 1TII's session frames), (b) on 1TII, (c) on the largest structure."""
     steps = progress(range(5), "bench render: scenarios", 5)
     out = {"size": list(size), "frames": frames, "load": [render_scenarios.load_average()],

@@ -100,7 +100,7 @@ def _check(spec: str, seconds: float, as_json: bool) -> int:
           f"{lim.max_stiffness_n_per_mm:g} N/mm, force output {'yes' if lim.has_force_output else 'no'}")
     print(f"  read       {reads} states in {elapsed:.2f} s ({report['rate_hz']:.0f} Hz), {faults} faults")
     print(f"  position   ({', '.join(f'{v:.1f}' for v in state.position_mm)}) mm, buttons {state.buttons:#x}")
-    print(f"  calibrated {'yes' if state.calibrated else 'no: see the calibration steps in the README'}")
+    print(f"  calibrated {'yes' if state.calibrated else 'no: see the calibration steps in docs/connect-your-arm.md'}")
     rejected = info.details.get("rejected_frames")
     if rejected:
         print(f"  rejected   {rejected} malformed frames")
