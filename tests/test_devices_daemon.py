@@ -76,10 +76,12 @@ def poses_for(sub: Subscriber, seconds: float) -> list:
     return poses
 
 
-def settled(sub: Subscriber, daemon: DaemonProcess, window_s: float = 0.5, timeout_s: float = 20.0) -> list:
+def settled(sub: Subscriber, daemon: DaemonProcess, window_s: float = 0.5, timeout_s: float = 60.0) -> list:
     """The poses of the first half second in which the written force holds steady (every pose
     pushing, the mean within 1 % of the previous window's): a loaded machine's subscriber
-    may run behind, so a fixed wait can still land in the ramp."""
+    may run behind, so a fixed wait can still land in the ramp, and its emulated boards
+    answer late now and then (each late reply a fault that ramps the force in again over
+    a second), so a steady press may take a while to come."""
     previous, deadline = None, time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         poses = poses_for(sub, window_s)

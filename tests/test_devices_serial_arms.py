@@ -181,9 +181,9 @@ def test_a_stall_of_the_board_is_survived_without_merged_commands_or_stale_reads
     session.settle(board.stylus, hand)
     board.stall(0.2)
     hand.target = arm.moves[0]  # the hand moves on while the board is stalled
-    t0 = time.monotonic()
     session.run(0.2)
     assert session.faults > 0  # reads fail while it is stalled (the daemon writes zero force)
+    session.settle(board.stylus, hand)  # the board is back: reads come again
     last_t = 0
     for _ in range(300):
         state = session.tick()
@@ -193,7 +193,6 @@ def test_a_stall_of_the_board_is_survived_without_merged_commands_or_stale_reads
         if state.t_ns != last_t:  # not the last pose again (a reply a little late)
             arm.in_step(dev, board)
         last_t = state.t_ns
-    assert time.monotonic() - t0 < 5.0
     assert dev.resyncs == 0 and dev.rejected_frames == 0  # no second copy went out: no second answer came
     assert arm.refused(board) == 0, "two commands merged"
 
@@ -221,7 +220,7 @@ def test_the_watchdogs_zero_never_meets_an_unanswered_command(rig):
     """The daemon's watchdog writes zero (`zero_force_now`) while its loop is stalled. A board
     that has not answered the command in flight has not taken it: on a line protocol a
     second line would meet it in the board's buffer and the firmware would refuse both."""
-    arm, dev, board, _hand = rig
+    arm, dev, board, hand = rig
     dev.open()
     session = Session(dev)
     check_forces(arm, session, board, arm.forces[:1])
@@ -235,12 +234,13 @@ def test_the_watchdogs_zero_never_meets_an_unanswered_command(rig):
     dev.zero_force_now()  # the watchdog's next try, REZERO_PERIODS later
     wait_until(lambda: np.linalg.norm(board.motor_force()) <= arm.zero_atol_n, what="zero force on the board")
     assert arm.refused(board) == 0, "the watchdog's zero met the command in flight"
-    session.reads_the_stylus(board.stylus)  # and the loop, back, goes on in step
+    session.settle(board.stylus, hand)  # the loop, back, goes on in step: the stylus rests in the hand
+    session.reads_the_stylus(board.stylus)
 
 
 @every_arm
 def test_a_board_that_stops_mid_session_faults_at_once_and_gets_zero_force(rig):
-    arm, dev, board, _hand = rig
+    arm, dev, board, hand = rig
     dev.open()
     session = Session(dev)
     check_forces(arm, session, board, arm.forces[:1])
@@ -257,6 +257,7 @@ def test_a_board_that_stops_mid_session_faults_at_once_and_gets_zero_force(rig):
     if arm.board_watchdog:
         assert np.allclose(board.motor_force(), 0.0)  # the firmware's watchdog cut the amplifiers
     board.resume()
+    session.settle(board.stylus, hand)  # the stylus comes to rest in the hand: no force holds it off
     session.reads_the_stylus(board.stylus)
     assert np.linalg.norm(board.motor_force()) <= arm.zero_atol_n
 
