@@ -37,6 +37,7 @@ answers to the extra copies. Subclasses supply the wire format.
 from __future__ import annotations
 
 import abc
+import threading
 import time
 
 import numpy as np
@@ -114,6 +115,7 @@ class SerialArm(HardwareDriver):
         self.resyncs = 0
         self._last: DeviceState | None = None  # the state read() returned last, and when
         self._last_at = 0.0
+        self._port_lock = threading.Lock()  # the loop's read() and reconnect() vs the watchdog's zero_force_now()
 
     # subclasses -----------------------------------------------------------------------
     @abc.abstractmethod
@@ -170,6 +172,10 @@ class SerialArm(HardwareDriver):
         self._sent_at = None
 
     def reconnect(self) -> None:
+        with self._port_lock:
+            self._reconnect()
+
+    def _reconnect(self) -> None:
         if self._lost is None and self.transport.is_open:
             # the port is fine: the session recovers by itself (late reply, resync, probing)
             if self._failing is not None:
@@ -183,7 +189,8 @@ class SerialArm(HardwareDriver):
 
     def read(self) -> DeviceState:
         try:
-            state = self._read()
+            with self._port_lock:
+                state = self._read()
         except DeviceFault as exc:
             self._failing = str(exc)
             raise
@@ -231,8 +238,21 @@ class SerialArm(HardwareDriver):
         refused (nothing would change), so on a line protocol the zero waits for the
         watchdog's next try; binary frames queue behind each other, so the zero goes out
         at once and the reply it draws, one too many, is dropped by resynchronising (a
-        fault tick or two, force zero meanwhile)."""
+        fault tick or two, force zero meanwhile).
+
+        It runs in the watchdog's thread: while the loop is inside `read()` (descheduled
+        there on a busy machine) the port and the reply in flight are the read's, so it
+        only leaves zero as the force of the loop's next command and raises DeviceFault
+        (the watchdog tries again at its next check)."""
         self.force = np.zeros(3)
+        if not self._port_lock.acquire(blocking=False):
+            raise DeviceFault(f"the loop is reading the {self.scheme} arm: the zero goes with its next command")
+        try:
+            self._zero_now()
+        finally:
+            self._port_lock.release()
+
+    def _zero_now(self) -> None:
         if self._lost is not None:
             return
         if self._sent_at is not None:

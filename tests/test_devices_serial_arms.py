@@ -7,6 +7,8 @@ known answers from each maker's library in test_devices_*_known.py.
 
 from __future__ import annotations
 
+import select
+import threading
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -14,6 +16,7 @@ from typing import Callable
 import numpy as np
 import pytest
 
+from sasprobe.devices import transports
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.registry import open_device
 from tests.emulators import haply_serial, woodenhaptics_serial
@@ -119,6 +122,18 @@ def wait_until(condition, timeout_s: float = 2.0, what: str = "condition") -> No
         time.sleep(0.002)
 
 
+def assert_in_step(arm: Arm, dev, board) -> None:
+    """Every reply in step with its command and no command refused, unless the emulated
+    board went unread for as long as the driver waits before it probes a silent board
+    again (the probe's answer then comes on top, as it would from a real board that froze:
+    serial_arm_session.assert_no_refusals_but_after_deafness)."""
+    if board.longest_deaf_s >= 0.9 * dev.silent_after_s:
+        return
+    assert dev.rejected_frames == 0 and dev.resyncs == 0, \
+        f"a reply out of step; the board's port went unread for {board.longest_deaf_s * 1000:.0f} ms at most"
+    assert arm.refused(board) == 0, "the firmware refused a command in a normal session"
+
+
 @pytest.mark.parametrize("rig", [(name, options) for name, arm in ARMS.items() for options in arm.variants.values()],
                          indirect=True, ids=[f"{name}-{variant}" for name, arm in ARMS.items() for variant in arm.variants])
 def test_displacements_and_forces_in_the_device_frame(rig):
@@ -141,8 +156,7 @@ def test_displacements_and_forces_in_the_device_frame(rig):
     hand.target = (0.0, 0.0, 0.0)
     session.settle(board.stylus, hand)
     check_forces(arm, session, board, arm.forces)
-    assert dev.rejected_frames == 0 and dev.resyncs == 0  # every reply in step with its command
-    assert arm.refused(board) == 0, "the firmware refused a command in a normal session"
+    assert_in_step(arm, dev, board)
 
 
 @every_arm
@@ -236,6 +250,47 @@ def test_the_watchdogs_zero_never_meets_an_unanswered_command(rig):
     assert arm.refused(board) == 0, "the watchdog's zero met the command in flight"
     session.settle(board.stylus, hand)  # the loop, back, goes on in step: the stylus rests in the hand
     session.reads_the_stylus(board.stylus)
+
+
+@every_arm
+def test_the_watchdogs_zero_leaves_a_read_in_progress_alone(rig, monkeypatch):
+    """The watchdog's thread may call `zero_force_now` while the loop's thread is inside a
+    read, descheduled there on a busy machine. Here the loop's thread stops for 100 ms right
+    after the port said the board's answer is waiting (and the board then stalls); the
+    watchdog's zero meanwhile must not take that answer from under the read, which would
+    find the port empty and take the cable for pulled."""
+    arm, dev, board, _hand = rig
+    dev.open()
+    session = Session(dev)
+    check_forces(arm, session, board, arm.forces[:1])
+    session.until(lambda _s: True)
+    loop_thread, real_select = threading.current_thread(), select.select
+
+    def descheduled_after_the_answer(rlist, wlist, xlist, timeout=None):
+        ready = real_select(rlist, wlist, xlist, timeout)
+        if ready[0] and threading.current_thread() is loop_thread:
+            board.stall(0.5)  # answered; nothing more comes for a while
+            watchdog = threading.Thread(target=_zero_or_busy, args=(dev,))
+            watchdog.start()
+            watchdog.join()  # the watchdog runs while this thread is away
+        return ready
+
+    monkeypatch.setattr(transports.select, "select", descheduled_after_the_answer)
+    dev.read_wait_s = dev.reply_timeout_s = 1.0
+    dev.write_force((0.0, 0.0, 0.0))
+    state = dev.read()  # no DeviceFault: the answer was the read's
+    monkeypatch.undo()
+    assert state is not None and arm.refused(board) == 0
+    time.sleep(0.5)
+    dev.zero_force_now()  # the port is free: the zero goes out now
+    wait_until(lambda: np.linalg.norm(board.motor_force()) <= arm.zero_atol_n, what="zero force on the board")
+
+
+def _zero_or_busy(dev) -> None:
+    try:
+        dev.zero_force_now()
+    except DeviceFault:
+        pass  # busy: the watchdog tries again at its next check
 
 
 @every_arm

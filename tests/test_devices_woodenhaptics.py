@@ -34,10 +34,13 @@ def test_a_press_is_pushed_back_out(rig):
 
     def wall(state):
         return (-1.0 * max(state.position_mm[0] - 10.0, 0.0), 0.0, 0.0) if state is not None else (0.0, 0.0, 0.0)
-    states = session.run(1.5, wall)
+    # the stylus comes to rest where the hand's spring and the wall balance (a loop that runs
+    # late on a busy machine renders the wall late, and the stylus swings until it catches up)
+    state = session.settle(board.stylus, hand, timeout_s=30.0, force=wall)
     k = board.stylus.hand_k
-    expected = (k * 20.0 + 1.0 * 10.0) / (k + 1.0)  # where the hand's spring and the wall balance
-    assert np.mean([s.position_mm[0] for s in states[-100:]]) == pytest.approx(expected, abs=0.3)
+    expected = (k * 20.0 + 1.0 * 10.0) / (k + 1.0)
+    assert board.stylus.now()[0] == pytest.approx(expected, abs=0.3)
+    assert state.position_mm[0] == pytest.approx(expected, abs=0.3)
     assert board.refused == 0
 
 
