@@ -15,9 +15,10 @@ fails with EIO; replugging makes a fresh pty, and the firmware restarts from
 
 A board's UART never waits for the host's scheduler; this thread does. Where the system
 allows it (root, CAP_SYS_NICE or an rtprio limit) the thread takes the lowest real-time
-priority, so that other processes on a busy machine do not starve it (with two busy
-loops beside the daemon, a 250 Hz press lost a third of its ticks to late replies at the
-normal priority, and 0.5 % at this one); the daemon's loop keeps its higher one.
+priority, so that other processes on a busy machine do not starve it (a 250 Hz
+WoodenHaptics press with two busy loops beside it faulted on late replies in 26-37 % of
+its ticks at the normal priority, 0.5 % at this one); the daemon's loop keeps its higher
+one.
 `longest_deaf_s` is the longest the port went unread outside the faults above (the test
 machine starved the thread all the same), so a test can tell the emulator's hiccups from
 the driver's.
