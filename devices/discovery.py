@@ -1,9 +1,11 @@
-"""What is plugged in: serial ports, SpaceMouse HID devices, USB arms with known ids.
+"""What is plugged in: serial ports, SpaceMouse HID devices, USB arms with known ids, Force
+Dimension arms the DHD library counts, Inverse3 arms an Inverse Service lists.
 
 Each finding carries the `--device` string that selects it. The sources (pyserial's
-port list, the hidapi module, a pyusb backend) can be passed in; without them the
-SASPROBE_HID_API and SASPROBE_USB_BACKEND hooks the drivers honour apply too, which is
-how tests point `sasprobe devices` in a subprocess at their emulators.
+port list, the hidapi module, a pyusb backend, the DHD library, the service's address)
+can be passed in; without them the SASPROBE_HID_API, SASPROBE_USB_BACKEND,
+SASPROBE_DHD_LIBRARY and SASPROBE_INVERSE_SERVICE hooks apply too, which is how tests
+point `sasprobe devices` in a subprocess at their emulators.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from sasprobe.devices import falcon
+from sasprobe.devices import falcon, forcedimension, inverse3
 from sasprobe.devices.base import DeviceOpenError
 from sasprobe.devices.spacemouse import models as spacemouse_models
 from sasprobe.devices.hardware import factory_from_environment
@@ -136,7 +138,40 @@ def openhaptics_note() -> str:
     return "OpenHaptics is not installed: PHANTOM Omni/Touch arms need it (--device openhaptics)"
 
 
-def discover(*, comports=None, hid_api=None, usb_backend=None) -> tuple[list[Found], list[str]]:
+def dhd_arms(library: str | None = None) -> tuple[list[Found], list[str]]:
+    """Force Dimension arms, through the DHD library when it is there."""
+    try:
+        arms = forcedimension.list_arms(library)
+    except DeviceOpenError as exc:
+        return [], [f"Force Dimension arms not listed: {exc}"]
+    found = []
+    for arm in arms:
+        device = "forcedimension" if arm["index"] == 0 else f"forcedimension:{arm['index']}"
+        if "error" in arm:
+            found.append(Found("dhd", f"index {arm['index']}", None, None, "Force Dimension arm", device,
+                               f"did not open now ({arm['error']}): in use by another program?"))
+        else:
+            serial = f" serial {arm['serial']}" if arm["serial"] else ""
+            found.append(Found("dhd", f"index {arm['index']}", None, None, f"Force Dimension {arm['model']}{serial}",
+                               device))
+    return found, []
+
+
+def inverse3_arms(url: str | None = None) -> tuple[list[Found], list[str]]:
+    """Inverse3 arms an Inverse Service answering at `url` lists (default: its default port)."""
+    url = url or os.environ.get("SASPROBE_INVERSE_SERVICE") or inverse3.DEFAULT_URL
+    try:
+        arms = inverse3.list_arms(url)
+    except DeviceOpenError as exc:
+        return [], [f"Haply Inverse3 arms not listed: {exc}"]
+    device = "inverse3" if url == inverse3.DEFAULT_URL else f"inverse3:{url}"
+    found = [Found("websocket", url, None, None, f"{arm['model']} {arm['device_id']}", device,
+                   "" if arm["calibrated"] else "not calibrated yet: let it self-calibrate") for arm in arms]
+    return found, []
+
+
+def discover(*, comports=None, hid_api=None, usb_backend=None, dhd_library=None,
+             inverse_url=None) -> tuple[list[Found], list[str]]:
     """(everything found, notes about what could not be looked at)."""
     found, notes = serial_ports(comports)
     try:
@@ -147,4 +182,7 @@ def discover(*, comports=None, hid_api=None, usb_backend=None) -> tuple[list[Fou
     found += usb_found
     notes += usb_notes
     notes.append(openhaptics_note())
+    for more_found, more_notes in (dhd_arms(dhd_library), inverse3_arms(inverse_url)):
+        found += more_found
+        notes += more_notes
     return found, notes

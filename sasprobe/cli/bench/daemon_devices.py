@@ -19,11 +19,11 @@ import time
 from pathlib import Path
 
 from sasprobe.cli.children import DaemonChild
+from sasprobe.cli.reference_data import REPO_ROOT
 from sasprobe.common.progress import progress
 
 READY_S = 90.0
 STOP_S = 30.0
-REPO_ROOT = Path(__file__).resolve().parents[2]
 
 # row label -> (emulator module under tests.emulators, launch options); None: the simulated arm
 DEVICES: dict[str, tuple[str, dict] | None] = {
@@ -34,6 +34,8 @@ DEVICES: dict[str, tuple[str, dict] | None] = {
     "Haply 2DIY gen 3": ("haply_serial", {"generation": "gen3"}),
     "SpaceMouse Compact": ("spacemouse_hid", {}),
     "OpenHaptics (stand-in libHD)": ("libhd", {"inkwell": True}),
+    "Force Dimension omega.3 (stand-in libdhd)": ("libdhd", {}),
+    "Haply Inverse3 (stand-in Inverse Service)": ("inverse_service", {}),
 }
 
 
@@ -58,21 +60,42 @@ def _measure_one(spec: tuple[str, dict] | None, warmup_s: float, seconds: float)
         env.update(emulator.env)
         device = emulator.device_spec
     ctl = f"ipc://{folder}/ctl"
-    child = DaemonChild(["--device", device, "--pub", f"ipc://{folder}/pub", "--ctl", ctl], folder / "daemon.log",
-                        env=env, cwd=folder)
+    recording = folder / "reads.mcap"
+    child = DaemonChild(["--device", device, "--pub", f"ipc://{folder}/pub", "--ctl", ctl, "--record", str(recording)],
+                        folder / "daemon.log", env=env, cwd=folder)
     try:
         child.wait_ready(READY_S)
         with ControlClient(ctl, timeout_s=10) as client:
             time.sleep(warmup_s)
             client.status(reset_stats=True)
+            window = (time.monotonic_ns(), None)
             time.sleep(seconds)
             status = client.status()
-        return {"device": status["device"]["model"], "loop": status["loop"]}
+            window = (window[0], time.monotonic_ns())
+        child.stop(STOP_S)
+        return {"device": status["device"]["model"], "loop": status["loop"], "reads": _reads(recording, *window)}
     finally:
         child.stop(STOP_S)
         if emulator is not None:
             emulator.close()
         shutil.rmtree(folder, ignore_errors=True)
+
+
+def _reads(recording: Path, start_ns: int, end_ns: int) -> dict:
+    """How long the device's read() took, and how many failed, over the measured window: the
+    daemon records each tick's read time (`read_ns`) and error."""
+    import numpy as np
+
+    from sasprobe.protocol.recording import iter_items
+
+    ticks = [item.data for item in iter_items(recording)
+             if item.topic == "device" and start_ns <= item.log_time <= end_ns]
+    read_us = np.array([t["read_ns"] for t in ticks], dtype=float) / 1000.0
+    if not read_us.size:
+        return {"ticks": 0}
+    return {"ticks": len(ticks), "failed": sum(1 for t in ticks if t.get("error")),
+            "p50_us": float(np.percentile(read_us, 50)), "p99_us": float(np.percentile(read_us, 99)),
+            "max_us": float(read_us.max())}
 
 
 def measure(quick: bool, seconds: float) -> dict:
@@ -93,26 +116,30 @@ def measure(quick: bool, seconds: float) -> dict:
 def markdown(data: dict) -> str:
     if "skipped" in data:
         return f"Emulated devices: skipped ({data['skipped']})."
-    lines = ["| device | rate (Hz) | period error p99 / max (µs) | overruns | tick work p50 / p99 / max (µs) "
-             "| work vs simulated arm (p50) | load avg |",
-             "|---|---:|---|---:|---|---:|---:|"]
+    lines = ["| device | rate (Hz) | period error p99 / max (µs) | overruns | read p50 / p99 / max (µs) | failed reads "
+             "| tick work p50 / p99 / max (µs) | work vs simulated arm (p50) | load avg |",
+             "|---|---:|---|---:|---|---:|---|---:|---:|"]
     base = next((r for r in data["rows"] if r["label"].startswith("simulated") and "loop" in r), None)
     for r in data["rows"]:
         if "error" in r:
-            lines.append(f"| {r['label']} | not run: {r['error']} | | | | | |")
+            lines.append(f"| {r['label']} | not run: {r['error']} | | | | | | | |")
             continue
         loop, err, work = r["loop"], r["loop"]["period_error_us"], r["loop"]["work_us"]
         ratio = (work["recent_p50"] / base["loop"]["work_us"]["recent_p50"]
                  if base and work["recent_p50"] and base["loop"]["work_us"]["recent_p50"] else None)
+        reads = r.get("reads", {})
         lines.append(
             f"| {r['label']} | {loop['rate_hz']:.1f} | {_f(err['p99'])} / {_f(err['max'])} | {loop['overruns']} | "
+            f"{_f(reads.get('p50_us'))} / {_f(reads.get('p99_us'))} / {_f(reads.get('max_us'))} | "
+            f"{reads.get('failed', '-')} of {reads.get('ticks', 0)} | "
             f"{_f(work['recent_p50'])} / {_f(work['recent_p99'])} / {_f(work['max'])} | "
             f"{'-' if ratio is None else f'{ratio:.2f}×'} | {r['load_average_1min']:.1f} |")
     return (
         f"Emulated devices: `sasprobe daemon --device ...` at 1000 Hz for {data['seconds']:g} s (after a 1 s "
         "warm-up) on each device-side emulator of `tests/emulators/`, the emulator running in the benchmark "
-        "process as the hardware would beside the host; tick work is read + haptics + write + publish. A driver "
-        "whose read waited on its link would show as overruns and a work p99 near 1000 µs.\n\n" + "\n".join(lines))
+        "process as the hardware would beside the host; tick work is read + haptics + write + publish; read times and "
+        "failed reads come from the daemon's recording of the same window. A driver whose read waited on its link "
+        "would show as overruns and a read p99 near 1000 µs.\n\n" + "\n".join(lines))
 
 
 def _f(v) -> str:

@@ -38,7 +38,8 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps({"devices": [f.as_dict() for f in found], "notes": notes}))
         return 0
     if not found:
-        print("none found (no USB serial port, no SpaceMouse, no known USB arm)")
+        print("none found (no USB serial port, no SpaceMouse, no known USB arm, no Force Dimension arm, "
+              "no Inverse Service)")
     for f in found:
         ids = f"{f.vendor_id:04x}:{f.product_id:04x}" if f.vendor_id is not None else "-"
         line = f"{f.transport:6} {f.path:24} {ids:9}  {f.description}"

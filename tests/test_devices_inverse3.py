@@ -1,0 +1,364 @@
+"""The Inverse3 driver against a stand-in Inverse Service (tests/emulators/inverse_service.py),
+a real WebSocket server on loopback.
+
+Expected values come from Haply's published conventions, transcribed here on their own:
+Haply's frame is +X right, +Y forward (away from the user), +Z up, in metres
+(docs.haply.co commons/basis); sasprobe's is x right, y up, z toward the user, in
+millimetres. So a hand moved 10 mm away from the user (Haply +Y) must read −10 mm on z.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import threading
+import time
+
+import numpy as np
+import pytest
+from websockets.sync.server import serve
+
+from sasprobe.devices import inverse3
+from sasprobe.devices.base import DeviceFault, DeviceOpenError
+from sasprobe.devices.inverse3 import protocol
+from sasprobe.devices.inverse3.driver import Inverse3Device
+from sasprobe.protocol.client import Subscriber
+from sasprobe.protocol.pose import FLAG_FAULT
+from tests.arm_outage import recorded_outage
+from tests.conftest import run_cli
+from tests.daemon_process import DaemonProcess
+from tests.emulators.inverse_service import InverseService
+from tests.serial_arm_session import cosine
+from tests.test_devices_daemon import WHOLE, poses_until, pushing, settled
+
+
+def to_haply_mm(device_mm):
+    x, y, z = device_mm
+    return (x, -z, y)
+
+
+@pytest.fixture
+def service():
+    made = []
+
+    def make(**options):
+        svc = InverseService(**options)
+        made.append(svc)
+        return svc
+
+    yield make
+    for svc in made:
+        svc.close()
+
+
+@pytest.fixture
+def arm(service):
+    """An emulated service and a driver on it, opened (read timeouts as at 250 Hz)."""
+    made = []
+
+    def make(**options):
+        svc = service(**options)
+        dev = Inverse3Device(svc.url, reply_timeout_s=0.010, read_wait_s=0.001)
+        dev.open()
+        made.append(dev)
+        return dev, svc
+
+    yield make
+    for dev in made:
+        dev.close()
+
+
+def run(dev, condition=lambda s: True, force=(0.0, 0.0, 0.0), timeout_s=5.0):
+    """Tick as the daemon does (read, write) until a read satisfies `condition`; faults are
+    counted, not raised (a loaded machine may be late)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            state = dev.read()
+        except DeviceFault:
+            state = None
+        dev.write_force(force)
+        if state is not None and condition(state):
+            return state
+        time.sleep(0.002)
+    raise AssertionError("condition not reached in time")
+
+
+def hold(dev, svc, force):
+    """Tick with `force` until the service has taken three more messages: a message in flight
+    when the force changed carried the old one, the ones after it carry this one."""
+    start = svc.messages
+    return run(dev, lambda s: svc.messages >= start + 3, force=force)
+
+
+def test_the_frame_mapping_gives_the_published_axes():
+    np.testing.assert_allclose(protocol.position_mm((0.01, 0.0, 0.0)), [10.0, 0.0, 0.0])  # right
+    np.testing.assert_allclose(protocol.position_mm((0.0, 0.01, 0.0)), [0.0, 0.0, -10.0])  # away from the user
+    np.testing.assert_allclose(protocol.position_mm((0.0, 0.0, 0.01)), [0.0, 10.0, 0.0])  # up
+    np.testing.assert_allclose(protocol.haply_force((1.0, 2.0, 3.0)), [1.0, -3.0, 2.0])
+    a = 0.6  # a grip turned about Haply's Z (up) is turned about sasprobe's y (up)
+    np.testing.assert_allclose(protocol.orientation((0.0, 0.0, math.sin(a / 2), math.cos(a / 2))),
+                               [math.cos(a / 2), 0.0, math.sin(a / 2), 0.0], atol=1e-12)
+
+
+def test_open_names_the_arm_and_centres_its_workspace(arm):
+    dev, svc = arm()
+    info = dev.info
+    assert (info.model, info.serial, info.details["handedness"]) == ("Haply Inverse3", "049D", "right")
+    assert info.limits.max_force_n == 2.0 and info.limits.workspace_max_mm[0] == pytest.approx(80.0 / math.sqrt(3))
+    assert svc.presets == ["arm_front_centered"] and svc.profiles == ["org.sasprobe:daemon"]
+    assert svc.basis_changes == 0  # the frame is mapped here, once, not by the service
+    state = run(dev)
+    np.testing.assert_allclose(state.position_mm, [0.0, 0.0, 0.0], atol=1e-9)  # the centre, not the base
+    assert abs(state.t_ns - time.monotonic_ns()) < 1e9
+
+
+@pytest.mark.parametrize("device_mm", [(10, 0, 0), (-10, 0, 0), (0, 10, 0), (0, -10, 0), (0, 0, 10), (0, 0, -10),
+                                       (10, -10, 10)])
+def test_moves_along_each_axis_and_a_diagonal_read_within_half_a_millimetre(arm, device_mm):
+    dev, svc = arm()
+    svc.hand.target = to_haply_mm(device_mm)
+    state = run(dev, lambda s: np.allclose(svc.hand.position, svc.hand.target) and
+                np.linalg.norm(svc.stylus.velocity) < 0.5)
+    state = run(dev)  # a state sampled after the cursor came to rest
+    np.testing.assert_allclose(state.position_mm, device_mm, atol=0.5)
+
+
+def test_a_force_is_sent_as_a_vector_in_haplys_frame_and_moves_the_cursor(arm):
+    dev, svc = arm()
+    state = run(dev, lambda s: s.position_mm[2] > 1.99, force=(0.0, 0.0, 1.0))  # toward the user: Haply −Y
+    np.testing.assert_allclose(svc.samples[-1][1], [0.0, -1.0, 0.0])
+    np.testing.assert_allclose(state.position_mm, [0.0, 0.0, 2.0], atol=0.02)  # the hand's 0.5 N/mm gives 2 mm
+    assert svc.ignored_commands == 0
+
+
+def test_the_grips_buttons_and_orientation(arm):
+    dev, svc = arm()
+    svc.grip_buttons.update(a=True, c=True)
+    svc.grip_orientation = (math.sin(0.3), 0.0, 0.0, math.cos(0.3))  # about Haply's X (right)
+    state = run(dev, lambda s: s.buttons == 0b101)
+    np.testing.assert_allclose(state.orientation, [math.cos(0.3), math.sin(0.3), 0.0, 0.0], atol=1e-12)
+
+
+def test_an_uncalibrated_arm_gets_no_force(arm):
+    dev, svc = arm(calibrated=False)
+    state = hold(dev, svc, (1.0, 0.0, 0.0))
+    assert not state.calibrated and np.allclose(svc.samples[-1][1], 0.0)
+    svc.calibrated = True
+    run(dev, lambda s: s.calibrated, force=(1.0, 0.0, 0.0))
+    hold(dev, svc, (1.0, 0.0, 0.0))
+    np.testing.assert_allclose(svc.samples[-1][1], [1.0, 0.0, 0.0])
+
+
+def test_forces_are_clamped_and_never_nan(arm):
+    dev, svc = arm()
+    for command in [(50.0, -80.0, 20.0), (np.nan, 0.0, 0.0), (np.inf, 1.0, 1.0)]:
+        hold(dev, svc, command)
+        sent = svc.samples[-1][1]
+        assert np.linalg.norm(sent) <= 2.0 + 1e-9 and np.all(np.isfinite(sent))
+    assert np.linalg.norm(svc.samples[-1][1]) == 0.0  # inf: zero
+
+
+def test_a_hung_service_is_a_fault_within_the_reply_timeout_and_recovers_when_it_answers(arm):
+    dev, svc = arm()
+    run(dev, force=(0.0, 0.5, 0.0))
+    svc.hang()
+    t0 = time.monotonic()
+    with pytest.raises(DeviceFault, match="has not answered for"):
+        while time.monotonic() - t0 < 1.0:
+            dev.read()
+            dev.write_force((0.0, 0.5, 0.0))
+            time.sleep(0.001)
+    with pytest.raises(DeviceFault, match="has not answered for"):
+        dev.reconnect()  # too early to give the session up: still a fault, the same session
+    svc.resume()
+    run(dev)
+    assert dev.info.details["sessions"] == 1 and dev.late_replies >= 1
+
+
+def test_a_session_silent_for_a_second_is_replaced(arm):
+    dev, svc = arm()
+    run(dev)
+    svc.hang()
+    with pytest.raises(DeviceFault, match="has not answered"):
+        deadline = time.monotonic() + 2
+        while time.monotonic() < deadline:
+            dev.read()
+            dev.write_force((0.0, 0.0, 0.0))
+            time.sleep(0.002)
+    time.sleep(1.1)  # silent past SILENT_RECONNECT_S
+    with pytest.raises(DeviceFault, match="reconnecting"):
+        dev.reconnect()  # gives the session up, opens a new one in the background
+    svc.resume()
+    deadline = time.monotonic() + 20  # a wait for the condition: a loaded machine may take long
+    while True:
+        try:
+            dev.reconnect()
+            break
+        except DeviceFault:
+            assert time.monotonic() < deadline, "never reconnected"
+            time.sleep(0.05)
+    run(dev)
+    assert dev.info.details["sessions"] == 2 and svc.sessions == 2
+
+
+def test_a_closed_connection_is_a_fault_at_once_and_a_new_session_opens_when_the_service_is_back(arm):
+    dev, svc = arm()
+    run(dev)
+    svc.stop()
+    with pytest.raises(DeviceFault, match="closed the connection"):
+        deadline = time.monotonic() + 2
+        while time.monotonic() < deadline:
+            dev.read()
+            time.sleep(0.002)
+    with pytest.raises(DeviceFault):
+        dev.reconnect()
+    svc.start()  # the same port
+    deadline = time.monotonic() + 20  # a wait for the condition: a loaded machine may take long
+    while True:
+        try:
+            dev.reconnect()
+            break
+        except DeviceFault:
+            assert time.monotonic() < deadline, "never reconnected"
+            time.sleep(0.05)
+    run(dev)
+    assert dev.info.details["sessions"] == 2 and svc.presets == ["arm_front_centered"] * 2
+
+
+def test_no_service_says_so_in_one_line(service):
+    svc = service()
+    url = svc.url
+    svc.close()  # nothing listens on that port now
+    with pytest.raises(DeviceOpenError) as err:
+        Inverse3Device(url).open()
+    message = str(err.value)
+    assert "\n" not in message and url in message and "Inverse Service" in message
+
+
+def _server(greeting):
+    server = serve(lambda conn: (conn.send(greeting), conn.recv(timeout=2)), "127.0.0.1", 0)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    return server, f"ws://127.0.0.1:{server.socket.getsockname()[1]}"
+
+
+@pytest.mark.parametrize("greeting, refusal", [
+    (json.dumps({"devices": [{"id": 1}]}), r"does not speak the Inverse Service's 3.x format \(no 'inverse3' list"),
+    ("hello", r"does not speak the Inverse Service's 3.x format \(not JSON"),
+    (json.dumps({"session_id": 1, "inverse3": []}), "lists no Inverse3"),
+])
+def test_a_service_that_speaks_another_format_is_refused_by_name(greeting, refusal):
+    server, url = _server(greeting)
+    try:
+        with pytest.raises(DeviceOpenError, match=refusal):
+            Inverse3Device(url, handshake_timeout_s=1.0).open()
+    finally:
+        server.shutdown()
+
+
+def test_close_sends_zero_and_ends_the_session(arm):
+    dev, svc = arm()
+    run(dev, force=(1.0, 0.0, 0.0))
+    messages = svc.messages
+    dev.close()
+    deadline = time.monotonic() + 2
+    while svc._connections and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert svc.messages > messages and not svc._connections
+    assert np.allclose(svc.samples[-1][1], 0.0) and dev.last_force_n.tolist() == [0.0, 0.0, 0.0]
+
+
+def test_the_device_string_and_timing():
+    assert inverse3.create(None).url == "ws://localhost:10001"
+    dev = inverse3.create("ws://host:9000", rate_hz=250)
+    assert dev.url == "ws://host:9000" and dev.reply_timeout_s == pytest.approx(0.010)
+    assert dev.read_wait_s == pytest.approx(0.001)
+
+
+def test_devices_lists_the_services_arm_and_checks_it(service):
+    svc = service(calibrated=False)
+    svc.hand.target = (0.0, 0.0, 10.0)  # 10 mm up
+    env = dict(os.environ, **svc.env)
+    listed = run_cli("devices", "--json", env=env)
+    assert listed.returncode == 0, listed.stderr
+    arms = [(d["path"], d["description"], d["device"], d["note"]) for d in json.loads(listed.stdout)["devices"]
+            if d["transport"] == "websocket"]
+    assert arms == [(svc.url, "Haply Inverse3 049D", f"inverse3:{svc.url}", "not calibrated yet: let it self-calibrate")]
+    assert svc.messages == 0  # listing sends nothing
+    checked = run_cli("devices", "--check", f"inverse3:{svc.url}", "--seconds", "0.3", "--json", env=env)
+    assert checked.returncode == 0, checked.stderr
+    report = json.loads(checked.stdout)
+    assert report["info"]["model"] == "Haply Inverse3" and report["reads"] > 10 and report["calibrated"] is False
+    np.testing.assert_allclose(report["position_mm"], [0.0, 10.0, 0.0], atol=0.5)
+    assert np.allclose(svc.samples[-1][1], 0.0)  # the check wrote zero force
+
+
+def test_check_without_a_service_is_one_line(service):
+    svc = service()
+    url = svc.url
+    svc.close()
+    result = run_cli("devices", "--check", f"inverse3:{url}")
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2 and len(lines) == 1 and url in lines[0] and "Inverse Service" in lines[0], \
+        result.stderr
+
+
+def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_service(service, tmp_path):
+    svc = service()
+    svc.hand.place((0.0, 0.0, 30.0))  # 30 mm above the workspace centre: outside the molecule
+    path = tmp_path / "session.mcap"
+    with DaemonProcess(*PRESS_RATE, *WHOLE, "--record", str(path), device=svc.device_spec) as daemon:
+        assert daemon.ready["device"] == "inverse3"
+        sub = Subscriber(daemon.pub)
+        poses_until(sub, lambda p: p.tip_mm[1] > 29.0, daemon)
+        svc.hand.target = (0.0, 0.0, 0.0)  # down to the centre, into the molecule
+        poses_until(sub, pushing, daemon)
+        poses = settled(sub, daemon)
+        t_first, t_last = poses[0].publish_t_ns, poses[-1].publish_t_ns
+        samples = [x for x in list(svc.samples) if t_first <= x[0] <= t_last]
+        wrote = np.median([p.force_N for p in poses], axis=0)
+        made = np.median([to_device(x[1]) for x in samples], axis=0)  # on the service's own record
+        assert len(samples) > 20 and svc.ignored_commands == 0  # half a second at 100 Hz
+        assert cosine(made, wrote) >= 0.99 and np.linalg.norm(made) == pytest.approx(np.linalg.norm(wrote), rel=0.05)
+        held = np.median([to_device(x[2]) for x in samples], axis=0)  # the cursor, the hand at the origin
+        assert held @ wrote / np.linalg.norm(wrote) > 1.0  # pushed out of the surface
+
+        hung_at = time.monotonic_ns()
+        svc.hang()  # the service stops answering, then answers again: no new session needed
+        assert np.allclose(poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon).force_N, 0.0)
+        time.sleep(0.3)
+        svc.resume()
+        poses_until(sub, pushing, daemon)
+        closed_at = time.monotonic_ns()
+        svc.stop()  # the service goes away, connection and all, then comes back
+        assert np.allclose(poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon).force_N, 0.0)
+        time.sleep(0.3)
+        svc.start()
+        poses_until(sub, lambda p: "device reconnected" in daemon.stderr, daemon)
+        svc.hand.target = (0.0, 0.0, 30.0)  # out into free space (a reconnected probe starts unseated), back in
+        poses_until(sub, lambda p: p.tip_mm[1] > 29.0 and not p.has(FLAG_FAULT), daemon)
+        svc.hand.target = (0.0, 0.0, 0.0)
+        poses_until(sub, pushing, daemon)
+        rc, report = daemon.stop()
+        assert rc == 0, daemon.stderr
+        assert report["device_last_force_n"] == [0.0, 0.0, 0.0]
+    assert svc.sessions == 2
+    hung = recorded_outage(path, hung_at)
+    assert any(e and "has not answered" in e for e in hung["errors"])
+    closed = recorded_outage(path, closed_at)
+    assert any(e and "closed the connection" in e for e in closed["errors"])
+    assert [e["cmd"] for e in closed["session"].events].count("reconnect") == 1
+
+
+# The stand-in service is a thread of this test process. With the 2-core machine loaded
+# (load average 13 seen), its replies came later than the driver's 2.5 periods at 250 Hz
+# (10 ms) many times a second, each a fault that restarts the daemon's force ramp, and the
+# press never held still for half a second. At 100 Hz a reply may take 25 ms.
+PRESS_RATE = ("--rate", "100")
+
+
+def to_device(haply):
+    """Haply's frame → sasprobe's device frame, from the conventions above (same units)."""
+    x, y, z = haply
+    return np.array([x, z, -y])
