@@ -9,7 +9,7 @@ import time
 import numpy as np
 import pytest
 
-from sasprobe.protocol.client import Subscriber
+from sasprobe.protocol.client import ControlError, Subscriber
 from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess
 from tests.emulators import libhd
@@ -50,7 +50,10 @@ def test_the_navigation_cube_maps_onto_the_cube_inscribed_in_the_arms_usable_box
     try:
         with DaemonProcess("--cube-half", "20", device=emu.device_spec) as daemon:
             sub = Subscriber(daemon.pub)
-            box = sub.wait_for_scene(10.0)["device"]["limits"]
+            try:
+                box = sub.wait_for_scene(30.0)["device"]["limits"]
+            except ControlError as exc:
+                raise AssertionError(f"{exc}; daemon stderr: {daemon.stderr[-1500:]}") from None
             assert min(np.subtract(box["workspace_max_mm"], box["workspace_min_mm"])) / 2.0 == half_mm
             deadline = time.monotonic() + 10.0
             poses = []
