@@ -65,7 +65,7 @@ class Daemon:
         self.config = check_config(config)
         start = open_session(config)
         self.structure, self.structure_keep_water, self.device = start.structure, start.keep_water, start.device
-        self.rate_hz, self.limits, self.settings, self.pipeline = start.rate_hz, start.limits, start.settings, start.pipeline
+        self.rate_hz = start.rate_hz
         self.loop = FixedRateLoop(self.rate_hz, spin_s=config.spin_s)
         self.clip_planes: list[list[float]] = []
         self.lights = json.loads(json.dumps(DEFAULT_LIGHTS))
@@ -99,6 +99,7 @@ class Daemon:
             self.realtime = enter_realtime() if config.realtime else False
             self.timing = LoopLog(self.realtime)
             self.device.open()
+            self.limits, self.settings, self.pipeline = start.pipeline()  # the opened arm's workspace and limits
             self._open_network()
             self.rebuild_scene()
             if config.record:

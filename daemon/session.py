@@ -1,6 +1,9 @@
-"""What a daemon starts from: its structure, its (unopened) device, its checked settings and the
-tick pipeline, from the command line's DaemonConfig (a replayed device brings the recording's
-structure, settings and rate)."""
+"""What a daemon starts from: its structure, its (unopened) device and its settings, from the
+command line's DaemonConfig (a replayed device brings the recording's structure, settings and
+rate); once the device is open, its limits, the settings checked against them and the tick
+pipeline. Some arms tell their workspace and limits only when opened (an OpenHaptics arm
+answers HD_USABLE_WORKSPACE_DIMENSIONS after hdInitDevice; a WoodenHaptics board names its
+model in its first reply), so nothing is built from an unopened device's."""
 
 from __future__ import annotations
 
@@ -18,9 +21,14 @@ class SessionStart:
     keep_water: bool
     device: HapticDevice
     rate_hz: float | None  # None: free-running (a replay at --speed max)
-    limits: DeviceLimits
-    settings: dict  # validate_settings' form
-    pipeline: HapticPipeline
+    settings: dict  # as given: checked against the opened device's limits by `pipeline()`
+
+    def pipeline(self) -> tuple[DeviceLimits, dict, HapticPipeline]:
+        """The opened device's limits, the settings checked against them (validate_settings'
+        form) and the tick pipeline built for them; call it once the device is open."""
+        limits = self.device.info.limits
+        settings = validate_settings(self.settings, limits)
+        return limits, settings, HapticPipeline(build_engine(self.structure, limits, settings), SafetyGuard(limits))
 
 
 def open_session(config: DaemonConfig) -> SessionStart:
@@ -44,7 +52,4 @@ def open_session(config: DaemonConfig) -> SessionStart:
             keep_water = session.keep_water
         settings = {**session.settings, **settings}
         rate_hz = None if config.speed is None else session.rate_hz * config.speed
-    limits = device.info.limits
-    settings = validate_settings(settings, limits)
-    pipeline = HapticPipeline(build_engine(structure, limits, settings), SafetyGuard(limits))
-    return SessionStart(structure, keep_water, device, rate_hz, limits, settings, pipeline)
+    return SessionStart(structure, keep_water, device, rate_hz, settings)

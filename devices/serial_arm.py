@@ -17,10 +17,9 @@ under a 1 kHz loop that must never wait long:
   at 1 kHz, so it never takes the daemon's three; 10 ms when the rate is not given) and
   then raises DeviceFault (the daemon writes zero force). The command stays in flight:
   a later `read()` takes its reply when it arrives, without sending anything new;
-- a reply is used only if it is fresh: it must have arrived within `stale_after_s` of
-  the last time the driver looked and found nothing (a host that stalled finds an old
-  reply waiting). A stale reply updates the pose used for the next force command, then
-  a new command is sent and its reply is what `read()` returns;
+- a reply is used only if it came within `stale_after_s` of the driver's last look that
+  found nothing (a host that stalled finds an old reply waiting): a stale one updates the
+  pose for the next command, which is sent at once, and its reply is what `read()` returns;
 - a reply the board flags as a refused command, a garbled frame, or more bytes than
   one reply: the driver stops sending, drops input until the line has been quiet for
   `RESYNC_QUIET_S` (one non-blocking step per `read()`, each raising DeviceFault), and
@@ -29,14 +28,15 @@ under a 1 kHz loop that must never wait long:
   `PROBE_INTERVAL_S` (the host libraries' handshake), so it resumes when it recovers;
 - a lost port (cable pulled) raises DeviceFault at once; `reconnect()` reopens it.
 
-Opening resends the zero command every `PROBE_INTERVAL_S` until the board answers (as
-hfabapi's `wait_online()` does), bounded by `handshake_timeout_s`, then drops the
-answers to the extra copies. Subclasses supply the wire format.
+Opening resends the zero command every `PROBE_INTERVAL_S` until the board answers (hfabapi's
+`wait_online()`), within `handshake_timeout_s`, and drops the answers to the extra copies.
+Subclasses supply the wire format.
 """
 
 from __future__ import annotations
 
 import abc
+import threading
 import time
 
 import numpy as np
@@ -114,6 +114,7 @@ class SerialArm(HardwareDriver):
         self.resyncs = 0
         self._last: DeviceState | None = None  # the state read() returned last, and when
         self._last_at = 0.0
+        self._port_lock = threading.Lock()  # the loop's read() and reconnect() vs the watchdog's zero_force_now()
 
     # subclasses -----------------------------------------------------------------------
     @abc.abstractmethod
@@ -170,20 +171,22 @@ class SerialArm(HardwareDriver):
         self._sent_at = None
 
     def reconnect(self) -> None:
-        if self._lost is None and self.transport.is_open:
-            # the port is fine: the session recovers by itself (late reply, resync, probing)
-            if self._failing is not None:
-                raise DeviceFault(self._failing)
-            return
-        self.close()
-        try:
-            self.open(handshake_timeout_s=REOPEN_HANDSHAKE_S)
-        except DeviceOpenError as exc:
-            raise DeviceFault(f"device still unavailable: {exc}") from None
+        with self._port_lock:
+            if self._lost is None and self.transport.is_open:
+                # the port is fine: the session recovers by itself (late reply, resync, probing)
+                if self._failing is not None:
+                    raise DeviceFault(self._failing)
+                return
+            self.close()
+            try:
+                self.open(handshake_timeout_s=REOPEN_HANDSHAKE_S)
+            except DeviceOpenError as exc:
+                raise DeviceFault(f"device still unavailable: {exc}") from None
 
     def read(self) -> DeviceState:
         try:
-            state = self._read()
+            with self._port_lock:
+                state = self._read()
         except DeviceFault as exc:
             self._failing = str(exc)
             raise
@@ -222,14 +225,25 @@ class SerialArm(HardwareDriver):
             self._send(self._command())
 
     def zero_force_now(self) -> None:
-        """The daemon's watchdog while its loop is stalled: the zero command goes out now, even
-        with a command in flight (sent before the stall, so answered long since: nothing can
-        merge). The reply it draws is one too many, so the next read resynchronises first (a
-        fault tick or two, force zero meanwhile)."""
+        """The daemon's watchdog thread, the loop stalled: zero as the command in flight once the
+        board answered the loop's last (a line board would refuse two lines: wait for the next
+        try; binary frames queue: send now, resynchronise). A read in progress keeps the port:
+        zero becomes its next command's force, and DeviceFault says to try again."""
         self.force = np.zeros(3)
-        if self._lost is None:
-            self._io(self.transport.write, self._zero_command())
-            self._start_resync("the watchdog's zero command while the loop stalled")
+        if not self._port_lock.acquire(blocking=False):
+            raise DeviceFault(f"the loop is reading the {self.scheme} arm: the zero goes with its next command")
+        try:
+            if self._lost is not None:
+                return
+            if self._sent_at is not None:
+                self._wait_reply(0.0)  # the answer, if it has come (its pose serves the next command)
+            if self._sent_at is None and (self._resync_reason is None or self._resync_step()):
+                self._send(self._zero_command())
+            elif self._zero_may_overlap():
+                self._io(self.transport.write, self._zero_command())
+                self._start_resync("the watchdog's zero command while the loop stalled")
+        finally:
+            self._port_lock.release()
 
     # handshake helpers ----------------------------------------------------------------
     def _probe(self, timeout_s: float, describe) -> ArmReply:

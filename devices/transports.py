@@ -118,15 +118,31 @@ class SerialTransport(Transport):
                 pass
 
     def write(self, data: bytes) -> None:
-        import serial
+        """All of `data`, waiting at most the write timeout for room in the port's buffer.
 
+        Written here on the port's non-blocking descriptor rather than by pyserial's
+        `write`, which also raises its timeout when the bytes all went out but the writer
+        was descheduled past the deadline before it looked at the clock (a busy machine):
+        a port that took every byte is not lost."""
         ser = self._require()
+        remaining = memoryview(data)
+        deadline = time.monotonic() + self.write_timeout_s
         try:
-            written = ser.write(data)
-        except (serial.SerialException, OSError) as exc:
+            fd = ser.fileno()
+            while remaining:
+                try:
+                    remaining = remaining[os.write(fd, remaining):]
+                except BlockingIOError:
+                    pass
+                if not remaining:
+                    return
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise DeviceFault(f"serial port {self.port} lost: it took no bytes for "
+                                      f"{self.write_timeout_s * 1000:.0f} ms")
+                select.select([], [fd], [], left)
+        except (OSError, ValueError) as exc:
             raise DeviceFault(f"serial port {self.port} lost: {exc}") from None
-        if written != len(data):
-            raise DeviceFault(f"serial port {self.port}: short write ({written} of {len(data)} bytes)")
 
     def read(self, max_bytes: int, timeout_s: float) -> bytes:
         import serial

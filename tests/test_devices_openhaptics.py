@@ -24,8 +24,9 @@ from sasprobe.devices.openhaptics import hdapi
 from sasprobe.devices.openhaptics.driver import OpenHapticsDevice
 from tests.emulators import libhd
 from tests.emulators.libhd import (HD_CALIBRATION_AUTO, HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_INKWELL,
-                                   HD_COMM_ERROR, HD_DEVICE_FAULT, HD_EXCEEDED_MAX_VELOCITY, HD_INVALID_ENUM,
-                                   HD_WARM_MOTORS, UNCALIBRATED_OFFSET, USABLE_BOX_CENTRE)
+                                   HD_COMM_ERROR, HD_DEVICE_BUTTON_1, HD_DEVICE_FAULT, HD_EXCEEDED_MAX_FORCE,
+                                   HD_EXCEEDED_MAX_FORCE_IMPULSE, HD_EXCEEDED_MAX_VELOCITY, HD_FORCE_ERROR,
+                                   HD_INVALID_ENUM, HD_WARM_MOTORS, UNCALIBRATED_OFFSET, USABLE_BOX_CENTRE)
 
 
 @pytest.fixture(scope="module")
@@ -162,7 +163,8 @@ def calibrated_and_pushing(arm, force=(1.0, 0.0, 0.0)):
     return dev, emu
 
 
-@pytest.mark.parametrize("code", [HD_EXCEEDED_MAX_VELOCITY, HD_WARM_MOTORS, HD_DEVICE_FAULT])
+@pytest.mark.parametrize("code", [HD_WARM_MOTORS, HD_EXCEEDED_MAX_FORCE, HD_EXCEEDED_MAX_VELOCITY, HD_FORCE_ERROR,
+                                  HD_DEVICE_FAULT])
 def test_a_force_error_stops_only_force_output(arm, code):
     dev, emu = calibrated_and_pushing(arm)
     emu.inject(code)
@@ -176,10 +178,83 @@ def test_a_force_error_stops_only_force_output(arm, code):
     emu.wait_frames(5)
     assert emu.control.frames > frames
     assert dev.info.details["force_errors"] == 1 and dev.info.details["force_stopped"] is True
-    dev.write_force([0.0, 0.0, 0.0])  # the user left the contact
-    dev.write_force([0.5, 0.0, 0.0])
+
+
+# The daemon's wall in these tests: free space toward +x, the force pushing the stylus out
+# along +x. The hand holds the stylus 4 mm inside; 1 N moves it 2 mm out (the hand's 0.5 N/mm).
+INSIDE = np.add(USABLE_BOX_CENTRE, (-4.0, 0.0, 0.0))
+PUSH = (1.0, 0.0, 0.0)
+
+
+def stopped_by_a_force_error_while_pressed_in(arm):
+    dev, emu = arm(styles=HD_CALIBRATION_AUTO, hand=INSIDE)
+    dev.open()
+    wait_for(dev, lambda s: s.calibrated)
+    dev.write_force(PUSH)
+    wait_for(dev, lambda s: s.position_mm[0] == pytest.approx(-2.0))
+    emu.inject(HD_EXCEEDED_MAX_FORCE)
     emu.wait_frames(5)
-    assert emu.applied_force == (0.5, 0.0, 0.0)
+    assert emu.applied_force == (0.0, 0.0, 0.0) and dev.info.details["force_stopped"] is True
+    return dev, emu
+
+
+def render(dev, emu, force):
+    dev.write_force(force)
+    emu.wait_frames(5)
+    return emu.applied_force
+
+
+def test_a_zero_command_with_the_stylus_still_pressed_in_does_not_bring_force_back(arm):
+    """ErrorHandling.c l. 279-303: after a force error, contact comes back only once the device
+    has been on the free side. A loop stall writes zero while the stylus is still in."""
+    dev, emu = stopped_by_a_force_error_while_pressed_in(arm)
+    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)  # the watchdog's zero during a stall
+    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)  # the loop is back, the stylus still in: no force
+    # pulled out by 1 mm, less than 1 N could have pressed it in at the arm's stiffest
+    # (0.5 N/mm: 2 mm): not yet out
+    emu.hand.target = np.add(INSIDE, (3.0, 0.0, 0.0))
+    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
+    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)
+    emu.hand.target = np.add(INSIDE, (4.5, 0.0, 0.0))  # 2.5 mm out: on the free side
+    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)  # force comes back at a zero command only, never with a kick
+    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
+    assert render(dev, emu, (0.5, 0.0, 0.0)) == (0.5, 0.0, 0.0)
+    assert dev.info.details["force_stopped"] is False
+
+
+def test_a_new_button_press_brings_force_back_after_a_force_error(arm):
+    """AnchoredSpringForce.c l. 196-202, 227-233: a force error stops the force until the
+    button is pressed anew; a button held since before the error is no new press."""
+    emu_buttons = HD_DEVICE_BUTTON_1
+    dev, emu = arm(styles=HD_CALIBRATION_AUTO, hand=INSIDE)
+    emu.control.buttons = emu_buttons  # held all along
+    dev.open()
+    wait_for(dev, lambda s: s.calibrated)
+    dev.write_force(PUSH)
+    wait_for(dev, lambda s: s.position_mm[0] == pytest.approx(-2.0))
+    emu.inject(HD_EXCEEDED_MAX_FORCE)
+    emu.wait_frames(5)
+    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
+    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)  # the held button is no new press
+    emu.control.buttons = 0
+    emu.wait_frames(3)
+    emu.control.buttons = emu_buttons  # pressed again, the stylus still in
+    emu.wait_frames(3)
+    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)  # still no kick: force resumes at a zero command
+    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
+    assert render(dev, emu, (0.5, 0.0, 0.0)) == (0.5, 0.0, 0.0)
+
+
+def test_the_force_impulse_warning_is_not_a_force_error(arm):
+    """hduIsForceError (libHDU's hduError.o) names warm motors, max force, max velocity and
+    force errors, not HD_EXCEEDED_MAX_FORCE_IMPULSE: the library's own impulse check has
+    already limited the change in force."""
+    dev, emu = calibrated_and_pushing(arm)
+    emu.inject(HD_EXCEEDED_MAX_FORCE_IMPULSE)
+    emu.wait_frames(5)
+    dev.read()
+    assert render(dev, emu, (0.5, 0.0, 0.0)) == (0.5, 0.0, 0.0)
+    assert dev.info.details["other_errors"] == 1 and dev.info.details["force_errors"] == 0
 
 
 def test_other_errors_are_counted_and_force_goes_on(arm):
@@ -193,10 +268,17 @@ def test_other_errors_are_counted_and_force_goes_on(arm):
 
 def test_a_scheduler_error_ends_the_callback_and_is_a_fault(arm):
     dev, emu = calibrated_and_pushing(arm)
-    emu.inject(HD_COMM_ERROR)
+    emu.inject(HD_COMM_ERROR)  # the device itself stays powered: its motors keep what they were last sent
     with pytest.raises(DeviceFault, match=r"HD_COMM_ERROR \(0x0302"):
         _until_fault(dev)
-    assert emu.control.callback_done == 1
+    deadline = time.monotonic() + 2.0
+    while not emu.control.callback_done:
+        assert time.monotonic() < deadline, "the servo callback did not end"
+        time.sleep(0.001)
+    frames = emu.control.frames
+    time.sleep(0.02)
+    assert emu.control.frames == frames  # no frame runs any more ...
+    assert emu.applied_force == (0.0, 0.0, 0.0)  # ... and the last one the callback ran sent zero
 
 
 def test_a_vanished_arm_faults_and_recovers_when_back(arm):
@@ -303,3 +385,4 @@ def test_the_stand_in_and_the_driver_transcribed_hddefines_alike():
     assert shared == {name: getattr(hdapi, name) for name in shared} and len(shared) > 15
     named = {name: code for code, name in hdapi.HD_ERRORS.items()}
     assert all(named[name] == value for name, value in defines.items() if name in named)
+

@@ -67,6 +67,30 @@ def test_a_pulled_serial_cable_is_a_fault_and_the_port_comes_back(echo):
     port.close()
 
 
+def test_a_write_that_went_out_is_no_fault_however_late_the_writer_looks_at_the_clock(echo, monkeypatch):
+    """A busy machine may deschedule the writer for longer than the write timeout just after
+    its bytes went out: they went out all the same, so the port is not lost. (Here every
+    look at the clock is 100 ms after the last, the write timeout is 50 ms.)"""
+    import serial.serialutil
+
+    with SerialTransport(echo.path) as port:
+        looks = iter(range(10 ** 6))
+        late = staticmethod(lambda: next(looks) * 0.1)
+        monkeypatch.setattr(serial.serialutil.Timeout, "TIME", late)
+        monkeypatch.setattr(time, "monotonic", late)
+        port.write(b"hello")
+        monkeypatch.undo()
+        assert read_at_least(port, 5) == b"hello"
+
+
+def test_a_port_that_takes_no_bytes_is_a_fault_not_a_hang(echo):
+    with SerialTransport(echo.path) as port:
+        echo.go_silent()  # nothing reads the line: the buffer fills, then a write waits out its timeout
+        with pytest.raises(DeviceFault, match="lost: it took no bytes for 50 ms"):
+            for _ in range(10 ** 4):
+                port.write(bytes(4096))
+
+
 @pytest.mark.skipif(os.geteuid() == 0, reason="root opens any node; the CLI test drops the capability instead")
 def test_permission_denied_names_the_fix(echo):
     os.chmod(os.path.realpath(echo.path), 0)

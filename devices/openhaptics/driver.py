@@ -19,16 +19,27 @@ orthogonal): `openhaptics[:NAME]:reset-encoders`. Without it an uncalibrated
 encoder-reset arm is refused at open; a reconnect never resets again.
 
 Errors (AnchoredSpringForce.c, ErrorHandling.c): after each frame the error stack is
-drained. A force error (and, our choice for safety, HD_DEVICE_FAULT) stops force output
-until the daemon's command has returned to zero (the user has left the contact); the
-callback goes on. A scheduler error (communication, timer) ends the callback, and the
-next `read()` raises DeviceFault naming the code. Other errors are counted and logged.
+drained. A force error (hduIsForceError's codes, see hdapi; and, our choice for safety,
+HD_DEVICE_FAULT) stops force output; the callback goes on. The examples give force back
+only once the user has acted: ErrorHandling.c (l. 279-303) allows contact again after the
+device has been on the free side, AnchoredSpringForce.c (l. 196-202, 227-233) after a new
+button press. The driver sits below the daemon and sees no surface, so "the free side" is
+what it can measure: the stylus has moved back along the force it was rendering when the
+error came, by at least that force over the arm's nominal maximum stiffness (the daemon
+renders no stiffer spring, so the contact was at least that deep). Either that or a button
+pressed anew re-arms it, and force comes back at the first zero command after (the user
+out of contact, so nothing kicks). A zero command alone, as a stalled loop writes with the
+stylus still pressed in, does not. A scheduler error (communication, timer) is reported
+by the next `read()` as a DeviceFault; the callback runs one more frame, which sends zero
+force (so the arm holds nothing, whatever the library does with a device it cannot
+reach), and then ends. Other errors are counted and logged.
 """
 
 from __future__ import annotations
 
 import ctypes
 import logging
+import math
 import threading
 import time
 
@@ -43,7 +54,7 @@ from sasprobe.devices.hardware import HardwareDriver, clamp_force, quaternion_fr
 log = logging.getLogger("sasprobe.devices.openhaptics")
 
 RESET_ENCODERS = "reset-encoders"
-RESUME_BELOW_N = 0.01  # after a force error, force output resumes once the command is this small
+RESUME_BELOW_N = 0.01  # after a force error, force output resumes (once re-armed) at a command this small
 MAX_ERRORS_PER_FRAME = 16  # the error stack is drained, boundedly, after every frame
 
 
@@ -65,13 +76,18 @@ class OpenHapticsDevice(HardwareDriver):
         self._centre = np.zeros(3)
         self.calibration_style: int | None = None
         self.model = "PHANTOM (OpenHaptics)"
+        self.serial_number = ""
         self._reset_servo_state()
 
     def _reset_servo_state(self) -> None:
         self._sample = None  # (t_ns, position, velocity, transform, buttons)
         self._fatal: tuple[int, int] | None = None
         self._calibrated = False
-        self._force_blocked = False
+        self._force_blocked = False  # after a force error, until re-armed and commanded zero
+        self._blocked_at = np.zeros(3)  # where the stylus was at that error ...
+        self._blocked_force = np.zeros(3)  # ... and the force then rendered
+        self._rearmed = False  # the stylus has left the contact, or a button was pressed anew
+        self._last_buttons: int | None = None
         self._unlogged: list[int] = []  # error codes the servo thread saw, for read() to log
         self._logged: set[int] = set()
         self.servo_ticks = 0
@@ -89,7 +105,7 @@ class OpenHapticsDevice(HardwareDriver):
                        "force_errors": self.force_errors, "other_errors": self.other_errors,
                        "force_stopped": self._force_blocked,
                        "last_error": error_name(self._fatal[0]) if self._fatal else None}
-        return DeviceInfo(kind="openhaptics", model=self.model, limits=self._limits, serial=self.name or "",
+        return DeviceInfo(kind="openhaptics", model=self.model, limits=self._limits, serial=self.serial_number,
                           details=details)
 
     # lifecycle ------------------------------------------------------------------------
@@ -161,6 +177,8 @@ class OpenHapticsDevice(HardwareDriver):
         model = lib.hdGetString(hdapi.HD_DEVICE_MODEL_TYPE)
         if model:
             self.model = model.decode(errors="replace")
+        serial = lib.hdGetString(hdapi.HD_DEVICE_SERIAL_NUMBER)
+        self.serial_number = serial.decode(errors="replace") if serial else ""
         box = doubles(hdapi.HD_USABLE_WORKSPACE_DIMENSIONS, 6)
         lo, hi = box[:3], box[3:]
         if not np.all(hi > lo):
@@ -220,28 +238,53 @@ class OpenHapticsDevice(HardwareDriver):
                 hdapi.HD_CALIBRATION_AUTO, hdapi.HD_CALIBRATION_INKWELL):
             lib.hdUpdateCalibration(self.calibration_style)  # Calibration.c's UpdateCalibrationCallback
         calibrated = calibration == hdapi.HD_CALIBRATION_OK
+        tip = np.array(position[:])
         with self._lock:
-            lib.hdSetDoublev(hdapi.HD_CURRENT_FORCE,
-                             self._force if calibrated and not self._force_blocked else self._zero)
+            ending = self._fatal is not None  # a scheduler error came: this last frame sends zero
+            if self._force_blocked:
+                self._watch_for_release(tip, buttons.value)
+            self._last_buttons = buttons.value
+            rendering = calibrated and not self._force_blocked and not ending
+            rendered = np.array(self._force[:]) if rendering else np.zeros(3)
+            lib.hdSetDoublev(hdapi.HD_CURRENT_FORCE, self._force if rendering else self._zero)
         lib.hdEndFrame(h)
         errors = self._pop_errors()
         with self._lock:
             self.servo_ticks += 1
             self._calibrated = calibrated
-            self._sample = (time.monotonic_ns(), np.array(position[:]), np.array(velocity[:]),
+            self._sample = (time.monotonic_ns(), tip, np.array(velocity[:]),
                             np.array(transform[:]).reshape(4, 4).T, buttons.value)
             for code, internal in errors:
                 if len(self._unlogged) < MAX_ERRORS_PER_FRAME:
                     self._unlogged.append(code)
                 if hdapi.is_scheduler_error(code):
-                    self._fatal = (code, internal)
-                    return hdapi.HD_CALLBACK_DONE
-                if hdapi.is_force_error(code) or code == hdapi.HD_DEVICE_FAULT:
+                    self._fatal = self._fatal or (code, internal)
+                elif hdapi.is_force_error(code) or code == hdapi.HD_DEVICE_FAULT:
                     self.force_errors += 1
-                    self._force_blocked = True
+                    self._stop_force(tip, rendered)
                 else:
                     self.other_errors += 1
+            if ending:
+                return hdapi.HD_CALLBACK_DONE
         return hdapi.HD_CALLBACK_CONTINUE
+
+    def _stop_force(self, tip: np.ndarray, rendered: np.ndarray) -> None:
+        """A force error: no force until re-armed (the first error of a series sets where from)."""
+        if not self._force_blocked:
+            self._force_blocked = True
+            self._blocked_at, self._blocked_force = tip, rendered
+        self._rearmed = False
+
+    def _watch_for_release(self, tip: np.ndarray, buttons: int) -> None:
+        """Re-arm once the stylus has left the contact or a button is pressed anew; then give
+        force back at the first zero command."""
+        pressed_anew = self._last_buttons is not None and buttons & ~self._last_buttons
+        push = float(np.linalg.norm(self._blocked_force))
+        depth_mm = push / self._limits.max_stiffness_n_per_mm  # the shallowest contact that pushes so hard
+        left = push == 0.0 or float((tip - self._blocked_at) @ self._blocked_force) / push >= depth_mm
+        self._rearmed = self._rearmed or bool(pressed_anew) or left
+        if self._rearmed and math.sqrt(sum(v * v for v in self._force)) <= RESUME_BELOW_N:
+            self._force_blocked = False
 
     # interface ------------------------------------------------------------------------
     def read(self) -> DeviceState:
@@ -253,8 +296,8 @@ class OpenHapticsDevice(HardwareDriver):
                 self._logged.add(code)
                 stops_force = hdapi.is_force_error(code) or code == hdapi.HD_DEVICE_FAULT
                 log.warning("OpenHaptics reported %s (0x%04x): %s", error_name(code), code,
-                            "force output stopped until the command returns to zero" if stops_force
-                            else "the servo loop goes on")
+                            "force output stopped until the stylus leaves the contact or a button is pressed"
+                            if stops_force else "the servo loop goes on")
         if fatal is not None:
             raise DeviceFault(f"OpenHaptics reported {error_name(fatal[0])} (0x{fatal[0]:04x}, internal {fatal[1]})")
         if sample is None or time.monotonic_ns() - sample[0] > self.read_timeout_s * 1e9:
@@ -269,5 +312,3 @@ class OpenHapticsDevice(HardwareDriver):
         with self._lock:
             self._force[:] = [float(v) for v in force]
             self.force = force
-            if self._force_blocked and float(np.linalg.norm(force)) <= RESUME_BELOW_N:
-                self._force_blocked = False

@@ -6,13 +6,15 @@ codes, parameters, calibration values and styles, scheduler priorities), hdDevic
 hdScheduler.h (the entry points and their argument types), HDU/hduError.h (the two
 error classes).
 
-Error classes. hduError.h names two, implemented in the closed libHDU: a force error
-("related to haptic rendering; typical handling involves resetting contact or
-simulation state") and a scheduler error ("a communication, timing or general scheduler
-error that would prevent proper operation of the servo loop"). Their code lists are not
-public; we take the force errors to be hdDefines.h's "Force errors" group (0x02xx), and
-the scheduler errors to be the communication and timer codes (HD_COMM_ERROR,
-HD_COMM_CONFIG_ERROR, HD_TIMER_ERROR) and the "Scheduler errors" group (0x05xx).
+Error classes. hduError.h names two, implemented in libHDU: a force error ("related to
+haptic rendering; typical handling involves resetting contact or simulation state") and
+a scheduler error ("a communication, timing or general scheduler error that would
+prevent proper operation of the servo loop"). Which codes each holds is in the compiled
+hduError.o of usr/lib64/libHDU.a (its hduIsForceError and hduIsSchedulerError, read with
+objdump): force errors HD_WARM_MOTORS, HD_EXCEEDED_MAX_FORCE, HD_EXCEEDED_MAX_VELOCITY,
+HD_FORCE_ERROR (not HD_EXCEEDED_MAX_FORCE_IMPULSE: the library's impulse check has
+already limited the change); scheduler errors HD_COMM_ERROR, HD_COMM_CONFIG_ERROR,
+HD_TIMER_ERROR, HD_INVALID_PRIORITY, HD_SCHEDULER_FULL.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ HD_CURRENT_POSITION = 0x2050
 HD_CURRENT_VELOCITY = 0x2051
 HD_CURRENT_TRANSFORM = 0x2052
 HD_DEVICE_MODEL_TYPE = 0x2501
+HD_DEVICE_SERIAL_NUMBER = 0x2504
 HD_USABLE_WORKSPACE_DIMENSIONS = 0x2551
 HD_CALIBRATION_STYLE = 0x2555
 HD_NOMINAL_MAX_STIFFNESS = 0x2602
@@ -55,6 +58,7 @@ HD_ERRORS = {
     0x0500: "HD_INVALID_PRIORITY", 0x0501: "HD_SCHEDULER_FULL", 0x0600: "HD_INVALID_LICENSE",
 }
 HD_DEVICE_FAULT = 0x0300
+FORCE_ERRORS = frozenset({0x0200, 0x0201, 0x0203, 0x0204})
 SCHEDULER_ERRORS = frozenset({0x0302, 0x0303, 0x0304, 0x0500, 0x0501})
 
 NOT_INSTALLED = ("OpenHaptics is not installed: the HD library (libHD.so / hd.dll) was not found; install "
@@ -66,7 +70,7 @@ def error_name(code: int) -> str:
 
 
 def is_force_error(code: int) -> bool:
-    return code & 0xFF00 == 0x0200
+    return code in FORCE_ERRORS
 
 
 def is_scheduler_error(code: int) -> bool:

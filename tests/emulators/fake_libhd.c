@@ -17,8 +17,18 @@
  * - HD_MAX_FORCE_CLAMPING is on by default (ErrorHandling.c turns it off "to make it
  *   easier to trigger device errors"): a force above the nominal maximum is clamped.
  * - a frame without hdSetDoublev(HD_CURRENT_FORCE) keeps rendering the last force
- *   (AnchoredSpringForce.c: "or else it will just continue rendering the last force").
- * - an unplugged device: HD_COMM_ERROR every frame and from hdInitDevice, motors off.
+ *   (AnchoredSpringForce.c: "or else it will just continue rendering the last force"),
+ *   and so do the motors when no frame runs at all (a callback that ended): the
+ *   pessimistic reading, where the Programmer's Guide (p. 5-7) zeroes the force at each
+ *   frame's start;
+ * - an unplugged device: HD_COMM_ERROR every frame and from hdInitDevice, motors off;
+ *   an HD_COMM_ERROR raised by the test (inject) leaves the device powered;
+ * - the models (struct model): the names the library reports and the peak force,
+ *   stiffness and damping of each (chai3d/chai3d 7c76b1f, src/devices/CPhantomDevices.cpp
+ *   l. 495-590; the continuous force is ours),
+ *   the usable box the size of the maker's nominal workspace (Desktop 160 x 120 x 120 mm,
+ *   Premium 1.5 381 x 267 x 191 mm; where it lies in the library frame is ours), the
+ *   serial number HD_DEVICE_SERIAL_NUMBER serves (the test's).
  * Not modelled: the real error strings, devices beyond one, synchronous callbacks.
  *
  * The test side steers the device through a control block (struct control) in a shared
@@ -52,6 +62,8 @@ typedef struct { HDerror errorCode; int internalErrorCode; HHD hHD; } HDErrorInf
 #define HD_SUCCESS 0x0000
 #define HD_INVALID_ENUM 0x0100
 #define HD_INVALID_VALUE 0x0101
+#define HD_EXCEEDED_MAX_FORCE 0x0201
+#define HD_EXCEEDED_MAX_FORCE_IMPULSE 0x0202
 #define HD_ILLEGAL_BEGIN 0x0400
 #define HD_ILLEGAL_END 0x0401
 #define HD_COMM_ERROR 0x0302
@@ -63,6 +75,7 @@ typedef struct { HDerror errorCode; int internalErrorCode; HHD hHD; } HDErrorInf
 #define HD_CURRENT_VELOCITY 0x2051
 #define HD_CURRENT_TRANSFORM 0x2052
 #define HD_DEVICE_MODEL_TYPE 0x2501
+#define HD_DEVICE_SERIAL_NUMBER 0x2504
 #define HD_USABLE_WORKSPACE_DIMENSIONS 0x2551
 #define HD_CALIBRATION_STYLE 0x2555
 #define HD_NOMINAL_MAX_STIFFNESS 0x2602
@@ -82,9 +95,18 @@ typedef struct { HDerror errorCode; int internalErrorCode; HHD hHD; } HDErrorInf
 #define HD_CALIBRATION_INKWELL (1 << 2)
 #define HD_INVALID_HANDLE 0xFFFFFFFF
 
-/* The emulated device: an Omni-class arm (our numbers, not the vendor's). */
-static const double MAX_FORCE = 3.3, MAX_CONTINUOUS_FORCE = 0.88, MAX_STIFFNESS = 0.5, MAX_DAMPING = 0.004;
-static const double USABLE_BOX[6] = {-80, -60, -70, 80, 60, 0};
+/* The emulated models (N, N/mm, N.s/mm, mm). Model 0 is an Omni-class arm with our numbers. */
+struct model {
+    const char *name;
+    double max_force, max_continuous_force, max_stiffness, max_damping;
+    double usable_box[6]; /* minX, minY, minZ, maxX, maxY, maxZ */
+};
+static const struct model MODELS[] = {
+    {"Touch (emulated)", 3.3, 0.88, 0.5, 0.004, {-80, -60, -70, 80, 60, 0}},
+    {"PHANTOM Desktop", 7.9, 1.75, 1.0, 0.005, {-80, -50, -100, 80, 70, 20}},
+    {"PHANTOM Premium 1.5 6DOF", 8.5, 1.4, 0.8, 0.005, {-190.5, -100, -160, 190.5, 167, 31}},
+};
+#define N_MODELS ((int)(sizeof MODELS / sizeof MODELS[0]))
 static const double HAND_STIFFNESS = 0.5; /* N/mm: the spring of the hand holding the stylus */
 static const double UNCALIBRATED_OFFSET[3] = {3.0, -4.0, 5.0}; /* mm: how far off uncalibrated encoders read */
 
@@ -98,6 +120,8 @@ struct control {
     int32_t styles;              /* calibration styles the device supports (read at hdInitDevice) */
     int32_t inject_code;         /* an HD error code to raise at the end of the next frames */
     int32_t inject_frames;       /* ... this many of them */
+    int32_t model;               /* an index into MODELS */
+    char serial[32];             /* what HD_DEVICE_SERIAL_NUMBER reads */
     /* written by the library */
     double force[3];             /* the force the motors render now, N */
     double max_force;
@@ -129,6 +153,11 @@ static double offset[3], position[3], velocity[3], commanded[3];
 #define STACK 16
 static HDErrorInfo errors[STACK];
 static int n_errors = 0;
+
+static const struct model *current_model(void) {
+    int m = ctl->model;
+    return &MODELS[m >= 0 && m < N_MODELS ? m : 0];
+}
 
 static void push_error(HDerror code) {
     if (n_errors == STACK) { memmove(errors, errors + 1, sizeof errors[0] * (STACK - 1)); n_errors--; }
@@ -271,11 +300,11 @@ void hdGetDoublev(HDenum param, double *out) {
         memcpy(out, m, sizeof m);
         break;
     }
-    case HD_USABLE_WORKSPACE_DIMENSIONS: memcpy(out, USABLE_BOX, sizeof USABLE_BOX); break;
-    case HD_NOMINAL_MAX_STIFFNESS: out[0] = MAX_STIFFNESS; break;
-    case HD_NOMINAL_MAX_FORCE: out[0] = MAX_FORCE; break;
-    case HD_NOMINAL_MAX_CONTINUOUS_FORCE: out[0] = MAX_CONTINUOUS_FORCE; break;
-    case HD_NOMINAL_MAX_DAMPING: out[0] = MAX_DAMPING; break;
+    case HD_USABLE_WORKSPACE_DIMENSIONS: memcpy(out, current_model()->usable_box, 6 * sizeof(double)); break;
+    case HD_NOMINAL_MAX_STIFFNESS: out[0] = current_model()->max_stiffness; break;
+    case HD_NOMINAL_MAX_FORCE: out[0] = current_model()->max_force; break;
+    case HD_NOMINAL_MAX_CONTINUOUS_FORCE: out[0] = current_model()->max_continuous_force; break;
+    case HD_NOMINAL_MAX_DAMPING: out[0] = current_model()->max_damping; break;
     default: push_error(HD_INVALID_ENUM);
     }
     pthread_mutex_unlock(&lock);
@@ -289,7 +318,8 @@ void hdGetIntegerv(HDenum param, int *out) {
     pthread_mutex_unlock(&lock);
 }
 const char *hdGetString(HDenum param) {
-    if (param == HD_DEVICE_MODEL_TYPE) return "Touch (emulated)";
+    if (param == HD_DEVICE_MODEL_TYPE) return current_model()->name;
+    if (param == HD_DEVICE_SERIAL_NUMBER) return ctl->serial;
     pthread_mutex_lock(&lock);
     push_error(HD_INVALID_ENUM);
     pthread_mutex_unlock(&lock);
@@ -301,7 +331,8 @@ void hdSetDoublev(HDenum param, const double *in) {
         double norm = sqrt(in[0] * in[0] + in[1] * in[1] + in[2] * in[2]);
         double scale = 1.0;
         if (!isfinite(norm)) { scale = 0.0; norm = 0.0; }
-        if (norm > MAX_FORCE + 1e-9) { ctl->forces_clamped++; scale = MAX_FORCE / norm; } /* HD_MAX_FORCE_CLAMPING */
+        double max_force = current_model()->max_force;
+        if (norm > max_force + 1e-9) { ctl->forces_clamped++; scale = max_force / norm; } /* HD_MAX_FORCE_CLAMPING */
         for (int i = 0; i < 3; i++) commanded[i] = scale == 0.0 ? 0.0 : in[i] * scale;
     } else {
         push_error(HD_INVALID_ENUM);

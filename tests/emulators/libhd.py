@@ -25,8 +25,13 @@ HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_AUTO, HD_CALIBRATION_INKWELL = 1 <<
 HD_CALIBRATION_OK, HD_CALIBRATION_NEEDS_UPDATE, HD_CALIBRATION_NEEDS_MANUAL_INPUT = 0x5000, 0x5001, 0x5002
 HD_INVALID_ENUM, HD_WARM_MOTORS, HD_EXCEEDED_MAX_VELOCITY, HD_DEVICE_FAULT, HD_COMM_ERROR = (
     0x0100, 0x0200, 0x0203, 0x0300, 0x0302)
+HD_EXCEEDED_MAX_FORCE, HD_EXCEEDED_MAX_FORCE_IMPULSE, HD_FORCE_ERROR = 0x0201, 0x0202, 0x0204
+HD_DEVICE_BUTTON_1 = 1 << 0
 
-# fake_libhd.c's device: the usable box's centre, and the hand's spring
+# fake_libhd.c's MODELS, by the name a test gives them
+MODELS = {"touch": 0, "desktop": 1, "premium": 2}
+
+# fake_libhd.c's model 0: the usable box's centre; the hand's spring
 USABLE_BOX_CENTRE = (0.0, 0.0, -35.0)
 HAND_STIFFNESS_N_PER_MM = 0.5
 UNCALIBRATED_OFFSET = (3.0, -4.0, 5.0)
@@ -39,6 +44,7 @@ class Control(ctypes.Structure):
         ("hand", ctypes.c_double * 3), ("yaw", ctypes.c_double), ("buttons", ctypes.c_int32),
         ("inkwell", ctypes.c_int32), ("plugged", ctypes.c_int32), ("styles", ctypes.c_int32),
         ("inject_code", ctypes.c_int32), ("inject_frames", ctypes.c_int32),
+        ("model", ctypes.c_int32), ("serial", ctypes.c_char * 32),
         ("force", ctypes.c_double * 3), ("max_force", ctypes.c_double), ("reset_distance_mm", ctypes.c_double),
         ("frames", ctypes.c_int64), ("forces_clamped", ctypes.c_int64),
         ("force_enabled", ctypes.c_int32), ("scheduler_running", ctypes.c_int32), ("resets", ctypes.c_int32),
@@ -81,7 +87,8 @@ class EmulatedHD:
     """One emulated arm behind the stand-in library: `control` for the test, `hand` for the user."""
 
     def __init__(self, library: Path, *, styles: int = HD_CALIBRATION_INKWELL, hand=(0.0, 0.0, 0.0),
-                 inkwell: bool = False, name: str | None = None, reset_encoders: bool = False):
+                 inkwell: bool = False, name: str | None = None, reset_encoders: bool = False,
+                 model: str = "touch", serial: str = ""):
         self.library = Path(library)
         self._folder = Path(tempfile.mkdtemp(prefix="fakehd"))
         self.control_path = self._folder / "control"
@@ -90,6 +97,7 @@ class EmulatedHD:
         self._map = mmap.mmap(self._file.fileno(), ctypes.sizeof(Control))
         self.control = Control.from_buffer(self._map)
         self.control.styles, self.control.plugged, self.control.inkwell = styles, 1, int(inkwell)
+        self.control.model, self.control.serial = MODELS[model], serial.encode()
         self.hand = Hand(self.control)
         self.hand.target = hand
         self.name = name
@@ -139,7 +147,7 @@ def launch(**options) -> EmulatedHD:
     """One emulated arm: `library` (a built stand-in) or a build into `directory` (or a
     scratch folder, removed by `close()`). Other options as EmulatedHD: styles (default
     inkwell only), hand, inkwell (True: the stylus starts in the inkwell, so the arm
-    calibrates at once), name, reset_encoders."""
+    calibrates at once), name, reset_encoders, model (a key of MODELS), serial."""
     library, directory = options.pop("library", None), options.pop("directory", None)
     scratch = None
     if library is None:

@@ -10,8 +10,10 @@ torques from the Jacobian's finite differences (τ = Jᵀ·F solved for F).
 
 from __future__ import annotations
 
+import collections
 import threading
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -63,6 +65,7 @@ class HeldStylus:
         self.planar_axis = planar_axis  # a pad that holds the tip in a plane: this coordinate stays put
         self._plane = None if planar_axis is None else float(self.position[planar_axis])
         self.t0 = time.monotonic()  # a hand is a function of the time since the stylus was picked up
+        self._hand_mm = np.asarray(self.hand(0.0), dtype=float)  # where the hand was at the last advance
         self._last: float | None = None
         self.lock = threading.Lock()
 
@@ -85,11 +88,17 @@ class HeldStylus:
                 if self.planar_axis is not None:
                     self.velocity[self.planar_axis] = 0.0
                     self.position[self.planar_axis] = self._plane
+            self._hand_mm = end
             return self.position.copy()
 
     def now(self) -> np.ndarray:
         with self.lock:
             return self.position.copy()
+
+    def held(self) -> tuple[np.ndarray, np.ndarray]:
+        """(stylus, hand) at the last advance, mm."""
+        with self.lock:
+            return self.position.copy(), self._hand_mm.copy()
 
 
 def numeric_jacobian(fk, q, step: float = 1e-6) -> np.ndarray:
@@ -121,15 +130,28 @@ def tip_force(fk, q, joint_torques) -> np.ndarray:
     return np.linalg.lstsq(numeric_jacobian(fk, q).T, np.asarray(joint_torques, dtype=float), rcond=None)[0]
 
 
+@dataclass(frozen=True)
+class Sample:
+    """What the motors did from `t_ns` (monotonic) on: the force on the stylus (N), and
+    where the stylus and the hand holding it were (mm)."""
+
+    t_ns: int
+    force_n: np.ndarray
+    stylus_mm: np.ndarray
+    hand_mm: np.ndarray
+
+
 class ArmUnderStylus:
     """The links of a serial board's arm under the held stylus (for PtySerialDevice boards):
     every move the links follow the stylus (`_follow`, Newton's method from where they
     were), the Jacobian is taken there (`_jacobian_now`), and the motors' force
-    (`motor_force`) is refreshed; it acts on the stylus until the next refresh. The board
-    calls `_start_arm()` once its links and stylus are in place."""
+    (`motor_force`) is refreshed; it acts on the stylus until the next refresh, and
+    `samples` records it. The board calls `_start_arm()` once its links and stylus are in
+    place."""
 
     def _start_arm(self) -> None:
         self.max_force_n = 0.0
+        self.samples: collections.deque[Sample] = collections.deque(maxlen=20000)
         self._force = np.zeros(3)
         self._jacobian = self._jacobian_now()
         self._moved_at = 0.0
@@ -158,3 +180,5 @@ class ArmUnderStylus:
         self.stylus.advance(self._force)  # the old force acted until now
         self._force = self.motor_force()
         self.max_force_n = max(self.max_force_n, float(np.linalg.norm(self._force)))
+        stylus_mm, hand_mm = self.stylus.held()
+        self.samples.append(Sample(time.monotonic_ns(), self._force.copy(), stylus_mm, hand_mm))

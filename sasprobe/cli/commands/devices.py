@@ -97,6 +97,8 @@ def _check(spec: str, seconds: float, as_json: bool) -> int:
         return 0
     lim = info.limits
     print(f"{info.model}  ({spec})")
+    if info.serial:
+        print(f"  serial     {info.serial}")
     print(f"  limits     {lim.max_force_n:g} N peak, {lim.continuous_force_n:g} N continuous, "
           f"{lim.max_stiffness_n_per_mm:g} N/mm, force output {'yes' if lim.has_force_output else 'no'}")
     print(f"  read       {reads} states in {elapsed:.2f} s ({report['rate_hz']:.0f} Hz), {faults} faults")
