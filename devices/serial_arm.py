@@ -52,7 +52,7 @@ PROBE_INTERVAL_S = 0.1  # hfabapi wait_online(): one "[0,0,0]" every 100 ms unti
 RESYNC_QUIET_S = 0.005  # the boards answer within a millisecond: this much silence means nothing is left
 JUNK_PROBES = 5  # a board that answered this many probes with foreign bytes speaks another protocol
 REOPEN_HANDSHAKE_S = 1.0  # a replugged board boots in well under a second
-CLOSE_WAIT_S = 0.02  # how long close() waits for the board to take its zero command
+CLOSE_WAIT_S = 0.25  # how long close() waits for the board to take its zero command (off the loop)
 
 
 def timing_options(options: dict) -> dict:
