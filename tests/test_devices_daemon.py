@@ -18,7 +18,7 @@ import pytest
 
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
-from tests.conftest import REPO_ROOT
+from tests.conftest import REPO_ROOT, skip_or_fail
 from tests.daemon_process import DaemonProcess
 from tests.emulators import falcon_usb, haply_serial, libhd, spacemouse_hid, woodenhaptics_serial
 from tests.serial_arm_session import assert_no_refusals_but_after_deafness, cosine
@@ -261,7 +261,7 @@ def test_daemon_takes_the_input_only_spacemouse(monkeypatch):
 
 def test_daemon_on_openhaptics_through_the_stand_in_library(tmp_path, monkeypatch):
     if libhd.build(tmp_path) is None:
-        pytest.skip("no C compiler to build the stand-in HD library")
+        skip_or_fail("no C compiler to build the stand-in HD library")
     centre = np.asarray(libhd.USABLE_BOX_CENTRE)  # the cube's centre
     emu = libhd.launch(library=tmp_path / "libHD.so", styles=libhd.HD_CALIBRATION_INKWELL, hand=centre,
                        inkwell=True)

@@ -22,6 +22,7 @@ from sasprobe.devices import openhaptics
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.openhaptics import hdapi
 from sasprobe.devices.openhaptics.driver import OpenHapticsDevice
+from tests.conftest import skip_or_fail
 from tests.emulators import libhd
 from tests.emulators.libhd import (HD_CALIBRATION_AUTO, HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_INKWELL,
                                    HD_COMM_ERROR, HD_DEVICE_BUTTON_1, HD_DEVICE_FAULT, HD_EXCEEDED_MAX_FORCE,
@@ -33,7 +34,7 @@ from tests.emulators.libhd import (HD_CALIBRATION_AUTO, HD_CALIBRATION_ENCODER_R
 def library(tmp_path_factory):
     out = libhd.build(tmp_path_factory.mktemp("libhd"))
     if out is None:
-        pytest.skip("no C compiler to build the stand-in HD library")
+        skip_or_fail("no C compiler to build the stand-in HD library")
     return out
 
 

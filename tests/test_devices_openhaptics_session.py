@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sasprobe.protocol.client import ControlError, Subscriber
-from tests.conftest import run_cli
+from tests.conftest import run_cli, skip_or_fail
 from tests.daemon_process import DaemonProcess
 from tests.emulators import libhd
 from tests.emulators.libhd import HD_CALIBRATION_AUTO
@@ -20,7 +20,7 @@ from tests.emulators.libhd import HD_CALIBRATION_AUTO
 def library(tmp_path_factory):
     out = libhd.build(tmp_path_factory.mktemp("libhd"))
     if out is None:
-        pytest.skip("no C compiler to build the stand-in HD library")
+        skip_or_fail("no C compiler to build the stand-in HD library")
     return out
 
 
