@@ -4,7 +4,8 @@ Expected behaviour is that of the SDK's own examples (danepowell/openhaptics, co
 2ce9a48, examples/HD/console): Calibration.c prefers auto over inkwell over encoder
 reset and resets the encoders before the scheduler, at the reset pose;
 AnchoredSpringForce.c stops force output on a force error and ends the callback on a
-scheduler error.
+scheduler error (when force comes back after a force error:
+test_devices_openhaptics_resume.py).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from sasprobe.devices.openhaptics.driver import OpenHapticsDevice
 from tests.conftest import skip_or_fail
 from tests.emulators import libhd
 from tests.emulators.libhd import (HD_CALIBRATION_AUTO, HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_INKWELL,
-                                   HD_COMM_ERROR, HD_DEVICE_BUTTON_1, HD_DEVICE_FAULT, HD_EXCEEDED_MAX_FORCE,
+                                   HD_COMM_ERROR, HD_DEVICE_FAULT, HD_EXCEEDED_MAX_FORCE,
                                    HD_EXCEEDED_MAX_FORCE_IMPULSE, HD_EXCEEDED_MAX_VELOCITY, HD_FORCE_ERROR,
                                    HD_INVALID_ENUM, HD_WARM_MOTORS, UNCALIBRATED_OFFSET, USABLE_BOX_CENTRE)
 
@@ -181,71 +182,6 @@ def test_a_force_error_stops_only_force_output(arm, code):
     assert dev.info.details["force_errors"] == 1 and dev.info.details["force_stopped"] is True
 
 
-# The daemon's wall in these tests: free space toward +x, the force pushing the stylus out
-# along +x. The hand holds the stylus 4 mm inside; 1 N moves it 2 mm out (the hand's 0.5 N/mm).
-INSIDE = np.add(USABLE_BOX_CENTRE, (-4.0, 0.0, 0.0))
-PUSH = (1.0, 0.0, 0.0)
-
-
-def stopped_by_a_force_error_while_pressed_in(arm):
-    dev, emu = arm(styles=HD_CALIBRATION_AUTO, hand=INSIDE)
-    dev.open()
-    wait_for(dev, lambda s: s.calibrated)
-    dev.write_force(PUSH)
-    wait_for(dev, lambda s: s.position_mm[0] == pytest.approx(-2.0))
-    emu.inject(HD_EXCEEDED_MAX_FORCE)
-    emu.wait_frames(5)
-    assert emu.applied_force == (0.0, 0.0, 0.0) and dev.info.details["force_stopped"] is True
-    return dev, emu
-
-
-def render(dev, emu, force):
-    dev.write_force(force)
-    emu.wait_frames(5)
-    return emu.applied_force
-
-
-def test_a_zero_command_with_the_stylus_still_pressed_in_does_not_bring_force_back(arm):
-    """ErrorHandling.c l. 279-303: after a force error, contact comes back only once the device
-    has been on the free side. A loop stall writes zero while the stylus is still in."""
-    dev, emu = stopped_by_a_force_error_while_pressed_in(arm)
-    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)  # the watchdog's zero during a stall
-    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)  # the loop is back, the stylus still in: no force
-    # pulled out by 1 mm, less than 1 N could have pressed it in at the arm's stiffest
-    # (0.5 N/mm: 2 mm): not yet out
-    emu.hand.target = np.add(INSIDE, (3.0, 0.0, 0.0))
-    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
-    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)
-    emu.hand.target = np.add(INSIDE, (4.5, 0.0, 0.0))  # 2.5 mm out: on the free side
-    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)  # force comes back at a zero command only, never with a kick
-    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
-    assert render(dev, emu, (0.5, 0.0, 0.0)) == (0.5, 0.0, 0.0)
-    assert dev.info.details["force_stopped"] is False
-
-
-def test_a_new_button_press_brings_force_back_after_a_force_error(arm):
-    """AnchoredSpringForce.c l. 196-202, 227-233: a force error stops the force until the
-    button is pressed anew; a button held since before the error is no new press."""
-    emu_buttons = HD_DEVICE_BUTTON_1
-    dev, emu = arm(styles=HD_CALIBRATION_AUTO, hand=INSIDE)
-    emu.control.buttons = emu_buttons  # held all along
-    dev.open()
-    wait_for(dev, lambda s: s.calibrated)
-    dev.write_force(PUSH)
-    wait_for(dev, lambda s: s.position_mm[0] == pytest.approx(-2.0))
-    emu.inject(HD_EXCEEDED_MAX_FORCE)
-    emu.wait_frames(5)
-    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
-    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)  # the held button is no new press
-    emu.control.buttons = 0
-    emu.wait_frames(3)
-    emu.control.buttons = emu_buttons  # pressed again, the stylus still in
-    emu.wait_frames(3)
-    assert render(dev, emu, PUSH) == (0.0, 0.0, 0.0)  # still no kick: force resumes at a zero command
-    assert render(dev, emu, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
-    assert render(dev, emu, (0.5, 0.0, 0.0)) == (0.5, 0.0, 0.0)
-
-
 def test_the_force_impulse_warning_is_not_a_force_error(arm):
     """hduIsForceError (libHDU's hduError.o) names warm motors, max force, max velocity and
     force errors, not HD_EXCEEDED_MAX_FORCE_IMPULSE: the library's own impulse check has
@@ -254,7 +190,9 @@ def test_the_force_impulse_warning_is_not_a_force_error(arm):
     emu.inject(HD_EXCEEDED_MAX_FORCE_IMPULSE)
     emu.wait_frames(5)
     dev.read()
-    assert render(dev, emu, (0.5, 0.0, 0.0)) == (0.5, 0.0, 0.0)
+    dev.write_force((0.5, 0.0, 0.0))
+    emu.wait_frames(5)
+    assert emu.applied_force == (0.5, 0.0, 0.0)
     assert dev.info.details["other_errors"] == 1 and dev.info.details["force_errors"] == 0
 
 
@@ -279,7 +217,22 @@ def test_a_scheduler_error_ends_the_callback_and_is_a_fault(arm):
     frames = emu.control.frames
     time.sleep(0.02)
     assert emu.control.frames == frames  # no frame runs any more ...
-    assert emu.applied_force == (0.0, 0.0, 0.0)  # ... and the last one the callback ran sent zero
+    assert emu.applied_force == (0.0, 0.0, 0.0)  # ... and the erring one turned the motors off
+
+
+def test_a_scheduler_error_turns_the_motors_off_before_the_callback_returns(arm):
+    """Nothing may depend on the library calling the callback again after a communication
+    error: here it does not, so what the erring callback left is what the arm renders."""
+    dev, emu = calibrated_and_pushing(arm)
+    emu.control.stop_calls_on_error = 1
+    emu.inject(HD_COMM_ERROR)
+    with pytest.raises(DeviceFault, match="HD_COMM_ERROR"):
+        _until_fault(dev)
+    deadline = time.monotonic() + 2.0
+    while not emu.control.halted:
+        assert time.monotonic() < deadline, "the scheduler did not stop calling"
+        time.sleep(0.001)
+    assert emu.applied_force == (0.0, 0.0, 0.0) and emu.control.force_enabled == 0
 
 
 def test_a_vanished_arm_faults_and_recovers_when_back(arm):

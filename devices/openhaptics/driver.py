@@ -21,18 +21,26 @@ encoder-reset arm is refused at open; a reconnect never resets again.
 Errors (AnchoredSpringForce.c, ErrorHandling.c): after each frame the error stack is
 drained. A force error (hduIsForceError's codes, see hdapi; and, our choice for safety,
 HD_DEVICE_FAULT) stops force output; the callback goes on. The examples give force back
-only once the user has acted: ErrorHandling.c (l. 279-303) allows contact again after the
-device has been on the free side, AnchoredSpringForce.c (l. 196-202, 227-233) after a new
-button press. The driver sits below the daemon and sees no surface, so "the free side" is
-what it can measure: the stylus has moved back along the force it was rendering when the
-error came, by at least that force over the arm's nominal maximum stiffness (the daemon
-renders no stiffer spring, so the contact was at least that deep). Either that or a button
-pressed anew re-arms it, and force comes back at the first zero command after (the user
-out of contact, so nothing kicks). A zero command alone, as a stalled loop writes with the
-stylus still pressed in, does not. A scheduler error (communication, timer) is reported
-by the next `read()` as a DeviceFault; the callback runs one more frame, which sends zero
-force (so the arm holds nothing, whatever the library does with a device it cannot
-reach), and then ends. Other errors are counted and logged.
+only once the user has acted: ErrorHandling.c (l. 279-303) allows contact again once the
+device is on the free side of the surface, AnchoredSpringForce.c (l. 196-202, 227-233)
+after a new button press. The driver sits below the daemon and sees no surface, but the
+daemon's commands say where it is: each command is paired with the position of the state
+the daemon read before it, and a command of any force there says "still in contact". So
+"the free side" is: FREE_COMMANDS commands of exactly zero force in a row, each at a
+position past every in-contact position since the error by FREE_MARGIN_MM, measured along
+the force rendered when the error came (the way out). Zeros that say nothing of the
+contact never count: the watchdog's (`zero_force_now`), and a command after a read that
+failed; an isolated zero (a late tick, the first tick of the daemon's ramp) is followed by
+a command of force and starts the count again. A new button press re-arms at once. Either
+way the force then ramps in: scaled from 0 to 1 over RESUME_RAMP_FRAMES servo frames,
+counted from the first frame that has force to render, so a command that arrives after a
+stall still comes in gradually, never as a step.
+
+A scheduler error (communication, timer) is reported by the next `read()` as a
+DeviceFault. The callback that sees it disables force output (hdDisable(HD_FORCE_OUTPUT):
+"all motors are turned on or off", Reference Table A-10) before it returns
+HD_CALLBACK_DONE: a second frame in the same tick is refused (HD_ONE_FRAME_LIMIT), and
+nothing may depend on the library calling again. Other errors are counted and logged.
 """
 
 from __future__ import annotations
@@ -54,7 +62,9 @@ from sasprobe.devices.hardware import HardwareDriver, clamp_force, quaternion_fr
 log = logging.getLogger("sasprobe.devices.openhaptics")
 
 RESET_ENCODERS = "reset-encoders"
-RESUME_BELOW_N = 0.01  # after a force error, force output resumes (once re-armed) at a command this small
+FREE_COMMANDS = 3  # zero commands in a row past the contact: the stylus is out (a late tick gives one)
+FREE_MARGIN_MM = 0.5  # ... each this far past every in-contact position, along the way out
+RESUME_RAMP_FRAMES = 500  # after a force error, force ramps back in over 0.5 s of the 1 kHz servo loop
 MAX_ERRORS_PER_FRAME = 16  # the error stack is drained, boundedly, after every frame
 
 
@@ -71,7 +81,6 @@ class OpenHapticsDevice(HardwareDriver):
         self._callback = hdapi.SchedulerCallback(self._servo)  # keep a reference: the library calls it
         self._lock = threading.Lock()
         self._force = (ctypes.c_double * 3)()
-        self._zero = (ctypes.c_double * 3)()
         self._limits = PHANTOM_OMNI_LIMITS
         self._centre = np.zeros(3)
         self.calibration_style: int | None = None
@@ -83,10 +92,12 @@ class OpenHapticsDevice(HardwareDriver):
         self._sample = None  # (t_ns, position, velocity, transform, buttons)
         self._fatal: tuple[int, int] | None = None
         self._calibrated = False
-        self._force_blocked = False  # after a force error, until re-armed and commanded zero
-        self._blocked_at = np.zeros(3)  # where the stylus was at that error ...
-        self._blocked_force = np.zeros(3)  # ... and the force then rendered
-        self._rearmed = False  # the stylus has left the contact, or a button was pressed anew
+        self._force_blocked = False  # after a force error, until the stylus is out or a button pressed anew
+        self._way_out = np.zeros(3)  # unit: the force rendered at that error (zero: none was)
+        self._contact_s = -math.inf  # the furthest position along it where the daemon still pushed
+        self._free_commands = 0  # zero commands in a row past it
+        self._read_tip: np.ndarray | None = None  # the tip of the state read() returned last (None: it failed)
+        self._ramp_frames: int | None = None  # force ramping in after a resume: frames with force so far
         self._last_buttons: int | None = None
         self._unlogged: list[int] = []  # error codes the servo thread saw, for read() to log
         self._logged: set[int] = set()
@@ -240,13 +251,12 @@ class OpenHapticsDevice(HardwareDriver):
         calibrated = calibration == hdapi.HD_CALIBRATION_OK
         tip = np.array(position[:])
         with self._lock:
-            ending = self._fatal is not None  # a scheduler error came: this last frame sends zero
-            if self._force_blocked:
-                self._watch_for_release(tip, buttons.value)
+            if self._force_blocked and self._last_buttons is not None and buttons.value & ~self._last_buttons:
+                self._resume()  # AnchoredSpringForce.c: a new button-down edge re-arms
             self._last_buttons = buttons.value
-            rendering = calibrated and not self._force_blocked and not ending
-            rendered = np.array(self._force[:]) if rendering else np.zeros(3)
-            lib.hdSetDoublev(hdapi.HD_CURRENT_FORCE, self._force if rendering else self._zero)
+            rendered = self._output() if calibrated and not self._force_blocked else np.zeros(3)
+            out = (ctypes.c_double * 3)(*rendered)
+            lib.hdSetDoublev(hdapi.HD_CURRENT_FORCE, out)
         lib.hdEndFrame(h)
         errors = self._pop_errors()
         with self._lock:
@@ -264,51 +274,96 @@ class OpenHapticsDevice(HardwareDriver):
                     self._stop_force(tip, rendered)
                 else:
                     self.other_errors += 1
-            if ending:
-                return hdapi.HD_CALLBACK_DONE
+            ending = self._fatal is not None
+        if ending:  # no second frame this tick (HD_ONE_FRAME_LIMIT): the motors go off now
+            lib.hdDisable(hdapi.HD_FORCE_OUTPUT)
+            self._pop_errors()
+            return hdapi.HD_CALLBACK_DONE
         return hdapi.HD_CALLBACK_CONTINUE
 
+    def _output(self) -> np.ndarray:
+        """The force to render this frame: the command, ramped in after a resume."""
+        force = np.array(self._force[:])
+        if self._ramp_frames is None:
+            return force
+        if np.any(force):  # the ramp's clock runs only while there is force to render
+            self._ramp_frames += 1
+        scale = min(self._ramp_frames / RESUME_RAMP_FRAMES, 1.0)
+        if scale >= 1.0:
+            self._ramp_frames = None
+        return force * scale
+
     def _stop_force(self, tip: np.ndarray, rendered: np.ndarray) -> None:
-        """A force error: no force until re-armed (the first error of a series sets where from)."""
+        """A force error: no force until the stylus is out or a button is pressed anew (the first
+        error of a series sets the way out)."""
         if not self._force_blocked:
             self._force_blocked = True
-            self._blocked_at, self._blocked_force = tip, rendered
-        self._rearmed = False
+            push = float(np.linalg.norm(rendered))
+            self._way_out = rendered / push if push > 0.0 else np.zeros(3)
+            self._contact_s = float(tip @ self._way_out) if push > 0.0 else -math.inf
+        self._free_commands = 0
+        self._ramp_frames = None
 
-    def _watch_for_release(self, tip: np.ndarray, buttons: int) -> None:
-        """Re-arm once the stylus has left the contact or a button is pressed anew; then give
-        force back at the first zero command."""
-        pressed_anew = self._last_buttons is not None and buttons & ~self._last_buttons
-        push = float(np.linalg.norm(self._blocked_force))
-        depth_mm = push / self._limits.max_stiffness_n_per_mm  # the shallowest contact that pushes so hard
-        left = push == 0.0 or float((tip - self._blocked_at) @ self._blocked_force) / push >= depth_mm
-        self._rearmed = self._rearmed or bool(pressed_anew) or left
-        if self._rearmed and math.sqrt(sum(v * v for v in self._force)) <= RESUME_BELOW_N:
-            self._force_blocked = False
+    def _resume(self) -> None:
+        self._force_blocked = False
+        self._free_commands = 0
+        self._ramp_frames = 0
+
+    def _watch_for_free_side(self, force: np.ndarray) -> None:
+        """A command the daemon computed at the tip read last, while force is stopped: force says
+        the stylus is still in contact there; exact zeros past every such place, the free side."""
+        tip = self._read_tip
+        if tip is None:
+            return  # the read failed: a fault tick's zero says nothing of the contact
+        push = float(np.linalg.norm(force))
+        if push > 0.0:
+            if not np.any(self._way_out):  # the error came with no force rendered: this is the way out
+                self._way_out = force / push
+            self._contact_s = max(self._contact_s, float(tip @ self._way_out))
+            self._free_commands = 0
+            return
+        if np.any(self._way_out) and float(tip @ self._way_out) < self._contact_s + FREE_MARGIN_MM:
+            self._free_commands = 0
+            return
+        self._free_commands += 1
+        if self._free_commands >= FREE_COMMANDS:
+            self._resume()
 
     # interface ------------------------------------------------------------------------
     def read(self) -> DeviceState:
         with self._lock:
             sample, fatal, calibrated = self._sample, self._fatal, self._calibrated
             unlogged, self._unlogged = self._unlogged, []
+            self._read_tip = None  # until this read succeeds
         for code in unlogged:  # once per code and session; the counts are in `info.details`
             if code not in self._logged and not hdapi.is_scheduler_error(code):
                 self._logged.add(code)
                 stops_force = hdapi.is_force_error(code) or code == hdapi.HD_DEVICE_FAULT
                 log.warning("OpenHaptics reported %s (0x%04x): %s", error_name(code), code,
-                            "force output stopped until the stylus leaves the contact or a button is pressed"
+                            "force output stopped until the stylus is out of the contact or a button is pressed anew"
                             if stops_force else "the servo loop goes on")
         if fatal is not None:
             raise DeviceFault(f"OpenHaptics reported {error_name(fatal[0])} (0x{fatal[0]:04x}, internal {fatal[1]})")
         if sample is None or time.monotonic_ns() - sample[0] > self.read_timeout_s * 1e9:
             raise DeviceFault(f"the OpenHaptics servo loop has not run for {self.read_timeout_s * 1000:.0f} ms")
         t_ns, position, velocity, transform, buttons = sample
+        with self._lock:
+            self._read_tip = position
         return DeviceState(t_ns=t_ns, position_mm=position - self._centre,
                            orientation=quaternion_from_matrix(transform[:3, :3]), velocity_mm_s=velocity,
                            buttons=buttons, calibrated=calibrated)
 
     def write_force(self, force_n) -> None:
-        force = clamp_force(force_n, self._limits.max_force_n)
+        self._command(clamp_force(force_n, self._limits.max_force_n), from_the_loop=True)
+
+    def zero_force_now(self) -> None:
+        """The watchdog's zero while the loop is stalled: rendered at the next frame, and no
+        sign that the stylus has left a contact."""
+        self._command(np.zeros(3), from_the_loop=False)
+
+    def _command(self, force: np.ndarray, from_the_loop: bool) -> None:
         with self._lock:
             self._force[:] = [float(v) for v in force]
             self.force = force
+            if self._force_blocked and from_the_loop:
+                self._watch_for_free_side(force)

@@ -92,6 +92,7 @@ _SIGNATURES = {
     "hdGetError": (HDErrorInfo, []),
     "hdGetErrorString": (ctypes.c_char_p, [ctypes.c_uint]),
     "hdEnable": (None, [ctypes.c_uint]),
+    "hdDisable": (None, [ctypes.c_uint]),
     "hdBeginFrame": (None, [ctypes.c_uint]),
     "hdEndFrame": (None, [ctypes.c_uint]),
     "hdGetDoublev": (None, [ctypes.c_uint, ctypes.POINTER(ctypes.c_double)]),

@@ -23,6 +23,13 @@
  *   frame's start;
  * - an unplugged device: HD_COMM_ERROR every frame and from hdInitDevice, motors off;
  *   an HD_COMM_ERROR raised by the test (inject) leaves the device powered;
+ * - hdDisable(HD_FORCE_OUTPUT) turns the motors off at once, no frame needed
+ *   (OpenHaptics_Ref.pdf Table A-10: "All motors are turned on or off");
+ * - whether the scheduler calls a callback again after a frame that raised a scheduler
+ *   error is not said: by default it does, and a test may say it does not
+ *   (`stop_calls_on_error`), so that nothing a host does after the error can help;
+ * - a record for the test: the largest change of the rendered force from one frame to
+ *   the next (`max_step`: a kick shows as a large step);
  * - the models (struct model): the names the library reports and the peak force,
  *   stiffness and damping of each (chai3d/chai3d 7c76b1f, src/devices/CPhantomDevices.cpp
  *   l. 495-590; the continuous force is ours),
@@ -136,6 +143,9 @@ struct control {
     int32_t calibration;         /* what hdCheckCalibration answers now */
     int32_t initialised;
     int32_t callback_done;       /* the servo callback returned HD_CALLBACK_DONE */
+    double max_step;             /* the largest change of the rendered force from one frame to the next, N */
+    int32_t stop_calls_on_error; /* test: 1 = after a frame that raised a scheduler error, no callback is called */
+    int32_t halted;              /* the scheduler stopped calling callbacks (stop_calls_on_error) */
 };
 
 static struct control fallback = {.plugged = 1, .styles = HD_CALIBRATION_INKWELL};
@@ -149,6 +159,7 @@ static HDSchedulerCallback callback = NULL;
 static void *callback_data = NULL;
 static int in_frame = 0, calibrated = 0, offset_ready = 0;
 static double offset[3], position[3], velocity[3], commanded[3];
+static volatile int raised_scheduler_error = 0; /* in the callback now running */
 
 #define STACK 16
 static HDErrorInfo errors[STACK];
@@ -159,12 +170,28 @@ static const struct model *current_model(void) {
     return &MODELS[m >= 0 && m < N_MODELS ? m : 0];
 }
 
+/* hduError.o's hduIsSchedulerError: communication and timer errors */
+static int is_scheduler_error(HDerror code) {
+    return (code >= 0x0302 && code <= 0x0304) || code == 0x0500 || code == 0x0501;
+}
+
 static void push_error(HDerror code) {
+    if (is_scheduler_error(code)) raised_scheduler_error = 1;
     if (n_errors == STACK) { memmove(errors, errors + 1, sizeof errors[0] * (STACK - 1)); n_errors--; }
     errors[n_errors].errorCode = code;
     errors[n_errors].internalErrorCode = (int)code + 7;
     errors[n_errors].hHD = 1;
     n_errors++;
+}
+
+/* What the motors render from now on (under the lock). */
+static void render(const double applied[3]) {
+    double step = 0.0;
+    for (int i = 0; i < 3; i++) step += (applied[i] - ctl->force[i]) * (applied[i] - ctl->force[i]);
+    if (sqrt(step) > ctl->max_step) ctl->max_step = sqrt(step);
+    memcpy(ctl->force, applied, sizeof ctl->force);
+    double norm = sqrt(applied[0] * applied[0] + applied[1] * applied[1] + applied[2] * applied[2]);
+    if (norm > ctl->max_force) ctl->max_force = norm;
 }
 
 static void lose_calibration(void) {
@@ -251,7 +278,13 @@ void hdEnable(HDenum cap) {
 }
 void hdDisable(HDenum cap) {
     pthread_mutex_lock(&lock);
-    if (cap == HD_FORCE_OUTPUT) ctl->force_enabled = 0; else push_error(HD_INVALID_ENUM);
+    if (cap == HD_FORCE_OUTPUT) { /* Reference Table A-10: "All motors are turned on or off" */
+        static const double off[3] = {0, 0, 0};
+        ctl->force_enabled = 0;
+        render(off);
+    } else {
+        push_error(HD_INVALID_ENUM);
+    }
     pthread_mutex_unlock(&lock);
 }
 void hdBeginFrame(HHD h) {
@@ -283,9 +316,7 @@ void hdEndFrame(HHD h) {
         memcpy(applied, commanded, sizeof applied); /* the last force sent, this frame or before */
     }
     if (ctl->inject_frames > 0) { ctl->inject_frames--; push_error((HDerror)ctl->inject_code); }
-    memcpy(ctl->force, applied, sizeof applied);
-    double norm = sqrt(applied[0] * applied[0] + applied[1] * applied[1] + applied[2] * applied[2]);
-    if (norm > ctl->max_force) ctl->max_force = norm;
+    render(applied);
     ctl->calibration = calibration_state();
     pthread_mutex_unlock(&lock);
 }
@@ -377,11 +408,13 @@ static void *servo(void *arg) {
     (void)arg;
     struct timespec period = {0, 1000000};
     while (running) {
-        HDSchedulerCallback cb = callback;
+        HDSchedulerCallback cb = ctl->halted ? NULL : callback;
+        raised_scheduler_error = 0;
         if (cb && cb(callback_data) == HD_CALLBACK_DONE) {
             callback = NULL;
             ctl->callback_done = 1;
         }
+        if (raised_scheduler_error && ctl->stop_calls_on_error) ctl->halted = 1;
         nanosleep(&period, NULL);
     }
     return NULL;
@@ -389,6 +422,7 @@ static void *servo(void *arg) {
 void hdStartScheduler(void) {
     if (!running) {
         running = 1;
+        ctl->halted = 0;
         ctl->scheduler_running = 1;
         pthread_create(&thread, NULL, servo, NULL);
     }

@@ -50,6 +50,7 @@ class Control(ctypes.Structure):
         ("force_enabled", ctypes.c_int32), ("scheduler_running", ctypes.c_int32), ("resets", ctypes.c_int32),
         ("resets_while_running", ctypes.c_int32), ("last_update_style", ctypes.c_int32),
         ("calibration", ctypes.c_int32), ("initialised", ctypes.c_int32), ("callback_done", ctypes.c_int32),
+        ("max_step", ctypes.c_double), ("stop_calls_on_error", ctypes.c_int32), ("halted", ctypes.c_int32),
     ]
 
 
