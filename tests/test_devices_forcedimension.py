@@ -123,6 +123,43 @@ def test_a_force_is_rendered_in_dhds_frame_and_moves_the_handle(arm):
     np.testing.assert_allclose(state.position_mm, [1000.0 / libdhd.HAND_STIFFNESS_N_PER_M, 0.0, 0.0], atol=0.02)
 
 
+WALL_X_MM, WALL_N_PER_MM = 10.0, 0.5  # a virtual wall beyond x = 10 mm, as stiff as the hand
+
+
+def settle_against_a_wall(dev, timeout_s=30.0):
+    """Tick (read, write the wall's force for that state) until the stylus has come to rest;
+    its mean position over the last 100 reads. A late or failed read writes zero, as the
+    daemon does."""
+    xs: list[float] = []
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            state = dev.read()
+        except DeviceFault:
+            dev.write_force((0.0, 0.0, 0.0))
+            continue
+        x = float(state.position_mm[0])
+        dev.write_force((-WALL_N_PER_MM * max(x - WALL_X_MM, 0.0), 0.0, 0.0))
+        xs.append(x)
+        if len(xs) >= 300 and np.ptp(xs[-100:]) < 0.05:
+            return float(np.mean(xs[-100:]))
+        time.sleep(0.001)
+    raise AssertionError(f"never came to rest: the last reads span {np.ptp(xs[-100:]):.2f} mm")
+
+
+def balance(hand_x_mm, hand_n_per_mm):
+    """Where the hand's spring and the wall's balance."""
+    return (hand_n_per_mm * hand_x_mm + WALL_N_PER_MM * WALL_X_MM) / (hand_n_per_mm + WALL_N_PER_MM)
+
+
+def test_a_virtual_wall_settles_where_the_hand_and_the_wall_balance(arm):
+    dev, emu = arm()
+    dev.open()
+    emu.move_hand(to_dhd_m((14.0, 0.0, 0.0)))  # the hand pushes 4 mm through the wall
+    x = settle_against_a_wall(dev)
+    assert x == pytest.approx(balance(14.0, libdhd.HAND_STIFFNESS_N_PER_M / 1000.0), abs=0.3)
+
+
 def test_timeguard_and_saturation_are_successes(arm):
     dev, emu = arm(timeguard_every=2)
     dev.open()

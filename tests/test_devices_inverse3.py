@@ -29,6 +29,7 @@ from tests.arm_outage import recorded_outage
 from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess
 from tests.emulators.inverse_service import InverseService
+from tests.test_devices_forcedimension import balance, settle_against_a_wall
 from tests.serial_arm_session import cosine
 from tests.test_devices_daemon import WHOLE, poses_until, pushing, settled
 
@@ -131,6 +132,13 @@ def test_a_force_is_sent_as_a_vector_in_haplys_frame_and_moves_the_cursor(arm):
     np.testing.assert_allclose(svc.samples[-1][1], [0.0, -1.0, 0.0])
     np.testing.assert_allclose(state.position_mm, [0.0, 0.0, 2.0], atol=0.02)  # the hand's 0.5 N/mm gives 2 mm
     assert svc.ignored_commands == 0
+
+
+def test_a_virtual_wall_settles_where_the_hand_and_the_wall_balance(arm):
+    dev, svc = arm()
+    svc.hand.target = to_haply_mm((14.0, 0.0, 0.0))  # the hand pushes 4 mm through the wall
+    x = settle_against_a_wall(dev)
+    assert x == pytest.approx(balance(14.0, svc.stylus.hand_k), abs=0.3)
 
 
 def test_the_grips_buttons_and_orientation(arm):
