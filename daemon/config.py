@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from sasprobe.daemon.loop import DEFAULT_RATE_HZ
 from sasprobe.common.errors import UserError
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
 from sasprobe.protocol.security import ServerKeys, ensure_local_keys, load_server_keys
@@ -16,7 +15,7 @@ class DaemonConfig:
     device: str = "sim"
     molecule: str | None = None
     keep_water: bool = False
-    rate_hz: float | None = DEFAULT_RATE_HZ  # None: as fast as possible (replay --speed max)
+    rate_hz: float | None = None  # None: the device's nominal rate (a replay: its recorded rate x speed)
     pub: list[str] = field(default_factory=lambda: [DEFAULT_PUB_ENDPOINT])
     ctl: list[str] = field(default_factory=lambda: [DEFAULT_CTL_ENDPOINT])
     record: str | None = None

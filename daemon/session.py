@@ -3,7 +3,9 @@ command line's DaemonConfig (a replayed device brings the recording's structure,
 rate); once the device is open, its limits, the settings checked against them and the tick
 pipeline. Some arms tell their workspace and limits only when opened (an OpenHaptics arm
 answers HD_USABLE_WORKSPACE_DIMENSIONS after hdInitDevice; a WoodenHaptics board names its
-model in its first reply), so nothing is built from an unopened device's."""
+model in its first reply), so nothing is built from an unopened device's, but for the loop
+rate: unless the command line gives one, the rate the device declares before it opens
+(`DeviceLimits.nominal_rate_hz`: 1000 Hz for every arm but those an Inverse Service serves)."""
 
 from __future__ import annotations
 
@@ -43,7 +45,7 @@ def open_session(config: DaemonConfig) -> SessionStart:
                          probe_radius_A=config.settings.get("probe_radius_A"),
                          cube_half_A=config.settings.get("cube_half_A"))
     settings = dict(config.settings)
-    rate_hz = config.rate_hz
+    rate_hz = config.rate_hz or device.info.limits.nominal_rate_hz
     session = device.recorded_session()
     if session is not None:  # a replay: the recording's structure (unless given), settings and rate
         if config.molecule is None:

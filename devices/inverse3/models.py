@@ -7,6 +7,13 @@ Workspace: Haply's own tutorials keep the cursor inside a sphere about the
 declare the cube inscribed in it (half edge r/√3). Force: 2.0 N, the safety limit Isaac
 Lab's Haply client sets by default (`HaplyDeviceCfg.limit_force`), for every type.
 Stiffness and damping limits are ours.
+
+Rate: the service's round trip rate is not published either (Isaac Lab's client exchanges
+at 200 Hz by default, `HaplyDeviceCfg.data_rate`). The arms declare 500 Hz, the rate the
+daemon runs them at unless told otherwise: the lowest rate of `sasprobe bench haptics`'
+stability map at which both rendering methods stay passive up to the declared 0.5 N/mm,
+with a reply deadline of 5 ms (2.5 periods) that the stand-in service kept far more often
+than the 2.5 ms of 1 kHz on a loaded machine (docs/connect-your-arm.md).
 """
 
 from __future__ import annotations
@@ -19,6 +26,7 @@ from sasprobe.devices.base import DeviceLimits
 MAX_FORCE_N = 2.0
 MAX_STIFFNESS_N_PER_MM = 0.5
 MAX_DAMPING_N_S_PER_M = 3.0
+NOMINAL_RATE_HZ = 500.0
 
 
 @dataclass(frozen=True)
@@ -33,7 +41,7 @@ class InverseModel:
                             max_stiffness_n_per_mm=MAX_STIFFNESS_N_PER_MM,
                             max_damping_n_s_per_m=MAX_DAMPING_N_S_PER_M,
                             workspace_min_mm=(-half, -half, -half), workspace_max_mm=(half, half, half),
-                            nominal_rate_hz=1000.0)
+                            nominal_rate_hz=NOMINAL_RATE_HZ)
 
 
 MODELS = {  # config.type → model

@@ -35,10 +35,15 @@ TARGETS = "1000 Hz, p99 period error ≤ 200 µs, no overrun in 10 s with ~60k a
 
 
 def add_arguments(parser) -> None:
+    from sasprobe.cli.argtypes import positive_float
+
     parser.add_argument("--seconds", type=float, default=None, help="measured window per run (default 10, quick 3)")
     parser.add_argument("--no-realtime", action="store_true",
                         help="skip the real-time (SCHED_FIFO, the default) runs: only --no-realtime daemons")
     parser.add_argument("--no-devices", action="store_true", help="skip the rows on the emulated devices")
+    parser.add_argument("--device-rate", type=positive_float, action="append", metavar="HZ",
+                        help="run each emulated device's row at this loop rate (repeatable; default: the rate "
+                             "each device declares)")
 
 
 def _free_port() -> int:
@@ -186,7 +191,8 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
             r[name].pop("samples_us")
     data, text = {"targets": TARGETS, "runs": runs}, _markdown(runs, seconds)
     if not getattr(args, "no_devices", False):
-        data["devices"] = daemon_devices.measure(seconds, smoke=ctx.smoke)
+        rates = getattr(args, "device_rate", None)
+        data["devices"] = daemon_devices.measure(seconds, smoke=ctx.smoke, rates_hz=rates)
         text += "\n\n" + daemon_devices.markdown(data["devices"])
     if entries:  # the worst pose gap under a client loading the largest structure (--smoke: the smallest)
         from sasprobe.cli.bench.daemon_loading import loading_gap, markdown

@@ -1,9 +1,10 @@
-"""The daemon's 1 kHz loop on every emulated device: does any driver's read hold the tick?
+"""The daemon's loop on every emulated device: does any driver's read hold the tick?
 
 Each row starts one device-side emulator from the checkout's `tests/emulators/` (written
 from the makers' public firmware and host code, importing nothing from sasprobe) in this
-process, then `sasprobe daemon --device ...` on it as a subprocess, and reads the loop's
-figures from `status` after a warm-up. The simulated arm runs in the same run as the
+process, then `sasprobe daemon --device ...` on it as a subprocess (at the rate the device
+declares, or at each rate of `--device-rate`), and reads the loop's figures from `status`
+after a warm-up. The simulated arm runs in the same run as the
 baseline, so each driver's cost is a difference and an overrun ratio measured side by
 side. Without a checkout (an installed wheel has no tests/) the rows are skipped.
 """
@@ -49,7 +50,7 @@ def _launch(module: str, options: dict):
     return importlib.import_module(f"tests.emulators.{module}").launch(**options)
 
 
-def _measure_one(spec: tuple[str, dict] | None, warmup_s: float, seconds: float) -> dict:
+def _measure_one(spec: tuple[str, dict] | None, warmup_s: float, seconds: float, rate_hz: float | None = None) -> dict:
     from sasprobe.protocol.client import ControlClient
 
     emulator = None if spec is None else _launch(*spec)
@@ -61,8 +62,9 @@ def _measure_one(spec: tuple[str, dict] | None, warmup_s: float, seconds: float)
         device = emulator.device_spec
     ctl = f"ipc://{folder}/ctl"
     recording = folder / "reads.mcap"
-    child = DaemonChild(["--device", device, "--pub", f"ipc://{folder}/pub", "--ctl", ctl, "--record", str(recording)],
-                        folder / "daemon.log", env=env, cwd=folder)
+    rate = ["--rate", f"{rate_hz:g}"] if rate_hz else []
+    child = DaemonChild(["--device", device, *rate, "--pub", f"ipc://{folder}/pub", "--ctl", ctl,
+                         "--record", str(recording)], folder / "daemon.log", env=env, cwd=folder)
     try:
         child.wait_ready(READY_S)
         with ControlClient(ctl, timeout_s=10) as client:
@@ -98,16 +100,21 @@ def _reads(recording: Path, start_ns: int, end_ns: int) -> dict:
             "max_us": float(read_us.max())}
 
 
-def measure(seconds: float, smoke: bool = False) -> dict:
-    """One row per emulated device (or why there are none); `smoke`: one emulated device
-    (the simulated arm runs in the rows before)."""
+def measure(seconds: float, smoke: bool = False, rates_hz: list[float] | None = None,
+            labels: list[str] | None = None) -> dict:
+    """One row per emulated device and rate (or why there are none); `smoke`: one emulated
+    device (the simulated arm runs in the rows before); `rates_hz`: the loop rates to run
+    each at (None: the rate each device declares); `labels`: only these rows."""
     if not emulators_available():
         return {"skipped": "needs the repository's tests/emulators/ (run from a checkout)"}
     rows = []
     devices = list(DEVICES.items())[1:2] if smoke else list(DEVICES.items())
-    for label, spec in progress(devices, desc="bench daemon: devices", total=len(devices)):
+    if labels is not None:
+        devices = [(label, DEVICES[label]) for label in labels]
+    runs = [(label, spec, rate) for label, spec in devices for rate in (rates_hz or [None])]
+    for label, spec, rate in progress(runs, desc="bench daemon: devices", total=len(runs)):
         try:
-            result = _measure_one(spec, warmup_s=1.0, seconds=seconds)
+            result = _measure_one(spec, warmup_s=1.0, seconds=seconds, rate_hz=rate)
         except Exception as exc:  # one emulator that cannot start (no C compiler for libHD) skips its row
             rows.append({"label": label, "error": str(exc).splitlines()[0][:200]})
             continue
@@ -137,11 +144,12 @@ def markdown(data: dict) -> str:
             f"{_f(work['recent_p50'])} / {_f(work['recent_p99'])} / {_f(work['max'])} | "
             f"{'-' if ratio is None else f'{ratio:.2f}×'} | {r['load_average_1min']:.1f} |")
     return (
-        f"Emulated devices: `sasprobe daemon --device ...` at 1000 Hz for {data['seconds']:g} s (after a 1 s "
+        f"Emulated devices: `sasprobe daemon --device ...` at the rate each device declares (or as `--device-rate` "
+        f"says) for {data['seconds']:g} s (after a 1 s "
         "warm-up) on each device-side emulator of `tests/emulators/`, the emulator running in the benchmark "
         "process as the hardware would beside the host; tick work is read + haptics + write + publish; read times and "
         "failed reads come from the daemon's recording of the same window. A driver whose read waited on its link "
-        "would show as overruns and a read p99 near 1000 µs.\n\n" + "\n".join(lines))
+        "would show as overruns and a read p99 near its period.\n\n" + "\n".join(lines))
 
 
 def _f(v) -> str:

@@ -75,7 +75,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the colour scheme every renderer shows (the scene's color_scheme; default: each "
                         "renderer's default by structure)")
     p.add_argument("--rate", type=positive_float, default=None, metavar="HZ",
-                   help=f"loop rate (default {DEFAULT_RATE_HZ:g}; a replay runs at its recorded rate times --speed)")
+                   help=f"loop rate (default: the rate the device declares, {DEFAULT_RATE_HZ:g} for most arms; "
+                        "a replay runs at its recorded rate times --speed)")
     p.add_argument("--speed", type=speed, default=1.0, metavar="X|max", help="replay speed factor, or max")
     p.add_argument("--pub", action="append", metavar="ENDPOINT",
                    help=f"PUB endpoint for pose and scene, repeatable (default {DEFAULT_PUB_ENDPOINT}; ipc:// too)")
@@ -116,7 +117,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from sasprobe.daemon.loop import DEFAULT_RATE_HZ
     from sasprobe.daemon.service import Daemon, DaemonConfig
     from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
 
@@ -142,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
         device=args.device,
         molecule=resolve_molecule(args, args.molecule),
         keep_water=args.keep_water,
-        rate_hz=args.rate or DEFAULT_RATE_HZ,
+        rate_hz=args.rate,
         pub=args.pub or [DEFAULT_PUB_ENDPOINT],
         ctl=args.ctl or [DEFAULT_CTL_ENDPOINT],
         record=args.record,
