@@ -9,7 +9,10 @@ pose.json and for the agreement of one tick's flags and fields.
 `checking_clients()` (installed for the whole run by tests/conftest.py) wraps
 `ControlClient.request` and `Subscriber._handle`, so every reply, scene and pose a test
 receives through sasprobe's clients is checked; raw-socket tests call `check_pose_payload`
-and `check_reply` themselves.
+and `check_reply` themselves. `checking_recordings()` (installed the same way) checks every
+message of every recording a test reads through sasprobe's reader
+(`sasprobe.protocol.recording.iter_items`, under the daemon's `load_session`, `summarize`
+and the renderer's playback alike) as the reader hands it out.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from sasprobe.protocol.control import COMMANDS
 from tests.test_protocol_pose import reference_decode  # imported here, not while poses pour in
 
 _FLAG = {f["name"]: 1 << f["bit"] for f in schemas.pose_layout()["flags"]}
+RECORDED_TOPICS = {"device": "device", "pose": "pose", "scene": "scene", "control": "control-record"}  # channel: schema
 
 
 def _strict(node):
@@ -99,8 +103,10 @@ def check_pose_payload(payload: bytes) -> dict:
     return raw
 
 
-def check_pose_agreement(p: dict) -> None:
-    """What the flags say of one tick holds in its fields (record names)."""
+def check_pose_agreement(p: dict, live: bool = True) -> None:
+    """What the flags say of one tick holds in its fields (record names); for a `live` device
+    (any but a replay, whose device times are the recording's) the device time is on the
+    host's clock: not after the publish time."""
     flags = p["flags"]
     assert bool(flags & _FLAG["contact"]) == (p["touched_atom"] >= 0), \
         f"seq {p['seq']}: contact flag {bool(flags & _FLAG['contact'])} with touched_atom {p['touched_atom']}"
@@ -108,15 +114,92 @@ def check_pose_agreement(p: dict) -> None:
         assert p["force_N"] == [0.0, 0.0, 0.0], f"seq {p['seq']}: force {p['force_N']} with flags {flags}"
     assert not (flags & _FLAG["fault"] and flags & _FLAG["ramping"]), f"seq {p['seq']}: fault and ramping"
     assert abs(math.sqrt(sum(q * q for q in p["orientation"])) - 1.0) < 1e-6, f"seq {p['seq']}: orientation"
-    assert 0 <= p["device_t_ns"] <= p["publish_t_ns"], \
+    assert p["device_t_ns"] >= 0, f"seq {p['seq']}: device time {p['device_t_ns']}"
+    assert not live or p["device_t_ns"] <= p["publish_t_ns"], \
         f"seq {p['seq']}: device time {p['device_t_ns']} not on the host's clock before {p['publish_t_ns']}"
 
 
-def check_record(topic: str, record: dict) -> None:
-    """A recording's message by channel; a pose record also for the agreement of its fields."""
-    assert_valid({"device": "device", "pose": "pose", "scene": "scene", "control": "control-record"}[topic], record)
+def check_record(topic: str, record: dict, live: bool = True) -> None:
+    """A recording's message by channel; a pose record also for the agreement of its fields
+    (`live`: recorded from a live device, not a replay)."""
+    assert_valid(RECORDED_TOPICS[topic], record)
     if topic == "pose":
-        check_pose_agreement(record)
+        check_pose_agreement(record, live)
+
+
+_checked_records: set = set()  # hash((topic, raw JSON)) of records already checked: a file read again is not re-checked
+
+
+class RecordingCheck:
+    """The checks of one recording read in file order: each message on a documented channel
+    and valid for its schema, each pose's fields agreeing with its flags, its device time
+    never decreasing and, for a live device (any but a replay), never after its publish time."""
+
+    def __init__(self) -> None:
+        self.device_kind: str | None = None  # the start record's
+        self.device_t_ns = 0
+
+    def item(self, topic: str, data: dict, raw: bytes) -> None:
+        """One item as the reader gives it (`data` empty when it was not decoded)."""
+        if topic in ("attachment", "metadata"):
+            return
+        assert topic in RECORDED_TOPICS, f"a recording's message on the undocumented channel {topic!r}"
+        record = data if data else json.loads(raw)
+        key = hash((topic, bytes(raw)))
+        if key not in _checked_records:
+            check_record(topic, record, live=self.device_kind != "replay")
+            _checked_records.add(key)
+        if topic == "control" and record["cmd"] == "start" and self.device_kind is None:
+            self.device_kind = record["args"]["device"]["kind"]
+        elif topic == "pose":
+            assert record["device_t_ns"] >= self.device_t_ns, \
+                f"seq {record['seq']}: device time {record['device_t_ns']} before the last, {self.device_t_ns}"
+            self.device_t_ns = record["device_t_ns"]
+
+
+def checked_items(items):
+    """The items of one recording (sasprobe's `iter_items`), each checked as it is handed out.
+    A failure is pytest's, which is no Exception: a reader cannot take it for a damaged file."""
+    check = RecordingCheck()
+    for item in items:
+        try:
+            check.item(item.topic, item.data, item.raw)
+        except AssertionError as exc:
+            why = str(exc)
+        else:
+            yield item
+            continue
+        import pytest
+
+        pytest.fail(f"a recorded {item.topic} message: {why}", pytrace=False)
+
+
+@contextlib.contextmanager
+def checking_recordings():
+    """Every recording read through sasprobe's reader is checked as it is read:
+    `sasprobe.protocol.recording.iter_items` is replaced by one that checks what it yields,
+    in its module and wherever it was imported by name (the replay, the playback, test
+    modules); modules imported later take the replacement."""
+    import sys
+
+    from sasprobe.protocol import recording
+
+    original = recording.iter_items
+    for ref in RECORDED_TOPICS.values():  # build the validators now, not while records pour in
+        list(_validator(ref).iter_errors({}))
+
+    @functools.wraps(original)
+    def iter_items(path, decode: bool = True):
+        return checked_items(original(path, decode))
+
+    bound = [m for m in list(sys.modules.values()) if vars(m).get("iter_items") is original]
+    for module in bound:
+        module.iter_items = iter_items
+    try:
+        yield
+    finally:
+        for module in bound:
+            module.iter_items = original
 
 
 @contextlib.contextmanager

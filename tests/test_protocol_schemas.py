@@ -32,3 +32,19 @@ def test_a_bundled_schema_validates_as_the_registry_does():
     assert control.is_valid({"seq": 3, "cmd": "mark", "args": mark})
     assert not control.is_valid({"seq": 3, "cmd": "mark", "args": {**mark, "source": "nose"}})
     assert schemas.validation_errors("control-record", {"seq": 3, "cmd": "mark", "args": {**mark, "source": "nose"}})
+
+
+def test_every_recording_a_test_reads_is_checked(tmp_path):
+    """tests/conftest.py checks each record as sasprobe's reader hands it out, whichever
+    module imported the reader: an undocumented command fails the test that reads it."""
+    from sasprobe.daemon.recording.replay import load_session
+    from sasprobe.daemon.recording.writer import Recorder
+    from sasprobe.protocol.recording import iter_items, summarize
+
+    path = tmp_path / "bad.mcap"
+    recorder = Recorder(path)
+    recorder.offer_json("control", 1, {"seq": 0, "cmd": "explode", "args": {}})
+    recorder.close()
+    for read in (lambda: list(iter_items(path)), lambda: summarize(path), lambda: load_session(path)):
+        with pytest.raises(pytest.fail.Exception, match="'explode' is not one of"):
+            read()
