@@ -26,7 +26,7 @@ from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
 from sasprobe.protocol.recording import iter_items
 from sasprobe.protocol.schemas import channel_schemas
 from tests.daemon_process import DaemonProcess
-from tests.schema_check import check_reply
+from tests.schema_check import check_raw_reply
 
 TICKS = 3200  # the session's length in ticks
 FAULTS = ("raise@800+30", "nan@1100+20", "stall@1500+30")  # the first two while the scan script touches
@@ -53,6 +53,7 @@ def _dealer(endpoint: str, frames: list[bytes]) -> dict:
     finally:
         sock.close()
     assert reply[0] != b"", "a reply to a request without delimiter has none"
+    check_raw_reply(frames[0], reply)
     decode_reply(reply)
     return json.loads(reply[0])
 
@@ -93,6 +94,9 @@ def session(tmp_path_factory):
                 r["scene"] = client.get_scene()
                 r["dealer_error"] = _dealer(d.ctl, [b'{"cmd": "explode", "id": "d-1"}'])
                 r["dealer_ok"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": 7.5}'])
+                r["dealer_limit"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": "d-2", "args": {"x": 1e400}}'])
+                r["id_too_long"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": "' + b"i" * 201 + b'"}'])
+                r["id_object"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": {"a": 1}}'])
                 _wait_tick(client, TICKS)
                 r["status"] = client.status()
         finally:
@@ -122,8 +126,6 @@ def test_every_message_of_the_session_follows_the_schemas(session):
     commands = [c["cmd"] for c in _recorded(session, "control")]
     for cmd in ("start", "set", "mark", "clutch", "recentre", "view"):
         assert cmd in commands, f"no {cmd} in the recording"
-    check_reply("explode", session["replies"]["dealer_error"])
-    check_reply("ping", session["replies"]["dealer_ok"])
     with open(session["path"], "rb") as f:  # the recording embeds the same schemas
         summary = make_reader(f).get_summary()
     embedded = {ch.topic: summary.schemas[ch.schema_id] for ch in summary.channels.values()}
@@ -202,6 +204,9 @@ def test_replies_echo_ids_and_the_clutch_lease(session):
     r = session["replies"]
     assert r["dealer_error"]["id"] == "d-1" and not r["dealer_error"]["ok"]
     assert r["dealer_ok"]["id"] == 7.5 and r["dealer_ok"]["ok"]
+    assert r["dealer_limit"]["id"] == "d-2" and "not finite" in r["dealer_limit"]["error"]  # JSON past a limit
+    for bad in (r["id_too_long"], r["id_object"]):  # an id of 201 characters, or an object: refused, not echoed
+        assert bad["ok"] is False and "id" not in bad and bad["error"].startswith("'id' must be a string")
     assert r["clutch_held"]["lease_s"] == 1.0 and r["clutch_released"]["lease_s"] is None
 
 
