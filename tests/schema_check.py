@@ -7,8 +7,8 @@ decoder of tests/test_protocol_pose.py (not sasprobe's codec), then checked agai
 pose.json and for the agreement of one tick's flags and fields.
 
 `checking_clients()` (installed for the whole run by tests/conftest.py) wraps
-`ControlClient.request` and `Subscriber._handle`, so every reply, scene and pose a test
-receives through sasprobe's clients is checked; raw-socket tests call `check_pose_payload`
+`ControlClient.request` and `Subscriber._handle`, so every reply (its frames as received),
+scene and pose a test receives through sasprobe's clients is checked; raw-socket tests call `check_pose_payload`
 and `check_reply` themselves. `checking_recordings()` (installed the same way) checks every
 message of every recording a test reads through sasprobe's reader
 (`sasprobe.protocol.recording.iter_items`, under the daemon's `load_session`, `summarize`
@@ -68,6 +68,17 @@ def check_reply(cmd: str, reply_json: dict) -> None:
         assert_valid(f"control#/$defs/result.{cmd}", reply_json["result"])
 
 
+def check_reply_frames(cmd: str, reply_frames: list) -> dict:
+    """A reply's frames as they came off the socket: the JSON frame as sent (no key added or
+    lost by a decoder), and a second frame exactly for a `get_structure` that succeeded.
+    Returns the decoded JSON frame."""
+    reply_json = json.loads(bytes(reply_frames[0]))
+    check_reply(cmd, reply_json)
+    frames = 2 if cmd == "get_structure" and reply_json["ok"] else 1
+    assert len(reply_frames) == frames, f"a reply to {cmd!r} of {len(reply_frames)} frames"
+    return reply_json
+
+
 def check_raw_reply(request_frame: bytes, reply_frames: list) -> None:
     """A reply to a request sent on a raw socket: checked as the reply to the command the
     request names, or as a bare envelope when it names none."""
@@ -76,7 +87,7 @@ def check_raw_reply(request_frame: bytes, reply_frames: list) -> None:
     except (ValueError, RecursionError):
         request = None
     cmd = request.get("cmd") if isinstance(request, dict) else None
-    check_reply(cmd if isinstance(cmd, str) else "", json.loads(bytes(reply_frames[0])))
+    check_reply_frames(cmd if isinstance(cmd, str) else "", reply_frames)
 
 
 def check_scene(scene: dict) -> None:
@@ -204,18 +215,28 @@ def checking_recordings():
 
 @contextlib.contextmanager
 def checking_clients():
-    """Wrap sasprobe's ControlClient and Subscriber so every received message is checked."""
+    """Wrap sasprobe's ControlClient and Subscriber so every received message is checked:
+    a reply as the frames the client received (captured where it decodes them), a pose or
+    scene as its payload."""
+    import threading
+
     from sasprobe.protocol import client
 
     original_request, original_handle = client.ControlClient.request, client.Subscriber._handle
+    original_decode = client.decode_reply
+    received = threading.local()  # the frames of the reply the calling thread's client decoded last
     for ref in ("scene", "control#/$defs/reply"):  # build the validators now, not while messages pour in
         list(_validator(ref).iter_errors({}))
 
+    def decode_reply(frames):
+        received.frames = [bytes(f) for f in frames]
+        return original_decode(frames)
+
     def request(self, cmd, args=None, data=None, timeout_s=None):
+        received.frames = None
         reply = original_request(self, cmd, args, data=data, timeout_s=timeout_s)
-        envelope = {"version": reply.version, "ok": reply.ok, **({} if reply.id is None else {"id": reply.id})}
-        envelope.update({"result": reply.result} if reply.ok else {"error": reply.error})
-        check_reply(cmd, envelope)
+        assert received.frames is not None, f"the client returned a reply to {cmd!r} it did not decode"
+        check_reply_frames(cmd, received.frames)
         return reply
 
     def handle(self, frames):
@@ -228,7 +249,9 @@ def checking_clients():
         return pose
 
     client.ControlClient.request, client.Subscriber._handle = request, handle
+    client.decode_reply = decode_reply
     try:
         yield
     finally:
         client.ControlClient.request, client.Subscriber._handle = original_request, original_handle
+        client.decode_reply = original_decode
