@@ -1,5 +1,5 @@
-"""One recorded daemon session with everything a client meets — injected faults (failed and
-non-finite reads, a loop stall), marks by button and by control, the clutch by button and by
+"""One recorded daemon session with everything a client meets — injected faults (failed,
+non-finite and slow reads, a loop stall), marks by button and by control, the clutch by button and by
 key, a recentre by button and by control, a view turn — checked against protocol/README.md
 and protocol/schemas/: every message received on the wire and every record of its recording.
 
@@ -29,7 +29,9 @@ from tests.daemon_process import DaemonProcess
 from tests.schema_check import check_raw_reply
 
 TICKS = 3200  # the session's length in ticks
-FAULTS = ("raise@800+30", "nan@1100+20", "stall@1500+30")  # the first two while the scan script touches
+SLOW_READS = range(3000, 3010)  # ticks whose device read the daemon makes slow
+FAULTS = ("raise@800+30", "nan@1100+20", "stall@1500+30",  # the first two while the scan script touches
+          f"slow@{SLOW_READS.start}+{len(SLOW_READS)}")
 BUTTONS = ("2@400+5", "0@2200+300", "1@2700+5")  # mark, clutch held 300 ticks, recentre (the default map)
 TURN = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
 
@@ -166,6 +168,27 @@ def test_failed_reads_are_complete_records(session):
         assert r["velocity_mm_s"] == [None] * 3 and r["buttons"] is None and r["calibrated"] is None
     nans = [r for r in devices.values() if r["t_ns"] is not None and r["position_mm"][0] is None]
     assert len(nans) == 20 and all(r["calibrated"] is True and isinstance(r["buttons"], int) for r in nans)
+
+
+def test_a_slow_read_counts_as_failed_and_repeats_the_proxy(session):
+    """A read that took more than 3 periods gave a state but counts as failed: the engine does
+    not run, so proxy, goal and cube repeat the tick before; tip and time are the reading's."""
+    devices, poses = _ticks(session)
+    changed = {c["seq"] for c in _recorded(session, "control")}  # a change of that tick may move the cube
+    slow = [s for s, r in devices.items() if r["error"] and r["error"].startswith("device read took")
+            and s not in changed and s - 1 in poses]
+    injected = set(SLOW_READS) - changed
+    assert injected and injected <= set(slow), "the injected slow reads were not counted as failed"
+    for s in slow:
+        p, before, r = poses[s], poses[s - 1], devices[s]
+        assert r["read_ns"] > 3 * 1_000_000 and r["t_ns"] is not None  # slow, yet a state
+        assert p["flags"] & FLAG_FAULT and not p["flags"] & FLAG_CONTACT and p["touched_atom"] == -1
+        assert p["force_N"] == [0.0, 0.0, 0.0]
+        for key in ("proxy_A", "goal_A", "cube_center_A", "cube_half_A"):
+            assert p[key] == before[key], (s, key)
+        assert p["tip_mm"] == r["position_mm"] and p["device_t_ns"] == r["t_ns"]
+    hand_moves = [s for s in poses if s - 1 in poses and poses[s]["goal_A"] != poses[s - 1]["goal_A"]]
+    assert len(hand_moves) > TICKS // 2, "the goal moves on ordinary ticks: its repeating is no accident"
 
 
 def test_a_late_tick_still_runs_the_engine(session):
