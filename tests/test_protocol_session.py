@@ -26,7 +26,7 @@ from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
 from sasprobe.protocol.recording import iter_items
 from sasprobe.protocol.schemas import channel_schemas
 from tests.daemon_process import DaemonProcess
-from tests.schema_check import check_raw_reply
+from tests.schema_check import check_pose_payload, check_raw_reply
 
 TICKS = 3200  # the session's length in ticks
 SLOW_READS = range(3000, 3010)  # ticks whose device read the daemon makes slow
@@ -243,3 +243,42 @@ def test_the_recording_says_who_wrote_it(session):
     assert metadata["name"] == "sasprobe"
     assert set(metadata) == {"name", "daemon_version", "device", "rate_hz", "started_unix_s"}
     assert metadata["device"] == "sim" and float(metadata["rate_hz"]) == 1000.0
+
+
+IDLE_TICKS = 20_000  # ten times the daemon's queue for a subscriber (2000 messages)
+
+
+def test_an_idle_subscriber_loses_poses_and_never_slows_the_daemon():
+    """protocol/README.md: a subscriber that reads too slowly loses poses once 2000 messages
+    wait for it in the daemon's queue, and the daemon never blocks. A raw SUB socket reads one
+    pose (its subscription is in place), then nothing while the daemon runs 20,000 more ticks
+    (counted by the daemon, not timed), then reads: the poses after the first come in order,
+    2000 messages or more, then skip ahead to the newest."""
+    with DaemonProcess("--rate", "5000") as d:  # the rule is in messages: a faster loop only saves time
+        sock = zmq.Context.instance().socket(zmq.SUB)
+        sock.linger = 0
+        sock.setsockopt(zmq.SUBSCRIBE, b"")
+        sock.connect(d.pub)
+        try:
+            assert sock.poll(30_000), "no message"
+            while (frames := sock.recv_multipart())[0] != b"pose":
+                pass
+            first = check_pose_payload(frames[1])["seq"]
+            with ControlClient(d.ctl) as client:
+                deadline = time.monotonic() + 120
+                while (ticks := client.status()["loop"]["total"]["ticks"]) < first + IDLE_TICKS:
+                    assert time.monotonic() < deadline, f"the daemon reached tick {ticks} of {first + IDLE_TICKS}"
+                    time.sleep(0.2)
+            received = []  # pose seq, or None for a scene
+            while not received or received[-1] is None or received[-1] < ticks:
+                assert sock.poll(30_000), "the subscriber stopped receiving"
+                topic, payload = sock.recv_multipart()
+                received.append(check_pose_payload(payload)["seq"] if topic == b"pose" else None)
+        finally:
+            sock.close()
+    poses = [s for s in received if s is not None]
+    lost_at = next((i for i, (a, b) in enumerate(zip([first, *poses], poses)) if b != a + 1), None)
+    assert lost_at is not None, f"{len(poses)} poses in order: the daemon queued them all"
+    in_order = received.index(poses[lost_at])  # messages, scenes included, before the first loss
+    assert in_order >= 2000, f"the first pose was lost after {in_order} messages"
+    assert poses == sorted(poses) and poses[-1] >= ticks  # then the newest
