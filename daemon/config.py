@@ -34,6 +34,7 @@ class DaemonConfig:
     load_dir: str | None = None  # `load` may read files below this folder (None: bytes only)
     record_dir: str | None = None  # `record_start` writes below this folder (None: refused)
     loop_stalls: list[tuple[int, float]] = field(default_factory=list)  # test hook: (tick, seconds) the loop sleeps
+    slow_reads: list[tuple[int, int]] = field(default_factory=list)  # test hook: (tick, count) reads made slow
 
 
 def check_config(config: DaemonConfig) -> DaemonConfig:

@@ -205,6 +205,7 @@ class Daemon:
             self.write_lock
         clock = time.monotonic_ns
         stall_at = dict(self.config.loop_stalls)  # test hook: tick -> seconds the loop sleeps there
+        slow_at = {s for tick, n in self.config.slow_reads for s in range(tick, tick + n)}  # test hook: slow reads
         # A free-running loop (replay at --speed max) has no period to be late against.
         late_read_ns = int(LATE_READ_PERIODS * loop.period_ns) if loop.period_ns else None
         stop_at_ns = clock() + int(self.config.max_seconds * 1e9) if self.config.max_seconds else None
@@ -227,6 +228,8 @@ class Daemon:
                 break
             except Exception as exc:  # a driver bug costs force, never the loop
                 error = error or f"device error: {type(exc).__name__}: {exc}"
+            if tick.seq in slow_at:  # the read takes a period longer than a read that counts as failed
+                time.sleep((LATE_READ_PERIODS + 1) * loop.period_ns / 1e9)
             read_ns = clock() - t_read
             if error is None and late_read_ns is not None and read_ns > late_read_ns:
                 error = f"device read took {read_ns / 1e6:.1f} ms"

@@ -5,10 +5,15 @@ bytes of a structure file. A reply has the same shape: a JSON object saying ok o
 giving an error, then (only for `get_structure`) the file's bytes. Every malformed
 request gets an error reply; see protocol/README.md for each command.
 
-What the JSON may hold is bounded so that no request can make its reader misbehave:
-numbers must be finite doubles (`1e400` is refused, not read as inf), integers at most
-MAX_INTEGER_DIGITS digits, nesting at most MAX_NESTING deep; each limit is refused by
-name. Every frame of a message counts against MAX_MESSAGE_BYTES.
+What the JSON may hold is bounded so that no request can make its reader misbehave
+(protocol/strict_json.py): numbers must be finite doubles (`1e400` is refused, not read as
+inf), integers at most MAX_INTEGER_DIGITS digits, nesting at most MAX_NESTING deep; each
+limit is refused by name. Every frame of a message counts against MAX_MESSAGE_BYTES.
+
+The request's `id` is read before anything else is checked, so every error reply carries
+it, except where it cannot be read: a first frame over MAX_REQUEST_JSON_BYTES, not UTF-8,
+not one JSON object, or with an `id` that is not valid. A frame that is JSON but breaks a
+number or nesting limit gets its id from its outermost members (`outer_members`).
 """
 
 from __future__ import annotations
@@ -23,18 +28,17 @@ from sasprobe.protocol.scene import (
     HAPTIC_METHODS,
     SceneError,
     merge_lights,
-    reject_constant,
     validate_clip_planes,
     validate_color_scheme,
     validate_mark_label,
 )
+from sasprobe.protocol.strict_json import JSONRefused, outer_members, read_object
+from sasprobe.protocol.strict_json import MAX_INTEGER_DIGITS, MAX_NESTING  # noqa: F401  the limits, beside the others
 
 CONTROL_VERSION = 1
 MAX_REQUEST_JSON_BYTES = 64 * 1024  # the JSON frame; structure bytes travel in frame 2
 MAX_STRUCTURE_BYTES = 256 * 1024 * 1024  # the largest structure file `load` accepts
 MAX_MESSAGE_BYTES = MAX_STRUCTURE_BYTES + MAX_REQUEST_JSON_BYTES  # all frames together; a larger frame drops the connection
-MAX_NESTING = 16  # arrays/objects inside each other (a `set` needs 4)
-MAX_INTEGER_DIGITS = 18  # any int64 of 18 digits; a longer integer is refused
 MAX_NAME_CHARS = 200  # `load`'s name and other short strings
 
 STRUCTURE_FORMS = ("file", "arrays")  # what `get_structure` serves: the file as loaded, or its parsed arrays
@@ -102,49 +106,11 @@ def _dumps(obj: dict) -> bytes:
     return json.dumps(obj, separators=(",", ":"), allow_nan=False).encode()
 
 
-def _finite_float(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise ProtocolError(f"number {text[:24]} is not finite (larger than a double holds)")
-    return value
-
-
-def _bounded_int(text: str) -> int:
-    digits = len(text.lstrip("-"))
-    if digits > MAX_INTEGER_DIGITS:
-        raise ProtocolError(f"integer of {digits} digits is out of range (at most {MAX_INTEGER_DIGITS} digits)")
-    return int(text)
-
-
-def _depth(obj) -> int:
-    """How deeply arrays and objects nest in a parsed JSON value (iterative: no recursion)."""
-    deepest, stack = 0, [(obj, 1)]
-    while stack:
-        value, depth = stack.pop()
-        if isinstance(value, (dict, list)):
-            deepest = max(deepest, depth)
-            if depth <= MAX_NESTING:
-                stack.extend((child, depth + 1) for child in (value.values() if isinstance(value, dict) else value))
-    return deepest
-
-
 def _loads(frame: bytes, what: str) -> dict:
     try:
-        obj = json.loads(frame.decode("utf-8"), parse_constant=reject_constant, parse_float=_finite_float,
-                         parse_int=_bounded_int)
-    except UnicodeDecodeError:
-        raise ProtocolError(f"{what} is not UTF-8 text") from None
-    except ProtocolError as exc:
-        raise ProtocolError(f"{what}: {exc}") from None
-    except RecursionError:
-        raise ProtocolError(f"{what} nests arrays/objects deeper than {MAX_NESTING} levels") from None
-    except ValueError as exc:
-        raise ProtocolError(f"{what} is not valid JSON ({str(exc).splitlines()[0]})") from None
-    if not isinstance(obj, dict):
-        raise ProtocolError(f"{what} must be a JSON object, not {type(obj).__name__}")
-    if _depth(obj) > MAX_NESTING:
-        raise ProtocolError(f"{what} nests arrays/objects deeper than {MAX_NESTING} levels")
-    return obj
+        return read_object(frame, what)
+    except JSONRefused as exc:
+        raise ProtocolError(str(exc)) from None
 
 
 def _check_version(obj: dict, what: str) -> int:
@@ -165,22 +131,36 @@ def encode_request(cmd: str, args: dict | None = None, id: object = None, data: 
 
 def decode_request(frames: list) -> Request:
     """Parse and check a request's frames (bytes or any buffer, e.g. zmq.Frame); ProtocolError
-    says what is wrong in one line. The data frame comes back as a memoryview (no copy)."""
+    says what is wrong in one line, with the request's id wherever it could be read. The data
+    frame comes back as a memoryview (no copy)."""
     if not frames:
         raise ProtocolError("empty request")
-    total = sum(len(f) for f in frames)
-    if total > MAX_MESSAGE_BYTES:
-        raise ProtocolError(f"request of {total} bytes in {len(frames)} frames is larger than {MAX_MESSAGE_BYTES}")
     if len(frames[0]) > MAX_REQUEST_JSON_BYTES:
         raise ProtocolError(f"request of {len(frames[0])} bytes is larger than {MAX_REQUEST_JSON_BYTES}")
-    obj = _loads(bytes(frames[0]), "request")
+    frame = bytes(frames[0])
+    try:
+        obj = read_object(frame, "request")
+    except JSONRefused as exc:
+        raise ProtocolError(str(exc), _id_of_refused(frame) if exc.limit else None) from None
     request_id = request_id_of(obj)
     try:
+        total = sum(len(f) for f in frames)
+        if total > MAX_MESSAGE_BYTES:
+            raise ProtocolError(f"request of {total} bytes in {len(frames)} frames is larger than {MAX_MESSAGE_BYTES}")
         req = _request(obj, frames)
     except ProtocolError as exc:
         raise ProtocolError(str(exc), request_id) from None
     req.id = request_id
     return req
+
+
+def _id_of_refused(frame: bytes):
+    """The id of a request that is JSON but breaks a number or nesting limit, if valid."""
+    members = outer_members(frame)
+    try:
+        return None if members is None else request_id_of(members)
+    except ProtocolError:
+        return None
 
 
 def request_id_of(obj: dict):

@@ -2,8 +2,9 @@
 
 - `pose.json`: the pose's binary layout and flag bits, one table from which the pose
   codec (protocol/pose.py) takes its struct format and flag values, the recording's
-  `pose` channel schema is built (`pose_record_schema`) and protocol/README.md's tables
-  are rendered (`pose_table_markdown`, `flags_table_markdown`; a test compares them);
+  `pose` channel schema is built (`pose_record_schema`) and the tables of
+  protocol/README.md are rendered (`pose_table_markdown`, `flags_table_markdown`; the
+  page carries a copy, which a test checks against the rendering);
 - JSON Schema 2020-12 for every JSON message: `scene.schema.json`, `control.schema.json`
   (every request and reply, `#/$defs/args.CMD` and `#/$defs/result.CMD`),
   `device.schema.json` and `control-record.schema.json` (recording channels),

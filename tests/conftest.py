@@ -1,8 +1,8 @@
 """Shared fixtures: the reference PDB structures (tests/data/pdb), the embedded structure, one headless GL
 context (checked for GL errors after every test that uses it), a real X server for the
 window tests, a helper to run the real CLI, a check that no test leaves the test
-process at a real-time priority, and every message received from a daemon checked against
-the protocol's schemas."""
+process at a real-time priority, and every message received from a daemon or read from a
+recording checked against the protocol's schemas."""
 
 from __future__ import annotations
 
@@ -93,11 +93,12 @@ def _drain_gl_errors(ctx) -> list[str]:
 
 @pytest.fixture(autouse=True, scope="session")
 def _messages_checked_against_the_schemas():
-    """Every reply, scene and pose a test receives through sasprobe's clients is checked
-    against protocol/schemas/ (tests/schema_check.py)."""
-    from tests.schema_check import checking_clients
+    """Every reply, scene and pose a test receives through sasprobe's clients, and every
+    message of every recording it reads through sasprobe's reader, is checked against
+    protocol/schemas/ (tests/schema_check.py)."""
+    from tests.schema_check import checking_clients, checking_recordings
 
-    with checking_clients():
+    with checking_clients(), checking_recordings():
         yield
 
 

@@ -23,10 +23,13 @@ class PoseWatch:
         self.result: dict | None = None
 
     def finish(self) -> dict:
+        """Its report; AssertionError when any pose it received broke the protocol."""
         if self.result is None:
             self.proc.stdin.close()
             self.result = json.loads(self.proc.stdout.readline())
             self.proc.wait(30)
+        assert self.result["invalid"] == 0, \
+            f"{self.result['invalid']} of {self.result['poses']} poses broke the protocol: {self.result['why']}"
         return self.result
 
     def __enter__(self) -> PoseWatch:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import ctypes
 import json
 import logging
+import math
 import sys
 import threading
 import time
@@ -62,6 +63,29 @@ def test_an_id_that_is_not_a_short_string_or_a_number_is_refused(raw_id):
         decode_request([b'{"cmd": "ping", "id": ' + raw_id + b"}"])
     assert info.value.request_id is None  # nothing to echo
     assert decode_request([b'{"cmd": "ping", "id": "' + b"i" * 200 + b'"}']).id == "i" * 200
+
+
+DEEP = b"[" * 20000 + b"]" * 20000  # far deeper than Python's parser recurses
+
+
+@pytest.mark.parametrize("frame, request_id", [
+    (b'{"cmd": "ping", "id": "n", "args": {"x": 1e400}}', "n"),  # a limit: the id was readable
+    (b'{"cmd": "set", "id": 7, "args": {"stiffness_n_per_mm": ' + b"1" * 30 + b"}}", 7),
+    (b'{"id": "deep", "cmd": "ping", "args": ' + DEEP + b"}", "deep"),
+    (b'{"id": -2.5, "cmd": "ping", "args": ' + b"[" * (MAX_NESTING + 1) + b"]" * (MAX_NESTING + 1) + b"}", -2.5),
+    (b'{"cmd": "nope", "id": "u"}', "u"),
+    (b'{"cmd": "ping", "id": 1e400}', None),  # the id itself is not valid
+    (b'{"cmd": "ping", "id": ' + b"9" * 19 + b"}", None),
+    (b'{"cmd": "ping", "id": "n", "args": [1e400, ]}', None),  # not JSON
+    (b'{"cmd": "ping", "id": "n", "args": ' + DEEP + b", }", None),
+    (b'{"cmd": "ping", "id": "n", "args": {"x": NaN}}', None),
+    (b'{"cmd": "ping", "id": "n"} {}', None),
+    (b'\xff{"cmd": "ping", "id": "n"}', None),
+])
+def test_an_error_reply_carries_the_id_wherever_it_can_be_read(frame, request_id):
+    with pytest.raises(ProtocolError) as info:
+        decode_request([frame])
+    assert info.value.request_id == request_id and type(info.value.request_id) is type(request_id)
 
 
 def test_a_dealer_request_with_an_empty_frame_is_framed_correctly():
@@ -131,15 +155,38 @@ def random_message(rng) -> list[bytes]:
     return [(text + "}").encode(), *rng.choice(DATA)]
 
 
+def readable_id(frame: bytes):
+    """protocol/README.md's rule, read with Python's own parser: the id a reply must carry
+    when the first frame is one JSON object (whatever its numbers and nesting) whose `id` is
+    valid (a string of at most 200 characters, a finite number, an integer of at most 18
+    digits); None otherwise."""
+    try:
+        obj = json.loads(frame.decode("utf-8"), parse_constant=_not_json)
+    except (ValueError, RecursionError):
+        return None
+    value = obj.get("id") if isinstance(obj, dict) else None
+    if isinstance(value, str):
+        return value if len(value) <= 200 else None
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value if len(str(abs(value))) <= 18 else None
+    return value if isinstance(value, float) and math.isfinite(value) else None
+
+
+def _not_json(name: str):
+    raise ValueError(name)
+
+
 @settings(max_examples=200, deadline=None, database=None, suppress_health_check=list(HealthCheck))
 @given(rng=st.randoms(use_true_random=False))
 def test_fuzzed_requests_get_named_errors_from_the_real_handlers(live, rng):
-    """200 batches of 50: 10,000 messages through the daemon's real request path."""
+    """200 batches of 50: 10,000 messages through the daemon's real request path, each reply
+    carrying the request's id wherever it can be read."""
     for _ in range(FUZZ_BATCH):
         frames = random_message(rng)
         reply = decode_reply(live.control.answer(frames))
         assert reply.ok or (reply.error and "\n" not in reply.error and not reply.error.startswith("internal")), \
             (frames, reply.error)
+        assert reply.id == (readable_id(frames[0]) if frames else None), (frames, reply)
         if reply.ok:  # only a well-formed request of a known command succeeds
             assert json.loads(frames[0])["cmd"] in COMMANDS
             live.fuzz_ok = getattr(live, "fuzz_ok", 0) + 1

@@ -15,6 +15,7 @@ import gzip
 import os
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -178,3 +179,34 @@ def _stalls(result: dict, windows: list, limit_ms: float) -> dict[str, float]:
         if rest >= limit_ms:
             stalled[name] = rest
     return stalled
+
+
+def test_the_pose_watcher_checks_every_pose(tmp_path):
+    """tests/pose_watch.py reports a pose that breaks pose.json (here a reserved word that is
+    not 0), and PoseWatch fails the test that used it."""
+    from sasprobe.protocol.pose import Pose, encode_pose
+
+    bad = bytearray(encode_pose(Pose(seq=1)))
+    bad[164] = 1  # the reserved word
+    pub = zmq.Context.instance().socket(zmq.PUB)
+    pub.linger = 0
+    endpoint = f"ipc://{tmp_path}/pub"
+    pub.bind(endpoint)
+    stop = threading.Event()
+
+    def publish() -> None:
+        while not stop.is_set():
+            pub.send_multipart([b"pose", bytes(bad)])
+            stop.wait(0.001)
+
+    sender = threading.Thread(target=publish)
+    sender.start()
+    try:
+        watch = PoseWatch(endpoint)
+    finally:
+        stop.set()
+        sender.join()
+        pub.close()
+    with pytest.raises(AssertionError, match="broke the protocol"):
+        watch.finish()
+    assert watch.result["invalid"] >= 1 and "'reserved': 1" in watch.result["why"][0]

@@ -21,6 +21,7 @@ from sasprobe.molecule import parse_structure
 from sasprobe.molecule.packed import unpack_structure
 from sasprobe.protocol.client import ControlClient, ControlError, Subscriber, fetch_structure
 from sasprobe.protocol.control import decode_reply
+from sasprobe.protocol.recording import iter_items
 from sasprobe.protocol.scene import SCENE_VERSION
 from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess, cli_many
@@ -227,24 +228,61 @@ def fetch_raw_default() -> bytes:
     return load_default().source_bytes
 
 
+def _holding_clutch(endpoint: str, held: threading.Event, stop: threading.Event) -> None:
+    """The window's clutch key held down: `clutch` re-sent within its 1 s lease until `stop`
+    (`held` is set once the daemon has taken the first)."""
+    with ControlClient(endpoint) as client:
+        while not stop.is_set():
+            client.call("clutch", held=True)
+            held.set()
+            stop.wait(0.2)
+
+
 def test_recording_started_mid_session_replays_exactly(daemon):
+    """Started with the view turned and the clutch held, a recording opens with both (at the
+    start's tick) and replays exactly; a structure loaded as bytes named `1crn.pdb.gz` is
+    recorded, and attached, under its stem."""
     path = daemon.sockets / "mid.mcap"
+    turn = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
+    held, stop_clutch = threading.Event(), threading.Event()
+    clutch = threading.Thread(target=_holding_clutch, args=(daemon.ctl, held, stop_clutch))
     with ControlClient(daemon.ctl) as client:
         with pytest.raises(ControlError, match="not recording"):
             client.record_stop()
-        started = client.record_start("mid.mcap")  # below its --record-dir
+        client.call("view", rotation=turn)
+        clutch.start()
+        try:
+            assert held.wait(30), "the clutch was not taken"
+            started = client.record_start("mid.mcap")  # below its --record-dir
+        finally:
+            stop_clutch.set()
+            clutch.join()
+        client.call("clutch", held=False)
         with pytest.raises(ControlError, match="already recording"):
             client.record_start("second.mcap")
         time.sleep(0.6)
         client.set(damping_n_s_per_m=0.3, method="penalty")
         time.sleep(0.6)
         client.set(method="proxy")
+        loaded = client.load(data=fetch_raw_default(), name="1crn.pdb.gz")  # the module's structure again
         time.sleep(0.3)
         stopped = client.record_stop()
+        client.call("view", rotation=[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
     assert stopped["dropped"] == 0 and stopped["path"] == str(path) and started["seq"] > 0
+    assert loaded["structure"]["name"] == "1crn"
+    items = list(iter_items(path))  # every record checked against the schemas as it is read
+    control = [item.data for item in items if item.topic == "control"]
+    assert [(c["cmd"], c["seq"]) for c in control[:3]] == [("start", started["seq"]), ("view", started["seq"]),
+                                                           ("clutch", started["seq"])]
+    assert control[1]["args"]["rotation"] == turn and control[2]["args"] == {"held": True}
+    assert [c["cmd"] for c in control[3:]] == ["clutch", "set", "set", "load", "record_stop"]
+    (load,) = [c for c in control if c["cmd"] == "load"]
+    assert load["args"]["name"] == "1crn" and load["args"]["sha256"] == loaded["structure"]["sha256"]
+    attachments = [item.data["name"] for item in items if item.topic == "attachment"]
+    assert attachments == ["1crn", "1crn"]  # at the start, and for the load
     out = run_cli("replay", str(path), "--verify", "--json")
     verify = json.loads(out.stdout)["verify"]
-    assert out.returncode == 0 and verify["ok"] and verify["events_applied"] >= 2, out.stdout
+    assert out.returncode == 0 and verify["ok"] and verify["events_applied"] >= 4, out.stdout
 
 
 def test_status_command_prints_rate_jitter_and_subscribers(daemon):

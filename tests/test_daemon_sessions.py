@@ -68,6 +68,8 @@ def test_replay_verify_reproduces_every_force_exactly(tmp_path):
     assert second.n_ticks == first.n_ticks
     np.testing.assert_array_equal(second.force_n, first.force_n)
     np.testing.assert_array_equal(second.flags, first.flags)
+    device_times = [[item.data["device_t_ns"] for item in iter_items(p) if item.topic == "pose"] for p in (path, again)]
+    assert device_times[1] == device_times[0]  # a replay shows the recorded device times
     assert [e["cmd"] for e in second.events] == [e["cmd"] for e in first.events]
 
 

@@ -4,8 +4,10 @@ daemon recorded it (its doubles are printed to read back bit for bit)."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
+import warnings
 
 import pytest
 
@@ -20,16 +22,21 @@ POSES = 300
 
 @pytest.fixture(scope="module")
 def client_binary(tmp_path_factory):
-    cc = shutil.which("cc") or shutil.which("gcc")
-    flags = subprocess.run(["pkg-config", "--cflags", "--libs", "libzmq"], capture_output=True, text=True) \
-        if shutil.which("pkg-config") else None
-    if cc is None or flags is None or flags.returncode != 0:
-        skip_or_fail("no C toolchain with libzmq for examples/c (Debian: gcc, pkg-config, libzmq3-dev)")
-    out = tmp_path_factory.mktemp("c") / "sasprobe_follow"
-    build = subprocess.run([cc, "-O2", "-Wall", "-Wextra", "-Werror", "-std=c99", "-o", str(out), str(SOURCE),
-                            *flags.stdout.split()], capture_output=True, text=True)
-    assert build.returncode == 0, build.stderr
-    return out
+    """Built as docs/clients.md says, `make -C examples/c`, on a copy (nothing is written into
+    the checkout). The Makefile asks for -Wall -Wextra but not -Werror: a compiler newer than
+    the code may warn, and the build must still succeed (its warnings are reported, not failed)."""
+    tools = [shutil.which(t) for t in ("cc", "make", "pkg-config")]
+    flags = subprocess.run(["pkg-config", "--exists", "libzmq"]) if all(tools) else None
+    if flags is None or flags.returncode != 0:
+        skip_or_fail("no C toolchain with libzmq for examples/c (Debian: gcc, make, pkg-config, libzmq3-dev)")
+    folder = tmp_path_factory.mktemp("c")
+    for name in ("Makefile", SOURCE.name):
+        shutil.copy(SOURCE.parent / name, folder / name)
+    build = subprocess.run(["make", "-C", str(folder)], capture_output=True, text=True)
+    assert build.returncode == 0, build.stdout + build.stderr
+    if "warning:" in build.stderr:
+        warnings.warn(f"examples/c builds with warnings:\n{build.stderr}")
+    return folder / "sasprobe_follow"
 
 
 def _fields(line: str) -> dict:
@@ -72,3 +79,13 @@ def test_the_c_client_follows_a_daemon_and_changes_its_stiffness(client_binary, 
         for key, record in names.items():
             assert [float(v) for v in line[key].split(",")] == want[record], (key, line, want)
         assert float(line["cube_half"]) == want["cube_half_A"]
+
+
+def test_what_the_makefile_builds_is_ignored_by_git():
+    """`make -C examples/c` writes its target beside the source; .gitignore keeps it out."""
+    makefile = (SOURCE.parent / "Makefile").read_text()
+    rules = [line.split(":", 1)[0] for line in makefile.splitlines()  # `target: prerequisites` lines
+             if re.match(r"[\w.]+:(?!=)", line)]
+    targets = [rule for rule in rules if rule != "clean"]
+    ignored = (REPO_ROOT / ".gitignore").read_text().splitlines()
+    assert targets and all(f"/examples/c/{target}" in ignored for target in targets), targets

@@ -116,13 +116,16 @@ def test_short_or_older_payloads_are_rejected(payload):
 
 
 def test_the_readme_tables_and_the_codec_come_from_pose_json():
+    """The README's pose and flags tables and struct format are copies of what
+    sasprobe.protocol.schemas renders from pose.json; a copy that differs fails, printing the
+    rendering to paste."""
     from sasprobe.protocol import schemas
     from sasprobe.protocol.recording import POSE_RECORD_FIELDS
 
     text = README.read_text()
-    assert schemas.pose_table_markdown() in text, "protocol/README.md's pose table differs from schemas/pose.json"
-    assert schemas.flags_table_markdown() in text, "protocol/README.md's flags table differs from schemas/pose.json"
-    assert f"Python `struct` format: `{schemas.pose_struct_format()}`" in text
+    for rendered in (schemas.pose_table_markdown(), schemas.flags_table_markdown(),
+                     f"Python `struct` format: `{schemas.pose_struct_format()}`"):
+        assert rendered in text, f"protocol/README.md differs from schemas/pose.json's rendering:\n{rendered}"
     layout = schemas.pose_layout()
     assert list(readme_pose_table()) == [
         (f["offset"], schemas.field_size(f), f["type"] + (f"[{f['count']}]" if f["count"] > 1 else ""), f["name"])

@@ -1,5 +1,5 @@
-"""One recorded daemon session with everything a client meets — injected faults (failed and
-non-finite reads, a loop stall), marks by button and by control, the clutch by button and by
+"""One recorded daemon session with everything a client meets — injected faults (failed,
+non-finite and slow reads, a loop stall), marks by button and by control, the clutch by button and by
 key, a recentre by button and by control, a view turn — checked against protocol/README.md
 and protocol/schemas/: every message received on the wire and every record of its recording.
 
@@ -26,10 +26,12 @@ from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
 from sasprobe.protocol.recording import iter_items
 from sasprobe.protocol.schemas import channel_schemas
 from tests.daemon_process import DaemonProcess
-from tests.schema_check import check_record, check_reply
+from tests.schema_check import check_pose_payload, check_raw_reply
 
 TICKS = 3200  # the session's length in ticks
-FAULTS = ("raise@800+30", "nan@1100+20", "stall@1500+30")  # the first two while the scan script touches
+SLOW_READS = range(3000, 3010)  # ticks whose device read the daemon makes slow
+FAULTS = ("raise@800+30", "nan@1100+20", "stall@1500+30",  # the first two while the scan script touches
+          f"slow@{SLOW_READS.start}+{len(SLOW_READS)}")
 BUTTONS = ("2@400+5", "0@2200+300", "1@2700+5")  # mark, clutch held 300 ticks, recentre (the default map)
 TURN = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
 
@@ -53,6 +55,7 @@ def _dealer(endpoint: str, frames: list[bytes]) -> dict:
     finally:
         sock.close()
     assert reply[0] != b"", "a reply to a request without delimiter has none"
+    check_raw_reply(frames[0], reply)
     decode_reply(reply)
     return json.loads(reply[0])
 
@@ -93,6 +96,9 @@ def session(tmp_path_factory):
                 r["scene"] = client.get_scene()
                 r["dealer_error"] = _dealer(d.ctl, [b'{"cmd": "explode", "id": "d-1"}'])
                 r["dealer_ok"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": 7.5}'])
+                r["dealer_limit"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": "d-2", "args": {"x": 1e400}}'])
+                r["id_too_long"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": "' + b"i" * 201 + b'"}'])
+                r["id_object"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": {"a": 1}}'])
                 _wait_tick(client, TICKS)
                 r["status"] = client.status()
         finally:
@@ -116,16 +122,12 @@ def _ticks(session) -> tuple[dict[int, dict], dict[int, dict]]:
 
 def test_every_message_of_the_session_follows_the_schemas(session):
     assert len(session["poses"]) > 1000 and session["scenes"] >= 3  # each checked as it arrived
-    for item in session["items"]:
-        if item.topic in ("device", "pose", "scene", "control"):
-            check_record(item.topic, item.data)
+    # every record was checked as `iter_items` read it (tests/schema_check.py's checking_recordings)
     recorded = {t: len(_recorded(session, t)) for t in ("device", "pose", "scene", "control")}
     assert recorded["device"] == recorded["pose"] >= TICKS and recorded["scene"] >= 5
     commands = [c["cmd"] for c in _recorded(session, "control")]
     for cmd in ("start", "set", "mark", "clutch", "recentre", "view"):
         assert cmd in commands, f"no {cmd} in the recording"
-    check_reply("explode", session["replies"]["dealer_error"])
-    check_reply("ping", session["replies"]["dealer_ok"])
     with open(session["path"], "rb") as f:  # the recording embeds the same schemas
         summary = make_reader(f).get_summary()
     embedded = {ch.topic: summary.schemas[ch.schema_id] for ch in summary.channels.values()}
@@ -168,6 +170,27 @@ def test_failed_reads_are_complete_records(session):
     assert len(nans) == 20 and all(r["calibrated"] is True and isinstance(r["buttons"], int) for r in nans)
 
 
+def test_a_slow_read_counts_as_failed_and_repeats_the_proxy(session):
+    """A read that took more than 3 periods gave a state but counts as failed: the engine does
+    not run, so proxy, goal and cube repeat the tick before; tip and time are the reading's."""
+    devices, poses = _ticks(session)
+    changed = {c["seq"] for c in _recorded(session, "control")}  # a change of that tick may move the cube
+    slow = [s for s, r in devices.items() if r["error"] and r["error"].startswith("device read took")
+            and s not in changed and s - 1 in poses]
+    injected = set(SLOW_READS) - changed
+    assert injected and injected <= set(slow), "the injected slow reads were not counted as failed"
+    for s in slow:
+        p, before, r = poses[s], poses[s - 1], devices[s]
+        assert r["read_ns"] > 3 * 1_000_000 and r["t_ns"] is not None  # slow, yet a state
+        assert p["flags"] & FLAG_FAULT and not p["flags"] & FLAG_CONTACT and p["touched_atom"] == -1
+        assert p["force_N"] == [0.0, 0.0, 0.0]
+        for key in ("proxy_A", "goal_A", "cube_center_A", "cube_half_A"):
+            assert p[key] == before[key], (s, key)
+        assert p["tip_mm"] == r["position_mm"] and p["device_t_ns"] == r["t_ns"]
+    hand_moves = [s for s in poses if s - 1 in poses and poses[s]["goal_A"] != poses[s - 1]["goal_A"]]
+    assert len(hand_moves) > TICKS // 2, "the goal moves on ordinary ticks: its repeating is no accident"
+
+
 def test_a_late_tick_still_runs_the_engine(session):
     """A tick faulted for lateness alone (the stall) shows the device's state: the engine ran,
     so proxy and goal follow the tip while the force is zeroed."""
@@ -204,6 +227,9 @@ def test_replies_echo_ids_and_the_clutch_lease(session):
     r = session["replies"]
     assert r["dealer_error"]["id"] == "d-1" and not r["dealer_error"]["ok"]
     assert r["dealer_ok"]["id"] == 7.5 and r["dealer_ok"]["ok"]
+    assert r["dealer_limit"]["id"] == "d-2" and "not finite" in r["dealer_limit"]["error"]  # JSON past a limit
+    for bad in (r["id_too_long"], r["id_object"]):  # an id of 201 characters, or an object: refused, not echoed
+        assert bad["ok"] is False and "id" not in bad and bad["error"].startswith("'id' must be a string")
     assert r["clutch_held"]["lease_s"] == 1.0 and r["clutch_released"]["lease_s"] is None
 
 
@@ -217,3 +243,42 @@ def test_the_recording_says_who_wrote_it(session):
     assert metadata["name"] == "sasprobe"
     assert set(metadata) == {"name", "daemon_version", "device", "rate_hz", "started_unix_s"}
     assert metadata["device"] == "sim" and float(metadata["rate_hz"]) == 1000.0
+
+
+IDLE_TICKS = 20_000  # ten times the daemon's queue for a subscriber (2000 messages)
+
+
+def test_an_idle_subscriber_loses_poses_and_never_slows_the_daemon():
+    """protocol/README.md: a subscriber that reads too slowly loses poses once 2000 messages
+    wait for it in the daemon's queue, and the daemon never blocks. A raw SUB socket reads one
+    pose (its subscription is in place), then nothing while the daemon runs 20,000 more ticks
+    (counted by the daemon, not timed), then reads: the poses after the first come in order,
+    2000 messages or more, then skip ahead to the newest."""
+    with DaemonProcess("--rate", "5000") as d:  # the rule is in messages: a faster loop only saves time
+        sock = zmq.Context.instance().socket(zmq.SUB)
+        sock.linger = 0
+        sock.setsockopt(zmq.SUBSCRIBE, b"")
+        sock.connect(d.pub)
+        try:
+            assert sock.poll(30_000), "no message"
+            while (frames := sock.recv_multipart())[0] != b"pose":
+                pass
+            first = check_pose_payload(frames[1])["seq"]
+            with ControlClient(d.ctl) as client:
+                deadline = time.monotonic() + 120
+                while (ticks := client.status()["loop"]["total"]["ticks"]) < first + IDLE_TICKS:
+                    assert time.monotonic() < deadline, f"the daemon reached tick {ticks} of {first + IDLE_TICKS}"
+                    time.sleep(0.2)
+            received = []  # pose seq, or None for a scene
+            while not received or received[-1] is None or received[-1] < ticks:
+                assert sock.poll(30_000), "the subscriber stopped receiving"
+                topic, payload = sock.recv_multipart()
+                received.append(check_pose_payload(payload)["seq"] if topic == b"pose" else None)
+        finally:
+            sock.close()
+    poses = [s for s in received if s is not None]
+    lost_at = next((i for i, (a, b) in enumerate(zip([first, *poses], poses)) if b != a + 1), None)
+    assert lost_at is not None, f"{len(poses)} poses in order: the daemon queued them all"
+    in_order = received.index(poses[lost_at])  # messages, scenes included, before the first loss
+    assert in_order >= 2000, f"the first pose was lost after {in_order} messages"
+    assert poses == sorted(poses) and poses[-1] >= ticks  # then the newest

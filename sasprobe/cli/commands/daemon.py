@@ -40,7 +40,7 @@ def fault_spec(text: str) -> tuple[str, int, int]:
     from sasprobe.devices.simulated import FAULT_KINDS, parse_fault
 
     try:
-        kind, tick, count = parse_fault(text, FAULT_KINDS + (LOOP_STALL,))
+        kind, tick, count = parse_fault(text, FAULT_KINDS + (LOOP_STALL, SLOW_READ))
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     if kind == LOOP_STALL and count > MAX_STALL_MS:
@@ -49,6 +49,7 @@ def fault_spec(text: str) -> tuple[str, int, int]:
 
 
 LOOP_STALL = "stall"  # the daemon's own: the loop sleeps COUNT ms at TICK (any device); the others are the sim arm's
+SLOW_READ = "slow"  # the daemon's own: the COUNT device reads from TICK take 4 periods each (any device)
 MAX_STALL_MS = 60_000
 
 
@@ -106,8 +107,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-realtime", action="store_true",
                    help="do not ask for SCHED_FIFO (by default the loop asks for it, and warns when it is refused)")
     p.add_argument("--inject-fault", action="append", type=fault_spec, metavar="KIND@TICK[+COUNT]",
-                   help="to try the watchdogs: raise, nan or disconnect at a tick (simulated arm), or stall@TICK+MS "
-                        "(the loop sleeps MS ms; any device); repeatable")
+                   help="to try the watchdogs: raise, nan or disconnect at a tick (simulated arm), stall@TICK+MS "
+                        "(the loop sleeps MS ms) or slow@TICK+N (N device reads take 4 periods each; any device); "
+                        "repeatable")
     p.add_argument("--inject-button", action="append", metavar="BUTTON@TICK+COUNT",
                    help="simulated arm only: hold a button down from a tick for COUNT ticks (repeatable)")
     p.add_argument("--seed", type=int, default=0, help="seed of the simulated arm")
@@ -132,12 +134,12 @@ def run(args: argparse.Namespace) -> int:
         if value is not None
     }
     faults = args.inject_fault or []
-    device_faults = [f"{kind}@{tick}+{count}" for kind, tick, count in faults if kind != LOOP_STALL]
+    device_faults = [f"{kind}@{tick}+{count}" for kind, tick, count in faults if kind not in (LOOP_STALL, SLOW_READ)]
     if device_faults and args.device.split(":", 1)[0].strip().lower() != "sim":
         from sasprobe.common.errors import UserError
 
         raise UserError(f"--inject-fault {device_faults[0]}: only the simulated arm (--device sim...) takes "
-                        f"raise, nan and disconnect faults; stall@TICK+MS works on any device")
+                        f"raise, nan and disconnect faults; stall@TICK+MS and slow@TICK+N work on any device")
     config = DaemonConfig(
         device=args.device,
         molecule=resolve_molecule(args, args.molecule),
@@ -157,6 +159,7 @@ def run(args: argparse.Namespace) -> int:
         realtime=not args.no_realtime,
         faults=device_faults,
         loop_stalls=[(tick, ms / 1000.0) for kind, tick, ms in faults if kind == LOOP_STALL],
+        slow_reads=[(tick, count) for kind, tick, count in faults if kind == SLOW_READ],
         buttons=args.button or [],
         button_presses=args.inject_button or [],
         color_scheme=args.color,
