@@ -189,7 +189,7 @@ def test_the_scripts_load_in_pymol(findings):
     try:
         import pymol  # noqa: F401
     except ImportError:
-        pytest.skip("PyMOL is not installed (pip install pymol-open-source)")
+        skip_or_fail("PyMOL is not installed (pip install -e '.[peers]')")
     out, found, _ = findings
     check = (
         "import sys, pymol; from pymol import cmd; pymol.finish_launching(['pymol', '-cq']);"
