@@ -48,8 +48,13 @@ class Session:
         one, so the second reply is the first that surely took the new force (on a loaded
         machine 20 ms may pass without one)."""
         start, begun = board.replies_sent, time.monotonic()
-        self.until(lambda _s: board.replies_sent >= start + replies and time.monotonic() - begun >= seconds,
-                   timeout_s, force)
+        try:
+            self.until(lambda _s: board.replies_sent >= start + replies and time.monotonic() - begun >= seconds,
+                       timeout_s, force)
+        except AssertionError as exc:  # what the board's own record says of those seconds
+            raise AssertionError(f"{exc}; the board sent {board.replies_sent - start} replies meanwhile, its port "
+                                 f"went unread for at most {board.longest_deaf_s * 1000:.0f} ms, its firmware "
+                                 f"thread {'runs' if board.running else 'has ended'}") from None
 
     def until(self, condition, timeout_s: float = 10.0, force=(0.0, 0.0, 0.0)):
         end = time.monotonic() + timeout_s

@@ -102,6 +102,11 @@ class PtySerialDevice:
             self.power_on()
             self._plug()
 
+    @property
+    def running(self) -> bool:
+        """Whether the firmware thread is still running (it ends on stop() or an exception)."""
+        return self._thread.is_alive()
+
     def stop(self) -> None:
         self._stop.set()
         self._thread.join(timeout=2)
