@@ -30,3 +30,29 @@ def save(fig, path: Path) -> Path:
     fig.savefig(path)
     pyplot().close(fig)
     return path
+
+
+def annotate_apart(ax, notes, fontsize: float = 6) -> None:
+    """Label points without labels overlapping: `notes` is [(x, y, text)] in data
+    coordinates (the axes' scales and limits set); each label takes the first place beside
+    its point (right above, right below, left above, left below) whose box meets no label
+    placed before it, else the first."""
+    fig = ax.figure
+    fig.canvas.draw()  # the transforms of the final limits
+    renderer = fig.canvas.get_renderer()
+    placed = []  # label boxes in display coordinates
+    for x, y, text in notes:
+        best = None
+        for dx, dy, ha, va in ((3, 2, "left", "bottom"), (3, -2, "left", "top"),
+                               (-3, 2, "right", "bottom"), (-3, -2, "right", "top")):
+            label = ax.annotate(text, (x, y), fontsize=fontsize, xytext=(dx, dy), textcoords="offset points",
+                                ha=ha, va=va)
+            box = label.get_window_extent(renderer)
+            if not any(box.overlaps(other) for other in placed):
+                best = (label, box)
+                break
+            label.remove()
+        if best is None:  # nowhere free: the first place
+            label = ax.annotate(text, (x, y), fontsize=fontsize, xytext=(3, 2), textcoords="offset points")
+            best = (label, label.get_window_extent(renderer))
+        placed.append(best[1])

@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from sasprobe.cli.bench.charts import figure, pyplot, save
+from sasprobe.cli.bench.charts import annotate_apart, figure, pyplot, save
 from sasprobe.cli.bench.lighting_scene import (
     Scene,
     cost_vs_size_chart,
@@ -112,9 +112,6 @@ def pareto_chart(rows: list[dict], path, renderer: str):
     for family, (color, marker) in FAMILY_STYLE.items():
         pts = [r for r in rows if r["family"] == family]
         ax.scatter([r["ms"] for r in pts], [r["rmse"] for r in pts], c=color, marker=marker, label=family, zorder=3)
-        for r in pts:
-            note = r["method"] + (f" (bake {r['bake_s']:.2f} s)" if r.get("bake_s") is not None else "")
-            ax.annotate(note, (r["ms"], r["rmse"]), fontsize=6, xytext=(3, 2), textcoords="offset points")
     front, best = [], np.inf
     for r in sorted(rows, key=lambda r: r["ms"]):
         if r["rmse"] < best:
@@ -128,6 +125,10 @@ def pareto_chart(rows: list[dict], path, renderer: str):
     ax.set_ylabel("RMSE vs converged ray-traced AO")
     ax.set_title(f"Ambient occlusion: speed vs accuracy\n({renderer})", fontsize=9)
     ax.legend(fontsize=7)
+    fig.tight_layout()
+    annotate_apart(ax, [(r["ms"], r["rmse"], r["method"] + (f" (bake {r['bake_s']:.2f} s)"
+                                                            if r.get("bake_s") is not None else ""))
+                        for r in sorted(rows, key=lambda r: r["ms"])])
     return save(fig, path)
 
 

@@ -220,14 +220,15 @@ def chart(d: dict, path, renderer_name: str):
             k += 1
     axes[0].set_xticks(x, [f"{sid}\n{next(r['atoms'] for r in d['rows'] if r['id'] == sid)} atoms" for sid in ids])
     axes[0].set_ylabel("median session frame, CPU ms")
-    axes[0].legend(fontsize=7)
+    axes[0].set_ylim(top=axes[0].get_ylim()[1] * 1.3)  # room for the legend above the bars
+    axes[0].legend(fontsize=7, ncol=2, loc="upper center")
     axes[0].set_title(f"Session frame by structure\n{renderer_name.split(' / ')[0]}", fontsize=9)
     if all("connect_frames_1_s" in r for r in d["rows"]):
         for size in d["sizes"]:
             for key, style, what in (("connect_frames_1_s", "o-", "wall"), ("connect_frames_1_cpu_s", "s--", "CPU")):
                 axes[1].plot(ids, [next(r[key] for r in d["rows"] if r["id"] == sid and r["size"] == size)
                                    for sid in ids], style, label=f"{size[0]}x{size[1]}, {what}")
-        axes[1].axhline(3.0, color="grey", lw=0.8, ls=":")
+        axes[1].axhline(3.0, color="grey", lw=0.8, ls=":", label="3 s goal")
         axes[1].set_ylabel("render --connect --frames 1, s")
         axes[1].set_ylim(bottom=0)
         axes[1].legend(fontsize=7)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from sasprobe.cli.bench import BenchContext, BenchResult, median_time
-from sasprobe.cli.bench.charts import figure, save
+from sasprobe.cli.bench.charts import annotate_apart, figure, save
 from sasprobe.common.errors import UserError
 from sasprobe.molecule import UniformGrid, load_structure
 from sasprobe.molecule.sas import ACCESSIBLE_MIN_AREA, shrake_rupley
@@ -59,13 +59,13 @@ def run(ctx: BenchContext) -> BenchResult:
         atoms = [r["n_atoms"] for r in rows]
         ax.loglog(atoms, [r["ours_s"] for r in rows], "o-", label="sasprobe Shrake-Rupley (512 pts + refine)")
         ax.loglog(atoms, [r["freesasa_s"] for r in rows], "s-", label="FreeSASA Lee-Richards (100 slices)")
-        for r in rows:
-            ax.annotate(f"{abs(r['total_rel_error']) * 100:.2f}%", (r["n_atoms"], r["ours_s"]), fontsize=7,
-                        textcoords="offset points", xytext=(4, -10))
         ax.set_xlabel("atoms")
         ax.set_ylabel("median time (s)")
         ax.set_title("SAS time (labels: |total area difference|)")
         ax.legend(fontsize=8)
+        fig.tight_layout()
+        annotate_apart(ax, [(r["n_atoms"], r["ours_s"], f"{abs(r['total_rel_error']) * 100:.2f}%") for r in rows],
+                       fontsize=7)
         charts.append(save(fig, path))
     lines = ["| structure | atoms | sasprobe (s) | FreeSASA LR (s) | ratio | total area diff | flags agree (≥ 0.5 Å²) | flags agree (> 0) |",
              "|---|---:|---:|---:|---:|---:|---:|---:|"]
