@@ -2,7 +2,7 @@
 client's work on it.
 
 An XPUB socket (a PUB that also sees subscriptions) lets the daemon send the scene the
-moment someone subscribes. Sends are non-blocking: a subscriber that stops reading fills
+moment someone subscribes. Sends are non-blocking: a subscriber that no longer reads fills
 its own queue (SNDHWM messages) and then loses poses; the daemon never waits for it.
 
 libzmq applies subscriptions (a trie of topics) on the thread that uses the socket, the

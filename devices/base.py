@@ -31,7 +31,7 @@ IDENTITY_QUATERNION = (1.0, 0.0, 0.0, 0.0)  # (w, x, y, z)
 
 
 class DeviceFault(RuntimeError):
-    """A device that stopped answering correctly at run time (timeout, lost link, bad data)."""
+    """A device that no longer answers correctly at run time (timeout, lost link, bad data)."""
 
 
 class DeviceOpenError(UserError):

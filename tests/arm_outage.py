@@ -1,4 +1,4 @@
-"""What a recording says about an arm that stopped answering: when the daemon flagged the
+"""What a recording says about an arm that went silent: when the daemon flagged the
 fault and zeroed the force, measured on the recording's own clock (the MCAP log times of
 its ticks, on the host's monotonic clock), and whether any tick is missing."""
 

@@ -9,7 +9,7 @@ commanded rate.
 
 A SpaceMouse reports on change only: a cap held still off-centre sends nothing more, and
 keeps moving the cursor until a report says otherwise (spacenavd's example spnavrc,
-`repeat-interval`, describes applications that stop moving in that case). A vanished
+`repeat-interval`, describes applications whose motion then stops). A vanished
 device is a read error, never a silence.
 
 Reads never wait: the hidapi handle is set non-blocking when opened, and each `read()`

@@ -19,7 +19,7 @@
  *   position, as a device polled faster than its TimeGuard answers);
  * - dhdGetLinearVelocity fails with DHD_ERROR_TIMEOUT unless two positions were read in
  *   the last DHD_VELOCITY_WINDOW (20 ms);
- * - a link that goes down (cable out, a device that stops answering): every call fails
+ * - a link that goes down (cable out, a device that no longer answers): every call fails
  *   with DHD_ERROR_COM (or the code the test chose), the device leaves the count, and
  *   its motors turn off (DHD_FORCE_OFF_USBDISCN); force must be enabled again after.
  * Not modelled: the real error strings, expert mode, gravity compensation, the gripper.
