@@ -23,6 +23,7 @@ from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.inverse3 import protocol
 from sasprobe.devices.inverse3.driver import Inverse3Device
 from tests.emulators.inverse_service import InverseService
+from tests.test_devices_daemon import wait_for
 from tests.test_devices_forcedimension import balance, settle_against_a_wall
 
 
@@ -177,20 +178,13 @@ def test_a_hung_service_is_a_fault_within_the_reply_timeout_and_recovers_when_it
     assert dev.info.details["sessions"] == 1 and dev.late_replies >= 1
 
 
-def until(condition, timeout_s=5.0):
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        assert time.monotonic() < deadline, "condition not reached in time"
-        time.sleep(0.002)
-
-
 def test_during_a_hang_the_driver_sends_nothing_and_the_idle_service_zeroes_the_arm(arm):
     """The one message in flight carried the force of the tick before the hang; the daemon's
     zero waits for its reply. What zeroes the motors meanwhile is the service idling an arm
     it is not commanded (realtime/control-commands). After a close the arm stays idle."""
     dev, svc = arm()
     hold(dev, svc, (0.0, 0.5, 0.0))
-    until(lambda: np.any(svc.motor_force()))
+    wait_for(lambda: np.any(svc.motor_force()), 5.0)
     svc.hang()
     with pytest.raises(DeviceFault, match="has not answered for"):
         while True:  # the daemon's ticks until the read faults
@@ -204,13 +198,13 @@ def test_during_a_hang_the_driver_sends_nothing_and_the_idle_service_zeroes_the_
         with pytest.raises(DeviceFault):
             dev.read()
         time.sleep(0.002)
-    until(lambda: not np.any(svc.motor_force()))  # the service idled the arm ...
+    wait_for(lambda: not np.any(svc.motor_force()), 5.0)  # the service idled the arm ...
     assert dev.info.details["messages_sent"] == sent  # ... for the driver could send nothing
     session = dev._session
     dev.close()  # during the hang: nothing can be sent, the socket is closed
     svc.resume()
-    until(lambda: not svc._connections)  # the service sees the client gone ...
-    until(lambda: not np.any(svc.motor_force()))  # ... and, uncommanded, the arm idles
+    wait_for(lambda: not svc._connections, 5.0)  # the service sees the client gone ...
+    wait_for(lambda: not np.any(svc.motor_force()), 5.0)  # ... and, uncommanded, the arm idles
     assert session.sent == sent
 
 
