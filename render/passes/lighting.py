@@ -110,7 +110,6 @@ class LightingPass(LayeredLighting, Pass):
         self._composed = None  # layered: the last compose's inputs, run again for the G-buffer export
         self._looked_up = (-1, None, None)  # (frame index, accessibility, probe light) given with the sun's
         self._still_frames = 0  # frames the probe has stood still
-        self._molecule_changed = True  # layered: the molecule's terms changed this frame (compose them whole)
         self._warned_shell = False
         self._untraced: tuple | None = None  # (light, soft) of the probe light the last frame's shading traced
 
@@ -256,12 +255,11 @@ class LightingPass(LayeredLighting, Pass):
         return self.edges.compute(gbuffer, frame.view, frame.proj, self.settings.edge_settings(),
                                   out=self.textures.get("edges", frame.size), rect=rect)
 
-    def _compose(self, frame: Frame, terms: dict, uniforms: dict, layered: bool = False, export: bool = False,
-                 rect=None, background=None) -> None:
-        """The visibility buffer from the terms (shaders/visibility_terms.glsl, the whole
-        frame's program unless `layered`, with `export` the export's), over `rect` or the
-        whole frame, drawn (render/gl/depth_picked.py) but for the export; a layered frame's
-        background over `background` if given, else over `rect` too."""
+    def _compose(self, frame: Frame, terms: dict, uniforms: dict, export: bool = False, rect=None) -> None:
+        """The visibility buffer from the terms (shaders/visibility_terms.glsl) over `rect` or
+        the whole frame, drawn (render/gl/depth_picked.py: faster than a compute pass on
+        llvmpipe); with `export`, a layered frame's sun and ambient as the export gives them
+        (shaders/visibility_compose.comp), into the images bound at 1 and 2."""
         ones = self.textures.get("ones", frame.size, fill=1.0)
         for unit, name in ((3, "shadow_dir"), (5, "ao"), (6, "edges"), (7, "probe_pixels_sun")):
             terms.get(name, ones).use(location=unit)
@@ -269,14 +267,9 @@ class LightingPass(LayeredLighting, Pass):
         GBuffer.of_targets(t).bind()
         rect = rect if rect is not None else (0, 0, *frame.size)
         if export:
-            t.visibility.bind_to_image(0, read=False, write=True)
-            offset = {"u_offset": (int(rect[0]), int(rect[1]))}
-            self.compose.get(("LAYERED", layered), ("EXPORT", export)).run(rect[2], rect[3], {**uniforms, **offset})
-        elif not layered:  # drawn: faster than a compute pass on llvmpipe
-            self.compose_drawn.run(t.visibility, t.depth, rect, [((("LAYERED", False),), "1")], uniforms)
-        else:  # the plain program on the background, the layered one on the surfaces
-            self.compose_drawn.run(t.visibility, t.depth, background or rect, [((("LAYERED", False),), "==")], uniforms)
-            self.compose_drawn.run(t.visibility, t.depth, rect, [((("LAYERED", True),), ">")], uniforms)
+            self.compose.get().run(rect[2], rect[3], {**uniforms, "u_offset": (int(rect[0]), int(rect[1]))})
+        else:
+            self.compose_drawn.run(t.visibility, t.depth, rect, [((), "1")], uniforms)
 
     # ------------------------------------------------------------ whole frames
     def run(self, frame: Frame) -> None:

@@ -30,7 +30,7 @@ NO_NEIGHBOURS = np.full(MAX_K, -1, dtype=np.int32)
 SHADOW_MARGIN = 0.05  # Å around the probe's shadow capsule
 NO_PROBE_SHARE = {"u_probe_share_ambient": 0, "u_probe_share_sun": 0}  # shaders/probe_share.glsl
 # This pass's own footprints (render/frame_planner.py)
-EDGES, COMPOSE, COMPOSE_BACKGROUND = "lighting edges", "lighting compose", "lighting compose background"
+EDGES, COMPOSE = "lighting edges", "lighting compose"
 
 
 class LayeredLighting:
@@ -41,7 +41,6 @@ class LayeredLighting:
         self.grid.set_probe(None)
         fx = frame.scene.effects
         gbuffer = GBuffer.of_targets(frame.targets)
-        self._molecule_changed = not frame.plan.kept  # the visibility buffer is then composed whole
         if not frame.plan.kept:
             self.ao.view_changed()
             self.molecule_terms = {}
@@ -53,15 +52,14 @@ class LayeredLighting:
         elif self._adding_samples(frame):
             self.molecule_terms["ao"] = self.ao.compute(gbuffer, frame.view, frame.proj,
                                                         frame.scene.sphere_selection(frame.camera), frame.lighting_area())
-            self._molecule_changed = True
 
     def _adding_samples(self, frame: Frame) -> bool:
         """Whether the molecule's AO takes more samples this frame (a kept layer's progressive AO)."""
         return frame.scene.effects.ambient_occlusion and self.ao is not None and not self.ao.converged
 
     def footprint(self, frame: Frame) -> dict:
-        """Where the probe's terms lie this frame: its pixels, the edges around them and, on the
-        atoms, where its shadow of the sun can fall; everywhere while the molecule's AO still
+        """Where the probe changes the picture this frame: its pixels, the edges around them
+        and, on the atoms, where its shadow of the sun can fall; everywhere while the molecule's AO still
         takes samples (the molecule's terms then change everywhere)."""
         self._sync(frame)
         fx, size = frame.scene.effects, frame.size
@@ -71,19 +69,18 @@ class LayeredLighting:
             out[EDGES] = grow_rect(probe_rect, self.settings.edge_settings().reach_px() + 1, size)
             touched = union_rect(touched, out[EDGES])
         if frame.plan.kept and self._adding_samples(frame):
-            return {**out, COMPOSE: EVERYWHERE, COMPOSE_BACKGROUND: EVERYWHERE, LIT: EVERYWHERE,
-                    LIT_BACKGROUND: EVERYWHERE}
+            return {**out, COMPOSE: EVERYWHERE, LIT: EVERYWHERE, LIT_BACKGROUND: EVERYWHERE}
         sun = self.lights[0]
         shadow = None
         if fx.shadows and sun is not None and fx.probe and frame.scene.probe is not None:
             # it falls on the atoms drawn, nowhere else (the trace takes no shadow)
             shadow = intersect_rect(self._probe_shadow_rect(frame, sun, self._soft(frame)), frame.lit_rect())
-        # the background shows the probe's pixels and the halos, not the sun's shadows
-        return {**out, COMPOSE: touched, COMPOSE_BACKGROUND: touched, LIT: union_rect(touched, shadow),
-                LIT_BACKGROUND: touched}
+        # the background shows the probe's pixels and the halos, not the sun's shadows; the
+        # visibility buffer changes where the edges do
+        return {**out, COMPOSE: out.get(EDGES), LIT: union_rect(touched, shadow), LIT_BACKGROUND: touched}
 
     def _run_probe_layer(self, frame: Frame) -> None:
-        fx, size, plan = frame.scene.effects, frame.size, frame.plan
+        fx, plan = frame.scene.effects, frame.plan
         probe_key = self._set_probe(frame)
         probe = self.grid.probe_sphere if probe_key else None
         self._stillness(frame, self._culling_key, probe_key)
@@ -100,55 +97,50 @@ class LayeredLighting:
                 terms["shadow_probe"] = self.layers["shadow_probe"] = baked
             else:  # traced by the shading pass, where it shades again
                 traced = self._probe_light_traced(frame, lamp)
-        probe_rect = frame.probe_rect()
-        probe_sun = fx.shadows and sun is not None and probe is not None
-        if probe_sun and probe_rect is not None:
-            terms["probe_pixels_sun"] = self.shadows.trace(
-                gbuffer, sun, soft, out=self.textures.get("probe_pixels_sun", size), rect=probe_rect, only_probe=True)
         if fx.edge_cueing:
             terms["edges"] = self._edges(gbuffer, frame, plan.region(EDGES))
         probe_ambient = fx.ambient_occlusion and probe is not None
-        probe_sun = probe_sun and "shadow_dir" in terms
-        uniforms = {
-            **ray_epsilon_uniforms(), **light_uniforms(sun, None), "u_probe_sun": int(probe_sun),
-            "u_probe_ambient": int(probe_ambient), "u_k": int(self.settings.ao.k),
-            "u_probe_neighbours": self._neighbours(probe_key, probe).tobytes(),
-        }
+        probe_sun = fx.shadows and sun is not None and probe is not None and "shadow_dir" in terms
         share = {} if not (probe_ambient or probe_sun) else {
             **ray_epsilon_uniforms(), "u_probe_share_ambient": int(probe_ambient), "u_probe_share_sun": int(probe_sun),
             "u_share_probe": tuple(self.grid.probe_sphere), "u_share_probe_reach": self.grid.probe_reach,
-            "u_share_sun_dir": uniforms["u_sun_dir"], "u_share_shell": soft.shell(),
+            "u_share_sun_dir": light_uniforms(sun, None)["u_sun_dir"], "u_share_shell": soft.shell(),
             "u_share_shell_growth": float(soft.growth),
         }
-        # The molecule's terms where the probe's touched them now or last frame (everywhere
-        # when they changed), and, with the layered program, what the probe's own pixels
-        # bring. Beyond those the layered program composes what the plain one does, so but
-        # for a whole frame one pass does both. The probe's shadow of the sun on the atoms is
-        # the shading pass's (probe_share.glsl): it shades again where the shadow can fall.
-        area = frame.lighting_area(composed=True)
-        rect, background_rect = (intersect_rect(plan.region(name), area) for name in (COMPOSE, COMPOSE_BACKGROUND))
-        if probe_rect is not None and not self._molecule_changed:  # rect holds probe_rect: its footprint does
-            self._compose(frame, terms, uniforms, layered=True, rect=rect, background=background_rect)
-        else:
-            if rect is not None:
-                self._compose(frame, terms, {}, rect=rect)
-            if probe_rect is not None:
-                self._compose(frame, terms, uniforms, layered=True, rect=probe_rect)
+        # The visibility buffer holds the molecule's terms, under the probe too: the shading
+        # pass colours the probe's own pixels without them, and takes the probe's share of
+        # the atoms' light in itself. So it is composed where the molecule's terms or the
+        # edges changed, and nowhere else.
+        rect = intersect_rect(plan.region(COMPOSE), frame.lighting_area(composed=True))
+        if rect is not None:
+            self._compose(frame, terms, {}, rect=rect)
         frame.probe_lighting = ProbeLighting(terms.get("shadow_probe"), share, traced)
-        self._composed = (frame, terms, {**uniforms, **NO_PROBE_SHARE, **share}, "shadow_dir" in terms,
-                          fx.ambient_occlusion)
+        self._composed = (frame, terms, share, probe_key, probe_sun, probe_ambient)
 
     def _export_composed(self) -> None:
-        """The last layered frame's composed sun and ambient terms (the probe's share added),
-        written for the export."""
-        frame, terms, uniforms, with_sun, with_ambient = self._composed
+        """The last layered frame's composed sun and ambient terms (the probe's share added,
+        and the probe's own pixels' terms: its sun traced, its ambient the analytic
+        occlusion of the atoms nearest it), written for the export."""
+        frame, terms, share, probe_key, probe_sun, probe_ambient = self._composed
+        sun, terms = self.lights[0], dict(terms)
+        probe_rect = frame.probe_rect()
+        if probe_sun and probe_rect is not None:
+            terms["probe_pixels_sun"] = self.shadows.trace(
+                GBuffer.of_targets(frame.targets), sun, self._soft(frame),
+                out=self.textures.get("probe_pixels_sun", frame.size), rect=probe_rect, only_probe=True)
+        probe = self.grid.probe_sphere if probe_key else None
+        uniforms = {
+            **ray_epsilon_uniforms(), **light_uniforms(sun, None), **NO_PROBE_SHARE, **share,
+            "u_probe_sun": int(probe_sun), "u_probe_ambient": int(probe_ambient), "u_k": int(self.settings.ao.k),
+            "u_probe_neighbours": self._neighbours(probe_key, probe).tobytes(),
+        }
         sun_out, ao_out = self.textures.get("shadow_dir", frame.size), self.textures.get("ao", frame.size)
         sun_out.bind_to_image(1, read=False, write=True)
         ao_out.bind_to_image(2, read=False, write=True)
-        self._compose(frame, terms, uniforms, layered=True, export=True)
-        if with_sun:
+        self._compose(frame, terms, uniforms, export=True)
+        if "shadow_dir" in terms:
             self.layers["shadow_dir"] = sun_out
-        if with_ambient:
+        if frame.scene.effects.ambient_occlusion:
             self.layers["ao"] = ao_out
 
     def _probe_shadow_rect(self, frame: Frame, sun, soft):

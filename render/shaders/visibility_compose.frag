@@ -1,10 +1,7 @@
 #version 430 core
 // The visibility buffer from the lighting terms (visibility_terms.glsl), drawn at the far
-// plane (fullscreen.vert AT_FAR_PLANE) through a depth test against the G-buffer: on a
-// layered frame the plain program for the background, the layered one for the surfaces,
-// so that background pixels skip the layered program's G-buffer reads and probe terms
-// (llvmpipe runs a shader's branches whether taken or not); on a whole frame the plain
-// program for every pixel (a fragment pass runs faster there than the compute pass).
+// plane (fullscreen.vert AT_FAR_PLANE) over the pixels the lighting composes (a fragment
+// pass runs faster there than a compute pass on llvmpipe).
 #include "visibility_terms.glsl"
 
 layout(location = 0) out vec4 o_visibility;
