@@ -159,22 +159,63 @@ def test_light_buffer_equals_the_grid_walk_to_the_bit(crambin, shadow_pass, walk
             assert np.array_equal(listed, walked), (name, light, soft)
             assert 0.05 < (walked[atom != -1] < 0.5).mean() < 0.95  # shadows to compare
     counts = shadow_pass.light_buffer.counts()
-    assert counts.max() <= shadow_pass.light_buffer.capacity and shadow_pass.light_buffer.atoms_in_reach > 100
+    assert shadow_pass.light_buffer.atoms_in_reach > 100 and 1 < counts.max() <= shadow_pass.light_buffer.atoms_in_reach
 
 
-def test_light_buffer_grows_so_every_list_fits(crambin, crambin_grid, walking_pass, scene):
-    """Started with room for one atom a list, the light buffer makes room for every atom in
-    reach, so no list is cut short, and it traces what the walk does."""
-    name, gbuffer, *_ = scene
-    small = ShadowPass(crambin_grid, capacity=1)
+def test_light_buffer_lists_what_a_brute_force_cone_test_lists(crambin, crambin_grid):
+    """Each cell lists, nearest first, exactly the atoms in reach whose cone of directions
+    (about the lists' centre, radius grown by the slack) meets the cell's: found here
+    by sampling each cell's directions densely, as independent of the build's
+    closed-form test as it can be. Sampled directions cannot reach a cone's very edge, so
+    the build may list more (by its margins), never fewer."""
+    shadows = ShadowPass(crambin_grid)
+    lists = shadows.light_buffer
     try:
         light = probe_light(crambin)
-        listed = read_texture(small.trace(gbuffer, light, HARD_SHADOW))
-        counts = small.light_buffer.counts()
-        assert counts.max() > 1 and small.light_buffer.capacity >= small.light_buffer.atoms_in_reach >= counts.max()
-        assert np.array_equal(listed, read_texture(walking_pass.trace(gbuffer, light, HARD_SHADOW)))
+        lists.build(light.position, light.radius, 0.0)
+        centres, vdw = crambin_grid.grid.centers, crambin_grid.vdw_radii
+        grown = vdw + lists.slack + 1e-3
+        table = np.frombuffer(lists.list_atoms.read(), dtype=np.int32)
+        listed = np.split(table[lists.n_cells + 1:][:lists.starts[-1]], lists.starts[1:-1])
+        offsets = centres - np.asarray(light.position)
+        distance = np.linalg.norm(offsets, axis=1)
+        rng = np.random.default_rng(5)
+        n = lists.face_cells
+        missed = 0
+        for cell in rng.choice(lists.n_cells, 24, replace=False):
+            face, j, i = cell // (n * n), (cell // n) % n, cell % n
+            axis, sign = face // 2, -1.0 if face % 2 else 1.0
+            s, t = np.meshgrid(-1 + (i + rng.random(400)) * 2 / n, -1 + (j + rng.random(400)) * 2 / n)
+            directions = np.zeros((s.size, 3))
+            directions[:, axis] = sign
+            directions[:, (axis + 1) % 3], directions[:, (axis + 2) % 3] = s.ravel(), t.ravel()
+            directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+            # an atom is seen through the cell if some sampled ray from the light passes within its grown radius
+            along = offsets @ directions.T
+            miss = distance[:, None] ** 2 - np.maximum(along, 0.0) ** 2
+            seen = np.flatnonzero((miss <= grown[:, None] ** 2).any(axis=1) & (distance - grown <= lists.reach)
+                                  & ~crambin_grid.culled_mask)
+            mine = listed[cell]
+            missed += np.setdiff1d(seen, mine).size
+            near = distance[mine] - grown[mine]
+            assert np.all(np.diff(near) >= -1e-6), cell  # nearest first
+        assert missed == 0
     finally:
-        small.release()
+        shadows.release()
+
+
+def test_light_buffer_of_a_light_with_no_atom_in_reach(crambin, crambin_grid, walking_pass, scene):
+    """A light far from every atom lists nothing and its lists still bind and trace: every
+    pixel it reaches is lit, as the walk finds."""
+    name, gbuffer, *_ = scene
+    shadows = ShadowPass(crambin_grid)
+    try:
+        far = PointLight(tuple(crambin.positions.max(axis=0) + 40.0), 20.0)
+        listed = read_texture(shadows.trace(gbuffer, far, HARD_SHADOW))
+        assert shadows.light_buffer.atoms_in_reach == 0 and shadows.light_buffer.counts().sum() == 0
+        assert np.array_equal(listed, read_texture(walking_pass.trace(gbuffer, far, HARD_SHADOW)))
+    finally:
+        shadows.release()
 
 
 def test_light_buffer_holds_while_the_light_stays_within_its_slack(crambin, crambin_grid, walking_pass, scene):

@@ -14,9 +14,7 @@ every atom stored in them, and since lists run nearest first, it stops at the fi
 farther from the light than the pixel. The visibility is the minimum over the same
 occluders as the grid walk (shaders/grid_traversal.glsl trace_visibility): culled atoms
 are left out of the lists and the ray is clipped as there, so the result is the walk's to
-the bit. Every list has room for every atom in reach, so none can overflow and a build
-waits for nothing: a read-back of the longest list, to grow the room and build again, was
-a sync point in the middle of every frame.
+the bit.
 
 The lists hold for a light anywhere within SLACK Å of the point they were built for (their
 centre), so a probe sliding along the surface rebuilds them only every few frames: a ray
@@ -25,10 +23,12 @@ at the centre, within R + s of it, so each atom's cone is taken about the centre
 radius grown by s; and since an atom's nearest distance to the light is at most s less
 than to the centre, a list sorted by the centre's distances may stop at the first atom
 whose distance from the centre, less its grown radius, is beyond the ray. Built anew
-whenever the light leaves that ball, its reach grows, or the shell or the culling change: the
-CPU picks the atoms within reach and sorts them (numpy, a few thousand at most at 20 Å),
-the GPU fills the lists (shaders/light_buffer_build.comp). Read by
-shaders/light_buffer.glsl.
+whenever the light leaves that ball, its reach grows, or the shell or the culling change,
+on the CPU (numpy): the atoms within reach, sorted, each cell's cone tested against every
+one of theirs at once (a few hundred atoms at 20 Å in a navigation cube), the lists packed
+one after another (in table images: each cell's first entry, then the entries) and
+uploaded. Filling them on the GPU, one invocation per cell, took llvmpipe
+longer than the numpy build takes. Read by shaders/light_buffer.glsl.
 """
 
 from __future__ import annotations
@@ -36,19 +36,15 @@ from __future__ import annotations
 import numpy as np
 
 from sasprobe.render.gl.buffers import upload
-from sasprobe.render.gl.programs import source
-from sasprobe.render.gl.textures import TABLE_ROW, table_image, table_rows, texture_2d
-from sasprobe.render.gl.uniforms import apply_uniforms
+from sasprobe.render.gl.textures import table_image
 
 FACE_CELLS = 8  # cells along a cube face's edge: 6 × 8² = 384 lists (finer ones cost more to fill than they save)
-CAPACITY = 64  # atoms a list has room for at first (it grows with the atoms in reach)
 ANGLE_MARGIN = 1e-4  # rad added to both cones: float32 lookups may land a cell off by rounding
 RADIUS_MARGIN = 1e-3  # Å added to each atom's reach: float32 distances in the shader
 SLACK = 0.6  # Å the light may move before the lists are built again (wider cones, longer lists)
-BUILD_LOCAL_SIZE = 64
-# Shader-storage bindings (the grid holds 0-3).
-BINDING_SLOT_ATOMS, BINDING_CELL_CONES, BINDING_LIST_COUNTS = 5, 7, 10  # storage buffers
-IMAGE_SLOT_SPHERES, IMAGE_SLOT_CONES, IMAGE_LIST_SPHERES, IMAGE_LIST_ATOMS = 0, 1, 2, 3  # image units
+FACE_HALF = float(np.arccos(1.0 / np.sqrt(3.0)))  # rad: a cube face's cells lie within this of its axis
+LEAD = 0.6  # of the slack: how far ahead of a moving light the lists are centred
+IMAGE_LIST_SPHERES, IMAGE_LIST_ATOMS = 2, 3  # image units (shaders/light_buffer.glsl; the grid's are 4-5)
 
 
 def cell_cones(face_cells: int = FACE_CELLS) -> np.ndarray:
@@ -86,26 +82,23 @@ def cell_cones(face_cells: int = FACE_CELLS) -> np.ndarray:
 class PointLightBuffer:
     """The light buffer of one GPU grid, rebuilt for each light it is asked for."""
 
-    def __init__(self, gpu_grid, face_cells: int = FACE_CELLS, capacity: int = CAPACITY, slack: float = SLACK):
+    def __init__(self, gpu_grid, face_cells: int = FACE_CELLS, slack: float = SLACK):
         self.grid = gpu_grid
         self.slack = float(slack)
         self.ctx = gpu_grid.ctx
         self.face_cells = int(face_cells)
-        self.capacity = int(capacity)
         self.n_cells = 6 * self.face_cells ** 2
         self.max_vdw = float(np.max(gpu_grid.vdw_radii, initial=0.0))
         cones = cell_cones(self.face_cells)
-        cones[:, 3] = np.cos(np.minimum(cones[:, 3] + ANGLE_MARGIN, np.pi))
-        self.cell_cones = self.ctx.buffer(cones.astype(np.float32).tobytes())
-        self.list_spheres = self.list_atoms = None  # tables in images (gl/textures.py table_image)
-        self._make_lists()
-        self.list_counts = self.ctx.buffer(reserve=self.n_cells * 4)
-        # the atoms in reach: spheres and cones as tables in images, atom ids in a buffer
-        self.slot_spheres = self.slot_cones = None
-        self.slot_atoms = self.ctx.buffer(reserve=16)
-        self.program = self.ctx.compute_shader(source("light_buffer_build.comp"))
+        half = np.minimum(cones[:, 3] + ANGLE_MARGIN, np.pi)
+        self.cell_half = half
+        self.cell_terms = np.column_stack([cones[:, :3], -np.cos(half), np.sin(half)]).astype(np.float32)
+        self.starts = np.zeros(self.n_cells + 1, dtype=np.int32)  # cell c lists entries starts[c] .. starts[c + 1]
+        self.list_spheres = table_image(self.ctx, None, np.zeros((1, 4), dtype=np.float32))
+        self.list_atoms = table_image(self.ctx, None, self.starts, "i4")  # the starts, then the entries' atoms
         self.key: tuple | None = None
         self.centre = np.zeros(3)  # where the lists were built for
+        self.last_position = np.zeros(3)  # the light the lists were last asked for
         self.reach = 0.0  # and how far their rays reach
         self.builds = 0
         self.atoms_in_reach = 0
@@ -116,11 +109,16 @@ class PointLightBuffer:
         position = np.asarray(position, dtype=np.float64).reshape(3)
         shell_outer = max(float(shell_outer), 0.0)
         key = (shell_outer, self.grid.culling_version)
+        moved, self.last_position = position - self.last_position, position
         if key == self.key and reach <= self.reach and float(np.linalg.norm(position - self.centre)) <= self.slack:
             return  # the lists hold for this light too
+        # Centred ahead of a moving light (LEAD of the slack along its last step), the lists
+        # hold while it crosses most of their ball, not only its radius.
+        step = float(np.linalg.norm(moved))
+        ahead = moved * (LEAD * self.slack / step) if 0.0 < step <= self.slack else 0.0
         # (the reach a little longer: it follows the ray origins' epsilon, which follows the light)
-        self.key, self.centre, self.reach = key, position, float(reach) + RADIUS_MARGIN
-        reach = self.reach
+        self.key, self.centre, self.reach = key, position + ahead, float(reach) + RADIUS_MARGIN
+        reach, position = self.reach, self.centre
         self.builds += 1
         grid = self.grid.grid
         pad = shell_outer + RADIUS_MARGIN + self.slack
@@ -134,58 +132,56 @@ class PointLightBuffer:
         order = np.flatnonzero(near <= reach)
         order = order[np.argsort(near[order], kind="stable")]  # lists run nearest first
         atoms, radii, offset, distance = atoms[order], radii[order], offset[order], distance[order]
+        self.atoms_in_reach = int(atoms.size)
+        # Each atom's cone: the light inside the grown sphere sees it in every direction.
         inside = distance <= radii
         half = np.where(inside, np.pi, np.arcsin(np.minimum(radii / np.maximum(distance, 1e-30), 1.0)))
-        directions = np.where(inside[:, None], 0.0, offset / np.maximum(distance, 1e-30)[:, None])
-        self.atoms_in_reach = int(atoms.size)
-        spheres = np.column_stack([grid.centers[atoms], self.grid.vdw_radii[atoms]]).astype(np.float32)
-        cones = np.column_stack([directions, np.cos(np.minimum(half + ANGLE_MARGIN, np.pi))]).astype(np.float32)
-        self.slot_spheres = table_image(self.ctx, self.slot_spheres, spheres)
-        self.slot_cones = table_image(self.ctx, self.slot_cones, cones)
-        upload(self.slot_atoms, atoms.astype(np.uint32))
-        self.slot_spheres.bind_to_image(IMAGE_SLOT_SPHERES, read=True, write=False)
-        self.slot_cones.bind_to_image(IMAGE_SLOT_CONES, read=True, write=False)
-        self.slot_atoms.bind_to_storage_buffer(BINDING_SLOT_ATOMS)
-        self.cell_cones.bind_to_storage_buffer(BINDING_CELL_CONES)
-        if self.atoms_in_reach > self.capacity:  # room for all of them in every list
-            self.capacity = max(self.atoms_in_reach, 2 * self.capacity)
-            self._make_lists()
-        self.bind()
-        apply_uniforms(self.program, {"u_slots": self.atoms_in_reach, "u_cells": self.n_cells,
-                                      "u_capacity": self.capacity})
-        self.program.run(group_x=(self.n_cells + BUILD_LOCAL_SIZE - 1) // BUILD_LOCAL_SIZE)
-        self.ctx.memory_barrier()
-
-    def _make_lists(self) -> None:
-        """Room for `capacity` entries in each list (shaders/table_image.glsl's layout)."""
-        rows = table_rows(self.n_cells * self.capacity)  # grows with the probe's reach
-        for old in (self.list_spheres, self.list_atoms):
-            if old is not None:
-                old.release()
-        self.list_spheres = texture_2d(self.ctx, TABLE_ROW, rows, 4, "f4")
-        self.list_atoms = texture_2d(self.ctx, TABLE_ROW, rows, 1, "i4")
+        half = np.minimum(half + ANGLE_MARGIN, np.pi)
+        axes = offset / np.maximum(distance, 1e-30)[:, None]
+        # Two cones meet when the angle between their axes is at most the sum a + b of their
+        # half-angles: always once a + b >= pi, else when its cosine is at least
+        # cos(a + b) = cos a cos b - sin a sin b, i.e. when (axis, -cos a, sin a) of the cell
+        # dotted with (axis, cos b, sin b) of the atom is >= 0. Each face's cells are tested
+        # only against the atoms whose cone meets the face's (its cells lie within FACE_HALF
+        # of its axis): most atoms' cones are narrow and meet one face or two. (einsum, not
+        # a BLAS product: BLAS threads spin on after it, taking the renderer's CPU.)
+        atom_terms = np.column_stack([axes, np.cos(half), np.sin(half)]).astype(np.float32)  # the margins hold float32
+        near_face = np.cos(np.minimum(half + FACE_HALF + ANGLE_MARGIN, np.pi))
+        per_cell, entries = [], []
+        for face in range(6):
+            axis, sign = face // 2, (-1.0 if face % 2 else 1.0)
+            slots = np.flatnonzero(sign * axes[:, axis] >= near_face)
+            cells = slice(face * self.face_cells ** 2, (face + 1) * self.face_cells ** 2)
+            meets = np.einsum("ck,ak->ca", self.cell_terms[cells], atom_terms[slots]) >= 0.0
+            wide = np.flatnonzero(half[slots] + self.cell_half.max() >= np.pi)  # a few at most, the light among them
+            meets[:, wide] |= np.add.outer(self.cell_half[cells], half[slots][wide]) >= np.pi
+            per_cell.append(np.count_nonzero(meets, axis=1))
+            entries.append(slots[np.nonzero(meets)[1]])  # by cell, then by slot: each list nearest first
+        self.starts[0] = 0
+        np.cumsum(np.concatenate(per_cell), out=self.starts[1:])
+        slots = np.concatenate(entries)
+        listed = atoms[slots]
+        spheres = np.column_stack([grid.centers[listed], self.grid.vdw_radii[listed]]).astype(np.float32)
+        if listed.size:
+            self.list_spheres = table_image(self.ctx, self.list_spheres, spheres)
+        self.list_atoms = table_image(self.ctx, self.list_atoms, np.concatenate([self.starts, listed]).astype(np.int32), "i4")
 
     def bind(self) -> None:
-        """The lists (for shaders/light_buffer.glsl, and for the build to fill)."""
-        self.list_spheres.bind_to_image(IMAGE_LIST_SPHERES, read=True, write=True)
-        self.list_atoms.bind_to_image(IMAGE_LIST_ATOMS, read=True, write=True)
-        self.list_counts.bind_to_storage_buffer(BINDING_LIST_COUNTS)
+        """The lists, for shaders/light_buffer.glsl."""
+        self.list_spheres.bind_to_image(IMAGE_LIST_SPHERES, read=True, write=False)
+        self.list_atoms.bind_to_image(IMAGE_LIST_ATOMS, read=True, write=False)
 
     def uniforms(self, shell_outer: float) -> dict[str, object]:
-        return {"u_lb_face_cells": self.face_cells, "u_lb_capacity": self.capacity,
-                "u_lb_centre": tuple(float(v) for v in self.centre),
+        return {"u_lb_face_cells": self.face_cells, "u_lb_cells": self.n_cells, "u_lb_centre": tuple(float(v) for v in self.centre),
                 "u_lb_reach_pad": float(max(shell_outer, 0.0) + RADIUS_MARGIN + self.slack)}
 
     def counts(self) -> np.ndarray:
         """Each list's length (for tests and benchmarks)."""
-        return np.frombuffer(self.list_counts.read(), dtype=np.uint32).copy()
+        return np.diff(self.starts)
 
     def release(self) -> None:
-        for obj in (self.cell_cones, self.list_spheres, self.list_atoms, self.list_counts, self.slot_atoms,
-                    self.slot_spheres, self.slot_cones):
-            if obj is not None:
-                obj.release()
-        self.program.release()
+        for obj in (self.list_spheres, self.list_atoms):
+            obj.release()
 
 
 # ------------------------------------------------------------------ the directional light

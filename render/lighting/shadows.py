@@ -18,7 +18,7 @@ from sasprobe.render.gl.compute import ComputeVariants
 from sasprobe.render.gl.depth_picked import DepthPickedPass
 from sasprobe.render.gl.textures import texture_2d
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.light_buffer import CAPACITY, FACE_CELLS, PointLightBuffer
+from sasprobe.render.lighting.light_buffer import FACE_CELLS, PointLightBuffer
 from sasprobe.render.lighting.settings import (
     HARD_SHADOW,
     DirectionalLight,
@@ -35,10 +35,10 @@ class ShadowPass:
     """Shadows of one GPU grid. shaders/shadows.comp is compiled per case (the walk or the
     light buffer; with or without clipping), each program holding only its own code."""
 
-    def __init__(self, gpu_grid, light_buffer: bool = True, face_cells: int = FACE_CELLS, capacity: int = CAPACITY):
+    def __init__(self, gpu_grid, light_buffer: bool = True, face_cells: int = FACE_CELLS):
         self.ctx = gpu_grid.ctx
         self.grid = gpu_grid
-        self.light_buffer = PointLightBuffer(gpu_grid, face_cells, capacity) if light_buffer else None
+        self.light_buffer = PointLightBuffer(gpu_grid, face_cells) if light_buffer else None
         self.sun_buffer = gpu_grid.sun_buffer() if light_buffer else None  # the grid's: shared with the atlas
         self.programs = ComputeVariants(self.ctx, "shadows.comp", gpu_grid)
         self.drawn = DepthPickedPass(self.ctx, "shadows.frag", gpu_grid)  # the renderer's G-buffer

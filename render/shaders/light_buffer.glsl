@@ -1,18 +1,20 @@
 // Shadow rays of the probe's point light through its light buffer
-// (render/lighting/light_buffer.py, built by light_buffer_build.comp): the ray from o to
+// (render/lighting/light_buffer.py): the ray from o to
 // the light tests the atoms listed for its direction seen from the light, nearest first,
 // and stops at the first too far from the lists' centre to reach the ray (the light lies
 // within the lists' slack of it). The same occluders and the same minimum as
 // trace_visibility (grid_traversal.glsl, included before this): the lists are
-// complete (the buffer grows until no cell overflows). The lists' entries are tables in
-// images 2 and 3 (table_image.glsl), entry k of a list at cell * u_lb_capacity + k.
+// complete. The lists lie one after another in two tables (table_image.glsl): image 2
+// holds entry k's sphere at k; image 3 first each cell's first entry (the cell count
+// u_lb_cells after the last), then entry k's atom at u_lb_cells + 1 + k. (Images: llvmpipe
+// reads a storage buffer lane by lane.)
 #include "table_image.glsl"
 layout(rgba32f, binding = 2) readonly uniform image2D u_list_spheres;  // centre, vdW radius
 layout(r32i, binding = 3) readonly uniform iimage2D u_list_atoms;
-layout(std430, binding = 10) readonly buffer ListCounts { uint list_counts[]; };
+
+uniform uint u_lb_cells;
 
 uniform int u_lb_face_cells;
-uniform uint u_lb_capacity;    // entries a list has room for
 uniform vec3 u_lb_centre;      // where the lists were built for (the light lies within their slack of it)
 uniform float u_lb_reach_pad;  // the shell's outer offset, the margin and the slack the lists were built with
 
@@ -33,19 +35,19 @@ float trace_point_visibility(vec3 o, vec3 light, int skip_atom, vec2 shell, floa
     float t_max = length(to_light);
     vec3 d = to_light / max(t_max, 1e-30);
     uint cell = light_cell(o - light);
-    uint n = list_counts[cell];
+    uint first = uint(imageLoad(u_list_atoms, table_texel(cell)).x);
+    uint end = uint(imageLoad(u_list_atoms, table_texel(cell + 1u)).x);
     float reach = t_max + u_lb_reach_pad;
     float t0 = 0.0, t1 = t_max;
     vec3 cut_normal;
     if (!clip_ray(o, d, t0, t1, cut_normal)) return 1.0;
     float vis = 1.0;
-    uint base = cell * u_lb_capacity;
-    for (uint k = 0u; k < n; ++k) {
-        vec4 sphere = imageLoad(u_list_spheres, table_texel(base + k));
+    for (uint k = first; k < end; ++k) {
+        vec4 sphere = imageLoad(u_list_spheres, table_texel(k));
         vec3 from_centre = sphere.xyz - u_lb_centre;
         float beyond = reach + sphere.w;
         if (dot(from_centre, from_centre) > beyond * beyond) break;  // this one and every later one
-        if (imageLoad(u_list_atoms, table_texel(base + k)).x == skip_atom) continue;
+        if (imageLoad(u_list_atoms, table_texel(u_lb_cells + 1u + k)).x == skip_atom) continue;
         vis = min(vis, occluder_visibility(o, d, t0, t1, sphere, shell, growth));
         if (vis <= 0.0) return 0.0;
     }
