@@ -7,6 +7,9 @@ recording checked against the protocol's schemas."""
 from __future__ import annotations
 
 import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # as the CLI runs numpy (sasprobe/cli/main.py), before it loads
+
 import select
 import shutil
 import subprocess

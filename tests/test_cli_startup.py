@@ -33,3 +33,25 @@ def test_help_and_info_load_only_what_they_use():
         assert f"    {name}" in out, f"--help does not list {name}"
     modules, out = loaded("info")
     assert "327" in out and not modules & PLOTTING_AND_GL, modules & PLOTTING_AND_GL
+
+
+BLAS_PROBE = ("import os, runpy, sys\n"
+              "sys.argv = ['sasprobe', 'info']\n"
+              "try:\n    runpy.run_module('sasprobe', run_name='__main__')\n"
+              "except SystemExit:\n    pass\n"
+              "print('numpy' in sys.modules, os.environ.get('OPENBLAS_NUM_THREADS'), file=sys.stderr)\n")
+
+
+def test_commands_run_numpy_with_one_blas_thread_unless_told_otherwise():
+    """OpenBLAS reads its thread count when numpy loads; the CLI sets one thread before any
+    command imports numpy (spinning BLAS threads took the renderer's and the haptic loop's
+    CPU), and keeps a count the user set."""
+    import os
+
+    for given, expected in ((None, "1"), ("3", "3")):
+        env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+        if given is not None:
+            env["OPENBLAS_NUM_THREADS"] = given
+        r = subprocess.run([sys.executable, "-c", BLAS_PROBE], capture_output=True, text=True, cwd=REPO_ROOT,
+                           timeout=60, env=env)
+        assert r.stderr.strip().splitlines()[-1] == f"True {expected}", r.stderr

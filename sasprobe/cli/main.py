@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import pkgutil
 import sys
 
@@ -108,6 +109,10 @@ def _config_file(argv: list[str]) -> tuple:
 
 
 def main(argv: list[str] | None = None) -> int:
+    # One BLAS thread, set before numpy loads (commands import it when they run): OpenBLAS's
+    # threads spin on after each product, and the products here are small, so they took
+    # the CPU the renderer's llvmpipe threads and the haptic loop need (children inherit it).
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
         path, settings = _config_file(argv)
