@@ -26,9 +26,11 @@ def capsule_rect(a, b, radius: float, viewproj: np.ndarray, size: tuple[int, int
     return points_rect(np.vstack([_cube_corners(a, radius), _cube_corners(b, radius)]), viewproj, size, margin)
 
 
+_CORNERS = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])
+
+
 def _cube_corners(center, radius: float) -> np.ndarray:
-    return np.array(np.meshgrid(*[[c - radius, c + radius] for c in np.asarray(center, dtype=np.float64)],
-                                indexing="ij")).reshape(3, -1).T
+    return np.asarray(center, dtype=np.float64).reshape(1, 3) + float(radius) * _CORNERS
 
 
 def points_rect(points: np.ndarray, viewproj: np.ndarray, size: tuple[int, int], margin: int) -> Rect | None:
