@@ -26,6 +26,18 @@ def figure(width: float = 6.4, height: float = 4.0):
 
 
 def save(fig, path: Path) -> Path:
+    """The figure as a PNG; log value axes labelled with plain numbers (0.4, 2, 30), not
+    4×10^-1, where matplotlib labels their minor ticks (a range of a decade or so)."""
+    from matplotlib.ticker import LogFormatter
+
+    class Plain(LogFormatter):
+        def _num_to_string(self, x, vmin, vmax):
+            return f"{x:g}"
+
+    for ax in fig.axes:
+        if ax.get_yscale() == "log":
+            ax.yaxis.set_major_formatter(Plain(labelOnlyBase=False))
+            ax.yaxis.set_minor_formatter(Plain(labelOnlyBase=False, minor_thresholds=(2, 0.4)))
     fig.tight_layout()
     fig.savefig(path)
     pyplot().close(fig)

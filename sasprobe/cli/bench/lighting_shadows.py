@@ -62,11 +62,9 @@ def cell_sweep(gl, name: str, structure, size, cell_sizes, repeats: int) -> list
 
 
 def sweep_chart(rows: list[dict], path):
-    from sasprobe.cli.bench.charts import pyplot
+    from sasprobe.cli.bench.charts import pyplot, save
 
-    plt = pyplot()
-
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4), dpi=110)
+    fig, (ax, ax2) = pyplot().subplots(1, 2, figsize=(11, 4), dpi=110)
     for name in dict.fromkeys(r["structure"] for r in rows):
         pts = sorted((r for r in rows if r["structure"] == name), key=lambda r: r["cells"])
         atoms = pts[0]["atoms"]
@@ -86,10 +84,7 @@ def sweep_chart(rows: list[dict], path):
     ax2.set_title("Grid memory vs cell count", fontsize=9)
     ax2.grid(True, which="both", alpha=0.3)
     ax2.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return save(fig, path)
 
 
 def cube_bounded(gl, structures: list[tuple[str, object]], size, repeats: int) -> list[dict]:
