@@ -19,8 +19,8 @@ occlusion atlas). Two ways of computing one picture:
   key (progressive AO keeps adding samples while the key holds, whatever the probe
   does); LightingPass, after the probe pass, recomputes what the probe changes: the probe
   light's shadows within its range (traced by the shading pass where it shades again),
-  the probe's pixels and edge cueing around them (composed into the visibility buffer over
-  the plan's regions only, shaders/visibility_compose.frag), and hands the shading pass the
+  edge cueing around the probe (composed into the visibility buffer over the plan's
+  regions only, shaders/visibility_compose.frag), and hands the shading pass the
   probe's shadow of the directional light and its share of the ambient occlusion as one
   sphere, which it takes in per pixel (shaders/probe_share.glsl); its footprint says where
   the shadow can fall, which is shaded again. With hard or soft shadows and analytic AO the result is the

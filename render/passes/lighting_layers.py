@@ -4,11 +4,13 @@ own terms on the molecule layer before the probe is drawn (when the plan draws t
 progressive AO keeps adding samples while it is kept); `_run_probe_layer` then recomputes
 what the probe changes, over the plan's regions: the probe light's shadow rays, for the
 shading pass to trace where it shades again (or, with --shadows precomputed and the probe
-standing still, its baked visibility), the probe's own pixels' sun, the edges around it,
-the visibility buffer where the probe's terms touch (shaders/visibility_compose.frag),
-and, for the shading pass, the probe's share of the atoms' light — its shadow of the sun
-and its analytic share of the AO (shaders/probe_share.glsl, per pixel). Its footprint
-says where all that lies, the pixels the shadow can fall on among them.
+standing still, its baked visibility), the edges around it, the visibility buffer where
+the molecule's terms or the edges changed (shaders/visibility_compose.frag: it keeps the
+molecule's terms under the probe, whose own pixels the shading pass colours without
+them), and, for the shading pass, the probe's share of the atoms' light — its shadow of
+the sun and its analytic share of the AO (shaders/probe_share.glsl, per pixel). Its
+footprint says where all that lies, the pixels the shadow can fall on among them. The
+probe's own pixels' terms are computed for the G-buffer export alone (_export_composed).
 
 LayeredLighting is a mixin of LightingPass and uses its state (grid, shadows, ao, lights,
 textures, settings) and its helpers (_sync, _set_probe, _sun, _ambient, _edges, _compose,
@@ -59,8 +61,8 @@ class LayeredLighting:
 
     def footprint(self, frame: Frame) -> dict:
         """Where the probe changes the picture this frame: its pixels, the edges around them
-        and, on the atoms, where its shadow of the sun can fall; everywhere while the molecule's AO still
-        takes samples (the molecule's terms then change everywhere)."""
+        and, on the atoms, where its shadow of the sun can fall; everywhere while the
+        molecule's AO still takes samples (the molecule's terms then change everywhere)."""
         self._sync(frame)
         fx, size = frame.scene.effects, frame.size
         probe_rect = frame.probe_rect()
