@@ -67,6 +67,31 @@ def test_check_without_a_service_is_one_line(service):
         result.stderr
 
 
+def press_and_settle(svc, sub, daemon) -> list:
+    """Down to the workspace centre, into the molecule, and the poses of a settled press. A
+    loaded machine may starve the stand-in service (a thread of this process) for over a
+    second, and the driver then opens a new session, whose probe starts unseated: the hand
+    is lifted into free space and pressed again."""
+    for _ in range(3):
+        reconnects = daemon.stderr.count("device reconnected")
+        svc.hand.target = (0.0, 0.0, 0.0)
+        poses_until(sub, pushing, daemon)
+        try:
+            return settled(sub, daemon, timeout_s=20.0)
+        except AssertionError:
+            if daemon.stderr.count("device reconnected") == reconnects:
+                raise
+        svc.hand.target = (0.0, 0.0, 30.0)
+        poses_until(sub, lambda p: p.tip_mm[1] > 29.0 and not p.has(FLAG_FAULT), daemon)
+    raise AssertionError(f"no settled press in three tries; daemon stderr: {daemon.stderr[-1500:]}")
+
+
+def unplanned_sessions(stderr: str) -> int:
+    """Sessions the driver opened because the starved service had not answered for a second
+    (press_and_settle); the test's own hang is shorter and needs none."""
+    return stderr.count("opening a new session")
+
+
 def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_service(service, tmp_path):
     svc = service()
     svc.hand.place((0.0, 0.0, 30.0))  # 30 mm above the workspace centre: outside the molecule
@@ -75,9 +100,7 @@ def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_
         assert daemon.ready["device"] == "inverse3"
         sub = Subscriber(daemon.pub)
         poses_until(sub, lambda p: p.tip_mm[1] > 29.0, daemon)
-        svc.hand.target = (0.0, 0.0, 0.0)  # down to the centre, into the molecule
-        poses_until(sub, pushing, daemon)
-        poses = settled(sub, daemon)
+        poses = press_and_settle(svc, sub, daemon)
         t_first, t_last = poses[0].publish_t_ns, poses[-1].publish_t_ns
         samples = [x for x in list(svc.samples) if t_first <= x[0] <= t_last]
         wrote = np.median([p.force_N for p in poses], axis=0)
@@ -106,7 +129,7 @@ def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_
         rc, report = daemon.stop()
         assert rc == 0, daemon.stderr
         assert report["device_last_force_n"] == [0.0, 0.0, 0.0]
-    assert svc.sessions == 2
+    assert svc.sessions == 2 + unplanned_sessions(daemon.stderr)
     hung = recorded_outage(path, hung_at)
     assert any(e and "has not answered" in e for e in hung["errors"])
     closed = recorded_outage(path, closed_at)
