@@ -24,10 +24,10 @@ radius grown by s; and since an atom's nearest distance to the light is at most 
 than to the centre, a list sorted by the centre's distances may stop at the first atom
 whose distance from the centre, less its grown radius, is beyond the ray. Built anew
 whenever the light leaves that ball, its reach grows, or the shell or the culling change,
-on the CPU (numpy): the atoms within reach, sorted, each cell's cone tested against every
-one of theirs at once (a few hundred atoms at 20 Å in a navigation cube), the lists packed
-one after another (in table images: each cell's first entry, then the entries) and
-uploaded. Filling them on the GPU, one invocation per cell, took llvmpipe
+on the CPU (numpy): the atoms within reach, sorted, each face's cells' cones tested at
+once against the atoms' cones that meet the face (a few hundred atoms at 20 Å in a
+navigation cube), the lists packed one after another (in table images: each cell's first
+entry, then the entries) and uploaded. Filling them on the GPU, one invocation per cell, took llvmpipe
 longer than the numpy build takes. Read by shaders/light_buffer.glsl.
 """
 
@@ -164,7 +164,8 @@ class PointLightBuffer:
         spheres = np.column_stack([grid.centers[listed], self.grid.vdw_radii[listed]]).astype(np.float32)
         if listed.size:
             self.list_spheres = table_image(self.ctx, self.list_spheres, spheres)
-        self.list_atoms = table_image(self.ctx, self.list_atoms, np.concatenate([self.starts, listed]).astype(np.int32), "i4")
+        self.list_atoms = table_image(self.ctx, self.list_atoms, np.concatenate([self.starts, listed]).astype(np.int32),
+                                      "i4")
 
     def bind(self) -> None:
         """The lists, for shaders/light_buffer.glsl."""
@@ -172,7 +173,8 @@ class PointLightBuffer:
         self.list_atoms.bind_to_image(IMAGE_LIST_ATOMS, read=True, write=False)
 
     def uniforms(self, shell_outer: float) -> dict[str, object]:
-        return {"u_lb_face_cells": self.face_cells, "u_lb_cells": self.n_cells, "u_lb_centre": tuple(float(v) for v in self.centre),
+        return {"u_lb_face_cells": self.face_cells, "u_lb_cells": self.n_cells,
+                "u_lb_centre": tuple(float(v) for v in self.centre),
                 "u_lb_reach_pad": float(max(shell_outer, 0.0) + RADIUS_MARGIN + self.slack)}
 
     def counts(self) -> np.ndarray:

@@ -5,8 +5,9 @@
 // within the lists' slack of it). The same occluders and the same minimum as
 // trace_visibility (grid_traversal.glsl, included before this): the lists are
 // complete. The lists lie one after another in two tables (table_image.glsl): image 2
-// holds entry k's sphere at k; image 3 first each cell's first entry (the cell count
-// u_lb_cells after the last), then entry k's atom at u_lb_cells + 1 + k. (Images: llvmpipe
+// holds entry k's sphere at k; image 3 first each cell's first entry (u_lb_cells of them,
+// then the number of entries: the last cell's end), then entry k's atom at
+// u_lb_cells + 1 + k. (Images: llvmpipe
 // reads a storage buffer lane by lane.)
 #include "table_image.glsl"
 layout(rgba32f, binding = 2) readonly uniform image2D u_list_spheres;  // centre, vdW radius
