@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import os
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # as the CLI runs numpy (sasprobe/cli/main.py), before it loads
+from sasprobe.cli.main import one_blas_thread
+
+one_blas_thread()  # numpy as the CLI runs it, before it loads
 
 import select
 import shutil

@@ -108,11 +108,16 @@ def _config_file(argv: list[str]) -> tuple:
     return (path, config.load(path)) if path is not None else (None, {})
 
 
-def main(argv: list[str] | None = None) -> int:
-    # One BLAS thread, set before numpy loads (commands import it when they run): OpenBLAS's
-    # threads spin on after each product, and the products here are small, so they took
-    # the CPU the renderer's llvmpipe threads and the haptic loop need (children inherit it).
+def one_blas_thread() -> None:
+    """numpy's BLAS on one thread unless the user chose otherwise; effective only before
+    numpy loads (commands import it when they run). OpenBLAS's threads spin on after each
+    product, and the products here are small, so they took the CPU the renderer's llvmpipe
+    threads and the haptic loop need. Child processes inherit it."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
+def main(argv: list[str] | None = None) -> int:
+    one_blas_thread()
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
         path, settings = _config_file(argv)
