@@ -44,6 +44,7 @@ RADIUS_MARGIN = 1e-3  # Å added to each atom's reach: float32 distances in the 
 SLACK = 0.6  # Å the light may move before the lists are built again (wider cones, longer lists)
 FACE_HALF = float(np.arccos(1.0 / np.sqrt(3.0)))  # rad: a cube face's cells lie within this of its axis
 LEAD = 0.6  # of the slack: how far ahead of a moving light the lists are centred
+NEARBY_PAD = 2.0  # Å: the grid's candidates are gathered for a box this much wider than a build needs, and kept
 IMAGE_LIST_SPHERES, IMAGE_LIST_ATOMS = 2, 3  # image units (shaders/light_buffer.glsl; the grid's are 4-5)
 
 
@@ -92,7 +93,10 @@ class PointLightBuffer:
         cones = cell_cones(self.face_cells)
         half = np.minimum(cones[:, 3] + ANGLE_MARGIN, np.pi)
         self.cell_half = half
-        self.cell_terms = np.column_stack([cones[:, :3], -np.cos(half), np.sin(half)]).astype(np.float32)
+        cell_terms = np.column_stack([cones[:, :3], -np.cos(half), np.sin(half)]).astype(np.float32)
+        self.face_terms = cell_terms.reshape(6, self.face_cells ** 2, 5)  # each face's cells
+        self.spheres = np.column_stack([gpu_grid.grid.centers, gpu_grid.vdw_radii]).astype(np.float32)
+        self._nearby = (np.full(3, np.inf), np.full(3, -np.inf), np.empty(0, dtype=np.int64))  # (lo, hi, atoms)
         self.starts = np.zeros(self.n_cells + 1, dtype=np.int32)  # cell c lists entries starts[c] .. starts[c + 1]
         self.list_spheres = table_image(self.ctx, None, np.zeros((1, 4), dtype=np.float32))
         self.list_atoms = table_image(self.ctx, None, self.starts, "i4")  # the starts, then the entries' atoms
@@ -123,7 +127,7 @@ class PointLightBuffer:
         grid = self.grid.grid
         pad = shell_outer + RADIUS_MARGIN + self.slack
         box = reach + self.max_vdw + pad
-        atoms = grid.candidates_in_box(position - box, position + box)
+        atoms = self._candidates(position - box, position + box)
         atoms = atoms[~self.grid.culled_mask[atoms]]
         radii = self.grid.vdw_radii[atoms] + pad
         offset = grid.centers[atoms] - position
@@ -143,29 +147,41 @@ class PointLightBuffer:
         # cos(a + b) = cos a cos b - sin a sin b, i.e. when (axis, -cos a, sin a) of the cell
         # dotted with (axis, cos b, sin b) of the atom is >= 0. Each face's cells are tested
         # only against the atoms whose cone meets the face's (its cells lie within FACE_HALF
-        # of its axis): most atoms' cones are narrow and meet one face or two. (einsum, not
-        # a BLAS product: BLAS threads spin on after it, taking the renderer's CPU.)
+        # of its axis): most atoms' cones are narrow and meet one face or two. (Products of
+        # at most 64 x a few hundred x 5: OpenBLAS runs them on the calling thread.)
         atom_terms = np.column_stack([axes, np.cos(half), np.sin(half)]).astype(np.float32)  # the margins hold float32
         near_face = np.cos(np.minimum(half + FACE_HALF + ANGLE_MARGIN, np.pi))
+        wide = half + self.cell_half.max() >= np.pi  # a few at most, the light among them
         per_cell, entries = [], []
         for face in range(6):
             axis, sign = face // 2, (-1.0 if face % 2 else 1.0)
             slots = np.flatnonzero(sign * axes[:, axis] >= near_face)
-            cells = slice(face * self.face_cells ** 2, (face + 1) * self.face_cells ** 2)
-            meets = np.einsum("ck,ak->ca", self.cell_terms[cells], atom_terms[slots]) >= 0.0
-            wide = np.flatnonzero(half[slots] + self.cell_half.max() >= np.pi)  # a few at most, the light among them
-            meets[:, wide] |= np.add.outer(self.cell_half[cells], half[slots][wide]) >= np.pi
-            per_cell.append(np.count_nonzero(meets, axis=1))
-            entries.append(slots[np.nonzero(meets)[1]])  # by cell, then by slot: each list nearest first
+            meets = self.face_terms[face] @ atom_terms[slots].T >= 0.0
+            if wide.any():
+                cells = slice(face * self.face_cells ** 2, (face + 1) * self.face_cells ** 2)
+                meets |= (np.add.outer(self.cell_half[cells], half[slots]) >= np.pi) & wide[slots]
+            cell, slot = np.nonzero(meets)  # by cell, then by slot: each list nearest first
+            per_cell.append(np.bincount(cell, minlength=self.face_cells ** 2))
+            entries.append(slots[slot])
         self.starts[0] = 0
         np.cumsum(np.concatenate(per_cell), out=self.starts[1:])
-        slots = np.concatenate(entries)
-        listed = atoms[slots]
-        spheres = np.column_stack([grid.centers[listed], self.grid.vdw_radii[listed]]).astype(np.float32)
+        listed = atoms[np.concatenate(entries)]
+        spheres = self.spheres[listed]
         if listed.size:
             self.list_spheres = table_image(self.ctx, self.list_spheres, spheres)
         self.list_atoms = table_image(self.ctx, self.list_atoms, np.concatenate([self.starts, listed]).astype(np.int32),
                                       "i4")
+
+    def _candidates(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """The atoms the grid stores in cells meeting the box [lo, hi]: those of a box
+        NEARBY_PAD Å wider, kept while the boxes asked for stay within it (the light moves
+        a few tenths of an Å between builds)."""
+        near_lo, near_hi, atoms = self._nearby
+        if np.any(lo < near_lo) or np.any(hi > near_hi):
+            near_lo, near_hi = lo - NEARBY_PAD, hi + NEARBY_PAD
+            atoms = self.grid.grid.candidates_in_box(near_lo, near_hi)
+            self._nearby = (near_lo, near_hi, atoms)
+        return atoms
 
     def bind(self) -> None:
         """The lists, for shaders/light_buffer.glsl."""
