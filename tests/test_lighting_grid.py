@@ -7,7 +7,14 @@ import numpy as np
 import pytest
 
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
-from sasprobe.render.lighting.grid import CENTRE_CLIPPED, CULLED, Culling, GpuGrid, walk_rays_on_gpu
+from sasprobe.render.lighting.grid import (
+    CENTRE_CLIPPED,
+    CULLED,
+    LIGHT_CUT_MARGIN,
+    Culling,
+    GpuGrid,
+    walk_rays_on_gpu,
+)
 from tests.lighting_reference import Occluders, raycast_gbuffer
 from sasprobe.render.gl.targets import KIND_CAP
 from sasprobe.render.gl.textures import TABLE_ROW
@@ -115,6 +122,26 @@ def test_culled_flags_follow_planes_and_cube(gl, crambin, crambin_grid):
         assert np.array_equal((flags & CENTRE_CLIPPED) != 0, centre_out), name
         assert name == "none" or 0 < expect.sum() < crambin.n_atoms
     crambin_grid.set_culling(Culling())
+
+
+def test_the_cuts_a_point_light_lies_beyond():
+    """A shadow ray from a kept point to the light can only be shortened by the planes and
+    cube faces the light is not inside (a half-space holds every segment between two of
+    its points); those within LIGHT_CUT_MARGIN of the light count as crossed."""
+    plane = [0.0, 0.0, 1.0, -1.0]  # kept where z >= 1
+    culling = Culling(clip_planes=[plane], nav_cube=(np.zeros(3), 5.0))
+    inside = culling.cuts_before([0.0, 0.0, 2.0])
+    assert inside.clip_planes.shape == (0, 4) and inside.nav_cube is None and not inside.clipping
+    beyond = culling.cuts_before([0.0, 0.0, 0.0])
+    assert np.allclose(beyond.clip_planes, [plane]) and beyond.nav_cube is None
+    outside = culling.cuts_before([7.0, 0.0, 1.0 + LIGHT_CUT_MARGIN / 2])  # beyond the cube's +x face, on the plane
+    assert np.allclose(outside.clip_planes, [plane, [-1.0, 0.0, 0.0, 5.0]])
+    x = np.array([[7.0, 0.0, 3.0], [4.0, 0.0, 3.0]])  # the +x face cuts where the cube would
+    kept = x @ outside.clip_planes[:, :3].T + outside.clip_planes[:, 3] >= 0
+    assert kept.all(axis=1).tolist() == [False, True]
+    assert culling.cuts_before([0.0, 0.0, 0.0]) is beyond  # found once for the same cuts
+    crowded = Culling(clip_planes=np.tile([1.0, 0.0, 0.0, -1.0], (24, 1)), nav_cube=(np.zeros(3), 0.5))
+    assert crowded.cuts_before([0.499, 0.0, 0.0]) is crowded  # 25: too many for the shaders, every cut as drawn
 
 
 def test_too_many_clip_planes_is_refused():

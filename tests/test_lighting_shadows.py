@@ -11,7 +11,7 @@ from sasprobe.molecule import DEFAULT_PROBE_RADIUS
 from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.settings import HARD_SHADOW, DirectionalLight, PointLight, SoftShadow
+from sasprobe.render.lighting.settings import HARD_SHADOW, DirectionalLight, PointLight, SoftShadow, ray_epsilon
 from tests.lighting_reference import Occluders, light_visibility
 from sasprobe.render.lighting.light_buffer import cell_cones
 from sasprobe.render.lighting.shadows import ShadowPass
@@ -162,46 +162,95 @@ def test_light_buffer_equals_the_grid_walk_to_the_bit(crambin, shadow_pass, walk
     assert shadow_pass.light_buffer.atoms_in_reach > 100 and 1 < counts.max() <= shadow_pass.light_buffer.atoms_in_reach
 
 
-def test_light_buffer_lists_what_a_brute_force_cone_test_lists(crambin, crambin_grid):
+def test_a_point_lights_rays_are_clipped_by_the_cuts_it_lies_beyond(crambin, crambin_grid, scene):
+    """Clipped only by the cuts the light is not inside, a ray from a kept point to the
+    light is clipped as by all of them: the same visibility wherever the ray origin is kept,
+    in and beyond the cube, hard and soft, through the light buffer and the walk. (On a cap
+    the origin lies a ray epsilon beyond its cut: there the two may differ by where the ray
+    starts, within that epsilon.)"""
+    name, gbuffer, position, normal, atom, _ = scene
+    culling = crambin_grid.culling
+    surface = atom >= 0
+    origin = position + normal * ray_epsilon(position)[..., None]
+    planes = culling.clip_planes
+    kept = surface & np.all(origin @ planes[:, :3].T + planes[:, 3] >= 0, axis=-1)
+    if culling.nav_cube is not None:
+        centre, half = culling.nav_cube
+        kept &= np.all(np.abs(origin - centre) <= half, axis=-1)
+    lamp = probe_light(crambin)
+    middle = crambin.positions.mean(axis=0)
+    lights = [lamp, PointLight(tuple(middle + [11.0, -1.0, 0.5]), 20.0)]  # the second beyond the cube's +x face
+    if name == "cube":
+        assert culling.cuts_before(lights[1].position).clip_planes.shape[0] == 1
+    shadows = ShadowPass(crambin_grid)
+    walking = ShadowPass(crambin_grid, light_buffer=False)
+    try:
+        for light in lights:
+            for soft in (HARD_SHADOW, SoftShadow(inner=-0.4, outer=1.0, growth=4.0)):
+                for passes in (shadows, walking):
+                    cut = read_texture(passes.trace(gbuffer, light, soft))
+                    every = read_texture(passes.trace(gbuffer, light, soft, all_cuts=True))
+                    assert np.array_equal(cut[kept], every[kept]), (name, light, soft)
+                    assert (cut != every)[surface].mean() <= 0.005  # origins a ray epsilon outside a cut
+                    assert 10 < (every[kept] < 0.5).sum() < kept.sum() - 10  # shadows and light to compare
+        assert kept.sum() > 0.3 * surface.sum() and (name == "none" or kept.sum() < surface.sum())
+    finally:
+        shadows.release()
+        walking.release()
+
+
+def test_light_buffer_lists_what_a_brute_force_cone_test_lists(crambin, crambin_grid, monkeypatch):
     """Each cell lists, nearest first, exactly the atoms in reach whose cone of directions
     (about the lists' centre, radius grown by the slack) meets the cell's: found here
     by sampling each cell's directions densely, as independent of the build's
     closed-form test as it can be. Sampled directions cannot reach a cone's very edge, so
-    the build may list more (by its margins), never fewer."""
+    the build may list more (by its margins), never fewer. Built for three lights in turn:
+    the second near enough to the first for the grid's candidates to be kept, the third not."""
+    gathered = []
+    grid = crambin_grid.grid
+    monkeypatch.setattr(grid, "candidates_in_box",
+                        lambda lo, hi, gather=grid.candidates_in_box: gathered.append(1) or gather(lo, hi))
     shadows = ShadowPass(crambin_grid)
     lists = shadows.light_buffer
+    lamp = probe_light(crambin)
     try:
-        light = probe_light(crambin)
-        lists.build(light.position, light.radius, 0.0)
-        centres, vdw = crambin_grid.grid.centers, crambin_grid.vdw_radii
-        grown = vdw + lists.slack + 1e-3
-        table = np.frombuffer(lists.list_atoms.read(), dtype=np.int32)
-        listed = np.split(table[lists.n_cells + 1:][:lists.starts[-1]], lists.starts[1:-1])
-        offsets = centres - np.asarray(light.position)
-        distance = np.linalg.norm(offsets, axis=1)
-        rng = np.random.default_rng(5)
-        n = lists.face_cells
-        missed = 0
-        for cell in rng.choice(lists.n_cells, 24, replace=False):
-            face, j, i = cell // (n * n), (cell // n) % n, cell % n
-            axis, sign = face // 2, -1.0 if face % 2 else 1.0
-            s, t = np.meshgrid(-1 + (i + rng.random(400)) * 2 / n, -1 + (j + rng.random(400)) * 2 / n)
-            directions = np.zeros((s.size, 3))
-            directions[:, axis] = sign
-            directions[:, (axis + 1) % 3], directions[:, (axis + 2) % 3] = s.ravel(), t.ravel()
-            directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-            # an atom is seen through the cell if some sampled ray from the light passes within its grown radius
-            along = offsets @ directions.T
-            miss = distance[:, None] ** 2 - np.maximum(along, 0.0) ** 2
-            seen = np.flatnonzero((miss <= grown[:, None] ** 2).any(axis=1) & (distance - grown <= lists.reach)
-                                  & ~crambin_grid.culled_mask)
-            mine = listed[cell]
-            missed += np.setdiff1d(seen, mine).size
-            near = distance[mine] - grown[mine]
-            assert np.all(np.diff(near) >= -1e-6), cell  # nearest first
-        assert missed == 0
+        for offset, gathers in (((0.0, 0.0, 0.0), 1), ((1.2, -0.8, 0.5), 1), ((7.0, 5.0, -4.0), 2)):
+            light = PointLight(tuple(np.asarray(lamp.position) + offset), lamp.radius)
+            lists.build(light.position, light.radius, 0.0)
+            assert len(gathered) == gathers and np.allclose(lists.centre, light.position, atol=lists.slack)
+            assert_lists_complete(lists, crambin_grid, lists.centre, cells=8)
     finally:
         shadows.release()
+
+
+def assert_lists_complete(lists, gpu_grid, centre, cells: int) -> None:
+    centres, vdw = gpu_grid.grid.centers, gpu_grid.vdw_radii
+    grown = vdw + lists.slack + 1e-3
+    table = np.frombuffer(lists.list_atoms.read(), dtype=np.int32)
+    listed = np.split(table[lists.n_cells + 1:][:lists.starts[-1]], lists.starts[1:-1])
+    offsets = centres - np.asarray(centre)
+    distance = np.linalg.norm(offsets, axis=1)
+    rng = np.random.default_rng(int(abs(centre[0]) * 1000))
+    n = lists.face_cells
+    missed = 0
+    for cell in rng.choice(lists.n_cells, cells, replace=False):
+        face, j, i = cell // (n * n), (cell // n) % n, cell % n
+        axis, sign = face // 2, -1.0 if face % 2 else 1.0
+        s, t = np.meshgrid(-1 + (i + rng.random(400)) * 2 / n, -1 + (j + rng.random(400)) * 2 / n)
+        directions = np.zeros((s.size, 3))
+        directions[:, axis] = sign
+        directions[:, (axis + 1) % 3], directions[:, (axis + 2) % 3] = s.ravel(), t.ravel()
+        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+        # an atom is seen through the cell if some sampled ray from the light passes within its grown radius
+        along = offsets @ directions.T
+        miss = distance[:, None] ** 2 - np.maximum(along, 0.0) ** 2
+        seen = np.flatnonzero((miss <= grown[:, None] ** 2).any(axis=1) & (distance - grown <= lists.reach)
+                              & ~gpu_grid.culled_mask)
+        mine = listed[cell]
+        missed += np.setdiff1d(seen, mine).size
+        near = distance[mine] - grown[mine]
+        assert np.all(np.diff(near) >= -1e-6), cell  # nearest first
+    assert missed == 0
 
 
 def test_light_buffer_of_a_light_with_no_atom_in_reach(crambin, crambin_grid, walking_pass, scene):

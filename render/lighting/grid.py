@@ -33,6 +33,7 @@ IMAGE_SPHERES, IMAGE_CULLED = 4, 5  # image units (shaders/grid_traversal.glsl)
 NO_PROBE = (0.0, 0.0, 0.0, 0.0)
 UNBOUNDED = 1e30  # Å: a probe whose share of the AO is not windowed
 CULLED, CENTRE_CLIPPED = 1, 2  # flag bits of the culled buffer
+LIGHT_CUT_MARGIN = 0.01  # Å: a point light this far inside a cut leaves its shadow rays whole (Culling.cuts_before)
 
 
 @dataclass
@@ -46,6 +47,7 @@ class Culling:
 
     clip_planes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     nav_cube: tuple[np.ndarray, float] | None = None  # centre (Å), half edge (Å)
+    _found: dict = field(default_factory=dict, init=False, repr=False, compare=False)  # uniforms, cuts
 
     def __post_init__(self) -> None:
         planes = np.asarray(self.clip_planes, dtype=np.float64).reshape(-1, 4)
@@ -70,6 +72,32 @@ class Culling:
             return None
         centre, half = self.nav_cube
         return centre - half, centre + half
+
+    def all_planes(self) -> np.ndarray:
+        """The clip planes and the cube's faces, as planes (N x 4, unit normals)."""
+        if "planes" not in self._found:
+            planes, box = self.clip_planes, self.cube_box
+            if box is not None:  # kept where n·x + d >= 0
+                planes = np.concatenate([planes, np.column_stack([np.eye(3), -box[0]]),
+                                         np.column_stack([-np.eye(3), box[1]])])
+            self._found["planes"] = planes
+        return self._found["planes"]
+
+    def cuts_before(self, light) -> Culling:
+        """The cuts a shadow ray from a kept point to a point light at `light` can cross: the
+        planes (the cube's faces among them) the light does not lie LIGHT_CUT_MARGIN Å
+        inside of. A segment between two points a half-space keeps lies in it (it is
+        convex), so the others leave the ray whole; the margin holds the float32 test of
+        the light's end in the shaders. The cube's faces come as planes, and the whole
+        culling when they do not fit the shaders' arrays."""
+        planes = self.all_planes()
+        crossed = planes[:, :3] @ np.asarray(light, dtype=np.float64).reshape(3) + planes[:, 3] < LIGHT_CUT_MARGIN
+        if np.count_nonzero(crossed) > MAX_CLIP_PLANES:
+            return self
+        key = ("cuts", crossed.tobytes())
+        if key not in self._found:  # the same few cuts frame after frame
+            self._found[key] = Culling(planes[crossed], None)
+        return self._found[key]
 
     def culled_atoms(self, centers: np.ndarray, radii: np.ndarray, grid: UniformGrid | None = None) -> np.ndarray:
         """Boolean mask of atoms of which nothing is kept (wholly behind a plane, or not
@@ -109,15 +137,17 @@ class Culling:
         return clipped
 
     def uniforms(self) -> dict[str, object]:
-        box = self.cube_box
-        lo, hi = box if box is not None else (np.zeros(3), np.zeros(3))
-        return {
-            "u_clip_count": int(self.clip_planes.shape[0]),
-            "u_clip_planes": padded_planes(self.clip_planes).tobytes(),
-            "u_cube_on": int(box is not None),
-            "u_cube_lo": tuple(float(v) for v in lo),
-            "u_cube_hi": tuple(float(v) for v in hi),
-        }
+        if "uniforms" not in self._found:
+            box = self.cube_box
+            lo, hi = box if box is not None else (np.zeros(3), np.zeros(3))
+            self._found["uniforms"] = {
+                "u_clip_count": int(self.clip_planes.shape[0]),
+                "u_clip_planes": padded_planes(self.clip_planes).tobytes(),
+                "u_cube_on": int(box is not None),
+                "u_cube_lo": tuple(float(v) for v in lo),
+                "u_cube_hi": tuple(float(v) for v in hi),
+            }
+        return self._found["uniforms"]
 
 
 def cube_culling(planes: np.ndarray, cube) -> Culling:
@@ -161,6 +191,7 @@ class GpuGrid:
         self.probe_reach = UNBOUNDED
         self._sun_buffer: DirectionalLightBuffer | None = None  # see sun_buffer()
         self.culling_version = 0  # counts set_culling calls (what depends on the culled flags follows it)
+        self._uniforms: tuple[int, dict] = (-1, {})  # (culling version, the uniforms that follow it)
 
     @classmethod
     def from_structure(cls, ctx, structure, probe_radius: float, cell_size: float | None = None) -> "GpuGrid":
@@ -200,17 +231,17 @@ class GpuGrid:
         self.culled.bind_to_image(IMAGE_CULLED, read=True, write=False)
 
     def uniforms(self) -> dict[str, object]:
-        lo, hi = self.walk_range
-        return {
-            "u_grid_origin": tuple(float(v) for v in self.grid.origin),
-            "u_cell_size": float(self.grid.cell_size),
-            "u_grid_dims": tuple(int(v) for v in self.grid.dims),
-            "u_walk_lo": tuple(int(v) for v in lo),
-            "u_walk_hi": tuple(int(v) for v in hi),
-            "u_probe_sphere": self.probe_sphere,
-            "u_probe_reach": self.probe_reach,
-            **self.culling.uniforms(),
-        }
+        if self._uniforms[0] != self.culling_version:
+            lo, hi = self.walk_range
+            self._uniforms = (self.culling_version, {
+                "u_grid_origin": tuple(float(v) for v in self.grid.origin),
+                "u_cell_size": float(self.grid.cell_size),
+                "u_grid_dims": tuple(int(v) for v in self.grid.dims),
+                "u_walk_lo": tuple(int(v) for v in lo),
+                "u_walk_hi": tuple(int(v) for v in hi),
+                **self.culling.uniforms(),
+            })
+        return {**self._uniforms[1], "u_probe_sphere": self.probe_sphere, "u_probe_reach": self.probe_reach}
 
     def sun_buffer(self) -> DirectionalLightBuffer:
         """The directional light's buffer of these spheres (render/lighting/light_buffer.py),

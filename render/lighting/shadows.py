@@ -44,14 +44,15 @@ class ShadowPass:
         self.drawn = DepthPickedPass(self.ctx, "shadows.frag", gpu_grid)  # the renderer's G-buffer
 
     def trace(self, gbuffer: GBuffer, light: DirectionalLight | PointLight, soft: SoftShadow = HARD_SHADOW,
-              out=None, rect=None, only_probe: bool = False):
+              out=None, rect=None, only_probe: bool = False, all_cuts: bool = False):
         """Visibility texture (r32f) of `light` at every G-buffer pixel; `out` is reused when given.
         `rect` (x, y, width, height) traces only those pixels, `only_probe` only the probe's
-        (the others keep what `out` holds)."""
+        (the others keep what `out` holds). `all_cuts` clips a point light's rays by every
+        cut, as the probe's own pixels are (see `prepared`)."""
         width, height = gbuffer.size
         out = out or texture_2d(self.ctx, width, height)
         x, y, w, h = rect if rect is not None else (0, 0, width, height)
-        cases, uniforms = self.prepared(light, soft)
+        cases, uniforms = self.prepared(light, soft, from_kept_points=not (only_probe or all_cuts))
         gbuffer.bind()
         if gbuffer.depth is not None and not only_probe:  # 1 on the background, the surfaces traced
             self.drawn.run(out, gbuffer.depth, (x, y, w, h), [(cases, ">")], uniforms, clear=1.0)
@@ -60,10 +61,16 @@ class ShadowPass:
         self.programs.get(*cases).run(w, h, {**uniforms, "u_offset": (int(x), int(y)), "u_only_probe": int(only_probe)})
         return out
 
-    def prepared(self, light: DirectionalLight | PointLight, soft: SoftShadow = HARD_SHADOW) -> tuple[tuple, dict]:
+    def prepared(self, light: DirectionalLight | PointLight, soft: SoftShadow = HARD_SHADOW,
+                 from_kept_points: bool = True) -> tuple[tuple, dict]:
         """The light's buffer built and bound, and what a program tracing it per pixel with
         shaders/light_visibility.glsl takes: its cases (#defines, as ComputeVariants.get
-        takes them) and uniforms (the grid's besides; the grid is bound by the caller)."""
+        takes them) and uniforms (the grid's besides, which these override; the grid is
+        bound by the caller). A point light's rays are clipped only by the cuts it lies
+        beyond (Culling.cuts_before) when they start from kept points (`from_kept_points`:
+        the drawn surfaces; not the probe's own, which may lie outside the cube): the
+        others cannot shorten a segment between two kept points, and on llvmpipe every cut
+        tested costs each pixel its instructions."""
         if soft.outer > self.grid.max_shell + 1e-9:
             raise ValueError(
                 f"soft-shadow outer radius +{soft.outer:g} Å exceeds the grid's expansion "
@@ -81,9 +88,14 @@ class ShadowPass:
             self.sun_buffer.build(light.unit(), soft.outer)
             self.sun_buffer.bind()
             buffer_uniforms = self.sun_buffer.uniforms()
+        culling = self.grid.culling
+        if point and from_kept_points:
+            culling = culling.cuts_before(light.position)
         cases = (("LIGHT_BUFFER", buffered), ("SUN_BUFFER", sun_buffered),
-                 ("NO_CLIPPING", not self.grid.culling.clipping), ("HARD_SHADOWS", soft == HARD_SHADOW))
+                 ("NO_CLIPPING", not culling.clipping), ("NO_CUBE", culling.nav_cube is None),
+                 ("HARD_SHADOWS", soft == HARD_SHADOW))
         uniforms = {
+            **culling.uniforms(),
             **buffer_uniforms,
             **light_uniforms(None if point else light, light if point else None),
             "u_point_light": int(point),

@@ -10,7 +10,8 @@ uniform vec3 u_cube_hi;
 
 // The kept part [t0, t1] of the ray after the clip planes and the navigation cube, and the
 // outward normal of the cut the ray enters through (zero when it starts inside).
-// Compiled with NO_CLIPPING (nothing is cut away), it only checks the interval: llvmpipe
+// Compiled with NO_CLIPPING (nothing is cut away), it only checks the interval, and with
+// NO_CUBE (no cube box: none, or its faces among the planes) it leaves the box out: llvmpipe
 // runs a shader's every instruction whichever way a branch goes, uniform ones included.
 bool clip_ray(vec3 o, vec3 d, inout float t0, inout float t1, out vec3 entry_normal) {
     entry_normal = vec3(0.0);
@@ -28,6 +29,7 @@ bool clip_ray(vec3 o, vec3 d, inout float t0, inout float t1, out vec3 entry_nor
             return false;
         }
     }
+#ifndef NO_CUBE
     if (u_cube_on != 0) {
         for (int a = 0; a < 3; ++a) {
             if (d[a] == 0.0) {
@@ -45,6 +47,7 @@ bool clip_ray(vec3 o, vec3 d, inout float t0, inout float t1, out vec3 entry_nor
             t1 = min(t1, max(ta, tb));
         }
     }
+#endif
 #endif
     return t0 < t1;
 }
