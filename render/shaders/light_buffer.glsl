@@ -43,14 +43,23 @@ float trace_point_visibility(vec3 o, vec3 light, int skip_atom, vec2 shell, floa
     vec3 cut_normal;
     if (!clip_ray(o, d, t0, t1, cut_normal)) return 1.0;
     float vis = 1.0;
-    for (uint k = first; k < end; ++k) {
-        vec4 sphere = imageLoad(u_list_spheres, table_texel(k));
-        vec3 from_centre = sphere.xyz - u_lb_centre;
-        float beyond = reach + sphere.w;
-        if (dot(from_centre, from_centre) > beyond * beyond) break;  // this one and every later one
-        if (imageLoad(u_list_atoms, table_texel(u_lb_cells + 1u + k)).x == skip_atom) continue;
-        vis = min(vis, occluder_visibility(o, d, t0, t1, sphere, shell, growth));
-        if (vis <= 0.0) return 0.0;
+    // Two entries a turn, one exit: llvmpipe pays for every turn and every exit of a loop
+    // in each group of pixels. An entry past `end` is the next list's and is not counted;
+    // one beyond the reach darkens nothing (its distance to the ray exceeds its shell), so
+    // testing it before the loop ends leaves the minimum as it is.
+    for (uint k = first; k < end; k += 2u) {
+        bool beyond = false;
+        for (uint i = 0u; i < 2u; ++i) {  // unrolled
+            uint j = k + i;
+            vec4 sphere = imageLoad(u_list_spheres, table_texel(j));
+            bool listed = j < end && imageLoad(u_list_atoms, table_texel(u_lb_cells + 1u + j)).x != skip_atom;
+            float v = occluder_visibility(o, d, t0, t1, sphere, shell, growth);
+            vis = listed ? min(vis, v) : vis;
+            vec3 from_centre = sphere.xyz - u_lb_centre;
+            float farthest = reach + sphere.w;
+            beyond = beyond || dot(from_centre, from_centre) > farthest * farthest;  // this one and every later one
+        }
+        if (beyond || vis <= 0.0) break;
     }
     return vis;
 }

@@ -75,14 +75,18 @@ vec3 phong(vec3 albedo, vec3 n, vec3 v, vec3 l) {
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
-    vec4 vis = LOAD(u_visibility, px);
 #ifdef BACKGROUND_ONLY
-    o_color = vec4(u_background * vis.a, 1.0);
+    o_color = vec4(u_background * LOAD(u_visibility, px).a, 1.0);
 #else
     ivec2 ids = LOAD(u_ids, px).xy;
-    vec3 albedo = texelFetch(u_albedo, px, 0).rgb;
     vec3 p = LOAD(u_position, px).xyz;
     vec3 n = normalize(LOAD(u_normal, px).xyz);
+#if defined(TRACE_PROBE_LIGHT) && !defined(CONTEXT)  // as shadow_pixel.glsl has it: spheres and caps are traced
+    // before the other layers are fetched, so that fewer values live through its loop
+    float probe_shadow = light_visibility(ids.y == KIND_SPHERE || ids.y == KIND_CAP, p, n, ids.x);
+#endif
+    vec4 vis = LOAD(u_visibility, px);
+    vec3 albedo = texelFetch(u_albedo, px, 0).rgb;
     vec3 v = normalize(u_eye - p);
     if (ids.y == KIND_PROBE) {  // the light source itself: bright, lightly shaded
         o_color = vec4(u_probe_color * (0.75 + 0.25 * max(dot(n, v), 0.0)) * vis.a, 1.0);
@@ -106,8 +110,8 @@ void main() {
         float atten = window * window / (u_probe_atten.x + u_probe_atten.y * dist + u_probe_atten.z * dist * dist);
 #if defined(PROBE_SHADOWED)
         float shadow = texelFetch(u_probe_visibility, px, 0).r;
-#elif defined(TRACE_PROBE_LIGHT)  // as shadow_pixel.glsl has it: spheres and caps are traced
-        float shadow = light_visibility(ids.y == KIND_SPHERE || ids.y == KIND_CAP, p, n, ids.x);
+#elif defined(TRACE_PROBE_LIGHT)
+        float shadow = probe_shadow;
 #else
         float shadow = 1.0;
 #endif
