@@ -68,13 +68,40 @@ def state_key(value, skip: tuple[str, ...] = ()):
     if isinstance(value, np.generic):
         return value.item()
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return (type(value).__name__,) + tuple(
-            (f.name, state_key(getattr(value, f.name))) for f in dataclasses.fields(value) if f.name not in skip)
+        if not skip and _frozen(value):  # settings: their keys are found once (a few hundred fields a frame)
+            key = _FROZEN_KEYS.get(value)
+            if key is None:
+                if len(_FROZEN_KEYS) >= FROZEN_KEYS_KEPT:
+                    _FROZEN_KEYS.clear()
+                key = _FROZEN_KEYS[value] = _dataclass_key(value, skip)
+            return key
+        return _dataclass_key(value, skip)
     if isinstance(value, (list, tuple)):
         return tuple(state_key(v) for v in value)
     if isinstance(value, dict):
         return tuple(sorted((str(k), state_key(v)) for k, v in value.items()))
     return (type(value).__name__, id(value))
+
+
+FROZEN_KEYS_KEPT = 256
+_FROZEN_KEYS: dict = {}  # frozen, hashable dataclass -> its key (equal values, equal keys)
+
+
+def _dataclass_key(value, skip: tuple[str, ...]) -> tuple:
+    return (type(value).__name__,) + tuple(
+        (f.name, state_key(getattr(value, f.name))) for f in dataclasses.fields(value) if f.name not in skip)
+
+
+def _frozen(value) -> bool:
+    """Whether a dataclass instance is frozen and hashable: then none of its fields can
+    change (a hashable field holds no array or list)."""
+    if not type(value).__dataclass_params__.frozen:
+        return False
+    try:
+        hash(value)
+    except TypeError:
+        return False
+    return True
 
 
 def molecule_key(frame, passes, context: bool = False) -> tuple:

@@ -367,3 +367,15 @@ def test_the_key_covers_fields_added_later():
     assert state_key(replace(scene, probe=Probe(np.zeros(3))), skip=("probe",)) == key
     assert state_key(replace(scene, effects=Effects(shadows=True)), skip=("probe",)) != key
     assert state_key(AOSettings(patch=9)) != state_key(AOSettings())
+    # settings (frozen) have their keys found once: the same for equal ones, asked again or not
+    assert state_key(AOSettings(patch=9)) == state_key(AOSettings(patch=9)) != state_key(AOSettings(patch=10))
+    assert state_key(LightingSettings(ao=AOSettings(patch=9))) != state_key(LightingSettings())
+
+    @dataclasses.dataclass(frozen=True)
+    class Held:  # frozen, but an array can change in place: found field by field every time
+        values: np.ndarray
+
+    held = Held(np.zeros(2))
+    before = state_key(held)
+    held.values[0] = 1.0
+    assert state_key(held) != before

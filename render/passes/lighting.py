@@ -99,7 +99,7 @@ class LightingPass(LayeredLighting, Pass):
         self.edges = EdgeCueingPass(ctx)
         self._culling_key: bytes | None = None
         self._probe_key: bytes | None = None
-        self._still_key: bytes | None = None
+        self._still_key: tuple | None = None
         self._color_version: int | None = None  # the buffers' colours the path tracer has
         self.textures = TextureCache(ctx)
         self.layers: dict[str, object] = {}  # textures of the last frame's terms (for the G-buffer export)
@@ -168,10 +168,8 @@ class LightingPass(LayeredLighting, Pass):
 
     def _stillness(self, frame: Frame, culling_key: bytes, probe_key: bytes) -> bool:
         """Whether what the picture shows changed since the last frame (the path tracer restarts)."""
-        still = b"".join([
-            np.asarray(frame.view).tobytes(), np.asarray(frame.proj).tobytes(), np.array(frame.size).tobytes(),
-            culling_key, probe_key, repr((self.lights, self.ao_mode, frame.scene.effects.path_tracing)).encode(),
-        ])
+        still = (np.asarray(frame.view).tobytes(), np.asarray(frame.proj).tobytes(), tuple(frame.size),
+                 culling_key, probe_key, self.lights, self.ao_mode, frame.scene.effects.path_tracing)
         changed = still != self._still_key
         self._still_key = still
         if changed:
