@@ -148,7 +148,8 @@ class PointLightBuffer:
         # dotted with (axis, cos b, sin b) of the atom is >= 0. Each face's cells are tested
         # only against the atoms whose cone meets the face's (its cells lie within FACE_HALF
         # of its axis): most atoms' cones are narrow and meet one face or two. (Products of
-        # at most 64 x a few hundred x 5: OpenBLAS runs them on the calling thread.)
+        # 64 x a few hundred x 5 stay on the calling thread in OpenBLAS, and `sasprobe` runs
+        # it with one thread: its idle threads would spin after each.)
         atom_terms = np.column_stack([axes, np.cos(half), np.sin(half)]).astype(np.float32)  # the margins hold float32
         near_face = np.cos(np.minimum(half + FACE_HALF + ANGLE_MARGIN, np.pi))
         wide = half + self.cell_half.max() >= np.pi  # a few at most, the light among them
