@@ -176,12 +176,13 @@ class GpuGrid:
         self.vdw_radii = vdw_radii
         # Thickest soft-shadow shell the grid still holds: the smallest expansion.
         self.max_shell = float(np.min(grid.radii - vdw_radii))
-        spheres = np.column_stack([grid.centers, vdw_radii]).astype(np.float32)
+        # each atom's centre and vdW radius as the shaders read them (the light buffers list rows of it)
+        self.sphere_rows = np.column_stack([grid.centers, vdw_radii]).astype(np.float32)
         # Zero-length buffers cannot be created; an all-empty grid still gets one entry.
         atoms = grid.cell_atoms if grid.cell_atoms.size else np.zeros(1, dtype=np.uint32)
         self.cell_start = ctx.buffer(grid.cell_start.astype(np.uint32).tobytes())
         self.cell_atoms = ctx.buffer(atoms.astype(np.uint32).tobytes())
-        self.spheres = table_image(ctx, None, spheres)
+        self.spheres = table_image(ctx, None, self.sphere_rows)
         self.culled = table_image(ctx, None, np.zeros(self.n_atoms, dtype=np.uint32), "u4")
         self.culling = Culling()
         self.culled_mask = np.zeros(self.n_atoms, dtype=bool)

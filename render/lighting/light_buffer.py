@@ -27,8 +27,8 @@ whenever the light leaves that ball, its reach grows, or the shell or the cullin
 on the CPU (numpy): the atoms within reach, sorted, each face's cells' cones tested at
 once against the atoms' cones that meet the face (a few hundred atoms at 20 Å in a
 navigation cube), the lists packed one after another (in table images: each cell's first
-entry, then the entries) and uploaded. Filling them on the GPU, one invocation per cell, took llvmpipe
-longer than the numpy build takes. Read by shaders/light_buffer.glsl.
+entry, then the entries) and uploaded. Filling them on the GPU, one invocation per cell,
+took llvmpipe longer than the numpy build takes. Read by shaders/light_buffer.glsl.
 """
 
 from __future__ import annotations
@@ -95,7 +95,6 @@ class PointLightBuffer:
         self.cell_half = half
         cell_terms = np.column_stack([cones[:, :3], -np.cos(half), np.sin(half)]).astype(np.float32)
         self.face_terms = cell_terms.reshape(6, self.face_cells ** 2, 5)  # each face's cells
-        self.spheres = np.column_stack([gpu_grid.grid.centers, gpu_grid.vdw_radii]).astype(np.float32)
         self._nearby = (np.full(3, np.inf), np.full(3, -np.inf), np.empty(0, dtype=np.int64))  # (lo, hi, atoms)
         self.starts = np.zeros(self.n_cells + 1, dtype=np.int32)  # cell c lists entries starts[c] .. starts[c + 1]
         self.list_spheres = table_image(self.ctx, None, np.zeros((1, 4), dtype=np.float32))
@@ -167,9 +166,8 @@ class PointLightBuffer:
         self.starts[0] = 0
         np.cumsum(np.concatenate(per_cell), out=self.starts[1:])
         listed = atoms[np.concatenate(entries)]
-        spheres = self.spheres[listed]
         if listed.size:
-            self.list_spheres = table_image(self.ctx, self.list_spheres, spheres)
+            self.list_spheres = table_image(self.ctx, self.list_spheres, self.grid.sphere_rows[listed])
         self.list_atoms = table_image(self.ctx, self.list_atoms, np.concatenate([self.starts, listed]).astype(np.int32),
                                       "i4")
 
@@ -274,9 +272,8 @@ class DirectionalLightBuffer:
         starts = np.zeros(int(dims[0] * dims[1]) + 1, dtype=np.uint32)
         np.cumsum(np.bincount(cell_id, minlength=starts.size - 1), out=starts[1:])
         listed = owner[order]
-        spheres = np.column_stack([centres, vdw]).astype(np.float32)[listed]
         upload(self.starts, starts)
-        self.spheres = table_image(self.ctx, self.spheres, spheres)
+        self.spheres = table_image(self.ctx, self.spheres, self.grid.sphere_rows[atoms[listed]])
         self.atoms = table_image(self.ctx, self.atoms, atoms[listed].astype(np.int32), "i4")
         self.entries = int(listed.size)
         self._uniforms = {"u_sb_u": tuple(u), "u_sb_v": tuple(v), "u_sb_origin": tuple(float(x) for x in lo),

@@ -1,14 +1,13 @@
 // Shadow rays of the probe's point light through its light buffer
-// (render/lighting/light_buffer.py): the ray from o to
-// the light tests the atoms listed for its direction seen from the light, nearest first,
-// and stops at the first too far from the lists' centre to reach the ray (the light lies
-// within the lists' slack of it). The same occluders and the same minimum as
-// trace_visibility (grid_traversal.glsl, included before this): the lists are
-// complete. The lists lie one after another in two tables (table_image.glsl): image 2
-// holds entry k's sphere at k; image 3 first each cell's first entry (u_lb_cells of them,
-// then the number of entries: the last cell's end), then entry k's atom at
-// u_lb_cells + 1 + k. (Images: llvmpipe
-// reads a storage buffer lane by lane.)
+// (render/lighting/light_buffer.py): the ray from o to the light tests the atoms listed
+// for its direction seen from the light, nearest first, and stops at the first too far
+// from the lists' centre to reach the ray (the light lies within the lists' slack of it).
+// The same occluders and the same minimum as trace_visibility (grid_traversal.glsl,
+// included before this): the lists are complete. The lists lie one after another in two
+// tables (table_image.glsl): image 2 holds entry k's sphere at k; image 3 first each
+// cell's first entry (u_lb_cells of them, then the number of entries: the last cell's
+// end), then entry k's atom at u_lb_cells + 1 + k. (Images: llvmpipe reads a storage
+// buffer lane by lane.)
 #include "table_image.glsl"
 layout(rgba32f, binding = 2) readonly uniform image2D u_list_spheres;  // centre, vdW radius
 layout(r32i, binding = 3) readonly uniform iimage2D u_list_atoms;
