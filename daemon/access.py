@@ -28,7 +28,9 @@ def check_folder(path: str | None, flag: str) -> str | None:
 def path_below(root: str | None, requested: str, flag: str, what: str) -> Path:
     """`requested` (relative to root, or absolute) resolved; UserError unless it lies below root."""
     if root is None:
-        raise UserError(f"this daemon takes no paths for {what}; start it with {flag} DIR to allow a folder")
+        raise UserError(
+            f"this daemon takes no paths for {what}; start it with {flag} DIR to allow a folder"
+        )
     base = Path(root)
     resolved = Path(os.path.realpath(base / requested))
     if resolved == base or not resolved.is_relative_to(base):

@@ -48,7 +48,7 @@ class ButtonMap:
     _previous: int = 0
 
     @classmethod
-    def from_options(cls, options: list[str] | None) -> "ButtonMap":
+    def from_options(cls, options: list[str] | None) -> ButtonMap:
         """The defaults with `--button ACTION=N` options applied; ValueError on a bad one."""
         buttons = dict(DEFAULT_BUTTONS)
         for text in options or ():
@@ -94,5 +94,7 @@ class WorkspaceInputs:
         if clutched != self.clutched:
             self.clutched = clutched
             actions.append(("clutch", {"held": clutched}))
-        actions += [(action, {}) for action in ACTIONS if action in pressed and action not in HELD_ACTIONS]
+        actions += [
+            (action, {}) for action in ACTIONS if action in pressed and action not in HELD_ACTIONS
+        ]
         return actions

@@ -7,10 +7,12 @@ to `deferred_release` and freed by the submitting thread, never by the loop."""
 from __future__ import annotations
 
 import collections
-from concurrent.futures import Future, TimeoutError as FutureTimeout
+from concurrent.futures import Future
+from concurrent.futures import TimeoutError as FutureTimeout
+
+from sasprobe.daemon.deferred_release import DeferredRelease
 
 from sasprobe.common.errors import UserError
-from sasprobe.daemon.deferred_release import DeferredRelease
 
 SUBMIT_TIMEOUT_S = 5.0
 
@@ -27,7 +29,9 @@ class ChangeQueue:
         try:
             return future.result(timeout=SUBMIT_TIMEOUT_S)
         except FutureTimeout:
-            raise UserError("the daemon loop did not take the change in time (is it shutting down?)") from None
+            raise UserError(
+                "the daemon loop did not take the change in time (is it shutting down?)"
+            ) from None
         finally:
             self.deferred_release.release()  # what the change replaced, freed here rather than on the loop
 

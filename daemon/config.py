@@ -5,9 +5,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from sasprobe.common.errors import UserError
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
 from sasprobe.protocol.security import ServerKeys, ensure_local_keys, load_server_keys
+
+from sasprobe.common.errors import UserError
 
 
 @dataclass
@@ -15,7 +16,9 @@ class DaemonConfig:
     device: str = "sim"
     molecule: str | None = None
     keep_water: bool = False
-    rate_hz: float | None = None  # None: the device's nominal rate (a replay: its recorded rate x speed)
+    rate_hz: float | None = (
+        None  # None: the device's nominal rate (a replay: its recorded rate x speed)
+    )
     pub: list[str] = field(default_factory=lambda: [DEFAULT_PUB_ENDPOINT])
     ctl: list[str] = field(default_factory=lambda: [DEFAULT_CTL_ENDPOINT])
     record: str | None = None
@@ -26,15 +29,27 @@ class DaemonConfig:
     spin_s: float = 200e-6
     report: str | None = None  # write a JSON exit report here
     max_seconds: float | None = None  # stop by itself after this long (benchmarks, demos)
-    realtime: bool = True  # ask for SCHED_FIFO for the loop and ZeroMQ's I/O thread (fall back with a warning)
-    faults: list[str] = field(default_factory=list)  # simulated-arm fault injection, e.g. "nan@900+5"
+    realtime: bool = (
+        True  # ask for SCHED_FIFO for the loop and ZeroMQ's I/O thread (fall back with a warning)
+    )
+    faults: list[str] = field(
+        default_factory=list
+    )  # simulated-arm fault injection, e.g. "nan@900+5"
     buttons: list[str] = field(default_factory=list)  # --button ACTION=N (daemon/buttons.py)
-    button_presses: list[str] = field(default_factory=list)  # simulated arm: "BUTTON@TICK+COUNT" held down
-    color_scheme: str | None = None  # the scene's colour scheme (None: each renderer's default by structure)
+    button_presses: list[str] = field(
+        default_factory=list
+    )  # simulated arm: "BUTTON@TICK+COUNT" held down
+    color_scheme: str | None = (
+        None  # the scene's colour scheme (None: each renderer's default by structure)
+    )
     load_dir: str | None = None  # `load` may read files below this folder (None: bytes only)
     record_dir: str | None = None  # `record_start` writes below this folder (None: refused)
-    loop_stalls: list[tuple[int, float]] = field(default_factory=list)  # test hook: (tick, seconds) the loop sleeps
-    slow_reads: list[tuple[int, int]] = field(default_factory=list)  # test hook: (tick, count) reads made slow
+    loop_stalls: list[tuple[int, float]] = field(
+        default_factory=list
+    )  # test hook: (tick, seconds) the loop sleeps
+    slow_reads: list[tuple[int, int]] = field(
+        default_factory=list
+    )  # test hook: (tick, count) reads made slow
 
 
 def check_config(config: DaemonConfig) -> DaemonConfig:

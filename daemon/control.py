@@ -15,23 +15,23 @@ from __future__ import annotations
 
 import logging
 import threading
-from typing import Callable
+from collections.abc import Callable
 
 import zmq
-
 from sasprobe.daemon.loop import helper_priority
 from sasprobe.daemon.monitor import SocketMonitor
-from sasprobe.common.errors import UserError
 from sasprobe.protocol.control import (
     MAX_MESSAGE_BYTES,
-    ProtocolError,
     ControlReply,
+    ProtocolError,
     Request,
     decode_request,
     encode_reply,
 )
 from sasprobe.protocol.endpoints import remove_socket_files, socket_files
 from sasprobe.protocol.security import ServerKeys, bind_server_socket
+
+from sasprobe.common.errors import UserError
 
 log = logging.getLogger("sasprobe")
 
@@ -40,12 +40,19 @@ POLL_MS = 100
 
 
 class ControlServer:
-    def __init__(self, context: zmq.Context, endpoints: list[str], handler: Callable[[Request], ControlReply],
-                 keys: ServerKeys | None = None) -> None:
+    def __init__(
+        self,
+        context: zmq.Context,
+        endpoints: list[str],
+        handler: Callable[[Request], ControlReply],
+        keys: ServerKeys | None = None,
+    ) -> None:
         self._handler = handler
         self._socket = context.socket(zmq.ROUTER)
         self._socket.linger = REPLY_LINGER_MS
-        self._socket.setsockopt(zmq.MAXMSGSIZE, MAX_MESSAGE_BYTES)  # a larger frame drops the connection
+        self._socket.setsockopt(
+            zmq.MAXMSGSIZE, MAX_MESSAGE_BYTES
+        )  # a larger frame drops the connection
         self._monitor = SocketMonitor(self._socket, "control socket", keys is not None)
         try:
             self.endpoints = bind_server_socket(self._socket, endpoints, keys)
@@ -71,7 +78,9 @@ class ControlServer:
         if self._stop.is_set() or self._thread is None or self._thread.is_alive():
             return False
         self.restarts += 1
-        log.warning("control thread ended unexpectedly; started again (%d restart(s))", self.restarts)
+        log.warning(
+            "control thread ended unexpectedly; started again (%d restart(s))", self.restarts
+        )
         self.start()
         return True
 
@@ -102,8 +111,13 @@ class ControlServer:
         except Exception as exc:  # a result that is not plain JSON: a bug, answered as one
             log.exception("control reply could not be encoded")
             self.errors += 1
-            return encode_reply(ControlReply(ok=False, error=f"internal error: the reply could not be encoded "
-                                                       f"({type(exc).__name__})", id=reply.id))
+            return encode_reply(
+                ControlReply(
+                    ok=False,
+                    error=f"internal error: the reply could not be encoded ({type(exc).__name__})",
+                    id=reply.id,
+                )
+            )
 
     def handle(self, frames: list) -> ControlReply:
         """Decode, dispatch and turn every failure into an error reply."""
@@ -115,13 +129,20 @@ class ControlServer:
             reply = self._handler(request)
             reply.id = request.id
         except ProtocolError as exc:
-            reply = ControlReply(ok=False, error=one_line(str(exc)) or type(exc).__name__, id=exc.request_id)
+            reply = ControlReply(
+                ok=False, error=one_line(str(exc)) or type(exc).__name__, id=exc.request_id
+            )
         except (UserError, ValueError) as exc:
-            reply = ControlReply(ok=False, error=one_line(str(exc)) or type(exc).__name__, id=request_id)
+            reply = ControlReply(
+                ok=False, error=one_line(str(exc)) or type(exc).__name__, id=request_id
+            )
         except Exception as exc:  # a bug: answer, log, keep serving
             log.exception("control request failed")
-            reply = ControlReply(ok=False, error=f"internal error: {type(exc).__name__}: {one_line(str(exc))}",
-                          id=request_id)
+            reply = ControlReply(
+                ok=False,
+                error=f"internal error: {type(exc).__name__}: {one_line(str(exc))}",
+                id=request_id,
+            )
         if not reply.ok:
             self.errors += 1
             log.warning("control: %s", reply.error)

@@ -28,8 +28,12 @@ class FaultLog:
         self._suppressed = 0
 
     def note(self, reason: str | None, now_ns: int) -> None:
-        self.say("device fault cleared, force back on" if reason is None else f"device fault: {reason}; force zeroed",
-                 now_ns)
+        self.say(
+            "device fault cleared, force back on"
+            if reason is None
+            else f"device fault: {reason}; force zeroed",
+            now_ns,
+        )
 
     def say(self, line: str, now_ns: int) -> None:
         if now_ns - self._last_ns < self.interval_ns:
@@ -41,13 +45,17 @@ class FaultLog:
         self._suppressed = 0
 
 
-LOST_TICKS_WARN = 10  # lost ticks within LOST_WINDOW_NS before the loop says so (a hiccup does not count)
+LOST_TICKS_WARN = (
+    10  # lost ticks within LOST_WINDOW_NS before the loop says so (a hiccup does not count)
+)
 LOST_WINDOW_NS = 1_000_000_000
 STALL_LOG_NS = 20_000_000  # a stall this long gets its own line (shorter ones count as lost ticks)
 
-REALTIME_FIX = ("allow real-time scheduling: run as root, grant CAP_SYS_NICE (`sudo setcap cap_sys_nice+ep "
-                "$(readlink -f $(which python3))`), or give your user an rtprio limit "
-                "(`@USER - rtprio 60` in /etc/security/limits.conf, then log in again)")
+REALTIME_FIX = (
+    "allow real-time scheduling: run as root, grant CAP_SYS_NICE (`sudo setcap cap_sys_nice+ep "
+    "$(readlink -f $(which python3))`), or give your user an rtprio limit "
+    "(`@USER - rtprio 60` in /etc/security/limits.conf, then log in again)"
+)
 
 
 class LoopLog:
@@ -61,9 +69,13 @@ class LoopLog:
         self._window: list[tuple[int, int]] = []  # (tick time, lost) within the last window
         self._stalls = FaultLog()
         self._faults = FaultLog()
-        self._fault_logged = False  # the fault in progress was told (a timing fault is not: lost_ticks tells it)
+        self._fault_logged = (
+            False  # the fault in progress was told (a timing fault is not: lost_ticks tells it)
+        )
 
-    def tick(self, now_ns: int, missed: int, timing_only: bool, fault_changed: bool, guard, stall) -> None:
+    def tick(
+        self, now_ns: int, missed: int, timing_only: bool, fault_changed: bool, guard, stall
+    ) -> None:
         """After each tick: `timing_only` when the tick was faulted for lateness alone."""
         self.lost_ticks(now_ns, missed + (1 if timing_only else 0))
         if stall is not None:
@@ -88,19 +100,29 @@ class LoopLog:
         self.warned = True
         window.clear()
         if self.realtime:
-            log.warning("the haptic loop is losing ticks (%d in the last second) even with real-time scheduling: "
-                        "another real-time task or the machine (a VM's stolen time) takes its CPU; each lost "
-                        "tick zeroes the force. `sasprobe status` counts them; this is said once", recent)
+            log.warning(
+                "the haptic loop is losing ticks (%d in the last second) even with real-time scheduling: "
+                "another real-time task or the machine (a VM's stolen time) takes its CPU; each lost "
+                "tick zeroes the force. `sasprobe status` counts them; this is said once",
+                recent,
+            )
         else:
-            log.warning("the haptic loop is losing ticks (%d in the last second): it shares the CPU with every "
-                        "other process, and each lost tick zeroes the force. To fix it, %s. This is said once; "
-                        "`sasprobe status` counts them", recent, REALTIME_FIX)
+            log.warning(
+                "the haptic loop is losing ticks (%d in the last second): it shares the CPU with every "
+                "other process, and each lost tick zeroes the force. To fix it, %s. This is said once; "
+                "`sasprobe status` counts them",
+                recent,
+                REALTIME_FIX,
+            )
 
     def stall(self, length_ns: int, zeroed_after_ns: int | None, now_ns: int) -> None:
         if length_ns < STALL_LOG_NS:
             return
-        zero = ("could not write zero force (a driver call held the device)" if zeroed_after_ns is None
-                else f"the watchdog zeroed the force {zeroed_after_ns / 1e6:.1f} ms after the last tick")
+        zero = (
+            "could not write zero force (a driver call held the device)"
+            if zeroed_after_ns is None
+            else f"the watchdog zeroed the force {zeroed_after_ns / 1e6:.1f} ms after the last tick"
+        )
         self._stalls.say(f"the haptic loop stalled for {length_ns / 1e6:.1f} ms; {zero}", now_ns)
 
 
@@ -120,7 +142,10 @@ class Reconnector:
         """The device gave nothing this tick; True when a reconnect() just succeeded."""
         if self._failing_since_ns is None:
             self._failing_since_ns = now_ns
-        if now_ns - self._failing_since_ns < RECONNECT_AFTER_NS or now_ns - self._last_attempt_ns < RECONNECT_INTERVAL_NS:
+        if (
+            now_ns - self._failing_since_ns < RECONNECT_AFTER_NS
+            or now_ns - self._last_attempt_ns < RECONNECT_INTERVAL_NS
+        ):
             return False
         self._last_attempt_ns = now_ns
         try:

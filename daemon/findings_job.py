@@ -33,14 +33,25 @@ class FindingsJob:
         self.error: str | None = None
         self.result: dict | None = None
         self.started_unix_s = time.time()
-        argv = [sys.executable, "-m", "sasprobe.daemon.findings", str(self.recording), self.out_dir, "--json"]
+        argv = [
+            sys.executable,
+            "-m",
+            "sasprobe.daemon.findings",
+            str(self.recording),
+            self.out_dir,
+            "--json",
+        ]
         if probe_radius_A is not None:
             argv += ["--probe-radius", repr(float(probe_radius_A))]
         with _normal_scheduling():
-            self._proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True)
+            self._proc = subprocess.Popen(
+                argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True
+            )
         self._thread = threading.Thread(target=self._watch, name="sasprobe-findings", daemon=True)
         self._thread.start()
-        log.warning("findings: analysing %s into %s (pid %d)", self.recording, self.out_dir, self._proc.pid)
+        log.warning(
+            "findings: analysing %s into %s (pid %d)", self.recording, self.out_dir, self._proc.pid
+        )
 
     @property
     def running(self) -> bool:
@@ -59,11 +70,20 @@ class FindingsJob:
         else:
             self.error = reply.get("error") or f"the analysis ended with status {rc}"
             self.state = "failed"
-        log.warning("findings into %s: %s", self.out_dir, self.state if self.error is None else self.error)
+        log.warning(
+            "findings into %s: %s", self.out_dir, self.state if self.error is None else self.error
+        )
 
     def as_dict(self) -> dict:
-        return {"dir": self.out_dir, "recording": str(self.recording), "state": self.state, "pid": self._proc.pid,
-                "started_unix_s": self.started_unix_s, "error": self.error, "result": self.result}
+        return {
+            "dir": self.out_dir,
+            "recording": str(self.recording),
+            "state": self.state,
+            "pid": self._proc.pid,
+            "started_unix_s": self.started_unix_s,
+            "error": self.error,
+            "result": self.result,
+        }
 
 
 class _normal_scheduling:

@@ -12,8 +12,8 @@ from __future__ import annotations
 import logging
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -109,7 +109,9 @@ class LoopStats:
             span = starts[-1] - starts[0]
             recent_rate = (k - 1) / (span / 1e9) if span > 0 else None
             if self.period_ns:
-                recent_p99 = float(np.percentile(np.abs(np.diff(starts) - self.period_ns), 99) / 1e3)
+                recent_p99 = float(
+                    np.percentile(np.abs(np.diff(starts) - self.period_ns), 99) / 1e3
+                )
         return {
             "window_s": elapsed / 1e9,
             "ticks": self.ticks,
@@ -128,7 +130,11 @@ class LoopStats:
                 "max": self.max_work_ns / 1e3,
             },
             "recent": {"rate_hz": recent_rate, "period_error_p99_us": recent_p99, "ticks": k},
-            "total": {"ticks": self.total_ticks, "overruns": self.total_overruns, "missed_deadlines": self.total_missed},
+            "total": {
+                "ticks": self.total_ticks,
+                "overruns": self.total_overruns,
+                "missed_deadlines": self.total_missed,
+            },
         }
 
 
@@ -163,7 +169,11 @@ class FixedRateLoop:
     def deadline(self, index: int) -> int:
         assert self._t0 is not None, "start() the loop first"
         # Integer arithmetic from the anchor: no rounding error accumulates.
-        return self._t0 + (index * 1_000_000_000 * 1000) // round(self.rate_hz * 1000) if self.rate_hz else self._t0
+        return (
+            self._t0 + (index * 1_000_000_000 * 1000) // round(self.rate_hz * 1000)
+            if self.rate_hz
+            else self._t0
+        )
 
     def wait(self) -> Tick:
         """Block until the next deadline and return the tick due there."""
@@ -219,9 +229,13 @@ def enter_realtime(priority: int = REALTIME_PRIORITY) -> bool:
         return True
     except (OSError, AttributeError, ValueError) as exc:
         reason = getattr(exc, "strerror", None) or str(exc)
-        log.warning("real-time scheduling refused (%s): the haptic loop competes with every other process and "
-                    "loses ticks (zero force) whenever the CPU is busy; to allow it, %s; --no-realtime says you "
-                    "know", reason, REALTIME_FIX)
+        log.warning(
+            "real-time scheduling refused (%s): the haptic loop competes with every other process and "
+            "loses ticks (zero force) whenever the CPU is busy; to allow it, %s; --no-realtime says you "
+            "know",
+            reason,
+            REALTIME_FIX,
+        )
         return False
 
 

@@ -14,10 +14,10 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-
-from sasprobe.common.errors import UserError
 from sasprobe.protocol.recording import json_floats
 from sasprobe.protocol.scene import MAX_MARKS
+
+from sasprobe.common.errors import UserError
 
 log = logging.getLogger("sasprobe")
 
@@ -34,14 +34,26 @@ class Marks:
             self._marks.clear()
             self._structure = structure_sha256
 
-    def drop(self, seq: int, position_A: np.ndarray, label: str | None, source: str, structure_sha256: str) -> dict:
+    def drop(
+        self,
+        seq: int,
+        position_A: np.ndarray,
+        label: str | None,
+        source: str,
+        structure_sha256: str,
+    ) -> dict:
         """A new mark at a probe position; UserError when MAX_MARKS are there already."""
         self._follow(structure_sha256)
         if len(self._marks) >= MAX_MARKS:
             raise UserError(f"a session holds at most {MAX_MARKS} marks")
         number = len(self._marks) + 1
-        mark = {"id": number, "label": label or f"mark {number}", "position_A": json_floats(position_A),
-                "seq": int(seq), "source": source}
+        mark = {
+            "id": number,
+            "label": label or f"mark {number}",
+            "position_A": json_floats(position_A),
+            "seq": int(seq),
+            "source": source,
+        }
         self._marks.append(mark)
         return dict(mark)
 

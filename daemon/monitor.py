@@ -27,8 +27,13 @@ from zmq.utils.monitor import recv_monitor_message
 
 log = logging.getLogger("sasprobe")
 
-EVENTS = (zmq.EVENT_ACCEPTED | zmq.EVENT_DISCONNECTED | zmq.EVENT_ACCEPT_FAILED
-          | zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL | zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL)
+EVENTS = (
+    zmq.EVENT_ACCEPTED
+    | zmq.EVENT_DISCONNECTED
+    | zmq.EVENT_ACCEPT_FAILED
+    | zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL
+    | zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL
+)
 HANDSHAKE_IVL_MS = 2000  # a connection that has not finished its handshake by then is dropped
 MAX_EVENTS_PER_DRAIN = 16  # bounded work for the loop thread even while events flood in
 LOG_INTERVAL_S = 10.0
@@ -81,17 +86,28 @@ class SocketMonitor:
         elif event == zmq.EVENT_ACCEPT_FAILED:
             self.accept_failures += 1
             if value in _OUT_OF_FDS:
-                self._say("fds", f"the {self.label} cannot accept connections: {os.strerror(value)} (a client "
-                                 f"holding many connections?)")
+                self._say(
+                    "fds",
+                    f"the {self.label} cannot accept connections: {os.strerror(value)} (a client "
+                    f"holding many connections?)",
+                )
         else:
             self.failed_handshakes += 1
             if event == zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL and value == _MECHANISM_MISMATCH:
-                why = ("without CURVE keys (this daemon requires them)" if self.curve
-                       else "with CURVE keys (this socket uses none)")
-                self._say("mechanism", f"a client of the {self.label} connected {why}; it was refused")
+                why = (
+                    "without CURVE keys (this daemon requires them)"
+                    if self.curve
+                    else "with CURVE keys (this socket uses none)"
+                )
+                self._say(
+                    "mechanism", f"a client of the {self.label} connected {why}; it was refused"
+                )
             else:
-                self._say("handshake", f"a client of the {self.label} failed the CURVE handshake: it does not "
-                                       f"have this daemon's server key")
+                self._say(
+                    "handshake",
+                    f"a client of the {self.label} failed the CURVE handshake: it does not "
+                    f"have this daemon's server key",
+                )
 
     def _say(self, kind: str, line: str) -> None:
         now = time.monotonic()

@@ -10,13 +10,13 @@ from __future__ import annotations
 import os
 
 import zmq
-
 from sasprobe.daemon.config import DaemonConfig, socket_keys
 from sasprobe.daemon.control import ControlServer
 from sasprobe.daemon.monitor import raise_fd_limit
 from sasprobe.daemon.publisher import Publisher
-from sasprobe.common.errors import UserError
 from sasprobe.protocol.security import start_authenticator
+
+from sasprobe.common.errors import UserError
 
 
 class Network:

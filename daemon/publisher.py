@@ -21,27 +21,34 @@ import logging
 import time
 
 import zmq
-
 from sasprobe.daemon.monitor import SocketMonitor
-from sasprobe.common.errors import UserError
 from sasprobe.protocol.endpoints import remove_socket_files, socket_files
 from sasprobe.protocol.pose import POSE_TOPIC
 from sasprobe.protocol.scene import SCENE_TOPIC
 from sasprobe.protocol.security import ServerKeys, bind_server_socket
+
+from sasprobe.common.errors import UserError
 
 log = logging.getLogger("sasprobe")
 
 SNDHWM = 2000  # messages queued per subscriber (2 s of poses at 1 kHz) before it drops
 MAX_SUBSCRIPTION_BYTES = 1024  # a ZMTP frame: a subscription (ours are 5-6 bytes), or a CURVE handshake command (<= ~300)
 SUBSCRIPTION_HWM = 16  # subscription messages queued per connection
-MAX_FOREIGN_SUBSCRIPTIONS = 1024  # subscriptions to topics never published, before the socket is renewed
+MAX_FOREIGN_SUBSCRIPTIONS = (
+    1024  # subscriptions to topics never published, before the socket is renewed
+)
 SCENE_ON_JOIN_NS = 100_000_000  # a joining subscriber's scene goes out at most this often
 REBIND_RETRY_NS = 50_000_000
 
 
 class Publisher:
-    def __init__(self, context: zmq.Context, endpoints: list[str], keys: ServerKeys | None = None,
-                 sndhwm: int = SNDHWM) -> None:
+    def __init__(
+        self,
+        context: zmq.Context,
+        endpoints: list[str],
+        keys: ServerKeys | None = None,
+        sndhwm: int = SNDHWM,
+    ) -> None:
         self._context = context
         self._keys = keys
         self._sndhwm = sndhwm
@@ -118,8 +125,11 @@ class Publisher:
             elif message[0] == 1:
                 self._foreign += 1
         if self._foreign > MAX_FOREIGN_SUBSCRIPTIONS:
-            log.warning("publisher: %d subscriptions to topics the daemon does not publish; the socket is made "
-                        "anew (subscribers reconnect by themselves)", self._foreign)
+            log.warning(
+                "publisher: %d subscriptions to topics the daemon does not publish; the socket is made "
+                "anew (subscribers reconnect by themselves)",
+                self._foreign,
+            )
             self._close_socket()
             self.renewals += 1
             self._retry_at_ns = now_ns

@@ -28,14 +28,17 @@ import time
 from pathlib import Path
 
 import numpy as np
-
-from sasprobe import __version__
 from sasprobe.daemon import events
 from sasprobe.daemon.buttons import ButtonMap, WorkspaceInputs
 from sasprobe.daemon.changes import ChangeQueue
 from sasprobe.daemon.config import DaemonConfig, check_config
 from sasprobe.daemon.faults import LoopLog, Reconnector
-from sasprobe.daemon.loop import FixedRateLoop, current_scheduling, enter_realtime, restore_scheduling
+from sasprobe.daemon.loop import (
+    FixedRateLoop,
+    current_scheduling,
+    enter_realtime,
+    restore_scheduling,
+)
 from sasprobe.daemon.marks import Marks, mark_button
 from sasprobe.daemon.network import Network
 from sasprobe.daemon.recording import replay_scheme
@@ -51,6 +54,8 @@ from sasprobe.devices.workspace import IDENTITY
 from sasprobe.protocol.pose import encode_pose
 from sasprobe.protocol.scene import DEFAULT_LIGHTS, encode_scene
 
+from sasprobe import __version__
+
 log = logging.getLogger("sasprobe")
 
 replay_scheme.register()  # the daemon's own recordings, played back as a device
@@ -64,7 +69,11 @@ class Daemon:
     def __init__(self, config: DaemonConfig) -> None:
         self.config = check_config(config)
         start = open_session(config)
-        self.structure, self.structure_keep_water, self.device = start.structure, start.keep_water, start.device
+        self.structure, self.structure_keep_water, self.device = (
+            start.structure,
+            start.keep_water,
+            start.device,
+        )
         self.rate_hz = start.rate_hz
         self.loop = FixedRateLoop(self.rate_hz, spin_s=config.spin_s)
         self.clip_planes: list[list[float]] = []
@@ -74,8 +83,10 @@ class Daemon:
         self.marks = Marks()  # daemon/marks.py drops them
         self.recorder: Recorder | None = None
         self.requests = RequestHandlers(self)
-        self.inputs = WorkspaceInputs(ButtonMap.from_options(config.buttons),
-                                      map_device_buttons=self.device.recorded_session() is None)
+        self.inputs = WorkspaceInputs(
+            ButtonMap.from_options(config.buttons),
+            map_device_buttons=self.device.recorded_session() is None,
+        )
         self.structure_worker = StructureWorker()  # `load` parses there, started on first use
         self.last_force_written = np.zeros(3)
         self.write_failures = 0
@@ -89,8 +100,9 @@ class Daemon:
         self._carry_error: str | None = None  # a failed force write, reported on the next tick
         self._reconnector = Reconnector(self.device)
         self.write_lock = threading.Lock()  # the loop's force writes and the watchdog's zeros
-        self.watchdog = StallWatchdog(self.device, self.write_lock, self.loop.period_ns,
-                                      supervise=self._supervise)
+        self.watchdog = StallWatchdog(
+            self.device, self.write_lock, self.loop.period_ns, supervise=self._supervise
+        )
         self._loop_cpu_clock: int | None = None
         self._cpu_at_reset = 0
         self._network = self.control = self.publisher = None
@@ -99,7 +111,9 @@ class Daemon:
             self.realtime = enter_realtime() if config.realtime else False
             self.timing = LoopLog(self.realtime)
             self.device.open()
-            self.limits, self.settings, self.pipeline = start.pipeline()  # the opened arm's workspace and limits
+            self.limits, self.settings, self.pipeline = (
+                start.pipeline()
+            )  # the opened arm's workspace and limits
             self._open_network()
             self.rebuild_scene()
             if config.record:
@@ -143,8 +157,13 @@ class Daemon:
     def _shutdown(self) -> None:
         """Zero force, close the device, stop serving, finish the recording, report."""
         self._close_device()
-        device_last = self.device.last_force_n  # what the device itself holds (None: it cannot tell)
-        publisher_stats = {"poses_sent": self.publisher.poses_sent, "subscribers": self.publisher.subscribers}
+        device_last = (
+            self.device.last_force_n
+        )  # what the device itself holds (None: it cannot tell)
+        publisher_stats = {
+            "poses_sent": self.publisher.poses_sent,
+            "subscribers": self.publisher.subscribers,
+        }
         self._close_network()
         self.structure_worker.close()
         recording = None
@@ -160,7 +179,9 @@ class Daemon:
             "lost_ticks": self.timing.lost,
             "stalls": self.watchdog.as_dict(),
             "last_force_written_n": np.asarray(self.last_force_written).tolist(),
-            "device_last_force_n": None if device_last is None else np.asarray(device_last, dtype=float).tolist(),
+            "device_last_force_n": None
+            if device_last is None
+            else np.asarray(device_last, dtype=float).tolist(),
             "publisher": publisher_stats,
             "recording": recording,
         }
@@ -171,19 +192,33 @@ class Daemon:
     # ------------------------------------------------------------------ the loop
     def run(self) -> int:
         """Run until SIGINT/SIGTERM, `shutdown`, the end of a replay or max_seconds; return 0."""
-        previous = {sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+        previous = {
+            sig: signal.signal(sig, self._on_signal) for sig in (signal.SIGINT, signal.SIGTERM)
+        }
         old_switch = sys.getswitchinterval()
         sys.setswitchinterval(SWITCH_INTERVAL_S)
-        self._loop_cpu_clock = time.pthread_getcpuclockid(threading.get_ident())  # readable from other threads
+        self._loop_cpu_clock = time.pthread_getcpuclockid(
+            threading.get_ident()
+        )  # readable from other threads
         self.control.start()
         gc.collect()
         gc.freeze()  # start-up objects leave the collector's view: later collections stay short
-        log.info("daemon: pose+scene on %s, control on %s, device %s, %s",
-                 ", ".join(self.publisher.endpoints), ", ".join(self.control.endpoints),
-                 self.device.info.model, f"{self.rate_hz:g} Hz" if self.rate_hz else "free-running")
-        events.print_event(events.READY, pub=self.publisher.endpoints, ctl=self.control.endpoints,
-                           device=self.device.info.kind, rate_hz=self.rate_hz, pid=os.getpid(),
-                           realtime=self.realtime)
+        log.info(
+            "daemon: pose+scene on %s, control on %s, device %s, %s",
+            ", ".join(self.publisher.endpoints),
+            ", ".join(self.control.endpoints),
+            self.device.info.model,
+            f"{self.rate_hz:g} Hz" if self.rate_hz else "free-running",
+        )
+        events.print_event(
+            events.READY,
+            pub=self.publisher.endpoints,
+            ctl=self.control.endpoints,
+            device=self.device.info.kind,
+            rate_hz=self.rate_hz,
+            pid=os.getpid(),
+            realtime=self.realtime,
+        )
         try:
             self._loop()
         finally:
@@ -201,14 +236,23 @@ class Daemon:
             self.control.ensure_running()
 
     def _loop(self) -> None:
-        loop, device, publisher, watchdog, write_lock = self.loop, self.device, self.publisher, self.watchdog, \
-            self.write_lock
+        loop, device, publisher, watchdog, write_lock = (
+            self.loop,
+            self.device,
+            self.publisher,
+            self.watchdog,
+            self.write_lock,
+        )
         clock = time.monotonic_ns
         stall_at = dict(self.config.loop_stalls)  # test hook: tick -> seconds the loop sleeps there
-        slow_at = {s for tick, n in self.config.slow_reads for s in range(tick, tick + n)}  # test hook: slow reads
+        slow_at = {
+            s for tick, n in self.config.slow_reads for s in range(tick, tick + n)
+        }  # test hook: slow reads
         # A free-running loop (replay at --speed max) has no period to be late against.
         late_read_ns = int(LATE_READ_PERIODS * loop.period_ns) if loop.period_ns else None
-        stop_at_ns = clock() + int(self.config.max_seconds * 1e9) if self.config.max_seconds else None
+        stop_at_ns = (
+            clock() + int(self.config.max_seconds * 1e9) if self.config.max_seconds else None
+        )
         self._cpu_at_reset = self.loop_cpu_ns()
         watchdog.start()
         loop.start()
@@ -228,19 +272,25 @@ class Daemon:
                 break
             except Exception as exc:  # a driver bug costs force, never the loop
                 error = error or f"device error: {type(exc).__name__}: {exc}"
-            if tick.seq in slow_at:  # the read takes a period longer than a read that counts as failed
+            if (
+                tick.seq in slow_at
+            ):  # the read takes a period longer than a read that counts as failed
                 time.sleep((LATE_READ_PERIODS + 1) * loop.period_ns / 1e9)
             read_ns = clock() - t_read
             if error is None and late_read_ns is not None and read_ns > late_read_ns:
                 error = f"device read took {read_ns / 1e6:.1f} ms"
             for event in device.take_recorded_events():  # a replay repeats its control changes here
                 self._apply_recorded_event(event, tick.seq)
-            for action, args in self.inputs.tick(state.buttons if state is not None else None, tick.start_ns):
+            for action, args in self.inputs.tick(
+                state.buttons if state is not None else None, tick.start_ns
+            ):
                 self.workspace_action(action, args, tick.seq)
             if stall_at and tick.seq in stall_at:
                 time.sleep(stall_at.pop(tick.seq))
             # A tick the watchdog found overdue counts as late by as long: the guard zeroes it.
-            late_periods = max(tick.late_periods, device.recorded_late_periods(), watchdog.overdue_periods(clock()))
+            late_periods = max(
+                tick.late_periods, device.recorded_late_periods(), watchdog.overdue_periods(clock())
+            )
             pipeline = self.pipeline
             was_faulted = pipeline.guard.faulted
             result = pipeline.step(state, error, late_periods)
@@ -251,9 +301,17 @@ class Daemon:
                 except Exception as exc:
                     self.write_failures += 1
                     self._carry_error = f"force write failed: {exc}"
-                stall = watchdog.heartbeat(clock())  # under the lock: the watchdog never zeroes this write
-            self.timing.tick(tick.start_ns, tick.missed, error is None and late_periods > pipeline.guard.late_limit_periods,
-                             result.guard.fault != was_faulted, result.guard, stall)
+                stall = watchdog.heartbeat(
+                    clock()
+                )  # under the lock: the watchdog never zeroes this write
+            self.timing.tick(
+                tick.start_ns,
+                tick.missed,
+                error is None and late_periods > pipeline.guard.late_limit_periods,
+                result.guard.fault != was_faulted,
+                result.guard,
+                stall,
+            )
             if error is None or state is not None:
                 self._reconnector.answered()
             elif self._reconnector.failed(tick.start_ns):
@@ -277,10 +335,17 @@ class Daemon:
         if event["cmd"] == "mark":
             self.marks.restore(event["args"])
         self.structure, self.settings = apply_recorded_event(  # a mark changes neither
-            event, self.pipeline, self.structure, self.settings, self.limits,
-            self.device.recorded_session().structure)
+            event,
+            self.pipeline,
+            self.structure,
+            self.settings,
+            self.limits,
+            self.device.recorded_session().structure,
+        )
         if event["cmd"] == "load" and self.recorder is not None:
-            self.recorder.offer_structure(time.monotonic_ns(), self.structure.name, self.structure.source_bytes)
+            self.recorder.offer_structure(
+                time.monotonic_ns(), self.structure.name, self.structure.source_bytes
+            )
         self.record_control(seq, event["cmd"], event.get("args", {}))
         self.rebuild_scene()
 
@@ -292,13 +357,20 @@ class Daemon:
         self.structure_keep_water = keep_water
         self.pipeline.replace_engine(engine)
         if self.recorder is not None:
-            self.recorder.offer_structure(time.monotonic_ns(), structure.name, structure.source_bytes)
-        self.record_control(seq, "load", {"sha256": structure.sha256, "name": structure.name, "keep_water": keep_water})
+            self.recorder.offer_structure(
+                time.monotonic_ns(), structure.name, structure.source_bytes
+            )
+        self.record_control(
+            seq,
+            "load",
+            {"sha256": structure.sha256, "name": structure.name, "keep_water": keep_water},
+        )
         self.rebuild_scene()
         return seq
 
-    def apply_settings(self, haptic: dict, scene_only: dict, settings: dict, lights: dict | None, engine,
-                       seq: int) -> int:
+    def apply_settings(
+        self, haptic: dict, scene_only: dict, settings: dict, lights: dict | None, engine, seq: int
+    ) -> int:
         """A checked `set` (a new engine when one had to be built)."""
         if engine is not None:
             self.changes.deferred_release.add(self.pipeline.engine)
@@ -338,9 +410,19 @@ class Daemon:
     def rebuild_scene(self) -> None:
         """The scene message of the current state; published at the next tick, and recorded."""
         self.scene_revision += 1
-        self.scene = scene_message(self.scene_revision, self.structure, self.settings, self.nav_cube_enabled,
-                                   self.clip_planes, self.lights, self.device.info, self.rate_hz,
-                                   self.pipeline.view_rotation, self.marks, self.color_scheme)
+        self.scene = scene_message(
+            self.scene_revision,
+            self.structure,
+            self.settings,
+            self.nav_cube_enabled,
+            self.clip_planes,
+            self.lights,
+            self.device.info,
+            self.rate_hz,
+            self.pipeline.view_rotation,
+            self.marks,
+            self.color_scheme,
+        )
         self._scene_bytes = encode_scene(self.scene)
         self._next_scene_ns = 0
         if self.recorder is not None:
@@ -353,21 +435,36 @@ class Daemon:
     # ------------------------------------------------------------------ recording
     def record_control(self, seq: int, cmd: str, args: dict) -> None:
         if self.recorder is not None:
-            self.recorder.offer_json("control", time.monotonic_ns(), {"seq": seq, "cmd": cmd, "args": args})
+            self.recorder.offer_json(
+                "control", time.monotonic_ns(), {"seq": seq, "cmd": cmd, "args": args}
+            )
 
     def attach_recorder(self, recorder: Recorder, seq: int = 0, fresh_engine=None) -> int:
         """Start recording at this tick from a fresh engine and guard, so the file replays exactly."""
         if fresh_engine is not None:
             self.pipeline.restart(fresh_engine)
         self.recorder = recorder
-        recorder.offer_structure(time.monotonic_ns(), self.structure.name, self.structure.source_bytes)
-        self.record_control(seq, "start", {
-            "settings": self.settings, "structure_sha256": self.structure.sha256,
-            "structure_name": self.structure.name, "keep_water": self.structure_keep_water,
-            "rate_hz": self.rate_hz, "device": self.device.info.as_dict(),
-        })
-        if self.pipeline.view_rotation != IDENTITY:  # the fresh engine took the view over: so will the replay
-            self.record_control(seq, "view", {"rotation": rotation_rows(self.pipeline.view_rotation)})
+        recorder.offer_structure(
+            time.monotonic_ns(), self.structure.name, self.structure.source_bytes
+        )
+        self.record_control(
+            seq,
+            "start",
+            {
+                "settings": self.settings,
+                "structure_sha256": self.structure.sha256,
+                "structure_name": self.structure.name,
+                "keep_water": self.structure_keep_water,
+                "rate_hz": self.rate_hz,
+                "device": self.device.info.as_dict(),
+            },
+        )
+        if (
+            self.pipeline.view_rotation != IDENTITY
+        ):  # the fresh engine took the view over: so will the replay
+            self.record_control(
+                seq, "view", {"rotation": rotation_rows(self.pipeline.view_rotation)}
+            )
         if self.pipeline.clutched:
             self.record_control(seq, "clutch", {"held": True})
         self.rebuild_scene()
@@ -376,15 +473,21 @@ class Daemon:
     def detach_recorder(self, seq: int) -> Recorder | None:
         recorder, self.recorder = self.recorder, None
         if recorder is not None:
-            recorder.offer_json("control", time.monotonic_ns(), {"seq": seq, "cmd": "record_stop", "args": {}})
+            recorder.offer_json(
+                "control", time.monotonic_ns(), {"seq": seq, "cmd": "record_stop", "args": {}}
+            )
         return recorder
 
     def new_recorder(self, path: str | Path) -> Recorder:
         return Recorder(path, self._recording_metadata())
 
     def _recording_metadata(self) -> dict:
-        return {"daemon_version": __version__, "device": self.config.device, "rate_hz": self.rate_hz,
-                "started_unix_s": time.time()}
+        return {
+            "daemon_version": __version__,
+            "device": self.config.device,
+            "rate_hz": self.rate_hz,
+            "started_unix_s": time.time(),
+        }
 
     # ------------------------------------------------------------------ statistics
     def reset_stats(self) -> None:

@@ -30,7 +30,11 @@ class SessionStart:
         form) and the tick pipeline built for them; call it once the device is open."""
         limits = self.device.info.limits
         settings = validate_settings(self.settings, limits)
-        return limits, settings, HapticPipeline(build_engine(self.structure, limits, settings), SafetyGuard(limits))
+        return (
+            limits,
+            settings,
+            HapticPipeline(build_engine(self.structure, limits, settings), SafetyGuard(limits)),
+        )
 
 
 def open_session(config: DaemonConfig) -> SessionStart:
@@ -39,18 +43,28 @@ def open_session(config: DaemonConfig) -> SessionStart:
 
     structure = load_structure_or_default(config.molecule, keep_water=config.keep_water)
     keep_water = config.keep_water
-    device = open_device(config.device, structure=structure, rate_hz=config.rate_hz,
-                         seed=config.seed, speed=config.speed, faults=config.faults,
-                         button_presses=config.button_presses,
-                         probe_radius_A=config.settings.get("probe_radius_A"),
-                         cube_half_A=config.settings.get("cube_half_A"))
+    device = open_device(
+        config.device,
+        structure=structure,
+        rate_hz=config.rate_hz,
+        seed=config.seed,
+        speed=config.speed,
+        faults=config.faults,
+        button_presses=config.button_presses,
+        probe_radius_A=config.settings.get("probe_radius_A"),
+        cube_half_A=config.settings.get("cube_half_A"),
+    )
     settings = dict(config.settings)
     rate_hz = config.rate_hz or device.info.limits.nominal_rate_hz
     session = device.recorded_session()
     if session is not None:  # a replay: the recording's structure (unless given), settings and rate
         if config.molecule is None:
-            structure = parse_structure(session.structure_bytes, name=session.structure_name,
-                                        source=f"{config.device} (recorded)", keep_water=session.keep_water)
+            structure = parse_structure(
+                session.structure_bytes,
+                name=session.structure_name,
+                source=f"{config.device} (recorded)",
+                keep_water=session.keep_water,
+            )
             keep_water = session.keep_water
         settings = {**session.settings, **settings}
         rate_hz = None if config.speed is None else session.rate_hz * config.speed

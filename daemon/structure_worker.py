@@ -68,8 +68,14 @@ class StructureWorker:
         with self._lock:
             proc = self._running()
             deadline = time.monotonic() + self.timeout_s
-            header = {"name": name, "source": source, "keep_water": bool(keep_water), "key": key,
-                      "limits": dataclasses.asdict(limits), "settings": settings}
+            header = {
+                "name": name,
+                "source": source,
+                "keep_water": bool(keep_water),
+                "key": key,
+                "limits": dataclasses.asdict(limits),
+                "settings": settings,
+            }
             try:
                 self._send(proc, header, b"" if self._held == key else data, deadline)
                 self._held = None  # until the reply says the worker has it
@@ -94,10 +100,18 @@ class StructureWorker:
     # ------------------------------------------------------------------ plumbing
     def _running(self) -> subprocess.Popen:
         if self._proc is None or self._proc.poll() is not None:
-            env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1")
-            self._proc = subprocess.Popen([sys.executable, "-m", "sasprobe.daemon.structure_worker"],
-                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                                          env=env, start_new_session=True, bufsize=0)
+            env = dict(
+                os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", PYTHONUNBUFFERED="1"
+            )
+            self._proc = subprocess.Popen(
+                [sys.executable, "-m", "sasprobe.daemon.structure_worker"],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.DEVNULL,
+                env=env,
+                start_new_session=True,
+                bufsize=0,
+            )
             self.started += 1
         return self._proc
 
@@ -118,9 +132,9 @@ class StructureWorker:
             os.write(fd, struct.pack("<I", len(header)) + header)
             for start in range(0, view.nbytes, _CHUNK):
                 _wait(fd, deadline, write=True)
-                piece = view[start:start + _CHUNK]
+                piece = view[start : start + _CHUNK]
                 while piece.nbytes:
-                    piece = piece[os.write(fd, piece):]
+                    piece = piece[os.write(fd, piece) :]
         except OSError:
             raise _WorkerFailed("the structure worker ended while reading the file") from None
 
@@ -156,8 +170,11 @@ class _WorkerFailed(Exception):
 
 def _wait(fd: int, deadline: float, write: bool) -> None:
     remaining = deadline - time.monotonic()
-    ready = select.select([], [fd], [], max(remaining, 0))[1] if write else \
-        select.select([fd], [], [], max(remaining, 0))[0]
+    ready = (
+        select.select([], [fd], [], max(remaining, 0))[1]
+        if write
+        else select.select([fd], [], [], max(remaining, 0))[0]
+    )
     if not ready:
         raise _WorkerFailed(f"parsing and building took longer than {PARSE_TIMEOUT_S:g} s; gave up")
 
@@ -174,7 +191,9 @@ def _settle() -> None:
     except (OSError, AttributeError):
         pass
     soft, hard = resource.getrlimit(resource.RLIMIT_AS)
-    limit = WORKER_ADDRESS_SPACE if hard == resource.RLIM_INFINITY else min(WORKER_ADDRESS_SPACE, hard)
+    limit = (
+        WORKER_ADDRESS_SPACE if hard == resource.RLIM_INFINITY else min(WORKER_ADDRESS_SPACE, hard)
+    )
     resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
 
 
@@ -200,20 +219,32 @@ def _serve(stdin, stdout) -> None:
         try:
             if header["size"] or header["key"] != held_key:
                 held_key, held = None, None
-                held = parse_structure(data, name=header["name"], source=header["source"],
-                                       keep_water=header["keep_water"])
+                held = parse_structure(
+                    data,
+                    name=header["name"],
+                    source=header["source"],
+                    keep_water=header["keep_water"],
+                )
                 held.source_bytes = b""  # the daemon has the bytes already
                 held_key = header["key"]
             limits = header["limits"]
-            limits = DeviceLimits(**{**limits, "workspace_min_mm": tuple(limits["workspace_min_mm"]),
-                                     "workspace_max_mm": tuple(limits["workspace_max_mm"])})
+            limits = DeviceLimits(
+                **{
+                    **limits,
+                    "workspace_min_mm": tuple(limits["workspace_min_mm"]),
+                    "workspace_max_mm": tuple(limits["workspace_max_mm"]),
+                }
+            )
             engine = build_engine(held, limits, header["settings"])
         except (UserError, ValueError) as exc:
             _reply_error(stdout, str(exc))
             continue
         except MemoryError:
-            _reply_error(stdout, f"{header['source']}: parsing needs more than the "
-                                 f"{WORKER_ADDRESS_SPACE >> 30} GiB a structure may take")
+            _reply_error(
+                stdout,
+                f"{header['source']}: parsing needs more than the "
+                f"{WORKER_ADDRESS_SPACE >> 30} GiB a structure may take",
+            )
             continue
         except Exception as exc:  # a bug in a parser: the daemon still answers in one line
             _reply_error(stdout, f"{header['source']}: cannot parse ({type(exc).__name__}: {exc})")
@@ -221,8 +252,12 @@ def _serve(stdin, stdout) -> None:
         buffers: list[pickle.PickleBuffer] = []
         payload = pickle.dumps((held, engine), protocol=5, buffer_callback=buffers.append)
         views = [b.raw() for b in buffers]
-        stdout.write(b"S" + struct.pack("<QI", len(payload), len(views))
-                     + struct.pack(f"<{len(views)}Q", *(v.nbytes for v in views)) + payload)
+        stdout.write(
+            b"S"
+            + struct.pack("<QI", len(payload), len(views))
+            + struct.pack(f"<{len(views)}Q", *(v.nbytes for v in views))
+            + payload
+        )
         for view in views:
             stdout.write(view)
         stdout.flush()

@@ -27,12 +27,14 @@ import logging
 import os
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 log = logging.getLogger("sasprobe")
 
-STALL_PERIODS = 3  # no completed tick for this long is a stall (3 ms at 1 kHz; the guard's late limit)
+STALL_PERIODS = (
+    3  # no completed tick for this long is a stall (3 ms at 1 kHz; the guard's late limit)
+)
 REZERO_PERIODS = 3  # while stalled, zero is written again this often (a Falcon takes a frame once its oldest is 5 ms old)
 SUPERVISE_S = 0.5  # how often the control thread is checked
 WATCHDOG_PRIORITY_ABOVE_LOOP = 1
@@ -41,12 +43,20 @@ WATCHDOG_PRIORITY_ABOVE_LOOP = 1
 @dataclass
 class Stall:
     length_ns: int  # from the last completed tick to the one that ended the stall
-    zeroed_after_ns: int | None  # from the last completed tick to the watchdog's zero (None: could not write)
+    zeroed_after_ns: (
+        int | None
+    )  # from the last completed tick to the watchdog's zero (None: could not write)
 
 
 class StallWatchdog:
-    def __init__(self, device, write_lock: threading.Lock, period_ns: int,
-                 supervise: Callable[[], object] | None = None, clock: Callable[[], int] = time.monotonic_ns) -> None:
+    def __init__(
+        self,
+        device,
+        write_lock: threading.Lock,
+        period_ns: int,
+        supervise: Callable[[], object] | None = None,
+        clock: Callable[[], int] = time.monotonic_ns,
+    ) -> None:
         self.device = device
         self.write_lock = write_lock
         self.period_ns = period_ns
@@ -66,7 +76,9 @@ class StallWatchdog:
         self.total_ns = 0
         self.last: Stall | None = None
         self.worst_zero_ns = 0  # slowest zero after a last tick, over all stalls
-        self.unwritten = 0  # stalls during which the zero could not be written (a driver call held the lock)
+        self.unwritten = (
+            0  # stalls during which the zero could not be written (a driver call held the lock)
+        )
 
     # ------------------------------------------------------------------ the loop's side
     def heartbeat(self, now_ns: int) -> Stall | None:
@@ -132,7 +144,10 @@ class StallWatchdog:
                 return
             if self._stalled_since_ns != last:  # a new stall
                 self._stalled_since_ns, self._fired_at_ns, self._last_zero_ns = last, None, None
-            if self._last_zero_ns is not None and now_ns - self._last_zero_ns < REZERO_PERIODS * self.period_ns:
+            if (
+                self._last_zero_ns is not None
+                and now_ns - self._last_zero_ns < REZERO_PERIODS * self.period_ns
+            ):
                 return
         if not self._zero(last):
             return  # tried again at the next check
@@ -145,7 +160,9 @@ class StallWatchdog:
 
     def _zero(self, last_tick_ns: int) -> bool:
         if not self.write_lock.acquire(timeout=self.period_ns / 1e9):
-            return False  # the loop is inside a driver write: only the device's own watchdog helps now
+            return (
+                False  # the loop is inside a driver write: only the device's own watchdog helps now
+            )
         try:
             if self._last_tick_ns != last_tick_ns:
                 return False  # the loop wrote and beat (under this lock) while we waited for it
@@ -165,7 +182,9 @@ class StallWatchdog:
             "longest_ms": self.longest_ns / 1e6,
             "total_ms": self.total_ns / 1e6,
             "last_ms": None if last is None else last.length_ns / 1e6,
-            "worst_zero_after_ms": self.worst_zero_ns / 1e6 if self.stalls > self.unwritten else None,
+            "worst_zero_after_ms": self.worst_zero_ns / 1e6
+            if self.stalls > self.unwritten
+            else None,
             "unwritten": self.unwritten,
         }
 
@@ -175,6 +194,10 @@ def _above_loop_priority() -> None:
     try:
         if os.sched_getscheduler(0) == os.SCHED_FIFO:
             priority = os.sched_getparam(0).sched_priority + WATCHDOG_PRIORITY_ABOVE_LOOP
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(min(priority, os.sched_get_priority_max(os.SCHED_FIFO))))
+            os.sched_setscheduler(
+                0,
+                os.SCHED_FIFO,
+                os.sched_param(min(priority, os.sched_get_priority_max(os.SCHED_FIFO))),
+            )
     except (OSError, AttributeError):
         pass

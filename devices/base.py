@@ -103,7 +103,9 @@ class DeviceState:
 
     t_ns: int  # device timestamp, monotonic ns
     position_mm: np.ndarray  # (3,) stylus tip in the device frame
-    orientation: np.ndarray = field(default_factory=lambda: np.array(IDENTITY_QUATERNION))  # (w, x, y, z)
+    orientation: np.ndarray = field(
+        default_factory=lambda: np.array(IDENTITY_QUATERNION)
+    )  # (w, x, y, z)
     velocity_mm_s: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,)
     buttons: int = 0  # bit i = button i pressed
     calibrated: bool = True  # False: the daemon must not output force yet
@@ -125,7 +127,9 @@ class HapticDevice(abc.ABC):
     it holds sets `last_force_n`.
     """
 
-    last_force_n: np.ndarray | None = None  # the force the device itself holds now; None: it cannot tell
+    last_force_n: np.ndarray | None = (
+        None  # the force the device itself holds now; None: it cannot tell
+    )
 
     @property
     @abc.abstractmethod

@@ -17,8 +17,8 @@ from pathlib import Path
 
 from sasprobe.devices import falcon, forcedimension, inverse3
 from sasprobe.devices.base import DeviceOpenError
-from sasprobe.devices.spacemouse import models as spacemouse_models
 from sasprobe.devices.hardware import factory_from_environment
+from sasprobe.devices.spacemouse import models as spacemouse_models
 from sasprobe.devices.transports import load_hidapi
 
 
@@ -41,11 +41,21 @@ class Found:
 
 # Serial (CDC-ACM) devices recognised by USB id: (vid, pid) → (description, --device template, note).
 KNOWN_SERIAL = {
-    (0x16C0, 0x0483): ("Teensy USB serial (WoodenHaptics / Polhem firmware)", "woodenhaptics:{port}", ""),
-    (0x0301, 0x2988): ("3D Systems Touch", "openhaptics",
-                       "its serial protocol is not public: sasprobe drives it through OpenHaptics"),
-    (0x2988, 0x0302): ("3D Systems Touch", "openhaptics",
-                       "its serial protocol is not public: sasprobe drives it through OpenHaptics"),
+    (0x16C0, 0x0483): (
+        "Teensy USB serial (WoodenHaptics / Polhem firmware)",
+        "woodenhaptics:{port}",
+        "",
+    ),
+    (0x0301, 0x2988): (
+        "3D Systems Touch",
+        "openhaptics",
+        "its serial protocol is not public: sasprobe drives it through OpenHaptics",
+    ),
+    (0x2988, 0x0302): (
+        "3D Systems Touch",
+        "openhaptics",
+        "its serial protocol is not public: sasprobe drives it through OpenHaptics",
+    ),
 }
 KNOWN_USB = {(falcon.VENDOR_ID, falcon.PRODUCT_ID): ("Novint Falcon", "falcon")}
 
@@ -64,12 +74,22 @@ def serial_ports(comports=None) -> tuple[list[Found], list[str]]:
             description, template, note = known
             device = template.format(port=port.device)
         else:
-            description = port.description if port.description and port.description != "n/a" else "serial port"
+            description = (
+                port.description
+                if port.description and port.description != "n/a"
+                else "serial port"
+            )
             device = f"woodenhaptics:{port.device}"
             note = f"or haply:{port.device} for a Haply 2DIY"
         found.append(Found("serial", port.device, port.vid, port.pid, description, device, note))
-    notes = [f"{len(other)} serial port(s) without a USB id not listed ({', '.join(other[:3])}"
-             f"{', ...' if len(other) > 3 else ''}): no supported arm uses one"] if other else []
+    notes = (
+        [
+            f"{len(other)} serial port(s) without a USB id not listed ({', '.join(other[:3])}"
+            f"{', ...' if len(other) > 3 else ''}): no supported arm uses one"
+        ]
+        if other
+        else []
+    )
     return found, notes
 
 
@@ -87,10 +107,20 @@ def hid_devices(hid_api=None) -> list[Found]:
             by_device[key] = d
     found = []
     for d in by_device.values():
-        path = d["path"].decode(errors="replace") if isinstance(d["path"], bytes) else str(d["path"])
-        found.append(Found("hid", path, d["vendor_id"], d["product_id"],
-                           spacemouse_models.product_name(d["vendor_id"], d["product_id"]), f"spacemouse:{path}",
-                           "input only: moves the cursor and navigation cube, no force"))
+        path = (
+            d["path"].decode(errors="replace") if isinstance(d["path"], bytes) else str(d["path"])
+        )
+        found.append(
+            Found(
+                "hid",
+                path,
+                d["vendor_id"],
+                d["product_id"],
+                spacemouse_models.product_name(d["vendor_id"], d["product_id"]),
+                f"spacemouse:{path}",
+                "input only: moves the cursor and navigation cube, no force",
+            )
+        )
     return sorted(found, key=lambda f: f.path)
 
 
@@ -101,19 +131,32 @@ def usb_devices(backend=None) -> tuple[list[Found], list[str]]:
     if backend is None:
         backend = factory_from_environment("SASPROBE_USB_BACKEND")
     try:
-        devices = [(d.idVendor, d.idProduct, f"usb bus {d.bus} address {d.address}")
-                   for d in usb.core.find(find_all=True, backend=backend)]
+        devices = [
+            (d.idVendor, d.idProduct, f"usb bus {d.bus} address {d.address}")
+            for d in usb.core.find(find_all=True, backend=backend)
+        ]
         notes = []
     except usb.core.NoBackendError:
         devices = _sysfs_usb()
-        notes = ["libusb-1.0 is not installed: USB ids read from sysfs, but drivers that use pyusb (falcon) "
-                 "need it (Debian/Ubuntu: sudo apt install libusb-1.0-0)"]
+        notes = [
+            "libusb-1.0 is not installed: USB ids read from sysfs, but drivers that use pyusb (falcon) "
+            "need it (Debian/Ubuntu: sudo apt install libusb-1.0-0)"
+        ]
     found = []
     for vid, pid, where in devices:
         known = KNOWN_USB.get((vid, pid))
         if known:
-            found.append(Found("usb", where, vid, pid, known[0], known[1],
-                               "the firmware file is needed once per power-up: --device falcon:FIRMWARE"))
+            found.append(
+                Found(
+                    "usb",
+                    where,
+                    vid,
+                    pid,
+                    known[0],
+                    known[1],
+                    "the firmware file is needed once per power-up: --device falcon:FIRMWARE",
+                )
+            )
     return found, notes
 
 
@@ -148,12 +191,29 @@ def dhd_arms(library: str | None = None) -> tuple[list[Found], list[str]]:
     for arm in arms:
         device = "forcedimension" if arm["index"] == 0 else f"forcedimension:{arm['index']}"
         if "error" in arm:
-            found.append(Found("dhd", f"index {arm['index']}", None, None, "Force Dimension arm", device,
-                               f"did not open now ({arm['error']}): in use by another program?"))
+            found.append(
+                Found(
+                    "dhd",
+                    f"index {arm['index']}",
+                    None,
+                    None,
+                    "Force Dimension arm",
+                    device,
+                    f"did not open now ({arm['error']}): in use by another program?",
+                )
+            )
         else:
             serial = f" serial {arm['serial']}" if arm["serial"] else ""
-            found.append(Found("dhd", f"index {arm['index']}", None, None, f"Force Dimension {arm['model']}{serial}",
-                               device))
+            found.append(
+                Found(
+                    "dhd",
+                    f"index {arm['index']}",
+                    None,
+                    None,
+                    f"Force Dimension {arm['model']}{serial}",
+                    device,
+                )
+            )
     return found, []
 
 
@@ -165,13 +225,24 @@ def inverse3_arms(url: str | None = None) -> tuple[list[Found], list[str]]:
     except DeviceOpenError as exc:
         return [], [f"Haply Inverse3 arms not listed: {exc}"]
     device = "inverse3" if url == inverse3.DEFAULT_URL else f"inverse3:{url}"
-    found = [Found("websocket", url, None, None, f"{arm['model']} {arm['device_id']}", device,
-                   "" if arm["calibrated"] else "not calibrated yet: let it self-calibrate") for arm in arms]
+    found = [
+        Found(
+            "websocket",
+            url,
+            None,
+            None,
+            f"{arm['model']} {arm['device_id']}",
+            device,
+            "" if arm["calibrated"] else "not calibrated yet: let it self-calibrate",
+        )
+        for arm in arms
+    ]
     return found, []
 
 
-def discover(*, comports=None, hid_api=None, usb_backend=None, dhd_library=None,
-             inverse_url=None) -> tuple[list[Found], list[str]]:
+def discover(
+    *, comports=None, hid_api=None, usb_backend=None, dhd_library=None, inverse_url=None
+) -> tuple[list[Found], list[str]]:
     """(everything found, notes about what could not be looked at)."""
     found, notes = serial_ports(comports)
     try:

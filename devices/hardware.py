@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from sasprobe.devices.base import DeviceFault, DeviceOpenError, HapticDevice
 
 ZERO_FORCE = np.zeros(3)
@@ -69,12 +68,14 @@ def quaternion_multiply(a, b) -> np.ndarray:
     """Hamilton product a·b (apply b first, then a)."""
     aw, ax, ay, az = a
     bw, bx, by, bz = b
-    return np.array([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ])
+    return np.array(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ]
+    )
 
 
 def quaternion_from_matrix(m) -> np.ndarray:

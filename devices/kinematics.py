@@ -7,7 +7,6 @@ Each arm keeps its mechanism in its own package (`falcon/kinematics.py`,
 
 from __future__ import annotations
 
-
 import numpy as np
 
 

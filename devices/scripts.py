@@ -35,7 +35,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from sasprobe.devices.surface import Surface
 from sasprobe.devices.workspace import WorkspaceMapping
 from sasprobe.molecule.grid import UniformGrid
@@ -61,7 +60,9 @@ class Script:
     name: str
     times: list[float]
     points: list[tuple[float, float, float]]
-    info: dict = field(default_factory=dict)  # where it was placed (molecule frame), for tests and reports
+    info: dict = field(
+        default_factory=dict
+    )  # where it was placed (molecule frame), for tests and reports
 
     @property
     def duration_s(self) -> float:
@@ -149,7 +150,9 @@ class _Placer:
         grid = self.surface.grid
         c = grid.centers
         w = self.region(fraction)
-        near = np.flatnonzero((np.abs(c[:, 0] - self.center[0]) <= w) & (np.abs(c[:, 1] - self.center[1]) <= w))
+        near = np.flatnonzero(
+            (np.abs(c[:, 0] - self.center[0]) <= w) & (np.abs(c[:, 1] - self.center[1]) <= w)
+        )
         if near.size == 0:
             near = np.arange(c.shape[0])
         order = near[np.argsort(-(c[near, 2] + grid.radii[near]), kind="stable")][:limit]
@@ -209,7 +212,11 @@ class _Placer:
             path.move(self.dev(bottom - rock), duration_s=0.8)
             path.move(self.dev(bottom), duration_s=0.4)
         path.move(hover, duration_s=0.6)
-        info = {"atoms": (i, j), "crease_A": [float(v) for v in crease], "push_direction": (0.0, 0.0, -1.0)}
+        info = {
+            "atoms": (i, j),
+            "crease_A": [float(v) for v in crease],
+            "push_direction": (0.0, 0.0, -1.0),
+        }
         return path.script("dive", info)
 
     def _groove(self, fraction: float):
@@ -277,8 +284,12 @@ class _Placer:
         # The cube's middle height, or higher where the molecule fills the cube there (a
         # zoomed-in cube on a surface): the lowest height with free space to start from.
         for z in np.arange(cz, cz + self.region(0.8), 0.5):
-            extents = np.array([self._radial_extent(cx, cy, float(z), math.cos(a), math.sin(a))
-                                for a in np.linspace(0, 2 * math.pi, 36, endpoint=False)])
+            extents = np.array(
+                [
+                    self._radial_extent(cx, cy, float(z), math.cos(a), math.sin(a))
+                    for a in np.linspace(0, 2 * math.pi, 36, endpoint=False)
+                ]
+            )
             if extents.max() + self.hover <= self.region(0.8):
                 break
         cz = float(z)
@@ -292,7 +303,10 @@ class _Placer:
         for k in range(1, steps + 1):  # spiral in over a quarter turn, then one full turn
             a = 2 * math.pi * k / steps
             r = radius + (outside - radius) * max(0.0, 1.0 - 4.0 * k / steps)
-            path.move(self.dev((cx + r * math.cos(a), cy + r * math.sin(a), cz)), duration_s=turn_s / steps)
+            path.move(
+                self.dev((cx + r * math.cos(a), cy + r * math.sin(a), cz)),
+                duration_s=turn_s / steps,
+            )
         info = {"radius_A": radius, "height_A": cz}
         return path.script("orbit", info)
 
@@ -320,9 +334,11 @@ class _Placer:
         for t in np.arange(0.02, duration, 0.02):
             wander = self.wc + (amps * np.sin(2 * math.pi * freqs * t + phases)).sum(axis=1)
             blend = min(1.0, t / 1.5)  # leave the hover point gently
-            path.move(np.clip(hover + blend * (wander - hover), self.wc - core, self.wc + core), duration_s=0.02)
+            path.move(
+                np.clip(hover + blend * (wander - hover), self.wc - core, self.wc + core),
+                duration_s=0.02,
+            )
         return path.script("random", {"seed": seed})
-
 
     def sweep(self) -> Script:
         top = self.top_or_floor(float(self.center[0]), float(self.center[1]))

@@ -40,7 +40,6 @@ import threading
 import time
 
 import numpy as np
-
 from sasprobe.devices.base import DeviceFault, DeviceOpenError, DeviceState
 from sasprobe.devices.hardware import HardwareDriver, VelocityFilter, clamp_force
 from sasprobe.devices.transports import SerialTransport
@@ -49,7 +48,9 @@ REPLY_PERIODS = 2.5  # how many loop periods after its command a reply may take
 READ_WAIT_PERIODS = 0.25  # how long a read waits for a reply before it gives the last pose again
 REUSE_PERIODS = 2.0  # how old that last pose may be
 PROBE_INTERVAL_S = 0.1  # hfabapi wait_online(): one "[0,0,0]" every 100 ms until the board answers
-RESYNC_QUIET_S = 0.005  # the boards answer within a millisecond: this much silence means nothing is left
+RESYNC_QUIET_S = (
+    0.005  # the boards answer within a millisecond: this much silence means nothing is left
+)
 JUNK_PROBES = 5  # a board that answered this many probes with foreign bytes speaks another protocol
 REOPEN_HANDSHAKE_S = 1.0  # a replugged board boots in well under a second
 CLOSE_WAIT_S = 0.25  # how long close() waits for the board to take its zero command (off the loop)
@@ -62,8 +63,11 @@ def timing_options(options: dict) -> dict:
     timing = {k: float(options[k]) for k in names if options.get(k) is not None}
     rate = float(options.get("rate_hz") or 0.0)
     if rate > 0:
-        for name, periods in (("reply_timeout_s", REPLY_PERIODS), ("read_wait_s", READ_WAIT_PERIODS),
-                              ("reuse_s", REUSE_PERIODS)):
+        for name, periods in (
+            ("reply_timeout_s", REPLY_PERIODS),
+            ("read_wait_s", READ_WAIT_PERIODS),
+            ("reuse_s", REUSE_PERIODS),
+        ):
             timing.setdefault(name, periods / rate)
         timing.setdefault("stale_after_s", max(0.005, 5.0 / rate))
     return timing
@@ -82,12 +86,22 @@ class BadFrame(Exception):
 class SerialArm(HardwareDriver):
     scheme = ""  # the --device scheme, for messages
 
-    def __init__(self, port: str | None, *, reply_timeout_s: float = 0.010, read_wait_s: float = 0.001,
-                 reuse_s: float = 0.005, stale_after_s: float = 0.005, handshake_timeout_s: float = 3.0,
-                 silent_after_s: float = 0.5):
+    def __init__(
+        self,
+        port: str | None,
+        *,
+        reply_timeout_s: float = 0.010,
+        read_wait_s: float = 0.001,
+        reuse_s: float = 0.005,
+        stale_after_s: float = 0.005,
+        handshake_timeout_s: float = 3.0,
+        silent_after_s: float = 0.5,
+    ):
         if not port:
-            raise DeviceOpenError(f"{self.scheme} needs a serial port: --device {self.scheme}:/dev/ttyACM0 "
-                                  "(`sasprobe devices` lists the ports)")
+            raise DeviceOpenError(
+                f"{self.scheme} needs a serial port: --device {self.scheme}:/dev/ttyACM0 "
+                "(`sasprobe devices` lists the ports)"
+            )
         self.port = port
         self.reply_timeout_s = reply_timeout_s
         self.read_wait_s = read_wait_s
@@ -114,7 +128,9 @@ class SerialArm(HardwareDriver):
         self.resyncs = 0
         self._last: DeviceState | None = None  # the state read() returned last, and when
         self._last_at = 0.0
-        self._port_lock = threading.Lock()  # the loop's read() and reconnect() vs the watchdog's zero_force_now()
+        self._port_lock = (
+            threading.Lock()
+        )  # the loop's read() and reconnect() vs the watchdog's zero_force_now()
 
     # subclasses -----------------------------------------------------------------------
     @abc.abstractmethod
@@ -155,7 +171,9 @@ class SerialArm(HardwareDriver):
         self.transport.open()
         self._reset_session()
         try:
-            self._handshake(self.handshake_timeout_s if handshake_timeout_s is None else handshake_timeout_s)
+            self._handshake(
+                self.handshake_timeout_s if handshake_timeout_s is None else handshake_timeout_s
+            )
         except BaseException:
             self.transport.close()
             raise
@@ -197,7 +215,9 @@ class SerialArm(HardwareDriver):
         if self._lost is not None:
             raise DeviceFault(self._lost)
         if self._resync_reason is not None and not self._resync_step():
-            raise DeviceFault(f"resynchronising with the {self.scheme} arm after {self._resync_reason}")
+            raise DeviceFault(
+                f"resynchronising with the {self.scheme} arm after {self._resync_reason}"
+            )
         if self._sent_at is None:
             self._send(self._command())
         reply, fresh = self._wait_reply(self.read_wait_s)
@@ -208,15 +228,23 @@ class SerialArm(HardwareDriver):
         if reply is None and self._sent_at is not None and self._resync_reason is None:
             if self._last is not None and time.monotonic() - self._last_at <= self.reuse_s:
                 self.reused_states += 1
-                return self._last  # a little late: the last pose again, as Haply's and hfabapi's loops do
+                return (
+                    self._last
+                )  # a little late: the last pose again, as Haply's and hfabapi's loops do
             reply, fresh = self._wait_reply(self.reply_timeout_s)
         if reply is None:
             raise DeviceFault(self._silence())
         now = time.monotonic_ns()
         position, orientation, buttons = self._state(now)
         self._last_at = time.monotonic()
-        self._last = DeviceState(t_ns=now, position_mm=position, orientation=orientation,
-                                 velocity_mm_s=self._velocity.update(now, position), buttons=buttons, calibrated=True)
+        self._last = DeviceState(
+            t_ns=now,
+            position_mm=position,
+            orientation=orientation,
+            velocity_mm_s=self._velocity.update(now, position),
+            buttons=buttons,
+            calibrated=True,
+        )
         return self._last
 
     def write_force(self, force_n) -> None:
@@ -231,12 +259,16 @@ class SerialArm(HardwareDriver):
         zero becomes its next command's force, and DeviceFault says to try again."""
         self.force = np.zeros(3)
         if not self._port_lock.acquire(blocking=False):
-            raise DeviceFault(f"the loop is reading the {self.scheme} arm: the zero goes with its next command")
+            raise DeviceFault(
+                f"the loop is reading the {self.scheme} arm: the zero goes with its next command"
+            )
         try:
             if self._lost is not None:
                 return
             if self._sent_at is not None:
-                self._wait_reply(0.0)  # the answer, if it has come (its pose serves the next command)
+                self._wait_reply(
+                    0.0
+                )  # the answer, if it has come (its pose serves the next command)
             if self._sent_at is None and (self._resync_reason is None or self._resync_step()):
                 self._send(self._zero_command())
             elif self._zero_may_overlap():
@@ -261,9 +293,11 @@ class SerialArm(HardwareDriver):
             if junk and now - start >= JUNK_PROBES * PROBE_INTERVAL_S:
                 raise DeviceOpenError(describe(junk))
             if now >= deadline:
-                raise DeviceOpenError(f"{self.port} opened, but the board never answered the {self.scheme} "
-                                      f"handshake within {timeout_s:g} s (is it a {self.scheme} "
-                                      "board, with its firmware flashed?)")
+                raise DeviceOpenError(
+                    f"{self.port} opened, but the board never answered the {self.scheme} "
+                    f"handshake within {timeout_s:g} s (is it a {self.scheme} "
+                    "board, with its firmware flashed?)"
+                )
             if now - self._probed_at >= PROBE_INTERVAL_S:
                 self.transport.write(self._zero_command())
                 self._probed_at = now

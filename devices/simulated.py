@@ -55,12 +55,18 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-
+from sasprobe.devices.base import (
+    PHANTOM_OMNI_LIMITS,
+    DeviceFault,
+    DeviceInfo,
+    DeviceLimits,
+    DeviceState,
+    HapticDevice,
+)
+from sasprobe.devices.scripts import SCRIPTS, Script, make_script
 from sasprobe.devices.surface import Surface
 from sasprobe.devices.workspace import WorkspaceMapping
 from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
-from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo, DeviceLimits, DeviceState, HapticDevice
-from sasprobe.devices.scripts import SCRIPTS, Script, make_script
 
 FAULT_KINDS = ("raise", "nan", "disconnect")
 MAX_SUBSTEP_S = 1e-4
@@ -73,7 +79,9 @@ class ArmModel:
     arm_damping_n_s_per_m: float = 0.3
     hand_stiffness_n_per_mm: float = 0.2  # a light grip
     hand_damping_n_s_per_m: float = 1.0
-    max_hand_force_n: float | None = None  # None: HAND_RATING_FRACTION of the device's continuous rating
+    max_hand_force_n: float | None = (
+        None  # None: HAND_RATING_FRACTION of the device's continuous rating
+    )
 
 
 class SimulatedDevice(HapticDevice):
@@ -116,8 +124,11 @@ class SimulatedDevice(HapticDevice):
         self._disconnected = False
         self._failed_reconnects = int(failed_reconnects)
         self._presses = [_parse_press(p) for p in button_presses]
-        self.max_hand_force_n = float(arm.max_hand_force_n if arm.max_hand_force_n is not None
-                                      else HAND_RATING_FRACTION * limits.continuous_force_n)
+        self.max_hand_force_n = float(
+            arm.max_hand_force_n
+            if arm.max_hand_force_n is not None
+            else HAND_RATING_FRACTION * limits.continuous_force_n
+        )
 
     # --------------------------------------------------------------- interface
     @property
@@ -179,12 +190,19 @@ class SimulatedDevice(HapticDevice):
         t_ns = self.start_ns + self.ticks * self.period_ns
         if self._nan_reads > 0:
             self._nan_reads -= 1
-            return DeviceState(t_ns=t_ns, position_mm=np.full(3, np.nan), velocity_mm_s=np.full(3, np.nan))
+            return DeviceState(
+                t_ns=t_ns, position_mm=np.full(3, np.nan), velocity_mm_s=np.full(3, np.nan)
+            )
         buttons = 0
         for button, first, count in self._presses:
             if first <= self.ticks < first + count:
                 buttons |= 1 << button
-        return DeviceState(t_ns=t_ns, position_mm=np.array(self._x), velocity_mm_s=np.array(self._v), buttons=buttons)
+        return DeviceState(
+            t_ns=t_ns,
+            position_mm=np.array(self._x),
+            velocity_mm_s=np.array(self._v),
+            buttons=buttons,
+        )
 
     def write_force(self, force_n) -> None:
         f = [float(v) for v in np.asarray(force_n, dtype=np.float64).reshape(3)]
@@ -258,7 +276,9 @@ def _parse_press(spec) -> tuple[int, int, int]:
             if len(parsed) != 3:
                 raise ValueError
     except ValueError:
-        raise ValueError(f"button press {spec!r}: expected BUTTON@TICK+COUNT, e.g. 0@2000+1500") from None
+        raise ValueError(
+            f"button press {spec!r}: expected BUTTON@TICK+COUNT, e.g. 0@2000+1500"
+        ) from None
     if not 0 <= parsed[0] <= 31 or parsed[1] < 0 or parsed[2] < 1:
         raise ValueError(f"button press {spec!r}: button 0..31, tick >= 0, count >= 1")
     return parsed  # type: ignore[return-value]
@@ -299,7 +319,9 @@ def make_simulated(argument: str | None, **options) -> SimulatedDevice:
 
     name = (argument or "scan").strip().lower()
     if name not in SCRIPTS:
-        raise DeviceOpenError(f"unknown simulated-arm script '{name}' (known: {', '.join(SCRIPTS)})")
+        raise DeviceOpenError(
+            f"unknown simulated-arm script '{name}' (known: {', '.join(SCRIPTS)})"
+        )
     structure = options.get("structure")
     if structure is None:
         from sasprobe.molecule import load_default

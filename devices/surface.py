@@ -10,7 +10,6 @@ in the same place.
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.molecule.grid import UniformGrid
 from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
 
@@ -29,7 +28,7 @@ class Surface:
         self.zhi = float(grid.upper[2])
 
     @classmethod
-    def of(cls, structure, probe_radius: float = DEFAULT_PROBE_RADIUS) -> "Surface":
+    def of(cls, structure, probe_radius: float = DEFAULT_PROBE_RADIUS) -> Surface:
         return cls(UniformGrid(structure.positions, structure.expanded_radii(probe_radius)))
 
     def intervals(self, x: float, y: float) -> list[tuple[float, float, list[int]]]:
@@ -59,7 +58,9 @@ class Surface:
         cols = self.intervals(x, y)
         return cols[0][1] if cols else None
 
-    def heights(self, spacing: float = HEIGHT_SPACING_A) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def heights(
+        self, spacing: float = HEIGHT_SPACING_A
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Height map of the surface seen from +z: (xs, ys, top) with top[i, j] the highest
         point of the expanded spheres over column (xs[i], ys[j]), NaN where the column is empty."""
         c, r = self.grid.centers, self.grid.radii
@@ -70,13 +71,17 @@ class Surface:
         reach = int(np.ceil(float(r.max()) / spacing))
         i0 = np.rint((c[:, 0] - xs[0]) / spacing).astype(np.int64)
         j0 = np.rint((c[:, 1] - ys[0]) / spacing).astype(np.int64)
-        for di in range(-reach, reach + 1):  # every column within reach of each atom, vectorised per offset
+        for di in range(
+            -reach, reach + 1
+        ):  # every column within reach of each atom, vectorised per offset
             for dj in range(-reach, reach + 1):
                 i, j = i0 + di, j0 + dj
                 ok = (i >= 0) & (i < xs.size) & (j >= 0) & (j < ys.size)
                 h2 = r[ok] ** 2 - (xs[i[ok]] - c[ok, 0]) ** 2 - (ys[j[ok]] - c[ok, 1]) ** 2
                 inside = h2 > 0
-                np.maximum.at(top, (i[ok][inside], j[ok][inside]), c[ok, 2][inside] + np.sqrt(h2[inside]))
+                np.maximum.at(
+                    top, (i[ok][inside], j[ok][inside]), c[ok, 2][inside] + np.sqrt(h2[inside])
+                )
         top[~np.isfinite(top)] = np.nan
         return xs, ys, top
 
@@ -96,8 +101,13 @@ class Surface:
         spacing = float(xs[1] - xs[0]) if xs.size > 1 else HEIGHT_SPACING_A
         reach = int(np.ceil(half / spacing))
         filled = np.where(np.isfinite(top), top, -np.inf)
-        excess = np.array([np.max(filled[max(i - reach, 0):i + reach + 1, max(j - reach, 0):j + reach + 1]) - top[i, j]
-                           for i, j in zip(ii, jj)])
+        excess = np.array(
+            [
+                np.max(filled[max(i - reach, 0) : i + reach + 1, max(j - reach, 0) : j + reach + 1])
+                - top[i, j]
+                for i, j in zip(ii, jj)
+            ]
+        )
         summit = excess <= SUMMIT_TOLERANCE_A
         if not np.any(summit):  # cannot happen (the highest column is a summit), but never fail
             summit = excess <= excess.min()
@@ -109,6 +119,8 @@ class Surface:
         return x, y, float(self.top(x, y))
 
 
-def surface_site(structure, half: float, probe_radius: float = DEFAULT_PROBE_RADIUS) -> tuple[float, float, float]:
+def surface_site(
+    structure, half: float, probe_radius: float = DEFAULT_PROBE_RADIUS
+) -> tuple[float, float, float]:
     """Surface.site(half) of a structure (builds its grid)."""
     return Surface.of(structure, probe_radius).site(half)

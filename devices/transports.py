@@ -25,8 +25,10 @@ UDEV_HINT = "install the udev rule from docs/connect-your-arm.md"
 
 
 def permission_hint(path: str, group: str = "dialout") -> str:
-    return (f"permission denied on {path}: add yourself to the '{group}' group "
-            f"(sudo usermod -aG {group} $USER, then log in again) or {UDEV_HINT}")
+    return (
+        f"permission denied on {path}: add yourself to the '{group}' group "
+        f"(sudo usermod -aG {group} $USER, then log in again) or {UDEV_HINT}"
+    )
 
 
 class Transport(abc.ABC):
@@ -92,7 +94,9 @@ class SerialTransport(Transport):
         if self._handle is not None:
             return
         try:
-            self._handle = serial.Serial(self.port, self.baudrate, timeout=0, write_timeout=self.write_timeout_s)
+            self._handle = serial.Serial(
+                self.port, self.baudrate, timeout=0, write_timeout=self.write_timeout_s
+            )
         except serial.SerialException as exc:
             raise self._open_error(exc) from None
         except (OSError, ValueError) as exc:
@@ -101,8 +105,10 @@ class SerialTransport(Transport):
     def _open_error(self, exc: Exception) -> DeviceOpenError:
         code = getattr(exc, "errno", None)
         if code == errno.ENOENT:
-            return DeviceOpenError(f"no such serial port: {self.port} (is the arm plugged in? "
-                                   "`sasprobe devices` lists the ports)")
+            return DeviceOpenError(
+                f"no such serial port: {self.port} (is the arm plugged in? "
+                "`sasprobe devices` lists the ports)"
+            )
         if code in (errno.EACCES, errno.EPERM):
             return DeviceOpenError(permission_hint(self.port))
         if code == errno.EBUSY:
@@ -131,15 +137,17 @@ class SerialTransport(Transport):
             fd = ser.fileno()
             while remaining:
                 try:
-                    remaining = remaining[os.write(fd, remaining):]
+                    remaining = remaining[os.write(fd, remaining) :]
                 except BlockingIOError:
                     pass
                 if not remaining:
                     return
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    raise DeviceFault(f"serial port {self.port} lost: it took no bytes for "
-                                      f"{self.write_timeout_s * 1000:.0f} ms")
+                    raise DeviceFault(
+                        f"serial port {self.port} lost: it took no bytes for "
+                        f"{self.write_timeout_s * 1000:.0f} ms"
+                    )
                 select.select([], [fd], [], left)
         except (OSError, ValueError) as exc:
             raise DeviceFault(f"serial port {self.port} lost: {exc}") from None
@@ -203,14 +211,21 @@ class HidTransport(Transport):
         try:
             dev.open_path(self.path)
         except (OSError, ValueError) as exc:
-            if (self.name.startswith("/dev/") and os.path.exists(self.name)
-                    and not os.access(self.name, os.R_OK | os.W_OK)):
+            if (
+                self.name.startswith("/dev/")
+                and os.path.exists(self.name)
+                and not os.access(self.name, os.R_OK | os.W_OK)
+            ):
                 raise DeviceOpenError(permission_hint(self.name, group="plugdev")) from None
-            raise DeviceOpenError(f"cannot open {self.label} at {self.name}: {exc} "
-                                  f"(unplugged? no permission? {UDEV_HINT})") from None
+            raise DeviceOpenError(
+                f"cannot open {self.label} at {self.name}: {exc} "
+                f"(unplugged? no permission? {UDEV_HINT})"
+            ) from None
         if dev.set_nonblocking(1) == -1:
             dev.close()
-            raise DeviceOpenError(f"cannot make reads from {self.label} at {self.name} non-blocking")
+            raise DeviceOpenError(
+                f"cannot make reads from {self.label} at {self.name} non-blocking"
+            )
         self._handle = dev
 
     def report_descriptor(self) -> bytes | None:
@@ -258,8 +273,17 @@ class UsbTransport(Transport):
     implements pyusb's `IBackend` over an emulated device, so pyusb's own code runs.
     """
 
-    def __init__(self, vendor_id: int, product_id: int, ep_out: int, ep_in: int, *,
-                 backend=None, interface: int = 0, label: str = "USB device"):
+    def __init__(
+        self,
+        vendor_id: int,
+        product_id: int,
+        ep_out: int,
+        ep_in: int,
+        *,
+        backend=None,
+        interface: int = 0,
+        label: str = "USB device",
+    ):
         self.vendor_id, self.product_id = vendor_id, product_id
         self.ep_out, self.ep_in = ep_out, ep_in
         self.backend = backend
@@ -274,13 +298,19 @@ class UsbTransport(Transport):
         if self._handle is not None:
             return
         try:
-            dev = usb.core.find(idVendor=self.vendor_id, idProduct=self.product_id, backend=self.backend)
+            dev = usb.core.find(
+                idVendor=self.vendor_id, idProduct=self.product_id, backend=self.backend
+            )
         except usb.core.NoBackendError:
-            raise DeviceOpenError("libusb-1.0 is not installed, so pyusb cannot reach USB devices "
-                                  "(Debian/Ubuntu: sudo apt install libusb-1.0-0)") from None
+            raise DeviceOpenError(
+                "libusb-1.0 is not installed, so pyusb cannot reach USB devices "
+                "(Debian/Ubuntu: sudo apt install libusb-1.0-0)"
+            ) from None
         if dev is None:
-            raise DeviceOpenError(f"no {self.label} found (USB {self.vendor_id:04x}:{self.product_id:04x}): "
-                                  "is it plugged in and powered?")
+            raise DeviceOpenError(
+                f"no {self.label} found (USB {self.vendor_id:04x}:{self.product_id:04x}): "
+                "is it plugged in and powered?"
+            )
         try:
             try:
                 if dev.is_kernel_driver_active(self.interface):
@@ -295,7 +325,9 @@ class UsbTransport(Transport):
                 where = f"the {self.label} (USB {self.vendor_id:04x}:{self.product_id:04x})"
                 raise DeviceOpenError(permission_hint(where, group="plugdev")) from None
             if exc.errno == errno.EBUSY:
-                raise DeviceOpenError(f"the {self.label} is busy: another program has it open") from None
+                raise DeviceOpenError(
+                    f"the {self.label} is busy: another program has it open"
+                ) from None
             raise DeviceOpenError(f"cannot open the {self.label}: {exc}") from None
         self._handle = dev
 
@@ -309,13 +341,22 @@ class UsbTransport(Transport):
             except Exception:  # a vanished device cannot release its interface; it is gone anyway
                 pass
 
-    def control(self, request_type: int, request: int, value: int = 0, index: int = 0,
-                data_or_length=None, timeout_s: float = 0.1):
+    def control(
+        self,
+        request_type: int,
+        request: int,
+        value: int = 0,
+        index: int = 0,
+        data_or_length=None,
+        timeout_s: float = 0.1,
+    ):
         import usb.core
 
         dev = self._require()
         try:
-            return dev.ctrl_transfer(request_type, request, value, index, data_or_length, int(timeout_s * 1000))
+            return dev.ctrl_transfer(
+                request_type, request, value, index, data_or_length, int(timeout_s * 1000)
+            )
         except usb.core.USBError as exc:
             raise DeviceFault(f"the {self.label} lost: {exc}") from None
 
@@ -326,10 +367,14 @@ class UsbTransport(Transport):
         try:
             n = dev.write(self.ep_out, data, max(int(timeout_s * 1000), 1))
         except usb.core.USBTimeoutError:
-            raise TransferTimeout(f"the {self.label} took no data for {timeout_s * 1000:.0f} ms") from None
+            raise TransferTimeout(
+                f"the {self.label} took no data for {timeout_s * 1000:.0f} ms"
+            ) from None
         except usb.core.USBError as exc:
             if exc.errno == errno.ETIMEDOUT:
-                raise TransferTimeout(f"the {self.label} took no data for {timeout_s * 1000:.0f} ms") from None
+                raise TransferTimeout(
+                    f"the {self.label} took no data for {timeout_s * 1000:.0f} ms"
+                ) from None
             raise DeviceFault(f"the {self.label} lost: {exc}") from None
         if n != len(data):
             raise DeviceFault(f"the {self.label}: short write ({n} of {len(data)} bytes)")

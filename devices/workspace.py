@@ -50,7 +50,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
 from sasprobe.devices.base import DeviceLimits
 from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
 
@@ -60,9 +59,21 @@ MAX_CUBE_HALF_A = 10_000.0  # larger navigation cubes are a mistake, not a molec
 FIT_PADDING_A = 3.0  # room around the SAS inside the fitted cube's core (to hover, to approach)
 DEFAULT_SCALE_A_PER_MM = 0.4  # the default cube: this many Å per mm of hand travel ...
 CONTEXT_FRACTION = 0.2  # ... and a half edge at most this fraction of the molecule's smallest width
-SITE_SINK = 0.25  # a zoomed-in cube's centre lies this fraction of its half edge below the surface site
+SITE_SINK = (
+    0.25  # a zoomed-in cube's centre lies this fraction of its half edge below the surface site
+)
 CUBE_FIT = "fit"  # cube_half_A that fits the whole molecule
-IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)  # the view rotation at the start, row-major
+IDENTITY = (
+    1.0,
+    0.0,
+    0.0,
+    0.0,
+    1.0,
+    0.0,
+    0.0,
+    0.0,
+    1.0,
+)  # the view rotation at the start, row-major
 ROTATION_TOLERANCE = 1e-6  # how far from orthonormal (with determinant +1) a view rotation may be
 
 
@@ -71,10 +82,14 @@ def validate_cube_half(value: float | str | None) -> float | str | None:
     if value is None or value == CUBE_FIT:
         return value
     if isinstance(value, str):
-        raise ValueError(f"navigation cube half edge must be a number (Å) or '{CUBE_FIT}', got {value!r}")
+        raise ValueError(
+            f"navigation cube half edge must be a number (Å) or '{CUBE_FIT}', got {value!r}"
+        )
     value = float(value)
     if not math.isfinite(value) or value <= 0 or value > MAX_CUBE_HALF_A:
-        raise ValueError(f"navigation cube half edge must be in (0, {MAX_CUBE_HALF_A:g}] Å, got {value:g}")
+        raise ValueError(
+            f"navigation cube half edge must be in (0, {MAX_CUBE_HALF_A:g}] Å, got {value:g}"
+        )
     return value
 
 
@@ -85,7 +100,9 @@ def validate_cube_center(value) -> tuple[float, float, float] | None:
     try:
         xyz = tuple(float(v) for v in np.asarray(value, dtype=np.float64).reshape(3))
     except (TypeError, ValueError):
-        raise ValueError(f"navigation cube centre must be three numbers (Å), got {value!r}") from None
+        raise ValueError(
+            f"navigation cube centre must be three numbers (Å), got {value!r}"
+        ) from None
     if not all(math.isfinite(v) for v in xyz):
         raise ValueError(f"navigation cube centre must be finite, got {xyz}")
     return xyz  # type: ignore[return-value]
@@ -101,8 +118,12 @@ def validate_rotation(value) -> tuple[float, ...]:
     if not np.all(np.isfinite(m)):
         raise ValueError("a view rotation must be finite")
     if np.max(np.abs(m @ m.T - np.eye(3))) > ROTATION_TOLERANCE or np.linalg.det(m) <= 0:
-        raise ValueError("a view rotation must be orthonormal with determinant +1 (a turn, not a mirror or a scale)")
-    u, _, vt = np.linalg.svd(m)  # the nearest rotation: round-off does not accumulate over many turns
+        raise ValueError(
+            "a view rotation must be orthonormal with determinant +1 (a turn, not a mirror or a scale)"
+        )
+    u, _, vt = np.linalg.svd(
+        m
+    )  # the nearest rotation: round-off does not accumulate over many turns
     return tuple(float(v) for v in (u @ vt).reshape(9))
 
 
@@ -129,14 +150,21 @@ def _fitted(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
 
 def _half_mm(limits: DeviceLimits) -> float:
     """Half edge of the cube inscribed in the device's workspace box (mm)."""
-    half_mm = float(np.min(np.asarray(limits.workspace_max_mm) - np.asarray(limits.workspace_min_mm))) / 2.0
+    half_mm = (
+        float(np.min(np.asarray(limits.workspace_max_mm) - np.asarray(limits.workspace_min_mm)))
+        / 2.0
+    )
     if not half_mm > 0:
         raise ValueError("device workspace has no extent")
     return half_mm
 
 
-def initial_half(structure, limits: DeviceLimits, cube_half_A: float | str | None = None,
-                 probe_radius: float = DEFAULT_PROBE_RADIUS) -> float:
+def initial_half(
+    structure,
+    limits: DeviceLimits,
+    cube_half_A: float | str | None = None,
+    probe_radius: float = DEFAULT_PROBE_RADIUS,
+) -> float:
     """The half edge (Å) a session's cube starts with: `cube_half_A` (Å), "fit", or None for
     the default (cheap: no surface search, so the loop may call it)."""
     cube_half_A = validate_cube_half(cube_half_A)
@@ -182,7 +210,7 @@ class WorkspaceMapping:
         probe_radius: float = DEFAULT_PROBE_RADIUS,
         cube_center_A=None,
         surface=None,
-    ) -> "WorkspaceMapping":
+    ) -> WorkspaceMapping:
         """The mapping a session starts with (the daemon and the simulated arm share it).
 
         Half edge: `cube_half_A` (Å), "fit", or None for the default (see the module
@@ -216,7 +244,7 @@ class WorkspaceMapping:
             bounds_hi_A=tuple(float(v) for v in positions.max(axis=0)),  # type: ignore[arg-type]
         )
 
-    def copy(self) -> "WorkspaceMapping":
+    def copy(self) -> WorkspaceMapping:
         return WorkspaceMapping(
             self.workspace_center_mm,
             self.half_mm,
@@ -254,9 +282,11 @@ class WorkspaceMapping:
         u, v, w = s * (x - wx), s * (y - wy), s * (z - wz)
         r = self.rotation
         cx, cy, cz = self.cube_center
-        return (cx + r[0] * u + r[1] * v + r[2] * w,
-                cy + r[3] * u + r[4] * v + r[5] * w,
-                cz + r[6] * u + r[7] * v + r[8] * w)
+        return (
+            cx + r[0] * u + r[1] * v + r[2] * w,
+            cy + r[3] * u + r[4] * v + r[5] * w,
+            cz + r[6] * u + r[7] * v + r[8] * w,
+        )
 
     def to_device(self, x: float, y: float, z: float) -> tuple[float, float, float]:
         """Molecule point (Å) -> device point (mm)."""
@@ -265,9 +295,11 @@ class WorkspaceMapping:
         cx, cy, cz = self.cube_center
         u, v, w = x - cx, y - cy, z - cz
         r = self.rotation  # its transpose takes molecule directions to the device frame
-        return (wx + inv * (r[0] * u + r[3] * v + r[6] * w),
-                wy + inv * (r[1] * u + r[4] * v + r[7] * w),
-                wz + inv * (r[2] * u + r[5] * v + r[8] * w))
+        return (
+            wx + inv * (r[0] * u + r[3] * v + r[6] * w),
+            wy + inv * (r[1] * u + r[4] * v + r[7] * w),
+            wz + inv * (r[2] * u + r[5] * v + r[8] * w),
+        )
 
     def _anchor(self, goal: tuple[float, float, float], tip_mm) -> None:
         """Place the cube so that the tip maps onto `goal` (the goal does not jump)."""
@@ -284,7 +316,11 @@ class WorkspaceMapping:
         if abs(x - wx) <= inner and abs(y - wy) <= inner and abs(z - wz) <= inner:
             return 0.0, 0.0, 0.0  # the usual case: inside the drift-free core
         out = []
-        for u in (x - self.workspace_center_mm[0], y - self.workspace_center_mm[1], z - self.workspace_center_mm[2]):
+        for u in (
+            x - self.workspace_center_mm[0],
+            y - self.workspace_center_mm[1],
+            z - self.workspace_center_mm[2],
+        ):
             depth = abs(u) - inner
             if depth <= 0.0:
                 out.append(0.0)
@@ -301,7 +337,9 @@ class WorkspaceMapping:
         r = self.rotation
         moved = False
         for axis in range(3):
-            v = r[3 * axis] * vx + r[3 * axis + 1] * vy + r[3 * axis + 2] * vz  # along this molecule axis
+            v = (
+                r[3 * axis] * vx + r[3 * axis + 1] * vy + r[3 * axis + 2] * vz
+            )  # along this molecule axis
             old = self.cube_center[axis]
             new = old + v * step
             # Stop at the bounds, never snap back into them (a snap would be a goal jump).

@@ -11,7 +11,6 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-
 from sasprobe.molecule.residues import residue_kind
 
 if TYPE_CHECKING:
@@ -28,7 +27,9 @@ def trace_segments(structure: Structure) -> tuple[list[np.ndarray], list[str]]:
     if candidates.size == 0:
         return [], []
     kinds = np.array([residue_kind(str(r)) for r in structure.residue_names[candidates]])
-    is_ca = (names[candidates] == "CA") & (kinds == "protein") & (structure.elements[candidates] == "C")
+    is_ca = (
+        (names[candidates] == "CA") & (kinds == "protein") & (structure.elements[candidates] == "C")
+    )
     is_p = (names[candidates] == "P") & (kinds == "nucleic")
     trace = candidates[is_ca | is_p]
     if trace.size == 0:

@@ -32,7 +32,6 @@ from functools import lru_cache
 from itertools import combinations
 
 import numpy as np
-
 from sasprobe.molecule.grid import UniformGrid
 
 OPEN_RADIUS_A = 5.0  # a passage wider than this is open surface for any solvent probe
@@ -57,7 +56,9 @@ class Passage:
     open: bool  # the climb left the molecule: no passage bounds the path here
 
 
-def persistent(bounded: np.ndarray, length_A: np.ndarray, min_run_A: float = MIN_RUN_A) -> np.ndarray:
+def persistent(
+    bounded: np.ndarray, length_A: np.ndarray, min_run_A: float = MIN_RUN_A
+) -> np.ndarray:
     """`bounded` (a flag per path point) without its runs that span less than min_run_A of
     path length (`length_A`: distance travelled up to each point)."""
     out = np.array(bounded, dtype=bool)
@@ -176,7 +177,9 @@ class ClearanceField:
         if np.any(norms <= 1e-9):
             angles = np.linspace(0.0, 2 * np.pi, 8, endpoint=False)
             turns += list(np.stack([np.cos(angles), np.sin(angles)], axis=1))
-        flat = [sign * u for u in turns for sign in (1.0, -1.0) if np.min(active @ (sign * u)) >= -1e-9]
+        flat = [
+            sign * u for u in turns for sign in (1.0, -1.0) if np.min(active @ (sign * u)) >= -1e-9
+        ]
         if not flat:
             return None
         directions = np.array(flat) @ basis

@@ -40,7 +40,9 @@ def _hex_to_rgb(code: str) -> tuple[float, float, float]:
     return tuple(int(code[i : i + 2], 16) / 255.0 for i in (0, 2, 4))  # type: ignore[return-value]
 
 
-CPK_COLORS: dict[str, tuple[float, float, float]] = {k: _hex_to_rgb(v) for k, v in _JMOL_HEX.items()}
+CPK_COLORS: dict[str, tuple[float, float, float]] = {
+    k: _hex_to_rgb(v) for k, v in _JMOL_HEX.items()
+}
 FALLBACK_COLOR = _hex_to_rgb(FALLBACK_COLOR_HEX)
 
 

@@ -51,9 +51,11 @@ class FetchError(UserError):
 def pdb_id(text: str) -> str | None:
     """The (lower-case) PDB id `text` names, or None when it names a file."""
     if text.lower().startswith(PREFIX):
-        ident = text[len(PREFIX):]
+        ident = text[len(PREFIX) :]
         if not _ID.fullmatch(ident):
-            raise FetchError(f"{text}: not a PDB id (four characters, a digit first, e.g. pdb:4hhb)")
+            raise FetchError(
+                f"{text}: not a PDB id (four characters, a digit first, e.g. pdb:4hhb)"
+            )
         return ident.lower()
     if _ID.fullmatch(text) and not Path(text).exists():
         return text.lower()
@@ -67,7 +69,9 @@ class FetchSettings:
     timeout_s: float = TIMEOUT_S
 
     @classmethod
-    def from_environment(cls, mirror: str | None = None, cache: str | Path | None = None) -> "FetchSettings":
+    def from_environment(
+        cls, mirror: str | None = None, cache: str | Path | None = None
+    ) -> FetchSettings:
         """Settings given (flags, config), else the environment's, else the defaults."""
         mirror = mirror or os.environ.get(MIRROR_ENV) or DEFAULT_MIRROR
         cache = cache or os.environ.get(CACHE_ENV) or None
@@ -78,8 +82,10 @@ class FetchSettings:
     def template(self) -> str:
         template = MIRRORS.get(self.mirror.lower(), self.mirror)
         if "{id}" not in template and "{ID}" not in template:
-            raise FetchError(f"PDB mirror {self.mirror!r} is neither {', '.join(MIRRORS)} nor a URL template "
-                             "with {id} or {ID} (e.g. https://host/{id}.cif.gz)")
+            raise FetchError(
+                f"PDB mirror {self.mirror!r} is neither {', '.join(MIRRORS)} nor a URL template "
+                "with {id} or {ID} (e.g. https://host/{id}.cif.gz)"
+            )
         return template
 
     def url(self, ident: str) -> str:
@@ -126,7 +132,9 @@ def fetch_entry(ident: str, settings: FetchSettings) -> Path:
             tmp.write(data)
         os.replace(tmp.name, folder / name)  # another process never sees half a file
     except OSError as exc:
-        raise FetchError(f"pdb:{ident}: cannot write the cache folder {folder} ({exc.strerror or exc})") from None
+        raise FetchError(
+            f"pdb:{ident}: cannot write the cache folder {folder} ({exc.strerror or exc})"
+        ) from None
     return folder / name
 
 
@@ -139,11 +147,17 @@ def _download(ident: str, url: str, host: str, folder: Path, timeout_s: float) -
             return _read_body(response, ident)
     except urllib.error.HTTPError as exc:
         if exc.code in (404, 410):
-            raise FetchError(f"pdb:{ident}: no such entry at {host} (HTTP {exc.code} for {url})") from None
-        raise FetchError(f"pdb:{ident}: {host} answered HTTP {exc.code} {exc.reason} ({url})") from None
+            raise FetchError(
+                f"pdb:{ident}: no such entry at {host} (HTTP {exc.code} for {url})"
+            ) from None
+        raise FetchError(
+            f"pdb:{ident}: {host} answered HTTP {exc.code} {exc.reason} ({url})"
+        ) from None
     except (urllib.error.URLError, OSError, ValueError) as exc:
         reason = getattr(exc, "reason", None) or exc
-        raise FetchError(f"pdb:{ident}: cannot reach {host} ({reason}) and no copy is cached in {folder}") from None
+        raise FetchError(
+            f"pdb:{ident}: cannot reach {host} ({reason}) and no copy is cached in {folder}"
+        ) from None
 
 
 def _read_body(response, ident: str) -> bytes:
@@ -162,7 +176,9 @@ def _read_body(response, ident: str) -> bytes:
                 break
             size += len(chunk)
             if size > MAX_ENTRY_BYTES:
-                raise FetchError(f"pdb:{ident}: the download exceeds {MAX_ENTRY_BYTES >> 20} MiB; not a PDB entry")
+                raise FetchError(
+                    f"pdb:{ident}: the download exceeds {MAX_ENTRY_BYTES >> 20} MiB; not a PDB entry"
+                )
             chunks.append(chunk)
             if bar is not None:
                 bar.update(len(chunk))

@@ -191,7 +191,9 @@ class UniformGrid:
             return np.empty(0, dtype=np.int64)
         stored = self._gather(self.cells_in_range(*rng))
         n = self.centers.shape[0]
-        if stored.size * 16 < n:  # a few cells of many: sorting them is cheaper than a pass over all
+        if (
+            stored.size * 16 < n
+        ):  # a few cells of many: sorting them is cheaper than a pass over all
             return np.unique(stored)
         seen = np.zeros(n, dtype=bool)
         seen[stored] = True
@@ -254,7 +256,9 @@ class UniformGrid:
         np.cumsum(counts, out=start[1:])
         return home, flat, order, counts, start
 
-    def nearest_neighbors(self, k: int, of: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def nearest_neighbors(
+        self, k: int, of: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The k nearest other spheres of every sphere (or of the spheres `of`), by centre
         distance.
 
@@ -316,7 +320,9 @@ class UniformGrid:
         """The k spheres whose centres are nearest `point`, nearest first, ties by index
         (-1 padded): the spheres within a distance doubled until k of them lie inside it."""
         point = np.asarray(point, dtype=np.float64).reshape(3)
-        reach = float(np.linalg.norm(np.maximum(np.abs(point - self.origin), np.abs(point - self.upper))))
+        reach = float(
+            np.linalg.norm(np.maximum(np.abs(point - self.origin), np.abs(point - self.upper)))
+        )
         distance = self.cell_size
         while True:
             cand = self.spheres_within(point, distance)

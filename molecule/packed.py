@@ -25,7 +25,6 @@ import io
 import zipfile
 
 import numpy as np
-
 from sasprobe.molecule.elements import colors_for, radii_for
 from sasprobe.molecule.structure import MAX_COORDINATE_A, Structure, StructureError
 
@@ -39,13 +38,18 @@ def pack_structure(structure: Structure) -> bytes:
         "residue_numbers": np.asarray(structure.residue_numbers, dtype=np.int32),
         "is_hetero": np.asarray(structure.is_hetero, dtype=bool),
         "b_factors": np.asarray(structure.b_factors, dtype=np.float64),
-        "backbone_atoms": np.concatenate([np.asarray(s, dtype=np.int64) for s in structure.backbone])
-        if structure.backbone else np.zeros(0, dtype=np.int64),
+        "backbone_atoms": np.concatenate(
+            [np.asarray(s, dtype=np.int64) for s in structure.backbone]
+        )
+        if structure.backbone
+        else np.zeros(0, dtype=np.int64),
         "backbone_lengths": np.array([len(s) for s in structure.backbone], dtype=np.int64),
         "backbone_chains": np.asarray(structure.backbone_chains, dtype=str),
     }
     for name in TEXT_FIELDS:
-        values, index = np.unique(np.asarray(getattr(structure, name), dtype=str), return_inverse=True)
+        values, index = np.unique(
+            np.asarray(getattr(structure, name), dtype=str), return_inverse=True
+        )
         arrays[f"{name}_values"], arrays[f"{name}_index"] = values, index.astype(np.int32)
     out = io.BytesIO()
     np.savez(out, **arrays)
@@ -69,7 +73,12 @@ def unpack_structure(data: bytes, name: str, source: str, sha256: str) -> Struct
 
 def _structure(a: dict, name: str, source: str, sha256: str) -> Structure:
     positions = a["positions"]
-    if positions.dtype != np.float64 or positions.ndim != 2 or positions.shape[1] != 3 or positions.shape[0] == 0:
+    if (
+        positions.dtype != np.float64
+        or positions.ndim != 2
+        or positions.shape[1] != 3
+        or positions.shape[0] == 0
+    ):
         raise ValueError("positions must be float64 (N, 3), N > 0")
     if not (np.isfinite(positions).all() and np.abs(positions).max() <= MAX_COORDINATE_A):
         raise ValueError(f"coordinates must be finite and within ±{MAX_COORDINATE_A:g} Å")
@@ -87,15 +96,35 @@ def _structure(a: dict, name: str, source: str, sha256: str) -> Structure:
         if a[field].shape != (n,) or a[field].dtype != dtype:
             raise ValueError(f"{field}: one {np.dtype(dtype).name} per atom")
     atoms, lengths, chains = a["backbone_atoms"], a["backbone_lengths"], a["backbone_chains"]
-    if lengths.sum() != atoms.size or chains.shape != lengths.shape or (lengths < 0).any() \
-            or (atoms.size and (atoms.min() < 0 or atoms.max() >= n)):
+    if (
+        lengths.sum() != atoms.size
+        or chains.shape != lengths.shape
+        or (lengths < 0).any()
+        or (atoms.size and (atoms.min() < 0 or atoms.max() >= n))
+    ):
         raise ValueError("the backbone's segments do not fit its atoms")
-    symbols, of_atom = a["elements_values"], index_of["elements"]  # radii and colours looked up per element
+    symbols, of_atom = (
+        a["elements_values"],
+        index_of["elements"],
+    )  # radii and colours looked up per element
     return Structure(
-        name=name, source=source, source_bytes=b"", sha256=sha256, positions=positions, elements=text["elements"],
-        vdw_radii=radii_for(symbols)[of_atom], colors=colors_for(symbols)[of_atom], chain_ids=text["chain_ids"],
-        residue_names=text["residue_names"], residue_numbers=a["residue_numbers"],
-        insertion_codes=text["insertion_codes"], atom_names=text["atom_names"], is_hetero=a["is_hetero"],
-        b_factors=a["b_factors"], backbone=[s.astype(np.int64) for s in np.split(atoms, np.cumsum(lengths)[:-1])]
-        if lengths.size else [], backbone_chains=[str(c) for c in chains],
+        name=name,
+        source=source,
+        source_bytes=b"",
+        sha256=sha256,
+        positions=positions,
+        elements=text["elements"],
+        vdw_radii=radii_for(symbols)[of_atom],
+        colors=colors_for(symbols)[of_atom],
+        chain_ids=text["chain_ids"],
+        residue_names=text["residue_names"],
+        residue_numbers=a["residue_numbers"],
+        insertion_codes=text["insertion_codes"],
+        atom_names=text["atom_names"],
+        is_hetero=a["is_hetero"],
+        b_factors=a["b_factors"],
+        backbone=[s.astype(np.int64) for s in np.split(atoms, np.cumsum(lengths)[:-1])]
+        if lengths.size
+        else [],
+        backbone_chains=[str(c) for c in chains],
     )

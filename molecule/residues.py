@@ -14,7 +14,7 @@ the hydropathy index, −4.5 for arginine to +4.5 for isoleucine.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from typing import TYPE_CHECKING
 
 import gemmi
@@ -35,7 +35,7 @@ KYTE_DOOLITTLE: dict[str, float] = {
 KYTE_DOOLITTLE_RANGE = (-4.5, 4.5)
 
 
-@lru_cache(maxsize=None)
+@cache
 def residue_kind(name: str) -> str:
     """'protein', 'nucleic', 'water' for a residue name in gemmi's table, '' otherwise
     (a ligand or an ion: which one depends on its atoms, see residue_kinds)."""
@@ -58,8 +58,12 @@ def residue_starts(structure: Structure) -> np.ndarray:
     if n == 0:
         return np.zeros(1, dtype=np.int64)
     s = structure
-    change = ((s.chain_ids[1:] != s.chain_ids[:-1]) | (s.residue_numbers[1:] != s.residue_numbers[:-1])
-              | (s.insertion_codes[1:] != s.insertion_codes[:-1]) | (s.residue_names[1:] != s.residue_names[:-1]))
+    change = (
+        (s.chain_ids[1:] != s.chain_ids[:-1])
+        | (s.residue_numbers[1:] != s.residue_numbers[:-1])
+        | (s.insertion_codes[1:] != s.insertion_codes[:-1])
+        | (s.residue_names[1:] != s.residue_names[:-1])
+    )
     return np.concatenate(([0], np.flatnonzero(change) + 1, [n])).astype(np.int64)
 
 
@@ -69,8 +73,13 @@ def residue_kinds(structure: Structure) -> np.ndarray:
     names = structure.residue_names[starts[:-1]]
     sizes = np.diff(starts)
     table = {"protein": PROTEIN, "nucleic": NUCLEIC, "water": WATER}
-    per_residue = np.array([table.get(residue_kind(str(name)), ION if size == 1 else LIGAND)
-                            for name, size in zip(names, sizes)], dtype=np.uint8)
+    per_residue = np.array(
+        [
+            table.get(residue_kind(str(name)), ION if size == 1 else LIGAND)
+            for name, size in zip(names, sizes)
+        ],
+        dtype=np.uint8,
+    )
     return np.repeat(per_residue, sizes)
 
 
@@ -85,9 +94,21 @@ def per_residue_sums(structure: Structure, **columns: np.ndarray) -> list[dict]:
     """One row per residue, in structure order: chain, number, insertion code, name, atoms,
     and the sum over its atoms of each per-atom column given (e.g. area=..., accessible=...)."""
     starts = residue_starts(structure)
-    sums = {key: np.add.reduceat(np.asarray(v, dtype=np.float64), starts[:-1]) if structure.n_atoms else []
-            for key, v in columns.items()}
+    sums = {
+        key: np.add.reduceat(np.asarray(v, dtype=np.float64), starts[:-1])
+        if structure.n_atoms
+        else []
+        for key, v in columns.items()
+    }
     s = structure
-    return [{"chain": str(s.chain_ids[a]), "number": int(s.residue_numbers[a]), "icode": str(s.insertion_codes[a]),
-             "residue": str(s.residue_names[a]), "atoms": int(b - a), **{k: float(v[r]) for k, v in sums.items()}}
-            for r, (a, b) in enumerate(zip(starts[:-1], starts[1:]))]
+    return [
+        {
+            "chain": str(s.chain_ids[a]),
+            "number": int(s.residue_numbers[a]),
+            "icode": str(s.insertion_codes[a]),
+            "residue": str(s.residue_names[a]),
+            "atoms": int(b - a),
+            **{k: float(v[r]) for k, v in sums.items()},
+        }
+        for r, (a, b) in enumerate(zip(starts[:-1], starts[1:]))
+    ]

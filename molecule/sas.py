@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
 from sasprobe.molecule.grid import UniformGrid
 
 DEFAULT_POINTS = 512
@@ -69,7 +68,9 @@ def shrake_rupley(
     threshold are precise without paying the fine resolution everywhere.
     """
     i, j = grid.overlapping_pairs()
-    areas, refined = _areas(grid, i, j, np.ones(grid.centers.shape[0], dtype=bool), n_points, refine_points)
+    areas, refined = _areas(
+        grid, i, j, np.ones(grid.centers.shape[0], dtype=bool), n_points, refine_points
+    )
     return SasResult(
         areas=areas,
         expanded_radii=grid.radii.copy(),
@@ -79,8 +80,9 @@ def shrake_rupley(
     )
 
 
-def atom_areas(grid: UniformGrid, atoms, n_points: int = DEFAULT_POINTS,
-               refine_points: int = REFINE_POINTS) -> np.ndarray:
+def atom_areas(
+    grid: UniformGrid, atoms, n_points: int = DEFAULT_POINTS, refine_points: int = REFINE_POINTS
+) -> np.ndarray:
     """SAS areas (Å^2) of some atoms only, sampled and refined as `shrake_rupley` does;
     their overlapping neighbours come from the grid's sphere query (a clicked atom's area
     without computing the whole structure's)."""
@@ -98,8 +100,14 @@ def atom_areas(grid: UniformGrid, atoms, n_points: int = DEFAULT_POINTS,
     return _areas(grid, i, j, mask, n_points, refine_points)[0][atoms]
 
 
-def _areas(grid: UniformGrid, i: np.ndarray, j: np.ndarray, atoms: np.ndarray, n_points: int,
-           refine_points: int) -> tuple[np.ndarray, np.ndarray]:
+def _areas(
+    grid: UniformGrid,
+    i: np.ndarray,
+    j: np.ndarray,
+    atoms: np.ndarray,
+    n_points: int,
+    refine_points: int,
+) -> tuple[np.ndarray, np.ndarray]:
     """(areas, refined mask): every selected atom sampled with `n_points`; those with a
     small non-zero area sampled again with `refine_points`."""
     if n_points < 2 or refine_points < 2:
@@ -111,7 +119,9 @@ def _areas(grid: UniformGrid, i: np.ndarray, j: np.ndarray, atoms: np.ndarray, n
     return areas, refine
 
 
-def _sample(grid: UniformGrid, i: np.ndarray, j: np.ndarray, atoms: np.ndarray, n_points: int) -> np.ndarray:
+def _sample(
+    grid: UniformGrid, i: np.ndarray, j: np.ndarray, atoms: np.ndarray, n_points: int
+) -> np.ndarray:
     """SR areas of the selected atoms (others are returned as full spheres, unused)."""
     centers, radii = grid.centers, grid.radii
     n = centers.shape[0]

@@ -27,18 +27,20 @@ from pathlib import Path
 
 import gemmi
 import numpy as np
-
-from sasprobe.common.errors import UserError
-from sasprobe.common.files import read_regular
 from sasprobe.molecule.backbone import trace_segments
 from sasprobe.molecule.elements import FALLBACK_RADIUS, colors_for, has_bondi_radius, radii_for
 from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
+
+from sasprobe.common.errors import UserError
+from sasprobe.common.files import read_regular
 
 log = logging.getLogger("sasprobe")
 
 DEFAULT_STRUCTURE = "1crn.pdb.gz"
 MAX_FILE_BYTES = 1 << 30  # a structure file (gzipped or not) larger than this is not read
-MAX_COORDINATE_A = 10_000.0  # |x|, |y|, |z| in Å: the PDB format's own reach (8.3f), far beyond any assembly
+MAX_COORDINATE_A = (
+    10_000.0  # |x|, |y|, |z| in Å: the PDB format's own reach (8.3f), far beyond any assembly
+)
 INFLATE_RATIO = 32  # gzip: structures inflate 4-6x (the shared entries); a bomb inflates ~1000x
 INFLATE_FLOOR = 64 << 20  # ... but a small file may always inflate to this
 INFLATE_CEILING = 2 << 30  # ... and nothing beyond this
@@ -101,8 +103,12 @@ class Structure:
 def load_structure(path: str | Path, keep_water: bool = False) -> Structure:
     """Load a PDB or mmCIF file (optionally .gz); raises StructureError on bad input."""
     path = Path(path)
-    return parse_structure(read_regular_file(path, MAX_FILE_BYTES), name=structure_name(path.name), source=str(path),
-                           keep_water=keep_water)
+    return parse_structure(
+        read_regular_file(path, MAX_FILE_BYTES),
+        name=structure_name(path.name),
+        source=str(path),
+        keep_water=keep_water,
+    )
 
 
 def read_regular_file(path: str | Path, limit: int) -> bytes:
@@ -114,11 +120,16 @@ def load_default(keep_water: bool = False) -> Structure:
     """The embedded default structure (crambin, 1CRN)."""
     data = resources.files("sasprobe.molecule").joinpath("data", DEFAULT_STRUCTURE).read_bytes()
     return parse_structure(
-        data, name=structure_name(DEFAULT_STRUCTURE), source=f"embedded:{DEFAULT_STRUCTURE}", keep_water=keep_water
+        data,
+        name=structure_name(DEFAULT_STRUCTURE),
+        source=f"embedded:{DEFAULT_STRUCTURE}",
+        keep_water=keep_water,
     )
 
 
-def load_structure_or_default(path: str | Path | None, keep_water: bool = False, fetch=None) -> Structure:
+def load_structure_or_default(
+    path: str | Path | None, keep_water: bool = False, fetch=None
+) -> Structure:
     """The embedded default (None), a file, or a PDB id (`4hhb`, `pdb:4hhb`: molecule/fetch.py,
     with `fetch`'s FetchSettings or the environment's)."""
     if path is None:
@@ -200,7 +211,9 @@ def _to_arrays(model: gemmi.Model, data: bytes, name: str, source: str) -> Struc
     )
     res_index = res_index[keep]
     positions = np.asarray(xyz, dtype=np.float64).reshape(-1, 3)[keep]
-    _check_coordinates(positions, np.asarray(atom_names)[keep], res_index, chains, res_names, res_nums, source)
+    _check_coordinates(
+        positions, np.asarray(atom_names)[keep], res_index, chains, res_names, res_nums, source
+    )
     element_arr = np.asarray(elements)[keep]
     warnings: list[str] = []
     unknown = int(np.count_nonzero(element_arr == "X"))
@@ -211,7 +224,9 @@ def _to_arrays(model: gemmi.Model, data: bytes, name: str, source: str) -> Struc
         )
     lacking = sorted({e for e in np.unique(element_arr) if e != "X" and not has_bondi_radius(e)})
     if lacking:
-        log.info("%s: no Bondi radius for %s; using %.2f Å", source, ", ".join(lacking), FALLBACK_RADIUS)
+        log.info(
+            "%s: no Bondi radius for %s; using %.2f Å", source, ", ".join(lacking), FALLBACK_RADIUS
+        )
     for message in warnings:
         log.warning(message)
     structure = Structure(
@@ -238,8 +253,9 @@ def _to_arrays(model: gemmi.Model, data: bytes, name: str, source: str) -> Struc
     return structure
 
 
-def _check_coordinates(positions: np.ndarray, atom_names, res_index, chains, res_names, res_nums,
-                       source: str) -> None:
+def _check_coordinates(
+    positions: np.ndarray, atom_names, res_index, chains, res_names, res_nums, source: str
+) -> None:
     """Finite and within ±MAX_COORDINATE_A, or StructureError naming the first bad atom."""
     finite = np.isfinite(positions).all(axis=1)
     inside = finite.copy()
@@ -252,12 +268,18 @@ def _check_coordinates(positions: np.ndarray, atom_names, res_index, chains, res
         bad, why = np.flatnonzero(~inside), f"coordinates beyond ±{MAX_COORDINATE_A:g} Å"
     first = int(bad[0])
     r = int(res_index[first])
-    raise StructureError(f"{source}: {bad.size} atom(s) with {why}; first: atom {atom_names[first]} of "
-                         f"{res_names[r]} {res_nums[r]} chain {chains[r]}")
+    raise StructureError(
+        f"{source}: {bad.size} atom(s) with {why}; first: atom {atom_names[first]} of "
+        f"{res_names[r]} {res_nums[r]} chain {chains[r]}"
+    )
 
 
 def _choose_conformers(
-    chains: np.ndarray, numbers: np.ndarray, icodes: np.ndarray, altloc: np.ndarray, occupancy: np.ndarray
+    chains: np.ndarray,
+    numbers: np.ndarray,
+    icodes: np.ndarray,
+    altloc: np.ndarray,
+    occupancy: np.ndarray,
 ) -> np.ndarray:
     """Mask of atoms to keep: per residue the altloc with the highest occupancy, ties -> first.
 
@@ -306,13 +328,17 @@ def _decompress(data: bytes, source: str) -> bytes:
                 total += len(chunk)
                 out.append(chunk)
                 if total > limit:
-                    raise StructureError(f"{source}: gzip data inflates beyond {limit >> 20} MiB "
-                                         f"({INFLATE_RATIO}x its {len(data)} bytes; a gzip bomb?)")
+                    raise StructureError(
+                        f"{source}: gzip data inflates beyond {limit >> 20} MiB "
+                        f"({INFLATE_RATIO}x its {len(data)} bytes; a gzip bomb?)"
+                    )
                 if inflater.eof:
                     break
                 pending = inflater.unconsumed_tail
                 if not pending and not chunk:
-                    raise StructureError(f"{source}: corrupt or truncated gzip data (ends inside a member)")
+                    raise StructureError(
+                        f"{source}: corrupt or truncated gzip data (ends inside a member)"
+                    )
             rest = memoryview(inflater.unused_data)
             if rest.nbytes and bytes(rest[:2]) != b"\x1f\x8b":
                 break  # trailing garbage after the last member, as gzip tolerates padding
@@ -342,7 +368,11 @@ def _check_pdb_not_truncated(text: bytes, source: str) -> None:
     tail = text[-4096:].rstrip(b"\r\n \t")
     last = tail.rsplit(b"\n", 1)[-1].rstrip(b"\r")
     # Columns 1-66 hold everything up to the B-factor; a shorter final line was cut.
-    if not text.endswith((b"\n", b"\r")) and last.startswith(_COORD_RECORDS) and len(last.rstrip()) < 66:
+    if (
+        not text.endswith((b"\n", b"\r"))
+        and last.startswith(_COORD_RECORDS)
+        and len(last.rstrip()) < 66
+    ):
         raise StructureError(f"{source}: truncated PDB file (last coordinate line is incomplete)")
     if text.lstrip().startswith(b"HEADER") and not re.search(rb"(^|\n)END\s*$", tail):
         raise StructureError(f"{source}: truncated PDB file (wwPDB entry without its END record)")

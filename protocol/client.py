@@ -18,14 +18,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import zmq
-
-from sasprobe.common.errors import UserError
-from sasprobe.protocol.control import ProtocolError, ControlReply, decode_reply, encode_request
+from sasprobe.protocol.control import ControlReply, ProtocolError, decode_reply, encode_request
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
 from sasprobe.protocol.handshake import ConnectionWatch
 from sasprobe.protocol.pose import POSE_TOPIC, Pose, PoseDecodeError, decode_pose
 from sasprobe.protocol.scene import SCENE_TOPIC, SceneError, decode_scene
 from sasprobe.protocol.security import ClientKeys, local_client_keys, make_curve_client
+
+from sasprobe.common.errors import UserError
 
 
 class ControlError(UserError):
@@ -59,7 +59,9 @@ class Subscriber:
         self._socket.rcvhwm = rcvhwm
         if keys is not None:
             make_curve_client(self._socket, keys)
-        self.watch = ConnectionWatch(self._socket, endpoint, keys is not None, local and keys is not None)
+        self.watch = ConnectionWatch(
+            self._socket, endpoint, keys is not None, local and keys is not None
+        )
         self._socket.setsockopt(zmq.SUBSCRIBE, POSE_TOPIC)
         self._socket.setsockopt(zmq.SUBSCRIBE, SCENE_TOPIC)
         self._socket.connect(endpoint)
@@ -117,7 +119,9 @@ class Subscriber:
         while self.scene is None:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
-                raise ControlError(f"no scene from {self.endpoint} within {timeout_s:g} s: {self.watch.explain()}")
+                raise ControlError(
+                    f"no scene from {self.endpoint} within {timeout_s:g} s: {self.watch.explain()}"
+                )
             self.poll(min(remaining, 0.1))
         return self.scene
 
@@ -157,14 +161,23 @@ class ControlClient:
             sock.linger = 0
             if self._keys is not None:
                 make_curve_client(sock, self._keys)
-            self._watch = ConnectionWatch(sock, self.endpoint, self._keys is not None,
-                                          self._local_keys and self._keys is not None)
+            self._watch = ConnectionWatch(
+                sock,
+                self.endpoint,
+                self._keys is not None,
+                self._local_keys and self._keys is not None,
+            )
             sock.connect(self.endpoint)
             self._socket = sock
         return self._socket
 
-    def request(self, cmd: str, args: dict | None = None, data: bytes | None = None,
-                timeout_s: float | None = None) -> ControlReply:
+    def request(
+        self,
+        cmd: str,
+        args: dict | None = None,
+        data: bytes | None = None,
+        timeout_s: float | None = None,
+    ) -> ControlReply:
         """One request and its reply (ok or not); ControlError when no valid reply comes in time."""
         sock = self._open()
         request_id = next(self._ids)
@@ -173,7 +186,9 @@ class ControlClient:
         if not sock.poll(int(timeout * 1000)):
             why = self._watch.explain()
             self._reset()
-            raise ControlError(f"no reply from the daemon at {self.endpoint} within {timeout:g} s: {why}")
+            raise ControlError(
+                f"no reply from the daemon at {self.endpoint} within {timeout:g} s: {why}"
+            )
         try:
             reply = decode_reply(sock.recv_multipart())
         except ProtocolError as exc:
@@ -183,7 +198,9 @@ class ControlClient:
             raise ControlError(f"reply from {self.endpoint} does not match the request")
         return reply
 
-    def call(self, cmd: str, data: bytes | None = None, timeout_s: float | None = None, **args) -> dict:
+    def call(
+        self, cmd: str, data: bytes | None = None, timeout_s: float | None = None, **args
+    ) -> dict:
         """Send a command and return its result; ControlError carries the daemon's error line."""
         reply = self.request(cmd, args, data=data, timeout_s=timeout_s)
         if not reply.ok:
@@ -203,15 +220,23 @@ class ControlClient:
     def get_structure(self, timeout_s: float = 30.0, form: str = "file") -> tuple[dict, bytes]:
         """The structure the daemon uses: (header with name, sha256, ..., the bytes): the file
         as loaded, or with `form` "arrays" its parsed arrays."""
-        reply = self.request("get_structure", {} if form == "file" else {"form": form}, timeout_s=timeout_s)
+        reply = self.request(
+            "get_structure", {} if form == "file" else {"form": form}, timeout_s=timeout_s
+        )
         if not reply.ok:
             raise ControlError(f"get_structure: {reply.error}")
         if reply.data is None:
             raise ControlError("get_structure: the reply carries no file bytes")
         return reply.result, reply.data
 
-    def load(self, path: str | Path | None = None, data: bytes | None = None, name: str | None = None,
-             timeout_s: float = 60.0, daemon_path: str | None = None) -> dict:
+    def load(
+        self,
+        path: str | Path | None = None,
+        data: bytes | None = None,
+        name: str | None = None,
+        timeout_s: float = 60.0,
+        daemon_path: str | None = None,
+    ) -> dict:
         """Load a structure: a local `path` (read here, sent as bytes), `data` bytes, or
         `daemon_path`, a file the daemon reads itself (only below its --load-dir)."""
         if daemon_path is not None:
@@ -281,8 +306,12 @@ class StructureFile:
     sha256: str = ""  # of the file (the scene's structure.sha256)
 
 
-def fetch_structure(ctl_endpoint: str = DEFAULT_CTL_ENDPOINT, keys: ClientKeys | None = None,
-                    timeout_s: float = 30.0, form: str = "file") -> StructureFile:
+def fetch_structure(
+    ctl_endpoint: str = DEFAULT_CTL_ENDPOINT,
+    keys: ClientKeys | None = None,
+    timeout_s: float = 30.0,
+    form: str = "file",
+) -> StructureFile:
     """The daemon's structure, as a file or (`form` "arrays") its parsed arrays (no shared disk
     needed); ControlError if the bytes do not match their sha256."""
     import hashlib
@@ -293,5 +322,11 @@ def fetch_structure(ctl_endpoint: str = DEFAULT_CTL_ENDPOINT, keys: ClientKeys |
     if hashlib.sha256(data).hexdigest() != digest:
         raise ControlError(f"structure from {ctl_endpoint} does not match its sha256")
     name = header.get("name", "structure")
-    return StructureFile(name=name, data=data, keep_water=bool(header.get("keep_water", False)),
-                         source=f"{ctl_endpoint}:{name}", form=form, sha256=str(header.get("sha256", "")))
+    return StructureFile(
+        name=name,
+        data=data,
+        keep_water=bool(header.get("keep_water", False)),
+        source=f"{ctl_endpoint}:{name}",
+        form=form,
+        sha256=str(header.get("sha256", "")),
+    )

@@ -32,16 +32,26 @@ from sasprobe.protocol.scene import (
     validate_color_scheme,
     validate_mark_label,
 )
-from sasprobe.protocol.strict_json import JSONRefused, outer_members, read_object
-from sasprobe.protocol.strict_json import MAX_INTEGER_DIGITS, MAX_NESTING  # noqa: F401  the limits, beside the others
+from sasprobe.protocol.strict_json import (  # noqa: F401  the limits, beside the others
+    MAX_INTEGER_DIGITS,
+    MAX_NESTING,
+    JSONRefused,
+    outer_members,
+    read_object,
+)
 
 CONTROL_VERSION = 1
 MAX_REQUEST_JSON_BYTES = 64 * 1024  # the JSON frame; structure bytes travel in frame 2
 MAX_STRUCTURE_BYTES = 256 * 1024 * 1024  # the largest structure file `load` accepts
-MAX_MESSAGE_BYTES = MAX_STRUCTURE_BYTES + MAX_REQUEST_JSON_BYTES  # all frames together; a larger frame drops the connection
+MAX_MESSAGE_BYTES = (
+    MAX_STRUCTURE_BYTES + MAX_REQUEST_JSON_BYTES
+)  # all frames together; a larger frame drops the connection
 MAX_NAME_CHARS = 200  # `load`'s name and other short strings
 
-STRUCTURE_FORMS = ("file", "arrays")  # what `get_structure` serves: the file as loaded, or its parsed arrays
+STRUCTURE_FORMS = (
+    "file",
+    "arrays",
+)  # what `get_structure` serves: the file as loaded, or its parsed arrays
 COMMANDS = (
     "ping",
     "status",
@@ -66,7 +76,7 @@ SET_FIELDS = {
     "stiffness_n_per_mm": "number > 0",
     "damping_n_s_per_m": "number ≥ 0",
     "method": f"one of {', '.join(HAPTIC_METHODS)}",
-    "cube_half_A": "number > 0, \"fit\" (the whole molecule) or null (the default size)",
+    "cube_half_A": 'number > 0, "fit" (the whole molecule) or null (the default size)',
     "nav_cube_enabled": "true or false",
     "clip_planes": "list of [a, b, c, d]",
     "lights": "object (partial updates merge)",
@@ -118,11 +128,15 @@ def _check_version(obj: dict, what: str) -> int:
     if isinstance(version, bool) or not isinstance(version, int) or version < 1:
         raise ProtocolError(f"{what} version must be a positive integer")
     if version > CONTROL_VERSION:
-        raise ProtocolError(f"{what} version {version} is newer than this reader's {CONTROL_VERSION}")
+        raise ProtocolError(
+            f"{what} version {version} is newer than this reader's {CONTROL_VERSION}"
+        )
     return version
 
 
-def encode_request(cmd: str, args: dict | None = None, id: object = None, data: bytes | None = None) -> list[bytes]:
+def encode_request(
+    cmd: str, args: dict | None = None, id: object = None, data: bytes | None = None
+) -> list[bytes]:
     obj: dict = {"version": CONTROL_VERSION, "cmd": cmd, "args": args or {}}
     if id is not None:
         obj["id"] = id
@@ -136,7 +150,9 @@ def decode_request(frames: list) -> Request:
     if not frames:
         raise ProtocolError("empty request")
     if len(frames[0]) > MAX_REQUEST_JSON_BYTES:
-        raise ProtocolError(f"request of {len(frames[0])} bytes is larger than {MAX_REQUEST_JSON_BYTES}")
+        raise ProtocolError(
+            f"request of {len(frames[0])} bytes is larger than {MAX_REQUEST_JSON_BYTES}"
+        )
     frame = bytes(frames[0])
     try:
         obj = read_object(frame, "request")
@@ -146,7 +162,9 @@ def decode_request(frames: list) -> Request:
     try:
         total = sum(len(f) for f in frames)
         if total > MAX_MESSAGE_BYTES:
-            raise ProtocolError(f"request of {total} bytes in {len(frames)} frames is larger than {MAX_MESSAGE_BYTES}")
+            raise ProtocolError(
+                f"request of {total} bytes in {len(frames)} frames is larger than {MAX_MESSAGE_BYTES}"
+            )
         req = _request(obj, frames)
     except ProtocolError as exc:
         raise ProtocolError(str(exc), request_id) from None
@@ -193,7 +211,9 @@ def _request(obj: dict, frames: list) -> Request:
     if data is not None and cmd != "load":
         raise ProtocolError(f"'{cmd}' takes no data frame")
     if data is not None and len(data) > MAX_STRUCTURE_BYTES:
-        raise ProtocolError(f"structure data of {len(data)} bytes is larger than {MAX_STRUCTURE_BYTES}")
+        raise ProtocolError(
+            f"structure data of {len(data)} bytes is larger than {MAX_STRUCTURE_BYTES}"
+        )
     req = Request(cmd=cmd, args=args, data=data, version=version)
     _check_args(req)
     return req
@@ -207,7 +227,9 @@ def encode_reply(reply: ControlReply) -> list:
         obj["result"] = reply.result
     else:
         obj["error"] = reply.error or "error"
-    return [_dumps(obj)] + ([reply.data] if reply.data is not None else [])  # any buffer: sent without a copy
+    return [_dumps(obj)] + (
+        [reply.data] if reply.data is not None else []
+    )  # any buffer: sent without a copy
 
 
 def decode_reply(frames: list[bytes]) -> ControlReply:
@@ -224,8 +246,14 @@ def decode_reply(frames: list[bytes]) -> ControlReply:
         raise ProtocolError("reply 'result' must be an object")
     if not ok and not isinstance(error, str):
         raise ProtocolError("an error reply needs a string 'error'")
-    return ControlReply(ok=ok, result=result if ok else {}, error=error, id=obj.get("id"),
-                 data=frames[1] if len(frames) == 2 else None, version=version)
+    return ControlReply(
+        ok=ok,
+        result=result if ok else {},
+        error=error,
+        id=obj.get("id"),
+        data=frames[1] if len(frames) == 2 else None,
+        version=version,
+    )
 
 
 def _string(args: dict, key: str, cmd: str, required: bool = True, limit: int = 4096) -> str | None:
@@ -241,7 +269,9 @@ def _string(args: dict, key: str, cmd: str, required: bool = True, limit: int = 
 
 def _no_args(req: Request) -> None:
     if req.args:
-        raise ProtocolError(f"'{req.cmd}' takes no arguments, got {', '.join(sorted(map(str, req.args)))}")
+        raise ProtocolError(
+            f"'{req.cmd}' takes no arguments, got {', '.join(sorted(map(str, req.args)))}"
+        )
 
 
 def _number(value, key: str, minimum: float, strict: bool) -> float:
@@ -258,7 +288,9 @@ def validate_set_args(args: dict) -> dict:
         raise ProtocolError(f"'set' needs at least one of: {', '.join(SET_FIELDS)}")
     unknown = sorted(str(k) for k in args if k not in SET_FIELDS)
     if unknown:
-        raise ProtocolError(f"'set' does not know {', '.join(unknown)} (known: {', '.join(SET_FIELDS)})")
+        raise ProtocolError(
+            f"'set' does not know {', '.join(unknown)} (known: {', '.join(SET_FIELDS)})"
+        )
     out: dict = {}
     for key, value in args.items():
         if key in ("probe_radius_A", "stiffness_n_per_mm"):
@@ -282,7 +314,9 @@ def validate_set_args(args: dict) -> dict:
                 elif key == "clip_planes":
                     out[key] = validate_clip_planes(value)
                 else:
-                    merge_lights(DEFAULT_LIGHTS, value)  # type check only: the daemon merges into its own
+                    merge_lights(
+                        DEFAULT_LIGHTS, value
+                    )  # type check only: the daemon merges into its own
                     out[key] = value
             except SceneError as exc:
                 raise ProtocolError(str(exc)) from None
@@ -294,7 +328,9 @@ def _check_args(req: Request) -> None:
         _no_args(req)
     elif req.cmd == "get_structure":
         if set(req.args) - {"form"} or req.args.get("form", "file") not in STRUCTURE_FORMS:
-            raise ProtocolError(f"'get_structure' takes only 'form' ({' or '.join(map(repr, STRUCTURE_FORMS))})")
+            raise ProtocolError(
+                f"'get_structure' takes only 'form' ({' or '.join(map(repr, STRUCTURE_FORMS))})"
+            )
     elif req.cmd == "status":
         unknown = set(req.args) - {"reset_stats"}
         if unknown or not isinstance(req.args.get("reset_stats", False), bool):
@@ -305,7 +341,9 @@ def _check_args(req: Request) -> None:
             raise ProtocolError("'record_start' takes only 'path'")
     elif req.cmd == "load":
         if set(req.args) - {"path", "name", "keep_water"}:
-            raise ProtocolError("'load' takes 'path', or 'name' with the file's bytes as frame 2, and 'keep_water'")
+            raise ProtocolError(
+                "'load' takes 'path', or 'name' with the file's bytes as frame 2, and 'keep_water'"
+            )
         if not isinstance(req.args.get("keep_water", False), bool):
             raise ProtocolError("'keep_water' must be true or false")
         if req.data is None:
@@ -321,7 +359,9 @@ def _check_args(req: Request) -> None:
     elif req.cmd == "view":
         rotation = req.args.get("rotation")
         if set(req.args) != {"rotation"} or not _is_matrix3(rotation):
-            raise ProtocolError("'view' takes 'rotation': 3 rows of 3 finite numbers (device frame -> molecule frame)")
+            raise ProtocolError(
+                "'view' takes 'rotation': 3 rows of 3 finite numbers (device frame -> molecule frame)"
+            )
     elif req.cmd == "clutch":
         if set(req.args) != {"held"} or not isinstance(req.args["held"], bool):
             raise ProtocolError("'clutch' takes 'held' (true or false)")
@@ -342,13 +382,26 @@ def _check_args(req: Request) -> None:
             raise ProtocolError("'findings' takes 'dir' and 'probe_radius_A'")
         if "probe_radius_A" in req.args:
             value = req.args["probe_radius_A"]
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or value <= 0:
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float))
+                or not math.isfinite(value)
+                or value <= 0
+            ):
                 raise ProtocolError("'probe_radius_A' must be a number > 0")
 
 
 def _is_matrix3(value) -> bool:
-    return (isinstance(value, list) and len(value) == 3 and all(
-        isinstance(row, list) and len(row) == 3 and all(
-            not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x) for x in row)
-        for row in value))
+    return (
+        isinstance(value, list)
+        and len(value) == 3
+        and all(
+            isinstance(row, list)
+            and len(row) == 3
+            and all(
+                not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x)
+                for x in row
+            )
+            for row in value
+        )
+    )

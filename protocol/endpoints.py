@@ -59,7 +59,9 @@ def parse_endpoint(text: str) -> Endpoint:
     if transport == "ipc":
         return Endpoint(text=text, transport="ipc", path=rest)
     if transport != "tcp":
-        raise EndpointError(f"endpoint '{text}': transport '{transport}' is not supported (use tcp:// or ipc://)")
+        raise EndpointError(
+            f"endpoint '{text}': transport '{transport}' is not supported (use tcp:// or ipc://)"
+        )
     host, colon, port = rest.rpartition(":")
     if not colon or not host:
         raise EndpointError(f"endpoint '{text}' lacks a port (tcp://HOST:PORT)")
@@ -95,7 +97,9 @@ def check_ipc_path(path: str) -> None:
     except OSError as exc:
         raise EndpointError(f"ipc://{path}: cannot use this path ({exc.strerror or exc})") from None
     if not stat.S_ISSOCK(info.st_mode):
-        raise EndpointError(f"ipc://{path}: the path exists and is not a socket; refusing to replace it")
+        raise EndpointError(
+            f"ipc://{path}: the path exists and is not a socket; refusing to replace it"
+        )
     probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     try:
         probe.connect(path)

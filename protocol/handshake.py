@@ -14,14 +14,22 @@ from __future__ import annotations
 import zmq
 from zmq.utils.monitor import recv_monitor_message
 
-_EVENTS = (zmq.EVENT_CONNECTED | zmq.EVENT_CONNECT_RETRIED | zmq.EVENT_DISCONNECTED
-           | zmq.EVENT_HANDSHAKE_SUCCEEDED | zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL
-           | zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL | zmq.EVENT_HANDSHAKE_FAILED_AUTH)
+_EVENTS = (
+    zmq.EVENT_CONNECTED
+    | zmq.EVENT_CONNECT_RETRIED
+    | zmq.EVENT_DISCONNECTED
+    | zmq.EVENT_HANDSHAKE_SUCCEEDED
+    | zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL
+    | zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL
+    | zmq.EVENT_HANDSHAKE_FAILED_AUTH
+)
 _MECHANISM_MISMATCH = 0x11000002  # ZMQ_PROTOCOL_ERROR_ZMTP_MECHANISM_MISMATCH
 
 
 class ConnectionWatch:
-    def __init__(self, socket: zmq.Socket, endpoint: str, with_keys: bool, local_keys: bool = False) -> None:
+    def __init__(
+        self, socket: zmq.Socket, endpoint: str, with_keys: bool, local_keys: bool = False
+    ) -> None:
         self.endpoint = endpoint
         self.with_keys = with_keys
         self.local_keys = local_keys  # the keys are this user's local ones (no --keys was given)
@@ -41,22 +49,35 @@ class ConnectionWatch:
         """Why nothing came: the worst thing the connection saw, in a few words."""
         self._drain()
         seen, where = self._seen, self.endpoint
-        hint = " (it was started with --keys DIR: give the same --keys DIR)" if self.local_keys else ""
+        hint = (
+            " (it was started with --keys DIR: give the same --keys DIR)" if self.local_keys else ""
+        )
         if zmq.EVENT_HANDSHAKE_FAILED_AUTH in seen:
-            return (f"the daemon at {where} refused this client's CURVE key (its public key is not in the "
-                    f"daemon's allowed_clients/){hint or '; a daemon of another user?'}")
+            return (
+                f"the daemon at {where} refused this client's CURVE key (its public key is not in the "
+                f"daemon's allowed_clients/){hint or '; a daemon of another user?'}"
+            )
         if seen.get(zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL) == _MECHANISM_MISMATCH:
             if self.with_keys:
                 return f"the daemon at {where} does not use CURVE keys (connect without --keys)"
-            return (f"the daemon at {where} requires CURVE keys: give --keys DIR with its server.key and your "
-                    f"client key (a loopback daemon of another user cannot be used)")
-        if zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL in seen or zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL in seen:
-            return (f"the CURVE handshake with {where} failed: the server.key this client has is not that "
-                    f"daemon's{hint}")
+            return (
+                f"the daemon at {where} requires CURVE keys: give --keys DIR with its server.key and your "
+                f"client key (a loopback daemon of another user cannot be used)"
+            )
+        if (
+            zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL in seen
+            or zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL in seen
+        ):
+            return (
+                f"the CURVE handshake with {where} failed: the server.key this client has is not that "
+                f"daemon's{hint}"
+            )
         if zmq.EVENT_HANDSHAKE_SUCCEEDED in seen:
             return f"connected to {where}, but the daemon did not answer in time (busy or stuck?)"
         if zmq.EVENT_CONNECTED in seen:
-            return f"connected to {where}, but the handshake did not finish (is it a sasprobe daemon?)"
+            return (
+                f"connected to {where}, but the handshake did not finish (is it a sasprobe daemon?)"
+            )
         return f"nothing is listening at {where} (is the daemon running?)"
 
     def close(self) -> None:

@@ -11,7 +11,6 @@ import struct
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from sasprobe.protocol.schemas import pose_flag, pose_layout, pose_struct_format
 
 POSE_TOPIC = b"pose"
@@ -22,14 +21,22 @@ POSE_VERSION = pose_layout()["version"]
 _LAYOUT = struct.Struct(pose_struct_format())
 POSE_SIZE = _LAYOUT.size  # 200 bytes
 if POSE_SIZE != pose_layout()["size"]:
-    raise ImportError(f"protocol/schemas/pose.json: its fields make {POSE_SIZE} bytes, not {pose_layout()['size']}")
+    raise ImportError(
+        f"protocol/schemas/pose.json: its fields make {POSE_SIZE} bytes, not {pose_layout()['size']}"
+    )
 
 FLAG_CONTACT = pose_flag("contact")  # the proxy touches the SAS
 FLAG_CLAMPED = pose_flag("clamped")  # the force was clamped to the device limit
-FLAG_FAULT = pose_flag("fault")  # the watchdog zeroed the force (device fault, late tick, bad values)
-FLAG_DRIFTING = pose_flag("drifting")  # the navigation cube is drifting (tip in the workspace margin)
+FLAG_FAULT = pose_flag(
+    "fault"
+)  # the watchdog zeroed the force (device fault, late tick, bad values)
+FLAG_DRIFTING = pose_flag(
+    "drifting"
+)  # the navigation cube is drifting (tip in the workspace margin)
 FLAG_RAMPING = pose_flag("ramping")  # forces are still ramping up after start or reconnect
-FLAG_CLUTCHED = pose_flag("clutched")  # the clutch is held: the probe stays, the cube follows the hand, no force
+FLAG_CLUTCHED = pose_flag(
+    "clutched"
+)  # the clutch is held: the probe stays, the cube follows the hand, no force
 
 
 class PoseDecodeError(ValueError):
@@ -47,9 +54,13 @@ class Pose:
     publish_t_ns: int = 0
     proxy_A: np.ndarray = field(default_factory=lambda: _vec(3))  # probe centre, molecule frame
     goal_A: np.ndarray = field(default_factory=lambda: _vec(3))  # device tip mapped to the molecule
-    force_N: np.ndarray = field(default_factory=lambda: _vec(3))  # force sent to the device, device frame
+    force_N: np.ndarray = field(
+        default_factory=lambda: _vec(3)
+    )  # force sent to the device, device frame
     tip_mm: np.ndarray = field(default_factory=lambda: _vec(3))  # device tip, device frame
-    orientation: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))  # w, x, y, z
+    orientation: np.ndarray = field(
+        default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0])
+    )  # w, x, y, z
     buttons: int = 0
     touched_atom: int = -1
     flags: int = 0
@@ -64,7 +75,15 @@ class Pose:
 def encode_pose(pose: Pose) -> bytes:
     # One concatenate + tolist instead of per-field conversions: this runs every tick.
     vectors = np.concatenate(
-        (pose.proxy_A, pose.goal_A, pose.force_N, pose.tip_mm, pose.orientation, pose.cube_center_A), dtype=np.float64
+        (
+            pose.proxy_A,
+            pose.goal_A,
+            pose.force_N,
+            pose.tip_mm,
+            pose.orientation,
+            pose.cube_center_A,
+        ),
+        dtype=np.float64,
     )
     if vectors.shape != (19,):
         raise ValueError("pose vectors must be 3 values each (orientation: 4)")
@@ -92,7 +111,9 @@ def decode_pose(payload: bytes) -> Pose:
     if version < POSE_VERSION:
         raise PoseDecodeError(f"pose version {version} is older than this reader's {POSE_VERSION}")
     if len(payload) < POSE_SIZE:
-        raise PoseDecodeError(f"pose payload of {len(payload)} bytes, expected at least {POSE_SIZE}")
+        raise PoseDecodeError(
+            f"pose payload of {len(payload)} bytes, expected at least {POSE_SIZE}"
+        )
     v = _LAYOUT.unpack_from(payload, 0)
     return Pose(
         version=v[0],

@@ -20,16 +20,16 @@ import io
 import json
 import math
 import struct
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
 
 import numpy as np
+from sasprobe.protocol.pose import Pose
+from sasprobe.protocol.schemas import channel_schemas, pose_layout
 
 from sasprobe.common.errors import UserError
 from sasprobe.common.files import open_regular
-from sasprobe.protocol.pose import Pose
-from sasprobe.protocol.schemas import channel_schemas, pose_layout
 
 MAGIC = b"\x89MCAP0\r\n"
 _OPCODE_FOOTER = 0x02
@@ -49,7 +49,9 @@ def json_floats(values) -> list:
 
 # The `pose` channel's fields: pose.json's record names (neither the version nor the reserved word).
 POSE_RECORD_FIELDS = tuple(f["record"] for f in pose_layout()["fields"] if f["record"] is not None)
-_POSE_VECTORS = frozenset(f["record"] for f in pose_layout()["fields"] if f["record"] is not None and f["count"] > 1)
+_POSE_VECTORS = frozenset(
+    f["record"] for f in pose_layout()["fields"] if f["record"] is not None and f["count"] > 1
+)
 
 
 def pose_record(pose: Pose) -> dict:
@@ -57,8 +59,13 @@ def pose_record(pose: Pose) -> dict:
     record = {}
     for name in POSE_RECORD_FIELDS:
         value = getattr(pose, name)
-        record[name] = json_floats(value) if name in _POSE_VECTORS else float(value) if name == "cube_half_A" \
+        record[name] = (
+            json_floats(value)
+            if name in _POSE_VECTORS
+            else float(value)
+            if name == "cube_half_A"
             else int(value)
+        )
     return record
 
 
@@ -67,8 +74,11 @@ def pose_from_record(record: dict) -> Pose:
     values = {}
     for name in POSE_RECORD_FIELDS:
         v = record[name]
-        values[name] = np.array([np.nan if x is None else x for x in v], dtype=np.float64) if name in _POSE_VECTORS \
+        values[name] = (
+            np.array([np.nan if x is None else x for x in v], dtype=np.float64)
+            if name in _POSE_VECTORS
             else v
+        )
     return Pose(**values)
 
 
@@ -156,15 +166,26 @@ def iter_items(path: Path, decode: bool = True) -> Iterator[Item]:
                     data = json.loads(record.data) if decode else {}
                     yield Item(topic, record.log_time, data, record.data)
                 elif isinstance(record, Attachment):
-                    yield Item("attachment", record.log_time, {"name": record.name, "media_type": record.media_type,
-                                                               "sha256": hashlib.sha256(record.data).hexdigest()},
-                               record.data)
+                    yield Item(
+                        "attachment",
+                        record.log_time,
+                        {
+                            "name": record.name,
+                            "media_type": record.media_type,
+                            "sha256": hashlib.sha256(record.data).hexdigest(),
+                        },
+                        record.data,
+                    )
                 elif isinstance(record, Metadata):
                     yield Item("metadata", 0, {"name": record.name, **record.metadata})
         except EndOfFile:
             return  # an unfinished file: everything complete has been read
-        except Exception as exc:  # mcap's, zstd's, json's and struct's errors alike: the file is damaged
-            raise RecordingError(f"{path}: damaged recording ({type(exc).__name__}: {_first_line(exc)})") from None
+        except (
+            Exception
+        ) as exc:  # mcap's, zstd's, json's and struct's errors alike: the file is damaged
+            raise RecordingError(
+                f"{path}: damaged recording ({type(exc).__name__}: {_first_line(exc)})"
+            ) from None
 
 
 @dataclass
@@ -215,7 +236,19 @@ def summarize(path: Path) -> Summary:
             seqs_last = seq
             ticks += 1
     gaps = (seqs_last - seqs_first + 1 - ticks) if ticks else 0
-    return Summary(str(path), info.finished, info.size, info.end, counts, first, last, ticks, gaps, structures, metadata)
+    return Summary(
+        str(path),
+        info.finished,
+        info.size,
+        info.end,
+        counts,
+        first,
+        last,
+        ticks,
+        gaps,
+        structures,
+        metadata,
+    )
 
 
 def recover(path: Path, out: Path) -> Summary:
@@ -250,24 +283,37 @@ def _copy_records(src, dst, end: int, path: Path) -> None:
     try:
         for record in StreamReader(io.BufferedReader(_Prefix(src, end))).records:
             if isinstance(record, Schema):
-                schema_ids[record.id] = writer.register_schema(record.name, record.encoding, record.data)
+                schema_ids[record.id] = writer.register_schema(
+                    record.name, record.encoding, record.data
+                )
             elif isinstance(record, Channel):
                 channel_ids[record.id] = writer.register_channel(
-                    record.topic, record.message_encoding, schema_ids.get(record.schema_id, 0), record.metadata
+                    record.topic,
+                    record.message_encoding,
+                    schema_ids.get(record.schema_id, 0),
+                    record.metadata,
                 )
             elif isinstance(record, Message):
-                writer.add_message(channel_ids[record.channel_id], record.log_time, record.data,
-                                   record.publish_time, record.sequence)
+                writer.add_message(
+                    channel_ids[record.channel_id],
+                    record.log_time,
+                    record.data,
+                    record.publish_time,
+                    record.sequence,
+                )
             elif isinstance(record, Attachment):
                 writer.flush()
-                writer.add_attachment(record.create_time, record.log_time, record.name, record.media_type,
-                                      record.data)
+                writer.add_attachment(
+                    record.create_time, record.log_time, record.name, record.media_type, record.data
+                )
             elif isinstance(record, Metadata):
                 writer.add_metadata(record.name, record.metadata)
     except EndOfFile:
         pass
     except Exception as exc:  # mcap's, zstd's and struct's errors alike: a damaged file
-        raise RecordingError(f"{path}: damaged recording ({type(exc).__name__}: {_first_line(exc)})") from None
+        raise RecordingError(
+            f"{path}: damaged recording ({type(exc).__name__}: {_first_line(exc)})"
+        ) from None
     writer.finish()
 
 

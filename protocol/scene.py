@@ -11,15 +11,29 @@ import json
 import math
 
 SCENE_TOPIC = b"scene"
-SCENE_VERSION = 3  # 3: view, color_scheme, marks; 2: nav_cube.half_A and lights.probe.radius_A are gone
+SCENE_VERSION = (
+    3  # 3: view, color_scheme, marks; 2: nav_cube.half_A and lights.probe.radius_A are gone
+)
 MAX_SCENE_BYTES = 1 << 20  # a scene is a few KiB; anything this big is not one
 MAX_CLIP_PLANES = 8
 MAX_MARKS = 500  # marks a scene carries (a session's findings, not a point cloud)
 MAX_MARK_LABEL = 80  # characters of a mark's label
-HAPTIC_METHODS = ("proxy", "penalty")  # the `method` a scene reports and a `set` may ask for; the first is the default
+HAPTIC_METHODS = (
+    "proxy",
+    "penalty",
+)  # the `method` a scene reports and a `set` may ask for; the first is the default
 # How renderers colour the atoms (render/colors.py says what each means); the optional scene
 # key `color_scheme` is one of these, or null for the renderer's default by structure.
-COLOR_SCHEMES = ("element", "chain", "chain-all", "polymer", "residue", "hydrophobicity", "bfactor", "sas")
+COLOR_SCHEMES = (
+    "element",
+    "chain",
+    "chain-all",
+    "polymer",
+    "residue",
+    "hydrophobicity",
+    "bfactor",
+    "sas",
+)
 
 # The direction the key light travels (from the light towards the molecule), molecule frame,
 # not normalised: from the upper left front of a view down -z (the renderer's fitted view).
@@ -83,7 +97,9 @@ def validate_clip_planes(value) -> list[list[float]]:
 def validate_color_scheme(value) -> str | None:
     """A colour scheme name, or None (each renderer picks its default by structure)."""
     if value is not None and value not in COLOR_SCHEMES:
-        raise SceneError(f"color_scheme must be one of {', '.join(COLOR_SCHEMES)} or null, got {str(value)[:40]!r}")
+        raise SceneError(
+            f"color_scheme must be one of {', '.join(COLOR_SCHEMES)} or null, got {str(value)[:40]!r}"
+        )
     return value
 
 
@@ -105,7 +121,11 @@ def validate_marks(value) -> list:
     for i, mark in enumerate(value):
         mark = _object(mark, f"marks[{i}]")
         for key in ("id", "seq"):
-            if isinstance(mark.get(key), bool) or not isinstance(mark.get(key), int) or mark[key] < 0:
+            if (
+                isinstance(mark.get(key), bool)
+                or not isinstance(mark.get(key), int)
+                or mark[key] < 0
+            ):
                 raise SceneError(f"marks[{i}].{key} must be a non-negative integer")
         validate_mark_label(mark.get("label"))
         _vector(mark.get("position_A"), 3, f"marks[{i}].position_A")

@@ -31,12 +31,21 @@ SCHEMA_FILES = {  # $id suffix -> file
     "control-record": "control-record.schema.json",
     "events": "events.schema.json",
 }
-_STRUCT_CODES = {"uint16": "H", "uint32": "I", "uint64": "Q", "int32": "i", "int64": "q", "float64": "d"}
+_STRUCT_CODES = {
+    "uint16": "H",
+    "uint32": "I",
+    "uint64": "Q",
+    "int32": "i",
+    "int64": "q",
+    "float64": "d",
+}
 _SIZES = {"uint16": 2, "uint32": 4, "uint64": 8, "int32": 4, "int64": 8, "float64": 8}
 
 
 def _read(filename: str) -> dict:
-    return json.loads(resources.files(__package__).joinpath("schemas", filename).read_text(encoding="utf-8"))
+    return json.loads(
+        resources.files(__package__).joinpath("schemas", filename).read_text(encoding="utf-8")
+    )
 
 
 @functools.cache
@@ -47,8 +56,10 @@ def pose_layout() -> dict:
 
 def pose_struct_format() -> str:
     """The layout as a Python `struct` format (little-endian, no padding)."""
-    return "<" + "".join(("" if f["count"] == 1 else str(f["count"])) + _STRUCT_CODES[f["type"]]
-                         for f in pose_layout()["fields"])
+    return "<" + "".join(
+        ("" if f["count"] == 1 else str(f["count"])) + _STRUCT_CODES[f["type"]]
+        for f in pose_layout()["fields"]
+    )
 
 
 def pose_flag(name: str) -> int:
@@ -80,11 +91,23 @@ def pose_record_schema() -> dict:
         base = f["type"]
         if base == "float64":
             item = {"type": "number"}
-            prop = item if f["count"] == 1 else {"type": "array", "minItems": f["count"], "maxItems": f["count"],
-                                                "items": item}
+            prop = (
+                item
+                if f["count"] == 1
+                else {
+                    "type": "array",
+                    "minItems": f["count"],
+                    "maxItems": f["count"],
+                    "items": item,
+                }
+            )
         else:
             bits = _SIZES[base] * 8
-            low, high = (0, 2**bits - 1) if base.startswith("u") else (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1)
+            low, high = (
+                (0, 2**bits - 1)
+                if base.startswith("u")
+                else (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1)
+            )
             if f["name"] == "flags":
                 high = 2 ** len(layout["flags"]) - 1  # bits not in the table are 0
             prop = {"type": "integer", "minimum": low, "maximum": high}
@@ -105,7 +128,7 @@ def _references(node, found: set) -> None:
     if isinstance(node, dict):
         ref = node.get("$ref")
         if isinstance(ref, str) and ref.startswith(URN):
-            found.add(ref.split("#", 1)[0][len(URN):])
+            found.add(ref.split("#", 1)[0][len(URN) :])
         for value in node.values():
             _references(value, found)
     elif isinstance(node, list):
@@ -140,8 +163,12 @@ def bundled(name: str) -> dict:
 
 def channel_schemas() -> dict[str, dict]:
     """The recording's channels and their standalone schemas, in the order they are registered."""
-    return {"device": bundled("device"), "pose": bundled("pose"), "scene": bundled("scene"),
-            "control": bundled("control-record")}
+    return {
+        "device": bundled("device"),
+        "pose": bundled("pose"),
+        "scene": bundled("scene"),
+        "control": bundled("control-record"),
+    }
 
 
 @functools.cache
@@ -149,7 +176,8 @@ def _registry():
     from referencing import Registry, Resource
 
     return Registry().with_resources(
-        (URN + name, Resource.from_contents(schema(name))) for name in (*SCHEMA_FILES, "pose"))
+        (URN + name, Resource.from_contents(schema(name))) for name in (*SCHEMA_FILES, "pose")
+    )
 
 
 @functools.cache
@@ -179,5 +207,8 @@ def pose_table_markdown() -> str:
 def flags_table_markdown() -> str:
     """protocol/README.md's flags table."""
     rows = ["| bit | value | name | meaning |", "|---:|---:|---|---|"]
-    rows += [f"| {f['bit']} | {1 << f['bit']} | {f['name']} | {f['meaning']} |" for f in pose_layout()["flags"]]
+    rows += [
+        f"| {f['bit']} | {1 << f['bit']} | {f['name']} | {f['meaning']} |"
+        for f in pose_layout()["flags"]
+    ]
     return "\n".join(rows)

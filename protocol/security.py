@@ -109,8 +109,10 @@ def _check_private(path: Path) -> None:
     """A folder of this user that nobody else can read or write, not a symlink; KeyFileError otherwise."""
     info = path.lstat()
     if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.geteuid() or info.st_mode & 0o077:
-        raise KeyFileError(f"{path}: the local key folder must be a folder of yours that only you can use "
-                           f"(it is mode {stat.filemode(info.st_mode)}, owner uid {info.st_uid}); remove it")
+        raise KeyFileError(
+            f"{path}: the local key folder must be a folder of yours that only you can use "
+            f"(it is mode {stat.filemode(info.st_mode)}, owner uid {info.st_uid}); remove it"
+        )
 
 
 def ensure_local_keys() -> Path:
@@ -134,7 +136,9 @@ def ensure_local_keys() -> Path:
                 shutil.rmtree(scratch, ignore_errors=True)
         _check_private(path)
     except OSError as exc:
-        raise KeyFileError(f"{path}: cannot create the local key folder ({exc.strerror or exc})") from None
+        raise KeyFileError(
+            f"{path}: cannot create the local key folder ({exc.strerror or exc})"
+        ) from None
     return path
 
 
@@ -157,7 +161,9 @@ def _load(path: Path, need_secret: bool) -> tuple[bytes, bytes | None]:
 
     if not path.exists():
         raise KeyFileError(f"{path}: no such key file (create keys with `sasprobe keys DIR`)")
-    open_regular(path, "key file", KeyFileError).close()  # a FIFO or device would block zmq's reader
+    open_regular(
+        path, "key file", KeyFileError
+    ).close()  # a FIFO or device would block zmq's reader
     try:
         public, secret = zmq.auth.load_certificate(str(path))
     except (OSError, ValueError) as exc:
@@ -172,7 +178,9 @@ def load_server_keys(directory: Path) -> ServerKeys:
     public, secret = _load(directory / f"{SERVER_NAME}.key_secret", need_secret=True)
     allowed = directory / ALLOWED_DIR
     if not allowed.is_dir():
-        raise KeyFileError(f"{allowed}: no allow-list folder (create keys with `sasprobe keys DIR`)")
+        raise KeyFileError(
+            f"{allowed}: no allow-list folder (create keys with `sasprobe keys DIR`)"
+        )
     return ServerKeys(public=public, secret=secret or b"", allowed_dir=allowed)
 
 
@@ -213,8 +221,12 @@ class AllowList:
         now = time.monotonic()
         if now - self._last_log >= REFUSAL_LOG_INTERVAL_S:
             more = f" ({self._unlogged} more since the last line)" if self._unlogged else ""
-            log.warning("refused a client whose CURVE public key %s is not in %s%s", key.decode(errors="replace"),
-                        self.directory, more)
+            log.warning(
+                "refused a client whose CURVE public key %s is not in %s%s",
+                key.decode(errors="replace"),
+                self.directory,
+                more,
+            )
             self._last_log, self._unlogged = now, 0
         else:
             self._unlogged += 1
@@ -246,7 +258,6 @@ def bind_server_socket(socket, endpoints: list[str], keys: ServerKeys | None) ->
     keep Context.term() waiting forever.
     """
     import zmq
-
     from sasprobe.protocol.endpoints import check_ipc_path, parse_endpoint, socket_file_umask
 
     if keys is not None:

@@ -36,15 +36,19 @@ class JSONRefused(ValueError):
 def _finite_float(text: str) -> float:
     value = float(text)
     if not math.isfinite(value):
-        raise JSONRefused(f"number {text[:24]} is not finite (larger than a double holds)", limit=True)
+        raise JSONRefused(
+            f"number {text[:24]} is not finite (larger than a double holds)", limit=True
+        )
     return value
 
 
 def _bounded_int(text: str) -> int:
     digits = len(text.lstrip("-"))
     if digits > MAX_INTEGER_DIGITS:
-        raise JSONRefused(f"integer of {digits} digits is out of range (at most {MAX_INTEGER_DIGITS} digits)",
-                          limit=True)
+        raise JSONRefused(
+            f"integer of {digits} digits is out of range (at most {MAX_INTEGER_DIGITS} digits)",
+            limit=True,
+        )
     return int(text)
 
 
@@ -60,35 +64,48 @@ def _depth(obj) -> int:
         if isinstance(value, (dict, list)):
             deepest = max(deepest, depth)
             if depth <= MAX_NESTING:
-                stack.extend((child, depth + 1) for child in (value.values() if isinstance(value, dict) else value))
+                stack.extend(
+                    (child, depth + 1)
+                    for child in (value.values() if isinstance(value, dict) else value)
+                )
     return deepest
 
 
 def read_object(frame: bytes, what: str) -> dict:
     """A frame's JSON object within the limits; JSONRefused says what is wrong."""
     try:
-        obj = json.loads(frame.decode("utf-8"), parse_constant=_not_json, parse_float=_finite_float,
-                         parse_int=_bounded_int)
+        obj = json.loads(
+            frame.decode("utf-8"),
+            parse_constant=_not_json,
+            parse_float=_finite_float,
+            parse_int=_bounded_int,
+        )
     except UnicodeDecodeError:
         raise JSONRefused(f"{what} is not UTF-8 text") from None
     except JSONRefused as exc:
         raise JSONRefused(f"{what}: {exc}", limit=True) from None
     except RecursionError:
-        raise JSONRefused(f"{what} nests arrays/objects deeper than {MAX_NESTING} levels", limit=True) from None
+        raise JSONRefused(
+            f"{what} nests arrays/objects deeper than {MAX_NESTING} levels", limit=True
+        ) from None
     except ValueError as exc:
         raise JSONRefused(f"{what} is not valid JSON ({str(exc).splitlines()[0]})") from None
     if not isinstance(obj, dict):
         raise JSONRefused(f"{what} must be a JSON object, not {type(obj).__name__}")
     if _depth(obj) > MAX_NESTING:
-        raise JSONRefused(f"{what} nests arrays/objects deeper than {MAX_NESTING} levels", limit=True)
+        raise JSONRefused(
+            f"{what} nests arrays/objects deeper than {MAX_NESTING} levels", limit=True
+        )
     return obj
 
 
 # JSON's tokens (RFC 8259): a string without raw control characters, a number, a literal, a
 # structural character; whitespace is space, tab, LF and CR.
-_TOKEN = re.compile(r'(?P<string>"[^"\\\x00-\x1f]*(?:\\(?:["\\/bfnrt]|u[0-9a-fA-F]{4})[^"\\\x00-\x1f]*)*")'
-                    r"|(?P<value>-?(?:0|[1-9][0-9]*)(?:\.[0-9]+)?(?:[eE][+-]?[0-9]+)?|true|false|null)"
-                    r"|(?P<open>[\[{])|(?P<close>[\]}])|(?P<comma>,)|(?P<colon>:)")
+_TOKEN = re.compile(
+    r'(?P<string>"[^"\\\x00-\x1f]*(?:\\(?:["\\/bfnrt]|u[0-9a-fA-F]{4})[^"\\\x00-\x1f]*)*")'
+    r"|(?P<value>-?(?:0|[1-9][0-9]*)(?:\.[0-9]+)?(?:[eE][+-]?[0-9]+)?|true|false|null)"
+    r"|(?P<open>[\[{])|(?P<close>[\]}])|(?P<comma>,)|(?P<colon>:)"
+)
 _SPACE = re.compile(r"[ \t\n\r]*")
 _CLOSE = {"[": "]", "{": "}"}
 
@@ -121,8 +138,12 @@ def _nested_spans(text: str) -> list[tuple[int, int]] | None:
             expect = "value"
         elif expect == "after" and stack and kind == "comma":
             expect = "value" if stack[-1] == "[" else "key"
-        elif (expect in ("after", "value/close", "key/close") and stack and kind == "close"
-              and token == _CLOSE[stack[-1]]):
+        elif (
+            expect in ("after", "value/close", "key/close")
+            and stack
+            and kind == "close"
+            and token == _CLOSE[stack[-1]]
+        ):
             if len(stack) == 2:
                 spans.append((start, m.end()))
             stack.pop()

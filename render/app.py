@@ -13,10 +13,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-
-from sasprobe.common.errors import UserError
 from sasprobe.render.lighting.settings import DEFAULT_PROBE_RANGE, LightingSettings
 from sasprobe.render.source import RenderSource
+
+from sasprobe.common.errors import UserError
 
 log = logging.getLogger("sasprobe")
 
@@ -53,14 +53,24 @@ class RenderOptions:
     probe_light_range: float = DEFAULT_PROBE_RANGE
     snapshot: Path | None = None  # also write the last frame as a PNG (headless)
     report: Path | None = None  # write frame and pose counts as JSON at the end
-    frame_cache: bool = True  # keep the molecule layer while only the probe moves (render/frame_cache.py)
-    view: str | None = None  # "workspace" or "overview"; None: workspace with --connect, else overview
+    frame_cache: bool = (
+        True  # keep the molecule layer while only the probe moves (render/frame_cache.py)
+    )
+    view: str | None = (
+        None  # "workspace" or "overview"; None: workspace with --connect, else overview
+    )
     gbuffer_dir: Path | None = None  # headless: every frame's G-buffer into this folder
     color: str | None = None  # colour scheme (render/colors.py); None: the default by structure
-    preset: str = "default"  # lighting preset (render/lighting/presets.py): light intensities, background
+    preset: str = (
+        "default"  # lighting preset (render/lighting/presets.py): light intensities, background
+    )
     background: tuple[float, float, float] | None = None  # None: the preset's
-    light_frame: str = "camera"  # "camera": lights turn with the view; "molecule": fixed in the molecule frame
-    keys: Path | None = None  # with connect: CURVE client keys from `sasprobe keys DIR` (a keyed daemon)
+    light_frame: str = (
+        "camera"  # "camera": lights turn with the view; "molecule": fixed in the molecule frame
+    )
+    keys: Path | None = (
+        None  # with connect: CURVE client keys from `sasprobe keys DIR` (a keyed daemon)
+    )
 
     @property
     def start_view(self) -> str:
@@ -86,7 +96,11 @@ class RenderOptions:
         from sasprobe.render.lighting.settings import ShadingSettings
 
         shading = PRESETS[self.preset].shading(ShadingSettings(probe_range=self.probe_light_range))
-        return shading if self.background is None else replace(shading, background=tuple(self.background))
+        return (
+            shading
+            if self.background is None
+            else replace(shading, background=tuple(self.background))
+        )
 
 
 def build_scene(structure, opts: RenderOptions, effects=None):
@@ -102,14 +116,25 @@ def build_scene(structure, opts: RenderOptions, effects=None):
             opts.lighting.check_soft_shell(radius)
         except ValueError as exc:
             raise UserError(f"--soft-shell: {exc}") from None
-    scene = SceneState(structure, probe_radius=radius, clip_planes=[np.array(p) for p in opts.clip], effects=effects,
-                       lights_follow_camera=opts.light_frame == "camera")
+    scene = SceneState(
+        structure,
+        probe_radius=radius,
+        clip_planes=[np.array(p) for p in opts.clip],
+        effects=effects,
+        lights_follow_camera=opts.light_frame == "camera",
+    )
     if opts.touched >= structure.n_atoms:
-        raise UserError(f"--touched {opts.touched}: {structure.name} has atoms 0..{structure.n_atoms - 1}")
+        raise UserError(
+            f"--touched {opts.touched}: {structure.name} has atoms 0..{structure.n_atoms - 1}"
+        )
     if opts.probe is not None:
-        scene.probe = Probe(center=np.array(opts.probe, dtype=np.float64), radius=radius, touched_atom=opts.touched)
+        scene.probe = Probe(
+            center=np.array(opts.probe, dtype=np.float64), radius=radius, touched_atom=opts.touched
+        )
     if opts.nav_cube is not None:
-        scene.nav_cube = NavCube(center=np.array(opts.nav_cube[:3], dtype=np.float64), half=float(opts.nav_cube[3]))
+        scene.nav_cube = NavCube(
+            center=np.array(opts.nav_cube[:3], dtype=np.float64), half=float(opts.nav_cube[3])
+        )
     if opts.light is not None:
         v = np.array(opts.light, dtype=np.float64)
         scene.light_direction = v / np.linalg.norm(v)
@@ -160,8 +185,16 @@ def make_renderer(ctx, scene, size, opts: RenderOptions, wait_for_areas: bool = 
     from sasprobe.render.passes.lighting import install_lighting
     from sasprobe.render.renderer import Renderer
 
-    renderer = Renderer(ctx, scene, size, sphere_mode=opts.spheres, backbone_always=opts.backbone,
-                        shading=opts.shading(), wait_for_areas=wait_for_areas, frame_cache=opts.frame_cache)
+    renderer = Renderer(
+        ctx,
+        scene,
+        size,
+        sphere_mode=opts.spheres,
+        backbone_always=opts.backbone,
+        shading=opts.shading(),
+        wait_for_areas=wait_for_areas,
+        frame_cache=opts.frame_cache,
+    )
     if opts.lighting is not None:
         try:
             install_lighting(renderer, opts.lighting, required=opts.lighting_required)
@@ -178,11 +211,11 @@ def _writer(opts: RenderOptions, frames: int | None):
 
 
 def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
-    from sasprobe.common.progress import progress_bar
     from sasprobe.render.gl.context import create_headless_context
     from sasprobe.render.headless import run_headless
-
     from sasprobe.render.workspace_view import WorkspaceView
+
+    from sasprobe.common.progress import progress_bar
 
     source.poll()  # a daemon: its structure is fetched on a thread while the GL context is made
     ctx = create_headless_context()
@@ -204,18 +237,35 @@ def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
     def update() -> None:
         source.poll()
         if source.lost_for_s() > DAEMON_GONE_S:
-            raise UserError(f"the daemon stopped sending (nothing for {DAEMON_GONE_S:g} s): ending the render")
+            raise UserError(
+                f"the daemon stopped sending (nothing for {DAEMON_GONE_S:g} s): ending the render"
+            )
         source.apply(scene)
         follow = view.camera(scene, aspect, source.view_axes())
         if follow is not None:
-            camera.eye, camera.target, camera.up, camera.fov_y = follow.eye, follow.target, follow.up, follow.fov_y
+            camera.eye, camera.target, camera.up, camera.fov_y = (
+                follow.eye,
+                follow.target,
+                follow.up,
+                follow.fov_y,
+            )
 
     # A live daemon into a video: keep the video in wall-clock time (see run_headless).
     pace = opts.fps if opts.connect is not None and writer is not None and writer.is_video else None
     try:
-        stats = run_headless(renderer, camera, frames, opts.seconds, writer=writer, gbuffer_path=opts.gbuffer,
-                             orbit_deg=opts.orbit, update=update, progress=bar, pace_fps=pace,
-                             gbuffer_dir=opts.gbuffer_dir)
+        stats = run_headless(
+            renderer,
+            camera,
+            frames,
+            opts.seconds,
+            writer=writer,
+            gbuffer_path=opts.gbuffer,
+            orbit_deg=opts.orbit,
+            update=update,
+            progress=bar,
+            pace_fps=pace,
+            gbuffer_dir=opts.gbuffer_dir,
+        )
         if opts.snapshot is not None:
             from sasprobe.render.output import FrameWriter
 
@@ -239,26 +289,44 @@ def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
 
 def _run_window(opts: RenderOptions, source: RenderSource) -> int:
     import glfw
-
     from sasprobe.render.gl.context import create_window
     from sasprobe.render.window import WindowApp
 
     window, ctx = create_window(opts.size, "sasprobe render")
     try:
+
         def build(structure, effects):
             scene = build_scene(structure, opts, effects)
-            renderer = make_renderer(ctx, scene, glfw.get_framebuffer_size(window), opts, wait_for_areas=False)
-            glfw.set_window_title(window, f"sasprobe render: {structure.name} ({structure.n_atoms} atoms)")
+            renderer = make_renderer(
+                ctx, scene, glfw.get_framebuffer_size(window), opts, wait_for_areas=False
+            )
+            glfw.set_window_title(
+                window, f"sasprobe render: {structure.name} ({structure.n_atoms} atoms)"
+            )
             return renderer, initial_camera(scene, opts)
 
-        folder = opts.out if opts.out is not None and opts.out.is_dir() else None  # Ctrl+S / Ctrl+R go there
-        app = WindowApp(window, ctx, source, build, "sasprobe render", opts.effects(), opts.start_view,
-                        preset=opts.preset, background=opts.background, shots=folder)
+        folder = (
+            opts.out if opts.out is not None and opts.out.is_dir() else None
+        )  # Ctrl+S / Ctrl+R go there
+        app = WindowApp(
+            window,
+            ctx,
+            source,
+            build,
+            "sasprobe render",
+            opts.effects(),
+            opts.start_view,
+            preset=opts.preset,
+            background=opts.background,
+            shots=folder,
+        )
         writer = _writer(opts, 1) if folder is None else None
         log.info("window open: %dx%d framebuffer", *glfw.get_framebuffer_size(window))
         start = time.perf_counter()
         try:
-            count = app.run(frames=opts.frames, seconds=opts.seconds, writer=writer, gbuffer_path=opts.gbuffer)
+            count = app.run(
+                frames=opts.frames, seconds=opts.seconds, writer=writer, gbuffer_path=opts.gbuffer
+            )
         finally:
             if writer is not None:
                 writer.close()
@@ -266,9 +334,17 @@ def _run_window(opts: RenderOptions, source: RenderSource) -> int:
         seconds = time.perf_counter() - start
         _report(f"{count} frame(s) shown", writer, opts)
         planner = app.renderer.planner if app.renderer is not None else None
-        _write_run_report(opts, {"frames": count, "seconds": seconds, "fps": count / seconds if count else None,
-                                 "window": True, "molecule_layer": planner.layer_counts() if planner else None},
-                          source)
+        _write_run_report(
+            opts,
+            {
+                "frames": count,
+                "seconds": seconds,
+                "fps": count / seconds if count else None,
+                "window": True,
+                "molecule_layer": planner.layer_counts() if planner else None,
+            },
+            source,
+        )
     finally:
         glfw.destroy_window(window)
         glfw.terminate()
@@ -291,7 +367,11 @@ def _write_run_report(opts: RenderOptions, frames: dict, source: RenderSource) -
 def _report(summary: str, writer, opts: RenderOptions) -> None:
     log.info(summary)
     if writer is not None and writer.written:
-        shown = writer.written[0] if len(writer.written) == 1 else f"{writer.written[0]} .. {writer.written[-1]}"
+        shown = (
+            writer.written[0]
+            if len(writer.written) == 1
+            else f"{writer.written[0]} .. {writer.written[-1]}"
+        )
         log.info("wrote %s", shown)
     if opts.gbuffer is not None:
         log.info("wrote %s", opts.gbuffer)

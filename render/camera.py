@@ -54,7 +54,9 @@ class Camera:
         back = _unit(self.eye - self.target)
         right = np.cross(self.up, back)
         if np.linalg.norm(right) < 1e-9:  # looking along `up`: pick any perpendicular
-            right = np.cross(np.array([1.0, 0.0, 0.0]) if abs(back[0]) < 0.9 else np.array([0.0, 0.0, 1.0]), back)
+            right = np.cross(
+                np.array([1.0, 0.0, 0.0]) if abs(back[0]) < 0.9 else np.array([0.0, 0.0, 1.0]), back
+            )
         right = _unit(right)
         return np.stack([right, np.cross(back, right), back], axis=1)
 
@@ -89,21 +91,40 @@ class Camera:
 
     # ------------------------------------------------------------ fitting
     @classmethod
-    def fitted(cls, center: np.ndarray, radius: float, aspect: float, fov_y: float = DEFAULT_FOV,
-               direction=(0.0, 0.0, 1.0), up=(0.0, 1.0, 0.0)) -> "Camera":
+    def fitted(
+        cls,
+        center: np.ndarray,
+        radius: float,
+        aspect: float,
+        fov_y: float = DEFAULT_FOV,
+        direction=(0.0, 0.0, 1.0),
+        up=(0.0, 1.0, 0.0),
+    ) -> Camera:
         """A camera on `direction` from the centre that shows the whole bounding sphere."""
         half = math.radians(fov_y) / 2.0
         half_x = math.atan(math.tan(half) * aspect)
         distance = max(float(radius), 1e-3) / math.sin(min(half, half_x)) * FIT_MARGIN
         center = np.asarray(center, dtype=np.float64)
-        cam = cls(eye=center + _unit(np.asarray(direction, dtype=np.float64)) * distance,
-                  target=center, up=np.asarray(up, dtype=np.float64), fov_y=fov_y)
+        cam = cls(
+            eye=center + _unit(np.asarray(direction, dtype=np.float64)) * distance,
+            target=center,
+            up=np.asarray(up, dtype=np.float64),
+            fov_y=fov_y,
+        )
         cam.fit_clip_range(center, radius)
         return cam
 
     @classmethod
-    def framing(cls, centers, radii, aspect: float, fov_y: float = DEFAULT_FOV, direction=(0.0, 0.0, 1.0),
-                up=(0.0, 1.0, 0.0), fill: float = FIT_FILL) -> "Camera":
+    def framing(
+        cls,
+        centers,
+        radii,
+        aspect: float,
+        fov_y: float = DEFAULT_FOV,
+        direction=(0.0, 0.0, 1.0),
+        up=(0.0, 1.0, 0.0),
+        fill: float = FIT_FILL,
+    ) -> Camera:
         """A camera looking from `direction` (from the spheres towards the eye) at the
         nearest distance where every sphere lies inside the frustum narrowed to `fill`:
         a sphere at view coordinates (x, y, z) (z towards the eye, relative to the target)
@@ -121,19 +142,36 @@ class Camera:
         middle = ((local - radii[:, None]).min(axis=0) + (local + radii[:, None]).max(axis=0)) / 2.0
         for _ in range(3):  # centre the projection (perspective shifts it), then fit again
             rel = local - middle
-            distance = float(max(np.max(rel[:, 2] + (np.abs(rel[:, 0]) + radii * math.hypot(1.0, tx)) / tx),
-                                 np.max(rel[:, 2] + (np.abs(rel[:, 1]) + radii * math.hypot(1.0, ty)) / ty)))
+            distance = float(
+                max(
+                    np.max(rel[:, 2] + (np.abs(rel[:, 0]) + radii * math.hypot(1.0, tx)) / tx),
+                    np.max(rel[:, 2] + (np.abs(rel[:, 1]) + radii * math.hypot(1.0, ty)) / ty),
+                )
+            )
             depth = distance - rel[:, 2]
             for axis, t in ((0, tx), (1, ty)):
                 lo = np.min((rel[:, axis] - radii * math.hypot(1.0, t)) / depth)
                 hi = np.max((rel[:, axis] + radii * math.hypot(1.0, t)) / depth)
-                middle[axis] += (lo + hi) / 2.0 * distance  # the angular centre, at the target's depth
+                middle[axis] += (
+                    (lo + hi) / 2.0 * distance
+                )  # the angular centre, at the target's depth
         rel = local - middle
-        distance = float(max(np.max(rel[:, 2] + (np.abs(rel[:, 0]) + radii * math.hypot(1.0, tx)) / tx),
-                             np.max(rel[:, 2] + (np.abs(rel[:, 1]) + radii * math.hypot(1.0, ty)) / ty)))
+        distance = float(
+            max(
+                np.max(rel[:, 2] + (np.abs(rel[:, 0]) + radii * math.hypot(1.0, tx)) / tx),
+                np.max(rel[:, 2] + (np.abs(rel[:, 1]) + radii * math.hypot(1.0, ty)) / ty),
+            )
+        )
         target = basis @ middle
-        cam = cls(eye=target + back * distance, target=target, up=np.asarray(up, dtype=np.float64), fov_y=fov_y)
-        span = float(np.max(np.linalg.norm(centers - target, axis=1) + radii)) if centers.size else 1.0
+        cam = cls(
+            eye=target + back * distance,
+            target=target,
+            up=np.asarray(up, dtype=np.float64),
+            fov_y=fov_y,
+        )
+        span = (
+            float(np.max(np.linalg.norm(centers - target, axis=1) + radii)) if centers.size else 1.0
+        )
         cam.fit_clip_range(target, span)
         return cam
 
@@ -179,7 +217,9 @@ class Camera:
 
     def pan(self, dx_px: float, dy_px: float, viewport_height: int) -> None:
         """Slide eye and target so the picture follows the pointer (pixels, y down)."""
-        per_px = 2.0 * self.distance * math.tan(math.radians(self.fov_y) / 2.0) / max(viewport_height, 1)
+        per_px = (
+            2.0 * self.distance * math.tan(math.radians(self.fov_y) / 2.0) / max(viewport_height, 1)
+        )
         b = self.basis()
         shift = (-dx_px * b[:, 0] + dy_px * b[:, 1]) * per_px
         self.eye = self.eye + shift
@@ -215,12 +255,16 @@ def parse_camera(text: str) -> dict:
     spec: dict = {}
     parts = [p for p in re.split(r"[;\s]+", text.strip()) if p]
     if not parts:
-        raise ValueError("empty camera spec (expected e.g. 'eye=0,0,80 target=0,0,0 up=0,1,0 fov=40')")
+        raise ValueError(
+            "empty camera spec (expected e.g. 'eye=0,0,80 target=0,0,0 up=0,1,0 fov=40')"
+        )
     for part in parts:
         key, sep, value = part.partition("=")
         key = key.lower()
         if not sep or key not in _CAMERA_KEYS:
-            raise ValueError(f"'{part}' is not one of eye=X,Y,Z target=X,Y,Z up=X,Y,Z dir=X,Y,Z fov=DEG")
+            raise ValueError(
+                f"'{part}' is not one of eye=X,Y,Z target=X,Y,Z up=X,Y,Z dir=X,Y,Z fov=DEG"
+            )
         if key in spec:
             raise ValueError(f"'{key}' is given twice")
         try:
@@ -245,7 +289,9 @@ def parse_camera(text: str) -> dict:
     elif "dir" in spec:
         view = -spec["dir"]
     if view is not None and "up" in spec:
-        if np.linalg.norm(np.cross(view, spec["up"])) < 1e-9 * np.linalg.norm(view) * np.linalg.norm(spec["up"]):
+        if np.linalg.norm(np.cross(view, spec["up"])) < 1e-9 * np.linalg.norm(
+            view
+        ) * np.linalg.norm(spec["up"]):
             raise ValueError("up is parallel to the viewing direction")
     return spec
 
@@ -261,18 +307,30 @@ def camera_from_spec(spec: dict, centers, radii, aspect: float) -> Camera:
             centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
             target = (centers.min(axis=0) + centers.max(axis=0)) / 2.0
         return Camera(eye=spec["eye"], target=target, up=up, fov_y=fov)
-    framed = Camera.framing(centers, radii, aspect, fov_y=fov, direction=spec.get("dir", (0.0, 0.0, 1.0)), up=up)
+    framed = Camera.framing(
+        centers, radii, aspect, fov_y=fov, direction=spec.get("dir", (0.0, 0.0, 1.0)), up=up
+    )
     if "target" not in spec:
         return framed
-    return Camera(eye=spec["target"] + (framed.eye - framed.target), target=spec["target"], up=up, fov_y=fov)
+    return Camera(
+        eye=spec["target"] + (framed.eye - framed.target), target=spec["target"], up=up, fov_y=fov
+    )
 
 
 def _view_up(direction: np.ndarray) -> tuple[float, float, float]:
-    return (0.0, 1.0, 0.0) if abs(direction[1]) < 0.9 * np.linalg.norm(direction) else (0.0, 0.0, 1.0)
+    return (
+        (0.0, 1.0, 0.0) if abs(direction[1]) < 0.9 * np.linalg.norm(direction) else (0.0, 0.0, 1.0)
+    )
 
 
-def fit_bounding_sphere(centers, radii, aspect: float, direction=(0.0, 0.0, 1.0), fov_y_deg: float = 30.0,
-                        fill: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def fit_bounding_sphere(
+    centers,
+    radii,
+    aspect: float,
+    direction=(0.0, 0.0, 1.0),
+    fov_y_deg: float = 30.0,
+    fill: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray]:
     """(view, proj) showing the spheres' bounding sphere (whatever the view turns to) from
     `direction`; fill > 1 zooms in by that factor (the lighting tests' and benchmarks' views)."""
     centers = np.asarray(centers, dtype=np.float64)
@@ -280,6 +338,8 @@ def fit_bounding_sphere(centers, radii, aspect: float, direction=(0.0, 0.0, 1.0)
     middle = ((centers - radii[:, None]).min(axis=0) + (centers + radii[:, None]).max(axis=0)) / 2.0
     radius = float(np.max(np.linalg.norm(centers - middle, axis=1) + radii))
     direction = np.asarray(direction, dtype=np.float64)
-    camera = Camera.fitted(middle, radius / fill, aspect, fov_y=fov_y_deg, direction=direction, up=_view_up(direction))
+    camera = Camera.fitted(
+        middle, radius / fill, aspect, fov_y=fov_y_deg, direction=direction, up=_view_up(direction)
+    )
     camera.fit_clip_range(middle, radius)
     return camera.view(), camera.projection(aspect)

@@ -9,7 +9,6 @@ from datetime import datetime
 from pathlib import Path
 
 import numpy as np
-
 from sasprobe.molecule import Structure
 from sasprobe.render.output import FrameWriter
 
@@ -103,5 +102,7 @@ def atom_label(structure: Structure, atom: int, sas_area: float) -> str:
     the atom's exposed SAS area."""
     s = structure
     number = f"{int(s.residue_numbers[atom])}{s.insertion_codes[atom]}"
-    return (f"chain {s.chain_ids[atom]}  {s.residue_names[atom]} {number}  {s.atom_names[atom]} ({s.elements[atom]})"
-            f"  SAS {sas_area:.1f} Å²")
+    return (
+        f"chain {s.chain_ids[atom]}  {s.residue_names[atom]} {number}  {s.atom_names[atom]} ({s.elements[atom]})"
+        f"  SAS {sas_area:.1f} Å²"
+    )

@@ -39,7 +39,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-
 from sasprobe.molecule import Structure
 from sasprobe.molecule.elements import CPK_COLORS
 from sasprobe.molecule.residues import (
@@ -127,14 +126,18 @@ def _srgb_to_lab(rgb: np.ndarray) -> np.ndarray:
     m = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]])
     xyz = linear @ m.T / np.array([0.95047, 1.0, 1.08883])
     f = np.where(xyz > (6 / 29) ** 3, np.cbrt(xyz), xyz / (3 * (6 / 29) ** 2) + 4 / 29)
-    return np.column_stack((116 * f[:, 1] - 16, 500 * (f[:, 0] - f[:, 1]), 200 * (f[:, 1] - f[:, 2])))
+    return np.column_stack(
+        (116 * f[:, 1] - 16, 500 * (f[:, 0] - f[:, 1]), 200 * (f[:, 1] - f[:, 2]))
+    )
 
 
 @lru_cache(maxsize=8)
 def chain_palette(n: int) -> np.ndarray:
     """n distinct colours (float32 rgb), far from CPK carbon, nitrogen, oxygen, sulphur and hydrogen."""
     levels = np.linspace(0.0, 1.0, 16)
-    candidates = np.stack(np.meshgrid(levels, levels, levels, indexing="ij"), axis=-1).reshape(-1, 3)
+    candidates = np.stack(np.meshgrid(levels, levels, levels, indexing="ij"), axis=-1).reshape(
+        -1, 3
+    )
     lab = _srgb_to_lab(candidates)
     chroma = np.hypot(lab[:, 1], lab[:, 2])
     keep = (lab[:, 0] > 50) & (lab[:, 0] < 85) & (chroma > 30) & (chroma < 70)  # no garish corners
@@ -197,8 +200,13 @@ def scheme_colors(structure: Structure, scheme: str, areas: np.ndarray | None = 
         return table[residue_kinds(structure)]
     if scheme == "residue":
         unique, inverse = np.unique(structure.residue_names, return_inverse=True)
-        table = np.array([RASMOL_AMINO.get(str(r), NUCLEOTIDE_COLORS.get(str(r), OTHER_RESIDUE)) for r in unique],
-                         dtype=np.float32).reshape(-1, 3)
+        table = np.array(
+            [
+                RASMOL_AMINO.get(str(r), NUCLEOTIDE_COLORS.get(str(r), OTHER_RESIDUE))
+                for r in unique
+            ],
+            dtype=np.float32,
+        ).reshape(-1, 3)
         return table[inverse.reshape(-1)]
     if scheme == "hydrophobicity":
         h = hydropathy(structure)
@@ -249,7 +257,9 @@ class AtomAreas:
                 self._areas = shrake_rupley(grid).areas
                 return self._areas
             if self._thread is None:
-                self._thread = threading.Thread(target=self._compute, args=(grid,), daemon=True, name="sas-areas")
+                self._thread = threading.Thread(
+                    target=self._compute, args=(grid,), daemon=True, name="sas-areas"
+                )
                 self._thread.start()
             return None
 

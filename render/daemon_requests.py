@@ -21,7 +21,9 @@ COALESCED = frozenset({"view"})  # only the newest one matters
 class RequestSender:
     def __init__(self, ctl_endpoint: str, keys=None) -> None:
         self.endpoint = ctl_endpoint
-        self.keys = keys  # protocol.security.ClientKeys of a keyed daemon; None: as ControlClient defaults
+        self.keys = (
+            keys  # protocol.security.ClientKeys of a keyed daemon; None: as ControlClient defaults
+        )
         self._queue: deque[tuple[str, dict]] = deque()
         self._wake = threading.Condition()
         self._closed = False
@@ -37,7 +39,9 @@ class RequestSender:
                 self._queue = deque(item for item in self._queue if item[0] != cmd)
             self._queue.append((cmd, args))
             if self._thread is None:
-                self._thread = threading.Thread(target=self._run, name="sasprobe-requests", daemon=True)
+                self._thread = threading.Thread(
+                    target=self._run, name="sasprobe-requests", daemon=True
+                )
                 self._thread.start()
             self._wake.notify()
 

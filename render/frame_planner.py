@@ -39,7 +39,6 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from sasprobe.molecule import Structure
 from sasprobe.render.gl.gbuffer_stash import GBufferStash
 from sasprobe.render.rects import Rect, full_rect, points_rect, union_rect
@@ -68,7 +67,9 @@ def state_key(value, skip: tuple[str, ...] = ()):
     if isinstance(value, np.generic):
         return value.item()
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        if not skip and _frozen(value):  # settings: their keys are found once (a few hundred fields a frame)
+        if not skip and _frozen(
+            value
+        ):  # settings: their keys are found once (a few hundred fields a frame)
             key = _FROZEN_KEYS.get(value)
             if key is None:
                 if len(_FROZEN_KEYS) >= FROZEN_KEYS_KEPT:
@@ -89,7 +90,10 @@ _FROZEN_KEYS: dict = {}  # frozen, hashable dataclass -> its key (equal values, 
 
 def _dataclass_key(value, skip: tuple[str, ...]) -> tuple:
     return (type(value).__name__,) + tuple(
-        (f.name, state_key(getattr(value, f.name))) for f in dataclasses.fields(value) if f.name not in skip)
+        (f.name, state_key(getattr(value, f.name)))
+        for f in dataclasses.fields(value)
+        if f.name not in skip
+    )
 
 
 def _frozen(value) -> bool:
@@ -111,8 +115,12 @@ def molecule_key(frame, passes, context: bool = False) -> tuple:
         state_key(frame.scene, skip=("probe",)),
         state_key(frame.camera),
         tuple(frame.size),
-        state_key(frame.view), state_key(frame.proj), state_key(frame.context_planes if context else frame.planes),
-        state_key(frame.cube), state_key(frame.light_direction), frame.buffers.color_version,
+        state_key(frame.view),
+        state_key(frame.proj),
+        state_key(frame.context_planes if context else frame.planes),
+        state_key(frame.cube),
+        state_key(frame.light_direction),
+        frame.buffers.color_version,
         tuple((type(p).__name__, state_key(p.state())) for p in passes),
     )
 
@@ -123,9 +131,15 @@ class FramePlan:
 
     layer: str = PLAIN
     size: tuple[int, int] = (1, 1)
-    regions: dict[str, Rect | None] = field(default_factory=dict)  # KEPT and ATOMS frames: by footprint name
-    redraw: Rect | None = None  # ATOMS frames: the rectangle the atoms are drawn anew in (the cube's)
-    layer_memo: dict = field(default_factory=dict)  # what passes find once per molecule layer (its rectangles)
+    regions: dict[str, Rect | None] = field(
+        default_factory=dict
+    )  # KEPT and ATOMS frames: by footprint name
+    redraw: Rect | None = (
+        None  # ATOMS frames: the rectangle the atoms are drawn anew in (the cube's)
+    )
+    layer_memo: dict = field(
+        default_factory=dict
+    )  # what passes find once per molecule layer (its rectangles)
     layer_version: int = 0  # counts the molecule layers drawn: a kept layer keeps its number
 
     @property
@@ -163,7 +177,9 @@ class FramePlanner:
         self.context_key: tuple | None = None  # its context's (molecule_key's `context`)
         self.last_key: tuple | None = None  # the last frame's key, layer kept or not
         self.last_layer = PLAIN
-        self.stashed: Rect | None = None  # what the stash holds: the probe's rectangle of the last frame
+        self.stashed: Rect | None = (
+            None  # what the stash holds: the probe's rectangle of the last frame
+        )
         self.footprints: dict[str, object] = {}  # the last frame's, by name
         self.layer_memo: dict = {}
         self.layer_version = 0
@@ -177,7 +193,11 @@ class FramePlanner:
             layer = KEPT
         elif self.key is not None and context_key is not None and context_key == self.context_key:
             layer = ATOMS
-        elif self.last_layer not in (KEPT, ATOMS) and self.last_key is not None and key != self.last_key:
+        elif (
+            self.last_layer not in (KEPT, ATOMS)
+            and self.last_key is not None
+            and key != self.last_key
+        ):
             layer = PLAIN
         else:
             layer = DRAWN
@@ -191,7 +211,9 @@ class FramePlanner:
         if layer != KEPT:
             self.layer_memo = {}
             self.layer_version += 1
-        plan = FramePlan(layer, tuple(frame.size), layer_memo=self.layer_memo, layer_version=self.layer_version)
+        plan = FramePlan(
+            layer, tuple(frame.size), layer_memo=self.layer_memo, layer_version=self.layer_version
+        )
         if layer == ATOMS:  # the cube's pixels: the atoms' as they were and as they will be
             plan.redraw = points_rect(frame.cube.corners(), frame.viewproj, frame.size, 2)
         frame.plan = plan
@@ -200,16 +222,25 @@ class FramePlanner:
             for p in passes:
                 if p.enabled(frame):
                     for name, rect in p.footprint(frame).items():
-                        now[name] = EVERYWHERE if EVERYWHERE in (rect, now.get(name)) else union_rect(now.get(name), rect)
+                        now[name] = (
+                            EVERYWHERE
+                            if EVERYWHERE in (rect, now.get(name))
+                            else union_rect(now.get(name), rect)
+                        )
         if layer in (KEPT, ATOMS):
-            plan.regions = {name: _region(self.footprints.get(name), now.get(name), plan.size)
-                            for name in set(now) | set(self.footprints)}
+            plan.regions = {
+                name: _region(self.footprints.get(name), now.get(name), plan.size)
+                for name in set(now) | set(self.footprints)
+            }
         self.footprints = now
         return plan
 
     def layer_counts(self) -> dict[str, int]:
         """Frames so far that kept the molecule layer, and that drew it (kept or not)."""
-        return {"kept": self.counts[KEPT], "drawn": self.counts[ATOMS] + self.counts[DRAWN] + self.counts[PLAIN]}
+        return {
+            "kept": self.counts[KEPT],
+            "drawn": self.counts[ATOMS] + self.counts[DRAWN] + self.counts[PLAIN],
+        }
 
     def stash_under_probe(self, frame) -> None:
         """Keep the molecule layer's pixels the probe is about to cover (the layer is

@@ -7,10 +7,10 @@ import signal
 import statistics
 import threading
 import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator
 
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer_export import gbuffer_arrays, save_gbuffer
@@ -21,9 +21,13 @@ class RunStats:
     frames: int = 0  # frames rendered
     seconds: float = 0.0
     frame_times: list[float] = field(default_factory=list)
-    video_frames: int = 0  # frames written to a paced video (a late frame fills every slot it covered)
+    video_frames: int = (
+        0  # frames written to a paced video (a late frame fills every slot it covered)
+    )
     interrupted: str | None = None  # "SIGINT" / "SIGTERM" when a signal ended the run early
-    molecule_layer: dict | None = None  # frame planner: frames that kept the molecule layer / drew it anew
+    molecule_layer: dict | None = (
+        None  # frame planner: frames that kept the molecule layer / drew it anew
+    )
 
     @property
     def median_ms(self) -> float:
@@ -37,10 +41,15 @@ class RunStats:
         return f"{self.frames} frame(s) in {self.seconds:.2f} s ({self.fps:.1f} fps, median frame {self.median_ms:.1f} ms)"
 
     def as_dict(self) -> dict:
-        return {"frames": self.frames, "seconds": self.seconds, "fps": self.fps if self.frames else None,
-                "median_frame_ms": self.median_ms if self.frame_times else None,
-                "video_frames": self.video_frames, "interrupted": self.interrupted,
-                "molecule_layer": self.molecule_layer}
+        return {
+            "frames": self.frames,
+            "seconds": self.seconds,
+            "fps": self.fps if self.frames else None,
+            "median_frame_ms": self.median_ms if self.frame_times else None,
+            "video_frames": self.video_frames,
+            "interrupted": self.interrupted,
+            "molecule_layer": self.molecule_layer,
+        }
 
 
 @contextmanager
@@ -63,9 +72,19 @@ def stop_on_signals() -> Iterator[dict]:
             signal.signal(sig, handler)
 
 
-def run_headless(renderer, camera: Camera, frames: int | None, seconds: float | None, writer=None,
-                 gbuffer_path=None, orbit_deg: float = 0.0, update: Callable[[], None] | None = None,
-                 progress=None, pace_fps: float | None = None, gbuffer_dir: Path | None = None) -> RunStats:
+def run_headless(
+    renderer,
+    camera: Camera,
+    frames: int | None,
+    seconds: float | None,
+    writer=None,
+    gbuffer_path=None,
+    orbit_deg: float = 0.0,
+    update: Callable[[], None] | None = None,
+    progress=None,
+    pace_fps: float | None = None,
+    gbuffer_dir: Path | None = None,
+) -> RunStats:
     """Render until `frames` are done or `seconds` have passed (at least one frame).
 
     `orbit_deg` turns the camera that many degrees per frame about its up axis;
@@ -95,14 +114,19 @@ def run_headless(renderer, camera: Camera, frames: int | None, seconds: float | 
             renderer.ctx.finish()
             stats.frame_times.append(time.perf_counter() - t0)
             if gbuffer_dir is not None:
-                save_gbuffer(Path(gbuffer_dir) / f"gbuffer_{stats.frames:04d}.npz", gbuffer_arrays(renderer),
-                             compress=False)
+                save_gbuffer(
+                    Path(gbuffer_dir) / f"gbuffer_{stats.frames:04d}.npz",
+                    gbuffer_arrays(renderer),
+                    compress=False,
+                )
             stats.frames += 1
             image = renderer.read_image() if writer is not None else None
             if slots is not None:
                 if stats.frames == 1:
                     video_start = time.perf_counter()  # a large structure's set-up is not filmed
-                covered = int((time.perf_counter() - video_start) * pace_fps)  # slots whose start has passed
+                covered = int(
+                    (time.perf_counter() - video_start) * pace_fps
+                )  # slots whose start has passed
                 n = min(max(1, covered - stats.video_frames), slots - stats.video_frames)
                 for _ in range(n):
                     if image is not None:

@@ -25,8 +25,6 @@ import time
 from collections import deque
 
 import numpy as np
-
-from sasprobe.common.errors import UserError
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, Structure, parse_structure
 from sasprobe.molecule.packed import unpack_structure
 from sasprobe.protocol.client import ControlClient, ControlError, Subscriber, fetch_structure
@@ -37,6 +35,8 @@ from sasprobe.render.daemon_requests import RequestSender
 from sasprobe.render.live_clearance import LiveClearance
 from sasprobe.render.scene_state import Mark, NavCube, Probe, normalise_plane
 from sasprobe.render.source import Readout, RenderSource
+
+from sasprobe.common.errors import UserError
 
 log = logging.getLogger("sasprobe")
 
@@ -63,7 +63,9 @@ def apply_scene_message(scene, state: dict) -> bool:
     daemon has the probe light on (the caller decides whether to follow)."""
     scene.probe_radius = float(state["probe_radius_A"])
     planes = [normalise_plane(p) for p in state["clip_planes"]]
-    if len(planes) != len(scene.clip_planes) or any(not np.array_equal(a, b) for a, b in zip(planes, scene.clip_planes)):
+    if len(planes) != len(scene.clip_planes) or any(
+        not np.array_equal(a, b) for a, b in zip(planes, scene.clip_planes)
+    ):
         scene.clip_planes = planes
     lights = state["lights"]
     direction = np.asarray(lights["directional"]["direction"], dtype=np.float64)
@@ -71,7 +73,10 @@ def apply_scene_message(scene, state: dict) -> bool:
     limits = state["device"].get("limits") or {}
     if "continuous_force_n" in limits and "max_force_n" in limits:
         scene.force_ratings_n = (float(limits["continuous_force_n"]), float(limits["max_force_n"]))
-    marks = [Mark(int(m["id"]), m["label"], tuple(map(float, m["position_A"]))) for m in state.get("marks", [])]
+    marks = [
+        Mark(int(m["id"]), m["label"], tuple(map(float, m["position_A"])))
+        for m in state.get("marks", [])
+    ]
     if marks != scene.marks:
         scene.marks = marks
     return bool(lights["probe"]["enabled"])
@@ -82,12 +87,20 @@ def apply_pose(scene, pose, cube_enabled: bool, axes: np.ndarray | None = None) 
     atom and navigation cube (turned with the view's `axes`) into a SceneState."""
     axes = np.eye(3) if axes is None else axes
     touched = pose.touched_atom if 0 <= pose.touched_atom < scene.structure.n_atoms else -1
-    scene.probe = Probe(center=np.array(pose.proxy_A, dtype=np.float64), radius=scene.probe_radius,
-                        touched_atom=touched, goal=np.array(pose.goal_A, dtype=np.float64),
-                        force_n=axes @ np.asarray(pose.force_N, dtype=np.float64),
-                        tip_mm=np.array(pose.tip_mm, dtype=np.float64))
+    scene.probe = Probe(
+        center=np.array(pose.proxy_A, dtype=np.float64),
+        radius=scene.probe_radius,
+        touched_atom=touched,
+        goal=np.array(pose.goal_A, dtype=np.float64),
+        force_n=axes @ np.asarray(pose.force_N, dtype=np.float64),
+        tip_mm=np.array(pose.tip_mm, dtype=np.float64),
+    )
     if cube_enabled and pose.cube_half_A > 0 and np.all(np.isfinite(pose.cube_center_A)):
-        cube = NavCube(center=np.array(pose.cube_center_A, dtype=np.float64), half=float(pose.cube_half_A), axes=axes)
+        cube = NavCube(
+            center=np.array(pose.cube_center_A, dtype=np.float64),
+            half=float(pose.cube_half_A),
+            axes=axes,
+        )
         if scene.nav_cube is None or scene.nav_cube.key() != cube.key():
             scene.nav_cube = cube
     else:
@@ -106,8 +119,13 @@ def touched_label(structure: Structure | None, atom: int) -> str | None:
 class DaemonLink(RenderSource):
     follows_daemon = True
 
-    def __init__(self, pub: str | None = None, ctl: str | None = None, keep_water: bool = False,
-                 keys: ClientKeys | None = None):
+    def __init__(
+        self,
+        pub: str | None = None,
+        ctl: str | None = None,
+        keep_water: bool = False,
+        keys: ClientKeys | None = None,
+    ):
         self.pub = pub or DEFAULT_PUB_ENDPOINT
         self.ctl = ctl or DEFAULT_CTL_ENDPOINT
         self.keep_water = keep_water
@@ -137,17 +155,25 @@ class DaemonLink(RenderSource):
             served = None
             if not self.keep_water:
                 try:
-                    served = fetch_structure(self.ctl, keys=self.keys, timeout_s=FETCH_TIMEOUT_S, form="arrays")
+                    served = fetch_structure(
+                        self.ctl, keys=self.keys, timeout_s=FETCH_TIMEOUT_S, form="arrays"
+                    )
                 except ControlError as exc:
                     if "get_structure" not in str(exc):
                         raise
             if served is None:
                 served = fetch_structure(self.ctl, keys=self.keys, timeout_s=FETCH_TIMEOUT_S)
             if served.form == "arrays":
-                self._fetched = unpack_structure(served.data, served.name, served.source, served.sha256)
+                self._fetched = unpack_structure(
+                    served.data, served.name, served.source, served.sha256
+                )
             else:
-                self._fetched = parse_structure(served.data, name=served.name, source=served.source,
-                                                keep_water=self.keep_water or served.keep_water)
+                self._fetched = parse_structure(
+                    served.data,
+                    name=served.name,
+                    source=served.source,
+                    keep_water=self.keep_water or served.keep_water,
+                )
             self._fetch_error = None
         except UserError as exc:  # ControlError, or a StructureError from the bytes
             self._fetch_error = str(exc)
@@ -176,8 +202,12 @@ class DaemonLink(RenderSource):
             self._seen, self._last_data = seen, now
             self._ever_connected = True
         scene = self.subscriber.scene
-        if self._live_wanted and self.structure is not None and scene is not None \
-                and scene["structure"]["sha256"] == self.structure.sha256:
+        if (
+            self._live_wanted
+            and self.structure is not None
+            and scene is not None
+            and scene["structure"]["sha256"] == self.structure.sha256
+        ):
             self.live.update(self.structure, float(scene["probe_radius_A"]), poses)
         recent = self._recent
         for pose in poses:
@@ -188,7 +218,9 @@ class DaemonLink(RenderSource):
             recent.popleft()
         if self._want_structure() and now - self._last_attempt >= RETRY_S:
             self._last_attempt = now
-            self._thread = threading.Thread(target=self._fetch, name="sasprobe-fetch-structure", daemon=True)
+            self._thread = threading.Thread(
+                target=self._fetch, name="sasprobe-fetch-structure", daemon=True
+            )
             self._thread.start()
 
     @property
@@ -197,20 +229,33 @@ class DaemonLink(RenderSource):
 
     def lost_for_s(self) -> float:
         """Seconds since a daemon that was sending stopped (0 while it sends or before it ever did)."""
-        return 0.0 if not self._ever_connected or self.connected else time.monotonic() - self._last_data
+        return (
+            0.0
+            if not self._ever_connected or self.connected
+            else time.monotonic() - self._last_data
+        )
 
     def apply(self, scene) -> None:
         """The daemon's probe, cube, planes and lights into the renderer's SceneState."""
         state, pose = self.subscriber.scene, self.subscriber.pose
         if state is not None:
             probe_light = apply_scene_message(scene, state)
-            if probe_light != self._daemon_probe_light:  # follow the daemon's changes; keys still toggle
+            if (
+                probe_light != self._daemon_probe_light
+            ):  # follow the daemon's changes; keys still toggle
                 scene.effects.probe_light = self._daemon_probe_light = probe_light
-            scheme = state.get("color_scheme")  # null: every renderer keeps its own (--color, or its default)
+            scheme = state.get(
+                "color_scheme"
+            )  # null: every renderer keeps its own (--color, or its default)
             if scheme is not None and scheme != self._daemon_scheme:
                 scene.effects.color_scheme = self._daemon_scheme = scheme
         if pose is not None:
-            apply_pose(scene, pose, cube_enabled=state is None or state["nav_cube"]["enabled"], axes=view_axes(state))
+            apply_pose(
+                scene,
+                pose,
+                cube_enabled=state is None or state["nav_cube"]["enabled"],
+                axes=view_axes(state),
+            )
 
     def view_axes(self) -> np.ndarray:
         return view_axes(self.subscriber.scene)
@@ -218,12 +263,19 @@ class DaemonLink(RenderSource):
     def preview(self):
         """The cube and the probe of the newest pose, while the structure is on its way."""
         state, pose = self.subscriber.scene, self.subscriber.pose
-        if pose is None or not self.connected or (state is not None and not state["nav_cube"]["enabled"]) \
-                or not (pose.cube_half_A > 0 and np.all(np.isfinite(pose.cube_center_A))):
+        if (
+            pose is None
+            or not self.connected
+            or (state is not None and not state["nav_cube"]["enabled"])
+            or not (pose.cube_half_A > 0 and np.all(np.isfinite(pose.cube_center_A)))
+        ):
             return None, None
         radius = float(state["probe_radius_A"]) if state is not None else DEFAULT_PROBE_RADIUS
-        cube = NavCube(center=np.array(pose.cube_center_A, dtype=np.float64), half=float(pose.cube_half_A),
-                       axes=view_axes(state))
+        cube = NavCube(
+            center=np.array(pose.cube_center_A, dtype=np.float64),
+            half=float(pose.cube_half_A),
+            axes=view_axes(state),
+        )
         return cube, Probe(center=np.array(pose.proxy_A, dtype=np.float64), radius=radius)
 
     def request(self, cmd: str, **args) -> bool:
@@ -249,12 +301,18 @@ class DaemonLink(RenderSource):
         clearance = self.live if connected else LiveClearance()
         note, until = self._note
         return Readout(
-            status=status, haptic_hz=rate if connected else None,
-            force_n=float(np.linalg.norm(pose.force_N)) if live else None, dropped=self.subscriber.malformed,
+            status=status,
+            haptic_hz=rate if connected else None,
+            force_n=float(np.linalg.norm(pose.force_N)) if live else None,
+            dropped=self.subscriber.malformed,
             touched=touched_label(self.structure, pose.touched_atom) if live else None,
-            continuous_force_n=limits.get("continuous_force_n"), peak_force_n=limits.get("max_force_n"),
-            clutched=live and pose.has(FLAG_CLUTCHED), drifting=live and pose.has(FLAG_DRIFTING),
-            clearance_A=clearance.clearance_A, passage_A=clearance.passage_A, bottleneck_A=clearance.bottleneck_A,
+            continuous_force_n=limits.get("continuous_force_n"),
+            peak_force_n=limits.get("max_force_n"),
+            clutched=live and pose.has(FLAG_CLUTCHED),
+            drifting=live and pose.has(FLAG_DRIFTING),
+            clearance_A=clearance.clearance_A,
+            passage_A=clearance.passage_A,
+            bottleneck_A=clearance.bottleneck_A,
             note=note if time.monotonic() < until else "",
         )
 
@@ -263,6 +321,7 @@ class DaemonLink(RenderSource):
 
     def drop_mark(self) -> None:
         """Ask the daemon for a mark (control `mark`) on a thread, so the window never waits."""
+
         def ask() -> None:
             try:
                 with ControlClient(self.ctl, keys=self.keys, timeout_s=FETCH_TIMEOUT_S) as client:
@@ -279,15 +338,21 @@ class DaemonLink(RenderSource):
         deadline = time.monotonic() + timeout_s
         while self._fetched is None or self.subscriber.pose is None:
             if time.monotonic() > deadline:
-                why = self._fetch_error or f"no pose on {self.pub}: {self.subscriber.watch.explain()}"
+                why = (
+                    self._fetch_error or f"no pose on {self.pub}: {self.subscriber.watch.explain()}"
+                )
                 raise UserError(f"no daemon answered within {timeout_s:g} s: {why}")
             self.poll()
             time.sleep(0.02)
 
     def stream_report(self) -> dict:
         sub = self.subscriber
-        return {"poses_received": sub.poses_received, "poses_missed": sub.missed,
-                "scenes_received": sub.scenes_received, "malformed": sub.malformed}
+        return {
+            "poses_received": sub.poses_received,
+            "poses_missed": sub.missed,
+            "scenes_received": sub.scenes_received,
+            "malformed": sub.malformed,
+        }
 
     def close(self) -> None:
         self.requests.close()

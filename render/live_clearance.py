@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from sasprobe.molecule.clearance import MIN_RUN_A, ClearanceField
 from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
 
@@ -35,7 +34,9 @@ class LiveClearance:
         self.bottleneck_A: float | None = None
         self._last: np.ndarray | None = None  # the last pose position taken in
         self._evaluated: np.ndarray | None = None  # the last position evaluated
-        self._run: tuple[float, float | None] | None = None  # (travel, narrowest contact passage) of a bounded run
+        self._run: tuple[float, float | None] | None = (
+            None  # (travel, narrowest contact passage) of a bounded run
+        )
 
     def update(self, structure, probe_radius_A: float, poses: list) -> None:
         """Take in the poses of one poll (oldest first)."""
@@ -47,7 +48,9 @@ class LiveClearance:
         picked = []  # (position, the position taken in before it, in contact)
         for pose in poses:
             p = np.asarray(pose.proxy_A, dtype=np.float64)
-            if pose.has(FLAG_FAULT) or (self._last is not None and math.dist(p, self._last) < SPACING_A):
+            if pose.has(FLAG_FAULT) or (
+                self._last is not None and math.dist(p, self._last) < SPACING_A
+            ):
                 continue
             picked.append((p, self._last, pose.has(FLAG_CONTACT)))
             self._last = p
@@ -67,9 +70,13 @@ class LiveClearance:
         if passage.open:
             self._run = None
             return
-        travel, narrowest = (0.0, None) if self._run is None else (self._run[0] + step, self._run[1])
+        travel, narrowest = (
+            (0.0, None) if self._run is None else (self._run[0] + step, self._run[1])
+        )
         if contact:
             narrowest = passage.radius_A if narrowest is None else min(narrowest, passage.radius_A)
         self._run = (travel, narrowest)
         if narrowest is not None and travel >= MIN_RUN_A:
-            self.bottleneck_A = narrowest if self.bottleneck_A is None else min(self.bottleneck_A, narrowest)
+            self.bottleneck_A = (
+                narrowest if self.bottleneck_A is None else min(self.bottleneck_A, narrowest)
+            )

@@ -51,9 +51,17 @@ class FrameWriter:
                 if self._writer is None:
                     h, w = image.shape[:2]
                     if w % 2 or h % 2:
-                        raise UserError(f"--out {self.path}: video frames need an even width and height, got {w}x{h}")
-                    self._writer = imageio.get_writer(str(self.path), fps=self.fps, codec="libx264",
-                                                      quality=8, macro_block_size=2, pixelformat="yuv420p")
+                        raise UserError(
+                            f"--out {self.path}: video frames need an even width and height, got {w}x{h}"
+                        )
+                    self._writer = imageio.get_writer(
+                        str(self.path),
+                        fps=self.fps,
+                        codec="libx264",
+                        quality=8,
+                        macro_block_size=2,
+                        pixelformat="yuv420p",
+                    )
                     self.written.append(self.path)
                 self._writer.append_data(image)
             else:

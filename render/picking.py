@@ -4,13 +4,14 @@ there (the wheel zooms towards it), and where a picked atom's label goes."""
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.gl.targets import KIND_BACKGROUND
 
 LABEL_OFFSET = (14.0, -10.0)  # the label's corner from the picked atom's centre on screen, pixels
 
 
-def pixel_under(renderer, window_size: tuple[int, int], x: float, y: float) -> tuple[int, int, np.ndarray] | None:
+def pixel_under(
+    renderer, window_size: tuple[int, int], x: float, y: float
+) -> tuple[int, int, np.ndarray] | None:
     """(atom id, kind, world position) of the last frame's G-buffer under a cursor position
     (window coordinates), or None before the first frame."""
     if renderer is None or renderer.last_frame is None:
@@ -30,8 +31,9 @@ def point_under(renderer, camera, window_size: tuple[int, int], x: float, y: flo
     return camera.eye + ray * (camera.distance / max(float(ray @ forward), 1e-6))
 
 
-def label_position(viewproj: np.ndarray, centre: np.ndarray, size: tuple[int, int],
-                   label_size: tuple[int, int]) -> tuple[float, float] | None:
+def label_position(
+    viewproj: np.ndarray, centre: np.ndarray, size: tuple[int, int], label_size: tuple[int, int]
+) -> tuple[float, float] | None:
     """Where a label beside a point goes (pixels from the top left, kept on screen), or None
     when the point is behind the camera."""
     clip = viewproj @ np.array([*centre, 1.0])

@@ -9,9 +9,9 @@ order, so a long session needs no more memory than a short one.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterator
 
 from sasprobe.protocol.pose import Pose
 from sasprobe.protocol.recording import iter_items, pose_from_record
@@ -21,7 +21,9 @@ from sasprobe.protocol.recording import iter_items, pose_from_record
 class RecordedFrame:
     index: int  # frame k stands for the first pose's time + k/fps (recording clock)
     structure_sha256: str  # the structure in force (the scene's)
-    structure_file: tuple[str, bytes, bool] | None  # its name, attached bytes and keep_water (None: not attached)
+    structure_file: (
+        tuple[str, bytes, bool] | None
+    )  # its name, attached bytes and keep_water (None: not attached)
     scene: dict  # the scene message in force
     pose: Pose  # the newest pose published at or before that moment
 
@@ -42,7 +44,9 @@ def frame_count(time_range: tuple[int, int], fps: float) -> int:
     return int((last - first) * fps // 1_000_000_000) + 1
 
 
-def recorded_frames(path: Path, fps: float, time_range: tuple[int, int] | None = None) -> Iterator[RecordedFrame]:
+def recorded_frames(
+    path: Path, fps: float, time_range: tuple[int, int] | None = None
+) -> Iterator[RecordedFrame]:
     """The state to draw for every video frame, in order."""
     time_range = time_range or pose_time_range(path)
     if time_range is None:
@@ -63,12 +67,19 @@ def recorded_frames(path: Path, fps: float, time_range: tuple[int, int] | None =
             files[item.data["sha256"]] = (item.data["name"], item.raw)
         elif item.topic == "control" and item.data.get("cmd") in ("start", "load"):
             args = item.data.get("args", {})
-            keep_water[args.get("structure_sha256") or args.get("sha256")] = bool(args.get("keep_water", False))
+            keep_water[args.get("structure_sha256") or args.get("sha256")] = bool(
+                args.get("keep_water", False)
+            )
         elif item.topic == "scene":
             scene = item.data
         elif item.topic == "pose":
             # Frames due before this pose show the state so far.
-            while k < n and pose is not None and scene is not None and t0 + k * 1e9 / fps < item.log_time:
+            while (
+                k < n
+                and pose is not None
+                and scene is not None
+                and t0 + k * 1e9 / fps < item.log_time
+            ):
                 yield frame()
                 k += 1
             pose = pose_from_record(item.data)
@@ -77,10 +88,14 @@ def recorded_frames(path: Path, fps: float, time_range: tuple[int, int] | None =
         k += 1
 
 
-def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
-                     progress: Callable[[int], None] | None = None) -> dict:
+def render_recording(
+    path: Path,
+    out: Path,
+    fps: float,
+    size: tuple[int, int],
+    progress: Callable[[int], None] | None = None,
+) -> dict:
     """Write the session as a video at its recorded timing; returns frame counts and duration."""
-    from sasprobe.common.errors import UserError
     from sasprobe.molecule import parse_structure
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
     from sasprobe.render.gl.context import create_headless_context
@@ -89,12 +104,16 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
     from sasprobe.render.output import FrameWriter
     from sasprobe.render.workspace_view import WORKSPACE, WorkspaceView
 
+    from sasprobe.common.errors import UserError
+
     time_range = pose_time_range(path)
     if time_range is None:
         raise UserError(f"{path}: no recorded poses to draw")
     # `sasprobe render --connect`'s defaults: the workspace view, lighting included (where the
     # GL driver offers OpenGL 4.3)
-    opts = RenderOptions(headless=True, size=size, fps=fps, lighting=LightingSettings(), view=WORKSPACE)
+    opts = RenderOptions(
+        headless=True, size=size, fps=fps, lighting=LightingSettings(), view=WORKSPACE
+    )
     view = WorkspaceView(WORKSPACE)
     ctx = create_headless_context()
     writer = FrameWriter(out, None, fps)
@@ -106,9 +125,13 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
             if frame.structure_sha256 != sha:  # the first structure, or a `load` during the session
                 sha = frame.structure_sha256
                 if frame.structure_file is None:
-                    raise UserError(f"{path}: structure {sha[:12]} is not attached to the recording")
+                    raise UserError(
+                        f"{path}: structure {sha[:12]} is not attached to the recording"
+                    )
                 name, data, keep_water = frame.structure_file
-                structure = parse_structure(data, name=name, source=f"{path}:{name}", keep_water=keep_water)
+                structure = parse_structure(
+                    data, name=name, source=f"{path}:{name}", keep_water=keep_water
+                )
                 if renderer is not None:
                     renderer.release()
                 scene = build_scene(structure, opts)
@@ -116,10 +139,14 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
                 camera = initial_camera(scene, opts)
             scene = renderer.scene
             scene.effects.probe_light = apply_scene_message(scene, frame.scene)
-            if frame.scene.get("color_scheme"):  # the session's colours, as its renderers showed them
+            if frame.scene.get(
+                "color_scheme"
+            ):  # the session's colours, as its renderers showed them
                 scene.effects.color_scheme = frame.scene["color_scheme"]
             axes = view_axes(frame.scene)
-            apply_pose(scene, frame.pose, cube_enabled=frame.scene["nav_cube"]["enabled"], axes=axes)
+            apply_pose(
+                scene, frame.pose, cube_enabled=frame.scene["nav_cube"]["enabled"], axes=axes
+            )
             renderer.render(view.camera(scene, size[0] / size[1], axes) or camera)
             writer.write(renderer.read_image())
             frames += 1
@@ -130,5 +157,10 @@ def render_recording(path: Path, out: Path, fps: float, size: tuple[int, int],
         if renderer is not None:
             renderer.release()
         ctx.release()
-    return {"video": str(out), "frames": frames, "fps": fps, "size": list(size),
-            "duration_s": (time_range[1] - time_range[0]) / 1e9}
+    return {
+        "video": str(out),
+        "frames": frames,
+        "fps": fps,
+        "size": list(size),
+        "duration_s": (time_range[1] - time_range[0]) / 1e9,
+    }

@@ -12,18 +12,24 @@ import numpy as np
 Rect = tuple[int, int, int, int]
 
 
-def sphere_rect(center, radius: float, viewproj: np.ndarray, size: tuple[int, int], margin: int = 2) -> Rect | None:
+def sphere_rect(
+    center, radius: float, viewproj: np.ndarray, size: tuple[int, int], margin: int = 2
+) -> Rect | None:
     """Pixels a sphere can cover: the bounding box of its enclosing cube's eight corners
     projected (the cube holds the sphere, so its image holds the sphere's), grown by
     `margin`. The whole frame when a corner lies behind the eye; None when off screen."""
     return points_rect(_cube_corners(center, radius), viewproj, size, margin)
 
 
-def capsule_rect(a, b, radius: float, viewproj: np.ndarray, size: tuple[int, int], margin: int = 2) -> Rect | None:
+def capsule_rect(
+    a, b, radius: float, viewproj: np.ndarray, size: tuple[int, int], margin: int = 2
+) -> Rect | None:
     """Pixels a capsule (the segment a-b swept by a sphere) can cover: the bounding box of
     the corners of both end spheres' cubes projected (the capsule lies in their convex
     hull, and so does its image), grown by `margin`; as sphere_rect otherwise."""
-    return points_rect(np.vstack([_cube_corners(a, radius), _cube_corners(b, radius)]), viewproj, size, margin)
+    return points_rect(
+        np.vstack([_cube_corners(a, radius), _cube_corners(b, radius)]), viewproj, size, margin
+    )
 
 
 _CORNERS = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])
@@ -33,10 +39,14 @@ def _cube_corners(center, radius: float) -> np.ndarray:
     return np.asarray(center, dtype=np.float64).reshape(1, 3) + float(radius) * _CORNERS
 
 
-def points_rect(points: np.ndarray, viewproj: np.ndarray, size: tuple[int, int], margin: int) -> Rect | None:
+def points_rect(
+    points: np.ndarray, viewproj: np.ndarray, size: tuple[int, int], margin: int
+) -> Rect | None:
     """The bounding box of points (N x 3, world) projected, grown by `margin`; the whole
     frame when one lies behind the eye, None when the box is off screen."""
-    clip = np.column_stack([points, np.ones(len(points))]) @ np.asarray(viewproj, dtype=np.float64).T
+    clip = (
+        np.column_stack([points, np.ones(len(points))]) @ np.asarray(viewproj, dtype=np.float64).T
+    )
     if np.any(clip[:, 3] <= 1e-9):
         return full_rect(size)
     return ndc_rect(clip[:, :2] / clip[:, 3:4], size, margin)
@@ -51,7 +61,9 @@ def ndc_rect(ndc: np.ndarray, size: tuple[int, int], margin: int) -> Rect | None
     return clamp_rect((int(x0), int(y0), int(x1 - x0), int(y1 - y0)), size)
 
 
-def atoms_rect(positions: np.ndarray, radius: float, viewproj: np.ndarray, size: tuple[int, int]) -> Rect | None:
+def atoms_rect(
+    positions: np.ndarray, radius: float, viewproj: np.ndarray, size: tuple[int, int]
+) -> Rect | None:
     """Pixels spheres of at most `radius` around `positions` can cover (the whole frame when
     one reaches the eye's plane). A point moved by d, |d| <= r, moves in clip space by at
     most r |row| per row of viewproj, so its x / w by at most r (|x row| + |x/w| |w row|) /
@@ -105,8 +117,12 @@ def subtract_rect(a: Rect | None, b: Rect | None) -> list[Rect]:
         return [a]
     ax0, ay0, ax1, ay1 = a[0], a[1], a[0] + a[2], a[1] + a[3]
     cx0, cy0, cx1, cy1 = cut[0], cut[1], cut[0] + cut[2], cut[1] + cut[3]
-    bands = [(ax0, ay0, ax1 - ax0, cy0 - ay0), (ax0, cy1, ax1 - ax0, ay1 - cy1),
-             (ax0, cy0, cx0 - ax0, cy1 - cy0), (cx1, cy0, ax1 - cx1, cy1 - cy0)]
+    bands = [
+        (ax0, ay0, ax1 - ax0, cy0 - ay0),
+        (ax0, cy1, ax1 - ax0, ay1 - cy1),
+        (ax0, cy0, cx0 - ax0, cy1 - cy0),
+        (cx1, cy0, ax1 - cx1, cy1 - cy0),
+    ]
     return [band for band in bands if band[2] > 0 and band[3] > 0]
 
 

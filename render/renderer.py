@@ -25,10 +25,9 @@ from __future__ import annotations
 import time
 
 import numpy as np
-
 from sasprobe.render.camera import Camera
-from sasprobe.render.frame_planner import FramePlan, FramePlanner
 from sasprobe.render.colors import chain_colors, scheme_colors
+from sasprobe.render.frame_planner import FramePlan, FramePlanner
 from sasprobe.render.gl.buffers import MoleculeBuffers
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import RenderTargets
@@ -49,9 +48,17 @@ from sasprobe.render.scene_state import SceneState
 
 
 class Renderer:
-    def __init__(self, ctx, scene: SceneState, size: tuple[int, int], sphere_mode: str = "quad",
-                 backbone_always: bool = False, shading: ShadingSettings | None = None, frame_cache: bool = True,
-                 wait_for_areas: bool = True):
+    def __init__(
+        self,
+        ctx,
+        scene: SceneState,
+        size: tuple[int, int],
+        sphere_mode: str = "quad",
+        backbone_always: bool = False,
+        shading: ShadingSettings | None = None,
+        frame_cache: bool = True,
+        wait_for_areas: bool = True,
+    ):
         self.ctx = ctx
         self.scene = scene
         self.programs = ProgramCache(ctx)
@@ -59,7 +66,10 @@ class Renderer:
         # The sas scheme's areas: computed at once (headless), or in the background (a window
         # keeps the previous colours meanwhile).
         self.wait_for_areas = wait_for_areas
-        self._color_key: tuple | None = ("element", None)  # what the buffers hold: CPK, as sphere_records writes
+        self._color_key: tuple | None = (
+            "element",
+            None,
+        )  # what the buffers hold: CPK, as sphere_records writes
         self.targets = RenderTargets(ctx, size)
         self.sphere_pass = self._sphere_pass(sphere_mode)
         self.planner = FramePlanner(ctx, self.programs) if frame_cache else None
@@ -140,12 +150,20 @@ class Renderer:
         plan = frame.plan
         # The molecule layer is complete in the G-buffer before the first pass after its last
         # one: what the probe will cover is stashed there, for the next frame to put back.
-        layer_end = max((i for i, p in enumerate(self.passes) if p.layer in (MOLECULE, CONTEXT)), default=-1) + 1
+        layer_end = (
+            max(
+                (i for i, p in enumerate(self.passes) if p.layer in (MOLECULE, CONTEXT)), default=-1
+            )
+            + 1
+        )
         for i, p in enumerate(self.passes):
             if i == layer_end and plan.keeps:
                 self.planner.stash_under_probe(frame)
-            if not p.enabled(frame) or (plan.kept and p.layer in (MOLECULE, CONTEXT)) \
-                    or (plan.context_kept and p.layer == CONTEXT):
+            if (
+                not p.enabled(frame)
+                or (plan.kept and p.layer in (MOLECULE, CONTEXT))
+                or (plan.context_kept and p.layer == CONTEXT)
+            ):
                 continue
             if pass_times is None:
                 p.run(frame)
@@ -168,7 +186,9 @@ class Renderer:
         center, radius = scene.bounding_sphere(with_probe=False)
         radius += 4.0 * scene.probe_radius
         if scene.probe is not None:
-            radius = max(radius, float(np.linalg.norm(scene.probe.center - center)) + scene.probe.radius)
+            radius = max(
+                radius, float(np.linalg.norm(scene.probe.center - center)) + scene.probe.radius
+            )
         return center, radius
 
     def sync_colors(self) -> None:
@@ -178,7 +198,9 @@ class Renderer:
         key = (scheme, scene.probe_radius if scheme == "sas" else None)
         if key == self._color_key:
             return
-        areas = scene.atom_areas.get(scene.grid, wait=self.wait_for_areas) if scheme == "sas" else None
+        areas = (
+            scene.atom_areas.get(scene.grid, wait=self.wait_for_areas) if scheme == "sas" else None
+        )
         if scheme == "sas" and areas is None:
             return  # still being computed: keep what is drawn
         self.buffers.set_colors(scheme_colors(scene.structure, scheme, areas))

@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, Structure, UniformGrid
 from sasprobe.protocol.scene import DEFAULT_LIGHT_DIRECTION
 from sasprobe.render.colors import AtomAreas, default_scheme
@@ -32,7 +31,9 @@ class Probe:
     center: np.ndarray  # Å, molecule frame
     radius: float = DEFAULT_PROBE_RADIUS
     touched_atom: int = -1
-    goal: np.ndarray | None = None  # where the device tip maps (Å); differs from `center` in contact
+    goal: np.ndarray | None = (
+        None  # where the device tip maps (Å); differs from `center` in contact
+    )
     force_n: np.ndarray | None = None  # the force on the hand, N, in the molecule frame
     tip_mm: np.ndarray | None = None  # the device tip, mm, device frame (what the hand does)
 
@@ -41,7 +42,9 @@ class Probe:
 class NavCube:
     center: np.ndarray
     half: float  # half the edge, Å
-    axes: np.ndarray = field(default_factory=lambda: np.eye(3))  # columns: the cube's x, y, z (device axes)
+    axes: np.ndarray = field(
+        default_factory=lambda: np.eye(3)
+    )  # columns: the cube's x, y, z (device axes)
 
     def __post_init__(self) -> None:
         self.axes = np.asarray(self.axes, dtype=np.float64).reshape(3, 3)
@@ -67,7 +70,9 @@ class NavCube:
 
     def corners(self) -> np.ndarray:
         """(8, 3) corners, molecule frame."""
-        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+        signs = np.array(
+            [[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64
+        )
         return self.center + self.half * signs @ self.axes.T
 
     def planes(self) -> np.ndarray:
@@ -112,7 +117,9 @@ class Effects:
     ambient_occlusion: bool = False
     edge_cueing: bool = False
     path_tracing: bool = False
-    color_scheme: str | None = None  # render/colors.py SCHEMES; None: the default by structure (C key)
+    color_scheme: str | None = (
+        None  # render/colors.py SCHEMES; None: the default by structure (C key)
+    )
 
 
 @dataclass
@@ -148,7 +155,9 @@ class SceneState:
         so a renderer following a daemon uses the daemon's radius."""
         key = (id(self.structure), float(self.probe_radius))
         if key != self._grid_key:
-            self._grid = UniformGrid(self.structure.positions, self.structure.expanded_radii(self.probe_radius))
+            self._grid = UniformGrid(
+                self.structure.positions, self.structure.expanded_radii(self.probe_radius)
+            )
             self._grid_key = key
         return self._grid
 
@@ -220,16 +229,27 @@ class SceneState:
             lo = (s.positions - s.vdw_radii[:, None]).min(axis=0)
             hi = (s.positions + s.vdw_radii[:, None]).max(axis=0)
             center = (lo + hi) / 2.0
-            self._atoms_sphere = (center, float(np.sqrt(((s.positions - center) ** 2).sum(axis=1)).max() + s.vdw_radii.max()))
+            self._atoms_sphere = (
+                center,
+                float(np.sqrt(((s.positions - center) ** 2).sum(axis=1)).max() + s.vdw_radii.max()),
+            )
         center, radius = self._atoms_sphere
         if self.probe is not None and with_probe:
-            radius = max(radius, float(np.linalg.norm(self.probe.center - center)) + self.probe.radius)
+            radius = max(
+                radius, float(np.linalg.norm(self.probe.center - center)) + self.probe.radius
+            )
         if self.nav_cube is not None:
-            radius = max(radius, float(np.linalg.norm(self.nav_cube.center - center)) + self.nav_cube.half * np.sqrt(3))
+            radius = max(
+                radius,
+                float(np.linalg.norm(self.nav_cube.center - center))
+                + self.nav_cube.half * np.sqrt(3),
+            )
         return center, radius
 
 
-def select_spheres(structure: Structure, grid: UniformGrid, planes: np.ndarray, cube: NavCube | None) -> np.ndarray:
+def select_spheres(
+    structure: Structure, grid: UniformGrid, planes: np.ndarray, cube: NavCube | None
+) -> np.ndarray:
     """Atoms to draw as spheres: those overlapping the cube (when one is set), minus
     those wholly on the removed side of any plane. The cube goes through the grid
     (cells the box overlaps, then an exact sphere-box test with van der Waals radii;

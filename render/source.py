@@ -37,6 +37,7 @@ class Readout:
 
 class RenderSource(abc.ABC):
     follows_daemon = False  # True: the view's turn, the clutch and recentre go to a daemon
+
     @abc.abstractmethod
     def take_new_structure(self) -> Structure | None: ...
 

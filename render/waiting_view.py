@@ -7,13 +7,12 @@ empty picture. Drawn straight into the window: no G-buffer, no structure."""
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.gl.uniforms import apply_uniforms
+from sasprobe.render.passes.backbone import cube_uniforms
 from sasprobe.render.passes.base import raster_camera_uniforms
 from sasprobe.render.passes.navcube import WIRE_COLOR, WIRE_WIDTH_PX, cube_edges
 from sasprobe.render.passes.probe import PROBE_COLOR
 from sasprobe.render.passes.probe_cues import CIRCLE_SEGMENTS, silhouette
-from sasprobe.render.passes.backbone import cube_uniforms
 from sasprobe.render.workspace_view import workspace_camera
 
 
@@ -36,8 +35,12 @@ class WaitingView:
         fbo.clear(*background, 1.0)
         camera = workspace_camera(cube, size[0] / size[1])
         reach = cube.half * np.sqrt(3.0)
-        camera.fit_clip_range(cube.center, reach if probe is None else max(
-            reach, float(np.linalg.norm(probe.center - cube.center)) + probe.radius))
+        camera.fit_clip_range(
+            cube.center,
+            reach
+            if probe is None
+            else max(reach, float(np.linalg.norm(probe.center - cube.center)) + probe.radius),
+        )
         proj = camera.projection(size[0] / size[1])
         viewproj = proj @ camera.view()
         ctx.enable_only(0)
@@ -48,15 +51,23 @@ class WaitingView:
                 if np.all(clip[:, 3] > 0):
                     ndc = clip[:, :2] / clip[:, 3:4]
                     middle = ndc.mean(axis=0)
-                    fan = np.stack([np.broadcast_to(middle, ndc.shape), ndc, np.roll(ndc, -1, axis=0)], axis=1)
+                    fan = np.stack(
+                        [np.broadcast_to(middle, ndc.shape), ndc, np.roll(ndc, -1, axis=0)], axis=1
+                    )
                     self.disc_vbo.write(fan.astype(np.float32).tobytes())
                     apply_uniforms(self.disc, {"u_color": (*PROBE_COLOR, 1.0)})
                     self.disc_vao.render(ctx.TRIANGLES, vertices=3 * len(ndc))
-        apply_uniforms(self.wire, {
-            **raster_camera_uniforms(camera, viewproj, proj, size), **cube_uniforms(cube),
-            "u_radius": 0.0, "u_min_width_px": WIRE_WIDTH_PX, "u_proj_scale": float(proj[1, 1]) * size[1] * 0.5,
-            "u_wire_color": WIRE_COLOR,
-        })
+        apply_uniforms(
+            self.wire,
+            {
+                **raster_camera_uniforms(camera, viewproj, proj, size),
+                **cube_uniforms(cube),
+                "u_radius": 0.0,
+                "u_min_width_px": WIRE_WIDTH_PX,
+                "u_proj_scale": float(proj[1, 1]) * size[1] * 0.5,
+                "u_wire_color": WIRE_COLOR,
+            },
+        )
         self.wire_vao.render(ctx.LINES, vertices=24)
 
     def release(self) -> None:

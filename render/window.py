@@ -11,11 +11,10 @@ import logging
 import signal
 import time
 from collections import deque
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
-
 from sasprobe.molecule.sas import atom_areas
 from sasprobe.render.camera import Camera
 from sasprobe.render.capture import WindowCapture, atom_label
@@ -65,7 +64,10 @@ HELP = [
     "right/middle drag or shift+drag: pan   wheel: zoom   click: name an atom",
     "Tab: workspace view / overview   Home: recentre the cube on the probe",
     "Space (held): clutch   Enter: drop a mark at the probe (with a daemon)",
-    *["   ".join(_TOGGLE_TEXTS[i:i + TOGGLES_PER_LINE]) for i in range(0, len(_TOGGLE_TEXTS), TOGGLES_PER_LINE)],
+    *[
+        "   ".join(_TOGGLE_TEXTS[i : i + TOGGLES_PER_LINE])
+        for i in range(0, len(_TOGGLE_TEXTS), TOGGLES_PER_LINE)
+    ],
     "C: colour scheme   I: lighting preset   Shift+A: AO method   Z: centre on the probe",
     "Ctrl+S: screenshot   Ctrl+R: start/stop a video   M: sphere mode (quad/sprite)",
     "R: reset camera   H: help   Q/Esc: quit",
@@ -87,8 +89,19 @@ class WindowApp:
     `preset`, `background`: the lighting the renderer starts with (I cycles the presets);
     `shots`: where Ctrl+S and Ctrl+R write."""
 
-    def __init__(self, window, ctx, source, build: Callable, title: str, effects: Effects,
-                 view: str = OVERVIEW, preset: str = "default", background=None, shots: Path | None = None):
+    def __init__(
+        self,
+        window,
+        ctx,
+        source,
+        build: Callable,
+        title: str,
+        effects: Effects,
+        view: str = OVERVIEW,
+        preset: str = "default",
+        background=None,
+        shots: Path | None = None,
+    ):
         import glfw
 
         self.glfw = glfw
@@ -117,8 +130,12 @@ class WindowApp:
         self._press_pos = (0.0, 0.0)
         self._last_pos = (0.0, 0.0)
         self._stop = False
-        self.view = WorkspaceView(view, send_view=self._send_view if source.follows_daemon else None)
-        self._clutch_renewed: float | None = None  # when the clutch key's lease was last renewed (None: up)
+        self.view = WorkspaceView(
+            view, send_view=self._send_view if source.follows_daemon else None
+        )
+        self._clutch_renewed: float | None = (
+            None  # when the clutch key's lease was last renewed (None: up)
+        )
         glfw.set_key_callback(window, self._on_key)
         glfw.set_mouse_button_callback(window, self._on_button)
         glfw.set_cursor_pos_callback(window, self._on_cursor)
@@ -158,7 +175,11 @@ class WindowApp:
             field_name = TOGGLES[name][0]
             setattr(fx, field_name, not getattr(fx, field_name))
         elif name == "M" and self.renderer is not None:
-            i = SPHERE_MODES.index(self.renderer.sphere_mode) if self.renderer.sphere_mode in SPHERE_MODES else -1
+            i = (
+                SPHERE_MODES.index(self.renderer.sphere_mode)
+                if self.renderer.sphere_mode in SPHERE_MODES
+                else -1
+            )
             self.renderer.set_sphere_mode(SPHERE_MODES[(i + 1) % len(SPHERE_MODES)])
         elif name == "C" and self.renderer is not None:
             current = self.renderer.scene.color_scheme()
@@ -175,7 +196,11 @@ class WindowApp:
         elif key == glfw.KEY_HOME:
             self.source.request("recentre")
         elif name == "R" and self.camera is not None:
-            self.camera.eye, self.camera.target, self.camera.up = self.home.eye.copy(), self.home.target.copy(), self.home.up.copy()
+            self.camera.eye, self.camera.target, self.camera.up = (
+                self.home.eye.copy(),
+                self.home.target.copy(),
+                self.home.up.copy(),
+            )
             self.view.reset()
         elif name == "H" or key == glfw.KEY_F1:
             self.show_help = not self.show_help
@@ -183,12 +208,17 @@ class WindowApp:
     def _on_button(self, window, button, action, mods) -> None:
         glfw = self.glfw
         if action == glfw.PRESS:
-            pan = button in (glfw.MOUSE_BUTTON_RIGHT, glfw.MOUSE_BUTTON_MIDDLE) or (mods & glfw.MOD_SHIFT)
+            pan = button in (glfw.MOUSE_BUTTON_RIGHT, glfw.MOUSE_BUTTON_MIDDLE) or (
+                mods & glfw.MOD_SHIFT
+            )
             self._drag = "pan" if pan else "rotate"
             self._press_pos = self._last_pos = glfw.get_cursor_pos(window)
         elif action == glfw.RELEASE:
             x, y = glfw.get_cursor_pos(window)
-            if self._drag == "rotate" and np.hypot(x - self._press_pos[0], y - self._press_pos[1]) < CLICK_PIXELS:
+            if (
+                self._drag == "rotate"
+                and np.hypot(x - self._press_pos[0], y - self._press_pos[1]) < CLICK_PIXELS
+            ):
                 self.pick(x, y)
             elif self._drag == "rotate" and self._workspace_camera() is not None:
                 self.view.end_turn()
@@ -211,10 +241,10 @@ class WindowApp:
 
     def _on_scroll(self, window, dx: float, dy: float) -> None:
         if self._workspace_camera() is not None:  # the workspace view stays on the cube
-            self.view.zoom_by(0.9 ** dy)
+            self.view.zoom_by(0.9**dy)
         elif self.camera is not None:
             point = self.point_under(*self.glfw.get_cursor_pos(window))
-            self.camera.zoom_towards(point, 0.9 ** dy)
+            self.camera.zoom_towards(point, 0.9**dy)
 
     def _aspect(self) -> float:
         w, h = self.glfw.get_framebuffer_size(self.window)
@@ -234,7 +264,9 @@ class WindowApp:
         if mode == OVERVIEW:  # the whole molecule, from where the workspace view looked
             axes = self.view.axes(self.source.view_axes())
             self.camera = overview_camera(self.renderer.scene, self._aspect(), axes)
-            self.home = Camera(self.camera.eye, self.camera.target, self.camera.up, self.camera.fov_y)
+            self.home = Camera(
+                self.camera.eye, self.camera.target, self.camera.up, self.camera.fov_y
+            )
 
     def request_stop(self, *_args) -> None:
         self._stop = True
@@ -259,13 +291,24 @@ class WindowApp:
     # ------------------------------------------------------------ loop
     def text(self) -> list[str]:
         r = self.renderer
-        fps = len(self.frame_times) / sum(self.frame_times) if self.frame_times and sum(self.frame_times) > 0 else 0.0
-        lines = [self.title if r is None else f"{self.title}: {r.scene.structure.name} ({r.scene.structure.n_atoms} atoms)"]
+        fps = (
+            len(self.frame_times) / sum(self.frame_times)
+            if self.frame_times and sum(self.frame_times) > 0
+            else 0.0
+        )
+        lines = [
+            self.title
+            if r is None
+            else f"{self.title}: {r.scene.structure.name} ({r.scene.structure.n_atoms} atoms)"
+        ]
         if r is not None:
             lines.append(f"{fps:5.1f} fps   {r.buffers.n_selected} spheres ({r.sphere_mode})")
             scheme = r.scene.color_scheme()
-            lines.append(f"colour: {scheme}" + (" (computing SAS areas...)" if r.colors_pending else "")
-                         + f"   lighting preset: {self.preset}")
+            lines.append(
+                f"colour: {scheme}"
+                + (" (computing SAS areas...)" if r.colors_pending else "")
+                + f"   lighting preset: {self.preset}"
+            )
             if lighting_of(r) is not None:
                 lines.append(lighting_status(r))
         ro = self.readout
@@ -273,11 +316,22 @@ class WindowApp:
             lines.append(ro.status)
         if ro.haptic_hz is not None:
             lines.append(f"haptic {ro.haptic_hz:6.0f} Hz   {force_text(ro)}")
-            state = [s for s, on in (("CLUTCH (Space/button held)", ro.clutched), ("cube drifting", ro.drifting)) if on]
+            state = [
+                s
+                for s, on in (
+                    ("CLUTCH (Space/button held)", ro.clutched),
+                    ("cube drifting", ro.drifting),
+                )
+                if on
+            ]
             lines.append(f"touching {ro.touched}" if ro.touched else "not touching")
             lines += state
         if r is not None and self.source.view_axes() is not None:
-            lines.append("workspace view (Tab: overview)" if self.view.workspace else "overview (Tab: workspace view)")
+            lines.append(
+                "workspace view (Tab: overview)"
+                if self.view.workspace
+                else "overview (Tab: workspace view)"
+            )
         if ro.clearance_A is not None:
             lines.append(clearance_line(ro))
         if ro.note:
@@ -321,11 +375,19 @@ class WindowApp:
         if self.picked is not None and self.renderer is not None:
             self.label_overlay.prepare([self.picked[1]])
             centre = self.renderer.scene.structure.positions[self.picked[0]]
-            at = label_position(self.renderer.last_frame.viewproj, centre, size, self.label_overlay.size)
+            at = label_position(
+                self.renderer.last_frame.viewproj, centre, size, self.label_overlay.size
+            )
             if at is not None:
                 self.label_overlay.draw(screen, size, [self.picked[1]], at=at)
 
-    def run(self, frames: int | None = None, seconds: float | None = None, writer=None, gbuffer_path=None) -> int:
+    def run(
+        self,
+        frames: int | None = None,
+        seconds: float | None = None,
+        writer=None,
+        gbuffer_path=None,
+    ) -> int:
         """Show frames until the window closes, Ctrl-C/SIGTERM, or `frames`/`seconds` are done."""
         glfw = self.glfw
         old_term = signal.signal(signal.SIGTERM, self.request_stop)
@@ -350,11 +412,18 @@ class WindowApp:
                 if t0 - last_text > 0.25:
                     text, last_text = self.text(), t0
                 self._draw(size, text)
-                if self.capture.wants_frame:  # what was just drawn: the back buffer, before it is shown
+                if (
+                    self.capture.wants_frame
+                ):  # what was just drawn: the back buffer, before it is shown
                     self.capture.take(self._screenshot(size))
                 done = (frames is not None and count + 1 >= frames) or (
-                    frames is None and seconds is not None and time.perf_counter() - start >= seconds)
-                if writer is not None and (done or writer.is_video):  # PNG: a screenshot of the last frame
+                    frames is None
+                    and seconds is not None
+                    and time.perf_counter() - start >= seconds
+                )
+                if writer is not None and (
+                    done or writer.is_video
+                ):  # PNG: a screenshot of the last frame
                     writer.write(self._screenshot(size))
                 glfw.swap_buffers(self.window)
                 self.frame_times.append(time.perf_counter() - t0)
@@ -367,7 +436,11 @@ class WindowApp:
                 writer.write(self._screenshot(size))
         finally:
             signal.signal(signal.SIGTERM, old_term)
-        if gbuffer_path is not None and self.renderer is not None and self.renderer.last_frame is not None:
+        if (
+            gbuffer_path is not None
+            and self.renderer is not None
+            and self.renderer.last_frame is not None
+        ):
             save_gbuffer(gbuffer_path, gbuffer_arrays(self.renderer))
         return count
 

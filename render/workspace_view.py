@@ -19,10 +19,9 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
-
 from sasprobe.render.camera import DEFAULT_FOV, Camera
 
 WORKSPACE, OVERVIEW = "workspace", "overview"
@@ -35,13 +34,24 @@ TURN_SEND_S = 0.05  # a turn under way goes to the daemon at most this often
 AXES_MATCH = 1e-6  # the daemon's axes equal the ones sent (its rotation is re-orthonormalised)
 
 
-def workspace_camera(cube, aspect: float, zoom: float = 1.0, axes: np.ndarray | None = None,
-                     fov_y: float = DEFAULT_FOV) -> Camera:
+def workspace_camera(
+    cube,
+    aspect: float,
+    zoom: float = 1.0,
+    axes: np.ndarray | None = None,
+    fov_y: float = DEFAULT_FOV,
+) -> Camera:
     """The camera framing `cube` along -axes[:, 2] with axes[:, 1] up (default: the cube's axes);
     `zoom` > 1 moves it back."""
     axes = cube.axes if axes is None else axes
-    return Camera.fitted(cube.center, FRAME_RADIUS * cube.half * zoom, aspect, fov_y=fov_y,
-                         direction=axes[:, 2], up=axes[:, 1])
+    return Camera.fitted(
+        cube.center,
+        FRAME_RADIUS * cube.half * zoom,
+        aspect,
+        fov_y=fov_y,
+        direction=axes[:, 2],
+        up=axes[:, 1],
+    )
 
 
 def overview_camera(scene, aspect: float, axes: np.ndarray, fov_y: float = DEFAULT_FOV) -> Camera:
@@ -55,12 +65,21 @@ def overview_camera(scene, aspect: float, axes: np.ndarray, fov_y: float = DEFAU
     if cube is None or trace.size == 0:
         centers, radii = [s.positions], [s.vdw_radii]
     else:  # the cube's atoms lie within the cube grown by their radius
-        centers, radii = [s.positions[trace], cube.corners()], [np.zeros(trace.size), np.full(8, s.vdw_radii.max())]
+        centers, radii = (
+            [s.positions[trace], cube.corners()],
+            [np.zeros(trace.size), np.full(8, s.vdw_radii.max())],
+        )
     if scene.probe is not None:
         centers.append(scene.probe.center[None, :])
         radii.append(np.array([scene.probe.radius]))
-    return Camera.framing(np.concatenate(centers), np.concatenate(radii), aspect, fov_y=fov_y,
-                          direction=axes[:, 2], up=axes[:, 1])
+    return Camera.framing(
+        np.concatenate(centers),
+        np.concatenate(radii),
+        aspect,
+        fov_y=fov_y,
+        direction=axes[:, 2],
+        up=axes[:, 1],
+    )
 
 
 def turned_axes(axes: np.ndarray, p0: tuple[float, float], p1: tuple[float, float]) -> np.ndarray:
@@ -74,15 +93,21 @@ def turned_axes(axes: np.ndarray, p0: tuple[float, float], p1: tuple[float, floa
 class WorkspaceView:
     """Which view is shown, and the workspace view's zoom and turn under way."""
 
-    def __init__(self, mode: str = WORKSPACE, send_view: Callable[[np.ndarray], None] | None = None,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+    def __init__(
+        self,
+        mode: str = WORKSPACE,
+        send_view: Callable[[np.ndarray], None] | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
         if mode not in VIEWS:
             raise ValueError(f"view must be one of {', '.join(VIEWS)}, got {mode!r}")
         self.mode = mode
         self.zoom = 1.0
         self.send_view = send_view  # None: nobody to tell (standalone), the turn stays local
         self._clock = clock
-        self._turning: np.ndarray | None = None  # axes sent (or to send) that the daemon has not shown yet
+        self._turning: np.ndarray | None = (
+            None  # axes sent (or to send) that the daemon has not shown yet
+        )
         self._last_sent = -math.inf
         self._local_axes: np.ndarray | None = None  # standalone: the turn itself
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 from mcap.reader import make_reader
-
 from sasprobe.daemon.recording.replay import load_session
 from sasprobe.protocol.pose import FLAG_FAULT
 
@@ -21,7 +20,9 @@ def recorded_outage(path, failed_at_ns: int) -> dict:
     s = load_session(path)
     assert s.missing_ticks == 0, "the recording has holes"
     with open(path, "rb") as f:
-        log_ns = {m.sequence: m.log_time for _, _, m in make_reader(f).iter_messages(topics=["device"])}
+        log_ns = {
+            m.sequence: m.log_time for _, _, m in make_reader(f).iter_messages(topics=["device"])
+        }
     times = np.array([log_ns[int(q)] for q in s.seq])
     after = np.flatnonzero(times > failed_at_ns)
     assert after.size, "no tick after the arm stopped answering"
@@ -29,10 +30,17 @@ def recorded_outage(path, failed_at_ns: int) -> dict:
     assert faulted, "the outage was never flagged"
     start = faulted[0]
     detect_ns = int(times[start] - times[after[0]])
-    assert detect_ns <= DETECT_WITHIN_NS, f"flagged {detect_ns / 1e6:.1f} ms after the first tick of the outage"
+    assert detect_ns <= DETECT_WITHIN_NS, (
+        f"flagged {detect_ns / 1e6:.1f} ms after the first tick of the outage"
+    )
     end = start
     while end < s.n_ticks and s.flags[end] & FLAG_FAULT:
         end += 1
     assert not np.any(s.force_n[start:end]), "a faulted tick wrote force"
-    return {"session": s, "start": start, "end": end, "detect_ms": detect_ns / 1e6,
-            "errors": [s.errors.get(i) for i in range(start, end)]}
+    return {
+        "session": s,
+        "start": start,
+        "end": end,
+        "detect_ms": detect_ns / 1e6,
+        "errors": [s.errors.get(i) for i in range(start, end)],
+    }

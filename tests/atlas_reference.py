@@ -8,9 +8,9 @@ those unseen texels."""
 from __future__ import annotations
 
 import numpy as np
+from sasprobe.render.lighting.settings import HARD_SHADOW, ray_epsilon
 
 from tests.lighting_reference import FAR, Occluders, occluded_visibility
-from sasprobe.render.lighting.settings import HARD_SHADOW, ray_epsilon
 
 
 def octa_decode(e: np.ndarray) -> np.ndarray:
@@ -58,21 +58,36 @@ def points_kept(points: np.ndarray, culling) -> np.ndarray:
     return kept
 
 
-def bake_atom(atom: int, occ: Occluders, patch: int, n_directions: int, distance: float, sun=None, lamp=None):
+def bake_atom(
+    atom: int, occ: Occluders, patch: int, n_directions: int, distance: float, sun=None, lamp=None
+):
     """(accessibility, sun visibility, probe-light visibility, hidden) of one atom's patch,
     each (patch, patch): NaN where not computed (no `sun`, no `lamp`: (position, range))."""
     c, r = occ.centers[atom], occ.radii[atom]
     n = texel_normals(patch).reshape(-1, 3)
     x = c + r * n
     others = np.flatnonzero(~occ.culled & (np.arange(len(occ.radii)) != atom))
-    inside = np.linalg.norm(x[:, None, :] - occ.centers[others][None], axis=-1) < occ.radii[others][None]
-    hidden = inside.any(axis=1) | ~points_kept(x, occ.culling)  # never seen: inside another atom, or cut away
+    inside = (
+        np.linalg.norm(x[:, None, :] - occ.centers[others][None], axis=-1) < occ.radii[others][None]
+    )
+    hidden = inside.any(axis=1) | ~points_kept(
+        x, occ.culling
+    )  # never seen: inside another atom, or cut away
     o = x + n * ray_epsilon(x)[:, None]
     dirs = directions(n_directions)
     w = np.maximum(n @ dirs.T, 0.0)  # (texels, D)
     texel, k = np.nonzero(w > 0)
-    vis = occluded_visibility(o[texel], dirs[k], 0.0, distance, np.full(texel.size, atom), np.arange(len(occ.radii)),
-                              occ, HARD_SHADOW, False)
+    vis = occluded_visibility(
+        o[texel],
+        dirs[k],
+        0.0,
+        distance,
+        np.full(texel.size, atom),
+        np.arange(len(occ.radii)),
+        occ,
+        HARD_SHADOW,
+        False,
+    )
     open_ = np.zeros_like(w)
     open_[texel, k] = vis
     ambient = (w * open_).sum(axis=1) / w.sum(axis=1)
@@ -81,9 +96,17 @@ def bake_atom(atom: int, occ: Occluders, patch: int, n_directions: int, distance
         d = np.asarray(sun, dtype=np.float64) / np.linalg.norm(sun)
         facing = n @ d > 0
         sun_vis = np.zeros(len(n))
-        sun_vis[facing] = occluded_visibility(o[facing], np.broadcast_to(d, o[facing].shape).copy(), 0.0, FAR,
-                                              np.full(facing.sum(), atom), np.arange(len(occ.radii)), occ,
-                                              HARD_SHADOW, False)
+        sun_vis[facing] = occluded_visibility(
+            o[facing],
+            np.broadcast_to(d, o[facing].shape).copy(),
+            0.0,
+            FAR,
+            np.full(facing.sum(), atom),
+            np.arange(len(occ.radii)),
+            occ,
+            HARD_SHADOW,
+            False,
+        )
     lamp_vis = np.full(len(n), np.nan)
     if lamp is not None:
         position, reach = np.asarray(lamp[0], dtype=np.float64), float(lamp[1])
@@ -93,10 +116,24 @@ def bake_atom(atom: int, occ: Occluders, patch: int, n_directions: int, distance
         lamp_vis = np.where(np.einsum("ij,ij->i", n, d) > 0, 1.0, 0.0)
         lamp_vis[np.linalg.norm(position - x, axis=1) > reach] = 1.0
         go = np.flatnonzero((lamp_vis == 1.0) & (np.linalg.norm(position - x, axis=1) <= reach))
-        lamp_vis[go] = occluded_visibility(o[go], d[go], 0.0, length[go], np.full(go.size, atom),
-                                           np.arange(len(occ.radii)), occ, HARD_SHADOW, False)
+        lamp_vis[go] = occluded_visibility(
+            o[go],
+            d[go],
+            0.0,
+            length[go],
+            np.full(go.size, atom),
+            np.arange(len(occ.radii)),
+            occ,
+            HARD_SHADOW,
+            False,
+        )
     shape = (patch, patch)
-    return ambient.reshape(shape), sun_vis.reshape(shape), lamp_vis.reshape(shape), hidden.reshape(shape)
+    return (
+        ambient.reshape(shape),
+        sun_vis.reshape(shape),
+        lamp_vis.reshape(shape),
+        hidden.reshape(shape),
+    )
 
 
 def fill_hidden(values: np.ndarray, hidden: np.ndarray, rounds: int = 2) -> np.ndarray:
@@ -106,7 +143,13 @@ def fill_hidden(values: np.ndarray, hidden: np.ndarray, rounds: int = 2) -> np.n
     p = v.shape[0]
     for _ in range(rounds):
         padded = np.pad(v, 1, mode="edge")
-        stack = np.stack([padded[1 + dy: 1 + dy + p, 1 + dx: 1 + dx + p] for dy in (-1, 0, 1) for dx in (-1, 0, 1)])
+        stack = np.stack(
+            [
+                padded[1 + dy : 1 + dy + p, 1 + dx : 1 + dx + p]
+                for dy in (-1, 0, 1)
+                for dx in (-1, 0, 1)
+            ]
+        )
         count = np.sum(~np.isnan(stack), axis=0)
         mean = np.where(count > 0, np.nansum(stack, axis=0) / np.maximum(count, 1), np.nan)
         v = np.where(np.isnan(v), mean, v)
@@ -119,5 +162,9 @@ def bilinear(atlas: np.ndarray, x: float, y: float) -> np.ndarray:
     fx, fy = x - 0.5 - x0, y - 0.5 - y0
     h, w = atlas.shape[:2]
     at = lambda i, j: atlas[min(max(j, 0), h - 1), min(max(i, 0), w - 1)]  # noqa: E731
-    return ((1 - fx) * (1 - fy) * at(x0, y0) + fx * (1 - fy) * at(x0 + 1, y0)
-            + (1 - fx) * fy * at(x0, y0 + 1) + fx * fy * at(x0 + 1, y0 + 1))
+    return (
+        (1 - fx) * (1 - fy) * at(x0, y0)
+        + fx * (1 - fy) * at(x0 + 1, y0)
+        + (1 - fx) * fy * at(x0, y0 + 1)
+        + fx * fy * at(x0 + 1, y0 + 1)
+    )

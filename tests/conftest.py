@@ -117,7 +117,9 @@ def _scheduling_given_back():
     after = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
     if after != before:
         os.sched_setscheduler(0, before[0], os.sched_param(before[1]))
-        pytest.fail(f"the test left the test process at scheduling policy {after[0]}, priority {after[1]}")
+        pytest.fail(
+            f"the test left the test process at scheduling policy {after[0]}, priority {after[1]}"
+        )
 
 
 @pytest.fixture(autouse=True)
@@ -130,7 +132,9 @@ def _gl_checks(request):
     ctx = request.getfixturevalue("gl")
     needed = request.node.get_closest_marker("needs_gl")
     if needed is not None and ctx.version_code < needed.args[0]:
-        pytest.fail(f"needs OpenGL {needed.args[0] / 100:.1f}; {ctx.info['GL_RENDERER']} offers {ctx.info['GL_VERSION']}")
+        pytest.fail(
+            f"needs OpenGL {needed.args[0] / 100:.1f}; {ctx.info['GL_RENDERER']} offers {ctx.info['GL_VERSION']}"
+        )
     _drain_gl_errors(ctx)  # an earlier test's leftovers are that test's failure, not this one's
     yield
     errors = _drain_gl_errors(ctx)
@@ -142,12 +146,26 @@ def xvfb(gl):
     """A private X server (Xvfb) for the window tests: its DISPLAY string. Without Xvfb the
     window tests skip, saying so; under CI=true they fail instead."""
     if shutil.which("Xvfb") is None:
-        skip_or_fail("no X server for the window tests: Xvfb is not installed (Debian package xvfb)")
+        skip_or_fail(
+            "no X server for the window tests: Xvfb is not installed (Debian package xvfb)"
+        )
     read_fd, write_fd = os.pipe()
     proc = subprocess.Popen(
-        ["Xvfb", "-displayfd", str(write_fd), "-screen", "0", f"{X_SCREEN[0]}x{X_SCREEN[1]}x24", "-nolisten", "tcp",
-         "-br", "-noreset"],
-        pass_fds=(write_fd,), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        [
+            "Xvfb",
+            "-displayfd",
+            str(write_fd),
+            "-screen",
+            "0",
+            f"{X_SCREEN[0]}x{X_SCREEN[1]}x24",
+            "-nolisten",
+            "tcp",
+            "-br",
+            "-noreset",
+        ],
+        pass_fds=(write_fd,),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
     )
     os.close(write_fd)
     # Xvfb writes the number, then "\n" in a second write: closing the pipe before the
@@ -174,8 +192,14 @@ def xvfb(gl):
 def run_window_check(display: str, module: str) -> None:
     """Run a window check script on the X server in its own process (GLX and this
     process's EGL context do not mix); it prints 'keys ok' when every check passed."""
-    r = subprocess.run([sys.executable, "-m", module], capture_output=True, text=True, timeout=300,
-                       env=dict(os.environ, DISPLAY=display), cwd=REPO_ROOT)
+    r = subprocess.run(
+        [sys.executable, "-m", module],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env=dict(os.environ, DISPLAY=display),
+        cwd=REPO_ROOT,
+    )
     assert r.returncode == 0 and r.stdout.strip().endswith("keys ok"), r.stdout + r.stderr
 
 

@@ -22,8 +22,17 @@ DEVICE = "sim"
 
 def cli_many(*commands: tuple[str, ...], timeout: float = 120) -> list[subprocess.CompletedProcess]:
     """Run several `sasprobe` commands at once (start-up dominates short ones)."""
-    procs = [subprocess.Popen([*CLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                              cwd=REPO_ROOT, env=dict(os.environ, PYTHONUNBUFFERED="1")) for args in commands]
+    procs = [
+        subprocess.Popen(
+            [*CLI, *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            cwd=REPO_ROOT,
+            env=dict(os.environ, PYTHONUNBUFFERED="1"),
+        )
+        for args in commands
+    ]
     results = []
     for args, proc in zip(commands, procs):
         out, err = proc.communicate(timeout=timeout)
@@ -38,15 +47,26 @@ class DaemonProcess:
     stdout events are checked against protocol/schemas/events.schema.json; `left_behind`
     lists what the folder held once it stopped."""
 
-    def __init__(self, *args: str, device: str = DEVICE, pub: str | None = None, ctl: str | None = None,
-                 ready_timeout: float = 90.0) -> None:
-        self.sockets = Path(tempfile.mkdtemp(prefix="spd"))  # short: ipc paths are limited to ~100 bytes
+    def __init__(
+        self,
+        *args: str,
+        device: str = DEVICE,
+        pub: str | None = None,
+        ctl: str | None = None,
+        ready_timeout: float = 90.0,
+    ) -> None:
+        self.sockets = Path(
+            tempfile.mkdtemp(prefix="spd")
+        )  # short: ipc paths are limited to ~100 bytes
         self.pub = pub or f"ipc://{self.sockets}/pub"
         self.ctl = ctl or f"ipc://{self.sockets}/ctl"
         self._stderr: str | None = None  # kept once the private folder is gone
         self.left_behind: list[str] | None = None  # the folder's names after the daemon stopped
-        self.child = DaemonChild(["--device", device, "--pub", self.pub, "--ctl", self.ctl, *args],
-                                 self.sockets / "daemon.log", cwd=self.sockets)
+        self.child = DaemonChild(
+            ["--device", device, "--pub", self.pub, "--ctl", self.ctl, *args],
+            self.sockets / "daemon.log",
+            cwd=self.sockets,
+        )
         self.proc = self.child.proc
         try:
             self.ready = self.child.wait_ready(ready_timeout)

@@ -14,7 +14,6 @@ from __future__ import annotations
 from itertools import combinations
 
 import numpy as np
-
 from sasprobe.molecule import parse_structure
 
 
@@ -72,7 +71,9 @@ def _triple_points(c1, r1, c2, r2, c3, r3):
     return [base + z * ez, base - z * ez]
 
 
-def constrained_candidates(centers: np.ndarray, radii: np.ndarray, g: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+def constrained_candidates(
+    centers: np.ndarray, radii: np.ndarray, g: np.ndarray, tol: float = 1e-9
+) -> np.ndarray:
     """Free stationary points of |x - g| on the union's boundary (plus g itself when free)."""
     pts = []
     n = len(centers)

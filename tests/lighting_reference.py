@@ -18,7 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from sasprobe.render.gl.targets import ATOM_BACKGROUND, ATOM_PROBE
 from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.lighting.settings import (
@@ -52,11 +51,17 @@ class Occluders:
         self.centre_clipped = self.culling.centre_clipped(self.centers)
 
     @classmethod
-    def of(cls, gpu_grid) -> "Occluders":
+    def of(cls, gpu_grid) -> Occluders:
         """The same occluders a GpuGrid holds (its culled flags, clipping and probe)."""
         probe = np.asarray(gpu_grid.probe_sphere, dtype=np.float64)
-        return cls(gpu_grid.grid.centers, gpu_grid.vdw_radii, gpu_grid.culled_mask.copy(), gpu_grid.culling,
-                   probe if probe[3] > 0 else None, gpu_grid.probe_reach)
+        return cls(
+            gpu_grid.grid.centers,
+            gpu_grid.vdw_radii,
+            gpu_grid.culled_mask.copy(),
+            gpu_grid.culling,
+            probe if probe[3] > 0 else None,
+            gpu_grid.probe_reach,
+        )
 
 
 # ------------------------------------------------------------------ rays and clipping
@@ -122,20 +127,26 @@ def segment_visibility(o, d, t0, t1, skip, centers, radii, ids, soft: SoftShadow
         sl = slice(a, min(r, a + chunk))
         f = centers[None, :, :] - o[sl, None, :]
         t = np.clip(np.einsum("rmk,rk->rm", f, d[sl]), t0[sl, None], t1[sl, None])
-        with np.errstate(invalid="ignore"):  # a segment culled whole (t1 = -inf) gives NaN: `live` drops it
+        with np.errstate(
+            invalid="ignore"
+        ):  # a segment culled whole (t1 = -inf) gives NaN: `live` drops it
             q = f - t[..., None] * d[sl, None, :]
         b2 = np.einsum("rmk,rmk->rm", q, q)
         if soft.inner == soft.outer == 0.0:  # hard: blocked where b < r
             v = np.where(b2 < radii[None, :] ** 2, 0.0, 1.0)
         else:
             s = np.clip(t / soft.growth, 0.0, 1.0) if soft.growth > 0 else 1.0
-            v = _smooth_visibility(np.sqrt(b2), np.maximum(radii + soft.inner * s, 0.0), radii + soft.outer * s)
+            v = _smooth_visibility(
+                np.sqrt(b2), np.maximum(radii + soft.inner * s, 0.0), radii + soft.outer * s
+            )
         v[ids[None, :] == skip[sl, None]] = 1.0
         vis[sl] = np.where(live[sl], v.min(axis=1), 1.0)
     return vis
 
 
-def occluded_visibility(o, d, t0, t1, skip, candidates, occ: Occluders, soft: SoftShadow, with_probe):
+def occluded_visibility(
+    o, d, t0, t1, skip, candidates, occ: Occluders, soft: SoftShadow, with_probe
+):
     """Visibility of segments against the candidate atoms (culled ones excluded, each
     segment clipped to what the planes and cube keep) and, where `with_probe`, the probe
     sphere (never clipped)."""
@@ -146,7 +157,9 @@ def occluded_visibility(o, d, t0, t1, skip, candidates, occ: Occluders, soft: So
     if occ.probe is not None and np.any(with_probe):
         t0 = np.broadcast_to(t0, vis.shape)
         t1 = np.where(with_probe, np.broadcast_to(t1, vis.shape), -np.inf)
-        probe = segment_visibility(o, d, t0, t1, skip, occ.probe[None, :3], occ.probe[3:4], np.array([ATOM_PROBE]), soft)
+        probe = segment_visibility(
+            o, d, t0, t1, skip, occ.probe[None, :3], occ.probe[3:4], np.array([ATOM_PROBE]), soft
+        )
         vis = np.minimum(vis, probe)
     return vis
 
@@ -161,8 +174,14 @@ def _flatten(positions, normals, atom_ids):
 
 
 # ------------------------------------------------------------------ shadows
-def light_visibility(positions, normals, atom_ids, light: DirectionalLight | PointLight, occ: Occluders,
-                     soft: SoftShadow = HARD_SHADOW) -> np.ndarray:
+def light_visibility(
+    positions,
+    normals,
+    atom_ids,
+    light: DirectionalLight | PointLight,
+    occ: Occluders,
+    soft: SoftShadow = HARD_SHADOW,
+) -> np.ndarray:
     """Visibility of a light (0..1) at G-buffer pixels; 1 on background. Pixels facing away
     from the light get 0 (their own atom blocks it). For a point light, pixels farther than
     its radius get 1 (unlit anyway, not traced) and the probe sphere, which holds the light,
@@ -186,8 +205,17 @@ def light_visibility(positions, normals, atom_ids, light: DirectionalLight | Poi
     facing = np.einsum("ij,ij->i", n, d) > 0
     vis = np.where(traced, 0.0, 1.0)
     go = traced & facing
-    vis[go] = occluded_visibility(o[go], d[go], 0.0, t1[go], ids[go], np.arange(occ.centers.shape[0]), occ, soft,
-                                  with_probe[go])
+    vis[go] = occluded_visibility(
+        o[go],
+        d[go],
+        0.0,
+        t1[go],
+        ids[go],
+        np.arange(occ.centers.shape[0]),
+        occ,
+        soft,
+        with_probe[go],
+    )
     out[pick] = vis
     return out.reshape(shape)
 
@@ -206,11 +234,18 @@ def probe_occlusion(p, n, probe, reach):
     """The probe's share: its sphere occlusion times (1 - (l / reach)^4)^2 clipped to 0
     beyond `reach` (the probe light's window)."""
     x = np.linalg.norm(p - probe[:3], axis=-1) / reach
-    return sphere_occlusion(p, n, probe[:3], probe[3]) * np.clip(1.0 - x ** 4, 0.0, 1.0) ** 2
+    return sphere_occlusion(p, n, probe[:3], probe[3]) * np.clip(1.0 - x**4, 0.0, 1.0) ** 2
 
 
-def analytic_ao(positions, normals, atom_ids, occ: Occluders, neighbours: np.ndarray, k: int,
-                probe_neighbour_ids: np.ndarray | None = None) -> np.ndarray:
+def analytic_ao(
+    positions,
+    normals,
+    atom_ids,
+    occ: Occluders,
+    neighbours: np.ndarray,
+    k: int,
+    probe_neighbour_ids: np.ndarray | None = None,
+) -> np.ndarray:
     """Accessibility 1 - occlusion from each pixel's atom's first k neighbours (rows of
     `neighbours`, -1 padded; culled ones and those with a clipped centre skipped) and the
     probe, combined multiplicatively (prod(1 - occ_i), so overlapping occluders are not
@@ -225,13 +260,18 @@ def analytic_ao(positions, normals, atom_ids, occ: Occluders, neighbours: np.nda
         out[atoms] *= 1.0 - probe_occlusion(p[atoms], n[atoms], occ.probe, occ.probe_reach)
         on_probe = np.flatnonzero(ids == ATOM_PROBE)
         if on_probe.size and probe_neighbour_ids is not None:
-            lists = np.broadcast_to(np.asarray(probe_neighbour_ids)[:k], (on_probe.size, min(k, len(probe_neighbour_ids))))
+            lists = np.broadcast_to(
+                np.asarray(probe_neighbour_ids)[:k],
+                (on_probe.size, min(k, len(probe_neighbour_ids))),
+            )
             out[on_probe] = _product_of_accessibility(p[on_probe], n[on_probe], lists, occ)
     return out.reshape(shape)
 
 
 def _product_of_accessibility(p, n, lists, occ: Occluders):
-    usable = (lists >= 0) & ~occ.culled[np.maximum(lists, 0)] & ~occ.centre_clipped[np.maximum(lists, 0)]
+    usable = (
+        (lists >= 0) & ~occ.culled[np.maximum(lists, 0)] & ~occ.centre_clipped[np.maximum(lists, 0)]
+    )
     safe = np.maximum(lists, 0)
     occlusion = sphere_occlusion(p[:, None, :], n[:, None, :], occ.centers[safe], occ.radii[safe])
     return np.prod(np.where(usable, 1.0 - occlusion, 1.0), axis=1)
@@ -241,10 +281,14 @@ def cosine_directions(normals: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Cosine-weighted directions about unit normals (…, 3) from u in [0,1)^2 (…, S, 2)."""
     r = np.sqrt(u[..., 0])
     phi = 2.0 * np.pi * u[..., 1]
-    local = np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(0.0, 1.0 - u[..., 0]))], axis=-1)
+    local = np.stack(
+        [r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(0.0, 1.0 - u[..., 0]))], axis=-1
+    )
     # any orthonormal frame will do: build one from the axis least aligned with n
     n = normals[..., None, :]
-    helper = np.where(np.abs(n[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    helper = np.where(
+        np.abs(n[..., :1]) < 0.9, np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+    )
     t1 = np.cross(helper, n)
     t1 /= np.linalg.norm(t1, axis=-1, keepdims=True)
     t2 = np.cross(n, t1)
@@ -258,8 +302,16 @@ def stratified_unit_square(count_side: int, rng: np.random.Generator, batch: int
     return (cells[None] + rng.random((batch, cells.shape[0], 2))) / count_side
 
 
-def monte_carlo_ao(positions, normals, atom_ids, occ: Occluders, distance: float, samples_side: int,
-                   rng: np.random.Generator, grid=None) -> np.ndarray:
+def monte_carlo_ao(
+    positions,
+    normals,
+    atom_ids,
+    occ: Occluders,
+    distance: float,
+    samples_side: int,
+    rng: np.random.Generator,
+    grid=None,
+) -> np.ndarray:
     """Cosine-weighted accessibility: the fraction of rays from each pixel (samples_side²
     jittered-stratified directions) that travel `distance` Å without meeting a sphere
     (culled ones and the pixel's own atom excluded; the probe included except on its own
@@ -272,8 +324,14 @@ def monte_carlo_ao(positions, normals, atom_ids, occ: Occluders, distance: float
         pix = np.flatnonzero(ids == atom)
         p, n = p_all[pix], n_all[pix]
         if grid is not None:
-            center, radius = (occ.probe[:3], occ.probe[3]) if atom == ATOM_PROBE else (occ.centers[atom], occ.radii[atom])
-            reach = distance + radius + np.max(np.linalg.norm(p - center, axis=1) - radius, initial=0.0)
+            center, radius = (
+                (occ.probe[:3], occ.probe[3])
+                if atom == ATOM_PROBE
+                else (occ.centers[atom], occ.radii[atom])
+            )
+            reach = (
+                distance + radius + np.max(np.linalg.norm(p - center, axis=1) - radius, initial=0.0)
+            )
             candidates = grid.spheres_within(center, reach)
         else:
             candidates = everyone
@@ -281,7 +339,9 @@ def monte_carlo_ao(positions, normals, atom_ids, occ: Occluders, distance: float
         dirs = cosine_directions(n, u).reshape(-1, 3)
         o = np.repeat(p + n * ray_epsilon(p)[:, None], u.shape[1], axis=0)
         skip = np.full(o.shape[0], atom)
-        vis = occluded_visibility(o, dirs, 0.0, distance, skip, candidates, occ, HARD_SHADOW, atom != ATOM_PROBE)
+        vis = occluded_visibility(
+            o, dirs, 0.0, distance, skip, candidates, occ, HARD_SHADOW, atom != ATOM_PROBE
+        )
         out[pix] = vis.reshape(pix.size, -1).mean(axis=1)
     return out.reshape(shape)
 
@@ -343,15 +403,25 @@ def raycast_gbuffer(view, proj, width, height, occ: Occluders):
     position = np.zeros_like(o)
     position[hit] = o[hit] + best_t[hit, None] * d[hit]
     normal = np.zeros_like(o)
-    centre_of = np.where(best[:, None] == ATOM_PROBE, occ.probe[:3] if occ.probe is not None else 0.0,
-                         occ.centers[np.maximum(best, 0)])
-    radius_of = np.where(best == ATOM_PROBE, occ.probe[3] if occ.probe is not None else 1.0,
-                         occ.radii[np.maximum(best, 0)])
+    centre_of = np.where(
+        best[:, None] == ATOM_PROBE,
+        occ.probe[:3] if occ.probe is not None else 0.0,
+        occ.centers[np.maximum(best, 0)],
+    )
+    radius_of = np.where(
+        best == ATOM_PROBE,
+        occ.probe[3] if occ.probe is not None else 1.0,
+        occ.radii[np.maximum(best, 0)],
+    )
     normal[hit] = (position[hit] - centre_of[hit]) / radius_of[hit, None]
     cap = hit & best_cap
     normal[cap] = entry[cap]
     shape = (height, width)
-    return position.reshape(*shape, 3), normal.reshape(*shape, 3), best.reshape(shape).astype(np.int32)
+    return (
+        position.reshape(*shape, 3),
+        normal.reshape(*shape, 3),
+        best.reshape(shape).astype(np.int32),
+    )
 
 
 # ------------------------------------------------------------------ edge cueing
@@ -369,7 +439,10 @@ def edge_cueing(depth: np.ndarray, atom_ids: np.ndarray, settings) -> np.ndarray
     h, w = depth.shape
     line = np.zeros((h, w))
     halo = np.zeros((h, w))
-    reach = max(settings.line_width if settings.contours else 0.0, settings.halo_radius if settings.halos else 0.0)
+    reach = max(
+        settings.line_width if settings.contours else 0.0,
+        settings.halo_radius if settings.halos else 0.0,
+    )
     r = int(np.ceil(reach))
     padded = np.pad(depth, r, mode="constant", constant_values=np.inf)
     padded_ids = np.pad(np.asarray(atom_ids), r, mode="constant", constant_values=ATOM_BACKGROUND)
@@ -379,11 +452,15 @@ def edge_cueing(depth: np.ndarray, atom_ids: np.ndarray, settings) -> np.ndarray
             other = padded_ids[r + dy : r + dy + h, r + dx : r + dx + w] != atom_ids
             dist = np.hypot(dx, dy)
             with np.errstate(invalid="ignore"):
-                gap = np.where(np.isinf(front) | ~other, -np.inf, depth - front)  # inf - finite = inf: behind
+                gap = np.where(
+                    np.isinf(front) | ~other, -np.inf, depth - front
+                )  # inf - finite = inf: behind
             if settings.contours and dist <= settings.line_width:
                 strength = np.clip(gap / settings.line_threshold - 1.0, 0.0, 1.0)
                 line = np.maximum(line, np.where(gap > settings.line_threshold, strength, 0.0))
             if settings.halos and dist <= settings.halo_radius:
-                strength = (1.0 - dist / settings.halo_radius) * np.clip(gap / settings.halo_depth, 0.0, 1.0)
+                strength = (1.0 - dist / settings.halo_radius) * np.clip(
+                    gap / settings.halo_depth, 0.0, 1.0
+                )
                 halo = np.maximum(halo, np.where(gap > 0, strength, 0.0))
     return (1.0 - line) * (1.0 - settings.halo_strength * halo)

@@ -5,11 +5,10 @@ each lighting test module asks for with `pytest.mark.needs_gl(430)`)."""
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
 from sasprobe.render.camera import fit_bounding_sphere
-from sasprobe.render.lighting.grid import Culling, GpuGrid
 from sasprobe.render.lighting.gbuffer import RaycastGBuffer
+from sasprobe.render.lighting.grid import Culling, GpuGrid
 
 WIDTH, HEIGHT = 128, 96
 VIEW_DIRECTION = (0.3, 0.4, 1.0)
@@ -27,7 +26,9 @@ def cullings(structure) -> dict[str, Culling]:
 
 
 def camera(structure, width=WIDTH, height=HEIGHT, fill=1.25):
-    return fit_bounding_sphere(structure.positions, structure.vdw_radii, width / height, VIEW_DIRECTION, fill=fill)
+    return fit_bounding_sphere(
+        structure.positions, structure.vdw_radii, width / height, VIEW_DIRECTION, fill=fill
+    )
 
 
 def gbuffer_arrays(gpu_grid, view, proj, width=WIDTH, height=HEIGHT):
@@ -38,14 +39,20 @@ def gbuffer_arrays(gpu_grid, view, proj, width=WIDTH, height=HEIGHT):
     return (gbuffer, *gbuffer.download())
 
 
-def probe_on_surface(structure, direction=VIEW_DIRECTION, probe_radius=DEFAULT_PROBE_RADIUS, lift=0.2):
+def probe_on_surface(
+    structure, direction=VIEW_DIRECTION, probe_radius=DEFAULT_PROBE_RADIUS, lift=0.2
+):
     """A probe centre on the solvent accessible surface: leaving the molecule's centre along
     `direction`, the first point outside every expanded sphere (+ `lift` Å)."""
     direction = np.asarray(direction, dtype=np.float64) / np.linalg.norm(direction)
     centre = structure.positions.mean(axis=0)
     t = np.arange(0.0, 80.0, 0.05)
     points = centre + t[:, None] * direction
-    gaps = np.linalg.norm(points[:, None, :] - structure.positions[None], axis=-1) - structure.vdw_radii - probe_radius
+    gaps = (
+        np.linalg.norm(points[:, None, :] - structure.positions[None], axis=-1)
+        - structure.vdw_radii
+        - probe_radius
+    )
     inside = np.flatnonzero(np.min(gaps, axis=1) < 0)
     return centre + (t[inside[-1]] + 0.05 + lift) * direction
 

@@ -10,7 +10,6 @@ from tests.window_support import glfw_window, press
 
 def main() -> None:
     import glfw
-
     from sasprobe.molecule import load_default
     from sasprobe.render.app import RenderOptions, make_renderer
     from sasprobe.render.camera import Camera
@@ -20,25 +19,36 @@ def main() -> None:
     from sasprobe.render.window import WindowApp
 
     size = (160, 120)
-    opts = RenderOptions(size=size, lighting=LightingSettings(shadows="hard", ao=AOSettings(mode="analytic")))
+    opts = RenderOptions(
+        size=size, lighting=LightingSettings(shadows="hard", ao=AOSettings(mode="analytic"))
+    )
     with glfw_window(size, "lighting keys") as (window, ctx):
+
         def build(structure, effects):
             from sasprobe.render.app import build_scene
 
             scene = build_scene(structure, opts, effects)
             scene.light_direction = -np.array([0.45, 0.8, 0.4]) / np.linalg.norm([0.45, 0.8, 0.4])
             center, radius = scene.bounding_sphere()
-            return make_renderer(ctx, scene, glfw.get_framebuffer_size(window), opts), Camera.fitted(
-                center, radius * 0.8, size[0] / size[1], direction=(0.2, 0.3, 1.0))
+            return make_renderer(
+                ctx, scene, glfw.get_framebuffer_size(window), opts
+            ), Camera.fitted(center, radius * 0.8, size[0] / size[1], direction=(0.2, 0.3, 1.0))
 
         app = WindowApp(window, ctx, StaticSource(load_default()), build, "test", opts.effects())
         app.run(frames=1)
         first = app._screenshot(glfw.get_framebuffer_size(window))
         fx = app.effects
-        assert fx.shadows and fx.ambient_occlusion and not fx.soft_shadows and not fx.edge_cueing, fx
+        assert fx.shadows and fx.ambient_occlusion and not fx.soft_shadows and not fx.edge_cueing, (
+            fx
+        )
 
-        for key, field in ((glfw.KEY_S, "shadows"), (glfw.KEY_V, "soft_shadows"), (glfw.KEY_A, "ambient_occlusion"),
-                           (glfw.KEY_E, "edge_cueing"), (glfw.KEY_G, "path_tracing")):
+        for key, field in (
+            (glfw.KEY_S, "shadows"),
+            (glfw.KEY_V, "soft_shadows"),
+            (glfw.KEY_A, "ambient_occlusion"),
+            (glfw.KEY_E, "edge_cueing"),
+            (glfw.KEY_G, "path_tracing"),
+        ):
             before = getattr(fx, field)
             press(app, key)
             assert getattr(fx, field) != before, field
@@ -55,7 +65,9 @@ def main() -> None:
         press(app, glfw.KEY_S)  # shadows off: the picture changes
         app.run(frames=1)
         second = app._screenshot(glfw.get_framebuffer_size(window))
-        assert np.abs(second.astype(int) - first.astype(int)).max() > 30, "switching shadows off changed nothing"
+        assert np.abs(second.astype(int) - first.astype(int)).max() > 30, (
+            "switching shadows off changed nothing"
+        )
         app.release()
     print("keys ok")
 

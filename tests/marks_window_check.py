@@ -18,7 +18,6 @@ SIZE = (320, 240)
 
 def main() -> None:
     import glfw
-
     from sasprobe.protocol.client import ControlClient
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
     from sasprobe.render.link import DaemonLink
@@ -28,13 +27,18 @@ def main() -> None:
     opts = RenderOptions(size=SIZE)
     link = DaemonLink(pub, ctl)
     with glfw_window(SIZE, "marks") as (window, ctx):
+
         def build(structure, effects):
             scene = build_scene(structure, opts, effects)
-            return make_renderer(ctx, scene, glfw.get_framebuffer_size(window), opts), initial_camera(scene, opts)
+            return make_renderer(
+                ctx, scene, glfw.get_framebuffer_size(window), opts
+            ), initial_camera(scene, opts)
 
         app = WindowApp(window, ctx, link, build, "test", opts.effects())
         deadline = time.monotonic() + 60
-        while (app.renderer is None or link.subscriber.pose is None) and time.monotonic() < deadline:
+        while (
+            app.renderer is None or link.subscriber.pose is None
+        ) and time.monotonic() < deadline:
             app.run(frames=1)
         assert app.renderer is not None, "no structure from the daemon"
         while link.live.clearance_A is None and time.monotonic() < deadline:
@@ -59,7 +63,10 @@ def main() -> None:
         frame = app.renderer.last_frame
         clip = frame.viewproj @ np.array([*marks[0]["position_A"], 1.0])
         w, h = frame.size
-        x, y = (clip[0] / clip[3] * 0.5 + 0.5) * w, (0.5 - clip[1] / clip[3] * 0.5) * h  # row 0 = top
+        x, y = (
+            (clip[0] / clip[3] * 0.5 + 0.5) * w,
+            (0.5 - clip[1] / clip[3] * 0.5) * h,
+        )  # row 0 = top
         ys, xs = np.nonzero(np.abs(with_marks.astype(int) - without.astype(int)).max(axis=2) > 8)
         assert xs.size > 100, f"the badge changed {xs.size} pixels"
         assert abs(xs.mean() - x) < 2.5 and abs(ys.mean() - y) < 2.5, (xs.mean(), ys.mean(), x, y)

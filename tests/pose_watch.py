@@ -83,7 +83,12 @@ def main(endpoint: str) -> None:
             poses += 1
             if poses == 1:
                 print("ready", flush=True)
-    print(json.dumps({"poses": poses, "invalid": invalid, "why": why, "gaps": gaps, "pauses": pauses}), flush=True)
+    print(
+        json.dumps(
+            {"poses": poses, "invalid": invalid, "why": why, "gaps": gaps, "pauses": pauses}
+        ),
+        flush=True,
+    )
 
 
 if __name__ == "__main__":

@@ -14,8 +14,13 @@ class PoseWatch:
     """tests/pose_watch.py in its own process (so nothing the test does holds its GIL)."""
 
     def __init__(self, pub: str) -> None:
-        self.proc = subprocess.Popen([sys.executable, "-m", "tests.pose_watch", pub], cwd=REPO_ROOT,
-                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "tests.pose_watch", pub],
+            cwd=REPO_ROOT,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
         line = self.proc.stdout.readline()
         if line.strip() != "ready":
             self.proc.kill()
@@ -28,8 +33,9 @@ class PoseWatch:
             self.proc.stdin.close()
             self.result = json.loads(self.proc.stdout.readline())
             self.proc.wait(30)
-        assert self.result["invalid"] == 0, \
+        assert self.result["invalid"] == 0, (
             f"{self.result['invalid']} of {self.result['poses']} poses broke the protocol: {self.result['why']}"
+        )
         return self.result
 
     def __enter__(self) -> PoseWatch:

@@ -6,20 +6,27 @@ from __future__ import annotations
 
 import numpy as np
 
-def pixel_rays(view: np.ndarray, proj: np.ndarray, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+
+def pixel_rays(
+    view: np.ndarray, proj: np.ndarray, width: int, height: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Eye position and unit world directions (H, W, 3) through pixel centres; row 0 = top."""
     inv_vp = np.linalg.inv(proj @ view)
     eye = np.linalg.inv(view)[:3, 3]
     xs = (np.arange(width) + 0.5) / width * 2.0 - 1.0
     ys = 1.0 - (np.arange(height) + 0.5) / height * 2.0
     ndc = np.stack(np.meshgrid(xs, ys), axis=-1)  # (H, W, 2)
-    far = np.concatenate([ndc, np.ones(ndc.shape[:2] + (2,))], axis=-1) @ inv_vp.T  # points on the far plane
+    far = (
+        np.concatenate([ndc, np.ones(ndc.shape[:2] + (2,))], axis=-1) @ inv_vp.T
+    )  # points on the far plane
     far = far[..., :3] / far[..., 3:]
     d = far - eye
     return eye, d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
-def reference_cast(view, proj, width, height, centers, radii, ids, planes=np.zeros((0, 4)), chunk=64):
+def reference_cast(
+    view, proj, width, height, centers, radii, ids, planes=np.zeros((0, 4)), chunk=64
+):
     """Closest visible point of spheres cut by half-spaces (a·x + d >= 0 kept), per pixel.
 
     Returns atom_id (H, W) int (-1 background), position (H, W, 3), normal (H, W, 3),
@@ -36,8 +43,8 @@ def reference_cast(view, proj, width, height, centers, radii, ids, planes=np.zer
     s_dist = planes[:, :3] @ eye + planes[:, 3]  # signed distance of the eye, per plane
     dn = d @ planes[:, :3].T  # (P, n_planes)
     for start in range(0, len(centers), chunk):
-        c = centers[start:start + chunk]
-        r = radii[start:start + chunk]
+        c = centers[start : start + chunk]
+        r = radii[start : start + chunk]
         oc = c - eye  # (K, 3)
         b = d @ oc.T  # (P, K)
         disc = b * b - (np.einsum("ij,ij->i", oc, oc) - r * r)[None, :]
@@ -74,7 +81,12 @@ def reference_cast(view, proj, width, height, centers, radii, ids, planes=np.zer
     nrm[surf] = (pos[surf] - centers[best_sphere[surf]]) / radii[best_sphere[surf], None]
     nrm[cap] = -planes[best_plane[cap], :3]
     shape = (height, width)
-    return best_id.reshape(shape), pos.reshape(shape + (3,)), nrm.reshape(shape + (3,)), cap.reshape(shape)
+    return (
+        best_id.reshape(shape),
+        pos.reshape(shape + (3,)),
+        nrm.reshape(shape + (3,)),
+        cap.reshape(shape),
+    )
 
 
 def edge_mask(ids: np.ndarray) -> np.ndarray:

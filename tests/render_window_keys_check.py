@@ -20,7 +20,6 @@ def changed_pixels(a: np.ndarray, b: np.ndarray) -> int:
 
 def main() -> None:
     import glfw
-
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_default
     from sasprobe.render.app import RenderOptions, build_scene, make_renderer
     from sasprobe.render.camera import Camera
@@ -35,13 +34,21 @@ def main() -> None:
     reach = structure.vdw_radii[top] + DEFAULT_PROBE_RADIUS
     probe = structure.positions[top] + np.array([0.0, 0.0, reach])
     normal = np.array([0.3, 0.4, 0.87]) / np.linalg.norm([0.3, 0.4, 0.87])
-    opts = RenderOptions(size=SIZE, probe=probe.tolist(), touched=top, nav_cube=[*probe, 10.0],
-                         clip=[[*-normal, float(normal @ (probe - [0.0, 0.0, 3.0]))]])
+    opts = RenderOptions(
+        size=SIZE,
+        probe=probe.tolist(),
+        touched=top,
+        nav_cube=[*probe, 10.0],
+        clip=[[*-normal, float(normal @ (probe - [0.0, 0.0, 3.0]))]],
+    )
     with glfw_window(SIZE, "render keys") as (window, ctx):
+
         def build(structure, effects):
             scene = build_scene(structure, opts, effects)
             center, radius = scene.bounding_sphere()
-            camera = Camera.fitted(center, radius, SIZE[0] / SIZE[1], direction=(1.0, 0.2, 0.3), up=(0.0, 0.0, 1.0))
+            camera = Camera.fitted(
+                center, radius, SIZE[0] / SIZE[1], direction=(1.0, 0.2, 0.3), up=(0.0, 0.0, 1.0)
+            )
             return make_renderer(ctx, scene, glfw.get_framebuffer_size(window), opts), camera
 
         app = WindowApp(window, ctx, StaticSource(structure), build, "test", opts.effects())
@@ -57,8 +64,19 @@ def main() -> None:
         base = frame()
         assert changed_pixels(with_readout, base) > 0, "the readout drew nothing"
 
-        render_keys = {k: v for k, v in TOGGLES.items() if v[0] not in
-                       ("readout", "shadows", "soft_shadows", "ambient_occlusion", "edge_cueing", "path_tracing")}
+        render_keys = {
+            k: v
+            for k, v in TOGGLES.items()
+            if v[0]
+            not in (
+                "readout",
+                "shadows",
+                "soft_shadows",
+                "ambient_occlusion",
+                "edge_cueing",
+                "path_tracing",
+            )
+        }
         assert set(render_keys) == set("FBNWPLDTKX"), render_keys
         for letter, (field, _label) in render_keys.items():
             key = getattr(glfw, f"KEY_{letter}")
@@ -66,16 +84,22 @@ def main() -> None:
             press(app, key)
             assert getattr(app.effects, field) != before, f"{letter} did not switch {field}"
             toggled = frame()
-            assert changed_pixels(base, toggled) >= 10, f"{letter} ({field}) changed {changed_pixels(base, toggled)} pixels"
+            assert changed_pixels(base, toggled) >= 10, (
+                f"{letter} ({field}) changed {changed_pixels(base, toggled)} pixels"
+            )
             press(app, key)
             assert getattr(app.effects, field) == before
             again = frame()
-            assert changed_pixels(base, again) == 0, f"{letter} ({field}) did not restore the picture"
+            assert changed_pixels(base, again) == 0, (
+                f"{letter} ({field}) did not restore the picture"
+            )
 
         press(app, glfw.KEY_M)
         assert app.renderer.sphere_mode == "sprite", app.renderer.sphere_mode
         sprites = frame()
-        assert changed_pixels(base, sprites) < 0.05 * base.shape[0] * base.shape[1], "sprites draw other spheres"
+        assert changed_pixels(base, sprites) < 0.05 * base.shape[0] * base.shape[1], (
+            "sprites draw other spheres"
+        )
         press(app, glfw.KEY_M)
         assert app.renderer.sphere_mode == "quad"
 

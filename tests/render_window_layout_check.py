@@ -18,14 +18,19 @@ def help_line_glyphs(lines: list[str]) -> tuple[np.ndarray, tuple[int, int]]:
     """The last line's band in the readout's image as a mask of its glyphs' bright pixels (full
     size, other rows False, the rest of the band False), its rows, and the image's size."""
     from PIL import Image, ImageDraw
-
     from sasprobe.render.passes.overlay import PADDING, fit_text, overlay_font, text_image
 
     image = text_image(lines)
     font = overlay_font()[0]
     probe = ImageDraw.Draw(Image.new("RGBA", (1, 1)))
-    line_h = max(probe.textbbox((0, 0), fit_text(line) or " ", font=font)[3]
-                 - probe.textbbox((0, 0), fit_text(line) or " ", font=font)[1] for line in lines) + 3
+    line_h = (
+        max(
+            probe.textbbox((0, 0), fit_text(line) or " ", font=font)[3]
+            - probe.textbbox((0, 0), fit_text(line) or " ", font=font)[1]
+            for line in lines
+        )
+        + 3
+    )
     top = PADDING + (len(lines) - 1) * line_h
     return image[..., :3].min(axis=2) >= 200, slice(top, top + line_h), image.shape[:2]
 
@@ -34,12 +39,13 @@ def molecule_extent(shot: np.ndarray, background) -> tuple[float, float]:
     """The fraction of the picture's width and height that pixels other than the background span."""
     drawn = np.abs(shot.astype(int) - np.asarray(background)).max(axis=2) > 30
     rows, cols = np.nonzero(drawn)
-    return (cols.max() - cols.min() + 1) / shot.shape[1], (rows.max() - rows.min() + 1) / shot.shape[0]
+    return (cols.max() - cols.min() + 1) / shot.shape[1], (
+        rows.max() - rows.min() + 1
+    ) / shot.shape[0]
 
 
 def main() -> None:
     import glfw
-
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_default
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
     from sasprobe.render.passes.navcube import WIRE_COLOR
@@ -51,7 +57,9 @@ def main() -> None:
 
     structure = load_default()
     top = int(np.argmax(structure.positions[:, 2]))
-    probe = structure.positions[top] + np.array([0.0, 0.0, structure.vdw_radii[top] + DEFAULT_PROBE_RADIUS])
+    probe = structure.positions[top] + np.array(
+        [0.0, 0.0, structure.vdw_radii[top] + DEFAULT_PROBE_RADIUS]
+    )
     centre = structure.positions.mean(axis=0)
     # the daemon's default cube on 1CRN: a fifth of its smallest width, about the probe
     opts = RenderOptions(size=SIZE, probe=probe.tolist(), nav_cube=[*probe, 5.57], view="workspace")
@@ -62,7 +70,9 @@ def main() -> None:
             scene = build_scene(structure, opts, effects)
             return make_renderer(ctx, scene, size, opts), initial_camera(scene, opts)
 
-        app = WindowApp(window, ctx, StaticSource(structure), build, "test", opts.effects(), opts.start_view)
+        app = WindowApp(
+            window, ctx, StaticSource(structure), build, "test", opts.effects(), opts.start_view
+        )
 
         def frame() -> np.ndarray:
             app.run(frames=1)
@@ -73,22 +83,36 @@ def main() -> None:
         press(app, glfw.KEY_H)
         shot = frame()
         lines = app.text()
-        assert lines[-len(HELP):] == HELP
+        assert lines[-len(HELP) :] == HELP
         glyphs, band, (height, width) = help_line_glyphs(lines)
-        assert height + OVERLAY_AT <= size[1] and width + OVERLAY_AT <= size[0], ((width, height), size)
+        assert height + OVERLAY_AT <= size[1] and width + OVERLAY_AT <= size[0], (
+            (width, height),
+            size,
+        )
         glyphs = glyphs[band]
-        shown = shot[OVERLAY_AT:OVERLAY_AT + height, OVERLAY_AT:OVERLAY_AT + width][band].min(axis=2) >= 160
+        shown = (
+            shot[OVERLAY_AT : OVERLAY_AT + height, OVERLAY_AT : OVERLAY_AT + width][band].min(
+                axis=2
+            )
+            >= 160
+        )
         assert glyphs.sum() > 100, "the help's last line has glyphs"
-        assert shown[glyphs].mean() > 0.9 and shown[~glyphs].mean() < 0.1, "the help's last line is not on the screen"
+        assert shown[glyphs].mean() > 0.9 and shown[~glyphs].mean() < 0.1, (
+            "the help's last line is not on the screen"
+        )
         press(app, glfw.KEY_H)
 
         # Tab: the overview frames the molecule, its cube and the trace across the picture
         press(app, glfw.KEY_O)  # no readout over the picture
         press(app, glfw.KEY_TAB)
         assert app.view.mode == OVERVIEW
-        background = np.round(np.array(app.renderer.pass_named("shading").settings.background) * 255)
+        background = np.round(
+            np.array(app.renderer.pass_named("shading").settings.background) * 255
+        )
         across, up = molecule_extent(frame(), background)
-        assert max(across, up) >= 0.6, f"the overview spans {across:.2f} of the width, {up:.2f} of the height"
+        assert max(across, up) >= 0.6, (
+            f"the overview spans {across:.2f} of the width, {up:.2f} of the height"
+        )
         app.release()
 
         # No structure yet: the cube and the probe where the poses put them, and the progress line
@@ -105,8 +129,10 @@ def main() -> None:
         app = WindowApp(window, ctx, Waiting(), build, "test", opts.effects(), opts.start_view)
         shot = frame()
         assert any("fetching the structure" in line for line in app.text())
-        below = shot[SIZE[1] // 3:]  # under the readout
-        near = lambda colour: np.abs(below.astype(int) - np.round(np.array(colour[:3]) * 255)).max(axis=2) <= 12  # noqa: E731
+        below = shot[SIZE[1] // 3 :]  # under the readout
+        near = lambda colour: (
+            np.abs(below.astype(int) - np.round(np.array(colour[:3]) * 255)).max(axis=2) <= 12
+        )  # noqa: E731
         assert near(WIRE_COLOR).sum() > 300, "the cube's wire is drawn"
         assert near(PROBE_COLOR).sum() > 300, "the probe is drawn"
         app.release()

@@ -38,7 +38,7 @@ def ray_cast_atom(structure, camera, aspect: float, px: float, py: float) -> int
     d /= np.linalg.norm(d)
     oc = structure.positions - camera.eye
     b = oc @ d
-    h = structure.vdw_radii ** 2 - (np.einsum("ij,ij->i", oc, oc) - b * b)
+    h = structure.vdw_radii**2 - (np.einsum("ij,ij->i", oc, oc) - b * b)
     hit = h >= 0
     t_hit = np.where(hit, b - np.sqrt(np.where(hit, h, 0.0)), np.inf)
     return int(np.argmin(t_hit)) if np.isfinite(t_hit.min()) else -1
@@ -66,7 +66,6 @@ def main() -> int:
     import glfw
     import imageio.v2 as iio2
     import imageio.v3 as iio
-
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid, load_default
     from sasprobe.molecule.sas import shrake_rupley
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
@@ -75,20 +74,28 @@ def main() -> int:
     from sasprobe.render.window import WindowApp
 
     structure = load_default()
-    areas = shrake_rupley(UniformGrid(structure.positions, structure.expanded_radii(DEFAULT_PROBE_RADIUS))).areas
+    areas = shrake_rupley(
+        UniformGrid(structure.positions, structure.expanded_radii(DEFAULT_PROBE_RADIUS))
+    ).areas
     side = int(np.argmax(structure.positions[:, 0]))
     probe = structure.positions[side] + [structure.vdw_radii[side] + DEFAULT_PROBE_RADIUS, 0.0, 0.0]
     opts = RenderOptions(size=SIZE, probe=probe.tolist())
     aspect = SIZE[0] / SIZE[1]
     shots = Path(tempfile.mkdtemp(prefix="sasprobe-shots-"))
     with glfw_window(SIZE, "pick check") as (window, ctx):
-        assert glfw.get_framebuffer_size(window) == SIZE, "the checks assume window pixels = framebuffer pixels"
+        assert glfw.get_framebuffer_size(window) == SIZE, (
+            "the checks assume window pixels = framebuffer pixels"
+        )
 
         def build(structure, effects):
             scene = build_scene(structure, opts, effects)
-            return make_renderer(ctx, scene, SIZE, opts, wait_for_areas=False), initial_camera(scene, opts)
+            return make_renderer(ctx, scene, SIZE, opts, wait_for_areas=False), initial_camera(
+                scene, opts
+            )
 
-        app = WindowApp(window, ctx, StaticSource(structure), build, "pick", opts.effects(), shots=shots)
+        app = WindowApp(
+            window, ctx, StaticSource(structure), build, "pick", opts.effects(), shots=shots
+        )
         app.run(frames=1)
         press(app, glfw.KEY_O)  # no readout: the label is the only text
         app.run(frames=1)
@@ -104,8 +111,12 @@ def main() -> int:
         assert app.picked is not None and app.picked[0] == expected, (app.picked, expected)
         label = app.picked[1]
         s = structure
-        for part in (f"chain {s.chain_ids[expected]}", f"{s.residue_names[expected]} {s.residue_numbers[expected]}",
-                     f"{s.atom_names[expected]} ({s.elements[expected]})", f"SAS {areas[expected]:.1f}"):
+        for part in (
+            f"chain {s.chain_ids[expected]}",
+            f"{s.residue_names[expected]} {s.residue_numbers[expected]}",
+            f"{s.atom_names[expected]} ({s.elements[expected]})",
+            f"SAS {areas[expected]:.1f}",
+        ):
             assert part in label, (part, label)
         app.run(frames=1)
         labelled = app._screenshot(SIZE)
@@ -113,7 +124,9 @@ def main() -> int:
         click(app, window, 2.0, 2.0)  # the background (the corner)
         assert app.picked is None
         app.run(frames=1)
-        assert changed(before, app._screenshot(SIZE)) == 0, "clearing the label did not restore the picture"
+        assert changed(before, app._screenshot(SIZE)) == 0, (
+            "clearing the label did not restore the picture"
+        )
         click(app, window, x, y)
 
         # --- Ctrl+S: a PNG equal to what the X server shows
@@ -125,7 +138,10 @@ def main() -> int:
         assert len(pngs) == 1, pngs
         on_screen = x_window_image(window)
         written = iio.imread(pngs[0])[..., :3]
-        assert written.shape == on_screen.shape == (SIZE[1], SIZE[0], 3), (written.shape, on_screen.shape)
+        assert written.shape == on_screen.shape == (SIZE[1], SIZE[0], 3), (
+            written.shape,
+            on_screen.shape,
+        )
         diff = np.abs(written.astype(int) - on_screen.astype(int)).max()
         assert diff <= 1, f"the screenshot differs from the window by up to {diff} levels"
         assert changed(before, written) > 200, "the screenshot lacks the label"
@@ -166,7 +182,9 @@ def main() -> int:
 
         # --- Z: the probe in the middle of the view
         press(app, glfw.KEY_Z)
-        np.testing.assert_allclose(project(app.camera, aspect, probe), [SIZE[0] / 2, SIZE[1] / 2], atol=1e-6)
+        np.testing.assert_allclose(
+            project(app.camera, aspect, probe), [SIZE[0] / 2, SIZE[1] / 2], atol=1e-6
+        )
         app.release()
     print("keys ok")
     return 0

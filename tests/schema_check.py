@@ -25,16 +25,26 @@ import math
 
 from sasprobe.protocol import schemas
 from sasprobe.protocol.control import COMMANDS
+
 from tests.test_protocol_pose import reference_decode  # imported here, not while poses pour in
 
 _FLAG = {f["name"]: 1 << f["bit"] for f in schemas.pose_layout()["flags"]}
-RECORDED_TOPICS = {"device": "device", "pose": "pose", "scene": "scene", "control": "control-record"}  # channel: schema
+RECORDED_TOPICS = {
+    "device": "device",
+    "pose": "pose",
+    "scene": "scene",
+    "control": "control-record",
+}  # channel: schema
 
 
 def _strict(node):
     if isinstance(node, dict):
         out = {key: _strict(value) for key, value in node.items()}
-        if out.get("type") == "object" and "properties" in out and "additionalProperties" not in out:
+        if (
+            out.get("type") == "object"
+            and "properties" in out
+            and "additionalProperties" not in out
+        ):
             out["additionalProperties"] = False
         return out
     if isinstance(node, list):
@@ -49,7 +59,9 @@ def _validator(ref: str):
 
     names = (*schemas.SCHEMA_FILES, "pose")
     registry = Registry().with_resources(
-        (schemas.URN + name, Resource.from_contents(_strict(copy.deepcopy(schemas.schema(name))))) for name in names)
+        (schemas.URN + name, Resource.from_contents(_strict(copy.deepcopy(schemas.schema(name)))))
+        for name in names
+    )
     return Draft202012Validator({"$ref": schemas.URN + ref}, registry=registry)
 
 
@@ -57,7 +69,10 @@ def assert_valid(ref: str, instance) -> None:
     """AssertionError listing every way `instance` breaks the (strict) schema `ref`."""
     errors = sorted(_validator(ref).iter_errors(instance), key=lambda e: list(e.absolute_path))
     if errors:
-        lines = [f"{'/'.join(map(str, e.absolute_path)) or '(root)'}: {e.message[:200]}" for e in errors[:8]]
+        lines = [
+            f"{'/'.join(map(str, e.absolute_path)) or '(root)'}: {e.message[:200]}"
+            for e in errors[:8]
+        ]
         raise AssertionError(f"{ref}: {len(errors)} schema error(s):\n  " + "\n  ".join(lines))
 
 
@@ -103,9 +118,14 @@ def check_pose_payload(payload: bytes) -> dict:
     assert len(payload) >= layout["size"], f"pose of {len(payload)} bytes"
     raw = reference_decode(payload)
     assert raw["version"] == layout["version"] and raw["reserved"] == 0, raw
-    assert raw["flags"] < 1 << len(layout["flags"]), f"seq {raw['seq']}: undocumented flag bits in {raw['flags']}"
-    record = {f["record"]: (list(raw[f["name"]]) if f["count"] > 1 else raw[f["name"]])
-              for f in layout["fields"] if f["record"] is not None}
+    assert raw["flags"] < 1 << len(layout["flags"]), (
+        f"seq {raw['seq']}: undocumented flag bits in {raw['flags']}"
+    )
+    record = {
+        f["record"]: (list(raw[f["name"]]) if f["count"] > 1 else raw[f["name"]])
+        for f in layout["fields"]
+        if f["record"] is not None
+    }
     for f in layout["fields"]:
         if f["type"] == "float64":
             values = record[f["record"]] if f["count"] > 1 else [record[f["record"]]]
@@ -119,15 +139,23 @@ def check_pose_agreement(p: dict, live: bool = True) -> None:
     (any but a replay, whose device times are the recording's) the device time is on the
     host's clock: not after the publish time."""
     flags = p["flags"]
-    assert bool(flags & _FLAG["contact"]) == (p["touched_atom"] >= 0), \
+    assert bool(flags & _FLAG["contact"]) == (p["touched_atom"] >= 0), (
         f"seq {p['seq']}: contact flag {bool(flags & _FLAG['contact'])} with touched_atom {p['touched_atom']}"
+    )
     if flags & (_FLAG["fault"] | _FLAG["clutched"]):
-        assert p["force_N"] == [0.0, 0.0, 0.0], f"seq {p['seq']}: force {p['force_N']} with flags {flags}"
-    assert not (flags & _FLAG["fault"] and flags & _FLAG["ramping"]), f"seq {p['seq']}: fault and ramping"
-    assert abs(math.sqrt(sum(q * q for q in p["orientation"])) - 1.0) < 1e-6, f"seq {p['seq']}: orientation"
+        assert p["force_N"] == [0.0, 0.0, 0.0], (
+            f"seq {p['seq']}: force {p['force_N']} with flags {flags}"
+        )
+    assert not (flags & _FLAG["fault"] and flags & _FLAG["ramping"]), (
+        f"seq {p['seq']}: fault and ramping"
+    )
+    assert abs(math.sqrt(sum(q * q for q in p["orientation"])) - 1.0) < 1e-6, (
+        f"seq {p['seq']}: orientation"
+    )
     assert p["device_t_ns"] >= 0, f"seq {p['seq']}: device time {p['device_t_ns']}"
-    assert not live or p["device_t_ns"] <= p["publish_t_ns"], \
+    assert not live or p["device_t_ns"] <= p["publish_t_ns"], (
         f"seq {p['seq']}: device time {p['device_t_ns']} not on the host's clock before {p['publish_t_ns']}"
+    )
 
 
 def check_record(topic: str, record: dict, live: bool = True) -> None:
@@ -138,7 +166,9 @@ def check_record(topic: str, record: dict, live: bool = True) -> None:
         check_pose_agreement(record, live)
 
 
-_checked_records: set = set()  # hash((topic, raw JSON)) of records already checked: a file read again is not re-checked
+_checked_records: set = (
+    set()
+)  # hash((topic, raw JSON)) of records already checked: a file read again is not re-checked
 
 
 class RecordingCheck:
@@ -154,7 +184,9 @@ class RecordingCheck:
         """One item as the reader gives it (`data` empty when it was not decoded)."""
         if topic in ("attachment", "metadata"):
             return
-        assert topic in RECORDED_TOPICS, f"a recording's message on the undocumented channel {topic!r}"
+        assert topic in RECORDED_TOPICS, (
+            f"a recording's message on the undocumented channel {topic!r}"
+        )
         record = data if data else json.loads(raw)
         key = hash((topic, bytes(raw)))
         if key not in _checked_records:
@@ -163,8 +195,9 @@ class RecordingCheck:
         if topic == "control" and record["cmd"] == "start" and self.device_kind is None:
             self.device_kind = record["args"]["device"]["kind"]
         elif topic == "pose":
-            assert record["device_t_ns"] >= self.device_t_ns, \
+            assert record["device_t_ns"] >= self.device_t_ns, (
                 f"seq {record['seq']}: device time {record['device_t_ns']} before the last, {self.device_t_ns}"
+            )
             self.device_t_ns = record["device_t_ns"]
 
 
@@ -225,7 +258,10 @@ def checking_clients():
     original_request, original_handle = client.ControlClient.request, client.Subscriber._handle
     original_decode = client.decode_reply
     received = threading.local()  # the frames of the reply the calling thread's client decoded last
-    for ref in ("scene", "control#/$defs/reply"):  # build the validators now, not while messages pour in
+    for ref in (
+        "scene",
+        "control#/$defs/reply",
+    ):  # build the validators now, not while messages pour in
         list(_validator(ref).iter_errors({}))
 
     def decode_reply(frames):
@@ -235,7 +271,9 @@ def checking_clients():
     def request(self, cmd, args=None, data=None, timeout_s=None):
         received.frames = None
         reply = original_request(self, cmd, args, data=data, timeout_s=timeout_s)
-        assert received.frames is not None, f"the client returned a reply to {cmd!r} it did not decode"
+        assert received.frames is not None, (
+            f"the client returned a reply to {cmd!r} it did not decode"
+        )
         check_reply_frames(cmd, received.frames)
         return reply
 

@@ -11,8 +11,10 @@ import shutil
 from sasprobe.cli.bench import daemon_devices
 from tests.conftest import skip_or_fail
 
-ROWS = {"Force Dimension omega.3 (stand-in libdhd)": "omega.3",
-        "Haply Inverse3 (stand-in Inverse Service)": "Haply Inverse3"}
+ROWS = {
+    "Force Dimension omega.3 (stand-in libdhd)": "omega.3",
+    "Haply Inverse3 (stand-in Inverse Service)": "Haply Inverse3",
+}
 
 
 def _numbers(tree):

@@ -30,7 +30,9 @@ def _small_data(reference_entries, folder, ids=SMALL):
     for entry in reference_entries:
         if entry.id in ids:
             (folder / entry.path.name).symlink_to(entry.path)
-            rows.append(f"{entry.id}\t{entry.path.name}\t{entry.format}\t{entry.atoms}\t{entry.note}")
+            rows.append(
+                f"{entry.id}\t{entry.path.name}\t{entry.format}\t{entry.atoms}\t{entry.note}"
+            )
     (folder / "MANIFEST.tsv").write_text("\n".join(rows) + "\n")
     return folder
 
@@ -47,9 +49,24 @@ def smoke(reference_entries, gl, tmp_path_factory):
     page = folder / "docs" / "benchmarks.md"
     report.write_page(page, "gpu-quick", GPU_PART_BEFORE)
     out = folder / "out"
-    result = run_cli("bench", "--smoke", "--json", "--out", str(out), "--page", str(page),
-                     env=dict(os.environ, SASPROBE_DATA=str(data)), timeout=SMOKE_TIMEOUT_S)
-    return {"result": result, "summary": json.loads(result.stdout), "out": out, "page": page, "data": data}
+    result = run_cli(
+        "bench",
+        "--smoke",
+        "--json",
+        "--out",
+        str(out),
+        "--page",
+        str(page),
+        env=dict(os.environ, SASPROBE_DATA=str(data)),
+        timeout=SMOKE_TIMEOUT_S,
+    )
+    return {
+        "result": result,
+        "summary": json.loads(result.stdout),
+        "out": out,
+        "page": page,
+        "data": data,
+    }
 
 
 def test_the_run_ends_well(smoke):
@@ -72,28 +89,72 @@ def _numbers(tree, path=""):
 
 # Per benchmark: the keys its figures hold, and the times (or rates) that must be positive.
 EXPECTED = {
-    "startup": ({"rows", "repeats", "help_over_python"},
-                lambda d: [r["median_s"] for r in d["rows"]] + [d["help_over_python"]]),
-    "grid": ({"structures", "embedded_load_s"},
-             lambda d: [s[k] for s in d["structures"] for k in ("load_s", "grid_s", "query_us")]),
-    "sas": ({"structures"}, lambda d: [s[k] for s in d["structures"] for k in ("ours_s", "freesasa_s")]),
-    "haptics": ({"rows", "stability", "ticks_per_session"},
-                lambda d: [r[k] for r in d["rows"] for k in ("p50_us", "p99_us", "setup_s")]),
-    "daemon": ({"runs", "devices", "loading"},
-               lambda d: [r["loop"]["rate_hz"] for r in d["runs"] + d["devices"]["rows"]]
-               + [r["tcp"]["received"] for r in d["runs"]] + [d["loading"]["poses"], d["loading"]["loads_of_big"]]),
-    "render": ({"modes", "cube", "scaling", "scenarios", "sessions"},
-               lambda d: [m[k][t] for m in d["modes"] for k in ("quad", "sprite", "mesh")
-                          for t in ("frame_s", "atoms_pass_s")]
-               + [r[k] for r in d["sessions"]["rows"] for k in ("cpu_ms", "first_frame_s", "connect_frames_1_s")]
-               + [r[k] for r in d["scaling"] for k in ("frame_s", "spheres_s")]
-               + [d["cube"]["frame_s"], d["cube"]["moving_frame_s"], d["cube"]["small_whole_frame_s"]]
-               + [row["ms"] for key in ("session", "orbit", "cube") for s in d["scenarios"][key]
-                  for row in s["rows"].values()]),
-    "lighting": ({"ao", "ao_scaling", "shadow_cells", "cube_shadows", "probe_light", "sun_light", "precomputed_bake"},
-                 lambda d: [r["ms"] for r in d["ao"]] + [r[k] for r in d["shadow_cells"] for k in ("hard_ms", "soft_ms")]
-                 + [r["analytic_ms"] for r in d["ao_scaling"]] + [r["cube_hard_ms"] for r in d["cube_shadows"]]
-                 + [d["path_trace_1spp_3_bounces_ms"]]),
+    "startup": (
+        {"rows", "repeats", "help_over_python"},
+        lambda d: [r["median_s"] for r in d["rows"]] + [d["help_over_python"]],
+    ),
+    "grid": (
+        {"structures", "embedded_load_s"},
+        lambda d: [s[k] for s in d["structures"] for k in ("load_s", "grid_s", "query_us")],
+    ),
+    "sas": (
+        {"structures"},
+        lambda d: [s[k] for s in d["structures"] for k in ("ours_s", "freesasa_s")],
+    ),
+    "haptics": (
+        {"rows", "stability", "ticks_per_session"},
+        lambda d: [r[k] for r in d["rows"] for k in ("p50_us", "p99_us", "setup_s")],
+    ),
+    "daemon": (
+        {"runs", "devices", "loading"},
+        lambda d: (
+            [r["loop"]["rate_hz"] for r in d["runs"] + d["devices"]["rows"]]
+            + [r["tcp"]["received"] for r in d["runs"]]
+            + [d["loading"]["poses"], d["loading"]["loads_of_big"]]
+        ),
+    ),
+    "render": (
+        {"modes", "cube", "scaling", "scenarios", "sessions"},
+        lambda d: (
+            [
+                m[k][t]
+                for m in d["modes"]
+                for k in ("quad", "sprite", "mesh")
+                for t in ("frame_s", "atoms_pass_s")
+            ]
+            + [
+                r[k]
+                for r in d["sessions"]["rows"]
+                for k in ("cpu_ms", "first_frame_s", "connect_frames_1_s")
+            ]
+            + [r[k] for r in d["scaling"] for k in ("frame_s", "spheres_s")]
+            + [d["cube"]["frame_s"], d["cube"]["moving_frame_s"], d["cube"]["small_whole_frame_s"]]
+            + [
+                row["ms"]
+                for key in ("session", "orbit", "cube")
+                for s in d["scenarios"][key]
+                for row in s["rows"].values()
+            ]
+        ),
+    ),
+    "lighting": (
+        {
+            "ao",
+            "ao_scaling",
+            "shadow_cells",
+            "cube_shadows",
+            "probe_light",
+            "sun_light",
+            "precomputed_bake",
+        },
+        lambda d: (
+            [r["ms"] for r in d["ao"]]
+            + [r[k] for r in d["shadow_cells"] for k in ("hard_ms", "soft_ms")]
+            + [r["analytic_ms"] for r in d["ao_scaling"]]
+            + [r["cube_hard_ms"] for r in d["cube_shadows"]]
+            + [d["path_trace_1spp_3_bounces_ms"]]
+        ),
+    ),
 }
 
 
@@ -104,7 +165,9 @@ def test_every_benchmark_has_its_checks():
 @pytest.mark.parametrize("name", sorted(EXPECTED))
 def test_benchmark_runs_with_sane_figures(smoke, name):
     summary = smoke["summary"]
-    assert name in summary["benchmarks"], f"{name} did not run: {summary['failed'].get(name) or summary['skipped'].get(name)}"
+    assert name in summary["benchmarks"], (
+        f"{name} did not run: {summary['failed'].get(name) or summary['skipped'].get(name)}"
+    )
     figures = summary["benchmarks"][name]
     keys, positive = EXPECTED[name]
     assert keys <= set(figures), keys - set(figures)
@@ -118,7 +181,9 @@ def test_benchmark_runs_with_sane_figures(smoke, name):
     if name == "haptics":
         assert {r["method"] for r in figures["rows"]} == {"proxy", "penalty"}
         stability = figures["stability"]
-        assert len(stability["cells"]) == 2 * len(stability["rates_hz"]) * len(stability["stiffness_n_per_mm"])
+        assert len(stability["cells"]) == 2 * len(stability["rates_hz"]) * len(
+            stability["stiffness_n_per_mm"]
+        )
 
 
 def test_report_names_the_machine_and_every_benchmark(smoke):
@@ -127,7 +192,10 @@ def test_report_names_the_machine_and_every_benchmark(smoke):
     machine = summary["machine"]
     assert machine["cpu"] and machine["cores"] >= 1 and machine["gl_renderer"] and machine["python"]
     text = (out / "report.md").read_text()
-    assert f"| cpu | {machine['cpu']} |" in text and f"| gl_renderer | {machine['gl_renderer']} |" in text
+    assert (
+        f"| cpu | {machine['cpu']} |" in text
+        and f"| gl_renderer | {machine['gl_renderer']} |" in text
+    )
     assert summary["date"] in text
     for name in bench.available():
         assert re.search(rf"^\| {name} \| \d+\.\d \|$", text, re.M), name
@@ -141,7 +209,9 @@ def test_page_holds_the_run_and_keeps_the_gpu_part(smoke):
     page, summary = smoke["page"], smoke["summary"]
     text = page.read_text()
     assert text.startswith("# Benchmarks\n") and GPU_PART_BEFORE in text
-    run = text[text.index("<!-- sasprobe bench: all -->"):text.index("<!-- sasprobe bench: end all -->")]
+    run = text[
+        text.index("<!-- sasprobe bench: all -->") : text.index("<!-- sasprobe bench: end all -->")
+    ]
     assert summary["date"] in run and f"| cpu | {summary['machine']['cpu']} |" in run
     for name in bench.available():
         assert f"\n### {bench.load(name).TITLE}\n" in run
@@ -149,7 +219,9 @@ def test_page_holds_the_run_and_keeps_the_gpu_part(smoke):
     assert charts and all(c.startswith("benchmarks/") for c in charts)  # relative to the page
     for chart in charts:
         assert (page.parent / chart).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert not re.search(r"^### ", run.split("### Lighting", 1)[1], re.M)  # the benchmarks' own headings sit below
+    assert not re.search(
+        r"^### ", run.split("### Lighting", 1)[1], re.M
+    )  # the benchmarks' own headings sit below
 
 
 def test_gpu_check_writes_its_part_and_keeps_the_run(smoke, tmp_path):
@@ -157,14 +229,21 @@ def test_gpu_check_writes_its_part_and_keeps_the_run(smoke, tmp_path):
     shutil.copyfile(smoke["page"], page)
     shutil.copytree(smoke["page"].with_suffix(""), tmp_path / "benchmarks")
     before = page.read_text()
-    run_part = before[before.index("<!-- sasprobe bench: all -->"):]
-    run_part = run_part[:run_part.index("<!-- sasprobe bench: end all -->")]
-    r = run_cli("bench", "--gpu-quick", "--smoke", "--page", str(page),
-                env=dict(os.environ, SASPROBE_DATA=str(smoke["data"])), timeout=300)
+    run_part = before[before.index("<!-- sasprobe bench: all -->") :]
+    run_part = run_part[: run_part.index("<!-- sasprobe bench: end all -->")]
+    r = run_cli(
+        "bench",
+        "--gpu-quick",
+        "--smoke",
+        "--page",
+        str(page),
+        env=dict(os.environ, SASPROBE_DATA=str(smoke["data"])),
+        timeout=300,
+    )
     assert r.returncode == 0, r.stderr
     text = page.read_text()
     assert run_part in text and GPU_PART_BEFORE not in text
-    gpu = text[text.index("<!-- sasprobe bench: gpu-quick -->"):]
+    gpu = text[text.index("<!-- sasprobe bench: gpu-quick -->") :]
     assert "| cpu |" in gpu and "| 1crn + " in gpu and "| occlusion atlas bake |" in gpu
     assert text.index("sasprobe bench: all") < text.index("sasprobe bench: gpu-quick")
     charts = re.findall(r"\]\(benchmarks/([^)]+)\)", text)
@@ -172,36 +251,56 @@ def test_gpu_check_writes_its_part_and_keeps_the_run(smoke, tmp_path):
 
 
 @pytest.mark.filterwarnings("ignore:Data has no positive values")  # the chart of a zero time
-def test_a_failed_benchmark_is_one_line_and_the_others_still_report(reference_entries, tmp_path, monkeypatch,
-                                                                  capsys):
+def test_a_failed_benchmark_is_one_line_and_the_others_still_report(
+    reference_entries, tmp_path, monkeypatch, capsys
+):
     from sasprobe.cli.bench import machine, sas
     from sasprobe.cli.main import main
 
-    def zero_time(fn, repeats):  # the measurement runs, but its time reads 0: the report's ratio divides by it
+    def zero_time(
+        fn, repeats
+    ):  # the measurement runs, but its time reads 0: the report's ratio divides by it
         fn()
         return 0.0
 
     monkeypatch.setattr(sas, "median_time", zero_time)
-    monkeypatch.setattr(machine, "gl_renderer", lambda: "none")  # no GL context made in the test process
-    monkeypatch.setenv("SASPROBE_DATA", str(_small_data(reference_entries, tmp_path / "pdb", ids=("1crn",))))
+    monkeypatch.setattr(
+        machine, "gl_renderer", lambda: "none"
+    )  # no GL context made in the test process
+    monkeypatch.setenv(
+        "SASPROBE_DATA", str(_small_data(reference_entries, tmp_path / "pdb", ids=("1crn",)))
+    )
     out = tmp_path / "out"
     status = main(["bench", "--quick", "--only", "grid,sas,haptics", "--out", str(out)])
     err = capsys.readouterr().err
     assert status == 1 and "Traceback" not in err
     failed = [line for line in err.splitlines() if "bench sas failed" in line]
-    assert len(failed) == 1 and "ZeroDivisionError" in failed[0] and " at sasprobe.cli.bench.sas:" in failed[0]
+    assert (
+        len(failed) == 1
+        and "ZeroDivisionError" in failed[0]
+        and " at sasprobe.cli.bench.sas:" in failed[0]
+    )
     assert failed[0].endswith(f"(traceback in {out / 'sas.error.txt'})")
     assert "benchmark(s) failed: sas" in err.splitlines()[-1]
-    assert "bench haptics skipped: unknown reference structure" in err  # --quick wants 1CRN, 1TII, 1AON, 6ZU5
+    assert (
+        "bench haptics skipped: unknown reference structure" in err
+    )  # --quick wants 1CRN, 1TII, 1AON, 6ZU5
     text = (out / "report.md").read_text()
-    assert re.search(r"^\| sas \| failed: ZeroDivisionError: float division by zero at sasprobe\.cli\.bench\.sas:\d+ \|$",
-                     text, re.M)  # no path of this run's folder in a report that may become the page
+    assert re.search(
+        r"^\| sas \| failed: ZeroDivisionError: float division by zero at sasprobe\.cli\.bench\.sas:\d+ \|$",
+        text,
+        re.M,
+    )  # no path of this run's folder in a report that may become the page
     assert re.search(r"^\| haptics \| skipped: .*unknown reference structure", text, re.M)
-    assert "## Structure loading" in text and json.loads((out / "report.json").read_text())["failed"].keys() == {"sas"}
+    assert "## Structure loading" in text and json.loads((out / "report.json").read_text())[
+        "failed"
+    ].keys() == {"sas"}
     assert "Traceback" in (out / "sas.error.txt").read_text()
 
 
 def test_unknown_benchmark_name_is_one_line():
     result = run_cli("bench", "--only", "grid,nonsense")
     lines = result.stderr.strip().splitlines()
-    assert result.returncode == 2 and len(lines) == 1 and "unknown benchmark(s) nonsense" in lines[0]
+    assert (
+        result.returncode == 2 and len(lines) == 1 and "unknown benchmark(s) nonsense" in lines[0]
+    )

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from sasprobe.molecule.clearance import OPEN_RADIUS_A, ClearanceField
 
 RING_ATOMS, RING_RADIUS, CARBON = 12, 4.2, 1.70  # Bondi's carbon: inner radius 4.2 − 1.7 = 2.5 Å
@@ -54,10 +53,15 @@ def test_the_passage_is_a_local_maximum_of_the_brute_force_clearance_in_its_plan
         a = np.cross(t, [1.0, 0.0, 0.0] if abs(t[0]) < 0.9 else [0.0, 1.0, 0.0])
         a /= np.linalg.norm(a)
         b = np.cross(t, a)
-        around = [q + s * (np.cos(th) * a + np.sin(th) * b) for s in (1e-4, 1e-3, 1e-2, 0.1)
-                  for th in np.linspace(0, 2 * np.pi, 48, endpoint=False)]
+        around = [
+            q + s * (np.cos(th) * a + np.sin(th) * b)
+            for s in (1e-4, 1e-3, 1e-2, 0.1)
+            for th in np.linspace(0, 2 * np.pi, 48, endpoint=False)
+        ]
         best = max(brute(crambin, x).min() for x in around)
-        assert best <= d.min() + 1e-9, f"a point {best - d.min():.2e} Å wider lies next to the reported centre"
+        assert best <= d.min() + 1e-9, (
+            f"a point {best - d.min():.2e} Å wider lies next to the reported centre"
+        )
     assert bounded >= 8, "too few closed sections to check: the sample says nothing"
 
 
@@ -69,9 +73,13 @@ def ring_structure():
     from sasprobe.molecule import parse_structure
 
     a = 2 * np.pi * np.arange(RING_ATOMS) / RING_ATOMS
-    exact = np.stack([RING_RADIUS * np.cos(a), RING_RADIUS * np.sin(a), np.zeros(RING_ATOMS)], axis=1)
-    lines = [f"HETATM{k + 1:5d}  C   RNG A{k + 1:4d}    {x:8.3f}{y:8.3f}{z:8.3f}  1.00  0.00           C"
-             for k, (x, y, z) in enumerate(exact)]
+    exact = np.stack(
+        [RING_RADIUS * np.cos(a), RING_RADIUS * np.sin(a), np.zeros(RING_ATOMS)], axis=1
+    )
+    lines = [
+        f"HETATM{k + 1:5d}  C   RNG A{k + 1:4d}    {x:8.3f}{y:8.3f}{z:8.3f}  1.00  0.00           C"
+        for k, (x, y, z) in enumerate(exact)
+    ]
     data = ("\n".join(lines) + "\nEND\n").encode()
     return replace(parse_structure(data, name="ring", source="test:ring"), positions=exact), data
 
@@ -85,9 +93,19 @@ def ring_track(probe_radius: float = CARBON):
     z = np.round(np.linspace(-6.0, 6.0, 6001), 9)
     n = z.size
     proxy = np.stack([np.full(n, INNER - probe_radius), np.zeros(n), z], axis=1)
-    return Track(structure=structure, structure_file=data, probe_radius_A=probe_radius, rate_hz=1000.0,
-                 t_s=np.arange(n) / 1000.0, dt_s=np.full(n, 1e-3), seq=np.arange(n), proxy_A=proxy,
-                 force_N=np.full(n, 0.5), contact=np.ones(n, dtype=bool), touched_atom=np.zeros(n, dtype=np.int64))
+    return Track(
+        structure=structure,
+        structure_file=data,
+        probe_radius_A=probe_radius,
+        rate_hz=1000.0,
+        t_s=np.arange(n) / 1000.0,
+        dt_s=np.full(n, 1e-3),
+        seq=np.arange(n),
+        proxy_A=proxy,
+        force_N=np.full(n, 0.5),
+        contact=np.ones(n, dtype=bool),
+        touched_atom=np.zeros(n, dtype=np.int64),
+    )
 
 
 def test_a_ring_channel_gives_its_inner_radius_and_the_verdicts_either_side():
@@ -100,9 +118,13 @@ def test_a_ring_channel_gives_its_inner_radius_and_the_verdicts_either_side():
     found = analyse(track).found
     neck = found["bottleneck"]
     assert neck["radius_A"] == pytest.approx(INNER, abs=1e-9)
-    assert np.allclose(neck["center_A"], [0.0, 0.0, 0.0], atol=1e-6)  # on the axis, in the ring plane
+    assert np.allclose(
+        neck["center_A"], [0.0, 0.0, 0.0], atol=1e-6
+    )  # on the axis, in the ring plane
     assert neck["t_s"] == pytest.approx(3.0, abs=1e-9)
-    assert sorted(a["index"] for a in neck["atoms"]) == list(range(RING_ATOMS))  # the whole ring lines it
+    assert sorted(a["index"] for a in neck["atoms"]) == list(
+        range(RING_ATOMS)
+    )  # the whole ring lines it
     for point in found["path"]["points"]:  # the profile: the widest sphere on the axis at height z
         z = point["position_A"][2]
         want = np.hypot(RING_RADIUS, z) - CARBON
@@ -120,9 +142,12 @@ def test_the_live_readout_follows_the_ring():
 
     track = ring_track()
     live = LiveClearance()
-    poses = [Pose(seq=int(i), proxy_A=track.proxy_A[i], flags=FLAG_CONTACT) for i in range(0, track.n_ticks, 25)]
+    poses = [
+        Pose(seq=int(i), proxy_A=track.proxy_A[i], flags=FLAG_CONTACT)
+        for i in range(0, track.n_ticks, 25)
+    ]
     for start in range(0, len(poses), 4):  # a few poses per frame
-        live.update(track.structure, 1.7, poses[start:start + 4])
+        live.update(track.structure, 1.7, poses[start : start + 4])
         if live.passage_A is not None and live.passage_A < OPEN_RADIUS_A:
             z = live._evaluated[2]
             assert live.passage_A == pytest.approx(np.hypot(RING_RADIUS, z) - CARBON, abs=1e-9)

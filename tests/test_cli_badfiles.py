@@ -30,8 +30,9 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("badfiles")
     (d / "nan.pdb").write_text(_atom(1, "nan") + _atom(2, "3.000") + "END\n")
     (d / "huge.pdb").write_text(_atom(1, "1e30") + "END\n")
-    (d / "apart.pdb").write_text(_atom(1, "-9999.0", "-999.0", "-999.0") + _atom(2, "9999.0", "999.0", "999.0")
-                                 + "END\n")
+    (d / "apart.pdb").write_text(
+        _atom(1, "-9999.0", "-999.0", "-999.0") + _atom(2, "9999.0", "999.0", "999.0") + "END\n"
+    )
     (d / "bomb.pdb.gz").write_bytes(gzip.compress(bytes(1 << 20), 9) * 1024)  # 1 MiB -> 1 GiB
     (d / "folder").mkdir()
     os.mkfifo(d / "fifo")
@@ -40,7 +41,10 @@ def files(tmp_path_factory):
 
 def _one_line(out, *needles: str) -> None:
     lines = out.stderr.strip().splitlines()
-    assert out.returncode == 2 and len(lines) == 1 and "Traceback" not in out.stderr, (out.args, out.stderr)
+    assert out.returncode == 2 and len(lines) == 1 and "Traceback" not in out.stderr, (
+        out.args,
+        out.stderr,
+    )
     for needle in needles:
         assert needle in lines[0], (out.args, lines[0])
 
@@ -57,7 +61,10 @@ def test_structure_commands(files):
         (("info", str(d / "apart.pdb")), "grid cells"),
         (("info", str(d / "bomb.pdb.gz")), "inflates beyond"),
         (("sas", str(d / "fifo")), "is a FIFO"),
-        (("render", "--headless", "--molecule", str(d / "fifo"), "--out", str(d / "x.png")), "is a FIFO"),
+        (
+            ("render", "--headless", "--molecule", str(d / "fifo"), "--out", str(d / "x.png")),
+            "is a FIFO",
+        ),
         (("daemon", "--molecule", str(d / "bomb.pdb.gz"), "--seconds", "1"), "inflates beyond"),
         (("daemon", "--molecule", str(d / "apart.pdb"), "--seconds", "1"), "grid cells"),
     ]
@@ -87,8 +94,18 @@ def _corrupt_first_chunk(data: bytes) -> bytes:
 def test_recording_commands(files, tmp_path):
     d = files
     good = tmp_path / "good.mcap"
-    made = run_cli("daemon", "--seconds", "0.5", "--record", str(good), "--pub", f"ipc://{tmp_path}/p",
-                   "--ctl", f"ipc://{tmp_path}/c", "--no-realtime")
+    made = run_cli(
+        "daemon",
+        "--seconds",
+        "0.5",
+        "--record",
+        str(good),
+        "--pub",
+        f"ipc://{tmp_path}/p",
+        "--ctl",
+        f"ipc://{tmp_path}/c",
+        "--no-realtime",
+    )
     assert made.returncode == 0, made.stderr
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(_corrupt_first_chunk(good.read_bytes()))
@@ -116,12 +133,18 @@ def test_config_keys_options_and_home(files, tmp_path):
         (("daemon", "--inject-fault", "nan@-5+2"), "KIND@TICK"),
         (("daemon", "--inject-fault", "raise@10+-5"), "KIND@TICK"),
         (("daemon", "--inject-fault", "melt@10"), "unknown fault kind"),
-        (("daemon", "--device", "woodenhaptics:/dev/null", "--inject-fault", "nan@5"), "only the simulated arm"),
+        (
+            ("daemon", "--device", "woodenhaptics:/dev/null", "--inject-fault", "nan@5"),
+            "only the simulated arm",
+        ),
     ]
     for (args, needle), out in zip(cases, cli_many(*(args for args, _ in cases))):
         _one_line(out, needle)
     # An unreadable $HOME (here: a name too long to look up) is one warning, and the command works.
     out = run_cli("info", "--json", env=dict(os.environ, HOME="/" + "h" * 5000))
     lines = out.stderr.strip().splitlines()
-    assert out.returncode == 0 and len(lines) == 1 and lines[0].startswith("sasprobe: warning: cannot look for"), \
-        out.stderr
+    assert (
+        out.returncode == 0
+        and len(lines) == 1
+        and lines[0].startswith("sasprobe: warning: cannot look for")
+    ), out.stderr

@@ -8,15 +8,17 @@ from __future__ import annotations
 import os
 
 import pytest
-
 from sasprobe.daemon.recording.replay_scheme import REPLAY_SCHEME
 from sasprobe.devices.registry import SCHEMES
+
 from tests.conftest import run_cli
 
 
 @pytest.mark.parametrize("command", ["daemon", "demo", "devices"])
 def test_help_lists_every_device_scheme(command):
-    result = run_cli(command, "--help", env=dict(os.environ, COLUMNS="70"))  # narrow: summaries wrap, and must survive it
+    result = run_cli(
+        command, "--help", env=dict(os.environ, COLUMNS="70")
+    )  # narrow: summaries wrap, and must survive it
     assert result.returncode == 0, result.stderr
     text = " ".join(result.stdout.split())
     schemes = {**SCHEMES, "replay": REPLAY_SCHEME}

@@ -9,9 +9,26 @@ import pytest
 
 from tests.conftest import run_cli
 
-INFO_FIELDS = {"n_atoms", "n_chains", "n_residues", "bbox_min", "bbox_max", "backbone_segments",
-               "load_seconds", "grid_seconds", "grid"}
-GRID_FIELDS = {"cell_size", "dims", "n_cells", "n_nonempty", "max_per_cell", "mean_per_nonempty", "bytes"}
+INFO_FIELDS = {
+    "n_atoms",
+    "n_chains",
+    "n_residues",
+    "bbox_min",
+    "bbox_max",
+    "backbone_segments",
+    "load_seconds",
+    "grid_seconds",
+    "grid",
+}
+GRID_FIELDS = {
+    "cell_size",
+    "dims",
+    "n_cells",
+    "n_nonempty",
+    "max_per_cell",
+    "mean_per_nonempty",
+    "bytes",
+}
 
 
 def test_info_default_human_and_json():
@@ -21,7 +38,9 @@ def test_info_default_human_and_json():
     out = run_cli("info", "--json", "--probe-radius", "1.2", "--cell-size", "5")
     data = json.loads(out.stdout)
     assert INFO_FIELDS <= data.keys() and GRID_FIELDS <= data["grid"].keys()
-    assert data["n_atoms"] == 327 and data["grid"]["cell_size"] == 5.0 and data["probe_radius"] == 1.2
+    assert (
+        data["n_atoms"] == 327 and data["grid"]["cell_size"] == 5.0 and data["probe_radius"] == 1.2
+    )
 
 
 def test_info_json_on_every_shared_structure(reference_entries):
@@ -56,9 +75,13 @@ def bad_files(tmp_path_factory, reference_by_id):
         "truncated_at_line": (pdb[: pdb.index(b"ATOM    200")], "truncated"),
         "truncated_gzip": (gzip.compress(pdb)[:3000], "truncated gzip"),
         "truncated_cif": (cif[: len(cif) // 3], "cannot parse"),
-        "only_water": (b"".join(
-            f"HETATM{i + 1:5d}  O   HOH W{i + 1:4d}    {i * 3.0:8.3f}{0.0:8.3f}{0.0:8.3f}  1.00 10.00           O\n".encode()
-            for i in range(10)), "no atoms left"),
+        "only_water": (
+            b"".join(
+                f"HETATM{i + 1:5d}  O   HOH W{i + 1:4d}    {i * 3.0:8.3f}{0.0:8.3f}{0.0:8.3f}  1.00 10.00           O\n".encode()
+                for i in range(10)
+            ),
+            "no atoms left",
+        ),
     }
     paths = {}
     for name, (data, needle) in files.items():
@@ -71,8 +94,16 @@ def bad_files(tmp_path_factory, reference_by_id):
 
 @pytest.mark.parametrize(
     "case",
-    ["empty", "garbage_binary", "garbage_text", "truncated_midline", "truncated_at_line",
-     "truncated_gzip", "truncated_cif", "only_water"],
+    [
+        "empty",
+        "garbage_binary",
+        "garbage_text",
+        "truncated_midline",
+        "truncated_at_line",
+        "truncated_gzip",
+        "truncated_cif",
+        "only_water",
+    ],
 )
 def test_bad_structure_files_give_one_clear_line(bad_files, case):
     path, needle = bad_files[case]
@@ -91,15 +122,25 @@ def test_only_water_can_be_kept(bad_files):
     assert out.returncode == 0 and json.loads(out.stdout)["n_atoms"] > 0
 
 
-@pytest.mark.parametrize("args", [["--probe-radius", "0"], ["--probe-radius", "-1"], ["--probe-radius", "nan"],
-                                  ["--probe-radius", "50"], ["--cell-size", "abc"], ["--bogus"]])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["--probe-radius", "0"],
+        ["--probe-radius", "-1"],
+        ["--probe-radius", "nan"],
+        ["--probe-radius", "50"],
+        ["--cell-size", "abc"],
+        ["--bogus"],
+    ],
+)
 def test_bad_options_give_one_clear_line(args):
     _assert_one_line_error(run_cli("info", *args))
 
 
 def test_unknown_element_warns_once(tmp_path):
     lines = "".join(
-        f"ATOM  {i + 1:5d}  QQ  UNK A   1    {i * 3.0:8.3f}{0.0:8.3f}{0.0:8.3f}  1.00 10.00\n" for i in range(5)
+        f"ATOM  {i + 1:5d}  QQ  UNK A   1    {i * 3.0:8.3f}{0.0:8.3f}{0.0:8.3f}  1.00 10.00\n"
+        for i in range(5)
     )
     p = tmp_path / "odd.pdb"
     p.write_text(lines)

@@ -16,7 +16,7 @@ def _info_probe_radius(*args, env=None) -> tuple[int, float | None, str]:
 
 def test_file_sets_defaults_and_flags_win(tmp_path):
     cfg = tmp_path / "lab.toml"
-    cfg.write_text('[info]\nprobe-radius = 1.1\n[sas]\npoints = 64\n')
+    cfg.write_text("[info]\nprobe-radius = 1.1\n[sas]\npoints = 64\n")
     assert _info_probe_radius("--config", str(cfg))[1] == 1.1
     out = run_cli("--config", str(cfg), "info", "--json", "--probe-radius", "1.3")
     assert json.loads(out.stdout)["probe_radius"] == 1.3
@@ -51,7 +51,10 @@ def test_bad_config_gives_one_line(tmp_path):
         cfg.write_text(text)
         code, _, stderr = _info_probe_radius("--config", str(cfg))
         lines = stderr.strip().splitlines()
-        assert code == 2 and len(lines) == 1 and needle in lines[0] and str(cfg) in lines[0], (text, stderr)
+        assert code == 2 and len(lines) == 1 and needle in lines[0] and str(cfg) in lines[0], (
+            text,
+            stderr,
+        )
     code, _, stderr = _info_probe_radius("--config", str(tmp_path / "missing.toml"))
     assert code == 2 and "not found" in stderr
 

@@ -13,14 +13,14 @@ import time
 
 import pytest
 import zmq
-
 from sasprobe.daemon.faults import LoopLog
 from sasprobe.daemon.loop import enter_realtime
 from sasprobe.daemon.publisher import MAX_FOREIGN_SUBSCRIPTIONS, Publisher
-from sasprobe.common.errors import UserError
 from sasprobe.protocol.client import ControlClient, Subscriber
 from sasprobe.protocol.pose import Pose, encode_pose
 from sasprobe.protocol.security import KeyFileError, ensure_local_keys, generate_keys
+
+from sasprobe.common.errors import UserError
 from tests.daemon_process import DaemonProcess
 
 
@@ -37,13 +37,19 @@ def _mode(path) -> int:
 
 def test_keys_and_sockets_are_private_under_umask_000(tmp_path, open_umask):
     generate_keys(tmp_path / "keys")
-    assert _mode(tmp_path / "keys") == 0o700 and _mode(tmp_path / "keys" / "allowed_clients") == 0o700
+    assert (
+        _mode(tmp_path / "keys") == 0o700 and _mode(tmp_path / "keys" / "allowed_clients") == 0o700
+    )
     assert _mode(tmp_path / "keys" / "server.key_secret") == 0o600
-    assert _mode(tmp_path / "keys" / "allowed_clients" / "client.key") == 0o644  # public, but nobody else writes it
+    assert (
+        _mode(tmp_path / "keys" / "allowed_clients" / "client.key") == 0o644
+    )  # public, but nobody else writes it
     context = zmq.Context()
     pub = Publisher(context, [f"ipc://{tmp_path}/pub"])
     try:
-        assert _mode(tmp_path / "pub") & 0o077 == 0  # connecting needs write permission: only the owner has it
+        assert (
+            _mode(tmp_path / "pub") & 0o077 == 0
+        )  # connecting needs write permission: only the owner has it
     finally:
         pub.close()
         context.term()
@@ -56,7 +62,10 @@ def test_an_ipc_path_is_never_replaced(tmp_path):
     live.listen()
     context = zmq.Context()
     try:
-        for name, why in (("notes.txt", "is not a socket"), ("live", "another process is listening")):
+        for name, why in (
+            ("notes.txt", "is not a socket"),
+            ("live", "another process is listening"),
+        ):
             with pytest.raises(UserError, match=why):
                 Publisher(context, [f"ipc://{tmp_path}/{name}"])
         assert (tmp_path / "notes.txt").read_text() == "keep me"
@@ -71,7 +80,9 @@ def test_the_local_key_folder_must_be_private(tmp_path, monkeypatch, open_umask)
     monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path / "run"))
     folder = ensure_local_keys()
     assert folder == tmp_path / "run" / "sasprobe" and _mode(folder) == 0o700
-    assert _mode(folder / "client.key_secret") == 0o600 and ensure_local_keys() == folder  # made once
+    assert (
+        _mode(folder / "client.key_secret") == 0o600 and ensure_local_keys() == folder
+    )  # made once
     os.chmod(folder, 0o777)
     with pytest.raises(KeyFileError, match="only you can use"):
         ensure_local_keys()
@@ -99,7 +110,9 @@ def test_a_subscription_flood_renews_the_publisher(tmp_path):
         assert pub.renewals == 1 and sent > MAX_FOREIGN_SUBSCRIPTIONS
         flood.close()
         before = sub.poses_received
-        while sub.poses_received == before and time.monotonic() < deadline:  # the subscriber comes back by itself
+        while (
+            sub.poses_received == before and time.monotonic() < deadline
+        ):  # the subscriber comes back by itself
             pub.poll_subscriptions()
             pub.publish_pose(encode_pose(Pose(seq=seq)))
             seq += 1
@@ -169,7 +182,9 @@ def test_lost_ticks_are_told_once(caplog):
     log = LoopLog(realtime=False)
     with caplog.at_level(logging.WARNING, logger="sasprobe"):
         for i in range(5000):
-            log.lost_ticks(i * 1_000_000, 1 if i % 3 == 0 else 0)  # a third of the ticks lost, for 5 s
+            log.lost_ticks(
+                i * 1_000_000, 1 if i % 3 == 0 else 0
+            )  # a third of the ticks lost, for 5 s
     lines = [r.getMessage() for r in caplog.records]
     assert len(lines) == 1 and "losing ticks" in lines[0] and "real-time" in lines[0]
     assert log.lost == 1667

@@ -5,9 +5,8 @@ from __future__ import annotations
 import weakref
 
 import numpy as np
-
-from sasprobe.daemon.haptics import build_engine
 from sasprobe.daemon.deferred_release import DeferredRelease, arrays_within
+from sasprobe.daemon.haptics import build_engine
 from sasprobe.devices.simulated import make_simulated
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import time
 
 import pytest
-
 from sasprobe.daemon.loop import FixedRateLoop
 
 
@@ -52,7 +51,9 @@ def test_overruns_skip_missed_deadlines_and_stay_on_the_grid():
     # Due at 2 ms, it starts at 7.3 ms: it serves the 6 ms deadline and two ticks are lost.
     assert tick.missed == 2
     assert tick.index == 3 and tick.deadline_ns == t0 + 2_000_000
-    assert tick.late_periods == pytest.approx((7.3 - 2) / 2, abs=0.01)  # the watchdog sees 2.65 periods
+    assert tick.late_periods == pytest.approx(
+        (7.3 - 2) / 2, abs=0.01
+    )  # the watchdog sees 2.65 periods
     nxt = loop.wait()  # ... and the next one is due at 8 ms, not 9.3 ms
     assert nxt.deadline_ns == t0 + 8_000_000 and nxt.missed == 0
     summary = loop.stats.summary()

@@ -21,12 +21,12 @@ from pathlib import Path
 
 import pytest
 import zmq
-
 from sasprobe.protocol.client import ControlClient
 from sasprobe.protocol.control import MAX_MESSAGE_BYTES, decode_reply, encode_request
+
 from tests.daemon_process import DaemonProcess
-from tests.schema_check import check_raw_reply
 from tests.probe_support import PoseWatch, now_ns, unexplained_ms
+from tests.schema_check import check_raw_reply
 
 LIMIT_MS = {True: 20.0, False: 60.0}  # by whether the daemon runs under SCHED_FIFO
 SETTLE_S = 0.3  # a probe's window extends this far past its reply (a stall right after it counts)
@@ -42,7 +42,10 @@ def setup(tmp_path_factory, reference_by_id):
     os.mkfifo(loads / "pipe.pdb")
     (loads / "passwd.pdb").symlink_to("/etc/passwd")
     (records / "out").symlink_to(root)
-    with DaemonProcess("--load-dir", str(loads), "--record-dir", str(records)) as daemon, PoseWatch(daemon.pub) as w:
+    with (
+        DaemonProcess("--load-dir", str(loads), "--record-dir", str(records)) as daemon,
+        PoseWatch(daemon.pub) as w,
+    ):
         yield daemon, w, records, reference_by_id
 
 
@@ -86,29 +89,48 @@ def test_probes_are_answered_and_do_not_stall_the_loop(setup):
         t1 = now_ns()
         if fragments:
             assert reply is not None and not reply.ok, f"{name}: {reply}"
-            assert all(f in reply.error for f in fragments) and "\n" not in reply.error, f"{name}: {reply.error}"
+            assert all(f in reply.error for f in fragments) and "\n" not in reply.error, (
+                f"{name}: {reply.error}"
+            )
         with ControlClient(daemon.ctl, timeout_s=5) as client:
             assert client.ping()["pong"], f"the control server stopped answering after {name}"
         (windows if into is None else into).append((name, t0, t1 + int(SETTLE_S * 1e9)))
 
     probe("inf id", lambda: _raw(daemon, [b'{"cmd": "ping", "id": 1e400}']), "not finite")
-    probe("401-digit integer", lambda: _raw(daemon, [b'{"cmd": "ping", "id": ' + b"9" * 401 + b"}"]), "401 digits")
-    probe("20,000-deep nesting", lambda: _raw(daemon, [b'{"cmd": "ping", "id": ' + b"[" * 20000 + b"]" * 20000
-                                                       + b"}"]), "deeper than")
+    probe(
+        "401-digit integer",
+        lambda: _raw(daemon, [b'{"cmd": "ping", "id": ' + b"9" * 401 + b"}"]),
+        "401 digits",
+    )
+    probe(
+        "20,000-deep nesting",
+        lambda: _raw(daemon, [b'{"cmd": "ping", "id": ' + b"[" * 20000 + b"]" * 20000 + b"}"]),
+        "deeper than",
+    )
     probe("1 MiB request", lambda: _raw(daemon, [b" " * (1 << 20)]), "larger than")
     half = MAX_MESSAGE_BYTES // 2 + 1  # two of these and the JSON: just over the limit
-    probe("3-frame message over the limit", lambda: _raw(daemon, [b'{"cmd": "load"}', *[bytes(half)] * 2]),
-          "in 3 frames")
+    probe(
+        "3-frame message over the limit",
+        lambda: _raw(daemon, [b'{"cmd": "load"}', *[bytes(half)] * 2]),
+        "in 3 frames",
+    )
 
     # The publisher: a 16 MiB subscription (the trie once cost 110 B per topic byte, on the loop).
     # In a process of its own: libzmq 4.3.5 crashes closing a SUB whose 16 MiB subscription the
     # peer keeps refusing (the attacker's side; the daemon is unharmed), so it exits unclosed.
     rss = _rss_mb(pid)
-    attacker = [sys.executable, "-c", "import os, sys, time, zmq; s = zmq.Context().socket(zmq.SUB); "
-                "s.setsockopt(zmq.SUBSCRIBE, b'p' * (16 << 20)); s.connect(sys.argv[1]); time.sleep(1.0); "
-                "os._exit(0)", daemon.pub]
+    attacker = [
+        sys.executable,
+        "-c",
+        "import os, sys, time, zmq; s = zmq.Context().socket(zmq.SUB); "
+        "s.setsockopt(zmq.SUBSCRIBE, b'p' * (16 << 20)); s.connect(sys.argv[1]); time.sleep(1.0); "
+        "os._exit(0)",
+        daemon.pub,
+    ]
     probe("16 MiB subscription", lambda: subprocess.run(attacker, timeout=60) and None)
-    assert _rss_mb(pid) - rss < 64, f"the daemon grew by {_rss_mb(pid) - rss:.0f} MB for one subscription"
+    assert _rss_mb(pid) - rss < 64, (
+        f"the daemon grew by {_rss_mb(pid) - rss:.0f} MB for one subscription"
+    )
 
     # Raw subscription frames cannot forge the subscriber count, either way.
     before = _subscribers(daemon)
@@ -125,26 +147,50 @@ def test_probes_are_answered_and_do_not_stall_the_loop(setup):
     for xsub in forgers:
         xsub.close()
 
-    bomb = gzip.compress(bytes(1 << 20), 9) * 1024  # 1,024 gzip members of 1 MiB of zeros: 1 MiB -> 1 GiB
-    probe("gzip bomb", lambda: _raw(daemon, [encode_request("load", {"name": "bomb"})[0], bomb]), "inflates beyond")
+    bomb = (
+        gzip.compress(bytes(1 << 20), 9) * 1024
+    )  # 1,024 gzip members of 1 MiB of zeros: 1 MiB -> 1 GiB
+    probe(
+        "gzip bomb",
+        lambda: _raw(daemon, [encode_request("load", {"name": "bomb"})[0], bomb]),
+        "inflates beyond",
+    )
     for path in ("/etc/passwd", "../crambin.pdb.gz", "passwd.pdb"):
-        probe(f"load path {path}", lambda path=path: _raw(daemon, encode_request("load", {"path": path})), "not below")
-    probe("load a FIFO", lambda: _raw(daemon, encode_request("load", {"path": "pipe.pdb"})), "is a FIFO")
+        probe(
+            f"load path {path}",
+            lambda path=path: _raw(daemon, encode_request("load", {"path": path})),
+            "not below",
+        )
+    probe(
+        "load a FIFO",
+        lambda: _raw(daemon, encode_request("load", {"path": "pipe.pdb"})),
+        "is a FIFO",
+    )
     loaded = _raw(daemon, encode_request("load", {"path": "crambin.pdb.gz"}))
     assert loaded.ok and loaded.result["structure"]["n_atoms"] == 327  # the opt-in folder works
     for path in ("/tmp/x.mcap", "../x.mcap", "out/x.mcap"):
-        probe(f"record_start {path}", lambda path=path: _raw(daemon, encode_request("record_start", {"path": path})),
-              "not below")
+        probe(
+            f"record_start {path}",
+            lambda path=path: _raw(daemon, encode_request("record_start", {"path": path})),
+            "not below",
+        )
     started = _raw(daemon, encode_request("record_start", {"path": "ok.mcap"}))
     assert started.ok and (records / "ok.mcap").stat().st_mode & 0o777 == 0o600
     assert _raw(daemon, encode_request("record_stop")).ok
 
-    reply = _raw(daemon, [b'{"cmd": "ping"}', b""], kind=zmq.DEALER)  # a DEALER's empty frame: framed right
+    reply = _raw(
+        daemon, [b'{"cmd": "ping"}', b""], kind=zmq.DEALER
+    )  # a DEALER's empty frame: framed right
     assert reply is not None and not reply.ok and "no data frame" in reply.error
 
     big = shared["6zu5"].path.read_bytes()
-    probe("load 6ZU5 (165k atoms)", lambda: _raw(daemon, [encode_request("load", {"name": "6zu5"})[0], big], 120))
-    assert _raw(daemon, [encode_request("load", {"name": "1crn"})[0], shared["1crn"].path.read_bytes()]).ok
+    probe(
+        "load 6ZU5 (165k atoms)",
+        lambda: _raw(daemon, [encode_request("load", {"name": "6zu5"})[0], big], 120),
+    )
+    assert _raw(
+        daemon, [encode_request("load", {"name": "1crn"})[0], shared["1crn"].path.read_bytes()]
+    ).ok
 
     result = watch.finish()
     assert result["poses"] > 1000
@@ -165,8 +211,9 @@ def test_probes_are_answered_and_do_not_stall_the_loop(setup):
                 time.sleep(SETTLE_S)  # windows that do not overlap
             second = watch_again.finish()
         still = _stalls(second, again, limit)
-        assert not still, f"the loop stalled ≥ {limit:g} ms during, twice: " + \
-            ", ".join(f"{name} ({stalled[name]:.1f} and {rest:.1f} ms)" for name, rest in still.items())
+        assert not still, f"the loop stalled ≥ {limit:g} ms during, twice: " + ", ".join(
+            f"{name} ({stalled[name]:.1f} and {rest:.1f} ms)" for name, rest in still.items()
+        )
 
 
 def _stalls(result: dict, windows: list, limit_ms: float) -> dict[str, float]:

@@ -16,13 +16,13 @@ import pytest
 import zmq
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
 from sasprobe.molecule import parse_structure
 from sasprobe.molecule.packed import unpack_structure
 from sasprobe.protocol.client import ControlClient, ControlError, Subscriber, fetch_structure
 from sasprobe.protocol.control import decode_reply
 from sasprobe.protocol.recording import iter_items
 from sasprobe.protocol.scene import SCENE_VERSION
+
 from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess, cli_many
 from tests.schema_check import check_pose_payload, check_raw_reply
@@ -62,7 +62,9 @@ def collect_raw(endpoint: str, seconds: float, stop: threading.Event | None = No
 
 
 def _coverage(payloads: list[bytes]) -> tuple[float, list[dict]]:
-    decoded = [check_pose_payload(p) for p in payloads]  # the README table's decoder, checked against pose.json
+    decoded = [
+        check_pose_payload(p) for p in payloads
+    ]  # the README table's decoder, checked against pose.json
     seqs = [d["seq"] for d in decoded]
     assert seqs == sorted(seqs), "poses arrived out of order"
     return len(set(seqs)) / (seqs[-1] - seqs[0] + 1), decoded
@@ -89,7 +91,9 @@ def test_subscriber_gets_95_percent_of_poses_decoded_with_the_documented_layout(
         assert abs(np.linalg.norm(p["orientation"]) - 1.0) < 1e-9
         assert np.linalg.norm(p["force"]) <= limit + 1e-12
         assert np.all(np.isfinite(p["proxy"] + p["goal"] + p["tip"] + p["cube_center"]))
-        assert p["publish_t_ns"] >= p["device_t_ns"] or p["device_t_ns"] < 1e12  # sim time or host time
+        assert (
+            p["publish_t_ns"] >= p["device_t_ns"] or p["device_t_ns"] < 1e12
+        )  # sim time or host time
     assert any(np.linalg.norm(p["force"]) > 0 for p in poses), "the arm never touched anything"
 
 
@@ -136,7 +140,9 @@ def _raw_request(endpoint: str, frames: list[bytes]):
 def test_malformed_control_traffic_gets_errors_while_poses_keep_flowing(daemon):
     stop = threading.Event()
     result = {}
-    thread = threading.Thread(target=lambda: result.setdefault("p", collect_raw(daemon.pub, 60, stop)))
+    thread = threading.Thread(
+        target=lambda: result.setdefault("p", collect_raw(daemon.pub, 60, stop))
+    )
     thread.start()
     try:
         time.sleep(0.3)
@@ -159,17 +165,36 @@ def test_malformed_control_traffic_gets_errors_while_poses_keep_flowing(daemon):
 def _garbage_from_hypothesis(endpoint: str) -> None:
     json_values = st.recursive(
         st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=8),
-        lambda c: st.lists(c, max_size=3) | st.dictionaries(st.text(max_size=8), c, max_size=3), max_leaves=8)
+        lambda c: st.lists(c, max_size=3) | st.dictionaries(st.text(max_size=8), c, max_size=3),
+        max_leaves=8,
+    )
     requests = st.one_of(
         st.lists(st.binary(max_size=64), min_size=1, max_size=3),
-        st.builds(lambda cmd, args: [json.dumps({"cmd": cmd, "args": args}).encode()],
-                  st.sampled_from(["ping", "set", "load", "status", "record_stop", "nope", ""]),
-                  st.dictionaries(st.sampled_from(["path", "stiffness_n_per_mm", "probe_radius_A", "method",
-                                                   "clip_planes", "lights", "reset_stats", "x"]),
-                                  json_values, max_size=3)),
+        st.builds(
+            lambda cmd, args: [json.dumps({"cmd": cmd, "args": args}).encode()],
+            st.sampled_from(["ping", "set", "load", "status", "record_stop", "nope", ""]),
+            st.dictionaries(
+                st.sampled_from(
+                    [
+                        "path",
+                        "stiffness_n_per_mm",
+                        "probe_radius_A",
+                        "method",
+                        "clip_planes",
+                        "lights",
+                        "reset_stats",
+                        "x",
+                    ]
+                ),
+                json_values,
+                max_size=3,
+            ),
+        ),
     )
 
-    @settings(max_examples=40, deadline=None, suppress_health_check=list(HealthCheck), database=None)
+    @settings(
+        max_examples=40, deadline=None, suppress_health_check=list(HealthCheck), database=None
+    )
     @given(requests)
     def check(frames):
         reply = _raw_request(endpoint, frames)
@@ -184,23 +209,36 @@ def _garbage_from_hypothesis(endpoint: str) -> None:
 def test_control_commands_change_the_scene_and_serve_the_structure(daemon, tmp_path):
     with ControlClient(daemon.ctl) as client, Subscriber(daemon.pub) as sub:
         before = client.get_scene()
-        result = client.set(stiffness_n_per_mm=0.2, clip_planes=[[0, 0, 1, 2.5]],
-                            lights={"probe": {"enabled": False}}, nav_cube_enabled=False)
+        result = client.set(
+            stiffness_n_per_mm=0.2,
+            clip_planes=[[0, 0, 1, 2.5]],
+            lights={"probe": {"enabled": False}},
+            nav_cube_enabled=False,
+        )
         scene = client.get_scene()
         assert scene["revision"] > before["revision"] and result["seq"] > 0
         assert scene["haptics"]["stiffness_n_per_mm"] == 0.2
-        assert scene["clip_planes"] == [[0.0, 0.0, 1.0, 2.5]] and scene["nav_cube"]["enabled"] is False
+        assert (
+            scene["clip_planes"] == [[0.0, 0.0, 1.0, 2.5]] and scene["nav_cube"]["enabled"] is False
+        )
         assert scene["lights"]["probe"]["enabled"] is False
         assert scene["lights"]["directional"] == before["lights"]["directional"]
         deadline = time.monotonic() + 5
-        while (sub.scene is None or sub.scene["revision"] < scene["revision"]) and time.monotonic() < deadline:
+        while (
+            sub.scene is None or sub.scene["revision"] < scene["revision"]
+        ) and time.monotonic() < deadline:
             sub.poll(0.1)
         assert sub.scene["revision"] >= scene["revision"] and sub.malformed == 0
         status = client.status()
         assert status["publisher"]["subscribers"] >= 1 and status["loop"]["total"]["ticks"] > 0
     served = fetch_structure(daemon.ctl)
-    structure = parse_structure(served.data, name=served.name, source=served.source, keep_water=served.keep_water)
-    assert structure.sha256 == scene["structure"]["sha256"] and structure.n_atoms == scene["structure"]["n_atoms"]
+    structure = parse_structure(
+        served.data, name=served.name, source=served.source, keep_water=served.keep_water
+    )
+    assert (
+        structure.sha256 == scene["structure"]["sha256"]
+        and structure.n_atoms == scene["structure"]["n_atoms"]
+    )
     arrays = fetch_structure(daemon.ctl, form="arrays")  # the same atoms, parsed by the daemon
     unpacked = unpack_structure(arrays.data, arrays.name, arrays.source, arrays.sha256)
     assert arrays.form == "arrays" and unpacked.sha256 == structure.sha256
@@ -264,7 +302,9 @@ def test_recording_started_mid_session_replays_exactly(daemon):
         client.set(damping_n_s_per_m=0.3, method="penalty")
         time.sleep(0.6)
         client.set(method="proxy")
-        loaded = client.load(data=fetch_raw_default(), name="1crn.pdb.gz")  # the module's structure again
+        loaded = client.load(
+            data=fetch_raw_default(), name="1crn.pdb.gz"
+        )  # the module's structure again
         time.sleep(0.3)
         stopped = client.record_stop()
         client.call("view", rotation=[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
@@ -272,12 +312,17 @@ def test_recording_started_mid_session_replays_exactly(daemon):
     assert loaded["structure"]["name"] == "1crn"
     items = list(iter_items(path))  # every record checked against the schemas as it is read
     control = [item.data for item in items if item.topic == "control"]
-    assert [(c["cmd"], c["seq"]) for c in control[:3]] == [("start", started["seq"]), ("view", started["seq"]),
-                                                           ("clutch", started["seq"])]
+    assert [(c["cmd"], c["seq"]) for c in control[:3]] == [
+        ("start", started["seq"]),
+        ("view", started["seq"]),
+        ("clutch", started["seq"]),
+    ]
     assert control[1]["args"]["rotation"] == turn and control[2]["args"] == {"held": True}
     assert [c["cmd"] for c in control[3:]] == ["clutch", "set", "set", "load", "record_stop"]
     (load,) = [c for c in control if c["cmd"] == "load"]
-    assert load["args"]["name"] == "1crn" and load["args"]["sha256"] == loaded["structure"]["sha256"]
+    assert (
+        load["args"]["name"] == "1crn" and load["args"]["sha256"] == loaded["structure"]["sha256"]
+    )
     attachments = [item.data["name"] for item in items if item.topic == "attachment"]
     assert attachments == ["1crn", "1crn"]  # at the start, and for the load
     out = run_cli("replay", str(path), "--verify", "--json")
@@ -286,20 +331,27 @@ def test_recording_started_mid_session_replays_exactly(daemon):
 
 
 def test_status_command_prints_rate_jitter_and_subscribers(daemon):
-    out, js, gone = cli_many(("status", "--ctl", daemon.ctl), ("status", "--ctl", daemon.ctl, "--json"),
-                             ("status", "--ctl", "ipc:///tmp/sasprobe-nobody-here", "--timeout", "0.5"))
+    out, js, gone = cli_many(
+        ("status", "--ctl", daemon.ctl),
+        ("status", "--ctl", daemon.ctl, "--json"),
+        ("status", "--ctl", "ipc:///tmp/sasprobe-nobody-here", "--timeout", "0.5"),
+    )
     assert out.returncode == 0, out.stderr
     for word in ("rate", "jitter", "overruns", "subscriber", "recording"):
         assert word in out.stdout
     js = json.loads(js.stdout)
-    assert js["loop"]["target_rate_hz"] == 1000.0 and js["loop"]["period_error_us"]["p50"] is not None
+    assert (
+        js["loop"]["target_rate_hz"] == 1000.0 and js["loop"]["period_error_us"]["p50"] is not None
+    )
     assert gone.returncode == 2 and "no reply" in gone.stderr and gone.stderr.count("\n") == 1
 
 
 def test_non_loopback_bind_without_keys_is_refused():
     out = run_cli("daemon", "--pub", "tcp://0.0.0.0:45555", "--seconds", "1")
     assert out.returncode == 2
-    assert out.stderr.startswith("sasprobe: error: refusing to bind tcp://0.0.0.0:45555 without encryption")
+    assert out.stderr.startswith(
+        "sasprobe: error: refusing to bind tcp://0.0.0.0:45555 without encryption"
+    )
     assert out.stderr.count("\n") == 1
 
 
@@ -319,17 +371,33 @@ def test_curve_keys_admit_allowed_clients_and_reject_unknown_ones(tmp_path, gl):
     assert run_cli("keys", str(other)).returncode == 0
     (other / "server.key").write_bytes((keys / "server.key").read_bytes())
     pub_port, ctl_port = _free_port(), _free_port()
-    with DaemonProcess("--keys", str(keys), pub=f"tcp://0.0.0.0:{pub_port}", ctl=f"tcp://0.0.0.0:{ctl_port}") as d:
+    with DaemonProcess(
+        "--keys", str(keys), pub=f"tcp://0.0.0.0:{pub_port}", ctl=f"tcp://0.0.0.0:{ctl_port}"
+    ) as d:
         pub, ctl = f"tcp://127.0.0.1:{pub_port}", f"tcp://127.0.0.1:{ctl_port}"
         from sasprobe.protocol.security import load_client_keys
 
         with Subscriber(pub, keys=load_client_keys(keys)) as sub:
             sub.wait_for_scene(5.0)
-        render = ("render", "--headless", "--connect", pub, "--control", ctl, "--frames", "2", "--size", "64x48")
+        render = (
+            "render",
+            "--headless",
+            "--connect",
+            pub,
+            "--control",
+            ctl,
+            "--frames",
+            "2",
+            "--size",
+            "64x48",
+        )
         ok, followed, rejected, plain, refused_render = cli_many(
-            ("status", "--ctl", ctl, "--keys", str(keys), "--json"), (*render, "--keys", str(keys)),
-            ("status", "--ctl", ctl, "--keys", str(other), "--timeout", "1"), ("status", "--ctl", ctl, "--timeout", "1"),
-            (*render, "--keys", str(other)))
+            ("status", "--ctl", ctl, "--keys", str(keys), "--json"),
+            (*render, "--keys", str(keys)),
+            ("status", "--ctl", ctl, "--keys", str(other), "--timeout", "1"),
+            ("status", "--ctl", ctl, "--timeout", "1"),
+            (*render, "--keys", str(other)),
+        )
         assert ok.returncode == 0, ok.stderr
         assert followed.returncode == 0, followed.stderr  # render --keys follows the keyed daemon
         for out in (rejected, refused_render):
@@ -352,14 +420,24 @@ def test_user_errors_end_in_one_line(tmp_path):
         busy.listen()
         port = busy.getsockname()[1]
         cases = {
-            "cannot bind": ("daemon", "--pub", f"tcp://127.0.0.1:{port}", "--ctl", f"ipc://{tmp_path}/c"),
+            "cannot bind": (
+                "daemon",
+                "--pub",
+                f"tcp://127.0.0.1:{port}",
+                "--ctl",
+                f"ipc://{tmp_path}/c",
+            ),
             "already exists": ("daemon", "--record", str(existing)),
             "unknown device": ("daemon", "--device", "warp:9"),
             "stiffness must be": ("daemon", "--stiffness", "50"),
             "no such file": ("daemon", "--device", f"replay:{tmp_path}/none.mcap"),
             "not an MCAP file": ("replay", str(existing)),
         }
-        outs = cli_many(*[(*args, "--seconds", "1") if args[0] == "daemon" else args for args in cases.values()])
+        outs = cli_many(
+            *[(*args, "--seconds", "1") if args[0] == "daemon" else args for args in cases.values()]
+        )
     for fragment, out in zip(cases, outs):
         assert out.returncode == 2, (fragment, out.stderr)
-        assert fragment in out.stderr and out.stderr.count("\n") == 1 and "Traceback" not in out.stderr, out.stderr
+        assert (
+            fragment in out.stderr and out.stderr.count("\n") == 1 and "Traceback" not in out.stderr
+        ), out.stderr

@@ -7,35 +7,73 @@ import time
 
 import numpy as np
 import pytest
-
-from sasprobe.daemon.recording.writer import Recorder
-from sasprobe.protocol.recording import RecordingError, iter_items, recover, scan, summarize
-from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceInfo, DeviceState
 from sasprobe.daemon.recording.replay import load_session
-from sasprobe.protocol.pose import FLAG_CLAMPED, FLAG_CLUTCHED, FLAG_CONTACT, FLAG_DRIFTING, FLAG_FAULT, FLAG_RAMPING, Pose
-
+from sasprobe.daemon.recording.writer import Recorder
+from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceInfo, DeviceState
+from sasprobe.protocol.pose import (
+    FLAG_CLAMPED,
+    FLAG_CLUTCHED,
+    FLAG_CONTACT,
+    FLAG_DRIFTING,
+    FLAG_FAULT,
+    FLAG_RAMPING,
+    Pose,
+)
+from sasprobe.protocol.recording import RecordingError, iter_items, recover, scan, summarize
 
 # Flag sets a daemon writes (tests/schema_check.py checks each pose's flags against its fields).
-_FLAGS = (0, FLAG_CONTACT, FLAG_CONTACT | FLAG_CLAMPED, FLAG_DRIFTING, FLAG_RAMPING, FLAG_CONTACT | FLAG_RAMPING,
-          FLAG_CLUTCHED)
-_SETTINGS = {"probe_radius_A": 1.4, "method": "proxy", "stiffness_n_per_mm": 0.3, "damping_n_s_per_m": 0.0,
-             "cube_half_A": None}
+_FLAGS = (
+    0,
+    FLAG_CONTACT,
+    FLAG_CONTACT | FLAG_CLAMPED,
+    FLAG_DRIFTING,
+    FLAG_RAMPING,
+    FLAG_CONTACT | FLAG_RAMPING,
+    FLAG_CLUTCHED,
+)
+_SETTINGS = {
+    "probe_radius_A": 1.4,
+    "method": "proxy",
+    "stiffness_n_per_mm": 0.3,
+    "damping_n_s_per_m": 0.0,
+    "cube_half_A": None,
+}
 
 
 def _write(path, n=600, flush_interval_s=0.02):
     """A recording of n ticks with a non-finite reading (tick 100) and a failed read (tick 200),
     every record as the protocol documents it."""
     rng = np.random.default_rng(1)
-    rec = Recorder(path, {"daemon_version": "test", "device": "sim", "rate_hz": "1000.0", "started_unix_s": "0"},
-                   flush_interval_s=flush_interval_s)
+    rec = Recorder(
+        path,
+        {"daemon_version": "test", "device": "sim", "rate_hz": "1000.0", "started_unix_s": "0"},
+        flush_interval_s=flush_interval_s,
+    )
     rec.offer_structure(1, "tiny", b"ATOM tiny structure bytes\n")
-    rec.offer_json("control", 2, {"seq": 0, "cmd": "start", "args": {
-        "settings": _SETTINGS, "structure_sha256": _sha(b"ATOM tiny structure bytes\n"), "structure_name": "tiny",
-        "keep_water": False, "rate_hz": 1000.0, "device": DeviceInfo("x", "y", PHANTOM_OMNI_LIMITS).as_dict()}})
+    rec.offer_json(
+        "control",
+        2,
+        {
+            "seq": 0,
+            "cmd": "start",
+            "args": {
+                "settings": _SETTINGS,
+                "structure_sha256": _sha(b"ATOM tiny structure bytes\n"),
+                "structure_name": "tiny",
+                "keep_water": False,
+                "rate_hz": 1000.0,
+                "device": DeviceInfo("x", "y", PHANTOM_OMNI_LIMITS).as_dict(),
+            },
+        },
+    )
     truth = []
     for seq in range(n):
-        st = DeviceState(t_ns=seq * 1_000_000, position_mm=rng.normal(size=3) * 10,
-                         velocity_mm_s=rng.normal(size=3), buttons=seq % 3)
+        st = DeviceState(
+            t_ns=seq * 1_000_000,
+            position_mm=rng.normal(size=3) * 10,
+            velocity_mm_s=rng.normal(size=3),
+            buttons=seq % 3,
+        )
         error = None
         if seq == 100:
             st.position_mm[1] = math.nan
@@ -43,8 +81,13 @@ def _write(path, n=600, flush_interval_s=0.02):
             st, error = None, "read timed out"
         flags = FLAG_FAULT if seq in (100, 200) else _FLAGS[seq % len(_FLAGS)]
         force = np.zeros(3) if flags & (FLAG_FAULT | FLAG_CLUTCHED) else rng.normal(size=3)
-        pose = Pose(seq=seq, force_N=force, flags=flags, proxy_A=rng.normal(size=3),
-                    touched_atom=seq % 7 if flags & FLAG_CONTACT else -1)
+        pose = Pose(
+            seq=seq,
+            force_N=force,
+            flags=flags,
+            proxy_A=rng.normal(size=3),
+            touched_atom=seq % 7 if flags & FLAG_CONTACT else -1,
+        )
         rec.offer_tick(10 + seq, seq, st, error, 0.25, 1234, pose)
         truth.append((st, error, pose))
         if seq % 100 == 0:
@@ -69,12 +112,16 @@ def test_round_trip_is_exact(tmp_path):
     for i, (st, error, pose) in enumerate(truth):
         got, got_error = session.state(i)
         assert got_error == error
-        assert session.force_n[i].tolist() == pose.force_N.tolist() and session.flags[i] == pose.flags
+        assert (
+            session.force_n[i].tolist() == pose.force_N.tolist() and session.flags[i] == pose.flags
+        )
         if st is None:
             assert got is None
             continue
         assert got.t_ns == st.t_ns and got.buttons == st.buttons
-        np.testing.assert_array_equal(got.position_mm, st.position_mm)  # NaN stays NaN (null in JSON)
+        np.testing.assert_array_equal(
+            got.position_mm, st.position_mm
+        )  # NaN stays NaN (null in JSON)
         np.testing.assert_array_equal(got.velocity_mm_s, st.velocity_mm_s)
     assert session.structure_bytes == b"ATOM tiny structure bytes\n"
 

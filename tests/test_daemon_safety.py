@@ -6,13 +6,14 @@ import math
 
 import numpy as np
 import pytest
-
 from sasprobe.daemon.haptics.safety import SafetyGuard
 from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceState
 
 
 def state(t_s: float, calibrated: bool = True, position=(0.0, 0.0, 0.0)) -> DeviceState:
-    return DeviceState(t_ns=int(t_s * 1e9), position_mm=np.array(position, dtype=float), calibrated=calibrated)
+    return DeviceState(
+        t_ns=int(t_s * 1e9), position_mm=np.array(position, dtype=float), calibrated=calibrated
+    )
 
 
 def run(guard, force, st, error=None, late=0.0, ramp_again=True):
@@ -86,9 +87,19 @@ class _TouchingEngine:
     def step(self, st):
         from types import SimpleNamespace
 
-        return SimpleNamespace(force_n=np.array([0.0, 0.0, 0.1]), fault=False, contact=True, drifting=False,
-                               clamped=False, clutched=False, touched_atoms=(7,), proxy_A=np.ones(3),
-                               goal_A=np.ones(3), cube_center_A=np.zeros(3), cube_half_A=5.0)
+        return SimpleNamespace(
+            force_n=np.array([0.0, 0.0, 0.1]),
+            fault=False,
+            contact=True,
+            drifting=False,
+            clamped=False,
+            clutched=False,
+            touched_atoms=(7,),
+            proxy_A=np.ones(3),
+            goal_A=np.ones(3),
+            cube_center_A=np.zeros(3),
+            cube_half_A=5.0,
+        )
 
 
 def test_a_failed_read_repeats_the_device_time_and_touches_nothing():
@@ -98,7 +109,13 @@ def test_a_failed_read_repeats_the_device_time_and_touches_nothing():
     pipeline = HapticPipeline(_TouchingEngine(), SafetyGuard(PHANTOM_OMNI_LIMITS))
     good = state(5.0)
     touching = pipeline.pose(1, good, pipeline.step(good, None, 0.0), 6_000_000_000)
-    assert touching.touched_atom == 7 and touching.flags & FLAG_CONTACT and touching.device_t_ns == good.t_ns
+    assert (
+        touching.touched_atom == 7
+        and touching.flags & FLAG_CONTACT
+        and touching.device_t_ns == good.t_ns
+    )
     failed = pipeline.pose(2, None, pipeline.step(None, "read timed out", 0.0), 6_001_000_000)
-    assert failed.flags & FLAG_FAULT and not failed.flags & FLAG_CONTACT and failed.touched_atom == -1
+    assert (
+        failed.flags & FLAG_FAULT and not failed.flags & FLAG_CONTACT and failed.touched_atom == -1
+    )
     assert failed.device_t_ns == good.t_ns and np.array_equal(failed.proxy_A, touching.proxy_A)

@@ -13,15 +13,15 @@ import time
 
 import numpy as np
 from mcap.reader import make_reader
-
 from sasprobe.daemon.recording.replay import load_session
 from sasprobe.protocol.client import ControlClient
 from sasprobe.protocol.pose import FLAG_FAULT
 from sasprobe.protocol.recording import iter_items, scan
+
 from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess
-from tests.test_daemon_process import collect_raw
 from tests.schema_check import check_pose_payload
+from tests.test_daemon_process import collect_raw
 
 
 def test_record_then_sigkill_leaves_a_readable_file_missing_at_most_100_ms(tmp_path):
@@ -44,7 +44,9 @@ def test_record_then_sigkill_leaves_a_readable_file_missing_at_most_100_ms(tmp_p
 
 def test_replay_verify_reproduces_every_force_exactly(tmp_path):
     path = tmp_path / "session.mcap"
-    with DaemonProcess("--record", str(path), "--inject-fault", "raise@700+30", "--inject-fault", "nan@1200+20") as d:
+    with DaemonProcess(
+        "--record", str(path), "--inject-fault", "raise@700+30", "--inject-fault", "nan@1200+20"
+    ) as d:
         with ControlClient(d.ctl) as client:
             time.sleep(0.5)
             client.set(stiffness_n_per_mm=0.25)
@@ -68,7 +70,10 @@ def test_replay_verify_reproduces_every_force_exactly(tmp_path):
     assert second.n_ticks == first.n_ticks
     np.testing.assert_array_equal(second.force_n, first.force_n)
     np.testing.assert_array_equal(second.flags, first.flags)
-    device_times = [[item.data["device_t_ns"] for item in iter_items(p) if item.topic == "pose"] for p in (path, again)]
+    device_times = [
+        [item.data["device_t_ns"] for item in iter_items(p) if item.topic == "pose"]
+        for p in (path, again)
+    ]
     assert device_times[1] == device_times[0]  # a replay shows the recorded device times
     assert [e["cmd"] for e in second.events] == [e["cmd"] for e in first.events]
 
@@ -82,13 +87,21 @@ def test_sigterm_leaves_the_arm_at_zero_force(tmp_path):
     assert report["device_last_force_n"] == [0.0, 0.0, 0.0]
     assert report["reason"] == "SIGTERM" and report["recording"]["dropped"] == 0
     session = load_session(path)
-    assert scan(path).finished and np.abs(session.force_n).max() > 0  # it was pushing before the signal
+    assert (
+        scan(path).finished and np.abs(session.force_n).max() > 0
+    )  # it was pushing before the signal
 
 
 def test_injected_faults_zero_the_force_then_recover(tmp_path):
     path = tmp_path / "faults.mcap"
-    faults = ["raise@500+40", "nan@900+40", "disconnect@2400"]  # the first two while the scan script touches
-    with DaemonProcess("--record", str(path), *[a for f in faults for a in ("--inject-fault", f)]) as d:
+    faults = [
+        "raise@500+40",
+        "nan@900+40",
+        "disconnect@2400",
+    ]  # the first two while the scan script touches
+    with DaemonProcess(
+        "--record", str(path), *[a for f in faults for a in ("--inject-fault", f)]
+    ) as d:
         deadline = time.monotonic() + 30
         with ControlClient(d.ctl) as client:
             while client.status()["loop"]["total"]["ticks"] < 4000 and time.monotonic() < deadline:
@@ -98,15 +111,21 @@ def test_injected_faults_zero_the_force_then_recover(tmp_path):
     s = load_session(path)
     timeouts = [i for i, e in s.errors.items() if "timed out" in e]
     lost = [i for i, e in s.errors.items() if "link lost" in e]
-    nans = [i for i in range(s.n_ticks) if s.has_state[i] and not np.all(np.isfinite(s.position_mm[i]))]
+    nans = [
+        i for i in range(s.n_ticks) if s.has_state[i] and not np.all(np.isfinite(s.position_mm[i]))
+    ]
     assert len(timeouts) == 40 and len(nans) == 40
     # Disconnected until the daemon's reconnect, which waits for 100 ms of failures. That
     # rule is in time: a loaded machine (or a hypervisor taking the CPUs) fits fewer ticks
     # into it, so the outage is measured on the recording's own clock (MCAP log times).
     assert lost == list(range(lost[0], lost[-1] + 1)), "one unbroken outage"
     with open(path, "rb") as f:
-        log_ns = {m.sequence: m.log_time for _, _, m in make_reader(f).iter_messages(topics=["device"])}
-    outage_ns = log_ns[int(s.seq[lost[-1] + 1])] - log_ns[int(s.seq[lost[0]])]  # to the first good read
+        log_ns = {
+            m.sequence: m.log_time for _, _, m in make_reader(f).iter_messages(topics=["device"])
+        }
+    outage_ns = (
+        log_ns[int(s.seq[lost[-1] + 1])] - log_ns[int(s.seq[lost[0]])]
+    )  # to the first good read
     assert outage_ns >= 100_000_000, f"reconnected after {outage_ns / 1e6:.1f} ms of failures"
     assert "device reconnected" in d.stderr
     for i in timeouts + nans + lost:
@@ -117,6 +136,8 @@ def test_injected_faults_zero_the_force_then_recover(tmp_path):
     # Short faults keep the proxy: force ramps back in. After a reconnect the proxy is
     # unseated until the probe is in free space (the engine's rule), so no such check.
     for window in (timeouts, nans):
-        assert np.abs(s.force_n[max(window) + 1: max(window) + 1500]).max() > 0, "force never came back"
+        assert np.abs(s.force_n[max(window) + 1 : max(window) + 1500]).max() > 0, (
+            "force never came back"
+        )
     assert [e["cmd"] for e in s.events].count("reconnect") == 1
     assert report["faults"] >= 3

@@ -11,10 +11,9 @@ import time
 
 import numpy as np
 from mcap.reader import make_reader
-
+from sasprobe.daemon.recording.replay import load_session
 from sasprobe.daemon.service import Daemon, DaemonConfig
 from sasprobe.devices.registry import SCHEMES, DeviceScheme
-from sasprobe.daemon.recording.replay import load_session
 from sasprobe.devices.simulated import SimulatedDevice, make_simulated
 from sasprobe.protocol.pose import FLAG_FAULT
 
@@ -40,8 +39,13 @@ def make_flaky(argument, **options):
 def test_slow_reads_and_driver_exceptions_zero_the_force(tmp_path, monkeypatch):
     monkeypatch.setitem(SCHEMES, "flaky", DeviceScheme(f"{__name__}:make_flaky", "test", "flaky"))
     path = tmp_path / "w.mcap"
-    config = DaemonConfig(device="flaky", pub=[f"ipc://{tmp_path}/p"], ctl=[f"ipc://{tmp_path}/c"],
-                          record=str(path), max_seconds=1.2)
+    config = DaemonConfig(
+        device="flaky",
+        pub=[f"ipc://{tmp_path}/p"],
+        ctl=[f"ipc://{tmp_path}/c"],
+        record=str(path),
+        max_seconds=1.2,
+    )
     assert Daemon(config).run() == 0
     s = load_session(path)
     slow = [i for i, e in s.errors.items() if e.startswith("device read took")]
@@ -49,12 +53,17 @@ def test_slow_reads_and_driver_exceptions_zero_the_force(tmp_path, monkeypatch):
     # The three slowed reads, and any other read a loaded machine made take over 3 periods
     # (each read's own time is in the recording, read here with the mcap library).
     with open(path, "rb") as f:
-        read_ns = {m.sequence: json.loads(m.data)["read_ns"] for _, _, m in make_reader(f).iter_messages(topics=["device"])}
+        read_ns = {
+            m.sequence: json.loads(m.data)["read_ns"]
+            for _, _, m in make_reader(f).iter_messages(topics=["device"])
+        }
     slow_seqs = {int(s.seq[i]) for i in slow}
     assert set(SLOW_TICKS) <= slow_seqs
     assert all(read_ns[q] > 3_000_000 for q in slow_seqs)
     faulted = {int(s.seq[i]) for i in s.errors}
-    assert not [q for q, t in read_ns.items() if t > 3_000_000 and q not in faulted], "a slow read went unflagged"
+    assert not [q for q, t in read_ns.items() if t > 3_000_000 and q not in faulted], (
+        "a slow read went unflagged"
+    )
     assert [s.seq[i] for i in broken] == list(BROKEN_TICKS)
     for i in slow + broken:
         assert s.flags[i] & FLAG_FAULT and not np.any(s.force_n[i])

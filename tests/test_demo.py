@@ -51,9 +51,19 @@ def demo(tmp_path_factory, gl):  # gl: skips where no headless OpenGL exists
     before = cpu_times()
     # The whole of crambin in the cube, seen whole (the overview), so that the snapshot can be
     # checked against a ray cast of every atom; the workspace view is tests/test_workspace_session.py's.
-    result = run_cli("demo", "--headless", "--seconds", str(SECONDS), "--out", str(out),
-                     "--record", str(out / "session.mcap"), "--daemon-args=--cube-half fit",
-                     "--render-args=--view overview", timeout=300)
+    result = run_cli(
+        "demo",
+        "--headless",
+        "--seconds",
+        str(SECONDS),
+        "--out",
+        str(out),
+        "--record",
+        str(out / "session.mcap"),
+        "--daemon-args=--cube-half fit",
+        "--render-args=--view overview",
+        timeout=300,
+    )
     after = cpu_times()
     assert result.returncode == 0, result.stderr
     return out, result, (before, after) if before and after else None
@@ -82,7 +92,6 @@ def test_demo_writes_a_playable_video_of_the_requested_length(demo):
 
 def test_snapshot_shows_the_molecule(demo):
     import imageio.v2 as imageio
-
     from sasprobe.molecule import load_default
     from sasprobe.render.camera import Camera
     from sasprobe.render.scene_state import SceneState
@@ -91,11 +100,20 @@ def test_snapshot_shows_the_molecule(demo):
     image = imageio.imread(out / "snapshot.png")[..., :3].astype(float)
     assert image.shape == (SIZE[1], SIZE[0], 3)
     structure = load_default()
-    camera = Camera.framing(structure.positions, structure.vdw_radii, SIZE[0] / SIZE[1])  # the renderer's fitted view
+    camera = Camera.framing(
+        structure.positions, structure.vdw_radii, SIZE[0] / SIZE[1]
+    )  # the renderer's fitted view
     center, radius = SceneState(structure).bounding_sphere()
     camera.fit_clip_range(center, radius)
-    ids, _, _, _ = reference_cast(camera.view(), camera.projection(SIZE[0] / SIZE[1]), SIZE[0], SIZE[1],
-                                  structure.positions, structure.vdw_radii, np.arange(structure.n_atoms))
+    ids, _, _, _ = reference_cast(
+        camera.view(),
+        camera.projection(SIZE[0] / SIZE[1]),
+        SIZE[0],
+        SIZE[1],
+        structure.positions,
+        structure.vdw_radii,
+        np.arange(structure.n_atoms),
+    )
     # Shadows and ambient occlusion darken atoms, never to the background colour itself.
     drawn = np.linalg.norm(image - BACKGROUND, axis=-1) > 3
     atoms = ids >= 0
@@ -106,8 +124,11 @@ def test_snapshot_shows_the_molecule(demo):
     assert (drawn & ~atoms & inner).mean() < 0.05
     # ... in the atoms' CPK colours: oxygen pixels red-dominated, nitrogen blue, carbon grey.
     elements = structure.elements[np.where(atoms & inner, ids, 0)]
-    for element, check in (("O", lambda c: c[0] > 1.5 * c[2]), ("N", lambda c: c[2] > 1.5 * c[0]),
-                           ("C", lambda c: np.ptp(c) < 0.2 * c.mean())):
+    for element, check in (
+        ("O", lambda c: c[0] > 1.5 * c[2]),
+        ("N", lambda c: c[2] > 1.5 * c[0]),
+        ("C", lambda c: np.ptp(c) < 0.2 * c.mean()),
+    ):
         pixels = image[atoms & inner & (elements == element)]
         assert len(pixels) > 500 and check(np.median(pixels, axis=0)), element
 
@@ -130,18 +151,30 @@ def test_summary_reports_the_haptic_rate_forces_and_a_clean_stop(demo):
         (steal_0, all_0), (steal_1, all_1) = cpu
         stolen = (steal_1 - steal_0) / (all_1 - all_0)
         if stolen < 0.02:
-            assert abs(h["rate_hz"] - h["nominal_rate_hz"]) <= 0.05 * h["nominal_rate_hz"], (h, stolen)
+            assert abs(h["rate_hz"] - h["nominal_rate_hz"]) <= 0.05 * h["nominal_rate_hz"], (
+                h,
+                stolen,
+            )
         # The summary tells the steal over its window, which lies inside this test's: no more
         # CPU-seconds than this test counted; the closing lines name it from 1 %.
         told = h["cpu_steal"]
-        assert 0 <= told["seconds"] <= (steal_1 - steal_0) / os.sysconf("SC_CLK_TCK") and 0 <= told["percent"] <= 100
+        assert (
+            0 <= told["seconds"] <= (steal_1 - steal_0) / os.sysconf("SC_CLK_TCK")
+            and 0 <= told["percent"] <= 100
+        )
         assert ("the hypervisor took" in result.stdout) == (told["percent"] >= 1.0), result.stdout
     f = s["forces"]
     assert f["poses"] >= 0.9 * h["ticks"]  # the demo's own subscriber saw nearly every tick
-    assert f["contact_ticks"] > 0 and f["atoms_touched"] > 0, "the scan script presses on the surface"
+    assert f["contact_ticks"] > 0 and f["atoms_touched"] > 0, (
+        "the scan script presses on the surface"
+    )
     assert 0 < f["force_n"]["max"] <= 3.3 + 1e-9  # the simulated Omni's force limit
     r = s["renderer"]
-    assert r["daemon"]["poses_received"] > 0 and r["daemon"]["poses_missed"] == 0 and r["daemon"]["malformed"] == 0
+    assert (
+        r["daemon"]["poses_received"] > 0
+        and r["daemon"]["poses_missed"] == 0
+        and r["daemon"]["malformed"] == 0
+    )
     d = s["daemon_exit"]
     assert d["reason"] == "SIGTERM" and d["device_last_force_n"] == [0.0, 0.0, 0.0]
     assert s["structure"]["name"] == "1crn" and s["structure"]["n_atoms"] == 327
@@ -153,8 +186,19 @@ def test_recorded_demo_replays_to_video_with_identical_forces(demo, tmp_path):
 
     out, _, _ = demo
     fps = 8
-    result = run_cli("replay", str(out / "session.mcap"), "--verify", "--video", str(tmp_path / "replay.mp4"),
-                     "--fps", str(fps), "--size", "160x96", "--json", timeout=300)
+    result = run_cli(
+        "replay",
+        str(out / "session.mcap"),
+        "--verify",
+        "--video",
+        str(tmp_path / "replay.mp4"),
+        "--fps",
+        str(fps),
+        "--size",
+        "160x96",
+        "--json",
+        timeout=300,
+    )
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
     assert report["verify"]["ok"] and report["verify"]["max_force_diff_n"] == 0.0
@@ -176,13 +220,15 @@ def test_recorded_demo_replays_to_video_with_identical_forces(demo, tmp_path):
 def test_replay_frames_follow_the_recorded_timing(demo):
     """Frame k shows the newest pose published at or before first + k/fps (mcap read independently)."""
     from mcap.reader import make_reader
-
     from sasprobe.render.playback import recorded_frames
 
     out, _, _ = demo
     fps = 25.0
     with open(out / "session.mcap", "rb") as fh:
-        poses = [(m.log_time, json.loads(m.data)["seq"]) for _, _, m in make_reader(fh).iter_messages(topics=["pose"])]
+        poses = [
+            (m.log_time, json.loads(m.data)["seq"])
+            for _, _, m in make_reader(fh).iter_messages(topics=["pose"])
+        ]
     poses.sort()
     times = np.array([t for t, _ in poses])
     seqs = np.array([s for _, s in poses])
@@ -196,8 +242,17 @@ def test_replay_frames_follow_the_recorded_timing(demo):
 def test_with_a_display_the_demo_opens_a_window(xvfb, tmp_path):
     """Under a real X server (Xvfb) the renderer is a window that follows the daemon."""
     out = tmp_path / "window"
-    result = run_cli("demo", "--seconds", "3", "--size", "320x240", "--out", str(out), timeout=300,
-                     env=dict(os.environ, DISPLAY=xvfb))
+    result = run_cli(
+        "demo",
+        "--seconds",
+        "3",
+        "--size",
+        "320x240",
+        "--out",
+        str(out),
+        timeout=300,
+        env=dict(os.environ, DISPLAY=xvfb),
+    )
     assert result.returncode == 0, result.stderr
     summary = json.loads((out / "summary.json").read_text())
     assert summary["mode"] == "window" and not summary["notes"]
@@ -231,7 +286,7 @@ def _stat(pid: int) -> list[str] | None:
         text = Path(f"/proc/{pid}/stat").read_text()
     except OSError:
         return None
-    return text[text.rindex(")") + 2:].split()
+    return text[text.rindex(")") + 2 :].split()
 
 
 def _running(pid: int, start_time: str) -> bool:
@@ -245,12 +300,36 @@ def test_sigint_stops_every_process_and_leaves_the_arm_at_zero_force(tmp_path, g
     video finished — also when the demo was started with SIGINT ignored, as a script's
     background job is."""
     out = tmp_path / "demo"
-    argv = [sys.executable, "-m", "sasprobe", "demo", "--headless", "--seconds", "120", "--out", str(out)]
-    if inherited == "ignored":  # ignored, then exec'd: the demo starts with SIGINT ignored, in the same process
-        argv = [sys.executable, "-c", ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN); "
-                                       f"os.execv(sys.executable, {argv!r})")]
-    proc = subprocess.Popen(argv, cwd=REPO_ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
+    argv = [
+        sys.executable,
+        "-m",
+        "sasprobe",
+        "demo",
+        "--headless",
+        "--seconds",
+        "120",
+        "--out",
+        str(out),
+    ]
+    if (
+        inherited == "ignored"
+    ):  # ignored, then exec'd: the demo starts with SIGINT ignored, in the same process
+        argv = [
+            sys.executable,
+            "-c",
+            (
+                "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN); "
+                f"os.execv(sys.executable, {argv!r})"
+            ),
+        ]
+    proc = subprocess.Popen(
+        argv,
+        cwd=REPO_ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=dict(os.environ, PYTHONUNBUFFERED="1"),
+    )
     try:
         deadline = time.monotonic() + 120
         tree: dict[int, str] = {}
@@ -295,10 +374,12 @@ def test_a_child_that_ignores_signals_is_killed_with_its_own_children(tmp_path):
     """The last resort: a hung child (SIGTERM ignored) and the process it started both go."""
     from sasprobe.cli.children import Child
 
-    code = ("import signal, subprocess, sys, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
-            "g = subprocess.Popen([sys.executable, '-c', 'import signal, time; "
-            "signal.signal(signal.SIGTERM, signal.SIG_IGN); time.sleep(60)']); "
-            "print('{\"event\": \"ready\", \"grandchild\": %d}' % g.pid, flush=True); time.sleep(60)")
+    code = (
+        "import signal, subprocess, sys, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); "
+        "g = subprocess.Popen([sys.executable, '-c', 'import signal, time; "
+        "signal.signal(signal.SIGTERM, signal.SIG_IGN); time.sleep(60)']); "
+        'print(\'{"event": "ready", "grandchild": %d}\' % g.pid, flush=True); time.sleep(60)'
+    )
     child = Child("hung", [sys.executable, "-c", code], tmp_path / "hung.log")
     ready = child.wait_event("ready", 30)
     assert ready is not None

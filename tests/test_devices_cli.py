@@ -10,10 +10,10 @@ import sys
 from types import SimpleNamespace
 
 import pytest
-
 from sasprobe.devices import registry
 from sasprobe.devices.base import HapticDevice
 from sasprobe.devices.discovery import discover
+
 from tests.conftest import REPO_ROOT, run_cli
 from tests.emulators.falcon_usb import EmulatedUsbBackend, FalconHardware
 from tests.emulators.hidapi_fake import HidBus, HidModule
@@ -39,10 +39,15 @@ def test_devices_lists_the_emulated_devices_it_was_shown(tmp_path, monkeypatch):
     6-DoF device, the Falcon and the HD library are listed with the strings written
     here; the CadMouse, keyboard and the receiver's mouse interface are not."""
     bus = HidBus()
-    for path, name in [(b"/dev/hidraw3", "SpaceNavigator"), (b"/dev/hidraw4", "SpaceMouse Enterprise"),
-                       (b"/dev/hidraw5", "Universal Receiver + SpaceMouse Wireless"),
-                       (b"/dev/hidraw6", "Universal Receiver Mouse"), (b"/dev/hidraw7", "CadMouse"),
-                       (b"/dev/hidraw8", "Keyboard Pro"), (b"/dev/hidraw9", "SpaceMouse Classic")]:
+    for path, name in [
+        (b"/dev/hidraw3", "SpaceNavigator"),
+        (b"/dev/hidraw4", "SpaceMouse Enterprise"),
+        (b"/dev/hidraw5", "Universal Receiver + SpaceMouse Wireless"),
+        (b"/dev/hidraw6", "Universal Receiver Mouse"),
+        (b"/dev/hidraw7", "CadMouse"),
+        (b"/dev/hidraw8", "Keyboard Pro"),
+        (b"/dev/hidraw9", "SpaceMouse Classic"),
+    ]:
         EmulatedSpaceMouse(name, path=path, bus=bus)
     monkeypatch.setenv("SASPROBE_HID_API", "tests.emulators.hidapi_fake:module_from_environment")
     monkeypatch.setenv("SASPROBE_HID_BUS", str(bus.directory))
@@ -54,16 +59,28 @@ def test_devices_lists_the_emulated_devices_it_was_shown(tmp_path, monkeypatch):
     result = run_cli("devices", "--json")
     assert result.returncode == 0, result.stderr
     listed = json.loads(result.stdout)
-    hid = [(d["path"], d["vendor_id"], d["product_id"], d["description"], d["device"])
-           for d in listed["devices"] if d["transport"] == "hid"]
+    hid = [
+        (d["path"], d["vendor_id"], d["product_id"], d["description"], d["device"])
+        for d in listed["devices"]
+        if d["transport"] == "hid"
+    ]
     assert hid == [
         ("/dev/hidraw3", "046d", "c626", "SpaceNavigator", "spacemouse:/dev/hidraw3"),
         ("/dev/hidraw4", "256f", "c633", "SpaceMouse Enterprise", "spacemouse:/dev/hidraw4"),
-        ("/dev/hidraw5", "256f", "c652", "3Dconnexion Universal Receiver", "spacemouse:/dev/hidraw5"),
+        (
+            "/dev/hidraw5",
+            "256f",
+            "c652",
+            "3Dconnexion Universal Receiver",
+            "spacemouse:/dev/hidraw5",
+        ),
         ("/dev/hidraw9", "046d", "c606", "SpaceMouse Classic", "spacemouse:/dev/hidraw9"),
     ]
-    usb = [(d["vendor_id"], d["product_id"], d["description"], d["device"])
-           for d in listed["devices"] if d["transport"] == "usb"]
+    usb = [
+        (d["vendor_id"], d["product_id"], d["description"], d["device"])
+        for d in listed["devices"]
+        if d["transport"] == "usb"
+    ]
     assert usb == [("0403", "cb48", "Novint Falcon", "falcon")]
     if library is not None:
         assert f"OpenHaptics HD library found ({library})" in " ".join(listed["notes"])
@@ -93,9 +110,13 @@ def test_checking_a_cadmouse_is_refused_in_one_line(monkeypatch):
     for key, value in emu.env.items():
         monkeypatch.setenv(key, value)
     try:
-        one_line_error(run_cli("devices", "--check", "spacemouse:/dev/hidraw7"),
-                       "CadMouse (256f:c650) is not a 6-DoF device")
-        one_line_error(run_cli("devices", "--check", "spacemouse"), "no 3Dconnexion SpaceMouse found")
+        one_line_error(
+            run_cli("devices", "--check", "spacemouse:/dev/hidraw7"),
+            "CadMouse (256f:c650) is not a 6-DoF device",
+        )
+        one_line_error(
+            run_cli("devices", "--check", "spacemouse"), "no 3Dconnexion SpaceMouse found"
+        )
     finally:
         emu.close()
 
@@ -108,29 +129,49 @@ def test_check_reads_an_emulated_spacemouse_end_to_end(monkeypatch):
     emu.close()
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
-    assert report["info"]["model"] == "SpaceMouse Pro" and report["faults"] == 0 and report["reads"] > 20
+    assert (
+        report["info"]["model"] == "SpaceMouse Pro"
+        and report["faults"] == 0
+        and report["reads"] > 20
+    )
     assert report["info"]["details"]["usb_id"] == "046d:c62b"
 
 
 def test_discovery_reports_each_emulated_device_with_its_device_string(tmp_path):
-    ports = [SimpleNamespace(device="/dev/ttyACM0", vid=0x16C0, pid=0x0483, description="USB Serial"),
-             SimpleNamespace(device="/dev/ttyACM1", vid=0x0301, pid=0x2988, description="Touch"),
-             SimpleNamespace(device="/dev/ttyUSB0", vid=0x0403, pid=0x6001, description="FT232R"),
-             SimpleNamespace(device="/dev/ttyS0", vid=None, pid=None, description="n/a")]
+    ports = [
+        SimpleNamespace(device="/dev/ttyACM0", vid=0x16C0, pid=0x0483, description="USB Serial"),
+        SimpleNamespace(device="/dev/ttyACM1", vid=0x0301, pid=0x2988, description="Touch"),
+        SimpleNamespace(device="/dev/ttyUSB0", vid=0x0403, pid=0x6001, description="FT232R"),
+        SimpleNamespace(device="/dev/ttyS0", vid=None, pid=None, description="n/a"),
+    ]
     bus = HidBus()
     EmulatedSpaceMouse("SpaceMouse Compact", path=b"/dev/hidraw7", bus=bus)
     EmulatedSpaceMouse("CadMouse Pro", path=b"/dev/hidraw8", bus=bus)
     falcon = EmulatedUsbBackend(FalconHardware(b"fw"))
-    found, notes = discover(comports=lambda: ports, hid_api=HidModule(bus.directory), usb_backend=falcon)
+    found, notes = discover(
+        comports=lambda: ports, hid_api=HidModule(bus.directory), usb_backend=falcon
+    )
     bus.close()
     assert [(f.transport, f.device) for f in found] == [
-        ("serial", "woodenhaptics:/dev/ttyACM0"), ("serial", "openhaptics"), ("serial", "woodenhaptics:/dev/ttyUSB0"),
-        ("hid", "spacemouse:/dev/hidraw7"), ("usb", "falcon")]
+        ("serial", "woodenhaptics:/dev/ttyACM0"),
+        ("serial", "openhaptics"),
+        ("serial", "woodenhaptics:/dev/ttyUSB0"),
+        ("hid", "spacemouse:/dev/hidraw7"),
+        ("usb", "falcon"),
+    ]
     assert any("/dev/ttyS0" in n for n in notes)
 
 
-@pytest.mark.parametrize("spec", ["falcon", "woodenhaptics:/dev/ttyACM0", "haply:/dev/ttyACM0", "spacemouse",
-                                  "openhaptics:Default PHANToM"])
+@pytest.mark.parametrize(
+    "spec",
+    [
+        "falcon",
+        "woodenhaptics:/dev/ttyACM0",
+        "haply:/dev/ttyACM0",
+        "spacemouse",
+        "openhaptics:Default PHANToM",
+    ],
+)
 def test_every_scheme_accepts_the_daemon_options_without_opening(spec):
     device = registry.open_device(spec, structure=object(), rate_hz=1000.0, seed=1)
     assert isinstance(device, HapticDevice)
@@ -138,11 +179,15 @@ def test_every_scheme_accepts_the_daemon_options_without_opening(spec):
 
 
 def test_unknown_device():
-    one_line_error(run_cli("devices", "--check", "phantom:1"), "unknown device 'phantom:1'", "falcon")
+    one_line_error(
+        run_cli("devices", "--check", "phantom:1"), "unknown device 'phantom:1'", "falcon"
+    )
 
 
 def test_missing_port():
-    one_line_error(run_cli("devices", "--check", "woodenhaptics:/dev/ttyACM99"), "no such serial port")
+    one_line_error(
+        run_cli("devices", "--check", "woodenhaptics:/dev/ttyACM99"), "no such serial port"
+    )
     one_line_error(run_cli("devices", "--check", "haply"), "haply needs a serial port")
 
 
@@ -162,8 +207,10 @@ def test_permission_denied_on_the_device_node(tmp_path):
 
 
 def test_missing_firmware_file(tmp_path):
-    one_line_error(run_cli("devices", "--check", f"falcon:{tmp_path / 'falcon.bin'}"),
-                   "Falcon firmware file not found")
+    one_line_error(
+        run_cli("devices", "--check", f"falcon:{tmp_path / 'falcon.bin'}"),
+        "Falcon firmware file not found",
+    )
 
 
 def test_missing_vendor_library(tmp_path, monkeypatch):
@@ -190,7 +237,9 @@ def test_no_falcon_attached(tmp_path, monkeypatch):
 def test_check_drives_an_emulated_serial_arm_end_to_end(tmp_path):
     emu = WoodenHapticsEmulator(tmp_path)
     try:
-        result = run_cli("devices", "--check", f"woodenhaptics:{emu.path}", "--seconds", "0.5", "--json")
+        result = run_cli(
+            "devices", "--check", f"woodenhaptics:{emu.path}", "--seconds", "0.5", "--json"
+        )
         assert result.returncode == 0, result.stderr
         report = json.loads(result.stdout)
         assert report["info"]["model"] == "WoodenHaptics Woody" and report["reads"] > 50
@@ -199,7 +248,9 @@ def test_check_drives_an_emulated_serial_arm_end_to_end(tmp_path):
         # 10 ms wait (a loaded machine) is a fault of its own, never a merged command after it
         assert_no_refusals_but_after_deafness(emu)
         assert report["faults"] <= 0.05 * report["reads"], report["first_fault"]
-        assert report["faults"] == 0 or report["first_fault"].startswith("no reply from the woodenhaptics arm")
+        assert report["faults"] == 0 or report["first_fault"].startswith(
+            "no reply from the woodenhaptics arm"
+        )
         # the states came from the board's replies: a read hands back the previous pose only
         # when a reply is up to two periods late (devices/serial_arm.py), so most are fresh
         assert emu.replies_sent >= 0.8 * report["reads"]
@@ -212,7 +263,11 @@ def test_check_uploads_firmware_to_an_emulated_falcon(tmp_path, monkeypatch):
     result = run_cli("devices", "--check", f"falcon:{firmware}", "--seconds", "0.5", "--json")
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
-    assert report["info"]["details"]["firmware_uploads"] == 1 and report["reads"] > 50 and report["faults"] == 0
+    assert (
+        report["info"]["details"]["firmware_uploads"] == 1
+        and report["reads"] > 50
+        and report["faults"] == 0
+    )
 
 
 def test_last_force_is_what_was_asked_after_clamping_and_zero_after_close(tmp_path):

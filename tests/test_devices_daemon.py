@@ -15,9 +15,9 @@ import time
 
 import numpy as np
 import pytest
-
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
+
 from tests.conftest import REPO_ROOT, skip_or_fail
 from tests.daemon_process import DaemonProcess
 from tests.emulators import falcon_usb, haply_serial, libhd, spacemouse_hid, woodenhaptics_serial
@@ -34,19 +34,25 @@ def poses_until(sub: Subscriber, condition, daemon: DaemonProcess, timeout_s: fl
             if condition(pose):
                 return pose
     last = sub.pose
-    raise AssertionError(f"no such pose among {seen} within {timeout_s} s; last flags "
-                         f"{last.flags if last else None}, force {last.force_N if last else None}; "
-                         f"daemon stderr: {daemon.stderr[-1500:]}")
+    raise AssertionError(
+        f"no such pose among {seen} within {timeout_s} s; last flags "
+        f"{last.flags if last else None}, force {last.force_N if last else None}; "
+        f"daemon stderr: {daemon.stderr[-1500:]}"
+    )
 
 
 @pytest.fixture
 def emulators_importable(monkeypatch):
     """The daemon runs in a private folder: let it import tests.emulators for its device."""
-    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH")])))
+    monkeypatch.setenv(
+        "PYTHONPATH", os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH")]))
+    )
 
 
 def pushing(pose) -> bool:
-    return pose.has(FLAG_CONTACT) and not pose.has(FLAG_FAULT) and np.linalg.norm(pose.force_N) > 0.05
+    return (
+        pose.has(FLAG_CONTACT) and not pose.has(FLAG_FAULT) and np.linalg.norm(pose.force_N) > 0.05
+    )
 
 
 # The arms' emulators (the Falcon's USB and the serial boards) are Python threads in this
@@ -76,7 +82,9 @@ def poses_for(sub: Subscriber, seconds: float) -> list:
     return poses
 
 
-def settled(sub: Subscriber, daemon: DaemonProcess, window_s: float = 0.5, timeout_s: float = 60.0) -> list:
+def settled(
+    sub: Subscriber, daemon: DaemonProcess, window_s: float = 0.5, timeout_s: float = 60.0
+) -> list:
     """The poses of the first half second in which the written force holds steady (every pose
     pushing, the mean within 1 % of the previous window's): a loaded machine's subscriber
     may run behind, so a fixed wait can still land in the ramp, and its emulated boards
@@ -92,7 +100,9 @@ def settled(sub: Subscriber, daemon: DaemonProcess, window_s: float = 0.5, timeo
         if previous is not None and abs(force - previous) <= 0.01 * previous:
             return poses
         previous = force
-    raise AssertionError(f"the press never settled within {timeout_s:g} s; daemon stderr: {daemon.stderr[-1500:]}")
+    raise AssertionError(
+        f"the press never settled within {timeout_s:g} s; daemon stderr: {daemon.stderr[-1500:]}"
+    )
 
 
 def pressed_and_pushed_back(sub: Subscriber, daemon: DaemonProcess, board, plane=(0, 1, 2)) -> None:
@@ -111,8 +121,13 @@ def pressed_and_pushed_back(sub: Subscriber, daemon: DaemonProcess, board, plane
     wrote = np.mean([p.force_N for p in poses], axis=0) * mask
     exerted = np.mean([x.force_n for x in samples], axis=0)
     assert cosine(exerted, wrote) >= 0.99, (exerted, wrote)
-    assert np.linalg.norm(exerted) == pytest.approx(np.linalg.norm(wrote), rel=0.05), (exerted, wrote)
-    held_out = np.mean([x.stylus_mm - x.hand_mm for x in samples], axis=0)  # the motors hold the stylus off the hand
+    assert np.linalg.norm(exerted) == pytest.approx(np.linalg.norm(wrote), rel=0.05), (
+        exerted,
+        wrote,
+    )
+    held_out = np.mean(
+        [x.stylus_mm - x.hand_mm for x in samples], axis=0
+    )  # the motors hold the stylus off the hand
     assert held_out @ wrote / np.linalg.norm(wrote) > 1.0, held_out
 
 
@@ -120,7 +135,11 @@ def test_daemon_presses_the_emulated_woody_into_the_molecule(tmp_path):
     rig = woodenhaptics_serial.launch(directory=tmp_path)
     board, hand = rig.board, rig.hand
     try:
-        hand.target = (0.0, 35.0, 0.0)  # from its home pose to above the molecule, before the daemon starts
+        hand.target = (
+            0.0,
+            35.0,
+            0.0,
+        )  # from its home pose to above the molecule, before the daemon starts
         wait_for(lambda: np.linalg.norm(board.stylus.now() - hand.target) < 0.5)
         with DaemonProcess(*EMULATED_ARM_RATE, *WHOLE, device=rig.device_spec) as daemon:
             assert daemon.ready["device"] == "woodenhaptics"
@@ -133,7 +152,9 @@ def test_daemon_presses_the_emulated_woody_into_the_molecule(tmp_path):
             board.unplug()  # pull the cable: force zeroed, fault flagged
             fault = poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon)
             assert np.allclose(fault.force_N, 0.0)
-            hand.target = board.arm.tip_m(board.arm.home_bodies()) * 1000.0  # back to its home pose to power up
+            hand.target = (
+                board.arm.tip_m(board.arm.home_bodies()) * 1000.0
+            )  # back to its home pose to power up
             wait_for(lambda: np.linalg.norm(board.stylus.now() - hand.target) < 0.5)
             board.replug()
             poses_until(sub, lambda p: "device reconnected" in daemon.stderr, daemon)
@@ -207,7 +228,9 @@ def test_daemon_survives_a_falcon_that_stops_answering(monkeypatch, emulators_im
             emu.hardware.hung = True
             poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon)
             silent = poses_for(sub, 1.0)  # the loop goes on: poses keep coming, all without force
-            assert len(silent) > 100 and all(p.has(FLAG_FAULT) and np.allclose(p.force_N, 0.0) for p in silent)
+            assert len(silent) > 100 and all(
+                p.has(FLAG_FAULT) and np.allclose(p.force_N, 0.0) for p in silent
+            )
             assert emu.hardware.upload_attempts == 1  # no firmware pushed into a running Falcon
             rc, _report = daemon.stop()
             assert rc == 0, daemon.stderr
@@ -229,7 +252,9 @@ def test_daemon_presses_the_emulated_haply_into_the_molecule(tmp_path):
             assert sub.pose.tip_mm[1] == 0.0
             rc, _report = daemon.stop()
             assert rc == 0, daemon.stderr
-        assert np.allclose(board.motor_force(), 0.0)  # the board has no watchdog: closing wrote zero
+        assert np.allclose(
+            board.motor_force(), 0.0
+        )  # the board has no watchdog: closing wrote zero
     finally:
         rig.close()
 
@@ -243,14 +268,25 @@ def test_daemon_takes_the_input_only_spacemouse(monkeypatch):
             sub = Subscriber(daemon.pub)
             start = poses_until(sub, lambda p: True, daemon)
             emu.hand.deflect(translation=(0.5, 0.0, 0.0))  # held right; the cap sends nothing more
-            moved = poses_until(sub, lambda p: p.tip_mm[0] - start.tip_mm[0] > 20.0, daemon)  # 0.4 s at 50 mm/s
-            assert abs(moved.tip_mm[1] - start.tip_mm[1]) < 1e-6 and abs(moved.tip_mm[2] - start.tip_mm[2]) < 1e-6
+            moved = poses_until(
+                sub, lambda p: p.tip_mm[0] - start.tip_mm[0] > 20.0, daemon
+            )  # 0.4 s at 50 mm/s
+            assert (
+                abs(moved.tip_mm[1] - start.tip_mm[1]) < 1e-6
+                and abs(moved.tip_mm[2] - start.tip_mm[2]) < 1e-6
+            )
             poses = sub.poll(0.3)
-            assert poses and all(np.allclose(p.force_N, 0.0) for p in poses)  # no force output, ever
+            assert poses and all(
+                np.allclose(p.force_N, 0.0) for p in poses
+            )  # no force output, ever
             emu.unplug()  # the cable pulled: a fault, never a hang
             assert np.allclose(poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon).force_N, 0.0)
             emu.replug()
-            back = poses_until(sub, lambda p: "device reconnected" in daemon.stderr and not p.has(FLAG_FAULT), daemon)
+            back = poses_until(
+                sub,
+                lambda p: "device reconnected" in daemon.stderr and not p.has(FLAG_FAULT),
+                daemon,
+            )
             emu.hand.deflect(translation=(0.0, -0.5, 0.0))  # pushed down: the cursor goes down
             poses_until(sub, lambda p: p.tip_mm[1] < back.tip_mm[1] - 5.0, daemon)
             rc, _report = daemon.stop()
@@ -263,8 +299,12 @@ def test_daemon_on_openhaptics_through_the_stand_in_library(tmp_path, monkeypatc
     if libhd.build(tmp_path) is None:
         skip_or_fail("no C compiler to build the stand-in HD library")
     centre = np.asarray(libhd.USABLE_BOX_CENTRE)  # the cube's centre
-    emu = libhd.launch(library=tmp_path / "libHD.so", styles=libhd.HD_CALIBRATION_INKWELL, hand=centre,
-                       inkwell=True)
+    emu = libhd.launch(
+        library=tmp_path / "libHD.so",
+        styles=libhd.HD_CALIBRATION_INKWELL,
+        hand=centre,
+        inkwell=True,
+    )
     for key, value in emu.env.items():
         monkeypatch.setenv(key, value)
     swinging = threading.Event()
@@ -272,7 +312,11 @@ def test_daemon_on_openhaptics_through_the_stand_in_library(tmp_path, monkeypatc
     def sweep():  # the user swings the stylus ±30 mm along x, through the molecule
         t0 = time.monotonic()
         while not swinging.is_set():
-            emu.hand.target = centre + [30.0 * math.sin(math.pi * (time.monotonic() - t0)), 0.0, 0.0]
+            emu.hand.target = centre + [
+                30.0 * math.sin(math.pi * (time.monotonic() - t0)),
+                0.0,
+                0.0,
+            ]
             time.sleep(0.005)
 
     hand = threading.Thread(target=sweep, daemon=True)
@@ -286,10 +330,14 @@ def test_daemon_on_openhaptics_through_the_stand_in_library(tmp_path, monkeypatc
             assert 0.05 < emu.control.max_force <= 3.3 + 1e-9 and emu.control.resets == 0
             emu.unplug()
             assert np.allclose(poses_until(sub, lambda p: p.has(FLAG_FAULT), daemon).force_N, 0.0)
-            wait_for(lambda: emu.applied_force == (0.0, 0.0, 0.0), timeout_s=2.0)  # its motors are off
+            wait_for(
+                lambda: emu.applied_force == (0.0, 0.0, 0.0), timeout_s=2.0
+            )  # its motors are off
             emu.replug()
             back = poses_until(sub, lambda p: "device reconnected" in daemon.stderr, daemon)
-            poses_until(sub, lambda p: pushing(p) and p.seq > back.seq, daemon)  # recalibrated, pushing again
+            poses_until(
+                sub, lambda p: pushing(p) and p.seq > back.seq, daemon
+            )  # recalibrated, pushing again
             rc, report = daemon.stop()
             assert rc == 0, daemon.stderr
             assert report["device_last_force_n"] == [0.0, 0.0, 0.0]

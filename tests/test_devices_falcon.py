@@ -12,15 +12,14 @@ import time
 
 import numpy as np
 import pytest
-
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.falcon import FalconDevice
 from sasprobe.devices.falcon import models as M
 from sasprobe.devices.falcon import protocol as P
+
 from tests.conftest import run_cli
 from tests.emulators.falcon_device import FalconHardware, Hand
 from tests.emulators.falcon_usb import EmulatedUsbBackend, launch
-
 
 # --- the driver against the emulated Falcon -------------------------------------------------
 
@@ -90,7 +89,12 @@ def test_upload_takes_the_loader_reply_of_either_platform_after_some_probes(firm
     dev, hw, _hand = make_rig(firmware, probes_ignored=5, macos=macos)
     dev.open()
     try:
-        assert hw.running and hw.probes_seen == 6 and hw.upload_attempts == 1 and dev.firmware_uploads == 1
+        assert (
+            hw.running
+            and hw.probes_seen == 6
+            and hw.upload_attempts == 1
+            and dev.firmware_uploads == 1
+        )
         dev.read()
         dev.close()
         dev.open()  # the firmware is running now: nothing is uploaded again
@@ -124,7 +128,9 @@ def test_the_wrong_firmware_and_no_firmware_are_reported(firmware, tmp_path):
     with pytest.raises(DeviceOpenError, match="no firmware running"):
         FalconDevice(None, usb_backend=EmulatedUsbBackend(FalconHardware(image))).open()
     with pytest.raises(DeviceOpenError, match="firmware file not found"):
-        FalconDevice(tmp_path / "nope.bin", usb_backend=EmulatedUsbBackend(FalconHardware(image))).open()
+        FalconDevice(
+            tmp_path / "nope.bin", usb_backend=EmulatedUsbBackend(FalconHardware(image))
+        ).open()
     absent = FalconHardware(image)
     absent.unplug()
     with pytest.raises(DeviceOpenError, match="no Novint Falcon found"):
@@ -150,7 +156,15 @@ def test_each_axis_and_a_diagonal_are_reported_as_moved(rig):
     hand.target = (0.0, 0.0, 0.0)
     states, _ = run_loop(dev, 0.4)
     origin = states[-1].position_mm
-    for move in [(10, 0, 0), (-10, 0, 0), (0, 10, 0), (0, -10, 0), (0, 0, 10), (0, 0, -10), (7, -7, 7)]:
+    for move in [
+        (10, 0, 0),
+        (-10, 0, 0),
+        (0, 10, 0),
+        (0, -10, 0),
+        (0, 0, 10),
+        (0, 0, -10),
+        (7, -7, 7),
+    ]:
         hand.target = move
         states, _faults = run_loop(dev, 0.5)
         np.testing.assert_allclose(hw.stylus.position, move, atol=0.05)  # the hand holds it there
@@ -163,8 +177,13 @@ def test_the_motors_exert_the_force_asked_for(rig):
     dev, hw, hand = rig
     dev.open()
     home(dev, hand)
-    for where, force in [((0, 0, 0), (0, 0, 2.0)), ((0, 0, 0), (0, 0, -2.0)), ((15, -10, 5), (1.0, 2.0, -3.0)),
-                         ((-20, 20, -20), (-2.5, 0.5, 1.5)), ((25, 5, 25), (3.0, -3.0, 0.0))]:
+    for where, force in [
+        ((0, 0, 0), (0, 0, 2.0)),
+        ((0, 0, 0), (0, 0, -2.0)),
+        ((15, -10, 5), (1.0, 2.0, -3.0)),
+        ((-20, 20, -20), (-2.5, 0.5, 1.5)),
+        ((25, 5, 25), (3.0, -3.0, 0.0)),
+    ]:
         hand.target = where
         run_loop(dev, 0.4)
         run_loop(dev, 0.05, force_of=lambda s: np.asarray(force))
@@ -179,7 +198,11 @@ def test_forces_never_exceed_the_declared_limit(firmware):
     dev.open()
     home(dev, hand)
     rng = np.random.default_rng(7)
-    commands = [rng.normal(size=3) * 100.0 for _ in range(100)] + [[np.nan, 1.0, 1.0], [np.inf, 0, 0], [1e300] * 3]
+    commands = [rng.normal(size=3) * 100.0 for _ in range(100)] + [
+        [np.nan, 1.0, 1.0],
+        [np.inf, 0, 0],
+        [1e300] * 3,
+    ]
     for command in commands:
         assert max(abs(m) for m in dev.motor_command(command)) <= M.MOTOR_COMMAND_LIMIT
         run_loop(dev, 0.003, force_of=lambda s: np.asarray(command, dtype=float))
@@ -272,7 +295,13 @@ def test_malformed_replies_are_counted_and_skipped(rig):
     dev, hw, hand = rig
     dev.open()
     home(dev, hand)
-    injected = [b"\x00\x13junk", b"<AAAAAAAZAAAAAA>", b"<AAAAAAAAAAAAAAAAAA>", b"<AAAA", b"[AAAAAAAAAAAAAA>"]
+    injected = [
+        b"\x00\x13junk",
+        b"<AAAAAAAZAAAAAA>",
+        b"<AAAAAAAAAAAAAAAAAA>",
+        b"<AAAA",
+        b"[AAAAAAAAAAAAAA>",
+    ]
     before = dev.rejected_frames
     for bad in injected:
         hw.inject_before_reply = [bad]
@@ -292,10 +321,14 @@ def test_buttons_come_through(rig):
 
 # --- through the CLI ------------------------------------------------------------------------
 
-@pytest.mark.parametrize("options, with_firmware, message", [
-    ({"loader_silent": True}, True, "loader did not answer 100 probes"),
-    ({}, False, "no firmware running"),
-])
+
+@pytest.mark.parametrize(
+    "options, with_firmware, message",
+    [
+        ({"loader_silent": True}, True, "loader did not answer 100 probes"),
+        ({}, False, "no firmware running"),
+    ],
+)
 def test_cli_reports_a_falcon_it_cannot_start_in_one_line(options, with_firmware, message):
     emu = launch(**options)
     try:

@@ -15,13 +15,13 @@ import time
 
 import numpy as np
 import pytest
-
 from sasprobe.devices import forcedimension
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.forcedimension import frame
 from sasprobe.devices.forcedimension.driver import ForceDimensionDevice
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.pose import FLAG_FAULT
+
 from tests.arm_outage import recorded_outage
 from tests.conftest import run_cli, skip_or_fail
 from tests.daemon_process import DaemonProcess
@@ -69,14 +69,23 @@ def arm(library, monkeypatch):
 
 
 def test_the_frame_mapping_gives_the_published_axes():
-    np.testing.assert_allclose(frame.position_mm((0.01, 0.0, 0.0)), [0.0, 0.0, 10.0])  # toward the user
+    np.testing.assert_allclose(
+        frame.position_mm((0.01, 0.0, 0.0)), [0.0, 0.0, 10.0]
+    )  # toward the user
     np.testing.assert_allclose(frame.position_mm((0.0, 0.01, 0.0)), [10.0, 0.0, 0.0])  # right
     np.testing.assert_allclose(frame.position_mm((0.0, 0.0, 0.01)), [0.0, 10.0, 0.0])  # up
-    np.testing.assert_allclose(frame.dhd_force((1.0, 2.0, 3.0)), [3.0, 1.0, 2.0])  # right 1, up 2, toward 3
+    np.testing.assert_allclose(
+        frame.dhd_force((1.0, 2.0, 3.0)), [3.0, 1.0, 2.0]
+    )  # right 1, up 2, toward 3
     a = 0.4  # a wrist turned about DHD's z (up) is turned about sasprobe's y (up)
-    turned = frame.rotation([[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]])
-    np.testing.assert_allclose(turned, [[math.cos(a), 0.0, math.sin(a)], [0.0, 1.0, 0.0],
-                                        [-math.sin(a), 0.0, math.cos(a)]], atol=1e-12)
+    turned = frame.rotation(
+        [[math.cos(a), -math.sin(a), 0.0], [math.sin(a), math.cos(a), 0.0], [0.0, 0.0, 1.0]]
+    )
+    np.testing.assert_allclose(
+        turned,
+        [[math.cos(a), 0.0, math.sin(a)], [0.0, 1.0, 0.0], [-math.sin(a), 0.0, math.cos(a)]],
+        atol=1e-12,
+    )
 
 
 def test_open_reads_the_model_and_its_limits(arm):
@@ -85,14 +94,19 @@ def test_open_reads_the_model_and_its_limits(arm):
     dev.open()
     info = dev.info
     assert (info.model, info.serial, info.details["system_name"]) == ("omega.3", "4711", "omega.3")
-    assert (info.limits.max_force_n, info.limits.max_stiffness_n_per_mm, info.limits.max_damping_n_s_per_m) == (
-        12.0, 5.0, 30.0)
+    assert (
+        info.limits.max_force_n,
+        info.limits.max_stiffness_n_per_mm,
+        info.limits.max_damping_n_s_per_m,
+    ) == (12.0, 5.0, 30.0)
     assert info.limits.workspace_max_mm[0] == pytest.approx(75.0 / math.sqrt(3.0))
     assert emu.control.force_enabled == 1 and emu.control.enables == 1
 
 
-@pytest.mark.parametrize("device_mm", [(10, 0, 0), (-10, 0, 0), (0, 10, 0), (0, -10, 0), (0, 0, 10), (0, 0, -10),
-                                       (10, -10, 10)])
+@pytest.mark.parametrize(
+    "device_mm",
+    [(10, 0, 0), (-10, 0, 0), (0, 10, 0), (0, -10, 0), (0, 0, 10), (0, 0, -10), (10, -10, 10)],
+)
 def test_moves_along_each_axis_and_a_diagonal_read_within_half_a_millimetre(arm, device_mm):
     dev, emu = arm()
     dev.open()
@@ -104,7 +118,9 @@ def test_moves_along_each_axis_and_a_diagonal_read_within_half_a_millimetre(arm,
 
 
 def test_the_sigma7_offset_centres_its_workspace(arm):
-    dev, emu = arm(types=(libdhd.SIGMA7_RIGHT,), hand=(0.01, -0.02, 0.0))  # CHAI3D adds (-0.01, 0.02, 0)
+    dev, emu = arm(
+        types=(libdhd.SIGMA7_RIGHT,), hand=(0.01, -0.02, 0.0)
+    )  # CHAI3D adds (-0.01, 0.02, 0)
     dev.open()
     emu.settled()
     np.testing.assert_allclose(dev.read().position_mm, [0.0, 0.0, 0.0], atol=0.05)
@@ -120,7 +136,9 @@ def test_a_force_is_rendered_in_dhds_frame_and_moves_the_handle(arm):
     while dev.read().position_mm[0] < 1.99 and time.monotonic() < deadline:
         time.sleep(0.005)
     state = dev.read()  # the hand's 500 N/m spring gives way 2 mm to the right
-    np.testing.assert_allclose(state.position_mm, [1000.0 / libdhd.HAND_STIFFNESS_N_PER_M, 0.0, 0.0], atol=0.02)
+    np.testing.assert_allclose(
+        state.position_mm, [1000.0 / libdhd.HAND_STIFFNESS_N_PER_M, 0.0, 0.0], atol=0.02
+    )
 
 
 WALL_X_MM, WALL_N_PER_MM = 10.0, 0.5  # a virtual wall beyond x = 10 mm, as stiff as the hand
@@ -168,7 +186,10 @@ def test_timeguard_and_saturation_are_successes(arm):
         dev.read()
         dev.write_force([0.0, 1.0, 0.0])
         time.sleep(0.001)
-    assert emu.control.timeguards >= 10 and dev.info.details["timeguard_reads"] == emu.control.timeguards
+    assert (
+        emu.control.timeguards >= 10
+        and dev.info.details["timeguard_reads"] == emu.control.timeguards
+    )
     assert emu.control.saturated == 20 and dev.info.details["saturated_writes"] == 20
     assert emu.force_n == pytest.approx((0.0, 0.0, 0.5))
 
@@ -185,7 +206,9 @@ def test_a_velocity_window_without_two_reads_is_no_fault(arm):
     for _ in range(30):
         states.append(dev.read())
         time.sleep(0.001)
-    assert max(s.velocity_mm_s[1] for s in states) > 100.0  # the library's velocity, in mm/s and on y
+    assert (
+        max(s.velocity_mm_s[1] for s in states) > 100.0
+    )  # the library's velocity, in mm/s and on y
 
 
 def test_forces_are_clamped_and_never_nan(arm):
@@ -205,7 +228,9 @@ def test_buttons_and_the_wrist(arm):
     emu.control.wrist_angle = 0.5  # about DHD's z, up
     state = dev.read()
     assert state.buttons == 0b101
-    np.testing.assert_allclose(state.orientation, [math.cos(0.25), 0.0, math.sin(0.25), 0.0], atol=1e-12)
+    np.testing.assert_allclose(
+        state.orientation, [math.cos(0.25), 0.0, math.sin(0.25), 0.0], atol=1e-12
+    )
 
 
 def test_a_lost_link_is_a_fault_naming_the_error_and_force_is_enabled_again_after(arm):
@@ -247,13 +272,19 @@ def test_no_library_says_so_in_one_line(monkeypatch, tmp_path):
     with pytest.raises(DeviceOpenError) as err:
         ForceDimensionDevice(0).open()
     message = str(err.value)
-    assert "\n" not in message and "SASPROBE_DHD_LIBRARY" in message and "Force Dimension SDK" in message
+    assert (
+        "\n" not in message
+        and "SASPROBE_DHD_LIBRARY" in message
+        and "Force Dimension SDK" in message
+    )
 
 
 def test_a_library_without_dhdsetforce_is_refused_by_name(tmp_path):
     if libdhd.build(tmp_path, "libnoforce.so", without_set_force=True) is None:
         skip_or_fail("no C compiler to build the stand-in DHD library")
-    with pytest.raises(DeviceOpenError, match="is not the Force Dimension DHD library: it lacks dhdSetForce"):
+    with pytest.raises(
+        DeviceOpenError, match="is not the Force Dimension DHD library: it lacks dhdSetForce"
+    ):
         ForceDimensionDevice(0, library=str(tmp_path / "libnoforce.so")).open()
 
 
@@ -264,20 +295,35 @@ def test_the_device_string():
 
 
 def test_devices_lists_the_arms_the_library_counts_and_checks_one(library, tmp_path):
-    emu = libdhd.launch(library=library, types=(libdhd.OMEGA3, libdhd.SIGMA7_RIGHT), serials=(4711, 12),
-                        hand=(0.0, 0.01, 0.0))
+    emu = libdhd.launch(
+        library=library,
+        types=(libdhd.OMEGA3, libdhd.SIGMA7_RIGHT),
+        serials=(4711, 12),
+        hand=(0.0, 0.01, 0.0),
+    )
     env = dict(os.environ, **emu.env)
     try:
         listed = run_cli("devices", "--json", env=env)
         assert listed.returncode == 0, listed.stderr
-        arms = [(d["path"], d["description"], d["device"]) for d in json.loads(listed.stdout)["devices"]
-                if d["transport"] == "dhd"]
-        assert arms == [("index 0", "Force Dimension omega.3 serial 4711", "forcedimension"),
-                        ("index 1", "Force Dimension sigma.7 (right) serial 12", "forcedimension:1")]
-        checked = run_cli("devices", "--check", "forcedimension:1", "--seconds", "0.3", "--json", env=env)
+        arms = [
+            (d["path"], d["description"], d["device"])
+            for d in json.loads(listed.stdout)["devices"]
+            if d["transport"] == "dhd"
+        ]
+        assert arms == [
+            ("index 0", "Force Dimension omega.3 serial 4711", "forcedimension"),
+            ("index 1", "Force Dimension sigma.7 (right) serial 12", "forcedimension:1"),
+        ]
+        checked = run_cli(
+            "devices", "--check", "forcedimension:1", "--seconds", "0.3", "--json", env=env
+        )
         assert checked.returncode == 0, checked.stderr
         report = json.loads(checked.stdout)
-        assert report["info"]["model"] == "sigma.7 (right)" and report["reads"] > 10 and report["faults"] == 0
+        assert (
+            report["info"]["model"] == "sigma.7 (right)"
+            and report["reads"] > 10
+            and report["faults"] == 0
+        )
         # the hand holds the handle 10 mm right of DHD's origin; the sigma.7's offset adds 20 mm
         np.testing.assert_allclose(report["position_mm"], [30.0, 0.0, -10.0], atol=0.1)
         assert emu.control.open_id == -1 and emu.force_n == (0.0, 0.0, 0.0)  # closed, at zero
@@ -286,19 +332,31 @@ def test_devices_lists_the_arms_the_library_counts_and_checks_one(library, tmp_p
 
 
 def test_check_without_the_library_is_one_line(tmp_path):
-    result = run_cli("devices", "--check", "forcedimension",
-                     env=dict(os.environ, SASPROBE_DHD_LIBRARY=str(tmp_path / "libdhd.so")))
+    result = run_cli(
+        "devices",
+        "--check",
+        "forcedimension",
+        env=dict(os.environ, SASPROBE_DHD_LIBRARY=str(tmp_path / "libdhd.so")),
+    )
     lines = result.stderr.strip().splitlines()
-    assert result.returncode == 2 and len(lines) == 1 and "SASPROBE_DHD_LIBRARY" in lines[0], result.stderr
+    assert result.returncode == 2 and len(lines) == 1 and "SASPROBE_DHD_LIBRARY" in lines[0], (
+        result.stderr
+    )
 
 
-def test_daemon_presses_the_emulated_omega_and_rides_out_a_lost_link(library, tmp_path, monkeypatch):
-    emu = libdhd.launch(library=library, hand=(0.0, 0.0, 0.03))  # 30 mm above the workspace centre: outside
+def test_daemon_presses_the_emulated_omega_and_rides_out_a_lost_link(
+    library, tmp_path, monkeypatch
+):
+    emu = libdhd.launch(
+        library=library, hand=(0.0, 0.0, 0.03)
+    )  # 30 mm above the workspace centre: outside
     for key, value in emu.env.items():
         monkeypatch.setenv(key, value)
     path = tmp_path / "session.mcap"
     try:
-        with DaemonProcess(*EMULATED_ARM_RATE, *WHOLE, "--record", str(path), device=emu.device_spec) as daemon:
+        with DaemonProcess(
+            *EMULATED_ARM_RATE, *WHOLE, "--record", str(path), device=emu.device_spec
+        ) as daemon:
             assert daemon.ready["device"] == "forcedimension"
             sub = Subscriber(daemon.pub)
             poses_until(sub, lambda p: p.tip_mm[1] > 29.0, daemon)
@@ -315,9 +373,12 @@ def test_daemon_presses_the_emulated_omega_and_rides_out_a_lost_link(library, tm
                     held.append(to_device(np.subtract(emu.handle_m, emu.control.hand), 1000.0))
             assert len(written) > 10, daemon.stderr[-1500:]
             wrote, made = np.median(written, axis=0), np.median(exerted, axis=0)
-            assert cosine(made, wrote) >= 0.99 and np.linalg.norm(made) == pytest.approx(np.linalg.norm(wrote),
-                                                                                          rel=0.05), (made, wrote)
-            assert np.median(held, axis=0) @ wrote / np.linalg.norm(wrote) > 1.0  # pushed out of the surface
+            assert cosine(made, wrote) >= 0.99 and np.linalg.norm(made) == pytest.approx(
+                np.linalg.norm(wrote), rel=0.05
+            ), (made, wrote)
+            assert (
+                np.median(held, axis=0) @ wrote / np.linalg.norm(wrote) > 1.0
+            )  # pushed out of the surface
 
             failed_at = time.monotonic_ns()
             emu.link(up=False)  # the arm stops answering: every call fails with DHD_ERROR_COM
@@ -325,7 +386,9 @@ def test_daemon_presses_the_emulated_omega_and_rides_out_a_lost_link(library, tm
             time.sleep(0.3)
             emu.link(up=True)
             poses_until(sub, lambda p: "device reconnected" in daemon.stderr, daemon)
-            emu.move_hand((0.0, 0.0, 0.03))  # out into free space (a reconnected probe starts unseated), back in
+            emu.move_hand(
+                (0.0, 0.0, 0.03)
+            )  # out into free space (a reconnected probe starts unseated), back in
             poses_until(sub, lambda p: p.tip_mm[1] > 29.0 and not p.has(FLAG_FAULT), daemon)
             emu.move_hand((0.0, 0.0, 0.0))
             poses_until(sub, pushing, daemon)
@@ -333,7 +396,9 @@ def test_daemon_presses_the_emulated_omega_and_rides_out_a_lost_link(library, tm
             assert rc == 0, daemon.stderr
             assert report["device_last_force_n"] == [0.0, 0.0, 0.0]
         assert emu.force_n == (0.0, 0.0, 0.0) and emu.control.open_id == -1
-        assert emu.control.timeguards > 0 and emu.control.enables >= 2  # force enabled again after the outage
+        assert (
+            emu.control.timeguards > 0 and emu.control.enables >= 2
+        )  # force enabled again after the outage
         outage = recorded_outage(path, failed_at)
         assert any(e and "DHD_ERROR_COM" in e for e in outage["errors"])
         assert "reconnect" in [e["cmd"] for e in outage["session"].events]

@@ -5,9 +5,9 @@ test_devices_serial_arms.py; known answers: test_devices_haply_known.py)."""
 from __future__ import annotations
 
 import pytest
-
 from sasprobe.devices.base import DeviceOpenError
 from sasprobe.devices.haply import create
+
 from tests.emulators import haply_serial
 from tests.serial_arm_session import Session
 
@@ -32,7 +32,9 @@ def test_the_board_gets_haplys_setup_and_answers_no_setup_message(rig):
 @pytest.mark.parametrize("rig", [{"firmware": "v0.1"}], indirect=True)
 def test_a_board_on_the_old_header_format_is_one_line(rig):
     dev, _board, _hand = rig
-    with pytest.raises(DeviceOpenError, match="answered the reset/setup messages.*old v0.1 header format") as err:
+    with pytest.raises(
+        DeviceOpenError, match="answered the reset/setup messages.*old v0.1 header format"
+    ) as err:
         dev.open()
     assert "\n" not in str(err.value)
 

@@ -16,12 +16,12 @@ import time
 
 import numpy as np
 import pytest
-from websockets.sync.server import serve
-
 from sasprobe.devices import inverse3
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.inverse3 import protocol
 from sasprobe.devices.inverse3.driver import Inverse3Device
+from websockets.sync.server import serve
+
 from tests.emulators.inverse_service import InverseService
 from tests.test_devices_daemon import wait_for
 from tests.test_devices_forcedimension import balance, settle_against_a_wall
@@ -88,42 +88,66 @@ def hold(dev, svc, force):
 
 def test_the_frame_mapping_gives_the_published_axes():
     np.testing.assert_allclose(protocol.position_mm((0.01, 0.0, 0.0)), [10.0, 0.0, 0.0])  # right
-    np.testing.assert_allclose(protocol.position_mm((0.0, 0.01, 0.0)), [0.0, 0.0, -10.0])  # away from the user
+    np.testing.assert_allclose(
+        protocol.position_mm((0.0, 0.01, 0.0)), [0.0, 0.0, -10.0]
+    )  # away from the user
     np.testing.assert_allclose(protocol.position_mm((0.0, 0.0, 0.01)), [0.0, 10.0, 0.0])  # up
     np.testing.assert_allclose(protocol.haply_force((1.0, 2.0, 3.0)), [1.0, -3.0, 2.0])
     a = 0.6  # a grip turned about Haply's Z (up) is turned about sasprobe's y (up)
-    np.testing.assert_allclose(protocol.orientation((0.0, 0.0, math.sin(a / 2), math.cos(a / 2))),
-                               [math.cos(a / 2), 0.0, math.sin(a / 2), 0.0], atol=1e-12)
+    np.testing.assert_allclose(
+        protocol.orientation((0.0, 0.0, math.sin(a / 2), math.cos(a / 2))),
+        [math.cos(a / 2), 0.0, math.sin(a / 2), 0.0],
+        atol=1e-12,
+    )
 
 
 def test_open_names_the_arm_and_centres_its_workspace(arm):
     dev, svc = arm()
     info = dev.info
-    assert (info.model, info.serial, info.details["handedness"]) == ("Haply Inverse3", "049D", "right")
-    assert info.limits.max_force_n == 2.0 and info.limits.workspace_max_mm[0] == pytest.approx(80.0 / math.sqrt(3))
+    assert (info.model, info.serial, info.details["handedness"]) == (
+        "Haply Inverse3",
+        "049D",
+        "right",
+    )
+    assert info.limits.max_force_n == 2.0 and info.limits.workspace_max_mm[0] == pytest.approx(
+        80.0 / math.sqrt(3)
+    )
     assert svc.presets == ["arm_front_centered"] and svc.profiles == ["org.sasprobe:daemon"]
     assert svc.basis_changes == 0  # the frame is mapped here, once, not by the service
     state = run(dev)
-    np.testing.assert_allclose(state.position_mm, [0.0, 0.0, 0.0], atol=1e-9)  # the centre, not the base
+    np.testing.assert_allclose(
+        state.position_mm, [0.0, 0.0, 0.0], atol=1e-9
+    )  # the centre, not the base
     assert abs(state.t_ns - time.monotonic_ns()) < 1e9
 
 
-@pytest.mark.parametrize("device_mm", [(10, 0, 0), (-10, 0, 0), (0, 10, 0), (0, -10, 0), (0, 0, 10), (0, 0, -10),
-                                       (10, -10, 10)])
+@pytest.mark.parametrize(
+    "device_mm",
+    [(10, 0, 0), (-10, 0, 0), (0, 10, 0), (0, -10, 0), (0, 0, 10), (0, 0, -10), (10, -10, 10)],
+)
 def test_moves_along_each_axis_and_a_diagonal_read_within_half_a_millimetre(arm, device_mm):
     dev, svc = arm()
     svc.hand.target = to_haply_mm(device_mm)
-    state = run(dev, lambda s: np.allclose(svc.hand.position, svc.hand.target) and
-                np.linalg.norm(svc.stylus.velocity) < 0.5)
+    state = run(
+        dev,
+        lambda s: (
+            np.allclose(svc.hand.position, svc.hand.target)
+            and np.linalg.norm(svc.stylus.velocity) < 0.5
+        ),
+    )
     state = run(dev)  # a state sampled after the cursor came to rest
     np.testing.assert_allclose(state.position_mm, device_mm, atol=0.5)
 
 
 def test_a_force_is_sent_as_a_vector_in_haplys_frame_and_moves_the_cursor(arm):
     dev, svc = arm()
-    state = run(dev, lambda s: s.position_mm[2] > 1.99, force=(0.0, 0.0, 1.0))  # toward the user: Haply −Y
+    state = run(
+        dev, lambda s: s.position_mm[2] > 1.99, force=(0.0, 0.0, 1.0)
+    )  # toward the user: Haply −Y
     np.testing.assert_allclose(svc.samples[-1][1], [0.0, -1.0, 0.0])
-    np.testing.assert_allclose(state.position_mm, [0.0, 0.0, 2.0], atol=0.02)  # the hand's 0.5 N/mm gives 2 mm
+    np.testing.assert_allclose(
+        state.position_mm, [0.0, 0.0, 2.0], atol=0.02
+    )  # the hand's 0.5 N/mm gives 2 mm
     assert svc.ignored_commands == 0
 
 
@@ -139,7 +163,9 @@ def test_the_grips_buttons_and_orientation(arm):
     svc.grip_buttons.update(a=True, c=True)
     svc.grip_orientation = (math.sin(0.3), 0.0, 0.0, math.cos(0.3))  # about Haply's X (right)
     state = run(dev, lambda s: s.buttons == 0b101)
-    np.testing.assert_allclose(state.orientation, [math.cos(0.3), math.sin(0.3), 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(
+        state.orientation, [math.cos(0.3), math.sin(0.3), 0.0, 0.0], atol=1e-12
+    )
 
 
 def test_an_uncalibrated_arm_gets_no_force(arm):
@@ -234,7 +260,9 @@ def test_a_session_silent_for_a_second_is_replaced(arm):
     assert dev.info.details["sessions"] == 2 and svc.sessions == 2
 
 
-def test_a_closed_connection_is_a_fault_at_once_and_a_new_session_opens_when_the_service_is_back(arm):
+def test_a_closed_connection_is_a_fault_at_once_and_a_new_session_opens_when_the_service_is_back(
+    arm,
+):
     dev, svc = arm()
     run(dev)
     svc.stop()
@@ -274,11 +302,17 @@ def _server(greeting):
     return server, f"ws://127.0.0.1:{server.socket.getsockname()[1]}"
 
 
-@pytest.mark.parametrize("greeting, refusal", [
-    (json.dumps({"devices": [{"id": 1}]}), r"does not speak the Inverse Service's 3.x format \(no 'inverse3' list"),
-    ("hello", r"does not speak the Inverse Service's 3.x format \(not JSON"),
-    (json.dumps({"session_id": 1, "inverse3": []}), "lists no Inverse3"),
-])
+@pytest.mark.parametrize(
+    "greeting, refusal",
+    [
+        (
+            json.dumps({"devices": [{"id": 1}]}),
+            r"does not speak the Inverse Service's 3.x format \(no 'inverse3' list",
+        ),
+        ("hello", r"does not speak the Inverse Service's 3.x format \(not JSON"),
+        (json.dumps({"session_id": 1, "inverse3": []}), "lists no Inverse3"),
+    ],
+)
 def test_a_service_that_speaks_another_format_is_refused_by_name(greeting, refusal):
     server, url = _server(greeting)
     try:

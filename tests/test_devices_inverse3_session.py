@@ -13,11 +13,11 @@ import time
 
 import numpy as np
 import pytest
-
 from sasprobe.daemon.config import DaemonConfig
 from sasprobe.daemon.session import open_session
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.pose import FLAG_FAULT
+
 from tests.arm_outage import recorded_outage
 from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess
@@ -29,7 +29,9 @@ from tests.test_devices_inverse3 import service  # noqa: F401 (the fixture)
 def test_without_a_rate_the_daemon_runs_the_arm_at_the_rate_it_declares():
     """The service's round trip is the link's cost: the arm declares a rate below the daemon's
     1 kHz, and the reply deadline (2.5 periods) follows the rate the loop runs at."""
-    start = open_session(DaemonConfig(device="inverse3:ws://127.0.0.1:9"))  # creates, never connects
+    start = open_session(
+        DaemonConfig(device="inverse3:ws://127.0.0.1:9")
+    )  # creates, never connects
     declared = start.device.info.limits.nominal_rate_hz
     assert start.rate_hz == declared < 1000.0
     assert start.device.reply_timeout_s == pytest.approx(2.5 / declared)
@@ -45,14 +47,30 @@ def test_devices_lists_the_services_arm_and_checks_it(service):
     env = dict(os.environ, **svc.env)
     listed = run_cli("devices", "--json", env=env)
     assert listed.returncode == 0, listed.stderr
-    arms = [(d["path"], d["description"], d["device"], d["note"]) for d in json.loads(listed.stdout)["devices"]
-            if d["transport"] == "websocket"]
-    assert arms == [(svc.url, "Haply Inverse3 049D", f"inverse3:{svc.url}", "not calibrated yet: let it self-calibrate")]
+    arms = [
+        (d["path"], d["description"], d["device"], d["note"])
+        for d in json.loads(listed.stdout)["devices"]
+        if d["transport"] == "websocket"
+    ]
+    assert arms == [
+        (
+            svc.url,
+            "Haply Inverse3 049D",
+            f"inverse3:{svc.url}",
+            "not calibrated yet: let it self-calibrate",
+        )
+    ]
     assert svc.messages == 0  # listing sends nothing
-    checked = run_cli("devices", "--check", f"inverse3:{svc.url}", "--seconds", "0.3", "--json", env=env)
+    checked = run_cli(
+        "devices", "--check", f"inverse3:{svc.url}", "--seconds", "0.3", "--json", env=env
+    )
     assert checked.returncode == 0, checked.stderr
     report = json.loads(checked.stdout)
-    assert report["info"]["model"] == "Haply Inverse3" and report["reads"] > 10 and report["calibrated"] is False
+    assert (
+        report["info"]["model"] == "Haply Inverse3"
+        and report["reads"] > 10
+        and report["calibrated"] is False
+    )
     np.testing.assert_allclose(report["position_mm"], [0.0, 10.0, 0.0], atol=0.5)
     assert np.allclose(svc.samples[-1][1], 0.0)  # the check wrote zero force
 
@@ -63,8 +81,12 @@ def test_check_without_a_service_is_one_line(service):
     svc.close()
     result = run_cli("devices", "--check", f"inverse3:{url}")
     lines = result.stderr.strip().splitlines()
-    assert result.returncode == 2 and len(lines) == 1 and url in lines[0] and "Inverse Service" in lines[0], \
-        result.stderr
+    assert (
+        result.returncode == 2
+        and len(lines) == 1
+        and url in lines[0]
+        and "Inverse Service" in lines[0]
+    ), result.stderr
 
 
 NEW_SESSION = "opening a new session"  # the driver's warning when a silent service is given up
@@ -90,11 +112,15 @@ def press_and_settle(svc, sub, daemon) -> tuple[list, int]:
     raise AssertionError(f"no settled press in three tries; daemon stderr: {daemon.stderr[-1500:]}")
 
 
-def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_service(service, tmp_path):
+def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_service(
+    service, tmp_path
+):
     svc = service()
     svc.hand.place((0.0, 0.0, 30.0))  # 30 mm above the workspace centre: outside the molecule
     path = tmp_path / "session.mcap"
-    with DaemonProcess(*PRESS_RATE, *WHOLE, "--record", str(path), device=svc.device_spec) as daemon:
+    with DaemonProcess(
+        *PRESS_RATE, *WHOLE, "--record", str(path), device=svc.device_spec
+    ) as daemon:
         assert daemon.ready["device"] == "inverse3"
         sub = Subscriber(daemon.pub)
         poses_until(sub, lambda p: p.tip_mm[1] > 29.0, daemon)
@@ -104,8 +130,12 @@ def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_
         wrote = np.median([p.force_N for p in poses], axis=0)
         made = np.median([to_device(x[1]) for x in samples], axis=0)  # on the service's own record
         assert len(samples) > 20 and svc.ignored_commands == 0  # half a second at 100 Hz
-        assert cosine(made, wrote) >= 0.99 and np.linalg.norm(made) == pytest.approx(np.linalg.norm(wrote), rel=0.05)
-        held = np.median([to_device(x[2]) for x in samples], axis=0)  # the cursor, the hand at the origin
+        assert cosine(made, wrote) >= 0.99 and np.linalg.norm(made) == pytest.approx(
+            np.linalg.norm(wrote), rel=0.05
+        )
+        held = np.median(
+            [to_device(x[2]) for x in samples], axis=0
+        )  # the cursor, the hand at the origin
         assert held @ wrote / np.linalg.norm(wrote) > 1.0  # pushed out of the surface
 
         hung_at = time.monotonic_ns()
@@ -120,7 +150,11 @@ def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_
         time.sleep(0.3)
         svc.start()
         poses_until(sub, lambda p: "device reconnected" in daemon.stderr, daemon)
-        svc.hand.target = (0.0, 0.0, 30.0)  # out into free space (a reconnected probe starts unseated), back in
+        svc.hand.target = (
+            0.0,
+            0.0,
+            30.0,
+        )  # out into free space (a reconnected probe starts unseated), back in
         poses_until(sub, lambda p: p.tip_mm[1] > 29.0 and not p.has(FLAG_FAULT), daemon)
         svc.hand.target = (0.0, 0.0, 0.0)
         poses_until(sub, pushing, daemon)

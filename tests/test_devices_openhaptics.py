@@ -18,17 +18,28 @@ import time
 
 import numpy as np
 import pytest
-
 from sasprobe.devices import openhaptics
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.openhaptics import hdapi
 from sasprobe.devices.openhaptics.driver import OpenHapticsDevice
+
 from tests.conftest import skip_or_fail
 from tests.emulators import libhd
-from tests.emulators.libhd import (HD_CALIBRATION_AUTO, HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_INKWELL,
-                                   HD_COMM_ERROR, HD_DEVICE_FAULT, HD_EXCEEDED_MAX_FORCE,
-                                   HD_EXCEEDED_MAX_FORCE_IMPULSE, HD_EXCEEDED_MAX_VELOCITY, HD_FORCE_ERROR,
-                                   HD_INVALID_ENUM, HD_WARM_MOTORS, UNCALIBRATED_OFFSET, USABLE_BOX_CENTRE)
+from tests.emulators.libhd import (
+    HD_CALIBRATION_AUTO,
+    HD_CALIBRATION_ENCODER_RESET,
+    HD_CALIBRATION_INKWELL,
+    HD_COMM_ERROR,
+    HD_DEVICE_FAULT,
+    HD_EXCEEDED_MAX_FORCE,
+    HD_EXCEEDED_MAX_FORCE_IMPULSE,
+    HD_EXCEEDED_MAX_VELOCITY,
+    HD_FORCE_ERROR,
+    HD_INVALID_ENUM,
+    HD_WARM_MOTORS,
+    UNCALIBRATED_OFFSET,
+    USABLE_BOX_CENTRE,
+)
 
 
 @pytest.fixture(scope="module")
@@ -81,22 +92,34 @@ def test_open_reads_the_nominal_limits_and_recentres_the_workspace(arm):
     assert (lim.max_force_n, lim.continuous_force_n, lim.max_stiffness_n_per_mm) == (3.3, 0.88, 0.5)
     assert lim.max_damping_n_s_per_m == pytest.approx(4.0)  # 0.004 N·s/mm
     # the library's usable box is z -70..0: the device frame puts its centre at the origin
-    assert lim.workspace_min_mm == (-80.0, -60.0, -35.0) and lim.workspace_max_mm == (80.0, 60.0, 35.0)
+    assert lim.workspace_min_mm == (-80.0, -60.0, -35.0) and lim.workspace_max_mm == (
+        80.0,
+        60.0,
+        35.0,
+    )
     assert dev.info.model == "Touch (emulated)"
     state = wait_for(dev, lambda s: True)
     assert not state.calibrated  # uncalibrated encoders read off by the emulator's offset
-    np.testing.assert_allclose(state.position_mm, device_frame(np.subtract((10.0, -5.0, -20.0), UNCALIBRATED_OFFSET)))
+    np.testing.assert_allclose(
+        state.position_mm, device_frame(np.subtract((10.0, -5.0, -20.0), UNCALIBRATED_OFFSET))
+    )
     emu.control.inkwell = 1
     state = wait_for(dev, lambda s: s.calibrated)
     np.testing.assert_allclose(state.position_mm, [10.0, -5.0, 15.0])
 
 
-@pytest.mark.parametrize("supported, chosen", [
-    (HD_CALIBRATION_AUTO | HD_CALIBRATION_INKWELL | HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_AUTO),
-    (HD_CALIBRATION_INKWELL | HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_INKWELL),
-    (HD_CALIBRATION_AUTO | HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_AUTO),
-    (HD_CALIBRATION_AUTO | HD_CALIBRATION_INKWELL, HD_CALIBRATION_AUTO),
-])
+@pytest.mark.parametrize(
+    "supported, chosen",
+    [
+        (
+            HD_CALIBRATION_AUTO | HD_CALIBRATION_INKWELL | HD_CALIBRATION_ENCODER_RESET,
+            HD_CALIBRATION_AUTO,
+        ),
+        (HD_CALIBRATION_INKWELL | HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_INKWELL),
+        (HD_CALIBRATION_AUTO | HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_AUTO),
+        (HD_CALIBRATION_AUTO | HD_CALIBRATION_INKWELL, HD_CALIBRATION_AUTO),
+    ],
+)
 def test_calibration_prefers_auto_then_inkwell_then_encoder_reset(arm, supported, chosen):
     dev, emu = arm(styles=supported, inkwell=True)
     dev.open()
@@ -118,7 +141,9 @@ def test_inkwell_calibration_gates_force(arm):
     dev.write_force([1.0, 0.0, 0.0])
     state = wait_for(dev, lambda s: s.position_mm[0] > 1.0)
     assert emu.applied_force == (1.0, 0.0, 0.0)
-    assert state.position_mm[0] == pytest.approx(1.0 / libhd.HAND_STIFFNESS_N_PER_MM)  # the hand gives way 2 mm
+    assert state.position_mm[0] == pytest.approx(
+        1.0 / libhd.HAND_STIFFNESS_N_PER_MM
+    )  # the hand gives way 2 mm
 
 
 def test_the_encoder_reset_comes_before_the_scheduler_at_the_held_pose(arm):
@@ -136,7 +161,9 @@ def test_the_encoder_reset_comes_before_the_scheduler_at_the_held_pose(arm):
 
 def test_an_encoder_reset_arm_is_refused_until_the_user_holds_the_reset_pose(arm):
     dev, emu = arm(styles=HD_CALIBRATION_ENCODER_RESET, hand=(20.0, 30.0, -10.0))
-    with pytest.raises(DeviceOpenError, match=r"needs an encoder reset.*reset position.*openhaptics:reset-encoders"):
+    with pytest.raises(
+        DeviceOpenError, match=r"needs an encoder reset.*reset position.*openhaptics:reset-encoders"
+    ):
         dev.open()
     assert emu.control.resets == 0 and emu.control.scheduler_running == 0
 
@@ -165,8 +192,16 @@ def calibrated_and_pushing(arm, force=(1.0, 0.0, 0.0)):
     return dev, emu
 
 
-@pytest.mark.parametrize("code", [HD_WARM_MOTORS, HD_EXCEEDED_MAX_FORCE, HD_EXCEEDED_MAX_VELOCITY, HD_FORCE_ERROR,
-                                  HD_DEVICE_FAULT])
+@pytest.mark.parametrize(
+    "code",
+    [
+        HD_WARM_MOTORS,
+        HD_EXCEEDED_MAX_FORCE,
+        HD_EXCEEDED_MAX_VELOCITY,
+        HD_FORCE_ERROR,
+        HD_DEVICE_FAULT,
+    ],
+)
 def test_a_force_error_stops_only_force_output(arm, code):
     dev, emu = calibrated_and_pushing(arm)
     emu.inject(code)
@@ -207,7 +242,9 @@ def test_other_errors_are_counted_and_force_goes_on(arm):
 
 def test_a_scheduler_error_ends_the_callback_and_is_a_fault(arm):
     dev, emu = calibrated_and_pushing(arm)
-    emu.inject(HD_COMM_ERROR)  # the device itself stays powered: its motors keep what they were last sent
+    emu.inject(
+        HD_COMM_ERROR
+    )  # the device itself stays powered: its motors keep what they were last sent
     with pytest.raises(DeviceFault, match=r"HD_COMM_ERROR \(0x0302"):
         _until_fault(dev)
     deadline = time.monotonic() + 2.0
@@ -280,7 +317,9 @@ def test_transform_buttons_and_servo_rate(arm):
     emu.control.buttons = 0b11
     wait_for(dev, lambda s: s.buttons == 0b11)
     state = wait_for(dev, lambda s: abs(s.orientation[2]) > 0.1)
-    np.testing.assert_allclose(state.orientation, [math.cos(0.25), 0.0, math.sin(0.25), 0.0], atol=1e-12)
+    np.testing.assert_allclose(
+        state.orientation, [math.cos(0.25), 0.0, math.sin(0.25), 0.0], atol=1e-12
+    )
     ticks = dev.servo_ticks
     time.sleep(0.2)
     assert dev.servo_ticks - ticks > 20  # the library's scheduler thread keeps calling us
@@ -298,14 +337,18 @@ def test_a_stalled_servo_loop_is_a_fault(arm):
 
 def test_unknown_device_name(arm):
     dev, _emu = arm(name="Left Arm")
-    with pytest.raises(DeviceOpenError, match="could not initialise 'Left Arm'.*HD_COMM_CONFIG_ERROR"):
+    with pytest.raises(
+        DeviceOpenError, match="could not initialise 'Left Arm'.*HD_COMM_CONFIG_ERROR"
+    ):
         dev.open()
 
 
 def test_the_device_string():
     assert (openhaptics.create(None).name, openhaptics.create(None).reset_encoders) == (None, False)
-    assert (openhaptics.create("reset-encoders").name, openhaptics.create("reset-encoders").reset_encoders) == (
-        None, True)
+    assert (
+        openhaptics.create("reset-encoders").name,
+        openhaptics.create("reset-encoders").reset_encoders,
+    ) == (None, True)
     named = openhaptics.create("Left Arm:reset-encoders")
     assert (named.name, named.reset_encoders) == ("Left Arm", True)
     assert openhaptics.create("Default PHANToM").name == "Default PHANToM"
@@ -320,23 +363,32 @@ def test_missing_library_says_so_in_one_line(monkeypatch, tmp_path):
 
 def test_a_library_without_the_hd_entry_points_is_refused(library, tmp_path):
     not_hd = tmp_path / "libnot.so"
-    subprocess.run([shutil.which("cc") or "gcc", "-shared", "-fPIC", "-o", str(not_hd), "-x", "c", "-"],
-                   input=b"int x;", check=True, capture_output=True, timeout=120)
+    subprocess.run(
+        [shutil.which("cc") or "gcc", "-shared", "-fPIC", "-o", str(not_hd), "-x", "c", "-"],
+        input=b"int x;",
+        check=True,
+        capture_output=True,
+        timeout=120,
+    )
     with pytest.raises(DeviceOpenError, match="is not the OpenHaptics HD library"):
         hdapi.load_library(str(not_hd))
 
 
 def test_the_stand_in_and_the_driver_transcribed_hddefines_alike():
     """Two transcriptions of hdDefines.h (the emulator's C, the driver's Python) must agree."""
+
     def value(text):
         shift = re.fullmatch(r"\(1 << (\d+)\)", text)
         return 1 << int(shift.group(1)) if shift else int(text, 0)
 
-    defines = {name: value(text) for name, text in
-               re.findall(r"^#define (HD_\w+) (\(1 << \d+\)|0x[0-9A-Fa-f]+|\d+)$", libhd.SOURCE.read_text(), re.M)}
+    defines = {
+        name: value(text)
+        for name, text in re.findall(
+            r"^#define (HD_\w+) (\(1 << \d+\)|0x[0-9A-Fa-f]+|\d+)$", libhd.SOURCE.read_text(), re.M
+        )
+    }
     assert len(defines) > 25
     shared = {name: value for name, value in defines.items() if hasattr(hdapi, name)}
     assert shared == {name: getattr(hdapi, name) for name in shared} and len(shared) > 15
     named = {name: code for code, name in hdapi.HD_ERRORS.items()}
     assert all(named[name] == value for name, value in defines.items() if name in named)
-

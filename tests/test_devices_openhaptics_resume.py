@@ -11,7 +11,12 @@ import time
 
 import pytest
 
-from tests.emulators.libhd import HD_CALIBRATION_AUTO, HD_DEVICE_BUTTON_1, HD_EXCEEDED_MAX_FORCE, USABLE_BOX_CENTRE
+from tests.emulators.libhd import (
+    HD_CALIBRATION_AUTO,
+    HD_DEVICE_BUTTON_1,
+    HD_EXCEEDED_MAX_FORCE,
+    USABLE_BOX_CENTRE,
+)
 from tests.test_devices_openhaptics import arm, library, wait_for  # noqa: F401 (the fixtures)
 
 
@@ -59,14 +64,22 @@ def test_in_a_soft_contact_force_comes_back_only_on_the_free_side_and_ramps_in(a
     arm's 0.5 N/mm, it is still 6 mm in. Zeros that say nothing of the contact (the
     watchdog's during a stall, a late tick's) must not bring the force back there."""
     dev, emu = stopped_by_a_force_error(arm, hand_x=-12.0, force=(1.0, 0.0, 0.0), stylus_x=-10.0)
-    assert command_at(dev, emu, -12.0, (1.2, 0.0, 0.0)) == (0.0, 0.0, 0.0)  # the hand pushes in: no force
+    assert command_at(dev, emu, -12.0, (1.2, 0.0, 0.0)) == (
+        0.0,
+        0.0,
+        0.0,
+    )  # the hand pushes in: no force
     emu.hand.target = held_at(-6.0)  # pulled back 4 mm: still 6 mm in
     assert command_at(dev, emu, -6.0, (0.6, 0.0, 0.0)) == (0.0, 0.0, 0.0)
     dev.zero_force_now()  # the loop stalls: the watchdog's zero
     emu.wait_frames(3)
     for _ in range(5):  # the loop back, its first ticks late: zero force, the stylus where it was
         assert command_at(dev, emu, -6.0, (0.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)
-    assert command_at(dev, emu, -6.0, (0.6, 0.0, 0.0)) == (0.0, 0.0, 0.0)  # still pressed in: no force
+    assert command_at(dev, emu, -6.0, (0.6, 0.0, 0.0)) == (
+        0.0,
+        0.0,
+        0.0,
+    )  # still pressed in: no force
     assert dev.info.details["force_stopped"] is True
 
     emu.hand.target = held_at(2.0)  # out of the wall: the daemon asks for no force there
@@ -86,9 +99,14 @@ def test_a_new_button_press_brings_force_back_ramped_even_after_a_stall(arm):
     button is pressed anew; a button held since before the error is no new press. Pressed
     with the stylus still in, then a stall's zero, then the contact's full force: the force
     comes back as a ramp, not a step."""
-    dev, emu = stopped_by_a_force_error(arm, hand_x=-4.0, force=(1.0, 0.0, 0.0), stylus_x=-2.0,
-                                        buttons=HD_DEVICE_BUTTON_1)  # held all along
-    assert command_at(dev, emu, -4.0, (1.0, 0.0, 0.0)) == (0.0, 0.0, 0.0)  # the held button is no new press
+    dev, emu = stopped_by_a_force_error(
+        arm, hand_x=-4.0, force=(1.0, 0.0, 0.0), stylus_x=-2.0, buttons=HD_DEVICE_BUTTON_1
+    )  # held all along
+    assert command_at(dev, emu, -4.0, (1.0, 0.0, 0.0)) == (
+        0.0,
+        0.0,
+        0.0,
+    )  # the held button is no new press
     emu.control.buttons = 0
     emu.wait_frames(3)
     emu.control.buttons = HD_DEVICE_BUTTON_1  # pressed again, the stylus still in

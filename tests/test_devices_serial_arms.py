@@ -10,15 +10,15 @@ from __future__ import annotations
 import select
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 import pytest
-
 from sasprobe.devices import transports
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.registry import open_device
+
 from tests.emulators import haply_serial, woodenhaptics_serial
 from tests.serial_arm_session import Session, cosine
 
@@ -40,10 +40,14 @@ class Arm:
     zero_atol_n: float  # what the motors make at a zero command (a PWM step off centre)
     silent_at_open: str  # the open error for a board that never answers (0.5 s), a regex
     planar_axis: int | None = None  # a coordinate the mechanism holds fixed
-    refused: Callable = lambda board: 0  # commands the board refused (a firmware that refuses none: 0)
+    refused: Callable = lambda board: (
+        0
+    )  # commands the board refused (a firmware that refuses none: 0)
     # checks of what only some boards tell; each asserts
     opened: Callable = lambda dev: None  # what the driver learnt when it opened the board
-    in_step: Callable = lambda dev, board: None  # a state read just now is the board's latest answer
+    in_step: Callable = lambda dev, board: (
+        None
+    )  # a state read just now is the board's latest answer
     replugged: Callable = lambda dev: None  # what a reconnect to a replugged board did
     closed: Callable = lambda board: None  # the board's last command after close()
 
@@ -65,26 +69,49 @@ def _haply_replugged(dev) -> None:
 
 
 HAPLY = Arm(
-    scheme="haply", launch=haply_serial.launch,
-    variants={"gen3-M0": {"generation": "gen3", "board": "M0"}, "gen3-M3": {"generation": "gen3", "board": "M3"},
-              "gen2-M0": {"generation": "gen2", "board": "M0"}},
+    scheme="haply",
+    launch=haply_serial.launch,
+    variants={
+        "gen3-M0": {"generation": "gen3", "board": "M0"},
+        "gen3-M3": {"generation": "gen3", "board": "M3"},
+        "gen2-M0": {"generation": "gen2", "board": "M0"},
+    },
     moves=[(10, 0, 0), (-10, 0, 0), (0, 0, 10), (0, 0, -10), (7, 0, -7)],
-    forces=[(0.8, 0.0, 0.0), (0.0, 0.0, -0.8), (0.5, 0.0, 0.6), (0.3, 2.0, -0.4)],  # the last one's Y is dropped
-    renderable=lambda f: np.array([f[0], 0.0, f[2]]), aside=(0.0, 0.0, 15.0),
-    junk=[b"\xff\xfe\xfd", bytes([9]) + np.array([1.0, 2.0], "<f4").tobytes(), bytes([5]) * 3], junk_rejected=2,
-    board_watchdog=False, zero_atol_n=1e-9, silent_at_open=r"the board never answered within 0\.5 s",
-    planar_axis=1, replugged=_haply_replugged)
+    forces=[
+        (0.8, 0.0, 0.0),
+        (0.0, 0.0, -0.8),
+        (0.5, 0.0, 0.6),
+        (0.3, 2.0, -0.4),
+    ],  # the last one's Y is dropped
+    renderable=lambda f: np.array([f[0], 0.0, f[2]]),
+    aside=(0.0, 0.0, 15.0),
+    junk=[b"\xff\xfe\xfd", bytes([9]) + np.array([1.0, 2.0], "<f4").tobytes(), bytes([5]) * 3],
+    junk_rejected=2,
+    board_watchdog=False,
+    zero_atol_n=1e-9,
+    silent_at_open=r"the board never answered within 0\.5 s",
+    planar_axis=1,
+    replugged=_haply_replugged,
+)
 
 WOODENHAPTICS = Arm(
-    scheme="woodenhaptics", launch=woodenhaptics_serial.launch,
+    scheme="woodenhaptics",
+    launch=woodenhaptics_serial.launch,
     variants={"polhem": {"model": 1}, "vintage": {"model": 2}, "woody": {"model": 3}},
     moves=[(10, 0, 0), (-10, 0, 0), (0, 10, 0), (0, -10, 0), (0, 0, 10), (0, 0, -10), (7, -7, 7)],
     forces=[(2.0, 0.0, 0.0), (0.0, -2.0, 0.0), (0.0, 0.0, 2.0), (1.5, 1.0, -2.0)],
-    renderable=np.asarray, aside=(0.0, 15.0, 0.0),
-    junk=[b"junk\n", b"[3,1,2]\n", b"\xff\xfe\n", b"[2,0,0,0,0,0,0,0]\n", b"x" * 300], junk_rejected=4,
-    board_watchdog=True, zero_atol_n=0.01,  # 0 mA is half a PWM step off centre
+    renderable=np.asarray,
+    aside=(0.0, 15.0, 0.0),
+    junk=[b"junk\n", b"[3,1,2]\n", b"\xff\xfe\n", b"[2,0,0,0,0,0,0,0]\n", b"x" * 300],
+    junk_rejected=4,
+    board_watchdog=True,
+    zero_atol_n=0.01,  # 0 mA is half a PWM step off centre
     silent_at_open=r"never answered the woodenhaptics handshake within 0\.5 s",
-    refused=lambda board: board.refused, opened=_woody_opened, in_step=_woody_in_step, closed=_woody_closed)
+    refused=lambda board: board.refused,
+    opened=_woody_opened,
+    in_step=_woody_in_step,
+    closed=_woody_closed,
+)
 
 ARMS = {"haply": HAPLY, "woodenhaptics": WOODENHAPTICS}
 
@@ -112,7 +139,10 @@ def check_forces(arm: Arm, session: Session, board, forces) -> None:
         made = board.motor_force()
         wanted = arm.renderable(force)
         assert cosine(made, wanted) >= 0.99, (force, made)
-        assert np.linalg.norm(made) == pytest.approx(np.linalg.norm(wanted), rel=0.05), (force, made)
+        assert np.linalg.norm(made) == pytest.approx(np.linalg.norm(wanted), rel=0.05), (
+            force,
+            made,
+        )
 
 
 def wait_until(condition, timeout_s: float = 2.0, what: str = "condition") -> None:
@@ -132,20 +162,26 @@ def deaf_past_the_silence_probe(dev, board) -> bool:
 
 def assert_no_refusals(arm: Arm, dev, board, before: int = 0) -> None:
     if not deaf_past_the_silence_probe(dev, board):
-        assert arm.refused(board) == before, \
+        assert arm.refused(board) == before, (
             f"the firmware refused a command; its port went unread for {board.longest_deaf_s * 1000:.0f} ms at most"
+        )
 
 
 def assert_in_step(arm: Arm, dev, board) -> None:
     """Every reply in step with its command and no command refused (unless deaf, above)."""
     if not deaf_past_the_silence_probe(dev, board):
-        assert dev.rejected_frames == 0 and dev.resyncs == 0, \
+        assert dev.rejected_frames == 0 and dev.resyncs == 0, (
             f"a reply out of step; the board's port went unread for {board.longest_deaf_s * 1000:.0f} ms at most"
+        )
     assert_no_refusals(arm, dev, board)
 
 
-@pytest.mark.parametrize("rig", [(name, options) for name, arm in ARMS.items() for options in arm.variants.values()],
-                         indirect=True, ids=[f"{name}-{variant}" for name, arm in ARMS.items() for variant in arm.variants])
+@pytest.mark.parametrize(
+    "rig",
+    [(name, options) for name, arm in ARMS.items() for options in arm.variants.values()],
+    indirect=True,
+    ids=[f"{name}-{variant}" for name, arm in ARMS.items() for variant in arm.variants],
+)
 def test_displacements_and_forces_in_the_device_frame(rig):
     arm, dev, board, hand = rig
     dev.open()
@@ -159,7 +195,9 @@ def test_displacements_and_forces_in_the_device_frame(rig):
         hand.target = move
         state = session.settle(board.stylus, hand)
         true_move = board.stylus.now() - centre_true
-        np.testing.assert_allclose(true_move, move, atol=0.1)  # with no force the stylus rests in the hand
+        np.testing.assert_allclose(
+            true_move, move, atol=0.1
+        )  # with no force the stylus rests in the hand
         np.testing.assert_allclose(state.position_mm - centre.position_mm, true_move, atol=0.5)
         if arm.planar_axis is not None:
             assert state.position_mm[arm.planar_axis] == 0.0
@@ -217,7 +255,9 @@ def test_a_stall_of_the_board_is_survived_without_merged_commands_or_stale_reads
         if state.t_ns != last_t:  # not the last pose again (a reply a little late)
             arm.in_step(dev, board)
         last_t = state.t_ns
-    assert_in_step(arm, dev, board)  # no second copy went out: no second answer came, nothing merged
+    assert_in_step(
+        arm, dev, board
+    )  # no second copy went out: no second answer came, nothing merged
 
 
 @every_arm
@@ -255,9 +295,14 @@ def test_the_watchdogs_zero_never_meets_an_unanswered_command(rig):
     dev.zero_force_now()  # the loop stalls now: the watchdog's first zero
     time.sleep(0.35)  # the board wakes and answers what it has read
     dev.zero_force_now()  # the watchdog's next try, REZERO_PERIODS later
-    wait_until(lambda: np.linalg.norm(board.motor_force()) <= arm.zero_atol_n, what="zero force on the board")
+    wait_until(
+        lambda: np.linalg.norm(board.motor_force()) <= arm.zero_atol_n,
+        what="zero force on the board",
+    )
     assert arm.refused(board) == 0, "the watchdog's zero met the command in flight"
-    session.settle(board.stylus, hand)  # the loop, back, goes on in step: the stylus rests in the hand
+    session.settle(
+        board.stylus, hand
+    )  # the loop, back, goes on in step: the stylus rests in the hand
     session.reads_the_stylus(board.stylus)
 
 
@@ -292,7 +337,10 @@ def test_the_watchdogs_zero_leaves_a_read_in_progress_alone(rig, monkeypatch):
     assert state is not None and arm.refused(board) == 0
     time.sleep(0.5)
     dev.zero_force_now()  # the port is free: the zero goes out now
-    wait_until(lambda: np.linalg.norm(board.motor_force()) <= arm.zero_atol_n, what="zero force on the board")
+    wait_until(
+        lambda: np.linalg.norm(board.motor_force()) <= arm.zero_atol_n,
+        what="zero force on the board",
+    )
 
 
 def _zero_or_busy(dev) -> None:
@@ -321,7 +369,9 @@ def test_a_board_that_stops_mid_session_faults_at_once_and_gets_zero_force(rig):
     if arm.board_watchdog:
         assert np.allclose(board.motor_force(), 0.0)  # the firmware's watchdog cut the amplifiers
     board.resume()
-    session.settle(board.stylus, hand)  # the stylus comes to rest in the hand: no force holds it off
+    session.settle(
+        board.stylus, hand
+    )  # the stylus comes to rest in the hand: no force holds it off
     session.reads_the_stylus(board.stylus)
     assert np.linalg.norm(board.motor_force()) <= arm.zero_atol_n
 
@@ -370,4 +420,7 @@ def test_closing_leaves_the_motors_at_zero(rig):
     dev.close()
     assert dev.last_force_n.tolist() == [0.0, 0.0, 0.0]
     arm.closed(board)
-    wait_until(lambda: np.linalg.norm(board.motor_force()) <= arm.zero_atol_n, what="zero force on the board")
+    wait_until(
+        lambda: np.linalg.norm(board.motor_force()) <= arm.zero_atol_n,
+        what="zero force on the board",
+    )

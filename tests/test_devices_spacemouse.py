@@ -13,19 +13,36 @@ import time
 
 import numpy as np
 import pytest
-
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.spacemouse import SpaceMouseDevice, protocol
+
 from tests.conftest import REPO_ROOT
 from tests.emulators.hidapi_fake import HidBus, HidModule
 from tests.emulators.spacemouse_hid import BY_NAME, SIX_DOF, EmulatedSpaceMouse
 
 # spacenavd src/dev.c usbdb (commit bac572ae), and the universal receiver its vendor rule takes
 SPACENAVD_DEVICE_LIST = {
-    (0x046D, 0xC603), (0x046D, 0xC605), (0x046D, 0xC606), (0x046D, 0xC621), (0x046D, 0xC623), (0x046D, 0xC625),
-    (0x046D, 0xC626), (0x046D, 0xC627), (0x046D, 0xC628), (0x046D, 0xC629), (0x046D, 0xC62B), (0x046D, 0xC640),
-    (0x256F, 0xC62E), (0x256F, 0xC62F), (0x256F, 0xC631), (0x256F, 0xC632), (0x256F, 0xC633), (0x256F, 0xC635),
-    (0x256F, 0xC636), (0x256F, 0xC638), (0x256F, 0xC63A),
+    (0x046D, 0xC603),
+    (0x046D, 0xC605),
+    (0x046D, 0xC606),
+    (0x046D, 0xC621),
+    (0x046D, 0xC623),
+    (0x046D, 0xC625),
+    (0x046D, 0xC626),
+    (0x046D, 0xC627),
+    (0x046D, 0xC628),
+    (0x046D, 0xC629),
+    (0x046D, 0xC62B),
+    (0x046D, 0xC640),
+    (0x256F, 0xC62E),
+    (0x256F, 0xC62F),
+    (0x256F, 0xC631),
+    (0x256F, 0xC632),
+    (0x256F, 0xC633),
+    (0x256F, 0xC635),
+    (0x256F, 0xC636),
+    (0x256F, 0xC638),
+    (0x256F, 0xC63A),
 }
 RECEIVER = (0x256F, 0xC652)
 # the sign a deflection of each device-frame axis must give: every model, the same motion
@@ -48,9 +65,19 @@ def opened(name: str, bus: HidBus, **options) -> tuple[SpaceMouseDevice, Emulate
 
 def test_reports_follow_the_public_layout():
     combined = protocol.parse_report(bytes([1]) + struct.pack("<6h", 10, -20, 30, -40, 50, -60))
-    assert combined["translation"].tolist() == [10, -20, 30] and combined["rotation"].tolist() == [-40, 50, -60]
-    assert protocol.parse_report(bytes([1]) + struct.pack("<3h", 1, 2, 3))["translation"].tolist() == [1, 2, 3]
-    assert protocol.parse_report(bytes([2]) + struct.pack("<3h", 4, 5, 6))["rotation"].tolist() == [4, 5, 6]
+    assert combined["translation"].tolist() == [10, -20, 30] and combined["rotation"].tolist() == [
+        -40,
+        50,
+        -60,
+    ]
+    assert protocol.parse_report(bytes([1]) + struct.pack("<3h", 1, 2, 3))[
+        "translation"
+    ].tolist() == [1, 2, 3]
+    assert protocol.parse_report(bytes([2]) + struct.pack("<3h", 4, 5, 6))["rotation"].tolist() == [
+        4,
+        5,
+        6,
+    ]
     assert protocol.parse_report(bytes([3, 0x01, 0x02]))["buttons"] == 0x0201
     assert protocol.parse_report(bytes([23, 100])) == {}  # battery level: no motion
 
@@ -67,7 +94,8 @@ def test_descriptor_scan_reads_buttons_and_axis_range():
         "05 01 09 08 a1 01"  # usage page desktop, usage multi-axis controller, collection (application)
         "85 01 16 0c fe 26 f4 01 09 30 09 31 09 32 09 33 09 34 09 35 75 10 95 06 81 02"
         "85 03 05 09 19 01 29 0f 15 00 25 01 75 01 95 0f 81 02 95 01 81 01"
-        "c0")
+        "c0"
+    )
     summary = protocol.scan_descriptor(descriptor)
     assert (summary.buttons, summary.axis_maximum) == (15, 500)
     mouse = bytes.fromhex("05 01 09 02 a1 01 05 09 19 01 29 03 75 01 95 03 81 02 c0")
@@ -83,14 +111,20 @@ def test_each_axis_moves_the_cursor_the_way_the_cap_is_pushed(product, bus):
         for axis in range(3):
             for sign in (1.0, -1.0):
                 emu.hand.deflect(translation=sign * 0.5 * AXES[axis])
-                np.testing.assert_allclose(dev.read().velocity_mm_s, sign * 50.0 * AXES[axis], atol=1e-9)
+                np.testing.assert_allclose(
+                    dev.read().velocity_mm_s, sign * 50.0 * AXES[axis], atol=1e-9
+                )
                 emu.hand.deflect(rotation=sign * 0.5 * AXES[axis])
                 before = dev.read().orientation
                 time.sleep(0.002)
                 after = dev.read().orientation
-                turn = after[1:] * before[0] - before[1:] * after[0] - np.cross(after[1:], before[1:])
+                turn = (
+                    after[1:] * before[0] - before[1:] * after[0] - np.cross(after[1:], before[1:])
+                )
                 assert np.linalg.norm(turn) > 0
-                np.testing.assert_allclose(turn / np.linalg.norm(turn), sign * AXES[axis], atol=1e-9)
+                np.testing.assert_allclose(
+                    turn / np.linalg.norm(turn), sign * AXES[axis], atol=1e-9
+                )
         emu.hand.release()
         assert np.allclose(dev.read().velocity_mm_s, 0.0)
     finally:
@@ -98,18 +132,27 @@ def test_each_axis_moves_the_cursor_the_way_the_cap_is_pushed(product, bus):
         emu.close()
 
 
-@pytest.mark.parametrize("name, key, button", [
-    # spacenavd bnhack_smpro / bnhack_sment, evdev code → button
-    ("SpaceMouse Pro", "menu", 4), ("SpaceMouse Pro", "1", 0), ("SpaceMouse Pro", "lock", 10),
-    ("SpaceMouse Pro", "ctrl", 14), ("SpaceMouse Pro Wireless (cable)", "fit", 5),
-    ("SpaceMouse Enterprise", "11", 10), ("SpaceMouse Enterprise", "V3", 29), ("SpaceMouse Enterprise", "space", 26),
-    ("SpaceMouse Enterprise", "iso", 30),
-    # no remap: the report bit is the button
-    ("SpaceNavigator", "right", 1), ("SpaceMouse Compact", "left", 0),
-    # the receiver: more than two buttons behind it → the SpaceMouse Pro's numbering
-    ("Universal Receiver + SpaceMouse Pro Wireless", "menu", 4),
-    ("Universal Receiver + SpaceMouse Wireless", "right", 1),
-])
+@pytest.mark.parametrize(
+    "name, key, button",
+    [
+        # spacenavd bnhack_smpro / bnhack_sment, evdev code → button
+        ("SpaceMouse Pro", "menu", 4),
+        ("SpaceMouse Pro", "1", 0),
+        ("SpaceMouse Pro", "lock", 10),
+        ("SpaceMouse Pro", "ctrl", 14),
+        ("SpaceMouse Pro Wireless (cable)", "fit", 5),
+        ("SpaceMouse Enterprise", "11", 10),
+        ("SpaceMouse Enterprise", "V3", 29),
+        ("SpaceMouse Enterprise", "space", 26),
+        ("SpaceMouse Enterprise", "iso", 30),
+        # no remap: the report bit is the button
+        ("SpaceNavigator", "right", 1),
+        ("SpaceMouse Compact", "left", 0),
+        # the receiver: more than two buttons behind it → the SpaceMouse Pro's numbering
+        ("Universal Receiver + SpaceMouse Pro Wireless", "menu", 4),
+        ("Universal Receiver + SpaceMouse Wireless", "right", 1),
+    ],
+)
 def test_buttons_are_numbered_as_spacenavd_numbers_them(name, key, button, bus):
     dev, emu = opened(name, bus)
     try:
@@ -169,7 +212,9 @@ def test_the_hidapi_stand_in_blocks_as_hidapi_does(bus):
 def test_reads_never_wait_for_a_cap_at_rest(bus):
     dev, emu = opened("SpaceNavigator", bus)
     states = []
-    reader = threading.Thread(target=lambda: states.extend(dev.read() for _ in range(100)), daemon=True)
+    reader = threading.Thread(
+        target=lambda: states.extend(dev.read() for _ in range(100)), daemon=True
+    )
     reader.start()
     reader.join(5.0)
     stuck = reader.is_alive()
@@ -199,7 +244,9 @@ def test_a_cap_held_off_centre_keeps_moving_the_cursor(bus):
         emu.close()
 
 
-@pytest.mark.parametrize("name", ["SpaceMouse Compact", "SpaceNavigator"])  # 12-byte report 1; reports 1 and 2
+@pytest.mark.parametrize(
+    "name", ["SpaceMouse Compact", "SpaceNavigator"]
+)  # 12-byte report 1; reports 1 and 2
 def test_rate_control_integrates_the_deflection(name, bus):
     dev, emu = opened(name, bus)
     try:
@@ -235,7 +282,9 @@ def test_full_deflection_follows_the_declared_range(bus):
 def test_spacenavd_dead_zone(bus):
     dev, emu = opened("SpaceMouse Compact", bus)
     try:
-        emu.hand.deflect(translation=(1 / 350, 0.0, 0.0))  # one count: inside spacenavd's default of 2
+        emu.hand.deflect(
+            translation=(1 / 350, 0.0, 0.0)
+        )  # one count: inside spacenavd's default of 2
         assert dev.read().velocity_mm_s[0] == 0.0
         emu.hand.deflect(translation=(2 / 350, 0.0, 0.0))
         assert dev.read().velocity_mm_s[0] == pytest.approx(100.0 * 2 / 350)
@@ -276,7 +325,9 @@ def test_malformed_reports_are_counted(bus):
 
 
 def test_only_the_6dof_devices_of_spacenavds_list_are_taken(bus):
-    for n, name in enumerate(("CadMouse", "CadMouse Pro", "Keyboard Pro", "Numpad Pro", "Universal Receiver Mouse")):
+    for n, name in enumerate(
+        ("CadMouse", "CadMouse Pro", "Keyboard Pro", "Numpad Pro", "Universal Receiver Mouse")
+    ):
         EmulatedSpaceMouse(name, bus=bus, path=f"/dev/hidraw1{n}".encode())
     api = HidModule(bus.directory)
     with pytest.raises(DeviceOpenError, match="no 3Dconnexion SpaceMouse found"):
@@ -294,17 +345,31 @@ def test_only_the_6dof_devices_of_spacenavds_list_are_taken(bus):
 def test_the_driver_takes_exactly_spacenavds_list():
     from sasprobe.devices.spacemouse import models
 
-    others = [(0x256F, 0xC650), (0x256F, 0xC664), (0x256F, 0xC665), (0x256F, 0xC62C), (0x256F, 0xC6FF),
-              (0x046D, 0xC077), (0x046D, 0xC652)]
-    assert {ids for ids in SPACENAVD_DEVICE_LIST | set(others) if models.is_six_dof(*ids)} == SPACENAVD_DEVICE_LIST
-    assert models.is_six_dof(*RECEIVER, (0x01, 0x08)) and not models.is_six_dof(*RECEIVER, (0x01, 0x02))
+    others = [
+        (0x256F, 0xC650),
+        (0x256F, 0xC664),
+        (0x256F, 0xC665),
+        (0x256F, 0xC62C),
+        (0x256F, 0xC6FF),
+        (0x046D, 0xC077),
+        (0x046D, 0xC652),
+    ]
+    assert {
+        ids for ids in SPACENAVD_DEVICE_LIST | set(others) if models.is_six_dof(*ids)
+    } == SPACENAVD_DEVICE_LIST
+    assert models.is_six_dof(*RECEIVER, (0x01, 0x08)) and not models.is_six_dof(
+        *RECEIVER, (0x01, 0x02)
+    )
 
 
 def test_the_documented_udev_rule_opens_only_the_listed_devices():
     readme = (REPO_ROOT / "docs" / "connect-your-arm.md").read_text()
     hidraw_rules = [line for line in readme.splitlines() if line.startswith('KERNEL=="hidraw*"')]
-    opened_ids = {(int(v, 16), int(p, 16)) for line in hidraw_rules
-                  for v, p in re.findall(r"\*:([0-9A-F]{4}):([0-9A-F]{4})\.\*", line)}
+    opened_ids = {
+        (int(v, 16), int(p, 16))
+        for line in hidraw_rules
+        for v, p in re.findall(r"\*:([0-9A-F]{4}):([0-9A-F]{4})\.\*", line)
+    }
     assert opened_ids == SPACENAVD_DEVICE_LIST | {RECEIVER}
     assert not any("256f" in line.lower() and "KERNELS" not in line for line in hidraw_rules)
 
@@ -333,4 +398,6 @@ def test_no_spacemouse_is_an_open_error(bus):
 
 def test_emulator_products_match_the_names_the_test_expects():
     assert {(p.vendor_id, p.product_id) for p in SIX_DOF} == SPACENAVD_DEVICE_LIST | {RECEIVER}
-    assert not BY_NAME["SpaceMouse Classic"].y_toward_user and BY_NAME["SpaceNavigator"].y_toward_user
+    assert (
+        not BY_NAME["SpaceMouse Classic"].y_toward_user and BY_NAME["SpaceNavigator"].y_toward_user
+    )

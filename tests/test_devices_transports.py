@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
-
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.hardware import VelocityFilter, clamp_force, quaternion_from_matrix
 from sasprobe.devices.transports import SerialTransport, UsbTransport
+
 from tests.emulators.falcon_usb import EmulatedUsbBackend, FalconHardware
 from tests.emulators.pty_serial import PtySerialDevice
 
@@ -67,14 +67,16 @@ def test_a_pulled_serial_cable_is_a_fault_and_the_port_comes_back(echo):
     port.close()
 
 
-def test_a_write_that_went_out_is_no_fault_however_late_the_writer_looks_at_the_clock(echo, monkeypatch):
+def test_a_write_that_went_out_is_no_fault_however_late_the_writer_looks_at_the_clock(
+    echo, monkeypatch
+):
     """A busy machine may deschedule the writer for longer than the write timeout just after
     its bytes went out: they went out all the same, so the port is not lost. (Here every
     look at the clock is 100 ms after the last, the write timeout is 50 ms.)"""
     import serial.serialutil
 
     with SerialTransport(echo.path) as port:
-        looks = iter(range(10 ** 6))
+        looks = iter(range(10**6))
         late = staticmethod(lambda: next(looks) * 0.1)
         monkeypatch.setattr(serial.serialutil.Timeout, "TIME", late)
         monkeypatch.setattr(time, "monotonic", late)
@@ -87,11 +89,13 @@ def test_a_port_that_takes_no_bytes_is_a_fault_not_a_hang(echo):
     with SerialTransport(echo.path) as port:
         echo.go_silent()  # nothing reads the line: the buffer fills, then a write waits out its timeout
         with pytest.raises(DeviceFault, match="lost: it took no bytes for 50 ms"):
-            for _ in range(10 ** 4):
+            for _ in range(10**4):
                 port.write(bytes(4096))
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root opens any node; the CLI test drops the capability instead")
+@pytest.mark.skipif(
+    os.geteuid() == 0, reason="root opens any node; the CLI test drops the capability instead"
+)
 def test_permission_denied_names_the_fix(echo):
     os.chmod(os.path.realpath(echo.path), 0)
     with pytest.raises(DeviceOpenError, match="permission denied.*dialout.*udev rule"):
@@ -103,7 +107,9 @@ def test_usb_permission_and_absence(tmp_path):
     backend = EmulatedUsbBackend(hw)
     backend.access_denied = True
     usb = UsbTransport(0x0403, 0xCB48, 0x02, 0x81, backend=backend, label="Novint Falcon")
-    with pytest.raises(DeviceOpenError, match="permission denied on the Novint Falcon.*plugdev.*udev rule"):
+    with pytest.raises(
+        DeviceOpenError, match="permission denied on the Novint Falcon.*plugdev.*udev rule"
+    ):
         usb.open()
     backend.access_denied = False
     usb.open()
@@ -123,7 +129,10 @@ def test_usb_without_an_emulator_is_a_clear_open_error():
 
 
 @settings(max_examples=300, deadline=None)
-@given(st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=3, max_size=3), st.floats(0.1, 20.0))
+@given(
+    st.lists(st.floats(allow_nan=True, allow_infinity=True), min_size=3, max_size=3),
+    st.floats(0.1, 20.0),
+)
 @example([0.0, 0.0, 1.8e-161], 1.0)  # once found by hypothesis: the test's own norm underflowed
 def test_clamp_force_is_finite_bounded_and_keeps_direction(force, limit):
     out = clamp_force(force, limit)
@@ -135,7 +144,9 @@ def test_clamp_force_is_finite_bounded_and_keeps_direction(force, limit):
         out_unit = out / np.max(np.abs(out))
         cosine = out_unit @ unit / np.linalg.norm(out_unit) / np.linalg.norm(unit)
         assert cosine == pytest.approx(1.0)
-    with np.errstate(over="ignore"):  # the norm of a huge test vector may overflow; the clamp's must not
+    with np.errstate(
+        over="ignore"
+    ):  # the norm of a huge test vector may overflow; the clamp's must not
         small = np.all(np.isfinite(f)) and np.linalg.norm(f) <= limit
     if small:
         np.testing.assert_array_equal(out, f)

@@ -5,9 +5,9 @@ test_devices_serial_arms.py; known answers: test_devices_woodenhaptics_known.py)
 from __future__ import annotations
 
 import pytest
-
 from sasprobe.devices.base import DeviceOpenError
 from sasprobe.devices.woodenhaptics import WoodenHapticsDevice
+
 from tests.emulators import woodenhaptics_serial
 from tests.emulators.pty_serial import PtySerialDevice
 from tests.serial_arm_session import Session, assert_no_refusals_but_after_deafness
@@ -32,7 +32,12 @@ def test_a_press_is_pushed_back_out(rig):
     hand.target = (20.0, 0.0, 0.0)  # the hand pushes through a wall at x = 10 mm (1 N/mm)
 
     def wall(state):
-        return (-1.0 * max(state.position_mm[0] - 10.0, 0.0), 0.0, 0.0) if state is not None else (0.0, 0.0, 0.0)
+        return (
+            (-1.0 * max(state.position_mm[0] - 10.0, 0.0), 0.0, 0.0)
+            if state is not None
+            else (0.0, 0.0, 0.0)
+        )
+
     # the stylus comes to rest where the hand's spring and the wall balance (a loop that runs
     # late on a busy machine renders the wall late, and the stylus swings until it catches up)
     state = session.settle(board.stylus, hand, timeout_s=30.0, force=wall)
@@ -54,7 +59,9 @@ class OtherLineBoard(PtySerialDevice):
 def test_a_board_of_another_protocol_is_one_line(tmp_path):
     board = OtherLineBoard(tmp_path, "ttyOTHER0")
     try:
-        with pytest.raises(DeviceOpenError, match="not in the WoodenHaptics line format.*ERR unknown") as err:
+        with pytest.raises(
+            DeviceOpenError, match="not in the WoodenHaptics line format.*ERR unknown"
+        ) as err:
             WoodenHapticsDevice(board.path).open()
         assert "\n" not in str(err.value)
     finally:
@@ -64,7 +71,9 @@ def test_a_board_of_another_protocol_is_one_line(tmp_path):
 @pytest.mark.parametrize("rig", [{"reported_model": 7}], indirect=True)
 def test_an_unknown_model_code_is_refused_by_name(rig):
     dev, _board, _hand = rig
-    with pytest.raises(DeviceOpenError, match=r"reports model code 7.*known: 1 Polhem, 2 vintage PHANTOM.*3 Wooden"):
+    with pytest.raises(
+        DeviceOpenError, match=r"reports model code 7.*known: 1 Polhem, 2 vintage PHANTOM.*3 Wooden"
+    ):
         dev.open()
 
 

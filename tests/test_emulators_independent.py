@@ -24,8 +24,13 @@ def imported_names(source: str) -> list[str]:
             names += [alias.name for alias in node.names]
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
             names.append(node.module)
-        elif isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(node.func, "id", "")) in (
-                "import_module", "__import__") and node.args and isinstance(node.args[0], ast.Constant):
+        elif (
+            isinstance(node, ast.Call)
+            and getattr(node.func, "attr", getattr(node.func, "id", ""))
+            in ("import_module", "__import__")
+            and node.args
+            and isinstance(node.args[0], ast.Constant)
+        ):
             names.append(str(node.args[0].value))
     return names
 
@@ -33,7 +38,8 @@ def imported_names(source: str) -> list[str]:
 def forbidden(name: str) -> bool:
     top = name.split(".")[0]
     return top in ("sasprobe", "molecule", "devices", "daemon", "protocol", "render") or (
-        top == "tests" and not (name == "tests.emulators" or name.startswith("tests.emulators.")))
+        top == "tests" and not (name == "tests.emulators" or name.startswith("tests.emulators."))
+    )
 
 
 @pytest.mark.parametrize("module", MODULES, ids=lambda p: p.stem)
@@ -43,8 +49,14 @@ def test_emulator_imports_nothing_from_sasprobe(module):
 
 
 def test_the_check_sees_every_kind_of_import():
-    source = ("import sasprobe.devices\nfrom tests.device_loop import run\n"
-              "def f():\n    from sasprobe.devices.falcon import x\n    importlib.import_module('sasprobe.daemon')\n"
-              "from tests.emulators.physics import HeldStylus\nimport numpy\n")
+    source = (
+        "import sasprobe.devices\nfrom tests.device_loop import run\n"
+        "def f():\n    from sasprobe.devices.falcon import x\n    importlib.import_module('sasprobe.daemon')\n"
+        "from tests.emulators.physics import HeldStylus\nimport numpy\n"
+    )
     assert [n for n in imported_names(source) if forbidden(n)] == [
-        "sasprobe.devices", "tests.device_loop", "sasprobe.devices.falcon", "sasprobe.daemon"]
+        "sasprobe.devices",
+        "tests.device_loop",
+        "sasprobe.devices.falcon",
+        "sasprobe.daemon",
+    ]

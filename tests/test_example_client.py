@@ -10,9 +10,9 @@ import subprocess
 import warnings
 
 import pytest
-
 from sasprobe.protocol.client import ControlClient
 from sasprobe.protocol.recording import iter_items
+
 from tests.conftest import REPO_ROOT, skip_or_fail
 from tests.daemon_process import DaemonProcess
 
@@ -28,7 +28,9 @@ def client_binary(tmp_path_factory):
     tools = [shutil.which(t) for t in ("cc", "make", "pkg-config")]
     flags = subprocess.run(["pkg-config", "--exists", "libzmq"]) if all(tools) else None
     if flags is None or flags.returncode != 0:
-        skip_or_fail("no C toolchain with libzmq for examples/c (Debian: gcc, make, pkg-config, libzmq3-dev)")
+        skip_or_fail(
+            "no C toolchain with libzmq for examples/c (Debian: gcc, make, pkg-config, libzmq3-dev)"
+        )
     folder = tmp_path_factory.mktemp("c")
     for name in ("Makefile", SOURCE.name):
         shutil.copy(SOURCE.parent / name, folder / name)
@@ -45,20 +47,44 @@ def _fields(line: str) -> dict:
 
 
 @pytest.mark.parametrize("transport", ["ipc", "tcp"])
-def test_the_c_client_follows_a_daemon_and_changes_its_stiffness(client_binary, tmp_path, transport):
+def test_the_c_client_follows_a_daemon_and_changes_its_stiffness(
+    client_binary, tmp_path, transport
+):
     """ipc://, and loopback TCP with CURVE and the user's local keys."""
     path = tmp_path / "c.mcap"
     sockets, keys = {}, []
     if transport == "tcp":
         from sasprobe.protocol.security import local_keys_dir
+
         from tests.test_daemon_process import _free_port
 
-        sockets = {"pub": f"tcp://127.0.0.1:{_free_port()}", "ctl": f"tcp://127.0.0.1:{_free_port()}"}
+        sockets = {
+            "pub": f"tcp://127.0.0.1:{_free_port()}",
+            "ctl": f"tcp://127.0.0.1:{_free_port()}",
+        }
     with DaemonProcess("--record", str(path), **sockets) as d:
         if transport == "tcp":
-            keys = ["--keys", str(local_keys_dir())]  # made by the daemon on loopback, if not there yet
-        run = subprocess.run([str(client_binary), "--pub", d.pub, "--ctl", d.ctl, "--poses", str(POSES),
-                              "--stiffness", "0.2", *keys], capture_output=True, text=True, timeout=120)
+            keys = [
+                "--keys",
+                str(local_keys_dir()),
+            ]  # made by the daemon on loopback, if not there yet
+        run = subprocess.run(
+            [
+                str(client_binary),
+                "--pub",
+                d.pub,
+                "--ctl",
+                d.ctl,
+                "--poses",
+                str(POSES),
+                "--stiffness",
+                "0.2",
+                *keys,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         with ControlClient(d.ctl) as client:
             scene = client.get_scene()
         d.stop()
@@ -70,8 +96,14 @@ def test_the_c_client_follows_a_daemon_and_changes_its_stiffness(client_binary, 
     assert kinds.count("pose") == POSES and kinds[-1] == "done" and "scene" in kinds
     assert any(line["kind"] == "scene" and line["stiffness_n_per_mm"] == "0.2" for line in lines)
     recorded = {item.data["seq"]: item.data for item in iter_items(path) if item.topic == "pose"}
-    names = {"proxy": "proxy_A", "goal": "goal_A", "force": "force_N", "tip": "tip_mm",
-             "orientation": "orientation", "cube_center": "cube_center_A"}
+    names = {
+        "proxy": "proxy_A",
+        "goal": "goal_A",
+        "force": "force_N",
+        "tip": "tip_mm",
+        "orientation": "orientation",
+        "cube_center": "cube_center_A",
+    }
     for line in (x for x in lines if x["kind"] == "pose"):
         want = recorded[int(line["seq"])]
         for key in ("flags", "buttons", "device_t_ns", "publish_t_ns", "touched_atom"):
@@ -84,8 +116,11 @@ def test_the_c_client_follows_a_daemon_and_changes_its_stiffness(client_binary, 
 def test_what_the_makefile_builds_is_ignored_by_git():
     """`make -C examples/c` writes its target beside the source; .gitignore keeps it out."""
     makefile = (SOURCE.parent / "Makefile").read_text()
-    rules = [line.split(":", 1)[0] for line in makefile.splitlines()  # `target: prerequisites` lines
-             if re.match(r"[\w.]+:(?!=)", line)]
+    rules = [
+        line.split(":", 1)[0]
+        for line in makefile.splitlines()  # `target: prerequisites` lines
+        if re.match(r"[\w.]+:(?!=)", line)
+    ]
     targets = [rule for rule in rules if rule != "clean"]
     ignored = (REPO_ROOT / ".gitignore").read_text().splitlines()
     assert targets and all(f"/examples/c/{target}" in ignored for target in targets), targets

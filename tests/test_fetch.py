@@ -11,9 +11,9 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 import gemmi
 import pytest
-
 from sasprobe.molecule import load_structure_or_default
 from sasprobe.molecule.fetch import FetchError, FetchSettings, fetch_entry, pdb_id
+
 from tests.conftest import run_cli
 
 
@@ -29,7 +29,11 @@ class Archive(BaseHTTPRequestHandler):
         if self.path.startswith("/broken/"):
             self.send_error(500, "Internal Server Error")
             return
-        body = b"<html>maintenance</html>" if self.path.startswith("/html/") else self.entries.get(name)
+        body = (
+            b"<html>maintenance</html>"
+            if self.path.startswith("/html/")
+            else self.entries.get(name)
+        )
         if body is None:
             self.send_error(404, "Not Found")
             return
@@ -90,26 +94,39 @@ def test_miss_then_hit_offline(archive, tmp_path):
 
 def test_mirror_from_the_environment_and_the_config_file(archive, tmp_path):
     cache = tmp_path / "cache"
-    s = load_structure_or_default("pdb:1crn", fetch=FetchSettings(mirror=archive + "/{ID}.cif.gz", cache=cache))
+    s = load_structure_or_default(
+        "pdb:1crn", fetch=FetchSettings(mirror=archive + "/{ID}.cif.gz", cache=cache)
+    )
     assert s.n_atoms == 327 and s.source == str(cache / "1crn.cif.gz")
     env_cache, toml_cache = tmp_path / "env", tmp_path / "toml"
     import os
 
-    env = dict(os.environ, SASPROBE_PDB_MIRROR=archive + "/{ID}.cif.gz", SASPROBE_PDB_CACHE=str(env_cache))
+    env = dict(
+        os.environ, SASPROBE_PDB_MIRROR=archive + "/{ID}.cif.gz", SASPROBE_PDB_CACHE=str(env_cache)
+    )
     r = run_cli("sas", "1crn", env=env)
-    assert r.returncode == 0 and "1crn: SAS" in r.stdout and (env_cache / "1crn.cif.gz").is_file(), r.stderr
+    assert (
+        r.returncode == 0 and "1crn: SAS" in r.stdout and (env_cache / "1crn.cif.gz").is_file()
+    ), r.stderr
     config = tmp_path / "sasprobe.toml"
-    config.write_text(f'[info]\npdb-mirror = "{archive}/{{ID}}.cif.gz"\npdb-cache = "{toml_cache}"\n')
+    config.write_text(
+        f'[info]\npdb-mirror = "{archive}/{{ID}}.cif.gz"\npdb-cache = "{toml_cache}"\n'
+    )
     r = run_cli("--config", str(config), "info", "pdb:1crn")
-    assert r.returncode == 0 and "327" in r.stdout and (toml_cache / "1crn.cif.gz").is_file(), r.stderr
+    assert r.returncode == 0 and "327" in r.stdout and (toml_cache / "1crn.cif.gz").is_file(), (
+        r.stderr
+    )
 
 
-@pytest.mark.parametrize("mirror, ident, message", [
-    ("{dead}/{{ID}}.cif.gz", "1abc", "cannot reach 127.0.0.1"),
-    ("{server}/{{ID}}.cif.gz", "9zzz", "no such entry at 127.0.0.1"),
-    ("{server}/broken/{{ID}}.cif.gz", "1crn", "answered HTTP 500"),
-    ("{server}/html/{{ID}}.cif.gz", "1crn", "did not send an mmCIF file"),
-])
+@pytest.mark.parametrize(
+    "mirror, ident, message",
+    [
+        ("{dead}/{{ID}}.cif.gz", "1abc", "cannot reach 127.0.0.1"),
+        ("{server}/{{ID}}.cif.gz", "9zzz", "no such entry at 127.0.0.1"),
+        ("{server}/broken/{{ID}}.cif.gz", "1crn", "answered HTTP 500"),
+        ("{server}/html/{{ID}}.cif.gz", "1crn", "did not send an mmCIF file"),
+    ],
+)
 def test_failures_are_one_line(archive, tmp_path, mirror, ident, message):
     mirror = mirror.format(dead=dead_port(), server=archive)
     with pytest.raises(FetchError, match=message):
@@ -118,9 +135,15 @@ def test_failures_are_one_line(archive, tmp_path, mirror, ident, message):
 
 
 def test_offline_without_cache_through_the_cli(tmp_path):
-    r = run_cli("info", "pdb:1abc", "--pdb-mirror", dead_port() + "/{id}.cif", "--pdb-cache", str(tmp_path))
+    r = run_cli(
+        "info", "pdb:1abc", "--pdb-mirror", dead_port() + "/{id}.cif", "--pdb-cache", str(tmp_path)
+    )
     assert r.returncode == 2 and r.stdout == ""
     lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and "pdb:1abc: cannot reach" in lines[0] and "no copy is cached" in lines[0], r.stderr
+    assert (
+        len(lines) == 1 and "pdb:1abc: cannot reach" in lines[0] and "no copy is cached" in lines[0]
+    ), r.stderr
     r = run_cli("info", "1abc", "--pdb-mirror", "nowhere", "--pdb-cache", str(tmp_path))
-    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "neither rcsb" in r.stderr
+    assert (
+        r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "neither rcsb" in r.stderr
+    )

@@ -10,7 +10,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid, load_structure
 from sasprobe.render.camera import Camera
 from sasprobe.render.frame_planner import KEPT, LIT, PLAIN, FramePlan, state_key
@@ -24,6 +23,7 @@ from sasprobe.render.rects import union_rect
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import Effects, Mark, NavCube, Probe, SceneState
 from sasprobe.render.workspace_view import workspace_camera
+
 from tests.lighting_support import probe_on_surface
 
 pytestmark = pytest.mark.needs_gl(430)
@@ -47,7 +47,11 @@ def workspace_path(structure) -> list[np.ndarray | None]:
     normal, touching, then moving a few Å across the picture at the touch's depth (the probe
     plane holds while the probe keeps its depth), then leaving."""
     path = [grid_surface(structure, DIRECTION, lift=lift) for lift in (5.0, 2.5, 0.5, 0.0)]
-    return path + [path[-1] + offset for offset in ([1.0, 0.0, 0.0], [2.0, -0.5, 0.0], [3.0, -1.0, 0.0])] + [None]
+    return (
+        path
+        + [path[-1] + offset for offset in ([1.0, 0.0, 0.0], [2.0, -0.5, 0.0], [3.0, -1.0, 0.0])]
+        + [None]
+    )
 
 
 def grid_surface(structure, direction, lift=0.0):
@@ -62,17 +66,22 @@ def grid_surface(structure, direction, lift=0.0):
         if grid.spheres_within(centre + t * direction, 0.0).size:
             point = centre + (t + 0.05) * direction
             atom = grid.nearest_to_point(point, 1)[0]
-            normal = (point - structure.positions[atom]) / np.linalg.norm(point - structure.positions[atom])
+            normal = (point - structure.positions[atom]) / np.linalg.norm(
+                point - structure.positions[atom]
+            )
             return point + lift * normal
     raise AssertionError("no surface along the direction")
 
 
-
-
 def sas_gap(structure, point) -> float:
     """Distance of a probe centre from the SAS (negative inside)."""
-    return float(np.min(np.linalg.norm(structure.positions - point, axis=1) - structure.vdw_radii
-                        - DEFAULT_PROBE_RADIUS))
+    return float(
+        np.min(
+            np.linalg.norm(structure.positions - point, axis=1)
+            - structure.vdw_radii
+            - DEFAULT_PROBE_RADIUS
+        )
+    )
 
 
 def make_renderer(gl, structure, size, settings, cache, setup="none"):
@@ -83,9 +92,13 @@ def make_renderer(gl, structure, size, settings, cache, setup="none"):
     centre = structure.positions.mean(axis=0)
     if setup == "cube":
         scene.nav_cube = NavCube(center=centre + [2.0, -1.0, 4.0], half=10.0)
-    elif setup == "probe-plane":  # the workspace view's: it cuts the molecule layer where the probe is
+    elif (
+        setup == "probe-plane"
+    ):  # the workspace view's: it cuts the molecule layer where the probe is
         scene.effects.probe_plane = True
-    elif setup == "workspace":  # the daemon's default cube (14 Å) about the touch, the camera framing it
+    elif (
+        setup == "workspace"
+    ):  # the daemon's default cube (14 Å) about the touch, the camera framing it
         scene.effects.probe_plane = True
         scene.nav_cube = NavCube(center=grid_surface(structure, DIRECTION), half=14.0)
     elif setup == "plane":
@@ -96,7 +109,9 @@ def make_renderer(gl, structure, size, settings, cache, setup="none"):
     if setup == "workspace":
         return renderer, workspace_camera(scene.nav_cube, size[0] / size[1])
     c, r = scene.bounding_sphere()
-    fit = 2.0 if setup == "far" else 0.8  # far: the probe light's reach overhangs the molecule's pixels
+    fit = (
+        2.0 if setup == "far" else 0.8
+    )  # far: the probe light's reach overhangs the molecule's pixels
     return renderer, Camera.fitted(c, r * fit, size[0] / size[1], direction=DIRECTION)
 
 
@@ -106,10 +121,25 @@ def agreement(a: np.ndarray, b: np.ndarray) -> float:
 
 
 CASES = [
-    ("1crn", (160, 120), LightingSettings(), "none"),  # the default lighting: hard shadows, analytic AO
+    (
+        "1crn",
+        (160, 120),
+        LightingSettings(),
+        "none",
+    ),  # the default lighting: hard shadows, analytic AO
     ("1crn", (160, 120), LightingSettings(), "far"),
-    ("1crn", (160, 120), LightingSettings(shadows="soft", edges="both", ao=AOSettings(k=16)), "cube"),
-    ("1crn", (160, 120), LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed")), "plane"),
+    (
+        "1crn",
+        (160, 120),
+        LightingSettings(shadows="soft", edges="both", ao=AOSettings(k=16)),
+        "cube",
+    ),
+    (
+        "1crn",
+        (160, 120),
+        LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed")),
+        "plane",
+    ),
     ("1tii", (200, 150), LightingSettings(), "none"),
     ("1tii", (200, 150), LightingSettings(), "probe-plane"),
     ("1aon", (160, 120), LightingSettings(), "workspace"),
@@ -117,51 +147,78 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("sid, size, settings, setup", CASES, ids=[f"{c[0]}-{c[3]}-{c[2].shadows}" for c in CASES])
+@pytest.mark.parametrize(
+    "sid, size, settings, setup", CASES, ids=[f"{c[0]}-{c[3]}-{c[2].shadows}" for c in CASES]
+)
 def test_cached_frames_equal_a_full_redraw(gl, reference_by_id, sid, size, settings, setup):
     structure = load_structure(reference_by_id[sid].path, keep_water=True)
     path = workspace_path(structure) if setup == "workspace" else probe_path(structure)
     gaps = [sas_gap(structure, p) for p in path if p is not None]
     assert gaps[0] > 2.0 and min(abs(g) for g in gaps[3:]) < 0.06  # it comes in and touches
-    if setup in ("probe-plane", "workspace"):  # the plane steps with the probe; standing still, the cut layer is kept and used
+    if setup in (
+        "probe-plane",
+        "workspace",
+    ):  # the plane steps with the probe; standing still, the cut layer is kept and used
         path += [path[-2]] * 3
     cached, camera = make_renderer(gl, structure, size, settings, cache=True, setup=setup)
     full, full_camera = make_renderer(gl, structure, size, settings, cache=False, setup=setup)
     planes = []  # the planes in effect, frame by frame
-    shaded, antialiased = [], []  # the fractions of the pixels each frame shaded and antialiased again
+    shaded, antialiased = (
+        [],
+        [],
+    )  # the fractions of the pixels each frame shaded and antialiased again
     try:
         for center in path:
             for r in (cached, full):
-                r.scene.probe = None if center is None else Probe(center=center.copy(), touched_atom=3)
+                r.scene.probe = (
+                    None if center is None else Probe(center=center.copy(), touched_atom=3)
+                )
             planes.append(cached.scene.active_planes(camera).tobytes())
             cached.render(camera)
             full.render(full_camera)
             a, b = cached.read_image(), full.read_image()
             assert agreement(a, b) >= 0.999, (sid, setup, center)
             plan = cached.last_frame.plan
-            for fractions, rect in ((shaded, plan.region(LIT)), (antialiased, union_rect(*FxaaPass.regions(plan)))):
+            for fractions, rect in (
+                (shaded, plan.region(LIT)),
+                (antialiased, union_rect(*FxaaPass.regions(plan))),
+            ):
                 fractions.append(0.0 if rect is None else rect[2] * rect[3] / (size[0] * size[1]))
             kinds = cached.targets.read(cached.targets.ids)[..., 1]
-            assert (kinds == KIND_PROBE).any() == (center is not None)  # the probe is in the picture
+            assert (kinds == KIND_PROBE).any() == (
+                center is not None
+            )  # the probe is in the picture
             # the terms too, off the probe's own pixels (which the shading does not light)
             ga, gb = gbuffer_arrays(cached), gbuffer_arrays(full)
             for layer in ("shadow_dir", "shadow_probe", "ao"):
                 assert (layer in ga) == (layer in gb)
                 if layer in ga:
                     off_probe = ga["kind"] != KIND_PROBE
-                    assert np.abs(ga[layer] - gb[layer])[off_probe].max() <= 1e-5, (sid, setup, layer)
-        if setup in ("probe-plane", "workspace"):  # drawn again only when the plane stepped, kept once it held a frame
+                    assert np.abs(ga[layer] - gb[layer])[off_probe].max() <= 1e-5, (
+                        sid,
+                        setup,
+                        layer,
+                    )
+        if setup in (
+            "probe-plane",
+            "workspace",
+        ):  # drawn again only when the plane stepped, kept once it held a frame
             changes = sum(a != b for a, b in zip(planes, planes[1:]))
             held = sum(a == b == c for a, b, c in zip(planes, planes[1:], planes[2:]))
             counts = cached.planner.layer_counts()
             assert counts["drawn"] >= 1 + changes and counts["kept"] >= held >= 1
             assert counts["kept"] + counts["drawn"] == len(path)
         else:
-            assert cached.planner.layer_counts() == {"kept": len(path) - 1, "drawn": 1}  # the layer held throughout
+            assert cached.planner.layer_counts() == {
+                "kept": len(path) - 1,
+                "drawn": 1,
+            }  # the layer held throughout
         assert shaded[0] == antialiased[0] == 1.0
         if setup == "far":  # only the molecule's pixels within the probe's reach were shaded again
             assert max(shaded[1:]) < 0.5, shaded
-        if setup == "workspace":  # the trace around the cube is not shaded again: the probe does not light it
+        if (
+            setup == "workspace"
+        ):  # the trace around the cube is not shaded again: the probe does not light it
             assert min(shaded[1:]) < 0.6, shaded
         if sid == "1tii" and setup == "none":  # the rest of the picture was kept, and still agrees
             assert max(shaded[1:]) < 0.9 and max(antialiased[1:]) < 0.95, (shaded, antialiased)
@@ -171,8 +228,14 @@ def test_cached_frames_equal_a_full_redraw(gl, reference_by_id, sid, size, setti
         full.release()
 
 
-@pytest.mark.parametrize("sid, fit, probe_range", [("1tii", 0.5, 6.0), ("1crn", 1.6, 20.0)], ids=["1tii-fills", "1crn-amid"])
-def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(gl, reference_by_id, sid, fit, probe_range):
+@pytest.mark.parametrize(
+    "sid, fit, probe_range",
+    [("1tii", 0.5, 6.0), ("1crn", 1.6, 20.0)],
+    ids=["1tii-fills", "1crn-amid"],
+)
+def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(
+    gl, reference_by_id, sid, fit, probe_range
+):
     """FXAA run again only where the lit picture changed, and where the probe's cues are and
     were, gives what FXAA over the whole lit picture gives, bit for bit: the probe sliding
     with its ghost, spring and force arrow, then leaving. 1TII fills the frame and the probe
@@ -195,9 +258,16 @@ def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(gl, ref
     redone = []
     try:
         for k, center in enumerate(probe_path(structure)):
-            scene.probe = None if center is None else Probe(
-                center=center, touched_atom=3, goal=center + (k % 3) * np.array([6.0, -4.5, 3.0]),
-                force_n=np.array([1.5 * k, 1.0 + k, -0.5]))  # the ghost and the arrow reach beyond the light
+            scene.probe = (
+                None
+                if center is None
+                else Probe(
+                    center=center,
+                    touched_atom=3,
+                    goal=center + (k % 3) * np.array([6.0, -4.5, 3.0]),
+                    force_n=np.array([1.5 * k, 1.0 + k, -0.5]),
+                )
+            )  # the ghost and the arrow reach beyond the light
             frame = renderer.render(camera)
             whole.run(dataclasses.replace(frame, plan=FramePlan(size=size), output_fbo=out))
             assert np.array_equal(renderer.read_image(), read_image(out, size)), k
@@ -207,10 +277,18 @@ def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(gl, ref
             redone.append(0.0 if rect is None else rect[2] * rect[3] / (size[0] * size[1]))
             if frame.plan.kept and near_rect is not None:
                 x, y, w, h = near_rect
-                mask = np.frombuffer(fxaa.near_surfaces.depth.read(), dtype=np.float32).reshape(size[1], size[0])
-                skipped.append(float((mask[y:y + h, x:x + w] > 0.5).mean()))
-        assert renderer.planner.counts[KEPT] == len(redone) - 1 and redone[0] == 1.0 and max(redone[1:]) < 0.75, redone
-        if sid == "1crn":  # the mask left out much of what the rectangle of the changed surfaces holds
+                mask = np.frombuffer(fxaa.near_surfaces.depth.read(), dtype=np.float32).reshape(
+                    size[1], size[0]
+                )
+                skipped.append(float((mask[y : y + h, x : x + w] > 0.5).mean()))
+        assert (
+            renderer.planner.counts[KEPT] == len(redone) - 1
+            and redone[0] == 1.0
+            and max(redone[1:]) < 0.75
+        ), redone
+        if (
+            sid == "1crn"
+        ):  # the mask left out much of what the rectangle of the changed surfaces holds
             assert skipped and min(skipped) > 0.2, skipped
     finally:
         whole.release()
@@ -320,30 +398,72 @@ def test_every_effect_camera_and_setting_but_the_probe_invalidates_the_layer(gl,
             r.render(camera)
             return r.planner.layer_counts()["drawn"] - before
 
-        assert misses_after(lambda: setattr(r.scene, "probe", Probe(center=probe_path(crambin)[5]))) == 0
+        assert (
+            misses_after(lambda: setattr(r.scene, "probe", Probe(center=probe_path(crambin)[5])))
+            == 0
+        )
         assert misses_after(lambda: setattr(r.scene.probe, "touched_atom", 7)) == 0
         for f in dataclasses.fields(Effects):
             value = getattr(r.scene.effects, f.name)
-            changed = (not value) if isinstance(value, bool) else ("polymer" if value != "polymer" else "element")
-            assert misses_after(lambda f=f, v=changed: setattr(r.scene.effects, f.name, v)) == 1, f.name
-        assert misses_after(lambda: setattr(r.scene, "lights_follow_camera", not r.scene.lights_follow_camera)) == 1
-        assert misses_after(lambda: r.scene.marks.append(Mark(1, "pocket", tuple(crambin.positions[2])))) == 1
-        assert misses_after(lambda: setattr(r.scene, "light_direction", -r.scene.light_direction)) == 1
-        assert misses_after(lambda: setattr(r.scene, "nav_cube", NavCube(crambin.positions[0].copy(), 6.0))) == 1
+            changed = (
+                (not value)
+                if isinstance(value, bool)
+                else ("polymer" if value != "polymer" else "element")
+            )
+            assert misses_after(lambda f=f, v=changed: setattr(r.scene.effects, f.name, v)) == 1, (
+                f.name
+            )
+        assert (
+            misses_after(
+                lambda: setattr(r.scene, "lights_follow_camera", not r.scene.lights_follow_camera)
+            )
+            == 1
+        )
+        assert (
+            misses_after(
+                lambda: r.scene.marks.append(Mark(1, "pocket", tuple(crambin.positions[2])))
+            )
+            == 1
+        )
+        assert (
+            misses_after(lambda: setattr(r.scene, "light_direction", -r.scene.light_direction)) == 1
+        )
+        assert (
+            misses_after(
+                lambda: setattr(r.scene, "nav_cube", NavCube(crambin.positions[0].copy(), 6.0))
+            )
+            == 1
+        )
         assert misses_after(lambda: setattr(r.scene.nav_cube, "half", 7.0)) == 1
-        assert misses_after(lambda: r.scene.clip_planes.append(np.array([1.0, 0.0, 0.0, -9.0]))) == 1
+        assert (
+            misses_after(lambda: r.scene.clip_planes.append(np.array([1.0, 0.0, 0.0, -9.0]))) == 1
+        )
         assert misses_after(lambda: setattr(r.scene, "probe_radius", 1.2)) == 1
         for name in ("eye", "target", "up", "fov_y"):
-            assert misses_after(lambda n=name: setattr(camera, n, _changed(getattr(camera, n)))) == 1, name
+            assert (
+                misses_after(lambda n=name: setattr(camera, n, _changed(getattr(camera, n)))) == 1
+            ), name
         shading = r.pass_named("shading").settings
         for f in dataclasses.fields(shading):
-            assert misses_after(lambda f=f: setattr(shading, f.name, _changed(getattr(shading, f.name)))) == 1, f.name
+            assert (
+                misses_after(
+                    lambda f=f: setattr(shading, f.name, _changed(getattr(shading, f.name)))
+                )
+                == 1
+            ), f.name
         lighting = lighting_of(r)
         assert misses_after(lighting.cycle_ao_mode) == 1
-        assert misses_after(lambda: setattr(lighting, "settings", replace(lighting.settings, samples=3))) == 1
+        assert (
+            misses_after(
+                lambda: setattr(lighting, "settings", replace(lighting.settings, samples=3))
+            )
+            == 1
+        )
         assert misses_after(lambda: r.resize((72, 48))) == 1
         assert misses_after(lambda: r.set_sphere_mode("sprite")) == 1
-        assert misses_after(lambda: None) == 1  # after a run of changes the layer is drawn again once the key holds
+        assert (
+            misses_after(lambda: None) == 1
+        )  # after a run of changes the layer is drawn again once the key holds
         assert misses_after(lambda: None) == 0
     finally:
         r.release()
@@ -368,7 +488,11 @@ def test_the_key_covers_fields_added_later():
     assert state_key(replace(scene, effects=Effects(shadows=True)), skip=("probe",)) != key
     assert state_key(AOSettings(patch=9)) != state_key(AOSettings())
     # settings (frozen) have their keys found once: the same for equal ones, asked again or not
-    assert state_key(AOSettings(patch=9)) == state_key(AOSettings(patch=9)) != state_key(AOSettings(patch=10))
+    assert (
+        state_key(AOSettings(patch=9))
+        == state_key(AOSettings(patch=9))
+        != state_key(AOSettings(patch=10))
+    )
     assert state_key(LightingSettings(ao=AOSettings(patch=9))) != state_key(LightingSettings())
 
     @dataclasses.dataclass(frozen=True)

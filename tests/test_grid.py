@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
 from sasprobe.molecule import UniformGrid, load_default, load_structure
 
 CRAMBIN = load_default()
@@ -113,7 +112,9 @@ def test_dda_visits_the_cells_of_dense_sampling_in_order(a, b, size, extend):
     visited = [tuple(c) for c in cells]
     seen = [tuple(c) for c in sampled]
     it = iter(visited)
-    assert all(any(c == v for v in it) for c in seen), "sampled cells not a subsequence of the DDA walk"
+    assert all(any(c == v for v in it) for c in seen), (
+        "sampled cells not a subsequence of the DDA walk"
+    )
     assert {tuple(c) for c in cells[long_enough]} <= set(seen)
 
 
@@ -200,6 +201,8 @@ def test_bad_grid_input_is_refused():
 def test_overlapping_pairs_equal_brute_force(size):
     i, j = GRIDS[size].overlapping_pairs()
     dist = np.linalg.norm(CENTERS[:, None] - CENTERS[None], axis=2)
-    expected_i, expected_j = np.nonzero((dist < RADII[:, None] + RADII[None]) & ~np.eye(len(CENTERS), dtype=bool))
+    expected_i, expected_j = np.nonzero(
+        (dist < RADII[:, None] + RADII[None]) & ~np.eye(len(CENTERS), dtype=bool)
+    )
     np.testing.assert_array_equal(i, expected_i)
     np.testing.assert_array_equal(j, expected_j)

@@ -5,16 +5,29 @@ from __future__ import annotations
 import dataclasses
 import json
 
-from sasprobe.cli.bench.haptics import _stability_cell
 from sasprobe.devices import PHANTOM_OMNI_LIMITS
 from sasprobe.molecule import load_default
+
+from sasprobe.cli.bench.haptics import _stability_cell
 from tests.conftest import run_cli
 
 
 def test_bench_haptics_quick_json(reference_entries, tmp_path):
     result = run_cli(
-        "bench", "haptics", "--quick", "--json", "--structures", "1crn", "--ticks", "1500", "--repeats", "1",
-        "--no-map", "--out", str(tmp_path), timeout=600,
+        "bench",
+        "haptics",
+        "--quick",
+        "--json",
+        "--structures",
+        "1crn",
+        "--ticks",
+        "1500",
+        "--repeats",
+        "1",
+        "--no-map",
+        "--out",
+        str(tmp_path),
+        timeout=600,
     )
     assert result.returncode == 0, result.stderr
     data = json.loads(result.stdout)["benchmarks"]["haptics"]
@@ -25,7 +38,9 @@ def test_bench_haptics_quick_json(reference_entries, tmp_path):
         assert 0 < r["p50_us"] <= r["p99_us"] <= r["max_us"]
         assert r["contact_fraction"] > 0.1
     assert rows["proxy"]["max_penetration_A"] <= 1e-9
-    assert rows["penalty"]["max_penetration_A"] > 0.1  # its surface point sits inside neighbours at creases
+    assert (
+        rows["penalty"]["max_penetration_A"] > 0.1
+    )  # its surface point sits inside neighbours at creases
     assert rows["penalty"]["max_force_step_n"] > 2 * rows["proxy"]["max_force_step_n"]
     assert (tmp_path / "haptics_tick_time.png").stat().st_size > 0
     assert (tmp_path / "haptics_dive_force.png").stat().st_size > 0

@@ -6,21 +6,28 @@ import math
 
 import numpy as np
 import pytest
-
+from sasprobe.daemon.haptics import HapticEngine, HapticOutput, HapticSettings
 from sasprobe.daemon.haptics.force_law import contact_force
-from sasprobe.daemon.haptics import HapticOutput, HapticEngine, HapticSettings
-from sasprobe.devices.workspace import WorkspaceMapping
 from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceState, open_device
+from sasprobe.devices.workspace import WorkspaceMapping
 from sasprobe.molecule import load_default
+
 from tests.haptics_reference import synthetic_structure
 
 CRAMBIN = load_default()
 LIMITS = PHANTOM_OMNI_LIMITS
-FIT = HapticSettings(cube_half_A="fit")  # the whole of crambin in the cube (these tests press on any atom)
+FIT = HapticSettings(
+    cube_half_A="fit"
+)  # the whole of crambin in the cube (these tests press on any atom)
 
 
 def state(k: int, tip, velocity=(0.0, 0.0, 0.0), **kw) -> DeviceState:
-    return DeviceState(t_ns=k * 1_000_000, position_mm=np.asarray(tip, float), velocity_mm_s=np.asarray(velocity, float), **kw)
+    return DeviceState(
+        t_ns=k * 1_000_000,
+        position_mm=np.asarray(tip, float),
+        velocity_mm_s=np.asarray(velocity, float),
+        **kw,
+    )
 
 
 # ------------------------------------------------------------------ bad input
@@ -110,7 +117,9 @@ def test_uncalibrated_device_gets_no_force():
 def test_forces_are_finite_and_clamped_for_wild_input():
     rng = np.random.default_rng(11)
     for method in ("proxy", "penalty"):
-        engine = HapticEngine(CRAMBIN, LIMITS, HapticSettings(method=method, stiffness_n_per_mm=0.7))
+        engine = HapticEngine(
+            CRAMBIN, LIMITS, HapticSettings(method=method, stiffness_n_per_mm=0.7)
+        )
         clamped = 0
         for k in range(3000):
             scale = 10.0 ** rng.integers(-1, 7)  # up to a million mm: a garbled reading
@@ -133,7 +142,11 @@ def test_force_law_against_hand_calculation():
     f = contact_force((0.0, 0.0, 2.0), (0.0, 0.0, 0.0), (100.0, 0.0, 0.0), 0.3, 2.0, 3.3)
     assert (f.x, f.z) == (0.0, pytest.approx(0.6))
     f = contact_force((0.0, 3.0, 4.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 1.0, 0.0, 3.3)
-    assert f.clamped and math.hypot(f.y, f.z) == pytest.approx(3.3) and f.y / f.z == pytest.approx(0.75)
+    assert (
+        f.clamped
+        and math.hypot(f.y, f.z) == pytest.approx(3.3)
+        and f.y / f.z == pytest.approx(0.75)
+    )
     f = contact_force((0.0, 0.0, 1e308), (0.0, 0.0, -1e308), (0.0, 0.0, 0.0), 0.7, 0.0, 3.3)
     assert f.fault and (f.x, f.y, f.z) == (0.0, 0.0, 0.0)
 
@@ -205,7 +218,9 @@ def test_set_structure_refits_the_cube_and_unseats():
 # ------------------------------------------------------------------- seams
 def seam_session(points, goal_path_A, method="proxy"):
     structure = synthetic_structure(points)
-    engine = HapticEngine(structure, LIMITS, HapticSettings(method=method, cube_half_A=10.0, cube_center_A=(0, 0, 0)))
+    engine = HapticEngine(
+        structure, LIMITS, HapticSettings(method=method, cube_half_A=10.0, cube_center_A=(0, 0, 0))
+    )
     m = engine.mapping
     forces, contacts = [], []
     for k, g in enumerate(goal_path_A):
@@ -220,7 +235,10 @@ def goal_path(points, depth: float, ticks: int = 1500):
     points = np.asarray(points, float)
     radius = 1.7 + 1.4
     xs = np.linspace(points[:, 0].min() - 1.5, points[:, 0].max() + 1.5, ticks)
-    top = [max(p[2] + math.sqrt(max(radius**2 - (x - p[0]) ** 2 - p[1] ** 2, 0)) for p in points) for x in xs]
+    top = [
+        max(p[2] + math.sqrt(max(radius**2 - (x - p[0]) ** 2 - p[1] ** 2, 0)) for p in points)
+        for x in xs
+    ]
     z = np.array(top) - depth
     approach = [np.array([xs[0], 0.0, z[0] + 4.0 - 4.0 * k / 200]) for k in range(200)]
     return approach + [np.array([x, 0.0, zz]) for x, zz in zip(xs, z)]
@@ -251,9 +269,13 @@ def test_force_is_continuous_while_the_goal_slides_across_seams(points):
 
 # ------------------------------------------------------------------ drift
 def test_drift_moves_the_cube_without_a_force_jump():
-    points = np.array([[x, y, 0.0] for x in np.arange(-40, 41, 2.0) for y in np.arange(-40, 41, 2.0)])
+    points = np.array(
+        [[x, y, 0.0] for x in np.arange(-40, 41, 2.0) for y in np.arange(-40, 41, 2.0)]
+    )
     structure = synthetic_structure(points)  # a wide flat floor to slide on while drifting
-    engine = HapticEngine(structure, LIMITS, HapticSettings(cube_half_A=15.0, cube_center_A=(0, 0, 0)))
+    engine = HapticEngine(
+        structure, LIMITS, HapticSettings(cube_half_A=15.0, cube_center_A=(0, 0, 0))
+    )
     m = engine.mapping
     core = m.core_half_mm
     floor = np.array(m.to_device(0, 0, 3.1))[2] - 1.0  # pressed 1 mm into the floor
@@ -263,7 +285,9 @@ def test_drift_moves_the_cube_without_a_force_jump():
     forces, drifting, centers = [], [], []
     for k in range(3000):
         x = min(k * 0.02, core + 3.0)  # 20 mm/s toward +x, into the margin, then held there
-        out = engine.step(state(200 + k, start + [x, 0, 0], velocity=(20.0 if x < core + 3 else 0.0, 0, 0)))
+        out = engine.step(
+            state(200 + k, start + [x, 0, 0], velocity=(20.0 if x < core + 3 else 0.0, 0, 0))
+        )
         forces.append(out.force_n)
         drifting.append(out.drifting)
         centers.append(out.cube_center_A[0])
@@ -289,7 +313,9 @@ def test_mapping_round_trip_and_fit():
     dev_lo = np.array([m.to_device(*q) for q in CRAMBIN.positions - r])
     dev_hi = np.array([m.to_device(*q) for q in CRAMBIN.positions + r])
     center = np.array(m.workspace_center_mm)
-    assert np.all(np.abs(dev_lo - center) <= m.core_half_mm) and np.all(np.abs(dev_hi - center) <= m.core_half_mm)
+    assert np.all(np.abs(dev_lo - center) <= m.core_half_mm) and np.all(
+        np.abs(dev_hi - center) <= m.core_half_mm
+    )
     # zooming about the tip keeps the goal where it was
     tip = (10.0, -5.0, 3.0)
     goal = m.to_molecule(*tip)

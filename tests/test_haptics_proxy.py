@@ -7,10 +7,10 @@ import math
 
 import numpy as np
 import pytest
-
 from sasprobe.daemon.haptics.neighbours import NeighbourCache
 from sasprobe.daemon.haptics.proxy import ProxySolver
 from sasprobe.molecule import UniformGrid, load_default, load_structure
+
 from tests.haptics_reference import (
     constrained_candidates,
     is_local_min,
@@ -23,7 +23,9 @@ CRAMBIN = load_default()
 
 
 def solver_for(centers, radii) -> ProxySolver:
-    return ProxySolver(NeighbourCache(UniformGrid(np.asarray(centers, float), np.asarray(radii, float))))
+    return ProxySolver(
+        NeighbourCache(UniformGrid(np.asarray(centers, float), np.asarray(radii, float)))
+    )
 
 
 def drive(solver: ProxySolver, start, goal, ticks_in: int = 60, ticks_hold: int = 40) -> np.ndarray:
@@ -61,7 +63,11 @@ def seam_goal(rng, centers, radii) -> np.ndarray | None:
             # for a far goal in a random direction include circle and triple points
             far = centers.mean(axis=0) + rng.normal(size=3) * 50.0
             cands = constrained_candidates(centers, radii, far)
-            on_all = [c for c in cands if np.all(np.abs(np.linalg.norm(centers - c, axis=1) - radii) < 1e-9)]
+            on_all = [
+                c
+                for c in cands
+                if np.all(np.abs(np.linalg.norm(centers - c, axis=1) - radii) < 1e-9)
+            ]
             if not on_all:
                 continue
             surface = on_all[rng.integers(len(on_all))]
@@ -94,10 +100,14 @@ def test_rest_point_is_the_brute_force_constrained_minimum(n_spheres):
             p = drive(solver_for(centers, radii), g + 14.0 * u, g)
             assert signed_distance(p, centers, radii)[0] >= -1e-9
             gap = np.linalg.norm(minima - p, axis=1).min()
-            assert gap < 1e-7, f"trial {trial}: rest point {p} is not a brute-force local minimum ({gap:.2e} Å off)"
+            assert gap < 1e-7, (
+                f"trial {trial}: rest point {p} is not a brute-force local minimum ({gap:.2e} Å off)"
+            )
             assert is_local_min(p, g, centers, radii, rng)
             if k == 0:
-                assert np.linalg.norm(p - best) < 1e-7, f"trial {trial}: not the global nearest point"
+                assert np.linalg.norm(p - best) < 1e-7, (
+                    f"trial {trial}: not the global nearest point"
+                )
 
 
 def test_pressing_straight_in_rests_at_the_global_nearest_point_on_crambin():
@@ -151,7 +161,9 @@ def test_proxy_never_enters_the_sas_in_long_random_sessions(entry, reference_by_
     contacts = 0
     for k in range(6000):
         # a smooth random walk with occasional jumps, pulled toward the molecule
-        velocity = 0.97 * velocity + rng.normal(size=3) * 0.03 + (centers.mean(axis=0) - goal) * 1e-4
+        velocity = (
+            0.97 * velocity + rng.normal(size=3) * 0.03 + (centers.mean(axis=0) - goal) * 1e-4
+        )
         goal = goal + velocity
         if k % 500 == 499:
             goal = goal + rng.normal(size=3) * 3.0  # a glitchy device: big jump
@@ -197,10 +209,15 @@ def sheet(spacing: float = 2.0, n: int = 9) -> np.ndarray:
 def test_pushing_through_a_thin_sheet_pops_through_only_with_the_penalty_method(method):
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceState
+
     from tests.haptics_reference import synthetic_structure
 
-    structure = synthetic_structure(sheet() + [0.3, 0.2, 0.0])  # off-centre: not a symmetric balance
-    engine = HapticEngine(structure, PHANTOM_OMNI_LIMITS, HapticSettings(method=method, cube_half_A=12.0))
+    structure = synthetic_structure(
+        sheet() + [0.3, 0.2, 0.0]
+    )  # off-centre: not a symmetric balance
+    engine = HapticEngine(
+        structure, PHANTOM_OMNI_LIMITS, HapticSettings(method=method, cube_half_A=12.0)
+    )
     m = engine.mapping
     start = np.array(m.to_device(0.0, 0.0, 6.0))
     end = np.array(m.to_device(0.0, 0.0, -6.0))  # straight through the sheet, out the far side
@@ -224,15 +241,21 @@ def test_pushing_through_a_thin_sheet_pops_through_only_with_the_penalty_method(
 def test_press_script_on_crambin_pops_through_with_penalty_not_with_proxy():
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices import PHANTOM_OMNI_LIMITS, open_device
-
     from sasprobe.devices.simulated import ArmModel
 
     along = {}
     for method in ("proxy", "penalty"):
         # A hand that pushes without limit (a person stops at the arm's rating): the test of a wall
-        device = open_device("sim:press", structure=CRAMBIN, cube_half_A="fit", arm=ArmModel(max_hand_force_n=math.inf))
+        device = open_device(
+            "sim:press",
+            structure=CRAMBIN,
+            cube_half_A="fit",
+            arm=ArmModel(max_hand_force_n=math.inf),
+        )
         push = np.array(device.script.info["push_direction"])
-        engine = HapticEngine(CRAMBIN, PHANTOM_OMNI_LIMITS, HapticSettings(method=method, cube_half_A="fit"))
+        engine = HapticEngine(
+            CRAMBIN, PHANTOM_OMNI_LIMITS, HapticSettings(method=method, cube_half_A="fit")
+        )
         device.open()
         worst = -np.inf
         for _ in range(int(device.script.duration_s * 1000)):

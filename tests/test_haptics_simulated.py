@@ -7,12 +7,18 @@ import time
 
 import numpy as np
 import pytest
-
-from sasprobe.devices.workspace import WorkspaceMapping
-from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceFault, DeviceOpenError, HapticDevice, open_device
+from sasprobe.devices import (
+    PHANTOM_OMNI_LIMITS,
+    DeviceFault,
+    DeviceOpenError,
+    HapticDevice,
+    open_device,
+)
 from sasprobe.devices.scripts import SCRIPTS, Script
 from sasprobe.devices.simulated import ArmModel, SimulatedDevice
+from sasprobe.devices.workspace import WorkspaceMapping
 from sasprobe.molecule import load_default
+
 from tests.haptics_reference import signed_distance
 
 CRAMBIN = load_default()
@@ -65,7 +71,7 @@ def test_free_motion_matches_the_analytic_damped_oscillator():
     device = SimulatedDevice(still((0, 0, 0), jump_to=(5.0, 0, 0), at=0.0), rate_hz=1000, arm=arm)
     device.open()
     k = arm.hand_stiffness_n_per_mm * 1e3  # N/m
-    b = (arm.hand_damping_n_s_per_m + arm.arm_damping_n_s_per_m)
+    b = arm.hand_damping_n_s_per_m + arm.arm_damping_n_s_per_m
     m = arm.mass_kg
     w0 = math.sqrt(k / m)
     zeta = b / (2 * math.sqrt(k * m))
@@ -78,7 +84,10 @@ def test_free_motion_matches_the_analytic_damped_oscillator():
         # b_hand * 5 mm that the hand's damper (on the target's velocity) gives at the step
         v0 = arm.hand_damping_n_s_per_m * 5.0 / m  # mm/s
         decay = math.exp(-zeta * w0 * t)
-        exact = 5.0 * (1 - decay * (math.cos(wd * t) + zeta * w0 / wd * math.sin(wd * t))) + v0 * decay * math.sin(wd * t) / wd
+        exact = (
+            5.0 * (1 - decay * (math.cos(wd * t) + zeta * w0 / wd * math.sin(wd * t)))
+            + v0 * decay * math.sin(wd * t) / wd
+        )
         worst = max(worst, abs(device.read().position_mm[0] - exact))
     assert worst < 0.05  # mm, for a 5 mm step (semi-implicit Euler at 0.1 ms)
 
@@ -110,7 +119,9 @@ def test_force_bookkeeping_clamp_nan_and_close():
 
 
 def test_scheduled_and_injected_faults_then_recovery():
-    device = SimulatedDevice(still(), faults=["raise@3+2", ("nan", 6, 1), "disconnect@8"], failed_reconnects=1)
+    device = SimulatedDevice(
+        still(), faults=["raise@3+2", ("nan", 6, 1), "disconnect@8"], failed_reconnects=1
+    )
     device.open()
     seen = []
     for _ in range(12):
@@ -178,4 +189,6 @@ def test_dive_targets_a_groove_between_two_surface_atoms():
     radii = CRAMBIN.expanded_radii(1.4)
     on_both = [abs(np.linalg.norm(crease - CRAMBIN.positions[a]) - radii[a]) for a in (i, j)]
     assert max(on_both) < 1e-9
-    assert signed_distance(crease, CRAMBIN.positions, radii)[0] > -1e-9  # on the surface, not buried
+    assert (
+        signed_distance(crease, CRAMBIN.positions, radii)[0] > -1e-9
+    )  # on the surface, not buried

@@ -37,7 +37,10 @@ ALLOWED = {
 # everything and which nothing imports. The package itself (its version) is ground too.
 FOUNDATION_PACKAGE = "sasprobe.common"
 CLI_PACKAGE = "sasprobe.cli"
-ROOT_MODULES = {"sasprobe", "sasprobe.__main__"}  # the version; `python -m sasprobe`, which runs the CLI
+ROOT_MODULES = {
+    "sasprobe",
+    "sasprobe.__main__",
+}  # the version; `python -m sasprobe`, which runs the CLI
 # Layers inside a subsystem: (package, what of its subsystem it may import besides itself).
 INNER = {
     "sasprobe.daemon.haptics": set(),  # the tick's computation, below the process
@@ -45,7 +48,17 @@ INNER = {
     "sasprobe.render.lighting": {"sasprobe.render.gl"},  # below the passes
 }
 # No clock, socket or thread in the haptic computation: it must replay bit for bit.
-PURE = {"sasprobe.daemon.haptics": {"time", "socket", "threading", "zmq", "concurrent", "asyncio", "signal"}}
+PURE = {
+    "sasprobe.daemon.haptics": {
+        "time",
+        "socket",
+        "threading",
+        "zmq",
+        "concurrent",
+        "asyncio",
+        "signal",
+    }
+}
 MAX_LINES = 400
 SIZE_REASON = "Size:"  # a longer module's docstring says why after this word
 
@@ -127,32 +140,72 @@ def violations(edges: list[tuple[str, str, int]], known: set[str]) -> list[str]:
         elif source == "foundation" and target not in (None, "foundation"):
             problems.append(f"{where}: the foundation imports nothing of ours")
         elif target not in (None, "foundation", source) and target not in ALLOWED[source]:
-            problems.append(f"{where}: {source}/ may import only {', '.join(sorted(ALLOWED[source])) or 'nothing'}")
+            problems.append(
+                f"{where}: {source}/ may import only {', '.join(sorted(ALLOWED[source])) or 'nothing'}"
+            )
         for layer, allowed in INNER.items():
             outer = layer.rpartition(".")[0]
-            if within(importer, layer) and within(imported, outer) and not within(imported, layer) \
-                    and not any(within(imported, a) for a in allowed):
+            if (
+                within(importer, layer)
+                and within(imported, outer)
+                and not within(imported, layer)
+                and not any(within(imported, a) for a in allowed)
+            ):
                 problems.append(f"{where}: {layer} sits below the rest of {outer}")
     return problems
 
 
 def test_dependencies_run_one_way():
     known = set(modules())
-    edges = [(name, imported, line) for name, path in modules().items() for imported, line in imports_of(name, path)]
-    assert len(edges) > 500 and {subsystem(n) for n in known} >= set(ALLOWED) | {"cli", "foundation"}
+    edges = [
+        (name, imported, line)
+        for name, path in modules().items()
+        for imported, line in imports_of(name, path)
+    ]
+    assert len(edges) > 500 and {subsystem(n) for n in known} >= set(ALLOWED) | {
+        "cli",
+        "foundation",
+    }
     assert violations(edges, known) == []
 
 
-@pytest.mark.parametrize("edge, message", [
-    (("sasprobe.render.scene_state", "sasprobe.daemon.service", 1), "render/ may import only molecule, protocol"),
-    (("sasprobe.devices.simulated", "sasprobe.daemon.haptics.engine", 1), "devices/ may import only"),
-    (("sasprobe.protocol.pose", "sasprobe.molecule.grid", 1), "protocol/ may import only nothing"),
-    (("sasprobe.daemon.service", "sasprobe.cli.argtypes", 1), "nothing imports the CLI package"),
-    (("sasprobe.common.errors", "sasprobe.molecule", 1), "the foundation imports nothing of ours"),
-    (("sasprobe.daemon.haptics.engine", "sasprobe.daemon.loop", 1), "sasprobe.daemon.haptics sits below"),
-    (("sasprobe.render.gl.targets", "sasprobe.render.passes.base", 1), "sasprobe.render.gl sits below"),
-    (("sasprobe.render.lighting.grid", "sasprobe.render.passes.base", 1), "sasprobe.render.lighting sits below"),
-])
+@pytest.mark.parametrize(
+    "edge, message",
+    [
+        (
+            ("sasprobe.render.scene_state", "sasprobe.daemon.service", 1),
+            "render/ may import only molecule, protocol",
+        ),
+        (
+            ("sasprobe.devices.simulated", "sasprobe.daemon.haptics.engine", 1),
+            "devices/ may import only",
+        ),
+        (
+            ("sasprobe.protocol.pose", "sasprobe.molecule.grid", 1),
+            "protocol/ may import only nothing",
+        ),
+        (
+            ("sasprobe.daemon.service", "sasprobe.cli.argtypes", 1),
+            "nothing imports the CLI package",
+        ),
+        (
+            ("sasprobe.common.errors", "sasprobe.molecule", 1),
+            "the foundation imports nothing of ours",
+        ),
+        (
+            ("sasprobe.daemon.haptics.engine", "sasprobe.daemon.loop", 1),
+            "sasprobe.daemon.haptics sits below",
+        ),
+        (
+            ("sasprobe.render.gl.targets", "sasprobe.render.passes.base", 1),
+            "sasprobe.render.gl sits below",
+        ),
+        (
+            ("sasprobe.render.lighting.grid", "sasprobe.render.passes.base", 1),
+            "sasprobe.render.lighting sits below",
+        ),
+    ],
+)
 def test_the_rule_catches_a_wrong_arrow(edge, message):
     known = set(modules())
     found = violations([edge], known)
@@ -161,16 +214,26 @@ def test_the_rule_catches_a_wrong_arrow(edge, message):
 
 def test_nothing_needs_the_cli_from_below_even_in_the_right_direction():
     known = set(modules())
-    allowed = [("sasprobe.cli.commands.render", "sasprobe.render.app", 1), ("sasprobe.daemon.service", "sasprobe.common.errors", 1),
-               ("sasprobe.common.files", "sasprobe.common.errors", 1),
-               ("sasprobe.render.link", "sasprobe.protocol.client", 1), ("sasprobe.daemon.service", "numpy", 1)]
+    allowed = [
+        ("sasprobe.cli.commands.render", "sasprobe.render.app", 1),
+        ("sasprobe.daemon.service", "sasprobe.common.errors", 1),
+        ("sasprobe.common.files", "sasprobe.common.errors", 1),
+        ("sasprobe.render.link", "sasprobe.protocol.client", 1),
+        ("sasprobe.daemon.service", "numpy", 1),
+    ]
     assert violations(allowed, known) == []
 
 
 def test_the_root_package_holds_only_its_two_floors():
     """Every module of sasprobe/ is on the ground floor (common/) or the top one (cli/)."""
-    loose = [name for name in modules() if subsystem(name) in ("foundation", "cli")
-             and name not in ROOT_MODULES and not within(name, FOUNDATION_PACKAGE) and not within(name, CLI_PACKAGE)]
+    loose = [
+        name
+        for name in modules()
+        if subsystem(name) in ("foundation", "cli")
+        and name not in ROOT_MODULES
+        and not within(name, FOUNDATION_PACKAGE)
+        and not within(name, CLI_PACKAGE)
+    ]
     assert loose == [], f"modules of sasprobe/ outside common/ and cli/: {loose}"
 
 
@@ -187,9 +250,13 @@ def test_no_module_is_over_400_lines_without_saying_why():
     long = []
     for path in paths:
         lines = len(path.read_text().splitlines())
-        if lines > MAX_LINES and SIZE_REASON not in (ast.get_docstring(ast.parse(path.read_text())) or ""):
+        if lines > MAX_LINES and SIZE_REASON not in (
+            ast.get_docstring(ast.parse(path.read_text())) or ""
+        ):
             long.append(f"{path.relative_to(REPO_ROOT)}: {lines} lines")
-    assert long == [], f"over {MAX_LINES} lines without '{SIZE_REASON} <why>' in the docstring: {long}"
+    assert long == [], (
+        f"over {MAX_LINES} lines without '{SIZE_REASON} <why>' in the docstring: {long}"
+    )
 
 
 LAYOUT_PAGE = REPO_ROOT / "docs" / "architecture.md"
@@ -198,11 +265,14 @@ LAYOUT_PAGE = REPO_ROOT / "docs" / "architecture.md"
 def layout_rows() -> list[str]:
     """The folders in the first column of the layout table in docs/architecture.md."""
     text = LAYOUT_PAGE.read_text()
-    section = text[text.index("\n## Layout\n"):]
+    section = text[text.index("\n## Layout\n") :]
     end = section.find("\n## ", 1)
     section = section if end < 0 else section[:end]
-    return [line.split("|")[1].strip().strip("`") for line in section.splitlines()
-            if line.startswith("| `") and line.split("|")[1].strip().startswith("`")]
+    return [
+        line.split("|")[1].strip().strip("`")
+        for line in section.splitlines()
+        if line.startswith("| `") and line.split("|")[1].strip().startswith("`")
+    ]
 
 
 def test_the_layout_table_matches_the_tree():
@@ -212,10 +282,20 @@ def test_the_layout_table_matches_the_tree():
     patterns = [re.sub(r"<[^>]+>", "*", row) for row in rows]
     for row in rows:
         if "<" not in row:  # a pattern row (devices/<driver>/) may match nothing yet
-            assert (REPO_ROOT / row).is_dir(), f"the layout table names {row}, which is not a folder"
-    folders = {f"{path.relative_to(REPO_ROOT).as_posix()}/" for root in package_dirs().values()
-               for path in [root, *(init.parent for init in root.rglob("__init__.py"))]}
+            assert (REPO_ROOT / row).is_dir(), (
+                f"the layout table names {row}, which is not a folder"
+            )
+    folders = {
+        f"{path.relative_to(REPO_ROOT).as_posix()}/"
+        for root in package_dirs().values()
+        for path in [root, *(init.parent for init in root.rglob("__init__.py"))]
+    }
     folders.add("tests/")
-    missing = sorted(f for f in folders if not any(fnmatch.fnmatch(f, p) and f.count("/") == p.count("/")
-                                                   for p in patterns))
-    assert missing == [], f"packages the layout table of docs/architecture.md does not list: {missing}"
+    missing = sorted(
+        f
+        for f in folders
+        if not any(fnmatch.fnmatch(f, p) and f.count("/") == p.count("/") for p in patterns)
+    )
+    assert missing == [], (
+        f"packages the layout table of docs/architecture.md does not list: {missing}"
+    )

@@ -5,15 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS
+from sasprobe.render.camera import fit_bounding_sphere
+from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.ao import AmbientOcclusion
 from sasprobe.render.lighting.ao.analytic import AnalyticAO
 from sasprobe.render.lighting.ao.raytraced import RayTracedAO
-from sasprobe.render.camera import fit_bounding_sphere
 from sasprobe.render.lighting.grid import Culling
-from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.settings import AO_MODES, AOSettings
+
 from tests.lighting_reference import Occluders, analytic_ao, monte_carlo_ao
 from tests.lighting_support import camera, cullings, gbuffer_arrays, probe_on_surface, sphere_grid
 
@@ -46,7 +46,9 @@ def test_analytic_ao_equals_the_cpu_formula(analytic, scene, k):
     name, gbuffer, position, normal, atom, occluders, *_ = scene
     analytic.update_probe()
     gpu = read_texture(analytic.compute(gbuffer, k))
-    cpu = analytic_ao(position, normal, atom, occluders, analytic.neighbours, k, analytic.probe_neighbours)
+    cpu = analytic_ao(
+        position, normal, atom, occluders, analytic.neighbours, k, analytic.probe_neighbours
+    )
     valid = atom != -1
     assert (atom == -2).sum() > 5  # probe pixels are covered too
     assert np.abs(gpu - cpu).max() <= 1e-4, name
@@ -85,8 +87,16 @@ def test_ray_traced_ao_converges_to_monte_carlo_reference(crambin, crambin_grid)
     # CPU reference on a random sample of 700 pixels, 32 x 32 jittered-stratified rays each
     rng = np.random.default_rng(2024)
     pick = rng.choice(np.flatnonzero(atom.reshape(-1) != -1), 700, replace=False)
-    cpu = monte_carlo_ao(position.reshape(-1, 3)[pick], normal.reshape(-1, 3)[pick], atom.reshape(-1)[pick],
-                         occluders, AO_DISTANCE, 32, rng, grid=crambin_grid.grid)
+    cpu = monte_carlo_ao(
+        position.reshape(-1, 3)[pick],
+        normal.reshape(-1, 3)[pick],
+        atom.reshape(-1)[pick],
+        occluders,
+        AO_DISTANCE,
+        32,
+        rng,
+        grid=crambin_grid.grid,
+    )
     err = gpu.reshape(-1)[pick] - cpu
     assert cpu.std() > 0.1  # AO varies: the comparison has something to see
     assert np.sqrt(np.mean(err**2)) <= 0.02
@@ -119,8 +129,15 @@ def test_every_mode_gives_accessibility_in_range(crambin_grid, scene):
             for half in (False, True):
                 if mode != "ssao" and (sampling, half) != ("point", False):
                     continue
-                ao.configure(AOSettings(mode=mode, ssao_sampling=sampling, ssao_half_resolution=half,
-                                        reference_spp=64, reference_total=128))
+                ao.configure(
+                    AOSettings(
+                        mode=mode,
+                        ssao_sampling=sampling,
+                        ssao_half_resolution=half,
+                        reference_spp=64,
+                        reference_total=128,
+                    )
+                )
                 ao.view_changed()
                 tex = ao.compute(gbuffer, view, proj)
                 while not ao.converged:
@@ -148,20 +165,28 @@ def test_ssao_leaves_convex_surfaces_unoccluded_and_darkens_a_crevice(gl):
     depth buffer hides its curvature and line sampling darkens it: a known limit of the
     height-field assumption, shown in the benchmark). Two touching spheres: the contact
     darkens."""
-    for centers, radii, crevice in (([[0.0, 0.0, 0.0]], [6.0], False),
-                                    ([[-3.0, 0.0, 0.0], [3.0, 0.0, 0.0]], [3.2, 3.2], True)):
+    for centers, radii, crevice in (
+        ([[0.0, 0.0, 0.0]], [6.0], False),
+        ([[-3.0, 0.0, 0.0], [3.0, 0.0, 0.0]], [3.2, 3.2], True),
+    ):
         grid = sphere_grid(gl, centers, radii)
-        view, proj = fit_bounding_sphere(np.array(centers), np.array(radii), 4 / 3, (0.0, 0.0, 1.0), fill=0.8)
+        view, proj = fit_bounding_sphere(
+            np.array(centers), np.array(radii), 4 / 3, (0.0, 0.0, 1.0), fill=0.8
+        )
         gbuffer, position, normal, atom = gbuffer_arrays(grid, view, proj, 96, 72)
         ao = AmbientOcclusion(grid)
         valid = atom != -1
         near_contact = valid & (np.abs(position[..., 0]) < 1.0)
         face_on = valid & (normal[..., 2] > 0.7)
         for sampling in ("point", "line"):
-            ao.configure(AOSettings(mode="ssao", ssao_sampling=sampling, ssao_radius=2.0, ssao_samples=24))
+            ao.configure(
+                AOSettings(mode="ssao", ssao_sampling=sampling, ssao_radius=2.0, ssao_samples=24)
+            )
             image = read_texture(ao.compute(gbuffer, view, proj))
             if crevice:
-                assert image[near_contact].mean() < image[valid & ~near_contact].mean() - 0.05, sampling
+                assert image[near_contact].mean() < image[valid & ~near_contact].mean() - 0.05, (
+                    sampling
+                )
             else:
                 assert image[face_on].min() > 0.97, sampling
         ao.release()

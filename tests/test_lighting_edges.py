@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from sasprobe.render.camera import fit_bounding_sphere
+from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.edges import EdgeCueingPass
 from sasprobe.render.lighting.settings import EdgeCueing
-from sasprobe.render.gl.textures import read_texture
+
 from tests.lighting_reference import edge_cueing, view_depths
 from tests.lighting_support import camera, gbuffer_arrays, sphere_grid
 
@@ -21,7 +21,11 @@ def test_edge_cueing_equals_the_numpy_definition(gl, crambin, crambin_grid):
     gbuffer, position, _, atom = gbuffer_arrays(crambin_grid, view, proj)
     edges = EdgeCueingPass(gl)
     depth = view_depths(position, atom, view)
-    for settings in (EdgeCueing(), EdgeCueing(contours=False, halos=True), EdgeCueing(halos=True, line_width=2.5)):
+    for settings in (
+        EdgeCueing(),
+        EdgeCueing(contours=False, halos=True),
+        EdgeCueing(halos=True, line_width=2.5),
+    ):
         gpu = read_texture(edges.compute(gbuffer, view, proj, settings))
         cpu = edge_cueing(depth, atom, settings)
         assert np.abs(gpu - cpu).max() < 1e-3, settings

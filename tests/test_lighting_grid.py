@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
+from sasprobe.render.gl.targets import KIND_CAP
+from sasprobe.render.gl.textures import TABLE_ROW
 from sasprobe.render.lighting.grid import (
     CENTRE_CLIPPED,
     CULLED,
@@ -15,9 +16,8 @@ from sasprobe.render.lighting.grid import (
     GpuGrid,
     walk_rays_on_gpu,
 )
+
 from tests.lighting_reference import Occluders, raycast_gbuffer
-from sasprobe.render.gl.targets import KIND_CAP
-from sasprobe.render.gl.textures import TABLE_ROW
 from tests.lighting_support import camera, cullings, gbuffer_arrays
 
 pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
@@ -32,7 +32,9 @@ def random_rays(grid: UniformGrid, n: int, seed: int, margin: float = 0.3):
     origins = lo - margin * span + rng.random((n, 3)) * (1 + 2 * margin) * span
     directions = rng.normal(size=(n, 3))
     axis_parallel = rng.random(n) < 0.1
-    directions[axis_parallel] = np.eye(3)[rng.integers(0, 3, axis_parallel.sum())] * rng.choice([-1, 1], (axis_parallel.sum(), 1))
+    directions[axis_parallel] = np.eye(3)[rng.integers(0, 3, axis_parallel.sum())] * rng.choice(
+        [-1, 1], (axis_parallel.sum(), 1)
+    )
     directions /= np.linalg.norm(directions, axis=1)[:, None]
     return origins, directions
 
@@ -51,7 +53,9 @@ def compare_walks(grid: UniformGrid, gpu, origins, directions, t_min, t_max, kee
         if len(cells) == len(got_cells) and np.array_equal(cells, got_cells):
             if len(cells):
                 scale = 1e-4 * (1.0 + np.abs(t_exit).max())
-                assert np.allclose(got_t[:, 0], t_enter, atol=scale) and np.allclose(got_t[:, 1], t_exit, atol=scale), i
+                assert np.allclose(got_t[:, 0], t_enter, atol=scale) and np.allclose(
+                    got_t[:, 1], t_exit, atol=scale
+                ), i
             continue
         crossings = np.diff(t_exit[:-1]) if len(t_exit) > 2 else np.array([])
         if crossings.size and np.min(np.abs(crossings)) < 1e-5 * (1.0 + np.abs(t_exit).max()):
@@ -67,7 +71,9 @@ def test_gpu_dda_visits_the_same_cells_as_the_cpu_walk(gl, crambin, cell_size):
     gpu_grid = GpuGrid(gl, grid, crambin.vdw_radii)
     origins, directions = random_rays(grid, 1500, seed=11)
     walks = walk_rays_on_gpu(gpu_grid, origins, directions, max_visits=int(grid.dims.sum()) + 2)
-    unexplained, near_ties, cells_total = compare_walks(grid, walks, origins, directions, 0.0, np.inf)
+    unexplained, near_ties, cells_total = compare_walks(
+        grid, walks, origins, directions, 0.0, np.inf
+    )
     assert cells_total > 2000  # the rays really cross the grid
     assert unexplained == []
     assert near_ties <= 3
@@ -85,7 +91,9 @@ def test_gpu_dda_respects_segment_and_cell_range(gl, crambin, crambin_grid):
     lo, hi = np.array([1, 1, 1]), grid.dims - 2
     walks = walk_rays_on_gpu(crambin_grid, origins, directions, walk_range=(lo, hi))
     inside = lambda cells: np.all((cells >= lo) & (cells <= hi), axis=1)  # noqa: E731
-    unexplained, near_ties, cells_total = compare_walks(grid, walks, origins, directions, 0.0, np.inf, keep=inside)
+    unexplained, near_ties, cells_total = compare_walks(
+        grid, walks, origins, directions, 0.0, np.inf, keep=inside
+    )
     assert cells_total > 500 and unexplained == [] and near_ties <= 2
 
 
@@ -93,7 +101,9 @@ def test_buffers_hold_the_cpu_grid(gl, crambin, crambin_grid):
     grid = crambin_grid.grid
     assert np.array_equal(np.frombuffer(crambin_grid.cell_start.read(), np.uint32), grid.cell_start)
     assert np.array_equal(np.frombuffer(crambin_grid.cell_atoms.read(), np.uint32), grid.cell_atoms)
-    spheres = np.frombuffer(crambin_grid.spheres.read(), np.float32).reshape(-1, 4)[:crambin.n_atoms]
+    spheres = np.frombuffer(crambin_grid.spheres.read(), np.float32).reshape(-1, 4)[
+        : crambin.n_atoms
+    ]
     assert np.allclose(spheres[:, :3], crambin.positions, atol=1e-4)
     assert np.array_equal(spheres[:, 3], crambin.vdw_radii.astype(np.float32))
     # 327 atoms fill one row of each table; a table takes 3, its height no power of two (steady_side)
@@ -105,7 +115,7 @@ def test_culled_flags_follow_planes_and_cube(gl, crambin, crambin_grid):
     centers, radii = crambin.positions, crambin.vdw_radii
     for name, culling in cullings(crambin).items():
         crambin_grid.set_culling(culling)
-        flags = np.frombuffer(crambin_grid.culled.read(), np.uint32)[:crambin.n_atoms]
+        flags = np.frombuffer(crambin_grid.culled.read(), np.uint32)[: crambin.n_atoms]
         # brute force: nothing kept = wholly behind a plane, or not touching the cube
         expect = np.zeros(crambin.n_atoms, dtype=bool)
         centre_out = np.zeros(crambin.n_atoms, dtype=bool)
@@ -134,14 +144,20 @@ def test_the_cuts_a_point_light_lies_beyond():
     assert inside.clip_planes.shape == (0, 4) and inside.nav_cube is None and not inside.clipping
     beyond = culling.cuts_before([0.0, 0.0, 0.0])
     assert np.allclose(beyond.clip_planes, [plane]) and beyond.nav_cube is None
-    outside = culling.cuts_before([7.0, 0.0, 1.0 + LIGHT_CUT_MARGIN / 2])  # beyond the cube's +x face, on the plane
+    outside = culling.cuts_before(
+        [7.0, 0.0, 1.0 + LIGHT_CUT_MARGIN / 2]
+    )  # beyond the cube's +x face, on the plane
     assert np.allclose(outside.clip_planes, [plane, [-1.0, 0.0, 0.0, 5.0]])
     x = np.array([[7.0, 0.0, 3.0], [4.0, 0.0, 3.0]])  # the +x face cuts where the cube would
     kept = x @ outside.clip_planes[:, :3].T + outside.clip_planes[:, 3] >= 0
     assert kept.all(axis=1).tolist() == [False, True]
     assert culling.cuts_before([0.0, 0.0, 0.0]) is beyond  # found once for the same cuts
-    crowded = Culling(clip_planes=np.tile([1.0, 0.0, 0.0, -1.0], (24, 1)), nav_cube=(np.zeros(3), 0.5))
-    assert crowded.cuts_before([0.499, 0.0, 0.0]) is crowded  # 25: too many for the shaders, every cut as drawn
+    crowded = Culling(
+        clip_planes=np.tile([1.0, 0.0, 0.0, -1.0], (24, 1)), nav_cube=(np.zeros(3), 0.5)
+    )
+    assert (
+        crowded.cuts_before([0.499, 0.0, 0.0]) is crowded
+    )  # 25: too many for the shaders, every cut as drawn
 
 
 def test_too_many_clip_planes_is_refused():
@@ -157,7 +173,9 @@ def test_closest_hit_traversal_matches_brute_force_ray_casting(gl, crambin, cram
     gbuffer, position, normal, atom = gbuffer_arrays(crambin_grid, view, proj)
     kinds = gbuffer.kinds()
     gbuffer.release()
-    ref_position, ref_normal, ref_atom = raycast_gbuffer(view, proj, atom.shape[1], atom.shape[0], Occluders.of(crambin_grid))
+    ref_position, ref_normal, ref_atom = raycast_gbuffer(
+        view, proj, atom.shape[1], atom.shape[0], Occluders.of(crambin_grid)
+    )
     crambin_grid.set_culling(Culling())
     crambin_grid.set_probe(None)
     assert (atom >= 0).mean() > 0.15 and (atom == -2).sum() > 5  # molecule and probe in view

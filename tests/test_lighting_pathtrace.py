@@ -5,15 +5,27 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS
-from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.gl.textures import read_texture
-from sasprobe.render.lighting.settings import HARD_SHADOW, DirectionalLight, PathTracing, PointLight, probe_falloff
-from tests.lighting_reference import Occluders, light_visibility, monte_carlo_ao
+from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.lighting.materials import atom_materials
 from sasprobe.render.lighting.path_tracer import PathTracer
-from tests.lighting_support import away_from_boundaries, camera, cullings, gbuffer_arrays, probe_on_surface
+from sasprobe.render.lighting.settings import (
+    HARD_SHADOW,
+    DirectionalLight,
+    PathTracing,
+    PointLight,
+    probe_falloff,
+)
+
+from tests.lighting_reference import Occluders, light_visibility, monte_carlo_ao
+from tests.lighting_support import (
+    away_from_boundaries,
+    camera,
+    cullings,
+    gbuffer_arrays,
+    probe_on_surface,
+)
 
 pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 
@@ -25,7 +37,15 @@ def scene(crambin, crambin_grid):
     crambin_grid.set_probe(probe, DEFAULT_PROBE_RADIUS)
     view, proj = camera(crambin)
     gbuffer, position, normal, atom = gbuffer_arrays(crambin_grid, view, proj)
-    yield gbuffer, position, normal, atom, Occluders.of(crambin_grid), np.linalg.inv(view)[:3, 3], probe
+    yield (
+        gbuffer,
+        position,
+        normal,
+        atom,
+        Occluders.of(crambin_grid),
+        np.linalg.inv(view)[:3, 3],
+        probe,
+    )
     gbuffer.release()
     crambin_grid.set_culling(Culling())
     crambin_grid.set_probe(None)
@@ -45,7 +65,9 @@ def test_direct_light_is_lambert_times_cpu_shadow_rays(crambin, crambin_grid, sc
     lamp = PointLight(tuple(probe), 14.0, intensity=30.0)
     materials = matte(crambin)
     tracer = PathTracer(crambin_grid, materials)
-    radiance = read_texture(tracer.accumulate(gbuffer, eye, sun, lamp, PathTracing(bounces=0, spp=1)))[..., :3]
+    radiance = read_texture(
+        tracer.accumulate(gbuffer, eye, sun, lamp, PathTracing(bounces=0, spp=1))
+    )[..., :3]
     tracer.release()
     on_atom = atom >= 0
     albedo = materials[np.maximum(atom, 0), :3]
@@ -56,7 +78,13 @@ def test_direct_light_is_lambert_times_cpu_shadow_rays(crambin, crambin_grid, sc
     falloff = probe_falloff(dist, lamp)
     vis_sun = light_visibility(position, normal, atom, sun, occluders, HARD_SHADOW)
     vis_lamp = light_visibility(position, normal, atom, lamp, occluders, HARD_SHADOW)
-    expect = albedo / np.pi * (sun.intensity * cos_sun * vis_sun + lamp.intensity * falloff * cos_lamp * vis_lamp)[..., None]
+    expect = (
+        albedo
+        / np.pi
+        * (sun.intensity * cos_sun * vis_sun + lamp.intensity * falloff * cos_lamp * vis_lamp)[
+            ..., None
+        ]
+    )
     classes = (vis_sun > 0.5).astype(int) * 2 + (vis_lamp > 0.5)
     compared = away_from_boundaries(classes, on_atom)
     assert compared.sum() > 0.6 * on_atom.sum()
@@ -77,8 +105,15 @@ def test_escaping_paths_converge_to_monte_carlo_accessibility(crambin, crambin_g
     tracer.release()
     rng = np.random.default_rng(99)
     pick = rng.choice(np.flatnonzero(atom.reshape(-1) >= 0), 500, replace=False)
-    cpu = monte_carlo_ao(position.reshape(-1, 3)[pick], normal.reshape(-1, 3)[pick], atom.reshape(-1)[pick],
-                         occluders, 1e4, 16, rng)
+    cpu = monte_carlo_ao(
+        position.reshape(-1, 3)[pick],
+        normal.reshape(-1, 3)[pick],
+        atom.reshape(-1)[pick],
+        occluders,
+        1e4,
+        16,
+        rng,
+    )
     err = radiance.reshape(-1)[pick] - cpu
     assert cpu.std() > 0.1
     assert np.sqrt(np.mean(err**2)) <= 0.03
@@ -92,7 +127,9 @@ def test_more_bounces_add_light(crambin, crambin_grid, scene):
     means = []
     for bounces in range(4):
         tracer.reset()
-        image = read_texture(tracer.accumulate(gbuffer, eye, sun, None, PathTracing(bounces=bounces, spp=8)))
+        image = read_texture(
+            tracer.accumulate(gbuffer, eye, sun, None, PathTracing(bounces=bounces, spp=8))
+        )
         means.append(float(image[atom >= 0, 0].mean()))
     tracer.release()
     assert means[0] < means[1] < means[2] < means[3]  # sky and inter-reflections add up

@@ -9,14 +9,25 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
+from sasprobe.render.gl.targets import KIND_CAP
+from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.ao import AmbientOcclusion
-from sasprobe.render.lighting.ao.atlas_tables import clustered, facing_masks, fibonacci_directions, texel_normals
+from sasprobe.render.lighting.ao.atlas_tables import (
+    clustered,
+    facing_masks,
+    fibonacci_directions,
+    texel_normals,
+)
 from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
 from sasprobe.render.lighting.grid import Culling
-from sasprobe.render.lighting.settings import AOSettings, DirectionalLight, HARD_SHADOW, LightingSettings, PointLight
-from sasprobe.render.gl.textures import read_texture
-from sasprobe.render.gl.targets import KIND_CAP
+from sasprobe.render.lighting.settings import (
+    HARD_SHADOW,
+    AOSettings,
+    DirectionalLight,
+    LightingSettings,
+    PointLight,
+)
+
 from tests.atlas_reference import bake_atom, bilinear, fill_hidden, octa_decode, octa_encode
 from tests.lighting_reference import Occluders, light_visibility
 from tests.lighting_support import away_from_boundaries, camera, cullings, gbuffer_arrays
@@ -30,7 +41,7 @@ PATCH, DIRECTIONS, DISTANCE = 5, 24, 8.0
 def patch_of(atlas: OcclusionAtlas, values: np.ndarray, atom: int) -> np.ndarray:
     slot = int(atlas.slot_of()[atom])
     x, y = (slot % atlas.tiles_x) * atlas.patch, (slot // atlas.tiles_x) * atlas.patch
-    return values[y:y + atlas.patch, x:x + atlas.patch]
+    return values[y : y + atlas.patch, x : x + atlas.patch]
 
 
 def test_octahedral_reference_round_trips():
@@ -42,11 +53,15 @@ def test_octahedral_reference_round_trips():
 def test_directions_are_clustered_without_changing_the_set():
     d = fibonacci_directions(64)
     c = clustered(d)
-    assert np.array_equal(np.sort(c, axis=0), np.sort(d, axis=0)) and len(np.unique(c, axis=0)) == 64
+    assert (
+        np.array_equal(np.sort(c, axis=0), np.sort(d, axis=0)) and len(np.unique(c, axis=0)) == 64
+    )
 
     def spread(v):  # mean angle of a group of 8 from its mean direction
         g = v.reshape(-1, 8, 3)
-        m = g.mean(axis=1, keepdims=True) / np.linalg.norm(g.mean(axis=1, keepdims=True), axis=2, keepdims=True)
+        m = g.mean(axis=1, keepdims=True) / np.linalg.norm(
+            g.mean(axis=1, keepdims=True), axis=2, keepdims=True
+        )
         return np.degrees(np.arccos(np.clip((g * m).sum(axis=2), -1, 1))).mean()
 
     assert spread(c) < 0.5 * spread(d)  # the lattice's own order spreads each 8 around a band
@@ -55,7 +70,9 @@ def test_directions_are_clustered_without_changing_the_set():
 @pytest.mark.parametrize("patch, directions", [(5, 24), (8, 64), (9, 40)])
 def test_facing_bits_mark_exactly_the_texels_facing_each_direction(patch, directions):
     normals = texel_normals(patch)
-    j, i = np.divmod(np.arange(patch * patch), patch)  # texel (i, j) at i + P j, centres on the border
+    j, i = np.divmod(
+        np.arange(patch * patch), patch
+    )  # texel (i, j) at i + P j, centres on the border
     expected = octa_decode(np.column_stack([i, j]) * (2.0 / (patch - 1)) - 1.0)
     assert np.abs(normals[:, :3] - expected).max() < 1e-6
     d = clustered(fibonacci_directions(directions))
@@ -65,17 +82,26 @@ def test_facing_bits_mark_exactly_the_texels_facing_each_direction(patch, direct
     def bit(words, row, k):  # bit k % 32 of word k / 32, read one at a time
         return (int(words[row, k // 32]) >> (k % 32)) & 1 == 1
 
-    assert by_direction.shape == (directions, -(-patch * patch // 32)) and by_texel.shape == (patch * patch, -(-directions // 32))
+    assert by_direction.shape == (directions, -(-patch * patch // 32)) and by_texel.shape == (
+        patch * patch,
+        -(-directions // 32),
+    )
     for k in range(directions):
         for t in range(patch * patch):
             assert bit(by_direction, k, t) == bit(by_texel, t, k) == faces[k, t], (k, t)
-    assert np.allclose(weight, np.where(faces, d @ normals[:, :3].T.astype(np.float64), 0.0).sum(axis=0))
-    spare = by_direction.shape[1] * 32 - patch * patch  # the last word's bits past the last texel are 0
+    assert np.allclose(
+        weight, np.where(faces, d @ normals[:, :3].T.astype(np.float64), 0.0).sum(axis=0)
+    )
+    spare = (
+        by_direction.shape[1] * 32 - patch * patch
+    )  # the last word's bits past the last texel are 0
     assert spare == 0 or not np.any(by_direction[:, -1] >> np.uint32(32 - spare))
 
 
-@pytest.mark.parametrize("setup, patch", [("none", PATCH), ("plane", PATCH), ("cube", PATCH), ("plane", 8), ("none", 9),
-                                          ("cube", 9)])
+@pytest.mark.parametrize(
+    "setup, patch",
+    [("none", PATCH), ("plane", PATCH), ("cube", PATCH), ("plane", 8), ("none", 9), ("cube", 9)],
+)
 def test_patches_equal_the_cpu_bake(gl, crambin, crambin_grid, setup, patch):
     """Patch 5 fits its texels' bits in one word, patch 8 (the default) in two: the rays step
     takes both at once; patch 9 spreads them over three, taken as a stream of words."""
@@ -84,15 +110,20 @@ def test_patches_equal_the_cpu_bake(gl, crambin, crambin_grid, setup, patch):
     atlas = OcclusionAtlas(crambin_grid)
     try:
         lamp = PointLight(tuple(crambin.positions[40] + [0.0, 0.0, 3.5]), 12.0)
-        assert atlas.update(patch, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN, probe_light=lamp)
+        assert atlas.update(
+            patch, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN, probe_light=lamp
+        )
         values = atlas.read()
         kept = np.flatnonzero(~crambin_grid.culled_mask)
-        assert atlas.n_slots == kept.size and np.array_equal(np.flatnonzero(atlas.slot_of() >= 0), kept)
+        assert atlas.n_slots == kept.size and np.array_equal(
+            np.flatnonzero(atlas.slot_of() >= 0), kept
+        )
         rng = np.random.default_rng(5)
         close = seen = partly_seen = 0
         for atom in rng.choice(kept, size=min(24, kept.size), replace=False):
-            ambient, sun, light, hidden = bake_atom(int(atom), occ, patch, DIRECTIONS, DISTANCE, SUN,
-                                                    (lamp.position, lamp.radius))
+            ambient, sun, light, hidden = bake_atom(
+                int(atom), occ, patch, DIRECTIONS, DISTANCE, SUN, (lamp.position, lamp.radius)
+            )
             gpu = patch_of(atlas, values, int(atom))
             for channel, cpu in ((0, ambient), (1, sun), (2, light)):
                 filled = fill_hidden(cpu, hidden)
@@ -116,12 +147,17 @@ def test_the_atlas_does_not_depend_on_how_the_atoms_are_chunked(gl, crambin_grid
     crambin_grid.set_culling(Culling())
     atlases = []
     try:
-        for budget, one_chunk in ((precomputed.MAX_SCRATCH_BYTES, True), (2 * 2**20, False)):  # 2 MiB: ~50 atoms
+        for budget, one_chunk in (
+            (precomputed.MAX_SCRATCH_BYTES, True),
+            (2 * 2**20, False),
+        ):  # 2 MiB: ~50 atoms
             monkeypatch.setattr(precomputed, "MAX_SCRATCH_BYTES", budget)
             atlas = OcclusionAtlas(crambin_grid)
             atlases.append(atlas)
             chunks = []
-            assert atlas.update(PATCH, 256, DISTANCE, ambient=True, sun_direction=SUN, progress=chunks.append)
+            assert atlas.update(
+                PATCH, 256, DISTANCE, ambient=True, sun_direction=SUN, progress=chunks.append
+            )
             assert (len(chunks) == 1) == one_chunk and chunks[-1] == 1.0, chunks
         assert np.array_equal(atlases[0].read(), atlases[1].read())
     finally:
@@ -151,7 +187,10 @@ def assert_lookup_reads_the_patches(crambin, grid, patch: int) -> None:
         for y, x in zip(ys, xs):
             a = atom[y, x]
             slot = slots[a]
-            e = octa_encode((pos[y, x] - crambin.positions[a]) / np.linalg.norm(pos[y, x] - crambin.positions[a]))
+            e = octa_encode(
+                (pos[y, x] - crambin.positions[a])
+                / np.linalg.norm(pos[y, x] - crambin.positions[a])
+            )
             tx, ty = (slot % atlas.tiles_x) * patch, (slot // atlas.tiles_x) * patch
             u = tx + (e[0] * 0.5 + 0.5) * (patch - 1) + 0.5
             v = ty + (e[1] * 0.5 + 0.5) * (patch - 1) + 0.5
@@ -202,19 +241,24 @@ def test_it_bakes_once_per_culling_and_light(gl, crambin, crambin_grid):
         crambin_grid.set_culling(Culling())
         assert atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True)
         assert not atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True)
-        assert atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN)  # the light channel
+        assert atlas.update(
+            PATCH, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN
+        )  # the light channel
         assert not atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True, sun_direction=SUN)
-        assert atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True, sun_direction=-SUN)  # the light moved
+        assert atlas.update(
+            PATCH, DIRECTIONS, DISTANCE, ambient=True, sun_direction=-SUN
+        )  # the light moved
         crambin_grid.set_culling(cullings(crambin)["cube"])
         assert atlas.update(PATCH, DIRECTIONS, DISTANCE, ambient=True)  # new culling: new patches
         assert atlas.n_slots == int((~crambin_grid.culled_mask).sum()) < crambin.n_atoms
         assert atlas.update(PATCH + 1, DIRECTIONS, DISTANCE, ambient=True)
         with pytest.raises(ValueError, match="--ao-patch"):
-            atlas.update(4000, DIRECTIONS, DISTANCE, ambient=True)  # an atlas beyond the texture size
+            atlas.update(
+                4000, DIRECTIONS, DISTANCE, ambient=True
+            )  # an atlas beyond the texture size
     finally:
         atlas.release()
         crambin_grid.set_culling(Culling())
-
 
 
 def test_the_benchmark_times_a_bake_for_every_figure(gl, crambin, crambin_grid):
@@ -227,10 +271,13 @@ def test_the_benchmark_times_a_bake_for_every_figure(gl, crambin, crambin_grid):
     try:
         for culling, repeats in ((Culling(), 1), (cullings(crambin)["cube"], 2)):
             row = bake_seconds(crambin_grid, culling, settings, repeats=repeats)
-            assert row["patches"] == int((~crambin_grid.culled_mask).sum()) and row["bakes"] == repeats
+            assert (
+                row["patches"] == int((~crambin_grid.culled_mask).sum()) and row["bakes"] == repeats
+            )
             assert min(row["total_s"], row["ambient_s"], row["sun_s"]) > 0 and row["overflows"] == 0
     finally:
         crambin_grid.set_culling(Culling())
+
 
 def test_accuracy_against_the_converged_reference_and_the_exact_shadow(gl, crambin, crambin_grid):
     """At the default patch and directions the precomputed AO is closer to converged
@@ -253,7 +300,9 @@ def test_accuracy_against_the_converged_reference_and_the_exact_shadow(gl, cramb
             errors[mode] = float(np.sqrt(np.mean((image - reference)[atom >= 0] ** 2)))
         assert errors["precomputed"] < 0.7 * errors["analytic"], errors
         sun = read_texture(ao.baked(gbuffer, ambient=False, sun_direction=SUN)[1])
-        exact = light_visibility(pos, nrm, atom, DirectionalLight(tuple(SUN)), Occluders.of(crambin_grid), HARD_SHADOW)
+        exact = light_visibility(
+            pos, nrm, atom, DirectionalLight(tuple(SUN)), Occluders.of(crambin_grid), HARD_SHADOW
+        )
         valid = atom >= 0
         compared = away_from_boundaries(exact < 0.5, valid)
         assert ((sun >= 0.5) == (exact >= 0.5))[compared].mean() >= 0.95
@@ -269,10 +318,10 @@ def test_a_still_probe_lights_from_the_atlas_and_a_moving_one_is_traced(gl, cram
     the probe moves again they are traced per pixel."""
     from sasprobe.render.camera import Camera
     from sasprobe.render.gbuffer_export import gbuffer_arrays as export
-    from sasprobe.render.passes.lighting import install_lighting, lighting_of
-    from sasprobe.render.passes.lighting import STILL_FRAMES
+    from sasprobe.render.passes.lighting import STILL_FRAMES, install_lighting, lighting_of
     from sasprobe.render.renderer import Renderer
     from sasprobe.render.scene_state import Probe, SceneState
+
     from tests.lighting_support import probe_on_surface
 
     settings = LightingSettings(shadows="precomputed", ao=AOSettings(mode="off"))
@@ -295,8 +344,14 @@ def test_a_still_probe_lights_from_the_atlas_and_a_moving_one_is_traced(gl, cram
         g = export(renderer)
         ids = np.where(g["kind"] == 3, -1, g["atom_id"])
         lamp = PointLight(tuple(g["probe_light"][:3]), float(g["probe_light"][3]))
-        exact = light_visibility(g["position"], g["normal"], ids, lamp, Occluders(crambin.positions, crambin.vdw_radii),
-                                 HARD_SHADOW)
+        exact = light_visibility(
+            g["position"],
+            g["normal"],
+            ids,
+            lamp,
+            Occluders(crambin.positions, crambin.vdw_radii),
+            HARD_SHADOW,
+        )
         atoms = ids >= 0
         compared = away_from_boundaries(exact < 0.5, atoms)
         agree = ((g["shadow_probe"] >= 0.5) == (exact >= 0.5))[compared].mean()

@@ -6,16 +6,29 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS
-from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.settings import HARD_SHADOW, DirectionalLight, PointLight, SoftShadow, ray_epsilon
-from tests.lighting_reference import Occluders, light_visibility
+from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.lighting.light_buffer import cell_cones
+from sasprobe.render.lighting.settings import (
+    HARD_SHADOW,
+    DirectionalLight,
+    PointLight,
+    SoftShadow,
+    ray_epsilon,
+)
 from sasprobe.render.lighting.shadows import ShadowPass
-from tests.lighting_support import away_from_boundaries, camera, cullings, gbuffer_arrays, probe_on_surface, sphere_grid
+
+from tests.lighting_reference import Occluders, light_visibility
+from tests.lighting_support import (
+    away_from_boundaries,
+    camera,
+    cullings,
+    gbuffer_arrays,
+    probe_on_surface,
+    sphere_grid,
+)
 
 pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 
@@ -58,9 +71,16 @@ def test_hard_shadows_equal_the_cpu_ray_tracer(crambin, shadow_pass, scene, ligh
     assert set(np.unique(gpu[valid])) <= {0.0, 1.0}
     shadowed = cpu < 0.5
     # a scene worth testing: both classes present in quantity among the traced pixels
-    traced = valid if light_kind == "directional" else valid & (
-        np.linalg.norm(position - np.asarray(light.position), axis=-1) <= light.radius)
-    assert traced.sum() > 500 and 0.1 < shadowed[traced].mean() < 0.9, (name, shadowed[traced].mean())
+    traced = (
+        valid
+        if light_kind == "directional"
+        else valid
+        & (np.linalg.norm(position - np.asarray(light.position), axis=-1) <= light.radius)
+    )
+    assert traced.sum() > 500 and 0.1 < shadowed[traced].mean() < 0.9, (
+        name,
+        shadowed[traced].mean(),
+    )
     compared = away_from_boundaries(shadowed, valid)
     assert compared.sum() > 0.6 * valid.sum()
     agreement = ((gpu < 0.5) == shadowed)[compared].mean()
@@ -72,8 +92,12 @@ def test_probe_light_is_limited_to_its_radius(crambin, shadow_pass, scene):
     _, gbuffer, position, normal, atom, _ = scene
     light = probe_light(crambin)
     gpu = read_texture(shadow_pass.trace(gbuffer, light, HARD_SHADOW))
-    far = (atom != -1) & (np.linalg.norm(position - np.asarray(light.position), axis=-1) > light.radius + 1e-3)
-    assert far.sum() > 100 and np.all(gpu[far] == 1.0)  # not traced: unlit by attenuation, not shadow
+    far = (atom != -1) & (
+        np.linalg.norm(position - np.asarray(light.position), axis=-1) > light.radius + 1e-3
+    )
+    assert far.sum() > 100 and np.all(
+        gpu[far] == 1.0
+    )  # not traced: unlit by attenuation, not shadow
 
 
 def test_soft_shadows_match_the_cpu_parker_reference(crambin, shadow_pass, scene):
@@ -90,7 +114,9 @@ def test_soft_shadows_match_the_cpu_parker_reference(crambin, shadow_pass, scene
         assert close.mean() >= 0.995, (name, close.mean())
 
 
-def test_soft_shadows_reduce_to_hard_when_the_shell_is_thin(crambin, crambin_grid, shadow_pass, scene):
+def test_soft_shadows_reduce_to_hard_when_the_shell_is_thin(
+    crambin, crambin_grid, shadow_pass, scene
+):
     name, gbuffer, position, normal, atom, occluders = scene
     valid = atom != -1
     hard_gpu = read_texture(shadow_pass.trace(gbuffer, SUN, HARD_SHADOW))
@@ -99,13 +125,20 @@ def test_soft_shadows_reduce_to_hard_when_the_shell_is_thin(crambin, crambin_gri
     assert np.array_equal(same, hard_gpu)
     # inner == outer == 0.5 Å (no growth): the hard shadow of spheres 0.5 Å larger (CPU)
     thick = read_texture(shadow_pass.trace(gbuffer, SUN, SoftShadow(0.5, 0.5, 0.0)))
-    grown = Occluders(occluders.centers, occluders.radii + 0.5, occluders.culled, occluders.culling,
-                      None if occluders.probe is None else occluders.probe + [0, 0, 0, 0.5])
+    grown = Occluders(
+        occluders.centers,
+        occluders.radii + 0.5,
+        occluders.culled,
+        occluders.culling,
+        None if occluders.probe is None else occluders.probe + [0, 0, 0, 0.5],
+    )
     cpu = light_visibility(position, normal, atom, SUN, grown, HARD_SHADOW)
     assert set(np.unique(thick[valid])) <= {0.0, 1.0}
     compared = away_from_boundaries(cpu < 0.5, valid)
     assert ((thick < 0.5) == (cpu < 0.5))[compared].mean() >= 0.995
-    assert (thick < 0.5)[valid].mean() > (hard_gpu < 0.5)[valid].mean()  # larger spheres, more shadow
+    assert (thick < 0.5)[valid].mean() > (hard_gpu < 0.5)[
+        valid
+    ].mean()  # larger spheres, more shadow
 
 
 def test_shell_thicker_than_the_grid_expansion_is_refused(gl, crambin, shadow_pass, crambin_grid):
@@ -129,7 +162,9 @@ def test_culled_and_clipped_occluders_cast_no_shadow(gl):
     grid.set_culling(Culling(clip_planes=[[0.0, -1.0, 0.0, 3.0]]))  # keeps y <= 3: blocker gone
     assert grid.culled_mask.tolist() == [False, True]
     assert read_texture(shadows.trace(gbuffer, sun))[0, 0] == 1.0
-    grid.set_culling(Culling(clip_planes=[[-1.0, 0.0, 0.0, -0.5]]))  # keeps x <= -0.5: ray at x = 0 passes
+    grid.set_culling(
+        Culling(clip_planes=[[-1.0, 0.0, 0.0, -0.5]])
+    )  # keeps x <= -0.5: ray at x = 0 passes
     assert grid.culled_mask.tolist() == [False, False]
     assert read_texture(shadows.trace(gbuffer, sun))[0, 0] == 1.0
     grid.set_culling(Culling(clip_planes=[[-1.0, 0.0, 0.0, 0.5]]))  # keeps x <= 0.5: ray blocked
@@ -159,7 +194,10 @@ def test_light_buffer_equals_the_grid_walk_to_the_bit(crambin, shadow_pass, walk
             assert np.array_equal(listed, walked), (name, light, soft)
             assert 0.05 < (walked[atom != -1] < 0.5).mean() < 0.95  # shadows to compare
     counts = shadow_pass.light_buffer.counts()
-    assert shadow_pass.light_buffer.atoms_in_reach > 100 and 1 < counts.max() <= shadow_pass.light_buffer.atoms_in_reach
+    assert (
+        shadow_pass.light_buffer.atoms_in_reach > 100
+        and 1 < counts.max() <= shadow_pass.light_buffer.atoms_in_reach
+    )
 
 
 def test_a_point_lights_rays_are_clipped_by_the_cuts_it_lies_beyond(crambin, crambin_grid, scene):
@@ -179,7 +217,10 @@ def test_a_point_lights_rays_are_clipped_by_the_cuts_it_lies_beyond(crambin, cra
         kept &= np.all(np.abs(origin - centre) <= half, axis=-1)
     lamp = probe_light(crambin)
     middle = crambin.positions.mean(axis=0)
-    lights = [lamp, PointLight(tuple(middle + [11.0, -1.0, 0.5]), 20.0)]  # the second beyond the cube's +x face
+    lights = [
+        lamp,
+        PointLight(tuple(middle + [11.0, -1.0, 0.5]), 20.0),
+    ]  # the second beyond the cube's +x face
     if name == "cube":
         assert culling.cuts_before(lights[1].position).clip_planes.shape[0] == 1
     shadows = ShadowPass(crambin_grid)
@@ -191,8 +232,12 @@ def test_a_point_lights_rays_are_clipped_by_the_cuts_it_lies_beyond(crambin, cra
                     cut = read_texture(passes.trace(gbuffer, light, soft))
                     every = read_texture(passes.trace(gbuffer, light, soft, all_cuts=True))
                     assert np.array_equal(cut[kept], every[kept]), (name, light, soft)
-                    assert (cut != every)[surface].mean() <= 0.005  # origins a ray epsilon outside a cut
-                    assert 10 < (every[kept] < 0.5).sum() < kept.sum() - 10  # shadows and light to compare
+                    assert (cut != every)[
+                        surface
+                    ].mean() <= 0.005  # origins a ray epsilon outside a cut
+                    assert (
+                        10 < (every[kept] < 0.5).sum() < kept.sum() - 10
+                    )  # shadows and light to compare
         assert kept.sum() > 0.3 * surface.sum() and (name == "none" or kept.sum() < surface.sum())
     finally:
         shadows.release()
@@ -208,8 +253,11 @@ def test_light_buffer_lists_what_a_brute_force_cone_test_lists(crambin, crambin_
     the second near enough to the first for the grid's candidates to be kept, the third not."""
     gathered = []
     grid = crambin_grid.grid
-    monkeypatch.setattr(grid, "candidates_in_box",
-                        lambda lo, hi, gather=grid.candidates_in_box: gathered.append(1) or gather(lo, hi))
+    monkeypatch.setattr(
+        grid,
+        "candidates_in_box",
+        lambda lo, hi, gather=grid.candidates_in_box: gathered.append(1) or gather(lo, hi),
+    )
     shadows = ShadowPass(crambin_grid)
     lists = shadows.light_buffer
     lamp = probe_light(crambin)
@@ -217,7 +265,9 @@ def test_light_buffer_lists_what_a_brute_force_cone_test_lists(crambin, crambin_
         for offset, gathers in (((0.0, 0.0, 0.0), 1), ((1.2, -0.8, 0.5), 1), ((7.0, 5.0, -4.0), 2)):
             light = PointLight(tuple(np.asarray(lamp.position) + offset), lamp.radius)
             lists.build(light.position, light.radius, 0.0)
-            assert len(gathered) == gathers and np.allclose(lists.centre, light.position, atol=lists.slack)
+            assert len(gathered) == gathers and np.allclose(
+                lists.centre, light.position, atol=lists.slack
+            )
             assert_lists_complete(lists, crambin_grid, lists.centre, cells=8)
     finally:
         shadows.release()
@@ -227,7 +277,7 @@ def assert_lists_complete(lists, gpu_grid, centre, cells: int) -> None:
     centres, vdw = gpu_grid.grid.centers, gpu_grid.vdw_radii
     grown = vdw + lists.slack + 1e-3
     table = np.frombuffer(lists.list_atoms.read(), dtype=np.int32)
-    listed = np.split(table[lists.n_cells + 1:][:lists.starts[-1]], lists.starts[1:-1])
+    listed = np.split(table[lists.n_cells + 1 :][: lists.starts[-1]], lists.starts[1:-1])
     offsets = centres - np.asarray(centre)
     distance = np.linalg.norm(offsets, axis=1)
     rng = np.random.default_rng(int(abs(centre[0]) * 1000))
@@ -244,8 +294,11 @@ def assert_lists_complete(lists, gpu_grid, centre, cells: int) -> None:
         # an atom is seen through the cell if some sampled ray from the light passes within its grown radius
         along = offsets @ directions.T
         miss = distance[:, None] ** 2 - np.maximum(along, 0.0) ** 2
-        seen = np.flatnonzero((miss <= grown[:, None] ** 2).any(axis=1) & (distance - grown <= lists.reach)
-                              & ~gpu_grid.culled_mask)
+        seen = np.flatnonzero(
+            (miss <= grown[:, None] ** 2).any(axis=1)
+            & (distance - grown <= lists.reach)
+            & ~gpu_grid.culled_mask
+        )
         mine = listed[cell]
         missed += np.setdiff1d(seen, mine).size
         near = distance[mine] - grown[mine]
@@ -267,7 +320,9 @@ def test_light_buffer_of_a_light_with_no_atom_in_reach(crambin, crambin_grid, wa
         shadows.release()
 
 
-def test_light_buffer_holds_while_the_light_stays_within_its_slack(crambin, crambin_grid, walking_pass, scene):
+def test_light_buffer_holds_while_the_light_stays_within_its_slack(
+    crambin, crambin_grid, walking_pass, scene
+):
     """Lists built for one point serve every light within their slack of it (the probe
     sliding along the surface): the same shadows as the walk, bit for bit, hard and soft,
     without being built again; a light beyond the slack builds them anew."""
@@ -281,7 +336,9 @@ def test_light_buffer_holds_while_the_light_stays_within_its_slack(crambin, cram
         assert lists.builds == 1 and lists.slack > 0
         rng = np.random.default_rng(3)
         offsets = rng.normal(size=(4, 3))
-        offsets *= (lists.slack * np.array([1.0, 0.999, 0.6, 0.3]) / np.linalg.norm(offsets, axis=1))[:, None]
+        offsets *= (
+            lists.slack * np.array([1.0, 0.999, 0.6, 0.3]) / np.linalg.norm(offsets, axis=1)
+        )[:, None]
         shadowed = []
         for offset in offsets:
             light = PointLight(tuple(centre + offset), lamp.radius)
@@ -289,11 +346,15 @@ def test_light_buffer_holds_while_the_light_stays_within_its_slack(crambin, cram
             walked = read_texture(walking_pass.trace(gbuffer, light, HARD_SHADOW))
             assert np.array_equal(listed, walked), (name, offset)
             shadowed.append(float((walked < 0.5).mean()))
-        assert lists.builds == 1 and len(set(shadowed)) > 1  # kept, and the shadows moved with the light
+        assert (
+            lists.builds == 1 and len(set(shadowed)) > 1
+        )  # kept, and the shadows moved with the light
         soft = SoftShadow(inner=-0.4, outer=1.0, growth=4.0)
         light = PointLight(tuple(centre + offsets[1]), lamp.radius)
-        assert np.array_equal(read_texture(listing.trace(gbuffer, light, soft)),
-                              read_texture(walking_pass.trace(gbuffer, light, soft)))
+        assert np.array_equal(
+            read_texture(listing.trace(gbuffer, light, soft)),
+            read_texture(walking_pass.trace(gbuffer, light, soft)),
+        )
         assert lists.builds == 2  # a new shell: built again
         beyond = PointLight(tuple(centre + offsets[1] + offsets[0] * 2.5), lamp.radius)
         listing.trace(gbuffer, beyond, soft)
@@ -302,7 +363,9 @@ def test_light_buffer_holds_while_the_light_stays_within_its_slack(crambin, cram
         listing.release()
 
 
-def test_sun_buffer_equals_the_grid_walk_to_the_bit(crambin, crambin_grid, shadow_pass, walking_pass, scene):
+def test_sun_buffer_equals_the_grid_walk_to_the_bit(
+    crambin, crambin_grid, shadow_pass, walking_pass, scene
+):
     """The directional light's buffer tests only the atoms listed across the light at a
     ray's point: the same occluders as the walk (the probe too), so the same minimum, hard
     and soft, clipped or not, from several directions (one along an axis)."""
@@ -311,12 +374,18 @@ def test_sun_buffer_equals_the_grid_walk_to_the_bit(crambin, crambin_grid, shado
     for direction in ((0.45, 0.8, 0.4), (-0.3, 0.2, 0.93), (0.0, 0.0, 1.0), (-0.7, -0.1, -0.7)):
         sun = DirectionalLight(direction)
         # growth 0: the shell is full width at the receiver, so atoms just behind it darken it too
-        for soft in (HARD_SHADOW, SoftShadow(inner=-0.4, outer=1.0, growth=4.0), SoftShadow(-0.4, 1.0, 0.0)):
+        for soft in (
+            HARD_SHADOW,
+            SoftShadow(inner=-0.4, outer=1.0, growth=4.0),
+            SoftShadow(-0.4, 1.0, 0.0),
+        ):
             listed = read_texture(shadow_pass.trace(gbuffer, sun, soft))
             walked = read_texture(walking_pass.trace(gbuffer, sun, soft))
             assert np.array_equal(listed, walked), (name, direction, soft)
         shadowed.append((walked[atom != -1] < 0.5).mean())
-    assert sum(0.05 < f < 0.95 for f in shadowed) >= 3, shadowed  # shadows to compare (the last light is behind)
+    assert sum(0.05 < f < 0.95 for f in shadowed) >= 3, (
+        shadowed
+    )  # shadows to compare (the last light is behind)
     kept = int((~crambin_grid.culled_mask).sum())
     assert shadow_pass.sun_buffer.entries >= kept  # every kept atom is listed, in a cell at least
 
@@ -357,7 +426,9 @@ def test_light_buffer_cells_lie_within_their_cones():
     cones = cell_cones(n)
     rng = np.random.default_rng(11)
     v = rng.normal(size=(20000, 3))
-    v = np.concatenate([v, np.eye(3), -np.eye(3), [[1, 1, 1], [1, -1, 0.5]]])  # face edges and corners too
+    v = np.concatenate(
+        [v, np.eye(3), -np.eye(3), [[1, 1, 1], [1, -1, 0.5]]]
+    )  # face edges and corners too
     axis = np.argmax(np.abs(v), axis=1)
     rows = np.arange(v.shape[0])
     major = v[rows, axis]
@@ -369,5 +440,7 @@ def test_light_buffer_cells_lie_within_their_cones():
     unit = v / np.linalg.norm(v, axis=1, keepdims=True)
     angle = np.arccos(np.clip(np.sum(unit * cones[cell, :3], axis=1), -1.0, 1.0))
     assert np.all(angle <= cones[cell, 3] + 1e-9)
-    assert np.allclose(np.linalg.norm(cones[:, :3], axis=1), 1.0) and cones[:, 3].max() < np.radians(12)
+    assert np.allclose(np.linalg.norm(cones[:, :3], axis=1), 1.0) and cones[
+        :, 3
+    ].max() < np.radians(12)
     assert len(np.unique(cell)) == 6 * n * n  # every cell is reached

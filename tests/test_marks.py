@@ -11,11 +11,11 @@ import json
 
 import numpy as np
 import pytest
-
 from sasprobe.daemon.marks import Marks
-from sasprobe.common.errors import UserError
 from sasprobe.protocol.control import ProtocolError, decode_request, encode_request
 from sasprobe.protocol.scene import MAX_MARK_LABEL, MAX_MARKS, SceneError, validate_marks
+
+from sasprobe.common.errors import UserError
 from tests.conftest import REPO_ROOT
 from tests.daemon_process import cli_many
 
@@ -44,8 +44,13 @@ def test_mark_and_findings_requests_are_checked():
 def test_scene_marks_are_validated():
     good = [{"id": 1, "label": "a", "position_A": [1.0, 2.0, 3.0], "seq": 10, "source": "control"}]
     assert validate_marks(good) == good
-    for bad in ([{**good[0], "position_A": [1.0, 2.0]}], [{**good[0], "id": -1}], [{**good[0], "label": None}],
-                "not a list", [dict(good[0]) for _ in range(MAX_MARKS + 1)]):
+    for bad in (
+        [{**good[0], "position_A": [1.0, 2.0]}],
+        [{**good[0], "id": -1}],
+        [{**good[0], "label": None}],
+        "not a list",
+        [dict(good[0]) for _ in range(MAX_MARKS + 1)],
+    ):
         with pytest.raises(SceneError):
             validate_marks(bad)
 
@@ -54,7 +59,12 @@ def test_marks_are_numbered_belong_to_one_structure_and_are_bounded():
     marks = Marks()
     first = marks.drop(5, np.array([1.0, 2.0, 3.0]), None, "button", "sha-a")
     second = marks.drop(9, np.array([4.0, 5.0, 6.0]), "pocket", "control", "sha-a")
-    assert (first["id"], first["label"], second["id"], second["label"]) == (1, "mark 1", 2, "pocket")
+    assert (first["id"], first["label"], second["id"], second["label"]) == (
+        1,
+        "mark 1",
+        2,
+        "pocket",
+    )
     assert [m["position_A"] for m in marks.scene("sha-a")] == [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]
     json.dumps(marks.scene("sha-a"), allow_nan=False)  # what goes into the scene is plain JSON
     assert marks.scene("sha-b") == []  # another structure: the old marks mean nothing there
@@ -74,16 +84,31 @@ def test_the_mark_button_marks_the_newest_proxy_except_in_a_replay():
 
     def daemon(replay: bool, proxy):
         return SimpleNamespace(
-            pipeline=SimpleNamespace(last_output=None if proxy is None else SimpleNamespace(proxy_A=np.array(proxy))),
-            marks=Marks(), structure=SimpleNamespace(sha256="s"),
+            pipeline=SimpleNamespace(
+                last_output=None if proxy is None else SimpleNamespace(proxy_A=np.array(proxy))
+            ),
+            marks=Marks(),
+            structure=SimpleNamespace(sha256="s"),
             device=SimpleNamespace(recorded_session=lambda: object() if replay else None),
             record_control=lambda seq, cmd, args: recorded.append((seq, cmd, args)),
-            rebuild_scene=lambda: scenes.append(1))
+            rebuild_scene=lambda: scenes.append(1),
+        )
 
     live = daemon(False, [1.0, 2.0, 3.0])
     mark_button(live, 42)
-    assert recorded == [(42, "mark", {"id": 1, "label": "mark 1", "position_A": [1.0, 2.0, 3.0], "seq": 42,
-                                      "source": "button"})] and scenes == [1]
+    assert recorded == [
+        (
+            42,
+            "mark",
+            {
+                "id": 1,
+                "label": "mark 1",
+                "position_A": [1.0, 2.0, 3.0],
+                "seq": 42,
+                "source": "button",
+            },
+        )
+    ] and scenes == [1]
     assert live.marks.scene("s")[0]["position_A"] == [1.0, 2.0, 3.0]
     replay = daemon(True, [1.0, 2.0, 3.0])
     mark_button(replay, 43)  # the recorded `mark` records bring a replay's marks
@@ -115,7 +140,9 @@ def _frame(gl, crambin, marks, enabled=True):
 def test_every_mark_is_a_numbered_badge_where_it_projects(gl, crambin):
     from sasprobe.render.passes.marks import BADGE_PX
 
-    top = int(np.argmax(crambin.positions[:, 2]))  # nearest the camera looking down -z: nothing in front
+    top = int(
+        np.argmax(crambin.positions[:, 2])
+    )  # nearest the camera looking down -z: nothing in front
     outside = crambin.positions[top] + [0.0, 0.0, crambin.vdw_radii[top] + 1.4]
     buried = crambin.positions.mean(axis=0)  # inside the molecule: drawn faded
     marks = [outside, buried]
@@ -127,11 +154,18 @@ def test_every_mark_is_a_numbered_badge_where_it_projects(gl, crambin):
     for point in marks:
         clip = proj @ view @ np.array([*point, 1.0])
         x, y = (clip[0] / clip[3] * 0.5 + 0.5) * w, (0.5 - clip[1] / clip[3] * 0.5) * h
-        box = changed[int(y) - BADGE_PX:int(y) + BADGE_PX, int(x) - BADGE_PX:int(x) + BADGE_PX]
+        box = changed[int(y) - BADGE_PX : int(y) + BADGE_PX, int(x) - BADGE_PX : int(x) + BADGE_PX]
         ys, xs = np.nonzero(box)
         assert xs.size > 100, "no badge at the mark"
-        assert abs(xs.mean() + int(x) - BADGE_PX - x) < 2.5 and abs(ys.mean() + int(y) - BADGE_PX - y) < 2.5
-        strength.append(np.abs(with_marks.astype(int) - without.astype(int))[int(y), int(x) - 6:int(x) + 6].mean())
+        assert (
+            abs(xs.mean() + int(x) - BADGE_PX - x) < 2.5
+            and abs(ys.mean() + int(y) - BADGE_PX - y) < 2.5
+        )
+        strength.append(
+            np.abs(with_marks.astype(int) - without.astype(int))[
+                int(y), int(x) - 6 : int(x) + 6
+            ].mean()
+        )
     assert changed.sum() < 2 * BADGE_PX * BADGE_PX + 10, "nothing but the two badges changes"
     assert strength[1] < 0.7 * strength[0], "a mark behind atoms is drawn faded"
 
@@ -145,6 +179,9 @@ def test_user_errors_are_one_line():
     for r in results:
         assert r.returncode == 2, r.stdout + r.stderr
         assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr, r.stderr
-    assert "missing.mcap: no such file" in results[0].stderr and "not an MCAP file" in results[2].stderr
+    assert (
+        "missing.mcap: no such file" in results[0].stderr
+        and "not an MCAP file" in results[2].stderr
+    )
     assert "--probe-radius goes with --findings" in results[1].stderr
     assert not (REPO_ROOT / "out-never-made").exists()

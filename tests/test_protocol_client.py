@@ -7,10 +7,16 @@ import time
 import numpy as np
 import pytest
 import zmq
-
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.pose import POSE_TOPIC, Pose, encode_pose
-from sasprobe.protocol.scene import SCENE_TOPIC, SceneError, decode_scene, encode_scene, validate_scene
+from sasprobe.protocol.scene import (
+    SCENE_TOPIC,
+    SceneError,
+    decode_scene,
+    encode_scene,
+    validate_scene,
+)
+
 from tests.test_protocol_scene import example_scene
 
 
@@ -38,7 +44,9 @@ def test_poll_drains_everything_and_keeps_the_newest(pub_and_sub):
     pub, sub = pub_and_sub
     start = sub.pose.seq + 1
     for seq in range(start, start + 500):
-        pub.send_multipart([POSE_TOPIC, encode_pose(Pose(seq=seq, force_N=np.array([seq, 0.0, 0.0])))])
+        pub.send_multipart(
+            [POSE_TOPIC, encode_pose(Pose(seq=seq, force_N=np.array([seq, 0.0, 0.0])))]
+        )
     pub.send_multipart([SCENE_TOPIC, encode_scene(example_scene())])
     got = []
     deadline = time.monotonic() + 5
@@ -66,8 +74,14 @@ def test_malformed_messages_are_dropped_and_counted(pub_and_sub):
 
 
 def test_scene_decoder_rejects_bad_scenes():
-    for broken in ({"version": 0}, {**example_scene(), "clip_planes": [[0, 0, 0, 1]]},
-                   {**example_scene(), "haptics": {"method": "magic", "stiffness_n_per_mm": 1, "damping_n_s_per_m": 0}}):
+    for broken in (
+        {"version": 0},
+        {**example_scene(), "clip_planes": [[0, 0, 0, 1]]},
+        {
+            **example_scene(),
+            "haptics": {"method": "magic", "stiffness_n_per_mm": 1, "damping_n_s_per_m": 0},
+        },
+    ):
         with pytest.raises(SceneError):
             validate_scene(broken)
     with pytest.raises(SceneError):

@@ -8,13 +8,12 @@ import pytest
 import zmq
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-
 from sasprobe.daemon.control import ControlServer
 from sasprobe.protocol.control import (
     COMMANDS,
     MAX_REQUEST_JSON_BYTES,
-    ProtocolError,
     ControlReply,
+    ProtocolError,
     decode_reply,
     decode_request,
     encode_reply,
@@ -23,12 +22,20 @@ from sasprobe.protocol.control import (
 
 
 def test_round_trip_of_every_command_shape():
-    frames = encode_request("set", {"stiffness_n_per_mm": 0.2, "clip_planes": [[1, 0, 0, -2]]}, id=5)
+    frames = encode_request(
+        "set", {"stiffness_n_per_mm": 0.2, "clip_planes": [[1, 0, 0, -2]]}, id=5
+    )
     req = decode_request(frames)
-    assert (req.cmd, req.id, req.args) == ("set", 5, {"stiffness_n_per_mm": 0.2, "clip_planes": [[1.0, 0.0, 0.0, -2.0]]})
+    assert (req.cmd, req.id, req.args) == (
+        "set",
+        5,
+        {"stiffness_n_per_mm": 0.2, "clip_planes": [[1.0, 0.0, 0.0, -2.0]]},
+    )
     req = decode_request(encode_request("load", {"name": "x"}, data=b"ATOM"))
     assert req.data == b"ATOM"
-    reply = decode_reply(encode_reply(ControlReply(ok=True, result={"a": 1}, id=3, data=b"\x00\x01")))
+    reply = decode_reply(
+        encode_reply(ControlReply(ok=True, result={"a": 1}, id=3, data=b"\x00\x01"))
+    )
     assert reply.ok and reply.result == {"a": 1} and reply.id == 3 and reply.data == b"\x00\x01"
     reply = decode_reply(encode_reply(ControlReply(ok=False, error="bad")))
     assert not reply.ok and reply.error == "bad"
@@ -78,13 +85,18 @@ def test_arbitrary_frames_never_raise_anything_but_protocol_errors(frames):
 
 json_values = st.recursive(
     st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False) | st.text(max_size=20),
-    lambda children: st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=10), children, max_size=4),
+    lambda children: (
+        st.lists(children, max_size=4) | st.dictionaries(st.text(max_size=10), children, max_size=4)
+    ),
     max_leaves=12,
 )
 
 
 @settings(max_examples=300, deadline=None)
-@given(cmd=st.sampled_from(COMMANDS + ("nope",)), args=st.dictionaries(st.text(max_size=20), json_values, max_size=4))
+@given(
+    cmd=st.sampled_from(COMMANDS + ("nope",)),
+    args=st.dictionaries(st.text(max_size=20), json_values, max_size=4),
+)
 def test_wrong_json_types_are_protocol_errors(cmd, args):
     try:
         decode_request([json.dumps({"cmd": cmd, "args": args}).encode()])
@@ -138,16 +150,19 @@ def test_server_answers_good_bad_and_failing_requests(server):
     assert srv.errors == 2 and seen == ["ping", "status", "get_scene"]
 
 
-@pytest.mark.parametrize("frames", [
-    [b'{"cmd": "explode", "id": "r1"}'],
-    [b'{"cmd": "set", "args": {"stiffness_n_per_mm": "very"}, "id": "r1"}'],
-    [b'{"cmd": "set", "args": {"warp": 1}, "id": "r1"}'],
-    [b'{"cmd": "ping", "version": 99, "id": "r1"}'],
-    [b'{"cmd": "ping", "args": [], "id": "r1"}'],
-    [b'{"cmd": "ping", "id": "r1"}', b"data"],
-    [b'{"cmd": "ping", "id": "r1"}', b"", b""],
-    [b'{"cmd": "status", "id": "r1"}'],  # the handler fails
-])
+@pytest.mark.parametrize(
+    "frames",
+    [
+        [b'{"cmd": "explode", "id": "r1"}'],
+        [b'{"cmd": "set", "args": {"stiffness_n_per_mm": "very"}, "id": "r1"}'],
+        [b'{"cmd": "set", "args": {"warp": 1}, "id": "r1"}'],
+        [b'{"cmd": "ping", "version": 99, "id": "r1"}'],
+        [b'{"cmd": "ping", "args": [], "id": "r1"}'],
+        [b'{"cmd": "ping", "id": "r1"}', b"data"],
+        [b'{"cmd": "ping", "id": "r1"}', b"", b""],
+        [b'{"cmd": "status", "id": "r1"}'],  # the handler fails
+    ],
+)
 def test_every_error_reply_echoes_the_requests_id(server, frames):
     endpoint, context, _, _ = server
     for kind in (zmq.REQ, zmq.DEALER):
@@ -155,7 +170,9 @@ def test_every_error_reply_echoes_the_requests_id(server, frames):
         assert not reply.ok and reply.id == "r1", (frames, reply)
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
 @given(frames=st.lists(st.binary(max_size=200), min_size=1, max_size=3))
 def test_server_replies_to_every_garbage_request(server, frames):
     endpoint, context, _, _ = server
@@ -180,13 +197,25 @@ def test_every_command_and_set_field_is_in_the_schema_and_the_readme():
         assert f"| `{name}` |" in readme, f"set field {name} is not in protocol/README.md's table"
 
 
-@pytest.mark.parametrize("request_json", [
-    {"cmd": "ping"}, {"cmd": "status", "args": {"reset_stats": True}, "id": "a"},
-    {"cmd": "set", "args": {"probe_radius_A": 1.5, "cube_half_A": "fit", "lights": {"probe": {"enabled": False}}}},
-    {"cmd": "view", "args": {"rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}},
-    {"cmd": "load", "args": {"path": "1crn", "keep_water": True}}, {"cmd": "mark", "args": {"label": "site"}},
-    {"cmd": "findings", "args": {"dir": "out", "probe_radius_A": 1.2}},
-])
+@pytest.mark.parametrize(
+    "request_json",
+    [
+        {"cmd": "ping"},
+        {"cmd": "status", "args": {"reset_stats": True}, "id": "a"},
+        {
+            "cmd": "set",
+            "args": {
+                "probe_radius_A": 1.5,
+                "cube_half_A": "fit",
+                "lights": {"probe": {"enabled": False}},
+            },
+        },
+        {"cmd": "view", "args": {"rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}},
+        {"cmd": "load", "args": {"path": "1crn", "keep_water": True}},
+        {"cmd": "mark", "args": {"label": "site"}},
+        {"cmd": "findings", "args": {"dir": "out", "probe_radius_A": 1.2}},
+    ],
+)
 def test_requests_the_decoder_takes_follow_the_schema(request_json):
     from sasprobe.protocol.schemas import validation_errors
 
@@ -194,13 +223,22 @@ def test_requests_the_decoder_takes_follow_the_schema(request_json):
     assert validation_errors("control#/$defs/request", request_json) == []
 
 
-@pytest.mark.parametrize("request_json", [
-    {"cmd": "fly"}, {"cmd": "ping", "args": {"x": 1}}, {"cmd": "set", "args": {}},
-    {"cmd": "set", "args": {"warp": 9}}, {"cmd": "set", "args": {"probe_radius_A": 0}},
-    {"cmd": "clutch", "args": {"held": "yes"}}, {"cmd": "record_start", "args": {}},
-    {"cmd": "load", "args": {"path": "a", "name": "b"}}, {"cmd": "ping", "id": {"a": 1}},
-    {"cmd": "ping", "id": "i" * 201}, {"cmd": "view", "args": {"rotation": [[1, 0], [0, 1]]}},
-])
+@pytest.mark.parametrize(
+    "request_json",
+    [
+        {"cmd": "fly"},
+        {"cmd": "ping", "args": {"x": 1}},
+        {"cmd": "set", "args": {}},
+        {"cmd": "set", "args": {"warp": 9}},
+        {"cmd": "set", "args": {"probe_radius_A": 0}},
+        {"cmd": "clutch", "args": {"held": "yes"}},
+        {"cmd": "record_start", "args": {}},
+        {"cmd": "load", "args": {"path": "a", "name": "b"}},
+        {"cmd": "ping", "id": {"a": 1}},
+        {"cmd": "ping", "id": "i" * 201},
+        {"cmd": "view", "args": {"rotation": [[1, 0], [0, 1]]}},
+    ],
+)
 def test_requests_the_decoder_refuses_break_the_schema(request_json):
     from sasprobe.protocol.schemas import validation_errors
 

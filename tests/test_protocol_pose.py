@@ -16,8 +16,14 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from sasprobe.protocol.pose import POSE_SIZE, POSE_VERSION, Pose, PoseDecodeError, decode_pose, encode_pose
+from sasprobe.protocol.pose import (
+    POSE_SIZE,
+    POSE_VERSION,
+    Pose,
+    PoseDecodeError,
+    decode_pose,
+    encode_pose,
+)
 
 README = Path(__file__).resolve().parent.parent / "protocol" / "README.md"
 _FORMATS = {"uint16": "H", "uint32": "I", "uint64": "Q", "int32": "i", "int64": "q", "float64": "d"}
@@ -27,11 +33,13 @@ _FORMATS = {"uint16": "H", "uint32": "I", "uint64": "Q", "int32": "i", "int64": 
 def readme_pose_table() -> tuple[tuple[int, int, str, str], ...]:
     """(offset, size, type, field) rows of the README's pose table."""
     text = README.read_text()
-    section = text[text.index("## `pose`"):]
+    section = text[text.index("## `pose`") :]
     section = section[: section.index("\n#", 5)]  # up to the next heading
     rows = []
     for line in section.splitlines():
-        m = re.match(r"\|\s*(\d+)\s*\|\s*(\d+)\s*\|\s*([a-z0-9]+(?:\[\d\])?)\s*\|\s*(`?[\w ]+`?)\s*\|", line)
+        m = re.match(
+            r"\|\s*(\d+)\s*\|\s*(\d+)\s*\|\s*([a-z0-9]+(?:\[\d\])?)\s*\|\s*(`?[\w ]+`?)\s*\|", line
+        )
         if m:
             rows.append((int(m.group(1)), int(m.group(2)), m.group(3), m.group(4).strip("` ")))
     return tuple(rows)
@@ -76,17 +84,35 @@ vec3 = st.lists(finite, min_size=3, max_size=3)
     seq=st.integers(0, 2**64 - 1),
     t=st.integers(-(2**63), 2**63 - 1),
     tp=st.integers(-(2**63), 2**63 - 1),
-    proxy=vec3, goal=vec3, force=vec3, tip=vec3,
+    proxy=vec3,
+    goal=vec3,
+    force=vec3,
+    tip=vec3,
     quat=st.lists(finite, min_size=4, max_size=4),
     buttons=st.integers(0, 2**32 - 1),
     atom=st.integers(-1, 2**31 - 1),
     flags=st.integers(0, 2**16 - 1),
-    center=vec3, half=finite,
+    center=vec3,
+    half=finite,
 )
-def test_encoder_matches_readme_layout(seq, t, tp, proxy, goal, force, tip, quat, buttons, atom, flags, center, half):
-    pose = Pose(seq=seq, device_t_ns=t, publish_t_ns=tp, proxy_A=np.array(proxy), goal_A=np.array(goal),
-                force_N=np.array(force), tip_mm=np.array(tip), orientation=np.array(quat), buttons=buttons,
-                touched_atom=atom, flags=flags, cube_center_A=np.array(center), cube_half_A=half)
+def test_encoder_matches_readme_layout(
+    seq, t, tp, proxy, goal, force, tip, quat, buttons, atom, flags, center, half
+):
+    pose = Pose(
+        seq=seq,
+        device_t_ns=t,
+        publish_t_ns=tp,
+        proxy_A=np.array(proxy),
+        goal_A=np.array(goal),
+        force_N=np.array(force),
+        tip_mm=np.array(tip),
+        orientation=np.array(quat),
+        buttons=buttons,
+        touched_atom=atom,
+        flags=flags,
+        cube_center_A=np.array(center),
+        cube_half_A=half,
+    )
     payload = encode_pose(pose)
     assert len(payload) == 200
     ref = reference_decode(payload)
@@ -106,10 +132,16 @@ def test_newer_versions_append_and_old_readers_skip_the_rest():
     payload = bytearray(encode_pose(Pose(seq=7, force_N=np.array([1.0, 2.0, 3.0]))))
     struct.pack_into("<H", payload, 0, POSE_VERSION + 1)
     pose = decode_pose(bytes(payload) + b"\x01" * 24)  # a version-2 payload with appended fields
-    assert pose.seq == 7 and pose.force_N.tolist() == [1.0, 2.0, 3.0] and pose.version == POSE_VERSION + 1
+    assert (
+        pose.seq == 7
+        and pose.force_N.tolist() == [1.0, 2.0, 3.0]
+        and pose.version == POSE_VERSION + 1
+    )
 
 
-@pytest.mark.parametrize("payload", [b"", b"\x01", encode_pose(Pose())[:199], b"\x00\x00" + bytes(198)])
+@pytest.mark.parametrize(
+    "payload", [b"", b"\x01", encode_pose(Pose())[:199], b"\x00\x00" + bytes(198)]
+)
 def test_short_or_older_payloads_are_rejected(payload):
     with pytest.raises(PoseDecodeError):
         decode_pose(payload)
@@ -123,12 +155,27 @@ def test_the_readme_tables_and_the_codec_come_from_pose_json():
     from sasprobe.protocol.recording import POSE_RECORD_FIELDS
 
     text = README.read_text()
-    for rendered in (schemas.pose_table_markdown(), schemas.flags_table_markdown(),
-                     f"Python `struct` format: `{schemas.pose_struct_format()}`"):
-        assert rendered in text, f"protocol/README.md differs from schemas/pose.json's rendering:\n{rendered}"
+    for rendered in (
+        schemas.pose_table_markdown(),
+        schemas.flags_table_markdown(),
+        f"Python `struct` format: `{schemas.pose_struct_format()}`",
+    ):
+        assert rendered in text, (
+            f"protocol/README.md differs from schemas/pose.json's rendering:\n{rendered}"
+        )
     layout = schemas.pose_layout()
     assert list(readme_pose_table()) == [
-        (f["offset"], schemas.field_size(f), f["type"] + (f"[{f['count']}]" if f["count"] > 1 else ""), f["name"])
-        for f in layout["fields"]]
+        (
+            f["offset"],
+            schemas.field_size(f),
+            f["type"] + (f"[{f['count']}]" if f["count"] > 1 else ""),
+            f["name"],
+        )
+        for f in layout["fields"]
+    ]
     pose_fields = set(Pose.__dataclass_fields__) - {"version"}
-    assert set(POSE_RECORD_FIELDS) == pose_fields == {f["record"] for f in layout["fields"] if f["record"]}
+    assert (
+        set(POSE_RECORD_FIELDS)
+        == pose_fields
+        == {f["record"] for f in layout["fields"] if f["record"]}
+    )

@@ -6,9 +6,14 @@ import json
 from pathlib import Path
 
 import pytest
-
 from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceInfo
-from sasprobe.protocol.scene import DEFAULT_LIGHTS, SceneError, decode_scene, encode_scene, merge_lights
+from sasprobe.protocol.scene import (
+    DEFAULT_LIGHTS,
+    SceneError,
+    decode_scene,
+    encode_scene,
+    merge_lights,
+)
 
 README = Path(__file__).resolve().parent.parent / "protocol" / "README.md"
 
@@ -28,7 +33,15 @@ def example_scene() -> dict:
         "rate_hz": 1000.0,
         "view": {"rotation": [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]},
         "color_scheme": "chain",
-        "marks": [{"id": 1, "label": "mark 1", "position_A": [1.0, 2.0, 3.0], "seq": 1200, "source": "button"}],
+        "marks": [
+            {
+                "id": 1,
+                "label": "mark 1",
+                "position_A": [1.0, 2.0, 3.0],
+                "seq": 1200,
+                "source": "button",
+            }
+        ],
     }
 
 
@@ -41,7 +54,7 @@ def _keys(obj, prefix=""):
 
 def test_every_scene_key_is_documented():
     text = README.read_text()
-    section = text[text.index("## `scene`"):]
+    section = text[text.index("## `scene`") :]
     for key in _keys(example_scene()):
         assert f"`{key}`" in section, f"scene key {key} is not documented in protocol/README.md"
 
@@ -53,7 +66,9 @@ def test_round_trip_and_partial_light_updates():
     assert lights["probe"] == {"enabled": False}
     assert lights["directional"] == scene["lights"]["directional"]
     with pytest.raises(SceneError, match="unknown field lights.probe.radius_A"):
-        merge_lights(scene["lights"], {"probe": {"radius_A": 1.4}})  # the probe's radius is probe_radius_A
+        merge_lights(
+            scene["lights"], {"probe": {"radius_A": 1.4}}
+        )  # the probe's radius is probe_radius_A
     with pytest.raises(SceneError, match="must not be zero"):
         merge_lights(scene["lights"], {"directional": {"direction": [0, 0, 0]}})
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 from jsonschema import Draft202012Validator
-
 from sasprobe.protocol import schemas
+
 from tests.test_protocol_scene import example_scene
 
 
@@ -13,7 +13,11 @@ from tests.test_protocol_scene import example_scene
 def test_every_schema_is_draft_2020_12_with_its_id(name):
     schema = schemas.schema(name)
     Draft202012Validator.check_schema(schema)
-    assert schema["$schema"] == schemas.DIALECT and schema["$id"] == schemas.URN + name and schema["title"]
+    assert (
+        schema["$schema"] == schemas.DIALECT
+        and schema["$id"] == schemas.URN + name
+        and schema["title"]
+    )
 
 
 @pytest.mark.parametrize("name", [*schemas.SCHEMA_FILES, "pose"])
@@ -23,7 +27,7 @@ def test_a_bundled_schema_stands_alone(name):
     Draft202012Validator.check_schema(bundled)
     refs: set = set()
     schemas._references(bundled, refs)
-    assert refs - {name} <= {key[len(schemas.URN):] for key in bundled.get("$defs", {})}
+    assert refs - {name} <= {key[len(schemas.URN) :] for key in bundled.get("$defs", {})}
 
 
 def test_a_bundled_schema_validates_as_the_registry_does():
@@ -31,7 +35,9 @@ def test_a_bundled_schema_validates_as_the_registry_does():
     mark = example_scene()["marks"][0]
     assert control.is_valid({"seq": 3, "cmd": "mark", "args": mark})
     assert not control.is_valid({"seq": 3, "cmd": "mark", "args": {**mark, "source": "nose"}})
-    assert schemas.validation_errors("control-record", {"seq": 3, "cmd": "mark", "args": {**mark, "source": "nose"}})
+    assert schemas.validation_errors(
+        "control-record", {"seq": 3, "cmd": "mark", "args": {**mark, "source": "nose"}}
+    )
 
 
 def test_every_recording_a_test_reads_is_checked(tmp_path):
@@ -45,7 +51,11 @@ def test_every_recording_a_test_reads_is_checked(tmp_path):
     recorder = Recorder(path)
     recorder.offer_json("control", 1, {"seq": 0, "cmd": "explode", "args": {}})
     recorder.close()
-    for read in (lambda: list(iter_items(path)), lambda: summarize(path), lambda: load_session(path)):
+    for read in (
+        lambda: list(iter_items(path)),
+        lambda: summarize(path),
+        lambda: load_session(path),
+    ):
         with pytest.raises(pytest.fail.Exception, match="'explode' is not one of"):
             read()
 
@@ -57,7 +67,6 @@ def test_a_reply_is_checked_as_the_frames_the_client_received(tmp_path):
     import threading
 
     import zmq
-
     from sasprobe.protocol.client import ControlClient
 
     router = zmq.Context.instance().socket(zmq.ROUTER)
@@ -67,8 +76,13 @@ def test_a_reply_is_checked_as_the_frames_the_client_received(tmp_path):
 
     def answer(extra: dict) -> None:
         identity, empty, request = router.recv_multipart()
-        reply = {"version": 1, "ok": True, "result": {"pong": True, "t_ns": 1, "daemon_version": "0"},
-                 "id": json.loads(request)["id"], **extra}
+        reply = {
+            "version": 1,
+            "ok": True,
+            "result": {"pong": True, "t_ns": 1, "daemon_version": "0"},
+            "id": json.loads(request)["id"],
+            **extra,
+        }
         router.send_multipart([identity, empty, json.dumps(reply).encode()])
 
     try:

@@ -8,14 +8,19 @@ import time
 
 import pytest
 import zmq
-from zmq.utils.monitor import recv_monitor_message
-
-from sasprobe.daemon.publisher import Publisher
 from sasprobe.daemon.config import check_bind_security
-from sasprobe.common.errors import UserError
+from sasprobe.daemon.publisher import Publisher
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.endpoints import EndpointError, parse_endpoint
-from sasprobe.protocol.security import generate_keys, load_client_keys, load_server_keys, start_authenticator
+from sasprobe.protocol.security import (
+    generate_keys,
+    load_client_keys,
+    load_server_keys,
+    start_authenticator,
+)
+from zmq.utils.monitor import recv_monitor_message
+
+from sasprobe.common.errors import UserError
 
 
 @pytest.mark.parametrize(
@@ -37,7 +42,10 @@ def test_loopback_detection(text, loopback):
     assert parse_endpoint(text).is_loopback is loopback
 
 
-@pytest.mark.parametrize("text", ["127.0.0.1:5555", "udp://1.2.3.4:5", "tcp://host", "tcp://h:0", "tcp://h:99999", "ipc://"])
+@pytest.mark.parametrize(
+    "text",
+    ["127.0.0.1:5555", "udp://1.2.3.4:5", "tcp://host", "tcp://h:0", "tcp://h:99999", "ipc://"],
+)
 def test_bad_endpoints_are_refused(text):
     with pytest.raises(EndpointError):
         parse_endpoint(text)
@@ -81,21 +89,30 @@ def test_curve_allowed_client_receives_and_unknown_key_is_rejected(tmp_path):
     generate_keys(allowed_dir, ("client",))
     stranger_dir = tmp_path / "stranger"
     generate_keys(stranger_dir, ("client",))
-    (stranger_dir / "server.key").write_bytes((allowed_dir / "server.key").read_bytes())  # knows the server key
+    (stranger_dir / "server.key").write_bytes(
+        (allowed_dir / "server.key").read_bytes()
+    )  # knows the server key
 
     context = zmq.Context()
     auth = start_authenticator(context, load_server_keys(allowed_dir))
     port = _free_port()
     ipc = tmp_path / "pub"
-    pub = Publisher(context, [f"tcp://0.0.0.0:{port}", f"ipc://{ipc}"], load_server_keys(allowed_dir))
+    pub = Publisher(
+        context, [f"tcp://0.0.0.0:{port}", f"ipc://{ipc}"], load_server_keys(allowed_dir)
+    )
     assert stat.S_IMODE(os.stat(ipc).st_mode) == 0o600
-    friend = Subscriber(f"tcp://127.0.0.1:{port}", keys=load_client_keys(allowed_dir), context=context)
+    friend = Subscriber(
+        f"tcp://127.0.0.1:{port}", keys=load_client_keys(allowed_dir), context=context
+    )
     friend_ipc = Subscriber(f"ipc://{ipc}", keys=load_client_keys(allowed_dir), context=context)
     plain_ipc = Subscriber(f"ipc://{ipc}", context=context)  # ipc:// alone would need no keys
     stranger_keys = load_client_keys(stranger_dir)
     stranger_sock = context.socket(zmq.SUB)
     stranger_sock.linger = 0
-    stranger_sock.curve_secretkey, stranger_sock.curve_publickey = stranger_keys.secret, stranger_keys.public
+    stranger_sock.curve_secretkey, stranger_sock.curve_publickey = (
+        stranger_keys.secret,
+        stranger_keys.public,
+    )
     stranger_sock.curve_serverkey = stranger_keys.server_public
     monitor = stranger_sock.get_monitor_socket()
     stranger_sock.setsockopt(zmq.SUBSCRIBE, b"")
@@ -107,7 +124,9 @@ def test_curve_allowed_client_receives_and_unknown_key_is_rejected(tmp_path):
         deadline = time.monotonic() + 10
         received = []
         seq = 0
-        while time.monotonic() < deadline and (len(received) < 20 or friend_ipc.poses_received < 20):
+        while time.monotonic() < deadline and (
+            len(received) < 20 or friend_ipc.poses_received < 20
+        ):
             pub.poll_subscriptions()
             pub.publish_pose(encode_pose(Pose(seq=seq)))
             seq += 1
@@ -115,13 +134,17 @@ def test_curve_allowed_client_receives_and_unknown_key_is_rejected(tmp_path):
             friend_ipc.poll()
             plain.poll()
             plain_ipc.poll()
-        assert len(received) >= 20 and friend_ipc.poses_received >= 20, "the allowed client got no poses"
+        assert len(received) >= 20 and friend_ipc.poses_received >= 20, (
+            "the allowed client got no poses"
+        )
         events = []
         deadline = time.monotonic() + 5
         while time.monotonic() < deadline and zmq.EVENT_HANDSHAKE_FAILED_AUTH not in events:
             if monitor.poll(100):
                 events.append(recv_monitor_message(monitor)["event"])
-        assert zmq.EVENT_HANDSHAKE_FAILED_AUTH in events, f"unknown key was not refused: events {events}"
+        assert zmq.EVENT_HANDSHAKE_FAILED_AUTH in events, (
+            f"unknown key was not refused: events {events}"
+        )
         assert stranger_sock.poll(0) == 0, "the unknown key received data"
         assert plain.poses_received == 0 and plain_ipc.poses_received == 0
     finally:

@@ -19,20 +19,28 @@ import numpy as np
 import pytest
 import zmq
 from mcap.reader import make_reader
-
 from sasprobe.protocol.client import ControlClient, Subscriber
 from sasprobe.protocol.control import decode_reply
 from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
 from sasprobe.protocol.recording import iter_items
 from sasprobe.protocol.schemas import channel_schemas
+
 from tests.daemon_process import DaemonProcess
 from tests.schema_check import check_pose_payload, check_raw_reply
 
 TICKS = 3200  # the session's length in ticks
 SLOW_READS = range(3000, 3010)  # ticks whose device read the daemon makes slow
-FAULTS = ("raise@800+30", "nan@1100+20", "stall@1500+30",  # the first two while the scan script touches
-          f"slow@{SLOW_READS.start}+{len(SLOW_READS)}")
-BUTTONS = ("2@400+5", "0@2200+300", "1@2700+5")  # mark, clutch held 300 ticks, recentre (the default map)
+FAULTS = (
+    "raise@800+30",
+    "nan@1100+20",
+    "stall@1500+30",  # the first two while the scan script touches
+    f"slow@{SLOW_READS.start}+{len(SLOW_READS)}",
+)
+BUTTONS = (
+    "2@400+5",
+    "0@2200+300",
+    "1@2700+5",
+)  # mark, clutch held 300 ticks, recentre (the default map)
 TURN = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]
 
 
@@ -63,13 +71,19 @@ def _dealer(endpoint: str, frames: list[bytes]) -> dict:
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
     path = tmp_path_factory.mktemp("session") / "session.mcap"
-    args = ["--record", str(path), *[a for f in FAULTS for a in ("--inject-fault", f)],
-            *[a for b in BUTTONS for a in ("--inject-button", b)]]
+    args = [
+        "--record",
+        str(path),
+        *[a for f in FAULTS for a in ("--inject-fault", f)],
+        *[a for b in BUTTONS for a in ("--inject-button", b)],
+    ]
     started_ns = time.monotonic_ns()  # CLOCK_MONOTONIC is the host's: the daemon's clock too
     out = {"path": path, "started_ns": started_ns, "replies": {}, "poses": [], "scenes": 0}
     with DaemonProcess(*args) as d:
-        out["modes"] = {name: stat.S_IMODE(os.stat(ep[len("ipc://"):]).st_mode) for name, ep in
-                        (("pub", d.pub), ("ctl", d.ctl))}
+        out["modes"] = {
+            name: stat.S_IMODE(os.stat(ep[len("ipc://") :]).st_mode)
+            for name, ep in (("pub", d.pub), ("ctl", d.ctl))
+        }
         stop = threading.Event()
 
         def follow():
@@ -96,7 +110,9 @@ def session(tmp_path_factory):
                 r["scene"] = client.get_scene()
                 r["dealer_error"] = _dealer(d.ctl, [b'{"cmd": "explode", "id": "d-1"}'])
                 r["dealer_ok"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": 7.5}'])
-                r["dealer_limit"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": "d-2", "args": {"x": 1e400}}'])
+                r["dealer_limit"] = _dealer(
+                    d.ctl, [b'{"cmd": "ping", "id": "d-2", "args": {"x": 1e400}}']
+                )
                 r["id_too_long"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": "' + b"i" * 201 + b'"}'])
                 r["id_object"] = _dealer(d.ctl, [b'{"cmd": "ping", "id": {"a": 1}}'])
                 _wait_tick(client, TICKS)
@@ -117,7 +133,10 @@ def _recorded(session, topic: str) -> list[dict]:
 
 
 def _ticks(session) -> tuple[dict[int, dict], dict[int, dict]]:
-    return ({r["seq"]: r for r in _recorded(session, "device")}, {p["seq"]: p for p in _recorded(session, "pose")})
+    return (
+        {r["seq"]: r for r in _recorded(session, "device")},
+        {p["seq"]: p for p in _recorded(session, "pose")},
+    )
 
 
 def test_every_message_of_the_session_follows_the_schemas(session):
@@ -132,13 +151,17 @@ def test_every_message_of_the_session_follows_the_schemas(session):
         summary = make_reader(f).get_summary()
     embedded = {ch.topic: summary.schemas[ch.schema_id] for ch in summary.channels.values()}
     for topic, schema in channel_schemas().items():
-        assert embedded[topic].encoding == "jsonschema" and json.loads(embedded[topic].data) == schema
+        assert (
+            embedded[topic].encoding == "jsonschema" and json.loads(embedded[topic].data) == schema
+        )
         assert schema["$schema"].endswith("2020-12/schema") and schema["required"]
 
 
 def test_device_time_is_monotonic_on_the_hosts_clock(session):
     wire = [(p.device_t_ns, p.publish_t_ns) for p in session["poses"]]
-    assert all(session["started_ns"] < t <= tp for t, tp in wire), "device time is not the host's monotonic clock"
+    assert all(session["started_ns"] < t <= tp for t, tp in wire), (
+        "device time is not the host's monotonic clock"
+    )
     devices, poses = _ticks(session)
     times = [poses[s]["device_t_ns"] for s in sorted(poses)]
     assert all(b >= a for a, b in zip(times, times[1:])) and times[0] > session["started_ns"]
@@ -152,9 +175,14 @@ def test_contact_flag_and_touched_atom_agree_on_every_tick(session):
     devices, poses = _ticks(session)
     for p in poses.values():
         assert bool(p["flags"] & FLAG_CONTACT) == (p["touched_atom"] >= 0), p
-    touching_then_failing = [s for s, r in devices.items()
-                             if r["t_ns"] is None and poses.get(s - 1, {}).get("touched_atom", -1) >= 0]
-    assert touching_then_failing, "no failed read came while the probe touched: the case is not exercised"
+    touching_then_failing = [
+        s
+        for s, r in devices.items()
+        if r["t_ns"] is None and poses.get(s - 1, {}).get("touched_atom", -1) >= 0
+    ]
+    assert touching_then_failing, (
+        "no failed read came while the probe touched: the case is not exercised"
+    )
     for s in touching_then_failing:
         assert poses[s]["touched_atom"] == -1 and poses[s]["flags"] & FLAG_FAULT
 
@@ -164,19 +192,31 @@ def test_failed_reads_are_complete_records(session):
     failed = [r for r in devices.values() if r["error"] and "timed out" in r["error"]]
     assert len(failed) == 30
     for r in failed:
-        assert r["t_ns"] is None and r["position_mm"] == [None] * 3 and r["orientation"] == [None] * 4
+        assert (
+            r["t_ns"] is None and r["position_mm"] == [None] * 3 and r["orientation"] == [None] * 4
+        )
         assert r["velocity_mm_s"] == [None] * 3 and r["buttons"] is None and r["calibrated"] is None
     nans = [r for r in devices.values() if r["t_ns"] is not None and r["position_mm"][0] is None]
-    assert len(nans) == 20 and all(r["calibrated"] is True and isinstance(r["buttons"], int) for r in nans)
+    assert len(nans) == 20 and all(
+        r["calibrated"] is True and isinstance(r["buttons"], int) for r in nans
+    )
 
 
 def test_a_slow_read_counts_as_failed_and_repeats_the_proxy(session):
     """A read that took more than 3 periods gave a state but counts as failed: the engine does
     not run, so proxy, goal and cube repeat the tick before; tip and time are the reading's."""
     devices, poses = _ticks(session)
-    changed = {c["seq"] for c in _recorded(session, "control")}  # a change of that tick may move the cube
-    slow = [s for s, r in devices.items() if r["error"] and r["error"].startswith("device read took")
-            and s not in changed and s - 1 in poses]
+    changed = {
+        c["seq"] for c in _recorded(session, "control")
+    }  # a change of that tick may move the cube
+    slow = [
+        s
+        for s, r in devices.items()
+        if r["error"]
+        and r["error"].startswith("device read took")
+        and s not in changed
+        and s - 1 in poses
+    ]
     injected = set(SLOW_READS) - changed
     assert injected and injected <= set(slow), "the injected slow reads were not counted as failed"
     for s in slow:
@@ -187,16 +227,23 @@ def test_a_slow_read_counts_as_failed_and_repeats_the_proxy(session):
         for key in ("proxy_A", "goal_A", "cube_center_A", "cube_half_A"):
             assert p[key] == before[key], (s, key)
         assert p["tip_mm"] == r["position_mm"] and p["device_t_ns"] == r["t_ns"]
-    hand_moves = [s for s in poses if s - 1 in poses and poses[s]["goal_A"] != poses[s - 1]["goal_A"]]
-    assert len(hand_moves) > TICKS // 2, "the goal moves on ordinary ticks: its repeating is no accident"
+    hand_moves = [
+        s for s in poses if s - 1 in poses and poses[s]["goal_A"] != poses[s - 1]["goal_A"]
+    ]
+    assert len(hand_moves) > TICKS // 2, (
+        "the goal moves on ordinary ticks: its repeating is no accident"
+    )
 
 
 def test_a_late_tick_still_runs_the_engine(session):
     """A tick faulted for lateness alone (the stall) shows the device's state: the engine ran,
     so proxy and goal follow the tip while the force is zeroed."""
     devices, poses = _ticks(session)
-    late = [s for s, r in devices.items()  # late alone: no error, and a finite reading (not an injected NaN)
-            if r["error"] is None and r["late_periods"] > 3 and None not in r["position_mm"]]
+    late = [
+        s
+        for s, r in devices.items()  # late alone: no error, and a finite reading (not an injected NaN)
+        if r["error"] is None and r["late_periods"] > 3 and None not in r["position_mm"]
+    ]
     assert late, "the stall made no late tick"
     for s in late:
         p = poses[s]
@@ -227,9 +274,18 @@ def test_replies_echo_ids_and_the_clutch_lease(session):
     r = session["replies"]
     assert r["dealer_error"]["id"] == "d-1" and not r["dealer_error"]["ok"]
     assert r["dealer_ok"]["id"] == 7.5 and r["dealer_ok"]["ok"]
-    assert r["dealer_limit"]["id"] == "d-2" and "not finite" in r["dealer_limit"]["error"]  # JSON past a limit
-    for bad in (r["id_too_long"], r["id_object"]):  # an id of 201 characters, or an object: refused, not echoed
-        assert bad["ok"] is False and "id" not in bad and bad["error"].startswith("'id' must be a string")
+    assert (
+        r["dealer_limit"]["id"] == "d-2" and "not finite" in r["dealer_limit"]["error"]
+    )  # JSON past a limit
+    for bad in (
+        r["id_too_long"],
+        r["id_object"],
+    ):  # an id of 201 characters, or an object: refused, not echoed
+        assert (
+            bad["ok"] is False
+            and "id" not in bad
+            and bad["error"].startswith("'id' must be a string")
+        )
     assert r["clutch_held"]["lease_s"] == 1.0 and r["clutch_released"]["lease_s"] is None
 
 
@@ -254,7 +310,9 @@ def test_an_idle_subscriber_loses_poses_and_never_slows_the_daemon():
     pose (its subscription is in place), then nothing while the daemon runs 20,000 more ticks
     (counted by the daemon, not timed), then reads: the poses after the first come in order,
     2000 messages or more, then skip ahead to the newest."""
-    with DaemonProcess("--rate", "5000") as d:  # the rule is in messages: a faster loop only saves time
+    with DaemonProcess(
+        "--rate", "5000"
+    ) as d:  # the rule is in messages: a faster loop only saves time
         sock = zmq.Context.instance().socket(zmq.SUB)
         sock.linger = 0
         sock.setsockopt(zmq.SUBSCRIBE, b"")
@@ -267,7 +325,9 @@ def test_an_idle_subscriber_loses_poses_and_never_slows_the_daemon():
             with ControlClient(d.ctl) as client:
                 deadline = time.monotonic() + 120
                 while (ticks := client.status()["loop"]["total"]["ticks"]) < first + IDLE_TICKS:
-                    assert time.monotonic() < deadline, f"the daemon reached tick {ticks} of {first + IDLE_TICKS}"
+                    assert time.monotonic() < deadline, (
+                        f"the daemon reached tick {ticks} of {first + IDLE_TICKS}"
+                    )
                     time.sleep(0.2)
             received = []  # pose seq, or None for a scene
             while not received or received[-1] is None or received[-1] < ticks:

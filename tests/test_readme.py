@@ -35,7 +35,9 @@ REDIRECTION = re.compile(r"\d*[<>]")  # `> out.csv`, `2>&1`: the shell's, not th
 PLACEHOLDER = re.compile(r"[A-Z][A-Z0-9_]*(\.[a-z0-9]+)?|WxH|[A-Z](,[A-Z])+")
 SAMPLES = ("1", "64x48", "0,0,1", "0,0,1,1", "sim", "tcp://127.0.0.1:5555", "out.mp4")
 LINK = re.compile(r"!?\[(?:[^\]\[]|\[[^\]]*\])*\]\(([^)\s]+)\)")  # [text](target), ![alt](target)
-UPWARD = re.compile(r"(?<![\w.])(?:\.\./)+[\w.-]*")  # ../x, ../../x: resolved against the page's folder
+UPWARD = re.compile(
+    r"(?<![\w.])(?:\.\./)+[\w.-]*"
+)  # ../x, ../../x: resolved against the page's folder
 MACHINE_PATH = re.compile(r"(?<![\w.~])/work/")
 OPTION = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*")
 # Pages a command writes rather than a person: a link to one may precede its first run.
@@ -47,7 +49,9 @@ def pages() -> list[Path]:
     subsystems' own READMEs."""
     found = [REPO_ROOT / name for name in ("README.md", "CONTRIBUTING.md", "CHANGELOG.md")]
     found += sorted((REPO_ROOT / "docs").glob("*.md"))
-    found += sorted(REPO_ROOT.glob("[!.]*/README.md")) + sorted((REPO_ROOT / "tests" / "data").rglob("README.md"))
+    found += sorted(REPO_ROOT.glob("[!.]*/README.md")) + sorted(
+        (REPO_ROOT / "tests" / "data").rglob("README.md")
+    )
     return [p for p in dict.fromkeys(found) if p.is_file()]
 
 
@@ -61,7 +65,7 @@ def sasprobe_args(words: list[str]) -> list[str] | None:
     for i, word in enumerate(words):
         if word == "sasprobe" or word.endswith("/sasprobe"):
             if i == 0 or words[i - 1] == "-m":
-                args = words[i + 1:]
+                args = words[i + 1 :]
                 cut = next((k for k, w in enumerate(args) if REDIRECTION.match(w)), len(args))
                 return args[:cut]
     return None
@@ -135,7 +139,12 @@ def fill_placeholders(parser: argparse.ArgumentParser, args: list[str]) -> list[
             current = subparsers(current).get(earlier, current)
         option = current._option_string_actions.get(out[-1]) if out else None
         inner = re.fullmatch(r"([\w-]+=)(.+)", word)  # clutch=N
-        if option is not None and option.nargs != 0 and inner and PLACEHOLDER.fullmatch(inner.group(2)):
+        if (
+            option is not None
+            and option.nargs != 0
+            and inner
+            and PLACEHOLDER.fullmatch(inner.group(2))
+        ):
             word = sample_value(option, inner.group(1))
         elif PLACEHOLDER.fullmatch(word) or word == "...":
             if option is not None and option.nargs != 0:
@@ -191,8 +200,12 @@ def unknown_options(text: str) -> list[str]:
     """`--options` named in a page's inline code (option tables, prose) that no sasprobe
     command has: a renamed flag shows here even where no whole command line names it."""
     known = known_options()
-    return [f"{option} in `{span}`" for span in SPAN.findall(FENCE.sub("", text))
-            for option in OPTION.findall(span) if option not in known]
+    return [
+        f"{option} in `{span}`"
+        for span in SPAN.findall(FENCE.sub("", text))
+        for option in OPTION.findall(span)
+        if option not in known
+    ]
 
 
 def github_anchor(heading: str) -> str:
@@ -220,7 +233,11 @@ def link_problems(page: Path, text: str) -> list[str]:
             continue
         path, _, anchor = target.partition("#")
         resolved = (page.parent / path).resolve() if path else page
-        rel = resolved.relative_to(REPO_ROOT).as_posix() if resolved.is_relative_to(REPO_ROOT) else None
+        rel = (
+            resolved.relative_to(REPO_ROOT).as_posix()
+            if resolved.is_relative_to(REPO_ROOT)
+            else None
+        )
         if not resolved.exists():
             if rel not in GENERATED:
                 problems.append(f"{target}: no such file")
@@ -246,14 +263,22 @@ def rel(page: Path) -> str:
 
 def test_the_pages_are_found():
     names = {rel(p) for p in pages()}
-    assert {"README.md", "CONTRIBUTING.md", "docs/architecture.md", "docs/connect-your-arm.md",
-            "protocol/README.md", "devices/README.md"} <= names, names
+    assert {
+        "README.md",
+        "CONTRIBUTING.md",
+        "docs/architecture.md",
+        "docs/connect-your-arm.md",
+        "protocol/README.md",
+        "devices/README.md",
+    } <= names, names
 
 
 @pytest.mark.parametrize("page", command_pages(), ids=rel)
 def test_every_command_line_parses(page):
     commands = readme_commands(page.read_text())
-    failures = [f"{where}: {error}" for where, args in commands if (error := parse_error(args)) is not None]
+    failures = [
+        f"{where}: {error}" for where, args in commands if (error := parse_error(args)) is not None
+    ]
     assert failures == []
 
 
@@ -279,7 +304,7 @@ def test_no_page_names_a_path_outside_the_repository(page):
 
 def test_generated_pages_name_a_command_that_writes_them():
     for page, command in GENERATED.items():
-        (_, args), = readme_commands(f"`{command}`")
+        ((_, args),) = readme_commands(f"`{command}`")
         assert parse_error(args) is None, (page, command)
 
 
@@ -289,20 +314,41 @@ def test_the_readme_set_up_commands_are_what_ci_runs():
     demo = "python3 -m venv .venv && .venv/bin/pip install -q -e . && .venv/bin/sasprobe demo"
     tests = "python3 -m venv .venv && .venv/bin/pip install -q -e '.[test]' && .venv/bin/python -m pytest"
     assert demo in blocks and tests in blocks
-    ci = [line.strip() for line in (REPO_ROOT / ".ci" / "run").read_text().splitlines()
-          if line.strip() and not line.lstrip().startswith("#")]
+    ci = [
+        line.strip()
+        for line in (REPO_ROOT / ".ci" / "run").read_text().splitlines()
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
     assert tests in ci, "the README's test command is not what .ci/run runs"
 
 
-@pytest.mark.parametrize("text, error", [
-    ("```sh\nsasprobe render --no-such-flag\n```\n", "unrecognized arguments: --no-such-flag"),
-    ("```sh\nsasprobe daemon --duration 3   # the old name\n```\n", "unrecognized arguments: --duration"),
-    ("see `sasprobe render [--size WxH] [--frames N] [--nope]`\n", "unrecognized arguments: --nope"),
-    ("```sh\nsasprobe daemon & sasprobe render \\\n    --spheres cubes\n```\n", "invalid choice: 'cubes'"),
-    ("`sasprobe bench NAME --seconds S`", "unrecognized arguments: --seconds"),
-    ("```sh\nsasprobe sas 1crn --per-atom > out.csv\n```\n", "unrecognized arguments: --per-atom"),
-    ("```sh\nsasprobe sas 1crn --per-res\n```\n", "unrecognized arguments: --per-res"),  # no abbreviations
-])
+@pytest.mark.parametrize(
+    "text, error",
+    [
+        ("```sh\nsasprobe render --no-such-flag\n```\n", "unrecognized arguments: --no-such-flag"),
+        (
+            "```sh\nsasprobe daemon --duration 3   # the old name\n```\n",
+            "unrecognized arguments: --duration",
+        ),
+        (
+            "see `sasprobe render [--size WxH] [--frames N] [--nope]`\n",
+            "unrecognized arguments: --nope",
+        ),
+        (
+            "```sh\nsasprobe daemon & sasprobe render \\\n    --spheres cubes\n```\n",
+            "invalid choice: 'cubes'",
+        ),
+        ("`sasprobe bench NAME --seconds S`", "unrecognized arguments: --seconds"),
+        (
+            "```sh\nsasprobe sas 1crn --per-atom > out.csv\n```\n",
+            "unrecognized arguments: --per-atom",
+        ),
+        (
+            "```sh\nsasprobe sas 1crn --per-res\n```\n",
+            "unrecognized arguments: --per-res",
+        ),  # no abbreviations
+    ],
+)
 def test_a_wrong_line_is_caught(text, error):
     commands = readme_commands(text)
     errors = [parse_error(args) for _, args in commands]
@@ -310,30 +356,45 @@ def test_a_wrong_line_is_caught(text, error):
 
 
 def test_a_renamed_option_in_a_table_is_caught():
-    table = "| option | meaning |\n|---|---|\n| `--probe-light-reach Å` | the probe light's reach |\n"
+    table = (
+        "| option | meaning |\n|---|---|\n| `--probe-light-reach Å` | the probe light's reach |\n"
+    )
     assert unknown_options(table) == ["--probe-light-reach in `--probe-light-reach Å`"]
     assert unknown_options(table.replace("reach Å", "range Å")) == []
 
 
 def test_a_redirection_is_the_shells():
-    (_, args), = readme_commands("```sh\nsasprobe sas 1crn --csv > out.csv 2>&1\n```\n")
+    ((_, args),) = readme_commands("```sh\nsasprobe sas 1crn --csv > out.csv 2>&1\n```\n")
     assert args == ["sas", "1crn", "--csv"] and parse_error(args) is None
 
 
 def test_synopses_become_real_command_lines():
     parser = build_parser()
-    (_, args), = readme_commands("`sasprobe devices [--json] [--check DEVICE [--seconds S]]`")
-    assert fill_placeholders(parser, args) == ["devices", "--json", "--check", "1", "--seconds", "1"]
-    (_, args), = readme_commands("`sasprobe bench NAME --help`")
-    assert fill_placeholders(parser, args)[:1] == ["bench"] and fill_placeholders(parser, args)[2] == "--help"
+    ((_, args),) = readme_commands("`sasprobe devices [--json] [--check DEVICE [--seconds S]]`")
+    assert fill_placeholders(parser, args) == [
+        "devices",
+        "--json",
+        "--check",
+        "1",
+        "--seconds",
+        "1",
+    ]
+    ((_, args),) = readme_commands("`sasprobe bench NAME --help`")
+    assert (
+        fill_placeholders(parser, args)[:1] == ["bench"]
+        and fill_placeholders(parser, args)[2] == "--help"
+    )
 
 
-@pytest.mark.parametrize("text, problem", [
-    ("[the daemon](docs/no-such-page.md)", "no such file"),
-    ("![a chart](docs/figures/no-such-chart.png)", "no such file"),
-    ("[safety](docs/daemon.md#no-such-heading)", "no heading #no-such-heading"),
-    ("[here](#nowhere)", "no heading #nowhere"),
-])
+@pytest.mark.parametrize(
+    "text, problem",
+    [
+        ("[the daemon](docs/no-such-page.md)", "no such file"),
+        ("![a chart](docs/figures/no-such-chart.png)", "no such file"),
+        ("[safety](docs/daemon.md#no-such-heading)", "no heading #no-such-heading"),
+        ("[here](#nowhere)", "no heading #nowhere"),
+    ],
+)
 def test_a_broken_link_is_caught(text, problem):
     found = link_problems(REPO_ROOT / "README.md", text)
     assert len(found) == 1 and problem in found[0], found
@@ -344,12 +405,15 @@ def test_a_working_link_and_a_web_link_pass():
     assert link_problems(REPO_ROOT / "README.md", text) == []
 
 
-@pytest.mark.parametrize("page, text, caught", [
-    ("README.md", "the structures in `../shared/data/pdb/`", True),
-    ("docs/viewing.md", "see ../../shared/research/haptics.md", True),
-    ("docs/viewing.md", "a checkout in /work/main", True),
-    ("docs/viewing.md", "[protocol](../protocol/README.md)", False),
-    ("README.md", "`tests/data/pdb/1aon.pdb.gz`", False),
-])
+@pytest.mark.parametrize(
+    "page, text, caught",
+    [
+        ("README.md", "the structures in `../shared/data/pdb/`", True),
+        ("docs/viewing.md", "see ../../shared/research/haptics.md", True),
+        ("docs/viewing.md", "a checkout in /work/main", True),
+        ("docs/viewing.md", "[protocol](../protocol/README.md)", False),
+        ("README.md", "`tests/data/pdb/1aon.pdb.gz`", False),
+    ],
+)
 def test_a_path_outside_the_repository_is_caught(page, text, caught):
     assert bool(outside_paths(REPO_ROOT / page, text)) == caught

@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-
 from sasprobe.render.camera import Camera, camera_from_spec, parse_camera, rotation_matrix
 
 
@@ -45,12 +44,26 @@ def test_parse_camera_specs():
     assert spec["fov"] == 30
     cam = camera_from_spec(parse_camera("fov=25"), np.zeros((1, 3)), np.array([10.0]), 1.0)
     assert cam.fov_y == 25 and np.allclose(cam.target, 0)
-    side = camera_from_spec(parse_camera("dir=1,0,0 target=1,2,3"), np.zeros((1, 3)), np.array([10.0]), 1.0)
+    side = camera_from_spec(
+        parse_camera("dir=1,0,0 target=1,2,3"), np.zeros((1, 3)), np.array([10.0]), 1.0
+    )
     np.testing.assert_allclose(side.target, [1, 2, 3])
     np.testing.assert_allclose((side.eye - side.target) / side.distance, [1, 0, 0], atol=1e-12)
-    for bad in ["", "eye=1,2", "eye=a,b,c", "zoom=2", "fov=0", "eye=1,1,1 target=1,1,1",
-                "eye=0,0,5 target=0,0,0 up=0,0,1", "up=0,0,0", "fov=1 fov=2", "eye=1,2,nan",
-                "dir=0,0,0", "eye=1,2,3 dir=0,0,1", "dir=0,1,0 up=0,2,0"]:
+    for bad in [
+        "",
+        "eye=1,2",
+        "eye=a,b,c",
+        "zoom=2",
+        "fov=0",
+        "eye=1,1,1 target=1,1,1",
+        "eye=0,0,5 target=0,0,0 up=0,0,1",
+        "up=0,0,0",
+        "fov=1 fov=2",
+        "eye=1,2,nan",
+        "dir=0,0,0",
+        "eye=1,2,3 dir=0,0,1",
+        "dir=0,1,0 up=0,2,0",
+    ]:
         with pytest.raises(ValueError):
             parse_camera(bad)
 
@@ -60,7 +73,11 @@ def test_framing_puts_every_sphere_inside_and_spans_the_fill(aspect):
     """Exactly framed: no sphere crosses the narrowed frustum, and the limiting side is
     spanned to `fill` (the sphere silhouettes' extreme tangents, computed independently)."""
     rng = np.random.default_rng(3)
-    centers = rng.normal(size=(400, 3)) * [30.0, 12.0, 8.0] + [5.0, -7.0, 20.0]  # an elongated cloud
+    centers = rng.normal(size=(400, 3)) * [30.0, 12.0, 8.0] + [
+        5.0,
+        -7.0,
+        20.0,
+    ]  # an elongated cloud
     radii = rng.uniform(1.2, 2.0, 400)
     cam = Camera.framing(centers, radii, aspect, fov_y=40.0, direction=(0.2, 0.3, 1.0), fill=0.9)
     b = cam.basis()
@@ -87,7 +104,9 @@ def test_zoom_towards_keeps_the_point_under_the_cursor():
     np.testing.assert_allclose(after[:2], before[:2], atol=1e-12)
     assert cam.distance == pytest.approx(25.0)
     cam.centre_on([1.0, 1.0, 1.0])
-    np.testing.assert_allclose(project(cam, 1.5, np.array([[1.0, 1.0, 1.0]]))[0][:2], 0.0, atol=1e-12)
+    np.testing.assert_allclose(
+        project(cam, 1.5, np.array([[1.0, 1.0, 1.0]]))[0][:2], 0.0, atol=1e-12
+    )
 
 
 def test_arcball_turns_the_molecule_with_the_pointer_and_keeps_distance():

@@ -6,8 +6,8 @@ from __future__ import annotations
 import imageio.v3 as iio
 import numpy as np
 import pytest
-
 from sasprobe.molecule import load_structure
+
 from tests.conftest import run_cli
 
 SMALL = "160x120"
@@ -33,26 +33,57 @@ def one_line_error(result, *words):
 
 def test_png_and_gbuffer_file_format(tmp_path):
     png, npz = tmp_path / "x.png", tmp_path / "g.npz"
-    r = render("--size", "200x150", "--out", str(png), "--gbuffer", str(npz),
-               "--probe", "8,12,6", "--nav-cube", "9,11,7,6", "--clip", "0,0,1,-3", "--probe-plane")
+    r = render(
+        "--size",
+        "200x150",
+        "--out",
+        str(png),
+        "--gbuffer",
+        str(npz),
+        "--probe",
+        "8,12,6",
+        "--nav-cube",
+        "9,11,7,6",
+        "--clip",
+        "0,0,1,-3",
+        "--probe-plane",
+    )
     assert r.returncode == 0, r.stderr
     image = iio.imread(png)
     assert image.shape[:2] == (150, 200)
     g = np.load(npz)
-    expected = {"atom_id": (np.int32, (150, 200)), "kind": (np.uint8, (150, 200)),
-                "position": (np.float32, (150, 200, 3)), "normal": (np.float32, (150, 200, 3)),
-                "view": (np.float64, (4, 4)), "proj": (np.float64, (4, 4)), "viewport": (np.int32, (2,)),
-                "nav_cube": (np.float64, (4,)), "nav_cube_axes": (np.float64, (3, 3)), "probe": (np.float64, (4,)),
-                "clip_planes": (np.float64, (2, 4))}
-    lighting = {"shadow_dir", "shadow_probe", "ao", "light_direction", "probe_light"}  # tests/test_lighting_render.py
+    expected = {
+        "atom_id": (np.int32, (150, 200)),
+        "kind": (np.uint8, (150, 200)),
+        "position": (np.float32, (150, 200, 3)),
+        "normal": (np.float32, (150, 200, 3)),
+        "view": (np.float64, (4, 4)),
+        "proj": (np.float64, (4, 4)),
+        "viewport": (np.int32, (2,)),
+        "nav_cube": (np.float64, (4,)),
+        "nav_cube_axes": (np.float64, (3, 3)),
+        "probe": (np.float64, (4,)),
+        "clip_planes": (np.float64, (2, 4)),
+    }
+    lighting = {
+        "shadow_dir",
+        "shadow_probe",
+        "ao",
+        "light_direction",
+        "probe_light",
+    }  # tests/test_lighting_render.py
     assert set(expected) <= set(g.files) and set(g.files) - set(expected) <= lighting
     for key, (dtype, shape) in expected.items():
         assert g[key].dtype == dtype and g[key].shape == shape, key
     assert tuple(g["viewport"]) == (200, 150)
     np.testing.assert_allclose(g["nav_cube"], [9, 11, 7, 6])
-    np.testing.assert_array_equal(g["nav_cube_axes"], np.eye(3))  # standalone: the cube is not turned
+    np.testing.assert_array_equal(
+        g["nav_cube_axes"], np.eye(3)
+    )  # standalone: the cube is not turned
     np.testing.assert_allclose(g["probe"], [8, 12, 6, 1.4])
-    np.testing.assert_allclose(g["clip_planes"][0], [0, 0, 1, -3])  # the user's, then the probe plane
+    np.testing.assert_allclose(
+        g["clip_planes"][0], [0, 0, 1, -3]
+    )  # the user's, then the probe plane
     probe_plane = g["clip_planes"][1]  # at most a probe radius behind the probe centre
     assert -1.4 - 1e-9 <= probe_plane[:3] @ [8, 12, 6] + probe_plane[3] <= 1e-9
     assert (g["atom_id"] == -1).sum() > 0 and (g["atom_id"] >= 0).sum() > 0
@@ -62,7 +93,9 @@ def test_png_and_gbuffer_file_format(tmp_path):
     # hold the trace's centre line, a few pixels off across the line's width.)
     assert {1, 2, 3, 4} <= set(np.unique(g["kind"]).tolist())
     rows, cols = np.nonzero((g["kind"] > 0) & (g["kind"] != 3))
-    p = np.concatenate([g["position"][rows, cols].astype(np.float64), np.ones((rows.size, 1))], axis=1)
+    p = np.concatenate(
+        [g["position"][rows, cols].astype(np.float64), np.ones((rows.size, 1))], axis=1
+    )
     clip = p @ (g["proj"] @ g["view"]).T
     ndc = clip[:, :3] / clip[:, 3:]
     x = (ndc[:, 0] + 1) / 2 * 200
@@ -74,14 +107,25 @@ def test_png_and_gbuffer_file_format(tmp_path):
 
 def test_camera_spec_is_used_verbatim(tmp_path):
     npz = tmp_path / "g.npz"
-    r = render("--size", SMALL, "--camera", "eye=40,30,60 target=10,12,8 up=0,0,1 fov=30", "--gbuffer", str(npz))
+    r = render(
+        "--size",
+        SMALL,
+        "--camera",
+        "eye=40,30,60 target=10,12,8 up=0,0,1 fov=30",
+        "--gbuffer",
+        str(npz),
+    )
     assert r.returncode == 0, r.stderr
     g = np.load(npz)
     view = g["view"]
     eye = np.linalg.inv(view)[:3, 3]
     np.testing.assert_allclose(eye, [40, 30, 60], atol=1e-9)
     forward = -view[2, :3]
-    np.testing.assert_allclose(forward, (np.array([10, 12, 8]) - eye) / np.linalg.norm(np.array([10, 12, 8]) - eye), atol=1e-9)
+    np.testing.assert_allclose(
+        forward,
+        (np.array([10, 12, 8]) - eye) / np.linalg.norm(np.array([10, 12, 8]) - eye),
+        atol=1e-9,
+    )
     assert view[1, 2] > 0.5  # up = +z appears upward
     np.testing.assert_allclose(g["proj"][1, 1], 1 / np.tan(np.radians(15)), rtol=1e-12)
 
@@ -89,8 +133,19 @@ def test_camera_spec_is_used_verbatim(tmp_path):
 def test_every_reference_structure_renders(tmp_path, reference_entries):
     for entry in reference_entries:
         png, npz = tmp_path / f"{entry.id}.png", tmp_path / f"{entry.id}.npz"
-        r = run_cli("render", "--headless", "--molecule", str(entry.path), "--size", SMALL,
-                    "--out", str(png), "--gbuffer", str(npz), timeout=300)
+        r = run_cli(
+            "render",
+            "--headless",
+            "--molecule",
+            str(entry.path),
+            "--size",
+            SMALL,
+            "--out",
+            str(png),
+            "--gbuffer",
+            str(npz),
+            timeout=300,
+        )
         assert r.returncode == 0, f"{entry.id}: {r.stderr}"
         g = np.load(npz)
         n_atoms = load_structure(entry.path).n_atoms
@@ -108,28 +163,37 @@ def test_video_and_numbered_frames(tmp_path):
     with imageio.get_reader(mp4, format="FFMPEG") as reader:
         frames = np.stack([frame for frame in reader])
     assert frames.shape[0] == 4 and frames.shape[1:3] == (120, 160)
-    assert np.abs(frames[0].astype(int) - frames[-1].astype(int)).mean() > 2, "the orbit should change the picture"
+    assert np.abs(frames[0].astype(int) - frames[-1].astype(int)).mean() > 2, (
+        "the orbit should change the picture"
+    )
     png = tmp_path / "f.png"
     r = render("--size", SMALL, "--frames", "3", "--out", str(png))
     assert r.returncode == 0, r.stderr
-    assert sorted(p.name for p in tmp_path.glob("f_*.png")) == ["f_0000.png", "f_0001.png", "f_0002.png"]
+    assert sorted(p.name for p in tmp_path.glob("f_*.png")) == [
+        "f_0000.png",
+        "f_0001.png",
+        "f_0002.png",
+    ]
 
 
-@pytest.mark.parametrize("args,words", [
-    (["--size", "100"], ["--size", "WIDTHxHEIGHT"]),
-    (["--size", "10x10"], ["--size", "16.."]),
-    (["--camera", "eye=1,2"], ["--camera", "3 finite"]),
-    (["--camera", "pos=1,2,3"], ["--camera", "pos=1,2,3"]),
-    (["--camera", "eye=1,2,3 target=1,2,3"], ["same point"]),
-    (["--camera", "fov=200"], ["fov"]),
-    (["--clip", "0,0,0,1"], ["normal"]),
-    (["--nav-cube", "1,2,3,-4"], ["half edge"]),
-    (["--out", "x.jpg"], [".png"]),
-    (["--frames", "2", "--seconds", "1"], ["--frames or --seconds"]),
-    (["--gbuffer", "g.txt"], [".npz"]),
-    (["--molecule", "no/such/file.pdb"], ["no such file"]),
-    (["--touched", "99999"], ["--touched"]),
-])
+@pytest.mark.parametrize(
+    "args,words",
+    [
+        (["--size", "100"], ["--size", "WIDTHxHEIGHT"]),
+        (["--size", "10x10"], ["--size", "16.."]),
+        (["--camera", "eye=1,2"], ["--camera", "3 finite"]),
+        (["--camera", "pos=1,2,3"], ["--camera", "pos=1,2,3"]),
+        (["--camera", "eye=1,2,3 target=1,2,3"], ["same point"]),
+        (["--camera", "fov=200"], ["fov"]),
+        (["--clip", "0,0,0,1"], ["normal"]),
+        (["--nav-cube", "1,2,3,-4"], ["half edge"]),
+        (["--out", "x.jpg"], [".png"]),
+        (["--frames", "2", "--seconds", "1"], ["--frames or --seconds"]),
+        (["--gbuffer", "g.txt"], [".npz"]),
+        (["--molecule", "no/such/file.pdb"], ["no such file"]),
+        (["--touched", "99999"], ["--touched"]),
+    ],
+)
 def test_bad_input_is_one_line(args, words):
     one_line_error(render(*args), *words)
 

@@ -16,18 +16,18 @@ from dataclasses import replace
 import numpy as np
 import pytest
 import zmq
-
 from sasprobe.protocol.client import ControlClient, Subscriber
 from sasprobe.protocol.pose import FLAG_CONTACT, Pose, encode_pose
 from sasprobe.protocol.scene import encode_scene
 from sasprobe.protocol.security import ensure_local_keys, load_server_keys, make_curve_server
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer_export import gbuffer_arrays
+from sasprobe.render.gl.targets import KIND_PROBE
 from sasprobe.render.lighting.settings import AOSettings
 from sasprobe.render.link import DaemonLink
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import Effects, SceneState
-from sasprobe.render.gl.targets import KIND_PROBE
+
 from tests.conftest import run_cli
 from tests.daemon_process import DaemonProcess
 from tests.render_support import free_tcp_endpoint
@@ -37,7 +37,9 @@ ORBIT = "sim:orbit"  # the simulated arm circling the molecule: the probe keeps 
 
 @pytest.fixture(scope="module")
 def daemon():
-    with DaemonProcess("--seconds", "600", device=ORBIT, pub=free_tcp_endpoint(), ctl=free_tcp_endpoint()) as d:
+    with DaemonProcess(
+        "--seconds", "600", device=ORBIT, pub=free_tcp_endpoint(), ctl=free_tcp_endpoint()
+    ) as d:
         yield d.pub, d.ctl
         d.stop(signal.SIGINT)
 
@@ -56,7 +58,9 @@ def test_rendered_probe_follows_the_pose_stream(gl, daemon):
             structure = link.take_new_structure()
             time.sleep(0.02)
         assert structure is not None and structure.n_atoms == 327, "no structure from get_structure"
-        scene = SceneState(structure, effects=Effects(probe_plane=True))  # nothing may hide the probe
+        scene = SceneState(
+            structure, effects=Effects(probe_plane=True)
+        )  # nothing may hide the probe
         center, radius = scene.bounding_sphere()
         camera = Camera.fitted(center, radius * 1.3, 4 / 3)
         renderer = Renderer(gl, scene, (160, 120))
@@ -78,7 +82,9 @@ def test_rendered_probe_follows_the_pose_stream(gl, daemon):
                 continue  # out of view this frame
             rendered = (g["position"][probe] - scene.probe.radius * g["normal"][probe]).mean(axis=0)
             np.testing.assert_allclose(rendered, proxies[pose.seq], atol=2e-3)
-            np.testing.assert_allclose(g["nav_cube"], [*pose.cube_center_A, pose.cube_half_A], atol=1e-9)
+            np.testing.assert_allclose(
+                g["nav_cube"], [*pose.cube_center_A, pose.cube_half_A], atol=1e-9
+            )
             checked += 1
             positions.add(tuple(np.round(proxies[pose.seq], 1)))
         assert checked >= 8, f"only {checked} frames showed the probe"
@@ -94,8 +100,22 @@ def test_rendered_probe_follows_the_pose_stream(gl, daemon):
 def test_cli_follows_the_daemon_headless(daemon, tmp_path):
     pub, ctl = daemon
     npz = tmp_path / "g.npz"
-    r = run_cli("render", "--headless", "--connect", pub, "--control", ctl, "--frames", "5", "--size", "160x120",
-                "--probe-plane", "--gbuffer", str(npz), timeout=180)
+    r = run_cli(
+        "render",
+        "--headless",
+        "--connect",
+        pub,
+        "--control",
+        ctl,
+        "--frames",
+        "5",
+        "--size",
+        "160x120",
+        "--probe-plane",
+        "--gbuffer",
+        str(npz),
+        timeout=180,
+    )
     assert r.returncode == 0, r.stderr
     g = np.load(npz)
     assert (g["kind"] == KIND_PROBE).sum() > 0
@@ -111,16 +131,41 @@ def test_the_probe_plane_is_the_workspace_views_default_and_can_be_turned_off(da
     assert RenderOptions(connect=pub).effects().probe_plane  # the default of the workspace view
     assert not RenderOptions(connect=pub, probe_plane=False).effects().probe_plane
     report = tmp_path / "r.json"
-    r = run_cli("render", "--headless", "--connect", pub, "--control", ctl, "--frames", "6", "--size", "160x120",
-                "--no-probe-plane", "--report", str(report), timeout=180)
+    r = run_cli(
+        "render",
+        "--headless",
+        "--connect",
+        pub,
+        "--control",
+        ctl,
+        "--frames",
+        "6",
+        "--size",
+        "160x120",
+        "--no-probe-plane",
+        "--report",
+        str(report),
+        timeout=180,
+    )
     assert r.returncode == 0, r.stderr
     layer = json.loads(report.read_text())["molecule_layer"]
-    assert layer["drawn"] + layer["kept"] == 6 and layer["kept"] >= 4, layer  # the probe moved: the layer held
+    assert layer["drawn"] + layer["kept"] == 6 and layer["kept"] >= 4, (
+        layer
+    )  # the probe moved: the layer held
 
 
 def test_no_daemon_is_one_line():
-    r = run_cli("render", "--headless", "--connect", free_tcp_endpoint(), "--control", free_tcp_endpoint(),
-                "--size", "160x120", timeout=120)
+    r = run_cli(
+        "render",
+        "--headless",
+        "--connect",
+        free_tcp_endpoint(),
+        "--control",
+        free_tcp_endpoint(),
+        "--size",
+        "160x120",
+        timeout=120,
+    )
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "no daemon answered" in lines[0], r.stderr
@@ -133,12 +178,20 @@ def test_malformed_messages_are_dropped_and_counted(daemon, crambin):
     endpoint = free_tcp_endpoint()
     sock = zmq.Context.instance().socket(zmq.PUB)
     sock.linger = 0
-    make_curve_server(sock, load_server_keys(ensure_local_keys()))  # as a daemon on loopback TCP does
+    make_curve_server(
+        sock, load_server_keys(ensure_local_keys())
+    )  # as a daemon on loopback TCP does
     sock.bind(endpoint)
     link = DaemonLink(endpoint, free_tcp_endpoint())
     try:
-        first = Pose(seq=1, proxy_A=np.array([1.0, 2.0, 3.0]), touched_atom=5, flags=FLAG_CONTACT,
-                     cube_center_A=np.array([1.0, 2.0, 3.0]), cube_half_A=6.0)
+        first = Pose(
+            seq=1,
+            proxy_A=np.array([1.0, 2.0, 3.0]),
+            touched_atom=5,
+            flags=FLAG_CONTACT,
+            cube_center_A=np.array([1.0, 2.0, 3.0]),
+            cube_half_A=6.0,
+        )
         deadline = time.monotonic() + 20
         while link.subscriber.pose is None and time.monotonic() < deadline:  # until subscribed
             sock.send_multipart([b"pose", encode_pose(first)])
@@ -146,12 +199,23 @@ def test_malformed_messages_are_dropped_and_counted(daemon, crambin):
             link.poll()
         assert link.subscriber.pose is not None
         before = link.readout().dropped
-        garbage = [[b"pose", b"too short"], [b"scene", b"{not json"], [b"scene", b'{"version": 1}'],
-                   [b"posed", b"x"], [b"pose"]]  # (a topic outside pose/scene is filtered by ZeroMQ itself)
+        garbage = [
+            [b"pose", b"too short"],
+            [b"scene", b"{not json"],
+            [b"scene", b'{"version": 1}'],
+            [b"posed", b"x"],
+            [b"pose"],
+        ]  # (a topic outside pose/scene is filtered by ZeroMQ itself)
         for frames in garbage:
             sock.send_multipart(frames)
-        good = Pose(seq=2, proxy_A=np.array([4.0, 5.0, 6.0]), touched_atom=7, flags=FLAG_CONTACT,
-                    cube_center_A=np.array([4.0, 5.0, 6.0]), cube_half_A=5.0)
+        good = Pose(
+            seq=2,
+            proxy_A=np.array([4.0, 5.0, 6.0]),
+            touched_atom=7,
+            flags=FLAG_CONTACT,
+            cube_center_A=np.array([4.0, 5.0, 6.0]),
+            cube_half_A=5.0,
+        )
         sock.send_multipart([b"pose", encode_pose(good)])
         sock.send_multipart([b"scene", encode_scene(real_scene)])
         while link.subscriber.scene is None and time.monotonic() < deadline:
@@ -178,8 +242,13 @@ def test_the_grid_follows_the_daemons_probe_radius(gl):
 
     radius = 2.0
     assert radius != DEFAULT_PROBE_RADIUS
-    with DaemonProcess("--probe-radius", str(radius), device=ORBIT, pub=free_tcp_endpoint(),
-                       ctl=free_tcp_endpoint()) as d:
+    with DaemonProcess(
+        "--probe-radius",
+        str(radius),
+        device=ORBIT,
+        pub=free_tcp_endpoint(),
+        ctl=free_tcp_endpoint(),
+    ) as d:
         link = DaemonLink(d.pub, d.ctl)
         try:
             link.wait_ready(60.0)
@@ -188,7 +257,9 @@ def test_the_grid_follows_the_daemons_probe_radius(gl):
                 link.poll()
                 time.sleep(0.02)
             structure = link.take_new_structure()
-            scene = SceneState(structure)  # the renderer's own default radius, until the daemon's arrives
+            scene = SceneState(
+                structure
+            )  # the renderer's own default radius, until the daemon's arrives
             np.testing.assert_allclose(scene.grid.radii, structure.vdw_radii + DEFAULT_PROBE_RADIUS)
             link.apply(scene)
         finally:
@@ -197,7 +268,9 @@ def test_the_grid_follows_the_daemons_probe_radius(gl):
     assert scene.probe.radius == radius
     renderer = Renderer(gl, scene, (64, 48))
     try:
-        lighting = install_lighting(renderer, LightingSettings(shadows="hard", ao=replace(AOSettings(), mode="off")))
+        lighting = install_lighting(
+            renderer, LightingSettings(shadows="hard", ao=replace(AOSettings(), mode="off"))
+        )
         scene.effects.shadows = True
         renderer.render(Camera.fitted(*scene.bounding_sphere(), 64 / 48))
         assert lighting.grid.max_shell == pytest.approx(radius)
@@ -215,6 +288,7 @@ def test_renderers_follow_the_daemons_colour_scheme(daemon, crambin):
     scene = SceneState(crambin, effects=Effects(color_scheme="residue"))  # this renderer's --color
     try:
         with ControlClient(ctl) as client:
+
             def settled(expected) -> dict:
                 deadline = time.monotonic() + 20
                 while time.monotonic() < deadline:

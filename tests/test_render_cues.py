@@ -6,7 +6,6 @@ drawn without the cues (the pass removed), so what changed is what the cues drew
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.camera import Camera
 from sasprobe.render.link import touched_label
 from sasprobe.render.passes.probe_cues import FORCE_COLORS, GHOST_COLOR, OUTLINE_COLOR
@@ -50,7 +49,9 @@ def test_outline_only_where_the_probe_is_hidden(gl, crambin):
     changed = np.abs(with_cues - without).max(axis=-1) > 8
     assert changed.sum() > 20 and np.all(near(with_cues, OUTLINE_COLOR, 60)[changed].mean() > 0.7)
     assert not np.any(changed & (kind == 4)), "the outline is not drawn over the visible probe"
-    free = SceneState(crambin, probe=Probe(center=top + [0.0, 0.0, 6.0]), effects=fx)  # nothing hides it
+    free = SceneState(
+        crambin, probe=Probe(center=top + [0.0, 0.0, 6.0]), effects=fx
+    )  # nothing hides it
     with_cues, without, _ = frames(gl, free, camera)
     assert np.array_equal(with_cues, without)
 
@@ -59,20 +60,30 @@ def test_ghost_tip_spring_and_force_arrow_colours(gl, crambin):
     atom = int(np.argmax(crambin.positions[:, 2]))
     top = crambin.positions[atom]
     center = top + [0.0, 0.0, crambin.vdw_radii[atom] + 1.4]
-    camera = Camera(eye=center + [0.0, -30.0, 4.0], target=center)  # from the side: the arrow points up
+    camera = Camera(
+        eye=center + [0.0, -30.0, 4.0], target=center
+    )  # from the side: the arrow points up
     for force, color in ((0.2, FORCE_COLORS[0]), (0.6, FORCE_COLORS[1]), (1.5, FORCE_COLORS[2])):
-        probe = Probe(center=center, goal=center - [0.0, 0.0, 1.0], force_n=np.array([0.0, 0.0, force]))
-        scene = SceneState(crambin, probe=probe, effects=Effects(fxaa=False), force_ratings_n=(0.88, 3.3))
+        probe = Probe(
+            center=center, goal=center - [0.0, 0.0, 1.0], force_n=np.array([0.0, 0.0, force])
+        )
+        scene = SceneState(
+            crambin, probe=probe, effects=Effects(fxaa=False), force_ratings_n=(0.88, 3.3)
+        )
         with_cues, without, _ = frames(gl, scene, camera)
         changed = np.abs(with_cues - without).max(axis=-1) > 8
-        assert near(with_cues, color)[changed].sum() > 10, force  # the arrow, in the colour of its rating band
+        assert near(with_cues, color)[changed].sum() > 10, (
+            force
+        )  # the arrow, in the colour of its rating band
         assert near(with_cues, GHOST_COLOR, 60)[changed].sum() > 10  # the ghost tip and its spring
 
 
 def test_an_arrow_at_the_edge_points_at_a_probe_off_screen(gl, crambin):
     center = crambin.positions.mean(axis=0)
     camera = Camera(eye=center + [0.0, 0.0, 60.0], target=center)
-    scene = SceneState(crambin, probe=Probe(center=center + [200.0, 0.0, 0.0]), effects=Effects(fxaa=False))
+    scene = SceneState(
+        crambin, probe=Probe(center=center + [200.0, 0.0, 0.0]), effects=Effects(fxaa=False)
+    )
     with_cues, without, _ = frames(gl, scene, camera)
     ys, xs = np.nonzero(np.abs(with_cues - without).max(axis=-1) > 8)
     assert xs.size > 10 and xs.min() > SIZE[0] * 0.8, "at the right edge, toward the probe"

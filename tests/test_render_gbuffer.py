@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer_export import gbuffer_arrays
+from sasprobe.render.gl.targets import KIND_BACKBONE, KIND_CAP, KIND_PROBE, KIND_SPHERE
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import NavCube, Probe, SceneState, normalise_plane
-from sasprobe.render.gl.targets import KIND_BACKBONE, KIND_CAP, KIND_PROBE, KIND_SPHERE
+
 from tests.render_support import edge_mask, reference_cast
 
 SIZE = (200, 150)
@@ -30,16 +30,22 @@ def render_gbuffer(gl, scene, camera, size=SIZE, mode="quad"):
         renderer.release()
 
 
-def compare_with_reference(g, centers, radii, ids, planes=np.zeros((0, 4)), mask=None, min_agree=0.995):
+def compare_with_reference(
+    g, centers, radii, ids, planes=np.zeros((0, 4)), mask=None, min_agree=0.995
+):
     """Assert the agreement with the reference caster; returns the reference for further checks."""
     w, h = (int(v) for v in g["viewport"])
-    ref_id, ref_pos, ref_nrm, ref_cap = reference_cast(g["view"], g["proj"], w, h, centers, radii, ids, planes)
+    ref_id, ref_pos, ref_nrm, ref_cap = reference_cast(
+        g["view"], g["proj"], w, h, centers, radii, ids, planes
+    )
     interior = ~edge_mask(ref_id)
     if mask is not None:
         interior &= mask
     assert interior.sum() > 0.1 * w * h, "the view shows too little to compare"
     agree = g["atom_id"][interior] == ref_id[interior]
-    assert agree.mean() >= min_agree, f"atom ids agree on only {agree.mean():.4%} of interior pixels"
+    assert agree.mean() >= min_agree, (
+        f"atom ids agree on only {agree.mean():.4%} of interior pixels"
+    )
     both = interior & (g["atom_id"] == ref_id) & (ref_id >= 0)
     pos_err = np.abs(g["position"][both] - ref_pos[both]).max()
     nrm_err = np.abs(g["normal"][both] - ref_nrm[both]).max()
@@ -67,12 +73,18 @@ def test_close_oblique_view_keeps_spheres_at_the_screen_edge(gl, crambin):
     image border: none may vanish (point sprites would) and perspective must stay exact."""
     s = crambin
     center = s.positions.mean(axis=0)
-    camera = Camera(eye=center + np.array([14.0, 9.0, 16.0]), target=center + np.array([-2.0, 1.0, 0.0]),
-                    up=np.array([0.2, 1.0, 0.1]), fov_y=75.0)
+    camera = Camera(
+        eye=center + np.array([14.0, 9.0, 16.0]),
+        target=center + np.array([-2.0, 1.0, 0.0]),
+        up=np.array([0.2, 1.0, 0.1]),
+        fov_y=75.0,
+    )
     scene = SceneState(s)
     g = render_gbuffer(gl, scene, camera)
     compare_with_reference(g, s.positions, s.vdw_radii, np.arange(s.n_atoms))
-    border = np.concatenate([g["atom_id"][0], g["atom_id"][-1], g["atom_id"][:, 0], g["atom_id"][:, -1]])
+    border = np.concatenate(
+        [g["atom_id"][0], g["atom_id"][-1], g["atom_id"][:, 0], g["atom_id"][:, -1]]
+    )
     assert np.count_nonzero(border >= 0) > 50, "the view should put spheres across the image border"
 
 
@@ -91,7 +103,9 @@ def test_camera_inside_a_sphere_sees_its_solid_cap(gl, crambin):
     eye = s.positions[top] + np.array([0.0, 0.0, 0.5 * s.vdw_radii[top]])
     inside = np.flatnonzero(np.linalg.norm(s.positions - eye, axis=1) < s.vdw_radii)
     assert inside.tolist() == [top], "the eye should be inside exactly one sphere"
-    camera = Camera(eye=eye, target=s.positions.mean(axis=0), up=np.array([0.0, 1.0, 0.0]), fov_y=60.0)
+    camera = Camera(
+        eye=eye, target=s.positions.mean(axis=0), up=np.array([0.0, 1.0, 0.0]), fov_y=60.0
+    )
     g = render_gbuffer(gl, SceneState(s), camera)
     forward = -camera.basis()[:, 2]
     near = np.array([*forward, -float(forward @ camera.eye) - camera.near])
@@ -108,7 +122,9 @@ def test_clip_planes_cap_atoms_and_cull_those_behind(gl, crambin):
         normalise_plane([-0.3, 0.9, -0.1, -float(np.array([-0.3, 0.9, -0.1]) @ center) + 6.0]),
     ]
     scene = SceneState(s, clip_planes=planes)
-    camera = fitted_camera(scene, direction=(-0.4, -0.6, -0.7))  # on the removed side: facing the cut
+    camera = fitted_camera(
+        scene, direction=(-0.4, -0.6, -0.7)
+    )  # on the removed side: facing the cut
     renderer = Renderer(gl, scene, SIZE)
     try:
         renderer.render(camera)
@@ -120,11 +136,15 @@ def test_clip_planes_cap_atoms_and_cull_those_behind(gl, crambin):
     dist = s.positions @ P[:, :3].T + P[:, 3]
     wholly_behind = np.any(dist < -s.vdw_radii[:, None], axis=1)
     assert wholly_behind.sum() > 20 and (~wholly_behind).sum() > 20
-    assert drawn == set(np.flatnonzero(~wholly_behind).tolist()), "CPU culling must drop exactly the atoms wholly behind a plane"
+    assert drawn == set(np.flatnonzero(~wholly_behind).tolist()), (
+        "CPU culling must drop exactly the atoms wholly behind a plane"
+    )
     np.testing.assert_allclose(g["clip_planes"], P)
     ref_id, *_ = compare_with_reference(g, s.positions, s.vdw_radii, np.arange(s.n_atoms), P)
     shown = set(np.unique(g["atom_id"][g["atom_id"] >= 0]).tolist())
-    assert not shown & set(np.flatnonzero(wholly_behind).tolist()), "culled atoms appear in the image"
+    assert not shown & set(np.flatnonzero(wholly_behind).tolist()), (
+        "culled atoms appear in the image"
+    )
     # Cap pixels: on one of the planes and carrying that plane's outward normal.
     cap = g["kind"] == KIND_CAP
     assert cap.sum() > 200, "the planes should cut visible caps"
@@ -153,15 +173,21 @@ def test_navigation_cube_spheres_inside_backbone_outside(gl, reference_by_id):
         renderer.release()
     lo, hi = cube.bounds()
     gap = s.positions - np.clip(s.positions, lo, hi)
-    overlapping = np.flatnonzero(np.einsum("ij,ij->i", gap, gap) <= s.vdw_radii ** 2)
+    overlapping = np.flatnonzero(np.einsum("ij,ij->i", gap, gap) <= s.vdw_radii**2)
     assert 100 < overlapping.size < 600
     np.testing.assert_array_equal(np.sort(drawn), overlapping)
     np.testing.assert_allclose(g["nav_cube"], [*center, 7.0])
     atoms = (g["kind"] == KIND_SPHERE) | (g["kind"] == KIND_CAP)
     assert set(np.unique(g["atom_id"][atoms]).tolist()) <= set(overlapping.tolist())
     # Spheres are cut to the cube (caps on its faces): compare with the reference where no trace covers.
-    compare_with_reference(g, s.positions[overlapping], s.vdw_radii[overlapping], overlapping,
-                           cube.planes(), mask=g["kind"] != KIND_BACKBONE)
+    compare_with_reference(
+        g,
+        s.positions[overlapping],
+        s.vdw_radii[overlapping],
+        overlapping,
+        cube.planes(),
+        mask=g["kind"] != KIND_BACKBONE,
+    )
     inside = np.all(np.abs(g["position"][atoms] - center) <= 7.0 + 1e-3, axis=1)
     assert inside.all(), "sphere pixels outside the cube"
     # The backbone trace is drawn, outside the cube only, on C-alpha to C-alpha segments.
@@ -173,7 +199,9 @@ def test_navigation_cube_spheres_inside_backbone_outside(gl, reference_by_id):
     ends = np.concatenate([seg[1:] for seg in s.backbone if len(seg) > 1])
     a, b = s.positions[starts], s.positions[ends]
     ab = b - a
-    t = np.clip(np.einsum("pki,ki->pk", p[:, None, :] - a[None], ab) / np.einsum("ki,ki->k", ab, ab), 0, 1)
+    t = np.clip(
+        np.einsum("pki,ki->pk", p[:, None, :] - a[None], ab) / np.einsum("ki,ki->k", ab, ab), 0, 1
+    )
     dist = np.linalg.norm(p[:, None, :] - (a[None] + t[..., None] * ab[None]), axis=2).min(axis=1)
     assert dist.max() < 1e-3, "backbone pixels off the C-alpha trace"
     ids = g["atom_id"][bb]
@@ -193,7 +221,9 @@ def test_probe_drawn_unclipped_and_touched_atom_kept(gl, crambin):
     assert probe_px.sum() > 500
     # Never hidden: every pixel of the probe's own disc shows the probe.
     w, h = SIZE
-    disc, *_ = reference_cast(g["view"], g["proj"], w, h, probe_center[None], np.array([1.4]), np.array([-2]))
+    disc, *_ = reference_cast(
+        g["view"], g["proj"], w, h, probe_center[None], np.array([1.4]), np.array([-2])
+    )
     inner = (disc == -2) & ~edge_mask(disc)
     assert inner.sum() > 500 and probe_px[inner].all()
     assert np.all(g["atom_id"][probe_px] == -2)
@@ -203,7 +233,9 @@ def test_probe_drawn_unclipped_and_touched_atom_kept(gl, crambin):
     # centre) is exported and nothing in front of it hides the probe's front half.
     assert g["clip_planes"].shape == (1, 4)
     pl = g["clip_planes"][0]
-    np.testing.assert_allclose(pl[:3], (camera.target - camera.eye) / np.linalg.norm(camera.target - camera.eye))
+    np.testing.assert_allclose(
+        pl[:3], (camera.target - camera.eye) / np.linalg.norm(camera.target - camera.eye)
+    )
     assert -1.4 - 1e-9 <= pl[:3] @ probe_center + pl[3] <= 1e-9
     covered = g["atom_id"] >= 0
     assert (g["position"][covered] @ pl[:3] + pl[3]).min() >= -1e-3
@@ -224,7 +256,9 @@ def test_the_probe_plane_stands_still_within_a_step(crambin):
     for offset in ([3.0, -2.0, 0.4 * step], [-5.0, 4.0, -0.4 * step], [0.5, 0.5, 0.1 * step]):
         scene.probe = Probe(center=center + offset)
         assert scene.probe_plane(camera).tobytes() == first.tobytes(), offset
-    scene.probe = Probe(center=center + [0.0, 0.0, -0.6 * step])  # into the next step, away from the eye
+    scene.probe = Probe(
+        center=center + [0.0, 0.0, -0.6 * step]
+    )  # into the next step, away from the eye
     assert scene.probe_plane(camera)[3] == pytest.approx(first[3] - step, abs=1e-12)
 
 
@@ -240,8 +274,12 @@ def test_other_sphere_modes_match_reference(gl, crambin, mode, min_agree):
         compare_with_reference(g, s.positions, s.vdw_radii, np.arange(s.n_atoms))
         return
     w, h = SIZE
-    ref_id, ref_pos, _, _ = reference_cast(g["view"], g["proj"], w, h, s.positions, s.vdw_radii, np.arange(s.n_atoms))
+    ref_id, ref_pos, _, _ = reference_cast(
+        g["view"], g["proj"], w, h, s.positions, s.vdw_radii, np.arange(s.n_atoms)
+    )
     interior = ~edge_mask(ref_id)
     assert (g["atom_id"][interior] == ref_id[interior]).mean() >= min_agree
     both = interior & (g["atom_id"] == ref_id) & (ref_id >= 0)
-    assert np.abs(g["position"][both] - ref_pos[both]).max() < 0.1  # chord error of 20-degree facets on r <= 1.8 Å
+    assert (
+        np.abs(g["position"][both] - ref_pos[both]).max() < 0.1
+    )  # chord error of 20-degree facets on r <= 1.8 Å

@@ -5,15 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer_export import gbuffer_arrays
+from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE
+from sasprobe.render.gl.textures import release_framebuffers
 from sasprobe.render.passes.base import Pass, ProbeLighting
 from sasprobe.render.passes.probe import PROBE_COLOR
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import Probe, SceneState
-from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE
-from sasprobe.render.gl.textures import release_framebuffers
+
 from tests.render_support import edge_mask
 
 SIZE = (160, 120)
@@ -45,14 +45,19 @@ class FixedVisibility(Pass):
 
 def scene_with_probe(s):
     atom = 200
-    probe = Probe(center=s.positions[atom] + np.array([0.0, 0.3, 1.0]) / np.linalg.norm([0.0, 0.3, 1.0]) * (s.vdw_radii[atom] + 1.4),
-                  touched_atom=atom)
+    probe = Probe(
+        center=s.positions[atom]
+        + np.array([0.0, 0.3, 1.0]) / np.linalg.norm([0.0, 0.3, 1.0]) * (s.vdw_radii[atom] + 1.4),
+        touched_atom=atom,
+    )
     return SceneState(s, probe=probe), atom
 
 
 def render(gl, scene, camera, extra_pass=None):
     renderer = Renderer(gl, scene, SIZE)
-    renderer.passes.remove(renderer.pass_named("probe_cues"))  # drawn over the lit image: not the shading's
+    renderer.passes.remove(
+        renderer.pass_named("probe_cues")
+    )  # drawn over the lit image: not the shading's
     if extra_pass is not None:
         renderer.insert_before("shading", extra_pass)
     try:
@@ -85,25 +90,40 @@ def reference_light(g, albedo, scene, camera, s, vis):
         albedo[touched] = 0.4 * albedo[touched] + 0.6 * np.array(s.highlight)
     color = s.ambient * vis[..., 2:3] ** s.ao_power * albedo
     if fx.directional_light:
-        color += vis[..., 0:1] * s.directional_intensity * phong(albedo, n, v, -scene.light_direction, s)
+        color += (
+            vis[..., 0:1] * s.directional_intensity * phong(albedo, n, v, -scene.light_direction, s)
+        )
     if fx.probe_light and scene.probe is not None:
         to_probe = scene.probe.center - p
         dist = np.linalg.norm(to_probe, axis=-1, keepdims=True)
         c0, c1, c2 = s.probe_attenuation
         window = np.clip(1.0 - (dist / s.probe_range) ** 4, 0.0, 1.0) ** 2
-        atten = window / (c0 + c1 * dist + c2 * dist ** 2)
-        atoms = (g["kind"] != 3)[..., None]  # the backbone trace is context: the probe does not light it
-        color += atoms * vis[..., 1:2] * s.probe_intensity * atten * phong(albedo, n, v, to_probe / dist, s)
+        atten = window / (c0 + c1 * dist + c2 * dist**2)
+        atoms = (g["kind"] != 3)[
+            ..., None
+        ]  # the backbone trace is context: the probe does not light it
+        color += (
+            atoms
+            * vis[..., 1:2]
+            * s.probe_intensity
+            * atten
+            * phong(albedo, n, v, to_probe / dist, s)
+        )
     color = np.minimum(color, 1.0)
     probe_px = g["kind"] == KIND_PROBE
-    color[probe_px] = np.array(PROBE_COLOR) * (0.75 + 0.25 * np.clip(np.einsum("...i,...i", n, v), 0, None))[probe_px, None]
+    color[probe_px] = (
+        np.array(PROBE_COLOR)
+        * (0.75 + 0.25 * np.clip(np.einsum("...i,...i", n, v), 0, None))[probe_px, None]
+    )
     color[g["kind"] == KIND_BACKGROUND] = s.background
     return color * vis[..., 3:4]  # edge cueing scales everything
 
 
 def test_shading_pass_matches_phong_reference_with_visibility_factors(gl, crambin):
     scene, atom = scene_with_probe(crambin)
-    camera = Camera(eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0)
+    camera = Camera(
+        eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0
+    )
     rng = np.random.default_rng(3)
     vis = rng.uniform(0.0, 1.0, size=(SIZE[1], SIZE[0], 4)).astype(np.float32).astype(np.float64)
     g, lit, albedo, _, settings = render(gl, scene, camera, FixedVisibility(vis))
@@ -119,7 +139,9 @@ def test_shading_pass_matches_phong_reference_with_visibility_factors(gl, crambi
 def test_each_light_can_be_switched_off(gl, crambin, switch):
     scene, _ = scene_with_probe(crambin)
     setattr(scene.effects, switch, False)
-    camera = Camera(eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0)
+    camera = Camera(
+        eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0
+    )
     g, lit, albedo, _, settings = render(gl, scene, camera)
     ones = np.ones((SIZE[1], SIZE[0], 4))
     assert np.abs(lit - reference_light(g, albedo, scene, camera, settings, ones)).max() <= TOL
@@ -131,14 +153,18 @@ def test_each_light_can_be_switched_off(gl, crambin, switch):
 def test_touched_atom_is_highlighted(gl, crambin):
     scene, atom = scene_with_probe(crambin)
     scene.effects.probe = False  # so the touched atom is not hidden behind the probe
-    camera = Camera(eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0)
+    camera = Camera(
+        eye=scene.probe.center + np.array([4.0, 6.0, 22.0]), target=scene.probe.center, fov_y=50.0
+    )
     first, *_ = render(gl, scene, camera)
     ids, counts = np.unique(first["atom_id"][first["atom_id"] >= 0], return_counts=True)
     atom = scene.probe.touched_atom = int(ids[np.argmax(counts)])  # the atom most in view
     g, lit, albedo, _, settings = render(gl, scene, camera)
     mine = g["atom_id"] == atom
     assert mine.sum() > 50
-    np.testing.assert_allclose(albedo[mine], np.broadcast_to(crambin.colors[atom], albedo[mine].shape), atol=TOL)
+    np.testing.assert_allclose(
+        albedo[mine], np.broadcast_to(crambin.colors[atom], albedo[mine].shape), atol=TOL
+    )
     ones = np.ones((SIZE[1], SIZE[0], 4))
     assert np.abs(lit - reference_light(g, albedo, scene, camera, settings, ones)).max() <= TOL
     scene.effects.highlight = False
@@ -183,14 +209,18 @@ def test_near_surface_mask_is_the_surfaces_grown_by_fxaas_reach(gl, crambin):
     frame = renderer.render(Camera.fitted(c, r * 1.6, size[0] / size[1]))
     near = NearSurfaces(gl, renderer.programs)
     try:
-        mask = np.frombuffer(near.get(frame).read(), dtype=np.float32).reshape(size[1], size[0]) < 0.5
-        surface = renderer.targets.read(renderer.targets.ids)[::-1, :, 1] != KIND_BACKGROUND  # row 0 = bottom
+        mask = (
+            np.frombuffer(near.get(frame).read(), dtype=np.float32).reshape(size[1], size[0]) < 0.5
+        )
+        surface = (
+            renderer.targets.read(renderer.targets.ids)[::-1, :, 1] != KIND_BACKGROUND
+        )  # row 0 = bottom
         reach = FXAA_REACH_PX
         padded = np.pad(surface, reach)
         expected = np.zeros_like(surface)
         for dy in range(2 * reach + 1):
             for dx in range(2 * reach + 1):
-                expected |= padded[dy:dy + size[1], dx:dx + size[0]]
+                expected |= padded[dy : dy + size[1], dx : dx + size[0]]
         assert 0.1 < expected.mean() < 0.9
         assert np.array_equal(mask, expected)
     finally:
@@ -217,9 +247,14 @@ def test_fxaa_reads_no_further_than_its_reach(gl):
     lit_fbo, out_fbo = gl.framebuffer([lit]), gl.framebuffer([out])
     programs = ProgramCache(gl)
     fxaa = FxaaPass(gl, programs)
-    frame = SimpleNamespace(ctx=gl, targets=SimpleNamespace(lit=lit, lit_fbo=lit_fbo), size=size,
-                            plan=FramePlan(size=size), output_fbo=out_fbo,
-                            scene=SimpleNamespace(effects=SimpleNamespace(fxaa=True)))
+    frame = SimpleNamespace(
+        ctx=gl,
+        targets=SimpleNamespace(lit=lit, lit_fbo=lit_fbo),
+        size=size,
+        plan=FramePlan(size=size),
+        output_fbo=out_fbo,
+        scene=SimpleNamespace(effects=SimpleNamespace(fxaa=True)),
+    )
 
     def antialiased(image: np.ndarray) -> np.ndarray:
         lit.write(np.ascontiguousarray(image[::-1]).tobytes())
@@ -259,7 +294,11 @@ def test_a_depth_tested_target_follows_its_textures(gl):
     first.release()
     second = gl.texture((8, 4), 4, dtype="f1")
     other = target.framebuffer(second, depth)
-    assert other is not fbo and other.color_attachments[0] is second and other.depth_attachment is depth
+    assert (
+        other is not fbo
+        and other.color_attachments[0] is second
+        and other.depth_attachment is depth
+    )
     assert other.depth_mask is False
     target.release()
     second.release()

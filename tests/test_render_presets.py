@@ -7,7 +7,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from sasprobe.molecule import load_structure
 from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
 from sasprobe.render.gl.targets import KIND_BACKGROUND
@@ -16,7 +15,9 @@ from sasprobe.render.lighting.settings import AOSettings
 
 pytestmark = pytest.mark.needs_gl(430)
 SIZE = (320, 240)
-SAMPLES = 16  # ray-traced AO per pixel: the mean difference is the same as at 64 (measured 21.8 vs 21.9)
+SAMPLES = (
+    16  # ray-traced AO per pixel: the mean difference is the same as at 64 (measured 21.8 vs 21.9)
+)
 
 
 def render(gl, structure, opts: RenderOptions, camera=None):
@@ -24,14 +25,18 @@ def render(gl, structure, opts: RenderOptions, camera=None):
     renderer = make_renderer(gl, scene, opts.size, opts)
     try:
         renderer.render(camera or initial_camera(scene, opts))
-        return renderer.read_image().astype(float), renderer.targets.read(renderer.targets.ids)[..., 1]
+        return renderer.read_image().astype(float), renderer.targets.read(renderer.targets.ids)[
+            ..., 1
+        ]
     finally:
         renderer.release()
 
 
 def preset_options(name: str, **lighting) -> RenderOptions:
     base = PRESETS[name].lighting
-    return RenderOptions(size=SIZE, preset=name, lighting=replace(base, samples=SAMPLES, **lighting))
+    return RenderOptions(
+        size=SIZE, preset=name, lighting=replace(base, samples=SAMPLES, **lighting)
+    )
 
 
 @pytest.fixture(scope="module")
@@ -47,13 +52,17 @@ def test_presets_change_the_picture(gl, tii):
     # the default's shadows and AO against no lighting at all (2.3 levels before the presets)
     assert float(np.abs(images["default"] - unlit).mean()) >= 8.0
     for i, a in enumerate(PRESET_NAMES):
-        for b in PRESET_NAMES[i + 1:]:
+        for b in PRESET_NAMES[i + 1 :]:
             assert mad(a, b) >= 3.0, (a, b, mad(a, b))
-    np.testing.assert_array_equal(images["illustrative"][0, 0], [255, 255, 255])  # QuteMol's white background
+    np.testing.assert_array_equal(
+        images["illustrative"][0, 0], [255, 255, 255]
+    )  # QuteMol's white background
     dark = np.round(np.array(PRESETS["soft"].background) * 255)
     np.testing.assert_allclose(images["soft"][0, 0], dark, atol=1)
     recoloured = render(gl, tii, replace(preset_options("flat"), background=(1.0, 1.0, 0.0)))[0]
-    np.testing.assert_array_equal(recoloured[0, 0], [255, 255, 0])  # --background wins over the preset
+    np.testing.assert_array_equal(
+        recoloured[0, 0], [255, 255, 0]
+    )  # --background wins over the preset
 
 
 def test_fitted_camera_fills_the_shorter_side_on_every_shared_structure(gl, reference_entries):
@@ -67,7 +76,9 @@ def test_fitted_camera_fills_the_shorter_side_on_every_shared_structure(gl, refe
         cols = np.flatnonzero((kind != KIND_BACKGROUND).any(axis=0))
         coverage = (rows[-1] - rows[0] + 1) / size[1]
         assert coverage >= 0.7, (entry.id, coverage)
-        assert rows[0] > 0 and rows[-1] < size[1] - 1 and cols[0] > 0 and cols[-1] < size[0] - 1, entry.id
+        assert rows[0] > 0 and rows[-1] < size[1] - 1 and cols[0] > 0 and cols[-1] < size[0] - 1, (
+            entry.id
+        )
 
 
 @pytest.mark.parametrize("frame, keeps_lit", [("camera", True), ("molecule", False)])

@@ -5,7 +5,6 @@ rectangle holds every point of every sphere and little more."""
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.camera import Camera
 from sasprobe.render.rects import atoms_rect, sphere_rect, union_rect
 
@@ -18,19 +17,26 @@ def test_rectangles_hold_the_sphere():
     # every pixel whose ray meets the sphere lies inside (brute force over the frame)
     inv = np.linalg.inv(proj @ view)
     xs, ys = np.meshgrid(np.arange(size[0]) + 0.5, np.arange(size[1]) + 0.5)
-    ndc = np.stack([xs / size[0] * 2 - 1, ys / size[1] * 2 - 1, np.ones_like(xs), np.ones_like(xs)], axis=-1)
+    ndc = np.stack(
+        [xs / size[0] * 2 - 1, ys / size[1] * 2 - 1, np.ones_like(xs), np.ones_like(xs)], axis=-1
+    )
     far = ndc @ inv.T
     d = far[..., :3] / far[..., 3:] - np.array([0.0, 0.0, 30.0])
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
     oc = np.array([2.0, -1.0, 3.0]) - np.array([0.0, 0.0, 30.0])
     b = d @ oc
-    hit = b * b - (oc @ oc - 1.4 ** 2) >= 0
+    hit = b * b - (oc @ oc - 1.4**2) >= 0
     x0, y0, w, h = rect
     inside = np.zeros_like(hit)
-    inside[y0:y0 + h, x0:x0 + w] = True
+    inside[y0 : y0 + h, x0 : x0 + w] = True
     assert hit.any() and np.all(inside[hit])
     assert w * h < 0.1 * size[0] * size[1]
-    assert sphere_rect((0.0, 0.0, 30.5), 1.0, proj @ view, size) == (0, 0, 160, 120)  # holds the eye
+    assert sphere_rect((0.0, 0.0, 30.5), 1.0, proj @ view, size) == (
+        0,
+        0,
+        160,
+        120,
+    )  # holds the eye
     assert sphere_rect((500.0, 0.0, 0.0), 1.0, proj @ view, size) is None  # off screen
     assert union_rect(None, (1, 2, 3, 4)) == (1, 2, 3, 4)
     assert union_rect((0, 0, 2, 2), (5, 5, 1, 1)) == (0, 0, 6, 6)
@@ -48,8 +54,12 @@ def test_the_molecules_rectangle_holds_every_atom_and_little_more():
     slacks = []
     for trial in range(30):
         centres = rng.normal(size=(40, 3)) * 8.0
-        camera = Camera.fitted(centres.mean(axis=0) + rng.normal(size=3) * 6.0, 20.0 * rng.uniform(0.3, 1.5),
-                               size[0] / size[1], direction=rng.normal(size=3))
+        camera = Camera.fitted(
+            centres.mean(axis=0) + rng.normal(size=3) * 6.0,
+            20.0 * rng.uniform(0.3, 1.5),
+            size[0] / size[1],
+            direction=rng.normal(size=3),
+        )
         viewproj = camera.projection(size[0] / size[1]) @ camera.view()
         rect = atoms_rect(centres, 1.8, viewproj, size)
         points = (centres[:, None, :] + 1.8 * directions[None]).reshape(-1, 3)
@@ -73,5 +83,10 @@ def test_the_molecules_rectangle_holds_every_atom_and_little_more():
     assert len(slacks) > 20 and max(slacks) <= 6 and np.median(slacks) <= 3, slacks
     eye_plane = Camera(eye=(0.0, 0.0, 30.0), target=(0.0, 0.0, 0.0))
     viewproj = eye_plane.projection(4 / 3) @ eye_plane.view()
-    assert atoms_rect(np.array([[0.0, 0.0, 29.5]]), 1.0, viewproj, size) == (0, 0, 160, 120)  # reaches the eye
+    assert atoms_rect(np.array([[0.0, 0.0, 29.5]]), 1.0, viewproj, size) == (
+        0,
+        0,
+        160,
+        120,
+    )  # reaches the eye
     assert atoms_rect(np.zeros((0, 3)), 1.0, viewproj, size) is None

@@ -15,6 +15,7 @@ import numpy as np
 
 from tests.conftest import REPO_ROOT, run_window_check
 from tests.window_support import x_screenshot
+
 WINDOW = (320, 240)
 BACKGROUND = np.array([20, 23, 28])  # ShadingSettings.background * 255
 
@@ -22,8 +23,21 @@ BACKGROUND = np.array([20, 23, 28])  # ShadingSettings.background * 255
 def _start_window(display: str, *args: str) -> subprocess.Popen:
     env = dict(os.environ, DISPLAY=display, PYTHONUNBUFFERED="1")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "sasprobe", "-v", "render", "--size", f"{WINDOW[0]}x{WINDOW[1]}", *args],
-        cwd=REPO_ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        [
+            sys.executable,
+            "-m",
+            "sasprobe",
+            "-v",
+            "render",
+            "--size",
+            f"{WINDOW[0]}x{WINDOW[1]}",
+            *args,
+        ],
+        cwd=REPO_ROOT,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
     )
     deadline = time.monotonic() + 90
     lines: list[str] = []
@@ -32,7 +46,9 @@ def _start_window(display: str, *args: str) -> subprocess.Popen:
         if not line and proc.poll() is not None:
             break
         lines.append(line)
-    assert any("window open" in l for l in lines), f"no window (exit {proc.poll()}): {''.join(lines)}"
+    assert any("window open" in l for l in lines), (
+        f"no window (exit {proc.poll()}): {''.join(lines)}"
+    )
     return proc
 
 
@@ -54,9 +70,13 @@ def test_window_opens_and_shows_the_molecule(xvfb, tmp_path):
             proc.kill()
     assert proc.returncode == 0, err
     ys, xs = np.nonzero(painted)
-    assert (ys.max() - ys.min() + 1, xs.max() - xs.min() + 1) == (WINDOW[1], WINDOW[0]), "the window is not on screen at its size"
-    window = screen[ys.min(): ys.max() + 1, xs.min(): xs.max() + 1]
-    assert (np.abs(window.astype(int) - BACKGROUND).max(axis=2) <= 2).mean() > 0.2, "no background around the molecule"
+    assert (ys.max() - ys.min() + 1, xs.max() - xs.min() + 1) == (WINDOW[1], WINDOW[0]), (
+        "the window is not on screen at its size"
+    )
+    window = screen[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
+    assert (np.abs(window.astype(int) - BACKGROUND).max(axis=2) <= 2).mean() > 0.2, (
+        "no background around the molecule"
+    )
     assert _molecule_pixels(window) > 500, "the X server shows no CPK-coloured atoms"
     # The app's own screenshot (read from the window's framebuffer) shows the same picture
     # (the overlay's text and fps figures in the top-left corner aside).
@@ -96,7 +116,9 @@ def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
     def start_daemon() -> DaemonProcess:
         return DaemonProcess("--seconds", "600", device="sim:orbit", pub=pub, ctl=ctl)
 
-    proc = _start_window(xvfb, "--connect", pub, "--control", ctl, "--probe-plane", "--seconds", "600")
+    proc = _start_window(
+        xvfb, "--connect", pub, "--control", ctl, "--probe-plane", "--seconds", "600"
+    )
     daemon = None
     try:
         rows, cols = _window_region(xvfb)
@@ -107,7 +129,9 @@ def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
         deadline = time.monotonic() + 90
         while _molecule_pixels(below_text()) < 300 and time.monotonic() < deadline:
             time.sleep(1.0)
-        assert _molecule_pixels(below_text()) >= 300, "the molecule did not appear once the daemon ran"
+        assert _molecule_pixels(below_text()) >= 300, (
+            "the molecule did not appear once the daemon ran"
+        )
         daemon.stop(signal.SIGINT)
         time.sleep(3.0)
         frozen = below_text()

@@ -7,15 +7,17 @@ import json
 import freesasa
 import numpy as np
 import pytest
-
 from sasprobe.molecule import UniformGrid, load_default, load_structure
 from sasprobe.molecule.sas import ACCESSIBLE_MIN_AREA, shrake_rupley
+
 from tests.conftest import run_cli
 
 
 def freesasa_areas(structure, probe=1.4) -> np.ndarray:
     """Lee-Richards areas from FreeSASA on exactly our centres and vdW radii."""
-    params = freesasa.Parameters({"algorithm": freesasa.LeeRichards, "probe-radius": probe, "n-slices": 100})
+    params = freesasa.Parameters(
+        {"algorithm": freesasa.LeeRichards, "probe-radius": probe, "n-slices": 100}
+    )
     result = freesasa.calcCoord(structure.positions.ravel(), structure.vdw_radii, params)
     return np.array([result.atomArea(i) for i in range(structure.n_atoms)])
 
@@ -43,7 +45,9 @@ def test_isolated_and_buried_spheres_are_exact():
 def test_two_sphere_lens_matches_the_analytic_cap_area():
     # sphere 0 loses the cap of height h = R - (R^2 + d^2 - r^2) / (2 d): area 2 pi R h
     R, r, d = 3.0, 2.5, 3.5
-    result = shrake_rupley(UniformGrid(np.array([[0.0, 0, 0], [d, 0, 0]]), np.array([R, r])), 4096, 4096)
+    result = shrake_rupley(
+        UniformGrid(np.array([[0.0, 0, 0], [d, 0, 0]]), np.array([R, r])), 4096, 4096
+    )
     h = R - (R**2 + d**2 - r**2) / (2 * d)
     assert result.areas[0] == pytest.approx(4 * np.pi * R**2 - 2 * np.pi * R * h, rel=2e-3)
 
@@ -65,4 +69,8 @@ def test_cli_json_reports_radii_areas_and_flags():
 @pytest.mark.parametrize("args", [["--probe-radius", "0"], ["--points", "3"], ["--points", "x"]])
 def test_cli_bad_options(args):
     out = run_cli("sas", *args)
-    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1 and "Traceback" not in out.stderr
+    assert (
+        out.returncode == 2
+        and len(out.stderr.strip().splitlines()) == 1
+        and "Traceback" not in out.stderr
+    )

@@ -6,7 +6,6 @@ import gzip
 
 import gemmi
 import numpy as np
-
 from sasprobe.molecule import load_default, load_structure, parse_structure
 from sasprobe.molecule.elements import BONDI_RADII, FALLBACK_RADIUS
 
@@ -50,9 +49,18 @@ def test_every_shared_structure_loads_with_the_expected_count(reference_entries)
             assert s.n_atoms == entry.atoms, entry.id
         assert s.positions.shape == (s.n_atoms, 3) and s.positions.dtype == np.float64
         assert np.all(np.isfinite(s.positions))
-        assert s.vdw_radii.shape == (s.n_atoms,) and np.all((s.vdw_radii > 1.0) & (s.vdw_radii < 3.0))
+        assert s.vdw_radii.shape == (s.n_atoms,) and np.all(
+            (s.vdw_radii > 1.0) & (s.vdw_radii < 3.0)
+        )
         assert s.colors.shape == (s.n_atoms, 3) and np.all((s.colors >= 0) & (s.colors <= 1))
-        for column in (s.elements, s.chain_ids, s.residue_names, s.residue_numbers, s.atom_names, s.is_hetero):
+        for column in (
+            s.elements,
+            s.chain_ids,
+            s.residue_names,
+            s.residue_numbers,
+            s.atom_names,
+            s.is_hetero,
+        ):
             assert column.shape == (s.n_atoms,)
         assert len(s.sha256) == 64
 
@@ -99,7 +107,9 @@ def test_altloc_keeps_highest_occupancy_then_first():
 
 
 def test_first_model_only_and_hydrogens_kept():
-    m1 = _pdb_line(1, "N", "", "GLY", "A", 1, (0, 0, 0), 1, "N") + _pdb_line(2, "H", "", "GLY", "A", 1, (0, 1, 0), 1, "H")
+    m1 = _pdb_line(1, "N", "", "GLY", "A", 1, (0, 0, 0), 1, "N") + _pdb_line(
+        2, "H", "", "GLY", "A", 1, (0, 1, 0), 1, "H"
+    )
     m2 = _pdb_line(1, "N", "", "GLY", "A", 1, (5, 5, 5), 1, "N")
     text = f"MODEL        1\n{m1}ENDMDL\nMODEL        2\n{m2}ENDMDL\nEND\n"
     s = parse_structure(text.encode(), name="t", source="t.pdb")

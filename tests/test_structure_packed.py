@@ -8,12 +8,22 @@ import io
 
 import numpy as np
 import pytest
-
 from sasprobe.molecule import StructureError, load_structure
 from sasprobe.molecule.packed import pack_structure, unpack_structure
 
-FIELDS = ("positions", "elements", "vdw_radii", "colors", "chain_ids", "residue_names", "residue_numbers",
-          "insertion_codes", "atom_names", "is_hetero", "b_factors")
+FIELDS = (
+    "positions",
+    "elements",
+    "vdw_radii",
+    "colors",
+    "chain_ids",
+    "residue_names",
+    "residue_numbers",
+    "insertion_codes",
+    "atom_names",
+    "is_hetero",
+    "b_factors",
+)
 
 
 @pytest.mark.parametrize("sid", ["1crn", "1aon"])
@@ -26,7 +36,11 @@ def test_unpacked_arrays_equal_the_parsed_files(reference_by_id, sid):
     assert unpacked.backbone_chains == parsed.backbone_chains
     assert len(unpacked.backbone) == len(parsed.backbone) > 0
     assert all(np.array_equal(a, b) for a, b in zip(unpacked.backbone, parsed.backbone))
-    assert (unpacked.name, unpacked.sha256, unpacked.n_atoms) == (parsed.name, parsed.sha256, parsed.n_atoms)
+    assert (unpacked.name, unpacked.sha256, unpacked.n_atoms) == (
+        parsed.name,
+        parsed.sha256,
+        parsed.n_atoms,
+    )
 
 
 def _repacked(data: bytes, **changes) -> bytes:
@@ -46,8 +60,12 @@ def test_bad_packed_bytes_are_one_line_naming_the_source(crambin):
         "not an archive": b"ATOM      1  N",
         "truncated": good[: len(good) // 2],
         "a coordinate at infinity": _repacked(good, positions=np.full((n, 3), np.inf)),
-        "an index beyond the names": _repacked(good, atom_names_index=np.full(n, 10_000, dtype=np.int32)),
-        "a backbone atom beyond the atoms": _repacked(good, backbone_atoms=np.full(46, n, dtype=np.int64)),
+        "an index beyond the names": _repacked(
+            good, atom_names_index=np.full(n, 10_000, dtype=np.int32)
+        ),
+        "a backbone atom beyond the atoms": _repacked(
+            good, backbone_atoms=np.full(46, n, dtype=np.int64)
+        ),
         "one b-factor short": _repacked(good, b_factors=np.zeros(n - 1)),
         "a missing array": _repacked(good, is_hetero=None),
     }

@@ -12,19 +12,21 @@ import math
 
 import numpy as np
 import pytest
-
 from sasprobe.daemon.buttons import KEY_CLUTCH_LEASE_S, ButtonMap, WorkspaceInputs, parse_button
 from sasprobe.daemon.haptics import HapticEngine, HapticPipeline, SafetyGuard
 from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceState, open_device
 from sasprobe.devices.workspace import WorkspaceMapping, validate_rotation
 from sasprobe.molecule import load_default, load_structure
 from sasprobe.protocol.pose import FLAG_CLUTCHED
+
 from tests.haptics_reference import signed_distance
 
 CRAMBIN = load_default()
 LIMITS = PHANTOM_OMNI_LIMITS
 OMNI_HALF_MM = 35.0  # the Omni-class box is 160 x 120 x 70 mm: its inscribed cube
-TURN_Y = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])  # -90° about y: device x -> molecule +z
+TURN_Y = np.array(
+    [[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]
+)  # -90° about y: device x -> molecule +z
 
 
 def state(k: int, tip, buttons: int = 0) -> DeviceState:
@@ -48,7 +50,9 @@ def test_default_cube_scale_and_context_rule(big):
     for structure in (CRAMBIN, *big.values()):
         m = WorkspaceMapping.initial(structure, LIMITS)
         reach = structure.vdw_radii.max() + 1.4
-        smallest = float(np.min(structure.positions.max(0) - structure.positions.min(0) + 2 * reach))
+        smallest = float(
+            np.min(structure.positions.max(0) - structure.positions.min(0) + 2 * reach)
+        )
         assert m.cube_half_A == pytest.approx(min(0.4 * OMNI_HALF_MM, 0.2 * smallest))
     assert WorkspaceMapping.initial(big["1aon"], LIMITS).scale_A_per_mm == pytest.approx(0.4)
     fit = WorkspaceMapping.initial(CRAMBIN, LIMITS, "fit")  # the whole SAS in the drift-free core
@@ -91,14 +95,21 @@ def test_turning_the_view_turns_the_mapping_about_the_goal():
     p = np.array([3.0, 14.0, -2.0])
     assert np.allclose(m.to_molecule(*m.to_device(*p)), p)
     x, y, z = m.workspace_center_mm
-    m.advance(x + m.half_mm, y, z, 0.1)  # at the +x face the cube drifts along device x, in the molecule R[:, 0]
+    m.advance(
+        x + m.half_mm, y, z, 0.1
+    )  # at the +x face the cube drifts along device x, in the molecule R[:, 0]
     drift = np.array(m.cube_center) - (goal - s * R @ (np.array(tip) - m.workspace_center_mm))
     assert np.allclose(drift / np.linalg.norm(drift), R[:, 0], atol=1e-9)
 
 
 def test_a_view_rotation_must_be_a_proper_rotation():
     assert np.allclose(np.array(validate_rotation(TURN_Y)).reshape(3, 3), TURN_Y)
-    for bad in (np.diag([1.0, 1.0, -1.0]), 2 * np.eye(3), np.full((3, 3), np.nan), [[1, 0], [0, 1]]):
+    for bad in (
+        np.diag([1.0, 1.0, -1.0]),
+        2 * np.eye(3),
+        np.full((3, 3), np.nan),
+        [[1, 0], [0, 1]],
+    ):
         with pytest.raises(ValueError):
             validate_rotation(bad)
 
@@ -117,7 +128,9 @@ def test_clutch_holds_the_probe_while_the_arm_moves_then_lets_go_without_a_jump(
     assert out.contact and np.linalg.norm(out.force_n) > 0.05
     held_proxy, held_goal = out.proxy_A.copy(), out.goal_A.copy()
     engine.set_clutch(True)
-    for tip in np.linspace(into, into + [12.0, -6.0, 9.0], 400):  # the arm is brought back toward the middle
+    for tip in np.linspace(
+        into, into + [12.0, -6.0, 9.0], 400
+    ):  # the arm is brought back toward the middle
         out = engine.step(state(k, tip))
         k += 1
         assert out.clutched and np.array_equal(out.force_n, np.zeros(3))
@@ -163,7 +176,9 @@ def test_button_map_edges_and_the_key_clutch_lease():
     lease = int(KEY_CLUTCH_LEASE_S * 1e9)
     assert inputs.tick(None, 11) == [("clutch", {"held": True})]
     assert inputs.tick(None, 10 + lease) == []  # renewed in time or not, held until the lease ends
-    assert inputs.tick(None, 11 + lease) == [("clutch", {"held": False})]  # a window that died lets go
+    assert inputs.tick(None, 11 + lease) == [
+        ("clutch", {"held": False})
+    ]  # a window that died lets go
     replayed = WorkspaceInputs(ButtonMap(), map_device_buttons=False)
     assert replayed.tick(0b11, 0) == []  # a replay's buttons are its recorded events' business
 
@@ -183,12 +198,18 @@ def test_simulated_hand_stays_within_the_continuous_rating(script):
     pipeline = HapticPipeline(HapticEngine(CRAMBIN, LIMITS), SafetyGuard(LIMITS))
     device.open()
     forces = []
-    seconds = {"scan": device.script.duration_s + 1.0, "press": device.script.duration_s, "random": 10.0}[script]
+    seconds = {
+        "scan": device.script.duration_s + 1.0,
+        "press": device.script.duration_s,
+        "random": 10.0,
+    }[script]
     for _ in range(int(seconds * 1000)):
         result = pipeline.step(device.read(), None, 0.0)
         device.write_force(result.force_n)
         forces.append(np.linalg.norm(result.force_n))
     forces = np.array(forces)
     assert device.peak_hand_force_n < LIMITS.continuous_force_n
-    assert (forces > LIMITS.continuous_force_n).mean() <= (0.03 if script == "random" else 0.001), script
+    assert (forces > LIMITS.continuous_force_n).mean() <= (0.03 if script == "random" else 0.001), (
+        script
+    )
     assert forces.max() < LIMITS.max_force_n and np.count_nonzero(forces) > 100

@@ -14,7 +14,6 @@ import numpy as np
 def glfw_window(size: tuple[int, int], title: str):
     """(window, moderngl context) of a real window; destroyed and glfw terminated afterwards."""
     import glfw
-
     from sasprobe.render.gl.context import create_window
 
     window, ctx = create_window(size, title)
@@ -33,10 +32,20 @@ def press(app, key: int, mods: int = 0) -> None:
 
 
 class _XImage(ctypes.Structure):
-    _fields_ = [("width", ctypes.c_int), ("height", ctypes.c_int), ("xoffset", ctypes.c_int),
-                ("format", ctypes.c_int), ("data", ctypes.c_void_p), ("byte_order", ctypes.c_int),
-                ("bitmap_unit", ctypes.c_int), ("bitmap_bit_order", ctypes.c_int), ("bitmap_pad", ctypes.c_int),
-                ("depth", ctypes.c_int), ("bytes_per_line", ctypes.c_int), ("bits_per_pixel", ctypes.c_int)]
+    _fields_ = [
+        ("width", ctypes.c_int),
+        ("height", ctypes.c_int),
+        ("xoffset", ctypes.c_int),
+        ("format", ctypes.c_int),
+        ("data", ctypes.c_void_p),
+        ("byte_order", ctypes.c_int),
+        ("bitmap_unit", ctypes.c_int),
+        ("bitmap_bit_order", ctypes.c_int),
+        ("bitmap_pad", ctypes.c_int),
+        ("depth", ctypes.c_int),
+        ("bytes_per_line", ctypes.c_int),
+        ("bits_per_pixel", ctypes.c_int),
+    ]
 
 
 def _xlib():
@@ -46,8 +55,16 @@ def _xlib():
     lib.XDefaultRootWindow.restype = ctypes.c_ulong
     lib.XDefaultRootWindow.argtypes = [ctypes.c_void_p]
     lib.XGetImage.restype = ctypes.POINTER(_XImage)
-    lib.XGetImage.argtypes = [ctypes.c_void_p, ctypes.c_ulong, ctypes.c_int, ctypes.c_int, ctypes.c_uint,
-                              ctypes.c_uint, ctypes.c_ulong, ctypes.c_int]
+    lib.XGetImage.argtypes = [
+        ctypes.c_void_p,
+        ctypes.c_ulong,
+        ctypes.c_int,
+        ctypes.c_int,
+        ctypes.c_uint,
+        ctypes.c_uint,
+        ctypes.c_ulong,
+        ctypes.c_int,
+    ]
     lib.XCloseDisplay.argtypes = [ctypes.c_void_p]
     lib.XSync.argtypes = [ctypes.c_void_p, ctypes.c_int]
     return lib
@@ -84,4 +101,9 @@ def x_window_image(window) -> np.ndarray:
 
     w, h = glfw.get_window_size(window)
     dpy = glfw.get_x11_display()
-    return x_image(dpy if isinstance(dpy, ctypes.c_void_p) else ctypes.c_void_p(dpy), glfw.get_x11_window(window), w, h)
+    return x_image(
+        dpy if isinstance(dpy, ctypes.c_void_p) else ctypes.c_void_p(dpy),
+        glfw.get_x11_window(window),
+        w,
+        h,
+    )

@@ -28,6 +28,7 @@ def main() -> int:
     import sys
 
     from sasprobe.daemon.findings.report import summary_lines, write_findings
+
     from sasprobe.common.errors import UserError
 
     p = argparse.ArgumentParser(prog="python -m sasprobe.daemon.findings")
@@ -39,7 +40,10 @@ def main() -> int:
     try:
         found = write_findings(args.recording, args.dir, args.probe_radius)
     except UserError as exc:
-        print(json.dumps({"error": str(exc)}) if args.json else str(exc), file=sys.stdout if args.json else sys.stderr)
+        print(
+            json.dumps({"error": str(exc)}) if args.json else str(exc),
+            file=sys.stdout if args.json else sys.stderr,
+        )
         return 2
     if args.json:
         print(json.dumps(brief(found)))
@@ -50,9 +54,15 @@ def main() -> int:
 
 def brief(found: dict) -> dict:
     """What the daemon's `status` shows of a finished analysis (findings.json has the rest)."""
-    return {"files": found["files"], "bottleneck": found["bottleneck"], "verdict": found["verdict"],
-            "marks": len(found["marks"]), "touched_residues": len(found["touched_residues"]),
-            "session": found["session"], "notes": found["notes"]}
+    return {
+        "files": found["files"],
+        "bottleneck": found["bottleneck"],
+        "verdict": found["verdict"],
+        "marks": len(found["marks"]),
+        "touched_residues": len(found["touched_residues"]),
+        "session": found["session"],
+        "notes": found["notes"],
+    }
 
 
 if __name__ == "__main__":

@@ -15,11 +15,10 @@ r (to round-off, ROUND_OFF_A): then it fits everywhere along the explored path.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Callable
 
 import numpy as np
-
 from sasprobe.daemon.findings.contacts import residue_of
 from sasprobe.daemon.findings.path import ExploredPath
 from sasprobe.daemon.findings.session import Track
@@ -41,8 +40,9 @@ class Profile:
         return np.where(self.bounded, [p.radius_A for p in self.passage], OPEN_RADIUS_A)
 
 
-def profile(path: ExploredPath, field: ClearanceField,
-            progress: Callable[[int], None] | None = None) -> Profile:
+def profile(
+    path: ExploredPath, field: ClearanceField, progress: Callable[[int], None] | None = None
+) -> Profile:
     clearance, _ = field.clearance(path.position_A)
     passages = []
     for point, direction in zip(path.position_A, path.direction):
@@ -53,8 +53,9 @@ def profile(path: ExploredPath, field: ClearanceField,
     return Profile(clearance, passages, bounded)
 
 
-def bottleneck(track: Track, path: ExploredPath, prof: Profile,
-               field: ClearanceField) -> tuple[dict | None, ExploredPath, Profile]:
+def bottleneck(
+    track: Track, path: ExploredPath, prof: Profile, field: ClearanceField
+) -> tuple[dict | None, ExploredPath, Profile]:
     """The narrowest counted passage in contact (None when there is none), and the path and
     profile with its refined tick in them."""
     candidates = np.flatnonzero(path.contact & prof.bounded)
@@ -69,19 +70,27 @@ def bottleneck(track: Track, path: ExploredPath, prof: Profile,
         between = between[np.linspace(0, between.size - 1, REFINE_TICKS).round().astype(int)]
     direction_of = {}
     for tick in between:
-        nearest = lo + int(np.argmin(np.abs(path.ticks[lo:hi + 1] - tick)))
+        nearest = lo + int(np.argmin(np.abs(path.ticks[lo : hi + 1] - tick)))
         direction_of[int(tick)] = path.direction[nearest]
         trial = field.passage(track.proxy_A[tick], direction_of[int(tick)])
         if not trial.open and trial.radius_A < best.radius_A:
             best_tick, best = int(tick), trial
     if best_tick not in path.ticks:
-        path, prof, j = _with_tick(track, path, prof, field, best_tick, direction_of[best_tick], best)
+        path, prof, j = _with_tick(
+            track, path, prof, field, best_tick, direction_of[best_tick], best
+        )
     s = track.structure
     atoms = []
     for atom in best.atoms:
         d = float(np.linalg.norm(best.center_A - s.positions[atom]) - s.vdw_radii[atom])
-        atoms.append({**residue_of(s, int(atom)), "atom": str(s.atom_names[atom]), "index": int(atom),
-                      "surface_distance_A": d})
+        atoms.append(
+            {
+                **residue_of(s, int(atom)),
+                "atom": str(s.atom_names[atom]),
+                "index": int(atom),
+                "surface_distance_A": d,
+            }
+        )
     neck = {
         "radius_A": best.radius_A,
         "t_s": float(track.t_s[best_tick]),
@@ -94,30 +103,51 @@ def bottleneck(track: Track, path: ExploredPath, prof: Profile,
     return neck, path, prof
 
 
-def _with_tick(track: Track, path: ExploredPath, prof: Profile, field: ClearanceField, tick: int,
-               direction: np.ndarray, passage: Passage) -> tuple[ExploredPath, Profile, int]:
+def _with_tick(
+    track: Track,
+    path: ExploredPath,
+    prof: Profile,
+    field: ClearanceField,
+    tick: int,
+    direction: np.ndarray,
+    passage: Passage,
+) -> tuple[ExploredPath, Profile, int]:
     """The path and profile with one more point, at a raw tick (and its index)."""
     k = int(np.searchsorted(path.ticks, tick))
     ticks = np.insert(path.ticks, k, tick)
     pos = track.proxy_A[ticks]
     starts = np.concatenate(([0], ticks[:-1] + 1))
     length = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(pos, axis=0), axis=1))))
-    new_path = replace(path, ticks=ticks, position_A=pos, t_s=track.t_s[ticks],
-                       contact=np.logical_or.reduceat(track.contact, starts),
-                       force_max_N=np.maximum.reduceat(track.force_N, starts), length_A=length,
-                       direction=np.insert(path.direction, k, direction, axis=0))
+    new_path = replace(
+        path,
+        ticks=ticks,
+        position_A=pos,
+        t_s=track.t_s[ticks],
+        contact=np.logical_or.reduceat(track.contact, starts),
+        force_max_N=np.maximum.reduceat(track.force_N, starts),
+        length_A=length,
+        direction=np.insert(path.direction, k, direction, axis=0),
+    )
     clearance = np.insert(prof.clearance_A, k, field.clearance(track.proxy_A[tick])[0][0])
-    new_prof = Profile(clearance, [*prof.passage[:k], passage, *prof.passage[k:]], np.insert(prof.bounded, k, True))
+    new_prof = Profile(
+        clearance, [*prof.passage[:k], passage, *prof.passage[k:]], np.insert(prof.bounded, k, True)
+    )
     return new_path, new_prof, k
 
 
 def verdict(bottleneck_A: float | None, probe_radius_A: float) -> dict:
     """Whether a probe of this radius fits everywhere along the explored path."""
     if bottleneck_A is None:
-        return {"probe_radius_A": probe_radius_A, "passes": True,
-                "verdict": f"no passage narrower than {OPEN_RADIUS_A:g} Å where the probe touched: "
-                           f"a {probe_radius_A:g} Å probe fits all along the path"}
+        return {
+            "probe_radius_A": probe_radius_A,
+            "passes": True,
+            "verdict": f"no passage narrower than {OPEN_RADIUS_A:g} Å where the probe touched: "
+            f"a {probe_radius_A:g} Å probe fits all along the path",
+        }
     passes = bottleneck_A >= probe_radius_A - ROUND_OFF_A
     how = "fits" if passes else "does not fit"
-    return {"probe_radius_A": probe_radius_A, "passes": bool(passes),
-            "verdict": f"a {probe_radius_A:g} Å probe {how} through the bottleneck of {bottleneck_A:.2f} Å"}
+    return {
+        "probe_radius_A": probe_radius_A,
+        "passes": bool(passes),
+        "verdict": f"a {probe_radius_A:g} Å probe {how} through the bottleneck of {bottleneck_A:.2f} Å",
+    }

@@ -10,10 +10,9 @@ centre within MARK_RADIUS_A of it.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
-
 from sasprobe.daemon.findings.session import Track
 from sasprobe.molecule import Structure
 from sasprobe.molecule.clearance import ClearanceField
@@ -24,17 +23,26 @@ MARK_RADIUS_A = 4.0
 
 def residue_of(structure: Structure, atom: int) -> dict:
     """Chain, residue name, number and insertion code of an atom."""
-    return {"chain": str(structure.chain_ids[atom]), "name": str(structure.residue_names[atom]),
-            "number": int(structure.residue_numbers[atom]), "icode": str(structure.insertion_codes[atom])}
+    return {
+        "chain": str(structure.chain_ids[atom]),
+        "name": str(structure.residue_names[atom]),
+        "number": int(structure.residue_numbers[atom]),
+        "icode": str(structure.insertion_codes[atom]),
+    }
 
 
 def _residue_key(structure: Structure, atom: int) -> tuple:
-    return (str(structure.chain_ids[atom]), int(structure.residue_numbers[atom]),
-            str(structure.insertion_codes[atom]), str(structure.residue_names[atom]))
+    return (
+        str(structure.chain_ids[atom]),
+        int(structure.residue_numbers[atom]),
+        str(structure.insertion_codes[atom]),
+        str(structure.residue_names[atom]),
+    )
 
 
-def touched_atoms_per_tick(track: Track, field: ClearanceField,
-                           progress: Callable[[int], None] | None = None) -> dict[int, list[int]]:
+def touched_atoms_per_tick(
+    track: Track, field: ClearanceField, progress: Callable[[int], None] | None = None
+) -> dict[int, list[int]]:
     """Contact tick index -> the atoms touched then (ticks at an unchanged position share one query)."""
     reach = track.probe_radius_A + CONTACT_TOLERANCE_A
     out: dict[int, list[int]] = {}
@@ -63,8 +71,14 @@ def touched_residues(track: Track, per_tick: dict[int, list[int]]) -> list[dict]
             key = _residue_key(s, atom)
             row = rows.get(key)
             if row is None:
-                row = rows[key] = {**residue_of(s, atom), "atoms": {}, "contact_s": 0.0, "max_force_N": 0.0,
-                                   "first_s": t, "last_s": t}
+                row = rows[key] = {
+                    **residue_of(s, atom),
+                    "atoms": {},
+                    "contact_s": 0.0,
+                    "max_force_N": 0.0,
+                    "first_s": t,
+                    "last_s": t,
+                }
             name = str(s.atom_names[atom])
             row["atoms"][name] = row["atoms"].get(name, 0) + 1
             if key not in seen:
@@ -87,5 +101,11 @@ def residues_near(structure: Structure, point, radius_A: float = MARK_RADIUS_A) 
         key = _residue_key(structure, int(atom))
         if key not in best or dist[atom] < best[key][0]:
             best[key] = (float(dist[atom]), int(atom))
-    return [{**residue_of(structure, atom), "nearest_atom": str(structure.atom_names[atom]), "distance_A": d}
-            for d, atom in sorted(best.values())]
+    return [
+        {
+            **residue_of(structure, atom),
+            "nearest_atom": str(structure.atom_names[atom]),
+            "distance_A": d,
+        }
+        for d, atom in sorted(best.values())
+    ]

@@ -24,7 +24,6 @@ from pathlib import Path
 
 import gemmi
 import numpy as np
-
 from sasprobe.molecule.clearance import OPEN_RADIUS_A
 
 PATH_CHAIN, MARK_CHAIN = "P", "M"
@@ -45,7 +44,12 @@ def path_structure(points: np.ndarray, b_factors: np.ndarray, marks: list[dict])
     st.name = "sasprobe_path"
     model = gemmi.Model(1)
     for chain_name, resname, atom_name, rows in (
-        (PATH_CHAIN, "PTH", "PT", [(k + 1, p, b) for k, (p, b) in enumerate(zip(points, b_factors))]),
+        (
+            PATH_CHAIN,
+            "PTH",
+            "PT",
+            [(k + 1, p, b) for k, (p, b) in enumerate(zip(points, b_factors))],
+        ),
         (MARK_CHAIN, "MRK", "MK", [(m["id"], m["position_A"], 0.0) for m in marks]),
     ):
         chain = gemmi.Chain(chain_name)
@@ -88,50 +92,97 @@ def _quoted(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', "'") + '"'
 
 
-def pymol_script(folder: Path, structure_file: str, probe_radius_A: float, residues: list[dict],
-                 marks: list[dict], bottleneck: dict | None, title: str) -> str:
-    lines = [f"# {title}", "# written by sasprobe replay --findings (open it with: pymol session.pml)",
-             f"cd {folder.resolve()}", f"load {structure_file}, structure", "load path.pdb, path",
-             "hide everything, path",
-             f"show spheres, path and chain {PATH_CHAIN}", f"set sphere_scale, 0.25, path and chain {PATH_CHAIN}",
-             f"spectrum b, red_white_blue, path and chain {PATH_CHAIN}, "
-             f"minimum={probe_radius_A:g}, maximum={OPEN_RADIUS_A:g}"]
+def pymol_script(
+    folder: Path,
+    structure_file: str,
+    probe_radius_A: float,
+    residues: list[dict],
+    marks: list[dict],
+    bottleneck: dict | None,
+    title: str,
+) -> str:
+    lines = [
+        f"# {title}",
+        "# written by sasprobe replay --findings (open it with: pymol session.pml)",
+        f"cd {folder.resolve()}",
+        f"load {structure_file}, structure",
+        "load path.pdb, path",
+        "hide everything, path",
+        f"show spheres, path and chain {PATH_CHAIN}",
+        f"set sphere_scale, 0.25, path and chain {PATH_CHAIN}",
+        f"spectrum b, red_white_blue, path and chain {PATH_CHAIN}, "
+        f"minimum={probe_radius_A:g}, maximum={OPEN_RADIUS_A:g}",
+    ]
     if marks:
-        lines += [f"show spheres, path and chain {MARK_CHAIN}", f"set sphere_scale, 0.6, path and chain {MARK_CHAIN}",
-                  f"color magenta, path and chain {MARK_CHAIN}"]
-        lines += [f"label path and chain {MARK_CHAIN} and resi {m['id']}, {_quoted(str(m['id']) + ': ' + m['label'])}"
-                  for m in marks]
+        lines += [
+            f"show spheres, path and chain {MARK_CHAIN}",
+            f"set sphere_scale, 0.6, path and chain {MARK_CHAIN}",
+            f"color magenta, path and chain {MARK_CHAIN}",
+        ]
+        lines += [
+            f"label path and chain {MARK_CHAIN} and resi {m['id']}, {_quoted(str(m['id']) + ': ' + m['label'])}"
+            for m in marks
+        ]
     if residues:
-        terms = [f"({'chain ' + c + ' and ' if c else ''}resi {'+'.join(nums)})"
-                 for c, nums in _grouped(residues).items()]
+        terms = [
+            f"({'chain ' + c + ' and ' if c else ''}resi {'+'.join(nums)})"
+            for c, nums in _grouped(residues).items()
+        ]
         lines += [f"select touched, structure and ({' or '.join(terms)})", "show sticks, touched"]
     if bottleneck is not None:
-        terms = [f"({'chain ' + a['chain'].strip() + ' and ' if a['chain'].strip() else ''}resi "
-                 f"{a['number']}{a['icode'].strip()} and name {a['atom']})" for a in bottleneck["atoms"]]
+        terms = [
+            f"({'chain ' + a['chain'].strip() + ' and ' if a['chain'].strip() else ''}resi "
+            f"{a['number']}{a['icode'].strip()} and name {a['atom']})"
+            for a in bottleneck["atoms"]
+        ]
         c = bottleneck["center_A"]
         label = _quoted(f"bottleneck {bottleneck['radius_A']:.2f} A")
-        lines += [f"select bottleneck, structure and ({' or '.join(terms)})", "show spheres, bottleneck",
-                  f"pseudoatom bottleneck_centre, pos=[{c[0]:.3f}, {c[1]:.3f}, {c[2]:.3f}], label={label}"]
+        lines += [
+            f"select bottleneck, structure and ({' or '.join(terms)})",
+            "show spheres, bottleneck",
+            f"pseudoatom bottleneck_centre, pos=[{c[0]:.3f}, {c[1]:.3f}, {c[2]:.3f}], label={label}",
+        ]
     lines += ["deselect", "orient path"]
     return "\n".join(lines) + "\n"
 
 
-def chimerax_script(folder: Path, structure_file: str, probe_radius_A: float, residues: list[dict],
-                    marks: list[dict], bottleneck: dict | None, title: str) -> str:
-    lines = [f"# {title}", "# written by sasprobe replay --findings (open it with: chimerax session.cxc)",
-             f"cd {_quoted(str(folder.resolve()))}", f"open {structure_file}", "open path.pdb",
-             "show #2 atoms", "style #2 sphere", f"size #2/{PATH_CHAIN} atomRadius 0.25",
-             f"color bfactor #2/{PATH_CHAIN} palette red:white:blue range {probe_radius_A:g},{OPEN_RADIUS_A:g}"]
+def chimerax_script(
+    folder: Path,
+    structure_file: str,
+    probe_radius_A: float,
+    residues: list[dict],
+    marks: list[dict],
+    bottleneck: dict | None,
+    title: str,
+) -> str:
+    lines = [
+        f"# {title}",
+        "# written by sasprobe replay --findings (open it with: chimerax session.cxc)",
+        f"cd {_quoted(str(folder.resolve()))}",
+        f"open {structure_file}",
+        "open path.pdb",
+        "show #2 atoms",
+        "style #2 sphere",
+        f"size #2/{PATH_CHAIN} atomRadius 0.25",
+        f"color bfactor #2/{PATH_CHAIN} palette red:white:blue range {probe_radius_A:g},{OPEN_RADIUS_A:g}",
+    ]
     if marks:
         lines += [f"size #2/{MARK_CHAIN} atomRadius 0.6", f"color #2/{MARK_CHAIN} magenta"]
-        lines += [f"label #2/{MARK_CHAIN}:{m['id']} atoms text {_quoted(str(m['id']) + ': ' + m['label'])}"
-                  for m in marks]
+        lines += [
+            f"label #2/{MARK_CHAIN}:{m['id']} atoms text {_quoted(str(m['id']) + ': ' + m['label'])}"
+            for m in marks
+        ]
     if residues:
-        spec = " ".join(f"#1{'/' + c if c else ''}:{','.join(nums)}" for c, nums in _grouped(residues).items())
+        spec = " ".join(
+            f"#1{'/' + c if c else ''}:{','.join(nums)}" for c, nums in _grouped(residues).items()
+        )
         lines += [f"name touched {spec}", "show touched atoms", "style touched stick"]
     if bottleneck is not None:
-        spec = " ".join(f"#1{'/' + a['chain'].strip() if a['chain'].strip() else ''}:"
-                        f"{a['number']}{a['icode'].strip()}@{a['atom']}" for a in bottleneck["atoms"])
+        spec = " ".join(
+            f"#1{'/' + a['chain'].strip() if a['chain'].strip() else ''}:"
+            f"{a['number']}{a['icode'].strip()}@{a['atom']}"
+            for a in bottleneck["atoms"]
+        )
         lines += [f"name bottleneck {spec}", "show bottleneck atoms", "style bottleneck sphere"]
     lines += ["view #2"]
     return "\n".join(lines) + "\n"

@@ -17,7 +17,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
 from sasprobe.daemon.findings.session import Track
 
 SPACING_A = 0.25
@@ -41,12 +40,17 @@ class ExploredPath:
         return int(self.ticks.size)
 
 
-def explored_path(track: Track, touching: dict[int, list[int]], spacing_A: float = SPACING_A) -> ExploredPath:
+def explored_path(
+    track: Track, touching: dict[int, list[int]], spacing_A: float = SPACING_A
+) -> ExploredPath:
     """The path of a track; `touching` maps each contact tick to the atoms it touches."""
     p = track.proxy_A
     n = track.n_ticks
     touched = [frozenset(touching.get(i, ())) for i in range(n)]
-    wedged = [len(now) >= 3 and now != before for now, before in zip(touched, [frozenset()] + touched[:-1])]
+    wedged = [
+        len(now) >= 3 and now != before
+        for now, before in zip(touched, [frozenset()] + touched[:-1])
+    ]
     forced = np.zeros(n, dtype=bool)
     forced[[0, n - 1]] = True
     for mark in track.marks:
@@ -54,28 +58,44 @@ def explored_path(track: Track, touching: dict[int, list[int]], spacing_A: float
     travelled = float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum())
     widen = max(1.0, travelled / (MAX_POINTS * spacing_A) * 1.25)
     while True:
-        ticks = _kept_ticks(p.tolist(), forced.tolist(), wedged, touched, spacing_A * widen, PIN_SPACING_A * widen)
+        ticks = _kept_ticks(
+            p.tolist(), forced.tolist(), wedged, touched, spacing_A * widen, PIN_SPACING_A * widen
+        )
         if ticks.size <= MAX_POINTS or widen > 1e6:
             break
         widen *= 1.5
-    starts = np.concatenate(([0], ticks[:-1] + 1))  # each point stands for ticks starts[k] .. ticks[k]
+    starts = np.concatenate(
+        ([0], ticks[:-1] + 1)
+    )  # each point stands for ticks starts[k] .. ticks[k]
     force = np.maximum.reduceat(track.force_N, starts)
     contact = np.logical_or.reduceat(track.contact, starts)
     pos = p[ticks]
     length = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(pos, axis=0), axis=1))))
-    return ExploredPath(ticks=ticks, position_A=pos, t_s=track.t_s[ticks], contact=contact,
-                        force_max_N=force, length_A=length, direction=travel_directions(pos),
-                        spacing_A=spacing_A * widen)
+    return ExploredPath(
+        ticks=ticks,
+        position_A=pos,
+        t_s=track.t_s[ticks],
+        contact=contact,
+        force_max_N=force,
+        length_A=length,
+        direction=travel_directions(pos),
+        spacing_A=spacing_A * widen,
+    )
 
 
-def _kept_ticks(points: list, forced: list, wedged: list, touched: list, spacing: float,
-                pin_spacing: float) -> np.ndarray:
+def _kept_ticks(
+    points: list, forced: list, wedged: list, touched: list, spacing: float, pin_spacing: float
+) -> np.ndarray:
     """One pass in plain floats over the ticks: the indices the path keeps."""
     kept = []
     last, last_touched = points[0], None
     for i, (point, must, wedge) in enumerate(zip(points, forced, wedged)):
         moved = math.dist(point, last)
-        if must or moved >= spacing or (wedge and (touched[i] != last_touched or moved >= pin_spacing)):
+        if (
+            must
+            or moved >= spacing
+            or (wedge and (touched[i] != last_touched or moved >= pin_spacing))
+        ):
             kept.append(i)
             last, last_touched = point, touched[i]
     return np.array(kept, dtype=np.int64)

@@ -20,15 +20,31 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
-from sasprobe.daemon.findings.bottleneck import Profile, bottleneck as find_bottleneck, profile, verdict
+from sasprobe.daemon.findings.bottleneck import (
+    Profile,
+    profile,
+    verdict,
+)
+from sasprobe.daemon.findings.bottleneck import (
+    bottleneck as find_bottleneck,
+)
 from sasprobe.daemon.findings.chart import draw_chart
-from sasprobe.daemon.findings.contacts import residues_near, touched_atoms_per_tick, touched_residues
-from sasprobe.daemon.findings.exports import chimerax_script, pymol_script, write_path, write_structure
+from sasprobe.daemon.findings.contacts import (
+    residues_near,
+    touched_atoms_per_tick,
+    touched_residues,
+)
+from sasprobe.daemon.findings.exports import (
+    chimerax_script,
+    pymol_script,
+    write_path,
+    write_structure,
+)
 from sasprobe.daemon.findings.path import ExploredPath, explored_path
 from sasprobe.daemon.findings.session import Track, read_track
-from sasprobe.common.errors import UserError
 from sasprobe.molecule.clearance import MIN_RUN_A, OPEN_RADIUS_A, ClearanceField
+
+from sasprobe.common.errors import UserError
 from sasprobe.common.progress import progress_bar
 
 
@@ -66,35 +82,60 @@ def analyse(track: Track, probe_radius_A: float | None = None) -> Analysis:
     finally:
         bar.close()
     neck, path, prof = find_bottleneck(track, path, prof, field)
-    marks = [{**m, "residues_within_4A": residues_near(track.structure, m["position_A"])} for m in track.marks]
+    marks = [
+        {**m, "residues_within_4A": residues_near(track.structure, m["position_A"])}
+        for m in track.marks
+    ]
     s = track.structure
     found = {
         "recording": track.source,
         "structure": {"name": s.name, "sha256": s.sha256, "n_atoms": s.n_atoms},
-        "session": {"duration_s": track.duration_s, "ticks": track.n_ticks, "rate_hz": track.rate_hz,
-                    "finished": track.finished, "probe_radius_A": track.probe_radius_A,
-                    "contact_s": float(track.dt_s[track.contact].sum()), "path_length_A": float(path.length_A[-1])},
+        "session": {
+            "duration_s": track.duration_s,
+            "ticks": track.n_ticks,
+            "rate_hz": track.rate_hz,
+            "finished": track.finished,
+            "probe_radius_A": track.probe_radius_A,
+            "contact_s": float(track.dt_s[track.contact].sum()),
+            "path_length_A": float(path.length_A[-1]),
+        },
         "touched_residues": touched_residues(track, per_tick),
         "marks": marks,
         "bottleneck": neck,
         "verdict": verdict(None if neck is None else neck["radius_A"], radius),
-        "path": {"spacing_A": path.spacing_A, "open_radius_A": OPEN_RADIUS_A, "min_run_A": MIN_RUN_A,
-                 "points": _points(track, path, prof)},
+        "path": {
+            "spacing_A": path.spacing_A,
+            "open_radius_A": OPEN_RADIUS_A,
+            "min_run_A": MIN_RUN_A,
+            "points": _points(track, path, prof),
+        },
         "notes": track.notes,
     }
     return Analysis(found, path, prof)
 
 
 def _points(track: Track, path: ExploredPath, prof: Profile) -> list[dict]:
-    return [{"t_s": float(path.t_s[k]), "seq": int(track.seq[path.ticks[k]]),
-             "position_A": path.position_A[k].tolist(), "contact": bool(path.contact[k]),
-             "force_max_N": float(path.force_max_N[k]), "length_A": float(path.length_A[k]),
-             "clearance_A": float(prof.clearance_A[k]), "passage_A": float(prof.passage_A[k]),
-             "bounded": bool(prof.bounded[k]), "widest_sphere_A": prof.passage[k].radius_A,
-             "widest_sphere_center_A": prof.passage[k].center_A.tolist()} for k in range(path.n_points)]
+    return [
+        {
+            "t_s": float(path.t_s[k]),
+            "seq": int(track.seq[path.ticks[k]]),
+            "position_A": path.position_A[k].tolist(),
+            "contact": bool(path.contact[k]),
+            "force_max_N": float(path.force_max_N[k]),
+            "length_A": float(path.length_A[k]),
+            "clearance_A": float(prof.clearance_A[k]),
+            "passage_A": float(prof.passage_A[k]),
+            "bounded": bool(prof.bounded[k]),
+            "widest_sphere_A": prof.passage[k].radius_A,
+            "widest_sphere_center_A": prof.passage[k].center_A.tolist(),
+        }
+        for k in range(path.n_points)
+    ]
 
 
-def write_findings(recording: str | Path, out_dir: str | Path, probe_radius_A: float | None = None) -> dict:
+def write_findings(
+    recording: str | Path, out_dir: str | Path, probe_radius_A: float | None = None
+) -> dict:
     """Analyse a recording and write every file into out_dir; returns findings.json's content."""
     track = read_track(recording)  # a bad file ends here, before any folder is made
     folder = prepare_folder(out_dir)
@@ -102,7 +143,12 @@ def write_findings(recording: str | Path, out_dir: str | Path, probe_radius_A: f
     found, path, prof = analysis.found, analysis.path, analysis.profile
     radius = found["verdict"]["probe_radius_A"]
     title = f"{track.structure.name}: {Path(track.source).name}, {track.duration_s:.1f} s"
-    files = {"json": "findings.json", "residues": "touched_residues.tsv", "marks": "marks.tsv", "chart": "chart.png"}
+    files = {
+        "json": "findings.json",
+        "residues": "touched_residues.tsv",
+        "marks": "marks.tsv",
+        "chart": "chart.png",
+    }
     structure_file = write_structure(track.structure_file, folder).name
     files["structure"] = structure_file
     files.update(write_path(folder, path.position_A, prof.passage_A, found["marks"]))
@@ -111,8 +157,16 @@ def write_findings(recording: str | Path, out_dir: str | Path, probe_radius_A: f
     (folder / "session.cxc").write_text(chimerax_script(folder, structure_file, radius, *scripts))
     files.update(pymol="session.pml", chimerax="session.cxc")
     _write_tables(folder, found)
-    draw_chart(folder / "chart.png", title, path, prof, radius, found["bottleneck"], found["marks"],
-               found["verdict"]["verdict"])
+    draw_chart(
+        folder / "chart.png",
+        title,
+        path,
+        prof,
+        radius,
+        found["bottleneck"],
+        found["marks"],
+        found["verdict"]["verdict"],
+    )
     found["files"] = files
     (folder / "findings.json").write_text(json.dumps(found, indent=1, allow_nan=False))
     return found
@@ -121,42 +175,80 @@ def write_findings(recording: str | Path, out_dir: str | Path, probe_radius_A: f
 def _write_tables(folder: Path, found: dict) -> None:
     with open(folder / "touched_residues.tsv", "w", newline="") as fh:
         w = csv.writer(fh, delimiter="\t", lineterminator="\n")
-        w.writerow(["chain", "residue", "number", "atoms", "contact_s", "max_force_N", "first_s", "last_s"])
+        w.writerow(
+            ["chain", "residue", "number", "atoms", "contact_s", "max_force_N", "first_s", "last_s"]
+        )
         for r in found["touched_residues"]:
-            w.writerow([r["chain"], r["name"], f"{r['number']}{r['icode']}", ",".join(r["atoms"]),
-                        *(f"{r[k]:.3f}" for k in ("contact_s", "max_force_N", "first_s", "last_s"))])
+            w.writerow(
+                [
+                    r["chain"],
+                    r["name"],
+                    f"{r['number']}{r['icode']}",
+                    ",".join(r["atoms"]),
+                    *(f"{r[k]:.3f}" for k in ("contact_s", "max_force_N", "first_s", "last_s")),
+                ]
+            )
     with open(folder / "marks.tsv", "w", newline="") as fh:
         w = csv.writer(fh, delimiter="\t", lineterminator="\n")
         w.writerow(["mark", "label", "t_s", "x_A", "y_A", "z_A", "residues_within_4A"])
         for m in found["marks"]:
-            near = ",".join(f"{r['chain']}:{r['name']}{r['number']}{r['icode']}" for r in m["residues_within_4A"])
-            w.writerow([m["id"], m["label"], f"{m['t_s']:.3f}", *(f"{v:.3f}" for v in m["position_A"]), near])
+            near = ",".join(
+                f"{r['chain']}:{r['name']}{r['number']}{r['icode']}"
+                for r in m["residues_within_4A"]
+            )
+            w.writerow(
+                [
+                    m["id"],
+                    m["label"],
+                    f"{m['t_s']:.3f}",
+                    *(f"{v:.3f}" for v in m["position_A"]),
+                    near,
+                ]
+            )
 
 
 def summary_lines(found: dict, limit: int = 20) -> list[str]:
     """The findings as the terminal shows them: the session, the verdict, the marks and the
     touched residues (the first `limit`, by contact time)."""
     s, v = found["session"], found["verdict"]
-    lines = [f"findings  {found['structure']['name']}: {s['duration_s']:.1f} s, path {s['path_length_A']:.1f} Å, "
-             f"in contact {s['contact_s']:.1f} s, {len(found['touched_residues'])} residues touched, "
-             f"{len(found['marks'])} marks"]
+    lines = [
+        f"findings  {found['structure']['name']}: {s['duration_s']:.1f} s, path {s['path_length_A']:.1f} Å, "
+        f"in contact {s['contact_s']:.1f} s, {len(found['touched_residues'])} residues touched, "
+        f"{len(found['marks'])} marks"
+    ]
     neck = found["bottleneck"]
     if neck is not None:
-        atoms = ", ".join(f"{a['chain']}:{a['name']}{a['number']}{a['icode']} {a['atom']}" for a in neck["atoms"][:6])
-        lines.append(f"  bottleneck {neck['radius_A']:.2f} Å at {neck['t_s']:.2f} s "
-                     f"(path {neck['path_length_A']:.1f} Å), lined by {atoms}")
+        atoms = ", ".join(
+            f"{a['chain']}:{a['name']}{a['number']}{a['icode']} {a['atom']}"
+            for a in neck["atoms"][:6]
+        )
+        lines.append(
+            f"  bottleneck {neck['radius_A']:.2f} Å at {neck['t_s']:.2f} s "
+            f"(path {neck['path_length_A']:.1f} Å), lined by {atoms}"
+        )
     lines.append(f"  verdict    {v['verdict']}")
     for m in found["marks"]:
-        near = ", ".join(f"{r['chain']}:{r['name']}{r['number']}{r['icode']}" for r in m["residues_within_4A"][:6])
-        lines.append(f"  mark {m['id']:<3}  {m['t_s']:7.2f} s  {m['label']}: {near or 'no residue within 4 Å'}")
+        near = ", ".join(
+            f"{r['chain']}:{r['name']}{r['number']}{r['icode']}"
+            for r in m["residues_within_4A"][:6]
+        )
+        lines.append(
+            f"  mark {m['id']:<3}  {m['t_s']:7.2f} s  {m['label']}: {near or 'no residue within 4 Å'}"
+        )
     rows = sorted(found["touched_residues"], key=lambda r: -r["contact_s"])[:limit]
     if rows:
-        lines.append(f"  {'chain':<6}{'residue':<8}{'number':>7}  {'contact s':>9}  {'max N':>6}  {'first s':>7}  "
-                     f"{'last s':>7}  atoms")
+        lines.append(
+            f"  {'chain':<6}{'residue':<8}{'number':>7}  {'contact s':>9}  {'max N':>6}  {'first s':>7}  "
+            f"{'last s':>7}  atoms"
+        )
         for r in rows:
-            lines.append(f"  {r['chain']:<6}{r['name']:<8}{str(r['number']) + r['icode']:>7}  {r['contact_s']:9.3f}  "
-                         f"{r['max_force_N']:6.2f}  {r['first_s']:7.2f}  {r['last_s']:7.2f}  {','.join(r['atoms'])}")
+            lines.append(
+                f"  {r['chain']:<6}{r['name']:<8}{str(r['number']) + r['icode']:>7}  {r['contact_s']:9.3f}  "
+                f"{r['max_force_N']:6.2f}  {r['first_s']:7.2f}  {r['last_s']:7.2f}  {','.join(r['atoms'])}"
+            )
         if len(found["touched_residues"]) > limit:
-            lines.append(f"  ... {len(found['touched_residues']) - limit} more in touched_residues.tsv")
+            lines.append(
+                f"  ... {len(found['touched_residues']) - limit} more in touched_residues.tsv"
+            )
     lines += [f"  note       {n}" for n in found["notes"]]
     return lines

@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
 from sasprobe.daemon.recording.replay import load_session
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, Structure
 from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
@@ -31,7 +30,9 @@ class Track:
     probe_radius_A: float  # the session's probe radius (its start settings)
     rate_hz: float
     t_s: np.ndarray  # (N,) device time since the first tick, s
-    dt_s: np.ndarray  # (N,) the time each tick stands for (since the one before, at most MAX_TICK_S)
+    dt_s: (
+        np.ndarray
+    )  # (N,) the time each tick stands for (since the one before, at most MAX_TICK_S)
     seq: np.ndarray  # (N,)
     proxy_A: np.ndarray  # (N, 3) probe centre
     force_N: np.ndarray  # (N,) |force| written to the device
@@ -60,7 +61,9 @@ def read_track(path: str | Path) -> Track:
     radius = float(session.settings.get("probe_radius_A", DEFAULT_PROBE_RADIUS))
     notes = []
     if not session.finished:
-        notes.append("the recording was cut (its daemon was killed): read up to its last complete record")
+        notes.append(
+            "the recording was cut (its daemon was killed): read up to its last complete record"
+        )
     if session.missing_ticks:
         notes.append(f"{session.missing_ticks} ticks were dropped while recording")
     end = session.n_ticks
@@ -69,21 +72,32 @@ def read_track(path: str | Path) -> Track:
         cmd, args = event.get("cmd"), event.get("args", {})
         if cmd == "load" and args.get("sha256") != sha:
             end = min(end, int(np.searchsorted(session.seq, event["seq"])))
-            notes.append(f"the session loaded {args.get('name', 'another structure')} at tick {event['seq']}: "
-                         f"the findings cover {structure.name} up to there")
+            notes.append(
+                f"the session loaded {args.get('name', 'another structure')} at tick {event['seq']}: "
+                f"the findings cover {structure.name} up to there"
+            )
             break
         if cmd == "set" and "probe_radius_A" in args and float(args["probe_radius_A"]) != radius:
-            notes.append(f"the probe radius was set to {float(args['probe_radius_A']):g} Å at tick {event['seq']}; "
-                         f"the verdicts use the session's starting radius, {radius:g} Å")
+            notes.append(
+                f"the probe radius was set to {float(args['probe_radius_A']):g} Å at tick {event['seq']}; "
+                f"the verdicts use the session's starting radius, {radius:g} Å"
+            )
         events.append(event)
     end = max(end, 1)
     seq, flags = session.seq[:end], session.flags[:end]
     stamped = session.has_state[:end] & (session.t_ns[:end] > 0)
-    t_ns = np.interp(seq, seq[stamped], session.t_ns[:end][stamped]) if stamped.any() else (seq - seq[0]) * 1e9 / rate
+    t_ns = (
+        np.interp(seq, seq[stamped], session.t_ns[:end][stamped])
+        if stamped.any()
+        else (seq - seq[0]) * 1e9 / rate
+    )
     t_s = (t_ns - t_ns[0]) / 1e9
     dt_s = np.clip(np.diff(t_s, prepend=t_s[0] - 1.0 / rate), 0.0, MAX_TICK_S)
-    marks = [{**e["args"], "t_s": float(t_s[min(int(np.searchsorted(seq, e["seq"])), end - 1)])}
-             for e in events if e.get("cmd") == "mark"]
+    marks = [
+        {**e["args"], "t_s": float(t_s[min(int(np.searchsorted(seq, e["seq"])), end - 1)])}
+        for e in events
+        if e.get("cmd") == "mark"
+    ]
     return Track(
         structure=structure,
         structure_file=session.structures[sha][1],

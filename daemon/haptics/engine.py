@@ -30,7 +30,6 @@ import math
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
-
 from sasprobe.daemon.haptics.force_law import ZERO, contact_force
 from sasprobe.daemon.haptics.neighbours import NeighbourCache
 from sasprobe.daemon.haptics.penalty import penalty_contact
@@ -73,13 +72,17 @@ class HapticOutput:
     cube_half_A: float
     seated: bool = True  # False while the proxy waits for the goal to reach free space
     iterations: int = 0  # proxy path steps this tick
-    clutched: bool = False  # the clutch is held: the probe stays, the cube follows the hand, no force
+    clutched: bool = (
+        False  # the clutch is held: the probe stays, the cube follows the hand, no force
+    )
 
 
 class HapticEngine:
     """Contact force of the probe sphere on the SAS of one structure (see module docstring)."""
 
-    def __init__(self, structure: Structure, limits: DeviceLimits, settings: HapticSettings | None = None):
+    def __init__(
+        self, structure: Structure, limits: DeviceLimits, settings: HapticSettings | None = None
+    ):
         self._limits = limits
         self._settings = (settings or HapticSettings()).validated(limits)
         self._structure = structure
@@ -128,7 +131,9 @@ class HapticEngine:
         names = {f.name for f in fields(HapticSettings)}
         for name in changes:
             if name not in names:
-                raise ValueError(f"unknown haptic setting {name!r} (known: {', '.join(sorted(names))})")
+                raise ValueError(
+                    f"unknown haptic setting {name!r} (known: {', '.join(sorted(names))})"
+                )
         new = replace(self._settings, **changes).validated(self._limits)
         old, self._settings = self._settings, new
         if new.probe_radius_A != old.probe_radius_A:
@@ -183,7 +188,12 @@ class HapticEngine:
     def _initial_mapping(self) -> WorkspaceMapping:
         s = self._settings
         return WorkspaceMapping.initial(
-            self._structure, self._limits, s.cube_half_A, s.probe_radius_A, s.cube_center_A, Surface(self._grid)
+            self._structure,
+            self._limits,
+            s.cube_half_A,
+            s.probe_radius_A,
+            s.cube_center_A,
+            Surface(self._grid),
         )
 
     # -------------------------------------------------------------------- tick
@@ -196,8 +206,12 @@ class HapticEngine:
         except (TypeError, ValueError, OverflowError):
             return self._fault()
         if not (
-            math.isfinite(tx) and math.isfinite(ty) and math.isfinite(tz)
-            and math.isfinite(vx) and math.isfinite(vy) and math.isfinite(vz)
+            math.isfinite(tx)
+            and math.isfinite(ty)
+            and math.isfinite(tz)
+            and math.isfinite(vx)
+            and math.isfinite(vy)
+            and math.isfinite(vz)
         ):
             return self._fault()
         dt = 0.0
@@ -210,8 +224,15 @@ class HapticEngine:
         solver = self._solver
         if self._clutched:  # the probe stays; the cube follows the hand
             mapping.hold(self._last_goal, tip)
-            return self._output(ZERO, self._last_proxy, self._last_goal, self._last_touched, False,
-                                seated=solver.seated, clutched=True)
+            return self._output(
+                ZERO,
+                self._last_proxy,
+                self._last_goal,
+                self._last_touched,
+                False,
+                seated=solver.seated,
+                clutched=True,
+            )
         drifting = mapping.advance(tx, ty, tz, dt)
         goal = mapping.to_molecule(tx, ty, tz)
         previous_goal, self._last_goal = self._last_goal, goal
@@ -224,7 +245,9 @@ class HapticEngine:
             if not solver.seat_if_free(goal):
                 return self._output(ZERO, goal, goal, (), drifting, seated=False)
             last = previous_goal
-            budget = SNAP_SPEED_MM_S * max(dt, MIN_SNAP_DT_S) * mapping.scale_A_per_mm + 2.0 * math.sqrt(
+            budget = SNAP_SPEED_MM_S * max(
+                dt, MIN_SNAP_DT_S
+            ) * mapping.scale_A_per_mm + 2.0 * math.sqrt(
                 (goal[0] - last[0]) ** 2 + (goal[1] - last[1]) ** 2 + (goal[2] - last[2]) ** 2
             )
             proxy = solver.solve(goal, budget)
@@ -247,8 +270,9 @@ class HapticEngine:
                 return self._fault()
         return self._output(force, proxy, goal, touched, drifting, iterations=solver.iterations)
 
-    def _output(self, force, proxy, goal, touched, drifting, seated=True, iterations=0,
-                clutched=False) -> HapticOutput:
+    def _output(
+        self, force, proxy, goal, touched, drifting, seated=True, iterations=0, clutched=False
+    ) -> HapticOutput:
         self._last_proxy = proxy
         self._last_touched = touched
         m = self._mapping

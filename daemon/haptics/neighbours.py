@@ -39,7 +39,10 @@ class NeighbourCache:
     def candidates(self, qx: float, qy: float, qz: float, r: float) -> list[Sphere]:
         """Every sphere that meets the closed ball (q, r), from the cache (refilled if needed)."""
         c = self._center
-        if c is None or math.sqrt((qx - c[0]) ** 2 + (qy - c[1]) ** 2 + (qz - c[2]) ** 2) + r > self._radius:
+        if (
+            c is None
+            or math.sqrt((qx - c[0]) ** 2 + (qy - c[1]) ** 2 + (qz - c[2]) ** 2) + r > self._radius
+        ):
             self._refill(qx, qy, qz, r + self.reach)
         out = []
         for s in self._spheres:
@@ -66,7 +69,9 @@ class NeighbourCache:
         self.refills += 1
 
 
-def deepest(cache: NeighbourCache, x: float, y: float, z: float) -> tuple[Sphere, float, float] | None:
+def deepest(
+    cache: NeighbourCache, x: float, y: float, z: float
+) -> tuple[Sphere, float, float] | None:
     """(sphere a point is deepest inside, depth Å, distance to its centre Å), or None when outside all."""
     best = None
     best_depth = 0.0

@@ -11,7 +11,6 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-
 from sasprobe.daemon.haptics.safety import GuardResult, SafetyGuard, state_is_finite
 from sasprobe.devices.base import DeviceState
 from sasprobe.devices.workspace import IDENTITY
@@ -99,10 +98,14 @@ class HapticPipeline:
         """A fresh engine and guard: all haptic state re-anchored (a recording starts here)."""
         self.engine = engine
         self._carry_workspace()
-        self.guard = SafetyGuard(self.guard.limits, self.guard.ramp_ns / 1e9, self.guard.late_limit_periods)
+        self.guard = SafetyGuard(
+            self.guard.limits, self.guard.ramp_ns / 1e9, self.guard.late_limit_periods
+        )
         self.last_output = None
 
-    def step(self, state: DeviceState | None, read_error: str | None, late_periods: float) -> TickResult:
+    def step(
+        self, state: DeviceState | None, read_error: str | None, late_periods: float
+    ) -> TickResult:
         reason = self.guard.check(state, read_error, late_periods)
         output = None
         force = None
@@ -131,17 +134,23 @@ class HapticPipeline:
         if guard.clamped:
             flags |= FLAG_CLAMPED
         if output is not None:
-            flags |= (FLAG_CONTACT if output.contact else 0) | (FLAG_DRIFTING if output.drifting else 0)
+            flags |= (FLAG_CONTACT if output.contact else 0) | (
+                FLAG_DRIFTING if output.drifting else 0
+            )
             flags |= FLAG_CLAMPED if output.clamped else 0
             flags |= FLAG_CLUTCHED if output.clutched else 0
         return TickResult(guard.force_n, flags, guard, output)
 
-    def pose(self, seq: int, state: DeviceState | None, result: TickResult, publish_t_ns: int) -> Pose:
+    def pose(
+        self, seq: int, state: DeviceState | None, result: TickResult, publish_t_ns: int
+    ) -> Pose:
         """The pose message of a tick. When the engine did not run (a failed read, non-finite
         values) it repeats the last known geometry and device time, and touches nothing: the
         contact flag and `touched_atom` always describe the same tick."""
         out = result.output if result.output is not None else self.last_output
-        valid = state is not None and (result.output is not None or state_is_finite(state))  # no NaN on the wire
+        valid = state is not None and (
+            result.output is not None or state_is_finite(state)
+        )  # no NaN on the wire
         if state is not None:
             self.device_t_ns = int(state.t_ns)
         touched = result.output.touched_atoms if result.output is not None else ()

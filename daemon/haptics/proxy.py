@@ -47,9 +47,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from sasprobe.daemon.haptics.neighbours import NeighbourCache, Sphere, deepest
-from sasprobe.daemon.haptics.proxy_paths import ANGLE_TOL, LONG_FLIGHT_A, kkt_step, manifold_path, snap_to_sphere
+from sasprobe.daemon.haptics.proxy_paths import (
+    ANGLE_TOL,
+    LONG_FLIGHT_A,
+    kkt_step,
+    manifold_path,
+    snap_to_sphere,
+)
 
 TOUCH_A = 1e-10  # |distance to a sphere's surface| below this: touching
 MOVE_EPS_A = 1e-11  # a KKT residual below this is converged
@@ -93,7 +98,9 @@ class ProxySolver:
         return self.position is not None
 
     # ------------------------------------------------------------------ solve
-    def solve(self, g: tuple[float, float, float], budget_A: float = math.inf) -> tuple[float, float, float]:
+    def solve(
+        self, g: tuple[float, float, float], budget_A: float = math.inf
+    ) -> tuple[float, float, float]:
         """Move the (seated) proxy toward goal g; returns the new position.
 
         `budget_A` caps how far the proxy travels this tick (path length). Deep inside
@@ -108,9 +115,14 @@ class ProxySolver:
         budget = budget_A
         forced: tuple[int, ...] = ()
         while True:
-            active, lams, (ex, ey, ez) = kkt_step(px, py, pz, touching, gx - px, gy - py, gz - pz, forced)
+            active, lams, (ex, ey, ez) = kkt_step(
+                px, py, pz, touching, gx - px, gy - py, gz - pz, forced
+            )
             touching = active
-            if iterations >= MAX_ITERATIONS or ex * ex + ey * ey + ez * ez <= MOVE_EPS_A * MOVE_EPS_A:
+            if (
+                iterations >= MAX_ITERATIONS
+                or ex * ex + ey * ey + ez * ez <= MOVE_EPS_A * MOVE_EPS_A
+            ):
                 break
             path = manifold_path(px, py, pz, active, gx, gy, gz)
             if path is None:
@@ -124,7 +136,15 @@ class ProxySolver:
                     if budget <= MOVE_EPS_A:
                         break  # spent for this tick
                     k = budget / length
-                    path = ("seg", px, py, pz, px + k * (qx - px), py + k * (qy - py), pz + k * (qz - pz))
+                    path = (
+                        "seg",
+                        px,
+                        py,
+                        pz,
+                        px + k * (qx - px),
+                        py + k * (qy - py),
+                        pz + k * (qz - pz),
+                    )
                 x0, y0, z0 = px, py, pz
                 hit, (px, py, pz) = self._segment(path, exclude)
                 moved = math.sqrt((px - x0) ** 2 + (py - y0) ** 2 + (pz - z0) ** 2)
@@ -156,7 +176,9 @@ class ProxySolver:
         if length > LONG_FLIGHT_A:
             candidates = self._spheres_along(px, py, pz, dx, dy, dz)
         else:
-            candidates = self.cache.candidates((px + qx) * 0.5, (py + qy) * 0.5, (pz + qz) * 0.5, length * 0.5 + 1e-9)
+            candidates = self.cache.candidates(
+                (px + qx) * 0.5, (py + qy) * 0.5, (pz + qz) * 0.5, length * 0.5 + 1e-9
+            )
         best_t, best = 1.0, None
         for s in candidates:
             if s[0] in exclude:

@@ -112,7 +112,11 @@ def kkt_step(px, py, pz, touching: list[Sphere], dx, dy, dz, forced: tuple[int, 
         l1 = ((1.0 - g23 * g23) * r1 + a12 * r2 + a13 * r3) / det
         l2 = (a12 * r1 + (1.0 - g13 * g13) * r2 + a23 * r3) / det
         l3 = (a13 * r1 + a23 * r2 + (1.0 - g12 * g12) * r3) / det
-        if (l1 <= tol and a not in must) or (l2 <= tol and b not in must) or (l3 <= tol and c3 not in must):
+        if (
+            (l1 <= tol and a not in must)
+            or (l2 <= tol and b not in must)
+            or (l3 <= tol and c3 not in must)
+        ):
             continue
         delta = (
             dx + l1 * n1[0] + l2 * n2[0] + l3 * n3[0],

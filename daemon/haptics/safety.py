@@ -22,7 +22,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
 from sasprobe.devices.base import DeviceLimits, DeviceState
 
 ZERO_FORCE = np.zeros(3)
@@ -41,8 +40,12 @@ class GuardResult:
 
 
 class SafetyGuard:
-    def __init__(self, limits: DeviceLimits, ramp_s: float = RAMP_S,
-                 late_limit_periods: float = LATE_LIMIT_PERIODS) -> None:
+    def __init__(
+        self,
+        limits: DeviceLimits,
+        ramp_s: float = RAMP_S,
+        late_limit_periods: float = LATE_LIMIT_PERIODS,
+    ) -> None:
         self.limits = limits
         self.ramp_ns = int(ramp_s * 1e9)
         self.late_limit_periods = late_limit_periods
@@ -62,7 +65,9 @@ class SafetyGuard:
         """Ramp again from zero (a new structure or engine, a reconnect)."""
         self._ramp_start_ns = None
 
-    def check(self, state: DeviceState | None, read_error: str | None, late_periods: float) -> str | None:
+    def check(
+        self, state: DeviceState | None, read_error: str | None, late_periods: float
+    ) -> str | None:
         """The watchdog's reason to zero force before the engine runs, or None."""
         if read_error is not None:
             return f"device read failed: {read_error}"
@@ -74,7 +79,9 @@ class SafetyGuard:
             return f"tick {late_periods:.1f} periods late"
         return None
 
-    def filter(self, force_n, state: DeviceState | None, reason: str | None, ramp_again: bool = True) -> GuardResult:
+    def filter(
+        self, force_n, state: DeviceState | None, reason: str | None, ramp_again: bool = True
+    ) -> GuardResult:
         """Apply watchdog, ramp and clamp to the engine's force (None when the engine did not run).
 
         `ramp_again`: whether a fault restarts the ramp. Faults where the device or the
@@ -96,7 +103,9 @@ class SafetyGuard:
             self.last_reason = reason
             if ramp_again:
                 self._ramp_start_ns = None
-            return GuardResult(ZERO_FORCE.copy(), True, reason, False, 0.0 if ramp_again else self._ramp, False)
+            return GuardResult(
+                ZERO_FORCE.copy(), True, reason, False, 0.0 if ramp_again else self._ramp, False
+            )
         recovered = self._faulted
         self._faulted = False
         if not state.calibrated or not self.limits.has_force_output:
@@ -105,7 +114,9 @@ class SafetyGuard:
         if self._ramp_start_ns is None:
             self._ramp_start_ns = state.t_ns
         ramp = self._ramp = (
-            1.0 if self.ramp_ns <= 0 else min(max((state.t_ns - self._ramp_start_ns) / self.ramp_ns, 0.0), 1.0)
+            1.0
+            if self.ramp_ns <= 0
+            else min(max((state.t_ns - self._ramp_start_ns) / self.ramp_ns, 0.0), 1.0)
         )
         fx, fy, fz = fx * ramp, fy * ramp, fz * ramp
         magnitude = math.sqrt(fx * fx + fy * fy + fz * fz)

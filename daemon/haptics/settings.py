@@ -18,7 +18,13 @@ from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS, check_probe_radius
 from sasprobe.protocol.scene import HAPTIC_METHODS
 
 # What the daemon publishes and a control `set` may change (the cube centre is fixed per session).
-HAPTIC_FIELDS = ("probe_radius_A", "method", "stiffness_n_per_mm", "damping_n_s_per_m", "cube_half_A")
+HAPTIC_FIELDS = (
+    "probe_radius_A",
+    "method",
+    "stiffness_n_per_mm",
+    "damping_n_s_per_m",
+    "cube_half_A",
+)
 REBUILD_FIELDS = frozenset({"probe_radius_A"})  # a new grid: built off the loop
 
 
@@ -30,14 +36,18 @@ class HapticSettings:
     # 100 Hz up on the simulated arm (see the stability map of `sasprobe bench haptics`).
     stiffness_n_per_mm: float = 0.3
     damping_n_s_per_m: float = 0.2
-    cube_half_A: float | str | None = None  # navigation-cube half edge (Å); None: the default size; "fit": the molecule
+    cube_half_A: float | str | None = (
+        None  # navigation-cube half edge (Å); None: the default size; "fit": the molecule
+    )
     cube_center_A: tuple[float, float, float] | None = None  # None = centre of the molecule
 
-    def validated(self, limits: DeviceLimits) -> "HapticSettings":
+    def validated(self, limits: DeviceLimits) -> HapticSettings:
         """A checked copy; ValueError with one clear line on a bad value."""
         radius = check_probe_radius(self.probe_radius_A)
         if self.method not in HAPTIC_METHODS:
-            raise ValueError(f"unknown haptic method {self.method!r} (known: {', '.join(HAPTIC_METHODS)})")
+            raise ValueError(
+                f"unknown haptic method {self.method!r} (known: {', '.join(HAPTIC_METHODS)})"
+            )
         stiffness = _finite(self.stiffness_n_per_mm, "stiffness")
         if stiffness <= 0 or stiffness > limits.max_stiffness_n_per_mm:
             raise ValueError(

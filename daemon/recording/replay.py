@@ -17,18 +17,24 @@ recorded control command.
 from __future__ import annotations
 
 import os
-
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
 from sasprobe.daemon.haptics import HapticPipeline, build_engine, validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
-from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError, DeviceState, HapticDevice
+from sasprobe.devices.base import (
+    DeviceFault,
+    DeviceInfo,
+    DeviceLimits,
+    DeviceOpenError,
+    DeviceState,
+    HapticDevice,
+)
 from sasprobe.devices.workspace import validate_rotation
-from sasprobe.common.files import open_regular
 from sasprobe.protocol.recording import RecordingError, iter_items, scan
+
+from sasprobe.common.files import open_regular
 
 
 class ReplayFinished(EOFError):
@@ -91,10 +97,16 @@ class ReplaySession:
         from sasprobe.molecule import parse_structure
 
         if sha256 not in self.structures:
-            raise DeviceOpenError(f"{self.path}: structure {sha256[:12]} is not attached to the recording")
+            raise DeviceOpenError(
+                f"{self.path}: structure {sha256[:12]} is not attached to the recording"
+            )
         name, data = self.structures[sha256]
-        return parse_structure(data, name=name, source=f"{self.path}:{name}",
-                               keep_water=self.keep_water if keep_water is None else keep_water)
+        return parse_structure(
+            data,
+            name=name,
+            source=f"{self.path}:{name}",
+            keep_water=self.keep_water if keep_water is None else keep_water,
+        )
 
     def device_limits(self) -> DeviceLimits:
         lim = dict(self.start["device"]["limits"])
@@ -169,7 +181,9 @@ def load_session(path: str | Path) -> ReplaySession:
         velocity_mm_s=np.array([_vector(r.get("velocity_mm_s"), 3) for r in rows]),
         buttons=np.array([r.get("buttons") or 0 for r in rows], dtype=np.int64),
         calibrated=np.array([r.get("calibrated", True) is not False for r in rows], dtype=bool),
-        has_state=np.array([r.get("t_ns") is not None for r in rows], dtype=bool),  # null or absent: no state
+        has_state=np.array(
+            [r.get("t_ns") is not None for r in rows], dtype=bool
+        ),  # null or absent: no state
         late_periods=np.array([r.get("late_periods", 0.0) for r in rows]),
         errors=errors,
         force_n=np.array([_vector(poses[s]["force_N"], 3) for s in seqs]),
@@ -193,8 +207,12 @@ class ReplayDevice(HapticDevice):
             kind="replay",
             model=f"replay of {recorded.get('model', 'a device')}",
             limits=self.session.device_limits(),
-            details={"file": self.path.name, "ticks": self.session.n_ticks, "recorded_kind": recorded.get("kind"),
-                     "speed": "max" if speed is None else speed},
+            details={
+                "file": self.path.name,
+                "ticks": self.session.n_ticks,
+                "recorded_kind": recorded.get("kind"),
+                "speed": "max" if speed is None else speed,
+            },
         )
 
     @property
@@ -252,15 +270,31 @@ def open_replay(argument: str | None, speed: float | None = 1.0, **options) -> R
         raise DeviceOpenError("replay needs a file: --device replay:FILE")
     if not os.path.lexists(argument):
         raise DeviceOpenError(f"replay file {argument}: no such file")
-    open_regular(argument, "recording", DeviceOpenError).close()  # a FIFO or a device: one line, no hang
+    open_regular(
+        argument, "recording", DeviceOpenError
+    ).close()  # a FIFO or a device: one line, no hang
     return ReplayDevice(argument, speed=speed)
 
 
-REPLAYED_COMMANDS = ("set", "load", "reconnect", "view", "clutch", "recentre", "mark")  # what a replay repeats
+REPLAYED_COMMANDS = (
+    "set",
+    "load",
+    "reconnect",
+    "view",
+    "clutch",
+    "recentre",
+    "mark",
+)  # what a replay repeats
 
 
-def apply_recorded_event(event: dict, pipeline: HapticPipeline, structure, settings: dict, limits: DeviceLimits,
-                         structure_for_sha) -> tuple[object, dict]:
+def apply_recorded_event(
+    event: dict,
+    pipeline: HapticPipeline,
+    structure,
+    settings: dict,
+    limits: DeviceLimits,
+    structure_for_sha,
+) -> tuple[object, dict]:
     """Apply a recorded `set`/`load`/`reconnect`/`view`/`clutch`/`recentre` as the live daemon
     did; return (structure, settings).
 

@@ -7,8 +7,11 @@ from __future__ import annotations
 
 from sasprobe.devices.registry import DeviceScheme, register_scheme
 
-REPLAY_SCHEME = DeviceScheme("sasprobe.daemon.recording.replay:open_replay", "a recorded session (--speed X|max)",
-                             "replay:session.mcap")
+REPLAY_SCHEME = DeviceScheme(
+    "sasprobe.daemon.recording.replay:open_replay",
+    "a recorded session (--speed X|max)",
+    "replay:session.mcap",
+)
 
 
 def register() -> None:

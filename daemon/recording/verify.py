@@ -14,7 +14,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
 from sasprobe.daemon.haptics import HapticPipeline, SafetyGuard, build_engine, validate_settings
 from sasprobe.daemon.recording.replay import apply_recorded_event, load_session
 from sasprobe.protocol.pose import FLAG_FAULT
@@ -58,7 +57,8 @@ def verify_recording(path: str | Path, progress=None) -> VerifyReport:
         seq = int(session.seq[i])
         while next_event < len(events) and events[next_event]["seq"] <= seq:
             structure, settings = apply_recorded_event(
-                events[next_event], pipeline, structure, settings, limits, session.structure)
+                events[next_event], pipeline, structure, settings, limits, session.structure
+            )
             next_event += 1
         state, error = session.state(i)
         result = pipeline.step(state, error, float(session.late_periods[i]))

@@ -26,12 +26,13 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from sasprobe import __version__
 from sasprobe.daemon.loop import helper_priority
 from sasprobe.devices.base import DeviceState
-from sasprobe.common.errors import UserError
 from sasprobe.protocol.pose import Pose
 from sasprobe.protocol.recording import PROFILE, SCHEMAS, json_floats, pose_record
+
+from sasprobe import __version__
+from sasprobe.common.errors import UserError
 
 log = logging.getLogger("sasprobe")
 
@@ -40,20 +41,39 @@ QUEUE_LIMIT = 20_000  # items (about 10 s of ticks at 1 kHz)
 _WAKE_S = 0.01
 
 
-_NO_STATE = {"t_ns": None, "position_mm": [None] * 3, "orientation": [None] * 4, "velocity_mm_s": [None] * 3,
-             "buttons": None, "calibrated": None}
+_NO_STATE = {
+    "t_ns": None,
+    "position_mm": [None] * 3,
+    "orientation": [None] * 4,
+    "velocity_mm_s": [None] * 3,
+    "buttons": None,
+    "calibrated": None,
+}
 
 
-def device_record(seq: int, state: DeviceState | None, error: str | None, late_periods: float, read_ns: int) -> dict:
+def device_record(
+    seq: int, state: DeviceState | None, error: str | None, late_periods: float, read_ns: int
+) -> dict:
     """The `device` channel's record of a tick: every field always present; a read that gave
     no state has null device time, vectors, buttons and calibration."""
     if state is None:
         fields = _NO_STATE
     else:
-        fields = {"t_ns": int(state.t_ns), "position_mm": json_floats(state.position_mm),
-                  "orientation": json_floats(state.orientation), "velocity_mm_s": json_floats(state.velocity_mm_s),
-                  "buttons": int(state.buttons), "calibrated": bool(state.calibrated)}
-    return {"seq": seq, **fields, "error": error, "late_periods": float(late_periods), "read_ns": int(read_ns)}
+        fields = {
+            "t_ns": int(state.t_ns),
+            "position_mm": json_floats(state.position_mm),
+            "orientation": json_floats(state.orientation),
+            "velocity_mm_s": json_floats(state.velocity_mm_s),
+            "buttons": int(state.buttons),
+            "calibrated": bool(state.calibrated),
+        }
+    return {
+        "seq": seq,
+        **fields,
+        "error": error,
+        "late_periods": float(late_periods),
+        "read_ns": int(read_ns),
+    }
 
 
 def _media_type(data: bytes) -> str:
@@ -76,13 +96,22 @@ class RecorderStats:
 class Recorder:
     """Writes one MCAP file from a bounded queue on its own thread."""
 
-    def __init__(self, path: str | Path, metadata: dict | None = None,
-                 flush_interval_s: float = FLUSH_INTERVAL_S, queue_limit: int = QUEUE_LIMIT) -> None:
+    def __init__(
+        self,
+        path: str | Path,
+        metadata: dict | None = None,
+        flush_interval_s: float = FLUSH_INTERVAL_S,
+        queue_limit: int = QUEUE_LIMIT,
+    ) -> None:
         from mcap.writer import CompressionType, Writer
 
         self.path = Path(path)
         try:  # a new file, 0600 whatever the umask, never through a symlink
-            fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
+            fd = os.open(
+                self.path,
+                os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC,
+                0o600,
+            )
         except FileExistsError:
             raise UserError(f"{self.path}: already exists; record to a new file") from None
         except OSError as exc:
@@ -120,8 +149,16 @@ class Recorder:
         self._queue.append(item)
         return True
 
-    def offer_tick(self, log_t_ns: int, seq: int, state: DeviceState | None, error: str | None,
-                   late_periods: float, read_ns: int, pose: Pose) -> bool:
+    def offer_tick(
+        self,
+        log_t_ns: int,
+        seq: int,
+        state: DeviceState | None,
+        error: str | None,
+        late_periods: float,
+        read_ns: int,
+        pose: Pose,
+    ) -> bool:
         return self._offer(("tick", log_t_ns, seq, state, error, late_periods, read_ns, pose))
 
     def offer_json(self, channel: str, log_t_ns: int, obj: dict) -> bool:
@@ -136,7 +173,13 @@ class Recorder:
         add = self._writer.add_message
         if kind == "tick":
             _, _, seq, state, error, late, read_ns, pose = item
-            add(self._channels["device"], t, json.dumps(device_record(seq, state, error, late, read_ns)).encode(), t, seq)
+            add(
+                self._channels["device"],
+                t,
+                json.dumps(device_record(seq, state, error, late, read_ns)).encode(),
+                t,
+                seq,
+            )
             add(self._channels["pose"], t, json.dumps(pose_record(pose)).encode(), t, seq)
             self.messages += 2
         elif kind == "json":
@@ -145,7 +188,9 @@ class Recorder:
             self.messages += 1
         else:
             _, _, name, data = item
-            self._writer.add_attachment(create_time=0, log_time=t, name=name, media_type=_media_type(data), data=data)
+            self._writer.add_attachment(
+                create_time=0, log_time=t, name=name, media_type=_media_type(data), data=data
+            )
 
     def _drain(self) -> None:
         queue = self._queue
@@ -172,7 +217,9 @@ class Recorder:
 
     def stats(self) -> RecorderStats:
         size = self.path.stat().st_size if self.path.exists() else 0
-        return RecorderStats(str(self.path), self.messages, self.dropped, size, self.flushes, self.max_flush_gap_s)
+        return RecorderStats(
+            str(self.path), self.messages, self.dropped, size, self.flushes, self.max_flush_gap_s
+        )
 
     @property
     def error(self) -> str | None:

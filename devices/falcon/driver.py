@@ -32,14 +32,18 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceOpenError, DeviceState
 from sasprobe.devices.falcon import kinematics as K
 from sasprobe.devices.falcon import loader
 from sasprobe.devices.falcon import models as M
 from sasprobe.devices.falcon import protocol as P
 from sasprobe.devices.falcon.ftdi import FtdiLink
-from sasprobe.devices.hardware import HardwareDriver, VelocityFilter, clamp_force, factory_from_environment
+from sasprobe.devices.hardware import (
+    HardwareDriver,
+    VelocityFilter,
+    clamp_force,
+    factory_from_environment,
+)
 from sasprobe.devices.transports import UsbTransport
 
 log = logging.getLogger("sasprobe.devices.falcon")
@@ -55,12 +59,18 @@ REPLY_TIMEOUT_S = 0.02
 class FalconDevice(HardwareDriver):
     """One Novint Falcon. `firmware` is the image uploaded when the device has none running."""
 
-    def __init__(self, firmware: str | os.PathLike | None = None, *, usb_backend=None,
-                 reply_timeout_s: float = REPLY_TIMEOUT_S):
+    def __init__(
+        self,
+        firmware: str | os.PathLike | None = None,
+        *,
+        usb_backend=None,
+        reply_timeout_s: float = REPLY_TIMEOUT_S,
+    ):
         self.firmware = Path(firmware) if firmware else None
         self.reply_timeout_ns = int(reply_timeout_s * 1e9)
-        self._usb = UsbTransport(M.VENDOR_ID, M.PRODUCT_ID, M.EP_OUT, M.EP_IN, backend=usb_backend,
-                                 label="Novint Falcon")
+        self._usb = UsbTransport(
+            M.VENDOR_ID, M.PRODUCT_ID, M.EP_OUT, M.EP_IN, backend=usb_backend, label="Novint Falcon"
+        )
         self._link = FtdiLink(self._usb)
         self._frames = P.FrameReader()
         self._velocity = VelocityFilter()
@@ -70,7 +80,9 @@ class FalconDevice(HardwareDriver):
         self._position_m = M.WORKSPACE_CENTRE_M.copy()
         self._jacobian: np.ndarray | None = None  # ∂p/∂θ1 there, once per reply
         self._state: DeviceState | None = None
-        self._in_flight: collections.deque[int] = collections.deque()  # send times of unanswered frames
+        self._in_flight: collections.deque[int] = (
+            collections.deque()
+        )  # send times of unanswered frames
         self.firmware_uploads = 0
         self.upload_retries = 0
         self.resent_frames = 0
@@ -79,11 +91,17 @@ class FalconDevice(HardwareDriver):
     @property
     def info(self) -> DeviceInfo:
         return DeviceInfo(
-            kind="falcon", model="Novint Falcon", limits=M.FALCON_LIMITS,
-            details={"firmware": str(self.firmware) if self.firmware else None,
-                     "rejected_frames": self._frames.rejected, "homed_axes": bin(self._homed).count("1"),
-                     "firmware_uploads": self.firmware_uploads, "upload_retries": self.upload_retries,
-                     "resent_frames": self.resent_frames},
+            kind="falcon",
+            model="Novint Falcon",
+            limits=M.FALCON_LIMITS,
+            details={
+                "firmware": str(self.firmware) if self.firmware else None,
+                "rejected_frames": self._frames.rejected,
+                "homed_axes": bin(self._homed).count("1"),
+                "firmware_uploads": self.firmware_uploads,
+                "upload_retries": self.upload_retries,
+                "resent_frames": self.resent_frames,
+            },
         )
 
     @property
@@ -105,11 +123,14 @@ class FalconDevice(HardwareDriver):
                 if image is None:
                     raise DeviceOpenError(
                         "the Falcon has no firmware running: give the firmware file as falcon:PATH "
-                        "(the image from the Falcon SDK/driver package, or libnifalcon's firmware/)")
+                        "(the image from the Falcon SDK/driver package, or libnifalcon's firmware/)"
+                    )
                 self._load(image)
                 if not self._firmware_answers():
-                    raise DeviceOpenError("the Falcon did not start after the firmware upload: "
-                                          "wrong firmware file? unplug it, plug it back in and try again")
+                    raise DeviceOpenError(
+                        "the Falcon did not start after the firmware upload: "
+                        "wrong firmware file? unplug it, plug it back in and try again"
+                    )
         except DeviceFault as exc:
             self._shut()
             raise DeviceOpenError(f"the Falcon stopped answering while opening: {exc}") from None
@@ -134,8 +155,10 @@ class FalconDevice(HardwareDriver):
             # USB is fine but the firmware went quiet: never reload a running Falcon, kick it
             self._send_frame()
             age_ms = (time.monotonic_ns() - self._last_reply_ns()) / 1e6
-            raise DeviceFault(f"device still unavailable: the Falcon has not answered for {age_ms:.0f} ms "
-                              "although its USB link is up (unplug it and plug it back in if this lasts)")
+            raise DeviceFault(
+                f"device still unavailable: the Falcon has not answered for {age_ms:.0f} ms "
+                "although its USB link is up (unplug it and plug it back in if this lasts)"
+            )
         super().reconnect()
 
     def read(self) -> DeviceState:
@@ -197,9 +220,11 @@ class FalconDevice(HardwareDriver):
             self._jacobian = None
         position_mm = K.to_device_mm(self._position_m)
         self._state = DeviceState(
-            t_ns=arrived_ns, position_mm=position_mm,
+            t_ns=arrived_ns,
+            position_mm=position_mm,
             velocity_mm_s=self._velocity.update(arrived_ns, position_mm),
-            buttons=newest.buttons, calibrated=self.calibrated,
+            buttons=newest.buttons,
+            calibrated=self.calibrated,
         )
         return True
 
@@ -239,19 +264,24 @@ class FalconDevice(HardwareDriver):
                 probes = loader.enter_firmware_mode(self._link)
                 loader.upload(self._link, image)
             except loader.LoaderSilent as exc:
-                raise DeviceOpenError(f"{exc}: unplug the Falcon (USB and power), plug it back in "
-                                      "and try again") from None
+                raise DeviceOpenError(
+                    f"{exc}: unplug the Falcon (USB and power), plug it back in and try again"
+                ) from None
             except loader.UploadFailed as exc:
                 self.upload_retries += 1
                 log.info("Falcon firmware upload attempt %d failed: %s", attempt, exc)
                 if attempt == UPLOAD_ATTEMPTS:
-                    raise DeviceOpenError(f"Falcon firmware upload failed {UPLOAD_ATTEMPTS} times ({exc}): "
-                                          "unplug the Falcon (USB and power), plug it back in and try again") from None
+                    raise DeviceOpenError(
+                        f"Falcon firmware upload failed {UPLOAD_ATTEMPTS} times ({exc}): "
+                        "unplug the Falcon (USB and power), plug it back in and try again"
+                    ) from None
                 self._usb.close()  # FalconCLIBase closes and reopens between attempts
                 self._usb.open()
                 continue
             self.firmware_uploads += 1
-            log.info("Falcon firmware uploaded (%d bytes, loader answered probe %d)", len(image), probes)
+            log.info(
+                "Falcon firmware uploaded (%d bytes, loader answered probe %d)", len(image), probes
+            )
             return
 
     def _firmware_image(self) -> bytes | None:
@@ -262,7 +292,9 @@ class FalconDevice(HardwareDriver):
         except FileNotFoundError:
             raise DeviceOpenError(f"Falcon firmware file not found: {self.firmware}") from None
         except OSError as exc:
-            raise DeviceOpenError(f"cannot read the Falcon firmware file {self.firmware}: {exc.strerror}") from None
+            raise DeviceOpenError(
+                f"cannot read the Falcon firmware file {self.firmware}: {exc.strerror}"
+            ) from None
         if not image:
             raise DeviceOpenError(f"the Falcon firmware file {self.firmware} is empty")
         return image
@@ -282,5 +314,8 @@ def create(argument: str | None = None, **options) -> FalconDevice:
     (how the test suite points a daemon subprocess at its emulated Falcon).
     """
     backend = options.get("usb_backend") or factory_from_environment("SASPROBE_USB_BACKEND")
-    return FalconDevice(argument or None, usb_backend=backend,
-                        reply_timeout_s=float(options.get("reply_timeout_s", REPLY_TIMEOUT_S)))
+    return FalconDevice(
+        argument or None,
+        usb_backend=backend,
+        reply_timeout_s=float(options.get("reply_timeout_s", REPLY_TIMEOUT_S)),
+    )

@@ -89,8 +89,10 @@ class FtdiLink:
         self._running, self.error = True, None
         self._received.clear()
         self._outgoing = None
-        self._threads = [threading.Thread(target=loop, name=f"falcon-{loop.__name__}", daemon=True)
-                         for loop in (self._reader, self._writer)]
+        self._threads = [
+            threading.Thread(target=loop, name=f"falcon-{loop.__name__}", daemon=True)
+            for loop in (self._reader, self._writer)
+        ]
         for thread in self._threads:
             thread.start()
 
@@ -145,7 +147,9 @@ class FtdiLink:
                 frame, self._outgoing = self._outgoing, None
             try:
                 self.usb.write(frame)
-            except TransferTimeout:  # the chip's buffer is full: the frame is lost, the driver resends
+            except (
+                TransferTimeout
+            ):  # the chip's buffer is full: the frame is lost, the driver resends
                 continue
             except DeviceFault as exc:
                 self._fail(exc)

@@ -35,7 +35,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from sasprobe.devices.falcon import models as M
 from sasprobe.devices.kinematics import KinematicsError, scale_to_limit
 
@@ -88,15 +87,23 @@ def joint_rates(theta1, theta2, theta3) -> list[list[float]]:
         if abs(den) < 1e-9:
             raise KinematicsError("the Falcon is at a singular pose")
         n_u, n_v, n_w = s3 * math.cos(t2), math.cos(t3), s3 * math.sin(t2)
-        rows.append([(cos_phi * n_u - sin_phi * n_v) / den, (sin_phi * n_u + cos_phi * n_v) / den, n_w / den])
+        rows.append(
+            [
+                (cos_phi * n_u - sin_phi * n_v) / den,
+                (sin_phi * n_u + cos_phi * n_v) / den,
+                n_w / den,
+            ]
+        )
     return rows
 
 
 def _inverse3(m) -> list[list[float]]:
     (a, b, c), (d, e, f), (g, h, i) = m
-    co = [[e * i - f * h, c * h - b * i, b * f - c * e],
-          [f * g - d * i, a * i - c * g, c * d - a * f],
-          [d * h - e * g, b * g - a * h, a * e - b * d]]
+    co = [
+        [e * i - f * h, c * h - b * i, b * f - c * e],
+        [f * g - d * i, a * i - c * g, c * d - a * f],
+        [d * h - e * g, b * g - a * h, a * e - b * d],
+    ]
     det = a * co[0][0] + b * co[1][0] + c * co[2][0]
     if det == 0.0:
         raise KinematicsError("the Falcon is at a singular pose")

@@ -57,13 +57,15 @@ def enter_firmware_mode(link: ftdi.FtdiLink) -> int:
 def upload(link: ftdi.FtdiLink, image: bytes) -> None:
     """Send the image chunk by chunk, comparing each echo; then switch to normal mode."""
     for offset in range(0, len(image), P.UPLOAD_CHUNK):
-        chunk = image[offset:offset + P.UPLOAD_CHUNK]
+        chunk = image[offset : offset + P.UPLOAD_CHUNK]
         link.write_blocking(chunk)
         echo, deadline = b"", time.monotonic() + ECHO_WAIT_S
         while len(echo) < len(chunk):
             remaining = deadline - time.monotonic()
             if remaining <= 0:
-                raise UploadFailed(f"no echo of the chunk at byte {offset} ({len(echo)} of {len(chunk)} bytes)")
+                raise UploadFailed(
+                    f"no echo of the chunk at byte {offset} ({len(echo)} of {len(chunk)} bytes)"
+                )
             echo += link.read_packet(min(remaining, PROBE_READ_S))
         if echo != chunk:
             raise UploadFailed(f"the echo of the chunk at byte {offset} differs")

@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from sasprobe.devices.base import DeviceLimits
 
 # USB: FalconComm.h FALCON_VENDOR_ID / FALCON_PRODUCT_ID; FalconCommLibUSB.cpp endpoints.

@@ -24,16 +24,34 @@ DHD_MOTOR_SATURATED = 2  # dhdSetForce: a success, the force was saturated
 DHD_ERROR_TIMEOUT = 7
 
 ERROR_NAMES = (  # enum dhd_errors, in order
-    "DHD_NO_ERROR", "DHD_ERROR", "DHD_ERROR_COM", "DHD_ERROR_DHC_BUSY", "DHD_ERROR_NO_DRIVER_FOUND",
-    "DHD_ERROR_NO_DEVICE_FOUND", "DHD_ERROR_NOT_AVAILABLE", "DHD_ERROR_TIMEOUT", "DHD_ERROR_GEOMETRY",
-    "DHD_ERROR_EXPERT_MODE_DISABLED", "DHD_ERROR_NOT_IMPLEMENTED", "DHD_ERROR_OUT_OF_MEMORY",
-    "DHD_ERROR_DEVICE_NOT_READY", "DHD_ERROR_FILE_NOT_FOUND", "DHD_ERROR_CONFIGURATION", "DHD_ERROR_INVALID_INDEX",
-    "DHD_ERROR_DEPRECATED", "DHD_ERROR_NULL_ARGUMENT", "DHD_ERROR_REDUNDANT_FAIL", "DHD_ERROR_NOT_ENABLED",
-    "DHD_ERROR_DEVICE_IN_USE", "DHD_ERROR_INVALID",
+    "DHD_NO_ERROR",
+    "DHD_ERROR",
+    "DHD_ERROR_COM",
+    "DHD_ERROR_DHC_BUSY",
+    "DHD_ERROR_NO_DRIVER_FOUND",
+    "DHD_ERROR_NO_DEVICE_FOUND",
+    "DHD_ERROR_NOT_AVAILABLE",
+    "DHD_ERROR_TIMEOUT",
+    "DHD_ERROR_GEOMETRY",
+    "DHD_ERROR_EXPERT_MODE_DISABLED",
+    "DHD_ERROR_NOT_IMPLEMENTED",
+    "DHD_ERROR_OUT_OF_MEMORY",
+    "DHD_ERROR_DEVICE_NOT_READY",
+    "DHD_ERROR_FILE_NOT_FOUND",
+    "DHD_ERROR_CONFIGURATION",
+    "DHD_ERROR_INVALID_INDEX",
+    "DHD_ERROR_DEPRECATED",
+    "DHD_ERROR_NULL_ARGUMENT",
+    "DHD_ERROR_REDUNDANT_FAIL",
+    "DHD_ERROR_NOT_ENABLED",
+    "DHD_ERROR_DEVICE_IN_USE",
+    "DHD_ERROR_INVALID",
 )
 
-NOT_INSTALLED = ("the Force Dimension SDK is not installed: its DHD library (libdhd.so / dhd64.dll) was not found; "
-                 "install the SDK from Force Dimension, or set SASPROBE_DHD_LIBRARY=/path/to/libdhd.so")
+NOT_INSTALLED = (
+    "the Force Dimension SDK is not installed: its DHD library (libdhd.so / dhd64.dll) was not found; "
+    "install the SDK from Force Dimension, or set SASPROBE_DHD_LIBRARY=/path/to/libdhd.so"
+)
 
 _D = ctypes.POINTER(ctypes.c_double)
 _ID = ctypes.c_byte  # char ID
@@ -90,6 +108,8 @@ def load_library(path: str | None = None):
         try:
             fn = getattr(lib, name)
         except AttributeError:
-            raise DeviceOpenError(f"{paths[0]} is not the Force Dimension DHD library: it lacks {name}") from None
+            raise DeviceOpenError(
+                f"{paths[0]} is not the Force Dimension DHD library: it lacks {name}"
+            ) from None
         fn.restype, fn.argtypes = restype, argtypes
     return lib

@@ -23,11 +23,21 @@ import logging
 import time
 
 import numpy as np
-
-from sasprobe.devices.base import IDENTITY_QUATERNION, DeviceFault, DeviceInfo, DeviceOpenError, DeviceState
+from sasprobe.devices.base import (
+    IDENTITY_QUATERNION,
+    DeviceFault,
+    DeviceInfo,
+    DeviceOpenError,
+    DeviceState,
+)
 from sasprobe.devices.forcedimension import dhd, frame
 from sasprobe.devices.forcedimension.models import DhdModel, before_open_limits, model_for
-from sasprobe.devices.hardware import HardwareDriver, VelocityFilter, clamp_force, quaternion_from_matrix
+from sasprobe.devices.hardware import (
+    HardwareDriver,
+    VelocityFilter,
+    clamp_force,
+    quaternion_from_matrix,
+)
 
 log = logging.getLogger("sasprobe.devices.forcedimension")
 
@@ -54,14 +64,28 @@ class ForceDimensionDevice(HardwareDriver):
 
     @property
     def info(self) -> DeviceInfo:
-        details = {"index": self.index, "system_type": self.system_type, "system_name": self.system_name,
-                   "timeguard_reads": self.timeguards, "saturated_writes": self.saturations,
-                   "velocity_estimated": self.velocity_estimates}
+        details = {
+            "index": self.index,
+            "system_type": self.system_type,
+            "system_name": self.system_name,
+            "timeguard_reads": self.timeguards,
+            "saturated_writes": self.saturations,
+            "velocity_estimated": self.velocity_estimates,
+        }
         if self.model is None:
-            return DeviceInfo(kind="forcedimension", model="Force Dimension arm (not opened yet)",
-                              limits=before_open_limits(), details=details)
-        return DeviceInfo(kind="forcedimension", model=self.model.name, limits=self.model.limits, serial=self.serial,
-                          details=details)
+            return DeviceInfo(
+                kind="forcedimension",
+                model="Force Dimension arm (not opened yet)",
+                limits=before_open_limits(),
+                details=details,
+            )
+        return DeviceInfo(
+            kind="forcedimension",
+            model=self.model.name,
+            limits=self.model.limits,
+            serial=self.serial,
+            details=details,
+        )
 
     # lifecycle ------------------------------------------------------------------------
     def _error(self) -> str:
@@ -74,34 +98,51 @@ class ForceDimensionDevice(HardwareDriver):
         lib = self._lib
         count = lib.dhdGetDeviceCount()
         if count < 0:
-            raise DeviceOpenError(f"the Force Dimension SDK could not count its devices: {self._error()}")
+            raise DeviceOpenError(
+                f"the Force Dimension SDK could not count its devices: {self._error()}"
+            )
         if self.index >= count:
-            raise DeviceOpenError(f"no Force Dimension arm at index {self.index}: the SDK sees {count} (is it "
-                                  "plugged in, powered, and readable by your user? see docs/connect-your-arm.md)")
+            raise DeviceOpenError(
+                f"no Force Dimension arm at index {self.index}: the SDK sees {count} (is it "
+                "plugged in, powered, and readable by your user? see docs/connect-your-arm.md)"
+            )
         device_id = lib.dhdOpenID(self.index)
         if device_id < 0:
-            raise DeviceOpenError(f"the Force Dimension arm at index {self.index} did not open: {self._error()}")
+            raise DeviceOpenError(
+                f"the Force Dimension arm at index {self.index} did not open: {self._error()}"
+            )
         self._id = device_id
         self.system_type = lib.dhdGetSystemType(device_id)
         self.model = model_for(self.system_type)
         name = lib.dhdGetSystemName(device_id)
         self.system_name = name.decode(errors="replace") if name else ""
         serial = ctypes.c_ushort(0)
-        self.serial = str(serial.value) if lib.dhdGetSerialNumber(ctypes.byref(serial), device_id) >= 0 else ""
+        self.serial = (
+            str(serial.value)
+            if lib.dhdGetSerialNumber(ctypes.byref(serial), device_id) >= 0
+            else ""
+        )
         self._has_wrist = bool(lib.dhdHasWrist(device_id))
         self._velocity.reset()
         self.force = np.zeros(3)
-        if lib.dhdSetForce(0.0, 0.0, 0.0, device_id) < 0 or lib.dhdEnableForce(dhd.DHD_ON, device_id) < 0:
+        if (
+            lib.dhdSetForce(0.0, 0.0, 0.0, device_id) < 0
+            or lib.dhdEnableForce(dhd.DHD_ON, device_id) < 0
+        ):
             error = self._error()
             self.close()
-            raise DeviceOpenError(f"the Force Dimension arm at index {self.index} refused force output: {error}")
+            raise DeviceOpenError(
+                f"the Force Dimension arm at index {self.index} refused force output: {error}"
+            )
 
     def close(self) -> None:
         self.force = np.zeros(3)
         if self._id is None:
             return
         lib, device_id, self._id = self._lib, self._id, None
-        lib.dhdSetForce(0.0, 0.0, 0.0, device_id)  # an arm that cannot hear it has lost force already
+        lib.dhdSetForce(
+            0.0, 0.0, 0.0, device_id
+        )  # an arm that cannot hear it has lost force already
         lib.dhdClose(device_id)
 
     def reconnect(self) -> None:
@@ -136,13 +177,22 @@ class ForceDimensionDevice(HardwareDriver):
         if self._has_wrist:
             if lib.dhdGetOrientationFrame(ctypes.byref(self._matrix), device_id) < 0:
                 raise DeviceFault(f"dhdGetOrientationFrame failed: {self._error()}")
-            orientation = quaternion_from_matrix(frame.rotation(np.reshape(self._matrix[:], (3, 3))))
+            orientation = quaternion_from_matrix(
+                frame.rotation(np.reshape(self._matrix[:], (3, 3)))
+            )
         buttons = int(lib.dhdGetButtonMask(device_id))
-        return DeviceState(t_ns=t_ns, position_mm=position, orientation=orientation, velocity_mm_s=velocity,
-                           buttons=buttons)
+        return DeviceState(
+            t_ns=t_ns,
+            position_mm=position,
+            orientation=orientation,
+            velocity_mm_s=velocity,
+            buttons=buttons,
+        )
 
     def write_force(self, force_n) -> None:
-        limit = self.model.max_force_n if self.model is not None else before_open_limits().max_force_n
+        limit = (
+            self.model.max_force_n if self.model is not None else before_open_limits().max_force_n
+        )
         self.force = clamp_force(force_n, limit)
         if self._id is None:
             return
@@ -168,7 +218,12 @@ def list_arms(library: str | None = None) -> list[dict]:
             continue
         serial = ctypes.c_ushort(0)
         has_serial = lib.dhdGetSerialNumber(ctypes.byref(serial), device_id) >= 0
-        arms.append({"index": index, "model": model_for(lib.dhdGetSystemType(device_id)).name,
-                     "serial": str(serial.value) if has_serial else ""})
+        arms.append(
+            {
+                "index": index,
+                "model": model_for(lib.dhdGetSystemType(device_id)).name,
+                "serial": str(serial.value) if has_serial else "",
+            }
+        )
         lib.dhdClose(device_id)
     return arms

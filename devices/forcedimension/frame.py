@@ -12,9 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-DHD_TO_DEVICE = np.array([[0.0, 1.0, 0.0],
-                          [0.0, 0.0, 1.0],
-                          [1.0, 0.0, 0.0]])
+DHD_TO_DEVICE = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
 
 
 def position_mm(dhd_m) -> np.ndarray:

@@ -42,8 +42,12 @@ class DhdModel:
 
 
 DEFAULT = DhdModel("Force Dimension arm", 12.0, 5000.0, 30.0, 0.075)
-_OMEGA = dict(max_force_n=12.0, stiffness_n_per_m=5000.0, damping_n_s_per_m=30.0, workspace_radius_m=0.075)
-_LAMBDA = dict(max_force_n=12.0, stiffness_n_per_m=8000.0, damping_n_s_per_m=30.0, workspace_radius_m=0.1125)
+_OMEGA = dict(
+    max_force_n=12.0, stiffness_n_per_m=5000.0, damping_n_s_per_m=30.0, workspace_radius_m=0.075
+)
+_LAMBDA = dict(
+    max_force_n=12.0, stiffness_n_per_m=8000.0, damping_n_s_per_m=30.0, workspace_radius_m=0.1125
+)
 
 # dhdGetSystemType() → model (dhdc.h DHD_DEVICE_* values)
 MODELS: dict[int, DhdModel] = {
@@ -60,20 +64,36 @@ MODELS: dict[int, DhdModel] = {
     60: DhdModel("Novint Falcon (through DHD)", 8.0, 3000.0, 20.0, 0.04),
 }
 # Types the headers name but CHAI3D's table does not: CHAI3D's default limits, their own name.
-UNLISTED_NAMES = {64: "delta.6", 206: "sigma.3", 203: "lambda.3", 131: "lambda.6 (right)", 132: "lambda.6 (left)",
-                  91: "custom"}
+UNLISTED_NAMES = {
+    64: "delta.6",
+    206: "sigma.3",
+    203: "lambda.3",
+    131: "lambda.6 (right)",
+    132: "lambda.6 (left)",
+    91: "custom",
+}
 
 
 def model_for(system_type: int) -> DhdModel:
     if system_type in MODELS:
         return MODELS[system_type]
     name = UNLISTED_NAMES.get(system_type, f"Force Dimension type {system_type}")
-    return DhdModel(name, DEFAULT.max_force_n, DEFAULT.stiffness_n_per_m, DEFAULT.damping_n_s_per_m,
-                    DEFAULT.workspace_radius_m)
+    return DhdModel(
+        name,
+        DEFAULT.max_force_n,
+        DEFAULT.stiffness_n_per_m,
+        DEFAULT.damping_n_s_per_m,
+        DEFAULT.workspace_radius_m,
+    )
 
 
 def before_open_limits() -> DeviceLimits:
     """What the daemon gets before the model is known: the smallest of each limit over the table."""
     every = list(MODELS.values()) + [DEFAULT]
-    return DhdModel("", min(m.max_force_n for m in every), min(m.stiffness_n_per_m for m in every),
-                    min(m.damping_n_s_per_m for m in every), min(m.workspace_radius_m for m in every)).limits
+    return DhdModel(
+        "",
+        min(m.max_force_n for m in every),
+        min(m.stiffness_n_per_m for m in every),
+        min(m.damping_n_s_per_m for m in every),
+        min(m.workspace_radius_m for m in every),
+    ).limits

@@ -20,12 +20,17 @@ import logging
 import time
 
 import numpy as np
-
 from sasprobe.devices.base import DeviceInfo, DeviceOpenError
 from sasprobe.devices.haply import kinematics, protocol
 from sasprobe.devices.haply.models import DEFAULT_GENERATION, GENERATIONS
 from sasprobe.devices.kinematics import KinematicsError, scale_to_limit
-from sasprobe.devices.serial_arm import JUNK_PROBES, PROBE_INTERVAL_S, BadFrame, SerialArm, timing_options
+from sasprobe.devices.serial_arm import (
+    JUNK_PROBES,
+    PROBE_INTERVAL_S,
+    BadFrame,
+    SerialArm,
+    timing_options,
+)
 
 log = logging.getLogger("sasprobe.devices.haply")
 
@@ -37,18 +42,32 @@ SETUP_ATTEMPTS = 3
 class Haply2DIYDevice(SerialArm):
     scheme = "haply"
 
-    def __init__(self, port: str | None, *, generation: str = DEFAULT_GENERATION,
-                 device_id: int = protocol.DEFAULT_DEVICE_ID, **timing):
+    def __init__(
+        self,
+        port: str | None,
+        *,
+        generation: str = DEFAULT_GENERATION,
+        device_id: int = protocol.DEFAULT_DEVICE_ID,
+        **timing,
+    ):
         if generation not in GENERATIONS:
-            raise DeviceOpenError(f"unknown Haply 2DIY generation '{generation}' (known: {', '.join(GENERATIONS)})")
+            raise DeviceOpenError(
+                f"unknown Haply 2DIY generation '{generation}' (known: {', '.join(GENERATIONS)})"
+            )
         super().__init__(port, **timing)
         self.generation = GENERATIONS[generation]
         self.device_id = device_id
         self.set_up = False
         self.setups_sent = 0
-        self.board_angles_deg: tuple[float, ...] | None = None  # per port, as the board reports them
-        self.theta = np.radians([self.generation.port_for(1).start_angle_deg,
-                                 self.generation.port_for(2).start_angle_deg])
+        self.board_angles_deg: tuple[float, ...] | None = (
+            None  # per port, as the board reports them
+        )
+        self.theta = np.radians(
+            [
+                self.generation.port_for(1).start_angle_deg,
+                self.generation.port_for(2).start_angle_deg,
+            ]
+        )
         self._position = np.zeros(3)
 
     @property
@@ -57,12 +76,22 @@ class Haply2DIYDevice(SerialArm):
 
     @property
     def info(self) -> DeviceInfo:
-        return DeviceInfo(kind=self.scheme, model=self.generation.name, limits=self.generation.limits,
-                          serial=self.port,
-                          details={"device_id": self.device_id, "planar": True, "setups_sent": self.setups_sent,
-                                   "angles_deg": list(self.board_angles_deg or ()), "replies": self.replies,
-                                   "rejected_frames": self.rejected_frames, "stale_replies": self.stale_replies,
-                                   "resyncs": self.resyncs})
+        return DeviceInfo(
+            kind=self.scheme,
+            model=self.generation.name,
+            limits=self.generation.limits,
+            serial=self.port,
+            details={
+                "device_id": self.device_id,
+                "planar": True,
+                "setups_sent": self.setups_sent,
+                "angles_deg": list(self.board_angles_deg or ()),
+                "replies": self.replies,
+                "rejected_frames": self.rejected_frames,
+                "stale_replies": self.stale_replies,
+                "resyncs": self.resyncs,
+            },
+        )
 
     # wire -----------------------------------------------------------------------------
     def _zero_command(self) -> bytes:
@@ -78,22 +107,30 @@ class Haply2DIYDevice(SerialArm):
         return force
 
     def _zero_may_overlap(self) -> bool:
-        return True  # fixed-size frames cannot merge, and the board has no watchdog: always send zero
+        return (
+            True  # fixed-size frames cannot merge, and the board has no watchdog: always send zero
+        )
 
     def _split(self, inbox: bytes):
         size = protocol.reply_size(len(self.generation.ports))
         if len(inbox) < size:
             return None, inbox
         reply = protocol.decode_angles(inbox[:size], self.device_id, len(self.generation.ports))
-        if self.board_angles_deg is not None and \
-                max(abs(a - b) for a, b in zip(reply.degrees, self.board_angles_deg)) > MAX_STEP_DEG:
-            raise BadFrame(f"a reply whose angles jumped from {self.board_angles_deg} to {reply.degrees}")
+        if (
+            self.board_angles_deg is not None
+            and max(abs(a - b) for a, b in zip(reply.degrees, self.board_angles_deg)) > MAX_STEP_DEG
+        ):
+            raise BadFrame(
+                f"a reply whose angles jumped from {self.board_angles_deg} to {reply.degrees}"
+            )
         return reply, inbox[size:]
 
     def _take(self, reply: protocol.Angles) -> None:
         self.board_angles_deg = reply.degrees
         by_port = dict(zip((p.port for p in self.generation.ports), reply.degrees))
-        theta = np.radians([by_port[self.generation.port_for(1).port], by_port[self.generation.port_for(2).port]])
+        theta = np.radians(
+            [by_port[self.generation.port_for(1).port], by_port[self.generation.port_for(2).port]]
+        )
         try:
             xy = kinematics.handle(self.generation, theta)
         except KinematicsError:
@@ -119,7 +156,10 @@ class Haply2DIYDevice(SerialArm):
         deadline = time.monotonic() + timeout_s
         self.transport.discard_input()
         if self.set_up and self._answers_in_full(deadline):
-            log.info("%s: the board kept its setup; its encoders still count from the first one", self.port)
+            log.info(
+                "%s: the board kept its setup; its encoders still count from the first one",
+                self.port,
+            )
             return
         self.board_angles_deg = None
         for _attempt in range(SETUP_ATTEMPTS):
@@ -127,18 +167,24 @@ class Haply2DIYDevice(SerialArm):
             if self._answers_in_full(deadline):
                 self.set_up = True
                 return
-            log.warning("%s: the board answered without its encoders: setting it up again", self.port)
-        raise DeviceOpenError(f"the board on {self.port} does not take the 2DIY setup "
-                              f"({SETUP_ATTEMPTS} tries): is its encoder/motor wiring on ports 1 and 2?")
+            log.warning(
+                "%s: the board answered without its encoders: setting it up again", self.port
+            )
+        raise DeviceOpenError(
+            f"the board on {self.port} does not take the 2DIY setup "
+            f"({SETUP_ATTEMPTS} tries): is its encoder/motor wiring on ports 1 and 2?"
+        )
 
     def _send_setup(self) -> None:
         self.transport.write(protocol.encode_reset())
         self.transport.write(protocol.encode_setup(self.device_id, self.generation.ports))
         self.setups_sent += 1
         if self.transport.read(4096, SETUP_SILENCE_S):
-            raise DeviceOpenError(f"the board on {self.port} answered the reset/setup messages, which the Haply "
-                                  "M0/M3 firmware never does: it runs another firmware (the old v0.1 header format?); "
-                                  "flash Haply_M0_Firmware_V0_3 or Haply_M3_Firmware_V1_5")
+            raise DeviceOpenError(
+                f"the board on {self.port} answered the reset/setup messages, which the Haply "
+                "M0/M3 firmware never does: it runs another firmware (the old v0.1 header format?); "
+                "flash Haply_M0_Firmware_V0_3 or Haply_M3_Firmware_V1_5"
+            )
 
     def _answers_in_full(self, deadline: float) -> bool:
         """Probe with zero torques until the board answers: True for a full reply, False for
@@ -154,12 +200,14 @@ class Haply2DIYDevice(SerialArm):
                 continue
             if len(answer) < size and set(answer) == {self.device_id}:
                 return False
-            frames = [answer[i:i + size] for i in range(0, len(answer), size)]
+            frames = [answer[i : i + size] for i in range(0, len(answer), size)]
             try:
                 replies = [self._split(frame)[0] for frame in frames]
             except BadFrame:
                 replies = []
-            if replies and all(r is not None for r in replies):  # late answers to earlier probes, then ours
+            if replies and all(
+                r is not None for r in replies
+            ):  # late answers to earlier probes, then ours
                 self.board_angles_deg = None
                 self._take(replies[-1])
                 self._sent_at = None
@@ -168,10 +216,14 @@ class Haply2DIYDevice(SerialArm):
             if _probe + 1 >= JUNK_PROBES:
                 break
         if junk:
-            raise DeviceOpenError(f"{self.port} answered, but not as a Haply M0/M3 board (device ID "
-                                  f"{self.device_id}, {size}-byte replies): got {junk.hex(' ')}")
-        raise DeviceOpenError(f"{self.port} opened, but the board never answered within "
-                              f"{self.handshake_timeout_s:g} s (is it a Haply M0/M3 board with its firmware?)")
+            raise DeviceOpenError(
+                f"{self.port} answered, but not as a Haply M0/M3 board (device ID "
+                f"{self.device_id}, {size}-byte replies): got {junk.hex(' ')}"
+            )
+        raise DeviceOpenError(
+            f"{self.port} opened, but the board never answered within "
+            f"{self.handshake_timeout_s:g} s (is it a Haply M0/M3 board with its firmware?)"
+        )
 
     def _answer(self, deadline: float) -> bytes:
         """What arrives until `deadline`, or until SETUP_SILENCE_S of quiet after the first byte."""
@@ -197,5 +249,6 @@ def create(argument: str | None = None, **options) -> Haply2DIYDevice:
         if sep and head.lower() in GENERATIONS:
             generation, argument = head.lower(), rest
     device_id = int(options.get("device_id") or protocol.DEFAULT_DEVICE_ID)
-    return Haply2DIYDevice(argument, generation=generation, device_id=device_id, **timing_options(options))
-
+    return Haply2DIYDevice(
+        argument, generation=generation, device_id=device_id, **timing_options(options)
+    )

@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from sasprobe.devices.haply.models import Generation
 from sasprobe.devices.kinematics import KinematicsError
 
@@ -27,7 +26,9 @@ from sasprobe.devices.kinematics import KinematicsError
 def elbows(gen: Generation, theta) -> tuple[np.ndarray, np.ndarray]:
     t1, t2 = theta
     a = gen.proximal_m * np.array([math.cos(t1), math.sin(t1)])
-    b = np.array([gen.motor_spacing_m, 0.0]) + gen.proximal_m * np.array([math.cos(t2), math.sin(t2)])
+    b = np.array([gen.motor_spacing_m, 0.0]) + gen.proximal_m * np.array(
+        [math.cos(t2), math.sin(t2)]
+    )
     return a, b
 
 
@@ -37,10 +38,14 @@ def handle(gen: Generation, theta) -> np.ndarray:
     chord = b - a
     span = float(np.hypot(*chord))
     if span == 0.0 or span >= 2.0 * gen.distal_m:
-        raise KinematicsError(f"the 2DIY links cannot meet at motor angles {np.degrees(theta).round(1).tolist()}°")
+        raise KinematicsError(
+            f"the 2DIY links cannot meet at motor angles {np.degrees(theta).round(1).tolist()}°"
+        )
     along = chord / span
     cos_b = span / (2.0 * gen.distal_m)
-    return a + gen.distal_m * (cos_b * along + math.sqrt(1.0 - cos_b * cos_b) * np.array([-along[1], along[0]]))
+    return a + gen.distal_m * (
+        cos_b * along + math.sqrt(1.0 - cos_b * cos_b) * np.array([-along[1], along[0]])
+    )
 
 
 def jacobian(gen: Generation, theta) -> np.ndarray:

@@ -30,7 +30,9 @@ HALF_WORKSPACE_MM = 50.0
 @dataclass(frozen=True)
 class PortSetup:
     port: int  # the board's motor/encoder port, 1..4
-    link: int  # the pantograph link it drives and reads: 1 (from the motor at x = 0) or 2 (at x = d)
+    link: (
+        int  # the pantograph link it drives and reads: 1 (from the motor at x = 0) or 2 (at x = d)
+    )
     motor_direction: int  # CW or CCW
     encoder_direction: int
     start_angle_deg: float  # the encoder offset sent at setup
@@ -53,16 +55,32 @@ class Generation:
     def limits(self) -> DeviceLimits:
         h = HALF_WORKSPACE_MM
         # planar: the box's y (up) depth equals its others so the daemon's cube fits the plane
-        return DeviceLimits(max_force_n=1.5, continuous_force_n=1.5, max_stiffness_n_per_mm=0.5,
-                            max_damping_n_s_per_m=3.0, workspace_min_mm=(-h, -h, -h), workspace_max_mm=(h, h, h))
+        return DeviceLimits(
+            max_force_n=1.5,
+            continuous_force_n=1.5,
+            max_stiffness_n_per_mm=0.5,
+            max_damping_n_s_per_m=3.0,
+            workspace_min_mm=(-h, -h, -h),
+            workspace_max_mm=(h, h, h),
+        )
 
 
 GENERATIONS: dict[str, Generation] = {
-    "gen2": Generation("Haply 2DIY (gen 2, metal plate)", 0.07, 0.09, 0.0,
-                       (PortSetup(1, 2, CW, CW, -61.0, 10752.0), PortSetup(2, 1, CCW, CCW, 241.0, 10752.0)),
-                       workspace_centre_m=(0.0, 0.080)),
-    "gen3": Generation("Haply 2DIY (gen 3, plastic)", 0.07, 0.09, 0.038,
-                       (PortSetup(1, 2, CCW, CCW, 12.0, 4880.0), PortSetup(2, 1, CCW, CCW, 168.0, 4880.0)),
-                       workspace_centre_m=(0.019, 0.090)),
+    "gen2": Generation(
+        "Haply 2DIY (gen 2, metal plate)",
+        0.07,
+        0.09,
+        0.0,
+        (PortSetup(1, 2, CW, CW, -61.0, 10752.0), PortSetup(2, 1, CCW, CCW, 241.0, 10752.0)),
+        workspace_centre_m=(0.0, 0.080),
+    ),
+    "gen3": Generation(
+        "Haply 2DIY (gen 3, plastic)",
+        0.07,
+        0.09,
+        0.038,
+        (PortSetup(1, 2, CCW, CCW, 12.0, 4880.0), PortSetup(2, 1, CCW, CCW, 168.0, 4880.0)),
+        workspace_centre_m=(0.019, 0.090),
+    ),
 }
 DEFAULT_GENERATION = "gen3"

@@ -29,7 +29,7 @@ import math
 import struct
 from dataclasses import dataclass
 
-from sasprobe.devices.serial_arm import BadFrame, ArmReply
+from sasprobe.devices.serial_arm import ArmReply, BadFrame
 
 RESET, SETUP, WRITE = 0, 1, 2
 MAX_TORQUE_NM = 0.123  # MAX_TORQUE in both firmwares
@@ -57,8 +57,18 @@ def encode_setup(device_id: int, ports) -> bytes:
     counts_per_turn), one per motor with its encoder."""
     ports = sorted(ports, key=lambda p: p.port)
     mask = port_mask(p.port for p in ports)
-    head = bytes([SETUP, device_id, mask, *(p.motor_direction for p in ports),
-                  mask, *(p.encoder_direction for p in ports), 0, 0])
+    head = bytes(
+        [
+            SETUP,
+            device_id,
+            mask,
+            *(p.motor_direction for p in ports),
+            mask,
+            *(p.encoder_direction for p in ports),
+            0,
+            0,
+        ]
+    )
     floats = [v for p in ports for v in (p.start_angle_deg, p.counts_per_turn)]
     return head + struct.pack(f"<{len(floats)}f", *floats)
 

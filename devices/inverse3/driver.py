@@ -27,13 +27,18 @@ import threading
 import time
 
 import numpy as np
-from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidURI
-from websockets.sync.client import connect
-
-from sasprobe.devices.base import IDENTITY_QUATERNION, DeviceFault, DeviceInfo, DeviceOpenError, DeviceState
+from sasprobe.devices.base import (
+    IDENTITY_QUATERNION,
+    DeviceFault,
+    DeviceInfo,
+    DeviceOpenError,
+    DeviceState,
+)
 from sasprobe.devices.hardware import HardwareDriver, clamp_force
 from sasprobe.devices.inverse3 import protocol
 from sasprobe.devices.inverse3.models import InverseModel, before_open_limits, model_for
+from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidURI
+from websockets.sync.client import connect
 
 log = logging.getLogger("sasprobe.devices.inverse3")
 
@@ -43,15 +48,24 @@ CLOSE_WAIT_S = 0.05  # how long close() waits for the reply in flight before it 
 
 
 def _service_missing(url: str, why: object) -> DeviceOpenError:
-    return DeviceOpenError(f"no Inverse Service answers at {url} ({why}): start Haply's Inverse Service (Haply Hub "
-                           "runs it) or give its address as --device inverse3:ws://HOST:PORT")
+    return DeviceOpenError(
+        f"no Inverse Service answers at {url} ({why}): start Haply's Inverse Service (Haply Hub "
+        "runs it) or give its address as --device inverse3:ws://HOST:PORT"
+    )
 
 
 def _connect(url: str, timeout_s: float):
     """A WebSocket to the service (no pings, no compression, no proxy), or DeviceOpenError."""
     try:
-        return connect(url, open_timeout=timeout_s, close_timeout=0.2, ping_interval=None, compression=None,
-                       proxy=None, legacy=True)
+        return connect(
+            url,
+            open_timeout=timeout_s,
+            close_timeout=0.2,
+            ping_interval=None,
+            compression=None,
+            proxy=None,
+            legacy=True,
+        )
     except (OSError, TimeoutError, InvalidHandshake) as exc:
         raise _service_missing(url, exc) from None
     except InvalidURI as exc:
@@ -76,29 +90,39 @@ class Session:
         self.thread.start()
 
     @classmethod
-    def open(cls, url: str, timeout_s: float) -> "Session":
+    def open(cls, url: str, timeout_s: float) -> Session:
         """Connect, take the inventory, send the first message and take its answer."""
         ws = _connect(url, timeout_s)
         try:
             try:
                 session_id, devices = protocol.inventory(ws.recv(timeout=timeout_s))
             except TimeoutError:
-                raise DeviceOpenError(f"{url} accepted a WebSocket but sent no inventory within {timeout_s:g} s: "
-                                      "is it the Inverse Service's 3.x channel (port 10001)?") from None
+                raise DeviceOpenError(
+                    f"{url} accepted a WebSocket but sent no inventory within {timeout_s:g} s: "
+                    "is it the Inverse Service's 3.x channel (port 10001)?"
+                ) from None
             except protocol.FormatError as exc:
-                raise DeviceOpenError(f"{url} does not speak the Inverse Service's 3.x format ({exc}): is it the "
-                                      "legacy 3.0 channel, or another server?") from None
+                raise DeviceOpenError(
+                    f"{url} does not speak the Inverse Service's 3.x format ({exc}): is it the "
+                    "legacy 3.0 channel, or another server?"
+                ) from None
             if not devices:
-                raise DeviceOpenError(f"the Inverse Service at {url} lists no Inverse3: is the arm plugged in and "
-                                      "powered, and shown in Haply Hub?")
+                raise DeviceOpenError(
+                    f"the Inverse Service at {url} lists no Inverse3: is the arm plugged in and "
+                    "powered, and shown in Haply Hub?"
+                )
             device = devices[0]
             ws.send(protocol.first_message(device["device_id"]))
             try:
                 first = protocol.reading(ws.recv(timeout=timeout_s), device["device_id"])
             except TimeoutError:
-                raise DeviceOpenError(f"the Inverse Service at {url} did not answer the first message") from None
+                raise DeviceOpenError(
+                    f"the Inverse Service at {url} did not answer the first message"
+                ) from None
             except protocol.FormatError as exc:
-                raise DeviceOpenError(f"{url} answered outside the Inverse Service's 3.x format ({exc})") from None
+                raise DeviceOpenError(
+                    f"{url} answered outside the Inverse Service's 3.x format ({exc})"
+                ) from None
             return cls(ws, url, session_id, device, first, time.monotonic_ns())
         except (ConnectionClosed, OSError) as exc:
             ws.close()
@@ -142,7 +166,9 @@ class Session:
             self.ws.send(text)
         except (ConnectionClosed, OSError) as exc:
             with self.cond:
-                self.lost = self.lost or f"the Inverse Service at {self.url} closed the connection ({exc})"
+                self.lost = (
+                    self.lost or f"the Inverse Service at {self.url} closed the connection ({exc})"
+                )
             raise DeviceFault(self.lost) from None
 
     def close(self) -> None:
@@ -151,8 +177,14 @@ class Session:
 
 
 class Inverse3Device(HardwareDriver):
-    def __init__(self, url: str = protocol.DEFAULT_URL, *, reply_timeout_s: float = 0.010,
-                 read_wait_s: float = 0.001, handshake_timeout_s: float = HANDSHAKE_TIMEOUT_S):
+    def __init__(
+        self,
+        url: str = protocol.DEFAULT_URL,
+        *,
+        reply_timeout_s: float = 0.010,
+        read_wait_s: float = 0.001,
+        handshake_timeout_s: float = HANDSHAKE_TIMEOUT_S,
+    ):
         self.url = url
         self.reply_timeout_s = reply_timeout_s
         self.read_wait_s = read_wait_s
@@ -168,24 +200,45 @@ class Inverse3Device(HardwareDriver):
     @property
     def info(self) -> DeviceInfo:
         s = self._session
-        details = {"url": self.url, "reused_states": self.reused_states, "late_replies": self.late_replies,
-                   "sessions": self.sessions}
+        details = {
+            "url": self.url,
+            "reused_states": self.reused_states,
+            "late_replies": self.late_replies,
+            "sessions": self.sessions,
+        }
         if s is not None:
-            details.update(session_id=s.session_id, device_id=s.device_id, type=s.kind, handedness=s.handedness,
-                           messages_sent=s.sent, replies=s.replied)
+            details.update(
+                session_id=s.session_id,
+                device_id=s.device_id,
+                type=s.kind,
+                handedness=s.handedness,
+                messages_sent=s.sent,
+                replies=s.replied,
+            )
         if self.model is None:
-            return DeviceInfo(kind="inverse3", model="Haply Inverse3 (not connected yet)", limits=before_open_limits(),
-                              details=details)
-        return DeviceInfo(kind="inverse3", model=self.model.name, limits=self.model.limits,
-                          serial=str(s.device_id) if s else "", details=details)
+            return DeviceInfo(
+                kind="inverse3",
+                model="Haply Inverse3 (not connected yet)",
+                limits=before_open_limits(),
+                details=details,
+            )
+        return DeviceInfo(
+            kind="inverse3",
+            model=self.model.name,
+            limits=self.model.limits,
+            serial=str(s.device_id) if s else "",
+            details=details,
+        )
 
     def _take(self, session: Session) -> None:
         self._session = session
         self.model = model_for(session.kind)
         self.sessions += 1
         if not session.latest[1].calibrated:
-            log.warning("the Inverse3 %s is not calibrated: let it self-calibrate (see docs/connect-your-arm.md)",
-                        session.device_id)
+            log.warning(
+                "the Inverse3 %s is not calibrated: let it self-calibrate (see docs/connect-your-arm.md)",
+                session.device_id,
+            )
 
     # lifecycle ------------------------------------------------------------------------
     def open(self) -> None:
@@ -196,8 +249,10 @@ class Inverse3Device(HardwareDriver):
         session, self._session = self._session, None
         if session is not None:
             with session.cond:  # let the reply in flight come, so the zero can go out
-                session.cond.wait_for(lambda: not session.in_flight() or session.lost is not None,
-                                      timeout=CLOSE_WAIT_S)
+                session.cond.wait_for(
+                    lambda: not session.in_flight() or session.lost is not None,
+                    timeout=CLOSE_WAIT_S,
+                )
             if session.lost is None and not session.in_flight():
                 try:
                     session.send(protocol.force_message(session.device_id, np.zeros(3)))
@@ -220,9 +275,15 @@ class Inverse3Device(HardwareDriver):
             silent_s = time.monotonic() - s.sent_at
             if not s.in_flight() or silent_s <= self.reply_timeout_s:
                 return  # answering: nothing to do
-            if silent_s <= SILENT_RECONNECT_S:  # the late reply may still come; read() takes it when it does
-                raise DeviceFault(f"the Inverse Service has not answered for {silent_s * 1000:.0f} ms")
-            log.warning("the Inverse Service has not answered for %.1f s: opening a new session", silent_s)
+            if (
+                silent_s <= SILENT_RECONNECT_S
+            ):  # the late reply may still come; read() takes it when it does
+                raise DeviceFault(
+                    f"the Inverse Service has not answered for {silent_s * 1000:.0f} ms"
+                )
+            log.warning(
+                "the Inverse Service has not answered for %.1f s: opening a new session", silent_s
+            )
             s.close()
         if self._connected is not None:
             if s is not None:
@@ -232,7 +293,9 @@ class Inverse3Device(HardwareDriver):
             return
         if self._connector is None or not self._connector.is_alive():
             why, self._connect_error = self._connect_error, None
-            self._connector = threading.Thread(target=self._connect, name="inverse3-connect", daemon=True)
+            self._connector = threading.Thread(
+                target=self._connect, name="inverse3-connect", daemon=True
+            )
             self._connector.start()
             if why:
                 raise DeviceFault(f"device still unavailable: {why}")
@@ -251,7 +314,9 @@ class Inverse3Device(HardwareDriver):
             raise DeviceFault(f"not connected to the Inverse Service at {self.url}")
         with s.cond:
             if s.in_flight() and s.lost is None:
-                s.cond.wait_for(lambda: not s.in_flight() or s.lost is not None, timeout=self.read_wait_s)
+                s.cond.wait_for(
+                    lambda: not s.in_flight() or s.lost is not None, timeout=self.read_wait_s
+                )
             if s.lost is not None:
                 raise DeviceFault(s.lost)
             t_ns, reading = s.latest
@@ -259,13 +324,22 @@ class Inverse3Device(HardwareDriver):
                 late_s = time.monotonic() - s.sent_at
                 if late_s > self.reply_timeout_s:
                     self.late_replies += 1
-                    raise DeviceFault(f"the Inverse Service has not answered for {late_s * 1000:.0f} ms")
+                    raise DeviceFault(
+                        f"the Inverse Service has not answered for {late_s * 1000:.0f} ms"
+                    )
                 self.reused_states += 1
-        return DeviceState(t_ns=t_ns, position_mm=reading.position_mm.copy(),
-                           orientation=(reading.orientation if reading.orientation is not None
-                                        else np.array(IDENTITY_QUATERNION)),
-                           velocity_mm_s=reading.velocity_mm_s.copy(), buttons=reading.buttons,
-                           calibrated=reading.calibrated)
+        return DeviceState(
+            t_ns=t_ns,
+            position_mm=reading.position_mm.copy(),
+            orientation=(
+                reading.orientation
+                if reading.orientation is not None
+                else np.array(IDENTITY_QUATERNION)
+            ),
+            velocity_mm_s=reading.velocity_mm_s.copy(),
+            buttons=reading.buttons,
+            calibrated=reading.calibrated,
+        )
 
     def write_force(self, force_n) -> None:
         limit = (self.model.limits if self.model is not None else before_open_limits()).max_force_n
@@ -285,13 +359,20 @@ def list_arms(url: str, timeout_s: float = HANDSHAKE_TIMEOUT_S) -> list[dict]:
     try:
         _session_id, devices = protocol.inventory(ws.recv(timeout=timeout_s))
     except (TimeoutError, ConnectionClosed, protocol.FormatError) as exc:
-        raise DeviceOpenError(f"{url} answers, but not as the Inverse Service's 3.x channel ({exc})") from None
+        raise DeviceOpenError(
+            f"{url} answers, but not as the Inverse Service's 3.x channel ({exc})"
+        ) from None
     finally:
         ws.close()
     arms = []
     for entry in devices:
         config = entry.get("config") if isinstance(entry.get("config"), dict) else {}
         status = entry.get("status") if isinstance(entry.get("status"), dict) else {}
-        arms.append({"device_id": entry["device_id"], "model": model_for(str(config.get("type", "inverse3"))).name,
-                     "calibrated": bool(status.get("calibrated", True))})
+        arms.append(
+            {
+                "device_id": entry["device_id"],
+                "model": model_for(str(config.get("type", "inverse3"))).name,
+                "calibrated": bool(status.get("calibrated", True)),
+            }
+        )
     return arms

@@ -37,11 +37,15 @@ class InverseModel:
     @property
     def limits(self) -> DeviceLimits:
         half = self.workspace_radius_m * 1000.0 / math.sqrt(3.0)
-        return DeviceLimits(max_force_n=MAX_FORCE_N, continuous_force_n=MAX_FORCE_N,
-                            max_stiffness_n_per_mm=MAX_STIFFNESS_N_PER_MM,
-                            max_damping_n_s_per_m=MAX_DAMPING_N_S_PER_M,
-                            workspace_min_mm=(-half, -half, -half), workspace_max_mm=(half, half, half),
-                            nominal_rate_hz=NOMINAL_RATE_HZ)
+        return DeviceLimits(
+            max_force_n=MAX_FORCE_N,
+            continuous_force_n=MAX_FORCE_N,
+            max_stiffness_n_per_mm=MAX_STIFFNESS_N_PER_MM,
+            max_damping_n_s_per_m=MAX_DAMPING_N_S_PER_M,
+            workspace_min_mm=(-half, -half, -half),
+            workspace_max_mm=(half, half, half),
+            nominal_rate_hz=NOMINAL_RATE_HZ,
+        )
 
 
 MODELS = {  # config.type → model

@@ -24,7 +24,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
 from sasprobe.devices.hardware import quaternion_from_matrix
 
 DEFAULT_URL = "ws://localhost:10001"
@@ -32,9 +31,7 @@ PROFILE_NAME = "org.sasprobe:daemon"
 PRESET = "arm_front_centered"
 GRIP_BUTTONS = ("a", "b", "c")  # → bits 0, 1, 2
 
-HAPLY_TO_DEVICE = np.array([[1.0, 0.0, 0.0],
-                            [0.0, 0.0, 1.0],
-                            [0.0, -1.0, 0.0]])
+HAPLY_TO_DEVICE = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 
 class FormatError(ValueError):
@@ -65,9 +62,13 @@ def orientation(haply_xyzw) -> np.ndarray:
     if not math.isfinite(n) or n == 0.0:
         raise FormatError("a VerseGrip orientation that is not a rotation")
     x, y, z, w = x / n, y / n, z / n, w / n
-    r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                  [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                  [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    r = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
     return quaternion_from_matrix(HAPLY_TO_DEVICE @ r @ HAPLY_TO_DEVICE.T)
 
 
@@ -100,7 +101,11 @@ def inventory(text) -> tuple[int | None, list[dict]]:
     if not isinstance(devices, list):
         raise FormatError(f"no 'inverse3' list (keys: {', '.join(sorted(message)) or 'none'})")
     for entry in devices:
-        if not isinstance(entry, dict) or "device_id" not in entry or not isinstance(entry.get("state"), dict):
+        if (
+            not isinstance(entry, dict)
+            or "device_id" not in entry
+            or not isinstance(entry.get("state"), dict)
+        ):
             raise FormatError("an 'inverse3' entry without device_id and state")
         _vector(entry["state"], "cursor_position")
     return message.get("session_id"), devices
@@ -108,9 +113,18 @@ def inventory(text) -> tuple[int | None, list[dict]]:
 
 def first_message(device_id) -> str:
     """The session's first message: its profile name, the workspace-centred preset, zero force."""
-    return json.dumps({"session": {"configure": {"profile": {"name": PROFILE_NAME}}},
-                       "inverse3": [{"device_id": device_id, "configure": {"preset": {"preset": PRESET}},
-                                     "commands": _force(np.zeros(3))}]})
+    return json.dumps(
+        {
+            "session": {"configure": {"profile": {"name": PROFILE_NAME}}},
+            "inverse3": [
+                {
+                    "device_id": device_id,
+                    "configure": {"preset": {"preset": PRESET}},
+                    "commands": _force(np.zeros(3)),
+                }
+            ],
+        }
+    )
 
 
 def force_message(device_id, device_force_n) -> str:
@@ -125,18 +139,32 @@ def _force(device_force_n) -> dict:
 def reading(text, device_id) -> Reading:
     """The state of `device_id` (and of the first wireless VerseGrip) in a state update."""
     message = _object(text)
-    entry = next((d for d in message.get("inverse3") or () if isinstance(d, dict) and d.get("device_id") == device_id),
-                 None)
+    entry = next(
+        (
+            d
+            for d in message.get("inverse3") or ()
+            if isinstance(d, dict) and d.get("device_id") == device_id
+        ),
+        None,
+    )
     if entry is None or not isinstance(entry.get("state"), dict):
         raise FormatError(f"a state update without Inverse3 {device_id}")
     state = entry["state"]
     status = entry.get("status") if isinstance(entry.get("status"), dict) else {}
-    out = Reading(position_mm=position_mm(_vector(state, "cursor_position")),
-                  velocity_mm_s=position_mm(_vector(state, "cursor_velocity")) if "cursor_velocity" in state
-                  else np.zeros(3),
-                  calibrated=bool(status.get("calibrated", True)))
+    out = Reading(
+        position_mm=position_mm(_vector(state, "cursor_position")),
+        velocity_mm_s=position_mm(_vector(state, "cursor_velocity"))
+        if "cursor_velocity" in state
+        else np.zeros(3),
+        calibrated=bool(status.get("calibrated", True)),
+    )
     grips = message.get("wireless_verse_grip")
-    if isinstance(grips, list) and grips and isinstance(grips[0], dict) and isinstance(grips[0].get("state"), dict):
+    if (
+        isinstance(grips, list)
+        and grips
+        and isinstance(grips[0], dict)
+        and isinstance(grips[0].get("state"), dict)
+    ):
         grip = grips[0]["state"]
         pressed = grip.get("buttons") if isinstance(grip.get("buttons"), dict) else {}
         out.buttons = sum(1 << i for i, name in enumerate(GRIP_BUTTONS) if pressed.get(name))

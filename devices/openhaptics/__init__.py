@@ -19,5 +19,9 @@ def create(argument: str | None = None, **options) -> OpenHapticsDevice:
     head, sep, tail = name.rpartition(":")
     if tail == RESET_ENCODERS:
         name, reset = (head if sep else ""), True
-    return OpenHapticsDevice(name or None, library=options.get("library"), reset_encoders=reset,
-                             read_timeout_s=float(options.get("read_timeout_s", 0.05)))
+    return OpenHapticsDevice(
+        name or None,
+        library=options.get("library"),
+        reset_encoders=reset,
+        read_timeout_s=float(options.get("read_timeout_s", 0.05)),
+    )

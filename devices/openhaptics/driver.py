@@ -52,25 +52,40 @@ import threading
 import time
 
 import numpy as np
-
-from sasprobe.devices.base import (PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError,
-                                   DeviceState)
+from sasprobe.devices.base import (
+    PHANTOM_OMNI_LIMITS,
+    DeviceFault,
+    DeviceInfo,
+    DeviceLimits,
+    DeviceOpenError,
+    DeviceState,
+)
+from sasprobe.devices.hardware import HardwareDriver, clamp_force, quaternion_from_matrix
 from sasprobe.devices.openhaptics import hdapi
 from sasprobe.devices.openhaptics.hdapi import error_name
-from sasprobe.devices.hardware import HardwareDriver, clamp_force, quaternion_from_matrix
 
 log = logging.getLogger("sasprobe.devices.openhaptics")
 
 RESET_ENCODERS = "reset-encoders"
-FREE_COMMANDS = 3  # zero commands in a row past the contact: the stylus is out (a late tick gives one)
+FREE_COMMANDS = (
+    3  # zero commands in a row past the contact: the stylus is out (a late tick gives one)
+)
 FREE_MARGIN_MM = 0.5  # ... each this far past every in-contact position, along the way out
-RESUME_RAMP_FRAMES = 500  # after a force error, force ramps back in over 0.5 s of the 1 kHz servo loop
+RESUME_RAMP_FRAMES = (
+    500  # after a force error, force ramps back in over 0.5 s of the 1 kHz servo loop
+)
 MAX_ERRORS_PER_FRAME = 16  # the error stack is drained, boundedly, after every frame
 
 
 class OpenHapticsDevice(HardwareDriver):
-    def __init__(self, name: str | None = None, *, library: str | None = None, read_timeout_s: float = 0.05,
-                 reset_encoders: bool = False):
+    def __init__(
+        self,
+        name: str | None = None,
+        *,
+        library: str | None = None,
+        read_timeout_s: float = 0.05,
+        reset_encoders: bool = False,
+    ):
         self.name = name or None  # None: HD_DEFAULT_DEVICE
         self.library_path = library
         self.read_timeout_s = read_timeout_s
@@ -78,7 +93,9 @@ class OpenHapticsDevice(HardwareDriver):
         self._lib = None
         self._handle = hdapi.HD_INVALID_HANDLE
         self._schedule = None
-        self._callback = hdapi.SchedulerCallback(self._servo)  # keep a reference: the library calls it
+        self._callback = hdapi.SchedulerCallback(
+            self._servo
+        )  # keep a reference: the library calls it
         self._lock = threading.Lock()
         self._force = (ctypes.c_double * 3)()
         self._limits = PHANTOM_OMNI_LIMITS
@@ -92,12 +109,18 @@ class OpenHapticsDevice(HardwareDriver):
         self._sample = None  # (t_ns, position, velocity, transform, buttons)
         self._fatal: tuple[int, int] | None = None
         self._calibrated = False
-        self._force_blocked = False  # after a force error, until the stylus is out or a button pressed anew
+        self._force_blocked = (
+            False  # after a force error, until the stylus is out or a button pressed anew
+        )
         self._way_out = np.zeros(3)  # unit: the force rendered at that error (zero: none was)
         self._contact_s = -math.inf  # the furthest position along it where the daemon still pushed
         self._free_commands = 0  # zero commands in a row past it
-        self._read_tip: np.ndarray | None = None  # the tip of the state read() returned last (None: it failed)
-        self._ramp_frames: int | None = None  # force ramping in after a resume: frames with force so far
+        self._read_tip: np.ndarray | None = (
+            None  # the tip of the state read() returned last (None: it failed)
+        )
+        self._ramp_frames: int | None = (
+            None  # force ramping in after a resume: frames with force so far
+        )
         self._last_buttons: int | None = None
         self._unlogged: list[int] = []  # error codes the servo thread saw, for read() to log
         self._logged: set[int] = set()
@@ -112,12 +135,21 @@ class OpenHapticsDevice(HardwareDriver):
     @property
     def info(self) -> DeviceInfo:
         with self._lock:
-            details = {"servo_ticks": self.servo_ticks, "calibration_style": self.calibration_style,
-                       "force_errors": self.force_errors, "other_errors": self.other_errors,
-                       "force_stopped": self._force_blocked,
-                       "last_error": error_name(self._fatal[0]) if self._fatal else None}
-        return DeviceInfo(kind="openhaptics", model=self.model, limits=self._limits, serial=self.serial_number,
-                          details=details)
+            details = {
+                "servo_ticks": self.servo_ticks,
+                "calibration_style": self.calibration_style,
+                "force_errors": self.force_errors,
+                "other_errors": self.other_errors,
+                "force_stopped": self._force_blocked,
+                "last_error": error_name(self._fatal[0]) if self._fatal else None,
+            }
+        return DeviceInfo(
+            kind="openhaptics",
+            model=self.model,
+            limits=self._limits,
+            serial=self.serial_number,
+            details=details,
+        )
 
     # lifecycle ------------------------------------------------------------------------
     def _pop_errors(self) -> list[tuple[int, int]]:
@@ -138,21 +170,27 @@ class OpenHapticsDevice(HardwareDriver):
         errors = self._pop_errors()
         if errors or handle == hdapi.HD_INVALID_HANDLE:
             code = errors[0][0] if errors else 0
-            raise DeviceOpenError(f"OpenHaptics could not initialise {self._who}: {error_name(code)} "
-                                  f"(0x{code:04x}{self._describe(code)}); is it connected and set up in the "
-                                  "vendor's configuration tool?")
+            raise DeviceOpenError(
+                f"OpenHaptics could not initialise {self._who}: {error_name(code)} "
+                f"(0x{code:04x}{self._describe(code)}); is it connected and set up in the "
+                "vendor's configuration tool?"
+            )
         self._handle = handle
         lib.hdMakeCurrentDevice(handle)
         self._read_properties()
         self._reset_encoders_if_asked()
-        self._schedule = lib.hdScheduleAsynchronous(self._callback, None, hdapi.HD_DEFAULT_SCHEDULER_PRIORITY)
+        self._schedule = lib.hdScheduleAsynchronous(
+            self._callback, None, hdapi.HD_DEFAULT_SCHEDULER_PRIORITY
+        )
         lib.hdEnable(hdapi.HD_FORCE_OUTPUT)
         lib.hdStartScheduler()
         errors = self._pop_errors()
         if errors:
             self.close()
-            raise DeviceOpenError(f"OpenHaptics scheduler did not start: {error_name(errors[0][0])} "
-                                  f"(0x{errors[0][0]:04x})")
+            raise DeviceOpenError(
+                f"OpenHaptics scheduler did not start: {error_name(errors[0][0])} "
+                f"(0x{errors[0][0]:04x})"
+            )
 
     def _describe(self, code: int) -> str:
         text = self._lib.hdGetErrorString(code)
@@ -169,13 +207,17 @@ class OpenHapticsDevice(HardwareDriver):
             errors = self._pop_errors()
             if errors:
                 self._disable()
-                raise DeviceOpenError(f"the encoder reset of {self._who} failed: {error_name(errors[0][0])} "
-                                      f"(0x{errors[0][0]:04x})")
+                raise DeviceOpenError(
+                    f"the encoder reset of {self._who} failed: {error_name(errors[0][0])} "
+                    f"(0x{errors[0][0]:04x})"
+                )
         if lib.hdCheckCalibration() != hdapi.HD_CALIBRATION_OK:
             self._disable()
             spec = ":".join(["openhaptics", *([self.name] if self.name else []), RESET_ENCODERS])
-            raise DeviceOpenError(f"{self._who} needs an encoder reset: hold the arm at its reset position (all "
-                                  f"links orthogonal) and open it as --device '{spec}'")
+            raise DeviceOpenError(
+                f"{self._who} needs an encoder reset: hold the arm at its reset position (all "
+                f"links orthogonal) and open it as --device '{spec}'"
+            )
 
     def _read_properties(self) -> None:
         lib = self._lib
@@ -193,12 +235,17 @@ class OpenHapticsDevice(HardwareDriver):
         box = doubles(hdapi.HD_USABLE_WORKSPACE_DIMENSIONS, 6)
         lo, hi = box[:3], box[3:]
         if not np.all(hi > lo):
-            lo, hi = np.asarray(PHANTOM_OMNI_LIMITS.workspace_min_mm), np.asarray(PHANTOM_OMNI_LIMITS.workspace_max_mm)
+            lo, hi = (
+                np.asarray(PHANTOM_OMNI_LIMITS.workspace_min_mm),
+                np.asarray(PHANTOM_OMNI_LIMITS.workspace_max_mm),
+            )
         self._centre = (lo + hi) / 2.0
         styles = ctypes.c_int(0)
         lib.hdGetIntegerv(hdapi.HD_CALIBRATION_STYLE, ctypes.byref(styles))
         self.calibration_style = hdapi.preferred_calibration_style(styles.value)
-        max_force = float(doubles(hdapi.HD_NOMINAL_MAX_FORCE, 1)[0]) or PHANTOM_OMNI_LIMITS.max_force_n
+        max_force = (
+            float(doubles(hdapi.HD_NOMINAL_MAX_FORCE, 1)[0]) or PHANTOM_OMNI_LIMITS.max_force_n
+        )
         continuous = float(doubles(hdapi.HD_NOMINAL_MAX_CONTINUOUS_FORCE, 1)[0])
         stiffness = float(doubles(hdapi.HD_NOMINAL_MAX_STIFFNESS, 1)[0])
         damping_n_s_per_mm = float(doubles(hdapi.HD_NOMINAL_MAX_DAMPING, 1)[0])  # HDAPI's unit
@@ -206,7 +253,8 @@ class OpenHapticsDevice(HardwareDriver):
             max_force_n=max_force,
             continuous_force_n=continuous or PHANTOM_OMNI_LIMITS.continuous_force_n,
             max_stiffness_n_per_mm=stiffness or PHANTOM_OMNI_LIMITS.max_stiffness_n_per_mm,
-            max_damping_n_s_per_m=damping_n_s_per_mm * 1000.0 or PHANTOM_OMNI_LIMITS.max_damping_n_s_per_m,
+            max_damping_n_s_per_m=damping_n_s_per_mm * 1000.0
+            or PHANTOM_OMNI_LIMITS.max_damping_n_s_per_m,
             workspace_min_mm=tuple(float(v) for v in lo - self._centre),
             workspace_max_mm=tuple(float(v) for v in hi - self._centre),
             nominal_rate_hz=1000.0,
@@ -237,7 +285,11 @@ class OpenHapticsDevice(HardwareDriver):
     # servo thread (the library's, 1 kHz) --------------------------------------------
     def _servo(self, _user_data) -> int:
         lib, h = self._lib, self._handle
-        position, velocity, transform = (ctypes.c_double * 3)(), (ctypes.c_double * 3)(), (ctypes.c_double * 16)()
+        position, velocity, transform = (
+            (ctypes.c_double * 3)(),
+            (ctypes.c_double * 3)(),
+            (ctypes.c_double * 16)(),
+        )
         buttons = ctypes.c_int(0)
         lib.hdBeginFrame(h)
         lib.hdGetDoublev(hdapi.HD_CURRENT_POSITION, position)
@@ -246,12 +298,20 @@ class OpenHapticsDevice(HardwareDriver):
         lib.hdGetIntegerv(hdapi.HD_CURRENT_BUTTONS, ctypes.byref(buttons))
         calibration = lib.hdCheckCalibration()
         if calibration == hdapi.HD_CALIBRATION_NEEDS_UPDATE and self.calibration_style in (
-                hdapi.HD_CALIBRATION_AUTO, hdapi.HD_CALIBRATION_INKWELL):
-            lib.hdUpdateCalibration(self.calibration_style)  # Calibration.c's UpdateCalibrationCallback
+            hdapi.HD_CALIBRATION_AUTO,
+            hdapi.HD_CALIBRATION_INKWELL,
+        ):
+            lib.hdUpdateCalibration(
+                self.calibration_style
+            )  # Calibration.c's UpdateCalibrationCallback
         calibrated = calibration == hdapi.HD_CALIBRATION_OK
         tip = np.array(position[:])
         with self._lock:
-            if self._force_blocked and self._last_buttons is not None and buttons.value & ~self._last_buttons:
+            if (
+                self._force_blocked
+                and self._last_buttons is not None
+                and buttons.value & ~self._last_buttons
+            ):
                 self._resume()  # AnchoredSpringForce.c: a new button-down edge re-arms
             self._last_buttons = buttons.value
             rendered = self._output() if calibrated and not self._force_blocked else np.zeros(3)
@@ -262,8 +322,13 @@ class OpenHapticsDevice(HardwareDriver):
         with self._lock:
             self.servo_ticks += 1
             self._calibrated = calibrated
-            self._sample = (time.monotonic_ns(), tip, np.array(velocity[:]),
-                            np.array(transform[:]).reshape(4, 4).T, buttons.value)
+            self._sample = (
+                time.monotonic_ns(),
+                tip,
+                np.array(velocity[:]),
+                np.array(transform[:]).reshape(4, 4).T,
+                buttons.value,
+            )
             for code, internal in errors:
                 if len(self._unlogged) < MAX_ERRORS_PER_FRAME:
                     self._unlogged.append(code)
@@ -317,7 +382,9 @@ class OpenHapticsDevice(HardwareDriver):
             return  # the read failed: a fault tick's zero says nothing of the contact
         push = float(np.linalg.norm(force))
         if push > 0.0:
-            if not np.any(self._way_out):  # the error came with no force rendered: this is the way out
+            if not np.any(
+                self._way_out
+            ):  # the error came with no force rendered: this is the way out
                 self._way_out = force / push
             self._contact_s = max(self._contact_s, float(tip @ self._way_out))
             self._free_commands = 0
@@ -339,19 +406,33 @@ class OpenHapticsDevice(HardwareDriver):
             if code not in self._logged and not hdapi.is_scheduler_error(code):
                 self._logged.add(code)
                 stops_force = hdapi.is_force_error(code) or code == hdapi.HD_DEVICE_FAULT
-                log.warning("OpenHaptics reported %s (0x%04x): %s", error_name(code), code,
-                            "force output stopped until the stylus is out of the contact or a button is pressed anew"
-                            if stops_force else "the servo loop goes on")
+                log.warning(
+                    "OpenHaptics reported %s (0x%04x): %s",
+                    error_name(code),
+                    code,
+                    "force output stopped until the stylus is out of the contact or a button is pressed anew"
+                    if stops_force
+                    else "the servo loop goes on",
+                )
         if fatal is not None:
-            raise DeviceFault(f"OpenHaptics reported {error_name(fatal[0])} (0x{fatal[0]:04x}, internal {fatal[1]})")
+            raise DeviceFault(
+                f"OpenHaptics reported {error_name(fatal[0])} (0x{fatal[0]:04x}, internal {fatal[1]})"
+            )
         if sample is None or time.monotonic_ns() - sample[0] > self.read_timeout_s * 1e9:
-            raise DeviceFault(f"the OpenHaptics servo loop has not run for {self.read_timeout_s * 1000:.0f} ms")
+            raise DeviceFault(
+                f"the OpenHaptics servo loop has not run for {self.read_timeout_s * 1000:.0f} ms"
+            )
         t_ns, position, velocity, transform, buttons = sample
         with self._lock:
             self._read_tip = position
-        return DeviceState(t_ns=t_ns, position_mm=position - self._centre,
-                           orientation=quaternion_from_matrix(transform[:3, :3]), velocity_mm_s=velocity,
-                           buttons=buttons, calibrated=calibrated)
+        return DeviceState(
+            t_ns=t_ns,
+            position_mm=position - self._centre,
+            orientation=quaternion_from_matrix(transform[:3, :3]),
+            velocity_mm_s=velocity,
+            buttons=buttons,
+            calibrated=calibrated,
+        )
 
     def write_force(self, force_n) -> None:
         self._command(clamp_force(force_n, self._limits.max_force_n), from_the_loop=True)

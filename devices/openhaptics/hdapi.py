@@ -44,25 +44,44 @@ HD_CURRENT_FORCE = 0x2700
 HD_FORCE_OUTPUT = 0x4000
 HD_CALLBACK_DONE, HD_CALLBACK_CONTINUE = 0, 1
 HD_DEFAULT_SCHEDULER_PRIORITY = (0xFFFF + 0) // 2  # (HD_MAX + HD_MIN) / 2, HD_MAX = USHRT_MAX
-HD_CALIBRATION_OK, HD_CALIBRATION_NEEDS_UPDATE, HD_CALIBRATION_NEEDS_MANUAL_INPUT = 0x5000, 0x5001, 0x5002
+HD_CALIBRATION_OK, HD_CALIBRATION_NEEDS_UPDATE, HD_CALIBRATION_NEEDS_MANUAL_INPUT = (
+    0x5000,
+    0x5001,
+    0x5002,
+)
 HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_AUTO, HD_CALIBRATION_INKWELL = 1 << 0, 1 << 1, 1 << 2
 
 HD_ERRORS = {
-    0x0100: "HD_INVALID_ENUM", 0x0101: "HD_INVALID_VALUE", 0x0102: "HD_INVALID_OPERATION",
-    0x0103: "HD_INVALID_INPUT_TYPE", 0x0104: "HD_BAD_HANDLE",
-    0x0200: "HD_WARM_MOTORS", 0x0201: "HD_EXCEEDED_MAX_FORCE", 0x0202: "HD_EXCEEDED_MAX_FORCE_IMPULSE",
-    0x0203: "HD_EXCEEDED_MAX_VELOCITY", 0x0204: "HD_FORCE_ERROR",
-    0x0300: "HD_DEVICE_FAULT", 0x0301: "HD_DEVICE_ALREADY_INITIATED", 0x0302: "HD_COMM_ERROR",
-    0x0303: "HD_COMM_CONFIG_ERROR", 0x0304: "HD_TIMER_ERROR",
-    0x0400: "HD_ILLEGAL_BEGIN", 0x0401: "HD_ILLEGAL_END", 0x0402: "HD_FRAME_ERROR",
-    0x0500: "HD_INVALID_PRIORITY", 0x0501: "HD_SCHEDULER_FULL", 0x0600: "HD_INVALID_LICENSE",
+    0x0100: "HD_INVALID_ENUM",
+    0x0101: "HD_INVALID_VALUE",
+    0x0102: "HD_INVALID_OPERATION",
+    0x0103: "HD_INVALID_INPUT_TYPE",
+    0x0104: "HD_BAD_HANDLE",
+    0x0200: "HD_WARM_MOTORS",
+    0x0201: "HD_EXCEEDED_MAX_FORCE",
+    0x0202: "HD_EXCEEDED_MAX_FORCE_IMPULSE",
+    0x0203: "HD_EXCEEDED_MAX_VELOCITY",
+    0x0204: "HD_FORCE_ERROR",
+    0x0300: "HD_DEVICE_FAULT",
+    0x0301: "HD_DEVICE_ALREADY_INITIATED",
+    0x0302: "HD_COMM_ERROR",
+    0x0303: "HD_COMM_CONFIG_ERROR",
+    0x0304: "HD_TIMER_ERROR",
+    0x0400: "HD_ILLEGAL_BEGIN",
+    0x0401: "HD_ILLEGAL_END",
+    0x0402: "HD_FRAME_ERROR",
+    0x0500: "HD_INVALID_PRIORITY",
+    0x0501: "HD_SCHEDULER_FULL",
+    0x0600: "HD_INVALID_LICENSE",
 }
 HD_DEVICE_FAULT = 0x0300
 FORCE_ERRORS = frozenset({0x0200, 0x0201, 0x0203, 0x0204})
 SCHEDULER_ERRORS = frozenset({0x0302, 0x0303, 0x0304, 0x0500, 0x0501})
 
-NOT_INSTALLED = ("OpenHaptics is not installed: the HD library (libHD.so / hd.dll) was not found; install "
-                 "the OpenHaptics runtime and your device driver, or set SASPROBE_HD_LIBRARY=/path/to/libHD.so")
+NOT_INSTALLED = (
+    "OpenHaptics is not installed: the HD library (libHD.so / hd.dll) was not found; install "
+    "the OpenHaptics runtime and your device driver, or set SASPROBE_HD_LIBRARY=/path/to/libHD.so"
+)
 
 
 def error_name(code: int) -> str:
@@ -78,7 +97,11 @@ def is_scheduler_error(code: int) -> bool:
 
 
 class HDErrorInfo(ctypes.Structure):
-    _fields_ = [("errorCode", ctypes.c_uint), ("internalErrorCode", ctypes.c_int), ("hHD", ctypes.c_uint)]
+    _fields_ = [
+        ("errorCode", ctypes.c_uint),
+        ("internalErrorCode", ctypes.c_int),
+        ("hHD", ctypes.c_uint),
+    ]
 
 
 # HDCALLBACK is __stdcall on Windows, the C convention elsewhere.
@@ -99,7 +122,10 @@ _SIGNATURES = {
     "hdGetIntegerv": (None, [ctypes.c_uint, ctypes.POINTER(ctypes.c_int)]),
     "hdGetString": (ctypes.c_char_p, [ctypes.c_uint]),
     "hdSetDoublev": (None, [ctypes.c_uint, ctypes.POINTER(ctypes.c_double)]),
-    "hdScheduleAsynchronous": (ctypes.c_ulong, [SchedulerCallback, ctypes.c_void_p, ctypes.c_ushort]),
+    "hdScheduleAsynchronous": (
+        ctypes.c_ulong,
+        [SchedulerCallback, ctypes.c_void_p, ctypes.c_ushort],
+    ),
     "hdStartScheduler": (None, []),
     "hdStopScheduler": (None, []),
     "hdUnschedule": (None, [ctypes.c_ulong]),
@@ -121,7 +147,9 @@ def load_library(path: str | None = None):
         try:
             fn = getattr(lib, name)
         except AttributeError:
-            raise DeviceOpenError(f"{path} is not the OpenHaptics HD library: it lacks {name}") from None
+            raise DeviceOpenError(
+                f"{path} is not the OpenHaptics HD library: it lacks {name}"
+            ) from None
         fn.restype, fn.argtypes = restype, argtypes
     return lib
 

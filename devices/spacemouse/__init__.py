@@ -6,8 +6,8 @@
 
 from __future__ import annotations
 
-from sasprobe.devices.spacemouse.driver import SpaceMouseDevice
 from sasprobe.devices.hardware import factory_from_environment
+from sasprobe.devices.spacemouse.driver import SpaceMouseDevice
 
 
 def create(argument: str | None = None, **options) -> SpaceMouseDevice:
@@ -17,4 +17,6 @@ def create(argument: str | None = None, **options) -> SpaceMouseDevice:
     the hidapi module (how the test suite points a daemon subprocess at an emulated cap).
     """
     hid_api = options.get("hid_api") or factory_from_environment("SASPROBE_HID_API")
-    return SpaceMouseDevice(argument or None, hid_api=hid_api, speed_mm_s=float(options.get("speed_mm_s", 100.0)))
+    return SpaceMouseDevice(
+        argument or None, hid_api=hid_api, speed_mm_s=float(options.get("speed_mm_s", 100.0))
+    )

@@ -22,21 +22,28 @@ from __future__ import annotations
 import time
 
 import numpy as np
-
-from sasprobe.devices.base import (PHANTOM_OMNI_LIMITS, DeviceFault, DeviceInfo, DeviceLimits, DeviceOpenError,
-                                   DeviceState)
-from sasprobe.devices.spacemouse import models, protocol
+from sasprobe.devices.base import (
+    PHANTOM_OMNI_LIMITS,
+    DeviceFault,
+    DeviceInfo,
+    DeviceLimits,
+    DeviceOpenError,
+    DeviceState,
+)
 from sasprobe.devices.hardware import HardwareDriver, quaternion_about, quaternion_multiply
+from sasprobe.devices.spacemouse import models, protocol
 from sasprobe.devices.transports import HidTransport, load_hidapi
 
 # No force reaches the device. The daemon's engine still computes the contact so the
 # proxy stays on the surface in the picture; its spring and damping are bounded like an
 # Omni-class arm's, since nothing is rendered to a hand.
 SPACEMOUSE_LIMITS = DeviceLimits(
-    max_force_n=0.0, continuous_force_n=0.0,
+    max_force_n=0.0,
+    continuous_force_n=0.0,
     max_stiffness_n_per_mm=PHANTOM_OMNI_LIMITS.max_stiffness_n_per_mm,
     max_damping_n_s_per_m=PHANTOM_OMNI_LIMITS.max_damping_n_s_per_m,
-    workspace_min_mm=(-100.0, -100.0, -100.0), workspace_max_mm=(100.0, 100.0, 100.0),
+    workspace_min_mm=(-100.0, -100.0, -100.0),
+    workspace_max_mm=(100.0, 100.0, 100.0),
     nominal_rate_hz=1000.0,  # the cursor integrates at any polling rate
     has_force_output=False,
 )
@@ -44,8 +51,14 @@ MAX_REPORTS_PER_READ = 64  # bounded: a flood of reports cannot stall the loop
 
 
 class SpaceMouseDevice(HardwareDriver):
-    def __init__(self, path: bytes | str | None = None, *, hid_api=None, speed_mm_s: float = 100.0,
-                 turn_rad_s: float = 1.5):
+    def __init__(
+        self,
+        path: bytes | str | None = None,
+        *,
+        hid_api=None,
+        speed_mm_s: float = 100.0,
+        turn_rad_s: float = 1.5,
+    ):
         self.path = path.encode() if isinstance(path, str) else path
         self.speed_mm_s, self.turn_rad_s = speed_mm_s, turn_rad_s
         self._api = hid_api
@@ -62,11 +75,20 @@ class SpaceMouseDevice(HardwareDriver):
 
     @property
     def info(self) -> DeviceInfo:
-        return DeviceInfo(kind="spacemouse", model=self.model.name, limits=SPACEMOUSE_LIMITS,
-                          serial=self.path.decode(errors="replace") if self.path else "",
-                          details={"usb_id": f"{self.ids[0]:04x}:{self.ids[1]:04x}", "rate_control": True,
-                                   "speed_mm_s": self.speed_mm_s, "full_scale_counts": self.full_scale,
-                                   "newer_axes": self.model.newer_axes, "rejected_frames": self.rejected_frames})
+        return DeviceInfo(
+            kind="spacemouse",
+            model=self.model.name,
+            limits=SPACEMOUSE_LIMITS,
+            serial=self.path.decode(errors="replace") if self.path else "",
+            details={
+                "usb_id": f"{self.ids[0]:04x}:{self.ids[1]:04x}",
+                "rate_control": True,
+                "speed_mm_s": self.speed_mm_s,
+                "full_scale_counts": self.full_scale,
+                "newer_axes": self.model.newer_axes,
+                "rejected_frames": self.rejected_frames,
+            },
+        )
 
     def _hid(self):
         if self._api is None:
@@ -79,17 +101,27 @@ class SpaceMouseDevice(HardwareDriver):
         if self.path is not None:
             entries = [d for d in listed if d["path"] == self.path]
             if not entries:
-                raise DeviceOpenError(f"no HID device at {self.path.decode(errors='replace')} (unplugged? "
-                                      "`sasprobe devices` lists the SpaceMice it sees)")
+                raise DeviceOpenError(
+                    f"no HID device at {self.path.decode(errors='replace')} (unplugged? "
+                    "`sasprobe devices` lists the SpaceMice it sees)"
+                )
         else:
             entries = listed
-        usable = [d for d in entries if models.is_six_dof(d["vendor_id"], d["product_id"], models.interface_usage(d))]
+        usable = [
+            d
+            for d in entries
+            if models.is_six_dof(d["vendor_id"], d["product_id"], models.interface_usage(d))
+        ]
         if not usable:
             if self.path is not None:
-                raise DeviceOpenError(f"{self.path.decode(errors='replace')}: "
-                                      f"{models.refusal(entries[0]['vendor_id'], entries[0]['product_id'])}")
-            raise DeviceOpenError("no 3Dconnexion SpaceMouse found (is it plugged in? `sasprobe devices` lists HID "
-                                  "devices; without permission on /dev/hidraw* it is invisible: see docs/connect-your-arm.md)")
+                raise DeviceOpenError(
+                    f"{self.path.decode(errors='replace')}: "
+                    f"{models.refusal(entries[0]['vendor_id'], entries[0]['product_id'])}"
+                )
+            raise DeviceOpenError(
+                "no 3Dconnexion SpaceMouse found (is it plugged in? `sasprobe devices` lists HID "
+                "devices; without permission on /dev/hidraw* it is invisible: see docs/connect-your-arm.md)"
+            )
         # a device's multi-axis controller interface when hidapi lists one
         usable.sort(key=lambda d: models.interface_usage(d) != models.MULTI_AXIS_CONTROLLER)
         return usable[0]
@@ -98,7 +130,9 @@ class SpaceMouseDevice(HardwareDriver):
         entry = self._find()
         self.path = entry["path"]
         self.ids = (entry["vendor_id"], entry["product_id"])
-        transport = HidTransport(self.path, hid_api=self._hid(), label=models.product_name(*self.ids))
+        transport = HidTransport(
+            self.path, hid_api=self._hid(), label=models.product_name(*self.ids)
+        )
         transport.open()
         self._transport = transport
         summary = None
@@ -109,8 +143,11 @@ class SpaceMouseDevice(HardwareDriver):
             self.model = models.receiver_model(summary.buttons if summary else None)
         else:
             self.model = models.MODELS[self.ids]
-        self.full_scale = float(summary.axis_maximum) if summary and summary.axis_maximum else \
-            float(protocol.ASSUMED_FULL_SCALE)
+        self.full_scale = (
+            float(summary.axis_maximum)
+            if summary and summary.axis_maximum
+            else float(protocol.ASSUMED_FULL_SCALE)
+        )
         self._raw = np.zeros(6)  # at rest until the first report says otherwise
         self._bits = 0
         self._last_t_ns = None
@@ -141,7 +178,9 @@ class SpaceMouseDevice(HardwareDriver):
     def _rates(self) -> tuple[np.ndarray, np.ndarray]:
         """(translation, rotation) rates in [-1, 1], device frame, dead zone applied."""
         raw = np.where(np.abs(self._raw) >= protocol.DEAD_THRESHOLD, self._raw, 0.0)
-        rates = (protocol.device_frame(raw, self.model.newer_axes) / self.full_scale).clip(-1.0, 1.0)
+        rates = (protocol.device_frame(raw, self.model.newer_axes) / self.full_scale).clip(
+            -1.0, 1.0
+        )
         return rates[:3], rates[3:]
 
     def read(self) -> DeviceState:
@@ -152,16 +191,26 @@ class SpaceMouseDevice(HardwareDriver):
         omega = rotation * self.turn_rad_s
         if self._last_t_ns is not None:
             dt = (now - self._last_t_ns) * 1e-9
-            lo, hi = np.asarray(SPACEMOUSE_LIMITS.workspace_min_mm), np.asarray(SPACEMOUSE_LIMITS.workspace_max_mm)
+            lo, hi = (
+                np.asarray(SPACEMOUSE_LIMITS.workspace_min_mm),
+                np.asarray(SPACEMOUSE_LIMITS.workspace_max_mm),
+            )
             self.position = np.clip(self.position + velocity * dt, lo, hi)
             angle = float(np.linalg.norm(omega)) * dt
             if angle > 0.0:
-                self.orientation = quaternion_multiply(quaternion_about(omega, angle), self.orientation)
+                self.orientation = quaternion_multiply(
+                    quaternion_about(omega, angle), self.orientation
+                )
                 self.orientation /= np.linalg.norm(self.orientation)
         self._last_t_ns = now
-        return DeviceState(t_ns=now, position_mm=self.position.copy(), orientation=self.orientation.copy(),
-                           velocity_mm_s=velocity, buttons=protocol.button_mask(self._bits, self.model.buttons),
-                           calibrated=True)
+        return DeviceState(
+            t_ns=now,
+            position_mm=self.position.copy(),
+            orientation=self.orientation.copy(),
+            velocity_mm_s=velocity,
+            buttons=protocol.button_mask(self._bits, self.model.buttons),
+            calibrated=True,
+        )
 
     def write_force(self, force_n) -> None:
         """No force output: ignored."""

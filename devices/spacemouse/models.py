@@ -31,26 +31,70 @@ def _by_report_bit(codes: dict[int, int]) -> dict[int, int]:
 
 
 # bnhack_smpro: SpaceMouse Pro and Pro Wireless (15 buttons)
-SPACEMOUSE_PRO_BUTTONS = _by_report_bit({
-    256: 4, 257: 5, 258: 6, 260: 7, 261: 8, 264: 9,  # menu, fit, [T], [R], [F], [ ]
-    268: 0, 269: 1, 270: 2, 271: 3,  # 1..4
-    278: 11, 279: 12, 280: 13, 281: 14, 282: 10,  # esc, alt, shift, ctrl, lock
-})
+SPACEMOUSE_PRO_BUTTONS = _by_report_bit(
+    {
+        256: 4,
+        257: 5,
+        258: 6,
+        260: 7,
+        261: 8,
+        264: 9,  # menu, fit, [T], [R], [F], [ ]
+        268: 0,
+        269: 1,
+        270: 2,
+        271: 3,  # 1..4
+        278: 11,
+        279: 12,
+        280: 13,
+        281: 14,
+        282: 10,  # esc, alt, shift, ctrl, lock
+    }
+)
 # bnhack_sment: SpaceMouse Enterprise (31 buttons)
-SPACEMOUSE_ENTERPRISE_BUTTONS = _by_report_bit({
-    256: 12, 257: 13, 258: 14, 260: 15, 261: 16, 264: 17, 266: 30,  # menu, fit, [T], [R], [F], [ ], iso
-    268: 0, 269: 1, 270: 2, 271: 3, 272: 4, 273: 5, 274: 6, 275: 7, 276: 8, 277: 9,  # 1..10
-    278: 18, 279: 19, 280: 20, 281: 21, 282: 22,  # esc, alt, shift, ctrl, lock
-    291: 23, 292: 24, 332: 10, 333: 11,  # enter, delete, 11, 12
-    358: 27, 359: 28, 360: 29, 430: 25, 431: 26,  # V1, V2, V3, tab, space
-})
+SPACEMOUSE_ENTERPRISE_BUTTONS = _by_report_bit(
+    {
+        256: 12,
+        257: 13,
+        258: 14,
+        260: 15,
+        261: 16,
+        264: 17,
+        266: 30,  # menu, fit, [T], [R], [F], [ ], iso
+        268: 0,
+        269: 1,
+        270: 2,
+        271: 3,
+        272: 4,
+        273: 5,
+        274: 6,
+        275: 7,
+        276: 8,
+        277: 9,  # 1..10
+        278: 18,
+        279: 19,
+        280: 20,
+        281: 21,
+        282: 22,  # esc, alt, shift, ctrl, lock
+        291: 23,
+        292: 24,
+        332: 10,
+        333: 11,  # enter, delete, 11, 12
+        358: 27,
+        359: 28,
+        360: 29,
+        430: 25,
+        431: 26,  # V1, V2, V3, tab, space
+    }
+)
 
 
 @dataclass(frozen=True)
 class Model:
     name: str
     newer_axes: bool
-    buttons: dict[int, int] | None = field(default=None, hash=False)  # report-3 bit → button; None: the bit
+    buttons: dict[int, int] | None = field(
+        default=None, hash=False
+    )  # report-3 bit → button; None: the bit
 
 
 VENDOR_LOGITECH, VENDOR_3DCONNEXION = 0x046D, 0x256F
@@ -71,13 +115,22 @@ MODELS: dict[tuple[int, int], Model] = {
     (0x046D, 0xC640): Model("NuLOOQ", newer_axes=False),
     (0x256F, 0xC62E): Model("SpaceMouse Wireless (cable)", newer_axes=True),
     (0x256F, 0xC62F): Model("SpaceMouse Wireless (receiver)", newer_axes=True),
-    (0x256F, 0xC631): Model("SpaceMouse Pro Wireless (cable)", newer_axes=True, buttons=SPACEMOUSE_PRO_BUTTONS),
-    (0x256F, 0xC632): Model("SpaceMouse Pro Wireless (receiver)", newer_axes=True, buttons=SPACEMOUSE_PRO_BUTTONS),
-    (0x256F, 0xC633): Model("SpaceMouse Enterprise", newer_axes=True, buttons=SPACEMOUSE_ENTERPRISE_BUTTONS),
+    (0x256F, 0xC631): Model(
+        "SpaceMouse Pro Wireless (cable)", newer_axes=True, buttons=SPACEMOUSE_PRO_BUTTONS
+    ),
+    (0x256F, 0xC632): Model(
+        "SpaceMouse Pro Wireless (receiver)", newer_axes=True, buttons=SPACEMOUSE_PRO_BUTTONS
+    ),
+    (0x256F, 0xC633): Model(
+        "SpaceMouse Enterprise", newer_axes=True, buttons=SPACEMOUSE_ENTERPRISE_BUTTONS
+    ),
     (0x256F, 0xC635): Model("SpaceMouse Compact", newer_axes=True),
     (0x256F, 0xC636): Model("SpaceMouse Module", newer_axes=True),
-    (0x256F, 0xC638): Model("SpaceMouse Pro Wireless (Bluetooth, cable)", newer_axes=True,
-                            buttons=SPACEMOUSE_PRO_BUTTONS),
+    (0x256F, 0xC638): Model(
+        "SpaceMouse Pro Wireless (Bluetooth, cable)",
+        newer_axes=True,
+        buttons=SPACEMOUSE_PRO_BUTTONS,
+    ),
     (0x256F, 0xC63A): Model("SpaceMouse Wireless (Bluetooth)", newer_axes=True),
 }
 
@@ -87,7 +140,9 @@ MODELS: dict[tuple[int, int], Model] = {
 UNIVERSAL_RECEIVER = (0x256F, 0xC652)
 RECEIVER_NAME = "3Dconnexion Universal Receiver"
 RECEIVER_PLAIN = Model("SpaceMouse Wireless (universal receiver)", newer_axes=True)
-RECEIVER_PRO = Model("SpaceMouse Pro Wireless (universal receiver)", newer_axes=True, buttons=SPACEMOUSE_PRO_BUTTONS)
+RECEIVER_PRO = Model(
+    "SpaceMouse Pro Wireless (universal receiver)", newer_axes=True, buttons=SPACEMOUSE_PRO_BUTTONS
+)
 
 # devid_blacklist: same vendor, not 6-DoF devices.
 NOT_SIX_DOF: dict[tuple[int, int], str] = {

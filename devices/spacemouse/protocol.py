@@ -42,12 +42,19 @@ def parse_report(report: bytes) -> dict | None:
     if rid == REPORT_TRANSLATION:
         if len(body) >= 12:
             values = struct.unpack_from("<6h", body)
-            return {"translation": np.array(values[:3], float), "rotation": np.array(values[3:], float)}
+            return {
+                "translation": np.array(values[:3], float),
+                "rotation": np.array(values[3:], float),
+            }
         if len(body) >= 6:
             return {"translation": np.array(struct.unpack_from("<3h", body), float)}
         return None
     if rid == REPORT_ROTATION:
-        return {"rotation": np.array(struct.unpack_from("<3h", body), float)} if len(body) >= 6 else None
+        return (
+            {"rotation": np.array(struct.unpack_from("<3h", body), float)}
+            if len(body) >= 6
+            else None
+        )
     if rid == REPORT_BUTTONS:
         return {"buttons": int.from_bytes(body, "little")} if body else None
     return {}  # battery, LEDs, vendor reports: no motion
@@ -77,7 +84,9 @@ def button_mask(bits: int, remap: dict[int, int] | None) -> int:
 @dataclass(frozen=True)
 class DescriptorSummary:
     buttons: int  # button usages in input reports
-    axis_maximum: int | None  # the largest Logical Maximum of the X..Rz axes, None when none is declared
+    axis_maximum: (
+        int | None
+    )  # the largest Logical Maximum of the X..Rz axes, None when none is declared
 
 
 _USAGE_PAGE_DESKTOP, _USAGE_PAGE_BUTTON = 0x01, 0x09
@@ -96,7 +105,7 @@ def scan_descriptor(descriptor: bytes) -> DescriptorSummary:
             i += 3 + (descriptor[i + 1] if i + 1 < len(descriptor) else 0)
             continue
         size = (0, 1, 2, 4)[prefix & 0x03]
-        data = descriptor[i + 1:i + 1 + size]
+        data = descriptor[i + 1 : i + 1 + size]
         value = int.from_bytes(data, "little") if data else 0
         kind, tag = (prefix >> 2) & 0x03, prefix >> 4
         i += 1 + size

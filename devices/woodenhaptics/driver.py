@@ -16,13 +16,16 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-
 from sasprobe.devices.base import DeviceFault, DeviceInfo, DeviceOpenError
 from sasprobe.devices.kinematics import KinematicsError
 from sasprobe.devices.serial_arm import SerialArm, timing_options
 from sasprobe.devices.woodenhaptics import kinematics, protocol
-from sasprobe.devices.woodenhaptics.models import LIMITS_BEFORE_THE_MODEL_IS_KNOWN, WOODEN_MODELS, WoodenModel, \
-    known_models
+from sasprobe.devices.woodenhaptics.models import (
+    LIMITS_BEFORE_THE_MODEL_IS_KNOWN,
+    WOODEN_MODELS,
+    WoodenModel,
+    known_models,
+)
 
 log = logging.getLogger("sasprobe.devices.woodenhaptics")
 
@@ -49,22 +52,34 @@ class WoodenHapticsDevice(SerialArm):
     def info(self) -> DeviceInfo:
         model = self.model
         return DeviceInfo(
-            kind=self.scheme, model=model.name if model else "WoodenHaptics arm",
-            limits=model.limits if model else LIMITS_BEFORE_THE_MODEL_IS_KNOWN, serial=self.port,
-            details={"model_code": model.code if model else None,
-                     "hfab_configuration": model.configuration if model else None,
-                     "counts": list(self.counts), "device_error_bits": self.device_error_bits,
-                     "device_errors": protocol.describe_errors(self.device_error_bits),
-                     "rejected_frames": self.rejected_frames, "refused_commands": self.refused_commands,
-                     "stale_replies": self.stale_replies, "resyncs": self.resyncs, "replies": self.replies},
+            kind=self.scheme,
+            model=model.name if model else "WoodenHaptics arm",
+            limits=model.limits if model else LIMITS_BEFORE_THE_MODEL_IS_KNOWN,
+            serial=self.port,
+            details={
+                "model_code": model.code if model else None,
+                "hfab_configuration": model.configuration if model else None,
+                "counts": list(self.counts),
+                "device_error_bits": self.device_error_bits,
+                "device_errors": protocol.describe_errors(self.device_error_bits),
+                "rejected_frames": self.rejected_frames,
+                "refused_commands": self.refused_commands,
+                "stale_replies": self.stale_replies,
+                "resyncs": self.resyncs,
+                "replies": self.replies,
+            },
         )
 
     # wire -----------------------------------------------------------------------------
     def _handshake(self, timeout_s: float) -> None:
         self.model = None
-        self._probe(timeout_s, lambda junk: (
-            f"{self.port} answered, but not in the WoodenHaptics line format "
-            f"([model,enc0..enc5,error]): got {junk[-40:]!r}"))
+        self._probe(
+            timeout_s,
+            lambda junk: (
+                f"{self.port} answered, but not in the WoodenHaptics line format "
+                f"([model,enc0..enc5,error]): got {junk[-40:]!r}"
+            ),
+        )
 
     def _zero_command(self) -> bytes:
         return protocol.ZERO_COMMAND
@@ -72,12 +87,16 @@ class WoodenHapticsDevice(SerialArm):
     def _command(self) -> bytes:
         if self.model is None or self._unreachable:
             return protocol.ZERO_COMMAND
-        return protocol.encode_command(kinematics.motor_currents_ma(self.model, self.angles, self.force))
+        return protocol.encode_command(
+            kinematics.motor_currents_ma(self.model, self.angles, self.force)
+        )
 
     def _split(self, inbox: bytes):
         reply, rest = protocol.split_reply(inbox)
         if reply is not None and self.model is not None and reply.model != self.model.code:
-            raise protocol.BadFrame(f"a reply from model {reply.model} on a model {self.model.code} arm")
+            raise protocol.BadFrame(
+                f"a reply from model {reply.model} on a model {self.model.code} arm"
+            )
         return reply, rest
 
     def _take(self, reply: protocol.WoodyReply) -> None:
@@ -102,8 +121,10 @@ class WoodenHapticsDevice(SerialArm):
     def _adopt(self, code: int) -> WoodenModel:
         model = WOODEN_MODELS.get(code)
         if model is None:
-            raise DeviceOpenError(f"the arm on {self.port} reports model code {code}, which sasprobe does not "
-                                  f"know (known: {known_models()})")
+            raise DeviceOpenError(
+                f"the arm on {self.port} reports model code {code}, which sasprobe does not "
+                f"know (known: {known_models()})"
+            )
         log.info("%s: %s (model %d, hfabapi %s)", self.port, model.name, code, model.configuration)
         return model
 

@@ -34,9 +34,8 @@ import functools
 import math
 
 import numpy as np
-
-from sasprobe.devices.kinematics import KinematicsError, scale_to_limit
 from sasprobe.devices.hardware import quaternion_from_matrix
+from sasprobe.devices.kinematics import KinematicsError, scale_to_limit
 from sasprobe.devices.woodenhaptics.models import POLHEM, POLHEM_LINKS_M, WoodenModel
 from sasprobe.devices.woodenhaptics.protocol import MAX_CURRENT_MA
 
@@ -45,15 +44,19 @@ HFAB_TO_DEVICE = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
 POLHEM_JACOBIAN_STEP = 1e-6  # rad, central differences as polhemComputeMotorAmps() takes them
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _drive(model: WoodenModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Per motor: body radians per count, body→motor torque factor (dir · capstan∅ / body∅),
     amperes per N·m of motor torque, home counts. Computed once per model."""
     direction = np.where(model.motor_and_body_aligned, -1.0, 1.0)
     ratio = np.asarray(model.capstan_diameters_m) / np.asarray(model.body_diameters_m)
     per_count = direction * ratio * 2.0 * math.pi / np.asarray(model.counts_per_turn, dtype=float)
-    return per_count, direction * ratio, 1.0 / np.asarray(model.torque_constants_nm_per_a), \
-        np.asarray(model.home_counts[:3], dtype=float)
+    return (
+        per_count,
+        direction * ratio,
+        1.0 / np.asarray(model.torque_constants_nm_per_a),
+        np.asarray(model.home_counts[:3], dtype=float),
+    )
 
 
 def body_angles(model: WoodenModel, raw_counts) -> np.ndarray:
@@ -67,7 +70,9 @@ def polhem_tip(angles) -> tuple[np.ndarray, float]:
     t1, t2, t3 = angles
     l0, l1, l2, l3, l4, l5 = POLHEM_LINKS_M
     to_b_from_crank_pivot = np.array([l0 + l1 * math.cos(t2), l1 * math.sin(t2)])  # B − O2
-    to_b_from_crank_end = to_b_from_crank_pivot - l2 * np.array([math.cos(t3), math.sin(t3)])  # B − A
+    to_b_from_crank_end = to_b_from_crank_pivot - l2 * np.array(
+        [math.cos(t3), math.sin(t3)]
+    )  # B − A
     rho2 = float(np.hypot(*to_b_from_crank_pivot))
     rho1 = float(np.hypot(*to_b_from_crank_end))
     with np.errstate(invalid="ignore"):
@@ -76,7 +81,9 @@ def polhem_tip(angles) -> tuple[np.ndarray, float]:
         at_b_a_c = np.arccos((l4 * l4 + rho1 * rho1 - l3 * l3) / (2.0 * l4 * rho1))
     lam = float(t2 - at_b_o1_o2 - at_b_o2_a - at_b_a_c)
     reach = l0 / 2.0 + l1 * math.cos(t2) + l5 * math.cos(lam)
-    return np.array([reach * math.cos(t1), reach * math.sin(t1), l1 * math.sin(t2) + l5 * math.sin(lam)]), lam
+    return np.array(
+        [reach * math.cos(t1), reach * math.sin(t1), l1 * math.sin(t2) + l5 * math.sin(lam)]
+    ), lam
 
 
 def hfab_position(model: WoodenModel, angles) -> tuple[np.ndarray, float]:
@@ -87,7 +94,9 @@ def hfab_position(model: WoodenModel, angles) -> tuple[np.ndarray, float]:
         ta, tb, tc = angles
         ln, lb, lc = model.body_lengths_m
         reach = lb * math.sin(tb) + lc * math.sin(tc)
-        tip = np.array([math.cos(ta) * reach, math.sin(ta) * reach, ln + lb * math.cos(tb) - lc * math.cos(tc)])
+        tip = np.array(
+            [math.cos(ta) * reach, math.sin(ta) * reach, ln + lb * math.cos(tb) - lc * math.cos(tc)]
+        )
         lam = 0.0
     return tip - np.asarray(model.workspace_origin_m), lam
 
@@ -99,25 +108,42 @@ def hfab_jacobian(model: WoodenModel, angles) -> np.ndarray:
         for i in range(3):
             step = np.zeros(3)
             step[i] = POLHEM_JACOBIAN_STEP / 2.0
-            columns.append((polhem_tip(np.asarray(angles) + step)[0] - polhem_tip(np.asarray(angles) - step)[0])
-                           / POLHEM_JACOBIAN_STEP)
+            columns.append(
+                (
+                    polhem_tip(np.asarray(angles) + step)[0]
+                    - polhem_tip(np.asarray(angles) - step)[0]
+                )
+                / POLHEM_JACOBIAN_STEP
+            )
         return np.stack(columns, axis=1)
     ta, tb, tc = angles
     _ln, lb, lc = model.body_lengths_m
     reach = lb * math.sin(tb) + lc * math.sin(tc)
-    return np.array([
-        [-math.sin(ta) * reach, lb * math.cos(ta) * math.cos(tb), lc * math.cos(ta) * math.cos(tc)],
-        [math.cos(ta) * reach, lb * math.sin(ta) * math.cos(tb), lc * math.sin(ta) * math.cos(tc)],
-        [0.0, -lb * math.sin(tb), lc * math.sin(tc)],
-    ])
+    return np.array(
+        [
+            [
+                -math.sin(ta) * reach,
+                lb * math.cos(ta) * math.cos(tb),
+                lc * math.cos(ta) * math.cos(tc),
+            ],
+            [
+                math.cos(ta) * reach,
+                lb * math.sin(ta) * math.cos(tb),
+                lc * math.sin(ta) * math.cos(tc),
+            ],
+            [0.0, -lb * math.sin(tb), lc * math.sin(tc)],
+        ]
+    )
 
 
 def tip_position_mm(model: WoodenModel, angles) -> tuple[np.ndarray, float]:
     """(tip in the device frame, mm; λ). KinematicsError where the linkage cannot close."""
     tip, lam = hfab_position(model, angles)
     if not np.all(np.isfinite(tip)):
-        raise KinematicsError(f"the {model.name} linkage cannot reach encoder angles "
-                              f"{np.degrees(angles).round(1).tolist()}° (was it calibrated in its home pose?)")
+        raise KinematicsError(
+            f"the {model.name} linkage cannot reach encoder angles "
+            f"{np.degrees(angles).round(1).tolist()}° (was it calibrated in its home pose?)"
+        )
     return HFAB_TO_DEVICE @ tip * 1000.0, lam
 
 

@@ -22,16 +22,23 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sasprobe.devices.serial_arm import BadFrame, ArmReply
+from sasprobe.devices.serial_arm import ArmReply, BadFrame
 
 MAX_CURRENT_MA = 6000  # escon_max_milliamps
 WATCHDOG_S = 0.100  # wdTimer.begin(wdCallback, 100000)
 FIELDS = 8
 
 # The reply's error field (await_message() and the gimbal reads of loop()).
-ERROR_NAMES = {1: "gimbal sensor 0 unread", 2: "gimbal sensor 1 unread", 4: "gimbal sensor 2 unread",
-               8: "trailing characters (merged commands)", 128: "buffer full", 256: "no '[' before ']'",
-               512: "wrong number of currents", 1024: "parse error"}
+ERROR_NAMES = {
+    1: "gimbal sensor 0 unread",
+    2: "gimbal sensor 1 unread",
+    4: "gimbal sensor 2 unread",
+    8: "trailing characters (merged commands)",
+    128: "buffer full",
+    256: "no '[' before ']'",
+    512: "wrong number of currents",
+    1024: "parse error",
+}
 GIMBAL_ERRORS = 1 | 2 | 4
 REFUSED = 8 | 128 | 256 | 512 | 1024  # the command was not taken
 
@@ -77,7 +84,7 @@ def split_reply(inbox: bytes) -> tuple[WoodyReply | None, bytes]:
         if len(inbox) > MAX_LINE:
             raise BadFrame(f"{len(inbox)} bytes without a newline")
         return None, inbox
-    return parse_reply(inbox[:end]), inbox[end + 1:]
+    return parse_reply(inbox[:end]), inbox[end + 1 :]
 
 
 def describe_errors(bits: int) -> str:

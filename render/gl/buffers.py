@@ -7,7 +7,6 @@ per atom) as a storage buffer too.
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.molecule import Structure
 
 SPHERE_FORMAT = "4f 4f"  # centre xyz + radius, colour rgb + unused

@@ -12,7 +12,10 @@ LOCAL_SIZE = 8  # compute work-group edge of the 2D passes (the shaders' local_s
 def dispatch(program, width: int, height: int) -> None:
     """Run a 2D compute pass over width × height, then make its writes visible to whatever
     reads them next (texture fetch, image load, buffer read-back)."""
-    program.run(group_x=(width + LOCAL_SIZE - 1) // LOCAL_SIZE, group_y=(height + LOCAL_SIZE - 1) // LOCAL_SIZE)
+    program.run(
+        group_x=(width + LOCAL_SIZE - 1) // LOCAL_SIZE,
+        group_y=(height + LOCAL_SIZE - 1) // LOCAL_SIZE,
+    )
     program.ctx.memory_barrier()
 
 

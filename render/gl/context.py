@@ -63,7 +63,9 @@ def create_window(size: tuple[int, int], title: str):
     import moderngl
 
     if not glfw.init():
-        raise GLUnavailable("cannot open a window: glfw could not initialise (no display?); use --headless")
+        raise GLUnavailable(
+            "cannot open a window: glfw could not initialise (no display?); use --headless"
+        )
     glfw.window_hint(glfw.CONTEXT_VERSION_MAJOR, 4)
     glfw.window_hint(glfw.CONTEXT_VERSION_MINOR, 1)
     glfw.window_hint(glfw.OPENGL_PROFILE, glfw.OPENGL_CORE_PROFILE)
@@ -85,5 +87,7 @@ def create_window(size: tuple[int, int], title: str):
         raise
     except Exception as exc:
         glfw.terminate()
-        raise GLUnavailable(f"cannot use the window's OpenGL context ({_first_line(exc)})") from None
+        raise GLUnavailable(
+            f"cannot use the window's OpenGL context ({_first_line(exc)})"
+        ) from None
     return window, ctx

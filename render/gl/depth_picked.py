@@ -30,7 +30,9 @@ class DepthTestedTarget:
 
     def __init__(self, ctx):
         self.ctx = ctx
-        self._kept: list[tuple[object, object, object]] = []  # (colour, depth, framebuffer), newest last
+        self._kept: list[
+            tuple[object, object, object]
+        ] = []  # (colour, depth, framebuffer), newest last
 
     def framebuffer(self, colour, depth):
         """`colour` None: no colour attachment (a shader that writes images)."""
@@ -75,7 +77,8 @@ class DepthPickedPass:
         defines = ("AT_FAR_PLANE",) + tuple(name for name, on in cases if on)
         if defines not in self._vaos:
             self._vaos[defines] = self.ctx.vertex_array(
-                program(self.ctx, "fullscreen.vert", self.fragment, defines=defines), [])
+                program(self.ctx, "fullscreen.vert", self.fragment, defines=defines), []
+            )
         return self._vaos[defines]
 
     def run(self, colour, depth, rect, picks, uniforms: dict, clear: float | None = None) -> None:

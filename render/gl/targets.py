@@ -24,7 +24,6 @@ passes import them.
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.gl.textures import read_texture, release_framebuffers
 
 ATOM_BACKGROUND = -1  # atom id of background pixels
@@ -53,8 +52,12 @@ class RenderTargets:
             tex.filter = (ctx.NEAREST, ctx.NEAREST)
         self.lit.filter = (ctx.LINEAR, ctx.LINEAR)
         self.lit.repeat_x = self.lit.repeat_y = False
-        self.gbuffer_fbo = ctx.framebuffer([self.albedo, self.position, self.normal, self.ids], self.depth)
-        self.ids_fbo = ctx.framebuffer([self.ids])  # the clear pass's: ids cannot take a float clear
+        self.gbuffer_fbo = ctx.framebuffer(
+            [self.albedo, self.position, self.normal, self.ids], self.depth
+        )
+        self.ids_fbo = ctx.framebuffer(
+            [self.ids]
+        )  # the clear pass's: ids cannot take a float clear
         self.visibility_fbo = ctx.framebuffer([self.visibility])
         # Forward passes after lighting (the cube wire) test against the G-buffer depth.
         self.lit_fbo = ctx.framebuffer([self.lit], self.depth)
@@ -79,10 +82,14 @@ class RenderTargets:
         w, h = self.size
         x, y = min(max(int(x), 0), w - 1), min(max(int(y), 0), h - 1)
         viewport = (x, h - 1 - y, 1, 1)
-        ids = np.frombuffer(self.gbuffer_fbo.read(viewport=viewport, components=2, attachment=3, dtype="i4"),
-                            dtype=np.int32)
-        position = np.frombuffer(self.gbuffer_fbo.read(viewport=viewport, components=3, attachment=1, dtype="f4"),
-                                 dtype=np.float32)
+        ids = np.frombuffer(
+            self.gbuffer_fbo.read(viewport=viewport, components=2, attachment=3, dtype="i4"),
+            dtype=np.int32,
+        )
+        position = np.frombuffer(
+            self.gbuffer_fbo.read(viewport=viewport, components=3, attachment=1, dtype="f4"),
+            dtype=np.float32,
+        )
         return int(ids[0]), int(ids[1]), position.astype(np.float64)
 
     def read(self, texture) -> np.ndarray:
@@ -90,8 +97,24 @@ class RenderTargets:
         return read_texture(texture, top_first=True)
 
     def release(self) -> None:
-        release_framebuffers(self.ctx, self.gbuffer_fbo, self.ids_fbo, self.visibility_fbo, self.lit_fbo,
-                             self.final_fbo, *(fbo for _, fbo in self._kept.values()))
-        for tex in (self.albedo, self.position, self.normal, self.ids, self.depth, self.visibility, self.lit,
-                    self.final, *(tex for tex, _ in self._kept.values())):
+        release_framebuffers(
+            self.ctx,
+            self.gbuffer_fbo,
+            self.ids_fbo,
+            self.visibility_fbo,
+            self.lit_fbo,
+            self.final_fbo,
+            *(fbo for _, fbo in self._kept.values()),
+        )
+        for tex in (
+            self.albedo,
+            self.position,
+            self.normal,
+            self.ids,
+            self.depth,
+            self.visibility,
+            self.lit,
+            self.final,
+            *(tex for tex, _ in self._kept.values()),
+        ):
             tex.release()

@@ -20,7 +20,9 @@ def release_framebuffers(ctx, *fbos) -> None:
         fbo.release()
 
 
-def texture_2d(ctx, width: int, height: int, components: int = 1, dtype: str = "f4", data: bytes | None = None):
+def texture_2d(
+    ctx, width: int, height: int, components: int = 1, dtype: str = "f4", data: bytes | None = None
+):
     """A texture read with texelFetch or as an image: nearest filtering (integer textures are
     incomplete, and read as zero, with the default linear filter)."""
     import moderngl
@@ -58,7 +60,12 @@ def table_image(ctx, texture, table: np.ndarray, dtype: str = "f4"):
     Only the rows that hold entries are written: shaders never read past the table's end."""
     n, components = table.shape[0], table.shape[1] if table.ndim > 1 else 1
     used, rows = _filled_rows(n), table_rows(n)
-    if texture is None or texture.height < rows or texture.components != components or texture.dtype != dtype:
+    if (
+        texture is None
+        or texture.height < rows
+        or texture.components != components
+        or texture.dtype != dtype
+    ):
         if texture is not None:
             texture.release()
         texture = texture_2d(ctx, TABLE_ROW, rows, components, dtype)
@@ -77,8 +84,8 @@ def write_table_rows(texture, table: np.ndarray, entries: np.ndarray) -> None:
     breaks = np.flatnonzero(np.diff(rows) > 1)
     for first, last in zip(np.r_[rows[0], rows[breaks + 1]], np.r_[rows[breaks], rows[-1]]):
         block = np.zeros((int(last - first) + 1) * TABLE_ROW, dtype=table.dtype)
-        piece = table[int(first) * TABLE_ROW:(int(last) + 1) * TABLE_ROW]
-        block[:piece.size] = piece
+        piece = table[int(first) * TABLE_ROW : (int(last) + 1) * TABLE_ROW]
+        block[: piece.size] = piece
         texture.write(block.tobytes(), viewport=(0, int(first), TABLE_ROW, int(last - first) + 1))
 
 
@@ -94,7 +101,11 @@ class TextureCache:
     def get(self, name: str, size: tuple[int, int], fill: float | None = None):
         key = (name, tuple(size))
         if key not in self._textures:
-            data = None if fill is None else np.full(size[0] * size[1], fill, dtype=np.float32).tobytes()
+            data = (
+                None
+                if fill is None
+                else np.full(size[0] * size[1], fill, dtype=np.float32).tobytes()
+            )
             self._textures[key] = texture_2d(self.ctx, size[0], size[1], data=data)
         return self._textures[key]
 

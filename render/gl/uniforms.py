@@ -34,7 +34,9 @@ def padded_planes(planes: np.ndarray) -> np.ndarray:
     """N x 4 planes as the shaders' MAX_CLIP_PLANES x 4 float32 array; ValueError beyond it."""
     planes = np.asarray(planes, dtype=np.float64).reshape(-1, 4)
     if planes.shape[0] > MAX_CLIP_PLANES:
-        raise ValueError(f"at most {MAX_CLIP_PLANES} clip planes reach the shaders, got {planes.shape[0]}")
+        raise ValueError(
+            f"at most {MAX_CLIP_PLANES} clip planes reach the shaders, got {planes.shape[0]}"
+        )
     padded = np.zeros((MAX_CLIP_PLANES, 4), dtype=np.float32)
     padded[: planes.shape[0]] = planes
     return padded

@@ -3,9 +3,9 @@ texture (r32f, 1 = untouched) the final colour is multiplied by."""
 
 from __future__ import annotations
 
-from sasprobe.render.gl.uniforms import view_proj_uniforms
 from sasprobe.render.gl.compute import ComputePass
 from sasprobe.render.gl.textures import texture_2d
+from sasprobe.render.gl.uniforms import view_proj_uniforms
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.settings import EdgeCueing
 
@@ -21,15 +21,19 @@ class EdgeCueingPass(ComputePass):
         x, y, w, h = rect if rect is not None else (0, 0, width, height)
         gbuffer.bind()
         out.bind_to_image(0, read=False, write=True)
-        self.run(w, h, {
-            "u_offset": (int(x), int(y)),
-            **view_proj_uniforms(view, proj),
-            "u_contours": int(settings.contours),
-            "u_line_width": float(settings.line_width),
-            "u_line_threshold": float(settings.line_threshold),
-            "u_halos": int(settings.halos),
-            "u_halo_radius": float(settings.halo_radius),
-            "u_halo_depth": float(settings.halo_depth),
-            "u_halo_strength": float(settings.halo_strength),
-        })
+        self.run(
+            w,
+            h,
+            {
+                "u_offset": (int(x), int(y)),
+                **view_proj_uniforms(view, proj),
+                "u_contours": int(settings.contours),
+                "u_line_width": float(settings.line_width),
+                "u_line_threshold": float(settings.line_threshold),
+                "u_halos": int(settings.halos),
+                "u_halo_radius": float(settings.halo_radius),
+                "u_halo_depth": float(settings.halo_depth),
+                "u_halo_strength": float(settings.halo_strength),
+            },
+        )
         return out

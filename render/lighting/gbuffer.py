@@ -16,9 +16,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
 from sasprobe.render.gl.compute import ComputePass
-from sasprobe.render.gl.targets import ATOM_BACKGROUND, ATOM_PROBE, KIND_BACKGROUND, KIND_CAP, KIND_PROBE, KIND_SPHERE
+from sasprobe.render.gl.targets import (
+    ATOM_BACKGROUND,
+    ATOM_PROBE,
+    KIND_BACKGROUND,
+    KIND_CAP,
+    KIND_PROBE,
+    KIND_SPHERE,
+)
 from sasprobe.render.gl.textures import read_texture, texture_2d
 from sasprobe.render.gl.uniforms import gl_bytes
 
@@ -29,24 +35,29 @@ class GBuffer:
     normal: object
     ids: object
     owned: bool = True  # False: the renderer's targets (released by it)
-    depth: object = None  # the renderer's depth texture (1 on background pixels), where there is one
+    depth: object = (
+        None  # the renderer's depth texture (1 on background pixels), where there is one
+    )
 
     @property
     def size(self) -> tuple[int, int]:
         return self.ids.width, self.ids.height
 
     @classmethod
-    def of_targets(cls, targets) -> "GBuffer":
+    def of_targets(cls, targets) -> GBuffer:
         """The renderer's G-buffer (render/gl/targets.py), read in place."""
         return cls(targets.position, targets.normal, targets.ids, owned=False, depth=targets.depth)
 
     @classmethod
-    def allocate(cls, ctx, width: int, height: int) -> "GBuffer":
-        return cls(texture_2d(ctx, width, height, 4), texture_2d(ctx, width, height, 4),
-                   texture_2d(ctx, width, height, 2, "i4"))
+    def allocate(cls, ctx, width: int, height: int) -> GBuffer:
+        return cls(
+            texture_2d(ctx, width, height, 4),
+            texture_2d(ctx, width, height, 4),
+            texture_2d(ctx, width, height, 2, "i4"),
+        )
 
     @classmethod
-    def upload(cls, ctx, position: np.ndarray, normal: np.ndarray, atom: np.ndarray) -> "GBuffer":
+    def upload(cls, ctx, position: np.ndarray, normal: np.ndarray, atom: np.ndarray) -> GBuffer:
         """From arrays (H, W, 3), (H, W, 3), (H, W) atom ids; row 0 = bottom. Kinds follow
         from the ids: background (-1), probe (-2), sphere surface (atoms)."""
         h, w = atom.shape
@@ -54,10 +65,15 @@ class GBuffer:
         pos = np.concatenate([np.asarray(position, dtype=np.float32), pad + 1.0], axis=2)
         nrm = np.concatenate([np.asarray(normal, dtype=np.float32), pad], axis=2)
         atom = np.asarray(atom, dtype=np.int32)
-        kind = np.where(atom >= 0, KIND_SPHERE, np.where(atom == ATOM_PROBE, KIND_PROBE, KIND_BACKGROUND))
+        kind = np.where(
+            atom >= 0, KIND_SPHERE, np.where(atom == ATOM_PROBE, KIND_PROBE, KIND_BACKGROUND)
+        )
         ids = np.stack([atom, kind.astype(np.int32)], axis=-1)
-        return cls(texture_2d(ctx, w, h, 4, data=pos.tobytes()), texture_2d(ctx, w, h, 4, data=nrm.tobytes()),
-                   texture_2d(ctx, w, h, 2, "i4", data=ids.tobytes()))
+        return cls(
+            texture_2d(ctx, w, h, 4, data=pos.tobytes()),
+            texture_2d(ctx, w, h, 4, data=nrm.tobytes()),
+            texture_2d(ctx, w, h, 2, "i4", data=ids.tobytes()),
+        )
 
     def bind(self) -> None:
         self.position.use(location=0)
@@ -87,13 +103,24 @@ class RaycastGBuffer(ComputePass):
     def __init__(self, gpu_grid):
         super().__init__(gpu_grid.ctx, "gbuffer_raycast.comp", gpu_grid)
 
-    def render(self, view: np.ndarray, proj: np.ndarray, width: int, height: int, out: GBuffer | None = None) -> GBuffer:
+    def render(
+        self,
+        view: np.ndarray,
+        proj: np.ndarray,
+        width: int,
+        height: int,
+        out: GBuffer | None = None,
+    ) -> GBuffer:
         gbuffer = out or GBuffer.allocate(self.ctx, width, height)
         gbuffer.position.bind_to_image(0, read=False, write=True)
         gbuffer.normal.bind_to_image(1, read=False, write=True)
         gbuffer.ids.bind_to_image(2, read=False, write=True)
-        self.run(width, height, {
-            "u_inv_proj": gl_bytes(np.linalg.inv(proj)),
-            "u_inv_view": gl_bytes(np.linalg.inv(view)),
-        })
+        self.run(
+            width,
+            height,
+            {
+                "u_inv_proj": gl_bytes(np.linalg.inv(proj)),
+                "u_inv_view": gl_bytes(np.linalg.inv(view)),
+            },
+        )
         return gbuffer

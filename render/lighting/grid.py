@@ -22,7 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from sasprobe.molecule.grid import UniformGrid
 from sasprobe.render.gl.textures import table_image
 from sasprobe.render.gl.uniforms import MAX_CLIP_PLANES, padded_planes
@@ -47,12 +46,16 @@ class Culling:
 
     clip_planes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     nav_cube: tuple[np.ndarray, float] | None = None  # centre (Å), half edge (Å)
-    _found: dict = field(default_factory=dict, init=False, repr=False, compare=False)  # uniforms, cuts
+    _found: dict = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )  # uniforms, cuts
 
     def __post_init__(self) -> None:
         planes = np.asarray(self.clip_planes, dtype=np.float64).reshape(-1, 4)
         if planes.shape[0] > MAX_CLIP_PLANES:
-            raise ValueError(f"at most {MAX_CLIP_PLANES} clip planes are supported, got {planes.shape[0]}")
+            raise ValueError(
+                f"at most {MAX_CLIP_PLANES} clip planes are supported, got {planes.shape[0]}"
+            )
         norms = np.linalg.norm(planes[:, :3], axis=1)
         if np.any(norms == 0):
             raise ValueError("a clip plane needs a non-zero normal")
@@ -78,8 +81,13 @@ class Culling:
         if "planes" not in self._found:
             planes, box = self.clip_planes, self.cube_box
             if box is not None:  # kept where n·x + d >= 0
-                planes = np.concatenate([planes, np.column_stack([np.eye(3), -box[0]]),
-                                         np.column_stack([-np.eye(3), box[1]])])
+                planes = np.concatenate(
+                    [
+                        planes,
+                        np.column_stack([np.eye(3), -box[0]]),
+                        np.column_stack([-np.eye(3), box[1]]),
+                    ]
+                )
             self._found["planes"] = planes
         return self._found["planes"]
 
@@ -91,7 +99,10 @@ class Culling:
         the light's end in the shaders. The cube's faces come as planes, and the whole
         culling when they do not fit the shaders' arrays."""
         planes = self.all_planes()
-        crossed = planes[:, :3] @ np.asarray(light, dtype=np.float64).reshape(3) + planes[:, 3] < LIGHT_CUT_MARGIN
+        crossed = (
+            planes[:, :3] @ np.asarray(light, dtype=np.float64).reshape(3) + planes[:, 3]
+            < LIGHT_CUT_MARGIN
+        )
         if np.count_nonzero(crossed) > MAX_CLIP_PLANES:
             return self
         key = ("cuts", crossed.tobytes())
@@ -99,7 +110,9 @@ class Culling:
             self._found[key] = Culling(planes[crossed], None)
         return self._found[key]
 
-    def culled_atoms(self, centers: np.ndarray, radii: np.ndarray, grid: UniformGrid | None = None) -> np.ndarray:
+    def culled_atoms(
+        self, centers: np.ndarray, radii: np.ndarray, grid: UniformGrid | None = None
+    ) -> np.ndarray:
         """Boolean mask of atoms of which nothing is kept (wholly behind a plane, or not
         overlapping the cube). `grid` speeds up the cube test through its box → cells query."""
         centers = np.asarray(centers, dtype=np.float64)
@@ -117,7 +130,9 @@ class Culling:
             nearest = np.clip(centers[candidates], lo, hi)
             gap = centers[candidates] - nearest
             overlapping = np.zeros(centers.shape[0], dtype=bool)
-            overlapping[candidates[np.einsum("ij,ij->i", gap, gap) <= radii[candidates] ** 2]] = True
+            overlapping[candidates[np.einsum("ij,ij->i", gap, gap) <= radii[candidates] ** 2]] = (
+                True
+            )
             culled |= ~overlapping
         return culled
 
@@ -169,7 +184,9 @@ class GpuGrid:
         if vdw_radii.shape[0] != grid.centers.shape[0]:
             raise ValueError("one vdW radius per grid sphere is needed")
         if np.any(vdw_radii > grid.radii):
-            raise ValueError("the grid must be built with radii at least the vdW radii (vdW + probe)")
+            raise ValueError(
+                "the grid must be built with radii at least the vdW radii (vdW + probe)"
+            )
         self.ctx = ctx
         self.grid = grid
         self.n_atoms = int(vdw_radii.shape[0])
@@ -191,11 +208,18 @@ class GpuGrid:
         self.probe_sphere = NO_PROBE
         self.probe_reach = UNBOUNDED
         self._sun_buffer: DirectionalLightBuffer | None = None  # see sun_buffer()
-        self.culling_version = 0  # counts set_culling calls (what depends on the culled flags follows it)
-        self._uniforms: tuple[int, dict] = (-1, {})  # (culling version, the uniforms that follow it)
+        self.culling_version = (
+            0  # counts set_culling calls (what depends on the culled flags follows it)
+        )
+        self._uniforms: tuple[int, dict] = (
+            -1,
+            {},
+        )  # (culling version, the uniforms that follow it)
 
     @classmethod
-    def from_structure(cls, ctx, structure, probe_radius: float, cell_size: float | None = None) -> "GpuGrid":
+    def from_structure(
+        cls, ctx, structure, probe_radius: float, cell_size: float | None = None
+    ) -> GpuGrid:
         grid = UniformGrid(structure.positions, structure.expanded_radii(probe_radius), cell_size)
         return cls(ctx, grid, structure.vdw_radii)
 
@@ -211,18 +235,26 @@ class GpuGrid:
         self.culling_version += 1
         self.culled_mask = culling.culled_atoms(self.grid.centers, self.vdw_radii, self.grid)
         self.centre_clipped_mask = culling.centre_clipped(self.grid.centers)
-        flags = np.where(self.culled_mask, CULLED, 0) | np.where(self.centre_clipped_mask, CENTRE_CLIPPED, 0)
+        flags = np.where(self.culled_mask, CULLED, 0) | np.where(
+            self.centre_clipped_mask, CENTRE_CLIPPED, 0
+        )
         self.culled = table_image(self.ctx, self.culled, flags.astype(np.uint32), "u4")
         box = culling.cube_box
         rng = self.grid.cell_range(*box) if box is not None else None
         if box is not None and rng is None:  # the cube is off the molecule: walk one cell
             rng = (np.zeros(3, dtype=np.int64), np.zeros(3, dtype=np.int64))
-        self.walk_range = rng if rng is not None else (np.zeros(3, dtype=np.int64), self.grid.dims - 1)
+        self.walk_range = (
+            rng if rng is not None else (np.zeros(3, dtype=np.int64), self.grid.dims - 1)
+        )
 
-    def set_probe(self, center: np.ndarray | None, radius: float = 0.0, reach: float = UNBOUNDED) -> None:
+    def set_probe(
+        self, center: np.ndarray | None, radius: float = 0.0, reach: float = UNBOUNDED
+    ) -> None:
         """The probe sphere as an occluder (None: no probe); its analytic share of the AO is
         windowed to 0 at `reach` Å from its centre (the renderer passes its light's range)."""
-        self.probe_sphere = NO_PROBE if center is None else (*(float(v) for v in center), float(radius))
+        self.probe_sphere = (
+            NO_PROBE if center is None else (*(float(v) for v in center), float(radius))
+        )
         self.probe_reach = float(reach)
 
     def bind(self) -> None:
@@ -234,15 +266,22 @@ class GpuGrid:
     def uniforms(self) -> dict[str, object]:
         if self._uniforms[0] != self.culling_version:
             lo, hi = self.walk_range
-            self._uniforms = (self.culling_version, {
-                "u_grid_origin": tuple(float(v) for v in self.grid.origin),
-                "u_cell_size": float(self.grid.cell_size),
-                "u_grid_dims": tuple(int(v) for v in self.grid.dims),
-                "u_walk_lo": tuple(int(v) for v in lo),
-                "u_walk_hi": tuple(int(v) for v in hi),
-                **self.culling.uniforms(),
-            })
-        return {**self._uniforms[1], "u_probe_sphere": self.probe_sphere, "u_probe_reach": self.probe_reach}
+            self._uniforms = (
+                self.culling_version,
+                {
+                    "u_grid_origin": tuple(float(v) for v in self.grid.origin),
+                    "u_cell_size": float(self.grid.cell_size),
+                    "u_grid_dims": tuple(int(v) for v in self.grid.dims),
+                    "u_walk_lo": tuple(int(v) for v in lo),
+                    "u_walk_hi": tuple(int(v) for v in hi),
+                    **self.culling.uniforms(),
+                },
+            )
+        return {
+            **self._uniforms[1],
+            "u_probe_sphere": self.probe_sphere,
+            "u_probe_reach": self.probe_reach,
+        }
 
     def sun_buffer(self) -> DirectionalLightBuffer:
         """The directional light's buffer of these spheres (render/lighting/light_buffer.py),
@@ -272,8 +311,15 @@ class GridWalks:
         return self.cells[i, :n], self.t[i, :n]
 
 
-def walk_rays_on_gpu(gpu_grid: GpuGrid, origins, directions, t_min=0.0, t_max=1e30, max_visits: int = 256,
-                     walk_range: tuple[np.ndarray, np.ndarray] | None = None) -> GridWalks:
+def walk_rays_on_gpu(
+    gpu_grid: GpuGrid,
+    origins,
+    directions,
+    t_min=0.0,
+    t_max=1e30,
+    max_visits: int = 256,
+    walk_range: tuple[np.ndarray, np.ndarray] | None = None,
+) -> GridWalks:
     """Test hook: walk rays o + t d through the grid with the shaders' DDA (grid_walk_probe.comp)."""
     from sasprobe.render.gl.programs import source
     from sasprobe.render.gl.uniforms import apply_uniforms
@@ -303,8 +349,12 @@ def walk_rays_on_gpu(gpu_grid: GpuGrid, origins, directions, t_min=0.0, t_max=1e
         apply_uniforms(program, {**uniforms, "u_n_rays": n, "u_max_visits": max_visits})
         program.run(group_x=(n + 63) // 64)
         ctx.memory_barrier()
-        cells = np.frombuffer(buffers[1].read(), dtype=np.int32)[: n * max_visits * 4].reshape(n, max_visits, 4)
-        t = np.frombuffer(buffers[2].read(), dtype=np.float32)[: n * max_visits * 2].reshape(n, max_visits, 2)
+        cells = np.frombuffer(buffers[1].read(), dtype=np.int32)[: n * max_visits * 4].reshape(
+            n, max_visits, 4
+        )
+        t = np.frombuffer(buffers[2].read(), dtype=np.float32)[: n * max_visits * 2].reshape(
+            n, max_visits, 2
+        )
         counts = np.frombuffer(buffers[3].read(), dtype=np.int32)[:n].copy()
     finally:
         for buffer in buffers:

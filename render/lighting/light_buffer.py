@@ -34,7 +34,6 @@ took llvmpipe longer than the numpy build takes. Read by shaders/light_buffer.gl
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.gl.buffers import upload
 from sasprobe.render.gl.textures import table_image
 
@@ -42,10 +41,15 @@ FACE_CELLS = 8  # cells along a cube face's edge: 6 × 8² = 384 lists (finer on
 ANGLE_MARGIN = 1e-4  # rad added to both cones: float32 lookups may land a cell off by rounding
 RADIUS_MARGIN = 1e-3  # Å added to each atom's reach: float32 distances in the shader
 SLACK = 0.6  # Å the light may move before the lists are built again (wider cones, longer lists)
-FACE_HALF = float(np.arccos(1.0 / np.sqrt(3.0)))  # rad: a cube face's cells lie within this of its axis
+FACE_HALF = float(
+    np.arccos(1.0 / np.sqrt(3.0))
+)  # rad: a cube face's cells lie within this of its axis
 LEAD = 0.6  # of the slack: how far ahead of a moving light the lists are centred
 NEARBY_PAD = 2.0  # Å: the grid's candidates are gathered for a box this much wider than a build needs, and kept
-IMAGE_LIST_SPHERES, IMAGE_LIST_ATOMS = 2, 3  # image units (shaders/light_buffer.glsl; the grid's are 4-5)
+IMAGE_LIST_SPHERES, IMAGE_LIST_ATOMS = (
+    2,
+    3,
+)  # image units (shaders/light_buffer.glsl; the grid's are 4-5)
 
 
 def cell_cones(face_cells: int = FACE_CELLS) -> np.ndarray:
@@ -74,7 +78,9 @@ def cell_cones(face_cells: int = FACE_CELLS) -> np.ndarray:
         for di in (0, 1):
             for dj in (0, 1):
                 corner = direction(edges[ii + di], edges[jj + dj])
-                half = np.maximum(half, np.arccos(np.clip(np.sum(corner * centre, axis=-1), -1.0, 1.0)))
+                half = np.maximum(
+                    half, np.arccos(np.clip(np.sum(corner * centre, axis=-1), -1.0, 1.0))
+                )
         out[face, ..., :3] = centre
         out[face, ..., 3] = half
     return out.reshape(-1, 4)
@@ -88,17 +94,25 @@ class PointLightBuffer:
         self.slack = float(slack)
         self.ctx = gpu_grid.ctx
         self.face_cells = int(face_cells)
-        self.n_cells = 6 * self.face_cells ** 2
+        self.n_cells = 6 * self.face_cells**2
         self.max_vdw = float(np.max(gpu_grid.vdw_radii, initial=0.0))
         cones = cell_cones(self.face_cells)
         half = np.minimum(cones[:, 3] + ANGLE_MARGIN, np.pi)
         self.cell_half = half
         cell_terms = np.column_stack([cones[:, :3], -np.cos(half), np.sin(half)]).astype(np.float32)
-        self.face_terms = cell_terms.reshape(6, self.face_cells ** 2, 5)  # each face's cells
-        self._nearby = (np.full(3, np.inf), np.full(3, -np.inf), np.empty(0, dtype=np.int64))  # (lo, hi, atoms)
-        self.starts = np.zeros(self.n_cells + 1, dtype=np.int32)  # cell c lists entries starts[c] .. starts[c + 1]
+        self.face_terms = cell_terms.reshape(6, self.face_cells**2, 5)  # each face's cells
+        self._nearby = (
+            np.full(3, np.inf),
+            np.full(3, -np.inf),
+            np.empty(0, dtype=np.int64),
+        )  # (lo, hi, atoms)
+        self.starts = np.zeros(
+            self.n_cells + 1, dtype=np.int32
+        )  # cell c lists entries starts[c] .. starts[c + 1]
         self.list_spheres = table_image(self.ctx, None, np.zeros((1, 4), dtype=np.float32))
-        self.list_atoms = table_image(self.ctx, None, self.starts, "i4")  # the starts, then the entries' atoms
+        self.list_atoms = table_image(
+            self.ctx, None, self.starts, "i4"
+        )  # the starts, then the entries' atoms
         self.key: tuple | None = None
         self.centre = np.zeros(3)  # where the lists were built for
         self.last_position = np.zeros(3)  # the light the lists were last asked for
@@ -113,7 +127,11 @@ class PointLightBuffer:
         shell_outer = max(float(shell_outer), 0.0)
         key = (shell_outer, self.grid.culling_version)
         moved, self.last_position = position - self.last_position, position
-        if key == self.key and reach <= self.reach and float(np.linalg.norm(position - self.centre)) <= self.slack:
+        if (
+            key == self.key
+            and reach <= self.reach
+            and float(np.linalg.norm(position - self.centre)) <= self.slack
+        ):
             return  # the lists hold for this light too
         # Centred ahead of a moving light (LEAD of the slack along its last step), the lists
         # hold while it crosses most of their ball, not only its radius.
@@ -138,7 +156,9 @@ class PointLightBuffer:
         self.atoms_in_reach = int(atoms.size)
         # Each atom's cone: the light inside the grown sphere sees it in every direction.
         inside = distance <= radii
-        half = np.where(inside, np.pi, np.arcsin(np.minimum(radii / np.maximum(distance, 1e-30), 1.0)))
+        half = np.where(
+            inside, np.pi, np.arcsin(np.minimum(radii / np.maximum(distance, 1e-30), 1.0))
+        )
         half = np.minimum(half + ANGLE_MARGIN, np.pi)
         axes = offset / np.maximum(distance, 1e-30)[:, None]
         # Two cones meet when the angle between their axes is at most the sum a + b of their
@@ -149,7 +169,9 @@ class PointLightBuffer:
         # of its axis): most atoms' cones are narrow and meet one face or two. (Products of
         # 64 x a few hundred x 5 stay on the calling thread in OpenBLAS, and `sasprobe` runs
         # it with one thread: its idle threads would spin after each.)
-        atom_terms = np.column_stack([axes, np.cos(half), np.sin(half)]).astype(np.float32)  # the margins hold float32
+        atom_terms = np.column_stack([axes, np.cos(half), np.sin(half)]).astype(
+            np.float32
+        )  # the margins hold float32
         near_face = np.cos(np.minimum(half + FACE_HALF + ANGLE_MARGIN, np.pi))
         wide = half + self.cell_half.max() >= np.pi  # a few at most, the light among them
         per_cell, entries = [], []
@@ -158,18 +180,21 @@ class PointLightBuffer:
             slots = np.flatnonzero(sign * axes[:, axis] >= near_face)
             meets = self.face_terms[face] @ atom_terms[slots].T >= 0.0
             if wide.any():
-                cells = slice(face * self.face_cells ** 2, (face + 1) * self.face_cells ** 2)
+                cells = slice(face * self.face_cells**2, (face + 1) * self.face_cells**2)
                 meets |= (np.add.outer(self.cell_half[cells], half[slots]) >= np.pi) & wide[slots]
             cell, slot = np.nonzero(meets)  # by cell, then by slot: each list nearest first
-            per_cell.append(np.bincount(cell, minlength=self.face_cells ** 2))
+            per_cell.append(np.bincount(cell, minlength=self.face_cells**2))
             entries.append(slots[slot])
         self.starts[0] = 0
         np.cumsum(np.concatenate(per_cell), out=self.starts[1:])
         listed = atoms[np.concatenate(entries)]
         if listed.size:
-            self.list_spheres = table_image(self.ctx, self.list_spheres, self.grid.sphere_rows[listed])
-        self.list_atoms = table_image(self.ctx, self.list_atoms, np.concatenate([self.starts, listed]).astype(np.int32),
-                                      "i4")
+            self.list_spheres = table_image(
+                self.ctx, self.list_spheres, self.grid.sphere_rows[listed]
+            )
+        self.list_atoms = table_image(
+            self.ctx, self.list_atoms, np.concatenate([self.starts, listed]).astype(np.int32), "i4"
+        )
 
     def _candidates(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         """The atoms the grid stores in cells meeting the box [lo, hi]: those of a box
@@ -188,9 +213,12 @@ class PointLightBuffer:
         self.list_atoms.bind_to_image(IMAGE_LIST_ATOMS, read=True, write=False)
 
     def uniforms(self, shell_outer: float) -> dict[str, object]:
-        return {"u_lb_face_cells": self.face_cells, "u_lb_cells": self.n_cells,
-                "u_lb_centre": tuple(float(v) for v in self.centre),
-                "u_lb_reach_pad": float(max(shell_outer, 0.0) + RADIUS_MARGIN + self.slack)}
+        return {
+            "u_lb_face_cells": self.face_cells,
+            "u_lb_cells": self.n_cells,
+            "u_lb_centre": tuple(float(v) for v in self.centre),
+            "u_lb_reach_pad": float(max(shell_outer, 0.0) + RADIUS_MARGIN + self.slack),
+        }
 
     def counts(self) -> np.ndarray:
         """Each list's length (for tests and benchmarks)."""
@@ -202,7 +230,9 @@ class PointLightBuffer:
 
 
 # ------------------------------------------------------------------ the directional light
-SUN_CELL = 2.0  # Å: the directional buffer's cells across the light (finer: more entries, shorter lists)
+SUN_CELL = (
+    2.0  # Å: the directional buffer's cells across the light (finer: more entries, shorter lists)
+)
 MAX_SUN_CELLS = 65535  # cell ids fit in uint16, which numpy sorts by radix
 BINDING_SUN_START, IMAGE_SUN_SPHERES, IMAGE_SUN_ATOMS = 19, 6, 7  # shaders/sun_buffer.glsl
 
@@ -259,8 +289,12 @@ class DirectionalLightBuffer:
             lo, hi = np.zeros(2), np.ones(2)
         cell = max(self.cell, float(np.sqrt(np.prod(hi - lo) / MAX_SUN_CELLS)) * 1.01)
         dims = np.maximum(np.ceil((hi - lo) / cell).astype(np.int64), 1)
-        first = np.clip(np.floor((across - reach[:, None] - lo) / cell).astype(np.int64), 0, dims - 1)
-        last = np.clip(np.floor((across + reach[:, None] - lo) / cell).astype(np.int64), 0, dims - 1)
+        first = np.clip(
+            np.floor((across - reach[:, None] - lo) / cell).astype(np.int64), 0, dims - 1
+        )
+        last = np.clip(
+            np.floor((across + reach[:, None] - lo) / cell).astype(np.int64), 0, dims - 1
+        )
         span = last - first + 1  # cells per atom along u and v
         per_atom = span[:, 0] * span[:, 1]
         owner = np.repeat(np.arange(atoms.size), per_atom)
@@ -276,9 +310,14 @@ class DirectionalLightBuffer:
         self.spheres = table_image(self.ctx, self.spheres, self.grid.sphere_rows[atoms[listed]])
         self.atoms = table_image(self.ctx, self.atoms, atoms[listed].astype(np.int32), "i4")
         self.entries = int(listed.size)
-        self._uniforms = {"u_sb_u": tuple(u), "u_sb_v": tuple(v), "u_sb_origin": tuple(float(x) for x in lo),
-                          "u_sb_cell": float(cell), "u_sb_dims": tuple(int(x) for x in dims),
-                          "u_sb_behind": float(np.max(vdw, initial=0.0) + pad)}
+        self._uniforms = {
+            "u_sb_u": tuple(u),
+            "u_sb_v": tuple(v),
+            "u_sb_origin": tuple(float(x) for x in lo),
+            "u_sb_cell": float(cell),
+            "u_sb_dims": tuple(int(x) for x in dims),
+            "u_sb_behind": float(np.max(vdw, initial=0.0) + pad),
+        }
 
     def bind(self) -> None:
         self.starts.bind_to_storage_buffer(BINDING_SUN_START)

@@ -9,7 +9,9 @@ import numpy as np
 ALBEDO_SCALE = 0.8
 ORGANIC = (0.04, 24.0)  # specular weight, Phong exponent
 METAL = (0.35, 96.0)
-METALS = frozenset({"Na", "K", "Mg", "Ca", "Mn", "Fe", "Co", "Ni", "Cu", "Zn", "Cd", "Hg", "Pt", "Au", "Ag", "Pd"})
+METALS = frozenset(
+    {"Na", "K", "Mg", "Ca", "Mn", "Fe", "Co", "Ni", "Cu", "Zn", "Cd", "Hg", "Pt", "Au", "Ag", "Pd"}
+)
 PROBE_MATERIAL = (0.85, 0.85, 0.9, 0.25, 48.0)  # rgb albedo, specular, exponent
 
 

@@ -6,8 +6,9 @@ is still. Output: linear radiance (rgba32f)."""
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.lighting.gbuffer import GBuffer
+from sasprobe.render.lighting.materials import PROBE_MATERIAL, atom_materials
+from sasprobe.render.lighting.progressive import ProgressivePass
 from sasprobe.render.lighting.settings import (
     DirectionalLight,
     PathTracing,
@@ -15,8 +16,6 @@ from sasprobe.render.lighting.settings import (
     light_uniforms,
     ray_epsilon_uniforms,
 )
-from sasprobe.render.lighting.materials import PROBE_MATERIAL, atom_materials
-from sasprobe.render.lighting.progressive import ProgressivePass
 
 BINDING_MATERIALS = 5
 
@@ -33,27 +32,39 @@ class PathTracer(ProgressivePass):
         self.materials = self.ctx.buffer(materials.tobytes())
 
     @classmethod
-    def for_structure(cls, gpu_grid, structure) -> "PathTracer":
+    def for_structure(cls, gpu_grid, structure) -> PathTracer:
         return cls(gpu_grid, atom_materials(structure.elements, structure.colors))
 
     def set_colors(self, elements: np.ndarray, colors: np.ndarray) -> None:
         """The atoms' albedos from new colours (a colour scheme); accumulation starts over."""
-        self.materials.write(np.ascontiguousarray(atom_materials(elements, colors), dtype=np.float32).tobytes())
+        self.materials.write(
+            np.ascontiguousarray(atom_materials(elements, colors), dtype=np.float32).tobytes()
+        )
         self.reset()
 
-    def accumulate(self, gbuffer: GBuffer, eye, sun: DirectionalLight | None, probe_light: PointLight | None,
-                   settings: PathTracing = PathTracing()):
+    def accumulate(
+        self,
+        gbuffer: GBuffer,
+        eye,
+        sun: DirectionalLight | None,
+        probe_light: PointLight | None,
+        settings: PathTracing = PathTracing(),
+    ):
         self.materials.bind_to_storage_buffer(BINDING_MATERIALS)
-        return self.add_samples(gbuffer, settings.spp, {
-            **ray_epsilon_uniforms(),
-            **light_uniforms(sun, probe_light),
-            "u_bounces": int(settings.bounces),
-            "u_eye": tuple(float(v) for v in eye),
-            "u_sky": tuple(float(v) for v in settings.sky),
-            "u_background": tuple(float(v) for v in settings.background),
-            "u_probe_albedo_specular": PROBE_MATERIAL[:4],
-            "u_probe_exponent": PROBE_MATERIAL[4],
-        })
+        return self.add_samples(
+            gbuffer,
+            settings.spp,
+            {
+                **ray_epsilon_uniforms(),
+                **light_uniforms(sun, probe_light),
+                "u_bounces": int(settings.bounces),
+                "u_eye": tuple(float(v) for v in eye),
+                "u_sky": tuple(float(v) for v in settings.sky),
+                "u_background": tuple(float(v) for v in settings.background),
+                "u_probe_albedo_specular": PROBE_MATERIAL[:4],
+                "u_probe_exponent": PROBE_MATERIAL[4],
+            },
+        )
 
     def release(self) -> None:
         super().release()

@@ -21,7 +21,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from sasprobe.render.lighting.settings import AOSettings, EdgeCueing, LightingSettings, ShadingSettings
+from sasprobe.render.lighting.settings import (
+    AOSettings,
+    EdgeCueing,
+    LightingSettings,
+    ShadingSettings,
+)
 
 DARK = ShadingSettings().background
 WHITE = (1.0, 1.0, 1.0)
@@ -39,31 +44,84 @@ class Preset:
 
     def shading(self, base: ShadingSettings) -> ShadingSettings:
         """`base` with this preset's light intensities and background."""
-        return replace(base, ambient=self.ambient, directional_intensity=self.directional, specular=self.specular,
-                       ao_power=self.ao_power, background=self.background)
+        return replace(
+            base,
+            ambient=self.ambient,
+            directional_intensity=self.directional,
+            specular=self.specular,
+            ao_power=self.ao_power,
+            background=self.background,
+        )
 
 
 # Ray-traced AO with rays long enough to darken the grooves between domains and subunits,
 # not only the gaps between neighbouring atoms (analytic AO's K nearest neighbours).
 SOFT_AO = AOSettings(mode="rt", distance=20.0)
 FAR_AO = AOSettings(mode="rt", distance=30.0)
-HEADLESS_AO_SAMPLES = 64  # a headless frame of the ray-traced presets is written once converged this far
+HEADLESS_AO_SAMPLES = (
+    64  # a headless frame of the ray-traced presets is written once converged this far
+)
 
-PRESETS: dict[str, Preset] = {p.name: p for p in (
-    Preset("default", ambient=0.5, directional=0.7, specular=0.25, ao_power=1.5,
-           lighting=LightingSettings(shadows="hard", ao=AOSettings(mode="analytic")), background=DARK),
-    Preset("soft", ambient=1.1, directional=0.0, specular=0.0, ao_power=2.0,
-           lighting=LightingSettings(shadows="off", ao=SOFT_AO), background=DARK),
-    Preset("full", ambient=0.7, directional=0.6, specular=0.3, ao_power=1.5,
-           lighting=LightingSettings(shadows="soft", ao=SOFT_AO), background=DARK),
-    Preset("flat", ambient=1.0, directional=0.0, specular=0.0, ao_power=1.0,
-           lighting=LightingSettings(shadows="off", ao=AOSettings(mode="off"), edges="lines",
-                                     edge_cueing=EdgeCueing(contours=True, halos=False)), background=DARK),
-    Preset("illustrative", ambient=1.15, directional=0.15, specular=0.0, ao_power=2.5,
-           lighting=LightingSettings(shadows="off", ao=FAR_AO, edges="both",
-                                     edge_cueing=EdgeCueing(contours=True, halos=True, halo_strength=0.5)),
-           background=WHITE),
-)}
+PRESETS: dict[str, Preset] = {
+    p.name: p
+    for p in (
+        Preset(
+            "default",
+            ambient=0.5,
+            directional=0.7,
+            specular=0.25,
+            ao_power=1.5,
+            lighting=LightingSettings(shadows="hard", ao=AOSettings(mode="analytic")),
+            background=DARK,
+        ),
+        Preset(
+            "soft",
+            ambient=1.1,
+            directional=0.0,
+            specular=0.0,
+            ao_power=2.0,
+            lighting=LightingSettings(shadows="off", ao=SOFT_AO),
+            background=DARK,
+        ),
+        Preset(
+            "full",
+            ambient=0.7,
+            directional=0.6,
+            specular=0.3,
+            ao_power=1.5,
+            lighting=LightingSettings(shadows="soft", ao=SOFT_AO),
+            background=DARK,
+        ),
+        Preset(
+            "flat",
+            ambient=1.0,
+            directional=0.0,
+            specular=0.0,
+            ao_power=1.0,
+            lighting=LightingSettings(
+                shadows="off",
+                ao=AOSettings(mode="off"),
+                edges="lines",
+                edge_cueing=EdgeCueing(contours=True, halos=False),
+            ),
+            background=DARK,
+        ),
+        Preset(
+            "illustrative",
+            ambient=1.15,
+            directional=0.15,
+            specular=0.0,
+            ao_power=2.5,
+            lighting=LightingSettings(
+                shadows="off",
+                ao=FAR_AO,
+                edges="both",
+                edge_cueing=EdgeCueing(contours=True, halos=True, halo_strength=0.5),
+            ),
+            background=WHITE,
+        ),
+    )
+}
 PRESET_NAMES = tuple(PRESETS)
 DEFAULT_PRESET = "default"
 

@@ -33,7 +33,11 @@ class ProgressivePass(ComputePass):
             self.samples = 0
         gbuffer.bind()
         self.accumulated.bind_to_image(0, read=True, write=True)
-        self.run(width, height, {**uniforms, "u_first_sample": self.samples, "u_spp": int(spp), "u_seed": self.seed})
+        self.run(
+            width,
+            height,
+            {**uniforms, "u_first_sample": self.samples, "u_spp": int(spp), "u_seed": self.seed},
+        )
         self.samples += int(spp)
         return self.accumulated
 

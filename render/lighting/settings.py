@@ -53,12 +53,16 @@ class ShadingSettings:
     directional_intensity: float = 0.75
     probe_intensity: float = 1.0
     probe_attenuation: tuple[float, float, float] = DEFAULT_PROBE_ATTENUATION
-    probe_range: float = DEFAULT_PROBE_RANGE  # Å: the probe light is windowed to 0 here (shadows are traced inside)
+    probe_range: float = (
+        DEFAULT_PROBE_RANGE  # Å: the probe light is windowed to 0 here (shadows are traced inside)
+    )
     shininess: float = 40.0
     specular: float = 0.25
     background: tuple[float, float, float] = (0.08, 0.09, 0.11)
     highlight: tuple[float, float, float] = (0.1, 1.0, 0.5)  # mint: no CPK element looks like it
-    ao_power: float = 1.0  # the ambient term takes accessibility ** ao_power (> 1: stronger occlusion)
+    ao_power: float = (
+        1.0  # the ambient term takes accessibility ** ao_power (> 1: stronger occlusion)
+    )
 
 
 @dataclass(frozen=True)
@@ -68,7 +72,9 @@ class PointLight:
     position: tuple[float, float, float]
     radius: float = DEFAULT_PROBE_RANGE
     intensity: float = 1.0
-    attenuation: tuple[float, float, float] = DEFAULT_PROBE_ATTENUATION  # constant, linear, quadratic
+    attenuation: tuple[float, float, float] = (
+        DEFAULT_PROBE_ATTENUATION  # constant, linear, quadratic
+    )
 
 
 def probe_falloff(distance, light: PointLight):
@@ -80,15 +86,21 @@ def probe_falloff(distance, light: PointLight):
     return window / (c + lin * d + q * d * d)
 
 
-def light_uniforms(sun: DirectionalLight | None, probe_light: PointLight | None) -> dict[str, object]:
+def light_uniforms(
+    sun: DirectionalLight | None, probe_light: PointLight | None
+) -> dict[str, object]:
     """Uniforms of shaders/lights.glsl (a missing light is switched off)."""
     return {
         "u_sun_dir": tuple(sun.unit()) if sun is not None else (0.0, 0.0, 1.0),
         "u_sun_intensity": float(sun.intensity) if sun is not None else 0.0,
         "u_probe_light_on": int(probe_light is not None),
-        "u_probe_light_pos": tuple(float(v) for v in probe_light.position) if probe_light else (0.0, 0.0, 0.0),
+        "u_probe_light_pos": tuple(float(v) for v in probe_light.position)
+        if probe_light
+        else (0.0, 0.0, 0.0),
         "u_probe_light_radius": float(probe_light.radius) if probe_light else 1.0,
-        "u_probe_light_atten": tuple(float(v) for v in probe_light.attenuation) if probe_light else (1.0, 0.0, 0.0),
+        "u_probe_light_atten": tuple(float(v) for v in probe_light.attenuation)
+        if probe_light
+        else (1.0, 0.0, 0.0),
         "u_probe_light_intensity": float(probe_light.intensity) if probe_light else 0.0,
     }
 
@@ -163,7 +175,9 @@ class AOSettings:
                 raise ValueError(f"{name} must be at least 1")
         for name, (lo, hi) in (("patch", PATCH_RANGE), ("directions", DIRECTION_RANGE)):
             if not lo <= getattr(self, name) <= hi:
-                raise ValueError(f"precomputed AO uses {lo} to {hi} {'texels a patch side' if name == 'patch' else name}")
+                raise ValueError(
+                    f"precomputed AO uses {lo} to {hi} {'texels a patch side' if name == 'patch' else name}"
+                )
 
 
 @dataclass(frozen=True)
@@ -185,7 +199,14 @@ class EdgeCueing:
 
     def reach_px(self) -> int:
         """How far (pixels) a pixel's factor looks: a change of the G-buffer reaches this far."""
-        return int(np.ceil(max(self.line_width if self.contours else 0.0, self.halo_radius if self.halos else 0.0)))
+        return int(
+            np.ceil(
+                max(
+                    self.line_width if self.contours else 0.0,
+                    self.halo_radius if self.halos else 0.0,
+                )
+            )
+        )
 
 
 MAX_BOUNCES = 3
@@ -204,8 +225,16 @@ class PathTracing:
             raise ValueError(f"path tracing uses 0 to {MAX_BOUNCES} bounces")
 
 
-HEADLESS_SAMPLES = {"reference": 256, "path_tracing": 64}  # per pixel before a headless frame is written
-SHADOW_MODES = ("off", "hard", "soft", "precomputed")  # precomputed: the sun's from the occlusion atlas
+HEADLESS_SAMPLES = {
+    "reference": 256,
+    "path_tracing": 64,
+}  # per pixel before a headless frame is written
+SHADOW_MODES = (
+    "off",
+    "hard",
+    "soft",
+    "precomputed",
+)  # precomputed: the sun's from the occlusion atlas
 EDGE_MODES = ("off", "lines", "halos", "both")
 
 
@@ -214,18 +243,24 @@ class LightingSettings:
     """What the renderer's lighting computes (render/passes/lighting.py). The scene's
     Effects switch each effect on and off at run time (window keys); these say how."""
 
-    shadows: str = "hard"  # off, hard, soft, precomputed (the initial state of the window's S and V keys)
+    shadows: str = (
+        "hard"  # off, hard, soft, precomputed (the initial state of the window's S and V keys)
+    )
     soft: SoftShadow = SoftShadow()
     ao: AOSettings = AOSettings()  # mode "off": AO starts switched off (A key; then analytic)
     edges: str = "off"  # off, lines, halos, both
     edge_cueing: EdgeCueing = EdgeCueing(contours=True, halos=True)
     path_tracing: bool = False
     path_tracer: PathTracing = PathTracing()
-    samples: int = 0  # progressive effects accumulate this many samples per pixel before a frame is shown
+    samples: int = (
+        0  # progressive effects accumulate this many samples per pixel before a frame is shown
+    )
 
     def __post_init__(self) -> None:
         if self.shadows not in SHADOW_MODES:
-            raise ValueError(f"unknown shadow mode '{self.shadows}' (one of {', '.join(SHADOW_MODES)})")
+            raise ValueError(
+                f"unknown shadow mode '{self.shadows}' (one of {', '.join(SHADOW_MODES)})"
+            )
         if self.edges not in EDGE_MODES:
             raise ValueError(f"unknown edge cueing '{self.edges}' (one of {', '.join(EDGE_MODES)})")
         if self.samples < 0:
@@ -245,11 +280,17 @@ class LightingSettings:
         """ValueError when the soft shell is thicker than the grid's expansion (the probe
         radius): it would be cut at cell borders."""
         if self.soft.outer > probe_radius + 1e-9:
-            raise ValueError(f"soft-shadow outer offset {self.soft.outer:g} Å exceeds the probe radius "
-                             f"{probe_radius:g} Å (the grid's expansion)")
+            raise ValueError(
+                f"soft-shadow outer offset {self.soft.outer:g} Å exceeds the probe radius "
+                f"{probe_radius:g} Å (the grid's expansion)"
+            )
 
     def edge_settings(self) -> EdgeCueing:
         """Edge cueing as chosen (both effects when toggled on from 'off')."""
         if self.edges == "off":
             return self.edge_cueing
-        return replace(self.edge_cueing, contours=self.edges in ("lines", "both"), halos=self.edges in ("halos", "both"))
+        return replace(
+            self.edge_cueing,
+            contours=self.edges in ("lines", "both"),
+            halos=self.edges in ("halos", "both"),
+        )

@@ -13,7 +13,6 @@ shaders/shadows.comp."""
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.gl.compute import ComputeVariants
 from sasprobe.render.gl.depth_picked import DepthPickedPass
 from sasprobe.render.gl.textures import texture_2d
@@ -21,11 +20,11 @@ from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.light_buffer import FACE_CELLS, PointLightBuffer
 from sasprobe.render.lighting.settings import (
     HARD_SHADOW,
+    RAY_EPS_ABS,
+    RAY_EPS_REL,
     DirectionalLight,
     PointLight,
     SoftShadow,
-    RAY_EPS_ABS,
-    RAY_EPS_REL,
     light_uniforms,
     ray_epsilon_uniforms,
 )
@@ -39,12 +38,22 @@ class ShadowPass:
         self.ctx = gpu_grid.ctx
         self.grid = gpu_grid
         self.light_buffer = PointLightBuffer(gpu_grid, face_cells) if light_buffer else None
-        self.sun_buffer = gpu_grid.sun_buffer() if light_buffer else None  # the grid's: shared with the atlas
+        self.sun_buffer = (
+            gpu_grid.sun_buffer() if light_buffer else None
+        )  # the grid's: shared with the atlas
         self.programs = ComputeVariants(self.ctx, "shadows.comp", gpu_grid)
         self.drawn = DepthPickedPass(self.ctx, "shadows.frag", gpu_grid)  # the renderer's G-buffer
 
-    def trace(self, gbuffer: GBuffer, light: DirectionalLight | PointLight, soft: SoftShadow = HARD_SHADOW,
-              out=None, rect=None, only_probe: bool = False, all_cuts: bool = False):
+    def trace(
+        self,
+        gbuffer: GBuffer,
+        light: DirectionalLight | PointLight,
+        soft: SoftShadow = HARD_SHADOW,
+        out=None,
+        rect=None,
+        only_probe: bool = False,
+        all_cuts: bool = False,
+    ):
         """Visibility texture (r32f) of `light` at every G-buffer pixel; `out` is reused when given.
         `rect` (x, y, width, height) traces only those pixels, `only_probe` only the probe's
         (the others keep what `out` holds). `all_cuts` clips a point light's rays by every
@@ -58,11 +67,17 @@ class ShadowPass:
             self.drawn.run(out, gbuffer.depth, (x, y, w, h), [(cases, ">")], uniforms, clear=1.0)
             return out
         out.bind_to_image(0, read=False, write=True)
-        self.programs.get(*cases).run(w, h, {**uniforms, "u_offset": (int(x), int(y)), "u_only_probe": int(only_probe)})
+        self.programs.get(*cases).run(
+            w, h, {**uniforms, "u_offset": (int(x), int(y)), "u_only_probe": int(only_probe)}
+        )
         return out
 
-    def prepared(self, light: DirectionalLight | PointLight, soft: SoftShadow = HARD_SHADOW,
-                 from_kept_points: bool = True) -> tuple[tuple, dict]:
+    def prepared(
+        self,
+        light: DirectionalLight | PointLight,
+        soft: SoftShadow = HARD_SHADOW,
+        from_kept_points: bool = True,
+    ) -> tuple[tuple, dict]:
         """The light's buffer built and bound, and what a program tracing it per pixel with
         shaders/light_visibility.glsl takes: its cases (#defines, as ComputeVariants.get
         takes them) and uniforms (the grid's besides, which these override; the grid is
@@ -81,7 +96,9 @@ class ShadowPass:
         sun_buffered = not point and self.sun_buffer is not None
         buffer_uniforms = {}
         if buffered:
-            self.light_buffer.build(light.position, light.radius + self._origin_slack(light), soft.outer)
+            self.light_buffer.build(
+                light.position, light.radius + self._origin_slack(light), soft.outer
+            )
             self.light_buffer.bind()
             buffer_uniforms = self.light_buffer.uniforms(soft.outer)
         if sun_buffered:
@@ -91,9 +108,13 @@ class ShadowPass:
         culling = self.grid.culling
         if point and from_kept_points:
             culling = culling.cuts_before(light.position)
-        cases = (("LIGHT_BUFFER", buffered), ("SUN_BUFFER", sun_buffered),
-                 ("NO_CLIPPING", not culling.clipping), ("NO_CUBE", culling.nav_cube is None),
-                 ("HARD_SHADOWS", soft == HARD_SHADOW))
+        cases = (
+            ("LIGHT_BUFFER", buffered),
+            ("SUN_BUFFER", sun_buffered),
+            ("NO_CLIPPING", not culling.clipping),
+            ("NO_CUBE", culling.nav_cube is None),
+            ("HARD_SHADOWS", soft == HARD_SHADOW),
+        )
         uniforms = {
             **culling.uniforms(),
             **buffer_uniforms,

@@ -7,7 +7,6 @@ cube is in effect, or always with `show_always`."""
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.gl.buffers import BACKBONE_FORMAT
 from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
 from sasprobe.render.passes.base import CONTEXT, Frame, Pass
@@ -22,7 +21,9 @@ class BackbonePass(Pass):
 
     def __init__(self, ctx, programs, buffers, show_always: bool = False):
         self.prog = programs.get("backbone.vert", "backbone.frag", "wide_line.geom")
-        self.vao = ctx.vertex_array(self.prog, [(buffers.backbone, BACKBONE_FORMAT, "in_position", "in_color", "in_atom")])
+        self.vao = ctx.vertex_array(
+            self.prog, [(buffers.backbone, BACKBONE_FORMAT, "in_position", "in_color", "in_atom")]
+        )
         self.n_vertices = buffers.n_backbone_vertices
         self.show_always = show_always
 
@@ -40,9 +41,13 @@ class BackbonePass(Pass):
         ctx = frame.ctx
         apply_uniforms(self.prog, frame.raster_camera_uniforms())
         apply_uniforms(self.prog, line_width_uniforms(frame, TRACE_RADIUS, MIN_WIDTH_PX))
-        apply_planes(self.prog, frame.context_planes)  # the probe plane cuts atoms: the trace never hides the probe
+        apply_planes(
+            self.prog, frame.context_planes
+        )  # the probe plane cuts atoms: the trace never hides the probe
         apply_uniforms(self.prog, cube_uniforms(frame.cube))
-        apply_uniforms(self.prog, {"u_cube_enabled": int(frame.cube is not None), "u_cube_window": 1})
+        apply_uniforms(
+            self.prog, {"u_cube_enabled": int(frame.cube is not None), "u_cube_window": 1}
+        )
         frame.targets.gbuffer_fbo.use()
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<"
@@ -55,9 +60,14 @@ class BackbonePass(Pass):
 def cube_uniforms(cube) -> dict:
     """The navigation cube as shaders take it: u_cube (centre, half edge) and u_cube_axes."""
     if cube is None:
-        return {"u_cube": (0.0, 0.0, 0.0, 0.0), "u_cube_axes": np.eye(3, dtype=np.float32).tobytes()}
-    return {"u_cube": (*map(float, cube.center), float(cube.half)),
-            "u_cube_axes": np.ascontiguousarray(cube.axes.T, dtype=np.float32).tobytes()}  # column-major
+        return {
+            "u_cube": (0.0, 0.0, 0.0, 0.0),
+            "u_cube_axes": np.eye(3, dtype=np.float32).tobytes(),
+        }
+    return {
+        "u_cube": (*map(float, cube.center), float(cube.half)),
+        "u_cube_axes": np.ascontiguousarray(cube.axes.T, dtype=np.float32).tobytes(),
+    }  # column-major
 
 
 def line_width_uniforms(frame: Frame, radius: float, min_width_px: float) -> dict:
@@ -67,5 +77,3 @@ def line_width_uniforms(frame: Frame, radius: float, min_width_px: float) -> dic
         "u_min_width_px": float(min_width_px),
         "u_proj_scale": float(frame.proj[1, 1]) * frame.size[1] * 0.5,
     }
-
-

@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from sasprobe.render.camera import Camera
 from sasprobe.render.frame_planner import FramePlan
 from sasprobe.render.gl.buffers import MoleculeBuffers
@@ -53,13 +52,21 @@ class Frame:
     view: np.ndarray  # 4x4 float64
     proj: np.ndarray  # 4x4 float64
     planes: np.ndarray  # N x 4: user planes (+ probe plane) in effect
-    context_planes: np.ndarray  # N x 4: the user planes in effect (the trace's: the probe plane cuts atoms only)
+    context_planes: (
+        np.ndarray
+    )  # N x 4: the user planes in effect (the trace's: the probe plane cuts atoms only)
     cube: NavCube | None  # the navigation cube in effect
     output_fbo: object  # where the final image goes
-    light_direction: np.ndarray  # where the directional light travels (molecule frame), for this camera
+    light_direction: (
+        np.ndarray
+    )  # where the directional light travels (molecule frame), for this camera
     index: int = 0  # frame number
-    plan: FramePlan = field(default_factory=FramePlan)  # what this frame redraws (render/frame_planner.py)
-    probe_lighting: ProbeLighting = field(default_factory=ProbeLighting)  # the lighting's, for the shading pass
+    plan: FramePlan = field(
+        default_factory=FramePlan
+    )  # what this frame redraws (render/frame_planner.py)
+    probe_lighting: ProbeLighting = field(
+        default_factory=ProbeLighting
+    )  # the lighting's, for the shading pass
     # What several passes ask of the frame, found once (the camera and the probe hold
     # still within a frame): the view-projection, the camera's basis, the probe's rectangles.
     _found: dict = field(default_factory=dict, repr=False)
@@ -102,8 +109,12 @@ class Frame:
         memo = self.plan.layer_memo
         if "molecule_rect" not in memo:
             structure = self.scene.structure
-            memo["molecule_rect"] = atoms_rect(structure.positions, float(structure.vdw_radii.max(initial=0.0)),
-                                               self.viewproj, self.size)
+            memo["molecule_rect"] = atoms_rect(
+                structure.positions,
+                float(structure.vdw_radii.max(initial=0.0)),
+                self.viewproj,
+                self.size,
+            )
         return memo["molecule_rect"]
 
     def lit_rect(self):
@@ -114,7 +125,9 @@ class Frame:
             structure = self.scene.structure
             drawn = self.scene.sphere_selection(self.camera)
             radius = float(structure.vdw_radii[drawn].max(initial=0.0))
-            memo["lit_rect"] = atoms_rect(structure.positions[drawn], radius, self.viewproj, self.size)
+            memo["lit_rect"] = atoms_rect(
+                structure.positions[drawn], radius, self.viewproj, self.size
+            )
         return memo["lit_rect"]
 
     def lit_region(self):
@@ -137,11 +150,18 @@ class Frame:
 
     def raster_camera_uniforms(self) -> dict:
         """The camera as the impostor and line shaders take it (shaders/camera.glsl)."""
-        return raster_camera_uniforms(self.camera, self.viewproj, self.proj, self.size, self.camera_basis())
+        return raster_camera_uniforms(
+            self.camera, self.viewproj, self.proj, self.size, self.camera_basis()
+        )
 
 
-def raster_camera_uniforms(camera: Camera, viewproj: np.ndarray, proj: np.ndarray, size: tuple[int, int],
-                           basis: np.ndarray | None = None) -> dict:
+def raster_camera_uniforms(
+    camera: Camera,
+    viewproj: np.ndarray,
+    proj: np.ndarray,
+    size: tuple[int, int],
+    basis: np.ndarray | None = None,
+) -> dict:
     """A camera as the impostor and line shaders take it (shaders/camera.glsl)."""
     w, h = size
     basis = camera.basis() if basis is None else basis

@@ -20,8 +20,9 @@ class ClearPass(Pass):
     def __init__(self, ctx, programs: ProgramCache):
         self.prog = programs.get("fullscreen.vert", "gbuffer_clear.frag")
         self.vao = ctx.vertex_array(self.prog, [])
-        self.window = ctx.vertex_array(programs.get("fullscreen.vert", "gbuffer_clear.frag", defines=("CUBE_WINDOW",)),
-                                       [])
+        self.window = ctx.vertex_array(
+            programs.get("fullscreen.vert", "gbuffer_clear.frag", defines=("CUBE_WINDOW",)), []
+        )
 
     def run(self, frame: Frame) -> None:
         t, ctx = frame.targets, frame.ctx
@@ -41,7 +42,9 @@ class ClearPass(Pass):
         t, ctx, rect = frame.targets, frame.ctx, frame.plan.redraw
         if rect is None:
             return
-        apply_uniforms(self.window.program, {**frame.raster_camera_uniforms(), **cube_uniforms(frame.cube)})
+        apply_uniforms(
+            self.window.program, {**frame.raster_camera_uniforms(), **cube_uniforms(frame.cube)}
+        )
         t.gbuffer_fbo.use()
         t.gbuffer_fbo.scissor = rect
         ctx.enable_only(ctx.DEPTH_TEST)

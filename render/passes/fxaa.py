@@ -30,8 +30,12 @@ class NearSurfaces:
 
     def __init__(self, ctx, programs):
         self.ctx = ctx
-        self._rows_vao = ctx.vertex_array(programs.get("fullscreen.vert", "near_surfaces.frag", defines=("ROWS",)), [])
-        self._columns_vao = ctx.vertex_array(programs.get("fullscreen.vert", "near_surfaces.frag"), [])
+        self._rows_vao = ctx.vertex_array(
+            programs.get("fullscreen.vert", "near_surfaces.frag", defines=("ROWS",)), []
+        )
+        self._columns_vao = ctx.vertex_array(
+            programs.get("fullscreen.vert", "near_surfaces.frag"), []
+        )
         for vao, sampler in ((self._rows_vao, "u_ids"), (self._columns_vao, "u_rows")):
             apply_uniforms(vao.program, {sampler: 0, "u_reach": FXAA_REACH_PX})
         self.depth = self._rows = self._rows_fbo = self._depth_fbo = None
@@ -85,12 +89,16 @@ class FxaaPass(Pass):
     def __init__(self, ctx, programs):
         self.prog = programs.get("fullscreen.vert", "fxaa.frag")
         self.vao = ctx.vertex_array(self.prog, [])
-        self.near_vao = ctx.vertex_array(programs.get("fullscreen.vert", "fxaa.frag", defines=("AT_FAR_PLANE",)), [])
+        self.near_vao = ctx.vertex_array(
+            programs.get("fullscreen.vert", "fxaa.frag", defines=("AT_FAR_PLANE",)), []
+        )
         for vao in (self.vao, self.near_vao):
             if "u_color" in vao.program:
                 vao.program["u_color"].value = 0
         self.near_surfaces = NearSurfaces(ctx, programs)
-        self._depth_tested = DepthTestedTarget(ctx)  # the kept picture tested against the near-surface mask
+        self._depth_tested = DepthTestedTarget(
+            ctx
+        )  # the kept picture tested against the near-surface mask
 
     def run(self, frame: Frame) -> None:
         ctx, t = frame.ctx, frame.targets
@@ -115,7 +123,9 @@ class FxaaPass(Pass):
                 target.scissor = None
             near = subtract_rect(near, whole)  # what the whole draw did not cover
             if near:
-                tested = self._depth_tested.framebuffer(target.color_attachments[0], self.near_surfaces.get(frame))
+                tested = self._depth_tested.framebuffer(
+                    target.color_attachments[0], self.near_surfaces.get(frame)
+                )
                 t.lit.use(0)  # again: making the mask used unit 0
                 tested.use()
                 for rect in near:
@@ -131,7 +141,9 @@ class FxaaPass(Pass):
         antialias whole: the changed background and the cues; what to antialias near the
         surfaces only: the changed surfaces)."""
         size = plan.size
-        whole = grow_rect(union_rect(plan.region(LIT_BACKGROUND), plan.region(OVERLAY)), FXAA_REACH_PX, size)
+        whole = grow_rect(
+            union_rect(plan.region(LIT_BACKGROUND), plan.region(OVERLAY)), FXAA_REACH_PX, size
+        )
         return whole, grow_rect(plan.region(LIT), FXAA_REACH_PX, size)
 
     def release(self) -> None:

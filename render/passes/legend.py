@@ -4,7 +4,6 @@ render/colors.py), in the image's bottom-right corner, so a saved picture carrie
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.colors import ColorBar, color_bar, ramp
 from sasprobe.render.passes.base import Frame, Pass
 from sasprobe.render.passes.overlay import PADDING, ImageQuad, fit_text, overlay_font
@@ -23,13 +22,17 @@ def legend_image(bar: ColorBar) -> np.ndarray:
     img = Image.new("RGBA", (w + 2 * PADDING, h + 2 * line + 2 * PADDING), (0, 0, 0, 150))
     draw = ImageDraw.Draw(img)
     draw.text((PADDING, PADDING), fit_text(bar.title), fill=(255, 255, 255, 255), font=font)
-    colours = (ramp(np.linspace(bar.low, bar.high, w), bar.low, bar.high, bar.stops) * 255).astype(np.uint8)
+    colours = (ramp(np.linspace(bar.low, bar.high, w), bar.low, bar.high, bar.stops) * 255).astype(
+        np.uint8
+    )
     strip = Image.fromarray(np.repeat(colours[None, :, :], h, axis=0), "RGB")
     img.paste(strip, (PADDING, PADDING + line))
     low, high = f"{bar.low:.3g}", f"{bar.high:.3g}"
     draw.text((PADDING, PADDING + line + h + 1), low, fill=(255, 255, 255, 255), font=font)
     right = draw.textbbox((0, 0), high, font=font)[2]
-    draw.text((PADDING + w - right, PADDING + line + h + 1), high, fill=(255, 255, 255, 255), font=font)
+    draw.text(
+        (PADDING + w - right, PADDING + line + h + 1), high, fill=(255, 255, 255, 255), font=font
+    )
     return np.asarray(img)
 
 

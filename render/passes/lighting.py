@@ -40,7 +40,6 @@ import logging
 from dataclasses import replace
 
 import numpy as np
-
 from sasprobe.render.gl.compute import ComputeVariants
 from sasprobe.render.gl.context import GLUnavailable
 from sasprobe.render.gl.depth_picked import DepthPickedPass
@@ -81,7 +80,13 @@ class LightingPass(LayeredLighting, Pass):
 
     name = "lighting"
 
-    def __init__(self, ctx, settings: LightingSettings, shading: ShadingSettings | None, layered: bool = False):
+    def __init__(
+        self,
+        ctx,
+        settings: LightingSettings,
+        shading: ShadingSettings | None,
+        layered: bool = False,
+    ):
         if not lighting_supported(ctx):
             raise GLUnavailable(
                 f"shadows, ambient occlusion and path tracing need OpenGL 4.3 (compute shaders); "
@@ -102,16 +107,31 @@ class LightingPass(LayeredLighting, Pass):
         self._still_key: tuple | None = None
         self._color_version: int | None = None  # the buffers' colours the path tracer has
         self.textures = TextureCache(ctx)
-        self.layers: dict[str, object] = {}  # textures of the last frame's terms (for the G-buffer export)
+        self.layers: dict[
+            str, object
+        ] = {}  # textures of the last frame's terms (for the G-buffer export)
         self.lights: tuple[DirectionalLight | None, PointLight | None] = (None, None)
-        self.molecule_terms: dict[str, object] = {}  # layered: the molecule's own terms, kept with its layer
-        self._probe_neighbours = (None, NO_NEIGHBOURS)  # layered: (probe key, atoms nearest the probe)
+        self.molecule_terms: dict[
+            str, object
+        ] = {}  # layered: the molecule's own terms, kept with its layer
+        self._probe_neighbours = (
+            None,
+            NO_NEIGHBOURS,
+        )  # layered: (probe key, atoms nearest the probe)
         self._last_probe_key: bytes | None = None
-        self._composed = None  # layered: the last compose's inputs, run again for the G-buffer export
-        self._looked_up = (-1, None, None)  # (frame index, accessibility, probe light) given with the sun's
+        self._composed = (
+            None  # layered: the last compose's inputs, run again for the G-buffer export
+        )
+        self._looked_up = (
+            -1,
+            None,
+            None,
+        )  # (frame index, accessibility, probe light) given with the sun's
         self._still_frames = 0  # frames the probe has stood still
         self._warned_shell = False
-        self._untraced: tuple | None = None  # (light, soft) of the probe light the last frame's shading traced
+        self._untraced: tuple | None = (
+            None  # (light, soft) of the probe light the last frame's shading traced
+        )
 
     # ------------------------------------------------------------ state
     def state(self):
@@ -122,13 +142,17 @@ class LightingPass(LayeredLighting, Pass):
         return fx.shadows or fx.ambient_occlusion or fx.edge_cueing or fx.path_tracing
 
     def cycle_ao_mode(self) -> str:
-        self.ao_mode = CYCLED_AO_MODES[(CYCLED_AO_MODES.index(self.ao_mode) + 1) % len(CYCLED_AO_MODES)]
+        self.ao_mode = CYCLED_AO_MODES[
+            (CYCLED_AO_MODES.index(self.ao_mode) + 1) % len(CYCLED_AO_MODES)
+        ]
         return self.ao_mode
 
     def _sync(self, frame: Frame) -> bytes:
         """Follow the frame's structure (grid), culling and lights; returns the culling key."""
         scene, fx = frame.scene, frame.scene.effects
-        if scene.grid is not self.scene_grid:  # a new structure, or the daemon changed the probe radius
+        if (
+            scene.grid is not self.scene_grid
+        ):  # a new structure, or the daemon changed the probe radius
             self._release_structure()
             self.scene_grid = scene.grid
             self.grid = GpuGrid(self.ctx, scene.grid, scene.structure.vdw_radii)
@@ -138,7 +162,9 @@ class LightingPass(LayeredLighting, Pass):
             self.compose = ComputeVariants(self.ctx, "visibility_compose.comp", self.grid)
             self.compose_drawn = DepthPickedPass(self.ctx, "visibility_compose.frag", self.grid)
             self._culling_key = self._probe_key = self._color_version = None
-        if frame.buffers.color_version != self._color_version:  # a colour scheme: the path tracer's albedos
+        if (
+            frame.buffers.color_version != self._color_version
+        ):  # a colour scheme: the path tracer's albedos
             if frame.buffers.color_version:
                 self.tracer.set_colors(scene.structure.elements, frame.buffers.colors)
             self._color_version = frame.buffers.color_version
@@ -153,23 +179,45 @@ class LightingPass(LayeredLighting, Pass):
     def frame_lights(self, frame: Frame) -> tuple[DirectionalLight | None, PointLight | None]:
         """The frame's directional light and probe light (None where off)."""
         s, scene, fx = self.shading, frame.scene, frame.scene.effects
-        sun = DirectionalLight(tuple(-frame.light_direction), np.pi * s.directional_intensity) \
-            if fx.directional_light and s.directional_intensity > 0 else None
-        lamp = PointLight(tuple(scene.probe.center), s.probe_range, np.pi * s.probe_intensity,
-                          tuple(s.probe_attenuation)) if (fx.probe_light and scene.probe is not None) else None
+        sun = (
+            DirectionalLight(tuple(-frame.light_direction), np.pi * s.directional_intensity)
+            if fx.directional_light and s.directional_intensity > 0
+            else None
+        )
+        lamp = (
+            PointLight(
+                tuple(scene.probe.center),
+                s.probe_range,
+                np.pi * s.probe_intensity,
+                tuple(s.probe_attenuation),
+            )
+            if (fx.probe_light and scene.probe is not None)
+            else None
+        )
         return sun, lamp
 
     def _set_probe(self, frame: Frame) -> bytes:
         """The probe as the grid's occluder (or none); returns its key."""
         probe = frame.scene.probe if frame.scene.effects.probe else None
-        self.grid.set_probe(None if probe is None else probe.center, 0.0 if probe is None else probe.radius,
-                            self.probe_reach)
+        self.grid.set_probe(
+            None if probe is None else probe.center,
+            0.0 if probe is None else probe.radius,
+            self.probe_reach,
+        )
         return b"" if probe is None else np.array([*probe.center, probe.radius]).tobytes()
 
     def _stillness(self, frame: Frame, culling_key: bytes, probe_key: bytes) -> bool:
         """Whether what the picture shows changed since the last frame (the path tracer restarts)."""
-        still = (np.asarray(frame.view).tobytes(), np.asarray(frame.proj).tobytes(), tuple(frame.size),
-                 culling_key, probe_key, self.lights, self.ao_mode, frame.scene.effects.path_tracing)
+        still = (
+            np.asarray(frame.view).tobytes(),
+            np.asarray(frame.proj).tobytes(),
+            tuple(frame.size),
+            culling_key,
+            probe_key,
+            self.lights,
+            self.ao_mode,
+            frame.scene.effects.path_tracing,
+        )
         changed = still != self._still_key
         self._still_key = still
         if changed:
@@ -193,13 +241,24 @@ class LightingPass(LayeredLighting, Pass):
             self._configure_ao()
             both = frame.scene.effects.ambient_occlusion and self.ao_mode == "precomputed"
             # A whole frame whose probe light comes from the atlas too looks all three up at once.
-            lamp = self.lights[1] if not frame.plan.keeps and self._probe_light_baked(frame) else None
-            ambient, visibility, lit = self.ao.baked(gbuffer, ambient=both, sun_direction=sun.unit(), probe_light=lamp)
-            self._looked_up = (frame.index, ambient if both else None, lit if lamp is not None else None)
+            lamp = (
+                self.lights[1] if not frame.plan.keeps and self._probe_light_baked(frame) else None
+            )
+            ambient, visibility, lit = self.ao.baked(
+                gbuffer, ambient=both, sun_direction=sun.unit(), probe_light=lamp
+            )
+            self._looked_up = (
+                frame.index,
+                ambient if both else None,
+                lit if lamp is not None else None,
+            )
             return visibility
         area = frame.lighting_area()
-        out = self.textures.fill(name, frame.size, 1.0) if area != full_rect(frame.size) else \
-            self.textures.get(name, frame.size)  # 1 beyond the area: there the picture shows no atom
+        out = (
+            self.textures.fill(name, frame.size, 1.0)
+            if area != full_rect(frame.size)
+            else self.textures.get(name, frame.size)
+        )  # 1 beyond the area: there the picture shows no atom
         return self.shadows.trace(gbuffer, sun, self._soft(frame), out=out, rect=area)
 
     def _precomputed(self, frame: Frame) -> bool:
@@ -232,11 +291,20 @@ class LightingPass(LayeredLighting, Pass):
 
     def _probe_light_baked(self, frame: Frame) -> bool:
         """Whether the probe light's shadows come from the atlas this frame (_baked_probe_light)."""
-        return self._precomputed(frame) and self._still_frames >= STILL_FRAMES and frame.scene.effects.shadows
+        return (
+            self._precomputed(frame)
+            and self._still_frames >= STILL_FRAMES
+            and frame.scene.effects.shadows
+        )
 
     def _configure_ao(self) -> None:
-        self.ao.configure(replace(self.settings.ao, mode=self.ao_mode,
-                                  reference_total=max(self.settings.ao.reference_total, self.settings.samples)))
+        self.ao.configure(
+            replace(
+                self.settings.ao,
+                mode=self.ao_mode,
+                reference_total=max(self.settings.ao.reference_total, self.settings.samples),
+            )
+        )
 
     def _ambient(self, gbuffer: GBuffer, frame: Frame):
         """The AO method's texture, brought to `samples` per pixel where it is progressive."""
@@ -250,10 +318,18 @@ class LightingPass(LayeredLighting, Pass):
         return texture
 
     def _edges(self, gbuffer: GBuffer, frame: Frame, rect=None):
-        return self.edges.compute(gbuffer, frame.view, frame.proj, self.settings.edge_settings(),
-                                  out=self.textures.get("edges", frame.size), rect=rect)
+        return self.edges.compute(
+            gbuffer,
+            frame.view,
+            frame.proj,
+            self.settings.edge_settings(),
+            out=self.textures.get("edges", frame.size),
+            rect=rect,
+        )
 
-    def _compose(self, frame: Frame, terms: dict, uniforms: dict, export: bool = False, rect=None) -> None:
+    def _compose(
+        self, frame: Frame, terms: dict, uniforms: dict, export: bool = False, rect=None
+    ) -> None:
         """The visibility buffer from the terms (shaders/visibility_terms.glsl) over `rect` or
         the whole frame, drawn (render/gl/depth_picked.py: faster than a compute pass on
         llvmpipe); with `export`, a layered frame's sun and ambient as the export gives them
@@ -265,7 +341,9 @@ class LightingPass(LayeredLighting, Pass):
         GBuffer.of_targets(t).bind()
         rect = rect if rect is not None else (0, 0, *frame.size)
         if export:
-            self.compose.get().run(rect[2], rect[3], {**uniforms, "u_offset": (int(rect[0]), int(rect[1]))})
+            self.compose.get().run(
+                rect[2], rect[3], {**uniforms, "u_offset": (int(rect[0]), int(rect[1]))}
+            )
         else:
             self.compose_drawn.run(t.visibility, t.depth, rect, [((), "1")], uniforms)
 
@@ -324,19 +402,35 @@ class LightingPass(LayeredLighting, Pass):
             self._export_composed()
         if self._untraced is not None:  # the shading pass traced the probe light: traced here too
             lamp, soft = self._untraced
-            self.layers["shadow_probe"] = self.shadows.trace(GBuffer.of_targets(frame.targets), lamp, soft,
-                                                             out=self.textures.get("shadow_probe", frame.size))
+            self.layers["shadow_probe"] = self.shadows.trace(
+                GBuffer.of_targets(frame.targets),
+                lamp,
+                soft,
+                out=self.textures.get("shadow_probe", frame.size),
+            )
             self._untraced = None
-        out = {name: read_texture(tex, top_first=True).astype(np.float32) for name, tex in self.layers.items()}
+        out = {
+            name: read_texture(tex, top_first=True).astype(np.float32)
+            for name, tex in self.layers.items()
+        }
         sun, lamp = self.lights
         if sun is not None:
-            out["light_direction"] = -np.asarray(sun.direction, dtype=np.float64)  # as it travels, like --light
+            out["light_direction"] = -np.asarray(
+                sun.direction, dtype=np.float64
+            )  # as it travels, like --light
         if lamp is not None:
             out["probe_light"] = np.array([*lamp.position, lamp.radius], dtype=np.float64)
         return out
 
     def _release_structure(self) -> None:
-        for thing in (self.shadows, self.ao, self.tracer, self.compose, self.compose_drawn, self.grid):
+        for thing in (
+            self.shadows,
+            self.ao,
+            self.tracer,
+            self.compose,
+            self.compose_drawn,
+            self.grid,
+        ):
             if thing is not None:
                 thing.release()
 
@@ -364,19 +458,25 @@ class MoleculeLightingPass(Pass):
         self.lighting.run_molecule(frame)
 
 
-def install_lighting(renderer, settings: LightingSettings, required: bool = True) -> LightingPass | None:
+def install_lighting(
+    renderer, settings: LightingSettings, required: bool = True
+) -> LightingPass | None:
     """Slot the lighting into a renderer's chain (layered when the renderer has a frame
     planner). Without OpenGL 4.3: GLUnavailable when `required`, else a warning and no
     lighting."""
     if not lighting_supported(renderer.ctx):
         if required:
             LightingPass(renderer.ctx, settings, None)  # raises the one-line error
-        log.warning("OpenGL 4.3 is not available: rendering without shadows, ambient occlusion and path tracing")
+        log.warning(
+            "OpenGL 4.3 is not available: rendering without shadows, ambient occlusion and path tracing"
+        )
         return None
     from sasprobe.render.passes.path_trace import PathTracePass
 
     layered = renderer.planner is not None
-    lighting = LightingPass(renderer.ctx, settings, renderer.pass_named("shading").settings, layered=layered)
+    lighting = LightingPass(
+        renderer.ctx, settings, renderer.pass_named("shading").settings, layered=layered
+    )
     if layered:
         renderer.insert_before("probe", MoleculeLightingPass(lighting))
     renderer.insert_before("shading", lighting)

@@ -19,7 +19,9 @@ def lighting_status(renderer) -> str:
         parts.append("soft shadows" if fx.soft_shadows else "hard shadows")
     if fx.ambient_occlusion:
         progressive = lighting.ao_mode in ("rt", "hybrid", "reference") and lighting.ao is not None
-        parts.append(f"AO {lighting.ao_mode}" + (f" {lighting.ao.samples} spp" if progressive else ""))
+        parts.append(
+            f"AO {lighting.ao_mode}" + (f" {lighting.ao.samples} spp" if progressive else "")
+        )
     if fx.edge_cueing:
         parts.append("edges")
     if fx.path_tracing and lighting.tracer is not None:
@@ -31,7 +33,9 @@ def apply_preset(renderer, preset, background=None) -> None:
     """Switch a running renderer to a lighting preset (render/lighting/presets.py): its light
     intensities and background (`background` overrides it) and which effects are on."""
     shading = renderer.pass_named("shading").settings
-    for key, value in vars(preset.shading(shading)).items():  # in place: the lighting pass shares it
+    for key, value in vars(
+        preset.shading(shading)
+    ).items():  # in place: the lighting pass shares it
         setattr(shading, key, value)
     if background is not None:
         shading.background = tuple(background)

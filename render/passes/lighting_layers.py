@@ -20,7 +20,6 @@ _count_still_frames, _baked_probe_light, frame_lights).
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.frame_planner import EVERYWHERE, LIT, LIT_BACKGROUND
 from sasprobe.render.lighting.ao.analytic import MAX_K
 from sasprobe.render.lighting.gbuffer import GBuffer
@@ -52,12 +51,19 @@ class LayeredLighting:
             if fx.ambient_occlusion:
                 self.molecule_terms["ao"] = self._ambient(gbuffer, frame)
         elif self._adding_samples(frame):
-            self.molecule_terms["ao"] = self.ao.compute(gbuffer, frame.view, frame.proj,
-                                                        frame.scene.sphere_selection(frame.camera), frame.lighting_area())
+            self.molecule_terms["ao"] = self.ao.compute(
+                gbuffer,
+                frame.view,
+                frame.proj,
+                frame.scene.sphere_selection(frame.camera),
+                frame.lighting_area(),
+            )
 
     def _adding_samples(self, frame: Frame) -> bool:
         """Whether the molecule's AO takes more samples this frame (a kept layer's progressive AO)."""
-        return frame.scene.effects.ambient_occlusion and self.ao is not None and not self.ao.converged
+        return (
+            frame.scene.effects.ambient_occlusion and self.ao is not None and not self.ao.converged
+        )
 
     def footprint(self, frame: Frame) -> dict:
         """Where the probe changes the picture this frame: its pixels, the edges around them
@@ -76,10 +82,17 @@ class LayeredLighting:
         shadow = None
         if fx.shadows and sun is not None and fx.probe and frame.scene.probe is not None:
             # it falls on the atoms drawn, nowhere else (the trace takes no shadow)
-            shadow = intersect_rect(self._probe_shadow_rect(frame, sun, self._soft(frame)), frame.lit_rect())
+            shadow = intersect_rect(
+                self._probe_shadow_rect(frame, sun, self._soft(frame)), frame.lit_rect()
+            )
         # the background shows the probe's pixels and the halos, not the sun's shadows; the
         # visibility buffer changes where the edges do
-        return {**out, COMPOSE: out.get(EDGES), LIT: union_rect(touched, shadow), LIT_BACKGROUND: touched}
+        return {
+            **out,
+            COMPOSE: out.get(EDGES),
+            LIT: union_rect(touched, shadow),
+            LIT_BACKGROUND: touched,
+        }
 
     def _run_probe_layer(self, frame: Frame) -> None:
         fx, plan = frame.scene.effects, frame.plan
@@ -103,12 +116,20 @@ class LayeredLighting:
             terms["edges"] = self._edges(gbuffer, frame, plan.region(EDGES))
         probe_ambient = fx.ambient_occlusion and probe is not None
         probe_sun = fx.shadows and sun is not None and probe is not None and "shadow_dir" in terms
-        share = {} if not (probe_ambient or probe_sun) else {
-            **ray_epsilon_uniforms(), "u_probe_share_ambient": int(probe_ambient), "u_probe_share_sun": int(probe_sun),
-            "u_share_probe": tuple(self.grid.probe_sphere), "u_share_probe_reach": self.grid.probe_reach,
-            "u_share_sun_dir": light_uniforms(sun, None)["u_sun_dir"], "u_share_shell": soft.shell(),
-            "u_share_shell_growth": float(soft.growth),
-        }
+        share = (
+            {}
+            if not (probe_ambient or probe_sun)
+            else {
+                **ray_epsilon_uniforms(),
+                "u_probe_share_ambient": int(probe_ambient),
+                "u_probe_share_sun": int(probe_sun),
+                "u_share_probe": tuple(self.grid.probe_sphere),
+                "u_share_probe_reach": self.grid.probe_reach,
+                "u_share_sun_dir": light_uniforms(sun, None)["u_sun_dir"],
+                "u_share_shell": soft.shell(),
+                "u_share_shell_growth": float(soft.growth),
+            }
+        )
         # The visibility buffer holds the molecule's terms, under the probe too: the shading
         # pass colours the probe's own pixels without them, and takes the probe's share of
         # the atoms' light in itself. So it is composed where the molecule's terms or the
@@ -128,15 +149,28 @@ class LayeredLighting:
         probe_rect = frame.probe_rect()
         if probe_sun and probe_rect is not None:
             terms["probe_pixels_sun"] = self.shadows.trace(
-                GBuffer.of_targets(frame.targets), sun, self._soft(frame),
-                out=self.textures.get("probe_pixels_sun", frame.size), rect=probe_rect, only_probe=True)
+                GBuffer.of_targets(frame.targets),
+                sun,
+                self._soft(frame),
+                out=self.textures.get("probe_pixels_sun", frame.size),
+                rect=probe_rect,
+                only_probe=True,
+            )
         probe = self.grid.probe_sphere if probe_key else None
         uniforms = {
-            **ray_epsilon_uniforms(), **light_uniforms(sun, None), **NO_PROBE_SHARE, **share,
-            "u_probe_sun": int(probe_sun), "u_probe_ambient": int(probe_ambient), "u_k": int(self.settings.ao.k),
+            **ray_epsilon_uniforms(),
+            **light_uniforms(sun, None),
+            **NO_PROBE_SHARE,
+            **share,
+            "u_probe_sun": int(probe_sun),
+            "u_probe_ambient": int(probe_ambient),
+            "u_k": int(self.settings.ao.k),
             "u_probe_neighbours": self._neighbours(probe_key, probe).tobytes(),
         }
-        sun_out, ao_out = self.textures.get("shadow_dir", frame.size), self.textures.get("ao", frame.size)
+        sun_out, ao_out = (
+            self.textures.get("shadow_dir", frame.size),
+            self.textures.get("ao", frame.size),
+        )
         sun_out.bind_to_image(1, read=False, write=True)
         ao_out.bind_to_image(2, read=False, write=True)
         self._compose(frame, terms, uniforms, export=True)
@@ -156,13 +190,20 @@ class LayeredLighting:
         w = np.asarray(probe.center, dtype=np.float64) - centre
         along = float(w @ away)
         disc = along * along - float(w @ w) + (radius + reach) ** 2
-        length = max(np.sqrt(disc) - along, 0.0) if disc > 0 else 0.0  # |w + s away| = radius + reach
-        return capsule_rect(probe.center, probe.center + length * away, reach, frame.viewproj, frame.size)
+        length = (
+            max(np.sqrt(disc) - along, 0.0) if disc > 0 else 0.0
+        )  # |w + s away| = radius + reach
+        return capsule_rect(
+            probe.center, probe.center + length * away, reach, frame.viewproj, frame.size
+        )
 
     def _neighbours(self, probe_key: bytes, probe) -> np.ndarray:
         """The atoms nearest the probe (for the AO of its own pixels), found again when it moves."""
         if probe is None:
             return NO_NEIGHBOURS
         if self._probe_neighbours[0] != probe_key:
-            self._probe_neighbours = (probe_key, self.grid.grid.nearest_to_point(probe[:3], MAX_K).astype(np.int32))
+            self._probe_neighbours = (
+                probe_key,
+                self.grid.grid.nearest_to_point(probe[:3], MAX_K).astype(np.int32),
+            )
         return self._probe_neighbours[1]

@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.passes.base import Frame, Pass
 
@@ -30,11 +29,22 @@ def badge_atlas(numbers: list[int]) -> np.ndarray:
     font = ImageFont.load_default()
     for k, number in enumerate(numbers):
         x, y = (k % COLUMNS) * BADGE_PX, (k // COLUMNS) * BADGE_PX
-        draw.ellipse((x + 1, y + 1, x + BADGE_PX - 2, y + BADGE_PX - 2), fill=BADGE_COLOR, outline=(255, 255, 255, 255))
+        draw.ellipse(
+            (x + 1, y + 1, x + BADGE_PX - 2, y + BADGE_PX - 2),
+            fill=BADGE_COLOR,
+            outline=(255, 255, 255, 255),
+        )
         text = str(number)
         box = draw.textbbox((0, 0), text, font=font)
-        draw.text((x + (BADGE_PX - (box[2] - box[0])) / 2 - box[0], y + (BADGE_PX - (box[3] - box[1])) / 2 - box[1]),
-                  text, fill=(255, 255, 255, 255), font=font)
+        draw.text(
+            (
+                x + (BADGE_PX - (box[2] - box[0])) / 2 - box[0],
+                y + (BADGE_PX - (box[3] - box[1])) / 2 - box[1],
+            ),
+            text,
+            fill=(255, 255, 255, 255),
+            font=font,
+        )
     return np.asarray(img)
 
 
@@ -73,11 +83,19 @@ class MarksPass(Pass):
         self.atlas.use(0)
         frame.targets.position.use(1)
         camera = frame.raster_camera_uniforms()
-        apply_uniforms(self.prog, {
-            "u_viewproj": camera["u_viewproj"], "u_eye": camera["u_eye"], "u_screen": (float(w), float(h)),
-            "u_badge_px": float(BADGE_PX), "u_cells": (float(COLUMNS), float(max(math.ceil(len(marks) / COLUMNS), 1))),
-            "u_tolerance": float(frame.scene.probe_radius) + 0.5, "u_atlas": 0, "u_position": 1,
-        })
+        apply_uniforms(
+            self.prog,
+            {
+                "u_viewproj": camera["u_viewproj"],
+                "u_eye": camera["u_eye"],
+                "u_screen": (float(w), float(h)),
+                "u_badge_px": float(BADGE_PX),
+                "u_cells": (float(COLUMNS), float(max(math.ceil(len(marks) / COLUMNS), 1))),
+                "u_tolerance": float(frame.scene.probe_radius) + 0.5,
+                "u_atlas": 0,
+                "u_position": 1,
+            },
+        )
         frame.output_fbo.use()
         frame.output_fbo.viewport = (0, 0, w, h)
         ctx.enable_only(ctx.BLEND)

@@ -6,7 +6,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.passes.base import MOLECULE, Frame, Pass
 
@@ -18,7 +17,9 @@ def uv_sphere(slices: int = 18, stacks: int = 19) -> tuple[np.ndarray, np.ndarra
         theta = math.pi * i / stacks
         for j in range(slices):
             phi = 2.0 * math.pi * j / slices
-            verts.append((math.sin(theta) * math.cos(phi), math.cos(theta), math.sin(theta) * math.sin(phi)))
+            verts.append(
+                (math.sin(theta) * math.cos(phi), math.cos(theta), math.sin(theta) * math.sin(phi))
+            )
     verts.append((0.0, -1.0, 0.0))
     bottom = len(verts) - 1
     tris = []
@@ -51,7 +52,10 @@ class MeshSpherePass(Pass):
         self._last = None
         self.vao = ctx.vertex_array(
             self.prog,
-            [(self.vertex_buffer, "3f", "in_vertex"), (self.instances, "4f 4f 1i/i", "in_sphere", "in_color", "in_atom")],
+            [
+                (self.vertex_buffer, "3f", "in_vertex"),
+                (self.instances, "4f 4f 1i/i", "in_sphere", "in_color", "in_atom"),
+            ],
             index_buffer=self.index_buffer,
             index_element_size=4,
         )

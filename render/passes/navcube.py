@@ -6,9 +6,8 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-
-from sasprobe.render.passes.backbone import cube_uniforms, line_width_uniforms
 from sasprobe.render.gl.uniforms import apply_uniforms
+from sasprobe.render.passes.backbone import cube_uniforms, line_width_uniforms
 from sasprobe.render.passes.base import Frame, Pass
 
 WIRE_COLOR = (0.55, 0.85, 1.0, 1.0)
@@ -18,7 +17,11 @@ WIRE_WIDTH_PX = 1.5
 def cube_edges() -> np.ndarray:
     """(24, 3) float32: the 12 edges of [-1, 1]^3 as line-list endpoints."""
     corners = np.array(list(itertools.product((-1.0, 1.0), repeat=3)))
-    edges = [(a, b) for a, b in itertools.combinations(range(8), 2) if np.sum(corners[a] != corners[b]) == 1]
+    edges = [
+        (a, b)
+        for a, b in itertools.combinations(range(8), 2)
+        if np.sum(corners[a] != corners[b]) == 1
+    ]
     return corners[np.array(edges).reshape(-1)].astype(np.float32)
 
 

@@ -9,12 +9,14 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
-
 from sasprobe.render.gl.uniforms import apply_uniforms
 
 PADDING = 6
 MAX_SIZE = (1024, 768)  # an overlay's texture: room for the readout with the window's help
-FONT_FILE, FONT_SIZE = "DejaVuSans.ttf", 12  # has Å and ²; Pillow finds it in the system's font folders
+FONT_FILE, FONT_SIZE = (
+    "DejaVuSans.ttf",
+    12,
+)  # has Å and ²; Pillow finds it in the system's font folders
 _ASCII = str.maketrans({"Å": "A", "²": "^2", "·": ".", "≥": ">=", "…": "..."})
 
 
@@ -81,11 +83,14 @@ class ImageQuad:
         ctx = self.ctx
         w, h = self.size
         self.texture.use(0)
-        apply_uniforms(self.prog, {
-            "u_rect": (float(x), float(y), float(w), float(h)),
-            "u_screen": (float(screen[0]), float(screen[1])),
-            "u_uv_scale": (w / MAX_SIZE[0], h / MAX_SIZE[1]),
-        })
+        apply_uniforms(
+            self.prog,
+            {
+                "u_rect": (float(x), float(y), float(w), float(h)),
+                "u_screen": (float(screen[0]), float(screen[1])),
+                "u_uv_scale": (w / MAX_SIZE[0], h / MAX_SIZE[1]),
+            },
+        )
         fbo.use()
         fbo.viewport = (0, 0, screen[0], screen[1])
         ctx.enable_only(ctx.BLEND)
@@ -109,7 +114,9 @@ class TextOverlay:
         self.quad.set_image(tuple(lines), lambda: text_image(lines))
         return self.quad.size
 
-    def draw(self, fbo, size: tuple[int, int], lines: list[str], at: tuple[float, float] = (8.0, 8.0)) -> None:
+    def draw(
+        self, fbo, size: tuple[int, int], lines: list[str], at: tuple[float, float] = (8.0, 8.0)
+    ) -> None:
         """Draw the lines over `fbo` (of `size` pixels) with their box's top-left corner at `at`."""
         if not lines:
             return

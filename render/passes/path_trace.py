@@ -6,9 +6,9 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
+from sasprobe.render.frame_planner import EVERYWHERE, OVERLAY
 from sasprobe.render.gl.compute import ComputePass
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.frame_planner import EVERYWHERE, OVERLAY
 from sasprobe.render.passes.base import Frame, Pass
 
 if TYPE_CHECKING:
@@ -16,7 +16,6 @@ if TYPE_CHECKING:
 
 
 class PathTracePass(Pass):
-
     name = "path_trace"
 
     def __init__(self, ctx, lighting: LightingPass):
@@ -38,7 +37,9 @@ class PathTracePass(Pass):
         gbuffer = GBuffer.of_targets(frame.targets)
         sun, lamp = lighting.lights
         s = lighting.shading
-        tracing = replace(settings.path_tracer, sky=(s.ambient,) * 3, background=tuple(s.background))
+        tracing = replace(
+            settings.path_tracer, sky=(s.ambient,) * 3, background=tuple(s.background)
+        )
         target = max(settings.samples, min(tracer.samples + tracing.spp, tracing.max_samples))
         while tracer.samples < target or tracer.accumulated is None:
             tracer.accumulate(gbuffer, frame.camera.eye, sun, lamp, tracing)
@@ -50,7 +51,9 @@ class PathTracePass(Pass):
         self.output.run(*frame.size, {})
 
     def footprint(self, frame: Frame) -> dict:
-        return {OVERLAY: EVERYWHERE}  # it replaces the lit picture, adding samples: every pixel may change
+        return {
+            OVERLAY: EVERYWHERE
+        }  # it replaces the lit picture, adding samples: every pixel may change
 
     def release(self) -> None:
         self.output.release()

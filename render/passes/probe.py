@@ -17,7 +17,9 @@ class ProbePass(Pass):
 
     def __init__(self, ctx, programs, buffers):
         self.prog = programs.get("sphere.vert", "sphere.frag", "sphere.geom")
-        self.vao = ctx.vertex_array(self.prog, [(buffers.probe, SPHERE_FORMAT, "in_sphere", "in_color")])
+        self.vao = ctx.vertex_array(
+            self.prog, [(buffers.probe, SPHERE_FORMAT, "in_sphere", "in_color")]
+        )
 
     def enabled(self, frame: Frame) -> bool:
         return frame.scene.probe is not None and frame.scene.effects.probe

@@ -19,16 +19,19 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
+from sasprobe.render.frame_planner import OVERLAY
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.passes.backbone import line_width_uniforms
-from sasprobe.render.frame_planner import OVERLAY
 from sasprobe.render.passes.base import Frame, Pass
 from sasprobe.render.rects import ndc_rect, points_rect, union_rect
 
 OUTLINE_COLOR = (1.0, 0.85, 0.3)
 GHOST_COLOR = (0.55, 0.8, 1.0)
-FORCE_COLORS = ((0.35, 0.95, 0.45), (1.0, 0.85, 0.2), (1.0, 0.3, 0.25))  # low, up to continuous, above
+FORCE_COLORS = (
+    (0.35, 0.95, 0.45),
+    (1.0, 0.85, 0.2),
+    (1.0, 0.3, 0.25),
+)  # low, up to continuous, above
 LINE_WIDTH_PX = 2.0
 DRAWN_MARGIN_PX = 3  # around the lines' points: half the line width and a pixel of rounding
 CIRCLE_SEGMENTS = 48
@@ -62,7 +65,10 @@ def spring(a, b, across, coils: int = 6) -> np.ndarray:
     """Line-list endpoints of a zig-zag spring from a to b, `across` (a vector) wide."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     steps = 2 * coils
-    points = [a + (b - a) * k / steps + (across if k % 2 else -across) * (0 < k < steps) for k in range(steps + 1)]
+    points = [
+        a + (b - a) * k / steps + (across if k % 2 else -across) * (0 < k < steps)
+        for k in range(steps + 1)
+    ]
     return np.repeat(np.array(points), 2, axis=0)[1:-1]
 
 
@@ -110,8 +116,10 @@ class ProbeCuesPass(Pass):
         drawn = None
         for points, _, _ in [outline, *lines]:
             if points.size:
-                drawn = union_rect(drawn, points_rect(points[:MAX_VERTICES], frame.viewproj, frame.size,
-                                                      DRAWN_MARGIN_PX))
+                drawn = union_rect(
+                    drawn,
+                    points_rect(points[:MAX_VERTICES], frame.viewproj, frame.size, DRAWN_MARGIN_PX),
+                )
         if arrow is not None:
             drawn = union_rect(drawn, ndc_rect(arrow, frame.size, DRAWN_MARGIN_PX))
         return {OVERLAY: drawn}
@@ -124,12 +132,25 @@ class ProbeCuesPass(Pass):
             scene, probe, eye = frame.scene, frame.scene.probe, frame.camera.eye
             outline = (silhouette(probe.center, probe.radius, eye), OUTLINE_COLOR, 1.0)
             lines = []
-            if probe.goal is not None and np.linalg.norm(probe.goal - probe.center) > GHOST_MIN_RADII * probe.radius:
+            if (
+                probe.goal is not None
+                and np.linalg.norm(probe.goal - probe.center) > GHOST_MIN_RADII * probe.radius
+            ):
                 across = np.cross(probe.goal - probe.center, eye - probe.center)
                 norm = float(np.linalg.norm(across))
                 across = across / norm * 0.25 * probe.radius if norm > 0 else np.zeros(3)
-                lines.append((np.concatenate([silhouette(probe.goal, probe.radius, eye),
-                                              spring(probe.center, probe.goal, across)]), GHOST_COLOR, 0.8))
+                lines.append(
+                    (
+                        np.concatenate(
+                            [
+                                silhouette(probe.goal, probe.radius, eye),
+                                spring(probe.center, probe.goal, across),
+                            ]
+                        ),
+                        GHOST_COLOR,
+                        0.8,
+                    )
+                )
             if probe.force_n is not None and scene.force_ratings_n is not None:
                 arrow = force_arrow(probe, eye, *scene.force_ratings_n)
                 if arrow is not None:
@@ -153,7 +174,9 @@ class ProbeCuesPass(Pass):
         ctx.depth_func = ">"  # only where something nearer than the probe's rim covers it
         self._draw(*outline)
         apply_uniforms(self.lines, {"u_hidden_only": 0})
-        ctx.disable(ctx.DEPTH_TEST)  # the rest shows through: the tip is inside the surface in contact
+        ctx.disable(
+            ctx.DEPTH_TEST
+        )  # the rest shows through: the tip is inside the surface in contact
         for line in lines:
             self._draw(*line)
         if arrow is not None:
@@ -192,4 +215,8 @@ def force_arrow(probe, eye, continuous: float, peak: float):
     head = 0.3 * np.linalg.norm(end - start)
     side = side / n * head * 0.5 if n > 0 else np.zeros(3)
     back = end - direction * head
-    return np.array([start, end, end, back + side, end, back - side]), force_color(force, continuous), 1.0
+    return (
+        np.array([start, end, end, back + side, end, back - side]),
+        force_color(force, continuous),
+        1.0,
+    )

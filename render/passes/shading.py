@@ -24,11 +24,23 @@ from sasprobe.render.gl.depth_picked import DepthTestedTarget
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.settings import ShadingSettings
 from sasprobe.render.passes.base import Frame, Pass, ProbeLighting
-from sasprobe.render.rects import intersect_rect, sphere_rect, subtract_rect, union_rect
 from sasprobe.render.passes.probe import PROBE_COLOR
+from sasprobe.render.rects import intersect_rect, sphere_rect, subtract_rect, union_rect
 
-TEXTURES = ("u_albedo", "u_position", "u_normal", "u_ids", "u_visibility", "u_probe_visibility")  # units 0..5
-GBUFFER_IMAGES = {0: "position", 1: "normal", 6: "visibility", 7: "ids"}  # image units (shaders/shading.glsl)
+TEXTURES = (
+    "u_albedo",
+    "u_position",
+    "u_normal",
+    "u_ids",
+    "u_visibility",
+    "u_probe_visibility",
+)  # units 0..5
+GBUFFER_IMAGES = {
+    0: "position",
+    1: "normal",
+    6: "visibility",
+    7: "ids",
+}  # image units (shaders/shading.glsl)
 
 
 class ShadingPass(Pass):
@@ -51,8 +63,11 @@ class ShadingPass(Pass):
         elif context:
             defines = ("AT_FAR_PLANE", "CONTEXT")
         else:
-            defines = ("AT_FAR_PLANE",) + (("PROBE_SHADOWED",) if lit.visibility is not None else ()) \
+            defines = (
+                ("AT_FAR_PLANE",)
+                + (("PROBE_SHADOWED",) if lit.visibility is not None else ())
                 + (("PROBE_SHARE",) if lit.share else ())
+            )
             if lit.traced is not None:
                 fragment = "shading_traced.frag"
                 defines += tuple(name for name, on in lit.traced.cases if on)
@@ -69,14 +84,18 @@ class ShadingPass(Pass):
         ctx, t, scene, s = frame.ctx, frame.targets, frame.scene, self.settings
         fx = scene.effects
         lit = frame.probe_lighting
-        for unit, tex in enumerate((t.albedo, t.position, t.normal, t.ids, t.visibility, lit.visibility)):
+        for unit, tex in enumerate(
+            (t.albedo, t.position, t.normal, t.ids, t.visibility, lit.visibility)
+        ):
             if tex is not None:
                 tex.use(unit)
         probe = scene.probe
         vao, background = self._vao(lit), self._vao(None)
         apply_uniforms(background.program, {"u_background": s.background})
         traced = {}
-        if lit.traced is not None:  # its buffers bound again: passes since the lighting bound others
+        if (
+            lit.traced is not None
+        ):  # its buffers bound again: passes since the lighting bound others
             lit.traced.shadows.bind()
             for unit, tex in GBUFFER_IMAGES.items():  # shading_traced.frag reads these as images
                 getattr(t, tex).bind_to_image(unit, read=True, write=False)
@@ -90,13 +109,17 @@ class ShadingPass(Pass):
             "u_light_dir": tuple(float(v) for v in frame.light_direction),
             "u_dir_intensity": s.directional_intensity,
             "u_probe_light_enabled": int(fx.probe_light and probe is not None),
-            "u_probe_center": tuple(float(v) for v in probe.center) if probe is not None else (0.0, 0.0, 0.0),
+            "u_probe_center": tuple(float(v) for v in probe.center)
+            if probe is not None
+            else (0.0, 0.0, 0.0),
             "u_probe_intensity": s.probe_intensity,
             "u_probe_atten": s.probe_attenuation,
             "u_probe_range": s.probe_range,
             "u_shininess": s.shininess,
             "u_specular": s.specular,
-            "u_touched_atom": int(probe.touched_atom) if (probe is not None and fx.highlight) else -1,
+            "u_touched_atom": int(probe.touched_atom)
+            if (probe is not None and fx.highlight)
+            else -1,
             "u_highlight": s.highlight,
             "u_probe_color": PROBE_COLOR,
         }
@@ -105,7 +128,10 @@ class ShadingPass(Pass):
         target = t.kept_picture("shaded") if plan.keeps else t.lit_fbo
         # Beyond the atoms and the probe the surfaces are the trace: its own, light program.
         lit_region, surfaces = frame.lit_region(), plan.region(LIT)
-        draws = [(plan.region(LIT_BACKGROUND), background, "=="), (intersect_rect(surfaces, lit_region), vao, ">")]
+        draws = [
+            (plan.region(LIT_BACKGROUND), background, "=="),
+            (intersect_rect(surfaces, lit_region), vao, ">"),
+        ]
         if surfaces is not None:
             context = self._vao(lit, context=True)
             apply_uniforms(context.program, uniforms)
@@ -130,8 +156,15 @@ class ShadingPass(Pass):
             reached = union_rect(reached, frame.reach_rect(self.settings.probe_range))
             if 0 <= probe.touched_atom < scene.structure.n_atoms:
                 atom = probe.touched_atom
-                reached = union_rect(reached, sphere_rect(scene.structure.positions[atom],
-                                                          scene.structure.vdw_radii[atom], frame.viewproj, frame.size))
+                reached = union_rect(
+                    reached,
+                    sphere_rect(
+                        scene.structure.positions[atom],
+                        scene.structure.vdw_radii[atom],
+                        frame.viewproj,
+                        frame.size,
+                    ),
+                )
         return {LIT: reached, LIT_BACKGROUND: frame.probe_rect()}
 
     def release(self) -> None:

@@ -9,7 +9,6 @@ by the driver's maximum point size). Both cast the same exact ray per pixel.
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.gl.buffers import SPHERE_FORMAT
 from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
 from sasprobe.render.passes.base import MOLECULE, Frame, Pass

@@ -46,7 +46,9 @@ def size_type(text: str) -> tuple[int, int]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"'{text}' is not WIDTHxHEIGHT (e.g. 1280x720)") from None
     if not (16 <= w <= MAX_IMAGE_SIZE and 16 <= h <= MAX_IMAGE_SIZE):
-        raise argparse.ArgumentTypeError(f"'{text}': width and height must be 16..{MAX_IMAGE_SIZE} pixels")
+        raise argparse.ArgumentTypeError(
+            f"'{text}': width and height must be 16..{MAX_IMAGE_SIZE} pixels"
+        )
     return w, h
 
 
@@ -65,6 +67,7 @@ def colour_type(text: str) -> tuple[float, float, float]:
     try:
         r, g, b = ImageColor.getrgb(text)[:3]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a colour (a name such as white, #RRGGBB, or R,G,B "
-                                         "in 0..1)") from None
+        raise argparse.ArgumentTypeError(
+            f"'{text}' is not a colour (a name such as white, #RRGGBB, or R,G,B in 0..1)"
+        ) from None
     return (r / 255.0, g / 255.0, b / 255.0)

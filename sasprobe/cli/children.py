@@ -24,8 +24,8 @@ import threading
 import time
 from pathlib import Path
 
-from sasprobe.daemon import events
 from sasprobe.common.errors import UserError
+from sasprobe.daemon import events
 
 PR_SET_PDEATHSIG = 1
 
@@ -60,14 +60,30 @@ class Child:
     """A subprocess in its own process group whose stdout lines are JSON events
     (`{"event": ...}`) and whose stderr goes to a log file."""
 
-    def __init__(self, name: str, argv: list[str], log_path: Path, env: dict | None = None, nice: int = 0,
-                 cwd: Path | None = None, registry: list | None = None) -> None:
+    def __init__(
+        self,
+        name: str,
+        argv: list[str],
+        log_path: Path,
+        env: dict | None = None,
+        nice: int = 0,
+        cwd: Path | None = None,
+        registry: list | None = None,
+    ) -> None:
         self.name = name
         self.argv = argv
         self.log_path = Path(log_path)
         self._log = open(self.log_path, "wb")
-        self.proc = subprocess.Popen(argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=self._log,
-                                     env=env, cwd=cwd, start_new_session=True, preexec_fn=_child_setup(nice))
+        self.proc = subprocess.Popen(
+            argv,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=self._log,
+            env=env,
+            cwd=cwd,
+            start_new_session=True,
+            preexec_fn=_child_setup(nice),
+        )
         if registry is not None:  # at once: a Ctrl+C from here on still finds the child to stop
             registry.append(self)
         self.pgid = self.proc.pid  # a session leader's group id is its pid
@@ -116,7 +132,11 @@ class Child:
     def error_line(self) -> str:
         """The child's own one-line error (`sasprobe: error: ...`), else its last log line."""
         try:
-            lines = [l.strip() for l in self.log_path.read_text(errors="replace").splitlines() if l.strip()]
+            lines = [
+                l.strip()
+                for l in self.log_path.read_text(errors="replace").splitlines()
+                if l.strip()
+            ]
         except OSError:
             return ""
         errors = [l for l in lines if l.startswith("sasprobe: error:")]
@@ -141,7 +161,11 @@ class Child:
         """Wait for the child to exit (after it was signalled); SIGKILL its group when the
         time is up or `hurry` is set. Always sweeps the group and returns the exit status."""
         deadline = time.monotonic() + timeout_s
-        while self.alive() and time.monotonic() < deadline and not (hurry is not None and hurry.is_set()):
+        while (
+            self.alive()
+            and time.monotonic() < deadline
+            and not (hurry is not None and hurry.is_set())
+        ):
             time.sleep(0.02)
         if self.alive():
             self.kill_group()
@@ -155,10 +179,24 @@ class Child:
 class DaemonChild(Child):
     """`python -m sasprobe daemon ARGS` in its own process group, stderr into `log_path`."""
 
-    def __init__(self, args: list[str], log_path: Path, env: dict | None = None, nice: int = 0,
-                 cwd: Path | None = None, registry: list | None = None) -> None:
-        super().__init__("daemon", [sys.executable, "-m", "sasprobe", "daemon", *args], log_path,
-                         env=child_env(env), nice=nice, cwd=cwd, registry=registry)
+    def __init__(
+        self,
+        args: list[str],
+        log_path: Path,
+        env: dict | None = None,
+        nice: int = 0,
+        cwd: Path | None = None,
+        registry: list | None = None,
+    ) -> None:
+        super().__init__(
+            "daemon",
+            [sys.executable, "-m", "sasprobe", "daemon", *args],
+            log_path,
+            env=child_env(env),
+            nice=nice,
+            cwd=cwd,
+            registry=registry,
+        )
 
     def wait_ready(self, timeout_s: float) -> dict:
         """The daemon's ready event; UserError with its own error line when it ends or is silent first."""
@@ -173,7 +211,9 @@ class DaemonChild(Child):
         """The stopped event (the daemon's exit report), once it has printed it."""
         return self.events.get(events.STOPPED)
 
-    def stop(self, timeout_s: float, sig: int = signal.SIGTERM, hurry: threading.Event | None = None) -> int:
+    def stop(
+        self, timeout_s: float, sig: int = signal.SIGTERM, hurry: threading.Event | None = None
+    ) -> int:
         """Signal the daemon (it writes zero force, closes the device and reports), wait, return its status."""
         self.signal(sig)
         return self.finish(timeout_s, hurry)

@@ -39,7 +39,10 @@ def default_path() -> Path:
 
 def find_config(explicit: str | None) -> Path | None:
     """The config file to use, or None. An explicitly named file must exist (load() checks what it is)."""
-    for named, where in ((explicit, ""), (os.environ.get("SASPROBE_CONFIG"), " (from SASPROBE_CONFIG)")):
+    for named, where in (
+        (explicit, ""),
+        (os.environ.get("SASPROBE_CONFIG"), " (from SASPROBE_CONFIG)"),
+    ):
         if named:
             if not os.path.lexists(named):
                 raise UserError(f"{named}: config file not found{where}")
@@ -48,8 +51,10 @@ def find_config(explicit: str | None) -> Path | None:
     try:
         return path if path.exists() else None
     except OSError as exc:  # e.g. an unreadable $HOME: say so once and go on without a config file
-        print(f"sasprobe: warning: cannot look for {path} ({exc.strerror or exc}); no config file used",
-              file=sys.stderr)
+        print(
+            f"sasprobe: warning: cannot look for {path} ({exc.strerror or exc}); no config file used",
+            file=sys.stderr,
+        )
         return None
 
 
@@ -69,7 +74,9 @@ def _settable(parser: argparse.ArgumentParser) -> dict[str, argparse.Action]:
     """Options a config file may set: every long option except help/version/config."""
     actions = {}
     for action in parser._actions:
-        if isinstance(action, (argparse._HelpAction, argparse._VersionAction, argparse._SubParsersAction)):
+        if isinstance(
+            action, (argparse._HelpAction, argparse._VersionAction, argparse._SubParsersAction)
+        ):
             continue
         long = [s for s in action.option_strings if s.startswith("--")]
         key = long[0][2:] if long else (action.dest if not action.option_strings else None)
@@ -96,7 +103,11 @@ def _convert(action: argparse.Action, value, where: str):
         if not isinstance(value, bool):
             raise UserError(f"{where}: expected true or false")
         return value if isinstance(action, argparse._StoreTrueAction) else not value
-    if action.nargs in ("*", "+") or isinstance(action.nargs, int) or isinstance(action, argparse._AppendAction):
+    if (
+        action.nargs in ("*", "+")
+        or isinstance(action.nargs, int)
+        or isinstance(action, argparse._AppendAction)
+    ):
         values = value if isinstance(value, list) else [value]
         return [one(v) for v in values]
     return one(value)
@@ -117,7 +128,9 @@ def apply(path: Path, data: dict, commands: dict[str, argparse.ArgumentParser]) 
             if action is None:
                 known = ", ".join(sorted(settable)) or "none"
                 raise UserError(f"{path}: [{section}] has no option '{key}' (options: {known})")
-            parser.set_defaults(**{action.dest: _convert(action, value, f"{path}: [{section}] {key}")})
+            parser.set_defaults(
+                **{action.dest: _convert(action, value, f"{path}: [{section}] {key}")}
+            )
 
 
 def template(commands: dict[str, argparse.ArgumentParser]) -> str:

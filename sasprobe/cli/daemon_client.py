@@ -9,8 +9,12 @@ import argparse
 def add_daemon_options(parser: argparse.ArgumentParser) -> None:
     from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT
 
-    parser.add_argument("--ctl", default=DEFAULT_CTL_ENDPOINT, metavar="ENDPOINT",
-                        help=f"the daemon's control endpoint (default {DEFAULT_CTL_ENDPOINT})")
+    parser.add_argument(
+        "--ctl",
+        default=DEFAULT_CTL_ENDPOINT,
+        metavar="ENDPOINT",
+        help=f"the daemon's control endpoint (default {DEFAULT_CTL_ENDPOINT})",
+    )
     parser.add_argument("--keys", metavar="DIR", help="client keys (a daemon with --keys)")
 
 

@@ -44,10 +44,32 @@ POLL_S = 0.1
 STATUS_EVERY_S = 1.0
 
 # Options the demo sets itself; passing them through --render-args/--daemon-args would break it.
-RESERVED_RENDER = ("--connect", "--control", "--molecule", "--headless", "--out", "--snapshot", "--report",
-                   "--seconds", "--frames", "--size", "--fps", "--keys")
-RESERVED_DAEMON = ("--device", "--molecule", "--pub", "--ctl", "--record", "--report", "--seconds",
-                   "--no-realtime", "--keep-water", "--keys")
+RESERVED_RENDER = (
+    "--connect",
+    "--control",
+    "--molecule",
+    "--headless",
+    "--out",
+    "--snapshot",
+    "--report",
+    "--seconds",
+    "--frames",
+    "--size",
+    "--fps",
+    "--keys",
+)
+RESERVED_DAEMON = (
+    "--device",
+    "--molecule",
+    "--pub",
+    "--ctl",
+    "--record",
+    "--report",
+    "--seconds",
+    "--no-realtime",
+    "--keep-water",
+    "--keys",
+)
 
 
 @dataclass
@@ -55,7 +77,9 @@ class DemoOptions:
     molecule: str | None = None
     device: str = "sim:scan"
     headless: bool = False
-    seconds: float | None = None  # None: DEFAULT_SECONDS headless, until the window closes otherwise
+    seconds: float | None = (
+        None  # None: DEFAULT_SECONDS headless, until the window closes otherwise
+    )
     out: Path = Path("sasprobe-demo")
     size: tuple[int, int] | None = None
     fps: float = 10.0
@@ -85,7 +109,9 @@ def split_extra_args(text: str | None, reserved: tuple[str, ...], flag: str) -> 
 class DemoSession:
     def __init__(self, opts: DemoOptions) -> None:
         self.opts = opts
-        self.sockets = Path(tempfile.mkdtemp(prefix="sasprobe-demo-"))  # short: ipc paths hold ~100 bytes
+        self.sockets = Path(
+            tempfile.mkdtemp(prefix="sasprobe-demo-")
+        )  # short: ipc paths hold ~100 bytes
         self.pub = f"ipc://{self.sockets}/pub"
         self.ctl = f"ipc://{self.sockets}/ctl"
         self.out = opts.out
@@ -123,11 +149,15 @@ class DemoSession:
             argv += ["--keys", str(Path(o.keys).resolve())]
         if o.record:
             argv += ["--record", str(Path(o.record).resolve())]
-        self.daemon = DaemonChild(argv + o.daemon_args, self.sockets / "daemon.log", registry=self.children)
+        self.daemon = DaemonChild(
+            argv + o.daemon_args, self.sockets / "daemon.log", registry=self.children
+        )
         ready = self.ready = self.daemon.wait_ready(DAEMON_READY_S)
         if o.realtime and not ready.get("realtime"):
-            self.notes.append("real-time scheduling was refused (needs root or CAP_SYS_NICE): the haptic rate "
-                              "may drop while the renderer runs")
+            self.notes.append(
+                "real-time scheduling was refused (needs root or CAP_SYS_NICE): the haptic rate "
+                "may drop while the renderer runs"
+            )
         keys = None
         if o.keys:
             from sasprobe.protocol.security import load_client_keys
@@ -135,32 +165,65 @@ class DemoSession:
             keys = load_client_keys(Path(o.keys))
         self.control = ControlClient(self.ctl, keys=keys, timeout_s=3.0)
         device = self.control.status()["device"]  # the ratings the forces are measured against
-        self.monitor = ForceMonitor(self.pub, device["limits"]["continuous_force_n"],
-                                    device["limits"]["nominal_rate_hz"], keys)
+        self.monitor = ForceMonitor(
+            self.pub,
+            device["limits"]["continuous_force_n"],
+            device["limits"]["nominal_rate_hz"],
+            keys,
+        )
 
     def _render_argv(self, headless: bool, seconds: float | None) -> list[str]:
         o = self.opts
         size = o.size or (HEADLESS_SIZE if headless else WINDOW_SIZE)
-        argv = [sys.executable, "-m", "sasprobe", "render", "--connect", self.pub, "--control", self.ctl,
-                "--size", f"{size[0]}x{size[1]}", "--report", str(self.render_report)]
+        argv = [
+            sys.executable,
+            "-m",
+            "sasprobe",
+            "render",
+            "--connect",
+            self.pub,
+            "--control",
+            self.ctl,
+            "--size",
+            f"{size[0]}x{size[1]}",
+            "--report",
+            str(self.render_report),
+        ]
         if o.keep_water:
             argv.append("--keep-water")
         if o.keys:
             argv += ["--keys", str(Path(o.keys).resolve())]
         if headless:
-            argv += ["--headless", "--seconds", f"{seconds:g}", "--fps", f"{o.fps:g}",
-                     "--out", str(self.video), "--snapshot", str(self.snapshot)]
+            argv += [
+                "--headless",
+                "--seconds",
+                f"{seconds:g}",
+                "--fps",
+                f"{o.fps:g}",
+                "--out",
+                str(self.video),
+                "--snapshot",
+                str(self.snapshot),
+            ]
         elif seconds is not None:
             argv += ["--seconds", f"{seconds:g}"]
         return argv + o.render_args
 
     def start_renderer(self, headless: bool, seconds: float | None) -> None:
         env = child_env()
-        protected = bool(self.ready.get("realtime"))  # no ordinary process can preempt a SCHED_FIFO loop
+        protected = bool(
+            self.ready.get("realtime")
+        )  # no ordinary process can preempt a SCHED_FIFO loop
         if not protected and headless:
             env.setdefault("LP_NUM_THREADS", "1")  # Mesa llvmpipe: leave the loop a core of its own
-        self.renderer = Child("render", self._render_argv(headless, seconds), self.sockets / "render.log",
-                              env=env, nice=0 if protected else RENDERER_NICE, registry=self.children)
+        self.renderer = Child(
+            "render",
+            self._render_argv(headless, seconds),
+            self.sockets / "render.log",
+            env=env,
+            nice=0 if protected else RENDERER_NICE,
+            registry=self.children,
+        )
         self._status(reset=True)  # the measured window is the demo proper, renderer included
         self.steal_from = cpu_steal_ticks()
 
@@ -182,9 +245,14 @@ class DemoSession:
         """Until the renderer ends (its --seconds, or the window closed) or the daemon stops."""
         from sasprobe.common.progress import progress_bar
 
-        bar = progress_bar(seconds if headless else None, "demo", unit="s",
-                           bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} s{postfix}" if headless
-                           else "{desc}: {n:.0f} s{postfix}")
+        bar = progress_bar(
+            seconds if headless else None,
+            "demo",
+            unit="s",
+            bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.0f}/{total:.0f} s{postfix}"
+            if headless
+            else "{desc}: {n:.0f} s{postfix}",
+        )
         deadline = time.monotonic() + (seconds or 0.0) + RENDER_START_GRACE_S if headless else None
         rendering_since = None
         shown = 0.0
@@ -200,13 +268,17 @@ class DemoSession:
                     next_status = now + STATUS_EVERY_S
                     bar.set_postfix_str(self._progress_text(), refresh=False)
                 if rendering_since is not None:
-                    elapsed = min(now - rendering_since, seconds) if headless else now - rendering_since
+                    elapsed = (
+                        min(now - rendering_since, seconds) if headless else now - rendering_since
+                    )
                     if elapsed > shown:
                         bar.update(elapsed - shown)
                         shown = elapsed
                 if deadline is not None and now > deadline:
-                    raise UserError(f"the renderer did not finish within {seconds + RENDER_START_GRACE_S:g} s "
-                                    f"(see its last words: {self.renderer.error_line() or 'none'})")
+                    raise UserError(
+                        f"the renderer did not finish within {seconds + RENDER_START_GRACE_S:g} s "
+                        f"(see its last words: {self.renderer.error_line() or 'none'})"
+                    )
         finally:
             bar.close()
 
@@ -227,8 +299,11 @@ class DemoSession:
     def stop(self) -> None:
         """Daemon first (zero force), then the renderer; bounded waits, SIGKILL as the last resort.
         A second Ctrl+C while stopping skips the waits."""
-        previous = signal.signal(signal.SIGINT, lambda *_: self.hurry.set()) \
-            if threading.current_thread() is threading.main_thread() else None
+        previous = (
+            signal.signal(signal.SIGINT, lambda *_: self.hurry.set())
+            if threading.current_thread() is threading.main_thread()
+            else None
+        )
         try:
             if self.monitor is not None:
                 self.monitor.poll()
@@ -237,7 +312,9 @@ class DemoSession:
             for child in self.children:
                 child.signal(signal.SIGTERM)
             for child in self.children:
-                rc = child.finish(DAEMON_STOP_S if child is self.daemon else RENDER_STOP_S, self.hurry)
+                rc = child.finish(
+                    DAEMON_STOP_S if child is self.daemon else RENDER_STOP_S, self.hurry
+                )
                 if child is self.daemon:
                     self.daemon_rc, self.exit_report = rc, child.exit_report
                 elif child is self.renderer:
@@ -280,7 +357,9 @@ class DemoSession:
             haptics = {
                 "nominal_rate_hz": nominal,
                 "rate_hz": rate,
-                "rate_error_percent": 100.0 * (rate - nominal) / nominal if rate and nominal else None,
+                "rate_error_percent": 100.0 * (rate - nominal) / nominal
+                if rate and nominal
+                else None,
                 "window_s": loop["window_s"],
                 "ticks": loop["ticks"],
                 "period_error_us": loop["period_error_us"],
@@ -294,8 +373,10 @@ class DemoSession:
             }
         files = {}
         if headless:
-            files = {"video": str(self.video) if self.video.exists() else None,
-                     "snapshot": str(self.snapshot) if self.snapshot.exists() else None}
+            files = {
+                "video": str(self.video) if self.video.exists() else None,
+                "snapshot": str(self.snapshot) if self.snapshot.exists() else None,
+            }
         if self.opts.record:
             files["recording"] = str(self.opts.record)
         return {
@@ -340,22 +421,38 @@ def _run_demo(opts: DemoOptions) -> int:
         raise UserError(f"--out {opts.out}: cannot create ({exc.strerror or exc})") from None
     if opts.record is not None and Path(opts.record).exists():
         raise UserError(f"--record {opts.record}: already exists; record to a new file")
-    for stale in ("demo.mp4", "snapshot.png", "summary.json"):  # never mix an old run's files with this one's
+    for stale in (
+        "demo.mp4",
+        "snapshot.png",
+        "summary.json",
+    ):  # never mix an old run's files with this one's
         (opts.out / stale).unlink(missing_ok=True)
     session = DemoSession(opts)
     interrupted = False
     failed = True
     try:
         try:
-            print(f"sasprobe demo: starting the daemon ({opts.device})", file=sys.stderr, flush=True)
+            print(
+                f"sasprobe demo: starting the daemon ({opts.device})", file=sys.stderr, flush=True
+            )
             session.start_daemon()
             session.start_renderer(headless, seconds)
-            what = "window open (close it or press Ctrl+C to stop)" if window else f"rendering {seconds:g} s headless"
+            what = (
+                "window open (close it or press Ctrl+C to stop)"
+                if window
+                else f"rendering {seconds:g} s headless"
+            )
             print(f"sasprobe demo: {what}", file=sys.stderr, flush=True)
             session.watch(headless, seconds)
-            if window and session.renderer.proc.poll() not in (None, 0) and session.renderer_report() is None:
+            if (
+                window
+                and session.renderer.proc.poll() not in (None, 0)
+                and session.renderer_report() is None
+            ):
                 # No window after all (e.g. no GL 4.1 on this display): the same demo, headless.
-                session.notes.append(f"no window ({session.renderer.error_line()}); ran headless instead")
+                session.notes.append(
+                    f"no window ({session.renderer.error_line()}); ran headless instead"
+                )
                 print(f"sasprobe demo: {session.notes[-1]}", file=sys.stderr, flush=True)
                 window, headless = False, True
                 seconds = opts.seconds if opts.seconds is not None else DEFAULT_SECONDS

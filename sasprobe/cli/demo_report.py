@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-STEAL_WORTH_TELLING_PERCENT = 1.0  # below it, steal costs no more deadlines than the loop misses on its own
+STEAL_WORTH_TELLING_PERCENT = (
+    1.0  # below it, steal costs no more deadlines than the loop misses on its own
+)
 
 
 class ForceMonitor:
@@ -17,8 +19,13 @@ class ForceMonitor:
     touched (device time from the first pose seen). Polled without blocking from the
     demo's main loop."""
 
-    def __init__(self, endpoint: str, continuous_force_n: float | None = None, rate_hz: float | None = None,
-                 keys=None) -> None:
+    def __init__(
+        self,
+        endpoint: str,
+        continuous_force_n: float | None = None,
+        rate_hz: float | None = None,
+        keys=None,
+    ) -> None:
         from sasprobe.protocol.client import Subscriber
 
         self.subscriber = Subscriber(endpoint, keys=keys)
@@ -58,13 +65,21 @@ class ForceMonitor:
         return self.contact_ticks / len(self.force_n) if self.force_n else None
 
     def summary(self) -> dict:
-        f = np.frombuffer(self.force_n, dtype=np.float32).astype(np.float64) if self.force_n else np.zeros(0)
-        stats = (lambda fn: float(fn(f)) if f.size else None)
+        f = (
+            np.frombuffer(self.force_n, dtype=np.float32).astype(np.float64)
+            if self.force_n
+            else np.zeros(0)
+        )
+        stats = lambda fn: float(fn(f)) if f.size else None
         return {
             "poses": int(f.size),
             "poses_missed": self.subscriber.missed,
-            "force_n": {"mean": stats(np.mean), "median": stats(np.median),
-                        "p95": stats(lambda a: np.percentile(a, 95)), "max": stats(np.max)},
+            "force_n": {
+                "mean": stats(np.mean),
+                "median": stats(np.median),
+                "p95": stats(lambda a: np.percentile(a, 95)),
+                "max": stats(np.max),
+            },
             "contact_ticks": self.contact_ticks,
             "contact_fraction": self.contact_fraction(),
             "atoms_touched": len(self.touched),
@@ -72,7 +87,9 @@ class ForceMonitor:
             "fault_ticks": self.fault_ticks,
             "continuous_force_n": self.continuous_force_n,
             "above_continuous_ticks": self.above_continuous_ticks,
-            "above_continuous_s": self.above_continuous_ticks / self.rate_hz if self.rate_hz else None,
+            "above_continuous_s": self.above_continuous_ticks / self.rate_hz
+            if self.rate_hz
+            else None,
             "first_touch_s": self.first_touch_s,
         }
 
@@ -84,39 +101,64 @@ def print_summary(summary: dict, path: Path) -> None:
     """The summary in a few lines on stdout (summary.json holds all of it)."""
     s = summary
     structure = s["structure"] or {}
-    print(f"sasprobe demo: {structure.get('name', '?')} ({structure.get('n_atoms', '?')} atoms), device {s['device']}, "
-          f"{s['mode']}" + (" (interrupted)" if s["interrupted"] else ""))
+    print(
+        f"sasprobe demo: {structure.get('name', '?')} ({structure.get('n_atoms', '?')} atoms), device {s['device']}, "
+        f"{s['mode']}" + (" (interrupted)" if s["interrupted"] else "")
+    )
     h = s["haptics"]
     if h:
-        print(f"  haptics   {h['rate_hz']:.1f} Hz (nominal {h['nominal_rate_hz']:g}) over {h['window_s']:.1f} s, "
-              f"period error p99 {h['period_error_us']['p99']:.0f} µs, {h['overruns']} overruns, "
-              f"{'real-time' if h['realtime'] else 'normal'} scheduling")
+        print(
+            f"  haptics   {h['rate_hz']:.1f} Hz (nominal {h['nominal_rate_hz']:g}) over {h['window_s']:.1f} s, "
+            f"period error p99 {h['period_error_us']['p99']:.0f} µs, {h['overruns']} overruns, "
+            f"{'real-time' if h['realtime'] else 'normal'} scheduling"
+        )
         stolen = h.get("cpu_steal")
         if stolen is not None and stolen["percent"] >= STEAL_WORTH_TELLING_PERCENT:
-            print(f"            the hypervisor took {stolen['percent']:.1f} % of the CPUs' time (steal): deadlines "
-                  f"lost to it are the virtual machine's, not the loop's")
+            print(
+                f"            the hypervisor took {stolen['percent']:.1f} % of the CPUs' time (steal): deadlines "
+                f"lost to it are the virtual machine's, not the loop's"
+            )
     f = s["forces"]
     if f and f["poses"]:
-        print(f"  forces    mean {f['force_n']['mean']:.2f} N, p95 {f['force_n']['p95']:.2f} N, "
-              f"max {f['force_n']['max']:.2f} N; in contact {100 * f['contact_fraction']:.0f} % of ticks, "
-              f"{f['atoms_touched']} atoms touched"
-              + (f" (the first after {f['first_touch_s']:.1f} s)" if f["first_touch_s"] is not None else ""))
+        print(
+            f"  forces    mean {f['force_n']['mean']:.2f} N, p95 {f['force_n']['p95']:.2f} N, "
+            f"max {f['force_n']['max']:.2f} N; in contact {100 * f['contact_fraction']:.0f} % of ticks, "
+            f"{f['atoms_touched']} atoms touched"
+            + (
+                f" (the first after {f['first_touch_s']:.1f} s)"
+                if f["first_touch_s"] is not None
+                else ""
+            )
+        )
         if f["continuous_force_n"] is not None:
             above = f["above_continuous_s"]
-            print(f"            {f['clamped_ticks']} ticks clamped to the peak rating; above the continuous rating "
-                  f"({f['continuous_force_n']:g} N) for " + (f"{above:.2f} s" if above is not None else
-                                                          f"{f['above_continuous_ticks']} ticks"))
+            print(
+                f"            {f['clamped_ticks']} ticks clamped to the peak rating; above the continuous rating "
+                f"({f['continuous_force_n']:g} N) for "
+                + (
+                    f"{above:.2f} s"
+                    if above is not None
+                    else f"{f['above_continuous_ticks']} ticks"
+                )
+            )
     r = s["renderer"]
     if r:
         lost = (r.get("daemon") or {}).get("poses_missed")
-        print(f"  renderer  {r['frames']} frames at {r['fps'] or 0:.1f} fps ({r['size'][0]}x{r['size'][1]})"
-              + (f", {r['video_frames']} video frames" if r.get("video_frames") else "")
-              + (f", {lost} poses lost" if lost is not None else "")
-              + (f"; molecule layer kept in {r['molecule_layer']['kept']} of {r['frames']} frames"
-                 if r.get("molecule_layer") else ""))
+        print(
+            f"  renderer  {r['frames']} frames at {r['fps'] or 0:.1f} fps ({r['size'][0]}x{r['size'][1]})"
+            + (f", {r['video_frames']} video frames" if r.get("video_frames") else "")
+            + (f", {lost} poses lost" if lost is not None else "")
+            + (
+                f"; molecule layer kept in {r['molecule_layer']['kept']} of {r['frames']} frames"
+                if r.get("molecule_layer")
+                else ""
+            )
+        )
     d = s["daemon_exit"]
     if d:
-        print(f"  stopped   daemon: {d['reason']}, last force written {d['last_force_written_n']} N")
+        print(
+            f"  stopped   daemon: {d['reason']}, last force written {d['last_force_written_n']} N"
+        )
     for note in s["notes"]:
         print(f"  note      {note}")
     written = [p for p in s["files"].values() if p] + [str(path)]

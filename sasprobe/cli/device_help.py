@@ -18,8 +18,17 @@ class TableHelpFormatter(argparse.HelpFormatter):
         lines = []
         for line in text.splitlines():
             column = re.match(r"\s*\S+\s{2,}", line) or re.match(r"\s*", line)
-            lines.append(textwrap.fill(line, width, initial_indent=indent, subsequent_indent=indent + " " * column.end(),
-                                       break_on_hyphens=False) if line.strip() else "")
+            lines.append(
+                textwrap.fill(
+                    line,
+                    width,
+                    initial_indent=indent,
+                    subsequent_indent=indent + " " * column.end(),
+                    break_on_hyphens=False,
+                )
+                if line.strip()
+                else ""
+            )
         return "\n".join(lines)
 
 

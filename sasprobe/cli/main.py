@@ -36,7 +36,9 @@ class _StderrFormatter(logging.Formatter):
 class _Version(argparse.Action):
     """--version, with the version looked up only when asked (importlib.metadata is slow to import)."""
 
-    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None):
+    def __init__(
+        self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None
+    ):
         super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
 
     def __call__(self, parser, namespace, values, option_string=None):
@@ -58,7 +60,11 @@ def build_parser(full: set[str] | None = None) -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action=_Version, help="show the version and exit")
     parser.add_argument("-v", "--verbose", action="store_true", help="print informational messages")
-    parser.add_argument("--config", metavar="FILE", help=f"TOML settings (default: {config.default_path()} if present)")
+    parser.add_argument(
+        "--config",
+        metavar="FILE",
+        help=f"TOML settings (default: {config.default_path()} if present)",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
     for name in command_names():
         module = importlib.import_module(f"sasprobe.cli.commands.{name}")

@@ -13,7 +13,9 @@ from pathlib import Path
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 DATA_ENV = "SASPROBE_DATA"
-MISSING = f"no reference structures found (expected tests/data/pdb/ in the checkout, or {DATA_ENV}=DIR)"
+MISSING = (
+    f"no reference structures found (expected tests/data/pdb/ in the checkout, or {DATA_ENV}=DIR)"
+)
 
 
 def reference_pdb_dir() -> Path | None:

@@ -16,11 +16,18 @@ from typing import BinaryIO
 
 from sasprobe.common.errors import UserError
 
-_KINDS = {stat.S_IFDIR: "a directory", stat.S_IFIFO: "a FIFO", stat.S_IFCHR: "a character device",
-          stat.S_IFBLK: "a block device", stat.S_IFSOCK: "a socket"}
+_KINDS = {
+    stat.S_IFDIR: "a directory",
+    stat.S_IFIFO: "a FIFO",
+    stat.S_IFCHR: "a character device",
+    stat.S_IFBLK: "a block device",
+    stat.S_IFSOCK: "a socket",
+}
 
 
-def open_regular(path: str | Path, what: str = "file", error: type[UserError] = UserError) -> BinaryIO:
+def open_regular(
+    path: str | Path, what: str = "file", error: type[UserError] = UserError
+) -> BinaryIO:
     """A binary reader of a regular file, or `error` in one line (missing, unreadable, not a file)."""
     label = str(path)
     try:
@@ -40,13 +47,17 @@ def open_regular(path: str | Path, what: str = "file", error: type[UserError] = 
         raise
 
 
-def read_regular(path: str | Path, limit: int, what: str = "file", error: type[UserError] = UserError) -> bytes:
+def read_regular(
+    path: str | Path, limit: int, what: str = "file", error: type[UserError] = UserError
+) -> bytes:
     """The bytes of a regular file of at most `limit` bytes, or `error` in one line."""
     with open_regular(path, what, error) as handle:
         try:
             size = os.fstat(handle.fileno()).st_size
             if size > limit:
-                raise error(f"{path}: {size} bytes is larger than the {limit >> 20} MiB a {what} may have")
+                raise error(
+                    f"{path}: {size} bytes is larger than the {limit >> 20} MiB a {what} may have"
+                )
             data = handle.read(limit + 1)
         except OSError as exc:
             raise error(f"{path}: cannot read ({exc.strerror or exc})") from None

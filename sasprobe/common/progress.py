@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import sys
-from typing import Iterable, Iterator, TypeVar
+from collections.abc import Iterable, Iterator
+from typing import TypeVar
 
 from tqdm import tqdm
 
@@ -13,8 +14,12 @@ T = TypeVar("T")
 def _style() -> dict:
     """Redraw often on a terminal, rarely into a log, and leave no bar behind in logs."""
     interactive = sys.stderr.isatty()
-    return {"file": sys.stderr, "mininterval": 0.1 if interactive else 10.0, "leave": interactive,
-            "dynamic_ncols": True}
+    return {
+        "file": sys.stderr,
+        "mininterval": 0.1 if interactive else 10.0,
+        "leave": interactive,
+        "dynamic_ncols": True,
+    }
 
 
 def progress(iterable: Iterable[T], desc: str, total: int | None = None) -> Iterator[T]:

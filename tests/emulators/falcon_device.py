@@ -54,9 +54,18 @@ class Sample:
 
 
 class FalconHardware:
-    def __init__(self, firmware: bytes, *, hand=None, start_mm=(0.0, 0.0, 0.0), hand_stiffness_n_per_mm=0.5,
-                 probes_ignored: int = 2, macos: bool = False, loader_silent: bool = False,
-                 corrupt_echo_attempts=()):
+    def __init__(
+        self,
+        firmware: bytes,
+        *,
+        hand=None,
+        start_mm=(0.0, 0.0, 0.0),
+        hand_stiffness_n_per_mm=0.5,
+        probes_ignored: int = 2,
+        macos: bool = False,
+        loader_silent: bool = False,
+        corrupt_echo_attempts=(),
+    ):
         self.expected_firmware = bytes(firmware)
         self.hand, self.start_mm, self.hand_stiffness = hand, start_mm, hand_stiffness_n_per_mm
         self.probes_ignored, self.macos, self.loader_silent = probes_ignored, macos, loader_silent
@@ -85,8 +94,9 @@ class FalconHardware:
         self.pending = bytearray()  # host → firmware, not yet taken
         self.leds, self.homing, self.homed = 0, False, [False, False, False]
         self.motor = (0, 0, 0)
-        self.stylus = HeldStylus(self.start_mm, hand=self.hand, mass_kg=0.15,
-                                 hand_stiffness_n_per_mm=self.hand_stiffness)
+        self.stylus = HeldStylus(
+            self.start_mm, hand=self.hand, mass_kg=0.15, hand_stiffness_n_per_mm=self.hand_stiffness
+        )
         self.offset_counts = self._absolute_counts()  # relative encoders: 0 where it was powered on
         self._last_angles = mech.thigh_angles(self.grip_m)
 
@@ -180,8 +190,12 @@ class FalconHardware:
 
     def _command(self, frame: bytes) -> None:
         nibbles = [b - 0x41 for b in frame[1:15]]
-        if (self.divisor != DIVISOR_NORMAL or frame[0] != 0x3C or frame[15] != 0x3E
-                or any(not 0 <= n <= 15 for n in nibbles)):
+        if (
+            self.divisor != DIVISOR_NORMAL
+            or frame[0] != 0x3C
+            or frame[15] != 0x3E
+            or any(not 0 <= n <= 15 for n in nibbles)
+        ):
             self.refused += 1
             return
         motor = []
@@ -197,7 +211,9 @@ class FalconHardware:
             self.homing_losses += 1
             self.homed = [False, False, False]
         force = mech.grip_force(self.grip_m, self.motor)
-        self.samples.append(Sample(time.monotonic_ns(), self.motor, force, self.stylus.position.copy()))
+        self.samples.append(
+            Sample(time.monotonic_ns(), self.motor, force, self.stylus.position.copy())
+        )
         self.stylus.advance(force)
         self._reply()
 
@@ -205,13 +221,20 @@ class FalconHardware:
         angles = mech.thigh_angles(self.grip_m)
         if self.homing:
             for i in range(3):
-                crossed = (angles[i] - mech.INDEX_ANGLE) * (self._last_angles[i] - mech.INDEX_ANGLE) <= 0
+                crossed = (angles[i] - mech.INDEX_ANGLE) * (
+                    self._last_angles[i] - mech.INDEX_ANGLE
+                ) <= 0
                 if not self.homed[i] and crossed:
                     self.homed[i], self.offset_counts[i] = True, 0.0
         self._last_angles = angles
-        counts = np.round((angles - mech.INDEX_ANGLE) / mech.RAD_PER_COUNT - self.offset_counts).astype(int)
+        counts = np.round(
+            (angles - mech.INDEX_ANGLE) / mech.RAD_PER_COUNT - self.offset_counts
+        ).astype(int)
         status = (self.buttons & 0xF) | sum(1 << (4 + i) for i in range(3) if self.homed[i])
-        body = [((int(c) & 0xFFFF) >> (4 * k)) & 0xF for c in counts for k in range(4)] + [status, 0]
+        body = [((int(c) & 0xFFFF) >> (4 * k)) & 0xF for c in counts for k in range(4)] + [
+            status,
+            0,
+        ]
         for junk in self.inject_before_reply:
             self.out += junk
         self.inject_before_reply = []
@@ -232,7 +255,6 @@ class FalconHardware:
                     del self.out[:n]
                     return MODEM_STATUS + data
             time.sleep(min(0.0005, max(deadline - time.monotonic(), 0.0)))
-
 
 
 class Hand:

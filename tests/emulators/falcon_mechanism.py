@@ -64,7 +64,10 @@ def thigh_angles(p_m) -> np.ndarray:
         along = (A * A - sweep * sweep + dist * dist) / (2.0 * dist)
         across = math.sqrt(A * A - along * along)
         ux, uz = radial / dist, z / dist
-        knees = [(along * ux - side * across * uz, along * uz + side * across * ux) for side in (1.0, -1.0)]
+        knees = [
+            (along * ux - side * across * uz, along * uz + side * across * ux)
+            for side in (1.0, -1.0)
+        ]
         knee = max(knees, key=lambda k: k[0])  # knee-out: the one farther from the device's axis
         angles.append(math.atan2(knee[1], knee[0]))
     return np.array(angles)

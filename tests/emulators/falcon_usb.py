@@ -49,26 +49,75 @@ class EmulatedUsbBackend(usb.backend.IBackend):
             yield 0
 
     def get_device_descriptor(self, dev):
-        return _Descriptor(dict(
-            bLength=18, bDescriptorType=1, bcdUSB=0x0200, bDeviceClass=0, bDeviceSubClass=0, bDeviceProtocol=0,
-            bMaxPacketSize0=8, idVendor=VENDOR_ID, idProduct=PRODUCT_ID, bcdDevice=0x0400, iManufacturer=0,
-            iProduct=0, iSerialNumber=0, bNumConfigurations=1, address=5, bus=1, port_number=2, port_numbers=(2,),
-            speed=2))
+        return _Descriptor(
+            dict(
+                bLength=18,
+                bDescriptorType=1,
+                bcdUSB=0x0200,
+                bDeviceClass=0,
+                bDeviceSubClass=0,
+                bDeviceProtocol=0,
+                bMaxPacketSize0=8,
+                idVendor=VENDOR_ID,
+                idProduct=PRODUCT_ID,
+                bcdDevice=0x0400,
+                iManufacturer=0,
+                iProduct=0,
+                iSerialNumber=0,
+                bNumConfigurations=1,
+                address=5,
+                bus=1,
+                port_number=2,
+                port_numbers=(2,),
+                speed=2,
+            )
+        )
 
     def get_configuration_descriptor(self, dev, config):
-        return _Descriptor(dict(bLength=9, bDescriptorType=2, wTotalLength=32, bNumInterfaces=1,
-                                bConfigurationValue=1, iConfiguration=0, bmAttributes=0x80, bMaxPower=50,
-                                extra_descriptors=[]))
+        return _Descriptor(
+            dict(
+                bLength=9,
+                bDescriptorType=2,
+                wTotalLength=32,
+                bNumInterfaces=1,
+                bConfigurationValue=1,
+                iConfiguration=0,
+                bmAttributes=0x80,
+                bMaxPower=50,
+                extra_descriptors=[],
+            )
+        )
 
     def get_interface_descriptor(self, dev, intf, alt, config):
-        return _Descriptor(dict(bLength=9, bDescriptorType=4, bInterfaceNumber=0, bAlternateSetting=0,
-                                bNumEndpoints=2, bInterfaceClass=0xFF, bInterfaceSubClass=0xFF,
-                                bInterfaceProtocol=0xFF, iInterface=0, extra_descriptors=[]))
+        return _Descriptor(
+            dict(
+                bLength=9,
+                bDescriptorType=4,
+                bInterfaceNumber=0,
+                bAlternateSetting=0,
+                bNumEndpoints=2,
+                bInterfaceClass=0xFF,
+                bInterfaceSubClass=0xFF,
+                bInterfaceProtocol=0xFF,
+                iInterface=0,
+                extra_descriptors=[],
+            )
+        )
 
     def get_endpoint_descriptor(self, dev, ep, intf, alt, config):
-        return _Descriptor(dict(bLength=7, bDescriptorType=5, bEndpointAddress=(EP_IN, EP_OUT)[ep],
-                                bmAttributes=0x02, wMaxPacketSize=64, bInterval=0, bRefresh=0, bSynchAddress=0,
-                                extra_descriptors=[]))
+        return _Descriptor(
+            dict(
+                bLength=7,
+                bDescriptorType=5,
+                bEndpointAddress=(EP_IN, EP_OUT)[ep],
+                bmAttributes=0x02,
+                wMaxPacketSize=64,
+                bInterval=0,
+                bRefresh=0,
+                bSynchAddress=0,
+                extra_descriptors=[],
+            )
+        )
 
     def open_device(self, dev):
         generation = self.hw.generation
@@ -108,7 +157,7 @@ class EmulatedUsbBackend(usb.backend.IBackend):
 
     def bulk_read(self, dev_handle, ep, intf, buff, timeout):
         data = self.hw.host_read(dev_handle, len(buff), timeout)
-        buff[:len(data)] = array.array("B", data)
+        buff[: len(data)] = array.array("B", data)
         return len(data)
 
 
@@ -181,8 +230,10 @@ class LaunchedFalcon:
         self._listener = Listener(address, family="AF_UNIX", authkey=AUTHKEY)
         threading.Thread(target=self._accept, daemon=True).start()
         self.device_spec = f"falcon:{firmware}"
-        self.env = {"SASPROBE_USB_BACKEND": "tests.emulators.falcon_usb:backend_from_environment",
-                    "SASPROBE_FALCON_EMU_SOCKET": address}
+        self.env = {
+            "SASPROBE_USB_BACKEND": "tests.emulators.falcon_usb:backend_from_environment",
+            "SASPROBE_FALCON_EMU_SOCKET": address,
+        }
 
     def _accept(self) -> None:
         while True:
@@ -190,7 +241,9 @@ class LaunchedFalcon:
                 conn = self._listener.accept()
             except OSError:  # closed
                 return
-            threading.Thread(target=_serve_connection, args=(self.hardware, conn), daemon=True).start()
+            threading.Thread(
+                target=_serve_connection, args=(self.hardware, conn), daemon=True
+            ).start()
 
     def close(self) -> None:
         self._listener.close()

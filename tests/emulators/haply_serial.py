@@ -43,7 +43,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tests.emulators.physics import ArmUnderStylus, HeldStylus, MovableHand, follow, numeric_jacobian
+from tests.emulators.physics import (
+    ArmUnderStylus,
+    HeldStylus,
+    MovableHand,
+    follow,
+    numeric_jacobian,
+)
 from tests.emulators.pty_serial import PtySerialDevice, Rig
 
 MAX_TORQUE = 0.123
@@ -63,10 +69,12 @@ class Pantograph:
     def handle(self, theta) -> np.ndarray:
         """(pad x, pad y), m, for link angles (rad)."""
         e1 = self.proximal * np.array([math.cos(theta[0]), math.sin(theta[0])])
-        e2 = np.array([self.spacing, 0.0]) + self.proximal * np.array([math.cos(theta[1]), math.sin(theta[1])])
+        e2 = np.array([self.spacing, 0.0]) + self.proximal * np.array(
+            [math.cos(theta[1]), math.sin(theta[1])]
+        )
         mid, gap = (e1 + e2) / 2.0, e2 - e1
         half = float(np.hypot(*gap)) / 2.0
-        rise = math.sqrt(self.distal ** 2 - half ** 2)
+        rise = math.sqrt(self.distal**2 - half**2)
         normal = np.array([-gap[1], gap[0]]) / (2.0 * half)
         a, b = mid + rise * normal, mid - rise * normal
         return a if a[1] > b[1] else b  # on the user's side of the elbows
@@ -77,8 +85,12 @@ class Pantograph:
 
 
 PANTOGRAPHS = {
-    "gen2": Pantograph(0.07, 0.09, 0.0, {1: 2, 2: 1}, {1: False, 2: True}, {1: 241.0, 2: -61.0}, (0.0, 0.080)),
-    "gen3": Pantograph(0.07, 0.09, 0.038, {1: 2, 2: 1}, {1: True, 2: True}, {1: 168.0, 2: 12.0}, (0.019, 0.090)),
+    "gen2": Pantograph(
+        0.07, 0.09, 0.0, {1: 2, 2: 1}, {1: False, 2: True}, {1: 241.0, 2: -61.0}, (0.0, 0.080)
+    ),
+    "gen3": Pantograph(
+        0.07, 0.09, 0.038, {1: 2, 2: 1}, {1: True, 2: True}, {1: 168.0, 2: 12.0}, (0.019, 0.090)
+    ),
 }
 
 
@@ -86,8 +98,16 @@ class HaplyBoard(ArmUnderStylus, PtySerialDevice):
     """The board: `torques` (N·m per port after the clamp), `motor_force()` (N, room frame),
     `stylus` and `hand` (mm, room frame)."""
 
-    def __init__(self, directory, *, generation: str = "gen3", board: str = "M0", firmware: str = "current",
-                 hand: MovableHand | None = None, name: str = "ttyHAPLY0"):
+    def __init__(
+        self,
+        directory,
+        *,
+        generation: str = "gen3",
+        board: str = "M0",
+        firmware: str = "current",
+        hand: MovableHand | None = None,
+        name: str = "ttyHAPLY0",
+    ):
         self.mech = PANTOGRAPHS[generation]
         self.board = board
         self.firmware = firmware
@@ -96,7 +116,9 @@ class HaplyBoard(ArmUnderStylus, PtySerialDevice):
         start = self.mech.room_mm(self.theta)
         self.hand = hand or MovableHand()
         self.hand.place(start)
-        self.stylus = HeldStylus(start, self.hand, mass_kg=0.08, hand_stiffness_n_per_mm=0.3, planar_axis=1)
+        self.stylus = HeldStylus(
+            start, self.hand, mass_kg=0.08, hand_stiffness_n_per_mm=0.3, planar_axis=1
+        )
         self.writes = 0
         self._start_arm()
         super().__init__(directory, name)
@@ -129,7 +151,11 @@ class HaplyBoard(ArmUnderStylus, PtySerialDevice):
                 self.answer_due = True
         if self.answer_due:
             self.answer_due = False
-            angles = [self._angle(port) for port in sorted(self.encoders) if self.owner.get(port) == self.address]
+            angles = [
+                self._angle(port)
+                for port in sorted(self.encoders)
+                if self.owner.get(port) == self.address
+            ]
             self.write(bytes([self.address & 0xFF]) + struct.pack(f"<{len(angles)}f", *angles))
             self._refresh_force()  # the new torques (after the answer: the firmware's work is done)
 
@@ -144,15 +170,21 @@ class HaplyBoard(ArmUnderStylus, PtySerialDevice):
             self.read()
         for _ in range(max(self.read(), 0)):  # PWM pins
             self.read()
-        params = struct.unpack(f"<{2 * len(encoder_ports)}f", self.read_bytes(8 * len(encoder_ports)).ljust(
-            8 * len(encoder_ports), b"\0"))
+        params = struct.unpack(
+            f"<{2 * len(encoder_ports)}f",
+            self.read_bytes(8 * len(encoder_ports)).ljust(8 * len(encoder_ports), b"\0"),
+        )
         self._move()
         for i, port in enumerate(encoder_ports):
             offset, resolution = params[2 * i], params[2 * i + 1]
             if self.board == "M0":
                 resolution /= 2.0  # "encoder driver ... only detects on half the rate"
-            self.encoders[port] = (1 if encoder_dirs[i] > 0 else -1, int(offset * resolution / 360.0),
-                                   self._own_angle(port), resolution)
+            self.encoders[port] = (
+                1 if encoder_dirs[i] > 0 else -1,
+                int(offset * resolution / 360.0),
+                self._own_angle(port),
+                resolution,
+            )
             self.owner[port] = address
         for i, port in enumerate(motor_ports):
             self.motor_dirs[port] = motor_dirs[i]
@@ -167,7 +199,9 @@ class HaplyBoard(ArmUnderStylus, PtySerialDevice):
         for port, torque in zip(ports, struct.unpack(f"<{len(ports)}f", data)):
             ccw = self.motor_dirs[port] == 1
             duty = int(self.pwm_resolution * min(abs(torque), MAX_TORQUE) / MAX_TORQUE)
-            self.duty[port] = duty if (torque > 0) == ccw else -duty  # signed in the motor's own CCW sense
+            self.duty[port] = (
+                duty if (torque > 0) == ccw else -duty
+            )  # signed in the motor's own CCW sense
             if torque == 0:
                 self.duty[port] = 0
         self.address = address
@@ -217,7 +251,9 @@ class HaplyBoard(ArmUnderStylus, PtySerialDevice):
         """The handle force (N, room frame) the motors make now."""
         link_torque = np.zeros(2)
         for port, torque in self.port_torques().items():
-            link_torque[self.mech.port_link[port] - 1] += torque if self.mech.faces_up[port] else -torque
+            link_torque[self.mech.port_link[port] - 1] += (
+                torque if self.mech.faces_up[port] else -torque
+            )
         fx, fy = np.linalg.solve(self._jacobian.T, link_torque)  # τ = Jᵀ·F
         return np.array([-fx, 0.0, fy])
 

@@ -73,11 +73,20 @@ class HidBus:
 class HidNode:
     """The device side of one hidraw node: accepts handles, sends them input reports."""
 
-    def __init__(self, bus: HidBus, hidraw_path: bytes, entries: list[dict], report_descriptor: bytes):
+    def __init__(
+        self, bus: HidBus, hidraw_path: bytes, entries: list[dict], report_descriptor: bytes
+    ):
         self.bus, self.path = bus, hidraw_path
         self.socket_path = bus.socket_path(hidraw_path)
-        self.entries = [dict(e, path=hidraw_path.decode(), socket=self.socket_path,
-                             report_descriptor=report_descriptor.hex()) for e in entries]
+        self.entries = [
+            dict(
+                e,
+                path=hidraw_path.decode(),
+                socket=self.socket_path,
+                report_descriptor=report_descriptor.hex(),
+            )
+            for e in entries
+        ]
         self._listener: socket.socket | None = None
         self._handles: list[socket.socket] = []
         self.plug()
@@ -226,10 +235,23 @@ class HidModule:
             return []
 
     def enumerate(self, vendor_id: int = 0, product_id: int = 0) -> list[dict]:
-        keys = ("vendor_id", "product_id", "serial_number", "release_number", "manufacturer_string",
-                "product_string", "usage_page", "usage", "interface_number", "bus_type")
-        return [{"path": e["path"].encode(), **{k: e[k] for k in keys}} for e in self.listing()
-                if vendor_id in (0, e["vendor_id"]) and product_id in (0, e["product_id"])]
+        keys = (
+            "vendor_id",
+            "product_id",
+            "serial_number",
+            "release_number",
+            "manufacturer_string",
+            "product_string",
+            "usage_page",
+            "usage",
+            "interface_number",
+            "bus_type",
+        )
+        return [
+            {"path": e["path"].encode(), **{k: e[k] for k in keys}}
+            for e in self.listing()
+            if vendor_id in (0, e["vendor_id"]) and product_id in (0, e["product_id"])
+        ]
 
     def device(self) -> Device:
         return Device(self)

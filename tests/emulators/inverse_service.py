@@ -55,11 +55,20 @@ class InverseService:
     """The service on 127.0.0.1:`port` (0: any free port); `hand.target` (mm, Haply frame,
     about the workspace centre) moves the user's hand."""
 
-    def __init__(self, port: int = 0, *, kind: str = "inverse3", calibrated: bool = True,
-                 hand_stiffness_n_per_mm: float = 0.5, grip: bool = True):
+    def __init__(
+        self,
+        port: int = 0,
+        *,
+        kind: str = "inverse3",
+        calibrated: bool = True,
+        hand_stiffness_n_per_mm: float = 0.5,
+        grip: bool = True,
+    ):
         self.kind, self.calibrated, self.grip = kind, calibrated, grip
         self.hand = MovableHand((0.0, 0.0, 0.0))
-        self.stylus = HeldStylus((0.0, 0.0, 0.0), self.hand, hand_stiffness_n_per_mm=hand_stiffness_n_per_mm)
+        self.stylus = HeldStylus(
+            (0.0, 0.0, 0.0), self.hand, hand_stiffness_n_per_mm=hand_stiffness_n_per_mm
+        )
         self.grip_buttons = {"a": False, "b": False, "c": False}
         self.grip_orientation = (0.0, 0.0, 0.0, 1.0)  # x, y, z, w
         self.lock = threading.Lock()
@@ -82,7 +91,9 @@ class InverseService:
 
     # the service ----------------------------------------------------------------------
     def start(self) -> None:
-        self._server = serve(self._handle, "127.0.0.1", self.port, compression=None, ping_interval=None)
+        self._server = serve(
+            self._handle, "127.0.0.1", self.port, compression=None, ping_interval=None
+        )
         self.port = self._server.socket.getsockname()[1]
         threading.Thread(target=self._server.serve_forever, daemon=True).start()
 
@@ -141,19 +152,38 @@ class InverseService:
             force = self._force.copy()
         if not centred:
             cursor_m = cursor_m + np.asarray(CENTRE_FROM_BASE_M)
-        inverse3 = {"device_id": DEVICE_ID,
-                    "state": {"cursor_position": _xyz(cursor_m), "cursor_velocity": _xyz(velocity),
-                              "current_cursor_force": _xyz(force),
-                              "control_mode": "force" if np.any(force) else "idle"},
-                    "status": {"calibrated": self.calibrated, "ready": True, "started": True, "power_supply": True}}
+        inverse3 = {
+            "device_id": DEVICE_ID,
+            "state": {
+                "cursor_position": _xyz(cursor_m),
+                "cursor_velocity": _xyz(velocity),
+                "current_cursor_force": _xyz(force),
+                "control_mode": "force" if np.any(force) else "idle",
+            },
+            "status": {
+                "calibrated": self.calibrated,
+                "ready": True,
+                "started": True,
+                "power_supply": True,
+            },
+        }
         message = {"inverse3": [inverse3]}
         if full:
-            inverse3["config"] = {"type": self.kind, "handedness": "right", "preset": "defaults",
-                                  "basis": {"permutation": "XYZ"}}
+            inverse3["config"] = {
+                "type": self.kind,
+                "handedness": "right",
+                "preset": "defaults",
+                "basis": {"permutation": "XYZ"},
+            }
         if self.grip:
             x, y, z, w = self.grip_orientation
-            grip = {"device_id": GRIP_ID, "state": {"buttons": dict(self.grip_buttons),
-                                                    "orientation": {"x": x, "y": y, "z": z, "w": w}}}
+            grip = {
+                "device_id": GRIP_ID,
+                "state": {
+                    "buttons": dict(self.grip_buttons),
+                    "orientation": {"x": x, "y": y, "z": z, "w": w},
+                },
+            }
             if full:
                 grip["config"] = {"type": "wireless_verse_grip"}
             message["wireless_verse_grip"] = [grip]
@@ -176,7 +206,9 @@ class InverseService:
         for entry in message.get("inverse3") or ():
             if not isinstance(entry, dict) or entry.get("device_id") != DEVICE_ID:
                 continue
-            device_configure = entry.get("configure") if isinstance(entry.get("configure"), dict) else {}
+            device_configure = (
+                entry.get("configure") if isinstance(entry.get("configure"), dict) else {}
+            )
             preset = device_configure.get("preset")
             if isinstance(preset, dict) and "preset" in preset:
                 named = str(preset["preset"])
@@ -214,7 +246,9 @@ class InverseService:
                 named = self._apply(text)
                 if named is not None:
                     centred = named in CENTRED_PRESETS
-                conn.send(json.dumps({"session_id": session_id, **self._state(centred, full=False)}))
+                conn.send(
+                    json.dumps({"session_id": session_id, **self._state(centred, full=False)})
+                )
         except ConnectionClosed:
             pass
         finally:

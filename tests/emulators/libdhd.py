@@ -29,16 +29,33 @@ class Control(ctypes.Structure):
     """fake_libdhd.c's `struct control`, field for field."""
 
     _fields_ = [
-        ("hand", ctypes.c_double * 3), ("hand_speed", ctypes.c_double), ("hand_stiffness", ctypes.c_double),
-        ("motor_limit", ctypes.c_double), ("wrist_angle", ctypes.c_double), ("count", ctypes.c_int32),
-        ("types", ctypes.c_int32 * MAX_DEVICES), ("serials", ctypes.c_int32 * MAX_DEVICES),
-        ("buttons", ctypes.c_int32), ("link_down", ctypes.c_int32), ("link_error", ctypes.c_int32),
+        ("hand", ctypes.c_double * 3),
+        ("hand_speed", ctypes.c_double),
+        ("hand_stiffness", ctypes.c_double),
+        ("motor_limit", ctypes.c_double),
+        ("wrist_angle", ctypes.c_double),
+        ("count", ctypes.c_int32),
+        ("types", ctypes.c_int32 * MAX_DEVICES),
+        ("serials", ctypes.c_int32 * MAX_DEVICES),
+        ("buttons", ctypes.c_int32),
+        ("link_down", ctypes.c_int32),
+        ("link_error", ctypes.c_int32),
         ("timeguard_every", ctypes.c_int32),
-        ("handle", ctypes.c_double * 3), ("velocity", ctypes.c_double * 3), ("force", ctypes.c_double * 3),
-        ("max_force", ctypes.c_double), ("position_reads", ctypes.c_int64), ("timeguards", ctypes.c_int64),
-        ("set_force_calls", ctypes.c_int64), ("saturated", ctypes.c_int64), ("failed_calls", ctypes.c_int64),
-        ("steps", ctypes.c_int64), ("open_id", ctypes.c_int32), ("opens", ctypes.c_int32),
-        ("force_enabled", ctypes.c_int32), ("enables", ctypes.c_int32), ("forces_ignored", ctypes.c_int32),
+        ("handle", ctypes.c_double * 3),
+        ("velocity", ctypes.c_double * 3),
+        ("force", ctypes.c_double * 3),
+        ("max_force", ctypes.c_double),
+        ("position_reads", ctypes.c_int64),
+        ("timeguards", ctypes.c_int64),
+        ("set_force_calls", ctypes.c_int64),
+        ("saturated", ctypes.c_int64),
+        ("failed_calls", ctypes.c_int64),
+        ("steps", ctypes.c_int64),
+        ("open_id", ctypes.c_int32),
+        ("opens", ctypes.c_int32),
+        ("force_enabled", ctypes.c_int32),
+        ("enables", ctypes.c_int32),
+        ("forces_ignored", ctypes.c_int32),
         ("pad", ctypes.c_int32),
     ]
 
@@ -50,8 +67,23 @@ def build(directory: Path, name: str = "libdhd.so", without_set_force: bool = Fa
         return None
     out = Path(directory) / name
     flags = ["-DFAKE_DHD_WITHOUT_SET_FORCE"] if without_set_force else []
-    subprocess.run([compiler, "-shared", "-fPIC", "-O2", *flags, "-o", str(out), str(SOURCE), "-lpthread", "-lm"],
-                   check=True, capture_output=True, timeout=120)
+    subprocess.run(
+        [
+            compiler,
+            "-shared",
+            "-fPIC",
+            "-O2",
+            *flags,
+            "-o",
+            str(out),
+            str(SOURCE),
+            "-lpthread",
+            "-lm",
+        ],
+        check=True,
+        capture_output=True,
+        timeout=120,
+    )
     size = ctypes.CDLL(str(out)).fake_control_size
     size.restype = ctypes.c_size_t
     if size() != ctypes.sizeof(Control):
@@ -62,8 +94,16 @@ def build(directory: Path, name: str = "libdhd.so", without_set_force: bool = Fa
 class EmulatedDHD:
     """Arms behind the stand-in library: `control` for the test, `hand` (m, DHD frame) for the user."""
 
-    def __init__(self, library: Path, *, types=(OMEGA3,), serials=(12345,), hand=(0.0, 0.0, 0.0),
-                 timeguard_every: int = 2, index: int = 0):
+    def __init__(
+        self,
+        library: Path,
+        *,
+        types=(OMEGA3,),
+        serials=(12345,),
+        hand=(0.0, 0.0, 0.0),
+        timeguard_every: int = 2,
+        index: int = 0,
+    ):
         self.library = Path(library)
         self._folder = Path(tempfile.mkdtemp(prefix="fakedhd"))
         self.control_path = self._folder / "control"
@@ -85,7 +125,10 @@ class EmulatedDHD:
 
     @property
     def env(self) -> dict[str, str]:
-        return {"SASPROBE_DHD_LIBRARY": str(self.library), "FAKE_DHD_CONTROL": str(self.control_path)}
+        return {
+            "SASPROBE_DHD_LIBRARY": str(self.library),
+            "FAKE_DHD_CONTROL": str(self.control_path),
+        }
 
     def move_hand(self, xyz_m) -> None:
         self.control.hand[:] = [float(v) for v in xyz_m]
@@ -107,11 +150,15 @@ class EmulatedDHD:
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             c = self.control
-            if max(abs(c.handle[i] - c.hand[i]) for i in range(3)) < atol_m and \
-                    max(abs(v) for v in c.velocity) < 1e-3:
+            if (
+                max(abs(c.handle[i] - c.hand[i]) for i in range(3)) < atol_m
+                and max(abs(v) for v in c.velocity) < 1e-3
+            ):
                 return
             time.sleep(0.005)
-        raise AssertionError(f"the handle did not settle at {list(self.control.hand)}: {list(self.control.handle)}")
+        raise AssertionError(
+            f"the handle did not settle at {list(self.control.hand)}: {list(self.control.handle)}"
+        )
 
     def close(self) -> None:
         self._file.close()

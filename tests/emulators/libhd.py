@@ -22,9 +22,18 @@ SOURCE = Path(__file__).parent / "fake_libhd.c"
 
 # hdDefines.h
 HD_CALIBRATION_ENCODER_RESET, HD_CALIBRATION_AUTO, HD_CALIBRATION_INKWELL = 1 << 0, 1 << 1, 1 << 2
-HD_CALIBRATION_OK, HD_CALIBRATION_NEEDS_UPDATE, HD_CALIBRATION_NEEDS_MANUAL_INPUT = 0x5000, 0x5001, 0x5002
+HD_CALIBRATION_OK, HD_CALIBRATION_NEEDS_UPDATE, HD_CALIBRATION_NEEDS_MANUAL_INPUT = (
+    0x5000,
+    0x5001,
+    0x5002,
+)
 HD_INVALID_ENUM, HD_WARM_MOTORS, HD_EXCEEDED_MAX_VELOCITY, HD_DEVICE_FAULT, HD_COMM_ERROR = (
-    0x0100, 0x0200, 0x0203, 0x0300, 0x0302)
+    0x0100,
+    0x0200,
+    0x0203,
+    0x0300,
+    0x0302,
+)
 HD_EXCEEDED_MAX_FORCE, HD_EXCEEDED_MAX_FORCE_IMPULSE, HD_FORCE_ERROR = 0x0201, 0x0202, 0x0204
 HD_DEVICE_BUTTON_1 = 1 << 0
 
@@ -41,16 +50,32 @@ class Control(ctypes.Structure):
     """fake_libhd.c's `struct control`, field for field."""
 
     _fields_ = [
-        ("hand", ctypes.c_double * 3), ("yaw", ctypes.c_double), ("buttons", ctypes.c_int32),
-        ("inkwell", ctypes.c_int32), ("plugged", ctypes.c_int32), ("styles", ctypes.c_int32),
-        ("inject_code", ctypes.c_int32), ("inject_frames", ctypes.c_int32),
-        ("model", ctypes.c_int32), ("serial", ctypes.c_char * 32),
-        ("force", ctypes.c_double * 3), ("max_force", ctypes.c_double), ("reset_distance_mm", ctypes.c_double),
-        ("frames", ctypes.c_int64), ("forces_clamped", ctypes.c_int64),
-        ("force_enabled", ctypes.c_int32), ("scheduler_running", ctypes.c_int32), ("resets", ctypes.c_int32),
-        ("resets_while_running", ctypes.c_int32), ("last_update_style", ctypes.c_int32),
-        ("calibration", ctypes.c_int32), ("initialised", ctypes.c_int32), ("callback_done", ctypes.c_int32),
-        ("max_step", ctypes.c_double), ("stop_calls_on_error", ctypes.c_int32), ("halted", ctypes.c_int32),
+        ("hand", ctypes.c_double * 3),
+        ("yaw", ctypes.c_double),
+        ("buttons", ctypes.c_int32),
+        ("inkwell", ctypes.c_int32),
+        ("plugged", ctypes.c_int32),
+        ("styles", ctypes.c_int32),
+        ("inject_code", ctypes.c_int32),
+        ("inject_frames", ctypes.c_int32),
+        ("model", ctypes.c_int32),
+        ("serial", ctypes.c_char * 32),
+        ("force", ctypes.c_double * 3),
+        ("max_force", ctypes.c_double),
+        ("reset_distance_mm", ctypes.c_double),
+        ("frames", ctypes.c_int64),
+        ("forces_clamped", ctypes.c_int64),
+        ("force_enabled", ctypes.c_int32),
+        ("scheduler_running", ctypes.c_int32),
+        ("resets", ctypes.c_int32),
+        ("resets_while_running", ctypes.c_int32),
+        ("last_update_style", ctypes.c_int32),
+        ("calibration", ctypes.c_int32),
+        ("initialised", ctypes.c_int32),
+        ("callback_done", ctypes.c_int32),
+        ("max_step", ctypes.c_double),
+        ("stop_calls_on_error", ctypes.c_int32),
+        ("halted", ctypes.c_int32),
     ]
 
 
@@ -60,8 +85,12 @@ def build(directory: Path, name: str = "libHD.so") -> Path | None:
     if compiler is None:
         return None
     out = Path(directory) / name
-    subprocess.run([compiler, "-shared", "-fPIC", "-O2", "-o", str(out), str(SOURCE), "-lpthread", "-lm"],
-                   check=True, capture_output=True, timeout=120)
+    subprocess.run(
+        [compiler, "-shared", "-fPIC", "-O2", "-o", str(out), str(SOURCE), "-lpthread", "-lm"],
+        check=True,
+        capture_output=True,
+        timeout=120,
+    )
     size = ctypes.CDLL(str(out)).fake_control_size
     size.restype = ctypes.c_size_t
     if size() != ctypes.sizeof(Control):
@@ -87,9 +116,18 @@ class Hand:
 class EmulatedHD:
     """One emulated arm behind the stand-in library: `control` for the test, `hand` for the user."""
 
-    def __init__(self, library: Path, *, styles: int = HD_CALIBRATION_INKWELL, hand=(0.0, 0.0, 0.0),
-                 inkwell: bool = False, name: str | None = None, reset_encoders: bool = False,
-                 model: str = "touch", serial: str = ""):
+    def __init__(
+        self,
+        library: Path,
+        *,
+        styles: int = HD_CALIBRATION_INKWELL,
+        hand=(0.0, 0.0, 0.0),
+        inkwell: bool = False,
+        name: str | None = None,
+        reset_encoders: bool = False,
+        model: str = "touch",
+        serial: str = "",
+    ):
         self.library = Path(library)
         self._folder = Path(tempfile.mkdtemp(prefix="fakehd"))
         self.control_path = self._folder / "control"
@@ -107,8 +145,11 @@ class EmulatedHD:
 
     @property
     def device_spec(self) -> str:
-        parts = ["openhaptics"] + ([self.name] if self.name else []) + (["reset-encoders"] if self.reset_encoders
-                                                                        else [])
+        parts = (
+            ["openhaptics"]
+            + ([self.name] if self.name else [])
+            + (["reset-encoders"] if self.reset_encoders else [])
+        )
         return ":".join(parts)
 
     @property

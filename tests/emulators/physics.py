@@ -45,15 +45,24 @@ class MovableHand:
                 step = np.asarray(self.target, dtype=float) - self.position
                 distance = float(np.linalg.norm(step))
                 reach = self.speed_mm_s * max(now - self._last, 0.0)
-                self.position = self.position + (step if distance <= reach else step * (reach / distance))
+                self.position = self.position + (
+                    step if distance <= reach else step * (reach / distance)
+                )
             self._last = now
             return self.position.copy()
 
 
 class HeldStylus:
-    def __init__(self, start_mm, hand: MovableHand | None = None, *, mass_kg: float = 0.1,
-                 hand_stiffness_n_per_mm: float = 0.5, damping_n_s_per_m: float | None = None,
-                 planar_axis: int | None = None):
+    def __init__(
+        self,
+        start_mm,
+        hand: MovableHand | None = None,
+        *,
+        mass_kg: float = 0.1,
+        hand_stiffness_n_per_mm: float = 0.5,
+        damping_n_s_per_m: float | None = None,
+        planar_axis: int | None = None,
+    ):
         self.position = np.asarray(start_mm, dtype=float).copy()
         self.velocity = np.zeros(3)
         self.mass_kg = mass_kg
@@ -62,10 +71,16 @@ class HeldStylus:
             damping_n_s_per_m = 2.0 * (hand_stiffness_n_per_mm * 1000.0 * mass_kg) ** 0.5
         self.damping = damping_n_s_per_m / 1000.0  # N per (mm/s)
         self.hand = hand or MovableHand(start_mm)
-        self.planar_axis = planar_axis  # a pad that holds the tip in a plane: this coordinate stays put
+        self.planar_axis = (
+            planar_axis  # a pad that holds the tip in a plane: this coordinate stays put
+        )
         self._plane = None if planar_axis is None else float(self.position[planar_axis])
-        self.t0 = time.monotonic()  # a hand is a function of the time since the stylus was picked up
-        self._hand_mm = np.asarray(self.hand(0.0), dtype=float)  # where the hand was at the last advance
+        self.t0 = (
+            time.monotonic()
+        )  # a hand is a function of the time since the stylus was picked up
+        self._hand_mm = np.asarray(
+            self.hand(0.0), dtype=float
+        )  # where the hand was at the last advance
         self._last: float | None = None
         self.lock = threading.Lock()
 
@@ -82,7 +97,9 @@ class HeldStylus:
             h = dt / substeps
             for i in range(substeps):
                 target = start + (end - start) * ((i + 1) / substeps)
-                total = force + self.hand_k * (target - self.position) - self.damping * self.velocity
+                total = (
+                    force + self.hand_k * (target - self.position) - self.damping * self.velocity
+                )
                 self.velocity = self.velocity + h * total / self.mass_kg * 1000.0
                 self.position = self.position + h * self.velocity
                 if self.planar_axis is not None:
@@ -127,7 +144,9 @@ def follow(fk, q, target, tolerance: float = 1e-7, iterations: int = 30) -> np.n
 def tip_force(fk, q, joint_torques) -> np.ndarray:
     """The tip force joint torques make, for a forward kinematics in the units of the force's
     lever (a fk in metres and torques in N·m give N)."""
-    return np.linalg.lstsq(numeric_jacobian(fk, q).T, np.asarray(joint_torques, dtype=float), rcond=None)[0]
+    return np.linalg.lstsq(
+        numeric_jacobian(fk, q).T, np.asarray(joint_torques, dtype=float), rcond=None
+    )[0]
 
 
 @dataclass(frozen=True)

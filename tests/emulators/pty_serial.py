@@ -172,7 +172,9 @@ class PtySerialDevice:
             time.sleep(0.001)
         looked_at = time.monotonic()
         if self._looked_at is not None:  # beyond the wait asked for: the thread was not running
-            self.longest_deaf_s = max(self.longest_deaf_s, looked_at - self._looked_at - max(timeout_s, 0.0))
+            self.longest_deaf_s = max(
+                self.longest_deaf_s, looked_at - self._looked_at - max(timeout_s, 0.0)
+            )
         self._looked_at = looked_at
 
     def available(self) -> int:

@@ -38,11 +38,42 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 HID_API_FACTORY = "tests.emulators.hidapi_fake:module_from_environment"
 
 PLAIN_KEYS = {"left": 0x100, "right": 0x101}
-PRO_KEYS = {"menu": 256, "fit": 257, "T": 258, "R": 260, "F": 261, "rotate": 264, "1": 268, "2": 269, "3": 270,
-            "4": 271, "esc": 278, "alt": 279, "shift": 280, "ctrl": 281, "lock": 282}
-ENTERPRISE_KEYS = {**PRO_KEYS, "iso": 266, "5": 272, "6": 273, "7": 274, "8": 275, "9": 276, "10": 277,
-                   "enter": 291, "delete": 292, "11": 332, "12": 333, "V1": 358, "V2": 359, "V3": 360,
-                   "tab": 430, "space": 431}
+PRO_KEYS = {
+    "menu": 256,
+    "fit": 257,
+    "T": 258,
+    "R": 260,
+    "F": 261,
+    "rotate": 264,
+    "1": 268,
+    "2": 269,
+    "3": 270,
+    "4": 271,
+    "esc": 278,
+    "alt": 279,
+    "shift": 280,
+    "ctrl": 281,
+    "lock": 282,
+}
+ENTERPRISE_KEYS = {
+    **PRO_KEYS,
+    "iso": 266,
+    "5": 272,
+    "6": 273,
+    "7": 274,
+    "8": 275,
+    "9": 276,
+    "10": 277,
+    "enter": 291,
+    "delete": 292,
+    "11": 332,
+    "12": 333,
+    "V1": 358,
+    "V2": 359,
+    "V3": 360,
+    "tab": 430,
+    "space": 431,
+}
 
 DESKTOP, MULTI_AXIS, MOUSE, KEYBOARD = 0x01, 0x08, 0x02, 0x06
 
@@ -125,7 +156,14 @@ def _local(tag, value):
     return _item(2, tag, value)
 
 
-USAGE_PAGE, LOGICAL_MIN, LOGICAL_MAX, REPORT_SIZE, REPORT_ID, REPORT_COUNT = 0x0, 0x1, 0x2, 0x7, 0x8, 0x9
+USAGE_PAGE, LOGICAL_MIN, LOGICAL_MAX, REPORT_SIZE, REPORT_ID, REPORT_COUNT = (
+    0x0,
+    0x1,
+    0x2,
+    0x7,
+    0x8,
+    0x9,
+)
 USAGE, USAGE_MIN, USAGE_MAX = 0x0, 0x1, 0x2
 INPUT, COLLECTION, END_COLLECTION = 0x8, 0xA, 0xC
 INPUT_DATA_VAR, INPUT_CONSTANT = 0x02, 0x01
@@ -133,23 +171,47 @@ INPUT_DATA_VAR, INPUT_CONSTANT = 0x02, 0x01
 
 def report_descriptor(product: Product, full_scale: int) -> bytes:
     """A descriptor for the product's reports (HID 1.11 §6.2.2), as such a device would declare."""
+
     def axes(report_id, first_usage, count):
-        out = _global(REPORT_ID, report_id) + _global(LOGICAL_MIN, -full_scale) + _global(LOGICAL_MAX, full_scale)
+        out = (
+            _global(REPORT_ID, report_id)
+            + _global(LOGICAL_MIN, -full_scale)
+            + _global(LOGICAL_MAX, full_scale)
+        )
         out += b"".join(_local(USAGE, first_usage + k) for k in range(count))
-        return out + _global(REPORT_SIZE, 16) + _global(REPORT_COUNT, count) + _main(INPUT, INPUT_DATA_VAR)
+        return (
+            out
+            + _global(REPORT_SIZE, 16)
+            + _global(REPORT_COUNT, count)
+            + _main(INPUT, INPUT_DATA_VAR)
+        )
 
     d = _global(USAGE_PAGE, DESKTOP) + _local(USAGE, product.usage) + _main(COLLECTION, 0x01)
     if product.usage == MULTI_AXIS:
         d += axes(1, 0x30, 6) if product.combined_report else axes(1, 0x30, 3) + axes(2, 0x33, 3)
         n = product.button_count
-        d += (_global(REPORT_ID, 3) + _global(USAGE_PAGE, 0x09) + _local(USAGE_MIN, 1) + _local(USAGE_MAX, n)
-              + _global(LOGICAL_MIN, 0) + _global(LOGICAL_MAX, 1) + _global(REPORT_SIZE, 1)
-              + _global(REPORT_COUNT, n) + _main(INPUT, INPUT_DATA_VAR))
+        d += (
+            _global(REPORT_ID, 3)
+            + _global(USAGE_PAGE, 0x09)
+            + _local(USAGE_MIN, 1)
+            + _local(USAGE_MAX, n)
+            + _global(LOGICAL_MIN, 0)
+            + _global(LOGICAL_MAX, 1)
+            + _global(REPORT_SIZE, 1)
+            + _global(REPORT_COUNT, n)
+            + _main(INPUT, INPUT_DATA_VAR)
+        )
         if n % 8:
             d += _global(REPORT_COUNT, 8 - n % 8) + _main(INPUT, INPUT_CONSTANT)
     else:  # a mouse or keyboard collection: buttons and relative axes, no 6-DoF
-        d += (_global(USAGE_PAGE, 0x09) + _local(USAGE_MIN, 1) + _local(USAGE_MAX, 3) + _global(REPORT_SIZE, 1)
-              + _global(REPORT_COUNT, 8) + _main(INPUT, INPUT_DATA_VAR))
+        d += (
+            _global(USAGE_PAGE, 0x09)
+            + _local(USAGE_MIN, 1)
+            + _local(USAGE_MAX, 3)
+            + _global(REPORT_SIZE, 1)
+            + _global(REPORT_COUNT, 8)
+            + _main(INPUT, INPUT_DATA_VAR)
+        )
     return d + _item(0, END_COLLECTION, 0, size=0)
 
 
@@ -171,8 +233,15 @@ class CapHand:
 
 
 class EmulatedSpaceMouse:
-    def __init__(self, product: Product | str = "SpaceMouse Compact", *, path: bytes = b"/dev/hidraw0",
-                 bus: HidBus | None = None, full_scale: int = 350, serial: str = ""):
+    def __init__(
+        self,
+        product: Product | str = "SpaceMouse Compact",
+        *,
+        path: bytes = b"/dev/hidraw0",
+        bus: HidBus | None = None,
+        full_scale: int = 350,
+        serial: str = "",
+    ):
         self.product = BY_NAME[product] if isinstance(product, str) else product
         self._own_bus = bus is None
         self.bus = bus or HidBus()
@@ -182,11 +251,18 @@ class EmulatedSpaceMouse:
         self._bits = 0
         self.hand = CapHand(self)
         p = self.product
-        entry = {"vendor_id": p.vendor_id, "product_id": p.product_id, "serial_number": serial,
-                 "release_number": 0x0100,
-                 "manufacturer_string": "3Dconnexion" if p.vendor_id == _C else "Logitech",
-                 "product_string": p.name, "usage_page": DESKTOP, "usage": p.usage, "interface_number": 0,
-                 "bus_type": 1}
+        entry = {
+            "vendor_id": p.vendor_id,
+            "product_id": p.product_id,
+            "serial_number": serial,
+            "release_number": 0x0100,
+            "manufacturer_string": "3Dconnexion" if p.vendor_id == _C else "Logitech",
+            "product_string": p.name,
+            "usage_page": DESKTOP,
+            "usage": p.usage,
+            "interface_number": 0,
+            "bus_type": 1,
+        }
         self.node = HidNode(self.bus, path, [entry], report_descriptor(p, full_scale))
 
     @property
@@ -195,10 +271,15 @@ class EmulatedSpaceMouse:
 
     @property
     def env(self) -> dict[str, str]:
-        return {"SASPROBE_HID_API": HID_API_FACTORY, BUS_ENV: str(self.bus.directory), "PYTHONPATH": str(REPO_ROOT)}
+        return {
+            "SASPROBE_HID_API": HID_API_FACTORY,
+            BUS_ENV: str(self.bus.directory),
+            "PYTHONPATH": str(REPO_ROOT),
+        }
 
     def raw_axes(self, translation, rotation) -> list[int]:
         """The HID axes (x, y, z, rx, ry, rz) of a deflection, in counts."""
+
         def layout(v):
             right, up, toward = v
             return (right, toward, -up) if self.product.y_toward_user else (right, up, -toward)

@@ -36,7 +36,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tests.emulators.physics import ArmUnderStylus, HeldStylus, MovableHand, follow, numeric_jacobian
+from tests.emulators.physics import (
+    ArmUnderStylus,
+    HeldStylus,
+    MovableHand,
+    follow,
+    numeric_jacobian,
+)
 from tests.emulators.pty_serial import PtySerialDevice, Rig
 
 ESCON_MAX_MA = 6000
@@ -59,7 +65,9 @@ class Arm:
     motor_along_body: tuple
     counts_per_turn: tuple
     newton_metre_per_amp: tuple
-    home_counts: tuple  # the counts the host adds: the resting pose is where these are the encoder angles
+    home_counts: (
+        tuple  # the counts the host adds: the resting pose is where these are the encoder angles
+    )
     origin: tuple  # workspace origin: toward the user, right, up
 
     def body_per_motor(self) -> np.ndarray:
@@ -68,7 +76,12 @@ class Arm:
         return np.where(self.motor_along_body, -ratio, ratio)
 
     def home_bodies(self) -> np.ndarray:
-        motor = np.asarray(self.home_counts, dtype=float) / np.asarray(self.counts_per_turn) * 2.0 * math.pi
+        motor = (
+            np.asarray(self.home_counts, dtype=float)
+            / np.asarray(self.counts_per_turn)
+            * 2.0
+            * math.pi
+        )
         return motor * self.body_per_motor()
 
     def tip_m(self, bodies) -> np.ndarray:
@@ -108,13 +121,42 @@ def _four_bar(links, b, c) -> tuple[float, float]:
 
 
 ARMS = {
-    1: Arm(1, (34e-3, 165e-3, 25e-3, 190e-3, 34e-3, 130.8e-3), True, (0.0288534, 0.0136981, 0.0137281),
-           (0.175, 0.100, 0.100), (False, True, False), (4096, 4096, 4096), (0.0603, 0.0538, 0.0538),
-           (8312, -10366, 19764), (0.2045, 0.0, 0.0325)),
-    2: Arm(2, (0.000, 0.138, 0.112), False, (0.013, 0.010, 0.010), (0.117, 0.077, 0.077), (True, False, True),
-           (4000, 4000, 4000), (0.0234, 0.0234, 0.0234), (0, 7700, 0), (0.138, 0.000, -0.097)),
-    3: Arm(3, (0.080, 0.205, 0.245), False, (0.010, 0.010, 0.010), (0.160, 0.120, 0.120), (False, True, True),
-           (2000, 2000, 2000), (0.0259, 0.0259, 0.0259), (0, 0, -6000), (0.220, 0.000, 0.080)),
+    1: Arm(
+        1,
+        (34e-3, 165e-3, 25e-3, 190e-3, 34e-3, 130.8e-3),
+        True,
+        (0.0288534, 0.0136981, 0.0137281),
+        (0.175, 0.100, 0.100),
+        (False, True, False),
+        (4096, 4096, 4096),
+        (0.0603, 0.0538, 0.0538),
+        (8312, -10366, 19764),
+        (0.2045, 0.0, 0.0325),
+    ),
+    2: Arm(
+        2,
+        (0.000, 0.138, 0.112),
+        False,
+        (0.013, 0.010, 0.010),
+        (0.117, 0.077, 0.077),
+        (True, False, True),
+        (4000, 4000, 4000),
+        (0.0234, 0.0234, 0.0234),
+        (0, 7700, 0),
+        (0.138, 0.000, -0.097),
+    ),
+    3: Arm(
+        3,
+        (0.080, 0.205, 0.245),
+        False,
+        (0.010, 0.010, 0.010),
+        (0.160, 0.120, 0.120),
+        (False, True, True),
+        (2000, 2000, 2000),
+        (0.0259, 0.0259, 0.0259),
+        (0, 0, -6000),
+        (0.220, 0.000, 0.080),
+    ),
 }
 
 
@@ -123,8 +165,17 @@ class WoodenHapticsEmulator(ArmUnderStylus, PtySerialDevice):
     `refused` (commands answered with an error; `refusals` their error bits), `stylus` and
     `hand` (mm, room frame)."""
 
-    def __init__(self, directory, *, model: int = 3, reported_model: int | None = None, hand: MovableHand | None = None,
-                 gimbal_counts=(0, 0, 0), gimbal_error_bits: int = 0, name: str = "ttyWOODY0"):
+    def __init__(
+        self,
+        directory,
+        *,
+        model: int = 3,
+        reported_model: int | None = None,
+        hand: MovableHand | None = None,
+        gimbal_counts=(0, 0, 0),
+        gimbal_error_bits: int = 0,
+        name: str = "ttyWOODY0",
+    ):
         self.arm = ARMS[model]
         self.reported_model = model if reported_model is None else reported_model
         self.gimbal_counts = tuple(gimbal_counts)
@@ -202,7 +253,9 @@ class WoodenHapticsEmulator(ArmUnderStylus, PtySerialDevice):
         if refused:
             self.refusals.append(error)
         c = self.counters
-        self.write(f"[{self.reported_model},{c[0]},{c[1]},{c[2]},{c[3]},{c[4]},{c[5]},{error}]\n".encode())
+        self.write(
+            f"[{self.reported_model},{c[0]},{c[1]},{c[2]},{c[3]},{c[4]},{c[5]},{error}]\n".encode()
+        )
 
     def tick(self) -> None:
         now = time.monotonic()

@@ -19,14 +19,13 @@ probe): accumulation then restarts.
 from __future__ import annotations
 
 import numpy as np
-
+from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.textures import TextureCache
 from sasprobe.render.lighting.ao.analytic import AnalyticAO
 from sasprobe.render.lighting.ao.blur import BilateralBlur
 from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
 from sasprobe.render.lighting.ao.raytraced import RayTracedAO
 from sasprobe.render.lighting.ao.ssao import SSAO
-from sasprobe.render.gl.compute import ComputePass
-from sasprobe.render.gl.textures import TextureCache
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.settings import AOSettings
 
@@ -84,8 +83,14 @@ class AmbientOcclusion:
             self._passes["analytic"].update_probe()
         self.view_changed()
 
-    def compute(self, gbuffer: GBuffer, view: np.ndarray, proj: np.ndarray, atoms: np.ndarray | None = None,
-                rect=None):
+    def compute(
+        self,
+        gbuffer: GBuffer,
+        view: np.ndarray,
+        proj: np.ndarray,
+        atoms: np.ndarray | None = None,
+        rect=None,
+    ):
         """The accessibility texture; `atoms`: those the G-buffer can show (None: any; analytic
         AO finds neighbour lists for them); `rect`: analytic AO only there, 1 elsewhere (None:
         everywhere; the other methods compute every pixel)."""
@@ -99,10 +104,18 @@ class AmbientOcclusion:
             return self.baked(gbuffer, ambient=True)[0]
         if s.mode == "ssao":
             ssao = self._pass("ssao")
-            raw = ssao.compute(gbuffer, view, proj, s, out=self.textures.get("ssao", ssao.output_size(gbuffer, s.ssao_half_resolution)))
+            raw = ssao.compute(
+                gbuffer,
+                view,
+                proj,
+                s,
+                out=self.textures.get("ssao", ssao.output_size(gbuffer, s.ssao_half_resolution)),
+            )
             if not (s.blur or s.ssao_half_resolution):
                 return raw
-            return self._pass("blur").apply(gbuffer, view, proj, raw, out=self.textures.get("blurred", size))
+            return self._pass("blur").apply(
+                gbuffer, view, proj, raw, out=self.textures.get("blurred", size)
+            )
         if s.mode == "reference":
             return self._traced(gbuffer, s.reference_spp, blur=False, view=view, proj=proj)
         traced = self._traced(gbuffer, s.rt_spp, blur=s.blur, view=view, proj=proj)
@@ -116,28 +129,48 @@ class AmbientOcclusion:
         self._pass("multiply").run(size[0], size[1], {})
         return product
 
-    def baked(self, gbuffer: GBuffer, ambient: bool, sun_direction=None, probe_light=None, rect=None,
-              progress=None):
+    def baked(
+        self,
+        gbuffer: GBuffer,
+        ambient: bool,
+        sun_direction=None,
+        probe_light=None,
+        rect=None,
+        progress=None,
+    ):
         """(accessibility, directional light, probe light) from the occlusion atlas, baked
         first where it lacks the accessibility (`ambient`), the light `sun_direction`
         (towards it) or the `probe_light` (a PointLight); `rect` as OcclusionAtlas.lookup."""
         s, atlas = self.settings, self._pass("atlas")
-        atlas.update(s.patch, s.directions, s.distance, ambient, sun_direction, probe_light, progress)
+        atlas.update(
+            s.patch, s.directions, s.distance, ambient, sun_direction, probe_light, progress
+        )
         return atlas.lookup(gbuffer, ambient, sun_direction, probe_light, rect)
 
     def _analytic(self, gbuffer: GBuffer, atoms: np.ndarray | None, rect=None):
         analytic = self._pass("analytic")
         if self.grid.probe_sphere[3] > 0 and analytic.probe_neighbours[0] < 0:
             analytic.update_probe()
-        return analytic.compute(gbuffer, self.settings.k, out=self.textures.get("analytic", gbuffer.size), atoms=atoms,
-                                rect=rect)
+        return analytic.compute(
+            gbuffer,
+            self.settings.k,
+            out=self.textures.get("analytic", gbuffer.size),
+            atoms=atoms,
+            rect=rect,
+        )
 
     def _traced(self, gbuffer: GBuffer, spp: int, blur: bool, view, proj):
         rt = self._pass("rt")
         if rt.samples < self.settings.reference_total:
-            rt.accumulate(gbuffer, min(spp, self.settings.reference_total - rt.samples), self.settings.distance)
+            rt.accumulate(
+                gbuffer,
+                min(spp, self.settings.reference_total - rt.samples),
+                self.settings.distance,
+            )
         if blur and rt.samples < BLUR_BELOW_SPP:
-            return self._pass("blur").apply(gbuffer, view, proj, rt.accumulated, out=self.textures.get("blurred", gbuffer.size))
+            return self._pass("blur").apply(
+                gbuffer, view, proj, rt.accumulated, out=self.textures.get("blurred", gbuffer.size)
+            )
         return rt.accumulated
 
     def release(self) -> None:

@@ -9,7 +9,6 @@ surfaces alone (render/gl/depth_picked.py); other G-buffers are a compute pass."
 from __future__ import annotations
 
 import numpy as np
-
 from sasprobe.render.gl.compute import ComputePass
 from sasprobe.render.gl.depth_picked import DepthPickedPass
 from sasprobe.render.gl.textures import TABLE_ROW, table_rows, texture_2d, write_table_rows
@@ -36,7 +35,9 @@ class AnalyticAO(ComputePass):
     def __init__(self, gpu_grid):
         super().__init__(gpu_grid.ctx, "ao_analytic.comp", gpu_grid)
         n = gpu_grid.n_atoms
-        self.neighbours = np.full((n, MAX_K), -1, dtype=np.int32)  # the lists found so far, -1 padded
+        self.neighbours = np.full(
+            (n, MAX_K), -1, dtype=np.int32
+        )  # the lists found so far, -1 padded
         self.found = np.zeros(n, dtype=bool)
         # a table image (textures.table_image's layout), written row by row as lists are found
         self.table = texture_2d(self.ctx, TABLE_ROW, table_rows(n * MAX_K), 1, "i4")
@@ -45,23 +46,32 @@ class AnalyticAO(ComputePass):
 
     def find(self, atoms: np.ndarray | None = None) -> None:
         """The neighbour lists of `atoms` (None: every atom) on the GPU, found where not yet."""
-        missing = np.flatnonzero(~self.found) if atoms is None else \
-            np.unique(np.asarray(atoms, dtype=np.int64)[~self.found[atoms]])
+        missing = (
+            np.flatnonzero(~self.found)
+            if atoms is None
+            else np.unique(np.asarray(atoms, dtype=np.int64)[~self.found[atoms]])
+        )
         if missing.size == 0:
             return
         self.neighbours[missing] = self.grid.grid.nearest_neighbors(MAX_K, of=missing)[0]
         self.found[missing] = True
-        entries = (missing[:, None] * MAX_K + np.array([0, MAX_K - 1])).ravel()  # a list's first and last
+        entries = (
+            missing[:, None] * MAX_K + np.array([0, MAX_K - 1])
+        ).ravel()  # a list's first and last
         write_table_rows(self.table, self.neighbours.reshape(-1), entries)
 
     def update_probe(self) -> None:
         """Refresh the probe's neighbour list after the probe moved (GpuGrid.set_probe)."""
         probe = self.grid.probe_sphere
         self.probe_neighbours = (
-            self.grid.grid.nearest_to_point(probe[:3], MAX_K) if probe[3] > 0 else np.full(MAX_K, -1, dtype=np.int64)
+            self.grid.grid.nearest_to_point(probe[:3], MAX_K)
+            if probe[3] > 0
+            else np.full(MAX_K, -1, dtype=np.int64)
         )
 
-    def compute(self, gbuffer: GBuffer, k: int, out=None, atoms: np.ndarray | None = None, rect=None):
+    def compute(
+        self, gbuffer: GBuffer, k: int, out=None, atoms: np.ndarray | None = None, rect=None
+    ):
         """The accessibility of the G-buffer's pixels; `atoms`: those it can show (None: any);
         `rect`: only there, 1 elsewhere (the renderer's G-buffer; None: everywhere)."""
         if not 1 <= k <= MAX_K:
@@ -71,12 +81,24 @@ class AnalyticAO(ComputePass):
         out = out or texture_2d(self.ctx, width, height)
         gbuffer.bind()
         self.table.bind_to_image(IMAGE_NEIGHBOURS, read=True, write=False)
-        uniforms = {"u_k": int(k), "u_probe_neighbours": self.probe_neighbours.astype(np.int32).tobytes()}
+        uniforms = {
+            "u_k": int(k),
+            "u_probe_neighbours": self.probe_neighbours.astype(np.int32).tobytes(),
+        }
         if gbuffer.depth is not None:
             whole = (0, 0, width, height)
             if rect is not None and tuple(rect) != whole:
-                self.drawn.run(out, gbuffer.depth, whole, [], uniforms, clear=1.0)  # 1 beyond the rectangle
-            self.drawn.run(out, gbuffer.depth, whole if rect is None else rect, [((), ">")], uniforms, clear=1.0)
+                self.drawn.run(
+                    out, gbuffer.depth, whole, [], uniforms, clear=1.0
+                )  # 1 beyond the rectangle
+            self.drawn.run(
+                out,
+                gbuffer.depth,
+                whole if rect is None else rect,
+                [((), ">")],
+                uniforms,
+                clear=1.0,
+            )
             return out
         out.bind_to_image(0, read=False, write=True)
         self.run(width, height, uniforms)

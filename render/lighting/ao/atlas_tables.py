@@ -36,7 +36,9 @@ def texel_normals(patch: int) -> np.ndarray:
     return out
 
 
-def facing_masks(normals: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def facing_masks(
+    normals: np.ndarray, directions: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Which texels face which direction (n.d > 0 in float32, as the shaders compute it), as
     bits both ways — (D, ceil(P^2 / 32)) uint32, bit t % 32 of word t / 32 of row d when
     texel t faces direction d (the rays step's), and its transpose (P^2, ceil(D / 32)), bit
@@ -44,7 +46,11 @@ def facing_masks(normals: np.ndarray, directions: np.ndarray) -> tuple[np.ndarra
     each texel's sum of n.d over the directions it faces (the weight of all its rays)."""
     dots = directions[:, :3].astype(np.float32) @ normals[:, :3].astype(np.float32).T  # (D, P^2)
     faces = dots > 0
-    return bit_rows(faces), bit_rows(faces.T), np.where(faces, dots.astype(np.float64), 0.0).sum(axis=0)
+    return (
+        bit_rows(faces),
+        bit_rows(faces.T),
+        np.where(faces, dots.astype(np.float64), 0.0).sum(axis=0),
+    )
 
 
 def bit_rows(flags: np.ndarray) -> np.ndarray:

@@ -3,9 +3,9 @@ accessibility, and joint-bilateral upsampling of half-resolution input."""
 
 from __future__ import annotations
 
-from sasprobe.render.gl.uniforms import view_proj_uniforms
 from sasprobe.render.gl.compute import ComputePass
 from sasprobe.render.gl.textures import texture_2d
+from sasprobe.render.gl.uniforms import view_proj_uniforms
 from sasprobe.render.lighting.gbuffer import GBuffer
 
 
@@ -22,11 +22,15 @@ class BilateralBlur(ComputePass):
         gbuffer.bind()
         source.use(location=3)
         out.bind_to_image(0, read=False, write=True)
-        self.run(width, height, {
-            **view_proj_uniforms(view, proj),
-            "u_scale": scale,
-            "u_radius": max(1, self.radius // scale),
-            "u_sigma": self.sigma / scale,
-            "u_depth_sigma": self.depth_sigma,
-        })
+        self.run(
+            width,
+            height,
+            {
+                **view_proj_uniforms(view, proj),
+                "u_scale": scale,
+                "u_radius": max(1, self.radius // scale),
+                "u_sigma": self.sigma / scale,
+                "u_depth_sigma": self.depth_sigma,
+            },
+        )
         return out

@@ -39,14 +39,23 @@ import math
 import time
 
 import numpy as np
-
 from sasprobe.render.gl.compute import ComputePass, ComputeVariants
 from sasprobe.render.gl.depth_picked import DepthPickedPass
-from sasprobe.render.lighting.ao.atlas_tables import clustered, facing_masks, fibonacci_directions, texel_normals
 from sasprobe.render.gl.textures import TextureCache, steady_side, table_image
 from sasprobe.render.gl.uniforms import apply_uniforms
+from sasprobe.render.lighting.ao.atlas_tables import (
+    clustered,
+    facing_masks,
+    fibonacci_directions,
+    texel_normals,
+)
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.settings import DIRECTION_RANGE, PointLight, light_uniforms, ray_epsilon_uniforms
+from sasprobe.render.lighting.settings import (
+    DIRECTION_RANGE,
+    PointLight,
+    light_uniforms,
+    ray_epsilon_uniforms,
+)
 
 log = logging.getLogger("sasprobe")
 
@@ -84,9 +93,13 @@ class KeptCells:
         np.cumsum(np.bincount(flat, minlength=start.size - 1), out=start[1:])
         entry = np.empty(n, dtype=np.uint32)
         entry[order] = np.arange(n, dtype=np.uint32)
-        self.spheres = table_image(ctx, None, np.column_stack([centers, radii]).astype(np.float32)[order])
-        self.buffers = {BINDING_KEPT_START: ctx.buffer(start.tobytes()),
-                        BINDING_SLOT_ENTRY: ctx.buffer(entry.tobytes() if n else b"\0" * 4)}
+        self.spheres = table_image(
+            ctx, None, np.column_stack([centers, radii]).astype(np.float32)[order]
+        )
+        self.buffers = {
+            BINDING_KEPT_START: ctx.buffer(start.tobytes()),
+            BINDING_SLOT_ENTRY: ctx.buffer(entry.tobytes() if n else b"\0" * 4),
+        }
 
     def bind(self) -> None:
         for binding, buffer in self.buffers.items():
@@ -94,8 +107,11 @@ class KeptCells:
         self.spheres.bind_to_image(IMAGE_KEPT_SPHERES, read=True, write=False)
 
     def uniforms(self) -> dict:
-        return {"u_kept_origin": tuple(float(v) for v in self.origin), "u_kept_cell": self.cell,
-                "u_kept_dims": tuple(int(v) for v in self.dims)}
+        return {
+            "u_kept_origin": tuple(float(v) for v in self.origin),
+            "u_kept_cell": self.cell,
+            "u_kept_dims": tuple(int(v) for v in self.dims),
+        }
 
     def release(self) -> None:
         for buffer in self.buffers.values():
@@ -112,9 +128,13 @@ class OcclusionAtlas:
         self.gather = ComputePass(self.ctx, "atlas_gather.comp", gpu_grid)
         self.candidates = ComputePass(self.ctx, "atlas_candidates.comp", gpu_grid)
         self.fill = ComputePass(self.ctx, "atlas_fill.comp")
-        self._variants = {shader: ComputeVariants(self.ctx, shader, gpu_grid)  # per case: _variant
-                          for shader in ("atlas_rays.comp", "atlas_bake.comp", "atlas_lookup.comp")}
-        self._drawn_lookup = DepthPickedPass(self.ctx, "atlas_lookup.frag", gpu_grid)  # the renderer's G-buffer
+        self._variants = {
+            shader: ComputeVariants(self.ctx, shader, gpu_grid)  # per case: _variant
+            for shader in ("atlas_rays.comp", "atlas_bake.comp", "atlas_lookup.comp")
+        }
+        self._drawn_lookup = DepthPickedPass(
+            self.ctx, "atlas_lookup.frag", gpu_grid
+        )  # the renderer's G-buffer
         self.textures = TextureCache(self.ctx)
         self.texture = None  # rgba16f: r accessibility, g directional light, b probe light
         self.atom_slots = None  # int32 buffer: the patch of each atom (-1: culled, none)
@@ -141,9 +161,11 @@ class OcclusionAtlas:
         width, height = steady_side(tiles_x * patch), steady_side(math.ceil(n / tiles_x) * patch)
         limit = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
         if max(width, height) > limit or width * height * 4 > MAX_ATLAS_BYTES:
-            raise ValueError(f"precomputed AO: {kept.size} patches of {patch}x{patch} texels need a "
-                             f"{width}x{height} atlas (limit {limit} texels a side, {MAX_ATLAS_BYTES >> 20} MiB); "
-                             "use a smaller --ao-patch or a navigation cube")
+            raise ValueError(
+                f"precomputed AO: {kept.size} patches of {patch}x{patch} texels need a "
+                f"{width}x{height} atlas (limit {limit} texels a side, {MAX_ATLAS_BYTES >> 20} MiB); "
+                "use a smaller --ao-patch or a navigation cube"
+            )
         self._release_layout()
         slots = np.full(self.grid.n_atoms, -1, dtype=np.int32)
         slots[kept] = np.arange(kept.size, dtype=np.int32)
@@ -152,15 +174,27 @@ class OcclusionAtlas:
         self._fill_scratch = self.ctx.texture((width, height), 4, dtype="f2")
         self.slot_atoms = self.ctx.buffer(kept.tobytes() if kept.size else b"\0" * 4)
         self.atom_slots = self.ctx.buffer(slots.tobytes())
-        self.kept = KeptCells(self.ctx, self.grid.grid.centers[kept], self.grid.vdw_radii[kept],
-                              self.grid.grid.cell_size)
+        self.kept = KeptCells(
+            self.ctx,
+            self.grid.grid.centers[kept],
+            self.grid.vdw_radii[kept],
+            self.grid.grid.cell_size,
+        )
         self.n_slots, self.patch, self.tiles_x = int(kept.size), patch, tiles_x
         self.layout_key = key
         self.ambient_key = self.sun_key = self.probe_key = None
 
     # ------------------------------------------------------------ bake
-    def update(self, patch: int, directions: int, distance: float, ambient: bool, sun_direction=None,
-               probe_light: PointLight | None = None, progress=None) -> bool:
+    def update(
+        self,
+        patch: int,
+        directions: int,
+        distance: float,
+        ambient: bool,
+        sun_direction=None,
+        probe_light: PointLight | None = None,
+        progress=None,
+    ) -> bool:
         """Bake what is missing: the accessibility (`ambient`) for (patch, directions,
         distance), the directional light's channel for `sun_direction` (towards the light)
         and the probe light's for `probe_light` (its position and range; only the patches of
@@ -168,21 +202,38 @@ class OcclusionAtlas:
         baked; `progress(fraction)` is called per chunk."""
         self._layout(patch)
         want_ambient = ambient and self.ambient_key != (directions, float(distance))
-        sun_key = None if sun_direction is None else tuple(np.round(np.asarray(sun_direction, dtype=np.float64), 12))
+        sun_key = (
+            None
+            if sun_direction is None
+            else tuple(np.round(np.asarray(sun_direction, dtype=np.float64), 12))
+        )
         want_sun = sun_key is not None and sun_key != self.sun_key
-        probe_key = None if probe_light is None else (tuple(probe_light.position), float(probe_light.radius))
+        probe_key = (
+            None
+            if probe_light is None
+            else (tuple(probe_light.position), float(probe_light.radius))
+        )
         want_probe = probe_key is not None and probe_key != self.probe_key
         if not (want_ambient or want_sun or want_probe):
             return False
         slots = np.arange(self.n_slots, dtype=np.uint32)
         if not (want_ambient or want_sun):  # the probe light alone: the atoms it reaches
             atoms = np.flatnonzero(self.slot_of() >= 0)
-            near = np.linalg.norm(self.grid.grid.centers[atoms] - probe_light.position, axis=1) \
+            near = (
+                np.linalg.norm(self.grid.grid.centers[atoms] - probe_light.position, axis=1)
                 <= probe_light.radius + self.grid.vdw_radii[atoms]
+            )
             slots = np.sort(self.slot_of()[atoms[near]]).astype(np.uint32)
         t0 = time.perf_counter()
-        self._bake(slots, directions, distance, want_ambient, sun_direction if want_sun else None,
-                   probe_light if want_probe else None, progress)
+        self._bake(
+            slots,
+            directions,
+            distance,
+            want_ambient,
+            sun_direction if want_sun else None,
+            probe_light if want_probe else None,
+            progress,
+        )
         self.ctx.finish()
         self.bake_seconds = time.perf_counter() - t0
         self.baked_patches = int(slots.size)
@@ -192,33 +243,63 @@ class OcclusionAtlas:
             self.sun_key = sun_key
         if want_probe:
             self.probe_key = probe_key
-        log.info("occlusion atlas: %d of %d patches of %dx%d texels baked in %.2f s", slots.size, self.n_slots,
-                 patch, patch, self.bake_seconds)
+        log.info(
+            "occlusion atlas: %d of %d patches of %dx%d texels baked in %.2f s",
+            slots.size,
+            self.n_slots,
+            patch,
+            patch,
+            self.bake_seconds,
+        )
         return True
 
-    def _bake(self, slots: np.ndarray, directions: int, distance: float, ambient: bool, sun_direction,
-              probe_light, progress) -> None:
+    def _bake(
+        self,
+        slots: np.ndarray,
+        directions: int,
+        distance: float,
+        ambient: bool,
+        sun_direction,
+        probe_light,
+        progress,
+    ) -> None:
         grid = self.grid
         n = max(int(slots.size), 1)
-        texel_words, direction_words = math.ceil(self.patch * self.patch / 32), math.ceil(directions / 32)
+        texel_words, direction_words = (
+            math.ceil(self.patch * self.patch / 32),
+            math.ceil(directions / 32),
+        )
         per_atom = {  # bytes of each chunk-sized buffer per atom (the candidates and blocked bits: ambient only)
-            7: 4, 18: texel_words * 4,
+            7: 4,
+            18: texel_words * 4,
             9: directions * MASK_WORDS * 4 if ambient else 0,
-            10: self.patch * self.patch * direction_words * 4 if ambient else 0}
-        image_bytes = (MAX_NEIGHBOURS + MAX_OVERLAPS) * 16  # a row of the neighbours and overlaps images per atom
+            10: self.patch * self.patch * direction_words * 4 if ambient else 0,
+        }
+        image_bytes = (
+            MAX_NEIGHBOURS + MAX_OVERLAPS
+        ) * 16  # a row of the neighbours and overlaps images per atom
         most = max(1, min(CHUNK_SLOTS, MAX_SCRATCH_BYTES // (sum(per_atom.values()) + image_bytes)))
         chunk = math.ceil(n / math.ceil(n / most))  # chunks of equal size
         dirs, normals, facing, facing_directions = self._tables_for(directions)
         # the facing bits: only the accessibility's steps read them
-        tables = {BINDING_FACING_MASKS: facing, BINDING_FACING_DIRECTIONS: facing_directions} if ambient else {}
-        sizes = {**{binding: chunk * nbytes for binding, nbytes in per_atom.items()},
-                 11: 4, 12: max(slots.nbytes, 4)}
+        tables = (
+            {BINDING_FACING_MASKS: facing, BINDING_FACING_DIRECTIONS: facing_directions}
+            if ambient
+            else {}
+        )
+        sizes = {
+            **{binding: chunk * nbytes for binding, nbytes in per_atom.items()},
+            11: 4,
+            12: max(slots.nbytes, 4),
+        }
         buffers = {binding: self._buffer(binding, nbytes) for binding, nbytes in sizes.items()}
         for binding, table in tables.items():
             buffers[binding] = self._buffer(binding, table.nbytes)
             buffers[binding].write(table.tobytes())
-        images = {unit: self._chunk_image(unit, width, chunk)
-                  for unit, width in ((IMAGE_NEIGHBOURS, MAX_NEIGHBOURS), (IMAGE_OVERLAPS, MAX_OVERLAPS))}
+        images = {
+            unit: self._chunk_image(unit, width, chunk)
+            for unit, width in ((IMAGE_NEIGHBOURS, MAX_NEIGHBOURS), (IMAGE_OVERLAPS, MAX_OVERLAPS))
+        }
         normals_block = self._buffer("texel normals", MAX_PATCH_TEXELS * 16)
         normals_block.write(normals.tobytes())
         directions_block = self._buffer("directions", MAX_DIRECTIONS * 16)
@@ -227,11 +308,17 @@ class OcclusionAtlas:
         if slots.size:
             buffers[12].write(slots.tobytes())
         common = {
-            **ray_epsilon_uniforms(), **light_uniforms(None, probe_light), "u_directions": directions,
-            "u_distance": float(distance), "u_max_radius": float(np.max(grid.vdw_radii)) if grid.n_atoms else 0.0,
-            "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_texel_words": texel_words,
+            **ray_epsilon_uniforms(),
+            **light_uniforms(None, probe_light),
+            "u_directions": directions,
+            "u_distance": float(distance),
+            "u_max_radius": float(np.max(grid.vdw_radii)) if grid.n_atoms else 0.0,
+            "u_patch": self.patch,
+            "u_tiles_x": self.tiles_x,
+            "u_texel_words": texel_words,
             "u_direction_words": direction_words,
-            "u_gather_neighbours": int(ambient), **self.kept.uniforms(),
+            "u_gather_neighbours": int(ambient),
+            **self.kept.uniforms(),
         }
         if sun_direction is not None:
             d = np.asarray(sun_direction, dtype=np.float64)
@@ -242,8 +329,14 @@ class OcclusionAtlas:
             sun_buffer.bind()
             common.update(sun_buffer.uniforms())
         rays = self._variant("atlas_rays.comp", (("TWO_TEXEL_WORDS", texel_words <= 2),))
-        bake = self._variant("atlas_bake.comp", (("BAKE_AMBIENT", ambient), ("BAKE_SUN", sun_direction is not None),
-                                                 ("BAKE_PROBE", probe_light is not None)))
+        bake = self._variant(
+            "atlas_bake.comp",
+            (
+                ("BAKE_AMBIENT", ambient),
+                ("BAKE_SUN", sun_direction is not None),
+                ("BAKE_PROBE", probe_light is not None),
+            ),
+        )
         probe, reach = grid.probe_sphere, grid.probe_reach
         grid.set_probe(None)  # the atlas is the molecule's own
         try:
@@ -259,7 +352,9 @@ class OcclusionAtlas:
             for first in range(0, int(slots.size), chunk):
                 count = min(chunk, int(slots.size) - first)
                 uniforms = {**common, "u_first_slot": first, "u_chunk_slots": count}
-                self._dispatch(self.gather, count, uniforms)  # the overlaps: the hidden-texel test needs them
+                self._dispatch(
+                    self.gather, count, uniforms
+                )  # the overlaps: the hidden-texel test needs them
                 if ambient:  # a work group per atom
                     self._dispatch(self.candidates, count * LOCAL, uniforms)
                     self._dispatch(rays, count * LOCAL, uniforms)
@@ -271,8 +366,10 @@ class OcclusionAtlas:
         finally:
             grid.set_probe(None if probe[3] <= 0 else probe[:3], probe[3], reach)
         if self.overflows:
-            log.warning("occlusion atlas: %d neighbour lists were full; those texels may be too bright",
-                        self.overflows)
+            log.warning(
+                "occlusion atlas: %d neighbour lists were full; those texels may be too bright",
+                self.overflows,
+            )
 
     def _tables_for(self, directions: int) -> tuple:
         """The directions (clustered, vec4), the texel normals (w: the sum of n.d over the
@@ -304,7 +401,9 @@ class OcclusionAtlas:
         if image is None or image.height < chunk:
             if image is not None:
                 image.release()
-            image = self._scratch[key] = self.ctx.texture((width, steady_side(chunk)), 4, dtype="f4")
+            image = self._scratch[key] = self.ctx.texture(
+                (width, steady_side(chunk)), 4, dtype="f4"
+            )
         return image
 
     def _fill_unseen(self) -> None:
@@ -313,7 +412,10 @@ class OcclusionAtlas:
         for last, (source, target) in enumerate(((self.texture, scratch), (scratch, self.texture))):
             source.bind_to_image(0, read=True, write=False)
             target.bind_to_image(1, read=False, write=True)
-            self.fill.run(*self.texture.size, {"u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_last": last})
+            self.fill.run(
+                *self.texture.size,
+                {"u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_last": last},
+            )
 
     def _variant(self, shader: str, cases: tuple[tuple[str, bool], ...]) -> ComputePass:
         """`shader` for these cases, and without clipping code when nothing is cut away."""
@@ -327,8 +429,14 @@ class OcclusionAtlas:
         self.ctx.memory_barrier()
 
     # ------------------------------------------------------------ lookup
-    def lookup(self, gbuffer: GBuffer, ambient: bool = True, sun_direction=None, probe_light: PointLight | None = None,
-               rect=None):
+    def lookup(
+        self,
+        gbuffer: GBuffer,
+        ambient: bool = True,
+        sun_direction=None,
+        probe_light: PointLight | None = None,
+        rect=None,
+    ):
         """(accessibility, directional light, probe light) textures (r32f) of every G-buffer
         pixel; each written only when wanted (`ambient`; a light when given, `sun_direction`
         towards it), the others keep what they hold. `rect` (x, y, width, height): only those
@@ -336,7 +444,11 @@ class OcclusionAtlas:
         size = gbuffer.size
         want_ambient = ambient
         ambient, sun = self.textures.get("ambient", size), self.textures.get("sun", size)
-        lamp = self.textures.get("probe_light", size) if rect is None else self.textures.fill("probe_light", size, 1.0)
+        lamp = (
+            self.textures.get("probe_light", size)
+            if rect is None
+            else self.textures.fill("probe_light", size, 1.0)
+        )
         x, y, w, h = rect if rect is not None else (0, 0, *size)
         gbuffer.bind()
         self.texture.filter = (self.ctx.LINEAR, self.ctx.LINEAR)
@@ -345,25 +457,37 @@ class OcclusionAtlas:
         ambient.bind_to_image(0, read=False, write=True)
         sun.bind_to_image(1, read=False, write=True)
         lamp.bind_to_image(2, read=False, write=True)
-        writes = (("WRITE_AMBIENT", want_ambient), ("WRITE_SUN", sun_direction is not None),
-                  ("WRITE_PROBE", probe_light is not None))
+        writes = (
+            ("WRITE_AMBIENT", want_ambient),
+            ("WRITE_SUN", sun_direction is not None),
+            ("WRITE_PROBE", probe_light is not None),
+        )
         cases = (("WITH_PROBE", self.grid.probe_sphere[3] > 0), *writes)
         uniforms = {
-            **ray_epsilon_uniforms(), **light_uniforms(None, probe_light),
-            "u_sun_dir": tuple(float(v) for v in (sun_direction if sun_direction is not None else (0.0, 0.0, 1.0))),
-            "u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_atlas_size": tuple(float(v) for v in self.texture.size),
+            **ray_epsilon_uniforms(),
+            **light_uniforms(None, probe_light),
+            "u_sun_dir": tuple(
+                float(v) for v in (sun_direction if sun_direction is not None else (0.0, 0.0, 1.0))
+            ),
+            "u_patch": self.patch,
+            "u_tiles_x": self.tiles_x,
+            "u_atlas_size": tuple(float(v) for v in self.texture.size),
         }
         if gbuffer.depth is not None:  # the renderer's: the surfaces look up, the background is 1
             clipping = ("NO_CLIPPING", not self.grid.culling.clipping)
             picks = [((("BACKGROUND_ONLY", True), *writes), "=="), ((*cases, clipping), ">")]
             self._drawn_lookup.run(None, gbuffer.depth, (x, y, w, h), picks, uniforms)
         else:
-            self._variant("atlas_lookup.comp", cases).run(w, h, {**uniforms, "u_offset": (int(x), int(y))})
+            self._variant("atlas_lookup.comp", cases).run(
+                w, h, {**uniforms, "u_offset": (int(x), int(y))}
+            )
         return ambient, sun, lamp
 
     def read(self) -> np.ndarray:
         """The atlas as (H, W, 4) float32 (row 0 = atlas row 0)."""
-        data = np.frombuffer(self.texture.read(), dtype=np.float16).reshape(self.texture.height, self.texture.width, 4)
+        data = np.frombuffer(self.texture.read(), dtype=np.float16).reshape(
+            self.texture.height, self.texture.width, 4
+        )
         return data.astype(np.float32)
 
     def slot_of(self) -> np.ndarray:
@@ -380,5 +504,11 @@ class OcclusionAtlas:
         self.textures.release()
         for buffer in self._scratch.values():
             buffer.release()
-        for p in (self.gather, self.candidates, self.fill, self._drawn_lookup, *self._variants.values()):
+        for p in (
+            self.gather,
+            self.candidates,
+            self.fill,
+            self._drawn_lookup,
+            *self._variants.values(),
+        ):
             p.release()

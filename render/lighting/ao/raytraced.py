@@ -4,8 +4,8 @@ rays of a set length, N per pixel per frame, accumulated while the view is still
 from __future__ import annotations
 
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.settings import ray_epsilon_uniforms
 from sasprobe.render.lighting.progressive import ProgressivePass
+from sasprobe.render.lighting.settings import ray_epsilon_uniforms
 
 
 class RayTracedAO(ProgressivePass):
@@ -14,4 +14,6 @@ class RayTracedAO(ProgressivePass):
 
     def accumulate(self, gbuffer: GBuffer, spp: int, distance: float):
         """Add `spp` samples per pixel; returns the running-mean texture (r32f)."""
-        return self.add_samples(gbuffer, spp, {**ray_epsilon_uniforms(), "u_distance": float(distance)})
+        return self.add_samples(
+            gbuffer, spp, {**ray_epsilon_uniforms(), "u_distance": float(distance)}
+        )

@@ -29,14 +29,18 @@ class SSAO(ComputePass):
         out = out or texture_2d(self.ctx, width, height)
         gbuffer.bind()
         out.bind_to_image(0, read=False, write=True)
-        self.run(width, height, {
-            **view_proj_uniforms(view, proj),
-            "u_scale": 2 if settings.ssao_half_resolution else 1,
-            "u_samples": int(settings.ssao_samples),
-            "u_line_sampling": int(settings.ssao_sampling == "line"),
-            "u_radius": float(settings.ssao_radius),
-            "u_intensity": float(settings.ssao_intensity),
-            "u_bias": SSAO_BIAS,
-            "u_seed": self.seed,
-        })
+        self.run(
+            width,
+            height,
+            {
+                **view_proj_uniforms(view, proj),
+                "u_scale": 2 if settings.ssao_half_resolution else 1,
+                "u_samples": int(settings.ssao_samples),
+                "u_line_sampling": int(settings.ssao_sampling == "line"),
+                "u_radius": float(settings.ssao_radius),
+                "u_intensity": float(settings.ssao_intensity),
+                "u_bias": SSAO_BIAS,
+                "u_seed": self.seed,
+            },
+        )
         return out

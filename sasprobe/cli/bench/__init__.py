@@ -9,9 +9,9 @@ from __future__ import annotations
 import importlib
 import statistics
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 # The order `sasprobe bench` runs them in; a name whose module is absent is skipped.
 ORDER = ["startup", "grid", "sas", "haptics", "daemon", "render", "lighting"]

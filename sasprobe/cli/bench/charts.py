@@ -55,16 +55,29 @@ def annotate_apart(ax, notes, fontsize: float = 6) -> None:
     placed = []  # label boxes in display coordinates
     for x, y, text in notes:
         best = None
-        for dx, dy, ha, va in ((3, 2, "left", "bottom"), (3, -2, "left", "top"),
-                               (-3, 2, "right", "bottom"), (-3, -2, "right", "top")):
-            label = ax.annotate(text, (x, y), fontsize=fontsize, xytext=(dx, dy), textcoords="offset points",
-                                ha=ha, va=va)
+        for dx, dy, ha, va in (
+            (3, 2, "left", "bottom"),
+            (3, -2, "left", "top"),
+            (-3, 2, "right", "bottom"),
+            (-3, -2, "right", "top"),
+        ):
+            label = ax.annotate(
+                text,
+                (x, y),
+                fontsize=fontsize,
+                xytext=(dx, dy),
+                textcoords="offset points",
+                ha=ha,
+                va=va,
+            )
             box = label.get_window_extent(renderer)
             if not any(box.overlaps(other) for other in placed):
                 best = (label, box)
                 break
             label.remove()
         if best is None:  # nowhere free: the first place
-            label = ax.annotate(text, (x, y), fontsize=fontsize, xytext=(3, 2), textcoords="offset points")
+            label = ax.annotate(
+                text, (x, y), fontsize=fontsize, xytext=(3, 2), textcoords="offset points"
+            )
             best = (label, label.get_window_extent(renderer))
         placed.append(best[1])

@@ -37,13 +37,25 @@ TARGETS = "1000 Hz, p99 period error ≤ 200 µs, no overrun in 10 s with ~60k a
 def add_arguments(parser) -> None:
     from sasprobe.cli.argtypes import positive_float
 
-    parser.add_argument("--seconds", type=float, default=None, help="measured window per run (default 10, quick 3)")
-    parser.add_argument("--no-realtime", action="store_true",
-                        help="skip the real-time (SCHED_FIFO, the default) runs: only --no-realtime daemons")
-    parser.add_argument("--no-devices", action="store_true", help="skip the rows on the emulated devices")
-    parser.add_argument("--device-rate", type=positive_float, action="append", metavar="HZ",
-                        help="run each emulated device's row at this loop rate (repeatable; default: the rate "
-                             "each device declares)")
+    parser.add_argument(
+        "--seconds", type=float, default=None, help="measured window per run (default 10, quick 3)"
+    )
+    parser.add_argument(
+        "--no-realtime",
+        action="store_true",
+        help="skip the real-time (SCHED_FIFO, the default) runs: only --no-realtime daemons",
+    )
+    parser.add_argument(
+        "--no-devices", action="store_true", help="skip the rows on the emulated devices"
+    )
+    parser.add_argument(
+        "--device-rate",
+        type=positive_float,
+        action="append",
+        metavar="HZ",
+        help="run each emulated device's row at this loop rate (repeatable; default: the rate "
+        "each device declares)",
+    )
 
 
 def _free_port() -> int:
@@ -87,7 +99,9 @@ def _measure(d: _Daemon, warmup_s: float, seconds: float, realtime_subscriber: b
     subscriber_rt = enter_realtime(priority=40) if realtime_subscriber else False
     context = zmq.Context()
     socks = {}
-    keys = local_client_keys()  # the publisher binds loopback TCP, so it uses CURVE (ipc:// on it too)
+    keys = (
+        local_client_keys()
+    )  # the publisher binds loopback TCP, so it uses CURVE (ipc:// on it too)
     for name, endpoint in (("tcp", d.tcp), ("ipc", d.ipc)):
         sock = context.socket(zmq.SUB)
         make_curve_client(sock, keys)
@@ -127,8 +141,12 @@ def _measure(d: _Daemon, warmup_s: float, seconds: float, realtime_subscriber: b
     context.term()
     if subscriber_rt:
         os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-    out = {"loop": status["loop"], "device": status["device"]["model"], "structure": status["structure"],
-           "subscriber_realtime": subscriber_rt}
+    out = {
+        "loop": status["loop"],
+        "device": status["device"]["model"],
+        "structure": status["structure"],
+        "subscriber_realtime": subscriber_rt,
+    }
     for name in ("tcp", "ipc"):
         lat = np.array(latencies[name], dtype=np.float64) / 1e3
         s = np.array(seqs[name])
@@ -149,8 +167,11 @@ def _measure(d: _Daemon, warmup_s: float, seconds: float, realtime_subscriber: b
 def run(ctx: BenchContext, args=None) -> BenchResult:
     seconds = getattr(args, "seconds", None) or (0.5 if ctx.smoke else 3.0 if ctx.quick else 10.0)
     # (daemon real-time, subscriber in SCHED_FIFO): where the time goes on a busy machine
-    modes = [(False, False)] if getattr(args, "no_realtime", False) or ctx.smoke else \
-        [(False, False), (True, False), (True, True)]
+    modes = (
+        [(False, False)]
+        if getattr(args, "no_realtime", False) or ctx.smoke
+        else [(False, False), (True, False), (True, True)]
+    )
     entries = reference_structures()
     by_id = {e.id: e for e in entries}
     structures = [("1crn (embedded)", None)]
@@ -164,8 +185,13 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
             result = _measure(d, warmup_s=1.5, seconds=seconds, realtime_subscriber=sub_rt)
         finally:
             d.stop()
-        result.update(label=label, realtime_requested=realtime, realtime=bool(d.ready.get("realtime")),
-                      seconds=seconds, load_average_1min=os.getloadavg()[0])
+        result.update(
+            label=label,
+            realtime_requested=realtime,
+            realtime=bool(d.ready.get("realtime")),
+            seconds=seconds,
+            load_average_1min=os.getloadavg()[0],
+        )
         runs.append(result)
     charts = []
     path = ctx.chart_path("daemon_latency.png")
@@ -178,8 +204,13 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
             for name, style in (("tcp", "-"), ("ipc", "--")):
                 lat = np.sort(r[name]["samples_us"])
                 if lat.size:
-                    ax.semilogx(lat, np.arange(1, lat.size + 1) / lat.size, style, color=color,
-                                label=f"{_mode(r)}, {name}")
+                    ax.semilogx(
+                        lat,
+                        np.arange(1, lat.size + 1) / lat.size,
+                        style,
+                        color=color,
+                        label=f"{_mode(r)}, {name}",
+                    )
         ax.axvline(1000, color="k", ls=":", lw=1)
         ax.set_xlabel("publish → receive latency (µs)")
         ax.set_ylabel("fraction of poses")
@@ -194,18 +225,26 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
         rates = getattr(args, "device_rate", None)
         data["devices"] = daemon_devices.measure(seconds, smoke=ctx.smoke, rates_hz=rates)
         text += "\n\n" + daemon_devices.markdown(data["devices"])
-    if entries:  # the worst pose gap under a client loading the largest structure (--smoke: the smallest)
+    if (
+        entries
+    ):  # the worst pose gap under a client loading the largest structure (--smoke: the smallest)
         from sasprobe.cli.bench.daemon_loading import loading_gap, markdown
         from sasprobe.molecule import load_default
 
         big = entries[0] if ctx.smoke else entries[-1]
-        data["loading"] = loading_gap(big.path, load_default().source_bytes, seconds) | {"id": big.id}
+        data["loading"] = loading_gap(big.path, load_default().source_bytes, seconds) | {
+            "id": big.id
+        }
         text += markdown(data["loading"], big.id.upper())
     return BenchResult("daemon", data, text, charts)
 
 
 def _mode(r: dict) -> str:
-    daemon = "FIFO" if r["realtime"] else ("normal (FIFO refused)" if r["realtime_requested"] else "normal")
+    daemon = (
+        "FIFO"
+        if r["realtime"]
+        else ("normal (FIFO refused)" if r["realtime_requested"] else "normal")
+    )
     return f"daemon {daemon} / subscriber {'FIFO' if r['subscriber_realtime'] else 'normal'}"
 
 

@@ -50,12 +50,17 @@ def _launch(module: str, options: dict):
     return importlib.import_module(f"tests.emulators.{module}").launch(**options)
 
 
-def _measure_one(spec: tuple[str, dict] | None, warmup_s: float, seconds: float, rate_hz: float | None = None) -> dict:
+def _measure_one(
+    spec: tuple[str, dict] | None, warmup_s: float, seconds: float, rate_hz: float | None = None
+) -> dict:
     from sasprobe.protocol.client import ControlClient
 
     emulator = None if spec is None else _launch(*spec)
     folder = Path(tempfile.mkdtemp(prefix="spbd"))
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH")])))
+    env = dict(
+        os.environ,
+        PYTHONPATH=os.pathsep.join(filter(None, [str(REPO_ROOT), os.environ.get("PYTHONPATH")])),
+    )
     device = "sim"
     if emulator is not None:
         env.update(emulator.env)
@@ -63,8 +68,22 @@ def _measure_one(spec: tuple[str, dict] | None, warmup_s: float, seconds: float,
     ctl = f"ipc://{folder}/ctl"
     recording = folder / "reads.mcap"
     rate = ["--rate", f"{rate_hz:g}"] if rate_hz else []
-    child = DaemonChild(["--device", device, *rate, "--pub", f"ipc://{folder}/pub", "--ctl", ctl,
-                         "--record", str(recording)], folder / "daemon.log", env=env, cwd=folder)
+    child = DaemonChild(
+        [
+            "--device",
+            device,
+            *rate,
+            "--pub",
+            f"ipc://{folder}/pub",
+            "--ctl",
+            ctl,
+            "--record",
+            str(recording),
+        ],
+        folder / "daemon.log",
+        env=env,
+        cwd=folder,
+    )
     try:
         child.wait_ready(READY_S)
         with ControlClient(ctl, timeout_s=10) as client:
@@ -75,7 +94,11 @@ def _measure_one(spec: tuple[str, dict] | None, warmup_s: float, seconds: float,
             status = client.status()
             window = (window[0], time.monotonic_ns())
         child.stop(STOP_S)
-        return {"device": status["device"]["model"], "loop": status["loop"], "reads": _reads(recording, *window)}
+        return {
+            "device": status["device"]["model"],
+            "loop": status["loop"],
+            "reads": _reads(recording, *window),
+        }
     finally:
         child.stop(STOP_S)
         if emulator is not None:
@@ -90,18 +113,29 @@ def _reads(recording: Path, start_ns: int, end_ns: int) -> dict:
 
     from sasprobe.protocol.recording import iter_items
 
-    ticks = [item.data for item in iter_items(recording)
-             if item.topic == "device" and start_ns <= item.log_time <= end_ns]
+    ticks = [
+        item.data
+        for item in iter_items(recording)
+        if item.topic == "device" and start_ns <= item.log_time <= end_ns
+    ]
     read_us = np.array([t["read_ns"] for t in ticks], dtype=float) / 1000.0
     if not read_us.size:
         return {"ticks": 0}
-    return {"ticks": len(ticks), "failed": sum(1 for t in ticks if t.get("error")),
-            "p50_us": float(np.percentile(read_us, 50)), "p99_us": float(np.percentile(read_us, 99)),
-            "max_us": float(read_us.max())}
+    return {
+        "ticks": len(ticks),
+        "failed": sum(1 for t in ticks if t.get("error")),
+        "p50_us": float(np.percentile(read_us, 50)),
+        "p99_us": float(np.percentile(read_us, 99)),
+        "max_us": float(read_us.max()),
+    }
 
 
-def measure(seconds: float, smoke: bool = False, rates_hz: list[float] | None = None,
-            labels: list[str] | None = None) -> dict:
+def measure(
+    seconds: float,
+    smoke: bool = False,
+    rates_hz: list[float] | None = None,
+    labels: list[str] | None = None,
+) -> dict:
     """One row per emulated device and rate (or why there are none); `smoke`: one emulated
     device (the simulated arm runs in the rows before); `rates_hz`: the loop rates to run
     each at (None: the rate each device declares); `labels`: only these rows."""
@@ -115,7 +149,9 @@ def measure(seconds: float, smoke: bool = False, rates_hz: list[float] | None = 
     for label, spec, rate in progress(runs, desc="bench daemon: devices", total=len(runs)):
         try:
             result = _measure_one(spec, warmup_s=1.0, seconds=seconds, rate_hz=rate)
-        except Exception as exc:  # one emulator that cannot start (no C compiler for libHD) skips its row
+        except (
+            Exception
+        ) as exc:  # one emulator that cannot start (no C compiler for libHD) skips its row
             rows.append({"label": label, "error": str(exc).splitlines()[0][:200]})
             continue
         rows.append({"label": label, "load_average_1min": os.getloadavg()[0], **result})
@@ -125,31 +161,40 @@ def measure(seconds: float, smoke: bool = False, rates_hz: list[float] | None = 
 def markdown(data: dict) -> str:
     if "skipped" in data:
         return f"Emulated devices: skipped ({data['skipped']})."
-    lines = ["| device | rate (Hz) | period error p99 / max (µs) | overruns | read p50 / p99 / max (µs) | failed reads "
-             "| tick work p50 / p99 / max (µs) | work vs simulated arm (p50) | load avg |",
-             "|---|---:|---|---:|---|---:|---|---:|---:|"]
-    base = next((r for r in data["rows"] if r["label"].startswith("simulated") and "loop" in r), None)
+    lines = [
+        "| device | rate (Hz) | period error p99 / max (µs) | overruns | read p50 / p99 / max (µs) | failed reads "
+        "| tick work p50 / p99 / max (µs) | work vs simulated arm (p50) | load avg |",
+        "|---|---:|---|---:|---|---:|---|---:|---:|",
+    ]
+    base = next(
+        (r for r in data["rows"] if r["label"].startswith("simulated") and "loop" in r), None
+    )
     for r in data["rows"]:
         if "error" in r:
             lines.append(f"| {r['label']} | not run: {r['error']} | | | | | | | |")
             continue
         loop, err, work = r["loop"], r["loop"]["period_error_us"], r["loop"]["work_us"]
-        ratio = (work["recent_p50"] / base["loop"]["work_us"]["recent_p50"]
-                 if base and work["recent_p50"] and base["loop"]["work_us"]["recent_p50"] else None)
+        ratio = (
+            work["recent_p50"] / base["loop"]["work_us"]["recent_p50"]
+            if base and work["recent_p50"] and base["loop"]["work_us"]["recent_p50"]
+            else None
+        )
         reads = r.get("reads", {})
         lines.append(
             f"| {r['label']} | {loop['rate_hz']:.1f} | {_f(err['p99'])} / {_f(err['max'])} | {loop['overruns']} | "
             f"{_f(reads.get('p50_us'))} / {_f(reads.get('p99_us'))} / {_f(reads.get('max_us'))} | "
             f"{reads.get('failed', '-')} of {reads.get('ticks', 0)} | "
             f"{_f(work['recent_p50'])} / {_f(work['recent_p99'])} / {_f(work['max'])} | "
-            f"{'-' if ratio is None else f'{ratio:.2f}×'} | {r['load_average_1min']:.1f} |")
+            f"{'-' if ratio is None else f'{ratio:.2f}×'} | {r['load_average_1min']:.1f} |"
+        )
     return (
         f"Emulated devices: `sasprobe daemon --device ...` at the rate each device declares (or as `--device-rate` "
         f"says) for {data['seconds']:g} s (after a 1 s "
         "warm-up) on each device-side emulator of `tests/emulators/`, the emulator running in the benchmark "
         "process as the hardware would beside the host; tick work is read + haptics + write + publish; read times and "
         "failed reads come from the daemon's recording of the same window. A driver whose read waited on its link "
-        "would show as overruns and a read p99 near its period.\n\n" + "\n".join(lines))
+        "would show as overruns and a read p99 near its period.\n\n" + "\n".join(lines)
+    )
 
 
 def _f(v) -> str:

@@ -38,7 +38,9 @@ class _Watch:
         self._sock.setsockopt(zmq.SUBSCRIBE, b"pose")
         self._sock.connect(pub)
         self._threads = [threading.Thread(target=self._collect, daemon=True)] + [
-            threading.Thread(target=self._sentinel, args=(cpu,), daemon=True) for cpu in sorted(os.sched_getaffinity(0))]
+            threading.Thread(target=self._sentinel, args=(cpu,), daemon=True)
+            for cpu in sorted(os.sched_getaffinity(0))
+        ]
         for t in self._threads:
             t.start()
 
@@ -50,7 +52,11 @@ class _Watch:
             if not self._sock.poll(50):
                 continue
             pose = decode_pose(self._sock.recv_multipart()[1])
-            if last is not None and pose.seq == last[0] + 1 and pose.publish_t_ns - last[1] > GAP_NS:
+            if (
+                last is not None
+                and pose.seq == last[0] + 1
+                and pose.publish_t_ns - last[1] > GAP_NS
+            ):
                 self.gaps.append((last[1], pose.publish_t_ns))
             last = (pose.seq, pose.publish_t_ns)
             self.poses += 1
@@ -89,8 +95,10 @@ def loading_gap(big: Path, small_bytes: bytes, seconds: float) -> dict:
     from sasprobe.protocol.client import ControlClient
 
     folder = Path(tempfile.mkdtemp(prefix="spl"))
-    child = DaemonChild(["--device", "sim", "--pub", f"ipc://{folder}/p", "--ctl", f"ipc://{folder}/c"],
-                        folder / "daemon.log")
+    child = DaemonChild(
+        ["--device", "sim", "--pub", f"ipc://{folder}/p", "--ctl", f"ipc://{folder}/c"],
+        folder / "daemon.log",
+    )
     try:
         ready = child.wait_ready(90.0)
         watch = _Watch(f"ipc://{folder}/p")
@@ -109,10 +117,18 @@ def loading_gap(big: Path, small_bytes: bytes, seconds: float) -> dict:
             t2 = time.monotonic_ns()
         finally:
             watch.close()
-        return {"realtime": bool(ready.get("realtime")), "seconds": seconds, "loads_of_big": loads, "atoms_of_big": atoms,
-                "idle": watch.window(t0, t1), "loading": watch.window(t1, t2), "poses": watch.poses,
-                "machine_pauses": len(watch.pauses), "daemon_stalls": status["loop"]["stalls"],
-                "load_average_1min": os.getloadavg()[0]}
+        return {
+            "realtime": bool(ready.get("realtime")),
+            "seconds": seconds,
+            "loads_of_big": loads,
+            "atoms_of_big": atoms,
+            "idle": watch.window(t0, t1),
+            "loading": watch.window(t1, t2),
+            "poses": watch.poses,
+            "machine_pauses": len(watch.pauses),
+            "daemon_stalls": status["loop"]["stalls"],
+            "load_average_1min": os.getloadavg()[0],
+        }
     finally:
         child.stop(30.0)
         shutil.rmtree(folder, ignore_errors=True)

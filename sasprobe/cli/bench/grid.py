@@ -6,10 +6,10 @@ import numpy as np
 
 from sasprobe.cli.bench import BenchContext, BenchResult, median_time
 from sasprobe.cli.bench.charts import figure, save
-from sasprobe.common.errors import UserError
-from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid, load_default, load_structure
 from sasprobe.cli.reference_data import MISSING, reference_structures
+from sasprobe.common.errors import UserError
 from sasprobe.common.progress import progress
+from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid, load_default, load_structure
 
 TITLE = "Structure loading and uniform grid"
 
@@ -20,7 +20,9 @@ def run(ctx: BenchContext) -> BenchResult:
         raise UserError(MISSING)
     if ctx.smoke:
         entries = entries[:1]
-    load_repeats, grid_repeats, query_points = (1, 1, 20) if ctx.smoke else (1, 3, 200) if ctx.quick else (3, 7, 2000)
+    load_repeats, grid_repeats, query_points = (
+        (1, 1, 20) if ctx.smoke else (1, 3, 200) if ctx.quick else (3, 7, 2000)
+    )
     rng = np.random.default_rng(7)
     rows = []
     for entry in progress(entries, desc="bench grid", total=len(entries)):
@@ -35,7 +37,9 @@ def run(ctx: BenchContext) -> BenchResult:
         dirs = rng.normal(size=(query_points, 3))
         dirs /= np.linalg.norm(dirs, axis=1)[:, None]
         points = structure.positions[picks] + dirs * radii[picks, None]
-        query_s = median_time(lambda: [grid.spheres_within(p, DEFAULT_PROBE_RADIUS) for p in points], 3)
+        query_s = median_time(
+            lambda: [grid.spheres_within(p, DEFAULT_PROBE_RADIUS) for p in points], 3
+        )
         rows.append(
             {
                 "id": entry.id,

@@ -22,13 +22,13 @@ import time
 
 import numpy as np
 
-from sasprobe.cli.bench import BenchContext, BenchResult
-from sasprobe.common.errors import UserError
-from sasprobe.molecule import load_structure
-from sasprobe.cli.reference_data import MISSING, reference_structures
-from sasprobe.common.progress import progress
-from sasprobe.protocol.scene import HAPTIC_METHODS as METHODS
 from sasprobe.cli.argtypes import positive_float
+from sasprobe.cli.bench import BenchContext, BenchResult
+from sasprobe.cli.reference_data import MISSING, reference_structures
+from sasprobe.common.errors import UserError
+from sasprobe.common.progress import progress
+from sasprobe.molecule import load_structure
+from sasprobe.protocol.scene import HAPTIC_METHODS as METHODS
 
 TITLE = "Haptic rendering: per-tick cost, penetration, continuity, passivity, stability"
 
@@ -58,12 +58,24 @@ def _cube_half(text: str) -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--structures", help="comma-separated reference structure ids (default: all; --quick: 4)")
-    parser.add_argument("--ticks", type=_positive_int, help="control ticks per timing session (default 10000, --quick 3000)")
-    parser.add_argument("--repeats", type=_positive_int, help="timing replays per session (default 5, --quick 3)")
+    parser.add_argument(
+        "--structures", help="comma-separated reference structure ids (default: all; --quick: 4)"
+    )
+    parser.add_argument(
+        "--ticks",
+        type=_positive_int,
+        help="control ticks per timing session (default 10000, --quick 3000)",
+    )
+    parser.add_argument(
+        "--repeats", type=_positive_int, help="timing replays per session (default 5, --quick 3)"
+    )
     parser.add_argument("--no-map", action="store_true", help="skip the stability map")
-    parser.add_argument("--cube-half", type=_cube_half, default=CUBE_HALF_A,
-                        help=f"navigation cube half edge in Å on the top surface (default {CUBE_HALF_A:g}; 0 = fit the molecule)")
+    parser.add_argument(
+        "--cube-half",
+        type=_cube_half,
+        default=CUBE_HALF_A,
+        help=f"navigation cube half edge in Å on the top surface (default {CUBE_HALF_A:g}; 0 = fit the molecule)",
+    )
 
 
 def run(ctx: BenchContext, args: argparse.Namespace | None = None) -> BenchResult:
@@ -79,10 +91,17 @@ def run(ctx: BenchContext, args: argparse.Namespace | None = None) -> BenchResul
     stability = None if getattr(args, "no_map", False) else _stability_map(ctx)
     trace = _force_trace(1000 if ctx.smoke else 4000)
     charts = _charts(ctx, rows, stability, trace, cube_half)
-    data = {"ticks_per_session": ticks, "repeats": repeats, "cube_half_A": cube_half or None, "rows": rows}
+    data = {
+        "ticks_per_session": ticks,
+        "repeats": repeats,
+        "cube_half_A": cube_half or None,
+        "rows": rows,
+    }
     if stability is not None:
         data["stability"] = stability
-    return BenchResult("haptics", data, _markdown(rows, stability, ticks, repeats, cube_half), charts)
+    return BenchResult(
+        "haptics", data, _markdown(rows, stability, ticks, repeats, cube_half), charts
+    )
 
 
 def _entries(ids: str | None, ctx: BenchContext):
@@ -91,23 +110,31 @@ def _entries(ids: str | None, ctx: BenchContext):
         raise UserError(MISSING)
     if ctx.smoke and not ids:
         return entries[:1]
-    wanted = [i.strip() for i in ids.split(",")] if ids else (list(QUICK_IDS) if ctx.quick else None)
+    wanted = (
+        [i.strip() for i in ids.split(",")] if ids else (list(QUICK_IDS) if ctx.quick else None)
+    )
     if wanted is None:
         return entries
     by_id = {e.id: e for e in entries}
     unknown = [i for i in wanted if i not in by_id]
     if unknown:
-        raise UserError(f"unknown reference structure(s): {', '.join(unknown)} (known: {', '.join(by_id)})")
+        raise UserError(
+            f"unknown reference structure(s): {', '.join(unknown)} (known: {', '.join(by_id)})"
+        )
     return [by_id[i] for i in wanted]
 
 
 # ------------------------------------------------------------------ sessions
-def closed_loop_session(structure, script, method, settings_kw, limits, ticks, rate_hz=1000, seed=1):
+def closed_loop_session(
+    structure, script, method, settings_kw, limits, ticks, rate_hz=1000, seed=1
+):
     """Closed loop sim arm <-> engine; returns the states, outputs and the arm."""
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices.simulated import make_simulated
 
-    device = make_simulated(script, structure=structure, rate_hz=rate_hz, seed=seed, limits=limits, **settings_kw)
+    device = make_simulated(
+        script, structure=structure, rate_hz=rate_hz, seed=seed, limits=limits, **settings_kw
+    )
     engine = HapticEngine(structure, limits, HapticSettings(method=method, **settings_kw))
     device.open()
     states, outputs = [], []
@@ -121,7 +148,9 @@ def closed_loop_session(structure, script, method, settings_kw, limits, ticks, r
     return states, outputs, device
 
 
-def _replay_times(structure, method, settings_kw, limits, states, repeats) -> tuple[np.ndarray, np.ndarray]:
+def _replay_times(
+    structure, method, settings_kw, limits, states, repeats
+) -> tuple[np.ndarray, np.ndarray]:
     """(per-tick minimum over replays, first replay) in µs."""
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
 
@@ -156,8 +185,11 @@ def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> di
     from sasprobe.devices.surface import surface_site
 
     limits = PHANTOM_OMNI_LIMITS
-    settings_kw = ({"cube_half_A": cube_half, "cube_center_A": surface_site(structure, cube_half)} if cube_half
-                   else {"cube_half_A": "fit"})
+    settings_kw = (
+        {"cube_half_A": cube_half, "cube_center_A": surface_site(structure, cube_half)}
+        if cube_half
+        else {"cube_half_A": "fit"}
+    )
     t0 = time.perf_counter()
     engine = HapticEngine(structure, limits, HapticSettings(method=method, **settings_kw))
     setup_s = time.perf_counter() - t0
@@ -166,7 +198,9 @@ def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> di
     jumps = []
     energy = contact = clamped = 0.0
     for script in SCRIPTS:
-        states, outputs, device = closed_loop_session(structure, script, method, settings_kw, limits, ticks)
+        states, outputs, device = closed_loop_session(
+            structure, script, method, settings_kw, limits, ticks
+        )
         b, s = _replay_times(structure, method, settings_kw, limits, states, repeats)
         best.append(b)
         single.append(s)
@@ -179,7 +213,11 @@ def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> di
         energy += device.work_mj
         contact += sum(o.contact for o in outputs)
         clamped += sum(o.clamped for o in outputs)
-    best_all, single_all, jumps_all = np.concatenate(best), np.concatenate(single), np.concatenate(jumps)
+    best_all, single_all, jumps_all = (
+        np.concatenate(best),
+        np.concatenate(single),
+        np.concatenate(jumps),
+    )
     n = len(best_all)
     return {
         "id": entry_id,
@@ -210,8 +248,11 @@ def _stability_map(ctx: BenchContext) -> dict:
     from sasprobe.molecule import load_default
 
     structure = load_default()
-    stiffness, rates = (SMOKE_STIFFNESS, SMOKE_RATES_HZ) if ctx.smoke else \
-        (QUICK_STIFFNESS if ctx.quick else STIFFNESS, RATES_HZ)
+    stiffness, rates = (
+        (SMOKE_STIFFNESS, SMOKE_RATES_HZ)
+        if ctx.smoke
+        else (QUICK_STIFFNESS if ctx.quick else STIFFNESS, RATES_HZ)
+    )
     # explore beyond the arm's rated stiffness to show where the frontier lies
     limits = dataclasses.replace(PHANTOM_OMNI_LIMITS, max_stiffness_n_per_mm=max(stiffness))
     cells = []
@@ -240,9 +281,17 @@ def _stability_cell(structure, method, rate, stiffness, limits) -> dict:
 
     # The whole molecule, and a hand without a person's limit: where each method breaks.
     fit = {"cube_half_A": "fit"}
-    device = make_simulated("press", structure=structure, rate_hz=rate, limits=limits,
-                            arm=ArmModel(max_hand_force_n=math.inf), **fit)
-    engine = HapticEngine(structure, limits, HapticSettings(method=method, stiffness_n_per_mm=stiffness, **fit))
+    device = make_simulated(
+        "press",
+        structure=structure,
+        rate_hz=rate,
+        limits=limits,
+        arm=ArmModel(max_hand_force_n=math.inf),
+        **fit,
+    )
+    engine = HapticEngine(
+        structure, limits, HapticSettings(method=method, stiffness_n_per_mm=stiffness, **fit)
+    )
     push = np.asarray(device.script.info["push_direction"])
     device.open()
     along = 0.0
@@ -269,7 +318,9 @@ def _force_trace(ticks: int) -> dict:
     structure = load_default()
     trace = {}
     for method in METHODS:
-        _, outputs, device = closed_loop_session(structure, "dive", method, {"cube_half_A": "fit"}, PHANTOM_OMNI_LIMITS, ticks=ticks)
+        _, outputs, device = closed_loop_session(
+            structure, "dive", method, {"cube_half_A": "fit"}, PHANTOM_OMNI_LIMITS, ticks=ticks
+        )
         trace[method] = [float(np.linalg.norm(o.force_n)) for o in outputs]
     return trace
 
@@ -285,13 +336,23 @@ def _charts(ctx: BenchContext, rows, stability, trace, cube_half) -> list:
         for method, marker, color in zip(METHODS, "os", ("tab:blue", "tab:orange")):
             sel = [r for r in rows if r["method"] == method]
             atoms = [r["n_atoms"] for r in sel]
-            ax.semilogx(atoms, [r["p50_us"] for r in sel], marker + "-", color=color, label=f"{method} p50")
-            ax.semilogx(atoms, [r["p99_us"] for r in sel], marker + "--", color=color, mfc="none",
-                        label=f"{method} p99")
+            ax.semilogx(
+                atoms, [r["p50_us"] for r in sel], marker + "-", color=color, label=f"{method} p50"
+            )
+            ax.semilogx(
+                atoms,
+                [r["p99_us"] for r in sel],
+                marker + "--",
+                color=color,
+                mfc="none",
+                label=f"{method} p99",
+            )
         ax.axhline(100, color="red", lw=1, ls=":", label="target p99 100 µs")
         ax.set_xlabel("atoms")
         ax.set_ylabel("force computation per tick (µs)")
-        ax.set_title(f"Per-tick cost vs molecule size ({f'same {cube_half:g} Å cube' if cube_half else 'fitted cube'})")
+        ax.set_title(
+            f"Per-tick cost vs molecule size ({f'same {cube_half:g} Å cube' if cube_half else 'fitted cube'})"
+        )
         ax.set_ylim(bottom=0)
         ax.legend(fontsize=8)
         charts.append(save(fig, path))
@@ -320,7 +381,9 @@ def _stability_figure(stability):
 
     rates, ks = stability["rates_hz"], stability["stiffness_n_per_mm"]
     fig, axes = plt.subplots(1, 2, figsize=(9.6, 4.0), dpi=110, sharey=True)
-    cmap = ListedColormap(["#7fc97f", "#fdc086", "#e06666", "#a83232"])  # stable, pop, unstable, both
+    cmap = ListedColormap(
+        ["#7fc97f", "#fdc086", "#e06666", "#a83232"]
+    )  # stable, pop, unstable, both
     for ax, method in zip(axes, METHODS):
         grid = np.zeros((len(ks), len(rates)))
         for c in stability["cells"]:
@@ -337,22 +400,32 @@ def _stability_figure(stability):
         # passivity bound K < 2 (b - B) / T (Colgate & Schenkel) and the arm's rated stiffness
         b = stability["physical_damping_n_s_per_m"] - stability["virtual_damping_n_s_per_m"]
         bound = [2 * b * r / 1000.0 for r in rates]  # N/mm
-        ax.plot(range(len(rates)), np.interp(bound, ks, range(len(ks)), left=-0.5, right=len(ks) - 0.5), "k--", lw=1,
-                label="passivity bound 2(b-B)/T")
+        ax.plot(
+            range(len(rates)),
+            np.interp(bound, ks, range(len(ks)), left=-0.5, right=len(ks) - 0.5),
+            "k--",
+            lw=1,
+            label="passivity bound 2(b-B)/T",
+        )
         dev = np.interp(stability["device_max_stiffness_n_per_mm"], ks, range(len(ks)))
         ax.axhline(dev, color="k", lw=1, ls=":", label="Omni rated max")
     axes[0].set_ylabel("stiffness (N/mm)")
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=2, fontsize=8, frameon=False)
-    fig.suptitle("Press into 1CRN: green stable, orange pop-through, red energy gain (mJ per cycle in cells)",
-                 fontsize=9)
+    fig.suptitle(
+        "Press into 1CRN: green stable, orange pop-through, red energy gain (mJ per cycle in cells)",
+        fontsize=9,
+    )
     fig.tight_layout(rect=(0, 0.07, 1, 1))
     return fig
 
 
 def _markdown(rows, stability, ticks, repeats, cube_half) -> str:
-    cube = (f"navigation cube half edge {cube_half:g} Å on the top surface of every structure (same Å/mm)"
-            if cube_half else "navigation cube fitted to each molecule (Å/mm grows with size)")
+    cube = (
+        f"navigation cube half edge {cube_half:g} Å on the top surface of every structure (same Å/mm)"
+        if cube_half
+        else "navigation cube fitted to each molecule (Å/mm grows with size)"
+    )
     lines = [
         f"Simulated arm, 1 kHz, scripts {' + '.join(SCRIPTS)} ({ticks} ticks each), {cube}. Per-tick time: minimum over "
         f"{repeats} replays of the recorded states (single-run p99 beside it). Penetration: deepest the rendered "
@@ -386,10 +459,18 @@ def _stability_markdown(stability) -> str:
         "",
     ]
     for method in METHODS:
-        out += [f"{method}:", "", "| N/mm | " + " | ".join(f"{r} Hz" for r in rates) + " |",
-                "|---:|" + "---:|" * len(rates)]
+        out += [
+            f"{method}:",
+            "",
+            "| N/mm | " + " | ".join(f"{r} Hz" for r in rates) + " |",
+            "|---:|" + "---:|" * len(rates),
+        ]
         for k in stability["stiffness_n_per_mm"]:
-            cells = {c["rate_hz"]: c for c in stability["cells"] if c["method"] == method and c["stiffness_n_per_mm"] == k}
+            cells = {
+                c["rate_hz"]: c
+                for c in stability["cells"]
+                if c["method"] == method and c["stiffness_n_per_mm"] == k
+            }
             text = []
             for r in rates:
                 c = cells[r]

@@ -14,43 +14,87 @@ from sasprobe.cli.bench import BenchContext, BenchResult
 from sasprobe.cli.bench import lighting_ao as ao_bench
 from sasprobe.cli.bench import lighting_precomputed as precomputed_bench
 from sasprobe.cli.bench import lighting_shadows as shadow_bench
-from sasprobe.cli.bench.lighting_scene import fitted_scene, gl_context, gpu_time, scene_with_coverage
+from sasprobe.cli.bench.lighting_scene import (
+    fitted_scene,
+    gl_context,
+    gpu_time,
+    scene_with_coverage,
+)
 from sasprobe.cli.bench.machine import gl_renderer
 from sasprobe.cli.bench.render import CUBE_TARGET_ATOMS, cube_for
-from sasprobe.common.errors import UserError
-from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
 from sasprobe.cli.reference_data import MISSING, reference_structures
+from sasprobe.common.errors import UserError
 from sasprobe.common.progress import progress
+from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
 from sasprobe.render.lighting.grid import GpuGrid
-from sasprobe.render.lighting.settings import DirectionalLight, PathTracing
 from sasprobe.render.lighting.path_tracer import PathTracer
+from sasprobe.render.lighting.settings import DirectionalLight, PathTracing
 
 TITLE = "Lighting: shadows and ambient occlusion, speed vs accuracy"
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--probe-light-only", action="store_true",
-                        help="only the lights' shadows: grid walk vs their light buffers")
+    parser.add_argument(
+        "--probe-light-only",
+        action="store_true",
+        help="only the lights' shadows: grid walk vs their light buffers",
+    )
 
 
 def _plan(ctx: BenchContext, smallest: str) -> dict:
     if ctx.smoke:  # the smallest structure for every part, tiny frames, one repeat
         one = (smallest,)
-        return {"ao_id": smallest, "ao_size": (32, 24), "ref_spp": 64, "repeats": 1, "sweep_size": (32, 24),
-                "sweep_ids": one, "cells": (3.2,), "scaling_ids": one, "heights": (1.0,), "distant_size": (24, 18),
-                "distant_spp": 64, "bake_ids": one, "cube_id": smallest, "patches": (4,), "probe_ids": one,
-                "probe_size": (32, 24)}
+        return {
+            "ao_id": smallest,
+            "ao_size": (32, 24),
+            "ref_spp": 64,
+            "repeats": 1,
+            "sweep_size": (32, 24),
+            "sweep_ids": one,
+            "cells": (3.2,),
+            "scaling_ids": one,
+            "heights": (1.0,),
+            "distant_size": (24, 18),
+            "distant_spp": 64,
+            "bake_ids": one,
+            "cube_id": smallest,
+            "patches": (4,),
+            "probe_ids": one,
+            "probe_size": (32, 24),
+        }
     if ctx.quick:
-        return {"ao_size": (160, 120), "ref_spp": 256, "repeats": 3, "sweep_size": (96, 72),
-                "sweep_ids": ("1crn", "3sn6"), "cells": (3.2, 12.8), "scaling_ids": ("1crn", "3sn6", "1aon"),
-                "heights": (1.0, 4.0, 8.0), "distant_size": (96, 72), "distant_spp": 64,  # keeps --quick < 5 min
-                "bake_ids": ("1crn", "1tii"), "patches": (4, 8, 16), "probe_ids": ("1crn", "3sn6"),
-                "probe_size": (160, 120)}
-    return {"ao_size": (320, 240), "ref_spp": 1024, "repeats": 7, "sweep_size": (200, 150),
-            "sweep_ids": ("1crn", "1oky", "3sn6"), "cells": (2.0, 3.2, 4.8, 9.6, 16.0, 32.0), "scaling_ids": None,
-            "heights": (0.5, 1.0, 2.0, 4.0, 6.0, 8.0, 12.0), "distant_size": (192, 144), "distant_spp": 256,
-            "bake_ids": None, "patches": (4, 6, 8, 12, 16, 24, 32), "probe_ids": ("1crn", "1tii", "1aon", "6zu5"),
-            "probe_size": (800, 600)}
+        return {
+            "ao_size": (160, 120),
+            "ref_spp": 256,
+            "repeats": 3,
+            "sweep_size": (96, 72),
+            "sweep_ids": ("1crn", "3sn6"),
+            "cells": (3.2, 12.8),
+            "scaling_ids": ("1crn", "3sn6", "1aon"),
+            "heights": (1.0, 4.0, 8.0),
+            "distant_size": (96, 72),
+            "distant_spp": 64,  # keeps --quick < 5 min
+            "bake_ids": ("1crn", "1tii"),
+            "patches": (4, 8, 16),
+            "probe_ids": ("1crn", "3sn6"),
+            "probe_size": (160, 120),
+        }
+    return {
+        "ao_size": (320, 240),
+        "ref_spp": 1024,
+        "repeats": 7,
+        "sweep_size": (200, 150),
+        "sweep_ids": ("1crn", "1oky", "3sn6"),
+        "cells": (2.0, 3.2, 4.8, 9.6, 16.0, 32.0),
+        "scaling_ids": None,
+        "heights": (0.5, 1.0, 2.0, 4.0, 6.0, 8.0, 12.0),
+        "distant_size": (192, 144),
+        "distant_spp": 256,
+        "bake_ids": None,
+        "patches": (4, 6, 8, 12, 16, 24, 32),
+        "probe_ids": ("1crn", "1tii", "1aon", "6zu5"),
+        "probe_size": (800, 600),
+    }
 
 
 def run(ctx: BenchContext, args=None) -> BenchResult:
@@ -76,10 +120,25 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
         rows = shadow_bench.probe_light(gl, ids, plan["probe_size"], plan["repeats"])
         suns = shadow_bench.sun_light(gl, ids, plan["probe_size"], plan["repeats"])
         gl.release()
-        data = {"gl_renderer": renderer, "probe_light": rows, "sun_light": suns, "probe_light_size": list(plan["probe_size"])}
-        return BenchResult("lighting", data, "\n".join([f"GL renderer: **{renderer}**.", "",
-                                                        *shadow_bench.probe_light_markdown(rows, plan["probe_size"]), "",
-                                                        *shadow_bench.sun_light_markdown(suns, plan["probe_size"])]))
+        data = {
+            "gl_renderer": renderer,
+            "probe_light": rows,
+            "sun_light": suns,
+            "probe_light_size": list(plan["probe_size"]),
+        }
+        return BenchResult(
+            "lighting",
+            data,
+            "\n".join(
+                [
+                    f"GL renderer: **{renderer}**.",
+                    "",
+                    *shadow_bench.probe_light_markdown(rows, plan["probe_size"]),
+                    "",
+                    *shadow_bench.sun_light_markdown(suns, plan["probe_size"]),
+                ]
+            ),
+        )
     steps = progress(range(7), desc="bench lighting", total=7)
     # --- AO: every method vs the reference, on a mid-size protein filling the view
     next(steps)
@@ -105,24 +164,37 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     scaling_scenes = []
     for sid in [i for i in ids if i in by_id]:
         g = GpuGrid.from_structure(gl, structure(sid), DEFAULT_PROBE_RADIUS)
-        scaling_scenes.append((sid, structure(sid).n_atoms,
-                               scene_with_coverage(g, plan["ao_size"], shadow_bench.COVERAGE)))
+        scaling_scenes.append(
+            (
+                sid,
+                structure(sid).n_atoms,
+                scene_with_coverage(g, plan["ao_size"], shadow_bench.COVERAGE),
+            )
+        )
     scaling = ao_bench.analytic_scaling(gl, scaling_scenes, plan["repeats"])
     for _, _, s in scaling_scenes:
         s.release()
         s.grid.release()
     # --- SSAO (and others) against distant occluders
     next(steps)
-    distant = ao_bench.distant_occluders(gl, plan["heights"], plan["distant_size"], plan["distant_spp"])
+    distant = ao_bench.distant_occluders(
+        gl, plan["heights"], plan["distant_size"], plan["distant_spp"]
+    )
     # --- shadows: cell-size sweep
     next(steps)
     sweep = []
     for sid in [i for i in plan["sweep_ids"] if i in by_id]:
-        sweep += shadow_bench.cell_sweep(gl, sid, structure(sid), plan["sweep_size"], plan["cells"], plan["repeats"])
+        sweep += shadow_bench.cell_sweep(
+            gl, sid, structure(sid), plan["sweep_size"], plan["cells"], plan["repeats"]
+        )
     # --- shadows bounded by the navigation cube
     next(steps)
-    cube = shadow_bench.cube_bounded(gl, [(sid, structure(sid)) for sid in ids if sid in by_id], plan["sweep_size"],
-                                     plan["repeats"])
+    cube = shadow_bench.cube_bounded(
+        gl,
+        [(sid, structure(sid)) for sid in ids if sid in by_id],
+        plan["sweep_size"],
+        plan["repeats"],
+    )
     # --- the probe light: grid walk vs light buffer
     next(steps)
     probe_structures = [(i, structure(i)) for i in plan["probe_ids"] if i in by_id]
@@ -133,7 +205,9 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     bake_ids = [i for i in (plan["bake_ids"] or tuple(e.id for e in entries)) if i in by_id]
     largest = plan.get("cube_id") or max(by_id, key=lambda k: by_id[k].atoms)  # baked for its cube
     bake_structures = [(sid, structure(sid)) for sid in dict.fromkeys([*bake_ids, largest])]
-    bakes = precomputed_bench.bake_scaling(gl, bake_structures, lambda s: cube_for(s, CUBE_TARGET_ATOMS))
+    bakes = precomputed_bench.bake_scaling(
+        gl, bake_structures, lambda s: cube_for(s, CUBE_TARGET_ATOMS)
+    )
     if plan["bake_ids"] is not None:  # quick: the largest only for its cube
         bakes = [r for r in bakes if r["cube"] or r["structure"] in plan["bake_ids"]]
     gl.release()
@@ -142,15 +216,21 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     if ctx.out_dir is not None:
         charts = [
             ao_bench.pareto_chart(ao["rows"], ctx.chart_path("lighting_ao_pareto.png"), renderer),
-            ao_bench.comparison_figure(ao["images"], ao["mask"], ctx.chart_path("lighting_ao_comparison.png")),
+            ao_bench.comparison_figure(
+                ao["images"], ao["mask"], ctx.chart_path("lighting_ao_comparison.png")
+            ),
             ao_bench.k_chart(ao["analytic_k"], ctx.chart_path("lighting_ao_neighbours.png")),
-            ao_bench.noise_chart(ao["noise"], ao["images"], ao["mask"], ctx.chart_path("lighting_ao_noise.png")),
+            ao_bench.noise_chart(
+                ao["noise"], ao["images"], ao["mask"], ctx.chart_path("lighting_ao_noise.png")
+            ),
             ao_bench.scaling_chart(scaling, ctx.chart_path("lighting_ao_scaling.png")),
             ao_bench.distant_chart(distant, ctx.chart_path("lighting_ao_distant.png")),
             shadow_bench.sweep_chart(sweep, ctx.chart_path("lighting_shadow_cells.png")),
             shadow_bench.cube_chart(cube, ctx.chart_path("lighting_shadow_cube.png")),
             precomputed_bench.scaling_chart(bakes, ctx.chart_path("lighting_precomputed_bake.png")),
-            precomputed_bench.patch_chart(sweep_patches, ctx.chart_path("lighting_precomputed_patch.png")),
+            precomputed_bench.patch_chart(
+                sweep_patches, ctx.chart_path("lighting_precomputed_patch.png")
+            ),
         ]
     data = {
         "gl_renderer": renderer,
@@ -212,8 +292,10 @@ def _markdown(d: dict, plan: dict) -> str:
     ]
     for r in d["ao"]:
         bake = f" (bake {r['bake_s']:.2f} s once)" if r.get("bake_s") is not None else ""
-        lines.append(f"| {r['method']}{bake} | {r['ms']:.1f} | {r['rmse']:.4f} | {r['max_error']:.3f} | "
-                     f"{r['bias']:+.4f} |")
+        lines.append(
+            f"| {r['method']}{bake} | {r['ms']:.1f} | {r['rmse']:.4f} | {r['max_error']:.3f} | "
+            f"{r['bias']:+.4f} |"
+        )
     lines += [
         f"| path tracing, 1 spp, 3 bounces (for scale) | {d['path_trace_1spp_3_bounces_ms']:.1f} | | | |",
         "",
@@ -221,7 +303,10 @@ def _markdown(d: dict, plan: dict) -> str:
         + ", ".join(f"K={r['k']}: RMSE {r['rmse']:.3f}" for r in d["analytic_k"]),
         "",
         "Ray-traced AO noise before/after the bilateral blur: "
-        + ", ".join(f"{r['spp']} spp {r['raw']['rmse']:.3f} → {r['blurred']['rmse']:.3f}" for r in d["noise"]),
+        + ", ".join(
+            f"{r['spp']} spp {r['raw']['rmse']:.3f} → {r['blurred']['rmse']:.3f}"
+            for r in d["noise"]
+        ),
         "",
         "### AO cost against molecule size (equal screen coverage: about half the pixels show atoms)",
         "",
@@ -229,8 +314,10 @@ def _markdown(d: dict, plan: dict) -> str:
         "|---|---:|---:|---:|---:|---:|---:|",
     ]
     for r in d["ao_scaling"]:
-        lines.append(f"| {r['structure']} | {r['atoms']} | {r['coverage']:.2f} | {r['analytic_ms']:.2f} | "
-                     f"{r['analytic32_ms']:.2f} | {r['ssao_ms']:.2f} | {r['rt1_ms']:.2f} |")
+        lines.append(
+            f"| {r['structure']} | {r['atoms']} | {r['coverage']:.2f} | {r['analytic_ms']:.2f} | "
+            f"{r['analytic32_ms']:.2f} | {r['ssao_ms']:.2f} | {r['rt1_ms']:.2f} |"
+        )
     lines += [
         "",
         f"Analytic AO: largest / smallest time {d['analytic_spread']:.2f}; largest deviation from "
@@ -242,7 +329,11 @@ def _markdown(d: dict, plan: dict) -> str:
         "|---:|" + "---:|" * (len(d["distant_occluders"][0]) - 1),
     ]
     for r in d["distant_occluders"]:
-        lines.append(f"| {r['height']:g} | " + " | ".join(f"{v:.3f}" for k, v in r.items() if k != "height") + " |")
+        lines.append(
+            f"| {r['height']:g} | "
+            + " | ".join(f"{v:.3f}" for k, v in r.items() if k != "height")
+            + " |"
+        )
     sw, sh = d["shadow_size"]
     lines += [
         "",
@@ -253,13 +344,17 @@ def _markdown(d: dict, plan: dict) -> str:
     ]
     for r in d["shadow_cells"]:
         mark = " (default)" if r["default"] else (" (brute force)" if r["brute_force"] else "")
-        lines.append(f"| {r['structure']} | {r['atoms']} | {r['cell_size']:.1f}{mark} | {r['cells']} | "
-                     f"{r['grid_bytes'] / 2**20:.2f} | {r['hard_ms']:.1f} | {r['soft_ms']:.1f} | "
-                     f"{r['soft_ms'] / r['hard_ms']:.2f} |")
+        lines.append(
+            f"| {r['structure']} | {r['atoms']} | {r['cell_size']:.1f}{mark} | {r['cells']} | "
+            f"{r['grid_bytes'] / 2**20:.2f} | {r['hard_ms']:.1f} | {r['soft_ms']:.1f} | "
+            f"{r['soft_ms'] / r['hard_ms']:.2f} |"
+        )
     lines.append("")
     for name, s in d["shadow_grid"].items():
-        lines.append(f"- {name} ({s['atoms']} atoms): grid {s['grid_speedup']:.1f}× faster than brute force "
-                     f"(target ≥ 20× at ~10k atoms); soft / hard {s['soft_over_hard']:.2f} (target ≤ 1.30)")
+        lines.append(
+            f"- {name} ({s['atoms']} atoms): grid {s['grid_speedup']:.1f}× faster than brute force "
+            f"(target ≥ 20× at ~10k atoms); soft / hard {s['soft_over_hard']:.2f} (target ≤ 1.30)"
+        )
     lines += [
         "",
         f"### Shadows bounded by a {2 * shadow_bench.CUBE_HALF:g} Å navigation cube ({sw}×{sh}, camera framing "
@@ -269,13 +364,26 @@ def _markdown(d: dict, plan: dict) -> str:
         "|---|---:|---:|---:|---:|---:|---:|",
     ]
     for r in d["cube_shadows"]:
-        lines.append(f"| {r['structure']} | {r['atoms']} | {r['cube_atoms']} | {r['cube_coverage']:.2f} | "
-                     f"{r['cube_hard_ms']:.2f} | "
-                     f"{r['cube_soft_ms']:.2f} | {r['whole_hard_ms']:.2f} |")
-    lines += ["", f"Cube-bounded hard shadows: largest / smallest time {d['cube_spread']:.2f}; largest deviation "
-              f"from {d['cube_shadows'][0]['structure']} {100 * d['cube_max_deviation_from_smallest']:.0f} %."]
-    lines += ["", *shadow_bench.probe_light_markdown(d["probe_light"], d["probe_light_size"]),
-              "", *shadow_bench.sun_light_markdown(d["sun_light"], d["probe_light_size"])]
-    lines += ["", precomputed_bench.markdown(d["precomputed_bake"], d["precomputed_patches"], d["ao_structure"],
-                                             d["ao_size"])]
+        lines.append(
+            f"| {r['structure']} | {r['atoms']} | {r['cube_atoms']} | {r['cube_coverage']:.2f} | "
+            f"{r['cube_hard_ms']:.2f} | "
+            f"{r['cube_soft_ms']:.2f} | {r['whole_hard_ms']:.2f} |"
+        )
+    lines += [
+        "",
+        f"Cube-bounded hard shadows: largest / smallest time {d['cube_spread']:.2f}; largest deviation "
+        f"from {d['cube_shadows'][0]['structure']} {100 * d['cube_max_deviation_from_smallest']:.0f} %.",
+    ]
+    lines += [
+        "",
+        *shadow_bench.probe_light_markdown(d["probe_light"], d["probe_light_size"]),
+        "",
+        *shadow_bench.sun_light_markdown(d["sun_light"], d["probe_light_size"]),
+    ]
+    lines += [
+        "",
+        precomputed_bench.markdown(
+            d["precomputed_bake"], d["precomputed_patches"], d["ao_structure"], d["ao_size"]
+        ),
+    ]
     return "\n".join(lines)

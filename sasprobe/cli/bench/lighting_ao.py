@@ -19,28 +19,54 @@ from sasprobe.cli.bench.lighting_scene import (
     spheres_grid,
     trace_scene,
 )
-from sasprobe.render.lighting.ao import AmbientOcclusion
 from sasprobe.render.gl.textures import read_texture
+from sasprobe.render.lighting.ao import AmbientOcclusion
 from sasprobe.render.lighting.settings import AOSettings
 
 BASE = AOSettings()
-PRECOMPUTED = ((6, 64), (8, 32), (8, 64), (12, 64), (16, 64), (16, 128))  # (patch side, directions); QuteMol: 128 directions
+PRECOMPUTED = (
+    (6, 64),
+    (8, 32),
+    (8, 64),
+    (12, 64),
+    (16, 64),
+    (16, 128),
+)  # (patch side, directions); QuteMol: 128 directions
 PRECOMPUTED_SHOWN = f"precomputed {BASE.patch}x{BASE.patch}, {BASE.directions} dirs"
 
 
 def methods() -> list[tuple[str, str, AOSettings]]:
     """(label, family, settings) of every AO variant measured."""
-    out = [(f"analytic K={k}", "analytic", replace(BASE, mode="analytic", k=k)) for k in (8, 16, 32)]
+    out = [
+        (f"analytic K={k}", "analytic", replace(BASE, mode="analytic", k=k)) for k in (8, 16, 32)
+    ]
     for sampling in ("point", "line"):
         for half in (False, True):
-            out.append((f"SSAO {sampling} 4 Å {'half' if half else 'full'}", "ssao",
-                        replace(BASE, mode="ssao", ssao_sampling=sampling, ssao_half_resolution=half)))
-    out += [(f"SSAO point {r:g} Å full", "ssao", replace(BASE, mode="ssao", ssao_radius=r)) for r in (2.0, 8.0)]
+            out.append(
+                (
+                    f"SSAO {sampling} 4 Å {'half' if half else 'full'}",
+                    "ssao",
+                    replace(BASE, mode="ssao", ssao_sampling=sampling, ssao_half_resolution=half),
+                )
+            )
+    out += [
+        (f"SSAO point {r:g} Å full", "ssao", replace(BASE, mode="ssao", ssao_radius=r))
+        for r in (2.0, 8.0)
+    ]
     out.append(("RT 1 spp raw", "rt", replace(BASE, mode="rt", rt_spp=1, blur=False)))
-    out += [(f"RT {n} spp{' + blur' if n < 16 else ''}", "rt", replace(BASE, mode="rt", rt_spp=n)) for n in (1, 4, 16, 64)]
+    out += [
+        (f"RT {n} spp{' + blur' if n < 16 else ''}", "rt", replace(BASE, mode="rt", rt_spp=n))
+        for n in (1, 4, 16, 64)
+    ]
     out.append(("hybrid K=32 × RT 1 spp", "hybrid", replace(BASE, mode="hybrid", rt_spp=1)))
-    out += [(f"precomputed {p}x{p}, {d} dirs", "precomputed", replace(BASE, mode="precomputed", patch=p, directions=d))
-            for p, d in PRECOMPUTED]
+    out += [
+        (
+            f"precomputed {p}x{p}, {d} dirs",
+            "precomputed",
+            replace(BASE, mode="precomputed", patch=p, directions=d),
+        )
+        for p, d in PRECOMPUTED
+    ]
     return out
 
 
@@ -51,8 +77,12 @@ def one_frame(ao: AmbientOcclusion, scene: Scene, settings: AOSettings):
     return ao.compute(scene.gbuffer, scene.view, scene.proj)
 
 
-def reference(ao: AmbientOcclusion, scene: Scene, total: int, distance: float = BASE.distance) -> np.ndarray:
-    ao.configure(replace(BASE, mode="reference", distance=distance, reference_spp=64, reference_total=total))
+def reference(
+    ao: AmbientOcclusion, scene: Scene, total: int, distance: float = BASE.distance
+) -> np.ndarray:
+    ao.configure(
+        replace(BASE, mode="reference", distance=distance, reference_spp=64, reference_total=total)
+    )
     ao.view_changed()
     while not ao.converged:
         texture = ao.compute(scene.gbuffer, scene.view, scene.proj)
@@ -61,8 +91,11 @@ def reference(ao: AmbientOcclusion, scene: Scene, total: int, distance: float = 
 
 def errors(image: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> dict:
     diff = image[mask] - ref[mask]
-    return {"rmse": float(np.sqrt(np.mean(diff**2))), "max_error": float(np.max(np.abs(diff))),
-            "bias": float(diff.mean())}
+    return {
+        "rmse": float(np.sqrt(np.mean(diff**2))),
+        "max_error": float(np.max(np.abs(diff))),
+        "bias": float(diff.mean()),
+    }
 
 
 def pareto(gl, scene: Scene, ref_spp: int, repeats: int) -> dict:
@@ -74,15 +107,32 @@ def pareto(gl, scene: Scene, ref_spp: int, repeats: int) -> dict:
     listed = methods()
     # each precomputed variant keeps its own atlas: the interleaved frames then time its lookup,
     # the warm-up frame its bake
-    own = {label: AmbientOcclusion(scene.grid) for label, family, _ in listed if family == "precomputed"}
-    seconds = interleaved_times(gl, {label: (lambda s=settings, a=own.get(label, ao): one_frame(a, scene, s))
-                                     for label, _, settings in listed}, repeats)
+    own = {
+        label: AmbientOcclusion(scene.grid)
+        for label, family, _ in listed
+        if family == "precomputed"
+    }
+    seconds = interleaved_times(
+        gl,
+        {
+            label: (lambda s=settings, a=own.get(label, ao): one_frame(a, scene, s))
+            for label, _, settings in listed
+        },
+        repeats,
+    )
     for label, family, settings in listed:
         image = read_texture(one_frame(own.get(label, ao), scene, settings)).copy()
         images[label] = image
         bake = own[label]._pass("atlas").bake_seconds if label in own else None
-        rows.append({"method": label, "family": family, "ms": seconds[label] * 1e3, "bake_s": bake,
-                     **errors(image, ref, mask)})
+        rows.append(
+            {
+                "method": label,
+                "family": family,
+                "ms": seconds[label] * 1e3,
+                "bake_s": bake,
+                **errors(image, ref, mask),
+            }
+        )
     for extra in own.values():
         extra.release()
     # failure mode: analytic AO with too few neighbours
@@ -93,50 +143,93 @@ def pareto(gl, scene: Scene, ref_spp: int, repeats: int) -> dict:
     # failure mode: noise at low sample counts, before and after the bilateral blur
     noise_rows = []
     for spp in (1, 2, 4, 8):
-        raw = read_texture(one_frame(ao, scene, replace(BASE, mode="rt", rt_spp=spp, blur=False))).copy()
-        blurred = read_texture(one_frame(ao, scene, replace(BASE, mode="rt", rt_spp=spp, blur=True))).copy()
+        raw = read_texture(
+            one_frame(ao, scene, replace(BASE, mode="rt", rt_spp=spp, blur=False))
+        ).copy()
+        blurred = read_texture(
+            one_frame(ao, scene, replace(BASE, mode="rt", rt_spp=spp, blur=True))
+        ).copy()
         images[f"RT {spp} spp raw"] = raw
         images[f"RT {spp} spp + blur"] = blurred
-        noise_rows.append({"spp": spp, "raw": errors(raw, ref, mask), "blurred": errors(blurred, ref, mask)})
+        noise_rows.append(
+            {"spp": spp, "raw": errors(raw, ref, mask), "blurred": errors(blurred, ref, mask)}
+        )
     ao.release()
     return {"rows": rows, "analytic_k": k_rows, "noise": noise_rows, "images": images, "mask": mask}
 
 
 # ------------------------------------------------------------------ charts
-FAMILY_STYLE = {"analytic": ("tab:blue", "o"), "ssao": ("tab:orange", "s"), "rt": ("tab:green", "^"),
-                "hybrid": ("tab:purple", "D"), "precomputed": ("tab:red", "P")}
+FAMILY_STYLE = {
+    "analytic": ("tab:blue", "o"),
+    "ssao": ("tab:orange", "s"),
+    "rt": ("tab:green", "^"),
+    "hybrid": ("tab:purple", "D"),
+    "precomputed": ("tab:red", "P"),
+}
 
 
 def pareto_chart(rows: list[dict], path, renderer: str):
     fig, ax = figure(7.5, 5.0)
     for family, (color, marker) in FAMILY_STYLE.items():
         pts = [r for r in rows if r["family"] == family]
-        ax.scatter([r["ms"] for r in pts], [r["rmse"] for r in pts], c=color, marker=marker, label=family, zorder=3)
+        ax.scatter(
+            [r["ms"] for r in pts],
+            [r["rmse"] for r in pts],
+            c=color,
+            marker=marker,
+            label=family,
+            zorder=3,
+        )
     front, best = [], np.inf
     for r in sorted(rows, key=lambda r: r["ms"]):
         if r["rmse"] < best:
             best = r["rmse"]
             front.append(r)
-    ax.step([r["ms"] for r in front], [r["rmse"] for r in front], where="post", color="0.4", lw=1, ls="--",
-            label="Pareto front")
+    ax.step(
+        [r["ms"] for r in front],
+        [r["rmse"] for r in front],
+        where="post",
+        color="0.4",
+        lw=1,
+        ls="--",
+        label="Pareto front",
+    )
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("time per frame (ms, median; precomputed: the lookup, its bake once per structure and culling)")
+    ax.set_xlabel(
+        "time per frame (ms, median; precomputed: the lookup, its bake once per structure and culling)"
+    )
     ax.set_ylabel("RMSE vs converged ray-traced AO")
     ax.set_title(f"Ambient occlusion: speed vs accuracy\n({renderer})", fontsize=9)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    annotate_apart(ax, [(r["ms"], r["rmse"], r["method"] + (f" (bake {r['bake_s']:.2f} s)"
-                                                            if r.get("bake_s") is not None else ""))
-                        for r in sorted(rows, key=lambda r: r["ms"])])
+    annotate_apart(
+        ax,
+        [
+            (
+                r["ms"],
+                r["rmse"],
+                r["method"]
+                + (f" (bake {r['bake_s']:.2f} s)" if r.get("bake_s") is not None else ""),
+            )
+            for r in sorted(rows, key=lambda r: r["ms"])
+        ],
+    )
     return save(fig, path)
 
 
 def comparison_figure(images: dict, mask: np.ndarray, path):
     plt = pyplot()
 
-    shown = ["analytic K=32", "SSAO point 4 Å full", "SSAO line 4 Å full", "RT 1 spp + blur", "hybrid K=32 × RT 1 spp",
-             PRECOMPUTED_SHOWN, "reference"]
+    shown = [
+        "analytic K=32",
+        "SSAO point 4 Å full",
+        "SSAO line 4 Å full",
+        "RT 1 spp + blur",
+        "hybrid K=32 × RT 1 spp",
+        PRECOMPUTED_SHOWN,
+        "reference",
+    ]
     fig, axes = plt.subplots(2, len(shown), figsize=(2.3 * len(shown), 4.2), dpi=110)
     ref = images["reference"]
     for col, name in enumerate(shown):
@@ -170,7 +263,9 @@ def k_chart(k_rows: list[dict], path):
 def noise_chart(noise_rows: list[dict], images: dict, mask: np.ndarray, path):
     plt = pyplot()
 
-    fig, axes = plt.subplots(1, 4, figsize=(11, 2.8), dpi=110, gridspec_kw={"width_ratios": [1.6, 1, 1, 1]})
+    fig, axes = plt.subplots(
+        1, 4, figsize=(11, 2.8), dpi=110, gridspec_kw={"width_ratios": [1.6, 1, 1, 1]}
+    )
     spp = [r["spp"] for r in noise_rows]
     axes[0].plot(spp, [r["raw"]["rmse"] for r in noise_rows], "o-", label="raw")
     axes[0].plot(spp, [r["blurred"]["rmse"] for r in noise_rows], "s-", label="bilateral blur")
@@ -195,28 +290,48 @@ def noise_chart(noise_rows: list[dict], images: dict, mask: np.ndarray, path):
 
 # ------------------------------------------------------------------ scaling with molecule size
 def analytic_scaling(gl, scenes: list[tuple[str, int, Scene]], repeats: int) -> list[dict]:
-    variants = (("analytic_ms", replace(BASE, mode="analytic", k=16)),
-                ("analytic32_ms", replace(BASE, mode="analytic", k=32)),
-                ("ssao_ms", replace(BASE, mode="ssao")),
-                ("rt1_ms", replace(BASE, mode="rt", rt_spp=1, blur=False)))
+    variants = (
+        ("analytic_ms", replace(BASE, mode="analytic", k=16)),
+        ("analytic32_ms", replace(BASE, mode="analytic", k=32)),
+        ("ssao_ms", replace(BASE, mode="ssao")),
+        ("rt1_ms", replace(BASE, mode="rt", rt_spp=1, blur=False)),
+    )
     passes = [AmbientOcclusion(scene.grid) for _, _, scene in scenes]
-    calls = {(i, label): (lambda ao=ao, scene=scene, s=settings: one_frame(ao, scene, s))
-             for i, ((_, _, scene), ao) in enumerate(zip(scenes, passes)) for label, settings in variants}
+    calls = {
+        (i, label): (lambda ao=ao, scene=scene, s=settings: one_frame(ao, scene, s))
+        for i, ((_, _, scene), ao) in enumerate(zip(scenes, passes))
+        for label, settings in variants
+    }
     seconds = interleaved_times(gl, calls, repeats)
     rows = []
     for i, (name, atoms, scene) in enumerate(scenes):
-        rows.append({"structure": name, "atoms": atoms, "coverage": scene.coverage,
-                     **{label: seconds[(i, label)] * 1e3 for label, _ in variants}})
+        rows.append(
+            {
+                "structure": name,
+                "atoms": atoms,
+                "coverage": scene.coverage,
+                **{label: seconds[(i, label)] * 1e3 for label, _ in variants},
+            }
+        )
     for ao in passes:
         ao.release()
     return rows
 
 
 def scaling_chart(rows: list[dict], path):
-    series = [("analytic_ms", "analytic K=16", "o-"), ("analytic32_ms", "analytic K=32", "o:"),
-              ("ssao_ms", "SSAO point, 16 samples", "s-"), ("rt1_ms", "RT 1 spp (8 Å rays)", "^-")]
-    return cost_vs_size_chart(rows, series, "AO cost vs molecule size at equal screen coverage",
-                              "time per frame (ms)", path)
+    series = [
+        ("analytic_ms", "analytic K=16", "o-"),
+        ("analytic32_ms", "analytic K=32", "o:"),
+        ("ssao_ms", "SSAO point, 16 samples", "s-"),
+        ("rt1_ms", "RT 1 spp (8 Å rays)", "^-"),
+    ]
+    return cost_vs_size_chart(
+        rows,
+        series,
+        "AO cost vs molecule size at equal screen coverage",
+        "time per frame (ms)",
+        path,
+    )
 
 
 # ------------------------------------------------------------------ SSAO and distant occluders
@@ -239,11 +354,14 @@ def distant_occluders(gl, heights, size, ref_spp: int) -> list[dict]:
     AO(sheet alone) − AO(sheet + ball), averaged over sheet pixels within 6 Å of the
     ball's axis. The reference rays reach 40 Å."""
     view, proj = oblique_camera((0.0, 0.0, 0.0), 70.0, 50.0, size, fov=35.0)
-    candidates = [("reference (40 Å rays)", None), ("analytic K=32", replace(BASE, mode="analytic")),
-                  ("SSAO point 4 Å", replace(BASE, mode="ssao")),
-                  ("SSAO line 4 Å", replace(BASE, mode="ssao", ssao_sampling="line")),
-                  ("SSAO point 8 Å", replace(BASE, mode="ssao", ssao_radius=8.0)),
-                  ("RT 64 spp, 8 Å rays", replace(BASE, mode="rt", rt_spp=64))]
+    candidates = [
+        ("reference (40 Å rays)", None),
+        ("analytic K=32", replace(BASE, mode="analytic")),
+        ("SSAO point 4 Å", replace(BASE, mode="ssao")),
+        ("SSAO line 4 Å", replace(BASE, mode="ssao", ssao_sampling="line")),
+        ("SSAO point 8 Å", replace(BASE, mode="ssao", ssao_radius=8.0)),
+        ("RT 64 spp, 8 Å rays", replace(BASE, mode="rt", rt_spp=64)),
+    ]
     rows = []
     for height in heights:
         seen = {}
@@ -251,12 +369,21 @@ def distant_occluders(gl, heights, size, ref_spp: int) -> list[dict]:
             grid = spheres_grid(gl, *floor_with_ball(height, with_ball))
             scene = trace_scene(grid, view, proj, size)
             pos = scene.gbuffer.download()[0]
-            under = (scene.atom >= 0) & (scene.atom < 36 * 36) & (np.hypot(pos[..., 0], pos[..., 1]) < 6.0)
+            under = (
+                (scene.atom >= 0)
+                & (scene.atom < 36 * 36)
+                & (np.hypot(pos[..., 0], pos[..., 1]) < 6.0)
+            )
             ao = AmbientOcclusion(grid)
             for label, settings in candidates:
-                image = reference(ao, scene, ref_spp, distance=40.0) if settings is None else \
-                    read_texture(one_frame(ao, scene, settings))
-                seen.setdefault(label, []).append(float(image[under].mean()) if under.any() else float("nan"))
+                image = (
+                    reference(ao, scene, ref_spp, distance=40.0)
+                    if settings is None
+                    else read_texture(one_frame(ao, scene, settings))
+                )
+                seen.setdefault(label, []).append(
+                    float(image[under].mean()) if under.any() else float("nan")
+                )
             ao.release()
             scene.release()
             grid.release()

@@ -9,10 +9,9 @@ import numpy as np
 
 from sasprobe.cli.bench.charts import figure, save
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
-from sasprobe.render.camera import Camera
-from sasprobe.render.camera import fit_bounding_sphere
-from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.camera import Camera, fit_bounding_sphere
 from sasprobe.render.lighting.gbuffer import GBuffer, RaycastGBuffer
+from sasprobe.render.lighting.grid import Culling, GpuGrid
 
 VIEW_DIRECTION = (0.3, 0.4, 1.0)
 
@@ -87,7 +86,9 @@ def trace_scene(grid: GpuGrid, view, proj, size: tuple[int, int]) -> Scene:
     return Scene(grid, view, proj, gbuffer, gbuffer.download()[2])
 
 
-def fitted_scene(grid: GpuGrid, size: tuple[int, int], fill: float = 1.0, culling: Culling | None = None) -> Scene:
+def fitted_scene(
+    grid: GpuGrid, size: tuple[int, int], fill: float = 1.0, culling: Culling | None = None
+) -> Scene:
     """The molecule's bounding sphere (or the navigation cube's) filling `fill` of the view."""
     grid.set_culling(culling or Culling())
     box = grid.culling.cube_box
@@ -100,7 +101,9 @@ def fitted_scene(grid: GpuGrid, size: tuple[int, int], fill: float = 1.0, cullin
     return trace_scene(grid, view, proj, size)
 
 
-def scene_with_coverage(grid: GpuGrid, size: tuple[int, int], target: float, culling: Culling | None = None) -> Scene:
+def scene_with_coverage(
+    grid: GpuGrid, size: tuple[int, int], target: float, culling: Culling | None = None
+) -> Scene:
     """A fitted scene zoomed until about `target` of the pixels show the molecule (equal
     screen coverage makes per-frame times of different molecules comparable)."""
     fill = 1.0
@@ -114,21 +117,31 @@ def scene_with_coverage(grid: GpuGrid, size: tuple[int, int], target: float, cul
     return scene
 
 
-def oblique_camera(target, distance: float, elevation_deg: float, size: tuple[int, int], fov: float = 40.0):
+def oblique_camera(
+    target, distance: float, elevation_deg: float, size: tuple[int, int], fov: float = 40.0
+):
     el = np.radians(elevation_deg)
     eye = np.asarray(target, dtype=np.float64) + distance * np.array([0.0, -np.cos(el), np.sin(el)])
     camera = Camera(eye, target, up=(0.0, 0.0, 1.0), fov_y=fov, near=1.0, far=distance * 4)
     return camera.view(), camera.projection(size[0] / size[1])
 
 
-def cost_vs_size_chart(rows: list[dict], series: list[tuple[str, str, str]], title: str, ylabel: str, path):
+def cost_vs_size_chart(
+    rows: list[dict], series: list[tuple[str, str, str]], title: str, ylabel: str, path
+):
     """Time against atom count on log axes, with a ±20 % band around the first structure's
     value of the first series (the flatness target). series: (row key, label, style)."""
     fig, ax = figure()
     atoms = [r["atoms"] for r in rows]
     base = rows[0][series[0][0]]
-    ax.fill_between([min(atoms), max(atoms)], base * 0.8, base * 1.2, color="tab:blue", alpha=0.12,
-                    label=f"±20 % of {rows[0]['structure']}")
+    ax.fill_between(
+        [min(atoms), max(atoms)],
+        base * 0.8,
+        base * 1.2,
+        color="tab:blue",
+        alpha=0.12,
+        label=f"±20 % of {rows[0]['structure']}",
+    )
     for key, label, style in series:
         ax.plot(atoms, [r[key] for r in rows], style, label=label)
     ax.set_xscale("log")

@@ -7,11 +7,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from sasprobe.cli.bench.lighting_scene import cost_vs_size_chart, fitted_scene, interleaved_times, scene_with_coverage
+from sasprobe.cli.bench.lighting_scene import (
+    cost_vs_size_chart,
+    fitted_scene,
+    interleaved_times,
+    scene_with_coverage,
+)
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
-from sasprobe.render.lighting.grid import Culling, GpuGrid
 from sasprobe.render.gl.textures import read_texture
-from sasprobe.render.lighting.settings import DEFAULT_PROBE_RANGE, HARD_SHADOW, DirectionalLight, PointLight, SoftShadow
+from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.lighting.settings import (
+    DEFAULT_PROBE_RANGE,
+    HARD_SHADOW,
+    DirectionalLight,
+    PointLight,
+    SoftShadow,
+)
 from sasprobe.render.lighting.shadows import ShadowPass
 
 SUN = DirectionalLight((0.45, 0.8, 0.4))
@@ -37,9 +48,12 @@ def cell_sweep(gl, name: str, structure, size, cell_sizes, repeats: int) -> list
     default = GpuGrid(gl, UniformGrid(structure.positions, expanded), structure.vdw_radii)
     scene = fitted_scene(default, size, fill=1.0)
     extent = float(np.max(default.grid.upper - default.grid.origin))
-    grids = [default if cell is None else GpuGrid(gl, UniformGrid(structure.positions, expanded, cell),
-                                                  structure.vdw_radii)
-             for cell in [*cell_sizes, None, extent + 1.0]]
+    grids = [
+        default
+        if cell is None
+        else GpuGrid(gl, UniformGrid(structure.positions, expanded, cell), structure.vdw_radii)
+        for cell in [*cell_sizes, None, extent + 1.0]
+    ]
     passes = [ShadowPass(grid) for grid in grids]
     calls = {}
     for i, shadows in enumerate(passes):
@@ -49,11 +63,19 @@ def cell_sweep(gl, name: str, structure, size, cell_sizes, repeats: int) -> list
     rows = []
     for i, grid in enumerate(grids):
         stats = grid.grid.stats()
-        rows.append({
-            "structure": name, "atoms": structure.n_atoms, "cell_size": stats.cell_size, "cells": stats.n_cells,
-            "default": grid is default, "brute_force": stats.n_cells == 1, "grid_bytes": grid.nbytes,
-            "hard_ms": seconds[(i, "hard_ms")] * 1e3, "soft_ms": seconds[(i, "soft_ms")] * 1e3,
-        })
+        rows.append(
+            {
+                "structure": name,
+                "atoms": structure.n_atoms,
+                "cell_size": stats.cell_size,
+                "cells": stats.n_cells,
+                "default": grid is default,
+                "brute_force": stats.n_cells == 1,
+                "grid_bytes": grid.nbytes,
+                "hard_ms": seconds[(i, "hard_ms")] * 1e3,
+                "soft_ms": seconds[(i, "soft_ms")] * 1e3,
+            }
+        )
     for shadows, grid in zip(passes, grids):
         shadows.release()
         grid.release()
@@ -69,11 +91,24 @@ def sweep_chart(rows: list[dict], path):
         pts = sorted((r for r in rows if r["structure"] == name), key=lambda r: r["cells"])
         atoms = pts[0]["atoms"]
         cells = [r["cells"] for r in pts]
-        line, = ax.loglog(cells, [r["hard_ms"] for r in pts], "o-", label=f"{name} ({atoms} atoms) hard")
-        ax.loglog(cells, [r["soft_ms"] for r in pts], "x:", color=line.get_color(), label=f"{name} soft")
+        (line,) = ax.loglog(
+            cells, [r["hard_ms"] for r in pts], "o-", label=f"{name} ({atoms} atoms) hard"
+        )
+        ax.loglog(
+            cells, [r["soft_ms"] for r in pts], "x:", color=line.get_color(), label=f"{name} soft"
+        )
         default = next(r for r in pts if r["default"])
-        ax.scatter([default["cells"]], [default["hard_ms"]], s=120, facecolors="none", edgecolors="k", zorder=4)
-        ax2.loglog(cells, [r["grid_bytes"] / 2**20 for r in pts], "o-", color=line.get_color(), label=name)
+        ax.scatter(
+            [default["cells"]],
+            [default["hard_ms"]],
+            s=120,
+            facecolors="none",
+            edgecolors="k",
+            zorder=4,
+        )
+        ax2.loglog(
+            cells, [r["grid_bytes"] / 2**20 for r in pts], "o-", color=line.get_color(), label=name
+        )
     ax.set_xlabel("grid cells (1 = brute force)")
     ax.set_ylabel("shadow pass (ms, median)")
     ax.set_title("Directional shadows vs cell count (circle: default cell)", fontsize=9)
@@ -97,30 +132,52 @@ def cube_bounded(gl, structures: list[tuple[str, object]], size, repeats: int) -
         grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
         whole_grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
         whole = scene_with_coverage(whole_grid, size, COVERAGE)
-        cube = scene_with_coverage(grid, size, COVERAGE, Culling(nav_cube=(densest_cube_centre(grid), CUBE_HALF)))
+        cube = scene_with_coverage(
+            grid, size, COVERAGE, Culling(nav_cube=(densest_cube_centre(grid), CUBE_HALF))
+        )
         cube_pass, whole_pass = ShadowPass(grid), ShadowPass(whole_grid)
         setups.append((name, structure, grid, whole_grid, whole, cube, cube_pass, whole_pass))
-        calls[(name, "whole_hard_ms")] = lambda p=whole_pass, s=whole: p.trace(s.gbuffer, SUN, HARD_SHADOW)
-        calls[(name, "cube_hard_ms")] = lambda p=cube_pass, s=cube: p.trace(s.gbuffer, SUN, HARD_SHADOW)
+        calls[(name, "whole_hard_ms")] = lambda p=whole_pass, s=whole: p.trace(
+            s.gbuffer, SUN, HARD_SHADOW
+        )
+        calls[(name, "cube_hard_ms")] = lambda p=cube_pass, s=cube: p.trace(
+            s.gbuffer, SUN, HARD_SHADOW
+        )
         calls[(name, "cube_soft_ms")] = lambda p=cube_pass, s=cube: p.trace(s.gbuffer, SUN, SOFT)
     seconds = interleaved_times(gl, calls, repeats)
     rows = []
     for name, structure, grid, whole_grid, whole, cube, cube_pass, whole_pass in setups:
-        rows.append({
-            "structure": name, "atoms": structure.n_atoms, "whole_coverage": whole.coverage,
-            "cube_atoms": int((~grid.culled_mask).sum()), "cube_coverage": cube.coverage,
-            **{key: seconds[(name, key)] * 1e3 for key in ("whole_hard_ms", "cube_hard_ms", "cube_soft_ms")},
-        })
+        rows.append(
+            {
+                "structure": name,
+                "atoms": structure.n_atoms,
+                "whole_coverage": whole.coverage,
+                "cube_atoms": int((~grid.culled_mask).sum()),
+                "cube_coverage": cube.coverage,
+                **{
+                    key: seconds[(name, key)] * 1e3
+                    for key in ("whole_hard_ms", "cube_hard_ms", "cube_soft_ms")
+                },
+            }
+        )
         for thing in (whole, cube, cube_pass, whole_pass, grid, whole_grid):
             thing.release()
     return rows
 
 
 def cube_chart(rows: list[dict], path):
-    series = [("cube_hard_ms", "cube on: hard", "o-"), ("cube_soft_ms", "cube on: soft", "x-"),
-              ("whole_hard_ms", "whole molecule: hard", "s--")]
-    return cost_vs_size_chart(rows, series, f"Shadows bounded by a {2 * CUBE_HALF:g} Å navigation cube",
-                              "shadow pass (ms, median)", path)
+    series = [
+        ("cube_hard_ms", "cube on: hard", "o-"),
+        ("cube_soft_ms", "cube on: soft", "x-"),
+        ("whole_hard_ms", "whole molecule: hard", "s--"),
+    ]
+    return cost_vs_size_chart(
+        rows,
+        series,
+        f"Shadows bounded by a {2 * CUBE_HALF:g} Å navigation cube",
+        "shadow pass (ms, median)",
+        path,
+    )
 
 
 # ------------------------------------------------------------------ the probe light
@@ -135,26 +192,42 @@ def probe_on_view(scene) -> np.ndarray:
     return position[rows[k], cols[k]].astype(np.float64) + n * DEFAULT_PROBE_RADIUS
 
 
-def _walk_against_buffer(gl, scene, light, walk: ShadowPass, listed: ShadowPass, buffer, repeats: int) -> dict:
+def _walk_against_buffer(
+    gl, scene, light, walk: ShadowPass, listed: ShadowPass, buffer, repeats: int
+) -> dict:
     """`light`'s shadows through the walk and through `listed`'s buffer, hard and soft, timed
     in the same rounds; the buffer's build apart (its key dropped, as when the light moved);
     and the largest difference between the two (0: the same occluders)."""
+
     def build():
         buffer.key = None
         listed.trace(scene.gbuffer, light, HARD_SHADOW, rect=(0, 0, 1, 1))
 
-    calls = {("walk", "hard"): lambda: walk.trace(scene.gbuffer, light, HARD_SHADOW),
-             ("walk", "soft"): lambda: walk.trace(scene.gbuffer, light, SOFT),
-             ("buffer", "hard"): lambda: listed.trace(scene.gbuffer, light, HARD_SHADOW),
-             ("buffer", "soft"): lambda: listed.trace(scene.gbuffer, light, SOFT),
-             ("build", "hard"): build}
+    calls = {
+        ("walk", "hard"): lambda: walk.trace(scene.gbuffer, light, HARD_SHADOW),
+        ("walk", "soft"): lambda: walk.trace(scene.gbuffer, light, SOFT),
+        ("buffer", "hard"): lambda: listed.trace(scene.gbuffer, light, HARD_SHADOW),
+        ("buffer", "soft"): lambda: listed.trace(scene.gbuffer, light, SOFT),
+        ("build", "hard"): build,
+    }
     seconds = interleaved_times(gl, calls, repeats)
-    difference = max(float(np.abs(read_texture(walk.trace(scene.gbuffer, light, soft))
-                                  - read_texture(listed.trace(scene.gbuffer, light, soft))).max())
-                     for soft in (HARD_SHADOW, SOFT))
-    return {"walk_hard_ms": seconds[("walk", "hard")] * 1e3, "walk_soft_ms": seconds[("walk", "soft")] * 1e3,
-            "buffer_hard_ms": seconds[("buffer", "hard")] * 1e3, "buffer_soft_ms": seconds[("buffer", "soft")] * 1e3,
-            "build_ms": seconds[("build", "hard")] * 1e3, "max_difference": difference}
+    difference = max(
+        float(
+            np.abs(
+                read_texture(walk.trace(scene.gbuffer, light, soft))
+                - read_texture(listed.trace(scene.gbuffer, light, soft))
+            ).max()
+        )
+        for soft in (HARD_SHADOW, SOFT)
+    )
+    return {
+        "walk_hard_ms": seconds[("walk", "hard")] * 1e3,
+        "walk_soft_ms": seconds[("walk", "soft")] * 1e3,
+        "buffer_hard_ms": seconds[("buffer", "hard")] * 1e3,
+        "buffer_soft_ms": seconds[("buffer", "soft")] * 1e3,
+        "build_ms": seconds[("build", "hard")] * 1e3,
+        "max_difference": difference,
+    }
 
 
 def probe_light(gl, structures: list[tuple[str, object]], size, repeats: int) -> list[dict]:
@@ -169,15 +242,23 @@ def probe_light(gl, structures: list[tuple[str, object]], size, repeats: int) ->
         lamp = PointLight(tuple(probe_on_view(scene)), DEFAULT_PROBE_RANGE)
         walk, listed = ShadowPass(grid, light_buffer=False), ShadowPass(grid)
         buffer = listed.light_buffer
-        timed = _walk_against_buffer(gl, scene, lamp, walk, listed, buffer, repeats)  # build: as when the probe moved
+        timed = _walk_against_buffer(
+            gl, scene, lamp, walk, listed, buffer, repeats
+        )  # build: as when the probe moved
         counts = buffer.counts()
         lit = np.linalg.norm(scene.gbuffer.download()[0] - np.asarray(lamp.position), axis=-1)
-        rows.append({
-            "structure": name, "atoms": structure.n_atoms, "coverage": scene.coverage,
-            "pixels_in_reach": int(((scene.atom >= 0) & (lit <= lamp.radius)).sum()),
-            "atoms_in_reach": buffer.atoms_in_reach, "mean_list": float(counts.mean()), "longest_list": int(counts.max()),
-            **timed,
-        })
+        rows.append(
+            {
+                "structure": name,
+                "atoms": structure.n_atoms,
+                "coverage": scene.coverage,
+                "pixels_in_reach": int(((scene.atom >= 0) & (lit <= lamp.radius)).sum()),
+                "atoms_in_reach": buffer.atoms_in_reach,
+                "mean_list": float(counts.mean()),
+                "longest_list": int(counts.max()),
+                **timed,
+            }
+        )
         for thing in (walk, listed, scene, grid):
             thing.release()
     return rows
@@ -193,47 +274,70 @@ def sun_light(gl, structures: list[tuple[str, object]], size, repeats: int) -> l
         grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
         scene = scene_with_coverage(grid, size, COVERAGE)
         walk, listed = ShadowPass(grid, light_buffer=False), ShadowPass(grid)
-        timed = _walk_against_buffer(gl, scene, SUN, walk, listed, listed.sun_buffer, repeats)  # build: the light turned
-        rows.append({"structure": name, "atoms": structure.n_atoms, "coverage": scene.coverage,
-                     "entries": listed.sun_buffer.entries, **timed})
+        timed = _walk_against_buffer(
+            gl, scene, SUN, walk, listed, listed.sun_buffer, repeats
+        )  # build: the light turned
+        rows.append(
+            {
+                "structure": name,
+                "atoms": structure.n_atoms,
+                "coverage": scene.coverage,
+                "entries": listed.sun_buffer.entries,
+                **timed,
+            }
+        )
         for thing in (walk, listed, scene, grid):
             thing.release()
     return rows
 
 
-TIMING_COLUMNS = "walk hard (ms) | buffer hard (ms) | walk soft (ms) | buffer soft (ms) | build (ms)"
+TIMING_COLUMNS = (
+    "walk hard (ms) | buffer hard (ms) | walk soft (ms) | buffer soft (ms) | build (ms)"
+)
 
 
 def _timing_cells(r: dict) -> str:
     """A row's TIMING_COLUMNS (from _walk_against_buffer)."""
-    return (f"{r['walk_hard_ms']:.1f} | {r['buffer_hard_ms']:.1f} | {r['walk_soft_ms']:.1f} | "
-            f"{r['buffer_soft_ms']:.1f} | {r['build_ms']:.1f}")
+    return (
+        f"{r['walk_hard_ms']:.1f} | {r['buffer_hard_ms']:.1f} | {r['walk_soft_ms']:.1f} | "
+        f"{r['buffer_soft_ms']:.1f} | {r['build_ms']:.1f}"
+    )
 
 
 def sun_light_markdown(rows: list[dict], size) -> list[str]:
     w, h = size
-    lines = [f"### The directional light's shadows: grid walk vs its buffer across the light ({w}×{h}; medians, "
-             "same rounds)", "",
-             f"| structure | atoms | entries | {TIMING_COLUMNS} | hard: walk / buffer | walk / (buffer + build) | "
-             "largest difference |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"### The directional light's shadows: grid walk vs its buffer across the light ({w}×{h}; medians, "
+        "same rounds)",
+        "",
+        f"| structure | atoms | entries | {TIMING_COLUMNS} | hard: walk / buffer | walk / (buffer + build) | "
+        "largest difference |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
-        lines.append(f"| {r['structure']} | {r['atoms']} | {r['entries']} | {_timing_cells(r)} | "
-                     f"{r['walk_hard_ms'] / r['buffer_hard_ms']:.2f}× | "
-                     f"{r['walk_hard_ms'] / (r['buffer_hard_ms'] + r['build_ms']):.2f}× | {r['max_difference']:.0e} |")
+        lines.append(
+            f"| {r['structure']} | {r['atoms']} | {r['entries']} | {_timing_cells(r)} | "
+            f"{r['walk_hard_ms'] / r['buffer_hard_ms']:.2f}× | "
+            f"{r['walk_hard_ms'] / (r['buffer_hard_ms'] + r['build_ms']):.2f}× | {r['max_difference']:.0e} |"
+        )
     return lines
 
 
 def probe_light_markdown(rows: list[dict], size) -> list[str]:
     w, h = size
-    lines = [f"### The probe light's shadows: grid walk vs light buffer ({w}×{h}, reach {DEFAULT_PROBE_RANGE:g} Å, "
-             "the probe on the surface in the middle of the view; medians, same rounds)", "",
-             f"| structure | atoms | pixels in reach | atoms in reach | mean / longest list | {TIMING_COLUMNS} | "
-             "hard: walk / (buffer + build) | largest difference |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"### The probe light's shadows: grid walk vs light buffer ({w}×{h}, reach {DEFAULT_PROBE_RANGE:g} Å, "
+        "the probe on the surface in the middle of the view; medians, same rounds)",
+        "",
+        f"| structure | atoms | pixels in reach | atoms in reach | mean / longest list | {TIMING_COLUMNS} | "
+        "hard: walk / (buffer + build) | largest difference |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         speedup = r["walk_hard_ms"] / (r["buffer_hard_ms"] + r["build_ms"])
-        lines.append(f"| {r['structure']} | {r['atoms']} | {r['pixels_in_reach']} | {r['atoms_in_reach']} | "
-                     f"{r['mean_list']:.1f} / {r['longest_list']} | {_timing_cells(r)} | {speedup:.2f}× | "
-                     f"{r['max_difference']:.0e} |")
+        lines.append(
+            f"| {r['structure']} | {r['atoms']} | {r['pixels_in_reach']} | {r['atoms_in_reach']} | "
+            f"{r['mean_list']:.1f} / {r['longest_list']} | {_timing_cells(r)} | {speedup:.2f}× | "
+            f"{r['max_difference']:.0e} |"
+        )
     return lines

@@ -46,7 +46,10 @@ def _gpu() -> str | None:
         return None
     try:
         out = subprocess.run(
-            ["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True, text=True, timeout=10
+            ["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"],
+            capture_output=True,
+            text=True,
+            timeout=10,
         )
     except (OSError, subprocess.TimeoutExpired):
         return None
@@ -60,7 +63,9 @@ def cpu_steal_ticks() -> tuple[int, int] | None:
     policy inside the machine can win back."""
     try:
         with open("/proc/stat") as fh:
-            fields = [int(v) for v in fh.readline().split()[1:9]]  # user nice system idle iowait irq softirq steal
+            fields = [
+                int(v) for v in fh.readline().split()[1:9]
+            ]  # user nice system idle iowait irq softirq steal
     except (OSError, ValueError):
         return None
     return (fields[7], sum(fields)) if len(fields) == 8 else None
@@ -71,7 +76,10 @@ def steal_between(before: tuple[int, int] | None, after: tuple[int, int] | None)
     if before is None or after is None or after[1] <= before[1]:
         return None
     stolen = after[0] - before[0]
-    return {"seconds": stolen / os.sysconf("SC_CLK_TCK"), "percent": 100.0 * stolen / (after[1] - before[1])}
+    return {
+        "seconds": stolen / os.sysconf("SC_CLK_TCK"),
+        "percent": 100.0 * stolen / (after[1] - before[1]),
+    }
 
 
 def gl_renderer() -> str | None:

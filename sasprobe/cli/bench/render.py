@@ -19,10 +19,10 @@ import numpy as np
 
 from sasprobe.cli.bench import BenchContext, BenchResult, render_scenarios, render_sessions
 from sasprobe.cli.bench.charts import figure, save
-from sasprobe.common.errors import UserError
-from sasprobe.molecule import load_default, load_structure
 from sasprobe.cli.reference_data import MISSING, reference_structures
+from sasprobe.common.errors import UserError
 from sasprobe.common.progress import progress, progress_bar
+from sasprobe.molecule import load_default, load_structure
 
 TITLE = "Rendering: impostors vs meshes, navigation cube, frame time vs atoms, session scenarios"
 MESH_TARGET_ATOMS = 60_000
@@ -33,15 +33,31 @@ CUBE_TARGET_ATOMS = 300
 def add_arguments(parser) -> None:
     from sasprobe.cli.argtypes import size_type
 
-    parser.add_argument("--size", type=size_type, default=None, metavar="WxH",
-                        help="frame size (default 1280x720, --quick 640x360)")
-    parser.add_argument("--scenario-size", type=size_type, default=None, metavar="WxH",
-                        help="frame size of the session scenarios (default 800x600, --quick 400x300)")
-    parser.add_argument("--scenarios-only", action="store_true",
-                        help="only the session scenarios (haptic session, orbit, drifting cube; PyMOL where installed)")
-    parser.add_argument("--sessions", action="store_true",
-                        help="only the session frame by structure: 1CRN, 1TII, 1AON, 6ZU5 at 1280x720 and 640x360, "
-                             "unlit and lit, with the time to the first frame (--quick: 1CRN and 1TII at 640x360)")
+    parser.add_argument(
+        "--size",
+        type=size_type,
+        default=None,
+        metavar="WxH",
+        help="frame size (default 1280x720, --quick 640x360)",
+    )
+    parser.add_argument(
+        "--scenario-size",
+        type=size_type,
+        default=None,
+        metavar="WxH",
+        help="frame size of the session scenarios (default 800x600, --quick 400x300)",
+    )
+    parser.add_argument(
+        "--scenarios-only",
+        action="store_true",
+        help="only the session scenarios (haptic session, orbit, drifting cube; PyMOL where installed)",
+    )
+    parser.add_argument(
+        "--sessions",
+        action="store_true",
+        help="only the session frame by structure: 1CRN, 1TII, 1AON, 6ZU5 at 1280x720 and 640x360, "
+        "unlit and lit, with the time to the first frame (--quick: 1CRN and 1TII at 640x360)",
+    )
 
 
 def run(ctx: BenchContext, args=None) -> BenchResult:
@@ -52,16 +68,24 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
         raise UserError(MISSING)
     if ctx.smoke:
         entries = entries[:2]
-    size = getattr(args, "size", None) or ((64, 36) if ctx.smoke else (640, 360) if ctx.quick else (1280, 720))
-    scenario_size = getattr(args, "scenario_size", None) or \
-        ((64, 48) if ctx.smoke else (400, 300) if ctx.quick else (800, 600))
+    size = getattr(args, "size", None) or (
+        (64, 36) if ctx.smoke else (640, 360) if ctx.quick else (1280, 720)
+    )
+    scenario_size = getattr(args, "scenario_size", None) or (
+        (64, 48) if ctx.smoke else (400, 300) if ctx.quick else (800, 600)
+    )
     only_scenarios = getattr(args, "scenarios_only", False)
     repeats, mesh_repeats = (1, 1) if ctx.smoke else (3, 2) if ctx.quick else (9, 5)
     frames = 3 if ctx.smoke else 10 if ctx.quick else 30
     gl = create_headless_context()
     renderer_name = f"{gl.info['GL_RENDERER']} / OpenGL {gl.info['GL_VERSION']}"
     by_id = {e.id: e for e in entries}
-    data = {"gl_renderer": renderer_name, "size": list(size), "repeats": repeats, "mesh_repeats": mesh_repeats}
+    data = {
+        "gl_renderer": renderer_name,
+        "size": list(size),
+        "repeats": repeats,
+        "mesh_repeats": mesh_repeats,
+    }
     charts = []
     if getattr(args, "sessions", False) or not only_scenarios:
         try:
@@ -74,17 +98,26 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
             charts.append(render_sessions.chart(data["sessions"], path, renderer_name))
     if getattr(args, "sessions", False):
         gl.release()
-        return BenchResult("render", data, f"GL renderer: **{renderer_name}**.\n\n"
-                           + render_sessions.markdown(data["sessions"]), charts)
+        return BenchResult(
+            "render",
+            data,
+            f"GL renderer: **{renderer_name}**.\n\n" + render_sessions.markdown(data["sessions"]),
+            charts,
+        )
     try:
         if not only_scenarios:
-            structures = {e.id: load_structure(e.path) for e in progress(entries, "bench render: load", len(entries))}
+            structures = {
+                e.id: load_structure(e.path)
+                for e in progress(entries, "bench render: load", len(entries))
+            }
             crambin = load_default()
             scaling = _scaling(gl, [(e.id, structures[e.id]) for e in entries], size, repeats)
             mesh_target = QUICK_MESH_TARGET_ATOMS if ctx.quick else MESH_TARGET_ATOMS
             mesh_id = min(structures, key=lambda k: abs(structures[k].n_atoms - mesh_target))
             sizes = [size] if ctx.quick else [size, (size[0] // 2, size[1] // 2)]
-            data["modes"] = [_modes(gl, structures[mesh_id], s, mesh_repeats) | {"id": mesh_id} for s in sizes]
+            data["modes"] = [
+                _modes(gl, structures[mesh_id], s, mesh_repeats) | {"id": mesh_id} for s in sizes
+            ]
             big_id = max(structures, key=lambda k: structures[k].n_atoms)
             data["cube"] = _cube(gl, structures[big_id], crambin, size, repeats) | {"id": big_id}
             data["scaling"] = scaling
@@ -103,7 +136,9 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     text = _markdown(data) if not only_scenarios else f"GL renderer: **{renderer_name}**."
     if "sessions" in data:
         text += "\n\n" + render_sessions.markdown(data["sessions"])
-    return BenchResult("render", data, text + "\n\n" + render_scenarios.markdown(data["scenarios"]), charts)
+    return BenchResult(
+        "render", data, text + "\n\n" + render_scenarios.markdown(data["scenarios"]), charts
+    )
 
 
 def _sessions(gl, by_id, ctx: BenchContext) -> dict:
@@ -113,16 +148,28 @@ def _sessions(gl, by_id, ctx: BenchContext) -> dict:
         wanted, plan = tuple(by_id), {"sizes": ((64, 36),), "frames": 3, "rounds": 1}
         plan["first_frames"] = wanted[:1]
     else:
-        wanted, plan = render_sessions.QUICK_STRUCTURES if ctx.quick else render_sessions.STRUCTURES, {}
+        wanted, plan = (
+            render_sessions.QUICK_STRUCTURES if ctx.quick else render_sessions.STRUCTURES,
+            {},
+        )
     missing = [sid for sid in wanted if sid not in by_id]
     if missing:
-        raise UserError(f"bench render: the session table needs the reference structures {', '.join(missing)}")
-    sizes = plan.get("sizes") or (render_sessions.QUICK_SIZES if ctx.quick else render_sessions.SIZES)
-    rounds = plan.get("rounds") or (render_sessions.QUICK_ROUNDS if ctx.quick else render_sessions.ROUNDS)
-    bar = progress_bar(1 + len(sizes) * rounds + len(plan.get("first_frames", wanted)), "bench render: sessions")
+        raise UserError(
+            f"bench render: the session table needs the reference structures {', '.join(missing)}"
+        )
+    sizes = plan.get("sizes") or (
+        render_sessions.QUICK_SIZES if ctx.quick else render_sessions.SIZES
+    )
+    rounds = plan.get("rounds") or (
+        render_sessions.QUICK_ROUNDS if ctx.quick else render_sessions.ROUNDS
+    )
+    bar = progress_bar(
+        1 + len(sizes) * rounds + len(plan.get("first_frames", wanted)), "bench render: sessions"
+    )
     try:
-        return render_sessions.run_sessions(gl, by_id, ctx.quick, structures=wanted, progress=lambda what: bar.update(1),
-                                            **plan)
+        return render_sessions.run_sessions(
+            gl, by_id, ctx.quick, structures=wanted, progress=lambda what: bar.update(1), **plan
+        )
     finally:
         bar.close()
 
@@ -131,30 +178,62 @@ def _scenarios(gl, by_id, size, frames: int, pymol_repeats: int) -> dict:
     """(a) on 1CRN and 1TII (waters kept; PyMOL's ray between two
     stretches of 1TII's session frames), (b) on 1TII, (c) on the largest structure."""
     steps = progress(range(5), "bench render: scenarios", 5)
-    out = {"size": list(size), "frames": frames, "load": [render_scenarios.load_average()],
-           "session": [], "orbit": [], "cube": []}
+    out = {
+        "size": list(size),
+        "frames": frames,
+        "load": [render_scenarios.load_average()],
+        "session": [],
+        "orbit": [],
+        "cube": [],
+    }
     session_ids = [i for i in ("1crn", "1tii") if i in by_id]
     next(steps)
     for sid in session_ids:
         structure = load_structure(by_id[sid].path, keep_water=True)
-        last = sid == session_ids[-1]  # 1TII: also PyMOL's ray, and the session as the demo frames it
-        peer = (lambda: render_scenarios.pymol_ray(by_id[sid].path, size, pymol_repeats)) \
-            if last and render_scenarios.pymol_available() else None
-        out["session"].append({"id": sid, "atoms": structure.n_atoms,
-                               **render_scenarios.session(gl, structure, size, frames, between=peer)})
+        last = (
+            sid == session_ids[-1]
+        )  # 1TII: also PyMOL's ray, and the session as the demo frames it
+        peer = (
+            (lambda: render_scenarios.pymol_ray(by_id[sid].path, size, pymol_repeats))
+            if last and render_scenarios.pymol_available()
+            else None
+        )
+        out["session"].append(
+            {
+                "id": sid,
+                "atoms": structure.n_atoms,
+                **render_scenarios.session(gl, structure, size, frames, between=peer),
+            }
+        )
         if last:
-            out["session"].append({"id": sid, "atoms": structure.n_atoms,
-                                   **render_scenarios.session(gl, structure, size, frames, demo_view=True)})
+            out["session"].append(
+                {
+                    "id": sid,
+                    "atoms": structure.n_atoms,
+                    **render_scenarios.session(gl, structure, size, frames, demo_view=True),
+                }
+            )
     next(steps)
     orbit_id = session_ids[-1]
     structure = load_structure(by_id[orbit_id].path, keep_water=True)
     probe = render_scenarios.demo_path(structure, 1)[0].proxy_A
-    out["orbit"].append({"id": orbit_id, "atoms": structure.n_atoms,
-                         **render_scenarios.orbit(gl, structure, size, frames, probe)})
+    out["orbit"].append(
+        {
+            "id": orbit_id,
+            "atoms": structure.n_atoms,
+            **render_scenarios.orbit(gl, structure, size, frames, probe),
+        }
+    )
     next(steps)
     big_id = max(by_id, key=lambda k: by_id[k].atoms)
     big = load_structure(by_id[big_id].path)
-    out["cube"].append({"id": big_id, "atoms": big.n_atoms, **render_scenarios.drifting_cube(gl, big, size, frames)})
+    out["cube"].append(
+        {
+            "id": big_id,
+            "atoms": big.n_atoms,
+            **render_scenarios.drifting_cube(gl, big, size, frames),
+        }
+    )
     next(steps)
     next(steps)
     out["load"].append(render_scenarios.load_average())
@@ -184,7 +263,10 @@ def _measure(cases, repeats: int) -> list[tuple[float, dict[str, float]]]:
             frames[i].append(time.perf_counter() - t0)
             passes[i].append(per_pass)
     return [
-        (statistics.median(f), {n: statistics.median(p.get(n, 0.0) for p in ps) for n in set().union(*ps)})
+        (
+            statistics.median(f),
+            {n: statistics.median(p.get(n, 0.0) for p in ps) for n in set().union(*ps)},
+        )
         for f, ps in zip(frames, passes)
     ]
 
@@ -194,7 +276,9 @@ def _atoms_pass_s(renderer, passes: dict[str, float]) -> float:
     name); a frame that skipped it (a cache, a renamed pass) is an error, not a zero."""
     name = renderer.sphere_pass.name
     if passes.get(name, 0.0) <= 0.0:
-        raise RuntimeError(f"the atoms pass {name!r} did not run in the timed frames (ran: {', '.join(sorted(passes))})")
+        raise RuntimeError(
+            f"the atoms pass {name!r} did not run in the timed frames (ran: {', '.join(sorted(passes))})"
+        )
     return passes[name]
 
 
@@ -228,13 +312,19 @@ def _scaling(gl, structures, size, repeats) -> list[dict]:
 def _modes(gl, structure, size, repeats) -> dict:
     from sasprobe.render.passes.mesh import uv_sphere
 
-    out = {"n_atoms": structure.n_atoms, "size": list(size), "mesh_triangles_per_atom": len(uv_sphere()[1])}
+    out = {
+        "n_atoms": structure.n_atoms,
+        "size": list(size),
+        "mesh_triangles_per_atom": len(uv_sphere()[1]),
+    }
     cases = []
     try:
         for mode in ("quad", "sprite", "mesh"):
             renderer, camera = _renderer(gl, structure, size, mode)
             cases.append((renderer, camera, None))
-        for mode, (renderer, _, _), (frame, passes) in zip(("quad", "sprite", "mesh"), cases, _measure(cases, repeats)):
+        for mode, (renderer, _, _), (frame, passes) in zip(
+            ("quad", "sprite", "mesh"), cases, _measure(cases, repeats)
+        ):
             out[mode] = {"frame_s": frame, "atoms_pass_s": _atoms_pass_s(renderer, passes)}
     finally:
         for renderer, _, _ in cases:
@@ -254,7 +344,7 @@ def cube_for(structure, target: int):
 
     def count(half: float) -> int:
         gap = pos - np.clip(pos, center - half, center + half)
-        return int(np.count_nonzero(np.einsum("ij,ij->i", gap, gap) <= radii ** 2))
+        return int(np.count_nonzero(np.einsum("ij,ij->i", gap, gap) <= radii**2))
 
     lo, hi = 0.5, 50.0
     for _ in range(40):
@@ -274,16 +364,30 @@ def _cube(gl, big, small, size, repeats) -> dict:
     nudge = lambda: setattr(moving_cube, "center", moving_cube.center + step)  # noqa: E731
     try:
         (still_s, passes), (moving_s, _), (whole_s, _) = _measure(
-            [(still, still_camera, None), (moving, moving_camera, nudge), (whole, whole_camera, None)], repeats)
+            [
+                (still, still_camera, None),
+                (moving, moving_camera, nudge),
+                (whole, whole_camera, None),
+            ],
+            repeats,
+        )
         spheres = still.buffers.n_selected
     finally:
         for r in (still, moving, whole):
             r.release()
     return {
-        "n_atoms": big.n_atoms, "cube_half_A": still_cube.half, "atoms_in_cube": n_inside, "spheres_drawn": spheres,
-        "frame_s": still_s, "moving_frame_s": moving_s, "passes_s": passes,
-        "small_id": small.name, "small_atoms": small.n_atoms, "small_whole_frame_s": whole_s,
-        "ratio": still_s / whole_s, "moving_ratio": moving_s / whole_s,
+        "n_atoms": big.n_atoms,
+        "cube_half_A": still_cube.half,
+        "atoms_in_cube": n_inside,
+        "spheres_drawn": spheres,
+        "frame_s": still_s,
+        "moving_frame_s": moving_s,
+        "passes_s": passes,
+        "small_id": small.name,
+        "small_atoms": small.n_atoms,
+        "small_whole_frame_s": whole_s,
+        "ratio": still_s / whole_s,
+        "moving_ratio": moving_s / whole_s,
     }
 
 
@@ -295,7 +399,9 @@ def _chart(path, scaling, renderer_name, size):
     ax.loglog(atoms, [r["spheres_s"] * 1e3 for r in scaling], "s-", label="sphere impostor pass")
     ax.set_xlabel("atoms")
     ax.set_ylabel("median time (ms)")
-    ax.set_title(f"Frame time vs atoms, {size[0]}x{size[1]}\n{renderer_name.split(' / ')[0]}", fontsize=9)
+    ax.set_title(
+        f"Frame time vs atoms, {size[0]}x{size[1]}\n{renderer_name.split(' / ')[0]}", fontsize=9
+    )
     ax.legend()
     return save(fig, path)
 
@@ -316,9 +422,14 @@ def _markdown(d: dict) -> str:
         "|---|---:|---:|---:|---:|---:|",
     ]
     for m in d["modes"]:
-        cells = " | ".join(f"{ms(m[k]['atoms_pass_s'])} / {ms(m[k]['frame_s'])}" for k in ("quad", "sprite", "mesh"))
-        lines.append(f"| {m['size'][0]}x{m['size'][1]} | {cells} | **{m['mesh_over_quad_atoms_pass']:.1f}x** | "
-                     f"{m['mesh_over_quad_frame']:.1f}x |")
+        cells = " | ".join(
+            f"{ms(m[k]['atoms_pass_s'])} / {ms(m[k]['frame_s'])}"
+            for k in ("quad", "sprite", "mesh")
+        )
+        lines.append(
+            f"| {m['size'][0]}x{m['size'][1]} | {cells} | **{m['mesh_over_quad_atoms_pass']:.1f}x** | "
+            f"{m['mesh_over_quad_frame']:.1f}x |"
+        )
     lines += [
         "",
         f"**Navigation cube** ({c['id']}, {c['n_atoms']} atoms; cube half edge {c['cube_half_A']:.2f} Å holding "
@@ -336,5 +447,7 @@ def _markdown(d: dict) -> str:
         "|---|---:|---:|---:|---:|",
     ]
     for r in d["scaling"]:
-        lines.append(f"| {r['id']} | {r['n_atoms']} | {ms(r['spheres_s'])} | {ms(r['frame_s'])} | {1 / r['frame_s']:.1f} |")
+        lines.append(
+            f"| {r['id']} | {r['n_atoms']} | {ms(r['spheres_s'])} | {ms(r['frame_s'])} | {1 / r['frame_s']:.1f} |"
+        )
     return "\n".join(lines)

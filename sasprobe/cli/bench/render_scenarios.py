@@ -30,13 +30,15 @@ import statistics
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
 PATH_FPS = 30.0  # poses per second of the demo path (a renderer's frame rate)
-PATH_SEARCH_S = 8.0  # the session simulated; the frames are its first stretch in contact at least half the time
+PATH_SEARCH_S = (
+    8.0  # the session simulated; the frames are its first stretch in contact at least half the time
+)
 
 
 @dataclass
@@ -63,12 +65,18 @@ def demo_path(structure, frames: int, cube=None) -> list:
 
     stride = int(1000 / PATH_FPS)
     mapping = {} if cube is None else {"cube_half_A": cube.half, "cube_center_A": cube.center}
-    _, outputs, _ = closed_loop_session(structure, "scan", "proxy", mapping, PHANTOM_OMNI_LIMITS,
-                                        int(PATH_SEARCH_S * 1000) + stride * frames)
+    _, outputs, _ = closed_loop_session(
+        structure,
+        "scan",
+        "proxy",
+        mapping,
+        PHANTOM_OMNI_LIMITS,
+        int(PATH_SEARCH_S * 1000) + stride * frames,
+    )
     poses = outputs[::stride]
     contact = np.convolve([p.contact for p in poses], np.ones(frames) / frames, mode="valid")
     start = int(np.argmax(contact >= 0.5)) if np.any(contact >= 0.5) else int(np.argmax(contact))
-    return poses[start:start + frames]
+    return poses[start : start + frames]
 
 
 def first_cube(path):
@@ -84,13 +92,19 @@ def follow_path(scene, path, with_cube: bool = True) -> Callable[[int], None]:
 
     def step(k: int) -> None:
         pose = path[k % len(path)]
-        scene.probe = Probe(center=np.array(pose.proxy_A, dtype=np.float64),
-                            touched_atom=pose.touched_atoms[0] if pose.touched_atoms else -1)
+        scene.probe = Probe(
+            center=np.array(pose.proxy_A, dtype=np.float64),
+            touched_atom=pose.touched_atoms[0] if pose.touched_atoms else -1,
+        )
         if not with_cube:
             return
         center = np.array(pose.cube_center_A, dtype=np.float64)
-        if not np.array_equal(center, scene.nav_cube.center) or pose.cube_half_A != scene.nav_cube.half:
+        if (
+            not np.array_equal(center, scene.nav_cube.center)
+            or pose.cube_half_A != scene.nav_cube.half
+        ):
             scene.nav_cube = NavCube(center, float(pose.cube_half_A))
+
     return step
 
 
@@ -110,7 +124,9 @@ def make_case(gl, label: str, structure, size, lighting, cache: bool, nav_cube=N
     if camera is None:
         center, radius = scene.bounding_sphere()
         camera = Camera.fitted(center, radius, size[0] / size[1])
-    return Case(label, renderer, Camera(camera.eye, camera.target, camera.up, camera.fov_y), lambda k: None)
+    return Case(
+        label, renderer, Camera(camera.eye, camera.target, camera.up, camera.fov_y), lambda k: None
+    )
 
 
 def time_cases(gl, cases: list[Case], frames: int, warmup: int = 2) -> None:
@@ -136,10 +152,13 @@ def summary(cases: list[Case], unlit: str, full: str) -> dict:
     rows = {}
     for case in cases:
         counts = case.renderer.planner.layer_counts() if case.renderer.planner is not None else None
-        rows[case.label] = {"ms": statistics.median(case.times) * 1e3, "cpu_ms": statistics.median(case.cpu) * 1e3,
-                            "frames": len(case.times),
-                            "cache_hits": None if counts is None else counts["kept"],
-                            "cache_misses": None if counts is None else counts["drawn"]}
+        rows[case.label] = {
+            "ms": statistics.median(case.times) * 1e3,
+            "cpu_ms": statistics.median(case.cpu) * 1e3,
+            "frames": len(case.times),
+            "cache_hits": None if counts is None else counts["kept"],
+            "cache_misses": None if counts is None else counts["drawn"],
+        }
     for row in rows.values():
         for key, suffix in (("ms", ""), ("cpu_ms", "_cpu")):
             row["over_unlit" + suffix] = row[key] / rows[unlit][key]
@@ -162,27 +181,41 @@ def session(gl, structure, size, frames: int, demo_view: bool = False, between=N
     path = demo_path(structure, frames)
     cube = first_cube(path) if demo_view else None
     lit = LightingSettings()
-    cases = [make_case(gl, "unlit", structure, size, None, False, cube),
-             make_case(gl, "full redraw", structure, size, lit, False, cube),
-             make_case(gl, "session (frame cache)", structure, size, lit, True, cube)]
+    cases = [
+        make_case(gl, "unlit", structure, size, None, False, cube),
+        make_case(gl, "full redraw", structure, size, lit, False, cube),
+        make_case(gl, "session (frame cache)", structure, size, lit, True, cube),
+    ]
 
     for case in cases:
         case.step = follow_path(case.renderer.scene, path, with_cube=demo_view)
     try:
         time_cases(gl, cases, frames)
-        full, kept = cases[1].renderer.read_image(), cases[2].renderer.read_image()  # the same last frame
+        full, kept = (
+            cases[1].renderer.read_image(),
+            cases[2].renderer.read_image(),
+        )  # the same last frame
         diff = np.abs(full.astype(int) - kept.astype(int)).max(axis=2)
-        out = {"rows": summary(cases, "unlit", "full redraw"), "images": (full, kept), "demo_view": demo_view,
-               "pixels_within_2": float((diff <= 2).mean()), "max_difference": int(diff.max()),
-               "contact_fraction": float(np.mean([p.contact for p in path])),
-               "probe_travel_A": float(np.sum(np.linalg.norm(np.diff([p.proxy_A for p in path], axis=0), axis=1)))}
+        out = {
+            "rows": summary(cases, "unlit", "full redraw"),
+            "images": (full, kept),
+            "demo_view": demo_view,
+            "pixels_within_2": float((diff <= 2).mean()),
+            "max_difference": int(diff.max()),
+            "contact_fraction": float(np.mean([p.contact for p in path])),
+            "probe_travel_A": float(
+                np.sum(np.linalg.norm(np.diff([p.proxy_A for p in path], axis=0), axis=1))
+            ),
+        }
         if between is not None:
             out["peer"] = between()
             kept_case = cases[2]
             after = Case("after", kept_case.renderer, kept_case.camera, kept_case.step)
             time_cases(gl, [after], max(frames // 2, 3), warmup=0)
-            out["session_after"] = {"ms": statistics.median(after.times) * 1e3,
-                                    "cpu_ms": statistics.median(after.cpu) * 1e3}
+            out["session_after"] = {
+                "ms": statistics.median(after.times) * 1e3,
+                "cpu_ms": statistics.median(after.cpu) * 1e3,
+            }
     finally:
         release(cases)
     return out
@@ -195,10 +228,12 @@ def orbit(gl, structure, size, frames: int, probe_center) -> dict:
 
     lit = LightingSettings()
     baked = LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed"))
-    cases = [make_case(gl, "unlit", structure, size, None, False),
-             make_case(gl, "full redraw", structure, size, lit, False),
-             make_case(gl, "frame cache", structure, size, lit, True),
-             make_case(gl, "precomputed AO + shadows", structure, size, baked, True)]
+    cases = [
+        make_case(gl, "unlit", structure, size, None, False),
+        make_case(gl, "full redraw", structure, size, lit, False),
+        make_case(gl, "frame cache", structure, size, lit, True),
+        make_case(gl, "precomputed AO + shadows", structure, size, baked, True),
+    ]
     step_angle = np.radians(1.0)
 
     def step_of(case):
@@ -228,22 +263,42 @@ def drifting_cube(gl, structure, size, frames: int) -> dict:
     camera = Camera.fitted(cube.center, cube.half * np.sqrt(3.0), size[0] / size[1])
     lit = LightingSettings()
     baked = LightingSettings(shadows="precomputed", ao=AOSettings(mode="precomputed"))
-    cases = [make_case(gl, label, structure, size, lighting, cache, NavCube(cube.center.copy(), cube.half), camera)
-             for label, lighting, cache in (("unlit", None, False), ("full redraw", lit, False),
-                                            ("frame cache", lit, True), ("precomputed AO + shadows", baked, True))]
+    cases = [
+        make_case(
+            gl,
+            label,
+            structure,
+            size,
+            lighting,
+            cache,
+            NavCube(cube.center.copy(), cube.half),
+            camera,
+        )
+        for label, lighting, cache in (
+            ("unlit", None, False),
+            ("full redraw", lit, False),
+            ("frame cache", lit, True),
+            ("precomputed AO + shadows", baked, True),
+        )
+    ]
     drift = np.array([0.05, -0.03, 0.04])  # Å per frame: 1.5-2 Å/s at 30 fps
 
     def step_of(scene):
         def step(k: int) -> None:
             scene.nav_cube = NavCube(cube.center + k * drift, cube.half)
             scene.probe = Probe(center=scene.nav_cube.center + [0.0, 0.0, 0.5 * cube.half])
+
         return step
 
     for case in cases:
         case.step = step_of(case.renderer.scene)
     try:
         time_cases(gl, cases, frames)
-        out = {"rows": summary(cases, "unlit", "full redraw"), "cube_half_A": cube.half, "atoms_in_cube": inside}
+        out = {
+            "rows": summary(cases, "unlit", "full redraw"),
+            "cube_half_A": cube.half,
+            "atoms_in_cube": inside,
+        }
     finally:
         release(cases)
     return out
@@ -302,8 +357,12 @@ def pymol_ray(path, size, repeats: int) -> dict | None:
     shadows and antialiasing; None where pymol-open-source is not installed."""
     if not pymol_available():
         return None
-    r = subprocess.run([sys.executable, "-c", PYMOL_SCRIPT, str(path), str(size[0]), str(size[1]), str(repeats)],
-                       capture_output=True, text=True, timeout=900)
+    r = subprocess.run(
+        [sys.executable, "-c", PYMOL_SCRIPT, str(path), str(size[0]), str(size[1]), str(repeats)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     for line in r.stdout.splitlines():
         if line.startswith("PYMOL_RESULT "):
             return json.loads(line.split(" ", 1)[1])
@@ -318,12 +377,17 @@ def cache_figure(run: dict, path):
     full, kept = run["images"]
     diff = np.abs(full.astype(int) - kept.astype(int)).max(axis=2)
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.6), dpi=110)
-    for ax, image, title in ((axes[0], full, "full redraw"), (axes[1], kept, "frame cache (probe moved)")):
+    for ax, image, title in (
+        (axes[0], full, "full redraw"),
+        (axes[1], kept, "frame cache (probe moved)"),
+    ):
         ax.imshow(image)
         ax.set_title(title, fontsize=8)
     im = axes[2].imshow(diff, cmap="magma", vmin=0, vmax=8)
-    axes[2].set_title(f"|difference|: max {diff.max()}/255,\n{100 * (diff <= 2).mean():.3f} % of pixels within 2/255",
-                      fontsize=8)
+    axes[2].set_title(
+        f"|difference|: max {diff.max()}/255,\n{100 * (diff <= 2).mean():.3f} % of pixels within 2/255",
+        fontsize=8,
+    )
     fig.colorbar(im, ax=axes[2], shrink=0.8, label="/255")
     for ax in axes:
         ax.set_xticks([])
@@ -336,29 +400,48 @@ def cache_figure(run: dict, path):
 
 def markdown(d: dict) -> str:
     size = f"{d['size'][0]}x{d['size'][1]}"
-    lines = [f"**Scenarios** ({size}, medians of {d['frames']} frames per case, cases in turn; load average "
-             f"{d['load'][0]} at the start, {d['load'][1]} at the end):", "",
-             "| scenario | structure | case | ms / frame | CPU ms / frame | × unlit | full redraw / this | "
-             "× unlit (CPU) | full / this (CPU) | layer kept |",
-             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|"]
-    for key, title in (("session", "(a) haptic session"), ("orbit", "(b) orbit"), ("cube", "(c) cube drifting")):
+    lines = [
+        f"**Scenarios** ({size}, medians of {d['frames']} frames per case, cases in turn; load average "
+        f"{d['load'][0]} at the start, {d['load'][1]} at the end):",
+        "",
+        "| scenario | structure | case | ms / frame | CPU ms / frame | × unlit | full redraw / this | "
+        "× unlit (CPU) | full / this (CPU) | layer kept |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for key, title in (
+        ("session", "(a) haptic session"),
+        ("orbit", "(b) orbit"),
+        ("cube", "(c) cube drifting"),
+    ):
         for run in d[key]:
             name = run["id"] + (" (the demo's view)" if run.get("demo_view") else "")
             for label, r in run["rows"].items():
-                kept = "" if r["cache_hits"] is None else f"{r['cache_hits']}/{r['cache_hits'] + r['cache_misses']}"
-                lines.append(f"| {title} | {name} | {label} | {r['ms']:.1f} | {r['cpu_ms']:.1f} | "
-                             f"{r['over_unlit']:.2f} | {r['full_over_this']:.2f} | {r['over_unlit_cpu']:.2f} | "
-                             f"{r['full_over_this_cpu']:.2f} | {kept} |")
+                kept = (
+                    ""
+                    if r["cache_hits"] is None
+                    else f"{r['cache_hits']}/{r['cache_hits'] + r['cache_misses']}"
+                )
+                lines.append(
+                    f"| {title} | {name} | {label} | {r['ms']:.1f} | {r['cpu_ms']:.1f} | "
+                    f"{r['over_unlit']:.2f} | {r['full_over_this']:.2f} | {r['over_unlit_cpu']:.2f} | "
+                    f"{r['full_over_this_cpu']:.2f} | {kept} |"
+                )
     for run in d["session"]:
-        lines.append(f"\nSession, {run['id']}{' (the demo view)' if run['demo_view'] else ''}: the probe travelled {run['probe_travel_A']:.1f} Å, in contact "
-                     f"{100 * run['contact_fraction']:.0f} % of the frames; the last frame from the kept layer and "
-                     f"drawn whole agree within 2/255 on {100 * run['pixels_within_2']:.3f} % of the pixels "
-                     f"(largest difference {run['max_difference']}/255).")
+        lines.append(
+            f"\nSession, {run['id']}{' (the demo view)' if run['demo_view'] else ''}: the probe travelled {run['probe_travel_A']:.1f} Å, in contact "
+            f"{100 * run['contact_fraction']:.0f} % of the frames; the last frame from the kept layer and "
+            f"drawn whole agree within 2/255 on {100 * run['pixels_within_2']:.3f} % of the pixels "
+            f"(largest difference {run['max_difference']}/255)."
+        )
     for run in d["orbit"]:
-        lines.append(f"Orbit, {run['id']}: the atlas baked in {run['bake_s']:.2f} s before the first frame.")
+        lines.append(
+            f"Orbit, {run['id']}: the atlas baked in {run['bake_s']:.2f} s before the first frame."
+        )
     for run in d["cube"]:
-        lines.append(f"Drifting cube, {run['id']}: half edge {run['cube_half_A']:.2f} Å, {run['atoms_in_cube']} atoms; "
-                     "the atlas is baked again every frame (the culling changes).")
+        lines.append(
+            f"Drifting cube, {run['id']}: half edge {run['cube_half_A']:.2f} Å, {run['atoms_in_cube']} atoms; "
+            "the atlas is baked again every frame (the culling changes)."
+        )
     around = next((r for r in d["session"] if "peer" in r), None)
     p = None if around is None else around["peer"]
     if p is None:
@@ -368,14 +451,24 @@ def markdown(d: dict) -> str:
     else:
         before, after = around["rows"]["session (frame cache)"], around["session_after"]
         session = {key: (before[key] + after[key]) / 2 for key in ("ms", "cpu_ms")}
-        lines += ["", f"**PyMOL {p['version']}** `ray` on {around['id']} ({p['atoms']} atoms, spheres, {size}, "
-                  f"max_threads {p['max_threads']}), same run, between two stretches of session frames "
-                  f"({before['ms']:.1f} and {after['ms']:.1f} ms); ratio = PyMOL / their mean:", "",
-                  "| PyMOL setting | ms | CPU ms | PyMOL / session frame | (CPU) |", "|---|---:|---:|---:|---:|"]
+        lines += [
+            "",
+            f"**PyMOL {p['version']}** `ray` on {around['id']} ({p['atoms']} atoms, spheres, {size}, "
+            f"max_threads {p['max_threads']}), same run, between two stretches of session frames "
+            f"({before['ms']:.1f} and {after['ms']:.1f} ms); ratio = PyMOL / their mean:",
+            "",
+            "| PyMOL setting | ms | CPU ms | PyMOL / session frame | (CPU) |",
+            "|---|---:|---:|---:|---:|",
+        ]
         aa = p["antialias_default"]
         for shadows in (1, 0):
             for antialias in sorted({aa, 0}, reverse=True):
-                ms, cpu = p[f"shadows{shadows}_aa{antialias}_ms"], p[f"shadows{shadows}_aa{antialias}_cpu_ms"]
-                lines.append(f"| ray_shadows {shadows}, antialias {antialias} | {ms:.0f} | {cpu:.0f} | "
-                             f"{ms / session['ms']:.1f}× | {cpu / session['cpu_ms']:.1f}× |")
+                ms, cpu = (
+                    p[f"shadows{shadows}_aa{antialias}_ms"],
+                    p[f"shadows{shadows}_aa{antialias}_cpu_ms"],
+                )
+                lines.append(
+                    f"| ray_shadows {shadows}, antialias {antialias} | {ms:.0f} | {cpu:.0f} | "
+                    f"{ms / session['ms']:.1f}× | {cpu / session['cpu_ms']:.1f}× |"
+                )
     return "\n".join(lines)

@@ -49,14 +49,18 @@ def _case(gl, structure, path, size, lit: bool):
     from sasprobe.render.scene_state import NavCube, Probe
     from sasprobe.render.workspace_view import workspace_camera
 
-    opts = RenderOptions(size=size, connect="", lighting=PRESETS["default"].lighting if lit else None)
+    opts = RenderOptions(
+        size=size, connect="", lighting=PRESETS["default"].lighting if lit else None
+    )
     scene = build_scene(structure, opts)
     aspect = size[0] / size[1]
 
     def put(k: int) -> None:
         pose = path[k % len(path)]
-        scene.probe = Probe(center=np.array(pose.proxy_A, dtype=np.float64),
-                            touched_atom=pose.touched_atoms[0] if pose.touched_atoms else -1)
+        scene.probe = Probe(
+            center=np.array(pose.proxy_A, dtype=np.float64),
+            touched_atom=pose.touched_atoms[0] if pose.touched_atoms else -1,
+        )
         cube = NavCube(np.array(pose.cube_center_A, dtype=np.float64), float(pose.cube_half_A))
         if scene.nav_cube is None or scene.nav_cube.key() != cube.key():
             scene.nav_cube = cube
@@ -64,7 +68,9 @@ def _case(gl, structure, path, size, lit: bool):
         case.camera.eye, case.camera.target, case.camera.up = follow.eye, follow.target, follow.up
 
     put_first = path[0]
-    scene.nav_cube = NavCube(np.array(put_first.cube_center_A, dtype=np.float64), float(put_first.cube_half_A))
+    scene.nav_cube = NavCube(
+        np.array(put_first.cube_center_A, dtype=np.float64), float(put_first.cube_half_A)
+    )
     t0 = time.perf_counter()
     renderer = make_renderer(gl, scene, size, opts)
     case = Case("lit" if lit else "unlit", renderer, workspace_camera(scene.nav_cube, aspect), put)
@@ -84,18 +90,49 @@ def _first_frames(by_id, ids, sizes, runs: int, progress) -> dict:
     for sid in ids:
         folder = Path(tempfile.mkdtemp(prefix="sps"))
         pub, ctl = f"ipc://{folder}/p", f"ipc://{folder}/c"
-        child = DaemonChild(["--device", "sim:scan", "--molecule", str(by_id[sid].path), "--pub", pub, "--ctl", ctl],
-                            folder / "daemon.log")
+        child = DaemonChild(
+            [
+                "--device",
+                "sim:scan",
+                "--molecule",
+                str(by_id[sid].path),
+                "--pub",
+                pub,
+                "--ctl",
+                ctl,
+            ],
+            folder / "daemon.log",
+        )
         try:
             child.wait_ready(DAEMON_READY_S)
             for size in sizes:
                 walls, cpus = [], []
                 for _ in range(runs):
                     before, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
-                    r = subprocess.run([sys.executable, "-m", "sasprobe", "render", "--connect", pub, "--control", ctl,
-                                        "--headless", "--frames", "1", "--size", f"{size[0]}x{size[1]}"],
-                                       capture_output=True, text=True, timeout=300)
-                    wall, after = time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_CHILDREN)
+                    r = subprocess.run(
+                        [
+                            sys.executable,
+                            "-m",
+                            "sasprobe",
+                            "render",
+                            "--connect",
+                            pub,
+                            "--control",
+                            ctl,
+                            "--headless",
+                            "--frames",
+                            "1",
+                            "--size",
+                            f"{size[0]}x{size[1]}",
+                        ],
+                        capture_output=True,
+                        text=True,
+                        timeout=300,
+                    )
+                    wall, after = (
+                        time.perf_counter() - t0,
+                        resource.getrusage(resource.RUSAGE_CHILDREN),
+                    )
                     cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
                     walls.append(wall if r.returncode == 0 else float("nan"))
                     cpus.append(cpu if r.returncode == 0 else float("nan"))
@@ -107,8 +144,17 @@ def _first_frames(by_id, ids, sizes, runs: int, progress) -> dict:
     return out
 
 
-def run_sessions(gl, by_id, quick: bool = False, sizes=None, structures=None, frames: int | None = None,
-                 rounds: int | None = None, first_frames=True, progress=lambda what: None) -> dict:
+def run_sessions(
+    gl,
+    by_id,
+    quick: bool = False,
+    sizes=None,
+    structures=None,
+    frames: int | None = None,
+    rounds: int | None = None,
+    first_frames=True,
+    progress=lambda what: None,
+) -> dict:
     """The figures of the sessions table (see the module's docstring); `first_frames`: True,
     False, or the structures whose `render --connect --frames 1` is timed."""
     from sasprobe.cli.bench.render_scenarios import demo_path, time_cases
@@ -128,7 +174,9 @@ def run_sessions(gl, by_id, quick: bool = False, sizes=None, structures=None, fr
         try:
             for sid in structures:
                 for lighting in LIGHTINGS:
-                    cases[sid, lighting] = _case(gl, loaded[sid], paths[sid], size, lighting == "lit")
+                    cases[sid, lighting] = _case(
+                        gl, loaded[sid], paths[sid], size, lighting == "lit"
+                    )
             per_round = {key: [] for key in cases}
             for _ in range(rounds):
                 for case in cases.values():
@@ -137,32 +185,64 @@ def run_sessions(gl, by_id, quick: bool = False, sizes=None, structures=None, fr
                 time_cases(gl, list(cases.values()), frames, warmup=0)
                 for key, case in cases.items():
                     counts = case.renderer.planner.layer_counts()
-                    per_round[key].append({"ms": statistics.median(case.times) * 1e3,
-                                           "cpu_ms": statistics.median(case.cpu) * 1e3,
-                                           "kept": counts["kept"] - case.layer_before["kept"]})
+                    per_round[key].append(
+                        {
+                            "ms": statistics.median(case.times) * 1e3,
+                            "cpu_ms": statistics.median(case.cpu) * 1e3,
+                            "kept": counts["kept"] - case.layer_before["kept"],
+                        }
+                    )
                 progress(f"{size[0]}x{size[1]} round")
             for (sid, lighting), case in cases.items():
                 runs = per_round[sid, lighting]
                 base = per_round[structures[0], lighting]
-                ratios = {key: [r[key] / b[key] for r, b in zip(runs, base)] for key in ("ms", "cpu_ms")}
-                rows.append({
-                    "id": sid, "atoms": loaded[sid].n_atoms, "size": list(size), "lighting": lighting,
-                    "cube_half_A": paths[sid][0].cube_half_A, "spheres": int(case.renderer.buffers.n_selected),
-                    "ms": statistics.median(r["ms"] for r in runs), "cpu_ms": statistics.median(r["cpu_ms"] for r in runs),
-                    "kept": int(statistics.median(r["kept"] for r in runs)), "frames": frames,
-                    "first_frame_s": case.first_frame_s,
-                    **{f"over_{structures[0]}" + ("_cpu" if key == "cpu_ms" else ""): statistics.median(v)
-                       for key, v in ratios.items()},
-                    **{f"over_{structures[0]}_cpu_range": [min(ratios["cpu_ms"]), max(ratios["cpu_ms"])],
-                       f"over_{structures[0]}_range": [min(ratios["ms"]), max(ratios["ms"])]},
-                })
+                ratios = {
+                    key: [r[key] / b[key] for r, b in zip(runs, base)] for key in ("ms", "cpu_ms")
+                }
+                rows.append(
+                    {
+                        "id": sid,
+                        "atoms": loaded[sid].n_atoms,
+                        "size": list(size),
+                        "lighting": lighting,
+                        "cube_half_A": paths[sid][0].cube_half_A,
+                        "spheres": int(case.renderer.buffers.n_selected),
+                        "ms": statistics.median(r["ms"] for r in runs),
+                        "cpu_ms": statistics.median(r["cpu_ms"] for r in runs),
+                        "kept": int(statistics.median(r["kept"] for r in runs)),
+                        "frames": frames,
+                        "first_frame_s": case.first_frame_s,
+                        **{
+                            f"over_{structures[0]}"
+                            + ("_cpu" if key == "cpu_ms" else ""): statistics.median(v)
+                            for key, v in ratios.items()
+                        },
+                        **{
+                            f"over_{structures[0]}_cpu_range": [
+                                min(ratios["cpu_ms"]),
+                                max(ratios["cpu_ms"]),
+                            ],
+                            f"over_{structures[0]}_range": [min(ratios["ms"]), max(ratios["ms"])],
+                        },
+                    }
+                )
         finally:
             for case in cases.values():
                 case.renderer.release()
-    out = {"structures": list(structures), "sizes": [list(s) for s in sizes], "frames": frames, "rounds": rounds,
-           "rows": rows, "load": load}
+    out = {
+        "structures": list(structures),
+        "sizes": [list(s) for s in sizes],
+        "frames": frames,
+        "rounds": rounds,
+        "rows": rows,
+        "load": load,
+    }
     for row in rows:  # lit against unlit, same structure and size, same rounds
-        unlit = next(r for r in rows if r["id"] == row["id"] and r["size"] == row["size"] and r["lighting"] == "unlit")
+        unlit = next(
+            r
+            for r in rows
+            if r["id"] == row["id"] and r["size"] == row["size"] and r["lighting"] == "unlit"
+        )
         row["lit_over_unlit"] = row["ms"] / unlit["ms"]
         row["lit_over_unlit_cpu"] = row["cpu_ms"] / unlit["cpu_ms"]
     joined = structures if first_frames is True else tuple(first_frames or ())
@@ -170,7 +250,9 @@ def run_sessions(gl, by_id, quick: bool = False, sizes=None, structures=None, fr
         firsts = _first_frames(by_id, joined, sizes, 1 if quick else FIRST_FRAME_RUNS, progress)
         for row in rows:
             if row["id"] in joined:
-                row["connect_frames_1_s"], row["connect_frames_1_cpu_s"] = firsts[row["id"], tuple(row["size"])]
+                row["connect_frames_1_s"], row["connect_frames_1_cpu_s"] = firsts[
+                    row["id"], tuple(row["size"])
+                ]
     load.append(os.getloadavg()[0])
     return out
 
@@ -190,15 +272,22 @@ def markdown(d: dict) -> str:
         lo, hi = r[f"over_{base}_cpu_range"]
         wlo, whi = r[f"over_{base}_range"]
         lit = f"{r['lit_over_unlit_cpu']:.2f}" if r["lighting"] == "lit" else ""
-        first = f"{r['connect_frames_1_s']:.2f} ({r['connect_frames_1_cpu_s']:.2f})" \
-            if "connect_frames_1_s" in r and r["lighting"] == "lit" else ""
+        first = (
+            f"{r['connect_frames_1_s']:.2f} ({r['connect_frames_1_cpu_s']:.2f})"
+            if "connect_frames_1_s" in r and r["lighting"] == "lit"
+            else ""
+        )
         lines.append(
             f"| {r['id']} | {r['atoms']} | {r['size'][0]}x{r['size'][1]} | {r['lighting']} | {r['ms']:.1f} | "
             f"{r['cpu_ms']:.1f} | {r[f'over_{base}_cpu']:.2f} [{lo:.2f}–{hi:.2f}] | {r[f'over_{base}']:.2f} "
-            f"[{wlo:.2f}–{whi:.2f}] | {lit} | {r['kept']}/{r['frames']} | {r['first_frame_s']:.2f} | {first} |")
-    lines += ["", "`--frames 1`: the default lighting, process start to exit, the daemon already running; in "
-              "brackets the process's CPU time (llvmpipe's threads included), which other work on the machine "
-              f"does not stretch. Load average before and after: {d['load'][0]:.1f}, {d['load'][1]:.1f}."]
+            f"[{wlo:.2f}–{whi:.2f}] | {lit} | {r['kept']}/{r['frames']} | {r['first_frame_s']:.2f} | {first} |"
+        )
+    lines += [
+        "",
+        "`--frames 1`: the default lighting, process start to exit, the daemon already running; in "
+        "brackets the process's CPU time (llvmpipe's threads included), which other work on the machine "
+        f"does not stretch. Load average before and after: {d['load'][0]:.1f}, {d['load'][1]:.1f}.",
+    ]
     return "\n".join(lines)
 
 
@@ -213,21 +302,43 @@ def chart(d: dict, path, renderer_name: str):
     k = 0
     for size in d["sizes"]:
         for lighting in LIGHTINGS:
-            values = [next(r["cpu_ms"] for r in d["rows"] if r["id"] == sid and r["size"] == size
-                           and r["lighting"] == lighting) for sid in ids]
-            axes[0].bar(x + (k - (len(d["sizes"]) * len(LIGHTINGS) - 1) / 2) * width, values, width,
-                        label=f"{lighting}, {size[0]}x{size[1]}")
+            values = [
+                next(
+                    r["cpu_ms"]
+                    for r in d["rows"]
+                    if r["id"] == sid and r["size"] == size and r["lighting"] == lighting
+                )
+                for sid in ids
+            ]
+            axes[0].bar(
+                x + (k - (len(d["sizes"]) * len(LIGHTINGS) - 1) / 2) * width,
+                values,
+                width,
+                label=f"{lighting}, {size[0]}x{size[1]}",
+            )
             k += 1
-    axes[0].set_xticks(x, [f"{sid}\n{next(r['atoms'] for r in d['rows'] if r['id'] == sid)} atoms" for sid in ids])
+    axes[0].set_xticks(
+        x, [f"{sid}\n{next(r['atoms'] for r in d['rows'] if r['id'] == sid)} atoms" for sid in ids]
+    )
     axes[0].set_ylabel("median session frame, CPU ms")
     axes[0].set_ylim(top=axes[0].get_ylim()[1] * 1.3)  # room for the legend above the bars
     axes[0].legend(fontsize=7, ncol=2, loc="upper center")
     axes[0].set_title(f"Session frame by structure\n{renderer_name.split(' / ')[0]}", fontsize=9)
     if all("connect_frames_1_s" in r for r in d["rows"]):
         for size in d["sizes"]:
-            for key, style, what in (("connect_frames_1_s", "o-", "wall"), ("connect_frames_1_cpu_s", "s--", "CPU")):
-                axes[1].plot(ids, [next(r[key] for r in d["rows"] if r["id"] == sid and r["size"] == size)
-                                   for sid in ids], style, label=f"{size[0]}x{size[1]}, {what}")
+            for key, style, what in (
+                ("connect_frames_1_s", "o-", "wall"),
+                ("connect_frames_1_cpu_s", "s--", "CPU"),
+            ):
+                axes[1].plot(
+                    ids,
+                    [
+                        next(r[key] for r in d["rows"] if r["id"] == sid and r["size"] == size)
+                        for sid in ids
+                    ],
+                    style,
+                    label=f"{size[0]}x{size[1]}, {what}",
+                )
         axes[1].axhline(3.0, color="grey", lw=0.8, ls=":", label="3 s goal")
         axes[1].set_ylabel("render --connect --frames 1, s")
         axes[1].set_ylim(bottom=0)

@@ -20,8 +20,11 @@ from pathlib import Path
 from sasprobe.cli.bench.machine import markdown as machine_markdown
 
 PARTS = {"all": "All benchmarks", "gpu-quick": "GPU check"}  # in the page's order
-MODES = {"full": "full size", "quick": "--quick: fewer repeats and structures",
-         "smoke": "--smoke: every code path at its smallest size; the figures only show that it runs"}
+MODES = {
+    "full": "full size",
+    "quick": "--quick: fewer repeats and structures",
+    "smoke": "--smoke: every code path at its smallest size; the figures only show that it runs",
+}
 HEADER = """# Benchmarks
 
 This page is written by `sasprobe bench --page docs/benchmarks.md` (every benchmark at full
@@ -47,16 +50,26 @@ def code_version() -> str:
     if not (REPO_ROOT / ".git").exists():
         return text
     try:
-        commit = subprocess.run(["git", "-C", str(REPO_ROOT), "rev-parse", "--short", "HEAD"],
-                                capture_output=True, text=True, timeout=10).stdout.strip()
-        changed = subprocess.run(["git", "-C", str(REPO_ROOT), "status", "--porcelain", "--untracked-files=no"],
-                                 capture_output=True, text=True, timeout=10).stdout.strip()
+        commit = subprocess.run(
+            ["git", "-C", str(REPO_ROOT), "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
+        changed = subprocess.run(
+            ["git", "-C", str(REPO_ROOT), "status", "--porcelain", "--untracked-files=no"],
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
     except (OSError, subprocess.TimeoutExpired):
         return text
     return f"{text}, commit {commit}{' with local changes' if changed else ''}" if commit else text
 
 
-def wall_time_table(results, skipped: dict[str, str], failed: dict[str, str], total_s: float) -> list[str]:
+def wall_time_table(
+    results, skipped: dict[str, str], failed: dict[str, str], total_s: float
+) -> list[str]:
     return [
         "| benchmark | wall time (s) |",
         "|---|---:|",
@@ -74,36 +87,84 @@ def sections(results, level: int, chart_prefix: str = "") -> list[str]:
 
     parts = []
     for r in results:
-        parts += ["", f"{'#' * level} {bench.load(r.name).TITLE}", "", demote(r.markdown, level - 2)]
+        parts += [
+            "",
+            f"{'#' * level} {bench.load(r.name).TITLE}",
+            "",
+            demote(r.markdown, level - 2),
+        ]
         parts += [f"\n![{c.stem}]({chart_prefix}{c.name})" for c in r.charts]
     return parts
 
 
 def demote(text: str, by: int) -> str:
     """Markdown with its headings `by` levels lower."""
-    return re.sub(r"^(#+) ", lambda m: "#" * (len(m.group(1)) + by) + " ", text, flags=re.M) if by > 0 else text
+    return (
+        re.sub(r"^(#+) ", lambda m: "#" * (len(m.group(1)) + by) + " ", text, flags=re.M)
+        if by > 0
+        else text
+    )
 
 
-def report_markdown(machine: dict, results, mode: str, date: str, skipped: dict[str, str], failed: dict[str, str],
-                    total_s: float) -> str:
+def report_markdown(
+    machine: dict,
+    results,
+    mode: str,
+    date: str,
+    skipped: dict[str, str],
+    failed: dict[str, str],
+    total_s: float,
+) -> str:
     """report.md of one run."""
-    parts = ["# sasprobe benchmark report", "",
-             f"Run of {date} ({MODES[mode]}), {code_version()}. Times are medians; ratios come from the same run.",
-             "", machine_markdown(machine), "", *wall_time_table(results, skipped, failed, total_s),
-             *sections(results, 2)]
+    parts = [
+        "# sasprobe benchmark report",
+        "",
+        f"Run of {date} ({MODES[mode]}), {code_version()}. Times are medians; ratios come from the same run.",
+        "",
+        machine_markdown(machine),
+        "",
+        *wall_time_table(results, skipped, failed, total_s),
+        *sections(results, 2),
+    ]
     return "\n".join(parts) + "\n"
 
 
-def all_part(machine: dict, results, mode: str, date: str, skipped: dict[str, str], failed: dict[str, str],
-             total_s: float, chart_prefix: str) -> str:
-    return "\n".join([f"## {PARTS['all']}", "", f"Run of {date} ({MODES[mode]}), {code_version()}; "
-                      f"{total_s:.0f} s in all.", "", machine_markdown(machine), "",
-                      *wall_time_table(results, skipped, failed, total_s), *sections(results, 3, chart_prefix)])
+def all_part(
+    machine: dict,
+    results,
+    mode: str,
+    date: str,
+    skipped: dict[str, str],
+    failed: dict[str, str],
+    total_s: float,
+    chart_prefix: str,
+) -> str:
+    return "\n".join(
+        [
+            f"## {PARTS['all']}",
+            "",
+            f"Run of {date} ({MODES[mode]}), {code_version()}; {total_s:.0f} s in all.",
+            "",
+            machine_markdown(machine),
+            "",
+            *wall_time_table(results, skipped, failed, total_s),
+            *sections(results, 3, chart_prefix),
+        ]
+    )
 
 
 def gpu_part(machine: dict, mode: str, date: str, title: str, text: str) -> str:
-    return "\n".join([f"## {PARTS['gpu-quick']}", "", f"{title}. Run of {date} ({MODES[mode]}), {code_version()}.",
-                      "", machine_markdown(machine), "", demote(text, 1)])
+    return "\n".join(
+        [
+            f"## {PARTS['gpu-quick']}",
+            "",
+            f"{title}. Run of {date} ({MODES[mode]}), {code_version()}.",
+            "",
+            machine_markdown(machine),
+            "",
+            demote(text, 1),
+        ]
+    )
 
 
 def charts_folder(page: Path) -> Path:
@@ -122,10 +183,14 @@ def write_page(page: Path, part: str, body: str, charts=()) -> None:
                 shutil.copyfile(chart, folder / chart.name)
     blocks = [HEADER]
     for name in PARTS:
-        text = kept.get(name) or (f"## {PARTS[name]}\n\nNot measured yet: `sasprobe bench "
-                                  f"{'--gpu-quick ' if name == 'gpu-quick' else ''}--page docs/benchmarks.md` "
-                                  "writes this part.")
-        blocks.append(f"<!-- sasprobe bench: {name} -->\n{text.strip()}\n<!-- sasprobe bench: end {name} -->")
+        text = kept.get(name) or (
+            f"## {PARTS[name]}\n\nNot measured yet: `sasprobe bench "
+            f"{'--gpu-quick ' if name == 'gpu-quick' else ''}--page docs/benchmarks.md` "
+            "writes this part."
+        )
+        blocks.append(
+            f"<!-- sasprobe bench: {name} -->\n{text.strip()}\n<!-- sasprobe bench: end {name} -->"
+        )
     page.parent.mkdir(parents=True, exist_ok=True)
     page.write_text("\n\n".join(blocks) + "\n")
     if folder.is_dir():  # charts of earlier runs that no part shows any more
@@ -136,5 +201,7 @@ def write_page(page: Path, part: str, body: str, charts=()) -> None:
 
 
 def _parts(text: str) -> dict[str, str]:
-    found = re.findall(r"<!-- sasprobe bench: ([\w-]+) -->\n(.*?)\n<!-- sasprobe bench: end \1 -->", text, re.S)
+    found = re.findall(
+        r"<!-- sasprobe bench: ([\w-]+) -->\n(.*?)\n<!-- sasprobe bench: end \1 -->", text, re.S
+    )
     return {name: body for name, body in found if name in PARTS}

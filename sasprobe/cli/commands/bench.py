@@ -21,8 +21,8 @@ import traceback
 from pathlib import Path
 
 from sasprobe.cli import bench
-from sasprobe.common.errors import UserError
 from sasprobe.cli.argtypes import size_type
+from sasprobe.common.errors import UserError
 
 HELP = "run benchmarks (speed and accuracy), write JSON, charts, report.md and the benchmark page"
 
@@ -30,13 +30,24 @@ HELP = "run benchmarks (speed and accuracy), write JSON, charts, report.md and t
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("bench", help=HELP)
     _common(p)
-    p.add_argument("--only", metavar="NAMES", help=f"comma-separated benchmarks to run (default all: "
-                                                   f"{', '.join(bench.available())})")
-    p.add_argument("--gpu-quick", action="store_true",
-                   help="only the short GPU check: 1080p frame times of 1CRN, 1TII, 1AON, 6ZU5 with a cube "
-                        "(unlit, default lighting, session frames) and atlas bakes")
-    p.add_argument("--gpu-size", type=size_type, default=None, metavar="WxH",
-                   help="frame size of --gpu-quick (default 1920x1080)")
+    p.add_argument(
+        "--only",
+        metavar="NAMES",
+        help=f"comma-separated benchmarks to run (default all: {', '.join(bench.available())})",
+    )
+    p.add_argument(
+        "--gpu-quick",
+        action="store_true",
+        help="only the short GPU check: 1080p frame times of 1CRN, 1TII, 1AON, 6ZU5 with a cube "
+        "(unlit, default lighting, session frames) and atlas bakes",
+    )
+    p.add_argument(
+        "--gpu-size",
+        type=size_type,
+        default=None,
+        metavar="WxH",
+        help="frame size of --gpu-quick (default 1920x1080)",
+    )
     names = p.add_subparsers(dest="bench_name", metavar="NAME")
     for name in bench.available():
         module = bench.load(name)
@@ -51,15 +62,32 @@ def _common(p: argparse.ArgumentParser, suppress: bool = False) -> None:
     # Sub-benchmarks repeat the options so `bench grid --quick` and `bench --quick grid` both work.
     flag = argparse.SUPPRESS if suppress else False
     value = argparse.SUPPRESS if suppress else None
-    p.add_argument("--quick", action="store_true", default=flag,
-                   help="fewer repeats and structures (a few minutes in all)")
-    p.add_argument("--smoke", action="store_true", default=flag,
-                   help="every code path once at its smallest size (seconds; the figures only show that it runs)")
-    p.add_argument("--json", action="store_true", default=flag, help="print the figures as one JSON object")
-    p.add_argument("--out", type=Path, default=value, help="write JSON, PNG charts and report.md here")
-    p.add_argument("--page", type=Path, default=value, metavar="FILE",
-                   help="write this run's part of the benchmark page FILE (docs/benchmarks.md; charts in the "
-                        "folder beside it named after it), keeping the page's other part")
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        default=flag,
+        help="fewer repeats and structures (a few minutes in all)",
+    )
+    p.add_argument(
+        "--smoke",
+        action="store_true",
+        default=flag,
+        help="every code path once at its smallest size (seconds; the figures only show that it runs)",
+    )
+    p.add_argument(
+        "--json", action="store_true", default=flag, help="print the figures as one JSON object"
+    )
+    p.add_argument(
+        "--out", type=Path, default=value, help="write JSON, PNG charts and report.md here"
+    )
+    p.add_argument(
+        "--page",
+        type=Path,
+        default=value,
+        metavar="FILE",
+        help="write this run's part of the benchmark page FILE (docs/benchmarks.md; charts in the "
+        "folder beside it named after it), keeping the page's other part",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -87,27 +115,46 @@ def run(args: argparse.Namespace) -> int:
                 if args.bench_name:  # the one asked for: its error is the answer
                     raise
                 skipped[name] = str(exc)
-                print(f"sasprobe: warning: bench {name} skipped: {exc}", file=sys.stderr, flush=True)
+                print(
+                    f"sasprobe: warning: bench {name} skipped: {exc}", file=sys.stderr, flush=True
+                )
                 continue
-            except Exception as exc:  # a failed measurement: one line, and the other benchmarks still run
+            except (
+                Exception
+            ) as exc:  # a failed measurement: one line, and the other benchmarks still run
                 failed[name] = _failure(exc)
-                print(f"sasprobe: error: bench {name} failed: {failed[name]}{_keep_traceback(name, exc, args.out)}",
-                      file=sys.stderr, flush=True)
+                print(
+                    f"sasprobe: error: bench {name} failed: {failed[name]}{_keep_traceback(name, exc, args.out)}",
+                    file=sys.stderr,
+                    flush=True,
+                )
                 continue
             result.data["wall_seconds"] = time.perf_counter() - t0
             results.append(result)
             if not args.json:
                 print(f"## {module.TITLE}\n\n{result.markdown}\n", flush=True)
         if not results and not failed:
-            raise UserError("no benchmark could run: " + "; ".join(f"{n}: {why}" for n, why in skipped.items()))
+            raise UserError(
+                "no benchmark could run: " + "; ".join(f"{n}: {why}" for n, why in skipped.items())
+            )
         total_s = time.perf_counter() - t_start
-        payload = {"machine": machine, "date": date, "mode": mode, "wall_seconds": total_s,
-                   "skipped": skipped, "failed": failed, "benchmarks": {r.name: r.data for r in results}}
+        payload = {
+            "machine": machine,
+            "date": date,
+            "mode": mode,
+            "wall_seconds": total_s,
+            "skipped": skipped,
+            "failed": failed,
+            "benchmarks": {r.name: r.data for r in results},
+        }
         _write(args, payload, results)
     if args.json:
         print(json.dumps(payload))
     if failed:
-        print(f"sasprobe: error: {len(failed)} benchmark(s) failed: {', '.join(failed)}", file=sys.stderr)
+        print(
+            f"sasprobe: error: {len(failed)} benchmark(s) failed: {', '.join(failed)}",
+            file=sys.stderr,
+        )
         return 1
     return 0
 
@@ -118,8 +165,11 @@ def _mode(args: argparse.Namespace) -> str:
 
 def _failure(exc: Exception) -> str:
     """One line for a benchmark that raised: the error and where in sasprobe it was raised."""
-    ours = [(f.f_globals["__name__"], line) for f, line in traceback.walk_tb(exc.__traceback__)
-            if str(f.f_globals.get("__name__", "")).startswith("sasprobe.")]
+    ours = [
+        (f.f_globals["__name__"], line)
+        for f, line in traceback.walk_tb(exc.__traceback__)
+        if str(f.f_globals.get("__name__", "")).startswith("sasprobe.")
+    ]
     where = f" at {ours[-1][0]}:{ours[-1][1]}" if ours else ""
     message = (str(exc).strip().splitlines() or [""])[0][:300]
     return f"{type(exc).__name__}{': ' + message if message else ''}{where}"
@@ -142,9 +192,13 @@ def _write(args: argparse.Namespace, payload: dict, results: list[bench.BenchRes
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
         for r in results:
-            (args.out / f"{r.name}.json").write_text(json.dumps({"machine": machine, **r.data}, indent=1))
+            (args.out / f"{r.name}.json").write_text(
+                json.dumps({"machine": machine, **r.data}, indent=1)
+            )
         (args.out / "report.json").write_text(json.dumps(payload, indent=1))
-        (args.out / "report.md").write_text(report.report_markdown(machine, results, mode, date, *tables))
+        (args.out / "report.md").write_text(
+            report.report_markdown(machine, results, mode, date, *tables)
+        )
         print(f"wrote {args.out / 'report.md'}", file=sys.stderr)
     if args.page is not None:
         prefix = f"{report.charts_folder(args.page).name}/"
@@ -162,27 +216,48 @@ def _gpu_quick(args: argparse.Namespace) -> int:
     mode = _mode(args)
     machine = describe(with_gl=True)
     date = report.now()
-    print(f"sasprobe: GPU check on {machine.get('gl_renderer') or 'an unknown GL renderer'}", file=sys.stderr, flush=True)
+    print(
+        f"sasprobe: GPU check on {machine.get('gl_renderer') or 'an unknown GL renderer'}",
+        file=sys.stderr,
+        flush=True,
+    )
     try:
         plan = gpu_quick.smoke_plan() if mode == "smoke" else {}
-        size = args.gpu_size or (gpu_quick.SMOKE_SIZE if mode == "smoke" else gpu_quick.DEFAULT_SIZE)
-        result = gpu_quick.run(size, **plan,
-                               progress=lambda sid: print(f"sasprobe: {sid} done", file=sys.stderr, flush=True))
+        size = args.gpu_size or (
+            gpu_quick.SMOKE_SIZE if mode == "smoke" else gpu_quick.DEFAULT_SIZE
+        )
+        result = gpu_quick.run(
+            size,
+            **plan,
+            progress=lambda sid: print(f"sasprobe: {sid} done", file=sys.stderr, flush=True),
+        )
     except UserError:
         raise
     except Exception as exc:  # a failed measurement: one line
-        print(f"sasprobe: error: bench --gpu-quick failed: {_failure(exc)}{_keep_traceback('gpu_quick', exc, args.out)}",
-              file=sys.stderr)
+        print(
+            f"sasprobe: error: bench --gpu-quick failed: {_failure(exc)}{_keep_traceback('gpu_quick', exc, args.out)}",
+            file=sys.stderr,
+        )
         return 1
     text = gpu_quick.markdown(result, machine.get("gpu"))
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "gpu_quick.json").write_text(json.dumps({"machine": machine, "date": date, **result}, indent=1))
-        (args.out / "gpu_quick.md").write_text(f"# {gpu_quick.TITLE}\n\n{markdown(machine)}\n\n{text}\n")
+        (args.out / "gpu_quick.json").write_text(
+            json.dumps({"machine": machine, "date": date, **result}, indent=1)
+        )
+        (args.out / "gpu_quick.md").write_text(
+            f"# {gpu_quick.TITLE}\n\n{markdown(machine)}\n\n{text}\n"
+        )
     if args.page is not None:
-        report.write_page(args.page, "gpu-quick", report.gpu_part(machine, mode, date, gpu_quick.TITLE, text))
+        report.write_page(
+            args.page, "gpu-quick", report.gpu_part(machine, mode, date, gpu_quick.TITLE, text)
+        )
         print(f"wrote {args.page}", file=sys.stderr)
-    print(json.dumps({"machine": machine, "date": date, **result}) if args.json else f"## {gpu_quick.TITLE}\n\n{text}")
+    print(
+        json.dumps({"machine": machine, "date": date, **result})
+        if args.json
+        else f"## {gpu_quick.TITLE}\n\n{text}"
+    )
     return 0
 
 
@@ -193,8 +268,10 @@ def _selected(only: str | None) -> list[str]:
     names = [n.strip() for n in only.split(",") if n.strip()]
     unknown = [n for n in names if n not in available]
     if unknown or not names:
-        raise UserError(f"--only {only}: unknown benchmark(s) {', '.join(unknown) or '(none given)'} "
-                        f"(available: {', '.join(available)})")
+        raise UserError(
+            f"--only {only}: unknown benchmark(s) {', '.join(unknown) or '(none given)'} "
+            f"(available: {', '.join(available)})"
+        )
     return [n for n in available if n in names]  # in the usual order
 
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from sasprobe.cli.structure_args import MOLECULE_HELP, add_fetch_options, resolve_molecule
 from sasprobe.cli.argtypes import positive_float, probe_radius
 from sasprobe.cli.device_help import with_device_list
+from sasprobe.cli.structure_args import MOLECULE_HELP, add_fetch_options, resolve_molecule
 
 HELP = "run the device daemon: haptic loop, pose/scene publisher, control server"
 
@@ -49,7 +49,9 @@ def fault_spec(text: str) -> tuple[str, int, int]:
 
 
 LOOP_STALL = "stall"  # the daemon's own: the loop sleeps COUNT ms at TICK (any device); the others are the sim arm's
-SLOW_READ = "slow"  # the daemon's own: the COUNT device reads from TICK take 4 periods each (any device)
+SLOW_READ = (
+    "slow"  # the daemon's own: the COUNT device reads from TICK take 4 periods each (any device)
+)
 MAX_STALL_MS = 60_000
 
 
@@ -60,7 +62,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.devices.workspace import CONTEXT_FRACTION, DEFAULT_SCALE_A_PER_MM
 
     omni = PHANTOM_OMNI_LIMITS
-    omni_half = DEFAULT_SCALE_A_PER_MM * min(hi - lo for lo, hi in zip(omni.workspace_min_mm, omni.workspace_max_mm)) / 2
+    omni_half = (
+        DEFAULT_SCALE_A_PER_MM
+        * min(hi - lo for lo, hi in zip(omni.workspace_min_mm, omni.workspace_max_mm))
+        / 2
+    )
     from sasprobe.daemon.loop import DEFAULT_RATE_HZ
     from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
     from sasprobe.protocol.scene import COLOR_SCHEMES, HAPTIC_METHODS
@@ -68,52 +74,128 @@ def register(sub: argparse._SubParsersAction) -> None:
     defaults = HapticSettings()
 
     p = sub.add_parser("daemon", help=HELP, **with_device_list())
-    p.add_argument("--device", default="sim", help="SCHEME[:ARG], one of the devices listed below (default sim)")
+    p.add_argument(
+        "--device",
+        default="sim",
+        help="SCHEME[:ARG], one of the devices listed below (default sim)",
+    )
     p.add_argument("--molecule", metavar="FILE|ID", help=MOLECULE_HELP)
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
     add_fetch_options(p)
-    p.add_argument("--color", choices=COLOR_SCHEMES, default=None,
-                   help="the colour scheme every renderer shows (the scene's color_scheme; default: each "
-                        "renderer's default by structure)")
-    p.add_argument("--rate", type=positive_float, default=None, metavar="HZ",
-                   help=f"loop rate (default: the rate the device declares, {DEFAULT_RATE_HZ:g} for most arms; "
-                        "a replay runs at its recorded rate times --speed)")
-    p.add_argument("--speed", type=speed, default=1.0, metavar="X|max", help="replay speed factor, or max")
-    p.add_argument("--pub", action="append", metavar="ENDPOINT",
-                   help=f"PUB endpoint for pose and scene, repeatable (default {DEFAULT_PUB_ENDPOINT}; ipc:// too)")
-    p.add_argument("--ctl", action="append", metavar="ENDPOINT",
-                   help=f"control endpoint, repeatable (default {DEFAULT_CTL_ENDPOINT})")
-    p.add_argument("--keys", metavar="DIR", help="CURVE keys from `sasprobe keys DIR` (required beyond loopback)")
+    p.add_argument(
+        "--color",
+        choices=COLOR_SCHEMES,
+        default=None,
+        help="the colour scheme every renderer shows (the scene's color_scheme; default: each "
+        "renderer's default by structure)",
+    )
+    p.add_argument(
+        "--rate",
+        type=positive_float,
+        default=None,
+        metavar="HZ",
+        help=f"loop rate (default: the rate the device declares, {DEFAULT_RATE_HZ:g} for most arms; "
+        "a replay runs at its recorded rate times --speed)",
+    )
+    p.add_argument(
+        "--speed", type=speed, default=1.0, metavar="X|max", help="replay speed factor, or max"
+    )
+    p.add_argument(
+        "--pub",
+        action="append",
+        metavar="ENDPOINT",
+        help=f"PUB endpoint for pose and scene, repeatable (default {DEFAULT_PUB_ENDPOINT}; ipc:// too)",
+    )
+    p.add_argument(
+        "--ctl",
+        action="append",
+        metavar="ENDPOINT",
+        help=f"control endpoint, repeatable (default {DEFAULT_CTL_ENDPOINT})",
+    )
+    p.add_argument(
+        "--keys",
+        metavar="DIR",
+        help="CURVE keys from `sasprobe keys DIR` (required beyond loopback)",
+    )
     p.add_argument("--record", metavar="FILE", help="record the session to this MCAP file")
-    p.add_argument("--record-dir", metavar="DIR",
-                   help="let the control command record_start create recordings below this folder (default: refused)")
-    p.add_argument("--load-dir", metavar="DIR",
-                   help="let the control command load read structure files below this folder (default: bytes only)")
-    p.add_argument("--probe-radius", type=probe_radius, default=None,
-                   help=f"probe radius in Å (default {defaults.probe_radius_A:g})")
-    p.add_argument("--method", choices=HAPTIC_METHODS, default=None,
-                   help=f"haptic rendering method (default {defaults.method})")
-    p.add_argument("--stiffness", type=positive_float, default=None, metavar="N_PER_MM",
-                   help=f"contact stiffness (default {defaults.stiffness_n_per_mm:g})")
-    p.add_argument("--damping", type=float, default=None, metavar="N_S_PER_M",
-                   help=f"contact damping (default {defaults.damping_n_s_per_m:g})")
-    p.add_argument("--cube-half", type=cube_half, default=None, metavar="ANGSTROM|fit",
-                   help=f"navigation-cube half edge in Å, or fit (the whole molecule); default "
-                        f"{DEFAULT_SCALE_A_PER_MM:g} Å per mm of the device's workspace ({omni_half:g} Å on an "
-                        f"Omni-class arm), at most {CONTEXT_FRACTION:g} of the molecule's smallest width")
-    p.add_argument("--button", action="append", type=button, metavar="ACTION=N",
-                   help=f"which device button does what (repeatable; actions {', '.join(ACTIONS)}; default "
-                        + ", ".join(f"{a}={i}" for a, i in DEFAULT_BUTTONS.items()) + ")")
-    p.add_argument("--no-realtime", action="store_true",
-                   help="do not ask for SCHED_FIFO (by default the loop asks for it, and warns when it is refused)")
-    p.add_argument("--inject-fault", action="append", type=fault_spec, metavar="KIND@TICK[+COUNT]",
-                   help="to try the watchdogs: raise, nan or disconnect at a tick (simulated arm), stall@TICK+MS "
-                        "(the loop sleeps MS ms) or slow@TICK+N (N device reads take 4 periods each; any device); "
-                        "repeatable")
-    p.add_argument("--inject-button", action="append", metavar="BUTTON@TICK+COUNT",
-                   help="simulated arm only: hold a button down from a tick for COUNT ticks (repeatable)")
+    p.add_argument(
+        "--record-dir",
+        metavar="DIR",
+        help="let the control command record_start create recordings below this folder (default: refused)",
+    )
+    p.add_argument(
+        "--load-dir",
+        metavar="DIR",
+        help="let the control command load read structure files below this folder (default: bytes only)",
+    )
+    p.add_argument(
+        "--probe-radius",
+        type=probe_radius,
+        default=None,
+        help=f"probe radius in Å (default {defaults.probe_radius_A:g})",
+    )
+    p.add_argument(
+        "--method",
+        choices=HAPTIC_METHODS,
+        default=None,
+        help=f"haptic rendering method (default {defaults.method})",
+    )
+    p.add_argument(
+        "--stiffness",
+        type=positive_float,
+        default=None,
+        metavar="N_PER_MM",
+        help=f"contact stiffness (default {defaults.stiffness_n_per_mm:g})",
+    )
+    p.add_argument(
+        "--damping",
+        type=float,
+        default=None,
+        metavar="N_S_PER_M",
+        help=f"contact damping (default {defaults.damping_n_s_per_m:g})",
+    )
+    p.add_argument(
+        "--cube-half",
+        type=cube_half,
+        default=None,
+        metavar="ANGSTROM|fit",
+        help=f"navigation-cube half edge in Å, or fit (the whole molecule); default "
+        f"{DEFAULT_SCALE_A_PER_MM:g} Å per mm of the device's workspace ({omni_half:g} Å on an "
+        f"Omni-class arm), at most {CONTEXT_FRACTION:g} of the molecule's smallest width",
+    )
+    p.add_argument(
+        "--button",
+        action="append",
+        type=button,
+        metavar="ACTION=N",
+        help=f"which device button does what (repeatable; actions {', '.join(ACTIONS)}; default "
+        + ", ".join(f"{a}={i}" for a, i in DEFAULT_BUTTONS.items())
+        + ")",
+    )
+    p.add_argument(
+        "--no-realtime",
+        action="store_true",
+        help="do not ask for SCHED_FIFO (by default the loop asks for it, and warns when it is refused)",
+    )
+    p.add_argument(
+        "--inject-fault",
+        action="append",
+        type=fault_spec,
+        metavar="KIND@TICK[+COUNT]",
+        help="to try the watchdogs: raise, nan or disconnect at a tick (simulated arm), stall@TICK+MS "
+        "(the loop sleeps MS ms) or slow@TICK+N (N device reads take 4 periods each; any device); "
+        "repeatable",
+    )
+    p.add_argument(
+        "--inject-button",
+        action="append",
+        metavar="BUTTON@TICK+COUNT",
+        help="simulated arm only: hold a button down from a tick for COUNT ticks (repeatable)",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of the simulated arm")
-    p.add_argument("--seconds", type=positive_float, default=None, metavar="S", help="stop after S seconds")
+    p.add_argument(
+        "--seconds", type=positive_float, default=None, metavar="S", help="stop after S seconds"
+    )
     p.add_argument("--report", metavar="FILE", help="write the exit report (JSON) here")
     p.set_defaults(func=run)
 
@@ -134,12 +216,18 @@ def run(args: argparse.Namespace) -> int:
         if value is not None
     }
     faults = args.inject_fault or []
-    device_faults = [f"{kind}@{tick}+{count}" for kind, tick, count in faults if kind not in (LOOP_STALL, SLOW_READ)]
+    device_faults = [
+        f"{kind}@{tick}+{count}"
+        for kind, tick, count in faults
+        if kind not in (LOOP_STALL, SLOW_READ)
+    ]
     if device_faults and args.device.split(":", 1)[0].strip().lower() != "sim":
         from sasprobe.common.errors import UserError
 
-        raise UserError(f"--inject-fault {device_faults[0]}: only the simulated arm (--device sim...) takes "
-                        f"raise, nan and disconnect faults; stall@TICK+MS and slow@TICK+N work on any device")
+        raise UserError(
+            f"--inject-fault {device_faults[0]}: only the simulated arm (--device sim...) takes "
+            f"raise, nan and disconnect faults; stall@TICK+MS and slow@TICK+N work on any device"
+        )
     config = DaemonConfig(
         device=args.device,
         molecule=resolve_molecule(args, args.molecule),

@@ -6,10 +6,9 @@ import argparse
 import json
 import time
 
-from sasprobe.common.errors import UserError
 from sasprobe.cli.argtypes import positive_float
 from sasprobe.cli.device_help import with_device_list
-
+from sasprobe.common.errors import UserError
 
 CHECK_SECONDS = 1.0  # how long --check reads by default
 
@@ -22,11 +21,18 @@ HELP = "list attached haptic/input devices and their --device strings"
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("devices", help=HELP, **with_device_list())
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--check", metavar="DEVICE",
-                   help="open DEVICE (a --device string, schemes listed below), read it for --seconds with zero force, "
-                        "report")
-    p.add_argument("--seconds", type=positive_float, default=CHECK_SECONDS,
-                   help=f"how long --check reads (default {CHECK_SECONDS:g})")
+    p.add_argument(
+        "--check",
+        metavar="DEVICE",
+        help="open DEVICE (a --device string, schemes listed below), read it for --seconds with zero force, "
+        "report",
+    )
+    p.add_argument(
+        "--seconds",
+        type=positive_float,
+        default=CHECK_SECONDS,
+        help=f"how long --check reads (default {CHECK_SECONDS:g})",
+    )
     p.set_defaults(func=run)
 
 
@@ -40,8 +46,10 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps({"devices": [f.as_dict() for f in found], "notes": notes}))
         return 0
     if not found:
-        print("none found (no USB serial port, no SpaceMouse, no known USB arm, no Force Dimension arm, "
-              "no Inverse Service)")
+        print(
+            "none found (no USB serial port, no SpaceMouse, no known USB arm, no Force Dimension arm, "
+            "no Inverse Service)"
+        )
     for f in found:
         ids = f"{f.vendor_id:04x}:{f.product_id:04x}" if f.vendor_id is not None else "-"
         line = f"{f.transport:6} {f.path:24} {ids:9}  {f.description}"
@@ -88,9 +96,16 @@ def _check(spec: str, seconds: float, as_json: bool) -> int:
     if state is None:
         raise UserError(f"{spec} opened but never answered: {first_fault}")
     report = {
-        "device": spec, "info": info.as_dict(), "reads": reads, "faults": faults, "seconds": elapsed,
-        "rate_hz": reads / elapsed if elapsed > 0 else 0.0, "position_mm": state.position_mm.tolist(),
-        "buttons": state.buttons, "calibrated": state.calibrated, "first_fault": first_fault or None,
+        "device": spec,
+        "info": info.as_dict(),
+        "reads": reads,
+        "faults": faults,
+        "seconds": elapsed,
+        "rate_hz": reads / elapsed if elapsed > 0 else 0.0,
+        "position_mm": state.position_mm.tolist(),
+        "buttons": state.buttons,
+        "calibrated": state.calibrated,
+        "first_fault": first_fault or None,
     }
     if as_json:
         print(json.dumps(report))
@@ -99,11 +114,19 @@ def _check(spec: str, seconds: float, as_json: bool) -> int:
     print(f"{info.model}  ({spec})")
     if info.serial:
         print(f"  serial     {info.serial}")
-    print(f"  limits     {lim.max_force_n:g} N peak, {lim.continuous_force_n:g} N continuous, "
-          f"{lim.max_stiffness_n_per_mm:g} N/mm, force output {'yes' if lim.has_force_output else 'no'}")
-    print(f"  read       {reads} states in {elapsed:.2f} s ({report['rate_hz']:.0f} Hz), {faults} faults")
-    print(f"  position   ({', '.join(f'{v:.1f}' for v in state.position_mm)}) mm, buttons {state.buttons:#x}")
-    print(f"  calibrated {'yes' if state.calibrated else 'no: see the calibration steps in docs/connect-your-arm.md'}")
+    print(
+        f"  limits     {lim.max_force_n:g} N peak, {lim.continuous_force_n:g} N continuous, "
+        f"{lim.max_stiffness_n_per_mm:g} N/mm, force output {'yes' if lim.has_force_output else 'no'}"
+    )
+    print(
+        f"  read       {reads} states in {elapsed:.2f} s ({report['rate_hz']:.0f} Hz), {faults} faults"
+    )
+    print(
+        f"  position   ({', '.join(f'{v:.1f}' for v in state.position_mm)}) mm, buttons {state.buttons:#x}"
+    )
+    print(
+        f"  calibrated {'yes' if state.calibrated else 'no: see the calibration steps in docs/connect-your-arm.md'}"
+    )
     rejected = info.details.get("rejected_frames")
     if rejected:
         print(f"  rejected   {rejected} malformed frames")

@@ -13,18 +13,39 @@ import time
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from sasprobe.cli.daemon_client import add_daemon_options
     from sasprobe.cli.argtypes import probe_radius
+    from sasprobe.cli.daemon_client import add_daemon_options
 
-    p = sub.add_parser("findings", help="a running daemon's findings so far (path, residues, marks, bottleneck) "
-                                        "into DIR on its host")
-    p.add_argument("dir", help="folder on the daemon's host, relative to the daemon's working directory "
-                               "(made if missing)")
-    p.add_argument("--probe-radius", type=probe_radius, default=None, metavar="ANGSTROM",
-                   help="the probe whose passage the verdict is about (default: the session's)")
+    p = sub.add_parser(
+        "findings",
+        help="a running daemon's findings so far (path, residues, marks, bottleneck) "
+        "into DIR on its host",
+    )
+    p.add_argument(
+        "dir",
+        help="folder on the daemon's host, relative to the daemon's working directory "
+        "(made if missing)",
+    )
+    p.add_argument(
+        "--probe-radius",
+        type=probe_radius,
+        default=None,
+        metavar="ANGSTROM",
+        help="the probe whose passage the verdict is about (default: the session's)",
+    )
     add_daemon_options(p)
-    p.add_argument("--no-wait", action="store_true", help="start the analysis and return (`sasprobe status` tells)")
-    p.add_argument("--timeout", type=float, default=600.0, metavar="S", help="how long to wait for the analysis")
+    p.add_argument(
+        "--no-wait",
+        action="store_true",
+        help="start the analysis and return (`sasprobe status` tells)",
+    )
+    p.add_argument(
+        "--timeout",
+        type=float,
+        default=600.0,
+        metavar="S",
+        help="how long to wait for the analysis",
+    )
     p.add_argument("--json", action="store_true", help="print the job as JSON")
     p.set_defaults(func=run)
 
@@ -38,7 +59,9 @@ def run(args: argparse.Namespace) -> int:
         job = client.findings(args.dir, args.probe_radius)
         if not args.no_wait:
             deadline = time.monotonic() + args.timeout
-            bar = progress_bar(None, desc="findings (daemon)", unit="s", bar_format="{desc}: {elapsed}")
+            bar = progress_bar(
+                None, desc="findings (daemon)", unit="s", bar_format="{desc}: {elapsed}"
+            )
             try:
                 while job["state"] == "running" and time.monotonic() < deadline:
                     time.sleep(0.5)
@@ -49,12 +72,16 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(job))
     elif job["state"] == "running":
-        print(f"findings: analysing {job['recording']} into {job['dir']} on the daemon's host (pid {job['pid']})")
+        print(
+            f"findings: analysing {job['recording']} into {job['dir']} on the daemon's host (pid {job['pid']})"
+        )
     if job["state"] == "failed":
         raise UserError(f"findings: {job['error']}")
     if job["state"] == "done" and not args.json:
         r = job["result"]
-        print(f"findings  {r['session']['duration_s']:.1f} s so far, {r['touched_residues']} residues touched, "
-              f"{r['marks']} marks; {r['verdict']['verdict']}")
+        print(
+            f"findings  {r['session']['duration_s']:.1f} s so far, {r['touched_residues']} residues touched, "
+            f"{r['marks']} marks; {r['verdict']['verdict']}"
+        )
         print(f"  files   {job['dir']}/ on the daemon's host: {', '.join(r['files'].values())}")
     return 0 if job["state"] != "running" or args.no_wait else 1

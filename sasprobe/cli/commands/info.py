@@ -6,8 +6,8 @@ import argparse
 import json
 import time
 
-from sasprobe.cli.structure_args import MOLECULE_HELP, add_fetch_options, resolve_molecule
 from sasprobe.cli.argtypes import positive_float, probe_radius
+from sasprobe.cli.structure_args import MOLECULE_HELP, add_fetch_options, resolve_molecule
 
 HELP = "summarise a structure and its uniform grid"
 
@@ -18,8 +18,18 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("info", help=HELP)
     p.add_argument("file", nargs="?", help=MOLECULE_HELP)
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--probe-radius", type=probe_radius, default=DEFAULT_PROBE_RADIUS, help=f"Å (default {DEFAULT_PROBE_RADIUS:g})")
-    p.add_argument("--cell-size", type=positive_float, default=None, help="grid cell edge in Å (default: largest expanded diameter)")
+    p.add_argument(
+        "--probe-radius",
+        type=probe_radius,
+        default=DEFAULT_PROBE_RADIUS,
+        help=f"Å (default {DEFAULT_PROBE_RADIUS:g})",
+    )
+    p.add_argument(
+        "--cell-size",
+        type=positive_float,
+        default=None,
+        help="grid cell edge in Å (default: largest expanded diameter)",
+    )
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
     add_fetch_options(p)
     p.set_defaults(func=run)
@@ -33,7 +43,9 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     structure = load_structure_or_default(path, keep_water=args.keep_water)
     t1 = time.perf_counter()
-    grid = UniformGrid(structure.positions, structure.expanded_radii(args.probe_radius), args.cell_size)
+    grid = UniformGrid(
+        structure.positions, structure.expanded_radii(args.probe_radius), args.cell_size
+    )
     t2 = time.perf_counter()
     lo, hi = structure.bbox()
     fallback = [i for i, e in enumerate(structure.elements) if not has_bondi_radius(str(e))]
@@ -61,17 +73,27 @@ def run(args: argparse.Namespace) -> int:
         return 0
     g = summary["grid"]
     print(f"{structure.name}  ({structure.source})")
-    print(f"  atoms      {structure.n_atoms}  ({summary['n_hetero_atoms']} hetero)  "
-          f"elements {', '.join(summary['elements'])}")
-    print(f"  chains     {structure.n_chains}   residues {structure.n_residues}   "
-          f"backbone segments {summary['backbone_segments']}")
+    print(
+        f"  atoms      {structure.n_atoms}  ({summary['n_hetero_atoms']} hetero)  "
+        f"elements {', '.join(summary['elements'])}"
+    )
+    print(
+        f"  chains     {structure.n_chains}   residues {structure.n_residues}   "
+        f"backbone segments {summary['backbone_segments']}"
+    )
     print(f"  bounds     {_fmt(lo)} .. {_fmt(hi)} Å")
     if fallback:
-        print(f"  radii      {len(fallback)} atom(s) without a Bondi radius use {FALLBACK_RADIUS:.2f} Å")
-    print(f"  grid       cell {g['cell_size']:.2f} Å, {g['dims'][0]}x{g['dims'][1]}x{g['dims'][2]} = "
-          f"{g['n_cells']} cells, {g['n_nonempty']} non-empty, max {g['max_per_cell']} / "
-          f"mean {g['mean_per_nonempty']:.1f} spheres per non-empty cell, {g['bytes'] / 1024:.1f} KiB")
-    print(f"  timing     load {summary['load_seconds'] * 1e3:.1f} ms, grid {summary['grid_seconds'] * 1e3:.1f} ms")
+        print(
+            f"  radii      {len(fallback)} atom(s) without a Bondi radius use {FALLBACK_RADIUS:.2f} Å"
+        )
+    print(
+        f"  grid       cell {g['cell_size']:.2f} Å, {g['dims'][0]}x{g['dims'][1]}x{g['dims'][2]} = "
+        f"{g['n_cells']} cells, {g['n_nonempty']} non-empty, max {g['max_per_cell']} / "
+        f"mean {g['mean_per_nonempty']:.1f} spheres per non-empty cell, {g['bytes'] / 1024:.1f} KiB"
+    )
+    print(
+        f"  timing     load {summary['load_seconds'] * 1e3:.1f} ms, grid {summary['grid_seconds'] * 1e3:.1f} ms"
+    )
     return 0
 
 

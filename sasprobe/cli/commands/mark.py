@@ -9,7 +9,9 @@ import json
 def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.cli.daemon_client import add_daemon_options
 
-    p = sub.add_parser("mark", help="drop a labelled mark at the probe's position (a running daemon)")
+    p = sub.add_parser(
+        "mark", help="drop a labelled mark at the probe's position (a running daemon)"
+    )
     p.add_argument("label", nargs="?", default=None, help='what is there (default "mark N")')
     add_daemon_options(p)
     p.add_argument("--json", action="store_true", help="print the daemon's reply as JSON")
@@ -26,5 +28,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(reply))
     else:
         x, y, z = mark["position_A"]
-        print(f"mark {mark['id']} '{mark['label']}' at ({x:.2f}, {y:.2f}, {z:.2f}) Å, tick {mark['seq']}")
+        print(
+            f"mark {mark['id']} '{mark['label']}' at ({x:.2f}, {y:.2f}, {z:.2f}) Å, tick {mark['seq']}"
+        )
     return 0

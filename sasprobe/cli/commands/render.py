@@ -12,9 +12,9 @@ import math
 from dataclasses import replace
 from pathlib import Path
 
-from sasprobe.common.errors import UserError
-from sasprobe.cli.structure_args import MOLECULE_HELP, add_fetch_options, resolve_molecule
 from sasprobe.cli.argtypes import colour_type, positive_float, positive_int, probe_radius, size_type
+from sasprobe.cli.structure_args import MOLECULE_HELP, add_fetch_options, resolve_molecule
+from sasprobe.common.errors import UserError
 
 log = logging.getLogger("sasprobe")
 
@@ -27,9 +27,13 @@ def _floats(text: str, n: int, what: str) -> list[float]:
     try:
         values = [float(v) for v in text.replace(" ", "").split(",")]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}': {what} must be {n} comma-separated numbers") from None
+        raise argparse.ArgumentTypeError(
+            f"'{text}': {what} must be {n} comma-separated numbers"
+        ) from None
     if len(values) != n or not all(math.isfinite(v) for v in values):
-        raise argparse.ArgumentTypeError(f"'{text}': {what} must be {n} comma-separated finite numbers")
+        raise argparse.ArgumentTypeError(
+            f"'{text}': {what} must be {n} comma-separated finite numbers"
+        )
     return values
 
 
@@ -80,72 +84,186 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("render", help=HELP)
     src = p.add_mutually_exclusive_group()
     src.add_argument("--molecule", metavar="FILE|ID", help=MOLECULE_HELP)
-    src.add_argument("--connect", nargs="?", const="", metavar="PUB_ENDPOINT",
-                     help="follow a running daemon (default endpoint from the protocol); the structure comes from it")
-    p.add_argument("--control", metavar="ENDPOINT", help="the daemon's control endpoint (with --connect)")
-    p.add_argument("--keys", type=Path, metavar="DIR",
-                   help="with --connect: client keys from `sasprobe keys DIR`, for a daemon started with --keys "
-                        "(a loopback daemon of your own needs none)")
-    p.add_argument("--headless", action="store_true", help="render offscreen through EGL (default when no display)")
-    p.add_argument("--size", type=size_type, default=size, metavar="WxH", help=f"image/window size (default {size})")
+    src.add_argument(
+        "--connect",
+        nargs="?",
+        const="",
+        metavar="PUB_ENDPOINT",
+        help="follow a running daemon (default endpoint from the protocol); the structure comes from it",
+    )
+    p.add_argument(
+        "--control", metavar="ENDPOINT", help="the daemon's control endpoint (with --connect)"
+    )
+    p.add_argument(
+        "--keys",
+        type=Path,
+        metavar="DIR",
+        help="with --connect: client keys from `sasprobe keys DIR`, for a daemon started with --keys "
+        "(a loopback daemon of your own needs none)",
+    )
+    p.add_argument(
+        "--headless",
+        action="store_true",
+        help="render offscreen through EGL (default when no display)",
+    )
+    p.add_argument(
+        "--size",
+        type=size_type,
+        default=size,
+        metavar="WxH",
+        help=f"image/window size (default {size})",
+    )
     p.add_argument("--frames", type=positive_int, metavar="N", help="stop after N frames")
     p.add_argument("--seconds", type=positive_float, metavar="S", help="stop after S seconds")
-    p.add_argument("--out", type=Path, metavar="FILE|DIR",
-                   help="write frames: .png (numbered when several) or .mp4; in a window, a folder is where Ctrl+S "
-                        "(screenshot) and Ctrl+R (video) write (default: the working directory)")
-    p.add_argument("--fps", type=positive_float, default=defaults.fps,
-                   help=f"frame rate of a video --out (default {defaults.fps:g})")
-    p.add_argument("--gbuffer", type=Path, metavar="FILE.npz", help="write the last frame's G-buffer")
-    p.add_argument("--gbuffer-dir", type=Path, metavar="DIR",
-                   help="headless: write every frame's G-buffer into DIR (gbuffer_0000.npz, ...)")
-    p.add_argument("--view", choices=VIEWS, default=None,
-                   help="start in the workspace view (the navigation cube framed, looking along the device's -z) "
-                        "or the overview (the whole molecule); default: workspace with --connect, else overview "
-                        "(the window's Tab switches)")
-    p.add_argument("--camera", type=camera_type, metavar="SPEC",
-                   help="'eye=X,Y,Z target=X,Y,Z up=X,Y,Z fov=DEG' (any subset; the rest is auto-fitted)")
-    p.add_argument("--orbit", type=float, default=0.0, metavar="DEG", help="turn the camera DEG degrees per frame")
-    p.add_argument("--spheres", choices=SPHERE_MODES, default=defaults.spheres,
-                   help=f"atom drawing: ray-cast quads, point sprites (low-end), triangle meshes "
-                        f"(default {defaults.spheres})")
-    p.add_argument("--probe", type=point_type, metavar="X,Y,Z", help="standalone: draw the probe here (Å)")
-    p.add_argument("--touched", type=int, default=-1, metavar="ATOM", help="standalone: highlight this atom index")
-    p.add_argument("--probe-radius", type=probe_radius, default=None,
-                   help=f"Å (default {DEFAULT_PROBE_RADIUS:g}, or the daemon's)")
-    p.add_argument("--nav-cube", type=cube_type, metavar="X,Y,Z,HALF",
-                   help="standalone: navigation cube centre and half edge (Å)")
-    p.add_argument("--clip", type=plane_type, action="append", default=None, metavar="A,B,C,D",
-                   help="clipping plane, a·x+b·y+c·z+d >= 0 kept (repeatable; standalone: with --connect the "
-                        "daemon's planes are drawn, set them with `sasprobe set clip=A,B,C,D`)")
-    p.add_argument("--probe-plane", action=argparse.BooleanOptionalAction, default=None,
-                   help="clip with a plane square to the view axis at the probe, stepping by the probe radius "
-                        "(default: on in the workspace view, off in the overview)")
-    p.add_argument("--light", type=direction_type, metavar="X,Y,Z",
-                   help="direction the key light travels: in the view (x right, y up, z towards you) while lights "
-                        "follow the camera, else in the molecule frame")
-    p.add_argument("--light-frame", choices=("camera", "molecule"), default=defaults.light_frame,
-                   help=f"lights turn with the camera, as in every viewer, or stay fixed in the molecule frame "
-                        f"(default {defaults.light_frame})")
-    p.add_argument("--color", choices=COLOR_SCHEMES, default=None,
-                   help="colour scheme (the window's C key; a daemon's scheme wins): element (CPK), chain (carbons "
-                        "by chain), chain-all (every atom by chain), polymer, residue, hydrophobicity (Kyte-Doolittle), "
-                        "bfactor, sas (exposed area per atom) (default: element for one polymer chain, chain for "
-                        "several, chain-all for several from 20000 atoms up)")
-    p.add_argument("--preset", choices=PRESET_NAMES, default=defaults.preset,
-                   help=f"lighting preset (the window's I key): {', '.join(PRESET_NAMES)} (default {defaults.preset})")
-    p.add_argument("--background", type=colour_type, metavar="COLOUR",
-                   help="background colour: a name (white, black, ...), #RRGGBB or R,G,B in 0..1 (default: the preset's)")
-    p.add_argument("--backbone", action="store_true",
-                   help="draw the backbone trace even without a navigation cube (with --connect: also when the "
-                        "daemon turns its cube off)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        metavar="FILE|DIR",
+        help="write frames: .png (numbered when several) or .mp4; in a window, a folder is where Ctrl+S "
+        "(screenshot) and Ctrl+R (video) write (default: the working directory)",
+    )
+    p.add_argument(
+        "--fps",
+        type=positive_float,
+        default=defaults.fps,
+        help=f"frame rate of a video --out (default {defaults.fps:g})",
+    )
+    p.add_argument(
+        "--gbuffer", type=Path, metavar="FILE.npz", help="write the last frame's G-buffer"
+    )
+    p.add_argument(
+        "--gbuffer-dir",
+        type=Path,
+        metavar="DIR",
+        help="headless: write every frame's G-buffer into DIR (gbuffer_0000.npz, ...)",
+    )
+    p.add_argument(
+        "--view",
+        choices=VIEWS,
+        default=None,
+        help="start in the workspace view (the navigation cube framed, looking along the device's -z) "
+        "or the overview (the whole molecule); default: workspace with --connect, else overview "
+        "(the window's Tab switches)",
+    )
+    p.add_argument(
+        "--camera",
+        type=camera_type,
+        metavar="SPEC",
+        help="'eye=X,Y,Z target=X,Y,Z up=X,Y,Z fov=DEG' (any subset; the rest is auto-fitted)",
+    )
+    p.add_argument(
+        "--orbit",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="turn the camera DEG degrees per frame",
+    )
+    p.add_argument(
+        "--spheres",
+        choices=SPHERE_MODES,
+        default=defaults.spheres,
+        help=f"atom drawing: ray-cast quads, point sprites (low-end), triangle meshes "
+        f"(default {defaults.spheres})",
+    )
+    p.add_argument(
+        "--probe", type=point_type, metavar="X,Y,Z", help="standalone: draw the probe here (Å)"
+    )
+    p.add_argument(
+        "--touched",
+        type=int,
+        default=-1,
+        metavar="ATOM",
+        help="standalone: highlight this atom index",
+    )
+    p.add_argument(
+        "--probe-radius",
+        type=probe_radius,
+        default=None,
+        help=f"Å (default {DEFAULT_PROBE_RADIUS:g}, or the daemon's)",
+    )
+    p.add_argument(
+        "--nav-cube",
+        type=cube_type,
+        metavar="X,Y,Z,HALF",
+        help="standalone: navigation cube centre and half edge (Å)",
+    )
+    p.add_argument(
+        "--clip",
+        type=plane_type,
+        action="append",
+        default=None,
+        metavar="A,B,C,D",
+        help="clipping plane, a·x+b·y+c·z+d >= 0 kept (repeatable; standalone: with --connect the "
+        "daemon's planes are drawn, set them with `sasprobe set clip=A,B,C,D`)",
+    )
+    p.add_argument(
+        "--probe-plane",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="clip with a plane square to the view axis at the probe, stepping by the probe radius "
+        "(default: on in the workspace view, off in the overview)",
+    )
+    p.add_argument(
+        "--light",
+        type=direction_type,
+        metavar="X,Y,Z",
+        help="direction the key light travels: in the view (x right, y up, z towards you) while lights "
+        "follow the camera, else in the molecule frame",
+    )
+    p.add_argument(
+        "--light-frame",
+        choices=("camera", "molecule"),
+        default=defaults.light_frame,
+        help=f"lights turn with the camera, as in every viewer, or stay fixed in the molecule frame "
+        f"(default {defaults.light_frame})",
+    )
+    p.add_argument(
+        "--color",
+        choices=COLOR_SCHEMES,
+        default=None,
+        help="colour scheme (the window's C key; a daemon's scheme wins): element (CPK), chain (carbons "
+        "by chain), chain-all (every atom by chain), polymer, residue, hydrophobicity (Kyte-Doolittle), "
+        "bfactor, sas (exposed area per atom) (default: element for one polymer chain, chain for "
+        "several, chain-all for several from 20000 atoms up)",
+    )
+    p.add_argument(
+        "--preset",
+        choices=PRESET_NAMES,
+        default=defaults.preset,
+        help=f"lighting preset (the window's I key): {', '.join(PRESET_NAMES)} (default {defaults.preset})",
+    )
+    p.add_argument(
+        "--background",
+        type=colour_type,
+        metavar="COLOUR",
+        help="background colour: a name (white, black, ...), #RRGGBB or R,G,B in 0..1 (default: the preset's)",
+    )
+    p.add_argument(
+        "--backbone",
+        action="store_true",
+        help="draw the backbone trace even without a navigation cube (with --connect: also when the "
+        "daemon turns its cube off)",
+    )
     p.add_argument("--no-fxaa", action="store_true", help="skip the FXAA pass")
-    p.add_argument("--no-frame-cache", action="store_true",
-                   help="draw every frame whole (default: keep the molecule layer while only the probe moves)")
+    p.add_argument(
+        "--no-frame-cache",
+        action="store_true",
+        help="draw every frame whole (default: keep the molecule layer while only the probe moves)",
+    )
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
     add_fetch_options(p)
-    p.add_argument("--snapshot", type=Path, metavar="FILE.png", help="headless: also write the last frame as a PNG")
-    p.add_argument("--report", type=Path, metavar="FILE.json",
-                   help="write frame counts, fps and (with --connect) poses received and lost as JSON at the end")
+    p.add_argument(
+        "--snapshot",
+        type=Path,
+        metavar="FILE.png",
+        help="headless: also write the last frame as a PNG",
+    )
+    p.add_argument(
+        "--report",
+        type=Path,
+        metavar="FILE.json",
+        help="write frame counts, fps and (with --connect) poses received and lost as JSON at the end",
+    )
     add_lighting_arguments(p)
     p.set_defaults(func=run)
 
@@ -154,9 +272,13 @@ def _shell(text: str) -> tuple[float, float]:
     try:
         inner, outer = (float(v) for v in text.split(","))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not INNER,OUTER (Å, e.g. -0.4,0.8)") from None
+        raise argparse.ArgumentTypeError(
+            f"'{text}' is not INNER,OUTER (Å, e.g. -0.4,0.8)"
+        ) from None
     if not (math.isfinite(inner) and math.isfinite(outer)) or outer < inner:
-        raise argparse.ArgumentTypeError(f"'{text}': the outer offset must be finite and at least the inner one")
+        raise argparse.ArgumentTypeError(
+            f"'{text}': the outer offset must be finite and at least the inner one"
+        )
     return inner, outer
 
 
@@ -176,51 +298,139 @@ def add_lighting_arguments(parser: argparse.ArgumentParser) -> None:
 
     base = LightingSettings()
     ao, soft, tracer = base.ao, base.soft, PathTracing()
-    g = parser.add_argument_group("lighting (OpenGL 4.3; the window's S, V, A, Shift+A, E, G keys switch them; "
-                                  "defaults are the default preset's, --preset changes them)")
-    g.add_argument("--shadows", choices=SHADOW_MODES, default=None,
-                   help=f"shadows of the directional and the probe light, traced through the grid; precomputed: "
-                        f"the directional light's hard shadows from per-atom patches (for a light fixed in the "
-                        f"molecule frame) (default {base.shadows})")
-    g.add_argument("--soft-shell", type=_shell, default=None, metavar="INNER,OUTER",
-                   help=f"soft shadows: Parker shell around each atom, Å from its vdW radius "
-                        f"(default {soft.inner:g},{soft.outer:g})")
-    g.add_argument("--soft-growth", type=float, default=None, metavar="Å",
-                   help=f"soft shadows: distance over which penumbrae reach full width "
-                        f"(default {soft.growth:g}; 0 = everywhere)")
-    g.add_argument("--ao", choices=AO_MODES, default=None, help=f"ambient occlusion method (default {ao.mode})")
-    g.add_argument("--ao-k", type=int, choices=ANALYTIC_K, default=None,
-                   help=f"analytic AO: neighbours per atom (default {ao.k})")
-    g.add_argument("--ao-distance", type=positive_float, default=None, metavar="Å",
-                   help=f"ray-traced AO: ray length (default {ao.distance:g})")
-    g.add_argument("--ao-spp", type=positive_int, default=None, metavar="N",
-                   help=f"ray-traced AO: samples per pixel per frame (default {ao.rt_spp})")
-    g.add_argument("--no-ao-blur", action="store_true", help="ray-traced AO and SSAO: no bilateral blur")
-    g.add_argument("--ao-patch", type=positive_int, default=None, metavar="N",
-                   help=f"precomputed AO and shadows: texels per atom patch side (default {ao.patch}; "
-                        "QuteMol: 1024-4096 texture side / ceil(sqrt(atoms)), 16 for 1AON)")
-    g.add_argument("--ao-directions", type=positive_int, default=None, metavar="N",
-                   help=f"precomputed AO: ray directions per texel (default {ao.directions}; QuteMol: 128)")
-    g.add_argument("--ssao-radius", type=positive_float, default=None, metavar="Å",
-                   help=f"SSAO sampling radius (default {ao.ssao_radius:g})")
-    g.add_argument("--ssao-intensity", type=positive_float, default=None,
-                   help=f"SSAO intensity (default {ao.ssao_intensity:g})")
-    g.add_argument("--ssao-sampling", choices=SSAO_SAMPLING, default=None,
-                   help=f"SSAO: point or line samples (default {ao.ssao_sampling})")
-    g.add_argument("--ssao-half", action="store_true", help="SSAO at half resolution (blurred back up)")
-    g.add_argument("--edges", choices=EDGE_MODES, default=None,
-                   help=f"QuteMol edge cueing: depth-aware contour lines, halos, both (default {base.edges})")
-    g.add_argument("--path-trace", action="store_true", help="progressive path tracing instead of the shading pass")
-    g.add_argument("--pt-bounces", type=int, choices=range(MAX_BOUNCES + 1), default=None,
-                   help=f"path bounces (default {tracer.bounces})")
-    g.add_argument("--pt-spp", type=positive_int, default=None, metavar="N",
-                   help=f"path samples per pixel per frame (default {tracer.spp})")
-    g.add_argument("--samples", type=int, default=None, metavar="N",
-                   help=f"progressive effects accumulate N samples per pixel before each frame is shown "
-                        f"(headless default: {HEADLESS_SAMPLES['reference']} for --ao reference, "
-                        f"{HEADLESS_SAMPLES['path_tracing']} with --path-trace)")
-    g.add_argument("--probe-light-range", type=positive_float, default=None, metavar="Å",
-                   help=f"the probe light's reach (default {DEFAULT_PROBE_RANGE:g})")
+    g = parser.add_argument_group(
+        "lighting (OpenGL 4.3; the window's S, V, A, Shift+A, E, G keys switch them; "
+        "defaults are the default preset's, --preset changes them)"
+    )
+    g.add_argument(
+        "--shadows",
+        choices=SHADOW_MODES,
+        default=None,
+        help=f"shadows of the directional and the probe light, traced through the grid; precomputed: "
+        f"the directional light's hard shadows from per-atom patches (for a light fixed in the "
+        f"molecule frame) (default {base.shadows})",
+    )
+    g.add_argument(
+        "--soft-shell",
+        type=_shell,
+        default=None,
+        metavar="INNER,OUTER",
+        help=f"soft shadows: Parker shell around each atom, Å from its vdW radius "
+        f"(default {soft.inner:g},{soft.outer:g})",
+    )
+    g.add_argument(
+        "--soft-growth",
+        type=float,
+        default=None,
+        metavar="Å",
+        help=f"soft shadows: distance over which penumbrae reach full width "
+        f"(default {soft.growth:g}; 0 = everywhere)",
+    )
+    g.add_argument(
+        "--ao", choices=AO_MODES, default=None, help=f"ambient occlusion method (default {ao.mode})"
+    )
+    g.add_argument(
+        "--ao-k",
+        type=int,
+        choices=ANALYTIC_K,
+        default=None,
+        help=f"analytic AO: neighbours per atom (default {ao.k})",
+    )
+    g.add_argument(
+        "--ao-distance",
+        type=positive_float,
+        default=None,
+        metavar="Å",
+        help=f"ray-traced AO: ray length (default {ao.distance:g})",
+    )
+    g.add_argument(
+        "--ao-spp",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help=f"ray-traced AO: samples per pixel per frame (default {ao.rt_spp})",
+    )
+    g.add_argument(
+        "--no-ao-blur", action="store_true", help="ray-traced AO and SSAO: no bilateral blur"
+    )
+    g.add_argument(
+        "--ao-patch",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help=f"precomputed AO and shadows: texels per atom patch side (default {ao.patch}; "
+        "QuteMol: 1024-4096 texture side / ceil(sqrt(atoms)), 16 for 1AON)",
+    )
+    g.add_argument(
+        "--ao-directions",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help=f"precomputed AO: ray directions per texel (default {ao.directions}; QuteMol: 128)",
+    )
+    g.add_argument(
+        "--ssao-radius",
+        type=positive_float,
+        default=None,
+        metavar="Å",
+        help=f"SSAO sampling radius (default {ao.ssao_radius:g})",
+    )
+    g.add_argument(
+        "--ssao-intensity",
+        type=positive_float,
+        default=None,
+        help=f"SSAO intensity (default {ao.ssao_intensity:g})",
+    )
+    g.add_argument(
+        "--ssao-sampling",
+        choices=SSAO_SAMPLING,
+        default=None,
+        help=f"SSAO: point or line samples (default {ao.ssao_sampling})",
+    )
+    g.add_argument(
+        "--ssao-half", action="store_true", help="SSAO at half resolution (blurred back up)"
+    )
+    g.add_argument(
+        "--edges",
+        choices=EDGE_MODES,
+        default=None,
+        help=f"QuteMol edge cueing: depth-aware contour lines, halos, both (default {base.edges})",
+    )
+    g.add_argument(
+        "--path-trace",
+        action="store_true",
+        help="progressive path tracing instead of the shading pass",
+    )
+    g.add_argument(
+        "--pt-bounces",
+        type=int,
+        choices=range(MAX_BOUNCES + 1),
+        default=None,
+        help=f"path bounces (default {tracer.bounces})",
+    )
+    g.add_argument(
+        "--pt-spp",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help=f"path samples per pixel per frame (default {tracer.spp})",
+    )
+    g.add_argument(
+        "--samples",
+        type=int,
+        default=None,
+        metavar="N",
+        help=f"progressive effects accumulate N samples per pixel before each frame is shown "
+        f"(headless default: {HEADLESS_SAMPLES['reference']} for --ao reference, "
+        f"{HEADLESS_SAMPLES['path_tracing']} with --path-trace)",
+    )
+    g.add_argument(
+        "--probe-light-range",
+        type=positive_float,
+        default=None,
+        metavar="Å",
+        help=f"the probe light's reach (default {DEFAULT_PROBE_RANGE:g})",
+    )
 
 
 def lighting_from_args(args, headless: bool):
@@ -233,21 +443,47 @@ def lighting_from_args(args, headless: bool):
     base = PRESETS[args.preset].lighting
     ao = base.ao
     try:
-        ao = replace(ao, **{k: v for k, v in {
-            "mode": args.ao, "k": args.ao_k, "distance": args.ao_distance, "rt_spp": args.ao_spp,
-            "patch": args.ao_patch, "directions": args.ao_directions,
-            "ssao_radius": args.ssao_radius, "ssao_intensity": args.ssao_intensity, "ssao_sampling": args.ssao_sampling,
-        }.items() if v is not None})
+        ao = replace(
+            ao,
+            **{
+                k: v
+                for k, v in {
+                    "mode": args.ao,
+                    "k": args.ao_k,
+                    "distance": args.ao_distance,
+                    "rt_spp": args.ao_spp,
+                    "patch": args.ao_patch,
+                    "directions": args.ao_directions,
+                    "ssao_radius": args.ssao_radius,
+                    "ssao_intensity": args.ssao_intensity,
+                    "ssao_sampling": args.ssao_sampling,
+                }.items()
+                if v is not None
+            },
+        )
         ao = replace(ao, blur=not args.no_ao_blur, ssao_half_resolution=args.ssao_half)
         soft = base.soft
         if args.soft_shell is not None:
             soft = replace(soft, inner=args.soft_shell[0], outer=args.soft_shell[1])
         if args.soft_growth is not None:
             soft = replace(soft, growth=max(0.0, args.soft_growth))
-        tracer = replace(PathTracing(), **{k: v for k, v in {"bounces": args.pt_bounces, "spp": args.pt_spp}.items()
-                                           if v is not None})
-        settings = replace(base, shadows=args.shadows or base.shadows, soft=soft, ao=ao, edges=args.edges or base.edges,
-                           path_tracing=args.path_trace, path_tracer=tracer)
+        tracer = replace(
+            PathTracing(),
+            **{
+                k: v
+                for k, v in {"bounces": args.pt_bounces, "spp": args.pt_spp}.items()
+                if v is not None
+            },
+        )
+        settings = replace(
+            base,
+            shadows=args.shadows or base.shadows,
+            soft=soft,
+            ao=ao,
+            edges=args.edges or base.edges,
+            path_tracing=args.path_trace,
+            path_tracer=tracer,
+        )
         samples = args.samples
         if samples is None:
             samples = 0
@@ -260,8 +496,13 @@ def lighting_from_args(args, headless: bool):
         settings = replace(settings, samples=samples)
     except ValueError as exc:
         raise UserError(str(exc)) from None
-    explicit = (args.shadows not in (None, "off") or args.ao not in (None, "off") or args.path_trace
-                or args.edges not in (None, "off") or args.preset != DEFAULT_PRESET)
+    explicit = (
+        args.shadows not in (None, "off")
+        or args.ao not in (None, "off")
+        or args.path_trace
+        or args.edges not in (None, "off")
+        or args.preset != DEFAULT_PRESET
+    )
     return settings, explicit
 
 
@@ -273,16 +514,42 @@ def render_options(args: argparse.Namespace):
 
     lighting, required = lighting_from_args(args, headless=args.headless or not display_available())
     return RenderOptions(
-        molecule=resolve_molecule(args, args.molecule), connect=args.connect, control=args.control, headless=args.headless,
-        size=args.size, frames=args.frames, seconds=args.seconds, out=args.out, fps=args.fps,
-        gbuffer=args.gbuffer, camera=args.camera, orbit=args.orbit, spheres=args.spheres,
-        probe=args.probe, touched=args.touched, probe_radius=args.probe_radius, nav_cube=args.nav_cube,
-        clip=args.clip, probe_plane=args.probe_plane, light=args.light, backbone=args.backbone,
-        fxaa=not args.no_fxaa, frame_cache=not args.no_frame_cache, keep_water=args.keep_water, lighting=lighting,
+        molecule=resolve_molecule(args, args.molecule),
+        connect=args.connect,
+        control=args.control,
+        headless=args.headless,
+        size=args.size,
+        frames=args.frames,
+        seconds=args.seconds,
+        out=args.out,
+        fps=args.fps,
+        gbuffer=args.gbuffer,
+        camera=args.camera,
+        orbit=args.orbit,
+        spheres=args.spheres,
+        probe=args.probe,
+        touched=args.touched,
+        probe_radius=args.probe_radius,
+        nav_cube=args.nav_cube,
+        clip=args.clip,
+        probe_plane=args.probe_plane,
+        light=args.light,
+        backbone=args.backbone,
+        fxaa=not args.no_fxaa,
+        frame_cache=not args.no_frame_cache,
+        keep_water=args.keep_water,
+        lighting=lighting,
         lighting_required=required,
-        probe_light_range=args.probe_light_range or DEFAULT_PROBE_RANGE, snapshot=args.snapshot,
-        report=args.report, view=args.view, gbuffer_dir=args.gbuffer_dir, color=args.color, preset=args.preset,
-        background=args.background, light_frame=args.light_frame, keys=args.keys,
+        probe_light_range=args.probe_light_range or DEFAULT_PROBE_RANGE,
+        snapshot=args.snapshot,
+        report=args.report,
+        view=args.view,
+        gbuffer_dir=args.gbuffer_dir,
+        color=args.color,
+        preset=args.preset,
+        background=args.background,
+        light_frame=args.light_frame,
+        keys=args.keys,
     )
 
 
@@ -299,10 +566,14 @@ def run(args: argparse.Namespace) -> int:
     if args.keys and args.connect is None:
         raise UserError("--keys needs --connect")
     if args.connect is not None and (args.probe or args.nav_cube or args.touched >= 0):
-        raise UserError("--probe, --touched and --nav-cube are for standalone use; with --connect the daemon sets them")
+        raise UserError(
+            "--probe, --touched and --nav-cube are for standalone use; with --connect the daemon sets them"
+        )
     if args.connect is not None and args.clip:
-        raise UserError("--clip is for standalone use; with --connect the clip planes are the daemon's: "
-                        "set them with `sasprobe set clip=A,B,C,D`")
+        raise UserError(
+            "--clip is for standalone use; with --connect the clip planes are the daemon's: "
+            "set them with `sasprobe set clip=A,B,C,D`"
+        )
     if args.gbuffer_dir is not None:
         from sasprobe.render.gl.context import display_available
 
@@ -311,13 +582,17 @@ def run(args: argparse.Namespace) -> int:
         try:
             args.gbuffer_dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
-            raise UserError(f"--gbuffer-dir {args.gbuffer_dir}: cannot create ({exc.strerror or exc})") from None
+            raise UserError(
+                f"--gbuffer-dir {args.gbuffer_dir}: cannot create ({exc.strerror or exc})"
+            ) from None
     if args.out is not None and args.out.is_dir():
         from sasprobe.render.gl.context import display_available
 
         if args.headless or not display_available():
-            raise UserError(f"--out {args.out}: a folder is where the window's Ctrl+S and Ctrl+R write; "
-                            "headless, give a .png or .mp4 file")
+            raise UserError(
+                f"--out {args.out}: a folder is where the window's Ctrl+S and Ctrl+R write; "
+                "headless, give a .png or .mp4 file"
+            )
     elif args.out is not None:
         from sasprobe.render.output import check_out_path
 
@@ -331,6 +606,8 @@ def run(args: argparse.Namespace) -> int:
         if args.snapshot.suffix.lower() != ".png":
             raise UserError(f"--snapshot {args.snapshot}: expected a .png file")
         if not args.headless and display_available():
-            raise UserError("--snapshot is for headless rendering (in a window, --out FILE.png saves the last frame)")
+            raise UserError(
+                "--snapshot is for headless rendering (in a window, --out FILE.png saves the last frame)"
+            )
         check_out_path(args.snapshot, 1)
     return render_main(render_options(args))

@@ -12,27 +12,54 @@ HELP = "summarise a recording; --verify recomputes its forces; --recover repairs
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from sasprobe.render.app import RenderOptions
     from sasprobe.cli.argtypes import positive_float, probe_radius, size_type
+    from sasprobe.render.app import RenderOptions
 
     video = RenderOptions()  # a replay's video is drawn with `sasprobe render`'s defaults
     size = f"{video.size[0]}x{video.size[1]}"
 
     p = sub.add_parser("replay", help=HELP)
     p.add_argument("file", type=Path, help="an MCAP recording (sasprobe daemon --record)")
-    p.add_argument("--verify", action="store_true",
-                   help="recompute every force from the recorded inputs and report the largest difference")
-    p.add_argument("--recover", type=Path, metavar="OUT",
-                   help="write the readable part of a cut recording (daemon killed) as a finished file")
-    p.add_argument("--video", type=Path, metavar="OUT.mp4",
-                   help="render the session to a video at its recorded timing (headless)")
-    p.add_argument("--fps", type=positive_float, default=video.fps, help=f"video frame rate (default {video.fps:g})")
-    p.add_argument("--size", type=size_type, default=size, metavar="WxH", help=f"video size (default {size})")
-    p.add_argument("--findings", type=Path, metavar="DIR",
-                   help="what the session found: path, touched residues, marks, bottleneck; a chart, PDB/mmCIF, "
-                        "PyMOL and ChimeraX files and findings.json into DIR")
-    p.add_argument("--probe-radius", type=probe_radius, default=None, metavar="ANGSTROM",
-                   help="--findings: the probe whose passage the verdict is about (default: the session's)")
+    p.add_argument(
+        "--verify",
+        action="store_true",
+        help="recompute every force from the recorded inputs and report the largest difference",
+    )
+    p.add_argument(
+        "--recover",
+        type=Path,
+        metavar="OUT",
+        help="write the readable part of a cut recording (daemon killed) as a finished file",
+    )
+    p.add_argument(
+        "--video",
+        type=Path,
+        metavar="OUT.mp4",
+        help="render the session to a video at its recorded timing (headless)",
+    )
+    p.add_argument(
+        "--fps",
+        type=positive_float,
+        default=video.fps,
+        help=f"video frame rate (default {video.fps:g})",
+    )
+    p.add_argument(
+        "--size", type=size_type, default=size, metavar="WxH", help=f"video size (default {size})"
+    )
+    p.add_argument(
+        "--findings",
+        type=Path,
+        metavar="DIR",
+        help="what the session found: path, touched residues, marks, bottleneck; a chart, PDB/mmCIF, "
+        "PyMOL and ChimeraX files and findings.json into DIR",
+    )
+    p.add_argument(
+        "--probe-radius",
+        type=probe_radius,
+        default=None,
+        metavar="ANGSTROM",
+        help="--findings: the probe whose passage the verdict is about (default: the session's)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -49,7 +76,9 @@ def run(args: argparse.Namespace) -> int:
         from sasprobe.render.output import VIDEO_SUFFIXES
 
         if args.video.suffix.lower() not in VIDEO_SUFFIXES:
-            raise UserError(f"--video {args.video}: expected a video file ({', '.join(VIDEO_SUFFIXES)})")
+            raise UserError(
+                f"--video {args.video}: expected a video file ({', '.join(VIDEO_SUFFIXES)})"
+            )
         if not args.video.resolve().parent.is_dir():
             raise UserError(f"--video {args.video}: folder {args.video.parent} does not exist")
     if args.recover is not None:
@@ -58,8 +87,8 @@ def run(args: argparse.Namespace) -> int:
     result["summary"] = summary.as_dict()
     status = 0
     if args.verify:
-        from sasprobe.daemon.recording.verify import verify_recording
         from sasprobe.common.progress import progress_bar
+        from sasprobe.daemon.recording.verify import verify_recording
 
         bar = progress_bar(summary.ticks, desc="verify", unit="tick")
         try:
@@ -73,32 +102,44 @@ def run(args: argparse.Namespace) -> int:
         from sasprobe.render.playback import frame_count, pose_time_range, render_recording
 
         time_range = pose_time_range(args.file)
-        bar = progress_bar(frame_count(time_range, args.fps) if time_range else 0, desc="video", unit="frame")
+        bar = progress_bar(
+            frame_count(time_range, args.fps) if time_range else 0, desc="video", unit="frame"
+        )
         try:
-            result["video"] = render_recording(args.file, args.video, args.fps, args.size, progress=bar.update)
+            result["video"] = render_recording(
+                args.file, args.video, args.fps, args.size, progress=bar.update
+            )
         finally:
             bar.close()
     if args.findings is not None:
         from sasprobe.daemon.findings import write_findings
 
         found = write_findings(args.file, args.findings, args.probe_radius)
-        result["findings"] = {k: found[k] for k in ("files", "bottleneck", "verdict", "session", "notes")}
+        result["findings"] = {
+            k: found[k] for k in ("files", "bottleneck", "verdict", "session", "notes")
+        }
     if args.json:
         print(json.dumps(result))
         return status
     s = summary
-    print(f"{s.path}: {'finished' if s.finished else 'cut short (daemon killed), readable up to its last flush'}, "
-          f"{s.duration_s:.2f} s, {s.ticks} ticks, {s.seq_gaps} missing, structure(s) {', '.join(s.structures)}")
+    print(
+        f"{s.path}: {'finished' if s.finished else 'cut short (daemon killed), readable up to its last flush'}, "
+        f"{s.duration_s:.2f} s, {s.ticks} ticks, {s.seq_gaps} missing, structure(s) {', '.join(s.structures)}"
+    )
     print("  messages " + ", ".join(f"{k} {v}" for k, v in sorted(s.counts.items())))
     if "recovered" in result:
         print(f"  recovered {result['recovered']['ticks']} ticks into {args.recover}")
     if args.verify:
         r = result["verify"]
-        print(f"  verify   {r['ticks']} ticks recomputed, {r['events_applied']} control changes applied: "
-              f"max |force difference| {r['max_force_diff_n']:.3g} N over {r['ticks_with_force_diff']} ticks, "
-              f"{r['flag_mismatches']} flag mismatches -> {'OK' if r['ok'] else 'DIFFERENT'}")
+        print(
+            f"  verify   {r['ticks']} ticks recomputed, {r['events_applied']} control changes applied: "
+            f"max |force difference| {r['max_force_diff_n']:.3g} N over {r['ticks_with_force_diff']} ticks, "
+            f"{r['flag_mismatches']} flag mismatches -> {'OK' if r['ok'] else 'DIFFERENT'}"
+        )
         if r["missing_ticks"]:
-            print(f"  note     {r['missing_ticks']} ticks were dropped while recording; forces after a gap can differ")
+            print(
+                f"  note     {r['missing_ticks']} ticks were dropped while recording; forces after a gap can differ"
+            )
     if args.findings is not None:
         from sasprobe.daemon.findings import summary_lines
 
@@ -106,6 +147,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"  files      {args.findings}/: {', '.join(found['files'].values())}")
     if args.video is not None:
         v = result["video"]
-        print(f"  video    {v['video']}: {v['frames']} frames at {v['fps']:g} fps, {v['size'][0]}x{v['size'][1]} "
-              f"({v['duration_s']:.2f} s recorded)")
+        print(
+            f"  video    {v['video']}: {v['frames']} frames at {v['fps']:g} fps, {v['size'][0]}x{v['size'][1]} "
+            f"({v['duration_s']:.2f} s recorded)"
+        )
     return status

@@ -29,12 +29,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.cli.daemon_client import add_daemon_options
 
     keys = ", ".join(f"{k}={what}" for k, (what, _) in KEYS.items())
-    p = sub.add_parser("set", help="change a running daemon's settings (stiffness, probe radius, clip planes, "
-                                   "cube size, lights)",
-                       description=f"KEY=VALUE pairs, applied together or not at all. Keys: {keys}.")
+    p = sub.add_parser(
+        "set",
+        help="change a running daemon's settings (stiffness, probe radius, clip planes, "
+        "cube size, lights)",
+        description=f"KEY=VALUE pairs, applied together or not at all. Keys: {keys}.",
+    )
     p.add_argument("changes", nargs="+", metavar="KEY=VALUE")
     add_daemon_options(p)
-    p.add_argument("--timeout", type=float, default=5.0, metavar="S", help="seconds to wait for the reply")
+    p.add_argument(
+        "--timeout", type=float, default=5.0, metavar="S", help="seconds to wait for the reply"
+    )
     p.add_argument("--json", action="store_true", help="print the daemon's reply as JSON")
     p.set_defaults(func=run)
 
@@ -47,7 +52,9 @@ def _numbers(text: str, n: int, key: str) -> list[float]:
     except ValueError:
         values = []
     if len(values) != n or not all(math.isfinite(v) for v in values):
-        raise UserError(f"{key}={text}: expected " + ("a number" if n == 1 else f"{n} comma-separated numbers"))
+        raise UserError(
+            f"{key}={text}: expected " + ("a number" if n == 1 else f"{n} comma-separated numbers")
+        )
     return values
 
 
@@ -78,7 +85,13 @@ def set_fields(pairs: list[str]) -> dict:
         elif key == "method":
             fields["method"] = value
         elif key == "cube-half":
-            fields["cube_half_A"] = None if value == "default" else value if value == "fit" else _numbers(value, 1, key)[0]
+            fields["cube_half_A"] = (
+                None
+                if value == "default"
+                else value
+                if value == "fit"
+                else _numbers(value, 1, key)[0]
+            )
         elif key == "nav-cube":
             fields["nav_cube_enabled"] = _switch(value, key)
         elif key == "clip":
@@ -107,9 +120,11 @@ def run(args: argparse.Namespace) -> int:
         return 0
     s = reply["settings"]
     cube = s["cube_half_A"]
-    print(f"set at tick {reply['seq']}: stiffness {s['stiffness_n_per_mm']:g} N/mm, damping "
-          f"{s['damping_n_s_per_m']:g} N·s/m, probe {s['probe_radius_A']:g} Å, {s['method']}, cube half edge "
-          + ("default" if cube is None else cube if isinstance(cube, str) else f"{cube:g} Å")
-          + (f", {len(fields['clip_planes'])} clip plane(s)" if "clip_planes" in fields else "")
-          + (", lights changed" if "lights" in fields else ""))
+    print(
+        f"set at tick {reply['seq']}: stiffness {s['stiffness_n_per_mm']:g} N/mm, damping "
+        f"{s['damping_n_s_per_m']:g} N·s/m, probe {s['probe_radius_A']:g} Å, {s['method']}, cube half edge "
+        + ("default" if cube is None else cube if isinstance(cube, str) else f"{cube:g} Å")
+        + (f", {len(fields['clip_planes'])} clip plane(s)" if "clip_planes" in fields else "")
+        + (", lights changed" if "lights" in fields else "")
+    )
     return 0
