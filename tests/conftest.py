@@ -8,6 +8,11 @@ from __future__ import annotations
 
 import os
 
+import pytest
+
+# The shared helpers' and references' asserts explain themselves as the tests' do.
+pytest.register_assert_rewrite("tests.support", "tests.references")
+
 from sasprobe.cli.main import one_blas_thread
 
 one_blas_thread()  # numpy as the CLI runs it, before it loads
@@ -18,8 +23,6 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-
-import pytest
 
 from sasprobe.cli.reference_data import reference_structures
 
@@ -86,6 +89,58 @@ def crambin_grid(gl, crambin):
     grid.release()
 
 
+@pytest.fixture(scope="session")
+def hd_library(tmp_path_factory):
+    """The stand-in OpenHaptics HD library (tests/emulators/fake_libhd.c), built once."""
+    from tests.emulators import libhd
+
+    out = libhd.build(tmp_path_factory.mktemp("libhd"))
+    if out is None:
+        skip_or_fail("no C compiler to build the stand-in HD library")
+    return out
+
+
+@pytest.fixture
+def hd_arm(hd_library, monkeypatch):
+    """A factory: an emulated OpenHaptics arm (options as libhd.EmulatedHD) and a driver
+    pointed at it; both closed after the test."""
+    from sasprobe.devices.openhaptics.driver import OpenHapticsDevice
+
+    from tests.emulators import libhd
+
+    made = []
+
+    def make(reset_encoders=False, name=None, **options):
+        emu = libhd.launch(library=hd_library, **options)
+        monkeypatch.setenv("FAKE_HD_CONTROL", str(emu.control_path))
+        dev = OpenHapticsDevice(name, library=str(hd_library), reset_encoders=reset_encoders)
+        made.append((dev, emu))
+        return dev, emu
+
+    yield make
+    for dev, emu in made:
+        dev.close()
+        emu.close()
+
+
+@pytest.fixture
+def inverse_service():
+    """A factory: a stand-in Haply Inverse Service (tests/emulators/inverse_service.py) on
+    loopback; every one made is closed after the test."""
+    from tests.emulators.inverse_service import InverseService
+
+    made = []
+
+    def make(**options):
+        svc = InverseService(**options)
+        made.append(svc)
+        return svc
+
+    yield make
+    for svc in made:
+        svc.close()
+
+
 def _drain_gl_errors(ctx) -> list[str]:
     errors = []
     while len(errors) < 16:  # glGetError reports one flag per call
@@ -100,8 +155,8 @@ def _drain_gl_errors(ctx) -> list[str]:
 def _messages_checked_against_the_schemas():
     """Every reply, scene and pose a test receives through sasprobe's clients, and every
     message of every recording it reads through sasprobe's reader, is checked against
-    protocol/schemas/ (tests/schema_check.py)."""
-    from tests.schema_check import checking_clients, checking_recordings
+    protocol/schemas/ (tests/support/schema_check.py)."""
+    from tests.support.schema_check import checking_clients, checking_recordings
 
     with checking_clients(), checking_recordings():
         yield

@@ -18,7 +18,7 @@ import struct
 import pytest
 
 from tests.conftest import run_cli
-from tests.daemon_process import cli_many
+from tests.support.daemon_process import cli_many
 
 
 def _atom(i: int, x: str, y: str = "1.000", z: str = "2.000") -> str:

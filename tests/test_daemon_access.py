@@ -21,7 +21,7 @@ from sasprobe.protocol.pose import Pose, encode_pose
 from sasprobe.protocol.security import KeyFileError, ensure_local_keys, generate_keys
 
 from sasprobe.common.errors import UserError
-from tests.daemon_process import DaemonProcess
+from tests.support.daemon_process import DaemonProcess
 
 
 @pytest.fixture

@@ -2,7 +2,7 @@
 answered with an error or dropped, the control server answers afterwards, and the loop
 does not stall while it happens.
 
-The pose gaps come from tests/pose_watch.py, a process of its own, which also notes the
+The pose gaps come from tests/support/pose_watch.py, a process of its own, which also notes the
 machine's own pauses (a VM's stolen time stalls every process): a probe passes when the
 part of its longest pose gap that such a pause does not explain is under LIMIT_MS (20 ms;
 60 ms when the daemon could not get real-time scheduling, where ordinary
@@ -24,9 +24,9 @@ import zmq
 from sasprobe.protocol.client import ControlClient
 from sasprobe.protocol.control import MAX_MESSAGE_BYTES, decode_reply, encode_request
 
-from tests.daemon_process import DaemonProcess
-from tests.probe_support import PoseWatch, now_ns, unexplained_ms
-from tests.schema_check import check_raw_reply
+from tests.support.daemon_process import DaemonProcess
+from tests.support.probe import PoseWatch, now_ns, unexplained_ms
+from tests.support.schema_check import check_raw_reply
 
 LIMIT_MS = {True: 20.0, False: 60.0}  # by whether the daemon runs under SCHED_FIFO
 SETTLE_S = 0.3  # a probe's window extends this far past its reply (a stall right after it counts)
@@ -229,7 +229,7 @@ def _stalls(result: dict, windows: list, limit_ms: float) -> dict[str, float]:
 
 
 def test_the_pose_watcher_checks_every_pose(tmp_path):
-    """tests/pose_watch.py reports a pose that breaks pose.json (here a reserved word that is
+    """tests/support/pose_watch.py reports a pose that breaks pose.json (here a reserved word that is
     not 0), and PoseWatch fails the test that used it."""
     from sasprobe.protocol.pose import Pose, encode_pose
 

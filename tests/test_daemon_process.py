@@ -24,8 +24,8 @@ from sasprobe.protocol.recording import iter_items
 from sasprobe.protocol.scene import SCENE_VERSION
 
 from tests.conftest import run_cli
-from tests.daemon_process import DaemonProcess, cli_many
-from tests.schema_check import check_pose_payload, check_raw_reply
+from tests.support.daemon_process import DaemonProcess, cli_many, collect_raw, free_port
+from tests.support.schema_check import check_pose_payload, check_raw_reply
 
 
 @pytest.fixture(scope="module")
@@ -34,31 +34,6 @@ def daemon():
         yield d
         rc, report = d.stop()
         assert rc == 0, d.stderr
-
-
-def collect_raw(endpoint: str, seconds: float, stop: threading.Event | None = None) -> list[bytes]:
-    """Pose payloads received on a raw SUB socket (no sasprobe code in the path)."""
-    context = zmq.Context.instance()
-    sock = context.socket(zmq.SUB)
-    sock.linger = 0
-    sock.rcvhwm = 100_000
-    sock.setsockopt(zmq.SUBSCRIBE, b"pose")
-    sock.connect(endpoint)
-    payloads = []
-    while not payloads:  # joining is asynchronous
-        if sock.poll(5000) == 0:
-            raise AssertionError("no pose within 5 s")
-        payloads.append(sock.recv_multipart()[1])
-    end = time.monotonic() + seconds
-    while time.monotonic() < end and not (stop is not None and stop.is_set()):
-        if sock.poll(50):
-            while True:
-                try:
-                    payloads.append(sock.recv_multipart(zmq.NOBLOCK)[1])
-                except zmq.Again:
-                    break
-    sock.close()
-    return payloads
 
 
 def _coverage(payloads: list[bytes]) -> tuple[float, list[dict]]:
@@ -355,14 +330,6 @@ def test_non_loopback_bind_without_keys_is_refused():
     assert out.stderr.count("\n") == 1
 
 
-def _free_port() -> int:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def test_curve_keys_admit_allowed_clients_and_reject_unknown_ones(tmp_path, gl):
     """A keyed daemon: status and a renderer with the keys follow it; a client whose key is not
     allowed, or who has none, gets one line saying so (and the daemon logs the refusal)."""
@@ -370,7 +337,7 @@ def test_curve_keys_admit_allowed_clients_and_reject_unknown_ones(tmp_path, gl):
     assert run_cli("keys", str(keys)).returncode == 0
     assert run_cli("keys", str(other)).returncode == 0
     (other / "server.key").write_bytes((keys / "server.key").read_bytes())
-    pub_port, ctl_port = _free_port(), _free_port()
+    pub_port, ctl_port = free_port(), free_port()
     with DaemonProcess(
         "--keys", str(keys), pub=f"tcp://0.0.0.0:{pub_port}", ctl=f"tcp://0.0.0.0:{ctl_port}"
     ) as d:

@@ -19,9 +19,8 @@ from sasprobe.protocol.pose import FLAG_FAULT
 from sasprobe.protocol.recording import iter_items, scan
 
 from tests.conftest import run_cli
-from tests.daemon_process import DaemonProcess
-from tests.schema_check import check_pose_payload
-from tests.test_daemon_process import collect_raw
+from tests.support.daemon_process import DaemonProcess, collect_raw
+from tests.support.schema_check import check_pose_payload
 
 
 def test_record_then_sigkill_leaves_a_readable_file_missing_at_most_100_ms(tmp_path):

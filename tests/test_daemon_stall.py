@@ -18,10 +18,10 @@ from sasprobe.devices.simulated import SimulatedDevice, make_simulated
 from sasprobe.devices.workspace import CUBE_FIT
 from sasprobe.protocol.client import Subscriber
 
-from tests.daemon_process import DaemonProcess
 from tests.emulators.pty_serial import Rig
 from tests.emulators.woodenhaptics_serial import WoodenHapticsEmulator
-from tests.test_devices_daemon import EMULATED_ARM_RATE, WHOLE, poses_until, pushing, wait_for
+from tests.support.daemon_process import DaemonProcess
+from tests.support.press import EMULATED_ARM_RATE, WHOLE, poses_until, pushing, wait_for
 
 STALL_TICK, STALL_S = (
     1500,

@@ -20,7 +20,7 @@ from tests.emulators.hidapi_fake import HidBus, HidModule
 from tests.emulators.libhd import build as build_libhd
 from tests.emulators.spacemouse_hid import EmulatedSpaceMouse
 from tests.emulators.woodenhaptics_serial import WoodenHapticsEmulator
-from tests.serial_arm_session import assert_no_refusals_but_after_deafness
+from tests.support.serial_arm_session import assert_no_refusals_but_after_deafness
 
 FALCON_BACKEND = "tests.emulators.falcon_usb:backend_from_environment"
 

@@ -22,12 +22,13 @@ from sasprobe.devices.forcedimension.driver import ForceDimensionDevice
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.pose import FLAG_FAULT
 
-from tests.arm_outage import recorded_outage
 from tests.conftest import run_cli, skip_or_fail
-from tests.daemon_process import DaemonProcess
 from tests.emulators import libdhd
-from tests.serial_arm_session import cosine
-from tests.test_devices_daemon import EMULATED_ARM_RATE, WHOLE, poses_until, pushing, settled
+from tests.support.arm_outage import recorded_outage
+from tests.support.daemon_process import DaemonProcess
+from tests.support.driver_loop import balance, settle_against_a_wall
+from tests.support.press import EMULATED_ARM_RATE, WHOLE, poses_until, pushing, settled
+from tests.support.serial_arm_session import cosine
 
 
 def to_dhd_m(device_mm):
@@ -139,35 +140,6 @@ def test_a_force_is_rendered_in_dhds_frame_and_moves_the_handle(arm):
     np.testing.assert_allclose(
         state.position_mm, [1000.0 / libdhd.HAND_STIFFNESS_N_PER_M, 0.0, 0.0], atol=0.02
     )
-
-
-WALL_X_MM, WALL_N_PER_MM = 10.0, 0.5  # a virtual wall beyond x = 10 mm, as stiff as the hand
-
-
-def settle_against_a_wall(dev, timeout_s=30.0):
-    """Tick (read, write the wall's force for that state) until the stylus has come to rest;
-    its mean position over the last 100 reads. A late or failed read writes zero, as the
-    daemon does."""
-    xs: list[float] = []
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        try:
-            state = dev.read()
-        except DeviceFault:
-            dev.write_force((0.0, 0.0, 0.0))
-            continue
-        x = float(state.position_mm[0])
-        dev.write_force((-WALL_N_PER_MM * max(x - WALL_X_MM, 0.0), 0.0, 0.0))
-        xs.append(x)
-        if len(xs) >= 300 and np.ptp(xs[-100:]) < 0.05:
-            return float(np.mean(xs[-100:]))
-        time.sleep(0.001)
-    raise AssertionError(f"never came to rest: the last reads span {np.ptp(xs[-100:]):.2f} mm")
-
-
-def balance(hand_x_mm, hand_n_per_mm):
-    """Where the hand's spring and the wall's balance."""
-    return (hand_n_per_mm * hand_x_mm + WALL_N_PER_MM * WALL_X_MM) / (hand_n_per_mm + WALL_N_PER_MM)
 
 
 def test_a_virtual_wall_settles_where_the_hand_and_the_wall_balance(arm):

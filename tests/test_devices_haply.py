@@ -9,7 +9,7 @@ from sasprobe.devices.base import DeviceOpenError
 from sasprobe.devices.haply import create
 
 from tests.emulators import haply_serial
-from tests.serial_arm_session import Session
+from tests.support.serial_arm_session import Session
 
 
 @pytest.fixture

@@ -22,9 +22,8 @@ from sasprobe.devices.inverse3 import protocol
 from sasprobe.devices.inverse3.driver import Inverse3Device
 from websockets.sync.server import serve
 
-from tests.emulators.inverse_service import InverseService
-from tests.test_devices_daemon import wait_for
-from tests.test_devices_forcedimension import balance, settle_against_a_wall
+from tests.support.driver_loop import balance, settle_against_a_wall
+from tests.support.press import wait_for
 
 
 def to_haply_mm(device_mm):
@@ -33,26 +32,12 @@ def to_haply_mm(device_mm):
 
 
 @pytest.fixture
-def service():
-    made = []
-
-    def make(**options):
-        svc = InverseService(**options)
-        made.append(svc)
-        return svc
-
-    yield make
-    for svc in made:
-        svc.close()
-
-
-@pytest.fixture
-def arm(service):
+def arm(inverse_service):
     """An emulated service and a driver on it, opened (read timeouts as at 250 Hz)."""
     made = []
 
     def make(**options):
-        svc = service(**options)
+        svc = inverse_service(**options)
         dev = Inverse3Device(svc.url, reply_timeout_s=0.010, read_wait_s=0.001)
         dev.open()
         made.append(dev)
@@ -286,8 +271,8 @@ def test_a_closed_connection_is_a_fault_at_once_and_a_new_session_opens_when_the
     assert dev.info.details["sessions"] == 2 and svc.presets == ["arm_front_centered"] * 2
 
 
-def test_no_service_says_so_in_one_line(service):
-    svc = service()
+def test_no_service_says_so_in_one_line(inverse_service):
+    svc = inverse_service()
     url = svc.url
     svc.close()  # nothing listens on that port now
     with pytest.raises(DeviceOpenError) as err:

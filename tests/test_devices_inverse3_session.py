@@ -18,12 +18,11 @@ from sasprobe.daemon.session import open_session
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.pose import FLAG_FAULT
 
-from tests.arm_outage import recorded_outage
 from tests.conftest import run_cli
-from tests.daemon_process import DaemonProcess
-from tests.serial_arm_session import cosine
-from tests.test_devices_daemon import WHOLE, poses_until, pushing, settled
-from tests.test_devices_inverse3 import service  # noqa: F401 (the fixture)
+from tests.support.arm_outage import recorded_outage
+from tests.support.daemon_process import DaemonProcess
+from tests.support.press import WHOLE, poses_until, pushing, settled
+from tests.support.serial_arm_session import cosine
 
 
 def test_without_a_rate_the_daemon_runs_the_arm_at_the_rate_it_declares():
@@ -41,8 +40,8 @@ def test_without_a_rate_the_daemon_runs_the_arm_at_the_rate_it_declares():
     assert open_session(DaemonConfig(device="sim")).rate_hz == 1000.0
 
 
-def test_devices_lists_the_services_arm_and_checks_it(service):
-    svc = service(calibrated=False)
+def test_devices_lists_the_services_arm_and_checks_it(inverse_service):
+    svc = inverse_service(calibrated=False)
     svc.hand.target = (0.0, 0.0, 10.0)  # 10 mm up
     env = dict(os.environ, **svc.env)
     listed = run_cli("devices", "--json", env=env)
@@ -75,8 +74,8 @@ def test_devices_lists_the_services_arm_and_checks_it(service):
     assert np.allclose(svc.samples[-1][1], 0.0)  # the check wrote zero force
 
 
-def test_check_without_a_service_is_one_line(service):
-    svc = service()
+def test_check_without_a_service_is_one_line(inverse_service):
+    svc = inverse_service()
     url = svc.url
     svc.close()
     result = run_cli("devices", "--check", f"inverse3:{url}")
@@ -113,9 +112,9 @@ def press_and_settle(svc, sub, daemon) -> tuple[list, int]:
 
 
 def test_daemon_presses_the_emulated_inverse3_and_rides_out_a_hung_and_a_closed_service(
-    service, tmp_path
+    inverse_service, tmp_path
 ):
-    svc = service()
+    svc = inverse_service()
     svc.hand.place((0.0, 0.0, 30.0))  # 30 mm above the workspace centre: outside the molecule
     path = tmp_path / "session.mcap"
     with DaemonProcess(

@@ -23,7 +23,6 @@ from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.openhaptics import hdapi
 from sasprobe.devices.openhaptics.driver import OpenHapticsDevice
 
-from tests.conftest import skip_or_fail
 from tests.emulators import libhd
 from tests.emulators.libhd import (
     HD_CALIBRATION_AUTO,
@@ -40,53 +39,15 @@ from tests.emulators.libhd import (
     UNCALIBRATED_OFFSET,
     USABLE_BOX_CENTRE,
 )
-
-
-@pytest.fixture(scope="module")
-def library(tmp_path_factory):
-    out = libhd.build(tmp_path_factory.mktemp("libhd"))
-    if out is None:
-        skip_or_fail("no C compiler to build the stand-in HD library")
-    return out
-
-
-@pytest.fixture
-def arm(library, monkeypatch):
-    """A factory: an emulated arm (options as libhd.EmulatedHD) and a driver pointed at it."""
-    made = []
-
-    def make(reset_encoders=False, name=None, **options):
-        emu = libhd.launch(library=library, **options)
-        monkeypatch.setenv("FAKE_HD_CONTROL", str(emu.control_path))
-        dev = OpenHapticsDevice(name, library=str(library), reset_encoders=reset_encoders)
-        made.append((dev, emu))
-        return dev, emu
-
-    yield make
-    for dev, emu in made:
-        dev.close()
-        emu.close()
-
-
-def wait_for(dev, condition, timeout_s=5.0):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        try:
-            state = dev.read()
-            if condition(state):
-                return state
-        except DeviceFault:
-            pass
-        time.sleep(0.002)
-    raise AssertionError("condition not reached in time")
+from tests.support.driver_loop import read_until
 
 
 def device_frame(library_mm):
     return np.asarray(library_mm) - np.asarray(USABLE_BOX_CENTRE)
 
 
-def test_open_reads_the_nominal_limits_and_recentres_the_workspace(arm):
-    dev, emu = arm(styles=HD_CALIBRATION_INKWELL, hand=(10.0, -5.0, -20.0))
+def test_open_reads_the_nominal_limits_and_recentres_the_workspace(hd_arm):
+    dev, emu = hd_arm(styles=HD_CALIBRATION_INKWELL, hand=(10.0, -5.0, -20.0))
     dev.open()
     lim = dev.info.limits
     assert (lim.max_force_n, lim.continuous_force_n, lim.max_stiffness_n_per_mm) == (3.3, 0.88, 0.5)
@@ -98,13 +59,13 @@ def test_open_reads_the_nominal_limits_and_recentres_the_workspace(arm):
         35.0,
     )
     assert dev.info.model == "Touch (emulated)"
-    state = wait_for(dev, lambda s: True)
+    state = read_until(dev, lambda s: True)
     assert not state.calibrated  # uncalibrated encoders read off by the emulator's offset
     np.testing.assert_allclose(
         state.position_mm, device_frame(np.subtract((10.0, -5.0, -20.0), UNCALIBRATED_OFFSET))
     )
     emu.control.inkwell = 1
-    state = wait_for(dev, lambda s: s.calibrated)
+    state = read_until(dev, lambda s: s.calibrated)
     np.testing.assert_allclose(state.position_mm, [10.0, -5.0, 15.0])
 
 
@@ -120,47 +81,49 @@ def test_open_reads_the_nominal_limits_and_recentres_the_workspace(arm):
         (HD_CALIBRATION_AUTO | HD_CALIBRATION_INKWELL, HD_CALIBRATION_AUTO),
     ],
 )
-def test_calibration_prefers_auto_then_inkwell_then_encoder_reset(arm, supported, chosen):
-    dev, emu = arm(styles=supported, inkwell=True)
+def test_calibration_prefers_auto_then_inkwell_then_encoder_reset(hd_arm, supported, chosen):
+    dev, emu = hd_arm(styles=supported, inkwell=True)
     dev.open()
-    wait_for(dev, lambda s: s.calibrated)
+    read_until(dev, lambda s: s.calibrated)
     assert dev.calibration_style == chosen and emu.control.last_update_style == chosen
     assert emu.control.resets == 0  # an encoder reset was never needed, so never done
 
 
-def test_inkwell_calibration_gates_force(arm):
-    dev, emu = arm(styles=HD_CALIBRATION_INKWELL)
+def test_inkwell_calibration_gates_force(hd_arm):
+    dev, emu = hd_arm(styles=HD_CALIBRATION_INKWELL)
     dev.open()
-    assert not wait_for(dev, lambda s: True).calibrated
+    assert not read_until(dev, lambda s: True).calibrated
     dev.write_force([1.0, 0.0, 0.0])
     emu.wait_frames(20)
     assert emu.applied_force == (0.0, 0.0, 0.0)  # no force until calibrated
     assert emu.control.calibration == libhd.HD_CALIBRATION_NEEDS_MANUAL_INPUT
     emu.control.inkwell = 1  # NEEDS_MANUAL_INPUT → NEEDS_UPDATE → hdUpdateCalibration(INKWELL) → OK
-    wait_for(dev, lambda s: s.calibrated)
+    read_until(dev, lambda s: s.calibrated)
     dev.write_force([1.0, 0.0, 0.0])
-    state = wait_for(dev, lambda s: s.position_mm[0] > 1.0)
+    state = read_until(dev, lambda s: s.position_mm[0] > 1.0)
     assert emu.applied_force == (1.0, 0.0, 0.0)
     assert state.position_mm[0] == pytest.approx(
         1.0 / libhd.HAND_STIFFNESS_N_PER_MM
     )  # the hand gives way 2 mm
 
 
-def test_the_encoder_reset_comes_before_the_scheduler_at_the_held_pose(arm):
-    dev, emu = arm(styles=HD_CALIBRATION_ENCODER_RESET, hand=(0.0, 0.0, 0.0), reset_encoders=True)
+def test_the_encoder_reset_comes_before_the_scheduler_at_the_held_pose(hd_arm):
+    dev, emu = hd_arm(
+        styles=HD_CALIBRATION_ENCODER_RESET, hand=(0.0, 0.0, 0.0), reset_encoders=True
+    )
     dev.open()  # the user holds the arm at its reset pose (the emulator's origin) and says so
     assert (emu.control.resets, emu.control.resets_while_running) == (1, 0)
     assert emu.control.reset_distance_mm == 0.0
-    assert wait_for(dev, lambda s: True).calibrated
+    assert read_until(dev, lambda s: True).calibrated
     emu.hand.target = (10.0, -5.0, -20.0)
-    state = wait_for(dev, lambda s: s.position_mm[0] == 10.0)
+    state = read_until(dev, lambda s: s.position_mm[0] == 10.0)
     np.testing.assert_allclose(state.position_mm, device_frame((10.0, -5.0, -20.0)))
     emu.wait_frames(50)
     assert emu.control.resets == 1  # never again from the servo loop
 
 
-def test_an_encoder_reset_arm_is_refused_until_the_user_holds_the_reset_pose(arm):
-    dev, emu = arm(styles=HD_CALIBRATION_ENCODER_RESET, hand=(20.0, 30.0, -10.0))
+def test_an_encoder_reset_arm_is_refused_until_the_user_holds_the_reset_pose(hd_arm):
+    dev, emu = hd_arm(styles=HD_CALIBRATION_ENCODER_RESET, hand=(20.0, 30.0, -10.0))
     with pytest.raises(
         DeviceOpenError, match=r"needs an encoder reset.*reset position.*openhaptics:reset-encoders"
     ):
@@ -168,10 +131,10 @@ def test_an_encoder_reset_arm_is_refused_until_the_user_holds_the_reset_pose(arm
     assert emu.control.resets == 0 and emu.control.scheduler_running == 0
 
 
-def test_a_reconnect_never_resets_the_encoders_at_an_unknown_pose(arm):
-    dev, emu = arm(styles=HD_CALIBRATION_ENCODER_RESET, reset_encoders=True)
+def test_a_reconnect_never_resets_the_encoders_at_an_unknown_pose(hd_arm):
+    dev, emu = hd_arm(styles=HD_CALIBRATION_ENCODER_RESET, reset_encoders=True)
     dev.open()
-    wait_for(dev, lambda s: s.calibrated)
+    read_until(dev, lambda s: s.calibrated)
     emu.unplug()  # power lost: the encoders forget their zero
     with pytest.raises(DeviceFault, match="HD_COMM_ERROR"):
         _until_fault(dev)
@@ -182,10 +145,10 @@ def test_a_reconnect_never_resets_the_encoders_at_an_unknown_pose(arm):
     assert emu.control.resets == 1
 
 
-def calibrated_and_pushing(arm, force=(1.0, 0.0, 0.0)):
-    dev, emu = arm(styles=HD_CALIBRATION_AUTO)
+def calibrated_and_pushing(hd_arm, force=(1.0, 0.0, 0.0)):
+    dev, emu = hd_arm(styles=HD_CALIBRATION_AUTO)
     dev.open()
-    wait_for(dev, lambda s: s.calibrated)
+    read_until(dev, lambda s: s.calibrated)
     dev.write_force(force)
     emu.wait_frames(5)
     assert emu.applied_force == force
@@ -202,8 +165,8 @@ def calibrated_and_pushing(arm, force=(1.0, 0.0, 0.0)):
         HD_DEVICE_FAULT,
     ],
 )
-def test_a_force_error_stops_only_force_output(arm, code):
-    dev, emu = calibrated_and_pushing(arm)
+def test_a_force_error_stops_only_force_output(hd_arm, code):
+    dev, emu = calibrated_and_pushing(hd_arm)
     emu.inject(code)
     emu.wait_frames(5)
     dev.write_force([1.0, 0.0, 0.0])  # the daemon still asks for force ...
@@ -217,11 +180,11 @@ def test_a_force_error_stops_only_force_output(arm, code):
     assert dev.info.details["force_errors"] == 1 and dev.info.details["force_stopped"] is True
 
 
-def test_the_force_impulse_warning_is_not_a_force_error(arm):
+def test_the_force_impulse_warning_is_not_a_force_error(hd_arm):
     """hduIsForceError (libHDU's hduError.o) names warm motors, max force, max velocity and
     force errors, not HD_EXCEEDED_MAX_FORCE_IMPULSE: the library's own impulse check has
     already limited the change in force."""
-    dev, emu = calibrated_and_pushing(arm)
+    dev, emu = calibrated_and_pushing(hd_arm)
     emu.inject(HD_EXCEEDED_MAX_FORCE_IMPULSE)
     emu.wait_frames(5)
     dev.read()
@@ -231,8 +194,8 @@ def test_the_force_impulse_warning_is_not_a_force_error(arm):
     assert dev.info.details["other_errors"] == 1 and dev.info.details["force_errors"] == 0
 
 
-def test_other_errors_are_counted_and_force_goes_on(arm):
-    dev, emu = calibrated_and_pushing(arm)
+def test_other_errors_are_counted_and_force_goes_on(hd_arm):
+    dev, emu = calibrated_and_pushing(hd_arm)
     emu.inject(HD_INVALID_ENUM)
     emu.wait_frames(5)
     dev.read()
@@ -240,8 +203,8 @@ def test_other_errors_are_counted_and_force_goes_on(arm):
     assert dev.info.details["other_errors"] == 1 and dev.info.details["force_errors"] == 0
 
 
-def test_a_scheduler_error_ends_the_callback_and_is_a_fault(arm):
-    dev, emu = calibrated_and_pushing(arm)
+def test_a_scheduler_error_ends_the_callback_and_is_a_fault(hd_arm):
+    dev, emu = calibrated_and_pushing(hd_arm)
     emu.inject(
         HD_COMM_ERROR
     )  # the device itself stays powered: its motors keep what they were last sent
@@ -257,10 +220,10 @@ def test_a_scheduler_error_ends_the_callback_and_is_a_fault(arm):
     assert emu.applied_force == (0.0, 0.0, 0.0)  # ... and the erring one turned the motors off
 
 
-def test_a_scheduler_error_turns_the_motors_off_before_the_callback_returns(arm):
+def test_a_scheduler_error_turns_the_motors_off_before_the_callback_returns(hd_arm):
     """Nothing may depend on the library calling the callback again after a communication
     error: here it does not, so what the erring callback left is what the arm renders."""
-    dev, emu = calibrated_and_pushing(arm)
+    dev, emu = calibrated_and_pushing(hd_arm)
     emu.control.stop_calls_on_error = 1
     emu.inject(HD_COMM_ERROR)
     with pytest.raises(DeviceFault, match="HD_COMM_ERROR"):
@@ -272,8 +235,8 @@ def test_a_scheduler_error_turns_the_motors_off_before_the_callback_returns(arm)
     assert emu.applied_force == (0.0, 0.0, 0.0) and emu.control.force_enabled == 0
 
 
-def test_a_vanished_arm_faults_and_recovers_when_back(arm):
-    dev, emu = calibrated_and_pushing(arm)
+def test_a_vanished_arm_faults_and_recovers_when_back(hd_arm):
+    dev, emu = calibrated_and_pushing(hd_arm)
     emu.unplug()
     with pytest.raises(DeviceFault, match=r"HD_COMM_ERROR \(0x0302"):
         _until_fault(dev)
@@ -282,7 +245,7 @@ def test_a_vanished_arm_faults_and_recovers_when_back(arm):
         dev.reconnect()
     emu.replug()
     dev.reconnect()
-    wait_for(dev, lambda s: s.calibrated)  # auto calibration again after the power cycle
+    read_until(dev, lambda s: s.calibrated)  # auto calibration again after the power cycle
 
 
 def _until_fault(dev, timeout_s=2.0):
@@ -293,8 +256,8 @@ def _until_fault(dev, timeout_s=2.0):
         time.sleep(0.002)
 
 
-def test_forces_never_exceed_the_nominal_maximum(arm):
-    dev, emu = calibrated_and_pushing(arm)
+def test_forces_never_exceed_the_nominal_maximum(hd_arm):
+    dev, emu = calibrated_and_pushing(hd_arm)
     rng = np.random.default_rng(5)
     for command in [rng.normal(size=3) * 50 for _ in range(50)] + [[np.nan, 0, 0], [np.inf, 1, 1]]:
         dev.write_force(command)
@@ -304,19 +267,19 @@ def test_forces_never_exceed_the_nominal_maximum(arm):
     assert emu.control.max_force <= 3.3 + 1e-12
 
 
-def test_close_leaves_the_motors_at_zero(arm):
-    dev, emu = calibrated_and_pushing(arm)
+def test_close_leaves_the_motors_at_zero(hd_arm):
+    dev, emu = calibrated_and_pushing(hd_arm)
     dev.close()
     assert emu.applied_force == (0.0, 0.0, 0.0) and dev.last_force_n.tolist() == [0.0, 0.0, 0.0]
 
 
-def test_transform_buttons_and_servo_rate(arm):
-    dev, emu = arm(styles=HD_CALIBRATION_AUTO)
+def test_transform_buttons_and_servo_rate(hd_arm):
+    dev, emu = hd_arm(styles=HD_CALIBRATION_AUTO)
     dev.open()
     emu.control.yaw = 0.5
     emu.control.buttons = 0b11
-    wait_for(dev, lambda s: s.buttons == 0b11)
-    state = wait_for(dev, lambda s: abs(s.orientation[2]) > 0.1)
+    read_until(dev, lambda s: s.buttons == 0b11)
+    state = read_until(dev, lambda s: abs(s.orientation[2]) > 0.1)
     np.testing.assert_allclose(
         state.orientation, [math.cos(0.25), 0.0, math.sin(0.25), 0.0], atol=1e-12
     )
@@ -325,18 +288,18 @@ def test_transform_buttons_and_servo_rate(arm):
     assert dev.servo_ticks - ticks > 20  # the library's scheduler thread keeps calling us
 
 
-def test_a_stalled_servo_loop_is_a_fault(arm):
-    dev, emu = arm(styles=HD_CALIBRATION_AUTO)
+def test_a_stalled_servo_loop_is_a_fault(hd_arm):
+    dev, emu = hd_arm(styles=HD_CALIBRATION_AUTO)
     dev.open()
-    wait_for(dev, lambda s: True)
+    read_until(dev, lambda s: True)
     dev._lib.hdStopScheduler()
     time.sleep(0.1)
     with pytest.raises(DeviceFault, match="servo loop has not run"):
         dev.read()
 
 
-def test_unknown_device_name(arm):
-    dev, _emu = arm(name="Left Arm")
+def test_unknown_device_name(hd_arm):
+    dev, _emu = hd_arm(name="Left Arm")
     with pytest.raises(
         DeviceOpenError, match="could not initialise 'Left Arm'.*HD_COMM_CONFIG_ERROR"
     ):
@@ -361,7 +324,7 @@ def test_missing_library_says_so_in_one_line(monkeypatch, tmp_path):
     assert "\n" not in str(err.value)
 
 
-def test_a_library_without_the_hd_entry_points_is_refused(library, tmp_path):
+def test_a_library_without_the_hd_entry_points_is_refused(hd_library, tmp_path):
     not_hd = tmp_path / "libnot.so"
     subprocess.run(
         [shutil.which("cc") or "gcc", "-shared", "-fPIC", "-o", str(not_hd), "-x", "c", "-"],

@@ -17,7 +17,7 @@ from tests.emulators.libhd import (
     HD_EXCEEDED_MAX_FORCE,
     USABLE_BOX_CENTRE,
 )
-from tests.test_devices_openhaptics import arm, library, wait_for  # noqa: F401 (the fixtures)
+from tests.support.driver_loop import read_until
 
 
 # The daemon's wall in these tests: the plane x = 0 of the library frame (the usable box's
@@ -31,7 +31,7 @@ def held_at(x_mm):
 def command_at(dev, emu, x_mm, force):
     """One tick as the daemon runs it with the stylus at x_mm: read that state, write `force`
     (the daemon's force for it), let the servo loop render it."""
-    wait_for(dev, lambda s: s.position_mm[0] == pytest.approx(x_mm))
+    read_until(dev, lambda s: s.position_mm[0] == pytest.approx(x_mm))
     dev.write_force(force)
     emu.wait_frames(3)
     return emu.applied_force
@@ -44,26 +44,26 @@ def wait_for_force(emu, force, timeout_s=10.0):
         time.sleep(0.002)
 
 
-def stopped_by_a_force_error(arm, hand_x, force, stylus_x, buttons=0):
-    dev, emu = arm(styles=HD_CALIBRATION_AUTO, hand=held_at(hand_x))
+def stopped_by_a_force_error(hd_arm, hand_x, force, stylus_x, buttons=0):
+    dev, emu = hd_arm(styles=HD_CALIBRATION_AUTO, hand=held_at(hand_x))
     emu.control.buttons = buttons
     dev.open()
-    wait_for(dev, lambda s: s.calibrated)
+    read_until(dev, lambda s: s.calibrated)
     dev.write_force(force)
-    wait_for(dev, lambda s: s.position_mm[0] == pytest.approx(stylus_x))
+    read_until(dev, lambda s: s.position_mm[0] == pytest.approx(stylus_x))
     emu.inject(HD_EXCEEDED_MAX_FORCE)
     emu.wait_frames(5)
     assert emu.applied_force == (0.0, 0.0, 0.0) and dev.info.details["force_stopped"] is True
     return dev, emu
 
 
-def test_in_a_soft_contact_force_comes_back_only_on_the_free_side_and_ramps_in(arm):
+def test_in_a_soft_contact_force_comes_back_only_on_the_free_side_and_ramps_in(hd_arm):
     """ErrorHandling.c l. 279-303: after a force error, contact comes back only once the device
     is on the free side. A wall five times softer than the arm's stiffest (0.1 N/mm) holds the
     stylus 10 mm in at 1 N; pulled back 4 mm, twice as far as 1 N could press it in at the
     arm's 0.5 N/mm, it is still 6 mm in. Zeros that say nothing of the contact (the
     watchdog's during a stall, a late tick's) must not bring the force back there."""
-    dev, emu = stopped_by_a_force_error(arm, hand_x=-12.0, force=(1.0, 0.0, 0.0), stylus_x=-10.0)
+    dev, emu = stopped_by_a_force_error(hd_arm, hand_x=-12.0, force=(1.0, 0.0, 0.0), stylus_x=-10.0)
     assert command_at(dev, emu, -12.0, (1.2, 0.0, 0.0)) == (
         0.0,
         0.0,
@@ -94,13 +94,13 @@ def test_in_a_soft_contact_force_comes_back_only_on_the_free_side_and_ramps_in(a
     assert 0.0 < emu.control.max_step <= 0.01  # N per servo frame
 
 
-def test_a_new_button_press_brings_force_back_ramped_even_after_a_stall(arm):
+def test_a_new_button_press_brings_force_back_ramped_even_after_a_stall(hd_arm):
     """AnchoredSpringForce.c l. 196-202, 227-233: a force error stops the force until the
     button is pressed anew; a button held since before the error is no new press. Pressed
     with the stylus still in, then a stall's zero, then the contact's full force: the force
     comes back as a ramp, not a step."""
     dev, emu = stopped_by_a_force_error(
-        arm, hand_x=-4.0, force=(1.0, 0.0, 0.0), stylus_x=-2.0, buttons=HD_DEVICE_BUTTON_1
+        hd_arm, hand_x=-4.0, force=(1.0, 0.0, 0.0), stylus_x=-2.0, buttons=HD_DEVICE_BUTTON_1
     )  # held all along
     assert command_at(dev, emu, -4.0, (1.0, 0.0, 0.0)) == (
         0.0,

@@ -10,22 +10,14 @@ import numpy as np
 import pytest
 from sasprobe.protocol.client import ControlError, Subscriber
 
-from tests.conftest import run_cli, skip_or_fail
-from tests.daemon_process import DaemonProcess
+from tests.conftest import run_cli
 from tests.emulators import libhd
 from tests.emulators.libhd import HD_CALIBRATION_AUTO
+from tests.support.daemon_process import DaemonProcess
 
 
-@pytest.fixture(scope="module")
-def library(tmp_path_factory):
-    out = libhd.build(tmp_path_factory.mktemp("libhd"))
-    if out is None:
-        skip_or_fail("no C compiler to build the stand-in HD library")
-    return out
-
-
-def test_devices_check_shows_the_serial_number_the_library_serves(library, monkeypatch):
-    emu = libhd.launch(library=library, styles=HD_CALIBRATION_AUTO, serial="41150100123")
+def test_devices_check_shows_the_serial_number_the_library_serves(hd_library, monkeypatch):
+    emu = libhd.launch(library=hd_library, styles=HD_CALIBRATION_AUTO, serial="41150100123")
     for key, value in emu.env.items():
         monkeypatch.setenv(key, value)
     try:
@@ -45,10 +37,10 @@ def test_devices_check_shows_the_serial_number_the_library_serves(library, monke
 # cube maps onto the cube inscribed in the usable box, of half its smallest edge.
 @pytest.mark.parametrize("model, half_mm", [("touch", 35.0), ("desktop", 60.0), ("premium", 95.5)])
 def test_the_navigation_cube_maps_onto_the_cube_inscribed_in_the_arms_usable_box(
-    library, monkeypatch, model, half_mm
+    hd_library, monkeypatch, model, half_mm
 ):
     emu = libhd.launch(
-        library=library, styles=HD_CALIBRATION_AUTO, model=model
+        library=hd_library, styles=HD_CALIBRATION_AUTO, model=model
     )  # the hand at the library origin
     for key, value in emu.env.items():
         monkeypatch.setenv(key, value)

@@ -20,7 +20,7 @@ from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.registry import open_device
 
 from tests.emulators import haply_serial, woodenhaptics_serial
-from tests.serial_arm_session import Session, cosine
+from tests.support.serial_arm_session import Session, cosine
 
 
 @dataclass(frozen=True)

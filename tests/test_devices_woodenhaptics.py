@@ -10,7 +10,7 @@ from sasprobe.devices.woodenhaptics import WoodenHapticsDevice
 
 from tests.emulators import woodenhaptics_serial
 from tests.emulators.pty_serial import PtySerialDevice
-from tests.serial_arm_session import Session, assert_no_refusals_but_after_deafness
+from tests.support.serial_arm_session import Session, assert_no_refusals_but_after_deafness
 
 
 @pytest.fixture

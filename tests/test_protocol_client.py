@@ -17,7 +17,7 @@ from sasprobe.protocol.scene import (
     validate_scene,
 )
 
-from tests.test_protocol_scene import example_scene
+from tests.support.scene import example_scene
 
 
 @pytest.fixture()

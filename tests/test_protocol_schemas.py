@@ -6,7 +6,7 @@ import pytest
 from jsonschema import Draft202012Validator
 from sasprobe.protocol import schemas
 
-from tests.test_protocol_scene import example_scene
+from tests.support.scene import example_scene
 
 
 @pytest.mark.parametrize("name", [*schemas.SCHEMA_FILES, "pose"])

@@ -21,6 +21,7 @@ from sasprobe.protocol.security import (
 from zmq.utils.monitor import recv_monitor_message
 
 from sasprobe.common.errors import UserError
+from tests.support.daemon_process import free_port
 
 
 @pytest.mark.parametrize(
@@ -73,14 +74,6 @@ def test_key_files_and_errors(tmp_path):
         load_client_keys(tmp_path, "carol")
 
 
-def _free_port() -> int:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def test_curve_allowed_client_receives_and_unknown_key_is_rejected(tmp_path):
     """Over TCP, and over the ipc:// endpoint the same socket binds: CURVE is the socket's,
     so a client without keys gets nothing there either. The socket file is 0600 and goes
@@ -95,7 +88,7 @@ def test_curve_allowed_client_receives_and_unknown_key_is_rejected(tmp_path):
 
     context = zmq.Context()
     auth = start_authenticator(context, load_server_keys(allowed_dir))
-    port = _free_port()
+    port = free_port()
     ipc = tmp_path / "pub"
     pub = Publisher(
         context, [f"tcp://0.0.0.0:{port}", f"ipc://{ipc}"], load_server_keys(allowed_dir)

@@ -4,7 +4,7 @@ key, a recentre by button and by control, a view turn — checked against protoc
 and protocol/schemas/: every message received on the wire and every record of its recording.
 
 Per-tick facts are read from the recording (every tick, on the daemon's own clock); the wire
-is checked message by message as it arrives (tests/schema_check.py).
+is checked message by message as it arrives (tests/support/schema_check.py).
 """
 
 from __future__ import annotations
@@ -25,8 +25,8 @@ from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
 from sasprobe.protocol.recording import iter_items
 from sasprobe.protocol.schemas import channel_schemas
 
-from tests.daemon_process import DaemonProcess
-from tests.schema_check import check_pose_payload, check_raw_reply
+from tests.support.daemon_process import DaemonProcess
+from tests.support.schema_check import check_pose_payload, check_raw_reply
 
 TICKS = 3200  # the session's length in ticks
 SLOW_READS = range(3000, 3010)  # ticks whose device read the daemon makes slow
@@ -141,7 +141,7 @@ def _ticks(session) -> tuple[dict[int, dict], dict[int, dict]]:
 
 def test_every_message_of_the_session_follows_the_schemas(session):
     assert len(session["poses"]) > 1000 and session["scenes"] >= 3  # each checked as it arrived
-    # every record was checked as `iter_items` read it (tests/schema_check.py's checking_recordings)
+    # every record was checked as `iter_items` read it (tests/support/schema_check.py's checking_recordings)
     recorded = {t: len(_recorded(session, t)) for t in ("device", "pose", "scene", "control")}
     assert recorded["device"] == recorded["pose"] >= TICKS and recorded["scene"] >= 5
     commands = [c["cmd"] for c in _recorded(session, "control")]

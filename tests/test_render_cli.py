@@ -71,7 +71,7 @@ def test_png_and_gbuffer_file_format(tmp_path):
         "ao",
         "light_direction",
         "probe_light",
-    }  # tests/test_lighting_render.py
+    }  # tests/test_render_lighting_render.py
     assert set(expected) <= set(g.files) and set(g.files) - set(expected) <= lighting
     for key, (dtype, shape) in expected.items():
         assert g[key].dtype == dtype and g[key].shape == shape, key

@@ -29,8 +29,7 @@ from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import Effects, SceneState
 
 from tests.conftest import run_cli
-from tests.daemon_process import DaemonProcess
-from tests.render_support import free_tcp_endpoint
+from tests.support.daemon_process import DaemonProcess, free_tcp_endpoint
 
 ORBIT = "sim:orbit"  # the simulated arm circling the molecule: the probe keeps moving
 

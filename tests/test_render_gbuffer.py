@@ -16,7 +16,7 @@ from sasprobe.render.gl.targets import KIND_BACKBONE, KIND_CAP, KIND_PROBE, KIND
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import NavCube, Probe, SceneState, normalise_plane
 
-from tests.render_support import edge_mask, reference_cast
+from tests.support.render import edge_mask, reference_cast
 
 SIZE = (200, 150)
 

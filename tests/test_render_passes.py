@@ -14,7 +14,7 @@ from sasprobe.render.passes.probe import PROBE_COLOR
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import Probe, SceneState
 
-from tests.render_support import edge_mask
+from tests.support.render import edge_mask
 
 SIZE = (160, 120)
 TOL = 2.5 / 255  # RGBA8 rounding plus float32 shading

@@ -14,7 +14,7 @@ import imageio.v3 as iio
 import numpy as np
 
 from tests.conftest import REPO_ROOT, run_window_check
-from tests.window_support import x_screenshot
+from tests.support.window import x_screenshot
 
 WINDOW = (320, 240)
 BACKGROUND = np.array([20, 23, 28])  # ShadingSettings.background * 255
@@ -108,8 +108,7 @@ def _window_region(display: str) -> tuple[slice, slice]:
 def test_window_waits_for_the_daemon_and_survives_it_going_away(xvfb):
     """No daemon: the window opens and waits (no molecule). A daemon starts: the molecule
     appears. It stops: the window stays up. It comes back: the picture moves again."""
-    from tests.daemon_process import DaemonProcess
-    from tests.render_support import free_tcp_endpoint
+    from tests.support.daemon_process import DaemonProcess, free_tcp_endpoint
 
     pub, ctl = free_tcp_endpoint(), free_tcp_endpoint()
 
@@ -159,20 +158,20 @@ def test_the_help_is_whole_the_overview_fills_the_picture_and_a_waiting_window_s
     """H's help panel fits the window with every line drawn; Tab's overview frames the
     molecule, its cube and trace across the picture; before a daemon's structure arrives
     the window shows the cube and the probe under its progress line
-    (tests/render_window_layout_check.py, read from the window's screenshots)."""
-    run_window_check(xvfb, "tests.render_window_layout_check")
+    (tests/window_scripts/render_layout.py, read from the window's screenshots)."""
+    run_window_check(xvfb, "tests.window_scripts.render_layout")
 
 
 def test_every_render_key_and_the_mouse_change_the_picture(xvfb):
     """F B N W P L D T K X O each flip their switch and change the picture, pressed again
     they restore it exactly; M swaps quads for sprites, H shows the help, a drag turns,
-    the wheel zooms, R resets the camera, Q closes (tests/render_window_keys_check.py)."""
-    run_window_check(xvfb, "tests.render_window_keys_check")
+    the wheel zooms, R resets the camera, Q closes (tests/window_scripts/render_keys.py)."""
+    run_window_check(xvfb, "tests.window_scripts.render_keys")
 
 
 def test_click_names_the_atom_and_capture_keys_write_what_the_window_shows(xvfb):
     """A click names the atom a numpy ray cast finds under the cursor (with its SAS area),
     Ctrl+S writes a PNG equal to the X server's copy of the window, Ctrl+R a video, the
     wheel zooms about the cursor's point, C and I recolour and relight, Z centres on the
-    probe (tests/render_window_pick_check.py)."""
-    run_window_check(xvfb, "tests.render_window_pick_check")
+    probe (tests/window_scripts/render_pick.py)."""
+    run_window_check(xvfb, "tests.window_scripts.render_pick")
