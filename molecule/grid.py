@@ -13,10 +13,6 @@ Layout (stable; the GPU shaders and the G-buffer tools rely on it):
 
 With the default cell edge (the largest sphere diameter) a sphere overlaps at most
 2 cells per axis, so at most 8 cells.
-
-Size: a little over 400 lines because the queries (spheres near a point, box, k nearest
-neighbours, overlapping pairs, the 3D-DDA ray walk) all read the layout above; split,
-each would have to restate it.
 """
 
 from __future__ import annotations
