@@ -1,22 +1,13 @@
-"""Shared fixtures: the reference PDB structures (tests/data/pdb), the embedded structure, one headless GL
-context (checked for GL errors after every test that uses it), a real X server for the
-window tests, a helper to run the real CLI, a check that no test leaves the test
-process at a real-time priority, and every message received from a daemon or read from a
-recording checked against the protocol's schemas."""
+"""Shared fixtures: the reference PDB structures (tests/data/pdb), the embedded structure, one
+headless GL context (checked for GL errors after every test that uses it), a real X server
+for the window tests, the stand-in OpenHaptics library and Inverse Service, a helper to run
+the real CLI, a check that no test leaves the test process at a real-time priority, and
+every message received from a daemon or read from a recording checked against the
+protocol's schemas."""
 
 from __future__ import annotations
 
 import os
-
-import pytest
-
-# The shared helpers' and references' asserts explain themselves as the tests' do.
-pytest.register_assert_rewrite("tests.support", "tests.references")
-
-from sasprobe.cli.main import one_blas_thread
-
-one_blas_thread()  # numpy as the CLI runs it, before it loads
-
 import select
 import shutil
 import subprocess
@@ -24,7 +15,14 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
+from sasprobe.cli.main import one_blas_thread
 from sasprobe.cli.reference_data import reference_structures
+
+one_blas_thread()  # numpy as the CLI runs it, before it loads (nothing above loads it)
+# The shared helpers' and references' asserts explain themselves as the tests' do.
+pytest.register_assert_rewrite("tests.support", "tests.references")
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 X_SCREEN = (640, 480)
@@ -188,7 +186,8 @@ def _gl_checks(request):
     needed = request.node.get_closest_marker("needs_gl")
     if needed is not None and ctx.version_code < needed.args[0]:
         pytest.fail(
-            f"needs OpenGL {needed.args[0] / 100:.1f}; {ctx.info['GL_RENDERER']} offers {ctx.info['GL_VERSION']}"
+            f"needs OpenGL {needed.args[0] / 100:.1f}; "
+            f"{ctx.info['GL_RENDERER']} offers {ctx.info['GL_VERSION']}"
         )
     _drain_gl_errors(ctx)  # an earlier test's leftovers are that test's failure, not this one's
     yield

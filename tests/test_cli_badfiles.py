@@ -68,7 +68,7 @@ def test_structure_commands(files):
         (("daemon", "--molecule", str(d / "bomb.pdb.gz"), "--seconds", "1"), "inflates beyond"),
         (("daemon", "--molecule", str(d / "apart.pdb"), "--seconds", "1"), "grid cells"),
     ]
-    for (args, needle), out in zip(cases, cli_many(*(args for args, _ in cases))):
+    for (_, needle), out in zip(cases, cli_many(*(args for args, _ in cases))):
         _one_line(out, needle)
 
 
@@ -116,7 +116,7 @@ def test_recording_commands(files, tmp_path):
         (("replay", str(good), "--recover", "/nonexistent/d/x.mcap"), "cannot create"),
         (("daemon", "--device", f"replay:{d / 'fifo'}", "--seconds", "1"), "is a FIFO"),
     ]
-    for (args, needle), out in zip(cases, cli_many(*(args for args, _ in cases))):
+    for (_, needle), out in zip(cases, cli_many(*(args for args, _ in cases))):
         _one_line(out, needle)
 
 
@@ -138,7 +138,7 @@ def test_config_keys_options_and_home(files, tmp_path):
             "only the simulated arm",
         ),
     ]
-    for (args, needle), out in zip(cases, cli_many(*(args for args, _ in cases))):
+    for (_, needle), out in zip(cases, cli_many(*(args for args, _ in cases))):
         _one_line(out, needle)
     # An unreadable $HOME (here: a name too long to look up) is one warning, and the command works.
     out = run_cli("info", "--json", env=dict(os.environ, HOME="/" + "h" * 5000))

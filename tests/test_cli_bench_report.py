@@ -272,7 +272,8 @@ def test_a_failed_benchmark_is_one_line_and_the_others_still_report(
     )  # --quick wants 1CRN, 1TII, 1AON, 6ZU5
     text = (out / "report.md").read_text()
     assert re.search(
-        r"^\| sas \| failed: ZeroDivisionError: float division by zero at sasprobe\.cli\.bench\.sas:\d+ \|$",
+        r"^\| sas \| failed: ZeroDivisionError: float division by zero "
+        r"at sasprobe\.cli\.bench\.sas:\d+ \|$",
         text,
         re.M,
     )  # no path of this run's folder in a report that may become the page

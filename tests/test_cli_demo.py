@@ -46,11 +46,13 @@ def cpu_times() -> tuple[int, int] | None:
 
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory, gl):  # gl: skips where no headless OpenGL exists
-    """(out folder, the CLI's result, the machine's (steal, all) CPU ticks before and after or None)."""
+    """(out folder, the CLI's result, the machine's (steal, all) CPU ticks before and after or
+    None)."""
     out = tmp_path_factory.mktemp("demo")
     before = cpu_times()
     # The whole of crambin in the cube, seen whole (the overview), so that the snapshot can be
-    # checked against a ray cast of every atom; the workspace view is tests/test_devices_workspace_session.py's.
+    # checked against a ray cast of every atom; the workspace view is
+    # tests/test_devices_workspace_session.py's.
     result = run_cli(
         "demo",
         "--headless",
@@ -218,7 +220,8 @@ def test_recorded_demo_replays_to_video_with_identical_forces(demo, tmp_path):
 
 
 def test_replay_frames_follow_the_recorded_timing(demo):
-    """Frame k shows the newest pose published at or before first + k/fps (mcap read independently)."""
+    """Frame k shows the newest pose published at or before first + k/fps (mcap read
+    independently)."""
     from mcap.reader import make_reader
     from sasprobe.render.playback import recorded_frames
 

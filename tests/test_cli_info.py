@@ -77,7 +77,10 @@ def bad_files(tmp_path_factory, reference_by_id):
         "truncated_cif": (cif[: len(cif) // 3], "cannot parse"),
         "only_water": (
             b"".join(
-                f"HETATM{i + 1:5d}  O   HOH W{i + 1:4d}    {i * 3.0:8.3f}{0.0:8.3f}{0.0:8.3f}  1.00 10.00           O\n".encode()
+                (
+                    f"HETATM{i + 1:5d}  O   HOH W{i + 1:4d}    {i * 3.0:8.3f}{0.0:8.3f}{0.0:8.3f}"
+                    "  1.00 10.00           O\n"
+                ).encode()
                 for i in range(10)
             ),
             "no atoms left",
@@ -146,5 +149,5 @@ def test_unknown_element_warns_once(tmp_path):
     p.write_text(lines)
     out = run_cli("info", str(p), "--json")
     assert out.returncode == 0
-    warnings = [l for l in out.stderr.splitlines() if "warning" in l]
+    warnings = [line for line in out.stderr.splitlines() if "warning" in line]
     assert len(warnings) == 1 and "odd.pdb" in warnings[0] and "1.80" in warnings[0]

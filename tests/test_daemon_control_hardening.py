@@ -224,7 +224,7 @@ def random_message(rng) -> list[bytes]:
         if rng.random() < 0.8
         else rng.choice(VALUES)
     )
-    text = '{"cmd": %s, "args": %s' % (rng.choice(CMDS), args)
+    text = f'{{"cmd": {rng.choice(CMDS)}, "args": {args}'
     if rng.random() < 0.5:
         text += f', "id": {rng.choice(VALUES)}'
     if rng.random() < 0.2:

@@ -251,7 +251,8 @@ def test_the_scripts_load_in_pymol(findings):
     out, found, _ = findings
     check = (
         "import sys, pymol; from pymol import cmd; pymol.finish_launching(['pymol', '-cq']);"
-        "cmd.load(sys.argv[1]); print('NAMES', ' '.join(cmd.get_names('all') + cmd.get_names('selections')));"
+        "cmd.load(sys.argv[1]);"
+        "print('NAMES', ' '.join(cmd.get_names('all') + cmd.get_names('selections')));"
         "print('COUNTS', cmd.count_atoms('path and chain P'), cmd.count_atoms('path and chain M'),"
         " cmd.count_atoms('touched'), cmd.count_atoms('structure'))"
     )

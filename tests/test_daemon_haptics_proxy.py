@@ -101,7 +101,8 @@ def test_rest_point_is_the_brute_force_constrained_minimum(n_spheres):
             assert signed_distance(p, centers, radii)[0] >= -1e-9
             gap = np.linalg.norm(minima - p, axis=1).min()
             assert gap < 1e-7, (
-                f"trial {trial}: rest point {p} is not a brute-force local minimum ({gap:.2e} Å off)"
+                f"trial {trial}: rest point {p} is not a brute-force local minimum "
+                f"({gap:.2e} Å off)"
             )
             assert is_local_min(p, g, centers, radii, rng)
             if k == 0:
@@ -300,7 +301,7 @@ def test_degenerate_clusters_never_trap_or_cycle_the_proxy():
     from sasprobe.daemon.haptics.proxy import MAX_ITERATIONS
 
     rng = np.random.default_rng(21)
-    for trial in range(24):
+    for _ in range(24):
         n = int(rng.integers(3, 40))
         box = rng.uniform(3, 10)
         centers = rng.uniform(-box, box, (n, 3))

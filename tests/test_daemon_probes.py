@@ -217,7 +217,8 @@ def test_probes_are_answered_and_do_not_stall_the_loop(setup):
 
 
 def _stalls(result: dict, windows: list, limit_ms: float) -> dict[str, float]:
-    """Each probe's longest pose gap a machine pause does not explain, printed; those ≥ the limit."""
+    """Each probe's longest pose gap a machine pause does not explain, printed; those ≥ the
+    limit."""
     print("\nprobe: longest pose gap / not explained by a machine pause (ms)")
     stalled = {}
     for name, start, end in windows:
@@ -229,8 +230,8 @@ def _stalls(result: dict, windows: list, limit_ms: float) -> dict[str, float]:
 
 
 def test_the_pose_watcher_checks_every_pose(tmp_path):
-    """tests/support/pose_watch.py reports a pose that breaks pose.json (here a reserved word that is
-    not 0), and PoseWatch fails the test that used it."""
+    """tests/support/pose_watch.py reports a pose that breaks pose.json (here a reserved word
+    that is not 0), and PoseWatch fails the test that used it."""
     from sasprobe.protocol.pose import Pose, encode_pose
 
     bad = bytearray(encode_pose(Pose(seq=1)))

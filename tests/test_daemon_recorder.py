@@ -21,7 +21,8 @@ from sasprobe.protocol.pose import (
 )
 from sasprobe.protocol.recording import RecordingError, iter_items, recover, scan, summarize
 
-# Flag sets a daemon writes (tests/support/schema_check.py checks each pose's flags against its fields).
+# Flag sets a daemon writes (tests/support/schema_check.py checks each pose's flags against
+# its fields).
 _FLAGS = (
     0,
     FLAG_CONTACT,

@@ -179,6 +179,6 @@ def test_the_serial_arm_gets_zero_current_from_the_watchdog_thread(tmp_path):
         trips == 0
     )  # the thread kept it fed with zeros: the firmware's 100 ms watchdog never tripped
     print(
-        f"\nWoodenHaptics at {rate_hz:g} Hz: zero current {gap_ms:.2f} ms after the loop's last command "
-        f"(bound {bound_ms:g} ms)"
+        f"\nWoodenHaptics at {rate_hz:g} Hz: zero current {gap_ms:.2f} ms after the loop's "
+        f"last command (bound {bound_ms:g} ms)"
     )

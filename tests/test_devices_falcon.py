@@ -186,7 +186,7 @@ def test_the_motors_exert_the_force_asked_for(rig):
     ]:
         hand.target = where
         run_loop(dev, 0.4)
-        run_loop(dev, 0.05, force_of=lambda s: np.asarray(force))
+        run_loop(dev, 0.05, force_of=lambda _, force=force: np.asarray(force))
         exerted = hw.samples[-1].force_n
         cosine = exerted @ force / np.linalg.norm(exerted) / np.linalg.norm(force)
         assert cosine >= 0.999, (where, force, exerted)
@@ -205,7 +205,7 @@ def test_forces_never_exceed_the_declared_limit(firmware):
     ]
     for command in commands:
         assert max(abs(m) for m in dev.motor_command(command)) <= M.MOTOR_COMMAND_LIMIT
-        run_loop(dev, 0.003, force_of=lambda s: np.asarray(command, dtype=float))
+        run_loop(dev, 0.003, force_of=lambda _, c=command: np.asarray(c, dtype=float))
         # thrown about by 8 N reversals the grip moves up to a millimetre between the reply
         # a command is computed from and the command's arrival; the force of fixed motor
         # commands changes by about 1 % per mm there

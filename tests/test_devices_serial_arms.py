@@ -163,7 +163,8 @@ def deaf_past_the_silence_probe(dev, board) -> bool:
 def assert_no_refusals(arm: Arm, dev, board, before: int = 0) -> None:
     if not deaf_past_the_silence_probe(dev, board):
         assert arm.refused(board) == before, (
-            f"the firmware refused a command; its port went unread for {board.longest_deaf_s * 1000:.0f} ms at most"
+            f"the firmware refused a command; its port went unread for "
+            f"{board.longest_deaf_s * 1000:.0f} ms at most"
         )
 
 
@@ -171,7 +172,8 @@ def assert_in_step(arm: Arm, dev, board) -> None:
     """Every reply in step with its command and no command refused (unless deaf, above)."""
     if not deaf_past_the_silence_probe(dev, board):
         assert dev.rejected_frames == 0 and dev.resyncs == 0, (
-            f"a reply out of step; the board's port went unread for {board.longest_deaf_s * 1000:.0f} ms at most"
+            f"a reply out of step; the board's port went unread for "
+            f"{board.longest_deaf_s * 1000:.0f} ms at most"
         )
     assert_no_refusals(arm, dev, board)
 
@@ -363,7 +365,8 @@ def test_a_board_that_stops_mid_session_faults_at_once_and_gets_zero_force(rig):
         with pytest.raises(DeviceFault, match=f"no reply from the {arm.scheme} arm"):
             dev.read()
         assert time.monotonic() - t0 < 0.05  # each read returns at once
-        # a board with a watchdog gets the force on regardless; without one, the zero the daemon writes
+        # a board with a watchdog gets the force on regardless; without one, the zero the
+        # daemon writes
         dev.write_force(arm.forces[0] if arm.board_watchdog else (0.0, 0.0, 0.0))
         time.sleep(0.001)
     if arm.board_watchdog:

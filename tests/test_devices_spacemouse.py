@@ -91,7 +91,8 @@ def test_descriptor_scan_reads_buttons_and_axis_range():
     # written by hand from HID 1.11 §6.2.2: a multi-axis controller, report 1 with X..Rz
     # in -500..500, report 3 with 15 buttons and a 1-bit pad
     descriptor = bytes.fromhex(
-        "05 01 09 08 a1 01"  # usage page desktop, usage multi-axis controller, collection (application)
+        # usage page desktop, usage multi-axis controller, collection (application)
+        "05 01 09 08 a1 01"
         "85 01 16 0c fe 26 f4 01 09 30 09 31 09 32 09 33 09 34 09 35 75 10 95 06 81 02"
         "85 03 05 09 19 01 29 0f 15 00 25 01 75 01 95 0f 81 02 95 01 81 01"
         "c0"

@@ -87,7 +87,8 @@ def test_a_write_that_went_out_is_no_fault_however_late_the_writer_looks_at_the_
 
 def test_a_port_that_takes_no_bytes_is_a_fault_not_a_hang(echo):
     with SerialTransport(echo.path) as port:
-        echo.go_silent()  # nothing reads the line: the buffer fills, then a write waits out its timeout
+        # nothing reads the line: the buffer fills, then a write waits out its timeout
+        echo.go_silent()
         with pytest.raises(DeviceFault, match="lost: it took no bytes for 50 ms"):
             for _ in range(10**4):
                 port.write(bytes(4096))

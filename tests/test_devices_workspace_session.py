@@ -373,7 +373,8 @@ def test_readout_comes_back_after_a_daemon_restart_and_never_says_running_and_no
                     and "fetching" in readout.status
                     and time.monotonic() - t0 > 1.5
                 ):
-                    break  # poses flow, fetches keep timing out: the readout has said both for a while
+                    # poses flow, fetches keep timing out: the readout has said both for a while
+                    break
                 time.sleep(0.01)
             assert back is not None and back <= 2.0, back  # from the new daemon's ready line
             assert 500 < readout.haptic_hz < 1100, readout

@@ -51,7 +51,8 @@ def test_emulator_imports_nothing_from_sasprobe(module):
 def test_the_check_sees_every_kind_of_import():
     source = (
         "import sasprobe.devices\nfrom tests.device_loop import run\n"
-        "def f():\n    from sasprobe.devices.falcon import x\n    importlib.import_module('sasprobe.daemon')\n"
+        "def f():\n    from sasprobe.devices.falcon import x\n"
+        "    importlib.import_module('sasprobe.daemon')\n"
         "from tests.emulators.physics import HeldStylus\nimport numpy\n"
     )
     assert [n for n in imported_names(source) if forbidden(n)] == [

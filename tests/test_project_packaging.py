@@ -94,8 +94,8 @@ def test_normal_install_imports_from_the_wheel(wheel, tmp_path):
         capture_output=True,
         timeout=300,
     )
-    code = (
-        "import sasprobe.molecule as m, sasprobe.devices, sasprobe.protocol.pose; "  # pose reads schemas/pose.json
+    code = (  # sasprobe.protocol.pose reads schemas/pose.json
+        "import sasprobe.molecule as m, sasprobe.devices, sasprobe.protocol.pose; "
         "print(m.__file__); print(m.load_default().n_atoms)"
     )
     env = dict(os.environ, PYTHONPATH=str(target))

@@ -37,7 +37,7 @@ def client_binary(tmp_path_factory):
     build = subprocess.run(["make", "-C", str(folder)], capture_output=True, text=True)
     assert build.returncode == 0, build.stdout + build.stderr
     if "warning:" in build.stderr:
-        warnings.warn(f"examples/c builds with warnings:\n{build.stderr}")
+        warnings.warn(f"examples/c builds with warnings:\n{build.stderr}", stacklevel=1)
     return folder / "sasprobe_follow"
 
 

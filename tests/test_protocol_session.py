@@ -1,6 +1,6 @@
 """One recorded daemon session with everything a client meets — injected faults (failed,
-non-finite and slow reads, a loop stall), marks by button and by control, the clutch by button and by
-key, a recentre by button and by control, a view turn — checked against protocol/README.md
+non-finite and slow reads, a loop stall), marks by button and by control, the clutch by button
+and by key, a recentre by button and by control, a view turn — checked against protocol/README.md
 and protocol/schemas/: every message received on the wire and every record of its recording.
 
 Per-tick facts are read from the recording (every tick, on the daemon's own clock); the wire
@@ -141,7 +141,8 @@ def _ticks(session) -> tuple[dict[int, dict], dict[int, dict]]:
 
 def test_every_message_of_the_session_follows_the_schemas(session):
     assert len(session["poses"]) > 1000 and session["scenes"] >= 3  # each checked as it arrived
-    # every record was checked as `iter_items` read it (tests/support/schema_check.py's checking_recordings)
+    # every record was checked as `iter_items` read it (checking_recordings,
+    # tests/support/schema_check.py)
     recorded = {t: len(_recorded(session, t)) for t in ("device", "pose", "scene", "control")}
     assert recorded["device"] == recorded["pose"] >= TICKS and recorded["scene"] >= 5
     commands = [c["cmd"] for c in _recorded(session, "control")]
@@ -241,7 +242,8 @@ def test_a_late_tick_still_runs_the_engine(session):
     devices, poses = _ticks(session)
     late = [
         s
-        for s, r in devices.items()  # late alone: no error, and a finite reading (not an injected NaN)
+        # late alone: no error, and a finite reading (not an injected NaN)
+        for s, r in devices.items()
         if r["error"] is None and r["late_periods"] > 3 and None not in r["position_mm"]
     ]
     assert late, "the stall made no late tick"

@@ -15,7 +15,8 @@ SMALL = "160x120"
 
 @pytest.fixture(scope="module", autouse=True)
 def needs_gl(gl):
-    """The CLI renders in its own process; this skips the module where no EGL context can be made."""
+    """The CLI renders in its own process; this skips the module where no EGL context can be
+    made."""
 
 
 def render(*args, timeout=180):

@@ -239,7 +239,9 @@ def test_bfactor_and_sas_ramps_and_the_colour_bar(gl, rb8, reference_by_id):
     # B-factors are the file's (columns 61-66), in file order: 1RB8 has no alternate locations
     text = gzip.decompress(reference_by_id["1rb8"].path.read_bytes()).decode().splitlines()
     file_b = [
-        float(l[60:66]) for l in text if l.startswith(("ATOM", "HETATM")) and l[17:20] != "HOH"
+        float(line[60:66])
+        for line in text
+        if line.startswith(("ATOM", "HETATM")) and line[17:20] != "HOH"
     ]
     np.testing.assert_allclose(s.b_factors, file_b)
     low, high = np.percentile(file_b, [2, 98])

@@ -251,7 +251,8 @@ def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(
     install_lighting(renderer, LightingSettings())
     c, r = scene.bounding_sphere()
     camera = Camera.fitted(c, r * fit, size[0] / size[1], direction=DIRECTION)
-    skipped = []  # per frame, the fraction of the pixels FXAA ran near the surfaces only that the mask left out
+    # per frame, the fraction of the pixels FXAA ran near the surfaces only that the mask left out
+    skipped = []
     whole = FxaaPass(gl, renderer.programs)
     picture = gl.texture(size, 4)
     out = gl.framebuffer([picture])

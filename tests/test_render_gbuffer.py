@@ -30,9 +30,7 @@ def render_gbuffer(gl, scene, camera, size=SIZE, mode="quad"):
         renderer.release()
 
 
-def compare_with_reference(
-    g, centers, radii, ids, planes=np.zeros((0, 4)), mask=None, min_agree=0.995
-):
+def compare_with_reference(g, centers, radii, ids, planes=(), mask=None, min_agree=0.995):
     """Assert the agreement with the reference caster; returns the reference for further checks."""
     w, h = (int(v) for v in g["viewport"])
     ref_id, ref_pos, ref_nrm, ref_cap = reference_cast(
@@ -179,7 +177,8 @@ def test_navigation_cube_spheres_inside_backbone_outside(gl, reference_by_id):
     np.testing.assert_allclose(g["nav_cube"], [*center, 7.0])
     atoms = (g["kind"] == KIND_SPHERE) | (g["kind"] == KIND_CAP)
     assert set(np.unique(g["atom_id"][atoms]).tolist()) <= set(overlapping.tolist())
-    # Spheres are cut to the cube (caps on its faces): compare with the reference where no trace covers.
+    # Spheres are cut to the cube (caps on its faces): compare with the reference where no trace
+    # covers.
     compare_with_reference(
         g,
         s.positions[overlapping],

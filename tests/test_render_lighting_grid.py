@@ -106,7 +106,8 @@ def test_buffers_hold_the_cpu_grid(gl, crambin, crambin_grid):
     ]
     assert np.allclose(spheres[:, :3], crambin.positions, atol=1e-4)
     assert np.array_equal(spheres[:, 3], crambin.vdw_radii.astype(np.float32))
-    # 327 atoms fill one row of each table; a table takes 3, its height no power of two (steady_side)
+    # 327 atoms fill one row of each table; a table takes 3, its height no power of two
+    # (steady_side)
     assert crambin_grid.nbytes == grid.nbytes + 3 * TABLE_ROW * 20
     assert crambin_grid.max_shell == pytest.approx(DEFAULT_PROBE_RADIUS)
 

@@ -291,7 +291,8 @@ def assert_lists_complete(lists, gpu_grid, centre, cells: int) -> None:
         directions[:, axis] = sign
         directions[:, (axis + 1) % 3], directions[:, (axis + 2) % 3] = s.ravel(), t.ravel()
         directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-        # an atom is seen through the cell if some sampled ray from the light passes within its grown radius
+        # an atom is seen through the cell if some sampled ray from the light passes within its
+        # grown radius
         along = offsets @ directions.T
         miss = distance[:, None] ** 2 - np.maximum(along, 0.0) ** 2
         seen = np.flatnonzero(

@@ -71,9 +71,10 @@ def render(gl, scene, camera, extra_pass=None):
         renderer.release()
 
 
-def phong(albedo, n, v, l, s):
-    diffuse = np.clip(np.einsum("...i,...i", n, l), 0, None)
-    r = -l - 2 * np.einsum("...i,...i", n, -l)[..., None] * n  # reflect(-l, n)
+def phong(albedo, n, v, light, s):
+    """Phong's diffuse and specular terms; `light` points toward the light."""
+    diffuse = np.clip(np.einsum("...i,...i", n, light), 0, None)
+    r = -light - 2 * np.einsum("...i,...i", n, -light)[..., None] * n  # reflect(-light, n)
     spec = np.where(diffuse > 0, np.clip(np.einsum("...i,...i", r, v), 0, None) ** s.shininess, 0.0)
     return diffuse[..., None] * albedo + spec[..., None] * s.specular
 

@@ -41,12 +41,12 @@ def _start_window(display: str, *args: str) -> subprocess.Popen:
     )
     deadline = time.monotonic() + 90
     lines: list[str] = []
-    while not any("window open" in l for l in lines) and time.monotonic() < deadline:
+    while not any("window open" in seen for seen in lines) and time.monotonic() < deadline:
         line = proc.stderr.readline()
         if not line and proc.poll() is not None:
             break
         lines.append(line)
-    assert any("window open" in l for l in lines), (
+    assert any("window open" in seen for seen in lines), (
         f"no window (exit {proc.poll()}): {''.join(lines)}"
     )
     return proc

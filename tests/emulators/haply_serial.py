@@ -126,7 +126,8 @@ class HaplyBoard(ArmUnderStylus, PtySerialDevice):
     # the firmware ---------------------------------------------------------------------
     def power_on(self) -> None:
         self.owner = {}  # port → device address (the ports a setup gave to a host)
-        self.encoders = {}  # port → (direction, counts at setup, own angle at setup, resolution in use)
+        # port → (direction, counts at setup, own angle at setup, resolution in use)
+        self.encoders = {}
         self.motor_dirs = {}
         self.duty = {}  # port → signed duty in the motor's own sense
         self.address = None

@@ -92,7 +92,8 @@ def build(directory: Path, name: str = "libdhd.so", without_set_force: bool = Fa
 
 
 class EmulatedDHD:
-    """Arms behind the stand-in library: `control` for the test, `hand` (m, DHD frame) for the user."""
+    """Arms behind the stand-in library: `control` for the test, `hand` (m, DHD frame) for the
+    user."""
 
     def __init__(
         self,

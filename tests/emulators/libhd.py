@@ -178,7 +178,8 @@ class EmulatedHD:
             time.sleep(0.001)
 
     def close(self) -> None:
-        """Remove the control file (a library that mapped it keeps its pages until it maps another)."""
+        """Remove the control file (a library that mapped it keeps its pages until it maps
+        another)."""
         self._file.close()
         shutil.rmtree(self._folder, ignore_errors=True)
         if self.scratch is not None:  # the library launch() built for this arm alone

@@ -71,7 +71,8 @@ class Arm:
     origin: tuple  # workspace origin: toward the user, right, up
 
     def body_per_motor(self) -> np.ndarray:
-        """Body angle per motor angle: the capstan ratio, negative where the motor drives it backwards."""
+        """Body angle per motor angle: the capstan ratio, negative where the motor drives it
+        backwards."""
         ratio = np.asarray(self.capstan) / np.asarray(self.drum)
         return np.where(self.motor_along_body, -ratio, ratio)
 
@@ -85,7 +86,8 @@ class Arm:
         return motor * self.body_per_motor()
 
     def tip_m(self, bodies) -> np.ndarray:
-        """The tip in the room frame (right, up, toward the user), metres from the workspace origin."""
+        """The tip in the room frame (right, up, toward the user), metres from the workspace
+        origin."""
         waist, b, c = bodies
         if self.four_bar:
             reach, up = _four_bar(self.links, b, c)

@@ -118,7 +118,8 @@ def synthetic_structure(points, element: str = "C", name: str = "synthetic"):
     lines = []
     for k, (x, y, z) in enumerate(np.asarray(points, dtype=float), start=1):
         lines.append(
-            f"HETATM{k:5d}  {element:<3s} UNK A{k % 10000:4d}    {x:8.3f}{y:8.3f}{z:8.3f}  1.00  0.00          {element:>2s}"
+            f"HETATM{k:5d}  {element:<3s} UNK A{k % 10000:4d}    {x:8.3f}{y:8.3f}{z:8.3f}"
+            f"  1.00  0.00          {element:>2s}"
         )
     lines.append("END")
     return parse_structure("\n".join(lines).encode(), name=name, source=f"synthetic:{name}")

@@ -34,7 +34,8 @@ class PoseWatch:
             self.result = json.loads(self.proc.stdout.readline())
             self.proc.wait(30)
         assert self.result["invalid"] == 0, (
-            f"{self.result['invalid']} of {self.result['poses']} poses broke the protocol: {self.result['why']}"
+            f"{self.result['invalid']} of {self.result['poses']} poses broke the protocol: "
+            f"{self.result['why']}"
         )
         return self.result
 

@@ -24,13 +24,12 @@ def pixel_rays(
     return eye, d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
-def reference_cast(
-    view, proj, width, height, centers, radii, ids, planes=np.zeros((0, 4)), chunk=64
-):
+def reference_cast(view, proj, width, height, centers, radii, ids, planes=(), chunk=64):
     """Closest visible point of spheres cut by half-spaces (a·x + d >= 0 kept), per pixel.
 
     Returns atom_id (H, W) int (-1 background), position (H, W, 3), normal (H, W, 3),
     cap (H, W) bool (the point lies on a plane). Brute force: every pixel against every sphere.
+    `planes`: rows (a, b, c, d), none by default.
     """
     eye, dirs = pixel_rays(view, proj, width, height)
     d = dirs.reshape(-1, 3)

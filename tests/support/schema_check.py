@@ -8,9 +8,9 @@ pose.json and for the agreement of one tick's flags and fields.
 
 `checking_clients()` (installed for the whole run by tests/conftest.py) wraps
 `ControlClient.request` and `Subscriber._handle`, so every reply (its frames as received),
-scene and pose a test receives through sasprobe's clients is checked; raw-socket tests call `check_pose_payload`
-and `check_reply` themselves. `checking_recordings()` (installed the same way) checks every
-message of every recording a test reads through sasprobe's reader
+scene and pose a test receives through sasprobe's clients is checked; raw-socket tests call
+`check_pose_payload` and `check_reply` themselves. `checking_recordings()` (installed the
+same way) checks every message of every recording a test reads through sasprobe's reader
 (`sasprobe.protocol.recording.iter_items`, under the daemon's `load_session`, `summarize`
 and the renderer's playback alike) as the reader hands it out.
 """
@@ -140,7 +140,8 @@ def check_pose_agreement(p: dict, live: bool = True) -> None:
     host's clock: not after the publish time."""
     flags = p["flags"]
     assert bool(flags & _FLAG["contact"]) == (p["touched_atom"] >= 0), (
-        f"seq {p['seq']}: contact flag {bool(flags & _FLAG['contact'])} with touched_atom {p['touched_atom']}"
+        f"seq {p['seq']}: contact flag {bool(flags & _FLAG['contact'])} "
+        f"with touched_atom {p['touched_atom']}"
     )
     if flags & (_FLAG["fault"] | _FLAG["clutched"]):
         assert p["force_N"] == [0.0, 0.0, 0.0], (
@@ -154,7 +155,8 @@ def check_pose_agreement(p: dict, live: bool = True) -> None:
     )
     assert p["device_t_ns"] >= 0, f"seq {p['seq']}: device time {p['device_t_ns']}"
     assert not live or p["device_t_ns"] <= p["publish_t_ns"], (
-        f"seq {p['seq']}: device time {p['device_t_ns']} not on the host's clock before {p['publish_t_ns']}"
+        f"seq {p['seq']}: device time {p['device_t_ns']} not on the host's clock "
+        f"before {p['publish_t_ns']}"
     )
 
 
@@ -196,7 +198,8 @@ class RecordingCheck:
             self.device_kind = record["args"]["device"]["kind"]
         elif topic == "pose":
             assert record["device_t_ns"] >= self.device_t_ns, (
-                f"seq {record['seq']}: device time {record['device_t_ns']} before the last, {self.device_t_ns}"
+                f"seq {record['seq']}: device time {record['device_t_ns']} "
+                f"before the last, {self.device_t_ns}"
             )
             self.device_t_ns = record["device_t_ns"]
 

@@ -83,7 +83,8 @@ class Session:
     def settle(
         self, stylus, hand, timeout_s: float = 10.0, force=(0.0, 0.0, 0.0), rest_s: float = 0.03
     ):
-        """Run until the hand has arrived and the stylus has rested for `rest_s`; the state read then."""
+        """Run until the hand has arrived and the stylus has rested for `rest_s`; the state read
+        then."""
         since = [None]
 
         def resting(_state) -> bool:
@@ -111,6 +112,6 @@ def assert_no_refusals_but_after_deafness(board) -> None:
     CI; holding the test process's GIL for 0.94 s gave three such pairs, for 0.46 s none)."""
     if board.refused:
         assert board.longest_deaf_s >= 0.45, (
-            f"the firmware refused commands (error bits {board.refusals}); its port was never unread for "
-            f"more than {board.longest_deaf_s * 1000:.0f} ms"
+            f"the firmware refused commands (error bits {board.refusals}); its port was never "
+            f"unread for more than {board.longest_deaf_s * 1000:.0f} ms"
         )

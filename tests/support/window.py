@@ -25,7 +25,8 @@ def glfw_window(size: tuple[int, int], title: str):
 
 
 def press(app, key: int, mods: int = 0) -> None:
-    """A key press (with modifier bits, e.g. glfw.MOD_CONTROL) as glfw delivers it to the WindowApp."""
+    """A key press (with modifier bits, e.g. glfw.MOD_CONTROL) as glfw delivers it to the
+    WindowApp."""
     import glfw
 
     app._on_key(app.window, key, glfw.get_key_scancode(key), glfw.PRESS, mods)

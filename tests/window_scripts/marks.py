@@ -53,7 +53,8 @@ def main() -> None:
         assert len(marks) == 1 and marks[0]["id"] == 1 and marks[0]["label"] == "mark 1", marks
         while not app.renderer.scene.marks and time.monotonic() < deadline:
             app.run(frames=1)
-        # The same frame with and without the marks (no new pose in between): the badge is the difference.
+        # The same frame with and without the marks (no new pose in between): the badge is the
+        # difference.
         size = glfw.get_framebuffer_size(window)
         app.renderer.render(app.camera, output_fbo=ctx.screen)
         with_marks = app._screenshot(size)

@@ -130,9 +130,13 @@ def main() -> None:
         shot = frame()
         assert any("fetching the structure" in line for line in app.text())
         below = shot[SIZE[1] // 3 :]  # under the readout
-        near = lambda colour: (
-            np.abs(below.astype(int) - np.round(np.array(colour[:3]) * 255)).max(axis=2) <= 12
-        )  # noqa: E731
+
+        def near(colour):
+            """Pixels under the readout within 12 levels of `colour` in every channel."""
+            return (
+                np.abs(below.astype(int) - np.round(np.array(colour[:3]) * 255)).max(axis=2) <= 12
+            )
+
         assert near(WIRE_COLOR).sum() > 300, "the cube's wire is drawn"
         assert near(PROBE_COLOR).sum() > 300, "the probe is drawn"
         app.release()

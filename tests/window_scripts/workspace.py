@@ -1,5 +1,5 @@
-"""Run by tests/test_devices_workspace_session.py under Xvfb (DISPLAY set): a real glfw window following
-a real daemon (simulated arm, sim:sweep). Through the window's own handlers: it starts in
+"""Run by tests/test_devices_workspace_session.py under Xvfb (DISPLAY set): a real glfw window
+following a real daemon (simulated arm, sim:sweep). Through the window's own handlers: it starts in
 the workspace view; a drag turns the daemon's workspace (its scene's rotation); Space held
 clutches the daemon's probe, released lets go; Home recentres the cube on the probe; Tab
 shows the overview and back; the readout names the force against the ratings. Prints
