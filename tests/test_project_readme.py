@@ -21,12 +21,18 @@ import functools
 import io
 import re
 import shlex
+import sys
 from pathlib import Path
 
 import pytest
 
 from sasprobe.cli.main import build_parser
 from tests.conftest import REPO_ROOT
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10 (tomli is a dependency there)
+    import tomli as tomllib
 
 FENCE = re.compile(r"^```[^\n]*\n(.*?)^```", re.M | re.S)
 SPAN = re.compile(r"`([^`]+)`")  # inline code, paired left to right
@@ -312,14 +318,34 @@ def test_the_readme_set_up_commands_are_what_ci_runs():
     readme = (REPO_ROOT / "README.md").read_text()
     blocks = [block.strip() for block in FENCE.findall(readme)]
     demo = "python3 -m venv .venv && .venv/bin/pip install -q -e . && .venv/bin/sasprobe demo"
-    tests = "python3 -m venv .venv && .venv/bin/pip install -q -e '.[test]' && .venv/bin/python -m pytest"
+    tests = (
+        "python3 -m venv .venv && .venv/bin/pip install -q -e '.[test]' "
+        "&& .venv/bin/python -m pytest"
+    )
     assert demo in blocks and tests in blocks
-    ci = [
+    assert tests in ci_commands(), "the README's test command is not what .ci/run runs"
+
+
+def ci_commands() -> list[str]:
+    """The lines of .ci/run that are not blank or comments, stripped."""
+    return [
         line.strip()
         for line in (REPO_ROOT / ".ci" / "run").read_text().splitlines()
         if line.strip() and not line.lstrip().startswith("#")
     ]
-    assert tests in ci, "the README's test command is not what .ci/run runs"
+
+
+def test_ci_fails_on_formatting_and_lint():
+    """.ci/run stops at the first command that fails, and checks the formatting and the lint
+    rules of the whole tree with the ruff the `test` extra installs, before the suite."""
+    ci = ci_commands()
+    installs = [i for i, line in enumerate(ci) if "pip install" in line and "test" in line]
+    checks = [ci.index(".venv/bin/ruff format --check ."), ci.index(".venv/bin/ruff check .")]
+    suite = next(i for i, line in enumerate(ci) if line.endswith("python -m pytest"))
+    assert "set -euo pipefail" in ci
+    assert installs and installs[0] < min(checks) and max(checks) < suite
+    extras = tomllib.loads((REPO_ROOT / "pyproject.toml").read_text())["project"]
+    assert any(req.startswith("ruff") for req in extras["optional-dependencies"]["test"])
 
 
 @pytest.mark.parametrize(
