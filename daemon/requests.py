@@ -149,7 +149,7 @@ class RequestHandlers:
     # ------------------------------------------------------------------ changing
     def load(self, request):
         from sasprobe.molecule.fetch import pdb_id, resolve
-        from sasprobe.molecule.structure import MAX_FILE_BYTES, read_regular_file, structure_name
+        from sasprobe.molecule.loading import MAX_FILE_BYTES, read_regular_file, structure_name
 
         d = self.daemon
         keep_water = request.args.get("keep_water", False)
