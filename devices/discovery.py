@@ -15,9 +15,13 @@ import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from sasprobe.devices import falcon, forcedimension, inverse3
 from sasprobe.devices.base import DeviceOpenError
+from sasprobe.devices.falcon.models import PRODUCT_ID as FALCON_PRODUCT_ID
+from sasprobe.devices.falcon.models import VENDOR_ID as FALCON_VENDOR_ID
+from sasprobe.devices.forcedimension.driver import list_arms as list_dhd_arms
 from sasprobe.devices.hardware import factory_from_environment
+from sasprobe.devices.inverse3.driver import list_arms as list_inverse3_arms
+from sasprobe.devices.inverse3.protocol import DEFAULT_URL as INVERSE_SERVICE_URL
 from sasprobe.devices.spacemouse import models as spacemouse_models
 from sasprobe.devices.transports import load_hidapi
 
@@ -57,7 +61,7 @@ KNOWN_SERIAL = {
         "its serial protocol is not public: sasprobe drives it through OpenHaptics",
     ),
 }
-KNOWN_USB = {(falcon.VENDOR_ID, falcon.PRODUCT_ID): ("Novint Falcon", "falcon")}
+KNOWN_USB = {(FALCON_VENDOR_ID, FALCON_PRODUCT_ID): ("Novint Falcon", "falcon")}
 
 
 def serial_ports(comports=None) -> tuple[list[Found], list[str]]:
@@ -184,7 +188,7 @@ def openhaptics_note() -> str:
 def dhd_arms(library: str | None = None) -> tuple[list[Found], list[str]]:
     """Force Dimension arms, through the DHD library when it is there."""
     try:
-        arms = forcedimension.list_arms(library)
+        arms = list_dhd_arms(library)
     except DeviceOpenError as exc:
         return [], [f"Force Dimension arms not listed: {exc}"]
     found = []
@@ -219,12 +223,12 @@ def dhd_arms(library: str | None = None) -> tuple[list[Found], list[str]]:
 
 def inverse3_arms(url: str | None = None) -> tuple[list[Found], list[str]]:
     """Inverse3 arms an Inverse Service answering at `url` lists (default: its default port)."""
-    url = url or os.environ.get("SASPROBE_INVERSE_SERVICE") or inverse3.DEFAULT_URL
+    url = url or os.environ.get("SASPROBE_INVERSE_SERVICE") or INVERSE_SERVICE_URL
     try:
-        arms = inverse3.list_arms(url)
+        arms = list_inverse3_arms(url)
     except DeviceOpenError as exc:
         return [], [f"Haply Inverse3 arms not listed: {exc}"]
-    device = "inverse3" if url == inverse3.DEFAULT_URL else f"inverse3:{url}"
+    device = "inverse3" if url == INVERSE_SERVICE_URL else f"inverse3:{url}"
     found = [
         Found(
             "websocket",

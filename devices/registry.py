@@ -25,32 +25,36 @@ class DeviceScheme:
 # Drivers add one line here.
 SCHEMES: dict[str, DeviceScheme] = {
     "falcon": DeviceScheme(
-        "sasprobe.devices.falcon:create", "Novint Falcon over USB", "falcon:FIRMWARE"
+        "sasprobe.devices.falcon.driver:create", "Novint Falcon over USB", "falcon:FIRMWARE"
     ),
     "woodenhaptics": DeviceScheme(
-        "sasprobe.devices.woodenhaptics:create",
+        "sasprobe.devices.woodenhaptics.driver:create",
         "WoodenHaptics Woody, vintage PHANTOM retrofit or Polhem (Teensy serial)",
         "woodenhaptics:/dev/ttyACM0",
     ),
     "haply": DeviceScheme(
-        "sasprobe.devices.haply:create",
+        "sasprobe.devices.haply.driver:create",
         "Haply 2DIY on an M0/M3 board (gen 3; haply:gen2:PORT)",
         "haply:/dev/ttyACM0",
     ),
     "spacemouse": DeviceScheme(
-        "sasprobe.devices.spacemouse:create", "3Dconnexion SpaceMouse (input only)", "spacemouse"
+        "sasprobe.devices.spacemouse.driver:create",
+        "3Dconnexion SpaceMouse (input only)",
+        "spacemouse",
     ),
     "openhaptics": DeviceScheme(
-        "sasprobe.devices.openhaptics:create", "PHANTOM Omni/Touch via OpenHaptics", "openhaptics"
+        "sasprobe.devices.openhaptics.driver:create",
+        "PHANTOM Omni/Touch via OpenHaptics",
+        "openhaptics",
     ),
     "forcedimension": DeviceScheme(
-        "sasprobe.devices.forcedimension:create",
+        "sasprobe.devices.forcedimension.driver:create",
         "Force Dimension omega/sigma/delta/lambda (or a Falcon) via the DHD SDK; INDEX picks "
         "one of several arms",
         "forcedimension:0",
     ),
     "inverse3": DeviceScheme(
-        "sasprobe.devices.inverse3:create",
+        "sasprobe.devices.inverse3.driver:create",
         "Haply Inverse3/Minverse via Haply's Inverse Service (default ws://localhost:10001)",
         "inverse3:ws://localhost:10001",
     ),

@@ -13,9 +13,9 @@ import time
 import numpy as np
 import pytest
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
-from sasprobe.devices.falcon import FalconDevice
 from sasprobe.devices.falcon import models as M
 from sasprobe.devices.falcon import protocol as P
+from sasprobe.devices.falcon.driver import FalconDevice
 
 from tests.conftest import run_cli
 from tests.emulators.falcon_device import FalconHardware, Hand

@@ -15,10 +15,9 @@ import time
 
 import numpy as np
 import pytest
-from sasprobe.devices import forcedimension
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.forcedimension import frame
-from sasprobe.devices.forcedimension.driver import ForceDimensionDevice
+from sasprobe.devices.forcedimension.driver import ForceDimensionDevice, create
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.pose import FLAG_FAULT
 
@@ -261,9 +260,9 @@ def test_a_library_without_dhdsetforce_is_refused_by_name(tmp_path):
 
 
 def test_the_device_string():
-    assert forcedimension.create(None).index == 0 and forcedimension.create("2").index == 2
+    assert create(None).index == 0 and create("2").index == 2
     with pytest.raises(DeviceOpenError, match="expected an arm index"):
-        forcedimension.create("omega")
+        create("omega")
 
 
 def test_devices_lists_the_arms_the_library_counts_and_checks_one(library, tmp_path):

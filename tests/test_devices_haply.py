@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 from sasprobe.devices.base import DeviceOpenError
-from sasprobe.devices.haply import create
+from sasprobe.devices.haply.driver import create
 
 from tests.emulators import haply_serial
 from tests.support.serial_arm_session import Session

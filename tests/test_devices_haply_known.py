@@ -9,7 +9,8 @@ import struct
 
 import numpy as np
 import pytest
-from sasprobe.devices.haply import create, kinematics, protocol
+from sasprobe.devices.haply import kinematics, protocol
+from sasprobe.devices.haply.driver import create
 from sasprobe.devices.haply.models import GENERATIONS
 
 # HaplyHAPI 1.0.1 (PyPI) HaplyHAPI.py: Pantograph(version) l = 0.07, L = 0.09, d = 0.038

@@ -16,10 +16,9 @@ import time
 
 import numpy as np
 import pytest
-from sasprobe.devices import inverse3
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.inverse3 import protocol
-from sasprobe.devices.inverse3.driver import Inverse3Device
+from sasprobe.devices.inverse3.driver import Inverse3Device, create
 from websockets.sync.server import serve
 
 from tests.support.driver_loop import balance, settle_against_a_wall
@@ -320,7 +319,7 @@ def test_close_sends_zero_and_ends_the_session(arm):
 
 
 def test_the_device_string_and_timing():
-    assert inverse3.create(None).url == "ws://localhost:10001"
-    dev = inverse3.create("ws://host:9000", rate_hz=250)
+    assert create(None).url == "ws://localhost:10001"
+    dev = create("ws://host:9000", rate_hz=250)
     assert dev.url == "ws://host:9000" and dev.reply_timeout_s == pytest.approx(0.010)
     assert dev.read_wait_s == pytest.approx(0.001)

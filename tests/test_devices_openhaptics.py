@@ -18,10 +18,9 @@ import time
 
 import numpy as np
 import pytest
-from sasprobe.devices import openhaptics
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.openhaptics import hdapi
-from sasprobe.devices.openhaptics.driver import OpenHapticsDevice
+from sasprobe.devices.openhaptics.driver import OpenHapticsDevice, create
 
 from tests.emulators import libhd
 from tests.emulators.libhd import (
@@ -307,14 +306,14 @@ def test_unknown_device_name(hd_arm):
 
 
 def test_the_device_string():
-    assert (openhaptics.create(None).name, openhaptics.create(None).reset_encoders) == (None, False)
+    assert (create(None).name, create(None).reset_encoders) == (None, False)
     assert (
-        openhaptics.create("reset-encoders").name,
-        openhaptics.create("reset-encoders").reset_encoders,
+        create("reset-encoders").name,
+        create("reset-encoders").reset_encoders,
     ) == (None, True)
-    named = openhaptics.create("Left Arm:reset-encoders")
+    named = create("Left Arm:reset-encoders")
     assert (named.name, named.reset_encoders) == ("Left Arm", True)
-    assert openhaptics.create("Default PHANToM").name == "Default PHANToM"
+    assert create("Default PHANToM").name == "Default PHANToM"
 
 
 def test_missing_library_says_so_in_one_line(monkeypatch, tmp_path):

@@ -14,7 +14,8 @@ import time
 import numpy as np
 import pytest
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
-from sasprobe.devices.spacemouse import SpaceMouseDevice, protocol
+from sasprobe.devices.spacemouse import protocol
+from sasprobe.devices.spacemouse.driver import SpaceMouseDevice
 
 from tests.conftest import REPO_ROOT
 from tests.emulators.hidapi_fake import HidBus, HidModule

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 from sasprobe.devices.base import DeviceOpenError
-from sasprobe.devices.woodenhaptics import WoodenHapticsDevice
+from sasprobe.devices.woodenhaptics.driver import WoodenHapticsDevice
 
 from tests.emulators import woodenhaptics_serial
 from tests.emulators.pty_serial import PtySerialDevice

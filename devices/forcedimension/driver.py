@@ -227,3 +227,13 @@ def list_arms(library: str | None = None) -> list[dict]:
         )
         lib.dhdClose(device_id)
     return arms
+
+
+def create(argument: str | None = None, **options) -> ForceDimensionDevice:
+    """`forcedimension[:INDEX]`: the INDEX-th arm the SDK counts (default 0). Option: library."""
+    text = (argument or "").strip()
+    try:
+        index = int(text) if text else 0
+    except ValueError:
+        raise DeviceOpenError(f"forcedimension:{text}: expected an arm index (0, 1, ...)") from None
+    return ForceDimensionDevice(index, library=options.get("library"))

@@ -3,7 +3,3 @@
 `models.py` holds the generations, `protocol.py` the board's byte protocol,
 `kinematics.py` Haply's pantograph solution and the frame, `driver.py` the device.
 """
-
-from sasprobe.devices.haply.driver import Haply2DIYDevice, create
-
-__all__ = ["Haply2DIYDevice", "create"]

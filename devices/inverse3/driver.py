@@ -36,7 +36,13 @@ from sasprobe.devices.base import (
 )
 from sasprobe.devices.hardware import HardwareDriver, clamp_force
 from sasprobe.devices.inverse3 import protocol
-from sasprobe.devices.inverse3.models import InverseModel, before_open_limits, model_for
+from sasprobe.devices.inverse3.models import (
+    NOMINAL_RATE_HZ,
+    InverseModel,
+    before_open_limits,
+    model_for,
+)
+from sasprobe.devices.serial_arm import READ_WAIT_PERIODS, REPLY_PERIODS
 from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidURI
 from websockets.sync.client import connect
 
@@ -376,3 +382,19 @@ def list_arms(url: str, timeout_s: float = HANDSHAKE_TIMEOUT_S) -> list[dict]:
             }
         )
     return arms
+
+
+def create(argument: str | None = None, **options) -> Inverse3Device:
+    """`inverse3[:URL]` (default ws://localhost:10001). Options: rate_hz (the daemon's loop
+    rate, which sets the read wait and the reply timeout; default the arms' nominal rate),
+    reply_timeout_s, read_wait_s."""
+    url = (argument or "").strip() or protocol.DEFAULT_URL
+    timing = {
+        k: float(options[k])
+        for k in ("reply_timeout_s", "read_wait_s")
+        if options.get(k) is not None
+    }
+    rate = float(options.get("rate_hz") or NOMINAL_RATE_HZ)  # the serial arms' reply timing
+    timing.setdefault("reply_timeout_s", REPLY_PERIODS / rate)
+    timing.setdefault("read_wait_s", READ_WAIT_PERIODS / rate)
+    return Inverse3Device(url, **timing)

@@ -448,3 +448,21 @@ class OpenHapticsDevice(HardwareDriver):
             self.force = force
             if self._force_blocked and from_the_loop:
                 self._watch_for_free_side(force)
+
+
+def create(argument: str | None = None, **options) -> OpenHapticsDevice:
+    """`openhaptics[:NAME][:reset-encoders]` (NAME as configured, e.g. "Default PHANToM").
+
+    `reset-encoders` says the arm is held at its reset position now (for arms calibrated
+    by an encoder reset). Options: library, read_timeout_s.
+    """
+    name, reset = argument or "", False
+    head, sep, tail = name.rpartition(":")
+    if tail == RESET_ENCODERS:
+        name, reset = (head if sep else ""), True
+    return OpenHapticsDevice(
+        name or None,
+        library=options.get("library"),
+        reset_encoders=reset,
+        read_timeout_s=float(options.get("read_timeout_s", 0.05)),
+    )

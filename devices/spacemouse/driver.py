@@ -30,7 +30,12 @@ from sasprobe.devices.base import (
     DeviceOpenError,
     DeviceState,
 )
-from sasprobe.devices.hardware import HardwareDriver, quaternion_about, quaternion_multiply
+from sasprobe.devices.hardware import (
+    HardwareDriver,
+    factory_from_environment,
+    quaternion_about,
+    quaternion_multiply,
+)
 from sasprobe.devices.spacemouse import models, protocol
 from sasprobe.devices.transports import HidTransport, load_hidapi
 
@@ -214,3 +219,15 @@ class SpaceMouseDevice(HardwareDriver):
 
     def write_force(self, force_n) -> None:
         """No force output: ignored."""
+
+
+def create(argument: str | None = None, **options) -> SpaceMouseDevice:
+    """`spacemouse[:PATH]` (PATH as `sasprobe devices` prints it). Options: hid_api, speed_mm_s.
+
+    Without `hid_api`, SASPROBE_HID_API=module:function names a factory of a stand-in for
+    the hidapi module (how the test suite points a daemon subprocess at an emulated cap).
+    """
+    hid_api = options.get("hid_api") or factory_from_environment("SASPROBE_HID_API")
+    return SpaceMouseDevice(
+        argument or None, hid_api=hid_api, speed_mm_s=float(options.get("speed_mm_s", 100.0))
+    )
