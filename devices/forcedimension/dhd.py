@@ -16,7 +16,7 @@ import glob
 import os
 import platform
 
-from sasprobe.devices.base import DeviceOpenError
+from sasprobe.devices.vendor_library import load_vendor_library
 
 DHD_ON = 1
 DHD_TIMEGUARD = 1  # dhdGetPosition: a success, the position of the last refresh
@@ -49,8 +49,8 @@ ERROR_NAMES = (  # enum dhd_errors, in order
 )
 
 NOT_INSTALLED = (
-    "the Force Dimension SDK is not installed: its DHD library (libdhd.so / dhd64.dll) was not found; "
-    "install the SDK from Force Dimension, or set SASPROBE_DHD_LIBRARY=/path/to/libdhd.so"
+    "the Force Dimension SDK is not installed: its DHD library (libdhd.so / dhd64.dll) was not "
+    "found; install the SDK from Force Dimension, or set SASPROBE_DHD_LIBRARY=/path/to/libdhd.so"
 )
 
 _D = ctypes.POINTER(ctypes.c_double)
@@ -97,19 +97,9 @@ def candidates() -> list[str]:
 def load_library(path: str | None = None):
     """The DHD library with its signatures declared, or DeviceOpenError (not installed, or
     a library that lacks one of the entry points, named)."""
-    paths = [path] if path else candidates()
-    if not paths:
-        raise DeviceOpenError(NOT_INSTALLED)
-    try:
-        lib = ctypes.CDLL(paths[0])
-    except OSError as exc:
-        raise DeviceOpenError(f"{NOT_INSTALLED} ({exc})") from None
-    for name, (restype, argtypes) in _SIGNATURES.items():
-        try:
-            fn = getattr(lib, name)
-        except AttributeError:
-            raise DeviceOpenError(
-                f"{paths[0]} is not the Force Dimension DHD library: it lacks {name}"
-            ) from None
-        fn.restype, fn.argtypes = restype, argtypes
-    return lib
+    return load_vendor_library(
+        [path] if path else candidates(),
+        _SIGNATURES,
+        NOT_INSTALLED,
+        "the Force Dimension DHD library",
+    )

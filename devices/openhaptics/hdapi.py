@@ -24,7 +24,7 @@ import ctypes.util
 import os
 import sys
 
-from sasprobe.devices.base import DeviceOpenError
+from sasprobe.devices.vendor_library import load_vendor_library
 
 HD_SUCCESS = 0x0000
 HD_INVALID_HANDLE = 0xFFFFFFFF
@@ -137,25 +137,14 @@ _SIGNATURES = {
 def load_library(path: str | None = None):
     """The HD library with its signatures declared, or DeviceOpenError(NOT_INSTALLED)."""
     path = path or os.environ.get("SASPROBE_HD_LIBRARY") or ctypes.util.find_library("HD")
-    if not path:
-        raise DeviceOpenError(NOT_INSTALLED)
-    try:
-        lib = ctypes.CDLL(path)
-    except OSError as exc:
-        raise DeviceOpenError(f"{NOT_INSTALLED} ({exc})") from None
-    for name, (restype, argtypes) in _SIGNATURES.items():
-        try:
-            fn = getattr(lib, name)
-        except AttributeError:
-            raise DeviceOpenError(
-                f"{path} is not the OpenHaptics HD library: it lacks {name}"
-            ) from None
-        fn.restype, fn.argtypes = restype, argtypes
-    return lib
+    return load_vendor_library(
+        [path] if path else [], _SIGNATURES, NOT_INSTALLED, "the OpenHaptics HD library"
+    )
 
 
 def preferred_calibration_style(supported: int) -> int | None:
-    """Calibration.c's choice: auto over inkwell over encoder reset (None: the device names none)."""
+    """Calibration.c's choice: auto over inkwell over encoder reset (None: the device names
+    none)."""
     for style in (HD_CALIBRATION_AUTO, HD_CALIBRATION_INKWELL, HD_CALIBRATION_ENCODER_RESET):
         if supported & style:
             return style
