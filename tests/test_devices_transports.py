@@ -10,7 +10,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
-from sasprobe.devices.hardware import VelocityFilter, clamp_force, quaternion_from_matrix
+from sasprobe.devices.hardware import VelocityFilter, clamp_force
+from sasprobe.devices.kinematics import quaternion_from_matrix
 from sasprobe.devices.transports import SerialTransport, UsbTransport
 
 from tests.emulators.falcon_usb import EmulatedUsbBackend, FalconHardware

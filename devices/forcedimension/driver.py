@@ -32,12 +32,8 @@ from sasprobe.devices.base import (
 )
 from sasprobe.devices.forcedimension import dhd, frame
 from sasprobe.devices.forcedimension.models import DhdModel, before_open_limits, model_for
-from sasprobe.devices.hardware import (
-    HardwareDriver,
-    VelocityFilter,
-    clamp_force,
-    quaternion_from_matrix,
-)
+from sasprobe.devices.hardware import HardwareDriver, VelocityFilter, clamp_force
+from sasprobe.devices.kinematics import quaternion_from_matrix
 
 log = logging.getLogger("sasprobe.devices.forcedimension")
 

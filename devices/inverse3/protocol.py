@@ -24,7 +24,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from sasprobe.devices.hardware import quaternion_from_matrix
+from sasprobe.devices.kinematics import quaternion_from_matrix
 
 DEFAULT_URL = "ws://localhost:10001"
 PROFILE_NAME = "org.sasprobe:daemon"

@@ -60,7 +60,8 @@ from sasprobe.devices.base import (
     DeviceOpenError,
     DeviceState,
 )
-from sasprobe.devices.hardware import HardwareDriver, clamp_force, quaternion_from_matrix
+from sasprobe.devices.hardware import HardwareDriver, clamp_force
+from sasprobe.devices.kinematics import quaternion_from_matrix
 from sasprobe.devices.openhaptics import hdapi
 from sasprobe.devices.openhaptics.hdapi import error_name
 

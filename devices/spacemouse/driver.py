@@ -30,12 +30,8 @@ from sasprobe.devices.base import (
     DeviceOpenError,
     DeviceState,
 )
-from sasprobe.devices.hardware import (
-    HardwareDriver,
-    factory_from_environment,
-    quaternion_about,
-    quaternion_multiply,
-)
+from sasprobe.devices.hardware import HardwareDriver, factory_from_environment
+from sasprobe.devices.kinematics import quaternion_about, quaternion_multiply
 from sasprobe.devices.spacemouse import models, protocol
 from sasprobe.devices.transports import HidTransport, load_hidapi
 

@@ -34,8 +34,7 @@ import functools
 import math
 
 import numpy as np
-from sasprobe.devices.hardware import quaternion_from_matrix
-from sasprobe.devices.kinematics import KinematicsError, scale_to_limit
+from sasprobe.devices.kinematics import KinematicsError, quaternion_from_matrix, scale_to_limit
 from sasprobe.devices.woodenhaptics.models import POLHEM, POLHEM_LINKS_M, WoodenModel
 from sasprobe.devices.woodenhaptics.protocol import MAX_CURRENT_MA
 
