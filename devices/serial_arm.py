@@ -17,9 +17,10 @@ under a 1 kHz loop that must never wait long:
   at 1 kHz, so it never takes the daemon's three; 10 ms when the rate is not given) and
   then raises DeviceFault (the daemon writes zero force). The command stays in flight:
   a later `read()` takes its reply when it arrives, without sending anything new;
-- a reply is used only if it came within `stale_after_s` of the driver's last look that
-  found nothing (a host that stalled finds an old reply waiting): a stale one updates the
-  pose for the next command, which is sent at once, and its reply is what `read()` returns;
+- a reply is used only if it is fresh: it must have arrived within `stale_after_s` of
+  the last time the driver looked and found nothing (a host that stalled finds an old
+  reply waiting). A stale reply updates the pose used for the next force command, then
+  a new command is sent and its reply is what `read()` returns;
 - a reply the board flags as a refused command, a garbled frame, or more bytes than
   one reply: the driver stops sending, drops input until the line has been quiet for
   `RESYNC_QUIET_S` (one non-blocking step per `read()`, each raising DeviceFault), and
@@ -28,9 +29,9 @@ under a 1 kHz loop that must never wait long:
   `PROBE_INTERVAL_S` (the host libraries' handshake), so it resumes when it recovers;
 - a lost port (cable pulled) raises DeviceFault at once; `reconnect()` reopens it.
 
-Opening resends the zero command every `PROBE_INTERVAL_S` until the board answers (hfabapi's
-`wait_online()`), within `handshake_timeout_s`, and drops the answers to the extra copies.
-Subclasses supply the wire format.
+Opening resends the zero command every `PROBE_INTERVAL_S` until the board answers (as
+hfabapi's `wait_online()` does), bounded by `handshake_timeout_s`, then drops the
+answers to the extra copies. Subclasses supply the wire format.
 """
 
 from __future__ import annotations
@@ -48,9 +49,8 @@ REPLY_PERIODS = 2.5  # how many loop periods after its command a reply may take
 READ_WAIT_PERIODS = 0.25  # how long a read waits for a reply before it gives the last pose again
 REUSE_PERIODS = 2.0  # how old that last pose may be
 PROBE_INTERVAL_S = 0.1  # hfabapi wait_online(): one "[0,0,0]" every 100 ms until the board answers
-RESYNC_QUIET_S = (
-    0.005  # the boards answer within a millisecond: this much silence means nothing is left
-)
+# The boards answer within a millisecond: this much silence means nothing is left.
+RESYNC_QUIET_S = 0.005
 JUNK_PROBES = 5  # a board that answered this many probes with foreign bytes speaks another protocol
 REOPEN_HANDSHAKE_S = 1.0  # a replugged board boots in well under a second
 CLOSE_WAIT_S = 0.25  # how long close() waits for the board to take its zero command (off the loop)
@@ -128,9 +128,8 @@ class SerialArm(HardwareDriver):
         self.resyncs = 0
         self._last: DeviceState | None = None  # the state read() returned last, and when
         self._last_at = 0.0
-        self._port_lock = (
-            threading.Lock()
-        )  # the loop's read() and reconnect() vs the watchdog's zero_force_now()
+        # the loop's read() and reconnect() vs the watchdog's zero_force_now()
+        self._port_lock = threading.Lock()
 
     # subclasses -----------------------------------------------------------------------
     @abc.abstractmethod
@@ -147,7 +146,8 @@ class SerialArm(HardwareDriver):
 
     @abc.abstractmethod
     def _split(self, inbox: bytes) -> tuple[ArmReply | None, bytes]:
-        """(the first reply in `inbox`, the rest), (None, inbox) while incomplete; BadFrame for junk."""
+        """(the first reply in `inbox`, the rest), (None, inbox) while incomplete; BadFrame
+        for junk."""
 
     @abc.abstractmethod
     def _take(self, reply: ArmReply) -> None:
@@ -190,16 +190,19 @@ class SerialArm(HardwareDriver):
 
     def reconnect(self) -> None:
         with self._port_lock:
-            if self._lost is None and self.transport.is_open:
-                # the port is fine: the session recovers by itself (late reply, resync, probing)
-                if self._failing is not None:
-                    raise DeviceFault(self._failing)
-                return
-            self.close()
-            try:
-                self.open(handshake_timeout_s=REOPEN_HANDSHAKE_S)
-            except DeviceOpenError as exc:
-                raise DeviceFault(f"device still unavailable: {exc}") from None
+            self._reconnect()
+
+    def _reconnect(self) -> None:
+        if self._lost is None and self.transport.is_open:
+            # the port is fine: the session recovers by itself (late reply, resync, probing)
+            if self._failing is not None:
+                raise DeviceFault(self._failing)
+            return
+        self.close()
+        try:
+            self.open(handshake_timeout_s=REOPEN_HANDSHAKE_S)
+        except DeviceOpenError as exc:
+            raise DeviceFault(f"device still unavailable: {exc}") from None
 
     def read(self) -> DeviceState:
         try:
@@ -228,9 +231,8 @@ class SerialArm(HardwareDriver):
         if reply is None and self._sent_at is not None and self._resync_reason is None:
             if self._last is not None and time.monotonic() - self._last_at <= self.reuse_s:
                 self.reused_states += 1
-                return (
-                    self._last
-                )  # a little late: the last pose again, as Haply's and hfabapi's loops do
+                # a little late: the last pose again, as Haply's and hfabapi's loops do
+                return self._last
             reply, fresh = self._wait_reply(self.reply_timeout_s)
         if reply is None:
             raise DeviceFault(self._silence())
@@ -253,29 +255,41 @@ class SerialArm(HardwareDriver):
             self._send(self._command())
 
     def zero_force_now(self) -> None:
-        """The daemon's watchdog thread, the loop stalled: zero as the command in flight once the
-        board answered the loop's last (a line board would refuse two lines: wait for the next
-        try; binary frames queue: send now, resynchronise). A read in progress keeps the port:
-        zero becomes its next command's force, and DeviceFault says to try again."""
+        """The daemon's watchdog while its loop is stalled: the zero command goes out now.
+
+        The command in flight (sent before the stall) has normally been answered long
+        since: its reply is taken and the zero becomes the command in flight, whose reply
+        the loop's next read takes. A board that has not answered yet has not taken that
+        command either: a second line would meet it in the board's buffer and both be
+        refused (nothing would change), so on a line protocol the zero waits for the
+        watchdog's next try; binary frames queue behind each other, so the zero goes out
+        at once and the reply it draws, one too many, is dropped by resynchronising (a
+        fault tick or two, force zero meanwhile).
+
+        It runs in the watchdog's thread: while the loop is inside `read()` (descheduled
+        there on a busy machine) the port and the reply in flight are the read's, so it
+        only leaves zero as the force of the loop's next command and raises DeviceFault
+        (the watchdog tries again at its next check)."""
         self.force = np.zeros(3)
         if not self._port_lock.acquire(blocking=False):
             raise DeviceFault(
                 f"the loop is reading the {self.scheme} arm: the zero goes with its next command"
             )
         try:
-            if self._lost is not None:
-                return
-            if self._sent_at is not None:
-                self._wait_reply(
-                    0.0
-                )  # the answer, if it has come (its pose serves the next command)
-            if self._sent_at is None and (self._resync_reason is None or self._resync_step()):
-                self._send(self._zero_command())
-            elif self._zero_may_overlap():
-                self._io(self.transport.write, self._zero_command())
-                self._start_resync("the watchdog's zero command while the loop stalled")
+            self._zero_now()
         finally:
             self._port_lock.release()
+
+    def _zero_now(self) -> None:
+        if self._lost is not None:
+            return
+        if self._sent_at is not None:
+            self._wait_reply(0.0)  # the answer, if it has come (its pose serves the next command)
+        if self._sent_at is None and (self._resync_reason is None or self._resync_step()):
+            self._send(self._zero_command())
+        elif self._zero_may_overlap():
+            self._io(self.transport.write, self._zero_command())
+            self._start_resync("the watchdog's zero command while the loop stalled")
 
     # handshake helpers ----------------------------------------------------------------
     def _probe(self, timeout_s: float, describe) -> ArmReply:
@@ -407,7 +421,8 @@ class SerialArm(HardwareDriver):
         if now - self._sent_at >= self.silent_after_s and now - self._probed_at >= PROBE_INTERVAL_S:
             self._probed_at = now  # the answer may come to either copy; a second one is dropped
             self._io(self.transport.write, self._zero_command())
-        return f"no reply from the {self.scheme} arm on {self.port} for {(now - self._sent_at) * 1000:.0f} ms"
+        silent_ms = (now - self._sent_at) * 1000
+        return f"no reply from the {self.scheme} arm on {self.port} for {silent_ms:.0f} ms"
 
     def _send_zero_on_close(self) -> None:
         """Leave the board rendering nothing; wait a moment for it to take the command."""
