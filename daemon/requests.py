@@ -21,7 +21,7 @@ from sasprobe.daemon.findings_job import FindingsJob
 from sasprobe.daemon.haptics import validate_settings
 from sasprobe.daemon.haptics.settings import needs_rebuild, split_changes
 from sasprobe.daemon.marks import drop_mark
-from sasprobe.devices.workspace import validate_rotation
+from sasprobe.devices.workspace.mapping import validate_rotation
 from sasprobe.molecule.packed import pack_structure
 from sasprobe.protocol.control import COMMANDS, ControlReply, Request
 from sasprobe.protocol.scene import merge_lights

@@ -50,7 +50,7 @@ from sasprobe.daemon.session import open_session
 from sasprobe.daemon.structure_worker import StructureWorker
 from sasprobe.daemon.watchdog import StallWatchdog
 from sasprobe.devices.base import DeviceFault
-from sasprobe.devices.workspace import IDENTITY
+from sasprobe.devices.workspace.mapping import IDENTITY
 from sasprobe.protocol.pose import encode_pose
 from sasprobe.protocol.scene import DEFAULT_LIGHTS, encode_scene
 

@@ -59,7 +59,7 @@ SCHEMES: dict[str, DeviceScheme] = {
         "inverse3:ws://localhost:10001",
     ),
     "sim": DeviceScheme(
-        "sasprobe.devices.simulated:make_simulated",
+        "sasprobe.devices.simulated.arm:make_simulated",
         "simulated arm driven by a scripted hand (scan, dive, press, orbit, random, sweep)",
         "sim:scan",
     ),

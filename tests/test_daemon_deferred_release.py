@@ -7,7 +7,7 @@ import weakref
 import numpy as np
 from sasprobe.daemon.deferred_release import DeferredRelease, arrays_within
 from sasprobe.daemon.haptics import build_engine
-from sasprobe.devices.simulated import make_simulated
+from sasprobe.devices.simulated.arm import make_simulated
 
 
 def test_the_arrays_of_a_structure_and_its_engine_are_all_found(crambin):

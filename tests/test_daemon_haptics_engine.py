@@ -9,7 +9,7 @@ import pytest
 from sasprobe.daemon.haptics import HapticEngine, HapticOutput, HapticSettings
 from sasprobe.daemon.haptics.force_law import contact_force
 from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceState, open_device
-from sasprobe.devices.workspace import WorkspaceMapping
+from sasprobe.devices.workspace.start import initial_mapping
 from sasprobe.molecule import load_default
 
 from tests.references.haptics import synthetic_structure
@@ -305,7 +305,7 @@ def test_drift_moves_the_cube_without_a_force_jump():
 
 
 def test_mapping_round_trip_and_fit():
-    m = WorkspaceMapping.initial(CRAMBIN, LIMITS, "fit")
+    m = initial_mapping(CRAMBIN, LIMITS, "fit")
     p = np.array([3.0, -7.0, 12.5])
     assert np.allclose(m.to_molecule(*m.to_device(*p)), p)
     # the fitted cube's drift-free core holds every expanded sphere

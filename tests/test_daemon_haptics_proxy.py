@@ -188,7 +188,7 @@ def test_proxy_never_enters_the_sas_in_scripted_sessions():
         device.open()
         proxies = []
         contacts = 0
-        for _ in range(min(int(device.script.duration_s * 1000), 5000)):
+        for _ in range(min(int(device.hand_path.duration_s * 1000), 5000)):
             out = engine.step(device.read())
             device.write_force(out.force_n)
             if out.seated:
@@ -242,7 +242,7 @@ def test_pushing_through_a_thin_sheet_pops_through_only_with_the_penalty_method(
 def test_press_script_on_crambin_pops_through_with_penalty_not_with_proxy():
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices import PHANTOM_OMNI_LIMITS, open_device
-    from sasprobe.devices.simulated import ArmModel
+    from sasprobe.devices.simulated.arm import ArmModel
 
     along = {}
     for method in ("proxy", "penalty"):
@@ -253,13 +253,13 @@ def test_press_script_on_crambin_pops_through_with_penalty_not_with_proxy():
             cube_half_A="fit",
             arm=ArmModel(max_hand_force_n=math.inf),
         )
-        push = np.array(device.script.info["push_direction"])
+        push = np.array(device.hand_path.info["push_direction"])
         engine = HapticEngine(
             CRAMBIN, PHANTOM_OMNI_LIMITS, HapticSettings(method=method, cube_half_A="fit")
         )
         device.open()
         worst = -np.inf
-        for _ in range(int(device.script.duration_s * 1000)):
+        for _ in range(int(device.hand_path.duration_s * 1000)):
             out = engine.step(device.read())
             device.write_force(out.force_n)
             worst = max(worst, float(out.force_n @ push))

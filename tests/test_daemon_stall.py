@@ -14,8 +14,8 @@ import numpy as np
 from sasprobe.daemon.service import Daemon, DaemonConfig
 from sasprobe.daemon.watchdog import STALL_PERIODS
 from sasprobe.devices.registry import SCHEMES, DeviceScheme
-from sasprobe.devices.simulated import SimulatedDevice, make_simulated
-from sasprobe.devices.workspace import CUBE_FIT
+from sasprobe.devices.simulated.arm import SimulatedDevice, make_simulated
+from sasprobe.devices.workspace.start import CUBE_FIT
 from sasprobe.protocol.client import Subscriber
 
 from tests.emulators.pty_serial import Rig

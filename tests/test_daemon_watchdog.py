@@ -14,7 +14,7 @@ from mcap.reader import make_reader
 from sasprobe.daemon.recording.replay import load_session
 from sasprobe.daemon.service import Daemon, DaemonConfig
 from sasprobe.devices.registry import SCHEMES, DeviceScheme
-from sasprobe.devices.simulated import SimulatedDevice, make_simulated
+from sasprobe.devices.simulated.arm import SimulatedDevice, make_simulated
 from sasprobe.protocol.pose import FLAG_FAULT
 
 SLOW_TICKS = range(300, 303)  # reads that take 8 ms (more than 3 periods)

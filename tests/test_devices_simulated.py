@@ -14,9 +14,9 @@ from sasprobe.devices import (
     HapticDevice,
     open_device,
 )
-from sasprobe.devices.scripts import SCRIPTS, Script
-from sasprobe.devices.simulated import ArmModel, SimulatedDevice
-from sasprobe.devices.workspace import WorkspaceMapping
+from sasprobe.devices.simulated.arm import ArmModel, SimulatedDevice
+from sasprobe.devices.simulated.hand_paths import SCRIPTS, HandPath
+from sasprobe.devices.workspace.start import initial_mapping
 from sasprobe.molecule import load_default
 
 from tests.references.haptics import signed_distance
@@ -24,11 +24,11 @@ from tests.references.haptics import signed_distance
 CRAMBIN = load_default()
 
 
-def still(point=(0.0, 0.0, 0.0), jump_to=None, at: float = 0.0) -> Script:
+def still(point=(0.0, 0.0, 0.0), jump_to=None, at: float = 0.0) -> HandPath:
     """A hand holding one point (optionally stepping to another at time `at`)."""
     if jump_to is None:
-        return Script("still", [0.0, 100.0], [point, point])
-    return Script("step", [0.0, at, at + 1e-9, 100.0], [point, point, jump_to, jump_to])
+        return HandPath("still", [0.0, 100.0], [point, point])
+    return HandPath("step", [0.0, at, at + 1e-9, 100.0], [point, point, jump_to, jump_to])
 
 
 def test_registry_opens_every_script_and_rejects_unknown_ones():
@@ -37,7 +37,7 @@ def test_registry_opens_every_script_and_rejects_unknown_ones():
         assert isinstance(device, HapticDevice)
         assert device.info.kind == "sim" and device.info.details["script"] == name
         assert device.info.limits == PHANTOM_OMNI_LIMITS
-    assert open_device("sim").script.name == "scan"  # default script, default structure
+    assert open_device("sim").hand_path.name == "scan"  # default script, default structure
     with pytest.raises(DeviceOpenError, match="unknown simulated-arm script"):
         open_device("sim:dance", structure=CRAMBIN)
 
@@ -167,9 +167,9 @@ TOUCHING = {None: set(SCRIPTS) - {"sweep", "orbit"}, "fit": set(SCRIPTS) - {"swe
 @pytest.mark.parametrize("half", [None, "fit"], ids=["default cube", "fitted cube"])
 @pytest.mark.parametrize("name", SCRIPTS)
 def test_scripts_start_in_free_space_and_stay_in_the_drift_free_core(name, half):
-    mapping = WorkspaceMapping.initial(CRAMBIN, PHANTOM_OMNI_LIMITS, half)
+    mapping = initial_mapping(CRAMBIN, PHANTOM_OMNI_LIMITS, half)
     device = open_device(f"sim:{name}", structure=CRAMBIN, seed=2, cube_half_A=half)
-    script = device.script
+    script = device.hand_path
     start = np.array(mapping.to_molecule(*script.start))
     assert signed_distance(start, CRAMBIN.positions, CRAMBIN.expanded_radii(1.4))[0] > 1.0
     targets = np.array([script.target(t) for t in np.linspace(0, script.duration_s, 2000)])
@@ -183,7 +183,7 @@ def test_scripts_start_in_free_space_and_stay_in_the_drift_free_core(name, half)
 
 
 def test_dive_targets_a_groove_between_two_surface_atoms():
-    script = open_device("sim:dive", structure=CRAMBIN).script
+    script = open_device("sim:dive", structure=CRAMBIN).hand_path
     i, j = script.info["atoms"]
     crease = np.array(script.info["crease_A"])
     radii = CRAMBIN.expanded_radii(1.4)

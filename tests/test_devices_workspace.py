@@ -15,7 +15,8 @@ import pytest
 from sasprobe.daemon.buttons import KEY_CLUTCH_LEASE_S, ButtonMap, WorkspaceInputs, parse_button
 from sasprobe.daemon.haptics import HapticEngine, HapticPipeline, SafetyGuard
 from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceState, open_device
-from sasprobe.devices.workspace import WorkspaceMapping, validate_rotation
+from sasprobe.devices.workspace.mapping import validate_rotation
+from sasprobe.devices.workspace.start import initial_mapping
 from sasprobe.molecule import load_default, load_structure
 from sasprobe.protocol.pose import FLAG_CLUTCHED
 
@@ -48,14 +49,14 @@ def big(reference_by_id):
 # ------------------------------------------------------------------ the default cube
 def test_default_cube_scale_and_context_rule(big):
     for structure in (CRAMBIN, *big.values()):
-        m = WorkspaceMapping.initial(structure, LIMITS)
+        m = initial_mapping(structure, LIMITS)
         reach = structure.vdw_radii.max() + 1.4
         smallest = float(
             np.min(structure.positions.max(0) - structure.positions.min(0) + 2 * reach)
         )
         assert m.cube_half_A == pytest.approx(min(0.4 * OMNI_HALF_MM, 0.2 * smallest))
-    assert WorkspaceMapping.initial(big["1aon"], LIMITS).scale_A_per_mm == pytest.approx(0.4)
-    fit = WorkspaceMapping.initial(CRAMBIN, LIMITS, "fit")  # the whole SAS in the drift-free core
+    assert initial_mapping(big["1aon"], LIMITS).scale_A_per_mm == pytest.approx(0.4)
+    fit = initial_mapping(CRAMBIN, LIMITS, "fit")  # the whole SAS in the drift-free core
     r = CRAMBIN.expanded_radii(1.4)[:, None]
     for q in (CRAMBIN.positions - r, CRAMBIN.positions + r):
         d = np.array([fit.to_device(*p) for p in q]) - fit.workspace_center_mm
@@ -64,7 +65,7 @@ def test_default_cube_scale_and_context_rule(big):
 
 def test_the_cube_starts_on_a_surface_summit_holding_atoms(big):
     for structure in (CRAMBIN, *big.values()):
-        m = WorkspaceMapping.initial(structure, LIMITS)
+        m = initial_mapping(structure, LIMITS)
         c, h = np.array(m.cube_center), m.cube_half_A
         top = c + [0.0, 0.0, 0.25 * h]  # the surface site the cube is sunk from
         radii = structure.expanded_radii(1.4)
@@ -82,7 +83,7 @@ def test_the_cube_starts_on_a_surface_summit_holding_atoms(big):
 
 # ------------------------------------------------------------------ the view's turn
 def test_turning_the_view_turns_the_mapping_about_the_goal():
-    m = WorkspaceMapping.initial(CRAMBIN, LIMITS)
+    m = initial_mapping(CRAMBIN, LIMITS)
     tip = (5.0, -3.0, 8.0)
     goal = np.array(m.to_molecule(*tip))
     R = rotation([1, 2, 3], 37.0)
@@ -199,8 +200,8 @@ def test_simulated_hand_stays_within_the_continuous_rating(script):
     device.open()
     forces = []
     seconds = {
-        "scan": device.script.duration_s + 1.0,
-        "press": device.script.duration_s,
+        "scan": device.hand_path.duration_s + 1.0,
+        "press": device.hand_path.duration_s,
         "random": 10.0,
     }[script]
     for _ in range(int(seconds * 1000)):

@@ -36,10 +36,11 @@ from sasprobe.daemon.haptics.penalty import penalty_contact
 from sasprobe.daemon.haptics.proxy import ProxySolver
 from sasprobe.daemon.haptics.settings import HapticSettings
 from sasprobe.devices.base import DeviceLimits, DeviceState
-from sasprobe.devices.surface import Surface
-from sasprobe.devices.workspace import WorkspaceMapping, initial_half
+from sasprobe.devices.workspace.mapping import WorkspaceMapping
+from sasprobe.devices.workspace.start import initial_half, initial_mapping
 from sasprobe.molecule.grid import UniformGrid
 from sasprobe.molecule.structure import Structure
+from sasprobe.molecule.surface import Surface
 
 MAX_DT_S = 0.05  # a longer gap between ticks (a stall) drifts the cube by at most this much time
 # The proxy may travel, per tick, twice the goal's own motion plus SNAP_SPEED_MM_S * dt
@@ -151,7 +152,7 @@ class HapticEngine:
             self._mapping.rescale(half, self._last_tip)
 
     def set_view(self, rotation) -> None:
-        """Turn the workspace with the view (devices.workspace.validate_rotation's 9 floats),
+        """Turn the workspace with the view (validate_rotation's 9 floats),
         about the goal: the probe stays where it is and the molecule turns around it."""
         self._mapping.turn(rotation, self._last_tip)
 
@@ -187,7 +188,7 @@ class HapticEngine:
 
     def _initial_mapping(self) -> WorkspaceMapping:
         s = self._settings
-        return WorkspaceMapping.initial(
+        return initial_mapping(
             self._structure,
             self._limits,
             s.cube_half_A,

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 from sasprobe.daemon.haptics.safety import GuardResult, SafetyGuard, state_is_finite
 from sasprobe.devices.base import DeviceState
-from sasprobe.devices.workspace import IDENTITY
+from sasprobe.devices.workspace.mapping import IDENTITY
 from sasprobe.protocol.pose import (
     FLAG_CLAMPED,
     FLAG_CLUTCHED,

@@ -13,7 +13,7 @@ import math
 from dataclasses import dataclass
 
 from sasprobe.devices.base import DeviceLimits
-from sasprobe.devices.workspace import validate_cube_center, validate_cube_half
+from sasprobe.devices.workspace.start import validate_cube_center, validate_cube_half
 from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS, check_probe_radius
 from sasprobe.protocol.scene import HAPTIC_METHODS
 

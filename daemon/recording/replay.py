@@ -31,7 +31,7 @@ from sasprobe.devices.base import (
     DeviceState,
     HapticDevice,
 )
-from sasprobe.devices.workspace import validate_rotation
+from sasprobe.devices.workspace.mapping import validate_rotation
 from sasprobe.protocol.recording import RecordingError, iter_items, scan
 
 from sasprobe.common.files import open_regular

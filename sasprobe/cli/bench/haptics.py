@@ -130,7 +130,7 @@ def closed_loop_session(
 ):
     """Closed loop sim arm <-> engine; returns the states, outputs and the arm."""
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
-    from sasprobe.devices.simulated import make_simulated
+    from sasprobe.devices.simulated.arm import make_simulated
 
     device = make_simulated(
         script, structure=structure, rate_hz=rate_hz, seed=seed, limits=limits, **settings_kw
@@ -182,7 +182,7 @@ def _penetration(grid, points: np.ndarray) -> float:
 def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> dict:
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
     from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
-    from sasprobe.devices.surface import surface_site
+    from sasprobe.molecule.surface import surface_site
 
     limits = PHANTOM_OMNI_LIMITS
     settings_kw = (
@@ -244,7 +244,7 @@ def _stability_map(ctx: BenchContext) -> dict:
     """Press-and-release on crambin at each control rate x stiffness, per method."""
     from sasprobe.daemon.haptics import HapticSettings
     from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
-    from sasprobe.devices.simulated import ArmModel
+    from sasprobe.devices.simulated.arm import ArmModel
     from sasprobe.molecule import load_default
 
     structure = load_default()
@@ -277,7 +277,7 @@ def _stability_map(ctx: BenchContext) -> dict:
 
 def _stability_cell(structure, method, rate, stiffness, limits) -> dict:
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
-    from sasprobe.devices.simulated import ArmModel, make_simulated
+    from sasprobe.devices.simulated.arm import ArmModel, make_simulated
 
     # The whole molecule, and a hand without a person's limit: where each method breaks.
     fit = {"cube_half_A": "fit"}
@@ -292,10 +292,10 @@ def _stability_cell(structure, method, rate, stiffness, limits) -> dict:
     engine = HapticEngine(
         structure, limits, HapticSettings(method=method, stiffness_n_per_mm=stiffness, **fit)
     )
-    push = np.asarray(device.script.info["push_direction"])
+    push = np.asarray(device.hand_path.info["push_direction"])
     device.open()
     along = 0.0
-    for _ in range(int(round(device.script.duration_s * rate))):
+    for _ in range(int(round(device.hand_path.duration_s * rate))):
         out = engine.step(device.read())
         device.write_force(out.force_n)
         along = max(along, float(out.force_n @ push))

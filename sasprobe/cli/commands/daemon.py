@@ -20,7 +20,7 @@ def speed(text: str) -> float | None:
 
 def cube_half(text: str) -> float | str:
     """--cube-half: a positive half edge in Å, or `fit` (the whole molecule)."""
-    from sasprobe.devices.workspace import CUBE_FIT
+    from sasprobe.devices.workspace.start import CUBE_FIT
 
     return CUBE_FIT if text.strip().lower() == CUBE_FIT else positive_float(text)
 
@@ -37,7 +37,7 @@ def button(text: str) -> str:
 
 def fault_spec(text: str) -> tuple[str, int, int]:
     """--inject-fault: KIND@TICK[+COUNT], checked now (a typo is one line, not a silent no-op)."""
-    from sasprobe.devices.simulated import FAULT_KINDS, parse_fault
+    from sasprobe.devices.simulated.arm import FAULT_KINDS, parse_fault
 
     try:
         kind, tick, count = parse_fault(text, FAULT_KINDS + (LOOP_STALL, SLOW_READ))
@@ -59,7 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     from sasprobe.daemon.buttons import ACTIONS, DEFAULT_BUTTONS
     from sasprobe.daemon.haptics import HapticSettings
     from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
-    from sasprobe.devices.workspace import CONTEXT_FRACTION, DEFAULT_SCALE_A_PER_MM
+    from sasprobe.devices.workspace.start import CONTEXT_FRACTION, DEFAULT_SCALE_A_PER_MM
 
     omni = PHANTOM_OMNI_LIMITS
     omni_half = (

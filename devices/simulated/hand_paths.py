@@ -1,10 +1,11 @@
-"""Scripted hand targets for the simulated arm: where the model hand pulls the stylus.
+"""The simulated arm's hand paths: where the model hand pulls the stylus, one per script.
 
-A script is a target position (device frame, mm) for every simulated time t >= 0; it
+A hand path is a target position (device frame, mm) for every simulated time t >= 0; it
 loops forever, so a daemon can run on it as long as it likes, and `duration_s` is one
-pass. Scripts are placed on the molecule through the session's initial workspace
-mapping (`WorkspaceMapping.initial`, the same one the haptic engine starts with), using the
-expanded spheres (vdW + probe) and the uniform grid:
+pass. `--device sim:SCRIPT` names one; each is placed on the molecule through the
+session's initial workspace mapping (devices/workspace/start.py `initial_mapping`, the
+same one the haptic engine starts with), using the expanded spheres (vdW + probe) and the
+uniform grid:
 
 - `scan`: a raster over the top of the molecule, pressing `SCAN_PRESS_MM` into the
   surface height under each point, so the stylus slides over bumps and creases;
@@ -24,7 +25,7 @@ expanded spheres (vdW + probe) and the uniform grid:
 Everything starts hovering in free space above the molecule, so the haptic engine seats
 its proxy at once, and comes back to the start the way a hand would, lifting over the
 surface rather than through it. The scripts set where the hand goes; how hard it may
-push is the hand model's (devices/simulated.py: never beyond the device's continuous
+push is the hand model's (arm.py: never beyond the device's continuous
 rating, as a person does not lean on the arm).
 """
 
@@ -35,10 +36,10 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from sasprobe.devices.surface import Surface
-from sasprobe.devices.workspace import WorkspaceMapping
+from sasprobe.devices.workspace.mapping import WorkspaceMapping
 from sasprobe.molecule.grid import UniformGrid
 from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
+from sasprobe.molecule.surface import Surface
 
 SCRIPTS = ("scan", "dive", "press", "orbit", "random", "sweep")
 
@@ -54,7 +55,7 @@ SWEEP_SPEED_MM_S = 20.0
 
 
 @dataclass
-class Script:
+class HandPath:
     """A looping target path: piecewise linear through (time s, point mm) waypoints."""
 
     name: str
@@ -100,20 +101,22 @@ class _PathBuilder:
     def hold(self, duration_s: float) -> None:
         self.move(self.points[-1], duration_s=duration_s)
 
-    def script(self, name: str, info: dict, return_speed_mm_s: float = 30.0) -> Script:
+    def close(self, name: str, info: dict, return_speed_mm_s: float = 30.0) -> HandPath:
+        """Back to the start, and the looping path."""
         self.move(self.points[0], speed_mm_s=return_speed_mm_s)
-        return Script(name, self.times, self.points, info)
+        return HandPath(name, self.times, self.points, info)
 
 
-def make_script(
+def place_hand_path(
     name: str,
     structure,
     mapping: WorkspaceMapping,
     probe_radius: float = DEFAULT_PROBE_RADIUS,
     seed: int = 0,
     surface: Surface | None = None,
-) -> Script:
-    """The script `name` placed on `structure` through `mapping` (its initial state); `surface`:
+) -> HandPath:
+    """The hand path of script `name` placed on `structure` through `mapping` (its initial
+    state); `surface`:
     the structure's Surface at this probe radius, when the caller has one."""
     if name not in SCRIPTS:
         raise ValueError(f"unknown simulated-arm script {name!r} (known: {', '.join(SCRIPTS)})")
@@ -163,8 +166,8 @@ class _Placer:
                 out.append((int(i), cols))
         return out
 
-    # --------------------------------------------------------------- scripts
-    def scan(self) -> Script:
+    # --------------------------------------------------------------- the scripts
+    def scan(self) -> HandPath:
         w = self.region(0.4)
         cx, cy = self.center[0], self.center[1]
         press = SCAN_PRESS_MM * self.s
@@ -184,9 +187,9 @@ class _Placer:
         clear = max(p[2] for p in waypoints) + press + self.hover  # above every point of the region
         path.move(self.dev((last[0], last[1], clear)), speed_mm_s=SCAN_SPEED_MM_S)
         path.move(self.dev((first[0], first[1], clear)), speed_mm_s=SCAN_SPEED_MM_S)
-        return path.script("scan", {"region_half_A": w, "lines": lines, "press_mm": SCAN_PRESS_MM})
+        return path.close("scan", {"region_half_A": w, "lines": lines, "press_mm": SCAN_PRESS_MM})
 
-    def dive(self) -> Script:
+    def dive(self) -> HandPath:
         best = None
         for fraction in (0.45, 0.8):  # a small cube may have no groove near its axis: look wider
             best = self._groove(fraction)
@@ -217,7 +220,7 @@ class _Placer:
             "crease_A": [float(v) for v in crease],
             "push_direction": (0.0, 0.0, -1.0),
         }
-        return path.script("dive", info)
+        return path.close("dive", info)
 
     def _groove(self, fraction: float):
         """(depth, i, j, crease) of the deepest uncovered crease between two top-exposed atoms."""
@@ -242,7 +245,7 @@ class _Placer:
                 best = (depth, i, j, crease)
         return best
 
-    def press(self) -> Script:
+    def press(self) -> HandPath:
         grid = self.surface.grid
         best = None
         fallback = None
@@ -277,9 +280,9 @@ class _Placer:
             "thin": best is not None,
             "push_direction": (0.0, 0.0, -1.0),
         }
-        return path.script("press", info)
+        return path.close("press", info)
 
-    def orbit(self) -> Script:
+    def orbit(self) -> HandPath:
         cx, cy, cz = (float(v) for v in self.center)
         # The cube's middle height, or higher where the molecule fills the cube there (a
         # zoomed-in cube on a surface): the lowest height with free space to start from.
@@ -308,7 +311,7 @@ class _Placer:
                 duration_s=turn_s / steps,
             )
         info = {"radius_A": radius, "height_A": cz}
-        return path.script("orbit", info)
+        return path.close("orbit", info)
 
     def _radial_extent(self, cx, cy, cz, ux, uy) -> float:
         """Farthest distance from the axis along a horizontal ray where the ray is in the SAS."""
@@ -320,7 +323,7 @@ class _Placer:
                 far = float(r)
         return far
 
-    def random(self, seed: int) -> Script:
+    def random(self, seed: int) -> HandPath:
         rng = np.random.default_rng(seed)
         core = self.core
         # A sum of three sinusoids per axis: smooth, endless, reproducible from the seed.
@@ -338,9 +341,9 @@ class _Placer:
                 np.clip(hover + blend * (wander - hover), self.wc - core, self.wc + core),
                 duration_s=0.02,
             )
-        return path.script("random", {"seed": seed})
+        return path.close("random", {"seed": seed})
 
-    def sweep(self) -> Script:
+    def sweep(self) -> HandPath:
         top = self.top_or_floor(float(self.center[0]), float(self.center[1]))
         hover = np.asarray(self.dev((self.center[0], self.center[1], top + self.hover)))
         reach = SWEEP_FRACTION * self.core
@@ -352,7 +355,7 @@ class _Placer:
             path.move(end, speed_mm_s=SWEEP_SPEED_MM_S)
             path.hold(0.2)
             path.move(hover, speed_mm_s=SWEEP_SPEED_MM_S)
-        return path.script("sweep", {"reach_mm": reach, "hover_mm": [float(v) for v in hover]})
+        return path.close("sweep", {"reach_mm": reach, "hover_mm": [float(v) for v in hover]})
 
 
 def _circle_top(grid: UniformGrid, i: int, j: int):

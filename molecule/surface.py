@@ -3,8 +3,8 @@
 The expanded spheres (vdW + probe radius) through the uniform grid: the solid intervals
 of a vertical column (molecule z), the top of the surface above a point, and the
 surface site a zoomed-in navigation cube starts on. Shared by the workspace mapping (its
-initial centre) and the simulated arm's scripts (their paths), so both put the session
-in the same place.
+initial centre, devices/workspace/start.py) and the simulated arm's hand paths, so both
+put the session in the same place.
 """
 
 from __future__ import annotations

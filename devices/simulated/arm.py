@@ -1,14 +1,15 @@
-"""The simulated arm, `--device sim[:SCRIPT]` (scripts: scan (default), dive, press, orbit, random, sweep).
+"""The simulated arm, `--device sim[:SCRIPT]` (scripts: scan (default), dive, press, orbit,
+random, sweep: the hand's paths, hand_paths.py).
 
 Model (no more than haptic rendering needs): the stylus tip is a point mass with the
 arm's viscous damping, moved by a model hand and by the rendered force:
 
     m a = k_h (target - x) + b_h (target' - v) - b_arm v + F_rendered
 
-The hand is a spring-damper pulling toward the scripted target (devices/scripts.py),
+The hand is a spring-damper pulling toward its path's target (hand_paths.py),
 whose force never exceeds `max_hand_force_n` (default: HAND_RATING_FRACTION of the
 device's continuous rating, 0.79 N for the Omni-class arm's 0.88 N): a person does not
-lean on the arm harder than its motors can hold, so wherever the script's target lies,
+lean on the arm harder than its motors can hold, so wherever the path's target lies,
 the rendered force that balances the hand stays under the rating (a target far inside
 the molecule makes the hand push just under it, not at the amplifier's peak).
 The rendered force is held constant over a control period (zero-order hold, as a real
@@ -63,10 +64,10 @@ from sasprobe.devices.base import (
     DeviceState,
     HapticDevice,
 )
-from sasprobe.devices.scripts import SCRIPTS, Script, make_script
-from sasprobe.devices.surface import Surface
-from sasprobe.devices.workspace import WorkspaceMapping
+from sasprobe.devices.simulated.hand_paths import SCRIPTS, HandPath, place_hand_path
+from sasprobe.devices.workspace.start import initial_mapping
 from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
+from sasprobe.molecule.surface import Surface
 
 FAULT_KINDS = ("raise", "nan", "disconnect")
 MAX_SUBSTEP_S = 1e-4
@@ -87,7 +88,7 @@ class ArmModel:
 class SimulatedDevice(HapticDevice):
     def __init__(
         self,
-        script: Script,
+        hand_path: HandPath,
         limits: DeviceLimits = PHANTOM_OMNI_LIMITS,
         rate_hz: float = 1000.0,
         arm: ArmModel = ArmModel(),
@@ -100,7 +101,7 @@ class SimulatedDevice(HapticDevice):
         rate_hz = float(rate_hz)
         if not math.isfinite(rate_hz) or rate_hz <= 0 or rate_hz > 100_000:
             raise ValueError(f"simulated control rate must be in (0, 100000] Hz, got {rate_hz:g}")
-        self.script = script
+        self.hand_path = hand_path
         self.limits = limits
         self.arm = arm
         self.rate_hz = rate_hz
@@ -110,7 +111,7 @@ class SimulatedDevice(HapticDevice):
         self.start_ns = None if start_ns is None else int(start_ns)  # None: set at the first read
         self.seed = seed
         self.ticks = 0
-        self._x = list(script.start)
+        self._x = list(hand_path.start)
         self._v = [0.0, 0.0, 0.0]
         self.last_force_n = np.zeros(3)
         self.forces_written = 0
@@ -135,10 +136,10 @@ class SimulatedDevice(HapticDevice):
     def info(self) -> DeviceInfo:
         return DeviceInfo(
             kind="sim",
-            model=f"simulated Omni-class arm ({self.script.name})",
+            model=f"simulated Omni-class arm ({self.hand_path.name})",
             limits=self.limits,
             details={
-                "script": self.script.name,
+                "script": self.hand_path.name,
                 "rate_hz": self.rate_hz,
                 "seed": self.seed,
                 "substeps": self.substeps,
@@ -234,7 +235,7 @@ class SimulatedDevice(HapticDevice):
 
     @property
     def target_mm(self) -> tuple[float, float, float]:
-        return self.script.target(self.time_s)
+        return self.hand_path.target(self.time_s)
 
     def _advance(self, f: list[float]) -> None:
         arm = self.arm
@@ -247,7 +248,7 @@ class SimulatedDevice(HapticDevice):
         x, v = self._x, self._v
         x0 = list(x)
         t0 = self.time_s
-        target = self.script.target
+        target = self.hand_path.target
         a = target(t0)
         for k in range(self.substeps):
             b = target(t0 + (k + 1) * h)
@@ -265,7 +266,8 @@ class SimulatedDevice(HapticDevice):
 
 
 def _parse_press(spec) -> tuple[int, int, int]:
-    """'BUTTON@TICK+COUNT' or (button, tick, count) -> (button, tick, count); ValueError otherwise."""
+    """'BUTTON@TICK+COUNT' or (button, tick, count) -> (button, tick, count); ValueError
+    otherwise."""
     try:
         if isinstance(spec, str):
             button, _, rest = spec.partition("@")
@@ -311,7 +313,7 @@ def make_simulated(argument: str | None, **options) -> SimulatedDevice:
     """Factory for `--device sim[:SCRIPT]`.
 
     Options: structure (default: embedded 1CRN), rate_hz (1000), seed (0), limits,
-    probe_radius_A, cube_half_A, cube_center_A (so the scripts are placed with the
+    probe_radius_A, cube_half_A, cube_center_A (so the hand's path is placed with the
     haptic engine's mapping), arm (ArmModel), start_ns, faults, failed_reconnects,
     button_presses. Unknown options are ignored.
     """
@@ -331,12 +333,14 @@ def make_simulated(argument: str | None, **options) -> SimulatedDevice:
     probe = float(options.get("probe_radius_A") or DEFAULT_PROBE_RADIUS)
     seed = int(options.get("seed") or 0)
     surface = Surface.of(structure, probe)
-    mapping = WorkspaceMapping.initial(
+    mapping = initial_mapping(
         structure, limits, options.get("cube_half_A"), probe, options.get("cube_center_A"), surface
     )
-    script = make_script(name, structure, mapping, probe_radius=probe, seed=seed, surface=surface)
+    hand_path = place_hand_path(
+        name, structure, mapping, probe_radius=probe, seed=seed, surface=surface
+    )
     return SimulatedDevice(
-        script,
+        hand_path,
         limits=limits,
         rate_hz=options.get("rate_hz") or 1000.0,
         arm=options.get("arm") or ArmModel(),
