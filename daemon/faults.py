@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import logging
 
+from sasprobe.daemon.realtime import REALTIME_FIX
 from sasprobe.devices.base import DeviceFault, HapticDevice
 
 log = logging.getLogger("sasprobe")
@@ -50,12 +51,6 @@ LOST_TICKS_WARN = (
 )
 LOST_WINDOW_NS = 1_000_000_000
 STALL_LOG_NS = 20_000_000  # a stall this long gets its own line (shorter ones count as lost ticks)
-
-REALTIME_FIX = (
-    "allow real-time scheduling: run as root, grant CAP_SYS_NICE (`sudo setcap cap_sys_nice+ep "
-    "$(readlink -f $(which python3))`), or give your user an rtprio limit "
-    "(`@USER - rtprio 60` in /etc/security/limits.conf, then log in again)"
-)
 
 
 class LoopLog:

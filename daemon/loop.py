@@ -1,268 +1,190 @@
-"""The fixed-rate loop: absolute deadlines on the monotonic clock, sleep then spin.
+"""The haptic loop: the timer's ticks, and what each tick does, in order.
 
-Tick k is due at t0 + k·period, so errors never accumulate (no drift). The loop sleeps
-until `spin` before the deadline (the OS wakes threads late by tens of µs), then spins
-on the clock for the rest. A tick that starts a full period or more after its deadline
-is an overrun: the deadlines it missed are skipped (counted, never made up in a burst)
-and the schedule stays on the same grid.
+One tick, on the daemon's main thread (the only one that touches the engine, the PUB
+socket and the device, but for the stall watchdog's zero):
+
+1. apply the changes the control thread handed over (daemon/changes.py);
+2. read the device: a fault, a read slower than LATE_READ_PERIODS or a driver's bug
+   costs this tick's force, never the loop;
+3. repeat a replay's recorded control changes, act on buttons and the window's keys;
+4. step the haptic pipeline: the engine, then the safety guard (daemon/haptics/);
+5. write the force under the lock the watchdog zeroes with, and beat its heartbeat;
+6. log faults and lost ticks; reconnect a device that keeps failing;
+7. publish the pose, hand the tick to the recorder, publish the scene when it is due.
+
+Nothing in it waits on the network, the disk or a renderer. The timer is
+daemon/timer.py; the state the ticks change (structure, settings, scene, recorder) is
+the daemon's (daemon/service.py).
 """
 
 from __future__ import annotations
 
-import logging
-import os
+import threading
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
+from sasprobe.daemon.faults import LoopLog, Reconnector
+from sasprobe.daemon.timer import FixedRateTimer, LoopStats, Tick
+from sasprobe.daemon.watchdog import Stall, StallWatchdog
+from sasprobe.devices.base import DeviceFault, DeviceState
+from sasprobe.protocol.pose import encode_pose
 
-log = logging.getLogger("sasprobe")
-
-DEFAULT_RATE_HZ = 1000.0  # the control rate haptics needs (1 kHz)
-REALTIME_PRIORITY = 50  # SCHED_FIFO priority of the loop (1-99), asked for unless --no-realtime
-HIST_BIN_NS = 1_000  # period-error histogram: 1 µs bins ...
-HIST_BINS = 100_000  # ... up to 100 ms (larger errors land in the last bin)
-RECENT_TICKS = 1024  # the window `sasprobe status` shows (about a second at 1 kHz)
+LATE_READ_PERIODS = 3.0  # a read slower than this many periods counts as failed
 
 
-@dataclass(frozen=True)
-class Tick:
-    seq: int  # tick number, +1 per executed tick
-    index: int  # deadline number k (t0 + k·period) this tick serves
-    deadline_ns: int  # the deadline it was originally due at
-    start_ns: int  # when it started (after sleeping and spinning)
-    late_ns: int  # start − deadline (≥ 0)
-    missed: int  # deadlines skipped because this tick started a period or more late
-    period_ns: int
+class HapticLoop:
+    """The loop of one Daemon: it runs the ticks; the daemon holds the state they change."""
+
+    def __init__(self, daemon, rate_hz: float | None, realtime: bool) -> None:
+        config = daemon.config
+        self.daemon = daemon
+        self.device = daemon.device
+        self.timer = FixedRateTimer(rate_hz, spin_s=config.spin_s)
+        self.write_lock = threading.Lock()  # the loop's force writes and the watchdog's zeros
+        self.watchdog = StallWatchdog(
+            self.device, self.write_lock, self.timer.period_ns, supervise=daemon.supervise
+        )
+        self.timing = LoopLog(realtime)
+        self.reconnector = Reconnector(self.device)
+        self.stop_reason: str | None = None
+        self.last_force_written = np.zeros(3)
+        self.write_failures = 0
+        self._carry_error: str | None = None  # a failed force write, reported on the next tick
+        # A free-running loop (replay at --speed max) has no period to be late against.
+        period_ns = self.timer.period_ns
+        self._late_read_ns = int(LATE_READ_PERIODS * period_ns) if period_ns else None
+        self._cpu_clock: int | None = None
+        self._cpu_at_reset = 0
+        # Test hooks: the tick -> seconds the loop sleeps there, and the ticks whose read is slow.
+        self._stall_at = dict(config.loop_stalls)
+        self._slow_at = {s for tick, n in config.slow_reads for s in range(tick, tick + n)}
 
     @property
-    def late_periods(self) -> float:
-        return self.late_ns / self.period_ns if self.period_ns else 0.0
+    def stats(self) -> LoopStats:
+        return self.timer.stats
 
+    def request_stop(self, reason: str) -> None:
+        """End the loop after the current tick."""
+        self.stop_reason = reason
 
-class LoopStats:
-    """Counters and a period-error histogram, cheap enough to update every tick."""
+    def run(self) -> None:
+        """Tick until a stop is asked for: a signal, `shutdown`, the end of a replay or
+        --seconds."""
+        max_seconds = self.daemon.config.max_seconds
+        stop_at_ns = time.monotonic_ns() + int(max_seconds * 1e9) if max_seconds else None
+        self._cpu_clock = time.pthread_getcpuclockid(threading.get_ident())  # readable elsewhere
+        self._cpu_at_reset = self.cpu_ns()
+        self.watchdog.start()
+        self.timer.start()
+        try:
+            while self.stop_reason is None:
+                try:
+                    now = self.tick(self.timer.wait())
+                except EOFError:  # a replay reached its end
+                    self.request_stop("end of replay")
+                    break
+                if stop_at_ns is not None and now >= stop_at_ns:
+                    self.request_stop("time limit")
+        finally:
+            self.watchdog.stop()
 
-    def __init__(self, period_ns: int, clock: Callable[[], int]) -> None:
-        self.period_ns = period_ns
-        self._clock = clock
-        self.recent = np.zeros(RECENT_TICKS, dtype=np.int64)  # start times, ring buffer
-        self.recent_work = np.zeros(RECENT_TICKS, dtype=np.int64)  # time each tick's work took
-        self.total_ticks = 0
-        self.total_overruns = 0
-        self.total_missed = 0
-        self.reset()
-
-    def reset(self) -> None:
-        """Start a new measurement window (the totals keep counting)."""
-        self.hist = np.zeros(HIST_BINS, dtype=np.int64)
-        self.ticks = 0
-        self.overruns = 0
-        self.missed = 0
-        self.max_error_ns = 0
-        self.max_work_ns = 0
-        self.window_start_ns = self._clock()
-        self._prev_start: int | None = None
-
-    def record(self, tick: Tick) -> None:
-        if self._prev_start is not None and self.period_ns:
-            error = abs(tick.start_ns - self._prev_start - self.period_ns)
-            self.hist[min(error // HIST_BIN_NS, HIST_BINS - 1)] += 1
-            if error > self.max_error_ns:
-                self.max_error_ns = error
-        self._prev_start = tick.start_ns
-        self.recent[self.total_ticks % RECENT_TICKS] = tick.start_ns
-        self.ticks += 1
-        self.total_ticks += 1
-        if tick.missed:
-            self.overruns += 1
-            self.missed += tick.missed
-            self.total_overruns += 1
-            self.total_missed += tick.missed
-
-    def record_work(self, work_ns: int) -> None:
-        """How long the tick that was recorded last took from its start to its end."""
-        self.recent_work[(self.total_ticks - 1) % RECENT_TICKS] = work_ns
-        if work_ns > self.max_work_ns:
-            self.max_work_ns = work_ns
-
-    def summary(self) -> dict:
-        """Rate and period error over the window since the last reset, and the recent second."""
-        elapsed = max(self._clock() - self.window_start_ns, 1)
-        counts = self.hist
-        n = int(counts.sum())
-        cumulative = np.cumsum(counts)
-
-        def percentile(q: float) -> float | None:
-            if n == 0:
-                return None
-            return float(np.searchsorted(cumulative, q * n) * HIST_BIN_NS / 1e3)  # bin floor, µs
-
-        k = min(self.total_ticks, RECENT_TICKS)
-        recent_rate = None
-        recent_p99 = None
-        work = self.recent_work[:k] / 1e3
-        if k >= 3:
-            order = (np.arange(self.total_ticks - k, self.total_ticks)) % RECENT_TICKS
-            starts = self.recent[order]
-            span = starts[-1] - starts[0]
-            recent_rate = (k - 1) / (span / 1e9) if span > 0 else None
-            if self.period_ns:
-                recent_p99 = float(
-                    np.percentile(np.abs(np.diff(starts) - self.period_ns), 99) / 1e3
-                )
-        return {
-            "window_s": elapsed / 1e9,
-            "ticks": self.ticks,
-            "rate_hz": self.ticks / (elapsed / 1e9),
-            "period_error_us": {
-                "p50": percentile(0.5),
-                "p99": percentile(0.99),
-                "max": self.max_error_ns / 1e3 if n else None,
-                "bin_us": HIST_BIN_NS / 1e3,
-            },
-            "overruns": self.overruns,
-            "missed_deadlines": self.missed,
-            "work_us": {
-                "recent_p50": float(np.percentile(work, 50)) if k else None,
-                "recent_p99": float(np.percentile(work, 99)) if k else None,
-                "max": self.max_work_ns / 1e3,
-            },
-            "recent": {"rate_hz": recent_rate, "period_error_p99_us": recent_p99, "ticks": k},
-            "total": {
-                "ticks": self.total_ticks,
-                "overruns": self.total_overruns,
-                "missed_deadlines": self.total_missed,
-            },
-        }
-
-
-class FixedRateLoop:
-    """Paces a loop at rate_hz (None: as fast as possible, e.g. a replay at --speed max)."""
-
-    def __init__(
-        self,
-        rate_hz: float | None,
-        spin_s: float = 200e-6,
-        clock: Callable[[], int] = time.monotonic_ns,
-        sleep: Callable[[float], None] = time.sleep,
-    ) -> None:
-        if rate_hz is not None and not rate_hz > 0:
-            raise ValueError(f"loop rate must be positive, got {rate_hz}")
-        self.rate_hz = rate_hz
-        self.period_ns = round(1e9 / rate_hz) if rate_hz else 0
-        self.spin_ns = int(spin_s * 1e9)
-        self._clock = clock
-        self._sleep = sleep
-        self._t0: int | None = None
-        self._index = 0
-        self._seq = 0
-        self.stats = LoopStats(self.period_ns, clock)
-
-    def start(self) -> None:
-        """Anchor the schedule: tick 0 is due now."""
-        self._t0 = self._clock()
-        self._index = 0
-        self.stats.reset()
-
-    def deadline(self, index: int) -> int:
-        assert self._t0 is not None, "start() the loop first"
-        # Integer arithmetic from the anchor: no rounding error accumulates.
-        return (
-            self._t0 + (index * 1_000_000_000 * 1000) // round(self.rate_hz * 1000)
-            if self.rate_hz
-            else self._t0
+    def tick(self, tick: Tick) -> int:
+        """One tick (EOFError: a replay has no more); returns when it published (ns)."""
+        daemon, clock = self.daemon, time.monotonic_ns
+        if daemon.changes:
+            daemon.changes.apply(tick.seq)
+        state, error, read_ns = self._read(tick.seq)
+        self._take_inputs(tick, state)
+        if self._stall_at and tick.seq in self._stall_at:
+            time.sleep(self._stall_at.pop(tick.seq))
+        # A tick the watchdog found overdue counts as late by as long: the guard zeroes it.
+        late_periods = max(
+            tick.late_periods,
+            self.device.recorded_late_periods(),
+            self.watchdog.overdue_periods(clock()),
         )
-
-    def wait(self) -> Tick:
-        """Block until the next deadline and return the tick due there."""
-        if self._t0 is None:
-            self.start()
-        clock = self._clock
-        deadline = self.deadline(self._index)
+        pipeline = daemon.pipeline
+        was_faulted = pipeline.guard.faulted
+        result = pipeline.step(state, error, late_periods)
+        stall = self._write(result.force_n)
+        self.timing.tick(
+            tick.start_ns,
+            tick.missed,
+            error is None and late_periods > pipeline.guard.late_limit_periods,
+            result.guard.fault != was_faulted,
+            result.guard,
+            stall,
+        )
+        self._keep_device(tick, state, error)
         now = clock()
-        if self.period_ns and now < deadline:
-            remaining = deadline - now
-            if remaining > self.spin_ns:
-                self._sleep((remaining - self.spin_ns) / 1e9)
-            while clock() < deadline:
-                pass
-            now = clock()
-        late = max(now - deadline, 0) if self.period_ns else 0
-        missed = late // self.period_ns if self.period_ns else 0
-        tick = Tick(
-            seq=self._seq,
-            index=self._index + missed,
-            deadline_ns=deadline,
-            start_ns=now,
-            late_ns=late,
-            missed=missed,
-            period_ns=self.period_ns,
-        )
-        self._index += missed + 1
-        self._seq += 1
-        self.stats.record(tick)
-        return tick
+        pose = pipeline.pose(tick.seq, state, result, now)
+        daemon.publisher.publish_pose(encode_pose(pose))
+        if daemon.recorder is not None:
+            daemon.recorder.offer_tick(now, tick.seq, state, error, late_periods, read_ns, pose)
+        daemon.publish_scene_when_due(now)
+        self.timer.stats.record_work(clock() - tick.start_ns)
+        return now
 
+    def _read(self, seq: int) -> tuple[DeviceState | None, str | None, int]:
+        """(the device's state or None, why there is none, how long the read took in ns)."""
+        state = None
+        error, self._carry_error = self._carry_error, None
+        t_read = time.monotonic_ns()
+        try:
+            state = self.device.read()
+        except DeviceFault as exc:
+            error = error or (str(exc) or type(exc).__name__)
+        except EOFError:
+            raise
+        except Exception as exc:  # a driver bug costs force, never the loop
+            error = error or f"device error: {type(exc).__name__}: {exc}"
+        if seq in self._slow_at:  # test hook: a read a period slower than a failed one
+            time.sleep((LATE_READ_PERIODS + 1) * self.timer.period_ns / 1e9)
+        read_ns = time.monotonic_ns() - t_read
+        if error is None and self._late_read_ns is not None and read_ns > self._late_read_ns:
+            error = f"device read took {read_ns / 1e6:.1f} ms"
+        return state, error, read_ns
 
-def enter_realtime(priority: int = REALTIME_PRIORITY) -> bool:
-    """SCHED_FIFO for the calling thread (and the threads it starts); False, with one line
-    saying what that costs and how to allow it, when not permitted.
+    def _take_inputs(self, tick: Tick, state: DeviceState | None) -> None:
+        """A replay's recorded control changes, then the buttons' and keys' actions."""
+        daemon = self.daemon
+        for event in self.device.take_recorded_events():
+            daemon.replay_control(event, tick.seq)
+        buttons = state.buttons if state is not None else None
+        for action, args in daemon.inputs.tick(buttons, tick.start_ns):
+            daemon.workspace_action(action, args, tick.seq)
 
-    Without root or CAP_SYS_NICE an rtprio resource limit still allows SCHED_FIFO up to
-    its value, so the priority asked for is capped there (the soft limit raised to the
-    hard one first)."""
-    import resource
+    def _write(self, force_n: np.ndarray) -> Stall | None:
+        """Write the force and beat the watchdog's heartbeat, under the lock the watchdog
+        writes zero with; returns the stall the heartbeat ended, if any."""
+        with self.write_lock:
+            try:
+                self.device.write_force(force_n)
+                self.last_force_written = force_n
+            except Exception as exc:
+                self.write_failures += 1
+                self._carry_error = f"force write failed: {exc}"
+            # under the lock: the watchdog never zeroes this write
+            return self.watchdog.heartbeat(time.monotonic_ns())
 
-    from sasprobe.daemon.faults import REALTIME_FIX
+    def _keep_device(self, tick: Tick, state: DeviceState | None, error: str | None) -> None:
+        """A device that gave nothing for long gets reconnect(); once it is back the hand may
+        be anywhere: the proxy is unseated and forces ramp in again."""
+        if error is None or state is not None:
+            self.reconnector.answered()
+        elif self.reconnector.failed(tick.start_ns):
+            self.daemon.pipeline.reconnected()
+            self.daemon.record_control(tick.seq, "reconnect", {})
 
-    try:
-        if os.geteuid() != 0:
-            soft, hard = resource.getrlimit(resource.RLIMIT_RTPRIO)
-            if soft < hard:
-                resource.setrlimit(resource.RLIMIT_RTPRIO, (hard, hard))
-                soft = hard
-            if 0 < soft < priority:
-                priority = int(soft)
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-        return True
-    except (OSError, AttributeError, ValueError) as exc:
-        reason = getattr(exc, "strerror", None) or str(exc)
-        log.warning(
-            "real-time scheduling refused (%s): the haptic loop competes with every other process and "
-            "loses ticks (zero force) whenever the CPU is busy; to allow it, %s; --no-realtime says you "
-            "know",
-            reason,
-            REALTIME_FIX,
-        )
-        return False
+    # ------------------------------------------------------------------ statistics
+    def reset_stats(self) -> None:
+        self.timer.stats.reset()
+        self._cpu_at_reset = self.cpu_ns()
 
+    def cpu_ns(self) -> int:
+        """The loop thread's CPU time."""
+        clock_id = self._cpu_clock
+        return time.clock_gettime_ns(clock_id) if clock_id is not None else time.thread_time_ns()
 
-def current_scheduling() -> tuple[int, int]:
-    """(policy, priority) of the calling thread, for `restore_scheduling`."""
-    return os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
-
-
-def restore_scheduling(saved: tuple[int, int]) -> None:
-    """Give the calling thread back the scheduling it had before `enter_realtime`: a daemon
-    run inside another program (a test, a notebook) must not leave it, and every process it
-    starts afterwards, at the loop's real-time priority."""
-    try:
-        os.sched_setscheduler(0, saved[0], os.sched_param(saved[1]))
-    except OSError as exc:
-        log.warning("could not restore the thread's scheduling after the loop: %s", exc)
-
-
-def helper_priority() -> None:
-    """Helper threads (control, recorder) drop to the lowest real-time priority.
-
-    Not to normal scheduling: a helper preempted by another process while it holds the
-    GIL would stall the loop until it runs again. Lowest FIFO priority keeps it ahead of
-    ordinary processes but behind the loop.
-    """
-    try:
-        if os.sched_getscheduler(0) == os.SCHED_FIFO:
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(1))
-    except (OSError, AttributeError):
-        pass
+    def cpu_since_reset_ns(self) -> int:
+        return self.cpu_ns() - self._cpu_at_reset

@@ -71,15 +71,15 @@ class RequestHandlers:
     def status(self, request):
         d = self.daemon
         if request.args.get("reset_stats"):
-            d.changes.submit(lambda seq: d.reset_stats())
+            d.changes.submit(lambda seq: d.loop.reset_stats())
         summary = d.loop.stats.summary()
-        cpu_s = d.loop_cpu_since_reset_ns() / 1e9
+        cpu_s = d.loop.cpu_since_reset_ns() / 1e9
         summary["cpu_percent"] = (
             100.0 * cpu_s / summary["window_s"] if summary["window_s"] > 0 else None
         )
         summary["target_rate_hz"] = d.rate_hz
-        summary["stalls"] = d.watchdog.as_dict()
-        summary["lost_ticks"] = d.timing.lost
+        summary["stalls"] = d.loop.watchdog.as_dict()
+        summary["lost_ticks"] = d.loop.timing.lost
         summary["realtime"] = d.realtime
         guard = d.pipeline.guard
         rec = d.recorder
@@ -95,7 +95,7 @@ class RequestHandlers:
                 "fault_ticks": guard.fault_ticks,
                 "last_fault": guard.last_reason,
                 "clamped_ticks": guard.clamped_ticks,
-                "write_failures": d.write_failures,
+                "write_failures": d.loop.write_failures,
             },
             "structure": {
                 "name": d.structure.name,

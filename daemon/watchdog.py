@@ -24,11 +24,12 @@ The same thread supervises the control server (restarted if its thread ever ends
 from __future__ import annotations
 
 import logging
-import os
 import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+
+from sasprobe.daemon.realtime import above_loop_priority
 
 log = logging.getLogger("sasprobe")
 
@@ -37,7 +38,6 @@ STALL_PERIODS = (
 )
 REZERO_PERIODS = 3  # while stalled, zero is written again this often (a Falcon takes a frame once its oldest is 5 ms old)
 SUPERVISE_S = 0.5  # how often the control thread is checked
-WATCHDOG_PRIORITY_ABOVE_LOOP = 1
 
 
 @dataclass
@@ -123,7 +123,7 @@ class StallWatchdog:
             self._thread.join()
 
     def _run(self) -> None:
-        _above_loop_priority()
+        above_loop_priority()
         check_s = self.period_ns / 1e9 if self.period_ns else 0.01
         next_supervise = 0.0
         while not self._stop.wait(check_s):
@@ -187,17 +187,3 @@ class StallWatchdog:
             else None,
             "unwritten": self.unwritten,
         }
-
-
-def _above_loop_priority() -> None:
-    """One real-time priority step above the loop's, when the loop runs under SCHED_FIFO."""
-    try:
-        if os.sched_getscheduler(0) == os.SCHED_FIFO:
-            priority = os.sched_getparam(0).sched_priority + WATCHDOG_PRIORITY_ABOVE_LOOP
-            os.sched_setscheduler(
-                0,
-                os.SCHED_FIFO,
-                os.sched_param(min(priority, os.sched_get_priority_max(os.SCHED_FIFO))),
-            )
-    except (OSError, AttributeError):
-        pass

@@ -14,8 +14,8 @@ import time
 import pytest
 import zmq
 from sasprobe.daemon.faults import LoopLog
-from sasprobe.daemon.loop import enter_realtime
 from sasprobe.daemon.publisher import MAX_FOREIGN_SUBSCRIPTIONS, Publisher
+from sasprobe.daemon.realtime import enter_realtime
 from sasprobe.protocol.client import ControlClient, Subscriber
 from sasprobe.protocol.pose import Pose, encode_pose
 from sasprobe.protocol.security import KeyFileError, ensure_local_keys, generate_keys

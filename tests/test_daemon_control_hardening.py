@@ -150,13 +150,12 @@ def live(tmp_path_factory):
     logging.getLogger("sasprobe").setLevel(
         logging.ERROR
     )  # one warning per refused request otherwise
-    loop = threading.Thread(target=daemon._loop, name="loop", daemon=True)
+    loop = threading.Thread(target=daemon.loop.run, name="loop", daemon=True)
     loop.start()
     yield daemon
     sys.setswitchinterval(switch)
     daemon.request_stop("test over")
     loop.join(10)
-    daemon.watchdog.stop()
     daemon._shutdown()
 
 
@@ -271,7 +270,7 @@ def test_fuzzed_requests_get_named_errors_from_the_real_handlers(live, rng):
 
 
 def test_the_loop_and_the_server_outlive_the_fuzz(live):
-    assert live._stop_reason is None and live.control.errors > 5000 and live.fuzz_ok > 20
+    assert live.loop.stop_reason is None and live.control.errors > 5000 and live.fuzz_ok > 20
     ticks = live.loop.stats.total_ticks
     time.sleep(0.05)
     assert live.loop.stats.total_ticks > ticks, "the loop stopped"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 
 import pytest
-from sasprobe.daemon.loop import FixedRateLoop
+from sasprobe.daemon.timer import FixedRateTimer
 
 
 class FakeClock:
@@ -29,7 +29,7 @@ class FakeClock:
 def test_absolute_deadlines_do_not_drift():
     fake = FakeClock()
     fake.oversleep_ns = 80_000  # the OS wakes us 80 µs late, every time
-    loop = FixedRateLoop(1000.0, spin_s=150e-6, clock=fake.clock, sleep=fake.sleep)
+    loop = FixedRateTimer(1000.0, spin_s=150e-6, clock=fake.clock, sleep=fake.sleep)
     loop.start()
     t0 = loop.deadline(0)
     ticks = [loop.wait() for _ in range(5000)]
@@ -42,7 +42,7 @@ def test_absolute_deadlines_do_not_drift():
 
 def test_overruns_skip_missed_deadlines_and_stay_on_the_grid():
     fake = FakeClock()
-    loop = FixedRateLoop(500.0, clock=fake.clock, sleep=fake.sleep)  # 2 ms period
+    loop = FixedRateTimer(500.0, clock=fake.clock, sleep=fake.sleep)  # 2 ms period
     loop.start()
     t0 = loop.deadline(0)
     loop.wait()
@@ -62,7 +62,7 @@ def test_overruns_skip_missed_deadlines_and_stay_on_the_grid():
 
 def test_fractional_rates_use_exact_integer_deadlines():
     fake = FakeClock()
-    loop = FixedRateLoop(333.0, clock=fake.clock, sleep=fake.sleep)
+    loop = FixedRateTimer(333.0, clock=fake.clock, sleep=fake.sleep)
     loop.start()
     t0 = loop.deadline(0)
     assert loop.deadline(333_000) - t0 == 1_000_000_000_000  # 1000 s later, to the ns
@@ -70,7 +70,7 @@ def test_fractional_rates_use_exact_integer_deadlines():
 
 def test_free_running_loop_never_sleeps():
     fake = FakeClock()
-    loop = FixedRateLoop(None, clock=fake.clock, sleep=fake.sleep)
+    loop = FixedRateTimer(None, clock=fake.clock, sleep=fake.sleep)
     ticks = [loop.wait() for _ in range(100)]
     assert not fake.sleeps and [t.seq for t in ticks] == list(range(100))
     assert all(t.late_ns == 0 and t.missed == 0 for t in ticks)
@@ -79,7 +79,7 @@ def test_free_running_loop_never_sleeps():
 def test_real_clock_keeps_the_average_rate():
     # Behaviour, not speed: over 0.3 s the schedule is absolute, so the tick count
     # matches elapsed time even if individual ticks are late on a busy machine.
-    loop = FixedRateLoop(1000.0)
+    loop = FixedRateTimer(1000.0)
     loop.start()
     t_start = time.monotonic_ns()
     last = None

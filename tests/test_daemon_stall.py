@@ -91,7 +91,7 @@ def test_a_stalled_loop_has_its_force_zeroed_within_the_bound(tmp_path, monkeypa
     assert (
         resumed[0] - last_tick[0] >= STALL_S * 1e9 and resumed[1] == 0.0
     )  # the tick after it is faulted too
-    stalls = daemon.watchdog.as_dict()
+    stalls = daemon.loop.watchdog.as_dict()
     assert stalls["stalls"] >= 1 and stalls["longest_ms"] >= STALL_S * 1e3 * 0.95
     print(
         f"\nforce zeroed {zeroed_after_ms:.2f} ms after the last tick (bound {bound_ms:g} ms); "

@@ -26,7 +26,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from sasprobe.daemon.loop import helper_priority
+from sasprobe.daemon.realtime import helper_priority
 from sasprobe.devices.base import DeviceState
 from sasprobe.protocol.pose import Pose
 from sasprobe.protocol.recording import PROFILE, SCHEMAS, json_floats, pose_record

@@ -90,7 +90,7 @@ class _Daemon:
 def _measure(d: _Daemon, warmup_s: float, seconds: float, realtime_subscriber: bool) -> dict:
     import zmq
 
-    from sasprobe.daemon.loop import enter_realtime
+    from sasprobe.daemon.realtime import enter_realtime
     from sasprobe.protocol.client import ControlClient
     from sasprobe.protocol.pose import decode_pose
     from sasprobe.protocol.security import local_client_keys, make_curve_client
