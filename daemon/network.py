@@ -11,7 +11,7 @@ import os
 
 import zmq
 from sasprobe.daemon.config import DaemonConfig, socket_keys
-from sasprobe.daemon.control import ControlServer
+from sasprobe.daemon.control_server import ControlServer
 from sasprobe.daemon.monitor import raise_fd_limit
 from sasprobe.daemon.publisher import Publisher
 from sasprobe.protocol.security import start_authenticator

@@ -14,7 +14,7 @@ import time
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from sasprobe.daemon.control import ControlServer, split_envelope
+from sasprobe.daemon.control_server import ControlServer, split_envelope
 from sasprobe.daemon.service import Daemon, DaemonConfig
 from sasprobe.protocol.client import ControlClient
 from sasprobe.protocol.control import (

@@ -8,7 +8,7 @@ import pytest
 import zmq
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from sasprobe.daemon.control import ControlServer
+from sasprobe.daemon.control_server import ControlServer
 from sasprobe.protocol.control import (
     COMMANDS,
     MAX_REQUEST_JSON_BYTES,
