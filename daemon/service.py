@@ -41,7 +41,7 @@ from sasprobe.daemon.recording.replay import REPLAYED_COMMANDS, apply_recorded_e
 from sasprobe.daemon.recording.writer import Recorder
 from sasprobe.daemon.requests import RequestHandlers
 from sasprobe.daemon.scene_message import rotation_rows, scene_message
-from sasprobe.daemon.session import open_session
+from sasprobe.daemon.session_setup import prepare_session
 from sasprobe.daemon.structure_worker import StructureWorker
 from sasprobe.devices.workspace.mapping import IDENTITY
 from sasprobe.protocol.scene import DEFAULT_LIGHTS, encode_scene
@@ -59,11 +59,11 @@ SWITCH_INTERVAL_S = 1e-4  # how long another Python thread may hold the GIL befo
 class Daemon:
     def __init__(self, config: DaemonConfig) -> None:
         self.config = check_config(config)
-        start = open_session(config)
-        self.structure = start.structure
-        self.structure_keep_water = start.keep_water
-        self.device = start.device
-        self.rate_hz = start.rate_hz
+        setup = prepare_session(config)
+        self.structure = setup.structure
+        self.structure_keep_water = setup.keep_water
+        self.device = setup.device
+        self.rate_hz = setup.rate_hz
         self.clip_planes: list[list[float]] = []
         self.lights = json.loads(json.dumps(DEFAULT_LIGHTS))
         self.nav_cube_enabled = True
@@ -89,7 +89,7 @@ class Daemon:
             self.loop = HapticLoop(self, self.rate_hz, self.realtime)
             self.device.open()
             # the opened arm's workspace and limits
-            self.limits, self.settings, self.pipeline = start.pipeline()
+            self.limits, self.settings, self.pipeline = setup.build_pipeline()
             self._open_network()
             self.rebuild_scene()
             if config.record:

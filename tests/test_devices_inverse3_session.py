@@ -14,7 +14,7 @@ import time
 import numpy as np
 import pytest
 from sasprobe.daemon.config import DaemonConfig
-from sasprobe.daemon.session import open_session
+from sasprobe.daemon.session_setup import prepare_session
 from sasprobe.protocol.client import Subscriber
 from sasprobe.protocol.pose import FLAG_FAULT
 
@@ -28,16 +28,16 @@ from tests.support.serial_arm_session import cosine
 def test_without_a_rate_the_daemon_runs_the_arm_at_the_rate_it_declares():
     """The service's round trip is the link's cost: the arm declares a rate below the daemon's
     1 kHz, and the reply deadline (2.5 periods) follows the rate the loop runs at."""
-    start = open_session(
+    start = prepare_session(
         DaemonConfig(device="inverse3:ws://127.0.0.1:9")
     )  # creates, never connects
     declared = start.device.info.limits.nominal_rate_hz
     assert start.rate_hz == declared < 1000.0
     assert start.device.reply_timeout_s == pytest.approx(2.5 / declared)
     assert start.device.read_wait_s == pytest.approx(0.25 / declared)
-    given = open_session(DaemonConfig(device="inverse3:ws://127.0.0.1:9", rate_hz=100.0))
+    given = prepare_session(DaemonConfig(device="inverse3:ws://127.0.0.1:9", rate_hz=100.0))
     assert given.rate_hz == 100.0 and given.device.reply_timeout_s == pytest.approx(0.025)
-    assert open_session(DaemonConfig(device="sim")).rate_hz == 1000.0
+    assert prepare_session(DaemonConfig(device="sim")).rate_hz == 1000.0
 
 
 def test_devices_lists_the_services_arm_and_checks_it(inverse_service):

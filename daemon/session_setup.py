@@ -1,11 +1,10 @@
-"""What a daemon starts from: its structure, its (unopened) device and its settings, from the
-command line's DaemonConfig (a replayed device brings the recording's structure, settings and
-rate); once the device is open, its limits, the settings checked against them and the tick
-pipeline. Some arms tell their workspace and limits only when opened (an OpenHaptics arm
-answers HD_USABLE_WORKSPACE_DIMENSIONS after hdInitDevice; a WoodenHaptics board names its
-model in its first reply), so nothing is built from an unopened device's, but for the loop
-rate: unless the command line gives one, the rate the device declares before it opens
-(`DeviceLimits.nominal_rate_hz`: 1000 Hz for every arm but those an Inverse Service serves)."""
+"""What a daemon's session is set up from: the structure, the (unopened) device, the loop
+rate and the settings, from the command line's DaemonConfig or, for a replay, from the
+recording. The limits, the settings checked against them and the pipeline wait until the
+device is open, since some arms tell their workspace and limits only then (an OpenHaptics
+arm after hdInitDevice, a WoodenHaptics board in its first reply); the loop rate cannot
+wait: it is the command line's, or the rate the device declares before it opens
+(`DeviceLimits.nominal_rate_hz`)."""
 
 from __future__ import annotations
 
@@ -18,14 +17,14 @@ from sasprobe.molecule import Structure
 
 
 @dataclass
-class SessionStart:
+class SessionSetup:
     structure: Structure
     keep_water: bool
     device: HapticDevice
     rate_hz: float | None  # None: free-running (a replay at --speed max)
-    settings: dict  # as given: checked against the opened device's limits by `pipeline()`
+    settings: dict  # as given: checked against the opened device's limits by build_pipeline()
 
-    def pipeline(self) -> tuple[DeviceLimits, dict, HapticPipeline]:
+    def build_pipeline(self) -> tuple[DeviceLimits, dict, HapticPipeline]:
         """The opened device's limits, the settings checked against them (validate_settings'
         form) and the tick pipeline built for them; call it once the device is open."""
         limits = self.device.info.limits
@@ -37,7 +36,7 @@ class SessionStart:
         )
 
 
-def open_session(config: DaemonConfig) -> SessionStart:
+def prepare_session(config: DaemonConfig) -> SessionSetup:
     from sasprobe.devices.registry import open_device
     from sasprobe.molecule import load_structure_or_default, parse_structure
 
@@ -68,4 +67,4 @@ def open_session(config: DaemonConfig) -> SessionStart:
             keep_water = session.keep_water
         settings = {**session.settings, **settings}
         rate_hz = None if config.speed is None else session.rate_hz * config.speed
-    return SessionStart(structure, keep_water, device, rate_hz, settings)
+    return SessionSetup(structure, keep_water, device, rate_hz, settings)
