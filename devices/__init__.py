@@ -1,23 +1,4 @@
-"""Devices: the interface, drivers of real arms, the simulated and the replay device."""
-
-from sasprobe.devices.base import (
-    PHANTOM_OMNI_LIMITS,
-    DeviceFault,
-    DeviceInfo,
-    DeviceLimits,
-    DeviceOpenError,
-    DeviceState,
-    HapticDevice,
-)
-from sasprobe.devices.registry import open_device
-
-__all__ = [
-    "PHANTOM_OMNI_LIMITS",
-    "DeviceFault",
-    "DeviceInfo",
-    "DeviceLimits",
-    "DeviceOpenError",
-    "DeviceState",
-    "HapticDevice",
-    "open_device",
-]
+"""Devices: the interface (base.py), the `--device` registry (registry.py), the drivers of
+real arms (one package each, with what they share beside them), the simulated arm
+(simulated/) and where an arm's workspace lies in the molecule (workspace/). The replay
+device is the daemon's (daemon/recording/)."""

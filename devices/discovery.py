@@ -195,29 +195,12 @@ def dhd_arms(library: str | None = None) -> tuple[list[Found], list[str]]:
     for arm in arms:
         device = "forcedimension" if arm["index"] == 0 else f"forcedimension:{arm['index']}"
         if "error" in arm:
-            found.append(
-                Found(
-                    "dhd",
-                    f"index {arm['index']}",
-                    None,
-                    None,
-                    "Force Dimension arm",
-                    device,
-                    f"did not open now ({arm['error']}): in use by another program?",
-                )
-            )
+            description = "Force Dimension arm"
+            note = f"did not open now ({arm['error']}): in use by another program?"
         else:
             serial = f" serial {arm['serial']}" if arm["serial"] else ""
-            found.append(
-                Found(
-                    "dhd",
-                    f"index {arm['index']}",
-                    None,
-                    None,
-                    f"Force Dimension {arm['model']}{serial}",
-                    device,
-                )
-            )
+            description, note = f"Force Dimension {arm['model']}{serial}", ""
+        found.append(Found("dhd", f"index {arm['index']}", None, None, description, device, note))
     return found, []
 
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from sasprobe.devices.base import DeviceFault, DeviceOpenError, HapticDevice
+from sasprobe.devices.base import DeviceFault, DeviceLimits, DeviceOpenError, HapticDevice
 
 ZERO_FORCE = np.zeros(3)
 
@@ -29,6 +29,22 @@ def clamp_force(force_n, max_force_n: float) -> np.ndarray:
     if norm > max_force_n:
         f = unit * (max_force_n / float(np.linalg.norm(unit)))
     return f
+
+
+def sphere_limits(
+    radius_m: float, force_n: float, stiffness_n_per_m: float, damping_n_s_per_m: float
+) -> DeviceLimits:
+    """The limits of an arm whose maker publishes a workspace sphere and one force limit: the
+    box inside the sphere (its corners on it), and that force as both peak and continuous."""
+    half = radius_m * 1000.0 / math.sqrt(3.0)
+    return DeviceLimits(
+        max_force_n=force_n,
+        continuous_force_n=force_n,
+        max_stiffness_n_per_mm=stiffness_n_per_m / 1000.0,
+        max_damping_n_s_per_m=damping_n_s_per_m,
+        workspace_min_mm=(-half, -half, -half),
+        workspace_max_mm=(half, half, half),
+    )
 
 
 class VelocityFilter:

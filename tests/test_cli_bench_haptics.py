@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 
-from sasprobe.devices import PHANTOM_OMNI_LIMITS
+from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
 from sasprobe.molecule import load_default
 
 from sasprobe.cli.bench.haptics import _stability_cell

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from sasprobe.daemon.haptics import HapticEngine, HapticOutput, HapticSettings
 from sasprobe.daemon.haptics.force_law import contact_force
-from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceState, open_device
+from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceState
+from sasprobe.devices.registry import open_device
 from sasprobe.devices.workspace.start import initial_mapping
 from sasprobe.molecule import load_default
 

@@ -179,7 +179,8 @@ def test_proxy_never_enters_the_sas_in_long_random_sessions(entry, reference_by_
 
 def test_proxy_never_enters_the_sas_in_scripted_sessions():
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
-    from sasprobe.devices import PHANTOM_OMNI_LIMITS, open_device
+    from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
+    from sasprobe.devices.registry import open_device
 
     centers, radii = CRAMBIN.positions, CRAMBIN.expanded_radii(1.4)
     for script in ("scan", "dive", "press", "orbit", "random"):
@@ -209,7 +210,7 @@ def sheet(spacing: float = 2.0, n: int = 9) -> np.ndarray:
 @pytest.mark.parametrize("method", ["proxy", "penalty"])
 def test_pushing_through_a_thin_sheet_pops_through_only_with_the_penalty_method(method):
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
-    from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceState
+    from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceState
 
     from tests.references.haptics import synthetic_structure
 
@@ -241,7 +242,8 @@ def test_pushing_through_a_thin_sheet_pops_through_only_with_the_penalty_method(
 
 def test_press_script_on_crambin_pops_through_with_penalty_not_with_proxy():
     from sasprobe.daemon.haptics import HapticEngine, HapticSettings
-    from sasprobe.devices import PHANTOM_OMNI_LIMITS, open_device
+    from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
+    from sasprobe.devices.registry import open_device
     from sasprobe.devices.simulated.arm import ArmModel
 
     along = {}

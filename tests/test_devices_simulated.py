@@ -7,13 +7,8 @@ import time
 
 import numpy as np
 import pytest
-from sasprobe.devices import (
-    PHANTOM_OMNI_LIMITS,
-    DeviceFault,
-    DeviceOpenError,
-    HapticDevice,
-    open_device,
-)
+from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceFault, DeviceOpenError, HapticDevice
+from sasprobe.devices.registry import open_device
 from sasprobe.devices.simulated.arm import ArmModel, SimulatedDevice
 from sasprobe.devices.simulated.hand_paths import SCRIPTS, HandPath
 from sasprobe.devices.workspace.start import initial_mapping

@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 from sasprobe.daemon.buttons import KEY_CLUTCH_LEASE_S, ButtonMap, WorkspaceInputs, parse_button
 from sasprobe.daemon.haptics import HapticEngine, HapticPipeline, SafetyGuard
-from sasprobe.devices import PHANTOM_OMNI_LIMITS, DeviceState, open_device
+from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceState
+from sasprobe.devices.registry import open_device
 from sasprobe.devices.workspace.mapping import validate_rotation
 from sasprobe.devices.workspace.start import initial_mapping
 from sasprobe.molecule import load_default, load_structure

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import gzip
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
 import gemmi
@@ -88,24 +89,31 @@ def _grouped(residues: list[dict]) -> dict[str, list[str]]:
     return by_chain
 
 
+@dataclass(frozen=True)
+class ViewerScene:
+    """What the PyMOL and ChimeraX scripts show, from the folder they are written in."""
+
+    folder: Path
+    structure_file: str
+    probe_radius_A: float
+    residues: list[dict]  # the touched residues
+    marks: list[dict]
+    bottleneck: dict | None
+    title: str
+
+
 def _quoted(text: str) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', "'") + '"'
 
 
-def pymol_script(
-    folder: Path,
-    structure_file: str,
-    probe_radius_A: float,
-    residues: list[dict],
-    marks: list[dict],
-    bottleneck: dict | None,
-    title: str,
-) -> str:
+def pymol_script(scene: ViewerScene) -> str:
+    folder, probe_radius_A, marks = scene.folder, scene.probe_radius_A, scene.marks
+    residues, bottleneck = scene.residues, scene.bottleneck
     lines = [
-        f"# {title}",
+        f"# {scene.title}",
         "# written by sasprobe replay --findings (open it with: pymol session.pml)",
         f"cd {folder.resolve()}",
-        f"load {structure_file}, structure",
+        f"load {scene.structure_file}, structure",
         "load path.pdb, path",
         "hide everything, path",
         f"show spheres, path and chain {PATH_CHAIN}",
@@ -146,20 +154,14 @@ def pymol_script(
     return "\n".join(lines) + "\n"
 
 
-def chimerax_script(
-    folder: Path,
-    structure_file: str,
-    probe_radius_A: float,
-    residues: list[dict],
-    marks: list[dict],
-    bottleneck: dict | None,
-    title: str,
-) -> str:
+def chimerax_script(scene: ViewerScene) -> str:
+    folder, probe_radius_A, marks = scene.folder, scene.probe_radius_A, scene.marks
+    residues, bottleneck = scene.residues, scene.bottleneck
     lines = [
-        f"# {title}",
+        f"# {scene.title}",
         "# written by sasprobe replay --findings (open it with: chimerax session.cxc)",
         f"cd {_quoted(str(folder.resolve()))}",
-        f"open {structure_file}",
+        f"open {scene.structure_file}",
         "open path.pdb",
         "show #2 atoms",
         "style #2 sphere",

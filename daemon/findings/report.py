@@ -35,6 +35,7 @@ from sasprobe.daemon.findings.contacts import (
     touched_residues,
 )
 from sasprobe.daemon.findings.exports import (
+    ViewerScene,
     chimerax_script,
     pymol_script,
     write_path,
@@ -152,9 +153,17 @@ def write_findings(
     structure_file = write_structure(track.structure_file, folder).name
     files["structure"] = structure_file
     files.update(write_path(folder, path.position_A, prof.passage_A, found["marks"]))
-    scripts = (found["touched_residues"], found["marks"], found["bottleneck"], title)
-    (folder / "session.pml").write_text(pymol_script(folder, structure_file, radius, *scripts))
-    (folder / "session.cxc").write_text(chimerax_script(folder, structure_file, radius, *scripts))
+    scene = ViewerScene(
+        folder,
+        structure_file,
+        radius,
+        found["touched_residues"],
+        found["marks"],
+        found["bottleneck"],
+        title,
+    )
+    (folder / "session.pml").write_text(pymol_script(scene))
+    (folder / "session.cxc").write_text(chimerax_script(scene))
     files.update(pymol="session.pml", chimerax="session.cxc")
     _write_tables(folder, found)
     draw_chart(

@@ -68,17 +68,11 @@ class ForceDimensionDevice(HardwareDriver):
             "saturated_writes": self.saturations,
             "velocity_estimated": self.velocity_estimates,
         }
-        if self.model is None:
-            return DeviceInfo(
-                kind="forcedimension",
-                model="Force Dimension arm (not opened yet)",
-                limits=before_open_limits(),
-                details=details,
-            )
+        model = self.model
         return DeviceInfo(
             kind="forcedimension",
-            model=self.model.name,
-            limits=self.model.limits,
+            model=model.name if model else "Force Dimension arm (not opened yet)",
+            limits=model.limits if model else before_open_limits(),
             serial=self.serial,
             details=details,
         )
@@ -142,11 +136,7 @@ class ForceDimensionDevice(HardwareDriver):
         lib.dhdClose(device_id)
 
     def reconnect(self) -> None:
-        self.close()
-        try:
-            self.open()
-        except DeviceOpenError as exc:
-            raise DeviceFault(f"device still unavailable: {exc}") from None
+        super().reconnect()
         log.info("Force Dimension arm %d reopened, force enabled again", self.index)
 
     # interface ------------------------------------------------------------------------

@@ -12,10 +12,10 @@ centred on the origin; CHAI3D gives one force limit, declared as peak and contin
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from sasprobe.devices.base import DeviceLimits
+from sasprobe.devices.hardware import sphere_limits
 
 
 @dataclass(frozen=True)
@@ -29,15 +29,11 @@ class DhdModel:
 
     @property
     def limits(self) -> DeviceLimits:
-        half = self.workspace_radius_m * 1000.0 / math.sqrt(3.0)
-        return DeviceLimits(
-            max_force_n=self.max_force_n,
-            continuous_force_n=self.max_force_n,
-            max_stiffness_n_per_mm=self.stiffness_n_per_m / 1000.0,
-            max_damping_n_s_per_m=self.damping_n_s_per_m,
-            workspace_min_mm=(-half, -half, -half),
-            workspace_max_mm=(half, half, half),
-            nominal_rate_hz=1000.0,
+        return sphere_limits(
+            self.workspace_radius_m,
+            self.max_force_n,
+            self.stiffness_n_per_m,
+            self.damping_n_s_per_m,
         )
 
 

@@ -221,17 +221,11 @@ class Inverse3Device(HardwareDriver):
                 messages_sent=s.sent,
                 replies=s.replied,
             )
-        if self.model is None:
-            return DeviceInfo(
-                kind="inverse3",
-                model="Haply Inverse3 (not connected yet)",
-                limits=before_open_limits(),
-                details=details,
-            )
+        model = self.model
         return DeviceInfo(
             kind="inverse3",
-            model=self.model.name,
-            limits=self.model.limits,
+            model=model.name if model else "Haply Inverse3 (not connected yet)",
+            limits=model.limits if model else before_open_limits(),
             serial=str(s.device_id) if s else "",
             details=details,
         )

@@ -19,6 +19,7 @@ would wait for the next report, which a cap at rest never sends).
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -26,7 +27,6 @@ from sasprobe.devices.base import (
     PHANTOM_OMNI_LIMITS,
     DeviceFault,
     DeviceInfo,
-    DeviceLimits,
     DeviceOpenError,
     DeviceState,
 )
@@ -38,11 +38,10 @@ from sasprobe.devices.transports import HidTransport, load_hidapi
 # No force reaches the device. The daemon's engine still computes the contact so the
 # proxy stays on the surface in the picture; its spring and damping are bounded like an
 # Omni-class arm's, since nothing is rendered to a hand.
-SPACEMOUSE_LIMITS = DeviceLimits(
+SPACEMOUSE_LIMITS = dataclasses.replace(
+    PHANTOM_OMNI_LIMITS,
     max_force_n=0.0,
     continuous_force_n=0.0,
-    max_stiffness_n_per_mm=PHANTOM_OMNI_LIMITS.max_stiffness_n_per_mm,
-    max_damping_n_s_per_m=PHANTOM_OMNI_LIMITS.max_damping_n_s_per_m,
     workspace_min_mm=(-100.0, -100.0, -100.0),
     workspace_max_mm=(100.0, 100.0, 100.0),
     nominal_rate_hz=1000.0,  # the cursor integrates at any polling rate

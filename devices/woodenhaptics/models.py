@@ -16,10 +16,10 @@ the driver converts to the device frame (kinematics.py).
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass
 
 from sasprobe.devices.base import DeviceLimits
+from sasprobe.devices.hardware import sphere_limits
 
 SERIAL, POLHEM = (
     "serial",
@@ -40,9 +40,8 @@ class WoodenModel:
     body_lengths_m: tuple[float, float, float]  # length_body_a..c (SERIAL: Ln, Lb, Lc)
     capstan_diameters_m: tuple[float, float, float]  # diameter_capstan_a..c
     body_diameters_m: tuple[float, float, float]  # diameter_body_a..c (the drums the cables wrap)
-    motor_and_body_aligned: tuple[
-        bool, bool, bool
-    ]  # motor_and_body_aligned_a..c: True turns the body backwards
+    # motor_and_body_aligned_a..c: True turns the body backwards
+    motor_and_body_aligned: tuple[bool, bool, bool]
     counts_per_turn: tuple[int, int, int]  # cpr_encoder_a..c, quadrature counts per motor turn
     torque_constants_nm_per_a: tuple[float, float, float]  # torque_constant_motor_a..c
     home_counts: tuple[int, int, int, int, int, int]  # enc_home_*: added to every count received
@@ -51,24 +50,19 @@ class WoodenModel:
     max_force_n: float  # max_linear_force
     max_stiffness_n_per_m: float  # max_linear_stiffness
     max_damping_n_s_per_m: float  # max_linear_damping
-    gimbal_counts_per_turn: tuple[
-        int, int, int
-    ]  # cpr_encoder_d, _e and getRot()'s count for f; 0: none read
+    # cpr_encoder_d, _e and getRot()'s count for f; 0: none read
+    gimbal_counts_per_turn: tuple[int, int, int]
     gimbal_aligned: tuple[bool, bool]  # enc_and_body_aligned_d, _e (getRot() gives f no sign)
     gimbal_d_axis: str  # getRot(): "z" for the vintage PHANTOM, "x" otherwise
 
     @functools.cached_property
     def limits(self) -> DeviceLimits:
-        # The box inside the published workspace sphere (its corners on the sphere). hfabapi
-        # has one force limit; we declare it as both peak and continuous.
-        half = self.workspace_radius_m * 1000.0 / math.sqrt(3.0)
-        return DeviceLimits(
-            max_force_n=self.max_force_n,
-            continuous_force_n=self.max_force_n,
-            max_stiffness_n_per_mm=self.max_stiffness_n_per_m / 1000.0,
-            max_damping_n_s_per_m=self.max_damping_n_s_per_m,
-            workspace_min_mm=(-half, -half, -half),
-            workspace_max_mm=(half, half, half),
+        # hfabapi has one force limit, and a workspace sphere
+        return sphere_limits(
+            self.workspace_radius_m,
+            self.max_force_n,
+            self.max_stiffness_n_per_m,
+            self.max_damping_n_s_per_m,
         )
 
 

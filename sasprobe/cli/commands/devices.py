@@ -64,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
 def _check(spec: str, seconds: float, as_json: bool) -> int:
     import numpy as np
 
-    from sasprobe.devices import DeviceFault, open_device
+    from sasprobe.devices.base import DeviceFault
+    from sasprobe.devices.registry import open_device
 
     device = open_device(spec)
     device.open()
