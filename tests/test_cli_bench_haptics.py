@@ -8,7 +8,7 @@ import json
 from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
 from sasprobe.molecule import load_default
 
-from sasprobe.cli.bench.haptics import _stability_cell
+from sasprobe.cli.bench.haptics_stability import stability_cell
 from tests.conftest import run_cli
 
 
@@ -56,9 +56,9 @@ def test_stability_cells_follow_the_sampled_wall_passivity_bound():
     crambin = load_default()
     limits = dataclasses.replace(PHANTOM_OMNI_LIMITS, max_stiffness_n_per_mm=2.0)
     # K = 2 N/mm at 100 Hz is 9x past 2(b - B)/T = 0.22 N/mm: the held press buzzes
-    loud = _stability_cell(crambin, "proxy", 100, 2.0, limits)
+    loud = stability_cell(crambin, "proxy", 100, 2.0, limits)
     assert loud["unstable"] and loud["energy_mj"] > 10
-    calm = _stability_cell(crambin, "proxy", 1000, 0.3, limits)
+    calm = stability_cell(crambin, "proxy", 1000, 0.3, limits)
     assert not calm["unstable"] and not calm["pop_through"] and calm["energy_mj"] < 0.5
-    popped = _stability_cell(crambin, "penalty", 1000, 0.3, limits)
+    popped = stability_cell(crambin, "penalty", 1000, 0.3, limits)
     assert popped["pop_through"] and not calm["pop_through"]

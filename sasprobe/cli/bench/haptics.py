@@ -3,8 +3,8 @@
 Per reference structure and method: per-tick force-computation time (p50/p99/max µs), the
 deepest the rendered contact point gets into the SAS, force continuity (largest force
 change between consecutive ticks), and the energy the rendering put into the arm
-(sum of F . dx over each held period). Then a stability map over control rate x
-stiffness: where each method injects energy (unstable) or pops through.
+(sum of F . dx over each held period). Then the stability map over control rate x
+stiffness (haptics_stability.py): where each method injects energy or pops through.
 
 Timing: sessions run closed-loop (sim arm <-> engine); the recorded device states
 are then replayed through fresh engines `repeats` times and each tick's time is the
@@ -16,14 +16,13 @@ single-run p99 is reported beside it.
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import math
 import time
 
 import numpy as np
 
-from sasprobe.cli.argtypes import positive_float
+from sasprobe.cli.argtypes import positive_float, positive_int
 from sasprobe.cli.bench import BenchContext, BenchResult
+from sasprobe.cli.bench.haptics_stability import stability_figure, stability_map, stability_markdown
 from sasprobe.cli.reference_data import MISSING, reference_structures
 from sasprobe.common.errors import UserError
 from sasprobe.common.progress import progress
@@ -34,23 +33,7 @@ TITLE = "Haptic rendering: per-tick cost, penetration, continuity, passivity, st
 
 SCRIPTS = ("scan", "random")  # timing and accuracy sessions
 CUBE_HALF_A = 20.0  # the same zoom (Å per mm) for every structure, so sizes compare fairly
-RATES_HZ = (100, 250, 500, 1000, 2000)
-STIFFNESS = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0)
-QUICK_STIFFNESS = (0.2, 0.5, 1.0, 2.0)
 QUICK_IDS = ("1crn", "1tii", "1aon", "6zu5")
-SMOKE_RATES_HZ, SMOKE_STIFFNESS = (1000,), (0.5, 2.0)
-ENERGY_UNSTABLE_MJ = 1.0  # net energy put into the arm over a press-and-release cycle
-POP_THROUGH_N = 0.2  # force component along the push: the surface pulls the hand in
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"'{text}' must be positive")
-    return value
 
 
 def _cube_half(text: str) -> float:
@@ -63,11 +46,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--ticks",
-        type=_positive_int,
+        type=positive_int,
         help="control ticks per timing session (default 10000, --quick 3000)",
     )
     parser.add_argument(
-        "--repeats", type=_positive_int, help="timing replays per session (default 5, --quick 3)"
+        "--repeats", type=positive_int, help="timing replays per session (default 5, --quick 3)"
     )
     parser.add_argument("--no-map", action="store_true", help="skip the stability map")
     parser.add_argument(
@@ -88,7 +71,7 @@ def run(ctx: BenchContext, args: argparse.Namespace | None = None) -> BenchResul
         structure = load_structure(entry.path)
         for method in METHODS:
             rows.append(_structure_row(entry.id, structure, method, ticks, repeats, cube_half))
-    stability = None if getattr(args, "no_map", False) else _stability_map(ctx)
+    stability = None if getattr(args, "no_map", False) else stability_map(ctx)
     trace = _force_trace(1000 if ctx.smoke else 4000)
     charts = _charts(ctx, rows, stability, trace, cube_half)
     data = {
@@ -239,77 +222,6 @@ def _structure_row(entry_id, structure, method, ticks, repeats, cube_half) -> di
     }
 
 
-# ------------------------------------------------------------- stability map
-def _stability_map(ctx: BenchContext) -> dict:
-    """Press-and-release on crambin at each control rate x stiffness, per method."""
-    from sasprobe.daemon.haptics import HapticSettings
-    from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
-    from sasprobe.devices.simulated.arm import ArmModel
-    from sasprobe.molecule import load_default
-
-    structure = load_default()
-    stiffness, rates = (
-        (SMOKE_STIFFNESS, SMOKE_RATES_HZ)
-        if ctx.smoke
-        else (QUICK_STIFFNESS if ctx.quick else STIFFNESS, RATES_HZ)
-    )
-    # explore beyond the arm's rated stiffness to show where the frontier lies
-    limits = dataclasses.replace(PHANTOM_OMNI_LIMITS, max_stiffness_n_per_mm=max(stiffness))
-    cells = []
-    for method in METHODS:
-        for rate in rates:
-            for k in stiffness:
-                cells.append(_stability_cell(structure, method, rate, k, limits))
-    arm = ArmModel()
-    return {
-        "structure": structure.name,
-        "script": "press",
-        "rates_hz": list(rates),
-        "stiffness_n_per_mm": list(stiffness),
-        "device_max_stiffness_n_per_mm": PHANTOM_OMNI_LIMITS.max_stiffness_n_per_mm,
-        "virtual_damping_n_s_per_m": HapticSettings().damping_n_s_per_m,
-        "physical_damping_n_s_per_m": arm.arm_damping_n_s_per_m + arm.hand_damping_n_s_per_m,
-        "energy_unstable_mj": ENERGY_UNSTABLE_MJ,
-        "pop_through_n": POP_THROUGH_N,
-        "cells": cells,
-    }
-
-
-def _stability_cell(structure, method, rate, stiffness, limits) -> dict:
-    from sasprobe.daemon.haptics import HapticEngine, HapticSettings
-    from sasprobe.devices.simulated.arm import ArmModel, make_simulated
-
-    # The whole molecule, and a hand without a person's limit: where each method breaks.
-    fit = {"cube_half_A": "fit"}
-    device = make_simulated(
-        "press",
-        structure=structure,
-        rate_hz=rate,
-        limits=limits,
-        arm=ArmModel(max_hand_force_n=math.inf),
-        **fit,
-    )
-    engine = HapticEngine(
-        structure, limits, HapticSettings(method=method, stiffness_n_per_mm=stiffness, **fit)
-    )
-    push = np.asarray(device.hand_path.info["push_direction"])
-    device.open()
-    along = 0.0
-    for _ in range(int(round(device.hand_path.duration_s * rate))):
-        out = engine.step(device.read())
-        device.write_force(out.force_n)
-        along = max(along, float(out.force_n @ push))
-    return {
-        "method": method,
-        "rate_hz": rate,
-        "stiffness_n_per_mm": stiffness,
-        "energy_mj": device.work_mj,
-        "max_force_along_push_n": along,
-        "unstable": device.work_mj > ENERGY_UNSTABLE_MJ,
-        "pop_through": along > POP_THROUGH_N,
-    }
-
-
 def _force_trace(ticks: int) -> dict:
     """Force magnitude through a dive into a groove on crambin, both methods (for a chart)."""
     from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
@@ -358,7 +270,7 @@ def _charts(ctx: BenchContext, rows, stability, trace, cube_half) -> list:
         charts.append(save(fig, path))
     path = ctx.chart_path("haptics_stability.png")
     if path is not None and stability is not None:
-        charts.append(save(_stability_figure(stability), path))
+        charts.append(save(stability_figure(stability), path))
     path = ctx.chart_path("haptics_dive_force.png")
     if path is not None:
         fig, ax = figure(6.4, 3.2)
@@ -371,53 +283,6 @@ def _charts(ctx: BenchContext, rows, stability, trace, cube_half) -> list:
         ax.legend()
         charts.append(save(fig, path))
     return charts
-
-
-def _stability_figure(stability):
-    from sasprobe.cli.bench.charts import pyplot
-
-    plt = pyplot()
-    from matplotlib.colors import ListedColormap
-
-    rates, ks = stability["rates_hz"], stability["stiffness_n_per_mm"]
-    fig, axes = plt.subplots(1, 2, figsize=(9.6, 4.0), dpi=110, sharey=True)
-    cmap = ListedColormap(
-        ["#7fc97f", "#fdc086", "#e06666", "#a83232"]
-    )  # stable, pop, unstable, both
-    for ax, method in zip(axes, METHODS):
-        grid = np.zeros((len(ks), len(rates)))
-        for c in stability["cells"]:
-            if c["method"] != method:
-                continue
-            i, j = ks.index(c["stiffness_n_per_mm"]), rates.index(c["rate_hz"])
-            grid[i, j] = (1 if c["pop_through"] else 0) + (2 if c["unstable"] else 0)
-            ax.text(j, i, f"{c['energy_mj']:.1f}", ha="center", va="center", fontsize=7)
-        ax.imshow(grid, origin="lower", cmap=cmap, vmin=0, vmax=3, aspect="auto")
-        ax.set_xticks(range(len(rates)), [str(r) for r in rates])
-        ax.set_yticks(range(len(ks)), [f"{k:g}" for k in ks])
-        ax.set_xlabel("control rate (Hz)")
-        ax.set_title(method)
-        # passivity bound K < 2 (b - B) / T (Colgate & Schenkel) and the arm's rated stiffness
-        b = stability["physical_damping_n_s_per_m"] - stability["virtual_damping_n_s_per_m"]
-        bound = [2 * b * r / 1000.0 for r in rates]  # N/mm
-        ax.plot(
-            range(len(rates)),
-            np.interp(bound, ks, range(len(ks)), left=-0.5, right=len(ks) - 0.5),
-            "k--",
-            lw=1,
-            label="passivity bound 2(b-B)/T",
-        )
-        dev = np.interp(stability["device_max_stiffness_n_per_mm"], ks, range(len(ks)))
-        ax.axhline(dev, color="k", lw=1, ls=":", label="Omni rated max")
-    axes[0].set_ylabel("stiffness (N/mm)")
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, loc="lower center", ncol=2, fontsize=8, frameon=False)
-    fig.suptitle(
-        "Press into 1CRN: green stable, orange pop-through, red energy gain (mJ per cycle in cells)",
-        fontsize=9,
-    )
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
-    return fig
 
 
 def _markdown(rows, stability, ticks, repeats, cube_half) -> str:
@@ -444,38 +309,5 @@ def _markdown(rows, stability, ticks, repeats, cube_half) -> str:
             f"{r['contact_fraction']:.0%} |"
         )
     if stability is not None:
-        lines += ["", _stability_markdown(stability)]
+        lines += ["", stability_markdown(stability)]
     return "\n".join(lines)
-
-
-def _stability_markdown(stability) -> str:
-    rates = stability["rates_hz"]
-    out = [
-        f"Stability map: the `press` script on {stability['structure']} (push into the molecule, hold, release), "
-        f"per control rate and stiffness. Cell: energy put into the arm over the cycle (mJ); "
-        f"**U** = unstable (> {stability['energy_unstable_mj']:g} mJ gained), **P** = pop-through (force > "
-        f"{stability['pop_through_n']:g} N along the push). Arm damping + hand damping "
-        f"{stability['physical_damping_n_s_per_m']:g} N·s/m, virtual damping {stability['virtual_damping_n_s_per_m']:g} N·s/m.",
-        "",
-    ]
-    for method in METHODS:
-        out += [
-            f"{method}:",
-            "",
-            "| N/mm | " + " | ".join(f"{r} Hz" for r in rates) + " |",
-            "|---:|" + "---:|" * len(rates),
-        ]
-        for k in stability["stiffness_n_per_mm"]:
-            cells = {
-                c["rate_hz"]: c
-                for c in stability["cells"]
-                if c["method"] == method and c["stiffness_n_per_mm"] == k
-            }
-            text = []
-            for r in rates:
-                c = cells[r]
-                flag = ("U" if c["unstable"] else "") + ("P" if c["pop_through"] else "")
-                text.append(f"{c['energy_mj']:.1f} {flag}".strip())
-            out.append(f"| {k:g} | " + " | ".join(text) + " |")
-        out.append("")
-    return "\n".join(out)
