@@ -26,10 +26,9 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from sasprobe import __version__
-from sasprobe.cli.bench.machine import cpu_steal_ticks, steal_between
+from sasprobe.cli.bench.machine import cpu_steal_ticks
 from sasprobe.cli.children import Child, DaemonChild, child_env
-from sasprobe.cli.demo_report import ForceMonitor, print_summary
+from sasprobe.cli.demo_report import ForceMonitor, demo_summary, print_summary
 from sasprobe.common.errors import UserError
 
 DEFAULT_SECONDS = 10.0  # headless
@@ -347,55 +346,6 @@ class DemoSession:
         except (OSError, ValueError):
             return None
 
-    def summary(self, headless: bool, seconds: float | None, interrupted: bool) -> dict:
-        end = self.status_end or self.last_status or {}
-        loop = end.get("loop") or {}
-        nominal = loop.get("target_rate_hz")
-        rate = loop.get("rate_hz")
-        haptics = None
-        if loop:
-            haptics = {
-                "nominal_rate_hz": nominal,
-                "rate_hz": rate,
-                "rate_error_percent": 100.0 * (rate - nominal) / nominal
-                if rate and nominal
-                else None,
-                "window_s": loop["window_s"],
-                "ticks": loop["ticks"],
-                "period_error_us": loop["period_error_us"],
-                "overruns": loop["overruns"],
-                "missed_deadlines": loop["missed_deadlines"],
-                "tick_work_us": loop["work_us"],
-                "loop_cpu_percent": loop.get("cpu_percent"),
-                "realtime": bool(self.ready.get("realtime")),
-                "cpu_steal": steal_between(self.steal_from, self.steal_to),
-                "device_faults": end["device"]["faults"],
-            }
-        files = {}
-        if headless:
-            files = {
-                "video": str(self.video) if self.video.exists() else None,
-                "snapshot": str(self.snapshot) if self.snapshot.exists() else None,
-            }
-        if self.opts.record:
-            files["recording"] = str(self.opts.record)
-        return {
-            "sasprobe_version": __version__,
-            "mode": "headless" if headless else "window",
-            "seconds": seconds,
-            "interrupted": interrupted,
-            "device": self.opts.device,
-            "structure": end.get("structure"),
-            "haptics": haptics,
-            "forces": self.monitor.summary() if self.monitor is not None else None,
-            "renderer": self.renderer_report(),
-            "renderer_exit_status": self.renderer_rc,
-            "daemon_exit": self.exit_report,
-            "daemon_exit_status": self.daemon_rc,
-            "files": files,
-            "notes": self.notes,
-        }
-
 
 def run_demo(opts: DemoOptions) -> int:
     # Ctrl+C (SIGINT) stops the demo even when it was started with SIGINT ignored, as a
@@ -464,7 +414,7 @@ def _run_demo(opts: DemoOptions) -> int:
             interrupted = True
         finally:
             session.stop()
-            summary = session.summary(headless, seconds, interrupted)
+            summary = demo_summary(session, headless, seconds, interrupted)
             (opts.out / "summary.json").write_text(json.dumps(summary, indent=1))
         _check_children(session, summary, interrupted)
         failed = False

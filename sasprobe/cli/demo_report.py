@@ -1,5 +1,6 @@
-"""What `sasprobe demo` measures itself and prints: every pose the daemon publishes, as a
-renderer receives them (ForceMonitor), and the closing summary."""
+"""What `sasprobe demo` measures and reports: every pose the daemon publishes, as a
+renderer receives them (ForceMonitor), summary.json (demo_summary) and the closing lines
+(print_summary)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,9 @@ from array import array
 from pathlib import Path
 
 import numpy as np
+
+from sasprobe import __version__
+from sasprobe.cli.bench.machine import steal_between
 
 STEAL_WORTH_TELLING_PERCENT = (
     1.0  # below it, steal costs no more deadlines than the loop misses on its own
@@ -95,6 +99,56 @@ class ForceMonitor:
 
     def close(self) -> None:
         self.subscriber.close()
+
+
+def demo_summary(session, headless: bool, seconds: float | None, interrupted: bool) -> dict:
+    """summary.json: the daemon's loop over the measured window, the forces the demo saw,
+    the renderer's report, how each child ended and the files written."""
+    end = session.status_end or session.last_status or {}
+    loop = end.get("loop") or {}
+    nominal = loop.get("target_rate_hz")
+    rate = loop.get("rate_hz")
+    haptics = None
+    if loop:
+        haptics = {
+            "nominal_rate_hz": nominal,
+            "rate_hz": rate,
+            "rate_error_percent": 100.0 * (rate - nominal) / nominal if rate and nominal else None,
+            "window_s": loop["window_s"],
+            "ticks": loop["ticks"],
+            "period_error_us": loop["period_error_us"],
+            "overruns": loop["overruns"],
+            "missed_deadlines": loop["missed_deadlines"],
+            "tick_work_us": loop["work_us"],
+            "loop_cpu_percent": loop.get("cpu_percent"),
+            "realtime": bool(session.ready.get("realtime")),
+            "cpu_steal": steal_between(session.steal_from, session.steal_to),
+            "device_faults": end["device"]["faults"],
+        }
+    files = {}
+    if headless:
+        files = {
+            "video": str(session.video) if session.video.exists() else None,
+            "snapshot": str(session.snapshot) if session.snapshot.exists() else None,
+        }
+    if session.opts.record:
+        files["recording"] = str(session.opts.record)
+    return {
+        "sasprobe_version": __version__,
+        "mode": "headless" if headless else "window",
+        "seconds": seconds,
+        "interrupted": interrupted,
+        "device": session.opts.device,
+        "structure": end.get("structure"),
+        "haptics": haptics,
+        "forces": session.monitor.summary() if session.monitor is not None else None,
+        "renderer": session.renderer_report(),
+        "renderer_exit_status": session.renderer_rc,
+        "daemon_exit": session.exit_report,
+        "daemon_exit_status": session.daemon_rc,
+        "files": files,
+        "notes": session.notes,
+    }
 
 
 def print_summary(summary: dict, path: Path) -> None:
