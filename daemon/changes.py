@@ -33,7 +33,8 @@ class ChangeQueue:
                 "the daemon loop did not take the change in time (is it shutting down?)"
             ) from None
         finally:
-            self.deferred_release.release()  # what the change replaced, freed here rather than on the loop
+            # what the change replaced, freed here rather than on the loop
+            self.deferred_release.release()
 
     def __bool__(self) -> bool:
         """Whether changes wait (the loop's cheap test each tick)."""

@@ -16,9 +16,8 @@ class DaemonConfig:
     device: str = "sim"
     molecule: str | None = None
     keep_water: bool = False
-    rate_hz: float | None = (
-        None  # None: the device's nominal rate (a replay: its recorded rate x speed)
-    )
+    # None: the device's nominal rate (a replay: its recorded rate x speed)
+    rate_hz: float | None = None
     pub: list[str] = field(default_factory=lambda: [DEFAULT_PUB_ENDPOINT])
     ctl: list[str] = field(default_factory=lambda: [DEFAULT_CTL_ENDPOINT])
     record: str | None = None
@@ -29,27 +28,21 @@ class DaemonConfig:
     spin_s: float = 200e-6
     report: str | None = None  # write a JSON exit report here
     max_seconds: float | None = None  # stop by itself after this long (benchmarks, demos)
-    realtime: bool = (
-        True  # ask for SCHED_FIFO for the loop and ZeroMQ's I/O thread (fall back with a warning)
-    )
-    faults: list[str] = field(
-        default_factory=list
-    )  # simulated-arm fault injection, e.g. "nan@900+5"
+    # ask for SCHED_FIFO for the loop and ZeroMQ's I/O thread (fall back with a warning)
+    realtime: bool = True
+    # simulated-arm fault injection, e.g. "nan@900+5"
+    faults: list[str] = field(default_factory=list)
     buttons: list[str] = field(default_factory=list)  # --button ACTION=N (daemon/buttons.py)
-    button_presses: list[str] = field(
-        default_factory=list
-    )  # simulated arm: "BUTTON@TICK+COUNT" held down
-    color_scheme: str | None = (
-        None  # the scene's colour scheme (None: each renderer's default by structure)
-    )
+    # simulated arm: "BUTTON@TICK+COUNT" held down
+    button_presses: list[str] = field(default_factory=list)
+    # the scene's colour scheme (None: each renderer's default by structure)
+    color_scheme: str | None = None
     load_dir: str | None = None  # `load` may read files below this folder (None: bytes only)
     record_dir: str | None = None  # `record_start` writes below this folder (None: refused)
-    loop_stalls: list[tuple[int, float]] = field(
-        default_factory=list
-    )  # test hook: (tick, seconds) the loop sleeps
-    slow_reads: list[tuple[int, int]] = field(
-        default_factory=list
-    )  # test hook: (tick, count) reads made slow
+    # test hook: (tick, seconds) the loop sleeps
+    loop_stalls: list[tuple[int, float]] = field(default_factory=list)
+    # test hook: (tick, count) reads made slow
+    slow_reads: list[tuple[int, int]] = field(default_factory=list)
 
 
 def check_config(config: DaemonConfig) -> DaemonConfig:
@@ -72,8 +65,9 @@ def check_bind_security(endpoints: list[str], keys_dir: str | None) -> None:
         endpoint = parse_endpoint(text)
         if not endpoint.is_loopback and keys_dir is None:
             raise UserError(
-                f"refusing to bind {text} without encryption: an address other machines can reach needs "
-                f"--keys DIR (CURVE keys with a client allow-list; create them with `sasprobe keys DIR`)"
+                f"refusing to bind {text} without encryption: an address other machines can reach "
+                "needs --keys DIR (CURVE keys with a client allow-list; create them with "
+                "`sasprobe keys DIR`)"
             )
 
 

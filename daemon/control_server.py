@@ -50,9 +50,8 @@ class ControlServer:
         self._handler = handler
         self._socket = context.socket(zmq.ROUTER)
         self._socket.linger = REPLY_LINGER_MS
-        self._socket.setsockopt(
-            zmq.MAXMSGSIZE, MAX_MESSAGE_BYTES
-        )  # a larger frame drops the connection
+        # a larger frame drops the connection
+        self._socket.setsockopt(zmq.MAXMSGSIZE, MAX_MESSAGE_BYTES)
         self._monitor = SocketMonitor(self._socket, "control socket", keys is not None)
         try:
             self.endpoints = bind_server_socket(self._socket, endpoints, keys)

@@ -1,9 +1,10 @@
 """What the daemon tells the process that started it: one JSON object a line on stdout.
 
-    {"event": "ready", "pub": [...], "ctl": [...], "device": ..., "rate_hz": ..., "pid": ..., "realtime": ...}
+    {"event": "ready", "pub": [...], "ctl": [...], "device": ..., "rate_hz": ...,
+     "pid": ..., "realtime": ...}
     {"event": "stopped", "reason": ..., "ticks": ..., ...}          (the exit report)
 
-Everything else the daemon says goes to stderr. sasprobe/children.py waits for these
+Everything else the daemon says goes to stderr. sasprobe/cli/children.py waits for these
 events; this module is the one place their names are spelled.
 """
 

@@ -46,9 +46,8 @@ class FaultLog:
         self._suppressed = 0
 
 
-LOST_TICKS_WARN = (
-    10  # lost ticks within LOST_WINDOW_NS before the loop says so (a hiccup does not count)
-)
+# lost ticks within LOST_WINDOW_NS before the loop says so (a hiccup does not count)
+LOST_TICKS_WARN = 10
 LOST_WINDOW_NS = 1_000_000_000
 STALL_LOG_NS = 20_000_000  # a stall this long gets its own line (shorter ones count as lost ticks)
 
@@ -64,9 +63,8 @@ class LoopLog:
         self._window: list[tuple[int, int]] = []  # (tick time, lost) within the last window
         self._stalls = FaultLog()
         self._faults = FaultLog()
-        self._fault_logged = (
-            False  # the fault in progress was told (a timing fault is not: lost_ticks tells it)
-        )
+        # the fault in progress was told (a timing fault is not: lost_ticks tells it)
+        self._fault_logged = False
 
     def tick(
         self, now_ns: int, missed: int, timing_only: bool, fault_changed: bool, guard, stall
@@ -96,16 +94,17 @@ class LoopLog:
         window.clear()
         if self.realtime:
             log.warning(
-                "the haptic loop is losing ticks (%d in the last second) even with real-time scheduling: "
-                "another real-time task or the machine (a VM's stolen time) takes its CPU; each lost "
-                "tick zeroes the force. `sasprobe status` counts them; this is said once",
+                "the haptic loop is losing ticks (%d in the last second) even "
+                "with real-time scheduling: another real-time task or the machine "
+                "(a VM's stolen time) takes its CPU; each lost tick zeroes the "
+                "force. `sasprobe status` counts them; this is said once",
                 recent,
             )
         else:
             log.warning(
-                "the haptic loop is losing ticks (%d in the last second): it shares the CPU with every "
-                "other process, and each lost tick zeroes the force. To fix it, %s. This is said once; "
-                "`sasprobe status` counts them",
+                "the haptic loop is losing ticks (%d in the last second): it shares the CPU with "
+                "every other process, and each lost tick zeroes the force. To fix it, %s. This "
+                "is said once; `sasprobe status` counts them",
                 recent,
                 REALTIME_FIX,
             )

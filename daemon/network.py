@@ -47,7 +47,8 @@ class Network:
             raise
 
     def close(self) -> None:
-        """Stop the control thread, close the sockets, the authenticator, the context (safe to repeat)."""
+        """Stop the control thread, close the sockets, the authenticator, the context (safe to
+        repeat)."""
         if self.control is not None:
             self.control.stop()
         if self.publisher is not None:

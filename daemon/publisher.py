@@ -32,11 +32,11 @@ from sasprobe.common.errors import UserError
 log = logging.getLogger("sasprobe")
 
 SNDHWM = 2000  # messages queued per subscriber (2 s of poses at 1 kHz) before it drops
-MAX_SUBSCRIPTION_BYTES = 1024  # a ZMTP frame: a subscription (ours are 5-6 bytes), or a CURVE handshake command (<= ~300)
+# a ZMTP frame: a subscription (ours are 5-6 bytes), or a CURVE handshake command (<= ~300)
+MAX_SUBSCRIPTION_BYTES = 1024
 SUBSCRIPTION_HWM = 16  # subscription messages queued per connection
-MAX_FOREIGN_SUBSCRIPTIONS = (
-    1024  # subscriptions to topics never published, before the socket is renewed
-)
+# subscriptions to topics never published, before the socket is renewed
+MAX_FOREIGN_SUBSCRIPTIONS = 1024
 SCENE_ON_JOIN_NS = 100_000_000  # a joining subscriber's scene goes out at most this often
 REBIND_RETRY_NS = 50_000_000
 
@@ -126,8 +126,8 @@ class Publisher:
                 self._foreign += 1
         if self._foreign > MAX_FOREIGN_SUBSCRIPTIONS:
             log.warning(
-                "publisher: %d subscriptions to topics the daemon does not publish; the socket is made "
-                "anew (subscribers reconnect by themselves)",
+                "publisher: %d subscriptions to topics the daemon does not publish; the socket "
+                "is made anew (subscribers reconnect by themselves)",
                 self._foreign,
             )
             self._close_socket()

@@ -52,11 +52,8 @@ class RequestHandlers:
             "findings": self.findings,
         }
         self.findings_job: FindingsJob | None = None  # the newest `findings` analysis
-        self._packed: tuple = (
-            None,
-            b"",
-            "",
-        )  # (structure, its arrays packed, their sha256) for get_structure
+        # (structure, its arrays packed, their sha256) for get_structure
+        self._packed: tuple = (None, b"", "")
         assert set(self._handlers) == set(COMMANDS), "every protocol command needs its handler"
 
     def handle(self, request: Request) -> ControlReply:

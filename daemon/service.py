@@ -209,7 +209,7 @@ class Daemon:
         if self.control is not None:
             self.control.ensure_running()
 
-    # ------------------------------------------------------------------ state changes (on the loop thread)
+    # ---------------------------------------------------- state changes (on the loop thread)
     def replay_control(self, event: dict, seq: int) -> None:
         """A replayed control command, applied as it was live."""
         if event.get("cmd") not in REPLAYED_COMMANDS:
@@ -324,7 +324,8 @@ class Daemon:
             )
 
     def attach_recorder(self, recorder: Recorder, seq: int = 0, fresh_engine=None) -> int:
-        """Start recording at this tick from a fresh engine and guard, so the file replays exactly."""
+        """Start recording at this tick from a fresh engine and guard, so the file replays
+        exactly."""
         if fresh_engine is not None:
             self.pipeline.restart(fresh_engine)
         self.recorder = recorder
@@ -343,9 +344,8 @@ class Daemon:
                 "device": self.device.info.as_dict(),
             },
         )
-        if (
-            self.pipeline.view_rotation != IDENTITY
-        ):  # the fresh engine took the view over: so will the replay
+        # the fresh engine took the view over: so will the replay
+        if self.pipeline.view_rotation != IDENTITY:
             self.record_control(
                 seq, "view", {"rotation": rotation_rows(self.pipeline.view_rotation)}
             )

@@ -33,19 +33,19 @@ from sasprobe.daemon.realtime import above_loop_priority
 
 log = logging.getLogger("sasprobe")
 
-STALL_PERIODS = (
-    3  # no completed tick for this long is a stall (3 ms at 1 kHz; the guard's late limit)
-)
-REZERO_PERIODS = 3  # while stalled, zero is written again this often (a Falcon takes a frame once its oldest is 5 ms old)
+# no completed tick for this long is a stall (3 ms at 1 kHz; the guard's late limit)
+STALL_PERIODS = 3
+# While stalled, zero is written again this often: a Falcon takes a frame only once its
+# oldest is 5 ms old.
+REZERO_PERIODS = 3
 SUPERVISE_S = 0.5  # how often the control thread is checked
 
 
 @dataclass
 class Stall:
     length_ns: int  # from the last completed tick to the one that ended the stall
-    zeroed_after_ns: (
-        int | None
-    )  # from the last completed tick to the watchdog's zero (None: could not write)
+    # from the last completed tick to the watchdog's zero (None: could not write)
+    zeroed_after_ns: int | None
 
 
 class StallWatchdog:
@@ -76,9 +76,8 @@ class StallWatchdog:
         self.total_ns = 0
         self.last: Stall | None = None
         self.worst_zero_ns = 0  # slowest zero after a last tick, over all stalls
-        self.unwritten = (
-            0  # stalls during which the zero could not be written (a driver call held the lock)
-        )
+        # stalls during which the zero could not be written (a driver call held the lock)
+        self.unwritten = 0
 
     # ------------------------------------------------------------------ the loop's side
     def heartbeat(self, now_ns: int) -> Stall | None:
@@ -160,9 +159,8 @@ class StallWatchdog:
 
     def _zero(self, last_tick_ns: int) -> bool:
         if not self.write_lock.acquire(timeout=self.period_ns / 1e9):
-            return (
-                False  # the loop is inside a driver write: only the device's own watchdog helps now
-            )
+            # the loop is inside a driver write: only the device's own watchdog helps now
+            return False
         try:
             if self._last_tick_ns != last_tick_ns:
                 return False  # the loop wrote and beat (under this lock) while we waited for it

@@ -103,9 +103,8 @@ class DeviceState:
 
     t_ns: int  # device timestamp, monotonic ns
     position_mm: np.ndarray  # (3,) stylus tip in the device frame
-    orientation: np.ndarray = field(
-        default_factory=lambda: np.array(IDENTITY_QUATERNION)
-    )  # (w, x, y, z)
+    # (w, x, y, z)
+    orientation: np.ndarray = field(default_factory=lambda: np.array(IDENTITY_QUATERNION))
     velocity_mm_s: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,)
     buttons: int = 0  # bit i = button i pressed
     calibrated: bool = True  # False: the daemon must not output force yet
@@ -127,9 +126,8 @@ class HapticDevice(abc.ABC):
     it holds sets `last_force_n`.
     """
 
-    last_force_n: np.ndarray | None = (
-        None  # the force the device itself holds now; None: it cannot tell
-    )
+    # the force the device itself holds now; None: it cannot tell
+    last_force_n: np.ndarray | None = None
 
     @property
     @abc.abstractmethod
@@ -168,7 +166,8 @@ class HapticDevice(abc.ABC):
         return []
 
     def recorded_late_periods(self) -> float:
-        """How many periods late the tick read last started in the recording; 0 for a live device."""
+        """How many periods late the tick read last started in the recording; 0 for a live
+        device."""
         return 0.0
 
     def __enter__(self) -> HapticDevice:

@@ -43,7 +43,8 @@ class Found:
         return d
 
 
-# Serial (CDC-ACM) devices recognised by USB id: (vid, pid) → (description, --device template, note).
+# Serial (CDC-ACM) devices recognised by USB id:
+# (vid, pid) → (description, --device template, note).
 KNOWN_SERIAL = {
     (0x16C0, 0x0483): (
         "Teensy USB serial (WoodenHaptics / Polhem firmware)",
@@ -65,7 +66,8 @@ KNOWN_USB = {(FALCON_VENDOR_ID, FALCON_PRODUCT_ID): ("Novint Falcon", "falcon")}
 
 
 def serial_ports(comports=None) -> tuple[list[Found], list[str]]:
-    """USB serial ports (every arm sasprobe drives over serial is a USB device); others in a note."""
+    """USB serial ports (every arm sasprobe drives over serial is a USB device); others in a
+    note."""
     if comports is None:
         from serial.tools.list_ports import comports
     found, other = [], []
@@ -143,8 +145,8 @@ def usb_devices(backend=None) -> tuple[list[Found], list[str]]:
     except usb.core.NoBackendError:
         devices = _sysfs_usb()
         notes = [
-            "libusb-1.0 is not installed: USB ids read from sysfs, but drivers that use pyusb (falcon) "
-            "need it (Debian/Ubuntu: sudo apt install libusb-1.0-0)"
+            "libusb-1.0 is not installed: USB ids read from sysfs, but drivers that use pyusb "
+            "(falcon) need it (Debian/Ubuntu: sudo apt install libusb-1.0-0)"
         ]
     found = []
     for vid, pid, where in devices:
@@ -181,7 +183,10 @@ def _sysfs_usb(root: Path = Path("/sys/bus/usb/devices")) -> list[tuple[int, int
 def openhaptics_note() -> str:
     path = os.environ.get("SASPROBE_HD_LIBRARY") or ctypes.util.find_library("HD")
     if path:
-        return f"OpenHaptics HD library found ({path}): PHANTOM Omni/Touch arms open with --device openhaptics"
+        return (
+            f"OpenHaptics HD library found ({path}): PHANTOM Omni/Touch arms open with "
+            "--device openhaptics"
+        )
     return "OpenHaptics is not installed: PHANTOM Omni/Touch arms need it (--device openhaptics)"
 
 

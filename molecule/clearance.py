@@ -107,7 +107,7 @@ class ClearanceField:
                 diff = self.centers[atoms] - p
                 d = np.sqrt(np.einsum("ij,ij->i", diff, diff)) - self.radii[atoms]
                 nearest = float(d.min())
-                # Every atom with d <= reach came back, so these are all within `extra` of the nearest.
+                # Every atom with d <= reach came back: these are all within `extra` of the nearest.
                 if nearest + extra <= reach:
                     keep = d <= nearest + extra
                     order = np.argsort(d[keep], kind="stable")

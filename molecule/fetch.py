@@ -177,7 +177,8 @@ def _read_body(response, ident: str) -> bytes:
             size += len(chunk)
             if size > MAX_ENTRY_BYTES:
                 raise FetchError(
-                    f"pdb:{ident}: the download exceeds {MAX_ENTRY_BYTES >> 20} MiB; not a PDB entry"
+                    f"pdb:{ident}: the download exceeds "
+                    f"{MAX_ENTRY_BYTES >> 20} MiB; not a PDB entry"
                 )
             chunks.append(chunk)
             if bar is not None:

@@ -82,8 +82,8 @@ class UniformGrid:
         if n_cells > MAX_CELLS:
             extent = " x ".join(f"{v:.0f}" for v in hi - lo)
             raise GridTooLarge(
-                f"the spheres span {extent} Å: {n_cells} grid cells of {cell_size:g} Å exceed the limit of "
-                f"{MAX_CELLS} (atoms far apart, or too small a cell size)"
+                f"the spheres span {extent} Å: {n_cells} grid cells of {cell_size:g} Å exceed the "
+                f"limit of {MAX_CELLS} (atoms far apart, or too small a cell size)"
             )
         self.dims = dims
         self.n_cells = n_cells
@@ -187,9 +187,8 @@ class UniformGrid:
             return np.empty(0, dtype=np.int64)
         stored = self._gather(self.cells_in_range(*rng))
         n = self.centers.shape[0]
-        if (
-            stored.size * 16 < n
-        ):  # a few cells of many: sorting them is cheaper than a pass over all
+        # a few cells of many: sorting them is cheaper than a pass over all
+        if stored.size * 16 < n:
             return np.unique(stored)
         seen = np.zeros(n, dtype=bool)
         seen[stored] = True
@@ -277,11 +276,11 @@ class UniformGrid:
         ring = 1
         while pending.size:
             pending_sorted = pending[np.argsort(home_flat[pending], kind="stable")]
-            cells, first = np.unique(home_flat[pending_sorted], return_index=True)
+            _, first = np.unique(home_flat[pending_sorted], return_index=True)
             groups = np.split(pending_sorted, first[1:])
             whole_grid = bool(np.all(ring >= self.dims))
             still: list[np.ndarray] = []
-            for cell_flat, members in zip(cells, groups):
+            for members in groups:
                 ijk = home[members[0]]
                 imin = np.maximum(ijk - ring, 0)
                 imax = np.minimum(ijk + ring, self.dims - 1)

@@ -6,15 +6,17 @@ the time parsing its mmCIF file does.
 Layout: a NumPy .npz archive (numpy.savez, uncompressed; nothing pickled, read with
 allow_pickle=False) of
 
-| array | dtype, shape | content |
-|---|---|---|
-| `positions` | float64 (N, 3) | Å, molecule frame |
-| `residue_numbers` | int32 (N,) | auth sequence numbers |
-| `is_hetero` | bool (N,) | HETATM |
-| `b_factors` | float64 (N,) | isotropic B, Å² |
-| `<text>_values`, `<text>_index` | str (K,), int32 (N,) | for `elements`, `chain_ids`, `residue_names`, `insertion_codes`, `atom_names`: the distinct values and each atom's index into them |
-| `backbone_atoms`, `backbone_lengths` | int64 (M,), int64 (S,) | the trace's segments, concatenated, and their lengths |
-| `backbone_chains` | str (S,) | each segment's chain |
+    positions                         float64 (N, 3)        Å, molecule frame
+    residue_numbers                   int32 (N,)            auth sequence numbers
+    is_hetero                         bool (N,)             HETATM
+    b_factors                         float64 (N,)          isotropic B, Å²
+    <text>_values, <text>_index       str (K,), int32 (N,)  the distinct values and each atom's
+                                                            index into them, for elements,
+                                                            chain_ids, residue_names,
+                                                            insertion_codes, atom_names
+    backbone_atoms, backbone_lengths  int64 (M,), int64 (S,)  the trace's segments,
+                                                            concatenated, and their lengths
+    backbone_chains                   str (S,)              each segment's chain
 
 Radii and colours follow from the elements (molecule/elements.py), as parsing makes them.
 """
@@ -103,10 +105,8 @@ def _structure(a: dict, name: str, source: str, sha256: str) -> Structure:
         or (atoms.size and (atoms.min() < 0 or atoms.max() >= n))
     ):
         raise ValueError("the backbone's segments do not fit its atoms")
-    symbols, of_atom = (
-        a["elements_values"],
-        index_of["elements"],
-    )  # radii and colours looked up per element
+    # radii and colours looked up per element
+    symbols, of_atom = (a["elements_values"], index_of["elements"])
     return Structure(
         name=name,
         source=source,

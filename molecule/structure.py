@@ -11,9 +11,8 @@ from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
 
 from sasprobe.common.errors import UserError
 
-MAX_COORDINATE_A = (
-    10_000.0  # |x|, |y|, |z| in Å: the PDB format's own reach (8.3f), far beyond any assembly
-)
+# |x|, |y|, |z| in Å: the PDB format's own reach (8.3f), far beyond any assembly
+MAX_COORDINATE_A = 10_000.0
 
 
 class StructureError(UserError):

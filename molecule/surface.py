@@ -71,9 +71,8 @@ class Surface:
         reach = int(np.ceil(float(r.max()) / spacing))
         i0 = np.rint((c[:, 0] - xs[0]) / spacing).astype(np.int64)
         j0 = np.rint((c[:, 1] - ys[0]) / spacing).astype(np.int64)
-        for di in range(
-            -reach, reach + 1
-        ):  # every column within reach of each atom, vectorised per offset
+        # every column within reach of each atom, vectorised per offset
+        for di in range(-reach, reach + 1):
             for dj in range(-reach, reach + 1):
                 i, j = i0 + di, j0 + dj
                 ok = (i >= 0) & (i < xs.size) & (j >= 0) & (j < ys.size)

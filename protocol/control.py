@@ -43,15 +43,12 @@ from sasprobe.protocol.strict_json import (  # noqa: F401  the limits, beside th
 CONTROL_VERSION = 1
 MAX_REQUEST_JSON_BYTES = 64 * 1024  # the JSON frame; structure bytes travel in frame 2
 MAX_STRUCTURE_BYTES = 256 * 1024 * 1024  # the largest structure file `load` accepts
-MAX_MESSAGE_BYTES = (
-    MAX_STRUCTURE_BYTES + MAX_REQUEST_JSON_BYTES
-)  # all frames together; a larger frame drops the connection
+# all frames together; a larger frame drops the connection
+MAX_MESSAGE_BYTES = MAX_STRUCTURE_BYTES + MAX_REQUEST_JSON_BYTES
 MAX_NAME_CHARS = 200  # `load`'s name and other short strings
 
-STRUCTURE_FORMS = (
-    "file",
-    "arrays",
-)  # what `get_structure` serves: the file as loaded, or its parsed arrays
+# what `get_structure` serves: the file as loaded, or its parsed arrays
+STRUCTURE_FORMS = ("file", "arrays")
 COMMANDS = (
     "ping",
     "status",
@@ -163,7 +160,8 @@ def decode_request(frames: list) -> Request:
         total = sum(len(f) for f in frames)
         if total > MAX_MESSAGE_BYTES:
             raise ProtocolError(
-                f"request of {total} bytes in {len(frames)} frames is larger than {MAX_MESSAGE_BYTES}"
+                f"request of {total} bytes in {len(frames)} frames is larger than "
+                f"{MAX_MESSAGE_BYTES}"
             )
         req = _request(obj, frames)
     except ProtocolError as exc:
@@ -227,9 +225,8 @@ def encode_reply(reply: ControlReply) -> list:
         obj["result"] = reply.result
     else:
         obj["error"] = reply.error or "error"
-    return [_dumps(obj)] + (
-        [reply.data] if reply.data is not None else []
-    )  # any buffer: sent without a copy
+    # any buffer: sent without a copy
+    return [_dumps(obj)] + ([reply.data] if reply.data is not None else [])
 
 
 def decode_reply(frames: list[bytes]) -> ControlReply:
@@ -314,9 +311,8 @@ def validate_set_args(args: dict) -> dict:
                 elif key == "clip_planes":
                     out[key] = validate_clip_planes(value)
                 else:
-                    merge_lights(
-                        DEFAULT_LIGHTS, value
-                    )  # type check only: the daemon merges into its own
+                    # type check only: the daemon merges into its own
+                    merge_lights(DEFAULT_LIGHTS, value)
                     out[key] = value
             except SceneError as exc:
                 raise ProtocolError(str(exc)) from None
@@ -360,7 +356,8 @@ def _check_args(req: Request) -> None:
         rotation = req.args.get("rotation")
         if set(req.args) != {"rotation"} or not _is_matrix3(rotation):
             raise ProtocolError(
-                "'view' takes 'rotation': 3 rows of 3 finite numbers (device frame -> molecule frame)"
+                "'view' takes 'rotation': 3 rows of 3 finite "
+                "numbers (device frame -> molecule frame)"
             )
     elif req.cmd == "clutch":
         if set(req.args) != {"held"} or not isinstance(req.args["held"], bool):

@@ -54,23 +54,23 @@ class ConnectionWatch:
         )
         if zmq.EVENT_HANDSHAKE_FAILED_AUTH in seen:
             return (
-                f"the daemon at {where} refused this client's CURVE key (its public key is not in the "
-                f"daemon's allowed_clients/){hint or '; a daemon of another user?'}"
+                f"the daemon at {where} refused this client's CURVE key (its public key is not in "
+                f"the daemon's allowed_clients/){hint or '; a daemon of another user?'}"
             )
         if seen.get(zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL) == _MECHANISM_MISMATCH:
             if self.with_keys:
                 return f"the daemon at {where} does not use CURVE keys (connect without --keys)"
             return (
-                f"the daemon at {where} requires CURVE keys: give --keys DIR with its server.key and your "
-                f"client key (a loopback daemon of another user cannot be used)"
+                f"the daemon at {where} requires CURVE keys: give --keys DIR with its server.key "
+                "and your client key (a loopback daemon of another user cannot be used)"
             )
         if (
             zmq.EVENT_HANDSHAKE_FAILED_NO_DETAIL in seen
             or zmq.EVENT_HANDSHAKE_FAILED_PROTOCOL in seen
         ):
             return (
-                f"the CURVE handshake with {where} failed: the server.key this client has is not that "
-                f"daemon's{hint}"
+                f"the CURVE handshake with {where} failed: the server.key this client has is not "
+                f"that daemon's{hint}"
             )
         if zmq.EVENT_HANDSHAKE_SUCCEEDED in seen:
             return f"connected to {where}, but the daemon did not answer in time (busy or stuck?)"

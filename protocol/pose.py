@@ -22,21 +22,19 @@ _LAYOUT = struct.Struct(pose_struct_format())
 POSE_SIZE = _LAYOUT.size  # 200 bytes
 if POSE_SIZE != pose_layout()["size"]:
     raise ImportError(
-        f"protocol/schemas/pose.json: its fields make {POSE_SIZE} bytes, not {pose_layout()['size']}"
+        f"protocol/schemas/pose.json: its fields make {POSE_SIZE} bytes, not "
+        f"{pose_layout()['size']}"
     )
 
 FLAG_CONTACT = pose_flag("contact")  # the proxy touches the SAS
 FLAG_CLAMPED = pose_flag("clamped")  # the force was clamped to the device limit
-FLAG_FAULT = pose_flag(
-    "fault"
-)  # the watchdog zeroed the force (device fault, late tick, bad values)
-FLAG_DRIFTING = pose_flag(
-    "drifting"
-)  # the navigation cube is drifting (tip in the workspace margin)
+# the watchdog zeroed the force (device fault, late tick, bad values)
+FLAG_FAULT = pose_flag("fault")
+# the navigation cube is drifting (tip in the workspace margin)
+FLAG_DRIFTING = pose_flag("drifting")
 FLAG_RAMPING = pose_flag("ramping")  # forces are still ramping up after start or reconnect
-FLAG_CLUTCHED = pose_flag(
-    "clutched"
-)  # the clutch is held: the probe stays, the cube follows the hand, no force
+# the clutch is held: the probe stays, the cube follows the hand, no force
+FLAG_CLUTCHED = pose_flag("clutched")
 
 
 class PoseDecodeError(ValueError):
@@ -54,13 +52,11 @@ class Pose:
     publish_t_ns: int = 0
     proxy_A: np.ndarray = field(default_factory=lambda: _vec(3))  # probe centre, molecule frame
     goal_A: np.ndarray = field(default_factory=lambda: _vec(3))  # device tip mapped to the molecule
-    force_N: np.ndarray = field(
-        default_factory=lambda: _vec(3)
-    )  # force sent to the device, device frame
+    # force sent to the device, device frame
+    force_N: np.ndarray = field(default_factory=lambda: _vec(3))
     tip_mm: np.ndarray = field(default_factory=lambda: _vec(3))  # device tip, device frame
-    orientation: np.ndarray = field(
-        default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0])
-    )  # w, x, y, z
+    # w, x, y, z
+    orientation: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
     buttons: int = 0
     touched_atom: int = -1
     flags: int = 0

@@ -35,7 +35,8 @@ MAGIC = b"\x89MCAP0\r\n"
 _OPCODE_FOOTER = 0x02
 PROFILE = "sasprobe"
 
-# Each channel's JSON Schema (protocol/schemas/), standalone, as the writer embeds it (encoding `jsonschema`).
+# Each channel's JSON Schema (protocol/schemas/), standalone, as the writer embeds it
+# (encoding `jsonschema`).
 SCHEMAS = channel_schemas()
 
 

@@ -11,17 +11,14 @@ import json
 import math
 
 SCENE_TOPIC = b"scene"
-SCENE_VERSION = (
-    3  # 3: view, color_scheme, marks; 2: nav_cube.half_A and lights.probe.radius_A are gone
-)
+# 3: view, color_scheme, marks; 2: nav_cube.half_A and lights.probe.radius_A are gone
+SCENE_VERSION = 3
 MAX_SCENE_BYTES = 1 << 20  # a scene is a few KiB; anything this big is not one
 MAX_CLIP_PLANES = 8
 MAX_MARKS = 500  # marks a scene carries (a session's findings, not a point cloud)
 MAX_MARK_LABEL = 80  # characters of a mark's label
-HAPTIC_METHODS = (
-    "proxy",
-    "penalty",
-)  # the `method` a scene reports and a `set` may ask for; the first is the default
+# the `method` a scene reports and a `set` may ask for; the first is the default
+HAPTIC_METHODS = ("proxy", "penalty")
 # How renderers colour the atoms (render/colors.py says what each means); the optional scene
 # key `color_scheme` is one of these, or null for the renderer's default by structure.
 COLOR_SCHEMES = (
@@ -98,7 +95,8 @@ def validate_color_scheme(value) -> str | None:
     """A colour scheme name, or None (each renderer picks its default by structure)."""
     if value is not None and value not in COLOR_SCHEMES:
         raise SceneError(
-            f"color_scheme must be one of {', '.join(COLOR_SCHEMES)} or null, got {str(value)[:40]!r}"
+            f"color_scheme must be one of {', '.join(COLOR_SCHEMES)} or null, got "
+            f"{str(value)[:40]!r}"
         )
     return value
 

@@ -116,7 +116,8 @@ def pose_record_schema() -> dict:
         "$schema": DIALECT,
         "$id": URN + "pose",
         "title": "sasprobe.Pose",
-        "description": f"Recording channel `pose`: the published pose (layout version {layout['version']}) as JSON",
+        "description": "Recording channel `pose`: the published pose (layout version "
+        f"{layout['version']}) as JSON",
         "type": "object",
         "required": list(properties),
         "additionalProperties": False,

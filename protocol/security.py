@@ -65,7 +65,8 @@ def _private_dir(path: Path) -> None:
 
 
 def generate_keys(directory: Path, clients: tuple[str, ...] = (DEFAULT_CLIENT_NAME,)) -> list[Path]:
-    """Create the server pair (unless present) and one allowed pair per client name; return new files."""
+    """Create the server pair (unless present) and one allowed pair per client name; return new
+    files."""
     import zmq.auth
 
     directory = Path(directory)
@@ -106,7 +107,8 @@ def local_keys_dir() -> Path:
 
 
 def _check_private(path: Path) -> None:
-    """A folder of this user that nobody else can read or write, not a symlink; KeyFileError otherwise."""
+    """A folder of this user that nobody else can read or write, not a symlink; KeyFileError
+    otherwise."""
     info = path.lstat()
     if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.geteuid() or info.st_mode & 0o077:
         raise KeyFileError(
@@ -116,7 +118,8 @@ def _check_private(path: Path) -> None:
 
 
 def ensure_local_keys() -> Path:
-    """The local key folder, created with a server and a client pair when missing (the daemon's side).
+    """The local key folder, created with a server and a client pair when missing (the
+    daemon's side).
 
     Two daemons starting at once race safely: each writes a complete folder under a
     temporary name and renames it into place; the loser uses the winner's."""

@@ -5,12 +5,13 @@ surface: the probe radius wherever the probe touched) and the passage radius (th
 sphere centred in the plane across the direction of travel: molecule/clearance.py).
 
 A passage counts only where it bounds the path over MIN_RUN_A of travel or more
-(molecule/clearance.py says why). The bottleneck is the narrowest counted passage while in contact: the places
-where the hand felt walls. Around the narrowest path point it is refined on the raw
-ticks between its neighbours (each with its nearest point's direction), and the refined
-tick joins the path, so a coarse path never steps over the narrowest place and the chart
-shows what the verdict says. A probe of radius r passes when the bottleneck is at least
-r (to round-off, ROUND_OFF_A): then it fits everywhere along the explored path.
+(molecule/clearance.py says why). The bottleneck is the narrowest counted passage while
+in contact: the places where the hand felt walls. Around the narrowest path point it is
+refined on the raw ticks between its neighbours (each with its nearest point's
+direction), and the refined tick joins the path, so a coarse path never steps over the
+narrowest place and the chart shows what the verdict says. A probe of radius r passes when
+the bottleneck is at least r (to round-off, ROUND_OFF_A): then it fits everywhere along
+the explored path.
 """
 
 from __future__ import annotations
@@ -149,5 +150,6 @@ def verdict(bottleneck_A: float | None, probe_radius_A: float) -> dict:
     return {
         "probe_radius_A": probe_radius_A,
         "passes": bool(passes),
-        "verdict": f"a {probe_radius_A:g} Å probe {how} through the bottleneck of {bottleneck_A:.2f} Å",
+        "verdict": f"a {probe_radius_A:g} Å probe {how} through the bottleneck of "
+        f"{bottleneck_A:.2f} Å",
     }

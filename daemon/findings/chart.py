@@ -90,7 +90,8 @@ def draw_chart(
         right = bx > (x[0] + x[-1]) / 2  # the label goes toward the middle of the chart
         top.plot([bx], [by], "o", color=PROBE_COLOR, ms=7, zorder=5)
         top.annotate(
-            f"bottleneck {by:.2f} Å at {bottleneck['t_s']:.1f} s\n{atom_names(bottleneck['atoms'])}",
+            f"bottleneck {by:.2f} Å at {bottleneck['t_s']:.1f} "
+            f"s\n{atom_names(bottleneck['atoms'])}",
             (bx, by),
             xytext=(-12 if right else 12, -30),
             textcoords="offset points",

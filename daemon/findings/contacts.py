@@ -43,7 +43,8 @@ def _residue_key(structure: Structure, atom: int) -> tuple:
 def touched_atoms_per_tick(
     track: Track, field: ClearanceField, progress: Callable[[int], None] | None = None
 ) -> dict[int, list[int]]:
-    """Contact tick index -> the atoms touched then (ticks at an unchanged position share one query)."""
+    """Contact tick index -> the atoms touched then (ticks at an unchanged position share one
+    query)."""
     reach = track.probe_radius_A + CONTACT_TOLERANCE_A
     out: dict[int, list[int]] = {}
     previous = None
@@ -94,7 +95,8 @@ def touched_residues(track: Track, per_tick: dict[int, list[int]]) -> list[dict]
 
 
 def residues_near(structure: Structure, point, radius_A: float = MARK_RADIUS_A) -> list[dict]:
-    """Residues with an atom centre within radius_A of a point, nearest first, with that distance."""
+    """Residues with an atom centre within radius_A of a point, nearest first, with that
+    distance."""
     dist = np.linalg.norm(structure.positions - np.asarray(point, dtype=np.float64), axis=1)
     best: dict[tuple, tuple[float, int]] = {}
     for atom in np.flatnonzero(dist <= radius_A):

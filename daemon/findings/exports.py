@@ -128,7 +128,8 @@ def pymol_script(scene: ViewerScene) -> str:
             f"color magenta, path and chain {MARK_CHAIN}",
         ]
         lines += [
-            f"label path and chain {MARK_CHAIN} and resi {m['id']}, {_quoted(str(m['id']) + ': ' + m['label'])}"
+            f"label path and chain {MARK_CHAIN} and resi {m['id']}, "
+            f"{_quoted(str(m['id']) + ': ' + m['label'])}"
             for m in marks
         ]
     if residues:
@@ -148,7 +149,8 @@ def pymol_script(scene: ViewerScene) -> str:
         lines += [
             f"select bottleneck, structure and ({' or '.join(terms)})",
             "show spheres, bottleneck",
-            f"pseudoatom bottleneck_centre, pos=[{c[0]:.3f}, {c[1]:.3f}, {c[2]:.3f}], label={label}",
+            f"pseudoatom bottleneck_centre, pos=[{c[0]:.3f}, "
+            f"{c[1]:.3f}, {c[2]:.3f}], label={label}",
         ]
     lines += ["deselect", "orient path"]
     return "\n".join(lines) + "\n"
@@ -166,12 +168,14 @@ def chimerax_script(scene: ViewerScene) -> str:
         "show #2 atoms",
         "style #2 sphere",
         f"size #2/{PATH_CHAIN} atomRadius 0.25",
-        f"color bfactor #2/{PATH_CHAIN} palette red:white:blue range {probe_radius_A:g},{OPEN_RADIUS_A:g}",
+        f"color bfactor #2/{PATH_CHAIN} palette red:white:blue range "
+        f"{probe_radius_A:g},{OPEN_RADIUS_A:g}",
     ]
     if marks:
         lines += [f"size #2/{MARK_CHAIN} atomRadius 0.6", f"color #2/{MARK_CHAIN} magenta"]
         lines += [
-            f"label #2/{MARK_CHAIN}:{m['id']} atoms text {_quoted(str(m['id']) + ': ' + m['label'])}"
+            f"label #2/{MARK_CHAIN}:{m['id']} atoms text "
+            f"{_quoted(str(m['id']) + ': ' + m['label'])}"
             for m in marks
         ]
     if residues:

@@ -64,9 +64,8 @@ def explored_path(
         if ticks.size <= MAX_POINTS or widen > 1e6:
             break
         widen *= 1.5
-    starts = np.concatenate(
-        ([0], ticks[:-1] + 1)
-    )  # each point stands for ticks starts[k] .. ticks[k]
+    # each point stands for ticks starts[k] .. ticks[k]
+    starts = np.concatenate(([0], ticks[:-1] + 1))
     force = np.maximum.reduceat(track.force_N, starts)
     contact = np.logical_or.reduceat(track.contact, starts)
     pos = p[ticks]

@@ -2,7 +2,8 @@
 session from its recording alone, written into one folder.
 
     findings.json         everything below, with the session, the files and notes
-    touched_residues.tsv  chain, residue, number, atoms, contact time, largest force, first/last time
+    touched_residues.tsv  chain, residue, number, atoms, contact time, largest force,
+                          first and last time
     marks.tsv             each mark: time, position, label, the residues within 4 Å
     chart.png             passage radius and force along the path, with the marks
     path.pdb, path.cif    the path as pseudo-atoms, B-factor = passage radius
@@ -221,9 +222,9 @@ def summary_lines(found: dict, limit: int = 20) -> list[str]:
     touched residues (the first `limit`, by contact time)."""
     s, v = found["session"], found["verdict"]
     lines = [
-        f"findings  {found['structure']['name']}: {s['duration_s']:.1f} s, path {s['path_length_A']:.1f} Å, "
-        f"in contact {s['contact_s']:.1f} s, {len(found['touched_residues'])} residues touched, "
-        f"{len(found['marks'])} marks"
+        f"findings  {found['structure']['name']}: {s['duration_s']:.1f} s, path "
+        f"{s['path_length_A']:.1f} Å, in contact {s['contact_s']:.1f} s, "
+        f"{len(found['touched_residues'])} residues touched, {len(found['marks'])} marks"
     ]
     neck = found["bottleneck"]
     if neck is not None:
@@ -242,18 +243,20 @@ def summary_lines(found: dict, limit: int = 20) -> list[str]:
             for r in m["residues_within_4A"][:6]
         )
         lines.append(
-            f"  mark {m['id']:<3}  {m['t_s']:7.2f} s  {m['label']}: {near or 'no residue within 4 Å'}"
+            f"  mark {m['id']:<3}  {m['t_s']:7.2f} s  {m['label']}: "
+            f"{near or 'no residue within 4 Å'}"
         )
     rows = sorted(found["touched_residues"], key=lambda r: -r["contact_s"])[:limit]
     if rows:
         lines.append(
-            f"  {'chain':<6}{'residue':<8}{'number':>7}  {'contact s':>9}  {'max N':>6}  {'first s':>7}  "
-            f"{'last s':>7}  atoms"
+            f"  {'chain':<6}{'residue':<8}{'number':>7}  {'contact s':>9}  {'max N':>6}  "
+            f"{'first s':>7}  {'last s':>7}  atoms"
         )
         for r in rows:
             lines.append(
-                f"  {r['chain']:<6}{r['name']:<8}{str(r['number']) + r['icode']:>7}  {r['contact_s']:9.3f}  "
-                f"{r['max_force_N']:6.2f}  {r['first_s']:7.2f}  {r['last_s']:7.2f}  {','.join(r['atoms'])}"
+                f"  {r['chain']:<6}{r['name']:<8}{str(r['number']) + r['icode']:>7}  "
+                f"{r['contact_s']:9.3f}  {r['max_force_N']:6.2f}  {r['first_s']:7.2f}  "
+                f"{r['last_s']:7.2f}  {','.join(r['atoms'])}"
             )
         if len(found["touched_residues"]) > limit:
             lines.append(

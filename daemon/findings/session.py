@@ -30,9 +30,8 @@ class Track:
     probe_radius_A: float  # the session's probe radius (its start settings)
     rate_hz: float
     t_s: np.ndarray  # (N,) device time since the first tick, s
-    dt_s: (
-        np.ndarray
-    )  # (N,) the time each tick stands for (since the one before, at most MAX_TICK_S)
+    # (N,) the time each tick stands for (since the one before, at most MAX_TICK_S)
+    dt_s: np.ndarray
     seq: np.ndarray  # (N,)
     proxy_A: np.ndarray  # (N, 3) probe centre
     force_N: np.ndarray  # (N,) |force| written to the device
@@ -73,14 +72,14 @@ def read_track(path: str | Path) -> Track:
         if cmd == "load" and args.get("sha256") != sha:
             end = min(end, int(np.searchsorted(session.seq, event["seq"])))
             notes.append(
-                f"the session loaded {args.get('name', 'another structure')} at tick {event['seq']}: "
-                f"the findings cover {structure.name} up to there"
+                f"the session loaded {args.get('name', 'another structure')} at tick "
+                f"{event['seq']}: the findings cover {structure.name} up to there"
             )
             break
         if cmd == "set" and "probe_radius_A" in args and float(args["probe_radius_A"]) != radius:
             notes.append(
-                f"the probe radius was set to {float(args['probe_radius_A']):g} Å at tick {event['seq']}; "
-                f"the verdicts use the session's starting radius, {radius:g} Å"
+                f"the probe radius was set to {float(args['probe_radius_A']):g} Å at tick "
+                f"{event['seq']}; the verdicts use the session's starting radius, {radius:g} Å"
             )
         events.append(event)
     end = max(end, 1)

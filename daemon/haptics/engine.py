@@ -73,9 +73,8 @@ class HapticOutput:
     cube_half_A: float
     seated: bool = True  # False while the proxy waits for the goal to reach free space
     iterations: int = 0  # proxy path steps this tick
-    clutched: bool = (
-        False  # the clutch is held: the probe stays, the cube follows the hand, no force
-    )
+    # the clutch is held: the probe stays, the cube follows the hand, no force
+    clutched: bool = False
 
 
 class HapticEngine:
@@ -128,7 +127,8 @@ class HapticEngine:
         self._last_t_ns = None
 
     def update(self, **changes) -> None:
-        """Change settings by HapticSettings field name; ValueError (nothing changed) on bad values."""
+        """Change settings by HapticSettings field name; ValueError (nothing changed) on bad
+        values."""
         names = {f.name for f in fields(HapticSettings)}
         for name in changes:
             if name not in names:
@@ -173,7 +173,8 @@ class HapticEngine:
         self._solver.unseat()
 
     def set_structure(self, structure: Structure) -> None:
-        """Switch molecule: new grid, a new navigation cube (the view's turn kept), unseated proxy."""
+        """Switch molecule: new grid, a new navigation cube (the view's turn kept), unseated
+        proxy."""
         self._structure = structure
         self._build_geometry()
         rotation, self._mapping = self._mapping.rotation, self._initial_mapping()
@@ -314,5 +315,6 @@ class HapticEngine:
 
 
 def build_engine(structure: Structure, limits: DeviceLimits, settings: dict) -> HapticEngine:
-    """An engine from a settings dict (validate_settings' form): how the daemon and replays build one."""
+    """An engine from a settings dict (validate_settings' form): how the daemon and replays build
+    one."""
     return HapticEngine(structure, limits, HapticSettings(**settings).validated(limits))

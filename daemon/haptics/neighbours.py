@@ -72,7 +72,8 @@ class NeighbourCache:
 def deepest(
     cache: NeighbourCache, x: float, y: float, z: float
 ) -> tuple[Sphere, float, float] | None:
-    """(sphere a point is deepest inside, depth Å, distance to its centre Å), or None when outside all."""
+    """(sphere a point is deepest inside, depth Å, distance to its centre Å), or None when
+    outside all."""
     best = None
     best_depth = 0.0
     best_dist = 0.0

@@ -65,7 +65,7 @@ class HapticPipeline:
             self.engine.set_view(self.view_rotation)
         self.engine.set_clutch(self.clutched)
 
-    # ------------------------------------------------------------ the workspace (view, clutch, recentre)
+    # ---------------------------------------------- the workspace (view, clutch, recentre)
     def set_view(self, rotation) -> None:
         """The view turned: the workspace turns with it (validate_rotation's 9 floats)."""
         self.view_rotation = tuple(rotation)
@@ -148,9 +148,8 @@ class HapticPipeline:
         values) it repeats the last known geometry and device time, and touches nothing: the
         contact flag and `touched_atom` always describe the same tick."""
         out = result.output if result.output is not None else self.last_output
-        valid = state is not None and (
-            result.output is not None or state_is_finite(state)
-        )  # no NaN on the wire
+        # no NaN on the wire
+        valid = state is not None and (result.output is not None or state_is_finite(state))
         if state is not None:
             self.device_t_ns = int(state.t_ns)
         touched = result.output.touched_atoms if result.output is not None else ()

@@ -36,9 +36,8 @@ class HapticSettings:
     # 100 Hz up on the simulated arm (see the stability map of `sasprobe bench haptics`).
     stiffness_n_per_mm: float = 0.3
     damping_n_s_per_m: float = 0.2
-    cube_half_A: float | str | None = (
-        None  # navigation-cube half edge (Å); None: the default size; "fit": the molecule
-    )
+    # navigation-cube half edge (Å); None: the default size; "fit": the molecule
+    cube_half_A: float | str | None = None
     cube_center_A: tuple[float, float, float] | None = None  # None = centre of the molecule
 
     def validated(self, limits: DeviceLimits) -> HapticSettings:
@@ -51,12 +50,14 @@ class HapticSettings:
         stiffness = _finite(self.stiffness_n_per_mm, "stiffness")
         if stiffness <= 0 or stiffness > limits.max_stiffness_n_per_mm:
             raise ValueError(
-                f"stiffness must be in (0, {limits.max_stiffness_n_per_mm:g}] N/mm for this device, got {stiffness:g}"
+                f"stiffness must be in (0, {limits.max_stiffness_n_per_mm:g}] N/mm for this "
+                f"device, got {stiffness:g}"
             )
         damping = _finite(self.damping_n_s_per_m, "damping")
         if damping < 0 or damping > limits.max_damping_n_s_per_m:
             raise ValueError(
-                f"damping must be in [0, {limits.max_damping_n_s_per_m:g}] N·s/m for this device, got {damping:g}"
+                f"damping must be in [0, {limits.max_damping_n_s_per_m:g}] N·s/m for this device, "
+                f"got {damping:g}"
             )
         return HapticSettings(
             probe_radius_A=radius,

@@ -136,7 +136,8 @@ def _vector(values, n: int) -> list[float]:
 
 
 def load_session(path: str | Path) -> ReplaySession:
-    """Read a recording (finished or recovered) into a ReplaySession; DeviceOpenError if unusable."""
+    """Read a recording (finished or recovered) into a ReplaySession; DeviceOpenError if
+    unusable."""
     path = Path(path)
     try:
         finished = scan(path).finished
@@ -276,15 +277,8 @@ def open_replay(argument: str | None, speed: float | None = 1.0, **options) -> R
     return ReplayDevice(argument, speed=speed)
 
 
-REPLAYED_COMMANDS = (
-    "set",
-    "load",
-    "reconnect",
-    "view",
-    "clutch",
-    "recentre",
-    "mark",
-)  # what a replay repeats
+# what a replay repeats
+REPLAYED_COMMANDS = ("set", "load", "reconnect", "view", "clutch", "recentre", "mark")
 
 
 def apply_recorded_event(

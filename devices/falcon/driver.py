@@ -80,9 +80,8 @@ class FalconDevice(HardwareDriver):
         self._position_m = M.WORKSPACE_CENTRE_M.copy()
         self._jacobian: np.ndarray | None = None  # ∂p/∂θ1 there, once per reply
         self._state: DeviceState | None = None
-        self._in_flight: collections.deque[int] = (
-            collections.deque()
-        )  # send times of unanswered frames
+        # send times of unanswered frames
+        self._in_flight: collections.deque[int] = collections.deque()
         self.firmware_uploads = 0
         self.upload_retries = 0
         self.resent_frames = 0

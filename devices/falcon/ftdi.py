@@ -147,9 +147,8 @@ class FtdiLink:
                 frame, self._outgoing = self._outgoing, None
             try:
                 self.usb.write(frame)
-            except (
-                TransferTimeout
-            ):  # the chip's buffer is full: the frame is lost, the driver resends
+            # the chip's buffer is full: the frame is lost, the driver resends
+            except TransferTimeout:
                 continue
             except DeviceFault as exc:
                 self._fail(exc)

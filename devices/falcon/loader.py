@@ -40,18 +40,22 @@ def enter_firmware_mode(link: ftdi.FtdiLink) -> int:
     link.request(ftdi.SIO_MODEM_CTRL, ftdi.RTS_LOW)
     link.request(ftdi.SIO_MODEM_CTRL, ftdi.DTR_LOW)
     link.request(ftdi.SIO_MODEM_CTRL, ftdi.DTR_HIGH)
-    for probe in range(1, P.LOADER_PROBE_TRIES + 1):
-        link.write_blocking(P.LOADER_PROBE)
-        if link.read_packet(PROBE_READ_S) in P.LOADER_REPLIES:
-            break
-    else:
-        raise LoaderSilent(f"the Falcon's loader did not answer {P.LOADER_PROBE_TRIES} probes")
+    probes = _probe(link)
     link.request(ftdi.SIO_MODEM_CTRL, ftdi.DTR_LOW)
     link.request(ftdi.SIO_SET_BAUD_RATE, ftdi.DIVISOR_LOADER)
     link.write_blocking(P.LOADER_HANDSHAKE)
     if link.read_packet(PROBE_READ_S) != P.LOADER_HANDSHAKE:
         raise UploadFailed("the loader did not echo its handshake")
-    return probe
+    return probes
+
+
+def _probe(link: ftdi.FtdiLink) -> int:
+    """Probe the loader until it answers; the number of the probe it answered."""
+    for probe in range(1, P.LOADER_PROBE_TRIES + 1):
+        link.write_blocking(P.LOADER_PROBE)
+        if link.read_packet(PROBE_READ_S) in P.LOADER_REPLIES:
+            return probe
+    raise LoaderSilent(f"the Falcon's loader did not answer {P.LOADER_PROBE_TRIES} probes")
 
 
 def upload(link: ftdi.FtdiLink, image: bytes) -> None:

@@ -130,9 +130,8 @@ class ForceDimensionDevice(HardwareDriver):
         if self._id is None:
             return
         lib, device_id, self._id = self._lib, self._id, None
-        lib.dhdSetForce(
-            0.0, 0.0, 0.0, device_id
-        )  # an arm that cannot hear it has lost force already
+        # an arm that cannot hear it has lost force already
+        lib.dhdSetForce(0.0, 0.0, 0.0, device_id)
         lib.dhdClose(device_id)
 
     def reconnect(self) -> None:

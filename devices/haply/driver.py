@@ -59,9 +59,8 @@ class Haply2DIYDevice(SerialArm):
         self.device_id = device_id
         self.set_up = False
         self.setups_sent = 0
-        self.board_angles_deg: tuple[float, ...] | None = (
-            None  # per port, as the board reports them
-        )
+        # per port, as the board reports them
+        self.board_angles_deg: tuple[float, ...] | None = None
         self.theta = np.radians(
             [
                 self.generation.port_for(1).start_angle_deg,
@@ -107,9 +106,8 @@ class Haply2DIYDevice(SerialArm):
         return force
 
     def _zero_may_overlap(self) -> bool:
-        return (
-            True  # fixed-size frames cannot merge, and the board has no watchdog: always send zero
-        )
+        # fixed-size frames cannot merge, and the board has no watchdog: always send zero
+        return True
 
     def _split(self, inbox: bytes):
         size = protocol.reply_size(len(self.generation.ports))
@@ -182,8 +180,8 @@ class Haply2DIYDevice(SerialArm):
         if self.transport.read(4096, SETUP_SILENCE_S):
             raise DeviceOpenError(
                 f"the board on {self.port} answered the reset/setup messages, which the Haply "
-                "M0/M3 firmware never does: it runs another firmware (the old v0.1 header format?); "
-                "flash Haply_M0_Firmware_V0_3 or Haply_M3_Firmware_V1_5"
+                "M0/M3 firmware never does: it runs another firmware (the old v0.1 header "
+                "format?); flash Haply_M0_Firmware_V0_3 or Haply_M3_Firmware_V1_5"
             )
 
     def _answers_in_full(self, deadline: float) -> bool:
@@ -205,9 +203,8 @@ class Haply2DIYDevice(SerialArm):
                 replies = [self._split(frame)[0] for frame in frames]
             except BadFrame:
                 replies = []
-            if replies and all(
-                r is not None for r in replies
-            ):  # late answers to earlier probes, then ours
+            # late answers to earlier probes, then ours
+            if replies and all(r is not None for r in replies):
                 self.board_angles_deg = None
                 self._take(replies[-1])
                 self._sent_at = None

@@ -30,9 +30,8 @@ HALF_WORKSPACE_MM = 50.0
 @dataclass(frozen=True)
 class PortSetup:
     port: int  # the board's motor/encoder port, 1..4
-    link: (
-        int  # the pantograph link it drives and reads: 1 (from the motor at x = 0) or 2 (at x = d)
-    )
+    # the pantograph link it drives and reads: 1 (from the motor at x = 0) or 2 (at x = d)
+    link: int
     motor_direction: int  # CW or CCW
     encoder_direction: int
     start_angle_deg: float  # the encoder offset sent at setup

@@ -146,7 +146,10 @@ class Session:
             except ConnectionClosed as exc:
                 why = f"the Inverse Service at {self.url} closed the connection ({exc})"
             except protocol.FormatError as exc:
-                why = f"the Inverse Service at {self.url} sent a state update outside its 3.x format ({exc})"
+                why = (
+                    f"the Inverse Service at {self.url} sent a "
+                    f"state update outside its 3.x format ({exc})"
+                )
             except Exception as exc:  # the connection broke in some other way
                 why = f"the connection to the Inverse Service at {self.url} failed: {exc}"
             else:
@@ -236,7 +239,8 @@ class Inverse3Device(HardwareDriver):
         self.sessions += 1
         if not session.latest[1].calibrated:
             log.warning(
-                "the Inverse3 %s is not calibrated: let it self-calibrate (see docs/connect-your-arm.md)",
+                "the Inverse3 %s is not calibrated: let it self-calibrate (see "
+                "docs/connect-your-arm.md)",
                 session.device_id,
             )
 
@@ -275,9 +279,8 @@ class Inverse3Device(HardwareDriver):
             silent_s = time.monotonic() - s.sent_at
             if not s.in_flight() or silent_s <= self.reply_timeout_s:
                 return  # answering: nothing to do
-            if (
-                silent_s <= SILENT_RECONNECT_S
-            ):  # the late reply may still come; read() takes it when it does
+            # the late reply may still come; read() takes it when it does
+            if silent_s <= SILENT_RECONNECT_S:
                 raise DeviceFault(
                     f"the Inverse Service has not answered for {silent_s * 1000:.0f} ms"
                 )

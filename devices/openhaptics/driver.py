@@ -68,13 +68,11 @@ from sasprobe.devices.openhaptics.hdapi import error_name
 log = logging.getLogger("sasprobe.devices.openhaptics")
 
 RESET_ENCODERS = "reset-encoders"
-FREE_COMMANDS = (
-    3  # zero commands in a row past the contact: the stylus is out (a late tick gives one)
-)
+# zero commands in a row past the contact: the stylus is out (a late tick gives one)
+FREE_COMMANDS = 3
 FREE_MARGIN_MM = 0.5  # ... each this far past every in-contact position, along the way out
-RESUME_RAMP_FRAMES = (
-    500  # after a force error, force ramps back in over 0.5 s of the 1 kHz servo loop
-)
+# after a force error, force ramps back in over 0.5 s of the 1 kHz servo loop
+RESUME_RAMP_FRAMES = 500
 MAX_ERRORS_PER_FRAME = 16  # the error stack is drained, boundedly, after every frame
 
 
@@ -94,9 +92,8 @@ class OpenHapticsDevice(HardwareDriver):
         self._lib = None
         self._handle = hdapi.HD_INVALID_HANDLE
         self._schedule = None
-        self._callback = hdapi.SchedulerCallback(
-            self._servo
-        )  # keep a reference: the library calls it
+        # keep a reference: the library calls it
+        self._callback = hdapi.SchedulerCallback(self._servo)
         self._lock = threading.Lock()
         self._force = (ctypes.c_double * 3)()
         self._limits = PHANTOM_OMNI_LIMITS
@@ -110,18 +107,15 @@ class OpenHapticsDevice(HardwareDriver):
         self._sample = None  # (t_ns, position, velocity, transform, buttons)
         self._fatal: tuple[int, int] | None = None
         self._calibrated = False
-        self._force_blocked = (
-            False  # after a force error, until the stylus is out or a button pressed anew
-        )
+        # after a force error, until the stylus is out or a button pressed anew
+        self._force_blocked = False
         self._way_out = np.zeros(3)  # unit: the force rendered at that error (zero: none was)
         self._contact_s = -math.inf  # the furthest position along it where the daemon still pushed
         self._free_commands = 0  # zero commands in a row past it
-        self._read_tip: np.ndarray | None = (
-            None  # the tip of the state read() returned last (None: it failed)
-        )
-        self._ramp_frames: int | None = (
-            None  # force ramping in after a resume: frames with force so far
-        )
+        # the tip of the state read() returned last (None: it failed)
+        self._read_tip: np.ndarray | None = None
+        # force ramping in after a resume: frames with force so far
+        self._ramp_frames: int | None = None
         self._last_buttons: int | None = None
         self._unlogged: list[int] = []  # error codes the servo thread saw, for read() to log
         self._logged: set[int] = set()
@@ -260,7 +254,8 @@ class OpenHapticsDevice(HardwareDriver):
             workspace_max_mm=tuple(float(v) for v in hi - self._centre),
             nominal_rate_hz=1000.0,
         )
-        self._pop_errors()  # a parameter this device lacks leaves HD_INVALID_ENUM; the defaults stand
+        # a parameter this device lacks leaves HD_INVALID_ENUM; the defaults stand
+        self._pop_errors()
 
     def _disable(self) -> None:
         self._lib.hdDisableDevice(self._handle)
@@ -302,9 +297,8 @@ class OpenHapticsDevice(HardwareDriver):
             hdapi.HD_CALIBRATION_AUTO,
             hdapi.HD_CALIBRATION_INKWELL,
         ):
-            lib.hdUpdateCalibration(
-                self.calibration_style
-            )  # Calibration.c's UpdateCalibrationCallback
+            # Calibration.c's UpdateCalibrationCallback
+            lib.hdUpdateCalibration(self.calibration_style)
         calibrated = calibration == hdapi.HD_CALIBRATION_OK
         tip = np.array(position[:])
         with self._lock:
@@ -383,9 +377,8 @@ class OpenHapticsDevice(HardwareDriver):
             return  # the read failed: a fault tick's zero says nothing of the contact
         push = float(np.linalg.norm(force))
         if push > 0.0:
-            if not np.any(
-                self._way_out
-            ):  # the error came with no force rendered: this is the way out
+            # the error came with no force rendered: this is the way out
+            if not np.any(self._way_out):
                 self._way_out = force / push
             self._contact_s = max(self._contact_s, float(tip @ self._way_out))
             self._free_commands = 0
@@ -411,13 +404,15 @@ class OpenHapticsDevice(HardwareDriver):
                     "OpenHaptics reported %s (0x%04x): %s",
                     error_name(code),
                     code,
-                    "force output stopped until the stylus is out of the contact or a button is pressed anew"
+                    "force output stopped until the stylus is out "
+                    "of the contact or a button is pressed anew"
                     if stops_force
                     else "the servo loop goes on",
                 )
         if fatal is not None:
             raise DeviceFault(
-                f"OpenHaptics reported {error_name(fatal[0])} (0x{fatal[0]:04x}, internal {fatal[1]})"
+                f"OpenHaptics reported {error_name(fatal[0])} "
+                f"(0x{fatal[0]:04x}, internal {fatal[1]})"
             )
         if sample is None or time.monotonic_ns() - sample[0] > self.read_timeout_s * 1e9:
             raise DeviceFault(

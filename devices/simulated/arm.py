@@ -80,9 +80,8 @@ class ArmModel:
     arm_damping_n_s_per_m: float = 0.3
     hand_stiffness_n_per_mm: float = 0.2  # a light grip
     hand_damping_n_s_per_m: float = 1.0
-    max_hand_force_n: float | None = (
-        None  # None: HAND_RATING_FRACTION of the device's continuous rating
-    )
+    # None: HAND_RATING_FRACTION of the device's continuous rating
+    max_hand_force_n: float | None = None
 
 
 class SimulatedDevice(HapticDevice):

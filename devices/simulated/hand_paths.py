@@ -61,9 +61,8 @@ class HandPath:
     name: str
     times: list[float]
     points: list[tuple[float, float, float]]
-    info: dict = field(
-        default_factory=dict
-    )  # where it was placed (molecule frame), for tests and reports
+    # where it was placed (molecule frame), for tests and reports
+    info: dict = field(default_factory=dict)
 
     @property
     def duration_s(self) -> float:

@@ -120,7 +120,8 @@ class SpaceMouseDevice(HardwareDriver):
                 )
             raise DeviceOpenError(
                 "no 3Dconnexion SpaceMouse found (is it plugged in? `sasprobe devices` lists HID "
-                "devices; without permission on /dev/hidraw* it is invisible: see docs/connect-your-arm.md)"
+                "devices; without permission on /dev/hidraw* it is invisible: see "
+                "docs/connect-your-arm.md)"
             )
         # a device's multi-axis controller interface when hidapi lists one
         usable.sort(key=lambda d: models.interface_usage(d) != models.MULTI_AXIS_CONTROLLER)

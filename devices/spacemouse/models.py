@@ -92,9 +92,8 @@ SPACEMOUSE_ENTERPRISE_BUTTONS = _by_report_bit(
 class Model:
     name: str
     newer_axes: bool
-    buttons: dict[int, int] | None = field(
-        default=None, hash=False
-    )  # report-3 bit → button; None: the bit
+    # report-3 bit → button; None: the bit
+    buttons: dict[int, int] | None = field(default=None, hash=False)
 
 
 VENDOR_LOGITECH, VENDOR_3DCONNEXION = 0x046D, 0x256F
@@ -204,5 +203,8 @@ def refusal(vendor_id: int, product_id: int) -> str:
     if name:
         return f"the 3Dconnexion {name} ({ids}) is not a 6-DoF device"
     if (vendor_id, product_id) == UNIVERSAL_RECEIVER:
-        return f"this interface of the {RECEIVER_NAME} ({ids}) is not its 6-DoF (multi-axis controller) one"
+        return (
+            f"this interface of the {RECEIVER_NAME} ({ids}) is not its 6-DoF (multi-axis "
+            "controller) one"
+        )
     return f"{ids} is not a SpaceMouse model sasprobe knows (spacenavd's device list)"

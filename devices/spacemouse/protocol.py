@@ -35,7 +35,8 @@ _LEFT_TO_RIGHT_HANDED = np.array([1, 1, -1, 1, 1, -1])  # libspnav: z and rz tow
 
 
 def parse_report(report: bytes) -> dict | None:
-    """{'translation': (3,), 'rotation': (3,), 'buttons': int} (any subset), or None if malformed."""
+    """{'translation': (3,), 'rotation': (3,), 'buttons': int} (any subset), or None if
+    malformed."""
     if not report:
         return None
     rid, body = report[0], report[1:]
@@ -61,7 +62,8 @@ def parse_report(report: bytes) -> dict | None:
 
 
 def device_frame(raw: np.ndarray, newer_axes: bool) -> np.ndarray:
-    """Six HID axes (x, y, z, rx, ry, rz as reported) → (translation, rotation) in the device frame."""
+    """Six HID axes (x, y, z, rx, ry, rz as reported) → (translation, rotation) in the device
+    frame."""
     raw = np.asarray(raw, dtype=float)
     normalised = raw.copy()
     if newer_axes:
@@ -84,9 +86,8 @@ def button_mask(bits: int, remap: dict[int, int] | None) -> int:
 @dataclass(frozen=True)
 class DescriptorSummary:
     buttons: int  # button usages in input reports
-    axis_maximum: (
-        int | None
-    )  # the largest Logical Maximum of the X..Rz axes, None when none is declared
+    # the largest Logical Maximum of the X..Rz axes, None when none is declared
+    axis_maximum: int | None
 
 
 _USAGE_PAGE_DESKTOP, _USAGE_PAGE_BUTTON = 0x01, 0x09

@@ -138,5 +138,6 @@ class WoodenHapticsDevice(SerialArm):
 
 
 def create(argument: str | None = None, **options) -> WoodenHapticsDevice:
-    """`woodenhaptics:PORT`. Options: rate_hz, reply_timeout_s, stale_after_s, handshake_timeout_s."""
+    """`woodenhaptics:PORT`. Options: rate_hz, reply_timeout_s, stale_after_s,
+    handshake_timeout_s."""
     return WoodenHapticsDevice(argument, **timing_options(options))

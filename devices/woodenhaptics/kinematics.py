@@ -65,13 +65,13 @@ def body_angles(model: WoodenModel, raw_counts) -> np.ndarray:
 
 
 def polhem_tip(angles) -> tuple[np.ndarray, float]:
-    """Polhem's tip (hfab frame, m, before the origin is subtracted) and λ; NaN where the loop cannot close."""
+    """Polhem's tip (hfab frame, m, before the origin is subtracted) and λ; NaN where the loop
+    cannot close."""
     t1, t2, t3 = angles
     l0, l1, l2, l3, l4, l5 = POLHEM_LINKS_M
     to_b_from_crank_pivot = np.array([l0 + l1 * math.cos(t2), l1 * math.sin(t2)])  # B − O2
-    to_b_from_crank_end = to_b_from_crank_pivot - l2 * np.array(
-        [math.cos(t3), math.sin(t3)]
-    )  # B − A
+    # B − A
+    to_b_from_crank_end = to_b_from_crank_pivot - l2 * np.array([math.cos(t3), math.sin(t3)])
     rho2 = float(np.hypot(*to_b_from_crank_pivot))
     rho1 = float(np.hypot(*to_b_from_crank_end))
     with np.errstate(invalid="ignore"):

@@ -21,10 +21,8 @@ from dataclasses import dataclass
 from sasprobe.devices.base import DeviceLimits
 from sasprobe.devices.hardware import sphere_limits
 
-SERIAL, POLHEM = (
-    "serial",
-    "polhem",
-)  # body A (waist) + bodies B, C; or Polhem's four-bar (hfab variant 3)
+# body A (waist) + bodies B, C; or Polhem's four-bar (hfab variant 3)
+SERIAL, POLHEM = ("serial", "polhem")
 
 # hfab_polhem.h: L0 base pivot spacing, L1 body B, L2 crank, L3 coupler, L4 and L5 the
 # output link behind and ahead of its pivot on body B (metres).
@@ -139,7 +137,8 @@ def known_models() -> str:
 
 
 def _most_cautious() -> DeviceLimits:
-    """What the daemon may assume before the arm has said which model it is: the smallest of each."""
+    """What the daemon may assume before the arm has said which model it is: the smallest of
+    each."""
     every = [m.limits for m in WOODEN_MODELS.values()]
     smallest_box = min(every, key=lambda lim: lim.workspace_max_mm[0])
     return DeviceLimits(

@@ -181,9 +181,8 @@ class WorkspaceMapping:
         r = self.rotation
         moved = False
         for axis in range(3):
-            v = (
-                r[3 * axis] * vx + r[3 * axis + 1] * vy + r[3 * axis + 2] * vz
-            )  # along this molecule axis
+            # along this molecule axis
+            v = r[3 * axis] * vx + r[3 * axis + 1] * vy + r[3 * axis + 2] * vz
             old = self.cube_center[axis]
             new = old + v * step
             # Stop at the bounds, never snap back into them (a snap would be a goal jump).

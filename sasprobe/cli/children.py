@@ -132,14 +132,11 @@ class Child:
     def error_line(self) -> str:
         """The child's own one-line error (`sasprobe: error: ...`), else its last log line."""
         try:
-            lines = [
-                l.strip()
-                for l in self.log_path.read_text(errors="replace").splitlines()
-                if l.strip()
-            ]
+            text = self.log_path.read_text(errors="replace")
         except OSError:
             return ""
-        errors = [l for l in lines if l.startswith("sasprobe: error:")]
+        lines = [line.strip() for line in text.splitlines() if line.strip()]
+        errors = [line for line in lines if line.startswith("sasprobe: error:")]
         line = errors[-1] if errors else (lines[-1] if lines else "")
         return line.removeprefix("sasprobe: error: ")
 
@@ -199,7 +196,8 @@ class DaemonChild(Child):
         )
 
     def wait_ready(self, timeout_s: float) -> dict:
-        """The daemon's ready event; UserError with its own error line when it ends or is silent first."""
+        """The daemon's ready event; UserError with its own error line when it ends or is silent
+        first."""
         ready = self.wait_event(events.READY, timeout_s)
         if ready is None:
             why = self.error_line() if not self.alive() else f"no answer within {timeout_s:g} s"
@@ -214,6 +212,7 @@ class DaemonChild(Child):
     def stop(
         self, timeout_s: float, sig: int = signal.SIGTERM, hurry: threading.Event | None = None
     ) -> int:
-        """Signal the daemon (it writes zero force, closes the device and reports), wait, return its status."""
+        """Signal the daemon (it writes zero force, closes the device and reports), wait, return
+        its status."""
         self.signal(sig)
         return self.finish(timeout_s, hurry)

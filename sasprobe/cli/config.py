@@ -38,7 +38,8 @@ def default_path() -> Path:
 
 
 def find_config(explicit: str | None) -> Path | None:
-    """The config file to use, or None. An explicitly named file must exist (load() checks what it is)."""
+    """The config file to use, or None. An explicitly named file must exist (load() checks what
+    it is)."""
     for named, where in (
         (explicit, ""),
         (os.environ.get("SASPROBE_CONFIG"), " (from SASPROBE_CONFIG)"),
@@ -52,7 +53,8 @@ def find_config(explicit: str | None) -> Path | None:
         return path if path.exists() else None
     except OSError as exc:  # e.g. an unreadable $HOME: say so once and go on without a config file
         print(
-            f"sasprobe: warning: cannot look for {path} ({exc.strerror or exc}); no config file used",
+            f"sasprobe: warning: cannot look for {path} "
+            f"({exc.strerror or exc}); no config file used",
             file=sys.stderr,
         )
         return None

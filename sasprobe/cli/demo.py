@@ -76,9 +76,8 @@ class DemoOptions:
     molecule: str | None = None
     device: str = "sim:scan"
     headless: bool = False
-    seconds: float | None = (
-        None  # None: DEFAULT_SECONDS headless, until the window closes otherwise
-    )
+    # None: DEFAULT_SECONDS headless, until the window closes otherwise
+    seconds: float | None = None
     out: Path = Path("sasprobe-demo")
     size: tuple[int, int] | None = None
     fps: float = 10.0
@@ -108,9 +107,8 @@ def split_extra_args(text: str | None, reserved: tuple[str, ...], flag: str) -> 
 class DemoSession:
     def __init__(self, opts: DemoOptions) -> None:
         self.opts = opts
-        self.sockets = Path(
-            tempfile.mkdtemp(prefix="sasprobe-demo-")
-        )  # short: ipc paths hold ~100 bytes
+        # short: ipc paths hold ~100 bytes
+        self.sockets = Path(tempfile.mkdtemp(prefix="sasprobe-demo-"))
         self.pub = f"ipc://{self.sockets}/pub"
         self.ctl = f"ipc://{self.sockets}/ctl"
         self.out = opts.out
@@ -210,9 +208,8 @@ class DemoSession:
 
     def start_renderer(self, headless: bool, seconds: float | None) -> None:
         env = child_env()
-        protected = bool(
-            self.ready.get("realtime")
-        )  # no ordinary process can preempt a SCHED_FIFO loop
+        # no ordinary process can preempt a SCHED_FIFO loop
+        protected = bool(self.ready.get("realtime"))
         if not protected and headless:
             env.setdefault("LP_NUM_THREADS", "1")  # Mesa llvmpipe: leave the loop a core of its own
         self.renderer = Child(
@@ -371,11 +368,8 @@ def _run_demo(opts: DemoOptions) -> int:
         raise UserError(f"--out {opts.out}: cannot create ({exc.strerror or exc})") from None
     if opts.record is not None and Path(opts.record).exists():
         raise UserError(f"--record {opts.record}: already exists; record to a new file")
-    for stale in (
-        "demo.mp4",
-        "snapshot.png",
-        "summary.json",
-    ):  # never mix an old run's files with this one's
+    # never mix an old run's files with this one's
+    for stale in ("demo.mp4", "snapshot.png", "summary.json"):
         (opts.out / stale).unlink(missing_ok=True)
     session = DemoSession(opts)
     interrupted = False

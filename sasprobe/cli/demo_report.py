@@ -12,9 +12,8 @@ import numpy as np
 from sasprobe import __version__
 from sasprobe.cli.bench.machine import steal_between
 
-STEAL_WORTH_TELLING_PERCENT = (
-    1.0  # below it, steal costs no more deadlines than the loop misses on its own
-)
+# below it, steal costs no more deadlines than the loop misses on its own
+STEAL_WORTH_TELLING_PERCENT = 1.0
 
 
 class ForceMonitor:
@@ -74,7 +73,10 @@ class ForceMonitor:
             if self.force_n
             else np.zeros(0)
         )
-        stats = lambda fn: float(fn(f)) if f.size else None
+
+        def stats(fn):
+            return float(fn(f)) if f.size else None
+
         return {
             "poses": int(f.size),
             "poses_missed": self.subscriber.missed,
@@ -156,28 +158,29 @@ def print_summary(summary: dict, path: Path) -> None:
     s = summary
     structure = s["structure"] or {}
     print(
-        f"sasprobe demo: {structure.get('name', '?')} ({structure.get('n_atoms', '?')} atoms), device {s['device']}, "
+        f"sasprobe demo: {structure.get('name', '?')} ({structure.get('n_atoms', '?')} atoms), "
+        f"device {s['device']}, "
         f"{s['mode']}" + (" (interrupted)" if s["interrupted"] else "")
     )
     h = s["haptics"]
     if h:
         print(
-            f"  haptics   {h['rate_hz']:.1f} Hz (nominal {h['nominal_rate_hz']:g}) over {h['window_s']:.1f} s, "
-            f"period error p99 {h['period_error_us']['p99']:.0f} µs, {h['overruns']} overruns, "
-            f"{'real-time' if h['realtime'] else 'normal'} scheduling"
+            f"  haptics   {h['rate_hz']:.1f} Hz (nominal {h['nominal_rate_hz']:g}) over "
+            f"{h['window_s']:.1f} s, period error p99 {h['period_error_us']['p99']:.0f} µs, "
+            f"{h['overruns']} overruns, {'real-time' if h['realtime'] else 'normal'} scheduling"
         )
         stolen = h.get("cpu_steal")
         if stolen is not None and stolen["percent"] >= STEAL_WORTH_TELLING_PERCENT:
             print(
-                f"            the hypervisor took {stolen['percent']:.1f} % of the CPUs' time (steal): deadlines "
-                f"lost to it are the virtual machine's, not the loop's"
+                f"            the hypervisor took {stolen['percent']:.1f} % of the CPUs' time "
+                "(steal): deadlines lost to it are the virtual machine's, not the loop's"
             )
     f = s["forces"]
     if f and f["poses"]:
         print(
-            f"  forces    mean {f['force_n']['mean']:.2f} N, p95 {f['force_n']['p95']:.2f} N, "
-            f"max {f['force_n']['max']:.2f} N; in contact {100 * f['contact_fraction']:.0f} % of ticks, "
-            f"{f['atoms_touched']} atoms touched"
+            f"  forces    mean {f['force_n']['mean']:.2f} N, p95 {f['force_n']['p95']:.2f} N, max "
+            f"{f['force_n']['max']:.2f} N; in contact {100 * f['contact_fraction']:.0f} % of "
+            f"ticks, {f['atoms_touched']} atoms touched"
             + (
                 f" (the first after {f['first_touch_s']:.1f} s)"
                 if f["first_touch_s"] is not None
@@ -187,8 +190,8 @@ def print_summary(summary: dict, path: Path) -> None:
         if f["continuous_force_n"] is not None:
             above = f["above_continuous_s"]
             print(
-                f"            {f['clamped_ticks']} ticks clamped to the peak rating; above the continuous rating "
-                f"({f['continuous_force_n']:g} N) for "
+                f"            {f['clamped_ticks']} ticks clamped to the peak rating; above the "
+                f"continuous rating ({f['continuous_force_n']:g} N) for "
                 + (
                     f"{above:.2f} s"
                     if above is not None
@@ -199,7 +202,8 @@ def print_summary(summary: dict, path: Path) -> None:
     if r:
         lost = (r.get("daemon") or {}).get("poses_missed")
         print(
-            f"  renderer  {r['frames']} frames at {r['fps'] or 0:.1f} fps ({r['size'][0]}x{r['size'][1]})"
+            f"  renderer  {r['frames']} frames at {r['fps'] or 0:.1f} fps "
+            f"({r['size'][0]}x{r['size'][1]})"
             + (f", {r['video_frames']} video frames" if r.get("video_frames") else "")
             + (f", {lost} poses lost" if lost is not None else "")
             + (

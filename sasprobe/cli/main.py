@@ -34,7 +34,8 @@ class _StderrFormatter(logging.Formatter):
 
 
 class _Version(argparse.Action):
-    """--version, with the version looked up only when asked (importlib.metadata is slow to import)."""
+    """--version, with the version looked up only when asked (importlib.metadata is slow to
+    import)."""
 
     def __init__(
         self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS, help=None

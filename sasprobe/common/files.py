@@ -28,7 +28,8 @@ _KINDS = {
 def open_regular(
     path: str | Path, what: str = "file", error: type[UserError] = UserError
 ) -> BinaryIO:
-    """A binary reader of a regular file, or `error` in one line (missing, unreadable, not a file)."""
+    """A binary reader of a regular file, or `error` in one line (missing, unreadable, not a
+    file)."""
     label = str(path)
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY | os.O_CLOEXEC)

@@ -28,5 +28,6 @@ def progress(iterable: Iterable[T], desc: str, total: int | None = None) -> Iter
 
 
 def progress_bar(total: float | None, desc: str, unit: str = "it", **options) -> tqdm:
-    """A manually advanced bar (call .update(n), then .close()); options go to tqdm (e.g. bar_format)."""
+    """A manually advanced bar (call .update(n), then .close()); options go to tqdm (e.g.
+    bar_format)."""
     return tqdm(total=total, desc=desc, unit=unit, **_style(), **options)

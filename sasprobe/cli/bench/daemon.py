@@ -31,7 +31,10 @@ from sasprobe.common.progress import progress
 TITLE = "Device daemon: loop timing, latency, drops, CPU"
 READY_S = 90.0  # start-up on a loaded machine: imports, structure, grid
 STOP_S = 30.0
-TARGETS = "1000 Hz, p99 period error ≤ 200 µs, no overrun in 10 s with ~60k atoms, latency p99 ≤ 1 ms, no drops"
+TARGETS = (
+    "1000 Hz, p99 period error ≤ 200 µs, no overrun in "
+    "10 s with ~60k atoms, latency p99 ≤ 1 ms, no drops"
+)
 
 
 def add_arguments(parser) -> None:
@@ -99,9 +102,8 @@ def _measure(d: _Daemon, warmup_s: float, seconds: float, realtime_subscriber: b
     subscriber_rt = enter_realtime(priority=40) if realtime_subscriber else False
     context = zmq.Context()
     socks = {}
-    keys = (
-        local_client_keys()
-    )  # the publisher binds loopback TCP, so it uses CURVE (ipc:// on it too)
+    # the publisher binds loopback TCP, so it uses CURVE (ipc:// on it too)
+    keys = local_client_keys()
     for name, endpoint in (("tcp", d.tcp), ("ipc", d.ipc)):
         sock = context.socket(zmq.SUB)
         make_curve_client(sock, keys)
@@ -225,9 +227,8 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
         rates = getattr(args, "device_rate", None)
         data["devices"] = daemon_devices.measure(seconds, smoke=ctx.smoke, rates_hz=rates)
         text += "\n\n" + daemon_devices.markdown(data["devices"])
-    if (
-        entries
-    ):  # the worst pose gap under a client loading the largest structure (--smoke: the smallest)
+    # the worst pose gap under a client loading the largest structure (--smoke: the smallest)
+    if entries:
         from sasprobe.cli.bench.daemon_loading import loading_gap, markdown
         from sasprobe.molecule import load_default
 
@@ -254,30 +255,34 @@ def _fmt(v, digits=0) -> str:
 
 def _markdown(runs: list[dict], seconds: float) -> str:
     lines = [
-        "| structure | atoms | scheduling | rate (Hz) | period error p50 / p99 / max (µs) | overruns (missed ticks) "
-        "| tick work p50 / p99 (µs) | loop CPU | latency tcp p50 / p99 (µs) | latency ipc p50 / p99 (µs) | drops tcp / ipc "
-        "| load avg |",
+        "| structure | atoms | scheduling | rate (Hz) | period error p50 / p99 / max (µs) | "
+        "overruns (missed ticks) | tick work p50 / p99 (µs) | loop CPU | latency tcp p50 / p99 "
+        "(µs) | latency ipc p50 / p99 (µs) | drops tcp / ipc | load avg |",
         "|---|---:|---|---:|---|---|---|---:|---|---|---|---:|",
     ]
     for r in runs:
         loop, err, work = r["loop"], r["loop"]["period_error_us"], r["loop"]["work_us"]
         lines.append(
-            f"| {r['label']} | {r['structure']['n_atoms']} | {_mode(r)} | {_fmt(loop['rate_hz'], 1)} | "
-            f"{_fmt(err['p50'])} / {_fmt(err['p99'])} / {_fmt(err['max'])} | "
-            f"{loop['overruns']} ({loop['missed_deadlines']}) | {_fmt(work['recent_p50'])} / {_fmt(work['recent_p99'])} | "
-            f"{_fmt(loop['cpu_percent'])} % | {_fmt(r['tcp']['latency_us']['p50'])} / {_fmt(r['tcp']['latency_us']['p99'])} | "
-            f"{_fmt(r['ipc']['latency_us']['p50'])} / {_fmt(r['ipc']['latency_us']['p99'])} | "
-            f"{r['tcp']['drops']} / {r['ipc']['drops']} | {r['load_average_1min']:.1f} |"
+            f"| {r['label']} | {r['structure']['n_atoms']} | {_mode(r)} | "
+            f"{_fmt(loop['rate_hz'], 1)} | {_fmt(err['p50'])} / {_fmt(err['p99'])} / "
+            f"{_fmt(err['max'])} | {loop['overruns']} ({loop['missed_deadlines']}) | "
+            f"{_fmt(work['recent_p50'])} / {_fmt(work['recent_p99'])} | "
+            f"{_fmt(loop['cpu_percent'])} % | {_fmt(r['tcp']['latency_us']['p50'])} / "
+            f"{_fmt(r['tcp']['latency_us']['p99'])} | {_fmt(r['ipc']['latency_us']['p50'])} / "
+            f"{_fmt(r['ipc']['latency_us']['p99'])} | {r['tcp']['drops']} / {r['ipc']['drops']} | "
+            f"{r['load_average_1min']:.1f} |"
         )
     return (
-        f"Each row: `sasprobe daemon --device sim` at 1000 Hz for {seconds:g} s after a 1.5 s warm-up, publishing on "
-        "loopback TCP and ipc:// at once, one subscriber per transport in the benchmark process. Period error is "
-        "|interval between tick starts − 1 ms| (1 µs bins); an overrun is a tick that started a full period late "
-        "(the deadlines it skipped are the missed ticks); tick work is read + haptics + write + publish "
-        "(last ~1000 ticks); loop CPU is the loop thread's CPU time over wall time; load avg is the machine's "
-        f"1-minute load average at the end of the run ({os.cpu_count()} cores, shared with other work). "
-        "Scheduling: daemon `FIFO` is its default (SCHED_FIFO for its loop; ZeroMQ's I/O thread stays at normal "
-        "priority), `normal` is `--no-realtime`; subscriber `FIFO` puts the benchmark's receiving thread in SCHED_FIFO as well, which shows "
-        "how much of the latency is the receiver waiting for a core. "
+        f"Each row: `sasprobe daemon --device sim` at 1000 Hz for {seconds:g} s after a 1.5 s "
+        "warm-up, publishing on loopback TCP and ipc:// at once, one subscriber per transport in "
+        "the benchmark process. Period error is |interval between tick starts − 1 ms| (1 µs "
+        "bins); an overrun is a tick that started a full period late (the deadlines it skipped "
+        "are the missed ticks); tick work is read + haptics + write + publish (last ~1000 "
+        "ticks); loop CPU is the loop thread's CPU time over wall time; load avg is the "
+        f"machine's 1-minute load average at the end of the run ({os.cpu_count()} cores, shared "
+        "with other work). Scheduling: daemon `FIFO` is its default (SCHED_FIFO for its loop; "
+        "ZeroMQ's I/O thread stays at normal priority), `normal` is `--no-realtime`; subscriber "
+        "`FIFO` puts the benchmark's receiving thread in SCHED_FIFO as well, which shows how "
+        "much of the latency is the receiver waiting for a core. "
         f"Targets: {TARGETS}.\n\n" + "\n".join(lines)
     )

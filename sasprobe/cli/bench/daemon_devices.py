@@ -162,8 +162,9 @@ def markdown(data: dict) -> str:
     if "skipped" in data:
         return f"Emulated devices: skipped ({data['skipped']})."
     lines = [
-        "| device | rate (Hz) | period error p99 / max (µs) | overruns | read p50 / p99 / max (µs) | failed reads "
-        "| tick work p50 / p99 / max (µs) | work vs simulated arm (p50) | load avg |",
+        "| device | rate (Hz) | period error p99 / max (µs) | overruns "
+        "| read p50 / p99 / max (µs) | failed reads | tick work p50 / "
+        "p99 / max (µs) | work vs simulated arm (p50) | load avg |",
         "|---|---:|---|---:|---|---:|---|---:|---:|",
     ]
     base = next(
@@ -181,18 +182,19 @@ def markdown(data: dict) -> str:
         )
         reads = r.get("reads", {})
         lines.append(
-            f"| {r['label']} | {loop['rate_hz']:.1f} | {_f(err['p99'])} / {_f(err['max'])} | {loop['overruns']} | "
-            f"{_f(reads.get('p50_us'))} / {_f(reads.get('p99_us'))} / {_f(reads.get('max_us'))} | "
-            f"{reads.get('failed', '-')} of {reads.get('ticks', 0)} | "
+            f"| {r['label']} | {loop['rate_hz']:.1f} | {_f(err['p99'])} / {_f(err['max'])} | "
+            f"{loop['overruns']} | {_f(reads.get('p50_us'))} / {_f(reads.get('p99_us'))} / "
+            f"{_f(reads.get('max_us'))} | {reads.get('failed', '-')} of {reads.get('ticks', 0)} | "
             f"{_f(work['recent_p50'])} / {_f(work['recent_p99'])} / {_f(work['max'])} | "
             f"{'-' if ratio is None else f'{ratio:.2f}×'} | {r['load_average_1min']:.1f} |"
         )
     return (
-        f"Emulated devices: `sasprobe daemon --device ...` at the rate each device declares (or as `--device-rate` "
-        f"says) for {data['seconds']:g} s (after a 1 s "
-        "warm-up) on each device-side emulator of `tests/emulators/`, the emulator running in the benchmark "
-        "process as the hardware would beside the host; tick work is read + haptics + write + publish; read times and "
-        "failed reads come from the daemon's recording of the same window. A driver whose read waited on its link "
+        "Emulated devices: `sasprobe daemon --device ...` at the rate each device declares (or "
+        f"as `--device-rate` says) for {data['seconds']:g} s (after a 1 s warm-up) on each "
+        "device-side emulator of `tests/emulators/`, the emulator running in the benchmark "
+        "process as the hardware would beside the host; tick work is read + haptics + write + "
+        "publish; read times and failed reads come from the daemon's recording of the same "
+        "window. A driver whose read waited on its link "
         "would show as overruns and a read p99 near its period.\n\n" + "\n".join(lines)
     )
 

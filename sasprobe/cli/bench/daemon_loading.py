@@ -137,12 +137,13 @@ def loading_gap(big: Path, small_bytes: bytes, seconds: float) -> dict:
 def markdown(r: dict, name: str) -> str:
     idle, loading = r["idle"], r["loading"]
     return (
-        f"\n\nWorst pose gap while a client loads {name} ({r['atoms_of_big']} atoms) and 1CRN in turn by bytes "
-        f"({r['loads_of_big']} loads in {r['seconds']:g} s), against the same daemon idle for as long "
-        f"(scheduling {'FIFO' if r['realtime'] else 'normal'}; consecutive poses' publish times; a machine pause "
-        f"is a late wake-up of a real-time sentinel thread, {r['machine_pauses']} seen; load avg "
-        f"{r['load_average_1min']:.1f}):\n\n"
-        "| window | longest pose gap (ms) | longest not explained by a machine pause (ms) |\n|---|---:|---:|\n"
-        f"| idle | {idle['longest_gap_ms']:.1f} | {idle['unexplained_ms']:.1f} |\n"
-        f"| loading | {loading['longest_gap_ms']:.1f} | {loading['unexplained_ms']:.1f} |\n"
+        f"\n\nWorst pose gap while a client loads {name} ({r['atoms_of_big']} atoms) and 1CRN in "
+        f"turn by bytes ({r['loads_of_big']} loads in {r['seconds']:g} s), against the same "
+        f"daemon idle for as long (scheduling {'FIFO' if r['realtime'] else 'normal'}; "
+        "consecutive poses' publish times; a machine pause is a late wake-up of a real-time "
+        f"sentinel thread, {r['machine_pauses']} seen; load avg "
+        f"{r['load_average_1min']:.1f}):\n\n| window | longest pose gap (ms) | longest not "
+        "explained by a machine pause (ms) |\n|---|---:|---:|\n| idle | "
+        f"{idle['longest_gap_ms']:.1f} | {idle['unexplained_ms']:.1f} |\n| loading | "
+        f"{loading['longest_gap_ms']:.1f} | {loading['unexplained_ms']:.1f} |\n"
     )

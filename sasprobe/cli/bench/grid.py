@@ -27,9 +27,9 @@ def run(ctx: BenchContext) -> BenchResult:
     rows = []
     for entry in progress(entries, desc="bench grid", total=len(entries)):
         structure = load_structure(entry.path)
-        load_s = median_time(lambda: load_structure(entry.path), load_repeats)
+        load_s = median_time(lambda path=entry.path: load_structure(path), load_repeats)
         radii = structure.expanded_radii(DEFAULT_PROBE_RADIUS)
-        grid_s = median_time(lambda: UniformGrid(structure.positions, radii), grid_repeats)
+        grid_s = median_time(lambda p=structure.positions, r=radii: UniformGrid(p, r), grid_repeats)
         grid = UniformGrid(structure.positions, radii)
         # Neighbour query the haptic loop makes: spheres within one probe radius of
         # points near the surface (random atoms, offset by their expanded radius).
@@ -38,7 +38,10 @@ def run(ctx: BenchContext) -> BenchResult:
         dirs /= np.linalg.norm(dirs, axis=1)[:, None]
         points = structure.positions[picks] + dirs * radii[picks, None]
         query_s = median_time(
-            lambda: [grid.spheres_within(p, DEFAULT_PROBE_RADIUS) for p in points], 3
+            lambda grid=grid, points=points: [
+                grid.spheres_within(p, DEFAULT_PROBE_RADIUS) for p in points
+            ],
+            3,
         )
         rows.append(
             {
@@ -67,20 +70,23 @@ def run(ctx: BenchContext) -> BenchResult:
         ax.legend()
         charts.append(save(fig, path))
     lines = [
-        "| structure | atoms | load (ms) | grid (ms) | grid per 100k atoms (ms) | query (µs) | cells | non-empty | max/cell | mean/non-empty | grid KiB |",
+        "| structure | atoms | load (ms) | grid (ms) | grid per 100k atoms (ms) | query (µs) | "
+        "cells | non-empty | max/cell | mean/non-empty | grid KiB |",
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
         g = r["grid"]
         lines.append(
-            f"| {r['id']} ({r['format']}) | {r['n_atoms']} | {r['load_s'] * 1e3:.1f} | {r['grid_s'] * 1e3:.2f} | "
-            f"{r['grid_s_per_100k'] * 1e3:.1f} | {r['query_us']:.1f} | {g['n_cells']} | {g['n_nonempty']} | "
+            f"| {r['id']} ({r['format']}) | {r['n_atoms']} | {r['load_s'] * 1e3:.1f} | "
+            f"{r['grid_s'] * 1e3:.2f} | "
+            f"{r['grid_s_per_100k'] * 1e3:.1f} | {r['query_us']:.1f} | {g['n_cells']} | "
+            f"{g['n_nonempty']} | "
             f"{g['max_per_cell']} | {g['mean_per_nonempty']:.1f} | {g['bytes'] / 1024:.0f} |"
         )
     markdown = (
         f"Medians over {load_repeats} loads and {grid_repeats} grid builds per structure "
         f"(probe 1.4 Å, default cell edge = largest expanded diameter). 'query' is one "
-        f"`spheres_within(point, 1.4 Å)` near the surface. Embedded 1CRN loads in {default_s * 1e3:.1f} ms.\n\n"
-        + "\n".join(lines)
+        "`spheres_within(point, 1.4 Å)` near the surface. Embedded 1CRN loads in "
+        f"{default_s * 1e3:.1f} ms.\n\n" + "\n".join(lines)
     )
     return BenchResult("grid", {"structures": rows, "embedded_load_s": default_s}, markdown, charts)

@@ -57,7 +57,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--cube-half",
         type=_cube_half,
         default=CUBE_HALF_A,
-        help=f"navigation cube half edge in Å on the top surface (default {CUBE_HALF_A:g}; 0 = fit the molecule)",
+        help=f"navigation cube half edge in Å on the top surface (default {CUBE_HALF_A:g}; 0 = "
+        "fit the molecule)",
     )
 
 
@@ -263,7 +264,8 @@ def _charts(ctx: BenchContext, rows, stability, trace, cube_half) -> list:
         ax.set_xlabel("atoms")
         ax.set_ylabel("force computation per tick (µs)")
         ax.set_title(
-            f"Per-tick cost vs molecule size ({f'same {cube_half:g} Å cube' if cube_half else 'fitted cube'})"
+            "Per-tick cost vs molecule size "
+            f"({f'same {cube_half:g} Å cube' if cube_half else 'fitted cube'})"
         )
         ax.set_ylim(bottom=0)
         ax.legend(fontsize=8)
@@ -287,24 +289,28 @@ def _charts(ctx: BenchContext, rows, stability, trace, cube_half) -> list:
 
 def _markdown(rows, stability, ticks, repeats, cube_half) -> str:
     cube = (
-        f"navigation cube half edge {cube_half:g} Å on the top surface of every structure (same Å/mm)"
+        f"navigation cube half edge {cube_half:g} Å on "
+        "the top surface of every structure (same Å/mm)"
         if cube_half
         else "navigation cube fitted to each molecule (Å/mm grows with size)"
     )
     lines = [
-        f"Simulated arm, 1 kHz, scripts {' + '.join(SCRIPTS)} ({ticks} ticks each), {cube}. Per-tick time: minimum over "
-        f"{repeats} replays of the recorded states (single-run p99 beside it). Penetration: deepest the rendered "
-        "contact point gets inside any expanded sphere. Force step: largest change between consecutive ticks. "
-        "Energy: sum of F·dx the rendering put into the arm (negative = it absorbed energy).",
+        f"Simulated arm, 1 kHz, scripts {' + '.join(SCRIPTS)} ({ticks} ticks each), {cube}. "
+        f"Per-tick time: minimum over {repeats} replays of the recorded states (single-run p99 "
+        "beside it). Penetration: deepest the rendered contact point gets inside any expanded "
+        "sphere. Force step: largest change between consecutive ticks. Energy: sum of F·dx the "
+        "rendering put into the arm (negative = it absorbed energy).",
         "",
-        "| structure | atoms | Å/mm | method | p50 (µs) | p99 (µs) | max (µs) | single-run p99 (µs) | setup (s) | "
-        "max penetration (Å) | max force step (N) | p99 force step (N) | energy (mJ) | contact |",
+        "| structure | atoms | Å/mm | method | p50 (µs) | p99 (µs) | max (µs) | single-run p99 "
+        "(µs) | setup (s) | max penetration (Å) | max force step (N) | p99 force step (N) | "
+        "energy (mJ) | contact |",
         "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in rows:
         lines.append(
-            f"| {r['id']} | {r['n_atoms']} | {r['scale_A_per_mm']:.2f} | {r['method']} | {r['p50_us']:.1f} | {r['p99_us']:.1f} | "
-            f"{r['max_us']:.0f} | {r['single_run_p99_us']:.1f} | {r['setup_s']:.2f} | {r['max_penetration_A']:.2g} | "
+            f"| {r['id']} | {r['n_atoms']} | {r['scale_A_per_mm']:.2f} | {r['method']} | "
+            f"{r['p50_us']:.1f} | {r['p99_us']:.1f} | {r['max_us']:.0f} | "
+            f"{r['single_run_p99_us']:.1f} | {r['setup_s']:.2f} | {r['max_penetration_A']:.2g} | "
             f"{r['max_force_step_n']:.3f} | {r['p99_force_step_n']:.3f} | {r['energy_mj']:.1f} | "
             f"{r['contact_fraction']:.0%} |"
         )

@@ -98,9 +98,8 @@ def stability_figure(stability):
 
     rates, ks = stability["rates_hz"], stability["stiffness_n_per_mm"]
     fig, axes = plt.subplots(1, 2, figsize=(9.6, 4.0), dpi=110, sharey=True)
-    cmap = ListedColormap(
-        ["#7fc97f", "#fdc086", "#e06666", "#a83232"]
-    )  # stable, pop, unstable, both
+    # stable, pop, unstable, both
+    cmap = ListedColormap(["#7fc97f", "#fdc086", "#e06666", "#a83232"])
     for ax, method in zip(axes, METHODS):
         grid = np.zeros((len(ks), len(rates)))
         for c in stability["cells"]:
@@ -130,7 +129,8 @@ def stability_figure(stability):
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=2, fontsize=8, frameon=False)
     fig.suptitle(
-        "Press into 1CRN: green stable, orange pop-through, red energy gain (mJ per cycle in cells)",
+        "Press into 1CRN: green stable, orange pop-through, "
+        "red energy gain (mJ per cycle in cells)",
         fontsize=9,
     )
     fig.tight_layout(rect=(0, 0.07, 1, 1))
@@ -140,11 +140,12 @@ def stability_figure(stability):
 def stability_markdown(stability) -> str:
     rates = stability["rates_hz"]
     out = [
-        f"Stability map: the `press` script on {stability['structure']} (push into the molecule, hold, release), "
-        f"per control rate and stiffness. Cell: energy put into the arm over the cycle (mJ); "
-        f"**U** = unstable (> {stability['energy_unstable_mj']:g} mJ gained), **P** = pop-through (force > "
-        f"{stability['pop_through_n']:g} N along the push). Arm damping + hand damping "
-        f"{stability['physical_damping_n_s_per_m']:g} N·s/m, virtual damping {stability['virtual_damping_n_s_per_m']:g} N·s/m.",
+        f"Stability map: the `press` script on {stability['structure']} (push into the molecule, "
+        "hold, release), per control rate and stiffness. Cell: energy put into the arm over the "
+        f"cycle (mJ); **U** = unstable (> {stability['energy_unstable_mj']:g} mJ gained), **P** = "
+        f"pop-through (force > {stability['pop_through_n']:g} N along the push). Arm damping + "
+        f"hand damping {stability['physical_damping_n_s_per_m']:g} N·s/m, virtual damping "
+        f"{stability['virtual_damping_n_s_per_m']:g} N·s/m.",
         "",
     ]
     for method in METHODS:

@@ -63,9 +63,8 @@ def cpu_steal_ticks() -> tuple[int, int] | None:
     policy inside the machine can win back."""
     try:
         with open("/proc/stat") as fh:
-            fields = [
-                int(v) for v in fh.readline().split()[1:9]
-            ]  # user nice system idle iowait irq softirq steal
+            # user nice system idle iowait irq softirq steal
+            fields = [int(v) for v in fh.readline().split()[1:9]]
     except (OSError, ValueError):
         return None
     return (fields[7], sum(fields)) if len(fields) == 8 else None

@@ -119,7 +119,8 @@ def report_markdown(
     parts = [
         "# sasprobe benchmark report",
         "",
-        f"Run of {date} ({MODES[mode]}), {code_version()}. Times are medians; ratios come from the same run.",
+        f"Run of {date} ({MODES[mode]}), {code_version()}. "
+        "Times are medians; ratios come from the same run.",
         "",
         machine_markdown(machine),
         "",

@@ -1,10 +1,11 @@
 """`sasprobe bench startup`: how long the CLI takes to start, and what it imports.
 
 Each command runs as a fresh process (`python -m sasprobe ...`) as a user's shell would
-start it, the commands taking turns; the figure is the median wall time. A bare `python -c pass` and `import numpy`
-give the floor in the same run. Target: `sasprobe --help` within 0.3 s. The modules each
-command loaded are listed from the process itself (sys.modules at exit), so a plotting or
-GL library that `--help` or `info` does not use shows up here.
+start it, the commands taking turns; the figure is the median wall time. A bare
+`python -c pass` and `import numpy` give the floor in the same run. Target: `sasprobe
+--help` within 0.3 s. The modules each command loaded are listed from the process itself
+(sys.modules at exit), so a plotting or GL library that `--help` or `info` does not use
+shows up here.
 """
 
 from __future__ import annotations
@@ -68,7 +69,7 @@ def imported(argv: list[str]) -> list[str]:
 def run(ctx: BenchContext) -> BenchResult:
     repeats = 1 if ctx.smoke else 5 if ctx.quick else 15
     times: dict[str, list[float]] = {label: [] for label in COMMANDS}
-    for label, args in COMMANDS.items():
+    for args in COMMANDS.values():
         if not ctx.smoke:
             _wall(args)  # warm the file cache
     for _ in range(repeats):  # round robin: a change in the machine's load hits every command alike

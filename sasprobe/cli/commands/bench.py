@@ -72,7 +72,8 @@ def _common(p: argparse.ArgumentParser, suppress: bool = False) -> None:
         "--smoke",
         action="store_true",
         default=flag,
-        help="every code path once at its smallest size (seconds; the figures only show that it runs)",
+        help="every code path once at its smallest size "
+        "(seconds; the figures only show that it runs)",
     )
     p.add_argument(
         "--json", action="store_true", default=flag, help="print the figures as one JSON object"
@@ -124,7 +125,8 @@ def run(args: argparse.Namespace) -> int:
             ) as exc:  # a failed measurement: one line, and the other benchmarks still run
                 failed[name] = _failure(exc)
                 print(
-                    f"sasprobe: error: bench {name} failed: {failed[name]}{_keep_traceback(name, exc, args.out)}",
+                    f"sasprobe: error: bench {name} failed: "
+                    f"{failed[name]}{_keep_traceback(name, exc, args.out)}",
                     file=sys.stderr,
                     flush=True,
                 )
@@ -235,7 +237,8 @@ def _gpu_quick(args: argparse.Namespace) -> int:
         raise
     except Exception as exc:  # a failed measurement: one line
         print(
-            f"sasprobe: error: bench --gpu-quick failed: {_failure(exc)}{_keep_traceback('gpu_quick', exc, args.out)}",
+            "sasprobe: error: bench --gpu-quick failed: "
+            f"{_failure(exc)}{_keep_traceback('gpu_quick', exc, args.out)}",
             file=sys.stderr,
         )
         return 1

@@ -48,10 +48,10 @@ def fault_spec(text: str) -> tuple[str, int, int]:
     return kind, tick, count
 
 
-LOOP_STALL = "stall"  # the daemon's own: the loop sleeps COUNT ms at TICK (any device); the others are the sim arm's
-SLOW_READ = (
-    "slow"  # the daemon's own: the COUNT device reads from TICK take 4 periods each (any device)
-)
+# the daemon's own: the loop sleeps COUNT ms at TICK (any device); the others are the sim arm's
+LOOP_STALL = "stall"
+# the daemon's own: the COUNT device reads from TICK take 4 periods each (any device)
+SLOW_READ = "slow"
 MAX_STALL_MS = 60_000
 
 
@@ -94,8 +94,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=positive_float,
         default=None,
         metavar="HZ",
-        help=f"loop rate (default: the rate the device declares, {DEFAULT_RATE_HZ:g} for most arms; "
-        "a replay runs at its recorded rate times --speed)",
+        help=f"loop rate (default: the rate the device declares, {DEFAULT_RATE_HZ:g} for most "
+        "arms; a replay runs at its recorded rate times --speed)",
     )
     p.add_argument(
         "--speed", type=speed, default=1.0, metavar="X|max", help="replay speed factor, or max"
@@ -104,7 +104,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--pub",
         action="append",
         metavar="ENDPOINT",
-        help=f"PUB endpoint for pose and scene, repeatable (default {DEFAULT_PUB_ENDPOINT}; ipc:// too)",
+        help="PUB endpoint for pose and scene, repeatable "
+        f"(default {DEFAULT_PUB_ENDPOINT}; ipc:// too)",
     )
     p.add_argument(
         "--ctl",
@@ -121,12 +122,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--record-dir",
         metavar="DIR",
-        help="let the control command record_start create recordings below this folder (default: refused)",
+        help="let the control command record_start create "
+        "recordings below this folder (default: refused)",
     )
     p.add_argument(
         "--load-dir",
         metavar="DIR",
-        help="let the control command load read structure files below this folder (default: bytes only)",
+        help="let the control command load read structure "
+        "files below this folder (default: bytes only)",
     )
     p.add_argument(
         "--probe-radius",
@@ -175,16 +178,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--no-realtime",
         action="store_true",
-        help="do not ask for SCHED_FIFO (by default the loop asks for it, and warns when it is refused)",
+        help="do not ask for SCHED_FIFO (by default the "
+        "loop asks for it, and warns when it is refused)",
     )
     p.add_argument(
         "--inject-fault",
         action="append",
         type=fault_spec,
         metavar="KIND@TICK[+COUNT]",
-        help="to try the watchdogs: raise, nan or disconnect at a tick (simulated arm), stall@TICK+MS "
-        "(the loop sleeps MS ms) or slow@TICK+N (N device reads take 4 periods each; any device); "
-        "repeatable",
+        help="to try the watchdogs: raise, nan or disconnect at a tick (simulated arm), "
+        "stall@TICK+MS (the loop sleeps MS ms) or slow@TICK+N (N device reads take 4 periods "
+        "each; any device); repeatable",
     )
     p.add_argument(
         "--inject-button",

@@ -25,17 +25,18 @@ def register(sub: argparse._SubParsersAction) -> None:
         "demo",
         help=HELP,
         **with_device_list(),
-        description="Start `sasprobe daemon` (simulated arm scanning the molecule) and `sasprobe render --connect` "
-        "as two processes on private ipc:// sockets. With a display: a live window until you close it. "
-        "Without one (or --headless): --seconds of video, a PNG snapshot and summary.json (haptic rate "
-        "and jitter, forces, contacts, renderer fps, lost poses) in --out.",
+        description="Start `sasprobe daemon` (simulated arm scanning the molecule) and `sasprobe "
+        "render --connect` as two processes on private ipc:// sockets. With a display: a live "
+        "window until you close it. Without one (or --headless): --seconds of video, a PNG "
+        "snapshot and summary.json (haptic rate and jitter, forces, contacts, renderer fps, lost "
+        "poses) in --out.",
     )
     p.add_argument("--molecule", metavar="FILE|ID", help=MOLECULE_HELP)
     p.add_argument(
         "--device",
         default=defaults.device,
-        help=f"the daemon's device, one of those listed below (default {defaults.device}: the simulated "
-        "arm scanning the surface)",
+        help=f"the daemon's device, one of those listed below (default {defaults.device}: the "
+        "simulated arm scanning the surface)",
     )
     p.add_argument("--headless", action="store_true", help="no window even when a display exists")
     p.add_argument(
@@ -43,7 +44,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=positive_float,
         default=None,
         metavar="S",
-        help=f"how long to render (default: {DEFAULT_SECONDS:g} headless; with a window, until it is closed)",
+        help=f"how long to render (default: {DEFAULT_SECONDS:g} "
+        "headless; with a window, until it is closed)",
     )
     p.add_argument(
         "--out",
@@ -75,8 +77,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--no-realtime",
         action="store_true",
-        help="do not ask for SCHED_FIFO for the daemon's loop (by default it is asked for, and refused "
-        "gracefully without the privilege)",
+        help="do not ask for SCHED_FIFO for the daemon's loop (by default it is asked for, and "
+        "refused gracefully without the privilege)",
     )
     p.add_argument("--keep-water", action="store_true", help="keep water molecules")
     add_fetch_options(p)
@@ -84,8 +86,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--keys",
         type=Path,
         metavar="DIR",
-        help="CURVE keys from `sasprobe keys DIR` for both processes (the daemon's pair, the renderer's "
-        "client pair), as a lab with remote renderers runs them",
+        help="CURVE keys from `sasprobe keys DIR` for both processes (the daemon's pair, the "
+        "renderer's client pair), as a lab with remote renderers runs them",
     )
     p.add_argument(
         "--render-args",

@@ -24,8 +24,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--check",
         metavar="DEVICE",
-        help="open DEVICE (a --device string, schemes listed below), read it for --seconds with zero force, "
-        "report",
+        help="open DEVICE (a --device string, schemes listed below), read it for --seconds with "
+        "zero force, report",
     )
     p.add_argument(
         "--seconds",
@@ -47,8 +47,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if not found:
         print(
-            "none found (no USB serial port, no SpaceMouse, no known USB arm, no Force Dimension arm, "
-            "no Inverse Service)"
+            "none found (no USB serial port, no SpaceMouse, no known USB arm, no Force Dimension "
+            "arm, no Inverse Service)"
         )
     for f in found:
         ids = f"{f.vendor_id:04x}:{f.product_id:04x}" if f.vendor_id is not None else "-"
@@ -117,17 +117,21 @@ def _check(spec: str, seconds: float, as_json: bool) -> int:
         print(f"  serial     {info.serial}")
     print(
         f"  limits     {lim.max_force_n:g} N peak, {lim.continuous_force_n:g} N continuous, "
-        f"{lim.max_stiffness_n_per_mm:g} N/mm, force output {'yes' if lim.has_force_output else 'no'}"
+        f"{lim.max_stiffness_n_per_mm:g} N/mm, force output "
+        f"{'yes' if lim.has_force_output else 'no'}"
     )
     print(
-        f"  read       {reads} states in {elapsed:.2f} s ({report['rate_hz']:.0f} Hz), {faults} faults"
+        f"  read       {reads} states in {elapsed:.2f} s "
+        f"({report['rate_hz']:.0f} Hz), {faults} faults"
     )
     print(
-        f"  position   ({', '.join(f'{v:.1f}' for v in state.position_mm)}) mm, buttons {state.buttons:#x}"
+        f"  position   ({', '.join(f'{v:.1f}' for v in state.position_mm)}) mm, buttons "
+        f"{state.buttons:#x}"
     )
-    print(
-        f"  calibrated {'yes' if state.calibrated else 'no: see the calibration steps in docs/connect-your-arm.md'}"
+    calibrated = (
+        "yes" if state.calibrated else "no: see the calibration steps in docs/connect-your-arm.md"
     )
+    print(f"  calibrated {calibrated}")
     rejected = info.details.get("rejected_frames")
     if rejected:
         print(f"  rejected   {rejected} malformed frames")

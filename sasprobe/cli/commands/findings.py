@@ -73,15 +73,16 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(job))
     elif job["state"] == "running":
         print(
-            f"findings: analysing {job['recording']} into {job['dir']} on the daemon's host (pid {job['pid']})"
+            f"findings: analysing {job['recording']} into "
+            f"{job['dir']} on the daemon's host (pid {job['pid']})"
         )
     if job["state"] == "failed":
         raise UserError(f"findings: {job['error']}")
     if job["state"] == "done" and not args.json:
         r = job["result"]
         print(
-            f"findings  {r['session']['duration_s']:.1f} s so far, {r['touched_residues']} residues touched, "
-            f"{r['marks']} marks; {r['verdict']['verdict']}"
+            f"findings  {r['session']['duration_s']:.1f} s so far, {r['touched_residues']} "
+            f"residues touched, {r['marks']} marks; {r['verdict']['verdict']}"
         )
         print(f"  files   {job['dir']}/ on the daemon's host: {', '.join(r['files'].values())}")
     return 0 if job["state"] != "running" or args.no_wait else 1

@@ -84,7 +84,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"  bounds     {_fmt(lo)} .. {_fmt(hi)} Å")
     if fallback:
         print(
-            f"  radii      {len(fallback)} atom(s) without a Bondi radius use {FALLBACK_RADIUS:.2f} Å"
+            f"  radii      {len(fallback)} atom(s) without a Bondi radius use "
+            f"{FALLBACK_RADIUS:.2f} Å"
         )
     print(
         f"  grid       cell {g['cell_size']:.2f} Å, {g['dims'][0]}x{g['dims'][1]}x{g['dims'][2]} = "
@@ -92,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
         f"mean {g['mean_per_nonempty']:.1f} spheres per non-empty cell, {g['bytes'] / 1024:.1f} KiB"
     )
     print(
-        f"  timing     load {summary['load_seconds'] * 1e3:.1f} ms, grid {summary['grid_seconds'] * 1e3:.1f} ms"
+        f"  timing     load {summary['load_seconds'] * 1e3:.1f} ms, grid "
+        f"{summary['grid_seconds'] * 1e3:.1f} ms"
     )
     return 0
 

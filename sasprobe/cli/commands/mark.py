@@ -29,6 +29,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         x, y, z = mark["position_A"]
         print(
-            f"mark {mark['id']} '{mark['label']}' at ({x:.2f}, {y:.2f}, {z:.2f}) Å, tick {mark['seq']}"
+            f"mark {mark['id']} '{mark['label']}' at ({x:.2f}, "
+            f"{y:.2f}, {z:.2f}) Å, tick {mark['seq']}"
         )
     return 0

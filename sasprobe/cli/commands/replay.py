@@ -8,7 +8,10 @@ from pathlib import Path
 
 from sasprobe.common.errors import UserError
 
-HELP = "summarise a recording; --verify recomputes its forces; --recover repairs it; --video renders it"
+HELP = (
+    "summarise a recording; --verify recomputes its forces; --recover repairs it; "
+    "--video renders it"
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -50,8 +53,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--findings",
         type=Path,
         metavar="DIR",
-        help="what the session found: path, touched residues, marks, bottleneck; a chart, PDB/mmCIF, "
-        "PyMOL and ChimeraX files and findings.json into DIR",
+        help="what the session found: path, touched residues, marks, bottleneck; a chart, "
+        "PDB/mmCIF, PyMOL and ChimeraX files and findings.json into DIR",
     )
     p.add_argument(
         "--probe-radius",
@@ -122,9 +125,12 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(result))
         return status
     s = summary
+    ending = (
+        "finished" if s.finished else "cut short (daemon killed), readable up to its last flush"
+    )
     print(
-        f"{s.path}: {'finished' if s.finished else 'cut short (daemon killed), readable up to its last flush'}, "
-        f"{s.duration_s:.2f} s, {s.ticks} ticks, {s.seq_gaps} missing, structure(s) {', '.join(s.structures)}"
+        f"{s.path}: {ending}, {s.duration_s:.2f} s, {s.ticks} ticks, {s.seq_gaps} missing, "
+        f"structure(s) {', '.join(s.structures)}"
     )
     print("  messages " + ", ".join(f"{k} {v}" for k, v in sorted(s.counts.items())))
     if "recovered" in result:
@@ -132,13 +138,15 @@ def run(args: argparse.Namespace) -> int:
     if args.verify:
         r = result["verify"]
         print(
-            f"  verify   {r['ticks']} ticks recomputed, {r['events_applied']} control changes applied: "
-            f"max |force difference| {r['max_force_diff_n']:.3g} N over {r['ticks_with_force_diff']} ticks, "
-            f"{r['flag_mismatches']} flag mismatches -> {'OK' if r['ok'] else 'DIFFERENT'}"
+            f"  verify   {r['ticks']} ticks recomputed, {r['events_applied']} control changes "
+            f"applied: max |force difference| {r['max_force_diff_n']:.3g} N over "
+            f"{r['ticks_with_force_diff']} ticks, {r['flag_mismatches']} flag mismatches -> "
+            f"{'OK' if r['ok'] else 'DIFFERENT'}"
         )
         if r["missing_ticks"]:
             print(
-                f"  note     {r['missing_ticks']} ticks were dropped while recording; forces after a gap can differ"
+                f"  note     {r['missing_ticks']} ticks were dropped while recording; forces "
+                "after a gap can differ"
             )
     if args.findings is not None:
         from sasprobe.daemon.findings import summary_lines
@@ -148,7 +156,7 @@ def run(args: argparse.Namespace) -> int:
     if args.video is not None:
         v = result["video"]
         print(
-            f"  video    {v['video']}: {v['frames']} frames at {v['fps']:g} fps, {v['size'][0]}x{v['size'][1]} "
-            f"({v['duration_s']:.2f} s recorded)"
+            f"  video    {v['video']}: {v['frames']} frames at {v['fps']:g} fps, "
+            f"{v['size'][0]}x{v['size'][1]} ({v['duration_s']:.2f} s recorded)"
         )
     return status

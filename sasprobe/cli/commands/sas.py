@@ -48,7 +48,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--per-residue",
         action="store_true",
-        help="one row per residue: chain, number, insertion code, name, atoms, area (Å²), accessible atoms",
+        help="one row per residue: chain, number, insertion code, name, atoms, area (Å²), "
+        "accessible atoms",
     )
     p.add_argument(
         "--probe-radius",
@@ -133,22 +134,25 @@ def run(args: argparse.Namespace) -> int:
         f"{result.n_points} points, {result.n_refined} atoms refined at {result.refine_points})"
     )
     print(
-        f"  accessible atoms (≥ {ACCESSIBLE_MIN_AREA} Å²): {int(accessible.sum())} of {structure.n_atoms}"
+        f"  accessible atoms (≥ {ACCESSIBLE_MIN_AREA} Å²): {int(accessible.sum())} of "
+        f"{structure.n_atoms}"
     )
     if residues is not None:
         print(
-            f"  {'chain':>5} {'residue':>9} {'name':<5} {'atoms':>5} {'area Å²':>9} {'accessible':>10}"
+            f"  {'chain':>5} {'residue':>9} {'name':<5} {'atoms':>5} {'area Å²':>9} "
+            f"{'accessible':>10}"
         )
         for row in residues:
             print(
-                f"  {row['chain']:>5} {str(row['number']) + row['icode']:>9} {row['residue']:<5} {row['atoms']:>5} "
-                f"{row['area']:9.1f} {row['accessible_atoms']:>10}"
+                f"  {row['chain']:>5} {str(row['number']) + row['icode']:>9} {row['residue']:<5} "
+                f"{row['atoms']:>5} {row['area']:9.1f} {row['accessible_atoms']:>10}"
             )
     else:
         for chain in np.unique(structure.chain_ids):
             mask = structure.chain_ids == chain
             print(
-                f"  chain {chain:>4}: {result.areas[mask].sum():10.1f} Å²  ({int(accessible[mask].sum())} accessible atoms)"
+                f"  chain {chain:>4}: {result.areas[mask].sum():10.1f} Å²  "
+                f"({int(accessible[mask].sum())} accessible atoms)"
             )
     print(f"  time {seconds:.2f} s (grid + area)")
     return 0

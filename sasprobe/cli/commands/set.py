@@ -121,8 +121,9 @@ def run(args: argparse.Namespace) -> int:
     s = reply["settings"]
     cube = s["cube_half_A"]
     print(
-        f"set at tick {reply['seq']}: stiffness {s['stiffness_n_per_mm']:g} N/mm, damping "
-        f"{s['damping_n_s_per_m']:g} N·s/m, probe {s['probe_radius_A']:g} Å, {s['method']}, cube half edge "
+        f"set at tick {reply['seq']}: stiffness {s['stiffness_n_per_mm']:g} "
+        f"N/mm, damping {s['damping_n_s_per_m']:g} N·s/m, probe "
+        f"{s['probe_radius_A']:g} Å, {s['method']}, cube half edge "
         + ("default" if cube is None else cube if isinstance(cube, str) else f"{cube:g} Å")
         + (f", {len(fields['clip_planes'])} clip plane(s)" if "clip_planes" in fields else "")
         + (", lights changed" if "lights" in fields else "")

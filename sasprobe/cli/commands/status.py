@@ -36,7 +36,8 @@ def run(args: argparse.Namespace) -> int:
     err, recent = loop["period_error_us"], loop["recent"]
     target = loop.get("target_rate_hz")
     print(
-        f"sasprobe daemon {status['daemon_version']} (pid {status['pid']}), up {status['uptime_s']:.0f} s"
+        f"sasprobe daemon {status['daemon_version']} (pid {status['pid']}), up "
+        f"{status['uptime_s']:.0f} s"
     )
     print(f"  structure   {status['structure']['name']} ({status['structure']['n_atoms']} atoms)")
     print(
@@ -55,19 +56,21 @@ def run(args: argparse.Namespace) -> int:
         f"(target {target:g} Hz)" if target else "(free-running)",
     )
     print(
-        f"  jitter      period error p50 {_us(err['p50'])}, p99 {_us(err['p99'])}, max {_us(err['max'])} "
-        f"over {loop['window_s']:.0f} s; last second p99 {_us(recent['period_error_p99_us'])}"
+        f"  jitter      period error p50 {_us(err['p50'])}, p99 {_us(err['p99'])}, max "
+        f"{_us(err['max'])} over {loop['window_s']:.0f} s; last second p99 "
+        f"{_us(recent['period_error_p99_us'])}"
     )
     print(
-        f"  overruns    {loop['total']['overruns']} ({loop['total']['missed_deadlines']} deadlines missed) "
-        f"in {loop['total']['ticks']} ticks; loop CPU {loop['cpu_percent']:.0f} %, "
-        f"{'real-time' if loop.get('realtime') else 'normal'} scheduling"
+        f"  overruns    {loop['total']['overruns']} ({loop['total']['missed_deadlines']} "
+        f"deadlines missed) in {loop['total']['ticks']} ticks; loop CPU {loop['cpu_percent']:.0f} "
+        f"%, {'real-time' if loop.get('realtime') else 'normal'} scheduling"
     )
     stalls = loop.get("stalls") or {}
     if stalls.get("stalls"):
         zero = stalls["worst_zero_after_ms"]
         print(
-            f"  stalls      {stalls['stalls']} (longest {stalls['longest_ms']:.1f} ms); the watchdog zeroed the force "
+            f"  stalls      {stalls['stalls']} (longest {stalls['longest_ms']:.1f} ms); the "
+            "watchdog zeroed the force "
             + ("-" if zero is None else f"at worst {zero:.1f} ms")
             + " after the last tick"
         )
@@ -79,7 +82,8 @@ def run(args: argparse.Namespace) -> int:
         print("  recording   off")
     else:
         print(
-            f"  recording   {rec['path']}: {rec['messages']} messages, {rec['bytes'] / 1e6:.1f} MB, "
+            f"  recording   {rec['path']}: {rec['messages']} "
+            f"messages, {rec['bytes'] / 1e6:.1f} MB, "
             f"{rec['dropped']} dropped" + (f", FAILED: {rec['error']}" if rec.get("error") else "")
         )
     job = status.get("findings")
