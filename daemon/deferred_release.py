@@ -1,9 +1,9 @@
 """Dropping a replaced structure and engine without holding the loop.
 
-Freeing a large structure's arrays (6ZU5: about 20 arrays, 20 MB) returns their pages to
-the kernel one `munmap` at a time, 3–6 ms in all on this machine, with the GIL held
-throughout. Done on the loop thread, or in one go on any other, that is a pose gap. So
-the loop only hands what it replaced to `DeferredRelease`, and the control thread, once the
+Freeing a large structure's arrays returns their pages to the kernel one `munmap` at a
+time, with the GIL held throughout: on the loop thread, or in one go on any other, that
+is a pose gap (`sasprobe bench daemon` measures the gaps under a loading client). So the
+loop only hands what it replaced to `DeferredRelease`, and the control thread, once the
 change is applied, frees the arrays one at a time with a GIL break between: the loop
 waits at most for one array's free.
 """

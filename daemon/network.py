@@ -25,11 +25,11 @@ class Network:
         pub_keys = socket_keys(config.pub, config.keys)
         ctl_keys = socket_keys(config.ctl, config.keys)
         self.context = zmq.Context()
-        # ZeroMQ's I/O thread works for clients (a 256 MiB upload is copied there). It would inherit
-        # the loop's real-time priority: a large upload then stalled the loop by 85 ms (equal
-        # priorities do not preempt), and at FIFO priority 1 still by 50-130 ms (real-time
-        # throttling stops every real-time thread of a CPU that used its share); at normal
-        # priority by under 15 ms. Poses then reach subscribers later on a busy machine.
+        # ZeroMQ's I/O thread works for clients (a 256 MiB upload is copied there). At the
+        # loop's real-time priority a large upload stalls the loop (equal priorities do not
+        # preempt), and so it does at FIFO priority 1 (real-time throttling stops every
+        # real-time thread of a CPU that used its share); at normal priority the loop comes
+        # first. Poses then reach subscribers later on a busy machine.
         self.context.set(zmq.THREAD_SCHED_POLICY, os.SCHED_OTHER)
         self.context.set(zmq.THREAD_PRIORITY, 0)
         keys = pub_keys or ctl_keys

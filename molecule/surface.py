@@ -85,13 +85,12 @@ class Surface:
         return xs, ys, top
 
     def site(self, half: float) -> tuple[float, float, float]:
-        """Where a zoomed-in cube of half edge `half` starts: on the top of the surface (+z
-        faces the viewer of the workspace view at the start), at a summit: a column within
-        SITE_BAND_A of the highest point with nothing within the cube's footprint more than
-        SUMMIT_TOLERANCE_A above it (so the cube has room to hover over the surface and the
-        camera above it sees the surface, not cut atoms), the one nearest the middle of the
-        molecule. The highest part of a molecule is on its outside, so the site is never in a
-        cavity (GroEL's, seen end-on, is 100 Å deep) nor in empty space."""
+        """Where a zoomed-in cube of half edge `half` starts: the summit nearest the molecule's
+        x-y middle, a summit being a column within SITE_BAND_A of the highest point that
+        nothing in the cube's footprint overtops by more than SUMMIT_TOLERANCE_A."""
+        # +z faces the viewer at the start. The top of a molecule is its outside, so the site
+        # is never in a cavity nor in empty space; on a summit the cube has room to hover and
+        # the camera above sees the surface, not cut atoms.
         xs, ys, top = self.heights()
         ii, jj = np.nonzero(np.isfinite(top) & (top >= np.nanmax(top) - SITE_BAND_A))
         if ii.size > SITE_CANDIDATES:
