@@ -1,6 +1,6 @@
 """The list of --device schemes at the end of `sasprobe daemon --help`, `demo --help` and
 `devices --help`: each scheme's name, one-line summary and example, read from the device
-registry (sasprobe/devices/registry.py SCHEMES, plus the daemon's `replay`), so a driver
+registry (devices/registry.py SCHEMES, plus the daemon's `replay`), so a driver
 added there is listed without a change here."""
 
 from __future__ import annotations
