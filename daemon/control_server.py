@@ -18,8 +18,8 @@ import threading
 from collections.abc import Callable
 
 import zmq
-from sasprobe.daemon.monitor import SocketMonitor
 from sasprobe.daemon.realtime import helper_priority
+from sasprobe.daemon.socket_monitor import SocketMonitor
 from sasprobe.protocol.control import (
     MAX_MESSAGE_BYTES,
     ControlReply,

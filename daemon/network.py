@@ -12,8 +12,8 @@ import os
 import zmq
 from sasprobe.daemon.config import DaemonConfig, socket_keys
 from sasprobe.daemon.control_server import ControlServer
-from sasprobe.daemon.monitor import raise_fd_limit
 from sasprobe.daemon.publisher import Publisher
+from sasprobe.daemon.socket_monitor import raise_fd_limit
 from sasprobe.protocol.security import start_authenticator
 
 from sasprobe.common.errors import UserError

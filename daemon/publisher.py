@@ -11,7 +11,7 @@ MAX_SUBSCRIPTION_BYTES (a longer message drops that connection before it is read
 at most SUBSCRIPTION_HWM wait per connection, and once MAX_FOREIGN_SUBSCRIPTIONS
 subscriptions to topics the daemon never publishes have come in, the socket is made
 anew (everyone reconnects within a fraction of a second; the trie's memory is freed).
-Subscribers are counted from connection events (daemon/monitor.py), not from
+Subscribers are counted from connection events (daemon/socket_monitor.py), not from
 subscription frames, which a raw client could forge both ways.
 """
 
@@ -21,7 +21,7 @@ import logging
 import time
 
 import zmq
-from sasprobe.daemon.monitor import SocketMonitor
+from sasprobe.daemon.socket_monitor import SocketMonitor
 from sasprobe.protocol.endpoints import remove_socket_files, socket_files
 from sasprobe.protocol.pose import POSE_TOPIC
 from sasprobe.protocol.scene import SCENE_TOPIC

@@ -28,7 +28,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from sasprobe.daemon import events
+from sasprobe.daemon import stdout_events
 from sasprobe.daemon.buttons import ButtonMap, WorkspaceInputs
 from sasprobe.daemon.changes import ChangeQueue
 from sasprobe.daemon.config import DaemonConfig, check_config
@@ -164,8 +164,10 @@ class Daemon:
             "recording": recording,
         }
         if self.config.report:
-            Path(self.config.report).write_text(json.dumps({"event": events.STOPPED, **report}))
-        events.print_event(events.STOPPED, **report)
+            Path(self.config.report).write_text(
+                json.dumps({"event": stdout_events.STOPPED, **report})
+            )
+        stdout_events.print_event(stdout_events.STOPPED, **report)
 
     # ------------------------------------------------------------------ run
     def run(self) -> int:
@@ -185,8 +187,8 @@ class Daemon:
             self.device.info.model,
             f"{self.rate_hz:g} Hz" if self.rate_hz else "free-running",
         )
-        events.print_event(
-            events.READY,
+        stdout_events.print_event(
+            stdout_events.READY,
             pub=self.publisher.endpoints,
             ctl=self.control.endpoints,
             device=self.device.info.kind,

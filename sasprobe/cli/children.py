@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 
 from sasprobe.common.errors import UserError
-from sasprobe.daemon import events
+from sasprobe.daemon import stdout_events
 
 PR_SET_PDEATHSIG = 1
 
@@ -198,7 +198,7 @@ class DaemonChild(Child):
     def wait_ready(self, timeout_s: float) -> dict:
         """The daemon's ready event; UserError with its own error line when it ends or is silent
         first."""
-        ready = self.wait_event(events.READY, timeout_s)
+        ready = self.wait_event(stdout_events.READY, timeout_s)
         if ready is None:
             why = self.error_line() if not self.alive() else f"no answer within {timeout_s:g} s"
             raise UserError(f"the daemon did not start: {why}")
@@ -207,7 +207,7 @@ class DaemonChild(Child):
     @property
     def exit_report(self) -> dict | None:
         """The stopped event (the daemon's exit report), once it has printed it."""
-        return self.events.get(events.STOPPED)
+        return self.events.get(stdout_events.STOPPED)
 
     def stop(
         self, timeout_s: float, sig: int = signal.SIGTERM, hurry: threading.Event | None = None
