@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-DEFAULT_RATE_HZ = 1000.0  # the control rate haptics needs (1 kHz)
 HIST_BIN_NS = 1_000  # period-error histogram: 1 µs bins ...
 HIST_BINS = 100_000  # ... up to 100 ms (larger errors land in the last bin)
 RECENT_TICKS = 1024  # the window `sasprobe status` shows (about a second at 1 kHz)

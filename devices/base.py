@@ -28,6 +28,7 @@ import numpy as np
 from sasprobe.common.errors import UserError
 
 IDENTITY_QUATERNION = (1.0, 0.0, 0.0, 0.0)  # (w, x, y, z)
+DEFAULT_RATE_HZ = 1000.0  # the control rate haptics needs, which most arms declare
 
 
 class DeviceFault(RuntimeError):
@@ -48,7 +49,7 @@ class DeviceLimits:
     max_damping_n_s_per_m: float
     workspace_min_mm: tuple[float, float, float]  # usable box in the device frame
     workspace_max_mm: tuple[float, float, float]
-    nominal_rate_hz: float = 1000.0
+    nominal_rate_hz: float = DEFAULT_RATE_HZ
     has_force_output: bool = True
 
     @property

@@ -67,7 +67,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         * min(hi - lo for lo, hi in zip(omni.workspace_min_mm, omni.workspace_max_mm))
         / 2
     )
-    from sasprobe.daemon.timer import DEFAULT_RATE_HZ
+    from sasprobe.devices.base import DEFAULT_RATE_HZ
     from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
     from sasprobe.protocol.scene import COLOR_SCHEMES, HAPTIC_METHODS
 
