@@ -1,7 +1,7 @@
 """What every driver of real hardware shares: the `HardwareDriver` base (a reconnect that
-reports a still-missing device as a fault), force clamping, velocity estimation, and the
-hook that points a driver at an emulator. Rotations as quaternions are with the
-kinematics (devices/kinematics.py)."""
+reports a still-missing device as a fault), force clamping, the limits of an arm with a
+published workspace sphere, velocity estimation, and the hook that points a driver at an
+emulator. Rotations as quaternions are devices/kinematics.py's."""
 
 from __future__ import annotations
 
