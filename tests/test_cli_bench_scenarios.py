@@ -10,7 +10,7 @@ import re
 
 import pytest
 
-from sasprobe.cli.bench import gpu_quick, render_scenarios
+from sasprobe.cli.bench import gpu_quick, render_pymol
 from tests.conftest import run_cli
 from tests.support.reference_data import small_reference_data
 
@@ -54,7 +54,7 @@ def test_render_scenarios_print_every_case_with_its_ratios(reference_entries, tm
     assert scenarios["orbit"][0]["rows"]["frame cache"]["cache_hits"] == 0  # it turned every frame
     assert scenarios["session"][0]["contact_fraction"] >= 0.5  # the demo path touches the surface
     assert len(scenarios["load"]) == 2 and "load average" in report
-    if render_scenarios.pymol_available():
+    if render_pymol.pymol_available():
         assert "ray_shadows 1" in report and "× |" in report.split("PyMOL")[-1]
     else:
         assert "pymol-open-source is not installed" in report

@@ -15,8 +15,18 @@ from __future__ import annotations
 
 import time
 
-from sasprobe.cli.bench import render_scenarios as scenarios
 from sasprobe.cli.bench import render_sessions
+from sasprobe.cli.bench.render_cases import (
+    CUBE_TARGET_ATOMS,
+    cube_for,
+    demo_path,
+    first_cube,
+    follow_path,
+    make_case,
+    release,
+    summary,
+    time_cases,
+)
 from sasprobe.common.errors import UserError
 
 TITLE = (
@@ -52,7 +62,6 @@ def run(
     `frames` and no `first_frames` (no daemons started) only shorten it for tests."""
     from sasprobe.cli.bench.lighting_precomputed import bake_seconds
     from sasprobe.cli.bench.machine import gl_renderer
-    from sasprobe.cli.bench.render import CUBE_TARGET_ATOMS, cube_for
     from sasprobe.cli.reference_data import reference_structures
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
     from sasprobe.render.gl.context import create_headless_context
@@ -80,12 +89,10 @@ def run(
             cube, inside = (
                 cube_for(structure, CUBE_TARGET_ATOMS) if sid == cube_id else (None, None)
             )
-            path = scenarios.demo_path(structure, frames, cube)
+            path = demo_path(structure, frames, cube)
             lit = LightingSettings()
             cases = [
-                scenarios.make_case(
-                    gl, label, structure, size, lighting, cache, scenarios.first_cube(path)
-                )
+                make_case(gl, label, structure, size, lighting, cache, first_cube(path))
                 for label, lighting, cache in (
                     ("unlit", None, False),
                     ("default lighting, whole", lit, False),
@@ -93,12 +100,12 @@ def run(
                 )
             ]
             for case in cases:
-                case.step = scenarios.follow_path(case.renderer.scene, path)
+                case.step = follow_path(case.renderer.scene, path)
             try:
-                scenarios.time_cases(gl, cases, frames)
-                rows = scenarios.summary(cases, "unlit", "default lighting, whole")
+                time_cases(gl, cases, frames)
+                rows = summary(cases, "unlit", "default lighting, whole")
             finally:
-                scenarios.release(cases)
+                release(cases)
             out["rows"].append(
                 {"id": sid, "atoms": structure.n_atoms, "cube_atoms": inside, "cases": rows}
             )

@@ -21,7 +21,7 @@ from sasprobe.cli.bench.lighting_scene import (
     scene_with_coverage,
 )
 from sasprobe.cli.bench.machine import gl_renderer
-from sasprobe.cli.bench.render import CUBE_TARGET_ATOMS, cube_for
+from sasprobe.cli.bench.render_cases import CUBE_TARGET_ATOMS, cube_for
 from sasprobe.cli.reference_data import MISSING, reference_structures
 from sasprobe.common.errors import UserError
 from sasprobe.common.progress import progress

@@ -1,8 +1,8 @@
 """`sasprobe bench render`: impostors against triangle meshes, the navigation cube on a
-large structure against a small one drawn whole, frame time against atom count, the
-session frame by structure (bench/render_sessions.py; alone with --sessions), and the
+large structure against a small one drawn whole, and frame time against atom count (here);
+the session frame by structure (bench/render_sessions.py; alone with --sessions); and the
 frames of a session by scenario (bench/render_scenarios.py: the haptic session, an orbit,
-the drifting cube; against PyMOL's `ray` where it is installed).
+the drifting cube; against PyMOL's `ray` where it is installed, bench/render_pymol.py).
 
 Frame times are wall times of a whole frame with the GPU drained (glFinish) before
 and after; per-pass times drain after every pass. Medians over repeats, ratios from
@@ -19,15 +19,15 @@ import numpy as np
 
 from sasprobe.cli.bench import BenchContext, BenchResult, render_scenarios, render_sessions
 from sasprobe.cli.bench.charts import figure, save
+from sasprobe.cli.bench.render_cases import CUBE_TARGET_ATOMS, cube_for
 from sasprobe.cli.reference_data import MISSING, reference_structures
 from sasprobe.common.errors import UserError
-from sasprobe.common.progress import progress, progress_bar
+from sasprobe.common.progress import progress
 from sasprobe.molecule import load_default, load_structure
 
 TITLE = "Rendering: impostors vs meshes, navigation cube, frame time vs atoms, session scenarios"
 MESH_TARGET_ATOMS = 60_000
 QUICK_MESH_TARGET_ATOMS = 10_000  # --quick: a mesh frame of ~60k atoms takes seconds on llvmpipe
-CUBE_TARGET_ATOMS = 300
 
 
 def add_arguments(parser) -> None:
@@ -89,7 +89,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     charts = []
     if getattr(args, "sessions", False) or not only_scenarios:
         try:
-            data["sessions"] = _sessions(gl, by_id, ctx)
+            data["sessions"] = render_sessions.sessions_for_bench(gl, by_id, ctx)
         except BaseException:
             gl.release()
             raise
@@ -124,7 +124,9 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
             path = ctx.chart_path("render_frame_time.png")
             if path is not None:
                 charts.append(_chart(path, scaling, renderer_name, size))
-        data["scenarios"] = _scenarios(gl, by_id, scenario_size, frames, 1 if ctx.quick else 3)
+        data["scenarios"] = render_scenarios.run_scenarios(
+            gl, by_id, scenario_size, frames, 1 if ctx.quick else 3
+        )
     finally:
         gl.release()
     path = ctx.chart_path("render_frame_cache.png")
@@ -139,105 +141,6 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     return BenchResult(
         "render", data, text + "\n\n" + render_scenarios.markdown(data["scenarios"]), charts
     )
-
-
-def _sessions(gl, by_id, ctx: BenchContext) -> dict:
-    """The session frame by structure (bench/render_sessions.py), with a progress bar; --smoke:
-    the structures it has, tiny, one of them joined by `render --connect`."""
-    if ctx.smoke:
-        wanted, plan = tuple(by_id), {"sizes": ((64, 36),), "frames": 3, "rounds": 1}
-        plan["first_frames"] = wanted[:1]
-    else:
-        wanted, plan = (
-            render_sessions.QUICK_STRUCTURES if ctx.quick else render_sessions.STRUCTURES,
-            {},
-        )
-    missing = [sid for sid in wanted if sid not in by_id]
-    if missing:
-        raise UserError(
-            f"bench render: the session table needs the reference structures {', '.join(missing)}"
-        )
-    sizes = plan.get("sizes") or (
-        render_sessions.QUICK_SIZES if ctx.quick else render_sessions.SIZES
-    )
-    rounds = plan.get("rounds") or (
-        render_sessions.QUICK_ROUNDS if ctx.quick else render_sessions.ROUNDS
-    )
-    bar = progress_bar(
-        1 + len(sizes) * rounds + len(plan.get("first_frames", wanted)), "bench render: sessions"
-    )
-    try:
-        return render_sessions.run_sessions(
-            gl, by_id, ctx.quick, structures=wanted, progress=lambda what: bar.update(1), **plan
-        )
-    finally:
-        bar.close()
-
-
-def _scenarios(gl, by_id, size, frames: int, pymol_repeats: int) -> dict:
-    """(a) on 1CRN and 1TII (waters kept; PyMOL's ray between two
-    stretches of 1TII's session frames), (b) on 1TII, (c) on the largest structure."""
-    steps = progress(range(5), "bench render: scenarios", 5)
-    out = {
-        "size": list(size),
-        "frames": frames,
-        "load": [render_scenarios.load_average()],
-        "session": [],
-        "orbit": [],
-        "cube": [],
-    }
-    session_ids = [i for i in ("1crn", "1tii") if i in by_id]
-    next(steps)
-    for sid in session_ids:
-        structure = load_structure(by_id[sid].path, keep_water=True)
-        last = (
-            sid == session_ids[-1]
-        )  # 1TII: also PyMOL's ray, and the session as the demo frames it
-        peer = (
-            (lambda: render_scenarios.pymol_ray(by_id[sid].path, size, pymol_repeats))
-            if last and render_scenarios.pymol_available()
-            else None
-        )
-        out["session"].append(
-            {
-                "id": sid,
-                "atoms": structure.n_atoms,
-                **render_scenarios.session(gl, structure, size, frames, between=peer),
-            }
-        )
-        if last:
-            out["session"].append(
-                {
-                    "id": sid,
-                    "atoms": structure.n_atoms,
-                    **render_scenarios.session(gl, structure, size, frames, demo_view=True),
-                }
-            )
-    next(steps)
-    orbit_id = session_ids[-1]
-    structure = load_structure(by_id[orbit_id].path, keep_water=True)
-    probe = render_scenarios.demo_path(structure, 1)[0].proxy_A
-    out["orbit"].append(
-        {
-            "id": orbit_id,
-            "atoms": structure.n_atoms,
-            **render_scenarios.orbit(gl, structure, size, frames, probe),
-        }
-    )
-    next(steps)
-    big_id = max(by_id, key=lambda k: by_id[k].atoms)
-    big = load_structure(by_id[big_id].path)
-    out["cube"].append(
-        {
-            "id": big_id,
-            "atoms": big.n_atoms,
-            **render_scenarios.drifting_cube(gl, big, size, frames),
-        }
-    )
-    next(steps)
-    next(steps)
-    out["load"].append(render_scenarios.load_average())
-    return out
 
 
 # ---------------------------------------------------------------- measurements
@@ -332,25 +235,6 @@ def _modes(gl, structure, size, repeats) -> dict:
     out["mesh_over_quad_atoms_pass"] = out["mesh"]["atoms_pass_s"] / out["quad"]["atoms_pass_s"]
     out["mesh_over_quad_frame"] = out["mesh"]["frame_s"] / out["quad"]["frame_s"]
     return out
-
-
-def cube_for(structure, target: int):
-    """A navigation cube around the atom nearest the centroid holding about `target`
-    atoms (half edge found by bisection)."""
-    from sasprobe.render.scene_state import NavCube
-
-    pos, radii = structure.positions, structure.vdw_radii
-    center = pos[np.argmin(np.linalg.norm(pos - pos.mean(axis=0), axis=1))].copy()
-
-    def count(half: float) -> int:
-        gap = pos - np.clip(pos, center - half, center + half)
-        return int(np.count_nonzero(np.einsum("ij,ij->i", gap, gap) <= radii**2))
-
-    lo, hi = 0.5, 50.0
-    for _ in range(40):
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if count(mid) < target else (lo, mid)
-    return NavCube(center=center, half=hi), count(hi)
 
 
 def _cube(gl, big, small, size, repeats) -> dict:

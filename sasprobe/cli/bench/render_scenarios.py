@@ -18,160 +18,101 @@ processes falls on all alike, and the load average is recorded beside the figure
 frame's CPU time (this process, llvmpipe's threads included) is taken with its wall time,
 and on a machine shared with other work the CPU-time ratios are the steadier ones. Where
 `pymol-open-source` is importable, PyMOL's `ray` renders the session's structure at the
-same size with and without its shadows in the same run (in a child process), between two
+same size with and without its shadows in the same run (bench/render_pymol.py), between two
 stretches of session frames, and is compared with their mean.
 """
 
 from __future__ import annotations
 
-import json
-import os
 import statistics
-import subprocess
-import sys
-import time
-from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 
-PATH_FPS = 30.0  # poses per second of the demo path (a renderer's frame rate)
-PATH_SEARCH_S = (
-    8.0  # the session simulated; the frames are its first stretch in contact at least half the time
+from sasprobe.cli.bench.render_cases import (
+    CUBE_TARGET_ATOMS,
+    Case,
+    cube_for,
+    demo_path,
+    first_cube,
+    follow_path,
+    load_average,
+    make_case,
+    release,
+    summary,
+    time_cases,
 )
-
-
-@dataclass
-class Case:
-    label: str
-    renderer: object
-    camera: object
-    step: Callable[[int], None]  # before frame k: move what the scenario moves
-    times: list[float] = field(default_factory=list)  # wall seconds per frame
-    cpu: list[float] = field(default_factory=list)  # CPU seconds of this process per frame
-
-
-def load_average() -> float:
-    return round(os.getloadavg()[0], 2)
-
-
-def demo_path(structure, frames: int, cube=None) -> list:
-    """Poses of the demo's session (sim:scan through the haptic engine), one per 1/PATH_FPS s:
-    the first `frames` of them in contact at least half the time (the probe comes in, touches
-    and slides; how soon depends on the structure). The workspace is mapped onto `cube` (a
-    NavCube) when given, else the demo's own."""
-    from sasprobe.cli.bench.haptics import closed_loop_session
-    from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
-
-    stride = int(1000 / PATH_FPS)
-    mapping = {} if cube is None else {"cube_half_A": cube.half, "cube_center_A": cube.center}
-    _, outputs, _ = closed_loop_session(
-        structure,
-        "scan",
-        "proxy",
-        mapping,
-        PHANTOM_OMNI_LIMITS,
-        int(PATH_SEARCH_S * 1000) + stride * frames,
-    )
-    poses = outputs[::stride]
-    contact = np.convolve([p.contact for p in poses], np.ones(frames) / frames, mode="valid")
-    start = int(np.argmax(contact >= 0.5)) if np.any(contact >= 0.5) else int(np.argmax(contact))
-    return poses[start : start + frames]
-
-
-def first_cube(path):
-    from sasprobe.render.scene_state import NavCube
-
-    return NavCube(np.array(path[0].cube_center_A, dtype=np.float64), float(path[0].cube_half_A))
-
-
-def follow_path(scene, path, with_cube: bool = True) -> Callable[[int], None]:
-    """The step that puts pose k of the path into the scene: probe, touched atom and (with
-    `with_cube`) the navigation cube."""
-    from sasprobe.render.scene_state import NavCube, Probe
-
-    def step(k: int) -> None:
-        pose = path[k % len(path)]
-        scene.probe = Probe(
-            center=np.array(pose.proxy_A, dtype=np.float64),
-            touched_atom=pose.touched_atoms[0] if pose.touched_atoms else -1,
-        )
-        if not with_cube:
-            return
-        center = np.array(pose.cube_center_A, dtype=np.float64)
-        if (
-            not np.array_equal(center, scene.nav_cube.center)
-            or pose.cube_half_A != scene.nav_cube.half
-        ):
-            scene.nav_cube = NavCube(center, float(pose.cube_half_A))
-
-    return step
-
-
-def make_case(gl, label: str, structure, size, lighting, cache: bool, nav_cube=None, camera=None):
-    from sasprobe.render.camera import Camera
-    from sasprobe.render.passes.lighting import install_lighting
-    from sasprobe.render.renderer import Renderer
-    from sasprobe.render.scene_state import SceneState
-
-    scene = SceneState(structure, nav_cube=nav_cube)
-    if lighting is not None:
-        for name, on in lighting.effects().items():
-            setattr(scene.effects, name, on)
-    renderer = Renderer(gl, scene, size, frame_cache=cache)
-    if lighting is not None:
-        install_lighting(renderer, lighting)
-    if camera is None:
-        center, radius = scene.bounding_sphere()
-        camera = Camera.fitted(center, radius, size[0] / size[1])
-    return Case(
-        label, renderer, Camera(camera.eye, camera.target, camera.up, camera.fov_y), lambda k: None
-    )
-
-
-def time_cases(gl, cases: list[Case], frames: int, warmup: int = 2) -> None:
-    """Frame k of every case, in turn, for k < frames (after `warmup` frames each, whose
-    steps are those of frames 0..warmup-1 again)."""
-    for k in range(warmup):
-        for case in cases:
-            case.step(k)
-            case.renderer.render(case.camera)
-    gl.finish()
-    for k in range(frames):
-        for case in cases:
-            case.step(k)
-            gl.finish()
-            t0, c0 = time.perf_counter(), time.process_time()
-            case.renderer.render(case.camera)
-            gl.finish()
-            case.times.append(time.perf_counter() - t0)
-            case.cpu.append(time.process_time() - c0)
-
-
-def summary(cases: list[Case], unlit: str, full: str) -> dict:
-    rows = {}
-    for case in cases:
-        counts = case.renderer.planner.layer_counts() if case.renderer.planner is not None else None
-        rows[case.label] = {
-            "ms": statistics.median(case.times) * 1e3,
-            "cpu_ms": statistics.median(case.cpu) * 1e3,
-            "frames": len(case.times),
-            "cache_hits": None if counts is None else counts["kept"],
-            "cache_misses": None if counts is None else counts["drawn"],
-        }
-    for row in rows.values():
-        for key, suffix in (("ms", ""), ("cpu_ms", "_cpu")):
-            row["over_unlit" + suffix] = row[key] / rows[unlit][key]
-            row["full_over_this" + suffix] = rows[full][key] / row[key]
-    return rows
-
-
-def release(cases: list[Case]) -> None:
-    for case in cases:
-        case.renderer.release()
+from sasprobe.cli.bench.render_pymol import pymol_available, pymol_ray
+from sasprobe.common.progress import progress
+from sasprobe.molecule import load_structure
 
 
 # ------------------------------------------------------------------ the scenarios
+def run_scenarios(gl, by_id, size, frames: int, pymol_repeats: int) -> dict:
+    """The three scenarios at `size`: (a) on 1CRN and 1TII (waters kept; PyMOL's ray between two
+    stretches of 1TII's session frames), (b) on 1TII, (c) on the largest structure."""
+    steps = progress(range(5), "bench render: scenarios", 5)
+    out = {
+        "size": list(size),
+        "frames": frames,
+        "load": [load_average()],
+        "session": [],
+        "orbit": [],
+        "cube": [],
+    }
+    session_ids = [i for i in ("1crn", "1tii") if i in by_id]
+    next(steps)
+    for sid in session_ids:
+        structure = load_structure(by_id[sid].path, keep_water=True)
+        last = (
+            sid == session_ids[-1]
+        )  # 1TII: also PyMOL's ray, and the session as the demo frames it
+        peer = (
+            (lambda: pymol_ray(by_id[sid].path, size, pymol_repeats))
+            if last and pymol_available()
+            else None
+        )
+        out["session"].append(
+            {
+                "id": sid,
+                "atoms": structure.n_atoms,
+                **session(gl, structure, size, frames, between=peer),
+            }
+        )
+        if last:
+            out["session"].append(
+                {
+                    "id": sid,
+                    "atoms": structure.n_atoms,
+                    **session(gl, structure, size, frames, demo_view=True),
+                }
+            )
+    next(steps)
+    orbit_id = session_ids[-1]
+    structure = load_structure(by_id[orbit_id].path, keep_water=True)
+    probe = demo_path(structure, 1)[0].proxy_A
+    out["orbit"].append(
+        {
+            "id": orbit_id,
+            "atoms": structure.n_atoms,
+            **orbit(gl, structure, size, frames, probe),
+        }
+    )
+    next(steps)
+    big_id = max(by_id, key=lambda k: by_id[k].atoms)
+    big = load_structure(by_id[big_id].path)
+    out["cube"].append(
+        {
+            "id": big_id,
+            "atoms": big.n_atoms,
+            **drifting_cube(gl, big, size, frames),
+        }
+    )
+    next(steps)
+    next(steps)
+    out["load"].append(load_average())
+    return out
+
+
 def session(gl, structure, size, frames: int, demo_view: bool = False, between=None) -> dict:
     """(a): the probe along the demo path, camera still; fitted to the molecule, or (with
     `demo_view`) to the poses' cube, which is drawn. `between()` (a peer's timing) runs
@@ -254,7 +195,6 @@ def orbit(gl, structure, size, frames: int, probe_center) -> dict:
 
 def drifting_cube(gl, structure, size, frames: int) -> dict:
     """(c): a ~300-atom cube of the largest structure moving every frame, the probe inside."""
-    from sasprobe.cli.bench.render import CUBE_TARGET_ATOMS, cube_for
     from sasprobe.render.camera import Camera
     from sasprobe.render.lighting.settings import AOSettings, LightingSettings
     from sasprobe.render.scene_state import NavCube, Probe
@@ -312,61 +252,6 @@ def _first_frame_bake(gl, case: Case) -> float:
     gl.finish()
     atlas = lighting_of(case.renderer).ao._pass("atlas")
     return atlas.bake_seconds
-
-
-# ------------------------------------------------------------------ PyMOL
-PYMOL_SCRIPT = r"""
-import json, statistics, sys, time
-import pymol
-from pymol import cmd
-pymol.finish_launching(["pymol", "-qc"])
-cmd.feedback("disable", "all", "everything")
-path, w, h, repeats = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
-cmd.load(path, "m")
-cmd.hide("everything")
-cmd.show("spheres")
-cmd.orient()
-cmd.viewport(w, h)
-out = {"version": cmd.get_version()[0], "atoms": cmd.count_atoms("all"), "max_threads": cmd.get("max_threads"),
-       "antialias_default": int(cmd.get("antialias"))}
-for shadows in (1, 0):
-    for antialias in sorted({out["antialias_default"], 0}, reverse=True):
-        cmd.set("ray_shadows", shadows)
-        cmd.set("antialias", antialias)
-        cmd.ray(w, h)
-        times, cpu = [], []
-        for _ in range(repeats):
-            t0, c0 = time.perf_counter(), time.process_time()
-            cmd.ray(w, h)
-            times.append(time.perf_counter() - t0)
-            cpu.append(time.process_time() - c0)
-        out[f"shadows{shadows}_aa{antialias}_ms"] = statistics.median(times) * 1e3
-        out[f"shadows{shadows}_aa{antialias}_cpu_ms"] = statistics.median(cpu) * 1e3
-print("PYMOL_RESULT " + json.dumps(out))
-"""
-
-
-def pymol_available() -> bool:
-    import importlib.util
-
-    return importlib.util.find_spec("pymol") is not None
-
-
-def pymol_ray(path, size, repeats: int) -> dict | None:
-    """PyMOL's ray tracer on a structure file (spheres, oriented, w x h), with and without its
-    shadows and antialiasing; None where pymol-open-source is not installed."""
-    if not pymol_available():
-        return None
-    r = subprocess.run(
-        [sys.executable, "-c", PYMOL_SCRIPT, str(path), str(size[0]), str(size[1]), str(repeats)],
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
-    for line in r.stdout.splitlines():
-        if line.startswith("PYMOL_RESULT "):
-            return json.loads(line.split(" ", 1)[1])
-    return {"error": (r.stderr.strip().splitlines() or ["no result"])[-1]}
 
 
 # ------------------------------------------------------------------ report

@@ -3,7 +3,7 @@
 
 What a renderer following a daemon draws in the workspace view, on 1CRN, 1TII, 1AON and
 6ZU5: the simulated arm's `scan` script through the haptic engine (the demo's session, one
-pose per 1/30 s: render_scenarios.demo_path) puts the probe, its touched atom and the
+pose per 1/30 s: render_cases.demo_path) puts the probe, its touched atom and the
 daemon's default navigation cube into the scene, the camera frames the cube, and the
 renderer is `render --connect`'s (frame planner, probe plane, lights turning with the
 camera) — unlit (no lighting passes) and with the default lighting. Per structure, size
@@ -31,6 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
+from sasprobe.cli.bench import BenchContext
+from sasprobe.cli.bench.render_cases import Case, demo_path, time_cases
+from sasprobe.common.errors import UserError
+from sasprobe.common.progress import progress_bar
+
 STRUCTURES = ("1crn", "1tii", "1aon", "6zu5")
 SIZES = ((1280, 720), (640, 360))
 QUICK_STRUCTURES = ("1crn", "1tii")
@@ -43,7 +48,6 @@ DAEMON_READY_S = 180.0
 
 
 def _case(gl, structure, path, size, lit: bool):
-    from sasprobe.cli.bench.render_scenarios import Case
     from sasprobe.render.app import RenderOptions, build_scene, make_renderer
     from sasprobe.render.lighting.presets import PRESETS
     from sasprobe.render.scene_state import NavCube, Probe
@@ -157,7 +161,6 @@ def run_sessions(
 ) -> dict:
     """The figures of the sessions table (see the module's docstring); `first_frames`: True,
     False, or the structures whose `render --connect --frames 1` is timed."""
-    from sasprobe.cli.bench.render_scenarios import demo_path, time_cases
     from sasprobe.molecule import load_structure
 
     load = [os.getloadavg()[0]]
@@ -255,6 +258,32 @@ def run_sessions(
                 ]
     load.append(os.getloadavg()[0])
     return out
+
+
+def sessions_for_bench(gl, by_id, ctx: BenchContext) -> dict:
+    """The sessions table as `sasprobe bench render` runs it, with a progress bar; --smoke:
+    the structures it has, tiny, one of them joined by `render --connect`."""
+    if ctx.smoke:
+        wanted, plan = tuple(by_id), {"sizes": ((64, 36),), "frames": 3, "rounds": 1}
+        plan["first_frames"] = wanted[:1]
+    else:
+        wanted, plan = (QUICK_STRUCTURES if ctx.quick else STRUCTURES), {}
+    missing = [sid for sid in wanted if sid not in by_id]
+    if missing:
+        raise UserError(
+            f"bench render: the session table needs the reference structures {', '.join(missing)}"
+        )
+    sizes = plan.get("sizes") or (QUICK_SIZES if ctx.quick else SIZES)
+    rounds = plan.get("rounds") or (QUICK_ROUNDS if ctx.quick else ROUNDS)
+    bar = progress_bar(
+        1 + len(sizes) * rounds + len(plan.get("first_frames", wanted)), "bench render: sessions"
+    )
+    try:
+        return run_sessions(
+            gl, by_id, ctx.quick, structures=wanted, progress=lambda what: bar.update(1), **plan
+        )
+    finally:
+        bar.close()
 
 
 def markdown(d: dict) -> str:
