@@ -182,7 +182,6 @@ def render_main(opts: RenderOptions) -> int:
 def make_renderer(ctx, scene, size, opts: RenderOptions, wait_for_areas: bool = True):
     """The renderer of the options, lighting included when asked for and supported;
     `wait_for_areas`: False in a window (the sas colours come once computed)."""
-    from sasprobe.render.passes.lighting import install_lighting
     from sasprobe.render.renderer import Renderer
 
     renderer = Renderer(
@@ -197,7 +196,7 @@ def make_renderer(ctx, scene, size, opts: RenderOptions, wait_for_areas: bool = 
     )
     if opts.lighting is not None:
         try:
-            install_lighting(renderer, opts.lighting, required=opts.lighting_required)
+            renderer.install_lighting(opts.lighting, required=opts.lighting_required)
         except Exception:
             renderer.release()
             raise

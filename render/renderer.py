@@ -22,7 +22,9 @@ redraw).
 
 from __future__ import annotations
 
+import logging
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 from sasprobe.render.camera import Camera
@@ -32,7 +34,7 @@ from sasprobe.render.gl.buffers import MoleculeBuffers
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import RenderTargets
 from sasprobe.render.gl.textures import read_image
-from sasprobe.render.lighting.settings import ShadingSettings
+from sasprobe.render.lighting.settings import LightingSettings, ShadingSettings
 from sasprobe.render.passes.backbone import BackbonePass
 from sasprobe.render.passes.base import CONTEXT, MOLECULE, Frame, Pass
 from sasprobe.render.passes.clear import ClearPass
@@ -45,6 +47,11 @@ from sasprobe.render.passes.probe_cues import ProbeCuesPass
 from sasprobe.render.passes.shading import ShadingPass
 from sasprobe.render.passes.spheres import SpherePass
 from sasprobe.render.scene_state import SceneState
+
+if TYPE_CHECKING:
+    from sasprobe.render.passes.lighting import LightingPass
+
+log = logging.getLogger("sasprobe")
 
 
 class Renderer:
@@ -85,6 +92,7 @@ class Renderer:
             LegendPass(ctx, self.programs),
             MarksPass(ctx, self.programs),
         ]
+        self.lighting: LightingPass | None = None  # install_lighting's
         self.frame_index = 0
         self.last_frame: Frame | None = None
 
@@ -112,6 +120,35 @@ class Renderer:
 
     def insert_before(self, name: str, new_pass: Pass) -> None:
         self.passes.insert(self.passes.index(self.pass_named(name)), new_pass)
+
+    def install_lighting(
+        self, settings: LightingSettings, required: bool = True
+    ) -> LightingPass | None:
+        """Slot the lighting into the chain (layered with a frame planner). Without OpenGL 4.3:
+        GLUnavailable when `required`, else a warning and no lighting."""
+        from sasprobe.render.passes.lighting import (
+            LightingPass,
+            MoleculeLightingPass,
+            lighting_supported,
+        )
+        from sasprobe.render.passes.path_trace import PathTracePass
+
+        if not lighting_supported(self.ctx):
+            if required:
+                LightingPass(self.ctx, settings, None)  # raises the one-line error
+            log.warning(
+                "OpenGL 4.3 is not available: "
+                "rendering without shadows, ambient occlusion and path tracing"
+            )
+            return None
+        layered = self.planner is not None
+        shading = self.pass_named("shading").settings
+        self.lighting = LightingPass(self.ctx, settings, shading, layered=layered)
+        if layered:
+            self.insert_before("probe", MoleculeLightingPass(self.lighting))
+        self.insert_before("shading", self.lighting)
+        self.insert_before("navcube", PathTracePass(self.ctx, self.lighting))
+        return self.lighting
 
     def resize(self, size: tuple[int, int]) -> None:
         size = (max(int(size[0]), 1), max(int(size[1]), 1))

@@ -24,7 +24,6 @@ from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE
 from sasprobe.render.gl.textures import read_image
 from sasprobe.render.lighting.presets import PRESET_NAMES, PRESETS
-from sasprobe.render.passes.lighting import lighting_of
 from sasprobe.render.passes.lighting_controls import apply_preset, lighting_status
 from sasprobe.render.passes.overlay import TextOverlay
 from sasprobe.render.picking import label_position, pixel_under, point_under
@@ -167,8 +166,8 @@ class WindowApp:
         elif ctrl and name == "R":
             self.capture.toggle_recording()
         elif shift and name == "A":
-            if self.renderer is not None and lighting_of(self.renderer) is not None:
-                lighting_of(self.renderer).cycle_ao_mode()
+            if self.renderer is not None and self.renderer.lighting is not None:
+                self.renderer.lighting.cycle_ao_mode()
         elif key in (glfw.KEY_ENTER, glfw.KEY_KP_ENTER):
             self.source.drop_mark()
         elif name in TOGGLES:
@@ -309,7 +308,7 @@ class WindowApp:
                 + (" (computing SAS areas...)" if r.colors_pending else "")
                 + f"   lighting preset: {self.preset}"
             )
-            if lighting_of(r) is not None:
+            if r.lighting is not None:
                 lines.append(lighting_status(r))
         ro = self.readout
         if ro.status:

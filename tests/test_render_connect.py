@@ -237,7 +237,6 @@ def test_the_grid_follows_the_daemons_probe_radius(gl):
     and the lighting's GPU grid) is rebuilt with the daemon's radius, not its own default."""
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS
     from sasprobe.render.lighting.settings import LightingSettings
-    from sasprobe.render.passes.lighting import install_lighting
 
     radius = 2.0
     assert radius != DEFAULT_PROBE_RADIUS
@@ -267,8 +266,8 @@ def test_the_grid_follows_the_daemons_probe_radius(gl):
     assert scene.probe.radius == radius
     renderer = Renderer(gl, scene, (64, 48))
     try:
-        lighting = install_lighting(
-            renderer, LightingSettings(shadows="hard", ao=replace(AOSettings(), mode="off"))
+        lighting = renderer.install_lighting(
+            LightingSettings(shadows="hard", ao=replace(AOSettings(), mode="off"))
         )
         scene.effects.shadows = True
         renderer.render(Camera.fitted(*scene.bounding_sphere(), 64 / 48))

@@ -18,7 +18,6 @@ from sasprobe.render.gl.targets import KIND_PROBE
 from sasprobe.render.gl.textures import read_image, release_framebuffers
 from sasprobe.render.lighting.settings import AOSettings, LightingSettings, ShadingSettings
 from sasprobe.render.passes.fxaa import FxaaPass
-from sasprobe.render.passes.lighting import install_lighting, lighting_of
 from sasprobe.render.rects import union_rect
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import Effects, Mark, NavCube, Probe, SceneState
@@ -105,7 +104,7 @@ def make_renderer(gl, structure, size, settings, cache, setup="none"):
         n = -np.array([1.0, 0.2, 0.5]) / np.linalg.norm([1.0, 0.2, 0.5])
         scene.clip_planes = [np.array([*n, -float(n @ centre) + 2.0])]
     renderer = Renderer(gl, scene, size, frame_cache=cache)
-    install_lighting(renderer, settings)
+    renderer.install_lighting(settings)
     if setup == "workspace":
         return renderer, workspace_camera(scene.nav_cube, size[0] / size[1])
     c, r = scene.bounding_sphere()
@@ -248,7 +247,7 @@ def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(
     scene = SceneState(structure)
     scene.force_ratings_n = (3.3, 8.5)
     renderer = Renderer(gl, scene, size, shading=ShadingSettings(probe_range=probe_range))
-    install_lighting(renderer, LightingSettings())
+    renderer.install_lighting(LightingSettings())
     c, r = scene.bounding_sphere()
     camera = Camera.fitted(c, r * fit, size[0] / size[1], direction=DIRECTION)
     # per frame, the fraction of the pixels FXAA ran near the surfaces only that the mask left out
@@ -335,11 +334,11 @@ def test_progressive_ao_keeps_accumulating_while_only_the_probe_moves(gl, crambi
             moving.render(camera)
             still.scene.probe = Probe(center=path[-1])
             still.render(still_camera)
-            assert lighting_of(moving).ao.samples == 2 * (i + 1)
+            assert moving.lighting.ao.samples == 2 * (i + 1)
         assert np.array_equal(moving.read_image(), still.read_image())
         camera.orbit(np.array([0.0, 1.0, 0.0]), 0.1)  # the camera turns: accumulation starts over
         moving.render(camera)
-        assert lighting_of(moving).ao.samples == 2
+        assert moving.lighting.ao.samples == 2
     finally:
         moving.release()
         still.release()
@@ -452,7 +451,7 @@ def test_every_effect_camera_and_setting_but_the_probe_invalidates_the_layer(gl,
                 )
                 == 1
             ), f.name
-        lighting = lighting_of(r)
+        lighting = r.lighting
         assert misses_after(lighting.cycle_ao_mode) == 1
         assert (
             misses_after(

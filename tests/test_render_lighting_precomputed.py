@@ -318,7 +318,7 @@ def test_a_still_probe_lights_from_the_atlas_and_a_moving_one_is_traced(gl, cram
     the probe moves again they are traced per pixel."""
     from sasprobe.render.camera import Camera
     from sasprobe.render.gbuffer_export import gbuffer_arrays as export
-    from sasprobe.render.passes.lighting import STILL_FRAMES, install_lighting, lighting_of
+    from sasprobe.render.passes.lighting import STILL_FRAMES
     from sasprobe.render.renderer import Renderer
     from sasprobe.render.scene_state import Probe, SceneState
 
@@ -329,7 +329,7 @@ def test_a_still_probe_lights_from_the_atlas_and_a_moving_one_is_traced(gl, cram
     for name, on in settings.effects().items():
         setattr(scene.effects, name, on)
     renderer = Renderer(gl, scene, (128, 96))
-    install_lighting(renderer, settings)
+    renderer.install_lighting(settings)
     center, radius = scene.bounding_sphere()
     camera = Camera.fitted(center, radius * 0.8, 128 / 96, direction=(0.2, 0.3, 1.0))
     try:
@@ -337,7 +337,7 @@ def test_a_still_probe_lights_from_the_atlas_and_a_moving_one_is_traced(gl, cram
         for k in range(STILL_FRAMES + 2):
             camera.orbit(np.array([0.0, 1.0, 0.0]), 0.02)
             renderer.render(camera)
-            atlas = lighting_of(renderer).ao._pass("atlas")
+            atlas = renderer.lighting.ao._pass("atlas")
             assert (atlas.probe_key is not None) == (k >= STILL_FRAMES), k
             if k == STILL_FRAMES:
                 assert 0 < atlas.baked_patches < atlas.n_slots  # the atoms within the light's range
@@ -361,6 +361,6 @@ def test_a_still_probe_lights_from_the_atlas_and_a_moving_one_is_traced(gl, cram
         scene.probe = Probe(center=scene.probe.center + [0.4, 0.0, 0.0])
         renderer.render(camera)
         assert atlas.bake_seconds == baked_before  # moved: traced, not baked
-        assert lighting_of(renderer)._still_frames == 0
+        assert renderer.lighting._still_frames == 0
     finally:
         renderer.release()

@@ -34,7 +34,7 @@ from sasprobe.render.lighting.settings import (
     LightingSettings,
     PointLight,
 )
-from sasprobe.render.passes.lighting import LightingPass, install_lighting, lighting_of
+from sasprobe.render.passes.lighting import LightingPass
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import NavCube, Probe, SceneState
 
@@ -76,7 +76,7 @@ def render_frame(ctx, scene, settings: LightingSettings, camera=None):
     for name, on in settings.effects().items():
         setattr(scene.effects, name, on)
     renderer = Renderer(ctx, scene, SIZE)
-    install_lighting(renderer, settings)
+    renderer.install_lighting(settings)
     if camera is None:
         center, radius = scene.bounding_sphere()
         camera = Camera.fitted(center, radius * 0.8, SIZE[0] / SIZE[1], direction=(0.2, 0.3, 1.0))
@@ -91,7 +91,7 @@ def render_lit(ctx, scene, cache: bool):
     for name, on in settings.effects().items():
         setattr(scene.effects, name, on)
     renderer = Renderer(ctx, scene, SIZE, frame_cache=cache)
-    install_lighting(renderer, settings)
+    renderer.install_lighting(settings)
     center, radius = scene.bounding_sphere()
     return renderer, renderer.render(
         Camera.fitted(center, radius * 0.8, SIZE[0] / SIZE[1], direction=(0.2, 0.3, 1.0))
@@ -177,7 +177,7 @@ def test_drawn_passes_equal_their_compute_passes_to_the_bit(frame):
     G-buffer (without its depth): the shadows whole and over a rectangle, the AO with the
     probe, the atlas's accessibility and both lights' channels with the probe's share."""
     setup, scene, renderer, g = frame
-    lighting = lighting_of(renderer)
+    lighting = renderer.lighting
     drawn = GBuffer.of_targets(renderer.targets)
     computed = replace(drawn, depth=None)
     rect = (SIZE[0] // 4, SIZE[1] // 3, SIZE[0] // 2, SIZE[1] // 2)
@@ -295,7 +295,7 @@ def test_the_shading_pass_traces_the_probe_light_as_the_shadow_pass_does(gl, cra
             g["shadow_probe"][atoms] > 0.5
         ).any()  # both occur
         traced = shaded(frame.probe_lighting)
-        lamp = lighting_of(renderer).layers["shadow_probe"]
+        lamp = renderer.lighting.layers["shadow_probe"]
         assert np.array_equal(
             traced, shaded(replace(frame.probe_lighting, visibility=lamp, traced=None))
         )
@@ -333,7 +333,7 @@ def test_path_tracing_replaces_the_lit_atoms(gl, crambin):
     renderer, g = render_frame(gl, scene, settings)
     t = renderer.targets
     lit = t.read(t.lit)[..., :3].astype(np.float64) / 255
-    tracer = lighting_of(renderer).tracer
+    tracer = renderer.lighting.tracer
     assert tracer.samples >= 8
     radiance = tracer.accumulated.read()
     radiance = np.frombuffer(radiance, dtype=np.float32).reshape(SIZE[1], SIZE[0], 4)[::-1, :, :3]

@@ -456,33 +456,3 @@ class MoleculeLightingPass(Pass):
 
     def run(self, frame: Frame) -> None:
         self.lighting.run_molecule(frame)
-
-
-def install_lighting(
-    renderer, settings: LightingSettings, required: bool = True
-) -> LightingPass | None:
-    """Slot the lighting into a renderer's chain (layered when the renderer has a frame
-    planner). Without OpenGL 4.3: GLUnavailable when `required`, else a warning and no
-    lighting."""
-    if not lighting_supported(renderer.ctx):
-        if required:
-            LightingPass(renderer.ctx, settings, None)  # raises the one-line error
-        log.warning(
-            "OpenGL 4.3 is not available: rendering without shadows, ambient occlusion and path tracing"
-        )
-        return None
-    from sasprobe.render.passes.path_trace import PathTracePass
-
-    layered = renderer.planner is not None
-    lighting = LightingPass(
-        renderer.ctx, settings, renderer.pass_named("shading").settings, layered=layered
-    )
-    if layered:
-        renderer.insert_before("probe", MoleculeLightingPass(lighting))
-    renderer.insert_before("shading", lighting)
-    renderer.insert_before("navcube", PathTracePass(renderer.ctx, lighting))
-    return lighting
-
-
-def lighting_of(renderer) -> LightingPass | None:
-    return next((p for p in renderer.passes if isinstance(p, LightingPass)), None)

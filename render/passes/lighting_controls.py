@@ -6,13 +6,11 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from sasprobe.render.passes.lighting import lighting_of
-
 
 def lighting_status(renderer) -> str:
     """One line for the window's readout: which lighting effects are on, and how far the
     progressive ones have got."""
-    lighting = lighting_of(renderer)
+    lighting = renderer.lighting
     fx = renderer.scene.effects
     parts = []
     if fx.shadows:
@@ -39,7 +37,7 @@ def apply_preset(renderer, preset, background=None) -> None:
         setattr(shading, key, value)
     if background is not None:
         shading.background = tuple(background)
-    lighting = lighting_of(renderer)
+    lighting = renderer.lighting
     if lighting is None:
         return
     lighting.settings = replace(preset.lighting, samples=lighting.settings.samples)

@@ -14,7 +14,6 @@ def main() -> None:
     from sasprobe.render.app import RenderOptions, make_renderer
     from sasprobe.render.camera import Camera
     from sasprobe.render.lighting.settings import AO_MODES, AOSettings, LightingSettings
-    from sasprobe.render.passes.lighting import lighting_of
     from sasprobe.render.source import StaticSource
     from sasprobe.render.window import WindowApp
 
@@ -53,7 +52,7 @@ def main() -> None:
             press(app, key)
             assert getattr(fx, field) != before, field
             press(app, key)
-        lighting = lighting_of(app.renderer)
+        lighting = app.renderer.lighting
         modes = [lighting.ao_mode]
         for _ in range(len(AO_MODES) - 2):
             press(app, glfw.KEY_A, glfw.MOD_SHIFT)

@@ -88,7 +88,6 @@ def follow_path(scene, path, with_cube: bool = True) -> Callable[[int], None]:
 
 def make_case(gl, label: str, structure, size, lighting, cache: bool, nav_cube=None, camera=None):
     from sasprobe.render.camera import Camera
-    from sasprobe.render.passes.lighting import install_lighting
     from sasprobe.render.renderer import Renderer
     from sasprobe.render.scene_state import SceneState
 
@@ -98,7 +97,7 @@ def make_case(gl, label: str, structure, size, lighting, cache: bool, nav_cube=N
             setattr(scene.effects, name, on)
     renderer = Renderer(gl, scene, size, frame_cache=cache)
     if lighting is not None:
-        install_lighting(renderer, lighting)
+        renderer.install_lighting(lighting)
     if camera is None:
         center, radius = scene.bounding_sphere()
         camera = Camera.fitted(center, radius, size[0] / size[1])

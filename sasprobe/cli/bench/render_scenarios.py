@@ -246,11 +246,9 @@ def drifting_cube(gl, structure, size, frames: int) -> dict:
 
 def _first_frame_bake(gl, case: Case) -> float:
     """Draw the case's first frame with its atlas baking; the bake's own time (s)."""
-    from sasprobe.render.passes.lighting import lighting_of
-
     case.renderer.render(case.camera)
     gl.finish()
-    atlas = lighting_of(case.renderer).ao._pass("atlas")
+    atlas = case.renderer.lighting.ao._pass("atlas")
     return atlas.bake_seconds
 
 
