@@ -32,6 +32,20 @@ def capsule_rect(
     )
 
 
+def shadow_rect(
+    center, radius: float, away, bound: tuple[np.ndarray, float], viewproj, size
+) -> Rect | None:
+    """Pixels the shadow of a sphere cast along `away` (unit) can fall on: the capsule from
+    the sphere to where that line leaves `bound` (centre, radius: a sphere holding whatever
+    the shadow can fall on), as wide as the sphere."""
+    w = np.asarray(center, dtype=np.float64) - bound[0]
+    along = float(w @ away)
+    disc = along * along - float(w @ w) + (bound[1] + radius) ** 2
+    # The line leaves the sphere where |w + s away| = bound radius + radius.
+    length = max(np.sqrt(disc) - along, 0.0) if disc > 0 else 0.0
+    return capsule_rect(center, center + length * away, radius, viewproj, size)
+
+
 _CORNERS = np.array([[x, y, z] for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)])
 
 
