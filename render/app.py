@@ -289,7 +289,7 @@ def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
 def _run_window(opts: RenderOptions, source: RenderSource) -> int:
     import glfw
     from sasprobe.render.gl.context import create_window
-    from sasprobe.render.window import WindowApp
+    from sasprobe.render.window.window_app import WindowApp
 
     window, ctx = create_window(opts.size, "sasprobe render")
     try:

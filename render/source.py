@@ -66,7 +66,7 @@ class RenderSource(abc.ABC):
 
     def preview(self):
         """(navigation cube, probe) where the live state has them before a structure is
-        there to draw (render/waiting_view.py); (None, None) without."""
+        there to draw (render/window/waiting_view.py); (None, None) without."""
         return None, None
 
     def view_axes(self):

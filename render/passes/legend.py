@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 from sasprobe.render.colors import ColorBar, color_bar, ramp
+from sasprobe.render.gl.image_quad import ImageQuad
 from sasprobe.render.passes.base import Frame, Pass
-from sasprobe.render.passes.overlay import PADDING, ImageQuad, fit_text, overlay_font
+from sasprobe.render.text import PADDING, fit_text, text_font
 
 BAR_SIZE = (180, 12)  # pixels
 MARGIN = 10
@@ -16,7 +17,7 @@ def legend_image(bar: ColorBar) -> np.ndarray:
     """RGBA uint8: the title, the ramp from low (left) to high, and the end values."""
     from PIL import Image, ImageDraw
 
-    font = overlay_font()[0]
+    font = text_font()[0]
     w, h = BAR_SIZE
     line = 14
     img = Image.new("RGBA", (w + 2 * PADDING, h + 2 * line + 2 * PADDING), (0, 0, 0, 150))

@@ -15,7 +15,7 @@ def main() -> None:
     from sasprobe.render.camera import Camera
     from sasprobe.render.lighting.settings import AO_MODES, AOSettings, LightingSettings
     from sasprobe.render.source import StaticSource
-    from sasprobe.render.window import WindowApp
+    from sasprobe.render.window.window_app import WindowApp
 
     size = (160, 120)
     opts = RenderOptions(

@@ -21,7 +21,7 @@ def main() -> None:
     from sasprobe.protocol.client import ControlClient
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
     from sasprobe.render.link import DaemonLink
-    from sasprobe.render.window import WindowApp
+    from sasprobe.render.window.window_app import WindowApp
 
     pub, ctl = os.environ["SASPROBE_TEST_PUB"], os.environ["SASPROBE_TEST_CTL"]
     opts = RenderOptions(size=SIZE)

@@ -24,7 +24,7 @@ def main() -> None:
     from sasprobe.render.app import RenderOptions, build_scene, make_renderer
     from sasprobe.render.camera import Camera
     from sasprobe.render.source import StaticSource
-    from sasprobe.render.window import TOGGLES, WindowApp
+    from sasprobe.render.window.window_app import TOGGLES, WindowApp
 
     structure = load_default()
     # The probe rests on the topmost atom's expanded sphere with the cube centred on it;

@@ -18,10 +18,10 @@ def help_line_glyphs(lines: list[str]) -> tuple[np.ndarray, tuple[int, int]]:
     """The last line's band in the readout's image as a mask of its glyphs' bright pixels (full
     size, other rows False, the rest of the band False), its rows, and the image's size."""
     from PIL import Image, ImageDraw
-    from sasprobe.render.passes.overlay import PADDING, fit_text, overlay_font, text_image
+    from sasprobe.render.text import PADDING, fit_text, text_font, text_image
 
     image = text_image(lines)
-    font = overlay_font()[0]
+    font = text_font()[0]
     probe = ImageDraw.Draw(Image.new("RGBA", (1, 1)))
     line_h = (
         max(
@@ -52,7 +52,7 @@ def main() -> None:
     from sasprobe.render.passes.probe import PROBE_COLOR
     from sasprobe.render.scene_state import NavCube, Probe
     from sasprobe.render.source import Readout, RenderSource, StaticSource
-    from sasprobe.render.window import HELP, WindowApp
+    from sasprobe.render.window.window_app import HELP, WindowApp
     from sasprobe.render.workspace_view import OVERVIEW
 
     structure = load_default()

@@ -71,7 +71,7 @@ def main() -> int:
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
     from sasprobe.render.lighting.presets import PRESET_NAMES
     from sasprobe.render.source import StaticSource
-    from sasprobe.render.window import WindowApp
+    from sasprobe.render.window.window_app import WindowApp
 
     structure = load_default()
     areas = shrake_rupley(

@@ -23,7 +23,7 @@ def main() -> None:
     from sasprobe.protocol.pose import FLAG_CLUTCHED
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
     from sasprobe.render.link import DaemonLink
-    from sasprobe.render.window import WindowApp
+    from sasprobe.render.window.window_app import WindowApp
     from sasprobe.render.workspace_view import OVERVIEW, WORKSPACE
 
     with (

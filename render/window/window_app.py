@@ -17,19 +17,19 @@ from pathlib import Path
 import numpy as np
 from sasprobe.molecule.sas import atom_areas
 from sasprobe.render.camera import Camera
-from sasprobe.render.capture import WindowCapture, atom_label
 from sasprobe.render.colors import SCHEMES
 from sasprobe.render.gbuffer_export import gbuffer_arrays, save_gbuffer
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE
 from sasprobe.render.gl.textures import read_image
 from sasprobe.render.lighting.presets import PRESET_NAMES, PRESETS
-from sasprobe.render.passes.lighting_controls import apply_preset, lighting_status
-from sasprobe.render.passes.overlay import TextOverlay
-from sasprobe.render.picking import label_position, pixel_under, point_under
 from sasprobe.render.scene_state import Effects
 from sasprobe.render.source import Readout
-from sasprobe.render.waiting_view import WaitingView
+from sasprobe.render.window.capture import WindowCapture, atom_label
+from sasprobe.render.window.lighting_controls import apply_preset, lighting_status
+from sasprobe.render.window.overlay import TextOverlay
+from sasprobe.render.window.picking import label_position, pixel_under, point_under
+from sasprobe.render.window.waiting_view import WaitingView
 from sasprobe.render.workspace_view import OVERVIEW, WORKSPACE, WorkspaceView, overview_camera
 
 log = logging.getLogger("sasprobe")

@@ -1,5 +1,5 @@
 """What the window offers of the lighting: its status line and the presets it switches
-to (render/window.py's keys), on a renderer with the lighting installed
+to (render/window/window_app.py's keys), on a renderer with the lighting installed
 (render/passes/lighting.py)."""
 
 from __future__ import annotations
