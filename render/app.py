@@ -150,20 +150,20 @@ def initial_camera(scene, opts: RenderOptions):
 
 
 def open_source(opts: RenderOptions) -> RenderSource:
-    """A StaticSource for --molecule (or the embedded 1CRN), a DaemonLink for --connect."""
+    """A StaticSource for --molecule (or the embedded 1CRN), a DaemonSource for --connect."""
     if opts.connect is None:
         from sasprobe.molecule import load_structure_or_default
         from sasprobe.render.source import StaticSource
 
         return StaticSource(load_structure_or_default(opts.molecule, keep_water=opts.keep_water))
-    from sasprobe.render.link import DaemonLink
+    from sasprobe.render.follow.daemon_source import DaemonSource
 
     keys = None
     if opts.keys is not None:
         from sasprobe.protocol.security import load_client_keys
 
         keys = load_client_keys(opts.keys)
-    return DaemonLink(opts.connect or None, opts.control, keep_water=opts.keep_water, keys=keys)
+    return DaemonSource(opts.connect or None, opts.control, keep_water=opts.keep_water, keys=keys)
 
 
 def render_main(opts: RenderOptions) -> int:

@@ -98,9 +98,9 @@ def render_recording(
     """Write the session as a video at its recorded timing; returns frame counts and duration."""
     from sasprobe.molecule import parse_structure
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
+    from sasprobe.render.follow.messages import apply_pose, apply_scene_message, view_axes
     from sasprobe.render.gl.context import create_headless_context
     from sasprobe.render.lighting.settings import LightingSettings
-    from sasprobe.render.link import apply_pose, apply_scene_message, view_axes
     from sasprobe.render.output import FrameWriter
     from sasprobe.render.workspace_view import WORKSPACE, WorkspaceView
 

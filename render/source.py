@@ -4,7 +4,7 @@ A source is polled once per frame: `poll()` takes in what has arrived (never blo
 `take_new_structure()` hands out a structure once when one (re)appears, `apply(scene)`
 writes the live state (probe, cube, planes, lights) into the SceneState, and
 `readout()` says what the window's text shows. `StaticSource` is a file (nothing
-changes); `render.link.DaemonLink` follows a running daemon. The base class's methods
+changes); `render.follow.daemon_source.DaemonSource` follows a running daemon. The base class's methods
 are the defaults of a source that has nothing live.
 """
 
@@ -29,7 +29,7 @@ class Readout:
     peak_force_n: float | None = None
     clutched: bool = False
     drifting: bool = False
-    clearance_A: float | None = None  # at the probe centre (render/live_clearance.py)
+    clearance_A: float | None = None  # at the probe centre (render/follow/live_clearance.py)
     passage_A: float | None = None  # widest sphere across the probe's path; None: open
     bottleneck_A: float | None = None  # the narrowest passage in contact so far
     note: str = ""  # a passing message, e.g. the answer to a dropped mark
@@ -58,7 +58,7 @@ class RenderSource(abc.ABC):
 
     def show_live_clearance(self) -> None:
         """A window shows the readout: work out the room at the probe from now on
-        (render/live_clearance.py; headless runs never pay for it)."""
+        (render/follow/live_clearance.py; headless runs never pay for it)."""
 
     def stream_report(self) -> dict | None:
         """What arrived and what was lost, for `--report`; None without a stream."""

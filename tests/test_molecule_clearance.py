@@ -138,7 +138,7 @@ def test_a_ring_channel_gives_its_inner_radius_and_the_verdicts_either_side():
 
 def test_the_live_readout_follows_the_ring():
     from sasprobe.protocol.pose import FLAG_CONTACT, Pose
-    from sasprobe.render.live_clearance import LiveClearance
+    from sasprobe.render.follow.live_clearance import LiveClearance
 
     track = ring_track()
     live = LiveClearance()

@@ -232,7 +232,7 @@ def test_nothing_needs_the_cli_from_below_even_in_the_right_direction():
         ("sasprobe.cli.commands.render", "sasprobe.render.app", 1),
         ("sasprobe.daemon.service", "sasprobe.common.errors", 1),
         ("sasprobe.common.files", "sasprobe.common.errors", 1),
-        ("sasprobe.render.link", "sasprobe.protocol.client", 1),
+        ("sasprobe.render.follow.daemon_source", "sasprobe.protocol.client", 1),
         ("sasprobe.daemon.service", "numpy", 1),
     ]
     assert violations(allowed, known) == []

@@ -21,10 +21,10 @@ from sasprobe.protocol.pose import FLAG_CONTACT, Pose, encode_pose
 from sasprobe.protocol.scene import encode_scene
 from sasprobe.protocol.security import ensure_local_keys, load_server_keys, make_curve_server
 from sasprobe.render.camera import Camera
+from sasprobe.render.follow.daemon_source import DaemonSource
 from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.gl.targets import KIND_PROBE
 from sasprobe.render.lighting.settings import AOSettings
-from sasprobe.render.link import DaemonLink
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import Effects, SceneState
 
@@ -46,7 +46,7 @@ def daemon():
 def test_rendered_probe_follows_the_pose_stream(gl, daemon):
     pub, ctl = daemon
     watch = Subscriber(pub)  # an independent record of every pose, by sequence number
-    link = DaemonLink(pub, ctl)
+    link = DaemonSource(pub, ctl)
     proxies: dict[int, np.ndarray] = {}
     renderer = None
     try:
@@ -181,7 +181,7 @@ def test_malformed_messages_are_dropped_and_counted(daemon, crambin):
         sock, load_server_keys(ensure_local_keys())
     )  # as a daemon on loopback TCP does
     sock.bind(endpoint)
-    link = DaemonLink(endpoint, free_tcp_endpoint())
+    link = DaemonSource(endpoint, free_tcp_endpoint())
     try:
         first = Pose(
             seq=1,
@@ -247,7 +247,7 @@ def test_the_grid_follows_the_daemons_probe_radius(gl):
         pub=free_tcp_endpoint(),
         ctl=free_tcp_endpoint(),
     ) as d:
-        link = DaemonLink(d.pub, d.ctl)
+        link = DaemonSource(d.pub, d.ctl)
         try:
             link.wait_ready(60.0)
             deadline = time.monotonic() + 20
@@ -282,7 +282,7 @@ def test_renderers_follow_the_daemons_colour_scheme(daemon, crambin):
     from sasprobe.protocol.control import ProtocolError, validate_set_args
 
     pub, ctl = daemon
-    link = DaemonLink(pub, ctl)
+    link = DaemonSource(pub, ctl)
     scene = SceneState(crambin, effects=Effects(color_scheme="residue"))  # this renderer's --color
     try:
         with ControlClient(ctl) as client:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 from sasprobe.render.camera import Camera
-from sasprobe.render.link import touched_label
+from sasprobe.render.follow.messages import touched_label
 from sasprobe.render.passes.probe_cues import FORCE_COLORS, GHOST_COLOR, OUTLINE_COLOR
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import Effects, Probe, SceneState

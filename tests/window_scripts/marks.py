@@ -20,12 +20,12 @@ def main() -> None:
     import glfw
     from sasprobe.protocol.client import ControlClient
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
-    from sasprobe.render.link import DaemonLink
+    from sasprobe.render.follow.daemon_source import DaemonSource
     from sasprobe.render.window.window_app import WindowApp
 
     pub, ctl = os.environ["SASPROBE_TEST_PUB"], os.environ["SASPROBE_TEST_CTL"]
     opts = RenderOptions(size=SIZE)
-    link = DaemonLink(pub, ctl)
+    link = DaemonSource(pub, ctl)
     with glfw_window(SIZE, "marks") as (window, ctx):
 
         def build(structure, effects):

@@ -22,7 +22,7 @@ def main() -> None:
     from sasprobe.protocol.client import ControlClient, Subscriber
     from sasprobe.protocol.pose import FLAG_CLUTCHED
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
-    from sasprobe.render.link import DaemonLink
+    from sasprobe.render.follow.daemon_source import DaemonSource
     from sasprobe.render.window.window_app import WindowApp
     from sasprobe.render.workspace_view import OVERVIEW, WORKSPACE
 
@@ -31,7 +31,7 @@ def main() -> None:
         glfw_window(SIZE, "workspace keys") as (window, ctx),
     ):
         opts = RenderOptions(size=SIZE, connect=daemon.pub, control=daemon.ctl)
-        link = DaemonLink(daemon.pub, daemon.ctl)
+        link = DaemonSource(daemon.pub, daemon.ctl)
         watch = Subscriber(daemon.pub)
         control = ControlClient(daemon.ctl)
 
