@@ -45,7 +45,7 @@ from sasprobe.render.passes.navcube import NavCubePass
 from sasprobe.render.passes.probe import ProbePass
 from sasprobe.render.passes.probe_cues import ProbeCuesPass
 from sasprobe.render.passes.shading import ShadingPass
-from sasprobe.render.passes.spheres import SpherePass
+from sasprobe.render.passes.spheres import sphere_pass
 from sasprobe.render.scene_state import SceneState
 
 if TYPE_CHECKING:
@@ -78,7 +78,7 @@ class Renderer:
             None,
         )  # what the buffers hold: CPK, as sphere_records writes
         self.targets = RenderTargets(ctx, size)
-        self.sphere_pass = self._sphere_pass(sphere_mode)
+        self.sphere_pass = sphere_pass(ctx, self.programs, self.buffers, sphere_mode)
         self.planner = FramePlanner(ctx, self.programs) if frame_cache else None
         self.passes: list[Pass] = [
             ClearPass(ctx, self.programs),
@@ -97,16 +97,9 @@ class Renderer:
         self.last_frame: Frame | None = None
 
     # ------------------------------------------------------------- chain
-    def _sphere_pass(self, mode: str) -> Pass:
-        if mode == "mesh":
-            from sasprobe.render.passes.mesh import MeshSpherePass
-
-            return MeshSpherePass(self.ctx, self.programs, self.buffers)
-        return SpherePass(self.ctx, self.programs, self.buffers, mode)
-
     def set_sphere_mode(self, mode: str) -> None:
         """Swap the atoms' G-buffer pass (quad impostors, point sprites or meshes)."""
-        new = self._sphere_pass(mode)
+        new = sphere_pass(self.ctx, self.programs, self.buffers, mode)
         i = self.passes.index(self.sphere_pass)
         self.sphere_pass.release()
         self.passes[i] = self.sphere_pass = new

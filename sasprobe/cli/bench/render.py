@@ -213,7 +213,7 @@ def _scaling(gl, structures, size, repeats) -> list[dict]:
 
 
 def _modes(gl, structure, size, repeats) -> dict:
-    from sasprobe.render.passes.mesh import uv_sphere
+    from sasprobe.render.passes.spheres import uv_sphere
 
     out = {
         "n_atoms": structure.n_atoms,
