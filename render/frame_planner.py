@@ -1,49 +1,48 @@
-"""The frame planner: the one place that decides what a frame redraws.
+"""The frame planner: the one place that decides what a frame redraws, so the passes hold
+no caching policy of their own (they take the plan with the frame, Frame.plan).
 
-A frame is two layers. The *molecule layer* is the G-buffer of the atoms and the
-backbone trace, with every lighting term that does not depend on the probe (the
-molecule's own shadows of the directional light, its ambient occlusion). It depends on
-everything the renderer knows except the probe, so its key is built from all of that:
-the scene field by field with only `probe` left out, the camera, the frame size, the
-planes and cube in effect, and every pass's `state()` (its settings). A field another
-part of the program adds to the scene, a camera or a pass's settings dataclass is in
-the key without being listed anywhere.
+A frame is two layers: the *molecule layer* (the G-buffer of the atoms and the backbone
+trace, and every lighting term that does not depend on the probe) and the probe's. The
+molecule layer's key is everything the renderer draws it from except the probe: the scene
+field by field, the camera, the size, the planes and cube in effect and every pass's
+`state()`, so a field added to any of them is keyed without being listed.
 
-Each frame the planner settles a FramePlan before any pass runs:
-
-- **the layer**: KEPT (the last frame's holds: the passes that draw it do not run, and
-  the G-buffer gets back, from a stash, what the probe covered), ATOMS (only the probe
-  plane moved, with a navigation cube in effect: the plane cuts the cube's atoms and
-  nothing else, and the atoms and the backbone trace never share a pixel, the trace being
-  drawn only where the eye's ray misses the cube; so the trace and the background outside
-  the cube are kept, the context key holding, and the atoms are drawn anew within the
-  cube's rectangle, `redraw`), DRAWN (drawn anew and kept), or PLAIN (drawn whole as
-  without the planner, nothing kept: the key changed on the last frame too and changes
-  again, as while the camera turns, and a layer kept now would most likely not be used,
-  while drawing it apart from the probe costs more than a whole frame; it is drawn again
-  once the key holds for a frame);
-- **the regions**: for each name, the pixels a pass must redo. Passes declare their
-  *footprints* (Pass.footprint: where the probe can change what they draw this frame,
-  by name; EVERYWHERE when all of it may change, as while progressive ambient occlusion
-  adds samples); a region is where the footprint of that name lies now and lay last frame
-  (what the probe covered there must be put back), with the cube's rectangle on an ATOMS
-  frame, and everything on a DRAWN or PLAIN one.
-
-Passes take the plan with the frame (Frame.plan) and draw what it says; they hold no
-caching policy.
+Each frame's plan says what it does with the molecule layer (FrameKind) and, for each
+footprint name, the region a pass must redo: passes say where the probe can change what
+they draw (Pass.footprint), and a region is that footprint now and last frame (what the
+probe covered there is put back). docs/rendering.md explains the four kinds.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from enum import Enum
 
 import numpy as np
 from sasprobe.molecule import Structure
 from sasprobe.render.gl.gbuffer_stash import GBufferStash
 from sasprobe.render.rects import Rect, full_rect, points_rect, union_rect
 
-KEPT, ATOMS, DRAWN, PLAIN = "kept", "atoms", "drawn", "plain"  # FramePlan.layer
+
+class FrameKind(Enum):
+    """What a frame does with the molecule layer (FramePlan.kind)."""
+
+    # The last frame's layer holds: its passes do not run, and the G-buffer gets back, from
+    # a stash, what the probe covered.
+    KEPT = "kept"
+    # Only the probe plane moved, with a navigation cube: the trace and the background
+    # beyond the cube are kept (the trace is drawn only where the eye's ray misses the cube),
+    # and the cube's atoms are drawn anew within its rectangle (FramePlan.redraw).
+    ATOMS_REDRAWN = "atoms redrawn"
+    # The key changed: the layer is drawn anew and kept.
+    DRAWN = "drawn"
+    # The key changed on the last frame too (a turning camera, a drifting cube): the frame
+    # is drawn whole with the probe and nothing is kept, since a layer kept now would most
+    # likely go unused and drawing it apart costs more than a whole frame.
+    WHOLE = "whole"
+
+
 EVERYWHERE = "everywhere"  # a footprint covering the whole frame
 
 # Footprint names several passes share (a pass's own are prefixed with its name).
@@ -129,38 +128,37 @@ def molecule_key(frame, passes, context: bool = False) -> tuple:
 class FramePlan:
     """What one frame redraws (see the module's docstring)."""
 
-    layer: str = PLAIN
+    kind: FrameKind = FrameKind.WHOLE
     size: tuple[int, int] = (1, 1)
-    regions: dict[str, Rect | None] = field(
-        default_factory=dict
-    )  # KEPT and ATOMS frames: by footprint name
-    redraw: Rect | None = (
-        None  # ATOMS frames: the rectangle the atoms are drawn anew in (the cube's)
-    )
-    layer_memo: dict = field(
-        default_factory=dict
-    )  # what passes find once per molecule layer (its rectangles)
+    # KEPT and ATOMS_REDRAWN frames: the region of each footprint name.
+    regions: dict[str, Rect | None] = field(default_factory=dict)
+    # ATOMS_REDRAWN frames: the rectangle the atoms are drawn anew in (the cube's).
+    redraw: Rect | None = None
+    # What passes find once per molecule layer (its rectangles).
+    layer_memo: dict = field(default_factory=dict)
     layer_version: int = 0  # counts the molecule layers drawn: a kept layer keeps its number
 
     @property
-    def keeps(self) -> bool:
-        """Whether this frame's pictures are kept for the next (the layered passes run)."""
-        return self.layer != PLAIN
+    def layered(self) -> bool:
+        """Whether the frame is drawn in two layers, the molecule's kept for the next frames
+        (the layered passes run)."""
+        return self.kind != FrameKind.WHOLE
 
     @property
-    def kept(self) -> bool:
+    def molecule_kept(self) -> bool:
         """Whether the molecule layer is the last frame's (its passes do not run)."""
-        return self.layer == KEPT
+        return self.kind == FrameKind.KEPT
 
     @property
     def context_kept(self) -> bool:
         """Whether the trace and the background beyond the cube are the last frame's (only the
         atoms are drawn anew, within `redraw`)."""
-        return self.layer == ATOMS
+        return self.kind == FrameKind.ATOMS_REDRAWN
 
     def region(self, name: str) -> Rect | None:
-        """The pixels to redo for footprint `name` (see the module's docstring)."""
-        if self.layer in (DRAWN, PLAIN):
+        """The pixels to redo for footprint `name`: everything on a frame that draws the
+        molecule layer anew."""
+        if self.kind in (FrameKind.DRAWN, FrameKind.WHOLE):
             return full_rect(self.size)
         return union_rect(self.regions.get(name), self.redraw)
 
@@ -176,49 +174,49 @@ class FramePlanner:
         self.key: tuple | None = None  # the kept layer's key (None: none kept)
         self.context_key: tuple | None = None  # its context's (molecule_key's `context`)
         self.last_key: tuple | None = None  # the last frame's key, layer kept or not
-        self.last_layer = PLAIN
-        self.stashed: Rect | None = (
-            None  # what the stash holds: the probe's rectangle of the last frame
-        )
+        self.last_kind = FrameKind.WHOLE
+        # What the stash holds: the probe's rectangle of the last frame.
+        self.stashed: Rect | None = None
         self.footprints: dict[str, object] = {}  # the last frame's, by name
         self.layer_memo: dict = {}
         self.layer_version = 0
-        self.counts = {KEPT: 0, ATOMS: 0, DRAWN: 0, PLAIN: 0}
+        self.counts = dict.fromkeys(FrameKind, 0)
 
     def plan(self, frame, passes) -> FramePlan:
-        """This frame's plan; on a KEPT or ATOMS frame the G-buffer gets back what the probe covered."""
+        """This frame's plan; on a KEPT or ATOMS_REDRAWN frame the G-buffer gets back what the
+        probe covered."""
         key = molecule_key(frame, passes)
         context_key = molecule_key(frame, passes, context=True) if frame.cube is not None else None
+        kept_last = self.last_kind in (FrameKind.KEPT, FrameKind.ATOMS_REDRAWN)
         if key == self.key:
-            layer = KEPT
+            kind = FrameKind.KEPT
         elif self.key is not None and context_key is not None and context_key == self.context_key:
-            layer = ATOMS
-        elif (
-            self.last_layer not in (KEPT, ATOMS)
-            and self.last_key is not None
-            and key != self.last_key
-        ):
-            layer = PLAIN
+            kind = FrameKind.ATOMS_REDRAWN
+        elif not kept_last and self.last_key is not None and key != self.last_key:
+            kind = FrameKind.WHOLE
         else:
-            layer = DRAWN
-        self.last_key, self.last_layer = key, layer
-        self.key = None if layer == PLAIN else key
-        self.context_key = None if layer == PLAIN else context_key
-        self.counts[layer] += 1
-        if layer in (KEPT, ATOMS) and self.stashed is not None:
+            kind = FrameKind.DRAWN
+        self.last_key, self.last_kind = key, kind
+        self.key = None if kind == FrameKind.WHOLE else key
+        self.context_key = None if kind == FrameKind.WHOLE else context_key
+        self.counts[kind] += 1
+        puts_back = kind in (FrameKind.KEPT, FrameKind.ATOMS_REDRAWN)
+        if puts_back and self.stashed is not None:
             self.stash.restore(frame.targets, self.stashed)
         self.stashed = None
-        if layer != KEPT:
+        if kind != FrameKind.KEPT:
             self.layer_memo = {}
             self.layer_version += 1
         plan = FramePlan(
-            layer, tuple(frame.size), layer_memo=self.layer_memo, layer_version=self.layer_version
+            kind, tuple(frame.size), layer_memo=self.layer_memo, layer_version=self.layer_version
         )
-        if layer == ATOMS:  # the cube's pixels: the atoms' as they were and as they will be
+        if (
+            kind == FrameKind.ATOMS_REDRAWN
+        ):  # the cube's pixels: its atoms' as they were and will be
             plan.redraw = points_rect(frame.cube.corners(), frame.viewproj, frame.size, 2)
         frame.plan = plan
         now: dict[str, object] = {}
-        if plan.keeps:
+        if plan.layered:
             for p in passes:
                 if p.enabled(frame):
                     for name, rect in p.footprint(frame).items():
@@ -227,7 +225,7 @@ class FramePlanner:
                             if EVERYWHERE in (rect, now.get(name))
                             else union_rect(now.get(name), rect)
                         )
-        if layer in (KEPT, ATOMS):
+        if puts_back:
             plan.regions = {
                 name: _region(self.footprints.get(name), now.get(name), plan.size)
                 for name in set(now) | set(self.footprints)
@@ -237,10 +235,8 @@ class FramePlanner:
 
     def layer_counts(self) -> dict[str, int]:
         """Frames so far that kept the molecule layer, and that drew it (kept or not)."""
-        return {
-            "kept": self.counts[KEPT],
-            "drawn": self.counts[ATOMS] + self.counts[DRAWN] + self.counts[PLAIN],
-        }
+        kept = self.counts[FrameKind.KEPT]
+        return {"kept": kept, "drawn": sum(self.counts.values()) - kept}
 
     def stash_under_probe(self, frame) -> None:
         """Keep the molecule layer's pixels the probe is about to cover (the layer is

@@ -1,22 +1,13 @@
 """The renderer: GL objects created once, and the pass chain run each frame.
 
-    clear -> spheres -> backbone -> [molecule lighting] -> probe -> [lighting: fills the
-          visibility buffer] -> shading -> [path_trace] -> navcube -> probe_cues -> fxaa
-          -> legend -> marks
+    clear -> spheres -> backbone -> [molecule_lighting] -> probe -> [lighting] -> shading
+          -> [path_trace] -> navcube -> probe_cues -> fxaa -> legend -> marks
 
-Before the chain runs, the atoms' colours follow the scene's colour scheme
-(render/colors.py; rewritten in the sphere buffer only when the scheme changes).
-
-`passes` is a plain list; `insert_before(name, pass)` slots a pass in (the lighting
-passes go before "probe", "shading" and "navcube", render/passes/lighting.py).
-
-With `frame_cache` (the default) a frame planner (render/frame_planner.py) decides what
-each frame redraws: the molecule layer — the passes whose `layer` is MOLECULE, and the
-lighting terms that do not depend on the probe — is kept while its key holds, and a
-frame in which only the probe moved puts back what the probe covered, draws the probe
-and redoes only the regions the probe changes; while the key changes frame after frame
-(the camera turning, the cube drifting) frames are drawn whole, and the layer is kept
-again once the key holds. Without it every frame is drawn whole (the benchmarks' full
+The bracketed passes come with the lighting (install_lighting). Before the chain runs, the
+atoms' colours follow the scene's colour scheme, rewritten in the sphere buffer only when
+the scheme changes. With `frame_cache` (the default) the frame planner
+(render/frame_planner.py) decides what each frame redraws, and the passes of a kept layer
+(Pass.layer) do not run; without it every frame is drawn whole (the benchmarks' full
 redraw).
 """
 
@@ -36,7 +27,7 @@ from sasprobe.render.gl.targets import RenderTargets
 from sasprobe.render.gl.textures import read_image
 from sasprobe.render.lighting.settings import LightingSettings, ShadingSettings
 from sasprobe.render.passes.backbone import BackbonePass
-from sasprobe.render.passes.base import CONTEXT, MOLECULE, Frame, Pass
+from sasprobe.render.passes.base import Frame, Layer, Pass
 from sasprobe.render.passes.clear import ClearPass
 from sasprobe.render.passes.fxaa import FxaaPass
 from sasprobe.render.passes.legend import LegendPass
@@ -182,17 +173,22 @@ class Renderer:
         # one: what the probe will cover is stashed there, for the next frame to put back.
         layer_end = (
             max(
-                (i for i, p in enumerate(self.passes) if p.layer in (MOLECULE, CONTEXT)), default=-1
+                (
+                    i
+                    for i, p in enumerate(self.passes)
+                    if p.layer in (Layer.MOLECULE, Layer.CONTEXT)
+                ),
+                default=-1,
             )
             + 1
         )
         for i, p in enumerate(self.passes):
-            if i == layer_end and plan.keeps:
+            if i == layer_end and plan.layered:
                 self.planner.stash_under_probe(frame)
             if (
                 not p.enabled(frame)
-                or (plan.kept and p.layer in (MOLECULE, CONTEXT))
-                or (plan.context_kept and p.layer == CONTEXT)
+                or (plan.molecule_kept and p.layer in (Layer.MOLECULE, Layer.CONTEXT))
+                or (plan.context_kept and p.layer == Layer.CONTEXT)
             ):
                 continue
             if pass_times is None:

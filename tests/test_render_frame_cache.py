@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid, load_structure
 from sasprobe.render.camera import Camera
-from sasprobe.render.frame_planner import KEPT, LIT, PLAIN, FramePlan, state_key
+from sasprobe.render.frame_planner import LIT, FrameKind, FramePlan, state_key
 from sasprobe.render.gbuffer_export import gbuffer_arrays
 from sasprobe.render.gl.targets import KIND_PROBE
 from sasprobe.render.gl.textures import read_image, release_framebuffers
@@ -275,14 +275,14 @@ def test_antialiasing_redone_in_part_equals_antialiasing_the_whole_frame(
             whole_rect, near_rect = FxaaPass.regions(frame.plan)
             rect = union_rect(whole_rect, near_rect)
             redone.append(0.0 if rect is None else rect[2] * rect[3] / (size[0] * size[1]))
-            if frame.plan.kept and near_rect is not None:
+            if frame.plan.molecule_kept and near_rect is not None:
                 x, y, w, h = near_rect
                 mask = np.frombuffer(fxaa.near_surfaces.depth.read(), dtype=np.float32).reshape(
                     size[1], size[0]
                 )
                 skipped.append(float((mask[y : y + h, x : x + w] > 0.5).mean()))
         assert (
-            renderer.planner.counts[KEPT] == len(redone) - 1
+            renderer.planner.counts[FrameKind.KEPT] == len(redone) - 1
             and redone[0] == 1.0
             and max(redone[1:]) < 0.75
         ), redone
@@ -312,7 +312,7 @@ def test_a_probe_that_moved_leaves_no_trace(gl, crambin):
         r.render(camera)
         fresh.scene.probe = Probe(center=last)
         fresh.render(fresh_camera)
-        assert r.planner.counts[KEPT] == 1
+        assert r.planner.counts[FrameKind.KEPT] == 1
         assert np.array_equal(r.read_image(), fresh.read_image())
         assert not np.array_equal(seen, r.read_image())
     finally:
@@ -362,8 +362,10 @@ def test_a_turning_camera_draws_whole_frames_and_the_layer_is_kept_once_it_stops
                 r.scene.probe = Probe(center=probe_path(crambin)[3 + k % 4])
             cached.render(camera)
             full.render(full_camera)
-            layer = cached.last_frame.plan.layer
-            states.append(True if layer == KEPT else (None if layer == PLAIN else False))
+            kind = cached.last_frame.plan.kind
+            states.append(
+                True if kind == FrameKind.KEPT else (None if kind == FrameKind.WHOLE else False)
+            )
             assert agreement(cached.read_image(), full.read_image()) >= 0.999, k
         assert states == [False, True, False, None, None, None, False, True, True], states
     finally:

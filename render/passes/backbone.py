@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from sasprobe.render.gl.buffers import BACKBONE_FORMAT
 from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
-from sasprobe.render.passes.base import CONTEXT, Frame, Pass
+from sasprobe.render.passes.base import Frame, Layer, Pass
 
 TRACE_RADIUS = 0.35  # Å
 MIN_WIDTH_PX = 2.0
@@ -17,7 +17,7 @@ MIN_WIDTH_PX = 2.0
 
 class BackbonePass(Pass):
     name = "backbone"
-    layer = CONTEXT
+    layer = Layer.CONTEXT
 
     def __init__(self, ctx, programs, buffers, show_always: bool = False):
         self.prog = programs.get("backbone.vert", "backbone.frag", "wide_line.geom")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import Enum
 
 import numpy as np
 from sasprobe.render.camera import Camera
@@ -174,24 +175,25 @@ def raster_camera_uniforms(
     }
 
 
-MOLECULE, CONTEXT, FRAME = "molecule", "context", "frame"  # Pass.layer
+class Layer(Enum):
+    """Which layer a pass draws (Pass.layer), and so on which frames it is skipped."""
+
+    MOLECULE = "molecule"  # the molecule layer: skipped while it is kept
+    CONTEXT = "context"  # its part the probe plane does not cut (the trace): kept longer
+    EVERY_FRAME = "every frame"  # the probe and what depends on it: never skipped
 
 
 class Pass:
     """Base of the passes: on by default, no G-buffer export layers, nothing to release.
 
-    `layer` MOLECULE: the pass draws the molecule layer (what does not depend on the probe)
-    and does not run while that layer is kept (FramePlan.kept); CONTEXT: it draws the part
-    of that layer the probe plane does not cut (the backbone trace), and does not run while
-    that part is kept either (FramePlan.context_kept). `state()` is what of the
-    pass's own configuration shapes the picture; it is part of the molecule layer's key
-    (render/frame_planner.py), so a setting added to a pass's `settings` dataclass is keyed
-    without being listed. `footprint()` says where the probe can change what the pass
-    draws this frame, by name; the planner turns footprints into the regions passes redo
-    (FramePlan.region)."""
+    `state()` is what of the pass's own configuration shapes the picture; it is part of the
+    molecule layer's key (render/frame_planner.py), so a setting added to a pass's
+    `settings` dataclass is keyed without being listed. `footprint()` says where the probe
+    can change what the pass draws this frame, by name; the planner turns footprints into
+    the regions passes redo (FramePlan.region)."""
 
     name = "pass"
-    layer = FRAME
+    layer = Layer.EVERY_FRAME
 
     def state(self):
         return getattr(self, "settings", None)

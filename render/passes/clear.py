@@ -8,14 +8,14 @@ from __future__ import annotations
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.passes.backbone import cube_uniforms
-from sasprobe.render.passes.base import MOLECULE, Frame, Pass
+from sasprobe.render.passes.base import Frame, Layer, Pass
 
 
 class ClearPass(Pass):
     """The G-buffer cleared to the background, the visibility buffer to 1."""
 
     name = "clear"
-    layer = MOLECULE
+    layer = Layer.MOLECULE
 
     def __init__(self, ctx, programs: ProgramCache):
         self.prog = programs.get("fullscreen.vert", "gbuffer_clear.frag")

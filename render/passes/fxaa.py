@@ -106,7 +106,7 @@ class FxaaPass(Pass):
             ctx.copy_framebuffer(frame.output_fbo, t.lit_fbo)
             return
         target, whole, near = frame.output_fbo, full_rect(frame.size), None
-        if frame.plan.keeps:
+        if frame.plan.layered:
             target = t.kept_picture("antialiased")
             whole, near = self.regions(frame.plan)
         if whole is not None or near is not None:

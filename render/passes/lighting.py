@@ -231,7 +231,9 @@ class LightingPass(Pass):
             both = frame.scene.effects.ambient_occlusion and self.ao_mode == "precomputed"
             # A whole frame whose probe light comes from the atlas too looks all three up at once.
             lamp = (
-                self.lights[1] if not frame.plan.keeps and self._probe_light_baked(frame) else None
+                self.lights[1]
+                if not frame.plan.layered and self._probe_light_baked(frame)
+                else None
             )
             ambient, visibility, lit = self.ao.baked(
                 gbuffer, ambient=both, sun_direction=sun.unit(), probe_light=lamp
@@ -340,7 +342,7 @@ class LightingPass(Pass):
 
     # ------------------------------------------------------------ whole frames
     def run(self, frame: Frame) -> None:
-        if frame.plan.keeps:
+        if frame.plan.layered:
             self._run_probe_layer(frame)
         else:
             self._run_whole(frame)
@@ -385,7 +387,7 @@ class LightingPass(Pass):
         self.grid.set_probe(None)
         fx = frame.scene.effects
         gbuffer = GBuffer.of_targets(frame.targets)
-        if not frame.plan.kept:
+        if not frame.plan.molecule_kept:
             self.ao.view_changed()
             self.molecule_terms = {}
             sun = self.lights[0]
@@ -420,7 +422,7 @@ class LightingPass(Pass):
         if fx.edge_cueing:
             out[EDGES] = grow_rect(probe_rect, self.settings.edge_settings().reach_px() + 1, size)
             touched = union_rect(touched, out[EDGES])
-        if frame.plan.kept and self._adding_samples(frame):
+        if frame.plan.molecule_kept and self._adding_samples(frame):
             return {**out, COMPOSE: EVERYWHERE, LIT: EVERYWHERE, LIT_BACKGROUND: EVERYWHERE}
         sun = self.lights[0]
         shadow = None
@@ -599,7 +601,7 @@ class MoleculeLightingPass(Pass):
         return None  # the lighting pass's settings are keyed under it
 
     def enabled(self, frame: Frame) -> bool:
-        return frame.plan.keeps and self.lighting.enabled(frame)
+        return frame.plan.layered and self.lighting.enabled(frame)
 
     def run(self, frame: Frame) -> None:
         self.lighting.run_molecule(frame)

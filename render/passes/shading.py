@@ -125,7 +125,7 @@ class ShadingPass(Pass):
         }
         apply_uniforms(vao.program, {**traced, **lit.share, **uniforms})
         plan = frame.plan
-        target = t.kept_picture("shaded") if plan.keeps else t.lit_fbo
+        target = t.kept_picture("shaded") if plan.layered else t.lit_fbo
         # Beyond the atoms and the probe the surfaces are the trace: its own, light program.
         lit_region, surfaces = frame.lit_region(), plan.region(LIT)
         draws = [

@@ -16,7 +16,7 @@ import math
 import numpy as np
 from sasprobe.render.gl.buffers import SPHERE_FORMAT
 from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
-from sasprobe.render.passes.base import MOLECULE, Frame, Pass
+from sasprobe.render.passes.base import Frame, Layer, Pass
 
 MODES = ("quad", "sprite")  # SpherePass's; MeshSpherePass draws "mesh"
 SPHERE_MODES = (*MODES, "mesh")  # what --spheres and Renderer(sphere_mode=...) take
@@ -31,7 +31,7 @@ def sphere_pass(ctx, programs, buffers, mode: str) -> Pass:
 
 class SpherePass(Pass):
     name = "spheres"
-    layer = MOLECULE
+    layer = Layer.MOLECULE
 
     def __init__(self, ctx, programs, buffers, mode: str = "quad"):
         if mode not in MODES:
@@ -112,7 +112,7 @@ def uv_sphere(slices: int = 18, stacks: int = 19) -> tuple[np.ndarray, np.ndarra
 class MeshSpherePass(Pass):
     name = "mesh_spheres"
     mode = "mesh"
-    layer = MOLECULE
+    layer = Layer.MOLECULE
 
     def __init__(self, ctx, programs, buffers, slices: int = 18, stacks: int = 19):
         verts, tris = uv_sphere(slices, stacks)
