@@ -99,10 +99,10 @@ class Frame:
         return self._found[key]
 
     def reach_rect(self, radius: float):
-        """A rectangle holding the lit atoms' pixels within `radius` of the probe's centre:
-        what the probe's light and its share of the AO can change (its own pixels aside;
-        the backbone trace is context, which the probe does not light)."""
-        return intersect_rect(self.probe_rect(radius), self.lit_rect())
+        """A rectangle holding the pixels of the atoms drawn as spheres within `radius` of the
+        probe's centre: what the probe's light and its share of the AO can change (its own
+        pixels aside; the backbone trace is context, which the probe does not light)."""
+        return intersect_rect(self.probe_rect(radius), self.spheres_rect())
 
     def molecule_rect(self):
         """Pixels the molecule layer can cover: every atom's sphere (culled ones too: the
@@ -118,31 +118,35 @@ class Frame:
             )
         return memo["molecule_rect"]
 
-    def lit_rect(self):
+    def spheres_rect(self):
         """Pixels the atoms drawn as spheres can cover (in the workspace view: the cube's),
         found once per molecule layer."""
         memo = self.plan.layer_memo
-        if "lit_rect" not in memo:
+        if "spheres_rect" not in memo:
             structure = self.scene.structure
             drawn = self.scene.sphere_selection(self.camera)
             radius = float(structure.vdw_radii[drawn].max(initial=0.0))
-            memo["lit_rect"] = atoms_rect(
+            memo["spheres_rect"] = atoms_rect(
                 structure.positions[drawn], radius, self.viewproj, self.size
             )
-        return memo["lit_rect"]
+        return memo["spheres_rect"]
 
-    def lit_region(self):
+    def lighting_rect(self):
         """Where the lighting has work: the atoms drawn as spheres and the probe (elsewhere the
         picture shows only the backbone trace, which is context, and the background)."""
-        return union_rect(self.lit_rect(), self.probe_rect())
+        return union_rect(self.spheres_rect(), self.probe_rect())
 
-    def lighting_area(self, composed: bool = False):
-        """Where the lighting computes the atoms' terms on a frame drawn whole (1 elsewhere): the
-        lit region; with `composed`, where it composes the visibility buffer: that, or with edge
-        cueing (which darkens the trace and the background too) the whole frame."""
-        if composed and self.scene.effects.edge_cueing:
+    def terms_rect(self):
+        """Where the lighting computes the atoms' terms (1 elsewhere): lighting_rect, empty
+        rather than None when nothing is there, since the tracers read None as everywhere."""
+        return self.lighting_rect() or (0, 0, 0, 0)
+
+    def compose_rect(self):
+        """Where the lighting composes the visibility buffer: terms_rect, or with edge cueing
+        (which darkens the trace and the background too) the whole frame."""
+        if self.scene.effects.edge_cueing:
             return (0, 0, *self.size)
-        return self.lit_region() or (0, 0, 0, 0)
+        return self.terms_rect()
 
     def near_plane(self) -> np.ndarray:
         """The camera's near plane as a clip plane (spheres crossing it get a cap)."""

@@ -244,7 +244,7 @@ class LightingPass(Pass):
                 lit if lamp is not None else None,
             )
             return visibility
-        area = frame.lighting_area()
+        area = frame.terms_rect()
         out = (
             self.textures.fill(name, frame.size, 1.0)
             if area != full_rect(frame.size)
@@ -304,7 +304,7 @@ class LightingPass(Pass):
         if self._looked_up[0] == frame.index and self._looked_up[1] is not None:
             return self._looked_up[1]
         self._configure_ao()
-        drawn, area = frame.scene.sphere_selection(frame.camera), frame.lighting_area()
+        drawn, area = frame.scene.sphere_selection(frame.camera), frame.terms_rect()
         texture = self.ao.compute(gbuffer, frame.view, frame.proj, drawn, area)
         while self.ao.samples < self.settings.samples and not self.ao.converged:
             texture = self.ao.compute(gbuffer, frame.view, frame.proj, drawn, area)
@@ -376,7 +376,7 @@ class LightingPass(Pass):
         terms = dict(self.layers)
         if fx.edge_cueing:
             terms["edges"] = self._edges(gbuffer, frame)
-        self._compose(frame, terms, {}, rect=frame.lighting_area(composed=True))
+        self._compose(frame, terms, {}, rect=frame.compose_rect())
         frame.probe_lighting = ProbeLighting(self.layers.get("shadow_probe"), traced=traced)
 
     # ------------------------------------------------------------ layered frames
@@ -401,7 +401,7 @@ class LightingPass(Pass):
                 frame.view,
                 frame.proj,
                 frame.scene.sphere_selection(frame.camera),
-                frame.lighting_area(),
+                frame.terms_rect(),
             )
 
     def _adding_samples(self, frame: Frame) -> bool:
@@ -429,7 +429,7 @@ class LightingPass(Pass):
         if fx.shadows and sun is not None and fx.probe and frame.scene.probe is not None:
             # it falls on the atoms drawn, nowhere else (the trace takes no shadow)
             shadow = intersect_rect(
-                self._probe_shadow_rect(frame, sun, self._soft(frame)), frame.lit_rect()
+                self._probe_shadow_rect(frame, sun, self._soft(frame)), frame.spheres_rect()
             )
         # the background shows the probe's pixels and the halos, not the sun's shadows; the
         # visibility buffer changes where the edges do
@@ -481,7 +481,7 @@ class LightingPass(Pass):
         # pass colours the probe's own pixels without them, and takes the probe's share of
         # the atoms' light in itself. So it is composed where the molecule's terms or the
         # edges changed, and nowhere else.
-        rect = intersect_rect(plan.region(COMPOSE), frame.lighting_area(composed=True))
+        rect = intersect_rect(plan.region(COMPOSE), frame.compose_rect())
         if rect is not None:
             self._compose(frame, terms, {}, rect=rect)
         frame.probe_lighting = ProbeLighting(terms.get("shadow_probe"), share, traced)

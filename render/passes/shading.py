@@ -127,15 +127,15 @@ class ShadingPass(Pass):
         plan = frame.plan
         target = t.kept_picture("shaded") if plan.layered else t.lit_fbo
         # Beyond the atoms and the probe the surfaces are the trace: its own, light program.
-        lit_region, surfaces = frame.lit_region(), plan.region(LIT)
+        lighting_rect, surfaces = frame.lighting_rect(), plan.region(LIT)
         draws = [
             (plan.region(LIT_BACKGROUND), background, "=="),
-            (intersect_rect(surfaces, lit_region), vao, ">"),
+            (intersect_rect(surfaces, lighting_rect), vao, ">"),
         ]
         if surfaces is not None:
             context = self._vao(lit, context=True)
             apply_uniforms(context.program, uniforms)
-            draws += [(rect, context, ">") for rect in subtract_rect(surfaces, lit_region)]
+            draws += [(rect, context, ">") for rect in subtract_rect(surfaces, lighting_rect)]
         # The depth is tested, not written: the cube wire later tests against it.
         tested = self._depth_tested.framebuffer(target.color_attachments[0], t.depth)
         tested.use()
