@@ -80,9 +80,9 @@ def gl():
 def crambin_grid(gl, crambin):
     """1CRN's uniform grid (expanded by the default probe radius) on the GPU."""
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS
-    from sasprobe.render.lighting.grid import GpuGrid
+    from sasprobe.render.lighting.uploaded_grid import UploadedGrid
 
-    grid = GpuGrid.from_structure(gl, crambin, DEFAULT_PROBE_RADIUS)
+    grid = UploadedGrid.from_structure(gl, crambin, DEFAULT_PROBE_RADIUS)
     yield grid
     grid.release()
 

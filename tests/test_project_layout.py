@@ -215,7 +215,7 @@ def test_dependencies_run_one_way():
             "sasprobe.render.gl sits below",
         ),
         (
-            ("sasprobe.render.lighting.grid", "sasprobe.render.passes.base", 1),
+            ("sasprobe.render.lighting.culling", "sasprobe.render.passes.base", 1),
             "sasprobe.render.lighting sits below",
         ),
     ],

@@ -11,7 +11,7 @@ from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.ao import AmbientOcclusion
 from sasprobe.render.lighting.ao.analytic import AnalyticAO
 from sasprobe.render.lighting.ao.raytraced import RayTracedAO
-from sasprobe.render.lighting.grid import Culling
+from sasprobe.render.lighting.culling import Culling
 from sasprobe.render.lighting.settings import AO_MODES, AOSettings
 
 from tests.references.lighting import Occluders, analytic_ao, monte_carlo_ao

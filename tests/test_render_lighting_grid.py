@@ -8,12 +8,11 @@ import pytest
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
 from sasprobe.render.gl.targets import KIND_CAP
 from sasprobe.render.gl.textures import TABLE_ROW
-from sasprobe.render.lighting.grid import (
+from sasprobe.render.lighting.culling import LIGHT_CUT_MARGIN, Culling
+from sasprobe.render.lighting.uploaded_grid import (
     CENTRE_CLIPPED,
     CULLED,
-    LIGHT_CUT_MARGIN,
-    Culling,
-    GpuGrid,
+    UploadedGrid,
     walk_rays_on_gpu,
 )
 
@@ -68,7 +67,7 @@ def compare_walks(grid: UniformGrid, gpu, origins, directions, t_min, t_max, kee
 @pytest.mark.parametrize("cell_size", [None, 2.7])
 def test_gpu_dda_visits_the_same_cells_as_the_cpu_walk(gl, crambin, cell_size):
     grid = UniformGrid(crambin.positions, crambin.expanded_radii(DEFAULT_PROBE_RADIUS), cell_size)
-    gpu_grid = GpuGrid(gl, grid, crambin.vdw_radii)
+    gpu_grid = UploadedGrid(gl, grid, crambin.vdw_radii)
     origins, directions = random_rays(grid, 1500, seed=11)
     walks = walk_rays_on_gpu(gpu_grid, origins, directions, max_visits=int(grid.dims.sum()) + 2)
     unexplained, near_ties, cells_total = compare_walks(

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS
 from sasprobe.render.gl.textures import read_texture
-from sasprobe.render.lighting.grid import Culling
+from sasprobe.render.lighting.culling import Culling
 from sasprobe.render.lighting.materials import atom_materials
 from sasprobe.render.lighting.path_tracer import PathTracer
 from sasprobe.render.lighting.settings import (

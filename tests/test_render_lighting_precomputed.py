@@ -19,7 +19,7 @@ from sasprobe.render.lighting.ao.atlas_tables import (
     texel_normals,
 )
 from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
-from sasprobe.render.lighting.grid import Culling
+from sasprobe.render.lighting.culling import Culling
 from sasprobe.render.lighting.settings import (
     HARD_SHADOW,
     AOSettings,

@@ -23,8 +23,8 @@ from sasprobe.render.gl.targets import (
 from sasprobe.render.gl.textures import read_texture, texture_2d
 from sasprobe.render.lighting.ao.analytic import MAX_K, nearest_to_point
 from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
+from sasprobe.render.lighting.culling import Culling
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.lighting.settings import (
     AO_MODES,
     DEFAULT_PROBE_RANGE,

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS
 from sasprobe.render.gl.textures import read_texture
+from sasprobe.render.lighting.culling import Culling
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.grid import Culling
 from sasprobe.render.lighting.light_buffer import cell_cones
 from sasprobe.render.lighting.settings import (
     HARD_SHADOW,
@@ -395,10 +395,10 @@ def test_sun_buffer_on_a_larger_structure(gl, reference_by_id):
     """1TII with its waters, framed whole and through a navigation cube: the buffer's
     shadows are the walk's, bit for bit."""
     from sasprobe.molecule import load_structure
-    from sasprobe.render.lighting.grid import GpuGrid
+    from sasprobe.render.lighting.uploaded_grid import UploadedGrid
 
     structure = load_structure(reference_by_id["1tii"].path, keep_water=True)
-    grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+    grid = UploadedGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
     listing, walking = ShadowPass(grid), ShadowPass(grid, light_buffer=False)
     try:
         centre = structure.positions.mean(axis=0)

@@ -20,7 +20,7 @@ def dispatch(program, width: int, height: int) -> None:
 
 
 class ComputePass:
-    """A compute program over an image, with a GPU grid bound when it has one (the base of
+    """A compute program over an image, with an uploaded grid bound when it has one (the base of
     the lighting passes; the grid is anything with bind() and uniforms())."""
 
     def __init__(self, ctx, shader: str, gpu_grid=None, defines: tuple[str, ...] = ()):

@@ -64,7 +64,7 @@ class DepthTestedTarget:
 
 class DepthPickedPass:
     """A fragment shader drawn as above, compiled per set of #defines (as ComputeVariants
-    compiles a compute shader), with a GPU grid bound when it has one."""
+    compiles a compute shader), with an uploaded grid bound when it has one."""
 
     def __init__(self, ctx, fragment: str, gpu_grid=None):
         self.ctx = ctx

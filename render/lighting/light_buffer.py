@@ -87,7 +87,7 @@ def cell_cones(face_cells: int = FACE_CELLS) -> np.ndarray:
 
 
 class PointLightBuffer:
-    """The light buffer of one GPU grid, rebuilt for each light it is asked for."""
+    """The light buffer of one uploaded grid, rebuilt for each light it is asked for."""
 
     def __init__(self, gpu_grid, face_cells: int = FACE_CELLS, slack: float = SLACK):
         self.grid = gpu_grid

@@ -31,7 +31,7 @@ from sasprobe.render.lighting.settings import (
 
 
 class ShadowPass:
-    """Shadows of one GPU grid. shaders/shadows.comp is compiled per case (the walk or the
+    """Shadows of one uploaded grid. shaders/shadows.comp is compiled per case (the walk or the
     light buffer; with or without clipping), each program holding only its own code."""
 
     def __init__(self, gpu_grid, light_buffer: bool = True, face_cells: int = FACE_CELLS):

@@ -25,9 +25,9 @@ from sasprobe.render.gl.depth_picked import DepthPickedPass
 from sasprobe.render.gl.textures import TextureCache, read_texture
 from sasprobe.render.lighting.ao import AmbientOcclusion
 from sasprobe.render.lighting.ao.analytic import MAX_K
+from sasprobe.render.lighting.culling import cube_culling
 from sasprobe.render.lighting.edges import EdgeCueingPass
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.grid import GpuGrid, cube_culling
 from sasprobe.render.lighting.path_tracer import PathTracer
 from sasprobe.render.lighting.settings import (
     AO_MODES,
@@ -42,6 +42,7 @@ from sasprobe.render.lighting.settings import (
     ray_epsilon_uniforms,
 )
 from sasprobe.render.lighting.shadows import ShadowPass
+from sasprobe.render.lighting.uploaded_grid import UploadedGrid
 from sasprobe.render.passes.base import Frame, Pass, ProbeLighting, ProbeLightTrace
 from sasprobe.render.rects import full_rect, grow_rect, intersect_rect, shadow_rect, union_rect
 
@@ -87,7 +88,7 @@ class LightingPass(Pass):
         self.ao_mode = settings.ao.mode if settings.ao.mode != "off" else "analytic"
         # What follows the structure: the grid uploaded from the scene's, and what traces it.
         self.scene_grid = None  # the SceneState grid self.grid was uploaded from
-        self.grid: GpuGrid | None = None
+        self.grid: UploadedGrid | None = None
         self.shadows = self.ao = self.tracer = self.compose = self.compose_drawn = None
         self.edges = EdgeCueingPass(ctx)
         self.textures = TextureCache(ctx)
@@ -134,7 +135,7 @@ class LightingPass(Pass):
         if scene.grid is not self.scene_grid:
             self._release_structure()
             self.scene_grid = scene.grid
-            self.grid = GpuGrid(self.ctx, scene.grid, scene.structure.vdw_radii)
+            self.grid = UploadedGrid(self.ctx, scene.grid, scene.structure.vdw_radii)
             self.shadows = ShadowPass(self.grid)
             self.ao = AmbientOcclusion(self.grid, self.settings.ao)
             self.tracer = PathTracer.for_structure(self.grid, scene.structure)

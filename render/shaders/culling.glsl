@@ -1,4 +1,4 @@
-// The culling on the GPU (render/lighting/grid.py Culling): what is drawn is the spheres
+// The culling on the GPU (render/lighting/culling.py Culling): what is drawn is the spheres
 // intersected with the kept half-spaces of the clip planes and the navigation cube (an
 // axis-aligned box); for the programs that clip rays or points without walking the grid.
 #include "constants.glsl"

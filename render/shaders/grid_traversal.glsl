@@ -2,7 +2,7 @@
 // sphere queries shadows, ambient occlusion and path tracing share.
 //
 // Buffers (std430) and tables in images (table_image.glsl: llvmpipe reads an image far
-// faster than a storage buffer), uploaded by render/lighting/grid.py, layout as in
+// faster than a storage buffer), uploaded by render/lighting/uploaded_grid.py, layout as in
 // molecule/grid.py:
 //   cell_start    uint[n_cells + 1]  CSR offsets, flat cell id = ix + nx * (iy + ny * iz)
 //   cell_atoms    uint[]             sphere indices per cell

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from sasprobe.render.gl.targets import ATOM_BACKGROUND, ATOM_PROBE
-from sasprobe.render.lighting.grid import Culling
+from sasprobe.render.lighting.culling import Culling
 from sasprobe.render.lighting.settings import (
     HARD_SHADOW,
     DirectionalLight,
@@ -52,7 +52,7 @@ class Occluders:
 
     @classmethod
     def of(cls, gpu_grid) -> Occluders:
-        """The same occluders a GpuGrid holds (its culled flags, clipping and probe)."""
+        """The same occluders a UploadedGrid holds (its culled flags, clipping and probe)."""
         probe = np.asarray(gpu_grid.probe_sphere, dtype=np.float64)
         return cls(
             gpu_grid.grid.centers,

@@ -7,8 +7,9 @@ from __future__ import annotations
 import numpy as np
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
 from sasprobe.render.camera import fit_bounding_sphere
+from sasprobe.render.lighting.culling import Culling
 from sasprobe.render.lighting.gbuffer import RaycastGBuffer
-from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.lighting.uploaded_grid import UploadedGrid
 
 WIDTH, HEIGHT = 128, 96
 VIEW_DIRECTION = (0.3, 0.4, 1.0)
@@ -57,11 +58,11 @@ def probe_on_surface(
     return centre + (t[inside[-1]] + 0.05 + lift) * direction
 
 
-def sphere_grid(gl, centers, radii, pad=DEFAULT_PROBE_RADIUS) -> GpuGrid:
-    """A GpuGrid over hand-placed spheres (expanded by `pad`, as the daemon's grid is)."""
+def sphere_grid(gl, centers, radii, pad=DEFAULT_PROBE_RADIUS) -> UploadedGrid:
+    """A UploadedGrid over hand-placed spheres (expanded by `pad`, as the daemon's grid is)."""
     centers = np.asarray(centers, dtype=np.float64)
     radii = np.asarray(radii, dtype=np.float64)
-    return GpuGrid(gl, UniformGrid(centers, radii + pad), radii)
+    return UploadedGrid(gl, UniformGrid(centers, radii + pad), radii)
 
 
 def away_from_boundaries(classes: np.ndarray, valid: np.ndarray) -> np.ndarray:

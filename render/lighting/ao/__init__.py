@@ -78,7 +78,7 @@ class AmbientOcclusion:
         return self._passes[name]
 
     def update_probe(self) -> None:
-        """The probe moved (after GpuGrid.set_probe)."""
+        """The probe moved (after UploadedGrid.set_probe)."""
         if "analytic" in self._passes:
             self._passes["analytic"].update_probe()
         self.view_changed()

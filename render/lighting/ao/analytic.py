@@ -61,7 +61,7 @@ class AnalyticAO(ComputePass):
         write_table_rows(self.table, self.neighbours.reshape(-1), entries)
 
     def update_probe(self) -> None:
-        """Refresh the probe's neighbour list after the probe moved (GpuGrid.set_probe)."""
+        """Refresh the probe's neighbour list after the probe moved (UploadedGrid.set_probe)."""
         probe = self.grid.probe_sphere
         self.probe_neighbours = (
             self.grid.grid.nearest_to_point(probe[:3], MAX_K)

@@ -77,7 +77,7 @@ LOCAL = 64  # the bake shaders' local_size_x
 
 class KeptCells:
     """The spheres the culling keeps, each stored once in the cell of its centre (cells of
-    the GPU grid's size over the kept atoms' box), for the bake's neighbour gather: the grid
+    the uploaded grid's size over the kept atoms' box), for the bake's neighbour gather: the grid
     proper stores every sphere in each cell its expanded sphere overlaps, and culled atoms
     with the rest, so most of what a gather read there was thrown away."""
 
@@ -120,7 +120,7 @@ class KeptCells:
 
 
 class OcclusionAtlas:
-    """The patches of one GPU grid's drawn atoms, and the passes that bake and read them."""
+    """The patches of one uploaded grid's drawn atoms, and the passes that bake and read them."""
 
     def __init__(self, gpu_grid):
         self.grid = gpu_grid

@@ -65,8 +65,9 @@ def run(
     from sasprobe.cli.reference_data import reference_structures
     from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
     from sasprobe.render.gl.context import create_headless_context
-    from sasprobe.render.lighting.grid import Culling, GpuGrid
+    from sasprobe.render.lighting.culling import Culling
     from sasprobe.render.lighting.settings import LightingSettings
+    from sasprobe.render.lighting.uploaded_grid import UploadedGrid
 
     by_id = {e.id: e for e in reference_structures()}
     missing = [i for i in structures if i not in by_id]
@@ -110,7 +111,7 @@ def run(
                 {"id": sid, "atoms": structure.n_atoms, "cube_atoms": inside, "cases": rows}
             )
             if sid in ("1aon", cube_id):
-                grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+                grid = UploadedGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
                 culling = Culling(nav_cube=(cube.center, cube.half)) if cube else Culling()
                 out["bakes"].append(
                     {"id": sid + (" cube" if cube else " whole"), **bake_seconds(grid, culling)}

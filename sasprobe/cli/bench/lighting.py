@@ -26,9 +26,9 @@ from sasprobe.cli.reference_data import MISSING, reference_structures
 from sasprobe.common.errors import UserError
 from sasprobe.common.progress import progress
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, load_structure
-from sasprobe.render.lighting.grid import GpuGrid
 from sasprobe.render.lighting.path_tracer import PathTracer
 from sasprobe.render.lighting.settings import DirectionalLight, PathTracing
+from sasprobe.render.lighting.uploaded_grid import UploadedGrid
 
 TITLE = "Lighting: shadows and ambient occlusion, speed vs accuracy"
 
@@ -143,7 +143,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     # --- AO: every method vs the reference, on a mid-size protein filling the view
     next(steps)
     ao_id = plan.get("ao_id") or ("1oky" if "1oky" in by_id else entries[0].id)
-    grid = GpuGrid.from_structure(gl, structure(ao_id), DEFAULT_PROBE_RADIUS)
+    grid = UploadedGrid.from_structure(gl, structure(ao_id), DEFAULT_PROBE_RADIUS)
     scene = fitted_scene(grid, plan["ao_size"], fill=1.3)
     ao = ao_bench.pareto(gl, scene, plan["ref_spp"], plan["repeats"])
     tracer = PathTracer.for_structure(grid, structure(ao_id))
@@ -163,7 +163,7 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     ids = plan["scaling_ids"] or tuple(e.id for e in entries)
     scaling_scenes = []
     for sid in [i for i in ids if i in by_id]:
-        g = GpuGrid.from_structure(gl, structure(sid), DEFAULT_PROBE_RADIUS)
+        g = UploadedGrid.from_structure(gl, structure(sid), DEFAULT_PROBE_RADIUS)
         scaling_scenes.append(
             (
                 sid,

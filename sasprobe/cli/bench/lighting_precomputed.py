@@ -13,9 +13,10 @@ from sasprobe.cli.bench.lighting_scene import Scene, interleaved_times
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS
 from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
-from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.lighting.culling import Culling
 from sasprobe.render.lighting.settings import HARD_SHADOW, AOSettings, DirectionalLight
 from sasprobe.render.lighting.shadows import ShadowPass
+from sasprobe.render.lighting.uploaded_grid import UploadedGrid
 
 DEFAULT = AOSettings()
 SUN = np.array([0.45, 0.8, 0.4]) / np.linalg.norm([0.45, 0.8, 0.4])  # towards the light
@@ -29,7 +30,7 @@ SMALL_BAKES, SMALL_ATOMS = (
 
 
 def bake_seconds(
-    grid: GpuGrid,
+    grid: UploadedGrid,
     culling: Culling,
     settings: AOSettings = DEFAULT,
     sun: bool = True,
@@ -104,7 +105,7 @@ def bake_scaling(gl, structures: list[tuple[str, object]], cube_of) -> list[dict
     """Bake times of every structure whole and of a ~300-atom cube of the largest."""
     rows = []
     for sid, structure in structures:
-        grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+        grid = UploadedGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
         repeats = SMALL_BAKES if structure.n_atoms < SMALL_ATOMS else 1
         rows.append(
             {
@@ -117,7 +118,7 @@ def bake_scaling(gl, structures: list[tuple[str, object]], cube_of) -> list[dict
         grid.release()
     sid, structure = max(structures, key=lambda s: s[1].n_atoms)
     cube, inside = cube_of(structure)
-    grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+    grid = UploadedGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
     rows.append(
         {
             "structure": f"{sid} cube",

@@ -10,8 +10,9 @@ import numpy as np
 from sasprobe.cli.bench.charts import figure, save
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
 from sasprobe.render.camera import Camera, fit_bounding_sphere
+from sasprobe.render.lighting.culling import Culling
 from sasprobe.render.lighting.gbuffer import GBuffer, RaycastGBuffer
-from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.lighting.uploaded_grid import UploadedGrid
 
 VIEW_DIRECTION = (0.3, 0.4, 1.0)
 
@@ -55,7 +56,7 @@ def gpu_time(gl, fn, repeats: int) -> float:
 
 @dataclass
 class Scene:
-    grid: GpuGrid
+    grid: UploadedGrid
     view: np.ndarray
     proj: np.ndarray
     gbuffer: GBuffer
@@ -73,13 +74,13 @@ class Scene:
         self.gbuffer.release()
 
 
-def spheres_grid(gl, centers, radii, cell_size: float | None = None) -> GpuGrid:
+def spheres_grid(gl, centers, radii, cell_size: float | None = None) -> UploadedGrid:
     centers = np.asarray(centers, dtype=np.float64)
     radii = np.asarray(radii, dtype=np.float64)
-    return GpuGrid(gl, UniformGrid(centers, radii + DEFAULT_PROBE_RADIUS, cell_size), radii)
+    return UploadedGrid(gl, UniformGrid(centers, radii + DEFAULT_PROBE_RADIUS, cell_size), radii)
 
 
-def trace_scene(grid: GpuGrid, view, proj, size: tuple[int, int]) -> Scene:
+def trace_scene(grid: UploadedGrid, view, proj, size: tuple[int, int]) -> Scene:
     caster = RaycastGBuffer(grid)
     gbuffer = caster.render(view, proj, *size)
     caster.release()
@@ -87,7 +88,7 @@ def trace_scene(grid: GpuGrid, view, proj, size: tuple[int, int]) -> Scene:
 
 
 def fitted_scene(
-    grid: GpuGrid, size: tuple[int, int], fill: float = 1.0, culling: Culling | None = None
+    grid: UploadedGrid, size: tuple[int, int], fill: float = 1.0, culling: Culling | None = None
 ) -> Scene:
     """The molecule's bounding sphere (or the navigation cube's) filling `fill` of the view."""
     grid.set_culling(culling or Culling())
@@ -102,7 +103,7 @@ def fitted_scene(
 
 
 def scene_with_coverage(
-    grid: GpuGrid, size: tuple[int, int], target: float, culling: Culling | None = None
+    grid: UploadedGrid, size: tuple[int, int], target: float, culling: Culling | None = None
 ) -> Scene:
     """A fitted scene zoomed until about `target` of the pixels show the molecule (equal
     screen coverage makes per-frame times of different molecules comparable)."""

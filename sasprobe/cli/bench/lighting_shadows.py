@@ -15,7 +15,7 @@ from sasprobe.cli.bench.lighting_scene import (
 )
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, UniformGrid
 from sasprobe.render.gl.textures import read_texture
-from sasprobe.render.lighting.grid import Culling, GpuGrid
+from sasprobe.render.lighting.culling import Culling
 from sasprobe.render.lighting.settings import (
     DEFAULT_PROBE_RANGE,
     HARD_SHADOW,
@@ -24,6 +24,7 @@ from sasprobe.render.lighting.settings import (
     SoftShadow,
 )
 from sasprobe.render.lighting.shadows import ShadowPass
+from sasprobe.render.lighting.uploaded_grid import UploadedGrid
 
 SUN = DirectionalLight((0.45, 0.8, 0.4))
 SOFT = SoftShadow()
@@ -31,7 +32,7 @@ CUBE_HALF = 9.0  # Å: a navigation cube holding a few hundred atoms
 COVERAGE = 0.5  # of the pixels showing atoms, for scenes compared across molecules
 
 
-def densest_cube_centre(grid: GpuGrid, candidates: int = 64, seed: int = 3) -> np.ndarray:
+def densest_cube_centre(grid: UploadedGrid, candidates: int = 64, seed: int = 3) -> np.ndarray:
     """Centre of a navigation cube inside the protein: of a few random atoms, the one whose
     cube holds the most atoms (the centroid of a hollow assembly such as GroEL is empty)."""
     rng = np.random.default_rng(seed)
@@ -45,13 +46,13 @@ def cell_sweep(gl, name: str, structure, size, cell_sizes, repeats: int) -> list
     """Hard and soft directional shadows of one view for each cell size; the last grid has
     a single cell (every ray tests every atom: brute force)."""
     expanded = structure.expanded_radii(DEFAULT_PROBE_RADIUS)
-    default = GpuGrid(gl, UniformGrid(structure.positions, expanded), structure.vdw_radii)
+    default = UploadedGrid(gl, UniformGrid(structure.positions, expanded), structure.vdw_radii)
     scene = fitted_scene(default, size, fill=1.0)
     extent = float(np.max(default.grid.upper - default.grid.origin))
     grids = [
         default
         if cell is None
-        else GpuGrid(gl, UniformGrid(structure.positions, expanded, cell), structure.vdw_radii)
+        else UploadedGrid(gl, UniformGrid(structure.positions, expanded, cell), structure.vdw_radii)
         for cell in [*cell_sizes, None, extent + 1.0]
     ]
     passes = [ShadowPass(grid) for grid in grids]
@@ -129,8 +130,8 @@ def cube_bounded(gl, structures: list[tuple[str, object]], size, repeats: int) -
     culling (set when its scene is traced) stays as the cube scene left it."""
     setups, calls = [], {}
     for name, structure in structures:
-        grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
-        whole_grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+        grid = UploadedGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+        whole_grid = UploadedGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
         whole = scene_with_coverage(whole_grid, size, COVERAGE)
         cube = scene_with_coverage(
             grid, size, COVERAGE, Culling(nav_cube=(densest_cube_centre(grid), CUBE_HALF))
@@ -237,7 +238,7 @@ def probe_light(gl, structures: list[tuple[str, object]], size, repeats: int) ->
     moves) apart; the largest difference between the two (0: the same occluders)."""
     rows = []
     for name, structure in structures:
-        grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+        grid = UploadedGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
         scene = scene_with_coverage(grid, size, COVERAGE)
         lamp = PointLight(tuple(probe_on_view(scene)), DEFAULT_PROBE_RANGE)
         walk, listed = ShadowPass(grid, light_buffer=False), ShadowPass(grid)
@@ -271,7 +272,7 @@ def sun_light(gl, structures: list[tuple[str, object]], size, repeats: int) -> l
     difference between the two (0: the same occluders)."""
     rows = []
     for name, structure in structures:
-        grid = GpuGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
+        grid = UploadedGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
         scene = scene_with_coverage(grid, size, COVERAGE)
         walk, listed = ShadowPass(grid, light_buffer=False), ShadowPass(grid)
         timed = _walk_against_buffer(
