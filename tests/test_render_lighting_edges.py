@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from sasprobe.render.camera import fit_bounding_sphere
 from sasprobe.render.gl.textures import read_texture
-from sasprobe.render.lighting.edges import EdgeCueingPass
+from sasprobe.render.lighting.edges import EdgeCueingProgram
 from sasprobe.render.lighting.settings import EdgeCueing
 
 from tests.references.lighting import edge_cueing, view_depths
@@ -19,7 +19,7 @@ pytestmark = pytest.mark.needs_gl(430)  # compute shaders, storage buffers
 def test_edge_cueing_equals_the_numpy_definition(gl, crambin, crambin_grid):
     view, proj = camera(crambin)
     gbuffer, position, _, atom = gbuffer_arrays(crambin_grid, view, proj)
-    edges = EdgeCueingPass(gl)
+    edges = EdgeCueingProgram(gl)
     depth = view_depths(position, atom, view)
     for settings in (
         EdgeCueing(),
@@ -48,7 +48,7 @@ def test_lines_trace_depth_jumps_and_halos_fall_behind(gl):
     grid = sphere_grid(gl, centers, radii)
     view, proj = fit_bounding_sphere(centers, radii, 4 / 3, (0.0, 0.0, 1.0), fill=0.8)
     gbuffer, position, normal, atom = gbuffer_arrays(grid, view, proj, 128, 96)
-    edges = EdgeCueingPass(gl)
+    edges = EdgeCueingProgram(gl)
     lines = read_texture(edges.compute(gbuffer, view, proj, EdgeCueing()))
     halos = read_texture(edges.compute(gbuffer, view, proj, EdgeCueing(contours=False, halos=True)))
     front, back = atom == 1, atom == 0

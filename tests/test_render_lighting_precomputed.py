@@ -337,7 +337,7 @@ def test_a_still_probe_lights_from_the_atlas_and_a_moving_one_is_traced(gl, cram
         for k in range(STILL_FRAMES + 2):
             camera.orbit(np.array([0.0, 1.0, 0.0]), 0.02)
             renderer.render(camera)
-            atlas = renderer.lighting.ao._pass("atlas")
+            atlas = renderer.lighting.ao.program("atlas")
             assert (atlas.probe_key is not None) == (k >= STILL_FRAMES), k
             if k == STILL_FRAMES:
                 assert 0 < atlas.baked_patches < atlas.n_slots  # the atoms within the light's range

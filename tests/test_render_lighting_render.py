@@ -200,7 +200,7 @@ def test_drawn_passes_equal_their_compute_passes_to_the_bit(frame):
         assert np.all(
             parts[0][~inside] == 0.25
         )  # (the compute pass rounds the rectangle up to its work groups)
-    analytic = lighting.ao._pass("analytic")
+    analytic = lighting.ao.program("analytic")
     ao = [
         read_texture(analytic.compute(gb, 16, out=texture_2d(renderer.ctx, *SIZE)))
         for gb in (drawn, computed)

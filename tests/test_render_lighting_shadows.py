@@ -18,7 +18,7 @@ from sasprobe.render.lighting.settings import (
     SoftShadow,
     ray_epsilon,
 )
-from sasprobe.render.lighting.shadows import ShadowPass
+from sasprobe.render.lighting.shadows import ShadowTracer
 
 from tests.references.lighting import Occluders, light_visibility
 from tests.support.lighting import (
@@ -42,7 +42,7 @@ def probe_light(structure) -> PointLight:
 
 @pytest.fixture(scope="module")
 def shadow_pass(crambin_grid):
-    p = ShadowPass(crambin_grid)
+    p = ShadowTracer(crambin_grid)
     yield p
     p.release()
 
@@ -156,7 +156,7 @@ def test_culled_and_clipped_occluders_cast_no_shadow(gl):
     point = np.array([[[0.0, 1.5, 0.0]]])  # top of the receiver, facing the blocker
     up = np.array([[[0.0, 1.0, 0.0]]])
     gbuffer = GBuffer.upload(gl, point, up, np.array([[0]]))
-    shadows = ShadowPass(grid)
+    shadows = ShadowTracer(grid)
     sun = DirectionalLight((0.0, 1.0, 0.0))
     assert read_texture(shadows.trace(gbuffer, sun))[0, 0] == 0.0
     grid.set_culling(Culling(clip_planes=[[0.0, -1.0, 0.0, 3.0]]))  # keeps y <= 3: blocker gone
@@ -176,7 +176,7 @@ def test_culled_and_clipped_occluders_cast_no_shadow(gl):
 # ------------------------------------------------------------------ the probe light's light buffer
 @pytest.fixture(scope="module")
 def walking_pass(crambin_grid):
-    p = ShadowPass(crambin_grid, light_buffer=False)
+    p = ShadowTracer(crambin_grid, light_buffer=False)
     yield p
     p.release()
 
@@ -223,8 +223,8 @@ def test_a_point_lights_rays_are_clipped_by_the_cuts_it_lies_beyond(crambin, cra
     ]  # the second beyond the cube's +x face
     if name == "cube":
         assert culling.cuts_before(lights[1].position).clip_planes.shape[0] == 1
-    shadows = ShadowPass(crambin_grid)
-    walking = ShadowPass(crambin_grid, light_buffer=False)
+    shadows = ShadowTracer(crambin_grid)
+    walking = ShadowTracer(crambin_grid, light_buffer=False)
     try:
         for light in lights:
             for soft in (HARD_SHADOW, SoftShadow(inner=-0.4, outer=1.0, growth=4.0)):
@@ -258,7 +258,7 @@ def test_light_buffer_lists_what_a_brute_force_cone_test_lists(crambin, crambin_
         "candidates_in_box",
         lambda lo, hi, gather=grid.candidates_in_box: gathered.append(1) or gather(lo, hi),
     )
-    shadows = ShadowPass(crambin_grid)
+    shadows = ShadowTracer(crambin_grid)
     lists = shadows.light_buffer
     lamp = probe_light(crambin)
     try:
@@ -311,7 +311,7 @@ def test_light_buffer_of_a_light_with_no_atom_in_reach(crambin, crambin_grid, wa
     """A light far from every atom lists nothing and its lists still bind and trace: every
     pixel it reaches is lit, as the walk finds."""
     name, gbuffer, *_ = scene
-    shadows = ShadowPass(crambin_grid)
+    shadows = ShadowTracer(crambin_grid)
     try:
         far = PointLight(tuple(crambin.positions.max(axis=0) + 40.0), 20.0)
         listed = read_texture(shadows.trace(gbuffer, far, HARD_SHADOW))
@@ -328,7 +328,7 @@ def test_light_buffer_holds_while_the_light_stays_within_its_slack(
     sliding along the surface): the same shadows as the walk, bit for bit, hard and soft,
     without being built again; a light beyond the slack builds them anew."""
     name, gbuffer, *_ = scene
-    listing = ShadowPass(crambin_grid)
+    listing = ShadowTracer(crambin_grid)
     lists = listing.light_buffer
     try:
         lamp = probe_light(crambin)
@@ -399,7 +399,7 @@ def test_sun_buffer_on_a_larger_structure(gl, reference_by_id):
 
     structure = load_structure(reference_by_id["1tii"].path, keep_water=True)
     grid = UploadedGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
-    listing, walking = ShadowPass(grid), ShadowPass(grid, light_buffer=False)
+    listing, walking = ShadowTracer(grid), ShadowTracer(grid, light_buffer=False)
     try:
         centre = structure.positions.mean(axis=0)
         for culling in (Culling(), Culling(nav_cube=(centre + [3.0, -2.0, 1.0], 9.0))):

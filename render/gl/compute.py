@@ -1,4 +1,4 @@
-"""Compute programs over an image: the dispatch every lighting pass uses, and a shader
+"""Compute programs over an image: the dispatch every lighting program uses, and a shader
 compiled per case."""
 
 from __future__ import annotations
@@ -6,11 +6,11 @@ from __future__ import annotations
 from sasprobe.render.gl.programs import source
 from sasprobe.render.gl.uniforms import apply_uniforms
 
-LOCAL_SIZE = 8  # compute work-group edge of the 2D passes (the shaders' local_size_x/y)
+LOCAL_SIZE = 8  # compute work-group edge of the 2D programs (the shaders' local_size_x/y)
 
 
 def dispatch(program, width: int, height: int) -> None:
-    """Run a 2D compute pass over width × height, then make its writes visible to whatever
+    """Run a 2D compute program over width × height, then make its writes visible to whatever
     reads them next (texture fetch, image load, buffer read-back)."""
     program.run(
         group_x=(width + LOCAL_SIZE - 1) // LOCAL_SIZE,
@@ -19,9 +19,9 @@ def dispatch(program, width: int, height: int) -> None:
     program.ctx.memory_barrier()
 
 
-class ComputePass:
-    """A compute program over an image, with an uploaded grid bound when it has one (the base of
-    the lighting passes; the grid is anything with bind() and uniforms())."""
+class ComputeProgram:
+    """A compute program over an image, with an uploaded grid bound when it has one (the base
+    of the lighting's programs; the grid is anything with bind() and uniforms())."""
 
     def __init__(self, ctx, shader: str, gpu_grid=None, defines: tuple[str, ...] = ()):
         self.ctx = ctx
@@ -48,16 +48,16 @@ class ComputeVariants:
         self.ctx = ctx
         self.shader = shader
         self.grid = gpu_grid
-        self._passes: dict[tuple[str, ...], ComputePass] = {}
+        self._programs: dict[tuple[str, ...], ComputeProgram] = {}
 
-    def get(self, *cases: tuple[str, bool]) -> ComputePass:
+    def get(self, *cases: tuple[str, bool]) -> ComputeProgram:
         """The program with the defines whose case holds, e.g. get(("LIGHT_BUFFER", True))."""
         defines = tuple(name for name, on in cases if on)
-        if defines not in self._passes:
-            self._passes[defines] = ComputePass(self.ctx, self.shader, self.grid, defines)
-        return self._passes[defines]
+        if defines not in self._programs:
+            self._programs[defines] = ComputeProgram(self.ctx, self.shader, self.grid, defines)
+        return self._programs[defines]
 
     def release(self) -> None:
-        for compute in self._passes.values():
+        for compute in self._programs.values():
             compute.release()
-        self._passes.clear()
+        self._programs.clear()

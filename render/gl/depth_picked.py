@@ -1,12 +1,12 @@
-"""Full-screen passes over the pixels a depth test against the G-buffer picks.
+"""Full-screen fragment shaders drawn over the pixels a depth test against the G-buffer
+picks, and the framebuffers they draw into.
 
 llvmpipe runs every instruction of a shader for each block of pixels, whichever way its
 branches go, and skips only the blocks a depth test rejects before the fragment shader
-runs. So a pass whose work lies on the molecule's surfaces draws one triangle at the far
-plane (shaders/fullscreen.vert AT_FAR_PLANE), where the G-buffer was cleared: depth func
-"==" picks the background, ">" the surfaces; the depth is tested, never written. A
-fragment pass also runs faster than the same compute pass there (a whole frame's compose:
-19.7 ms as compute, 5.0-7.5 ms drawn, 1TII at 800x600), so a pass may pick every pixel
+runs. So a draw whose work lies on the molecule's surfaces is one triangle at the far plane
+(shaders/fullscreen.vert AT_FAR_PLANE), where the G-buffer was cleared: depth func "=="
+picks the background, ">" the surfaces; the depth is tested, never written. llvmpipe also
+runs a fragment shader faster than the same compute shader, so a draw may pick every pixel
 (depth func "1").
 """
 
@@ -20,19 +20,17 @@ from sasprobe.render.gl.uniforms import apply_uniforms
 class DepthTestedTarget:
     """Framebuffers that draw into a colour texture while testing against a depth texture
     they do not write (drawn with fullscreen.vert AT_FAR_PLANE: depth func "==" picks the
-    background, ">" the surfaces). The last KEPT pairs are kept: a pass draws into a few
+    background, ">" the surfaces). The last MAX_KEPT pairs are kept: a program draws into a few
     targets (the shadows: the sun's and the probe light's, whole frames and layered ones;
     the shading: the lit picture or the kept one). Pairs are told apart by the texture objects
     themselves, which are held, so a texture made after another's release (and given its
     GL name) is never taken for it."""
 
-    KEPT = 4
+    MAX_KEPT = 4
 
     def __init__(self, ctx):
         self.ctx = ctx
-        self._kept: list[
-            tuple[object, object, object]
-        ] = []  # (colour, depth, framebuffer), newest last
+        self._kept: list[tuple[object, object, object]] = []  # (colour, depth, fbo), newest last
 
     def framebuffer(self, colour, depth):
         """`colour` None: no colour attachment (a shader that writes images)."""
@@ -42,7 +40,7 @@ class DepthTestedTarget:
         fbo = self.ctx.framebuffer([] if colour is None else [colour], depth)
         fbo.depth_mask = False
         self._kept.append((colour, depth, fbo))
-        if len(self._kept) > self.KEPT:
+        if len(self._kept) > self.MAX_KEPT:
             release_framebuffers(self.ctx, self._kept.pop(0)[2])
         return fbo
 
@@ -62,9 +60,10 @@ class DepthTestedTarget:
         self._kept.clear()
 
 
-class DepthPickedPass:
-    """A fragment shader drawn as above, compiled per set of #defines (as ComputeVariants
-    compiles a compute shader), with an uploaded grid bound when it has one."""
+class DepthPickedDraw:
+    """A fragment shader drawn over the pixels a depth test picks, compiled per set of
+    #defines (as ComputeVariants compiles a compute shader), with an uploaded grid bound when
+    it has one."""
 
     def __init__(self, ctx, fragment: str, gpu_grid=None):
         self.ctx = ctx

@@ -3,14 +3,14 @@ texture (r32f, 1 = untouched) the final colour is multiplied by."""
 
 from __future__ import annotations
 
-from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.compute import ComputeProgram
 from sasprobe.render.gl.textures import texture_2d
 from sasprobe.render.gl.uniforms import view_proj_uniforms
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.settings import EdgeCueing
 
 
-class EdgeCueingPass(ComputePass):
+class EdgeCueingProgram(ComputeProgram):
     def __init__(self, ctx):
         super().__init__(ctx, "edge_cueing.comp")
 

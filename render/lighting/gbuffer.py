@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.compute import ComputeProgram
 from sasprobe.render.gl.targets import (
     ATOM_BACKGROUND,
     ATOM_PROBE,
@@ -97,7 +97,7 @@ class GBuffer:
                 tex.release()
 
 
-class RaycastGBuffer(ComputePass):
+class RaycastGBuffer(ComputeProgram):
     """Primary rays through the grid (closest hit with clip caps) into a GBuffer."""
 
     def __init__(self, gpu_grid):

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.materials import PROBE_MATERIAL, atom_materials
-from sasprobe.render.lighting.progressive import ProgressivePass
+from sasprobe.render.lighting.progressive import ProgressiveProgram
 from sasprobe.render.lighting.settings import (
     DirectionalLight,
     PathTracing,
@@ -20,7 +20,7 @@ from sasprobe.render.lighting.settings import (
 BINDING_MATERIALS = 5
 
 
-class PathTracer(ProgressivePass):
+class PathTracer(ProgressiveProgram):
     components = 4
 
     def __init__(self, gpu_grid, materials: np.ndarray, seed: int = 7):

@@ -6,12 +6,12 @@ nothing but the order they arrive in."""
 
 from __future__ import annotations
 
-from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.compute import ComputeProgram
 from sasprobe.render.gl.textures import texture_2d
 from sasprobe.render.lighting.gbuffer import GBuffer
 
 
-class ProgressivePass(ComputePass):
+class ProgressiveProgram(ComputeProgram):
     components = 1  # of the accumulated image
 
     def __init__(self, gpu_grid, shader: str, seed: int = 1):

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 from sasprobe.render.gl.compute import ComputeVariants
-from sasprobe.render.gl.depth_picked import DepthPickedPass
+from sasprobe.render.gl.depth_picked import DepthPickedDraw
 from sasprobe.render.gl.textures import texture_2d
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.light_buffer import FACE_CELLS, PointLightBuffer
@@ -30,7 +30,7 @@ from sasprobe.render.lighting.settings import (
 )
 
 
-class ShadowPass:
+class ShadowTracer:
     """Shadows of one uploaded grid. shaders/shadows.comp is compiled per case (the walk or the
     light buffer; with or without clipping), each program holding only its own code."""
 
@@ -38,11 +38,10 @@ class ShadowPass:
         self.ctx = gpu_grid.ctx
         self.grid = gpu_grid
         self.light_buffer = PointLightBuffer(gpu_grid, face_cells) if light_buffer else None
-        self.sun_buffer = (
-            gpu_grid.sun_buffer() if light_buffer else None
-        )  # the grid's: shared with the atlas
+        # The grid's own: shared with the occlusion atlas.
+        self.sun_buffer = gpu_grid.sun_buffer() if light_buffer else None
         self.programs = ComputeVariants(self.ctx, "shadows.comp", gpu_grid)
-        self.drawn = DepthPickedPass(self.ctx, "shadows.frag", gpu_grid)  # the renderer's G-buffer
+        self.drawn = DepthPickedDraw(self.ctx, "shadows.frag", gpu_grid)  # on the renderer's
 
     def trace(
         self,

@@ -21,12 +21,12 @@ import numpy as np
 from sasprobe.render.frame_planner import EVERYWHERE, LIT, LIT_BACKGROUND
 from sasprobe.render.gl.compute import ComputeVariants
 from sasprobe.render.gl.context import GLUnavailable
-from sasprobe.render.gl.depth_picked import DepthPickedPass
+from sasprobe.render.gl.depth_picked import DepthPickedDraw
 from sasprobe.render.gl.textures import TextureCache, read_texture
 from sasprobe.render.lighting.ao import AmbientOcclusion
 from sasprobe.render.lighting.ao.analytic import MAX_K
 from sasprobe.render.lighting.culling import cube_culling
-from sasprobe.render.lighting.edges import EdgeCueingPass
+from sasprobe.render.lighting.edges import EdgeCueingProgram
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.path_tracer import PathTracer
 from sasprobe.render.lighting.settings import (
@@ -41,7 +41,7 @@ from sasprobe.render.lighting.settings import (
     light_uniforms,
     ray_epsilon_uniforms,
 )
-from sasprobe.render.lighting.shadows import ShadowPass
+from sasprobe.render.lighting.shadows import ShadowTracer
 from sasprobe.render.lighting.uploaded_grid import UploadedGrid
 from sasprobe.render.passes.base import Frame, Pass, ProbeLighting, ProbeLightTrace
 from sasprobe.render.rects import full_rect, grow_rect, intersect_rect, shadow_rect, union_rect
@@ -90,7 +90,7 @@ class LightingPass(Pass):
         self.scene_grid = None  # the SceneState grid self.grid was uploaded from
         self.grid: UploadedGrid | None = None
         self.shadows = self.ao = self.tracer = self.compose = self.compose_drawn = None
-        self.edges = EdgeCueingPass(ctx)
+        self.edges = EdgeCueingProgram(ctx)
         self.textures = TextureCache(ctx)
         self.lights: tuple[DirectionalLight | None, PointLight | None] = (None, None)
         # Keys of what the GPU state was last set for.
@@ -136,11 +136,11 @@ class LightingPass(Pass):
             self._release_structure()
             self.scene_grid = scene.grid
             self.grid = UploadedGrid(self.ctx, scene.grid, scene.structure.vdw_radii)
-            self.shadows = ShadowPass(self.grid)
+            self.shadows = ShadowTracer(self.grid)
             self.ao = AmbientOcclusion(self.grid, self.settings.ao)
             self.tracer = PathTracer.for_structure(self.grid, scene.structure)
             self.compose = ComputeVariants(self.ctx, "visibility_compose.comp", self.grid)
-            self.compose_drawn = DepthPickedPass(self.ctx, "visibility_compose.frag", self.grid)
+            self.compose_drawn = DepthPickedDraw(self.ctx, "visibility_compose.frag", self.grid)
             self._culling_key = self._probe_key = self._color_version = None
         if frame.buffers.color_version != self._color_version:  # the path tracer's albedos
             if frame.buffers.color_version:

@@ -7,7 +7,7 @@ from dataclasses import replace
 from typing import TYPE_CHECKING
 
 from sasprobe.render.frame_planner import EVERYWHERE, OVERLAY
-from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.compute import ComputeProgram
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.passes.base import Frame, Pass
 
@@ -21,7 +21,7 @@ class PathTracePass(Pass):
     def __init__(self, ctx, lighting: LightingPass):
         self.ctx = ctx
         self.lighting = lighting
-        self.output = ComputePass(ctx, "path_trace_output.comp")
+        self.output = ComputeProgram(ctx, "path_trace_output.comp")
 
     def enabled(self, frame: Frame) -> bool:
         return frame.scene.effects.path_tracing

@@ -19,7 +19,7 @@ probe): accumulation then restarts.
 from __future__ import annotations
 
 import numpy as np
-from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.compute import ComputeProgram
 from sasprobe.render.gl.textures import TextureCache
 from sasprobe.render.lighting.ao.analytic import AnalyticAO
 from sasprobe.render.lighting.ao.blur import BilateralBlur
@@ -37,7 +37,7 @@ class AmbientOcclusion:
         self.grid = gpu_grid
         self.ctx = gpu_grid.ctx
         self.settings = settings
-        self._passes: dict[str, object] = {}
+        self._programs: dict[str, object] = {}
         self.textures = TextureCache(self.ctx)
 
     # ------------------------------------------------------------ state
@@ -47,13 +47,13 @@ class AmbientOcclusion:
         self.settings = settings
 
     def view_changed(self) -> None:
-        if "rt" in self._passes:
-            self._passes["rt"].reset()
+        if "rt" in self._programs:
+            self._programs["rt"].reset()
 
     @property
     def samples(self) -> int:
         """Ray-traced samples per pixel accumulated so far (rt, hybrid, reference)."""
-        return self._passes["rt"].samples if "rt" in self._passes else 0
+        return self._programs["rt"].samples if "rt" in self._programs else 0
 
     @property
     def converged(self) -> bool:
@@ -63,24 +63,24 @@ class AmbientOcclusion:
             return self.samples >= s.reference_total
         return True
 
-    # ------------------------------------------------------------ passes
-    def _pass(self, name: str):
-        if name not in self._passes:
+    # ------------------------------------------------------------ programs
+    def program(self, name: str):
+        if name not in self._programs:
             make = {
                 "analytic": lambda: AnalyticAO(self.grid),
                 "rt": lambda: RayTracedAO(self.grid),
                 "ssao": lambda: SSAO(self.ctx),
                 "blur": lambda: BilateralBlur(self.ctx),
-                "multiply": lambda: ComputePass(self.ctx, "multiply.comp"),
+                "multiply": lambda: ComputeProgram(self.ctx, "multiply.comp"),
                 "atlas": lambda: OcclusionAtlas(self.grid),
             }[name]
-            self._passes[name] = make()
-        return self._passes[name]
+            self._programs[name] = make()
+        return self._programs[name]
 
     def update_probe(self) -> None:
         """The probe moved (after UploadedGrid.set_probe)."""
-        if "analytic" in self._passes:
-            self._passes["analytic"].update_probe()
+        if "analytic" in self._programs:
+            self._programs["analytic"].update_probe()
         self.view_changed()
 
     def compute(
@@ -103,7 +103,7 @@ class AmbientOcclusion:
         if s.mode == "precomputed":
             return self.baked(gbuffer, ambient=True)[0]
         if s.mode == "ssao":
-            ssao = self._pass("ssao")
+            ssao = self.program("ssao")
             raw = ssao.compute(
                 gbuffer,
                 view,
@@ -113,7 +113,7 @@ class AmbientOcclusion:
             )
             if not (s.blur or s.ssao_half_resolution):
                 return raw
-            return self._pass("blur").apply(
+            return self.program("blur").apply(
                 gbuffer, view, proj, raw, out=self.textures.get("blurred", size)
             )
         if s.mode == "reference":
@@ -126,7 +126,7 @@ class AmbientOcclusion:
         analytic.use(location=3)
         traced.use(location=4)
         product.bind_to_image(0, read=False, write=True)
-        self._pass("multiply").run(size[0], size[1], {})
+        self.program("multiply").run(size[0], size[1], {})
         return product
 
     def baked(
@@ -141,14 +141,14 @@ class AmbientOcclusion:
         """(accessibility, directional light, probe light) from the occlusion atlas, baked
         first where it lacks the accessibility (`ambient`), the light `sun_direction`
         (towards it) or the `probe_light` (a PointLight); `rect` as OcclusionAtlas.lookup."""
-        s, atlas = self.settings, self._pass("atlas")
+        s, atlas = self.settings, self.program("atlas")
         atlas.update(
             s.patch, s.directions, s.distance, ambient, sun_direction, probe_light, progress
         )
         return atlas.lookup(gbuffer, ambient, sun_direction, probe_light, rect)
 
     def _analytic(self, gbuffer: GBuffer, atoms: np.ndarray | None, rect=None):
-        analytic = self._pass("analytic")
+        analytic = self.program("analytic")
         if self.grid.probe_sphere[3] > 0 and analytic.probe_neighbours[0] < 0:
             analytic.update_probe()
         return analytic.compute(
@@ -160,7 +160,7 @@ class AmbientOcclusion:
         )
 
     def _traced(self, gbuffer: GBuffer, spp: int, blur: bool, view, proj):
-        rt = self._pass("rt")
+        rt = self.program("rt")
         if rt.samples < self.settings.reference_total:
             rt.accumulate(
                 gbuffer,
@@ -168,13 +168,13 @@ class AmbientOcclusion:
                 self.settings.distance,
             )
         if blur and rt.samples < BLUR_BELOW_SPP:
-            return self._pass("blur").apply(
+            return self.program("blur").apply(
                 gbuffer, view, proj, rt.accumulated, out=self.textures.get("blurred", gbuffer.size)
             )
         return rt.accumulated
 
     def release(self) -> None:
-        for p in self._passes.values():
+        for p in self._programs.values():
             p.release()
         self.textures.release()
-        self._passes.clear()
+        self._programs.clear()

@@ -9,8 +9,8 @@ surfaces alone (render/gl/depth_picked.py); other G-buffers are a compute pass."
 from __future__ import annotations
 
 import numpy as np
-from sasprobe.render.gl.compute import ComputePass
-from sasprobe.render.gl.depth_picked import DepthPickedPass
+from sasprobe.render.gl.compute import ComputeProgram
+from sasprobe.render.gl.depth_picked import DepthPickedDraw
 from sasprobe.render.gl.textures import TABLE_ROW, table_rows, texture_2d, write_table_rows
 from sasprobe.render.lighting.gbuffer import GBuffer
 
@@ -31,7 +31,7 @@ def nearest_to_point(centers: np.ndarray, point, k: int = MAX_K) -> np.ndarray:
     return out
 
 
-class AnalyticAO(ComputePass):
+class AnalyticAO(ComputeProgram):
     def __init__(self, gpu_grid):
         super().__init__(gpu_grid.ctx, "ao_analytic.comp", gpu_grid)
         n = gpu_grid.n_atoms
@@ -42,7 +42,7 @@ class AnalyticAO(ComputePass):
         # a table image (textures.table_image's layout), written row by row as lists are found
         self.table = texture_2d(self.ctx, TABLE_ROW, table_rows(n * MAX_K), 1, "i4")
         self.probe_neighbours = np.full(MAX_K, -1, dtype=np.int64)
-        self.drawn = DepthPickedPass(self.ctx, "ao_analytic.frag", gpu_grid)
+        self.drawn = DepthPickedDraw(self.ctx, "ao_analytic.frag", gpu_grid)
 
     def find(self, atoms: np.ndarray | None = None) -> None:
         """The neighbour lists of `atoms` (None: every atom) on the GPU, found where not yet."""

@@ -3,13 +3,13 @@ accessibility, and joint-bilateral upsampling of half-resolution input."""
 
 from __future__ import annotations
 
-from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.compute import ComputeProgram
 from sasprobe.render.gl.textures import texture_2d
 from sasprobe.render.gl.uniforms import view_proj_uniforms
 from sasprobe.render.lighting.gbuffer import GBuffer
 
 
-class BilateralBlur(ComputePass):
+class BilateralBlur(ComputeProgram):
     def __init__(self, ctx, radius: int = 4, sigma: float = 2.5, depth_sigma: float = 0.02):
         super().__init__(ctx, "bilateral_blur.comp")
         self.radius, self.sigma, self.depth_sigma = radius, sigma, depth_sigma

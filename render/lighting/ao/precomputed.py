@@ -39,8 +39,8 @@ import math
 import time
 
 import numpy as np
-from sasprobe.render.gl.compute import ComputePass, ComputeVariants
-from sasprobe.render.gl.depth_picked import DepthPickedPass
+from sasprobe.render.gl.compute import ComputeProgram, ComputeVariants
+from sasprobe.render.gl.depth_picked import DepthPickedDraw
 from sasprobe.render.gl.textures import TextureCache, steady_side, table_image
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.lighting.ao.atlas_tables import (
@@ -125,14 +125,14 @@ class OcclusionAtlas:
     def __init__(self, gpu_grid):
         self.grid = gpu_grid
         self.ctx = gpu_grid.ctx
-        self.gather = ComputePass(self.ctx, "atlas_gather.comp", gpu_grid)
-        self.candidates = ComputePass(self.ctx, "atlas_candidates.comp", gpu_grid)
-        self.fill = ComputePass(self.ctx, "atlas_fill.comp")
+        self.gather = ComputeProgram(self.ctx, "atlas_gather.comp", gpu_grid)
+        self.candidates = ComputeProgram(self.ctx, "atlas_candidates.comp", gpu_grid)
+        self.fill = ComputeProgram(self.ctx, "atlas_fill.comp")
         self._variants = {
             shader: ComputeVariants(self.ctx, shader, gpu_grid)  # per case: _variant
             for shader in ("atlas_rays.comp", "atlas_bake.comp", "atlas_lookup.comp")
         }
-        self._drawn_lookup = DepthPickedPass(
+        self._drawn_lookup = DepthPickedDraw(
             self.ctx, "atlas_lookup.frag", gpu_grid
         )  # the renderer's G-buffer
         self.textures = TextureCache(self.ctx)
@@ -417,11 +417,11 @@ class OcclusionAtlas:
                 {"u_patch": self.patch, "u_tiles_x": self.tiles_x, "u_last": last},
             )
 
-    def _variant(self, shader: str, cases: tuple[tuple[str, bool], ...]) -> ComputePass:
+    def _variant(self, shader: str, cases: tuple[tuple[str, bool], ...]) -> ComputeProgram:
         """`shader` for these cases, and without clipping code when nothing is cut away."""
         return self._variants[shader].get(*cases, ("NO_CLIPPING", not self.grid.culling.clipping))
 
-    def _dispatch(self, compute: ComputePass, invocations: int, uniforms: dict) -> None:
+    def _dispatch(self, compute: ComputeProgram, invocations: int, uniforms: dict) -> None:
         self.slot_atoms.bind_to_storage_buffer(BINDING_SLOT_ATOMS)
         compute.grid.bind()
         apply_uniforms(compute.program, {**compute.grid.uniforms(), **uniforms})

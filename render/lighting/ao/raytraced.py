@@ -4,11 +4,11 @@ rays of a set length, N per pixel per frame, accumulated while the view is still
 from __future__ import annotations
 
 from sasprobe.render.lighting.gbuffer import GBuffer
-from sasprobe.render.lighting.progressive import ProgressivePass
+from sasprobe.render.lighting.progressive import ProgressiveProgram
 from sasprobe.render.lighting.settings import ray_epsilon_uniforms
 
 
-class RayTracedAO(ProgressivePass):
+class RayTracedAO(ProgressiveProgram):
     def __init__(self, gpu_grid, seed: int = 1):
         super().__init__(gpu_grid, "ao_raytraced.comp", seed)
 

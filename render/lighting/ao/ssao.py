@@ -5,7 +5,7 @@ bilateral blur (ao/blur.py), which also upsamples."""
 
 from __future__ import annotations
 
-from sasprobe.render.gl.compute import ComputePass
+from sasprobe.render.gl.compute import ComputeProgram
 from sasprobe.render.gl.textures import texture_2d
 from sasprobe.render.gl.uniforms import view_proj_uniforms
 from sasprobe.render.lighting.gbuffer import GBuffer
@@ -14,7 +14,7 @@ from sasprobe.render.lighting.settings import AOSettings
 SSAO_BIAS = 0.05  # Å: a sample must lie this far behind the visible surface to count
 
 
-class SSAO(ComputePass):
+class SSAO(ComputeProgram):
     def __init__(self, ctx, seed: int = 3):
         super().__init__(ctx, "ao_ssao.comp")
         self.seed = seed

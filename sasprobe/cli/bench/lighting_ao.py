@@ -123,7 +123,7 @@ def pareto(gl, scene: Scene, ref_spp: int, repeats: int) -> dict:
     for label, family, settings in listed:
         image = read_texture(one_frame(own.get(label, ao), scene, settings)).copy()
         images[label] = image
-        bake = own[label]._pass("atlas").bake_seconds if label in own else None
+        bake = own[label].program("atlas").bake_seconds if label in own else None
         rows.append(
             {
                 "method": label,

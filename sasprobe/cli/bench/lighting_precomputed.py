@@ -15,7 +15,7 @@ from sasprobe.render.gl.textures import read_texture
 from sasprobe.render.lighting.ao.precomputed import OcclusionAtlas
 from sasprobe.render.lighting.culling import Culling
 from sasprobe.render.lighting.settings import HARD_SHADOW, AOSettings, DirectionalLight
-from sasprobe.render.lighting.shadows import ShadowPass
+from sasprobe.render.lighting.shadows import ShadowTracer
 from sasprobe.render.lighting.uploaded_grid import UploadedGrid
 
 DEFAULT = AOSettings()
@@ -138,7 +138,7 @@ def patch_sweep(gl, scene: Scene, patches, repeats: int) -> dict:
     lookup time; the per-pixel trace's time for comparison."""
     mask = scene.atom >= 0
     sun = DirectionalLight(tuple(SUN))
-    shadows = ShadowPass(scene.grid)
+    shadows = ShadowTracer(scene.grid)
     exact_tex = shadows.trace(scene.gbuffer, sun, HARD_SHADOW)
     exact = read_texture(exact_tex).copy()
     traced_ms = (

@@ -23,7 +23,7 @@ from sasprobe.render.lighting.settings import (
     PointLight,
     SoftShadow,
 )
-from sasprobe.render.lighting.shadows import ShadowPass
+from sasprobe.render.lighting.shadows import ShadowTracer
 from sasprobe.render.lighting.uploaded_grid import UploadedGrid
 
 SUN = DirectionalLight((0.45, 0.8, 0.4))
@@ -55,7 +55,7 @@ def cell_sweep(gl, name: str, structure, size, cell_sizes, repeats: int) -> list
         else UploadedGrid(gl, UniformGrid(structure.positions, expanded, cell), structure.vdw_radii)
         for cell in [*cell_sizes, None, extent + 1.0]
     ]
-    passes = [ShadowPass(grid) for grid in grids]
+    passes = [ShadowTracer(grid) for grid in grids]
     calls = {}
     for i, shadows in enumerate(passes):
         calls[(i, "hard_ms")] = lambda p=shadows: p.trace(scene.gbuffer, SUN, HARD_SHADOW)
@@ -136,7 +136,7 @@ def cube_bounded(gl, structures: list[tuple[str, object]], size, repeats: int) -
         cube = scene_with_coverage(
             grid, size, COVERAGE, Culling(nav_cube=(densest_cube_centre(grid), CUBE_HALF))
         )
-        cube_pass, whole_pass = ShadowPass(grid), ShadowPass(whole_grid)
+        cube_pass, whole_pass = ShadowTracer(grid), ShadowTracer(whole_grid)
         setups.append((name, structure, grid, whole_grid, whole, cube, cube_pass, whole_pass))
         calls[(name, "whole_hard_ms")] = lambda p=whole_pass, s=whole: p.trace(
             s.gbuffer, SUN, HARD_SHADOW
@@ -194,7 +194,7 @@ def probe_on_view(scene) -> np.ndarray:
 
 
 def _walk_against_buffer(
-    gl, scene, light, walk: ShadowPass, listed: ShadowPass, buffer, repeats: int
+    gl, scene, light, walk: ShadowTracer, listed: ShadowTracer, buffer, repeats: int
 ) -> dict:
     """`light`'s shadows through the walk and through `listed`'s buffer, hard and soft, timed
     in the same rounds; the buffer's build apart (its key dropped, as when the light moved);
@@ -241,7 +241,7 @@ def probe_light(gl, structures: list[tuple[str, object]], size, repeats: int) ->
         grid = UploadedGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
         scene = scene_with_coverage(grid, size, COVERAGE)
         lamp = PointLight(tuple(probe_on_view(scene)), DEFAULT_PROBE_RANGE)
-        walk, listed = ShadowPass(grid, light_buffer=False), ShadowPass(grid)
+        walk, listed = ShadowTracer(grid, light_buffer=False), ShadowTracer(grid)
         buffer = listed.light_buffer
         timed = _walk_against_buffer(
             gl, scene, lamp, walk, listed, buffer, repeats
@@ -274,7 +274,7 @@ def sun_light(gl, structures: list[tuple[str, object]], size, repeats: int) -> l
     for name, structure in structures:
         grid = UploadedGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
         scene = scene_with_coverage(grid, size, COVERAGE)
-        walk, listed = ShadowPass(grid, light_buffer=False), ShadowPass(grid)
+        walk, listed = ShadowTracer(grid, light_buffer=False), ShadowTracer(grid)
         timed = _walk_against_buffer(
             gl, scene, SUN, walk, listed, listed.sun_buffer, repeats
         )  # build: the light turned

@@ -248,7 +248,7 @@ def _first_frame_bake(gl, case: Case) -> float:
     """Draw the case's first frame with its atlas baking; the bake's own time (s)."""
     case.renderer.render(case.camera)
     gl.finish()
-    atlas = case.renderer.lighting.ao._pass("atlas")
+    atlas = case.renderer.lighting.ao.program("atlas")
     return atlas.bake_seconds
 
 
