@@ -18,7 +18,7 @@ Keys (row 0 is the top row of the image; H x W is the frame size):
     device_tip_mm float64 (3,)     the device tip in the device frame (mm), when following a daemon
     clip_planes float64 N x 4      planes in effect (the user's, then the probe plane);
                                    a·x + b·y + c·z + d >= 0 is kept; unit normals
-Lighting passes add their own layers under their own names; the lighting
+Passes add arrays of their own (Pass.exported_arrays); the lighting
 (render/passes/lighting.py) adds, for what it computed in that frame:
     shadow_dir      float32 H x W  directional-light visibility 0..1 (1 lit; 0 shadowed or facing away)
     shadow_probe    float32 H x W  probe-light visibility 0..1 (1 beyond the light's range: not traced)
@@ -64,7 +64,7 @@ def gbuffer_arrays(renderer, frame=None) -> dict[str, np.ndarray]:
             arrays["device_tip_mm"] = np.asarray(probe.tip_mm, dtype=np.float64)
     for p in renderer.passes:
         if p.enabled(frame):
-            arrays.update(p.gbuffer_layers(frame))
+            arrays.update(p.exported_arrays(frame))
     return arrays
 
 

@@ -295,7 +295,7 @@ def test_the_shading_pass_traces_the_probe_light_as_the_shadow_pass_does(gl, cra
             g["shadow_probe"][atoms] > 0.5
         ).any()  # both occur
         traced = shaded(frame.probe_lighting)
-        lamp = renderer.lighting.layers["shadow_probe"]
+        lamp = renderer.lighting.exported_terms["shadow_probe"]
         assert np.array_equal(
             traced, shaded(replace(frame.probe_lighting, visibility=lamp, traced=None))
         )

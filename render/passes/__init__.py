@@ -1,7 +1,7 @@
-"""Render passes, one per module, run in order by render.renderer.Renderer.
+"""The renderer's passes, one a module, run in order by render/renderer.py.
 
-The chain (Renderer.passes) is a plain list of passes.base.Pass objects (`name`,
-`enabled(frame)`, `run(frame)`, `gbuffer_layers(frame)`, `release()`). The lighting pass
-slots in between the G-buffer passes and the shading pass, writing the visibility buffer;
-path tracing follows the shading pass.
+Each is a passes.base.Pass (`name`, `layer`, `enabled(frame)`, `run(frame)`,
+`footprint(frame)`, `exported_arrays(frame)`, `release()`): it takes what it draws from the
+frame (passes.base.Frame) and the frame plan, and holds no caching policy of its own. The
+lighting passes slot in when the lighting is installed (Renderer.install_lighting).
 """

@@ -212,8 +212,8 @@ class Pass:
     def run(self, frame: Frame) -> None:  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def gbuffer_layers(self, frame: Frame) -> dict[str, np.ndarray]:
-        """Extra layers this pass adds to the G-buffer export (render/gbuffer_export.py)."""
+    def exported_arrays(self, frame: Frame) -> dict[str, np.ndarray]:
+        """Arrays this pass adds to the G-buffer export (render/gbuffer_export.py)."""
         return {}
 
     def release(self) -> None:

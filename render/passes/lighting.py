@@ -99,7 +99,7 @@ class LightingPass(Pass):
         self._still_key: tuple | None = None
         self._color_version: int | None = None  # the buffers' colours the path tracer has
         # The last frame's terms, as the G-buffer export reads them.
-        self.layers: dict[str, object] = {}
+        self.exported_terms: dict[str, object] = {}
         # Layered frames: the molecule's own terms (kept with its layer), the atoms nearest
         # the probe by probe key, and the last compose's inputs (run again for the export).
         self.molecule_terms: dict[str, object] = {}
@@ -278,7 +278,7 @@ class LightingPass(Pass):
     def _probe_light_traced(self, frame: Frame, lamp: PointLight) -> ProbeLightTrace:
         """The probe light's shadow rays, for the shading pass to trace per pixel (it fetches
         the G-buffer anyway; a pass of their own would fetch it again). The export traces
-        them into a texture of their own when it asks (gbuffer_layers)."""
+        them into a texture of their own when it asks (exported_arrays)."""
         soft = self._soft(frame)
         self._untraced = (lamp, soft)
         return ProbeLightTrace(self.shadows, *self.shadows.prepared(lamp, soft))
@@ -362,23 +362,23 @@ class LightingPass(Pass):
         fx = frame.scene.effects
         gbuffer = GBuffer.of_targets(frame.targets)
         sun, lamp = self.lights
-        self.layers = {}
+        self.exported_terms = {}
         if fx.shadows and sun is not None:
-            self.layers["shadow_dir"] = self._sun(gbuffer, frame, sun, "shadow_dir")
+            self.exported_terms["shadow_dir"] = self._sun(gbuffer, frame, sun, "shadow_dir")
         traced = None
         if fx.shadows and lamp is not None:
             baked = self._baked_probe_light(frame, gbuffer, lamp)
             if baked is not None:
-                self.layers["shadow_probe"] = baked
+                self.exported_terms["shadow_probe"] = baked
             else:
                 traced = self._probe_light_traced(frame, lamp)
         if fx.ambient_occlusion:
-            self.layers["ao"] = self._ambient(gbuffer, frame)
-        terms = dict(self.layers)
+            self.exported_terms["ao"] = self._ambient(gbuffer, frame)
+        terms = dict(self.exported_terms)
         if fx.edge_cueing:
             terms["edges"] = self._edges(gbuffer, frame)
         self._compose(frame, terms, {}, rect=frame.compose_rect())
-        frame.probe_lighting = ProbeLighting(self.layers.get("shadow_probe"), traced=traced)
+        frame.probe_lighting = ProbeLighting(self.exported_terms.get("shadow_probe"), traced=traced)
 
     # ------------------------------------------------------------ layered frames
     def run_molecule(self, frame: Frame) -> None:
@@ -450,14 +450,14 @@ class LightingPass(Pass):
         gbuffer = GBuffer.of_targets(frame.targets)
         sun, lamp = self.lights
         terms = dict(self.molecule_terms)
-        self.layers = {}
+        self.exported_terms = {}
         soft = self._soft(frame)
         self._count_still_frames(probe_key)
         self._untraced = traced = None
         if fx.shadows and lamp is not None:
             baked = self._baked_probe_light(frame, gbuffer, lamp)
             if baked is not None:
-                terms["shadow_probe"] = self.layers["shadow_probe"] = baked
+                terms["shadow_probe"] = self.exported_terms["shadow_probe"] = baked
             else:  # traced by the shading pass, where it shades again
                 traced = self._probe_light_traced(frame, lamp)
         if fx.edge_cueing:
@@ -508,14 +508,14 @@ class LightingPass(Pass):
         return self._probe_neighbours[1]
 
     # ------------------------------------------------------------ the G-buffer export
-    def gbuffer_layers(self, frame: Frame) -> dict[str, np.ndarray]:
+    def exported_arrays(self, frame: Frame) -> dict[str, np.ndarray]:
         """The last frame's lighting terms for the G-buffer export (row 0 = top) and the
         lights they were traced for."""
         if self._composed is not None:
             self._export_composed()
         if self._untraced is not None:  # the shading pass traced the probe light: trace it here
             lamp, soft = self._untraced
-            self.layers["shadow_probe"] = self.shadows.trace(
+            self.exported_terms["shadow_probe"] = self.shadows.trace(
                 GBuffer.of_targets(frame.targets),
                 lamp,
                 soft,
@@ -524,7 +524,7 @@ class LightingPass(Pass):
             self._untraced = None
         out = {
             name: read_texture(tex, top_first=True).astype(np.float32)
-            for name, tex in self.layers.items()
+            for name, tex in self.exported_terms.items()
         }
         sun, lamp = self.lights
         if sun is not None:  # the way it travels, as --light gives it
@@ -568,9 +568,9 @@ class LightingPass(Pass):
         ao_out.bind_to_image(2, read=False, write=True)
         self._compose(frame, terms, uniforms, export=True)
         if "shadow_dir" in terms:
-            self.layers["shadow_dir"] = sun_out
+            self.exported_terms["shadow_dir"] = sun_out
         if frame.scene.effects.ambient_occlusion:
-            self.layers["ao"] = ao_out
+            self.exported_terms["ao"] = ao_out
 
     def _release_structure(self) -> None:
         for thing in (
