@@ -89,13 +89,12 @@ def run_headless(
 
     `orbit_deg` turns the camera that many degrees per frame about its up axis;
     `update` runs before each frame (e.g. to take the latest pose from the daemon).
-    `pace_fps` (a live source into a video) keeps the video in wall-clock time: frame
-    slot k is due k/pace_fps after the first frame is ready (so the first frame's set-up,
-    seconds for a large structure's lighting, is not filmed as a still), a frame is
-    rendered when its slot is due, and one that took longer than a slot is written once
-    per slot it covered, so the
-    video has exactly round(seconds * pace_fps) (or `frames`) frames. `gbuffer_dir` gets
-    every rendered frame's G-buffer as gbuffer_0000.npz, ... (uncompressed: quick to write).
+    `pace_fps` (a live source into a video) keeps the video in wall-clock time: slot k is
+    due k/pace_fps after the first frame is ready (its set-up is not filmed as a still), a
+    frame is rendered when its slot is due, and one that took longer is written once per slot
+    it covered, so the video has exactly round(seconds * pace_fps) (or `frames`) frames.
+    `gbuffer_dir` gets every frame's G-buffer as gbuffer_0000.npz, ... (uncompressed: quick
+    to write).
     """
     stats = RunStats()
     step = math.radians(orbit_deg)

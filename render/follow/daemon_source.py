@@ -1,21 +1,16 @@
-"""Following a running daemon (`sasprobe render --connect`).
+"""A running daemon as the renderer's source (`sasprobe render --connect`).
 
-The structure comes from the daemon's control endpoint (`get_structure` with form
-"arrays": the daemon's parsed atoms as flat arrays, which unpack far faster than the file
-parses, so a remote renderer needs no shared disk and a large structure is drawn soon
-after joining), fetched on a background thread so a window stays responsive; the pose and
-scene come from its publisher through the protocol's Subscriber, drained once per frame
-without blocking. When nothing arrives for
-STALE_S the daemon counts as gone and the readout says 'waiting for daemon'; ZeroMQ
-reconnects by itself when it returns, and a daemon serving another structure (its
-scene's sha256 changed) makes the link fetch that one. Malformed messages are dropped
-and counted by the Subscriber.
+The structure comes from the daemon's control endpoint as arrays (`get_structure` form
+"arrays": the daemon's parsed atoms, which unpack far faster than the file parses, so a
+large structure is drawn soon after joining), fetched on a thread so a window stays
+responsive. Poses and scenes come from its publisher, drained once per frame without
+blocking. Nothing for STALE_S and the daemon counts as gone ('waiting for daemon'); ZeroMQ
+reconnects by itself, and a daemon serving another structure (its scene's sha256 changed)
+is followed.
 
-The haptic rate shown is poses over RATE_WINDOW_S of the daemon's device time, in a
-window of at most RATE_WINDOW_POSES poses that starts again whenever the device clock
-or the sequence number goes back (a restarted daemon starts both again). Requests the
-window makes (the view's turn, the clutch key, recentre) go through follow/requests.py,
-never blocking a frame; what the messages put into the scene is follow/messages.py.
+The haptic rate is poses over RATE_WINDOW_S of the daemon's device time, in a window of at
+most RATE_WINDOW_POSES poses that starts again when the device clock or the sequence number
+goes back (a restarted daemon).
 """
 
 from __future__ import annotations

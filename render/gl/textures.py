@@ -37,7 +37,7 @@ def steady_side(n: int) -> int:
     """A side of `n` texels, or a little more where n is a power of two, for textures whose
     size follows the scene (a cube's atoms, a light's lists): llvmpipe compiles a variant of
     every shader that reads a texture per power-of-two-ness of its sides (its sampler key's
-    pot bits), 0.2-0.7 s each, so a cube moving across such a size stalled the frame."""
+    pot bits), and compiling it stalls the frame a cube moving across such a size is in."""
     return max(n + 1, 3) if n & (n - 1) == 0 else n
 
 

@@ -1,34 +1,15 @@
-"""The lights' shadow rays without the grid walk: light buffers (Haines & Greenberg,
-"The Light Buffer: A Shadow-Testing Accelerator", IEEE CG&A 6(9), 1986) — the probe's
-point light's (PointLightBuffer, below) and the directional light's (DirectionalLightBuffer,
-at the end: cells across the light instead of directions around it).
+"""The lights' shadow rays without the grid walk: light buffers (Haines & Greenberg, "The
+Light Buffer: A Shadow-Testing Accelerator", IEEE CG&A 6(9), 1986).
 
-Every shadow ray of a point light ends at the light, so the rays are sorted by their
-direction as seen from it: a cube around the light, FACE_CELLS × FACE_CELLS cells a face,
-lists for each cell the atoms that can darken a ray leaving the light through that cell.
-An atom of radius R (vdW + the soft-shadow shell) at distance r from the light covers the
-cone of directions of half-angle asin(R / r); it is listed in every cell whose bounding
-cone meets that one (a conservative test, so a list holds every atom of the exact set).
-A pixel's ray then tests only its cell's list instead of walking the grid's cells and
-every atom stored in them, and since lists run nearest first, it stops at the first atom
-farther from the light than the pixel. The visibility is the minimum over the same
-occluders as the grid walk (shaders/grid_traversal.glsl trace_visibility): culled atoms
-are left out of the lists and the ray is clipped as there, so the result is the walk's to
-the bit.
-
-The lists hold for a light anywhere within SLACK Å of the point they were built for (their
-centre), so a probe sliding along the surface rebuilds them only every few frames: a ray
-from a light within s of the centre that meets an atom of radius R runs, shifted to start
-at the centre, within R + s of it, so each atom's cone is taken about the centre with its
-radius grown by s; and since an atom's nearest distance to the light is at most s less
-than to the centre, a list sorted by the centre's distances may stop at the first atom
-whose distance from the centre, less its grown radius, is beyond the ray. Built anew
-whenever the light leaves that ball, its reach grows, or the shell or the culling change,
-on the CPU (numpy): the atoms within reach, sorted, each face's cells' cones tested at
-once against the atoms' cones that meet the face (a few hundred atoms at 20 Å in a
-navigation cube), the lists packed one after another (in table images: each cell's first
-entry, then the entries) and uploaded. Filling them on the GPU, one invocation per cell,
-took llvmpipe longer than the numpy build takes. Read by shaders/light_buffer.glsl.
+PointLightBuffer, for the probe's light: a cube around the light, FACE_CELLS x FACE_CELLS
+cells a face, lists for each cell, nearest first, the atoms whose cone of directions seen
+from the light (half-angle asin(R / r) for radius R at distance r) meets the cell's cone.
+DirectionalLightBuffer, for the sun: cells across the light, each listing the atoms whose
+disc covers it. A pixel's ray tests its cell's list instead of walking the grid and stops
+at the first atom beyond its end; culled atoms are left out and the ray is clipped as in
+the walk, so the visibility is the walk's to the bit (shaders/light_buffer.glsl,
+shaders/sun_buffer.glsl). The lists are built with numpy: filling them on the GPU, one
+invocation per cell, took llvmpipe longer. docs/rendering.md gives the geometry.
 """
 
 from __future__ import annotations
@@ -37,19 +18,20 @@ import numpy as np
 from sasprobe.render.gl.buffers import upload
 from sasprobe.render.gl.textures import table_image
 
-FACE_CELLS = 8  # cells along a cube face's edge: 6 × 8² = 384 lists (finer ones cost more to fill than they save)
+# Cells along a cube face's edge: 6 × 8² = 384 lists (finer ones cost more to fill than they save).
+FACE_CELLS = 8
 ANGLE_MARGIN = 1e-4  # rad added to both cones: float32 lookups may land a cell off by rounding
 RADIUS_MARGIN = 1e-3  # Å added to each atom's reach: float32 distances in the shader
-SLACK = 0.6  # Å the light may move before the lists are built again (wider cones, longer lists)
-FACE_HALF = float(
-    np.arccos(1.0 / np.sqrt(3.0))
-)  # rad: a cube face's cells lie within this of its axis
+# Å the light may move before the lists are built again, so a sliding probe rebuilds them
+# every few frames: a ray from a light within SLACK of the lists' centre runs within R + SLACK
+# of the centre's ray, so each atom's cone is taken about the centre with its radius grown by
+# SLACK (wider cones, longer lists).
+SLACK = 0.6
+FACE_HALF = float(np.arccos(1.0 / np.sqrt(3.0)))  # rad: a cube face's cells lie within this
 LEAD = 0.6  # of the slack: how far ahead of a moving light the lists are centred
-NEARBY_PAD = 2.0  # Å: the grid's candidates are gathered for a box this much wider than a build needs, and kept
-IMAGE_LIST_SPHERES, IMAGE_LIST_ATOMS = (
-    2,
-    3,
-)  # image units (shaders/light_buffer.glsl; the grid's are 4-5)
+# Å: the grid's candidates are gathered for a box this much wider than a build needs, and kept.
+NEARBY_PAD = 2.0
+IMAGE_LIST_SPHERES, IMAGE_LIST_ATOMS = 2, 3  # image units (shaders/light_buffer.glsl)
 
 
 def cell_cones(face_cells: int = FACE_CELLS) -> np.ndarray:

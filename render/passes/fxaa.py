@@ -1,11 +1,10 @@
 """Final pass: FXAA from the lit image to the output (or a plain copy when off).
 
-On frames whose pictures are kept (render/frame_planner.py) the antialiased picture is
-kept, and FXAA runs again only over the plan's regions of the lit picture, grown by the
-shader's reach: over the changed background and the probe's cues (OVERLAY) whole, and
-over the changed surfaces (LIT) only at the pixels within that reach of a surface
-(NearSurfaces: the others read nothing but background, which did not change, so the kept
-picture holds their FXAA). The kept picture is then copied to the output."""
+On layered frames the antialiased picture is kept and FXAA runs again over the plan's
+regions grown by the shader's reach: whole over the changed background and the probe's cues
+(OVERLAY), and over the changed surfaces (LIT) only near a surface (NearSurfaces), since the
+pixels farther away read nothing but background, which did not change.
+"""
 
 from __future__ import annotations
 

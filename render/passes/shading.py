@@ -1,21 +1,15 @@
-"""Deferred shading: G-buffer + visibility buffer -> lit colour (shaders/shading.glsl),
-with the parameters of ShadingSettings (render/lighting/settings.py) and what the lighting
-hands over about the probe (Frame.probe_lighting): its light's visibility as a texture, or
-its light's shadow rays, which the pass then traces itself (shaders/shading_traced.frag).
+"""Deferred shading: G-buffer + visibility buffer -> lit colour (shaders/shading.glsl), with
+ShadingSettings (render/lighting/settings.py) and what the lighting hands over about the
+probe (Frame.probe_lighting): its light's visibility as a texture, or its shadow rays,
+which this pass then traces itself (shaders/shading_traced.frag).
 
-On frames whose pictures are kept (render/frame_planner.py) the shaded picture is kept
-(before the cube wire and the cues are drawn over a copy of it), and the pass shades the
-regions the plan gives. Its footprint: the probe's pixels, the touched atom and the lit
-atoms within the probe light's range (beyond it nothing of the probe reaches the
-picture: its light and its share of the AO are windowed to 0 there; the backbone trace
-is context, which the probe does not light), to which the lighting adds where its terms
-change (the probe's shadow, its edges). The background shows only the probe's pixels and
-the halos around them, so its footprint is those.
-
-The surfaces and the background are two draws, each picked by a depth test against the
-G-buffer before its fragment shader runs (shaders/fullscreen.vert AT_FAR_PLANE): the
-background's shader reads one texel, the surfaces' six, and on llvmpipe a pixel would
-pay for both branches of one shader."""
+On layered frames the shaded picture is kept and the pass shades again only the plan's
+regions. Its footprint is the probe's pixels, the touched atom and the atoms within the
+probe light's range (beyond it the probe changes nothing: its light and its share of the AO
+are windowed to 0), and of the background the probe's pixels and halos. Surfaces and
+background are two draws over the pixels a depth test picks (render/gl/depth_picked.py), so
+llvmpipe never runs the surfaces' six fetches for a background pixel.
+"""
 
 from __future__ import annotations
 

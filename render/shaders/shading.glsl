@@ -55,7 +55,7 @@ uniform int u_touched_atom;      // -1: none
 uniform vec3 u_highlight;        // touched-atom colour
 uniform vec3 u_probe_color;
 
-#ifdef GBUFFER_IMAGES  // the layers read as images: llvmpipe loads those at half the cost of a texelFetch
+#ifdef GBUFFER_IMAGES  // the layers read as images: llvmpipe loads those cheaper than a texelFetch
 layout(rgba32f, binding = 0) readonly uniform image2D u_position_image;
 layout(rgba32f, binding = 1) readonly uniform image2D u_normal_image;
 layout(rgba32f, binding = 6) readonly uniform image2D u_visibility_image;

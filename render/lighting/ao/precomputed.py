@@ -1,35 +1,19 @@
 """QuteMol's precomputed occlusion (Tarini, Cignoni, Montani, IEEE TVCG 2006): each drawn
-atom gets a patch of P x P texels over its sphere (octahedral parametrisation) holding
-its ambient accessibility and, for lights fixed in the molecule frame, its visibility of
-the directional light and of the probe's light (for the atoms within the probe light's
-range, while the probe stands still). Patches are baked once per structure and per
-culling change (a light's channel again when that light moves); a frame then costs one
-bilinear lookup per pixel, whatever the camera does.
+atom gets a patch of P x P texels over its sphere (octahedral parametrisation) holding its
+ambient accessibility and, for lights fixed in the molecule frame, its visibility of the
+directional light and of the probe's light. Patches are baked once per structure and per
+culling change (a light's channel again when that light moves), so a frame costs one
+bilinear lookup per pixel whatever the camera does.
 
-What QuteMol used (pyQuteMol, MDAnalysis/pyQuteMol @6d45ec9f): 128 view directions
-(python/hardSettings.py N_VIEW_DIR), each a 256² shadow map of the molecule (AOSM_SIZE);
-patches packed into a 1024² texture grown up to 4096² (TSIZE, MAX_TSIZE), the patch side
-being the texture side over ceil(sqrt(atoms)), clamped to 6..250 (python/Molecule.py
-SetCsize: 16 texels for 1AON's 58,870 atoms in 4096², 53 for 1CRN's 327 in 1024²); texel
-centres on the patch border (python/OctaMap.py getDir), which is the layout here.
-
-Here the bake traces rays through the grid instead of rendering shadow maps
-(shaders/atlas_*.comp, in chunks of CHUNK_SLOTS atoms, four steps): (1) each atom's
-neighbours within reach are gathered once from the kept atoms' own cells (KeptCells), and
-its texels seen (neither inside a neighbour nor cut away by a clip plane or the cube) marked
-in a bit mask; (2) per direction D (spherical Fibonacci points, in clusters of nearby ones)
-the neighbours that can meet one of its rays are marked; (3) per direction the texels both
-seen and facing it (the AND of two bit masks, atlas_tables.facing_masks) test those
-candidates, eight rays per candidate read, and mark the direction in each blocked texel's
-bits; (4) per seen texel the cosine weights of its facing directions less its blocked ones
-are summed, and the lights' channels are one ray per texel (the sun's through its light
-buffer, render/lighting/light_buffer.py; the probe light's through the grid). The rays
-are `AOSettings.distance` long, as the ray-traced AO's, so the two converge to the same
-accessibility. On llvmpipe every instruction runs for each group of SIMD lanes, so the
-steps read each value once for many tests and fill the lanes with rays that count; what
-their loops read many times lies in images and uniform blocks, which llvmpipe loads a
-vector at a time (a storage buffer it loads lane by lane, a component at a time: a vec4
-about 12x slower; docs/viewing.md, "Tables in images").
+The patch layout is pyQuteMol's (MDAnalysis/pyQuteMol @6d45ec9f, python/OctaMap.py getDir:
+texel centres on the patch border). Where QuteMol rendered 128 shadow maps
+(python/hardSettings.py N_VIEW_DIR), the bake here traces rays through the grid, in chunks
+of CHUNK_SLOTS atoms and four steps (shaders/atlas_*.comp): gather each atom's neighbours
+(KeptCells), mark per direction the neighbours its rays can meet, test those for the texels
+facing the direction (atlas_tables.facing_masks), and sum. Rays are `AOSettings.distance`
+long, as the ray-traced AO's, so both converge to the same accessibility. What the steps
+keep in images and uniform blocks is what llvmpipe would otherwise load lane by lane from
+a storage buffer. docs/rendering.md walks through the bake.
 """
 
 from __future__ import annotations
