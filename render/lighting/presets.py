@@ -58,68 +58,32 @@ class Preset:
 # not only the gaps between neighbouring atoms (analytic AO's K nearest neighbours).
 SOFT_AO = AOSettings(mode="rt", distance=20.0)
 FAR_AO = AOSettings(mode="rt", distance=30.0)
-HEADLESS_AO_SAMPLES = (
-    64  # a headless frame of the ray-traced presets is written once converged this far
+HARD_ANALYTIC = LightingSettings(shadows="hard", ao=AOSettings(mode="analytic"))
+FLAT = LightingSettings(
+    shadows="off",
+    ao=AOSettings(mode="off"),
+    edges="lines",
+    edge_cueing=EdgeCueing(contours=True, halos=False),
 )
+ILLUSTRATIVE = LightingSettings(
+    shadows="off",
+    ao=FAR_AO,
+    edges="both",
+    edge_cueing=EdgeCueing(contours=True, halos=True, halo_strength=0.5),
+)
+# A headless frame of the ray-traced presets is written once converged this far.
+HEADLESS_AO_SAMPLES = 64
 
+# One row a preset: name, ambient, directional (key light), specular, AO power, lighting,
+# background.
 PRESETS: dict[str, Preset] = {
     p.name: p
     for p in (
-        Preset(
-            "default",
-            ambient=0.5,
-            directional=0.7,
-            specular=0.25,
-            ao_power=1.5,
-            lighting=LightingSettings(shadows="hard", ao=AOSettings(mode="analytic")),
-            background=DARK,
-        ),
-        Preset(
-            "soft",
-            ambient=1.1,
-            directional=0.0,
-            specular=0.0,
-            ao_power=2.0,
-            lighting=LightingSettings(shadows="off", ao=SOFT_AO),
-            background=DARK,
-        ),
-        Preset(
-            "full",
-            ambient=0.7,
-            directional=0.6,
-            specular=0.3,
-            ao_power=1.5,
-            lighting=LightingSettings(shadows="soft", ao=SOFT_AO),
-            background=DARK,
-        ),
-        Preset(
-            "flat",
-            ambient=1.0,
-            directional=0.0,
-            specular=0.0,
-            ao_power=1.0,
-            lighting=LightingSettings(
-                shadows="off",
-                ao=AOSettings(mode="off"),
-                edges="lines",
-                edge_cueing=EdgeCueing(contours=True, halos=False),
-            ),
-            background=DARK,
-        ),
-        Preset(
-            "illustrative",
-            ambient=1.15,
-            directional=0.15,
-            specular=0.0,
-            ao_power=2.5,
-            lighting=LightingSettings(
-                shadows="off",
-                ao=FAR_AO,
-                edges="both",
-                edge_cueing=EdgeCueing(contours=True, halos=True, halo_strength=0.5),
-            ),
-            background=WHITE,
-        ),
+        Preset("default", 0.5, 0.7, 0.25, 1.5, HARD_ANALYTIC, DARK),
+        Preset("soft", 1.1, 0.0, 0.0, 2.0, LightingSettings(shadows="off", ao=SOFT_AO), DARK),
+        Preset("full", 0.7, 0.6, 0.3, 1.5, LightingSettings(shadows="soft", ao=SOFT_AO), DARK),
+        Preset("flat", 1.0, 0.0, 0.0, 1.0, FLAT, DARK),
+        Preset("illustrative", 1.15, 0.15, 0.0, 2.5, ILLUSTRATIVE, WHITE),
     )
 }
 PRESET_NAMES = tuple(PRESETS)
