@@ -44,6 +44,19 @@ def save(fig, path: Path) -> Path:
     return path
 
 
+def times_vs_atoms(path: Path, atoms, series, title: str, **title_style) -> Path:
+    """Median times against atom count on log-log axes, as a PNG: `series` is
+    [(seconds per structure, line style, label)]."""
+    fig, ax = figure()
+    for seconds, style, label in series:
+        ax.loglog(atoms, [t * 1e3 for t in seconds], style, label=label)
+    ax.set_xlabel("atoms")
+    ax.set_ylabel("median time (ms)")
+    ax.set_title(title, **title_style)
+    ax.legend()
+    return save(fig, path)
+
+
 def annotate_apart(ax, notes, fontsize: float = 6) -> None:
     """Label points without labels overlapping: `notes` is [(x, y, text)] in data
     coordinates (the axes' scales and limits set); each label takes the first place beside

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from sasprobe.cli.bench import BenchContext, BenchResult, median_time
-from sasprobe.cli.bench.charts import figure, save
+from sasprobe.cli.bench.charts import times_vs_atoms
 from sasprobe.cli.reference_data import MISSING, reference_structures
 from sasprobe.common.errors import UserError
 from sasprobe.common.progress import progress
@@ -60,15 +60,12 @@ def run(ctx: BenchContext) -> BenchResult:
     charts = []
     path = ctx.chart_path("grid_build.png")
     if path is not None:
-        fig, ax = figure()
-        atoms = [r["n_atoms"] for r in rows]
-        ax.loglog(atoms, [r["load_s"] * 1e3 for r in rows], "o-", label="load (gemmi + arrays)")
-        ax.loglog(atoms, [r["grid_s"] * 1e3 for r in rows], "s-", label="grid build")
-        ax.set_xlabel("atoms")
-        ax.set_ylabel("median time (ms)")
-        ax.set_title("Load and grid build time vs structure size")
-        ax.legend()
-        charts.append(save(fig, path))
+        series = [
+            ([r["load_s"] for r in rows], "o-", "load (gemmi + arrays)"),
+            ([r["grid_s"] for r in rows], "s-", "grid build"),
+        ]
+        title = "Load and grid build time vs structure size"
+        charts.append(times_vs_atoms(path, [r["n_atoms"] for r in rows], series, title))
     lines = [
         "| structure | atoms | load (ms) | grid (ms) | grid per 100k atoms (ms) | query (µs) | "
         "cells | non-empty | max/cell | mean/non-empty | grid KiB |",

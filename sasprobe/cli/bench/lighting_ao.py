@@ -35,6 +35,14 @@ PRECOMPUTED = (
 PRECOMPUTED_SHOWN = f"precomputed {BASE.patch}x{BASE.patch}, {BASE.directions} dirs"
 
 
+SCALING_SERIES = [  # (row key, label, line style) of scaling_chart
+    ("analytic_ms", "analytic K=16", "o-"),
+    ("analytic32_ms", "analytic K=32", "o:"),
+    ("ssao_ms", "SSAO point, 16 samples", "s-"),
+    ("rt1_ms", "RT 1 spp (8 Å rays)", "^-"),
+]
+
+
 def methods() -> list[tuple[str, str, AOSettings]]:
     """(label, family, settings) of every AO variant measured."""
     out = [
@@ -185,15 +193,8 @@ def pareto_chart(rows: list[dict], path, renderer: str):
         if r["rmse"] < best:
             best = r["rmse"]
             front.append(r)
-    ax.step(
-        [r["ms"] for r in front],
-        [r["rmse"] for r in front],
-        where="post",
-        color="0.4",
-        lw=1,
-        ls="--",
-        label="Pareto front",
-    )
+    front_ms, front_rmse = [r["ms"] for r in front], [r["rmse"] for r in front]
+    ax.step(front_ms, front_rmse, where="post", color="0.4", lw=1, ls="--", label="Pareto front")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel(
@@ -319,19 +320,8 @@ def analytic_scaling(gl, scenes: list[tuple[str, int, Scene]], repeats: int) -> 
 
 
 def scaling_chart(rows: list[dict], path):
-    series = [
-        ("analytic_ms", "analytic K=16", "o-"),
-        ("analytic32_ms", "analytic K=32", "o:"),
-        ("ssao_ms", "SSAO point, 16 samples", "s-"),
-        ("rt1_ms", "RT 1 spp (8 Å rays)", "^-"),
-    ]
-    return cost_vs_size_chart(
-        rows,
-        series,
-        "AO cost vs molecule size at equal screen coverage",
-        "time per frame (ms)",
-        path,
-    )
+    title = "AO cost vs molecule size at equal screen coverage"
+    return cost_vs_size_chart(rows, SCALING_SERIES, title, "time per frame (ms)", path)
 
 
 # ------------------------------------------------------------------ SSAO and distant occluders

@@ -30,6 +30,11 @@ SUN = DirectionalLight((0.45, 0.8, 0.4))
 SOFT = SoftShadow()
 CUBE_HALF = 9.0  # Å: a navigation cube holding a few hundred atoms
 COVERAGE = 0.5  # of the pixels showing atoms, for scenes compared across molecules
+CUBE_SERIES = [  # (row key, label, line style) of cube_chart
+    ("cube_hard_ms", "cube on: hard", "o-"),
+    ("cube_soft_ms", "cube on: soft", "x-"),
+    ("whole_hard_ms", "whole molecule: hard", "s--"),
+]
 
 
 def densest_cube_centre(grid: UploadedGrid, candidates: int = 64, seed: int = 3) -> np.ndarray:
@@ -167,18 +172,8 @@ def cube_bounded(gl, structures: list[tuple[str, object]], size, repeats: int) -
 
 
 def cube_chart(rows: list[dict], path):
-    series = [
-        ("cube_hard_ms", "cube on: hard", "o-"),
-        ("cube_soft_ms", "cube on: soft", "x-"),
-        ("whole_hard_ms", "whole molecule: hard", "s--"),
-    ]
-    return cost_vs_size_chart(
-        rows,
-        series,
-        f"Shadows bounded by a {2 * CUBE_HALF:g} Å navigation cube",
-        "shadow pass (ms, median)",
-        path,
-    )
+    title = f"Shadows bounded by a {2 * CUBE_HALF:g} Å navigation cube"
+    return cost_vs_size_chart(rows, CUBE_SERIES, title, "shadow pass (ms, median)", path)
 
 
 # ------------------------------------------------------------------ the probe light
@@ -305,40 +300,55 @@ def _timing_cells(r: dict) -> str:
     )
 
 
+def _table(title: str, header: str, rows: list[dict], cells) -> list[str]:
+    """A markdown table under a title: the header's columns, then `cells(row)` for each row."""
+    rule = "|" + "---|" * (header.count("|") - 1)
+    return [title, "", header, rule, *(cells(r) for r in rows)]
+
+
+def _row(r: dict, before: list, after: list) -> str:
+    """A row of both lights' tables: structure, atoms, `before`, the timings, `after`, the
+    largest difference."""
+    cells = [r["structure"], r["atoms"], *before, _timing_cells(r), *after]
+    return "| " + " | ".join(map(str, cells)) + f" | {r['max_difference']:.0e} |"
+
+
+def _walk_over_buffer(r: dict) -> str:
+    return f"{r['walk_hard_ms'] / r['buffer_hard_ms']:.2f}×"
+
+
+def _walk_over_buffer_and_build(r: dict) -> str:
+    return f"{r['walk_hard_ms'] / (r['buffer_hard_ms'] + r['build_ms']):.2f}×"
+
+
 def sun_light_markdown(rows: list[dict], size) -> list[str]:
-    w, h = size
-    lines = [
-        f"### The directional light's shadows: grid walk vs its buffer across the light ({w}×{h}; medians, "
-        "same rounds)",
-        "",
-        f"| structure | atoms | entries | {TIMING_COLUMNS} | hard: walk / buffer | walk / (buffer + build) | "
-        "largest difference |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        lines.append(
-            f"| {r['structure']} | {r['atoms']} | {r['entries']} | {_timing_cells(r)} | "
-            f"{r['walk_hard_ms'] / r['buffer_hard_ms']:.2f}× | "
-            f"{r['walk_hard_ms'] / (r['buffer_hard_ms'] + r['build_ms']):.2f}× | {r['max_difference']:.0e} |"
-        )
-    return lines
+    title = (
+        "### The directional light's shadows: grid walk vs its buffer across the light "
+        f"({size[0]}×{size[1]}; medians, same rounds)"
+    )
+    header = (
+        f"| structure | atoms | entries | {TIMING_COLUMNS} | hard: walk / buffer | "
+        "walk / (buffer + build) | largest difference |"
+    )
+    after = (_walk_over_buffer, _walk_over_buffer_and_build)
+    return _table(title, header, rows, lambda r: _row(r, [r["entries"]], [f(r) for f in after]))
 
 
 def probe_light_markdown(rows: list[dict], size) -> list[str]:
-    w, h = size
-    lines = [
-        f"### The probe light's shadows: grid walk vs light buffer ({w}×{h}, reach {DEFAULT_PROBE_RANGE:g} Å, "
-        "the probe on the surface in the middle of the view; medians, same rounds)",
-        "",
-        f"| structure | atoms | pixels in reach | atoms in reach | mean / longest list | {TIMING_COLUMNS} | "
-        "hard: walk / (buffer + build) | largest difference |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for r in rows:
-        speedup = r["walk_hard_ms"] / (r["buffer_hard_ms"] + r["build_ms"])
-        lines.append(
-            f"| {r['structure']} | {r['atoms']} | {r['pixels_in_reach']} | {r['atoms_in_reach']} | "
-            f"{r['mean_list']:.1f} / {r['longest_list']} | {_timing_cells(r)} | {speedup:.2f}× | "
-            f"{r['max_difference']:.0e} |"
-        )
-    return lines
+    title = (
+        f"### The probe light's shadows: grid walk vs light buffer ({size[0]}×{size[1]}, "
+        f"reach {DEFAULT_PROBE_RANGE:g} Å, the probe on the surface in the middle of the view; "
+        "medians, same rounds)"
+    )
+    header = (
+        "| structure | atoms | pixels in reach | atoms in reach | mean / longest list | "
+        f"{TIMING_COLUMNS} | hard: walk / (buffer + build) | largest difference |"
+    )
+
+    def reach(r: dict) -> list:
+        lists = f"{r['mean_list']:.1f} / {r['longest_list']}"
+        return [r["pixels_in_reach"], r["atoms_in_reach"], lists]
+
+    return _table(
+        title, header, rows, lambda r: _row(r, reach(r), [_walk_over_buffer_and_build(r)])
+    )

@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from sasprobe.cli.bench import BenchContext, BenchResult, render_scenarios, render_sessions
-from sasprobe.cli.bench.charts import figure, save
+from sasprobe.cli.bench.charts import times_vs_atoms
 from sasprobe.cli.bench.render_cases import CUBE_TARGET_ATOMS, cube_for
 from sasprobe.cli.reference_data import MISSING, reference_structures
 from sasprobe.common.errors import UserError
@@ -277,17 +277,12 @@ def _cube(gl, big, small, size, repeats) -> dict:
 
 # ---------------------------------------------------------------- report
 def _chart(path, scaling, renderer_name, size):
-    fig, ax = figure()
-    atoms = [r["n_atoms"] for r in scaling]
-    ax.loglog(atoms, [r["frame_s"] * 1e3 for r in scaling], "o-", label="whole frame")
-    ax.loglog(atoms, [r["spheres_s"] * 1e3 for r in scaling], "s-", label="sphere impostor pass")
-    ax.set_xlabel("atoms")
-    ax.set_ylabel("median time (ms)")
-    ax.set_title(
-        f"Frame time vs atoms, {size[0]}x{size[1]}\n{renderer_name.split(' / ')[0]}", fontsize=9
-    )
-    ax.legend()
-    return save(fig, path)
+    series = [
+        ([r["frame_s"] for r in scaling], "o-", "whole frame"),
+        ([r["spheres_s"] for r in scaling], "s-", "sphere impostor pass"),
+    ]
+    title = f"Frame time vs atoms, {size[0]}x{size[1]}\n{renderer_name.split(' / ')[0]}"
+    return times_vs_atoms(path, [r["n_atoms"] for r in scaling], series, title, fontsize=9)
 
 
 def _markdown(d: dict) -> str:
