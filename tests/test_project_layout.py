@@ -50,6 +50,8 @@ INNER = {
     "sasprobe.daemon.haptics": set(),  # the tick's computation, below the process
     "sasprobe.render.gl": set(),  # GL plumbing, below the lighting and the passes
     "sasprobe.render.lighting": {"sasprobe.render.gl"},  # below the passes
+    # Following a daemon fills in the scene and draws nothing: no GL, no pass, no window.
+    "sasprobe.render.follow": {"sasprobe.render.scene_state", "sasprobe.render.source"},
 }
 # No clock, socket or thread in the haptic computation: it must replay bit for bit.
 PURE = {
@@ -217,6 +219,10 @@ def test_dependencies_run_one_way():
         (
             ("sasprobe.render.lighting.culling", "sasprobe.render.passes.base", 1),
             "sasprobe.render.lighting sits below",
+        ),
+        (
+            ("sasprobe.render.follow.daemon_source", "sasprobe.render.gl.context", 1),
+            "sasprobe.render.follow sits below",
         ),
     ],
 )
