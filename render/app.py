@@ -53,24 +53,19 @@ class RenderOptions:
     probe_light_range: float = DEFAULT_PROBE_RANGE
     snapshot: Path | None = None  # also write the last frame as a PNG (headless)
     report: Path | None = None  # write frame and pose counts as JSON at the end
-    frame_cache: bool = (
-        True  # keep the molecule layer while only the probe moves (render/frame_cache.py)
-    )
-    view: str | None = (
-        None  # "workspace" or "overview"; None: workspace with --connect, else overview
-    )
+    # Keep the molecule layer while only the probe moves (render/frame_planner.py)
+    frame_cache: bool = True
+    # "workspace" or "overview"; None: workspace with --connect, else overview.
+    view: str | None = None
     gbuffer_dir: Path | None = None  # headless: every frame's G-buffer into this folder
     color: str | None = None  # colour scheme (render/colors.py); None: the default by structure
-    preset: str = (
-        "default"  # lighting preset (render/lighting/presets.py): light intensities, background
-    )
+    # Lighting preset (render/lighting/presets.py): light intensities, background.
+    preset: str = "default"
     background: tuple[float, float, float] | None = None  # None: the preset's
-    light_frame: str = (
-        "camera"  # "camera": lights turn with the view; "molecule": fixed in the molecule frame
-    )
-    keys: Path | None = (
-        None  # with connect: CURVE client keys from `sasprobe keys DIR` (a keyed daemon)
-    )
+    # "camera": lights turn with the view; "molecule": fixed in the molecule frame.
+    light_frame: str = "camera"
+    # With connect: CURVE client keys from `sasprobe keys DIR` (a keyed daemon)
+    keys: Path | None = None
 
     @property
     def start_view(self) -> str:
@@ -304,9 +299,8 @@ def _run_window(opts: RenderOptions, source: RenderSource) -> int:
             )
             return renderer, initial_camera(scene, opts)
 
-        folder = (
-            opts.out if opts.out is not None and opts.out.is_dir() else None
-        )  # Ctrl+S / Ctrl+R go there
+        # Ctrl+S / Ctrl+R go there
+        folder = opts.out if opts.out is not None and opts.out.is_dir() else None
         app = WindowApp(
             window,
             ctx,

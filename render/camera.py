@@ -152,9 +152,8 @@ class Camera:
             for axis, t in ((0, tx), (1, ty)):
                 lo = np.min((rel[:, axis] - radii * math.hypot(1.0, t)) / depth)
                 hi = np.max((rel[:, axis] + radii * math.hypot(1.0, t)) / depth)
-                middle[axis] += (
-                    (lo + hi) / 2.0 * distance
-                )  # the angular centre, at the target's depth
+                # The angular centre, at the target's depth
+                middle[axis] += (lo + hi) / 2.0 * distance
         rel = local - middle
         distance = float(
             max(

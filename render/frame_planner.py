@@ -66,9 +66,8 @@ def state_key(value, skip: tuple[str, ...] = ()):
     if isinstance(value, np.generic):
         return value.item()
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        if not skip and _frozen(
-            value
-        ):  # settings: their keys are found once (a few hundred fields a frame)
+        # Settings: their keys are found once (a few hundred fields a frame)
+        if not skip and _frozen(value):
             key = _FROZEN_KEYS.get(value)
             if key is None:
                 if len(_FROZEN_KEYS) >= FROZEN_KEYS_KEPT:
@@ -210,9 +209,8 @@ class FramePlanner:
         plan = FramePlan(
             kind, tuple(frame.size), layer_memo=self.layer_memo, layer_version=self.layer_version
         )
-        if (
-            kind == FrameKind.ATOMS_REDRAWN
-        ):  # the cube's pixels: its atoms' as they were and will be
+        # The cube's pixels: its atoms' as they were and will be
+        if kind == FrameKind.ATOMS_REDRAWN:
             plan.redraw = points_rect(frame.cube.corners(), frame.viewproj, frame.size, 2)
         frame.plan = plan
         now: dict[str, object] = {}

@@ -20,8 +20,10 @@ Keys (row 0 is the top row of the image; H x W is the frame size):
                                    a·x + b·y + c·z + d >= 0 is kept; unit normals
 Passes add arrays of their own (Pass.exported_arrays); the lighting
 (render/passes/lighting.py) adds, for what it computed in that frame:
-    shadow_dir      float32 H x W  directional-light visibility 0..1 (1 lit; 0 shadowed or facing away)
-    shadow_probe    float32 H x W  probe-light visibility 0..1 (1 beyond the light's range: not traced)
+    shadow_dir      float32 H x W  directional-light visibility 0..1 (1 lit; 0 shadowed or
+                                   facing away)
+    shadow_probe    float32 H x W  probe-light visibility 0..1 (1 beyond the light's range:
+                                   not traced)
     ao              float32 H x W  ambient accessibility 0..1 (1 unoccluded)
     light_direction float64 (3,)   direction the directional light travels (as --light)
     probe_light     float64 (4,)   probe light position x, y, z and range, Å

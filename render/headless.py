@@ -21,13 +21,11 @@ class RunStats:
     frames: int = 0  # frames rendered
     seconds: float = 0.0
     frame_times: list[float] = field(default_factory=list)
-    video_frames: int = (
-        0  # frames written to a paced video (a late frame fills every slot it covered)
-    )
+    # Frames written to a paced video (a late frame fills every slot it covered)
+    video_frames: int = 0
     interrupted: str | None = None  # "SIGINT" / "SIGTERM" when a signal ended the run early
-    molecule_layer: dict | None = (
-        None  # frame planner: frames that kept the molecule layer / drew it anew
-    )
+    # Frame planner: frames that kept the molecule layer / drew it anew.
+    molecule_layer: dict | None = None
 
     @property
     def median_ms(self) -> float:
@@ -38,7 +36,10 @@ class RunStats:
         return self.frames / self.seconds if self.seconds > 0 else float("nan")
 
     def summary(self) -> str:
-        return f"{self.frames} frame(s) in {self.seconds:.2f} s ({self.fps:.1f} fps, median frame {self.median_ms:.1f} ms)"
+        return (
+            f"{self.frames} frame(s) in {self.seconds:.2f} s "
+            f"({self.fps:.1f} fps, median frame {self.median_ms:.1f} ms)"
+        )
 
     def as_dict(self) -> dict:
         return {
@@ -123,9 +124,8 @@ def run_headless(
             if slots is not None:
                 if stats.frames == 1:
                     video_start = time.perf_counter()  # a large structure's set-up is not filmed
-                covered = int(
-                    (time.perf_counter() - video_start) * pace_fps
-                )  # slots whose start has passed
+                # Slots whose start has passed
+                covered = int((time.perf_counter() - video_start) * pace_fps)
                 n = min(max(1, covered - stats.video_frames), slots - stats.video_frames)
                 for _ in range(n):
                     if image is not None:

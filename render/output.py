@@ -52,7 +52,8 @@ class FrameWriter:
                     h, w = image.shape[:2]
                     if w % 2 or h % 2:
                         raise UserError(
-                            f"--out {self.path}: video frames need an even width and height, got {w}x{h}"
+                            f"--out {self.path}: video frames need an even width and height, "
+                            f"got {w}x{h}"
                         )
                     self._writer = imageio.get_writer(
                         str(self.path),

@@ -21,9 +21,8 @@ from sasprobe.protocol.recording import iter_items, pose_from_record
 class RecordedFrame:
     index: int  # frame k stands for the first pose's time + k/fps (recording clock)
     structure_sha256: str  # the structure in force (the scene's)
-    structure_file: (
-        tuple[str, bytes, bool] | None
-    )  # its name, attached bytes and keep_water (None: not attached)
+    # Its name, attached bytes and keep_water (None: not attached)
+    structure_file: tuple[str, bytes, bool] | None
     scene: dict  # the scene message in force
     pose: Pose  # the newest pose published at or before that moment
 
@@ -139,9 +138,8 @@ def render_recording(
                 camera = initial_camera(scene, opts)
             scene = renderer.scene
             scene.effects.probe_light = apply_scene_message(scene, frame.scene)
-            if frame.scene.get(
-                "color_scheme"
-            ):  # the session's colours, as its renderers showed them
+            # The session's colours, as its renderers showed them
+            if frame.scene.get("color_scheme"):
                 scene.effects.color_scheme = frame.scene["color_scheme"]
             axes = view_axes(frame.scene)
             apply_pose(

@@ -64,10 +64,11 @@ class Renderer:
         # The sas scheme's areas: computed at once (headless), or in the background (a window
         # keeps the previous colours meanwhile).
         self.wait_for_areas = wait_for_areas
+        # What the buffers hold: CPK, as sphere_records writes
         self._color_key: tuple | None = (
             "element",
             None,
-        )  # what the buffers hold: CPK, as sphere_records writes
+        )
         self.targets = RenderTargets(ctx, size)
         self.sphere_pass = sphere_pass(ctx, self.programs, self.buffers, sphere_mode)
         self.planner = FramePlanner(ctx, self.programs) if frame_cache else None

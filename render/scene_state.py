@@ -31,9 +31,8 @@ class Probe:
     center: np.ndarray  # Å, molecule frame
     radius: float = DEFAULT_PROBE_RADIUS
     touched_atom: int = -1
-    goal: np.ndarray | None = (
-        None  # where the device tip maps (Å); differs from `center` in contact
-    )
+    # Where the device tip maps (Å); differs from `center` in contact.
+    goal: np.ndarray | None = None
     force_n: np.ndarray | None = None  # the force on the hand, N, in the molecule frame
     tip_mm: np.ndarray | None = None  # the device tip, mm, device frame (what the hand does)
 
@@ -42,9 +41,8 @@ class Probe:
 class NavCube:
     center: np.ndarray
     half: float  # half the edge, Å
-    axes: np.ndarray = field(
-        default_factory=lambda: np.eye(3)
-    )  # columns: the cube's x, y, z (device axes)
+    # Columns: the cube's x, y, z (device axes)
+    axes: np.ndarray = field(default_factory=lambda: np.eye(3))
 
     def __post_init__(self) -> None:
         self.axes = np.asarray(self.axes, dtype=np.float64).reshape(3, 3)
@@ -117,9 +115,8 @@ class Effects:
     ambient_occlusion: bool = False
     edge_cueing: bool = False
     path_tracing: bool = False
-    color_scheme: str | None = (
-        None  # render/colors.py SCHEMES; None: the default by structure (C key)
-    )
+    # Render/colors.py SCHEMES; None: the default by structure (C key)
+    color_scheme: str | None = None
 
 
 @dataclass

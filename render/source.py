@@ -2,9 +2,9 @@
 
 A source is polled once per frame: `poll()` takes in what has arrived (never blocking),
 `take_new_structure()` hands out a structure once when one (re)appears, `apply(scene)`
-writes the live state (probe, cube, planes, lights) into the SceneState, and
-`readout()` says what the window's text shows. `StaticSource` is a file (nothing
-changes); `render.follow.daemon_source.DaemonSource` follows a running daemon. The base class's methods
+writes the live state (probe, cube, planes, lights) into the SceneState, and `readout()`
+says what the window's text shows. `StaticSource` is a file (nothing changes);
+follow/daemon_source.py's DaemonSource follows a running daemon. The base class's methods
 are the defaults of a source that has nothing live.
 """
 
@@ -70,7 +70,8 @@ class RenderSource(abc.ABC):
         return None, None
 
     def view_axes(self):
-        """The workspace view's axes (3 x 3, columns) as the daemon has them; None without a daemon."""
+        """The workspace view's axes (3 x 3, columns) as the daemon has them; None without a
+        daemon."""
         return None
 
     def lost_for_s(self) -> float:

@@ -105,9 +105,8 @@ class WorkspaceView:
         self.zoom = 1.0
         self.send_view = send_view  # None: nobody to tell (standalone), the turn stays local
         self._clock = clock
-        self._turning: np.ndarray | None = (
-            None  # axes sent (or to send) that the daemon has not shown yet
-        )
+        # Axes sent (or to send) that the daemon has not shown yet.
+        self._turning: np.ndarray | None = None
         self._last_sent = -math.inf
         self._local_axes: np.ndarray | None = None  # standalone: the turn itself
 

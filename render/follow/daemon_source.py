@@ -164,7 +164,8 @@ class DaemonSource(RenderSource):
         return time.monotonic() - self._last_data < STALE_S
 
     def lost_for_s(self) -> float:
-        """Seconds since a daemon that was sending stopped (0 while it sends or before it ever did)."""
+        """Seconds since a daemon that was sending stopped (0 while it sends, or before it ever
+        did)."""
         return (
             0.0
             if not self._ever_connected or self.connected
@@ -176,13 +177,11 @@ class DaemonSource(RenderSource):
         state, pose = self.subscriber.scene, self.subscriber.pose
         if state is not None:
             probe_light = apply_scene_message(scene, state)
-            if (
-                probe_light != self._daemon_probe_light
-            ):  # follow the daemon's changes; keys still toggle
+            # Follow the daemon's changes; keys still toggle
+            if probe_light != self._daemon_probe_light:
                 scene.effects.probe_light = self._daemon_probe_light = probe_light
-            scheme = state.get(
-                "color_scheme"
-            )  # null: every renderer keeps its own (--color, or its default)
+            # Null: every renderer keeps its own (--color, or its default)
+            scheme = state.get("color_scheme")
             if scheme is not None and scheme != self._daemon_scheme:
                 scene.effects.color_scheme = self._daemon_scheme = scheme
         if pose is not None:

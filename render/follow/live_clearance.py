@@ -34,9 +34,8 @@ class LiveClearance:
         self.bottleneck_A: float | None = None
         self._last: np.ndarray | None = None  # the last pose position taken in
         self._evaluated: np.ndarray | None = None  # the last position evaluated
-        self._run: tuple[float, float | None] | None = (
-            None  # (travel, narrowest contact passage) of a bounded run
-        )
+        # (travel, narrowest contact passage) of a bounded run.
+        self._run: tuple[float, float | None] | None = None
 
     def update(self, structure, probe_radius_A: float, poses: list) -> None:
         """Take in the poses of one poll (oldest first)."""

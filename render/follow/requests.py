@@ -21,9 +21,8 @@ COALESCED = frozenset({"view"})  # only the newest one matters
 class RequestSender:
     def __init__(self, ctl_endpoint: str, keys=None) -> None:
         self.endpoint = ctl_endpoint
-        self.keys = (
-            keys  # protocol.security.ClientKeys of a keyed daemon; None: as ControlClient defaults
-        )
+        # Protocol.security.ClientKeys of a keyed daemon; None: as ControlClient defaults.
+        self.keys = keys
         self._queue: deque[tuple[str, dict]] = deque()
         self._wake = threading.Condition()
         self._closed = False

@@ -28,7 +28,8 @@ def check_version(ctx) -> None:
     if ctx.version_code < REQUIRED_GL:
         info = ctx.info
         raise GLUnavailable(
-            f"OpenGL {REQUIRED_GL_TEXT} core is required, but {info.get('GL_RENDERER', 'this driver')} "
+            f"OpenGL {REQUIRED_GL_TEXT} core is required, but "
+            f"{info.get('GL_RENDERER', 'this driver')} "
             f"offers only {info.get('GL_VERSION', ctx.version_code)}"
         )
 
@@ -75,7 +76,8 @@ def create_window(size: tuple[int, int], title: str):
     if not window:
         glfw.terminate()
         raise GLUnavailable(
-            f"cannot open a window with an OpenGL {REQUIRED_GL_TEXT} core context on this display; use --headless"
+            f"cannot open a window with an OpenGL {REQUIRED_GL_TEXT} core context on this display; "
+            "use --headless"
         )
     glfw.make_context_current(window)
     glfw.swap_interval(0)

@@ -55,9 +55,8 @@ class RenderTargets:
         self.gbuffer_fbo = ctx.framebuffer(
             [self.albedo, self.position, self.normal, self.ids], self.depth
         )
-        self.ids_fbo = ctx.framebuffer(
-            [self.ids]
-        )  # the clear pass's: ids cannot take a float clear
+        # The clear pass's: ids cannot take a float clear
+        self.ids_fbo = ctx.framebuffer([self.ids])
         self.visibility_fbo = ctx.framebuffer([self.visibility])
         # Forward passes after lighting (the cube wire) test against the G-buffer depth.
         self.lit_fbo = ctx.framebuffer([self.lit], self.depth)

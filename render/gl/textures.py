@@ -136,7 +136,8 @@ def read_texture(tex, top_first: bool = False) -> np.ndarray:
 
 
 def read_image(fbo, size: tuple[int, int]) -> np.ndarray:
-    """A framebuffer's colour as H x W x 3 uint8, row 0 = top (the window's screen, or an offscreen target)."""
+    """A framebuffer's colour as H x W x 3 uint8, row 0 = top (the window's screen, or an
+    offscreen target)."""
     w, h = size
     data = np.frombuffer(fbo.read(viewport=(0, 0, w, h), components=3), dtype=np.uint8)
     return data.reshape(h, w, 3)[::-1].copy()

@@ -25,9 +25,8 @@ class Culling:
 
     clip_planes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     nav_cube: tuple[np.ndarray, float] | None = None  # centre (Å), half edge (Å)
-    _found: dict = field(
-        default_factory=dict, init=False, repr=False, compare=False
-    )  # uniforms, cuts
+    # Uniforms, cuts
+    _found: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         planes = np.asarray(self.clip_planes, dtype=np.float64).reshape(-1, 4)

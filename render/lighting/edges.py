@@ -15,7 +15,8 @@ class EdgeCueingProgram(ComputeProgram):
         super().__init__(ctx, "edge_cueing.comp")
 
     def compute(self, gbuffer: GBuffer, view, proj, settings: EdgeCueing, out=None, rect=None):
-        """The factor texture; `rect` (x, y, width, height) recomputes only those pixels of `out`."""
+        """The factor texture; `rect` (x, y, width, height) recomputes only those pixels of
+        `out`."""
         width, height = gbuffer.size
         out = out or texture_2d(self.ctx, width, height)
         x, y, w, h = rect if rect is not None else (0, 0, width, height)

@@ -2,11 +2,11 @@
 (render/gl/targets.py), or made here for tests and benchmarks (uploaded from arrays, or
 ray cast through the grid by RaycastGBuffer).
 
-| unit | layer | format | content |
-|---|---|---|---|
-| 0 | position | rgba32f | world position (Å) |
-| 1 | normal | rgba32f | unit world normal (a cap carries its plane's outward normal) |
-| 2 | ids | rg32i | (atom index, kind): atom ATOM_BACKGROUND (-1), ATOM_PROBE (-2); kind KIND_* (render/gl/targets.py) |
+    unit  layer     format   content
+    0     position  rgba32f  world position (Å)
+    1     normal    rgba32f  unit world normal (a cap carries its plane's outward normal)
+    2     ids       rg32i    (atom index, kind): atom ATOM_BACKGROUND (-1), ATOM_PROBE (-2);
+                             kind KIND_* (render/gl/targets.py)
 
 Row 0 of a texture is the bottom image row (GL); `download()` returns arrays in that order.
 """
@@ -35,9 +35,8 @@ class GBuffer:
     normal: object
     ids: object
     owned: bool = True  # False: the renderer's targets (released by it)
-    depth: object = (
-        None  # the renderer's depth texture (1 on background pixels), where there is one
-    )
+    # The renderer's depth texture (1 on background pixels), where there is one.
+    depth: object = None
 
     @property
     def size(self) -> tuple[int, int]:

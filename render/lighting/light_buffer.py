@@ -45,27 +45,28 @@ def cell_cones(face_cells: int = FACE_CELLS) -> np.ndarray:
     mids = 0.5 * (edges[:-1] + edges[1:])
     out = np.empty((6, n, n, 4))
     for face in range(6):
-        axis, sign = face // 2, (-1.0 if face % 2 else 1.0)
-
-        def direction(s, t):
-            v = np.zeros(np.broadcast(s, t).shape + (3,))
-            v[..., axis] = sign
-            v[..., (axis + 1) % 3] = s
-            v[..., (axis + 2) % 3] = t
-            return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
         jj, ii = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
-        centre = direction(mids[ii], mids[jj])
+        centre = _face_direction(face, mids[ii], mids[jj])
         half = np.zeros((n, n))
         for di in (0, 1):
             for dj in (0, 1):
-                corner = direction(edges[ii + di], edges[jj + dj])
+                corner = _face_direction(face, edges[ii + di], edges[jj + dj])
                 half = np.maximum(
                     half, np.arccos(np.clip(np.sum(corner * centre, axis=-1), -1.0, 1.0))
                 )
         out[face, ..., :3] = centre
         out[face, ..., 3] = half
     return out.reshape(-1, 4)
+
+
+def _face_direction(face: int, s, t) -> np.ndarray:
+    """Unit directions through the points (s, t) of a cube face (as cell_cones numbers them)."""
+    axis, sign = face // 2, (-1.0 if face % 2 else 1.0)
+    v = np.zeros(np.broadcast(s, t).shape + (3,))
+    v[..., axis] = sign
+    v[..., (axis + 1) % 3] = s
+    v[..., (axis + 2) % 3] = t
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 class PointLightBuffer:
@@ -83,18 +84,17 @@ class PointLightBuffer:
         self.cell_half = half
         cell_terms = np.column_stack([cones[:, :3], -np.cos(half), np.sin(half)]).astype(np.float32)
         self.face_terms = cell_terms.reshape(6, self.face_cells**2, 5)  # each face's cells
+        # (lo, hi, atoms)
         self._nearby = (
             np.full(3, np.inf),
             np.full(3, -np.inf),
             np.empty(0, dtype=np.int64),
-        )  # (lo, hi, atoms)
-        self.starts = np.zeros(
-            self.n_cells + 1, dtype=np.int32
-        )  # cell c lists entries starts[c] .. starts[c + 1]
+        )
+        # Cell c lists entries starts[c] .. starts[c + 1]
+        self.starts = np.zeros(self.n_cells + 1, dtype=np.int32)
         self.list_spheres = table_image(self.ctx, None, np.zeros((1, 4), dtype=np.float32))
-        self.list_atoms = table_image(
-            self.ctx, None, self.starts, "i4"
-        )  # the starts, then the entries' atoms
+        # The starts, then the entries' atoms
+        self.list_atoms = table_image(self.ctx, None, self.starts, "i4")
         self.key: tuple | None = None
         self.centre = np.zeros(3)  # where the lists were built for
         self.last_position = np.zeros(3)  # the light the lists were last asked for
@@ -151,9 +151,8 @@ class PointLightBuffer:
         # of its axis): most atoms' cones are narrow and meet one face or two. (Products of
         # 64 x a few hundred x 5 stay on the calling thread in OpenBLAS, and `sasprobe` runs
         # it with one thread: its idle threads would spin after each.)
-        atom_terms = np.column_stack([axes, np.cos(half), np.sin(half)]).astype(
-            np.float32
-        )  # the margins hold float32
+        # The margins hold float32
+        atom_terms = np.column_stack([axes, np.cos(half), np.sin(half)]).astype(np.float32)
         near_face = np.cos(np.minimum(half + FACE_HALF + ANGLE_MARGIN, np.pi))
         wide = half + self.cell_half.max() >= np.pi  # a few at most, the light among them
         per_cell, entries = [], []
@@ -212,9 +211,8 @@ class PointLightBuffer:
 
 
 # ------------------------------------------------------------------ the directional light
-SUN_CELL = (
-    2.0  # Å: the directional buffer's cells across the light (finer: more entries, shorter lists)
-)
+# Å: the directional buffer's cells across the light (finer: more entries, shorter lists)
+SUN_CELL = 2.0
 MAX_SUN_CELLS = 65535  # cell ids fit in uint16, which numpy sorts by radix
 BINDING_SUN_START, IMAGE_SUN_SPHERES, IMAGE_SUN_ATOMS = 19, 6, 7  # shaders/sun_buffer.glsl
 

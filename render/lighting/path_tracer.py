@@ -17,6 +17,7 @@ from sasprobe.render.lighting.settings import (
     ray_epsilon_uniforms,
 )
 
+DEFAULT_TRACING = PathTracing()
 BINDING_MATERIALS = 5
 
 
@@ -48,7 +49,7 @@ class PathTracer(ProgressiveProgram):
         eye,
         sun: DirectionalLight | None,
         probe_light: PointLight | None,
-        settings: PathTracing = PathTracing(),
+        settings: PathTracing = DEFAULT_TRACING,
     ):
         self.materials.bind_to_storage_buffer(BINDING_MATERIALS)
         return self.add_samples(

@@ -53,16 +53,14 @@ class ShadingSettings:
     directional_intensity: float = 0.75
     probe_intensity: float = 1.0
     probe_attenuation: tuple[float, float, float] = DEFAULT_PROBE_ATTENUATION
-    probe_range: float = (
-        DEFAULT_PROBE_RANGE  # Å: the probe light is windowed to 0 here (shadows are traced inside)
-    )
+    # Å: the probe light is windowed to 0 here (shadows are traced inside)
+    probe_range: float = DEFAULT_PROBE_RANGE
     shininess: float = 40.0
     specular: float = 0.25
     background: tuple[float, float, float] = (0.08, 0.09, 0.11)
     highlight: tuple[float, float, float] = (0.1, 1.0, 0.5)  # mint: no CPK element looks like it
-    ao_power: float = (
-        1.0  # the ambient term takes accessibility ** ao_power (> 1: stronger occlusion)
-    )
+    # The ambient term takes accessibility ** ao_power (> 1: stronger occlusion)
+    ao_power: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -72,9 +70,8 @@ class PointLight:
     position: tuple[float, float, float]
     radius: float = DEFAULT_PROBE_RANGE
     intensity: float = 1.0
-    attenuation: tuple[float, float, float] = (
-        DEFAULT_PROBE_ATTENUATION  # constant, linear, quadratic
-    )
+    # Constant, linear, quadratic.
+    attenuation: tuple[float, float, float] = DEFAULT_PROBE_ATTENUATION
 
 
 def probe_falloff(distance, light: PointLight):
@@ -176,7 +173,8 @@ class AOSettings:
         for name, (lo, hi) in (("patch", PATCH_RANGE), ("directions", DIRECTION_RANGE)):
             if not lo <= getattr(self, name) <= hi:
                 raise ValueError(
-                    f"precomputed AO uses {lo} to {hi} {'texels a patch side' if name == 'patch' else name}"
+                    f"precomputed AO uses {lo} to {hi} "
+                    f"{'texels a patch side' if name == 'patch' else name}"
                 )
 
 
@@ -225,16 +223,18 @@ class PathTracing:
             raise ValueError(f"path tracing uses 0 to {MAX_BOUNCES} bounces")
 
 
+# Per pixel before a headless frame is written
 HEADLESS_SAMPLES = {
     "reference": 256,
     "path_tracing": 64,
-}  # per pixel before a headless frame is written
+}
+# Precomputed: the sun's from the occlusion atlas
 SHADOW_MODES = (
     "off",
     "hard",
     "soft",
     "precomputed",
-)  # precomputed: the sun's from the occlusion atlas
+)
 EDGE_MODES = ("off", "lines", "halos", "both")
 
 
@@ -243,18 +243,16 @@ class LightingSettings:
     """What the renderer's lighting computes (render/passes/lighting.py). The scene's
     Effects switch each effect on and off at run time (window keys); these say how."""
 
-    shadows: str = (
-        "hard"  # off, hard, soft, precomputed (the initial state of the window's S and V keys)
-    )
+    # Off, hard, soft, precomputed (the initial state of the window's S and V keys)
+    shadows: str = "hard"
     soft: SoftShadow = SoftShadow()
     ao: AOSettings = AOSettings()  # mode "off": AO starts switched off (A key; then analytic)
     edges: str = "off"  # off, lines, halos, both
     edge_cueing: EdgeCueing = EdgeCueing(contours=True, halos=True)
     path_tracing: bool = False
     path_tracer: PathTracing = PathTracing()
-    samples: int = (
-        0  # progressive effects accumulate this many samples per pixel before a frame is shown
-    )
+    # Progressive effects accumulate this many samples per pixel before a frame is shown.
+    samples: int = 0
 
     def __post_init__(self) -> None:
         if self.shadows not in SHADOW_MODES:

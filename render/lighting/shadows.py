@@ -88,7 +88,8 @@ class ShadowTracer:
         if soft.outer > self.grid.max_shell + 1e-9:
             raise ValueError(
                 f"soft-shadow outer radius +{soft.outer:g} Å exceeds the grid's expansion "
-                f"({self.grid.max_shell:g} Å, the probe radius): shells would be cut at cell borders"
+                f"({self.grid.max_shell:g} Å, the probe radius): "
+                "shells would be cut at cell borders"
             )
         point = isinstance(light, PointLight)
         buffered = point and self.light_buffer is not None

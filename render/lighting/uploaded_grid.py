@@ -6,12 +6,12 @@ probe, the grid the daemon uses) as std430 shader-storage buffers, and the per-a
 tables as images (render/gl/textures.py table_image: llvmpipe reads an image far faster
 than a storage buffer):
 
-| binding | buffer / image | layout |
-|---|---|---|
-| buffer 0 | cell_start | uint32[n_cells + 1], CSR offsets |
-| buffer 1 | cell_atoms | uint32[], sphere indices per cell |
-| image 4 | spheres | rgba32f per atom: centre (Å, float32), van der Waals radius |
-| image 5 | culled | r32ui per atom, flags: bit 0 = nothing of the atom is kept (it casts no shadow and occludes nothing); bit 1 = its centre is clipped away (analytic AO skips it) |
+    buffer 0  cell_start  uint32[n_cells + 1], CSR offsets
+    buffer 1  cell_atoms  uint32[], sphere indices per cell
+    image 4   spheres     rgba32f per atom: centre (Å, float32), van der Waals radius
+    image 5   culled      r32ui per atom, flags: bit 0 = nothing of the atom is kept (it casts
+                          no shadow and occludes nothing); bit 1 = its centre is clipped away
+                          (analytic AO skips it)
 
 `culled` is rewritten (n_atoms × 4 bytes) whenever a clip plane or the cube moves; the rest
 stays until the molecule changes. Shaders read them through shaders/grid_traversal.glsl.
@@ -52,7 +52,8 @@ class UploadedGrid:
         self.vdw_radii = vdw_radii
         # Thickest soft-shadow shell the grid still holds: the smallest expansion.
         self.max_shell = float(np.min(grid.radii - vdw_radii))
-        # each atom's centre and vdW radius as the shaders read them (the light buffers list rows of it)
+        # Each atom's centre and vdW radius as the shaders read them (the light buffers list
+        # rows of it).
         self.sphere_rows = np.column_stack([grid.centers, vdw_radii]).astype(np.float32)
         # Zero-length buffers cannot be created; an all-empty grid still gets one entry.
         atoms = grid.cell_atoms if grid.cell_atoms.size else np.zeros(1, dtype=np.uint32)
@@ -67,13 +68,13 @@ class UploadedGrid:
         self.probe_sphere = NO_PROBE
         self.probe_reach = UNBOUNDED
         self._sun_buffer: DirectionalLightBuffer | None = None  # see sun_buffer()
-        self.culling_version = (
-            0  # counts set_culling calls (what depends on the culled flags follows it)
-        )
+        # Counts set_culling calls (what depends on the culled flags follows it)
+        self.culling_version = 0
+        # (culling version, the uniforms that follow it)
         self._uniforms: tuple[int, dict] = (
             -1,
             {},
-        )  # (culling version, the uniforms that follow it)
+        )
 
     @classmethod
     def from_structure(
@@ -179,7 +180,8 @@ def walk_rays_on_gpu(
     max_visits: int = 256,
     walk_range: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> GridWalks:
-    """Test hook: walk rays o + t d through the grid with the shaders' DDA (grid_walk_probe.comp)."""
+    """Test hook: walk rays o + t d through the grid with the shaders' DDA
+    (grid_walk_probe.comp)."""
     from sasprobe.render.gl.programs import source
     from sasprobe.render.gl.uniforms import apply_uniforms
 

@@ -41,9 +41,8 @@ class BackbonePass(Pass):
         ctx = frame.ctx
         apply_uniforms(self.prog, frame.raster_camera_uniforms())
         apply_uniforms(self.prog, line_width_uniforms(frame, TRACE_RADIUS, MIN_WIDTH_PX))
-        apply_planes(
-            self.prog, frame.context_planes
-        )  # the probe plane cuts atoms: the trace never hides the probe
+        # The probe plane cuts atoms: the trace never hides the probe
+        apply_planes(self.prog, frame.context_planes)
         apply_uniforms(self.prog, cube_uniforms(frame.cube))
         apply_uniforms(
             self.prog, {"u_cube_enabled": int(frame.cube is not None), "u_cube_window": 1}
@@ -64,10 +63,11 @@ def cube_uniforms(cube) -> dict:
             "u_cube": (0.0, 0.0, 0.0, 0.0),
             "u_cube_axes": np.eye(3, dtype=np.float32).tobytes(),
         }
+    # Column-major
     return {
         "u_cube": (*map(float, cube.center), float(cube.half)),
         "u_cube_axes": np.ascontiguousarray(cube.axes.T, dtype=np.float32).tobytes(),
-    }  # column-major
+    }
 
 
 def line_width_uniforms(frame: Frame, radius: float, min_width_px: float) -> dict:

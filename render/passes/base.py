@@ -19,8 +19,8 @@ from sasprobe.render.scene_state import NavCube, SceneState
 @dataclass
 class ProbeLightTrace:
     """The probe light's shadow rays for the shading pass to trace itself, per pixel
-    (shaders/shading_traced.frag): the ShadowPass whose buffers it binds, and the program's
-    cases (#defines) and uniforms (ShadowPass.prepared; the grid's are added)."""
+    (shaders/shading_traced.frag): the ShadowTracer whose buffers it binds, and the program's
+    cases (#defines) and uniforms (ShadowTracer.prepared; the grid's are added)."""
 
     shadows: object
     cases: tuple
@@ -53,21 +53,17 @@ class Frame:
     view: np.ndarray  # 4x4 float64
     proj: np.ndarray  # 4x4 float64
     planes: np.ndarray  # N x 4: user planes (+ probe plane) in effect
-    context_planes: (
-        np.ndarray
-    )  # N x 4: the user planes in effect (the trace's: the probe plane cuts atoms only)
+    # N x 4: the user planes in effect (the trace's: the probe plane cuts atoms only)
+    context_planes: np.ndarray
     cube: NavCube | None  # the navigation cube in effect
     output_fbo: object  # where the final image goes
-    light_direction: (
-        np.ndarray
-    )  # where the directional light travels (molecule frame), for this camera
+    # Where the directional light travels (molecule frame), for this camera
+    light_direction: np.ndarray
     index: int = 0  # frame number
-    plan: FramePlan = field(
-        default_factory=FramePlan
-    )  # what this frame redraws (render/frame_planner.py)
-    probe_lighting: ProbeLighting = field(
-        default_factory=ProbeLighting
-    )  # the lighting's, for the shading pass
+    # What this frame redraws (render/frame_planner.py)
+    plan: FramePlan = field(default_factory=FramePlan)
+    # The lighting's, for the shading pass
+    probe_lighting: ProbeLighting = field(default_factory=ProbeLighting)
     # What several passes ask of the frame, found once (the camera and the probe hold
     # still within a frame): the view-projection, the camera's basis, the probe's rectangles.
     _found: dict = field(default_factory=dict, repr=False)
@@ -88,7 +84,8 @@ class Frame:
         return self._found["basis"]
 
     def probe_rect(self, radius: float | None = None):
-        """Pixels the probe (or a sphere of `radius` around its centre) can cover; None without a probe."""
+        """Pixels the probe (or a sphere of `radius` around its centre) can cover; None without
+        a probe."""
         probe = self.scene.probe
         if probe is None:
             return None
@@ -206,7 +203,7 @@ class Pass:
         return True
 
     def footprint(self, frame: Frame) -> dict:
-        """{name: rectangle, None or EVERYWHERE} of this frame (on frames whose pictures are kept)."""
+        """{name: rectangle, None or EVERYWHERE} of this frame (on layered frames)."""
         return {}
 
     def run(self, frame: Frame) -> None:  # pragma: no cover - abstract

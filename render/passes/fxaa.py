@@ -95,9 +95,8 @@ class FxaaPass(Pass):
             if "u_color" in vao.program:
                 vao.program["u_color"].value = 0
         self.near_surfaces = NearSurfaces(ctx, programs)
-        self._depth_tested = DepthTestedTarget(
-            ctx
-        )  # the kept picture tested against the near-surface mask
+        # The kept picture tested against the near-surface mask
+        self._depth_tested = DepthTestedTarget(ctx)
 
     def run(self, frame: Frame) -> None:
         ctx, t = frame.ctx, frame.targets

@@ -246,11 +246,12 @@ class LightingPass(Pass):
             )
             return visibility
         area = frame.terms_rect()
+        # 1 beyond the area: there the picture shows no atom
         out = (
             self.textures.fill(name, frame.size, 1.0)
             if area != full_rect(frame.size)
             else self.textures.get(name, frame.size)
-        )  # 1 beyond the area: there the picture shows no atom
+        )
         return self.shadows.trace(gbuffer, sun, self._soft(frame), out=out, rect=area)
 
     def _precomputed(self, frame: Frame) -> bool:

@@ -46,7 +46,8 @@ class NavCubePass(Pass):
         fbo.use()
         ctx.enable_only(ctx.DEPTH_TEST)
         ctx.depth_func = "<="
-        fbo.depth_mask = False  # tested against, never written: the G-buffer's depth outlives the frame (frame cache)
+        # Tested against, never written: the G-buffer's depth outlives the frame (frame cache).
+        fbo.depth_mask = False
         try:
             self.vao.render(ctx.LINES, vertices=24)
         finally:

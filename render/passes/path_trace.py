@@ -51,9 +51,8 @@ class PathTracePass(Pass):
         self.output.run(*frame.size, {})
 
     def footprint(self, frame: Frame) -> dict:
-        return {
-            OVERLAY: EVERYWHERE
-        }  # it replaces the lit picture, adding samples: every pixel may change
+        # It replaces the lit picture, adding samples: every pixel may change
+        return {OVERLAY: EVERYWHERE}
 
     def release(self) -> None:
         self.output.release()

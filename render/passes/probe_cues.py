@@ -27,11 +27,12 @@ from sasprobe.render.rects import ndc_rect, points_rect, union_rect
 
 OUTLINE_COLOR = (1.0, 0.85, 0.3)
 GHOST_COLOR = (0.55, 0.8, 1.0)
+# Low, up to continuous, above
 FORCE_COLORS = (
     (0.35, 0.95, 0.45),
     (1.0, 0.85, 0.2),
     (1.0, 0.3, 0.25),
-)  # low, up to continuous, above
+)
 LINE_WIDTH_PX = 2.0
 DRAWN_MARGIN_PX = 3  # around the lines' points: half the line width and a pixel of rounding
 CIRCLE_SEGMENTS = 48
@@ -174,9 +175,8 @@ class ProbeCuesPass(Pass):
         ctx.depth_func = ">"  # only where something nearer than the probe's rim covers it
         self._draw(*outline)
         apply_uniforms(self.lines, {"u_hidden_only": 0})
-        ctx.disable(
-            ctx.DEPTH_TEST
-        )  # the rest shows through: the tip is inside the surface in contact
+        # The rest shows through: the tip is inside the surface in contact
+        ctx.disable(ctx.DEPTH_TEST)
         for line in lines:
             self._draw(*line)
         if arrow is not None:

@@ -6,9 +6,9 @@ which this pass then traces itself (shaders/shading_traced.frag).
 On layered frames the shaded picture is kept and the pass shades again only the plan's
 regions. Its footprint is the probe's pixels, the touched atom and the atoms within the
 probe light's range (beyond it the probe changes nothing: its light and its share of the AO
-are windowed to 0), and of the background the probe's pixels and halos. Surfaces and
-background are two draws over the pixels a depth test picks (render/gl/depth_picked.py), so
-llvmpipe never runs the surfaces' six fetches for a background pixel.
+are windowed to 0), and of the background the probe's pixels. Surfaces and background are
+two draws over the pixels a depth test picks (render/gl/depth_picked.py), so llvmpipe never
+runs the surfaces' six fetches for a background pixel.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from sasprobe.render.passes.base import Frame, Pass, ProbeLighting
 from sasprobe.render.passes.probe import PROBE_COLOR
 from sasprobe.render.rects import intersect_rect, sphere_rect, subtract_rect, union_rect
 
+# Units 0..5
 TEXTURES = (
     "u_albedo",
     "u_position",
@@ -28,13 +29,14 @@ TEXTURES = (
     "u_ids",
     "u_visibility",
     "u_probe_visibility",
-)  # units 0..5
+)
+# Image units (shaders/shading.glsl)
 GBUFFER_IMAGES = {
     0: "position",
     1: "normal",
     6: "visibility",
     7: "ids",
-}  # image units (shaders/shading.glsl)
+}
 
 
 class ShadingPass(Pass):
@@ -87,9 +89,8 @@ class ShadingPass(Pass):
         vao, background = self._vao(lit), self._vao(None)
         apply_uniforms(background.program, {"u_background": s.background})
         traced = {}
-        if (
-            lit.traced is not None
-        ):  # its buffers bound again: passes since the lighting bound others
+        # Its buffers bound again: passes since the lighting bound others
+        if lit.traced is not None:
             lit.traced.shadows.bind()
             for unit, tex in GBUFFER_IMAGES.items():  # shading_traced.frag reads these as images
                 getattr(t, tex).bind_to_image(unit, read=True, write=False)

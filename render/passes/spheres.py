@@ -98,7 +98,10 @@ def uv_sphere(slices: int = 18, stacks: int = 19) -> tuple[np.ndarray, np.ndarra
     verts.append((0.0, -1.0, 0.0))
     bottom = len(verts) - 1
     tris = []
-    ring = lambda i, j: 1 + (i - 1) * slices + (j % slices)  # noqa: E731
+
+    def ring(i, j):  # vertex index of ring i (1 .. stacks - 1), slice j
+        return 1 + (i - 1) * slices + (j % slices)
+
     for j in range(slices):
         tris.append((0, ring(1, j + 1), ring(1, j)))
         tris.append((bottom, ring(stacks - 1, j), ring(stacks - 1, j + 1)))

@@ -1,5 +1,5 @@
 // The probe's share of an atom pixel's light on a layered frame (the frame cache,
-// render/passes/lighting_layers.py): the molecule's terms are kept without the probe, and
+// render/passes/lighting.py): the molecule's terms are kept without the probe, and
 // here the probe's are taken in, as the whole frame's trace takes the probe among the
 // occluders —
 // - its shadow of the sun: the minimum of the molecule's visibility and the probe

@@ -5,7 +5,7 @@
 // into its term.
 //
 // The terms as given: on whole frames as traced, the probe among the occluders; on layered
-// frames (the frame cache: render/passes/lighting_layers.py) the molecule's own, computed
+// frames (the frame cache: render/passes/lighting.py) the molecule's own, computed
 // without the probe. There the buffer keeps the molecule's terms, under the probe too: the
 // shading pass colours the probe's own pixels without them, and takes what the probe does
 // to the atoms' pixels — its shadow of the sun, its share of the AO (probe_share.glsl) —

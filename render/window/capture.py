@@ -103,6 +103,7 @@ def atom_label(structure: Structure, atom: int, sas_area: float) -> str:
     s = structure
     number = f"{int(s.residue_numbers[atom])}{s.insertion_codes[atom]}"
     return (
-        f"chain {s.chain_ids[atom]}  {s.residue_names[atom]} {number}  {s.atom_names[atom]} ({s.elements[atom]})"
+        f"chain {s.chain_ids[atom]}  {s.residue_names[atom]} {number}  "
+        f"{s.atom_names[atom]} ({s.elements[atom]})"
         f"  SAS {sas_area:.1f} Å²"
     )

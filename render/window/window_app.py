@@ -132,9 +132,8 @@ class WindowApp:
         self.view = WorkspaceView(
             view, send_view=self._send_view if source.follows_daemon else None
         )
-        self._clutch_renewed: float | None = (
-            None  # when the clutch key's lease was last renewed (None: up)
-        )
+        # When the clutch key's lease was last renewed (None: up)
+        self._clutch_renewed: float | None = None
         glfw.set_key_callback(window, self._on_key)
         glfw.set_mouse_button_callback(window, self._on_button)
         glfw.set_cursor_pos_callback(window, self._on_cursor)
@@ -229,7 +228,10 @@ class WindowApp:
         w, h = self.glfw.get_window_size(window)
         x0, y0 = self._last_pos
         self._last_pos = (x, y)
-        ndc = lambda px, py: (2.0 * px / max(w, 1) - 1.0, 1.0 - 2.0 * py / max(h, 1))  # noqa: E731
+
+        def ndc(px, py):
+            return 2.0 * px / max(w, 1) - 1.0, 1.0 - 2.0 * py / max(h, 1)
+
         workspace = self._workspace_camera() is not None
         if self._drag == "rotate" and workspace:
             self.view.turn(self.source.view_axes(), ndc(x0, y0), ndc(x, y))
@@ -411,18 +413,16 @@ class WindowApp:
                 if t0 - last_text > 0.25:
                     text, last_text = self.text(), t0
                 self._draw(size, text)
-                if (
-                    self.capture.wants_frame
-                ):  # what was just drawn: the back buffer, before it is shown
+                # What was just drawn: the back buffer, before it is shown
+                if self.capture.wants_frame:
                     self.capture.take(self._screenshot(size))
                 done = (frames is not None and count + 1 >= frames) or (
                     frames is None
                     and seconds is not None
                     and time.perf_counter() - start >= seconds
                 )
-                if writer is not None and (
-                    done or writer.is_video
-                ):  # PNG: a screenshot of the last frame
+                # PNG: a screenshot of the last frame
+                if writer is not None and (done or writer.is_video):
                     writer.write(self._screenshot(size))
                 glfw.swap_buffers(self.window)
                 self.frame_times.append(time.perf_counter() - t0)
@@ -466,5 +466,8 @@ def force_text(readout: Readout) -> str:
     text = f"force {readout.force_n:.2f} N"
     if readout.continuous_force_n is not None and readout.peak_force_n is not None:
         over = "  ABOVE CONTINUOUS" if readout.force_n > readout.continuous_force_n else ""
-        text += f" (continuous {readout.continuous_force_n:.2f} N, peak {readout.peak_force_n:.2f} N){over}"
+        ratings = (
+            f"continuous {readout.continuous_force_n:.2f} N, peak {readout.peak_force_n:.2f} N"
+        )
+        text += f" ({ratings}){over}"
     return text

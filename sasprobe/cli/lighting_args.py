@@ -51,7 +51,8 @@ def add_lighting_arguments(parser: argparse.ArgumentParser) -> None:
         "--shadows",
         choices=SHADOW_MODES,
         default=None,
-        help=f"shadows of the directional and the probe light, traced through the grid; precomputed: "
+        help="shadows of the directional and the probe light, traced through the grid; "
+        "precomputed: "
         f"the directional light's hard shadows from per-atom patches (for a light fixed in the "
         f"molecule frame) (default {base.shadows})",
     )

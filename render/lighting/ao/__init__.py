@@ -2,15 +2,15 @@
 accessibility texture (r32f, 1 = unoccluded) the shading pass multiplies in, made by the
 method `AOSettings.mode` selects:
 
-| mode | method | per frame |
-|---|---|---|
-| off | none (all 1) | nothing |
-| analytic | Quilez sphere occlusion, K nearest neighbours + probe | K terms per pixel |
-| ssao | screen-space, point or line sampling, bilateral blur | N depth taps per pixel |
-| rt | cosine rays through the grid, `rt_spp` per frame, accumulated while still, blurred while noisy | spp rays |
-| hybrid | analytic × rt | both |
-| reference | rt with `reference_spp` per frame until `reference_total` | until converged |
-| precomputed | QuteMol's per-atom patches (ao/precomputed.py), baked once per structure and culling | one lookup per pixel |
+    off          none (all 1)
+    analytic     Quilez sphere occlusion, K nearest neighbours + probe: K terms per pixel
+    ssao         screen-space, point or line sampling, bilateral blur: N depth taps per pixel
+    rt           cosine rays through the grid, `rt_spp` per frame, accumulated while the view
+                 is still, blurred while noisy
+    hybrid       analytic × rt
+    reference    rt with `reference_spp` per frame until `reference_total`
+    precomputed  QuteMol's per-atom patches (ao/precomputed.py), baked once per structure and
+                 culling: one lookup per pixel
 
 Call `view_changed()` whenever the G-buffer's content changes (camera, molecule, culling,
 probe): accumulation then restarts.
@@ -29,11 +29,12 @@ from sasprobe.render.lighting.ao.ssao import SSAO
 from sasprobe.render.lighting.gbuffer import GBuffer
 from sasprobe.render.lighting.settings import AOSettings
 
+DEFAULT_AO = AOSettings()
 BLUR_BELOW_SPP = 16  # ray-traced AO is blurred until this many samples have accumulated
 
 
 class AmbientOcclusion:
-    def __init__(self, gpu_grid, settings: AOSettings = AOSettings()):
+    def __init__(self, gpu_grid, settings: AOSettings = DEFAULT_AO):
         self.grid = gpu_grid
         self.ctx = gpu_grid.ctx
         self.settings = settings

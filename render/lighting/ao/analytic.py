@@ -35,9 +35,8 @@ class AnalyticAO(ComputeProgram):
     def __init__(self, gpu_grid):
         super().__init__(gpu_grid.ctx, "ao_analytic.comp", gpu_grid)
         n = gpu_grid.n_atoms
-        self.neighbours = np.full(
-            (n, MAX_K), -1, dtype=np.int32
-        )  # the lists found so far, -1 padded
+        # The lists found so far, -1 padded
+        self.neighbours = np.full((n, MAX_K), -1, dtype=np.int32)
         self.found = np.zeros(n, dtype=bool)
         # a table image (textures.table_image's layout), written row by row as lists are found
         self.table = texture_2d(self.ctx, TABLE_ROW, table_rows(n * MAX_K), 1, "i4")
@@ -88,9 +87,8 @@ class AnalyticAO(ComputeProgram):
         if gbuffer.depth is not None:
             whole = (0, 0, width, height)
             if rect is not None and tuple(rect) != whole:
-                self.drawn.run(
-                    out, gbuffer.depth, whole, [], uniforms, clear=1.0
-                )  # 1 beyond the rectangle
+                # 1 beyond the rectangle
+                self.drawn.run(out, gbuffer.depth, whole, [], uniforms, clear=1.0)
             self.drawn.run(
                 out,
                 gbuffer.depth,

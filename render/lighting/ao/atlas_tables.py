@@ -8,7 +8,9 @@ import math
 
 import numpy as np
 
-CLUSTER = 8  # directions side by side in a SIMD pass (llvmpipe's 256-bit vectors): nearby ones skip and stop together
+# Directions side by side in one SIMD pass (llvmpipe's 256-bit vectors): nearby ones skip and
+# stop together.
+CLUSTER = 8
 
 
 def fibonacci_directions(n: int) -> np.ndarray:

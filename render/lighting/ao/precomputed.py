@@ -116,9 +116,8 @@ class OcclusionAtlas:
             shader: ComputeVariants(self.ctx, shader, gpu_grid)  # per case: _variant
             for shader in ("atlas_rays.comp", "atlas_bake.comp", "atlas_lookup.comp")
         }
-        self._drawn_lookup = DepthPickedDraw(
-            self.ctx, "atlas_lookup.frag", gpu_grid
-        )  # the renderer's G-buffer
+        # The renderer's G-buffer
+        self._drawn_lookup = DepthPickedDraw(self.ctx, "atlas_lookup.frag", gpu_grid)
         self.textures = TextureCache(self.ctx)
         self.texture = None  # rgba16f: r accessibility, g directional light, b probe light
         self.atom_slots = None  # int32 buffer: the patch of each atom (-1: culled, none)
@@ -147,7 +146,8 @@ class OcclusionAtlas:
         if max(width, height) > limit or width * height * 4 > MAX_ATLAS_BYTES:
             raise ValueError(
                 f"precomputed AO: {kept.size} patches of {patch}x{patch} texels need a "
-                f"{width}x{height} atlas (limit {limit} texels a side, {MAX_ATLAS_BYTES >> 20} MiB); "
+                f"{width}x{height} atlas "
+                f"(limit {limit} texels a side, {MAX_ATLAS_BYTES >> 20} MiB); "
                 "use a smaller --ao-patch or a navigation cube"
             )
         self._release_layout()
@@ -253,7 +253,9 @@ class OcclusionAtlas:
             math.ceil(self.patch * self.patch / 32),
             math.ceil(directions / 32),
         )
-        per_atom = {  # bytes of each chunk-sized buffer per atom (the candidates and blocked bits: ambient only)
+        # Bytes of each chunk-sized buffer per atom (the candidates and blocked bits: ambient
+        # only).
+        per_atom = {
             7: 4,
             18: texel_words * 4,
             9: directions * MASK_WORDS * 4 if ambient else 0,
@@ -336,9 +338,8 @@ class OcclusionAtlas:
             for first in range(0, int(slots.size), chunk):
                 count = min(chunk, int(slots.size) - first)
                 uniforms = {**common, "u_first_slot": first, "u_chunk_slots": count}
-                self._dispatch(
-                    self.gather, count, uniforms
-                )  # the overlaps: the hidden-texel test needs them
+                # The overlaps: the hidden-texel test needs them
+                self._dispatch(self.gather, count, uniforms)
                 if ambient:  # a work group per atom
                     self._dispatch(self.candidates, count * LOCAL, uniforms)
                     self._dispatch(rays, count * LOCAL, uniforms)
@@ -369,7 +370,8 @@ class OcclusionAtlas:
         return self._tables[1]
 
     def _buffer(self, key, nbytes: int):
-        """The bake's storage for `key` (its binding), at least `nbytes` (made again only to grow)."""
+        """The bake's storage for `key` (its binding), at least `nbytes` (made again only to
+        grow)."""
         buffer = self._scratch.get(key)
         if buffer is None or buffer.size < nbytes:
             if buffer is not None:

@@ -140,10 +140,12 @@ def run(
 def markdown(d: dict, gpu: str | None) -> str:
     w, h = d["size"]
     lines = [
-        f"GL renderer: **{d['gl_renderer']}**; GPU: {gpu or 'none named by nvidia-smi'}; {w}x{h}, medians of "
+        f"GL renderer: **{d['gl_renderer']}**; GPU: {gpu or 'none named by nvidia-smi'}; {w}x{h}, "
+        "medians of "
         f"{d['frames']} frames, cases in turn; {d['wall_s']:.0f} s in all.",
         "",
-        "| structure | atoms | unlit (ms) | default lighting, whole (ms) | session frame (ms) | session fps | "
+        "| structure | atoms | unlit (ms) | default lighting, whole (ms) | session frame (ms) | "
+        "session fps | "
         "session / unlit | whole / session |",
         "|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
@@ -152,17 +154,21 @@ def markdown(d: dict, gpu: str | None) -> str:
         name = r["id"] + (f" + {r['cube_atoms']}-atom cube" if r["cube_atoms"] else " whole")
         s = c["session frame"]
         lines.append(
-            f"| {name} | {r['atoms']} | {c['unlit']['ms']:.2f} | {c['default lighting, whole']['ms']:.2f} | "
-            f"{s['ms']:.2f} | {1e3 / s['ms']:.0f} | {s['over_unlit']:.2f} | {s['full_over_this']:.2f} |"
+            f"| {name} | {r['atoms']} | {c['unlit']['ms']:.2f} | "
+            f"{c['default lighting, whole']['ms']:.2f} | "
+            f"{s['ms']:.2f} | {1e3 / s['ms']:.0f} | {s['over_unlit']:.2f} | "
+            f"{s['full_over_this']:.2f} |"
         )
     lines += [
         "",
-        "| occlusion atlas bake | patches | accessibility alone (s) | light alone (s) | both, one bake (s) |",
+        "| occlusion atlas bake | patches | accessibility alone (s) | light alone (s) | both, one "
+        "bake (s) |",
         "|---|---:|---:|---:|---:|",
     ]
     for b in d["bakes"]:
         lines.append(
-            f"| {b['id']} | {b['patches']} | {b['ambient_s']:.3f} | {b['sun_s']:.3f} | {b['total_s']:.3f} |"
+            f"| {b['id']} | {b['patches']} | {b['ambient_s']:.3f} | {b['sun_s']:.3f} | "
+            f"{b['total_s']:.3f} |"
         )
     if "sessions" in d:
         lines += ["", render_sessions.markdown(d["sessions"])]

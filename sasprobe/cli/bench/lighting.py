@@ -281,10 +281,12 @@ def _checks(scaling, sweep, cube) -> dict:
 def _markdown(d: dict, plan: dict) -> str:
     w, h = d["ao_size"]
     lines = [
-        f"GL renderer: **{d['gl_renderer']}** (no GPU: a CPU rasteriser; absolute times are CPU times, "
+        f"GL renderer: **{d['gl_renderer']}** (no GPU: a CPU rasteriser; absolute times are CPU "
+        "times, "
         "ratios are what carries over). Medians; every ratio comes from the same run.",
         "",
-        f"### Ambient occlusion ({d['ao_structure']}, {w}×{h}, error against ray-traced AO converged at "
+        f"### Ambient occlusion ({d['ao_structure']}, {w}×{h}, error against ray-traced AO "
+        "converged at "
         f"{d['reference_spp']} spp, 8 Å rays; molecule pixels)",
         "",
         "| method | ms / frame | RMSE | max error | bias |",
@@ -297,7 +299,8 @@ def _markdown(d: dict, plan: dict) -> str:
             f"{r['bias']:+.4f} |"
         )
     lines += [
-        f"| path tracing, 1 spp, 3 bounces (for scale) | {d['path_trace_1spp_3_bounces_ms']:.1f} | | | |",
+        f"| path tracing, 1 spp, 3 bounces (for scale) | {d['path_trace_1spp_3_bounces_ms']:.1f} | "
+        "| | |",
         "",
         "Analytic AO against K (too few neighbours): "
         + ", ".join(f"K={r['k']}: RMSE {r['rmse']:.3f}" for r in d["analytic_k"]),
@@ -308,9 +311,11 @@ def _markdown(d: dict, plan: dict) -> str:
             for r in d["noise"]
         ),
         "",
-        "### AO cost against molecule size (equal screen coverage: about half the pixels show atoms)",
+        "### AO cost against molecule size (equal screen coverage: about half the pixels show "
+        "atoms)",
         "",
-        "| structure | atoms | coverage | analytic K=16 (ms) | analytic K=32 (ms) | SSAO (ms) | RT 1 spp (ms) |",
+        "| structure | atoms | coverage | analytic K=16 (ms) | analytic K=32 (ms) | SSAO (ms) | RT "
+        "1 spp (ms) |",
         "|---|---:|---:|---:|---:|---:|---:|",
     ]
     for r in d["ao_scaling"]:
@@ -321,7 +326,8 @@ def _markdown(d: dict, plan: dict) -> str:
     lines += [
         "",
         f"Analytic AO: largest / smallest time {d['analytic_spread']:.2f}; largest deviation from "
-        f"{d['ao_scaling'][0]['structure']} {100 * d['analytic_max_deviation_from_smallest']:.0f} % (target ±20 %).",
+        f"{d['ao_scaling'][0]['structure']} {100 * d['analytic_max_deviation_from_smallest']:.0f} "
+        "% (target ±20 %).",
         "",
         "### Occluders beyond the sampling radius (AO drop a 5 Å ball casts on a sheet under it)",
         "",
@@ -337,7 +343,8 @@ def _markdown(d: dict, plan: dict) -> str:
     sw, sh = d["shadow_size"]
     lines += [
         "",
-        f"### Shadows against cell count ({sw}×{sh}, directional light; last row per structure: one cell = brute force)",
+        f"### Shadows against cell count ({sw}×{sh}, directional light; last row per structure: "
+        "one cell = brute force)",
         "",
         "| structure | atoms | cell (Å) | cells | grid MiB | hard (ms) | soft (ms) | soft / hard |",
         "|---|---:|---:|---:|---:|---:|---:|---:|",
@@ -357,10 +364,12 @@ def _markdown(d: dict, plan: dict) -> str:
         )
     lines += [
         "",
-        f"### Shadows bounded by a {2 * shadow_bench.CUBE_HALF:g} Å navigation cube ({sw}×{sh}, camera framing "
+        f"### Shadows bounded by a {2 * shadow_bench.CUBE_HALF:g} Å navigation cube ({sw}×{sh}, "
+        "camera framing "
         "the cube; whole molecule for contrast; equal screen coverage)",
         "",
-        "| structure | atoms | atoms in cube | coverage | hard (ms) | soft (ms) | whole molecule hard (ms) |",
+        "| structure | atoms | atoms in cube | coverage | hard (ms) | soft (ms) | whole molecule "
+        "hard (ms) |",
         "|---|---:|---:|---:|---:|---:|---:|",
     ]
     for r in d["cube_shadows"]:
@@ -371,8 +380,10 @@ def _markdown(d: dict, plan: dict) -> str:
         )
     lines += [
         "",
-        f"Cube-bounded hard shadows: largest / smallest time {d['cube_spread']:.2f}; largest deviation "
-        f"from {d['cube_shadows'][0]['structure']} {100 * d['cube_max_deviation_from_smallest']:.0f} %.",
+        f"Cube-bounded hard shadows: largest / smallest time {d['cube_spread']:.2f}; largest "
+        "deviation "
+        f"from {d['cube_shadows'][0]['structure']} "
+        f"{100 * d['cube_max_deviation_from_smallest']:.0f} %.",
     ]
     lines += [
         "",

@@ -7,6 +7,7 @@ neighbours, 1-spp noise before and after the blur)."""
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
@@ -24,6 +25,7 @@ from sasprobe.render.lighting.ao import AmbientOcclusion
 from sasprobe.render.lighting.settings import AOSettings
 
 BASE = AOSettings()
+# (patch side, directions); QuteMol: 128 directions
 PRECOMPUTED = (
     (6, 64),
     (8, 32),
@@ -31,7 +33,7 @@ PRECOMPUTED = (
     (12, 64),
     (16, 64),
     (16, 128),
-)  # (patch side, directions); QuteMol: 128 directions
+)
 PRECOMPUTED_SHOWN = f"precomputed {BASE.patch}x{BASE.patch}, {BASE.directions} dirs"
 
 
@@ -123,7 +125,7 @@ def pareto(gl, scene: Scene, ref_spp: int, repeats: int) -> dict:
     seconds = interleaved_times(
         gl,
         {
-            label: (lambda s=settings, a=own.get(label, ao): one_frame(a, scene, s))
+            label: partial(one_frame, own.get(label, ao), scene, settings)
             for label, _, settings in listed
         },
         repeats,
@@ -198,7 +200,8 @@ def pareto_chart(rows: list[dict], path, renderer: str):
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel(
-        "time per frame (ms, median; precomputed: the lookup, its bake once per structure and culling)"
+        "time per frame (ms, median; precomputed: the lookup, its bake once per structure and "
+        "culling)"
     )
     ax.set_ylabel("RMSE vs converged ray-traced AO")
     ax.set_title(f"Ambient occlusion: speed vs accuracy\n({renderer})", fontsize=9)

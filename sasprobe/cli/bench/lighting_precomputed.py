@@ -23,10 +23,11 @@ SUN = np.array([0.45, 0.8, 0.4]) / np.linalg.norm([0.45, 0.8, 0.4])  # towards t
 
 
 CUBE_BAKES = 5  # a cube's bake takes tens of milliseconds: the median of a few
+# Structures below SMALL_ATOMS whole: the median of a few bakes too
 SMALL_BAKES, SMALL_ATOMS = (
     3,
     20_000,
-)  # structures below SMALL_ATOMS whole: the median of a few bakes too
+)
 
 
 def bake_seconds(
@@ -53,9 +54,8 @@ def bake_seconds(
             ambient=True,
             sun_direction=SUN if light else None,
         ):
-            raise RuntimeError(
-                "bake_seconds: the atlas had nothing to bake"
-            )  # a stale time would be reported
+            # A stale time would be reported
+            raise RuntimeError("bake_seconds: the atlas had nothing to bake")
         return atlas.bake_seconds
 
     def bake_round(c: Culling) -> tuple[float | None, float, float | None]:
@@ -73,9 +73,8 @@ def bake_seconds(
         return both, ambient, light
 
     try:
-        bake_round(
-            Culling(nav_cube=(grid.grid.centers[0], 2.0))
-        )  # each kind of bake's programs compiled first
+        # Each kind of bake's programs compiled first
+        bake_round(Culling(nav_cube=(grid.grid.centers[0], 2.0)))
         rounds = []
         for k in range(repeats):
             moved = (
@@ -87,7 +86,10 @@ def bake_seconds(
             )
             rounds.append(bake_round(moved))
         both, ambient, light = ([r[i] for r in rounds if r[i] is not None] for i in range(3))
-        median = lambda values: float(np.median(values)) if values else 0.0  # noqa: E731
+
+        def median(values):
+            return float(np.median(values)) if values else 0.0
+
         ambient_s = median(ambient)
         return {
             "patches": atlas.n_slots,
@@ -148,9 +150,8 @@ def patch_sweep(gl, scene: Scene, patches, repeats: int) -> dict:
         * 1e3
     )
     rows = []
-    atlas = OcclusionAtlas(
-        scene.grid
-    )  # one atlas, its programs compiled by a first bake: the bakes are timed warm
+    # One atlas, its programs compiled by a first bake: the bakes are timed warm
+    atlas = OcclusionAtlas(scene.grid)
     atlas.update(
         patches[0], DEFAULT.directions, DEFAULT.distance, ambient=False, sun_direction=-SUN
     )
@@ -260,30 +261,37 @@ def patch_chart(sweep: dict, path):
 
 def markdown(scaling: list[dict], sweep: dict, structure: str, size) -> str:
     lines = [
-        f"### Precomputed occlusion: bake time ({DEFAULT.patch}x{DEFAULT.patch} texels, {DEFAULT.directions} "
-        f"directions, {DEFAULT.distance:g} Å rays; each channel alone, and both in one bake as at a culling change)",
+        f"### Precomputed occlusion: bake time ({DEFAULT.patch}x{DEFAULT.patch} texels, "
+        f"{DEFAULT.directions} "
+        f"directions, {DEFAULT.distance:g} Å rays; each channel alone, and both in one bake as at "
+        "a culling change)",
         "",
-        "| structure | atoms | patches | accessibility alone (s) | light alone (s) | both, one bake (s) | "
+        "| structure | atoms | patches | accessibility alone (s) | light alone (s) | both, one "
+        "bake (s) | "
         "bakes (median of) |",
         "|---|---:|---:|---:|---:|---:|---:|",
     ]
     for r in scaling:
         lines.append(
-            f"| {r['structure']} | {r['atoms']} | {r['patches']} | {r['ambient_s']:.3f} | {r['sun_s']:.3f} | "
+            f"| {r['structure']} | {r['atoms']} | {r['patches']} | {r['ambient_s']:.3f} | "
+            f"{r['sun_s']:.3f} | "
             f"{r['total_s']:.3f} | {r.get('bakes', 1)} |"
         )
     w, h = size
     lines += [
         "",
-        f"### Precomputed hard shadows against the exact per-pixel shadow ({structure}, {w}×{h}; the "
+        f"### Precomputed hard shadows against the exact per-pixel shadow ({structure}, {w}×{h}; "
+        "the "
         f"per-pixel trace takes {sweep['traced_ms']:.1f} ms a frame)",
         "",
-        "| patch | bake (ms) | lookup (ms / frame) | pixels lit/shadowed wrongly | mean abs. difference |",
+        "| patch | bake (ms) | lookup (ms / frame) | pixels lit/shadowed wrongly | mean abs. "
+        "difference |",
         "|---:|---:|---:|---:|---:|",
     ]
     for r in sweep["rows"]:
         lines.append(
-            f"| {r['patch']} | {r['bake_s'] * 1e3:.1f} | {r['lookup_ms']:.2f} | {100 * r['wrong_class']:.2f} % | "
+            f"| {r['patch']} | {r['bake_s'] * 1e3:.1f} | {r['lookup_ms']:.2f} | "
+            f"{100 * r['wrong_class']:.2f} % | "
             f"{r['mean_abs_error']:.3f} |"
         )
     return "\n".join(lines)

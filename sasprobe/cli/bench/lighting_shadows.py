@@ -238,9 +238,8 @@ def probe_light(gl, structures: list[tuple[str, object]], size, repeats: int) ->
         lamp = PointLight(tuple(probe_on_view(scene)), DEFAULT_PROBE_RANGE)
         walk, listed = ShadowTracer(grid, light_buffer=False), ShadowTracer(grid)
         buffer = listed.light_buffer
-        timed = _walk_against_buffer(
-            gl, scene, lamp, walk, listed, buffer, repeats
-        )  # build: as when the probe moved
+        # Build: as when the probe moved
+        timed = _walk_against_buffer(gl, scene, lamp, walk, listed, buffer, repeats)
         counts = buffer.counts()
         lit = np.linalg.norm(scene.gbuffer.download()[0] - np.asarray(lamp.position), axis=-1)
         rows.append(
@@ -270,9 +269,8 @@ def sun_light(gl, structures: list[tuple[str, object]], size, repeats: int) -> l
         grid = UploadedGrid.from_structure(gl, structure, DEFAULT_PROBE_RADIUS)
         scene = scene_with_coverage(grid, size, COVERAGE)
         walk, listed = ShadowTracer(grid, light_buffer=False), ShadowTracer(grid)
-        timed = _walk_against_buffer(
-            gl, scene, SUN, walk, listed, listed.sun_buffer, repeats
-        )  # build: the light turned
+        # Build: the light turned
+        timed = _walk_against_buffer(gl, scene, SUN, walk, listed, listed.sun_buffer, repeats)
         rows.append(
             {
                 "structure": name,

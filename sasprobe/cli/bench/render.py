@@ -50,7 +50,8 @@ def add_arguments(parser) -> None:
     parser.add_argument(
         "--scenarios-only",
         action="store_true",
-        help="only the session scenarios (haptic session, orbit, drifting cube; PyMOL where installed)",
+        help="only the session scenarios (haptic session, orbit, drifting cube; PyMOL where "
+        "installed)",
     )
     parser.add_argument(
         "--sessions",
@@ -180,7 +181,8 @@ def _atoms_pass_s(renderer, passes: dict[str, float]) -> float:
     name = renderer.sphere_pass.name
     if passes.get(name, 0.0) <= 0.0:
         raise RuntimeError(
-            f"the atoms pass {name!r} did not run in the timed frames (ran: {', '.join(sorted(passes))})"
+            f"the atoms pass {name!r} did not run in the timed frames (ran: "
+            f"{', '.join(sorted(passes))})"
         )
     return passes[name]
 
@@ -245,7 +247,10 @@ def _cube(gl, big, small, size, repeats) -> dict:
     whole, whole_camera = _renderer(gl, small, size)
     # The haptic arm drags the cube: new culling (a grid query) before every frame.
     step = np.array([0.013, -0.007, 0.011])
-    nudge = lambda: setattr(moving_cube, "center", moving_cube.center + step)  # noqa: E731
+
+    def nudge():
+        moving_cube.center = moving_cube.center + step
+
     try:
         (still_s, passes), (moving_s, _), (whole_s, _) = _measure(
             [
@@ -287,17 +292,24 @@ def _chart(path, scaling, renderer_name, size):
 
 def _markdown(d: dict) -> str:
     c = d["cube"]
-    ms = lambda s: f"{s * 1e3:.1f}"  # noqa: E731
+
+    def ms(seconds):
+        return f"{seconds * 1e3:.1f}"
+
     m0 = d["modes"][0]
     lines = [
-        f"GL renderer: **{d['gl_renderer']}**, {d['size'][0]}x{d['size'][1]} unless noted; medians of "
-        f"{d['repeats']} frames (impostors vs meshes: {d['mesh_repeats']}), the GPU drained (glFinish) after "
+        f"GL renderer: **{d['gl_renderer']}**, {d['size'][0]}x{d['size'][1]} unless noted; medians "
+        "of "
+        f"{d['repeats']} frames (impostors vs meshes: {d['mesh_repeats']}), the GPU drained "
+        "(glFinish) after "
         "every pass; the frames of compared cases are taken in turn.",
         "",
-        f"**Impostors vs meshes** ({m0['id']}, {m0['n_atoms']} atoms, mesh = {m0['mesh_triangles_per_atom']} "
+        f"**Impostors vs meshes** ({m0['id']}, {m0['n_atoms']} atoms, mesh = "
+        f"{m0['mesh_triangles_per_atom']} "
         "triangles per atom; atom pass / whole frame, ms):",
         "",
-        "| size | ray-cast quads (default) | ray-cast point sprites | triangle meshes | meshes / quads, atom pass | meshes / quads, frame |",
+        "| size | ray-cast quads (default) | ray-cast point sprites | triangle meshes | meshes / "
+        "quads, atom pass | meshes / quads, frame |",
         "|---|---:|---:|---:|---:|---:|",
     ]
     for m in d["modes"]:
@@ -306,18 +318,22 @@ def _markdown(d: dict) -> str:
             for k in ("quad", "sprite", "mesh")
         )
         lines.append(
-            f"| {m['size'][0]}x{m['size'][1]} | {cells} | **{m['mesh_over_quad_atoms_pass']:.1f}x** | "
+            f"| {m['size'][0]}x{m['size'][1]} | {cells} | "
+            f"**{m['mesh_over_quad_atoms_pass']:.1f}x** | "
             f"{m['mesh_over_quad_frame']:.1f}x |"
         )
     lines += [
         "",
-        f"**Navigation cube** ({c['id']}, {c['n_atoms']} atoms; cube half edge {c['cube_half_A']:.2f} Å holding "
-        f"{c['atoms_in_cube']} atoms; backbone trace elsewhere) against {c['small_id']} ({c['small_atoms']} atoms) drawn whole:",
+        f"**Navigation cube** ({c['id']}, {c['n_atoms']} atoms; cube half edge "
+        f"{c['cube_half_A']:.2f} Å holding "
+        f"{c['atoms_in_cube']} atoms; backbone trace elsewhere) against {c['small_id']} "
+        f"({c['small_atoms']} atoms) drawn whole:",
         "",
         "| scene | frame (ms) | ratio to small whole |",
         "|---|---:|---:|",
         f"| {c['id']}, cube still | {ms(c['frame_s'])} | {c['ratio']:.2f} |",
-        f"| {c['id']}, cube moving (culling every frame) | {ms(c['moving_frame_s'])} | {c['moving_ratio']:.2f} |",
+        f"| {c['id']}, cube moving (culling every frame) | {ms(c['moving_frame_s'])} | "
+        f"{c['moving_ratio']:.2f} |",
         f"| {c['small_id']} whole | {ms(c['small_whole_frame_s'])} | 1.00 |",
         "",
         "**Frame time vs atoms** (whole molecule, auto-fitted camera):",
@@ -327,6 +343,7 @@ def _markdown(d: dict) -> str:
     ]
     for r in d["scaling"]:
         lines.append(
-            f"| {r['id']} | {r['n_atoms']} | {ms(r['spheres_s'])} | {ms(r['frame_s'])} | {1 / r['frame_s']:.1f} |"
+            f"| {r['id']} | {r['n_atoms']} | {ms(r['spheres_s'])} | {ms(r['frame_s'])} | "
+            f"{1 / r['frame_s']:.1f} |"
         )
     return "\n".join(lines)

@@ -20,8 +20,8 @@ cmd.hide("everything")
 cmd.show("spheres")
 cmd.orient()
 cmd.viewport(w, h)
-out = {"version": cmd.get_version()[0], "atoms": cmd.count_atoms("all"), "max_threads": cmd.get("max_threads"),
-       "antialias_default": int(cmd.get("antialias"))}
+out = {"version": cmd.get_version()[0], "atoms": cmd.count_atoms("all"),
+       "max_threads": cmd.get("max_threads"), "antialias_default": int(cmd.get("antialias"))}
 for shadows in (1, 0):
     for antialias in sorted({out["antialias_default"], 0}, reverse=True):
         cmd.set("ray_shadows", shadows)

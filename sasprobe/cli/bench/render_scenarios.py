@@ -25,6 +25,7 @@ stretches of session frames, and is compared with their mean.
 from __future__ import annotations
 
 import statistics
+from functools import partial
 
 import numpy as np
 
@@ -63,11 +64,10 @@ def run_scenarios(gl, by_id, size, frames: int, pymol_repeats: int) -> dict:
     next(steps)
     for sid in session_ids:
         structure = load_structure(by_id[sid].path, keep_water=True)
-        last = (
-            sid == session_ids[-1]
-        )  # 1TII: also PyMOL's ray, and the session as the demo frames it
+        # 1TII: also PyMOL's ray, and the session as the demo frames it
+        last = sid == session_ids[-1]
         peer = (
-            (lambda: pymol_ray(by_id[sid].path, size, pymol_repeats))
+            partial(pymol_ray, by_id[sid].path, size, pymol_repeats)
             if last and pymol_available()
             else None
         )
@@ -132,10 +132,11 @@ def session(gl, structure, size, frames: int, demo_view: bool = False, between=N
         case.step = follow_path(case.renderer.scene, path, with_cube=demo_view)
     try:
         time_cases(gl, cases, frames)
+        # The same last frame
         full, kept = (
             cases[1].renderer.read_image(),
             cases[2].renderer.read_image(),
-        )  # the same last frame
+        )
         diff = np.abs(full.astype(int) - kept.astype(int)).max(axis=2)
         out = {
             "rows": summary(cases, "unlit", "full redraw"),
@@ -254,7 +255,8 @@ def _first_frame_bake(gl, case: Case) -> float:
 
 # ------------------------------------------------------------------ report
 def cache_figure(run: dict, path):
-    """The session's last frame drawn whole and from the kept molecule layer, and their difference."""
+    """The session's last frame drawn whole and from the kept molecule layer, and their
+    difference."""
     import matplotlib.pyplot as plt
 
     full, kept = run["images"]
@@ -268,7 +270,8 @@ def cache_figure(run: dict, path):
         ax.set_title(title, fontsize=8)
     im = axes[2].imshow(diff, cmap="magma", vmin=0, vmax=8)
     axes[2].set_title(
-        f"|difference|: max {diff.max()}/255,\n{100 * (diff <= 2).mean():.3f} % of pixels within 2/255",
+        f"|difference|: max {diff.max()}/255,\n{100 * (diff <= 2).mean():.3f} % of pixels within "
+        "2/255",
         fontsize=8,
     )
     fig.colorbar(im, ax=axes[2], shrink=0.8, label="/255")
@@ -284,10 +287,12 @@ def cache_figure(run: dict, path):
 def markdown(d: dict) -> str:
     size = f"{d['size'][0]}x{d['size'][1]}"
     lines = [
-        f"**Scenarios** ({size}, medians of {d['frames']} frames per case, cases in turn; load average "
+        f"**Scenarios** ({size}, medians of {d['frames']} frames per case, cases in turn; load "
+        "average "
         f"{d['load'][0]} at the start, {d['load'][1]} at the end):",
         "",
-        "| scenario | structure | case | ms / frame | CPU ms / frame | × unlit | full redraw / this | "
+        "| scenario | structure | case | ms / frame | CPU ms / frame | × unlit | full redraw / "
+        "this | "
         "× unlit (CPU) | full / this (CPU) | layer kept |",
         "|---|---|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
@@ -306,13 +311,16 @@ def markdown(d: dict) -> str:
                 )
                 lines.append(
                     f"| {title} | {name} | {label} | {r['ms']:.1f} | {r['cpu_ms']:.1f} | "
-                    f"{r['over_unlit']:.2f} | {r['full_over_this']:.2f} | {r['over_unlit_cpu']:.2f} | "
+                    f"{r['over_unlit']:.2f} | {r['full_over_this']:.2f} | "
+                    f"{r['over_unlit_cpu']:.2f} | "
                     f"{r['full_over_this_cpu']:.2f} | {kept} |"
                 )
     for run in d["session"]:
         lines.append(
-            f"\nSession, {run['id']}{' (the demo view)' if run['demo_view'] else ''}: the probe travelled {run['probe_travel_A']:.1f} Å, in contact "
-            f"{100 * run['contact_fraction']:.0f} % of the frames; the last frame from the kept layer and "
+            f"\nSession, {run['id']}{' (the demo view)' if run['demo_view'] else ''}: the probe "
+            f"travelled {run['probe_travel_A']:.1f} Å, in contact "
+            f"{100 * run['contact_fraction']:.0f} % of the frames; the last frame from the kept "
+            "layer and "
             f"drawn whole agree within 2/255 on {100 * run['pixels_within_2']:.3f} % of the pixels "
             f"(largest difference {run['max_difference']}/255)."
         )
@@ -322,7 +330,8 @@ def markdown(d: dict) -> str:
         )
     for run in d["cube"]:
         lines.append(
-            f"Drifting cube, {run['id']}: half edge {run['cube_half_A']:.2f} Å, {run['atoms_in_cube']} atoms; "
+            f"Drifting cube, {run['id']}: half edge {run['cube_half_A']:.2f} Å, "
+            f"{run['atoms_in_cube']} atoms; "
             "the atlas is baked again every frame (the culling changes)."
         )
     around = next((r for r in d["session"] if "peer" in r), None)
@@ -336,7 +345,8 @@ def markdown(d: dict) -> str:
         session = {key: (before[key] + after[key]) / 2 for key in ("ms", "cpu_ms")}
         lines += [
             "",
-            f"**PyMOL {p['version']}** `ray` on {around['id']} ({p['atoms']} atoms, spheres, {size}, "
+            f"**PyMOL {p['version']}** `ray` on {around['id']} ({p['atoms']} atoms, spheres, "
+            f"{size}, "
             f"max_threads {p['max_threads']}), same run, between two stretches of session frames "
             f"({before['ms']:.1f} and {after['ms']:.1f} ms); ratio = PyMOL / their mean:",
             "",

@@ -289,12 +289,16 @@ def sessions_for_bench(gl, by_id, ctx: BenchContext) -> dict:
 def markdown(d: dict) -> str:
     base = d["structures"][0]
     lines = [
-        f"**Session frames by structure** (the demo's scan, the workspace view as `render --connect` draws it; "
-        f"medians of {d['frames']} frames, {d['rounds']} round(s), every case's frames in turn; ratios to {base.upper()} "
+        "**Session frames by structure** (the demo's scan, the workspace view as `render "
+        "--connect` draws it; "
+        f"medians of {d['frames']} frames, {d['rounds']} round(s), every case's frames in turn; "
+        f"ratios to {base.upper()} "
         f"of the same round: median [range]):",
         "",
-        f"| structure | atoms | size | lighting | frame (ms) | CPU (ms) | / {base.upper()} (CPU) | / {base.upper()} (wall) "
-        "| lit / unlit (CPU) | layer kept | first frame in process (s) | `--frames 1` wall (CPU) (s) |",
+        f"| structure | atoms | size | lighting | frame (ms) | CPU (ms) | / {base.upper()} (CPU) | "
+        f"/ {base.upper()} (wall) "
+        "| lit / unlit (CPU) | layer kept | first frame in process (s) | `--frames 1` wall (CPU) "
+        "(s) |",
         "|---|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in d["rows"]:
@@ -307,21 +311,26 @@ def markdown(d: dict) -> str:
             else ""
         )
         lines.append(
-            f"| {r['id']} | {r['atoms']} | {r['size'][0]}x{r['size'][1]} | {r['lighting']} | {r['ms']:.1f} | "
-            f"{r['cpu_ms']:.1f} | {r[f'over_{base}_cpu']:.2f} [{lo:.2f}–{hi:.2f}] | {r[f'over_{base}']:.2f} "
-            f"[{wlo:.2f}–{whi:.2f}] | {lit} | {r['kept']}/{r['frames']} | {r['first_frame_s']:.2f} | {first} |"
+            f"| {r['id']} | {r['atoms']} | {r['size'][0]}x{r['size'][1]} | {r['lighting']} | "
+            f"{r['ms']:.1f} | "
+            f"{r['cpu_ms']:.1f} | {r[f'over_{base}_cpu']:.2f} [{lo:.2f}–{hi:.2f}] | "
+            f"{r[f'over_{base}']:.2f} "
+            f"[{wlo:.2f}–{whi:.2f}] | {lit} | {r['kept']}/{r['frames']} | {r['first_frame_s']:.2f} "
+            f"| {first} |"
         )
     lines += [
         "",
         "`--frames 1`: the default lighting, process start to exit, the daemon already running; in "
-        "brackets the process's CPU time (llvmpipe's threads included), which other work on the machine "
+        "brackets the process's CPU time (llvmpipe's threads included), which other work on the "
+        "machine "
         f"does not stretch. Load average before and after: {d['load'][0]:.1f}, {d['load'][1]:.1f}.",
     ]
     return "\n".join(lines)
 
 
 def chart(d: dict, path, renderer_name: str):
-    """Session frame CPU time by structure (unlit and lit, each size), and `--frames 1` wall time."""
+    """Session frame CPU time by structure (unlit and lit, each size), and `--frames 1` wall
+    time."""
     from sasprobe.cli.bench.charts import pyplot, save
 
     ids = d["structures"]

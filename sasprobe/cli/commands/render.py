@@ -89,7 +89,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         nargs="?",
         const="",
         metavar="PUB_ENDPOINT",
-        help="follow a running daemon (default endpoint from the protocol); the structure comes from it",
+        help="follow a running daemon (default endpoint from the protocol); the structure comes "
+        "from it",
     )
     p.add_argument(
         "--control", metavar="ENDPOINT", help="the daemon's control endpoint (with --connect)"
@@ -98,7 +99,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--keys",
         type=Path,
         metavar="DIR",
-        help="with --connect: client keys from `sasprobe keys DIR`, for a daemon started with --keys "
+        help="with --connect: client keys from `sasprobe keys DIR`, for a daemon started with "
+        "--keys "
         "(a loopback daemon of your own needs none)",
     )
     p.add_argument(
@@ -119,7 +121,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--out",
         type=Path,
         metavar="FILE|DIR",
-        help="write frames: .png (numbered when several) or .mp4; in a window, a folder is where Ctrl+S "
+        help="write frames: .png (numbered when several) or .mp4; in a window, a folder is where "
+        "Ctrl+S "
         "(screenshot) and Ctrl+R (video) write (default: the working directory)",
     )
     p.add_argument(
@@ -141,7 +144,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--view",
         choices=VIEWS,
         default=None,
-        help="start in the workspace view (the navigation cube framed, looking along the device's -z) "
+        help="start in the workspace view (the navigation cube framed, looking along the device's "
+        "-z) "
         "or the overview (the whole molecule); default: workspace with --connect, else overview "
         "(the window's Tab switches)",
     )
@@ -207,22 +211,26 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--light",
         type=direction_type,
         metavar="X,Y,Z",
-        help="direction the key light travels: in the view (x right, y up, z towards you) while lights "
+        help="direction the key light travels: in the view (x right, y up, z towards you) while "
+        "lights "
         "follow the camera, else in the molecule frame",
     )
     p.add_argument(
         "--light-frame",
         choices=("camera", "molecule"),
         default=defaults.light_frame,
-        help=f"lights turn with the camera, as in every viewer, or stay fixed in the molecule frame "
+        help="lights turn with the camera, as in every viewer, or stay fixed in the molecule "
+        "frame "
         f"(default {defaults.light_frame})",
     )
     p.add_argument(
         "--color",
         choices=COLOR_SCHEMES,
         default=None,
-        help="colour scheme (the window's C key; a daemon's scheme wins): element (CPK), chain (carbons "
-        "by chain), chain-all (every atom by chain), polymer, residue, hydrophobicity (Kyte-Doolittle), "
+        help="colour scheme (the window's C key; a daemon's scheme wins): element (CPK), chain "
+        "(carbons "
+        "by chain), chain-all (every atom by chain), polymer, residue, hydrophobicity "
+        "(Kyte-Doolittle), "
         "bfactor, sas (exposed area per atom) (default: element for one polymer chain, chain for "
         "several, chain-all for several from 20000 atoms up)",
     )
@@ -230,18 +238,21 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--preset",
         choices=PRESET_NAMES,
         default=defaults.preset,
-        help=f"lighting preset (the window's I key): {', '.join(PRESET_NAMES)} (default {defaults.preset})",
+        help=f"lighting preset (the window's I key): {', '.join(PRESET_NAMES)} (default "
+        f"{defaults.preset})",
     )
     p.add_argument(
         "--background",
         type=colour_type,
         metavar="COLOUR",
-        help="background colour: a name (white, black, ...), #RRGGBB or R,G,B in 0..1 (default: the preset's)",
+        help="background colour: a name (white, black, ...), #RRGGBB or R,G,B in 0..1 (default: "
+        "the preset's)",
     )
     p.add_argument(
         "--backbone",
         action="store_true",
-        help="draw the backbone trace even without a navigation cube (with --connect: also when the "
+        help="draw the backbone trace even without a navigation cube (with --connect: also when "
+        "the "
         "daemon turns its cube off)",
     )
     p.add_argument("--no-fxaa", action="store_true", help="skip the FXAA pass")
@@ -262,7 +273,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--report",
         type=Path,
         metavar="FILE.json",
-        help="write frame counts, fps and (with --connect) poses received and lost as JSON at the end",
+        help="write frame counts, fps and (with --connect) poses received and lost as JSON at the "
+        "end",
     )
     add_lighting_arguments(p)
     p.set_defaults(func=run)
@@ -329,7 +341,8 @@ def run(args: argparse.Namespace) -> int:
         raise UserError("--keys needs --connect")
     if args.connect is not None and (args.probe or args.nav_cube or args.touched >= 0):
         raise UserError(
-            "--probe, --touched and --nav-cube are for standalone use; with --connect the daemon sets them"
+            "--probe, --touched and --nav-cube are for standalone use; with --connect the daemon "
+            "sets them"
         )
     if args.connect is not None and args.clip:
         raise UserError(
@@ -369,7 +382,8 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(f"--snapshot {args.snapshot}: expected a .png file")
         if not args.headless and display_available():
             raise UserError(
-                "--snapshot is for headless rendering (in a window, --out FILE.png saves the last frame)"
+                "--snapshot is for headless rendering (in a window, --out FILE.png saves the last "
+                "frame)"
             )
         check_out_path(args.snapshot, 1)
     return render_main(render_options(args))
