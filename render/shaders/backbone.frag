@@ -7,14 +7,8 @@
 #include "clip.glsl"
 #include "gbuffer_out.glsl"
 
-in LineFragment {
-    vec3 position;
-    vec3 color;
-    float across;
-    float along;
-    flat vec3 tangent;
-    flat ivec2 ends;
-} fs_in;
+#include "line_blocks.glsl"
+in LINE_FRAGMENT_BLOCK fs_in;
 
 #include "cube_window.glsl"
 uniform int u_cube_enabled;

@@ -4,11 +4,8 @@ in vec3 in_position;
 in vec3 in_color;
 in int in_atom;
 
-out LineVertex {
-    vec3 position;
-    vec3 color;
-    flat int id;
-} vs_out;
+#include "line_blocks.glsl"
+out LINE_VERTEX_BLOCK vs_out;
 
 void main() {
     vs_out.position = in_position;

@@ -4,11 +4,8 @@ in vec3 in_position;  // corners of [-1, 1]^3
 uniform vec4 u_cube;       // centre xyz, half edge (Å)
 uniform mat3 u_cube_axes;  // the cube's axes (columns) in the world frame
 
-out LineVertex {
-    vec3 position;
-    vec3 color;
-    flat int id;
-} vs_out;
+#include "line_blocks.glsl"
+out LINE_VERTEX_BLOCK vs_out;
 
 void main() {
     vs_out.position = u_cube.xyz + u_cube_axes * in_position * u_cube.w;

@@ -1,14 +1,8 @@
 #version 410 core
 #include "constants.glsl"
 // Probe cues (outline, ghost tip, spring, force arrow): the vertex colour at an opacity.
-in LineFragment {
-    vec3 position;
-    vec3 color;
-    float across;
-    float along;
-    flat vec3 tangent;
-    flat ivec2 ends;
-} fs_in;
+#include "line_blocks.glsl"
+in LINE_FRAGMENT_BLOCK fs_in;
 
 uniform float u_alpha;
 uniform int u_hidden_only;  // 1: only where the G-buffer shows something other than the probe

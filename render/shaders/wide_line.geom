@@ -11,20 +11,9 @@ uniform float u_radius;        // Å
 uniform float u_min_width_px;  // pixels
 uniform float u_proj_scale;    // P[1][1] * viewport height / 2: pixels per Å at view depth 1
 
-in LineVertex {
-    vec3 position;
-    vec3 color;
-    flat int id;
-} gs_in[];
-
-out LineFragment {
-    vec3 position;
-    vec3 color;
-    float across;
-    float along;
-    flat vec3 tangent;
-    flat ivec2 ends;  // the atoms at the two ends
-} gs_out;
+#include "line_blocks.glsl"
+in LINE_VERTEX_BLOCK gs_in[];
+out LINE_FRAGMENT_BLOCK gs_out;
 
 void main() {
     vec4 c0 = u_viewproj * vec4(gs_in[0].position, 1.0);
