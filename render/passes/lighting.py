@@ -239,11 +239,7 @@ class LightingPass(Pass):
             ambient, visibility, lit = self.ao.baked(
                 gbuffer, ambient=both, sun_direction=sun.unit(), probe_light=lamp
             )
-            self._looked_up = (
-                frame.index,
-                ambient if both else None,
-                lit if lamp is not None else None,
-            )
+            self._looked_up = (frame.index, ambient if both else None, lit if lamp else None)
             return visibility
         area = frame.terms_rect()
         # 1 beyond the area: there the picture shows no atom
@@ -561,10 +557,8 @@ class LightingPass(Pass):
             "u_k": int(self.settings.ao.k),
             "u_probe_neighbours": self._neighbours(probe_key, probe).tobytes(),
         }
-        sun_out, ao_out = (
-            self.textures.get("shadow_dir", frame.size),
-            self.textures.get("ao", frame.size),
-        )
+        sun_out = self.textures.get("shadow_dir", frame.size)
+        ao_out = self.textures.get("ao", frame.size)
         sun_out.bind_to_image(1, read=False, write=True)
         ao_out.bind_to_image(2, read=False, write=True)
         self._compose(frame, terms, uniforms, export=True)
@@ -574,16 +568,10 @@ class LightingPass(Pass):
             self.exported_terms["ao"] = ao_out
 
     def _release_structure(self) -> None:
-        for thing in (
-            self.shadows,
-            self.ao,
-            self.tracer,
-            self.compose,
-            self.compose_drawn,
-            self.grid,
-        ):
-            if thing is not None:
-                thing.release()
+        parts = (self.shadows, self.ao, self.tracer, self.compose, self.compose_drawn, self.grid)
+        for part in parts:
+            if part is not None:
+                part.release()
 
     def release(self) -> None:
         self._release_structure()
