@@ -133,7 +133,7 @@ def _srgb_to_lab(rgb: np.ndarray) -> np.ndarray:
 
 @lru_cache(maxsize=8)
 def chain_palette(n: int) -> np.ndarray:
-    """n distinct colours (float32 rgb), far from CPK carbon, nitrogen, oxygen, sulphur and hydrogen."""
+    """n distinct colours (float32 rgb), far from the CPK colours of C, N, O, S and H."""
     levels = np.linspace(0.0, 1.0, 16)
     candidates = np.stack(np.meshgrid(levels, levels, levels, indexing="ij"), axis=-1).reshape(
         -1, 3
