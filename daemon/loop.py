@@ -8,7 +8,9 @@ socket and the device, but for the stall watchdog's zero):
    costs this tick's force, never the loop;
 3. repeat a replay's recorded control changes, act on buttons and the window's keys;
 4. step the haptic pipeline: the engine, then the safety guard (daemon/haptics/);
-5. write the force under the lock the watchdog zeroes with, and beat its heartbeat;
+5. write the force under the lock the watchdog zeroes with, and beat its heartbeat (a
+   force the guard withheld goes out as `withhold_force()`: a zero that says nothing of
+   where the hand is);
 6. log faults and lost ticks; reconnect a device that keeps failing;
 7. publish the pose, hand the tick to the recorder, publish the scene when it is due.
 
@@ -24,6 +26,7 @@ import time
 
 import numpy as np
 from sasprobe.daemon.faults import LoopLog, Reconnector
+from sasprobe.daemon.haptics.pipeline import TickResult
 from sasprobe.daemon.timer import FixedRateTimer, LoopStats, Tick
 from sasprobe.daemon.watchdog import Stall, StallWatchdog
 from sasprobe.devices.base import DeviceFault, DeviceState
@@ -106,7 +109,7 @@ class HapticLoop:
         pipeline = daemon.pipeline
         was_faulted = pipeline.guard.faulted
         result = pipeline.step(state, error, late_periods)
-        stall = self._write(result.force_n)
+        stall = self._write(result)
         self.timing.tick(
             tick.start_ns,
             tick.missed,
@@ -154,13 +157,18 @@ class HapticLoop:
         for action, args in daemon.inputs.tick(buttons, tick.start_ns):
             daemon.workspace_action(action, args, tick.seq)
 
-    def _write(self, force_n: np.ndarray) -> Stall | None:
+    def _write(self, result: TickResult) -> Stall | None:
         """Write the force and beat the watchdog's heartbeat, under the lock the watchdog
-        writes zero with; returns the stall the heartbeat ended, if any."""
+        writes zero with; returns the stall the heartbeat ended, if any. A force the guard
+        withheld (a fault, a ramp at zero) is `withhold_force()`: no word on the contact."""
+        guard = result.guard
         with self.write_lock:
             try:
-                self.device.write_force(force_n)
-                self.last_force_written = force_n
+                if guard.fault or guard.ramp == 0.0:
+                    self.device.withhold_force()
+                else:
+                    self.device.write_force(result.force_n)
+                self.last_force_written = result.force_n
             except Exception as exc:
                 self.write_failures += 1
                 self._carry_error = f"force write failed: {exc}"

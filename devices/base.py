@@ -13,6 +13,9 @@ Contract for the daemon's fixed-rate loop:
   decreases from one reading to the next and is never later than `read()`'s return
   (clients get it as the pose's `device_t_ns`, protocol/README.md "Device time");
 - `write_force()` sends one force command; a device without force output ignores it;
+  `withhold_force()` sends zero on a tick whose force the daemon's safety guard withheld
+  (a failed or late read, the first tick of a ramp): a zero that says nothing of where the
+  hand is, where `write_force(0)` says the hand is in free space;
 - on DeviceFault the daemon writes zero force, flags the fault and keeps calling
   `read()` (after `reconnect()` when the driver supports it) until the device answers;
 - `close()` must leave the device producing zero force.
@@ -145,6 +148,13 @@ class HapticDevice(abc.ABC):
 
     @abc.abstractmethod
     def write_force(self, force_n: np.ndarray) -> None: ...
+
+    def withhold_force(self) -> None:
+        """Zero force on a tick whose force the daemon's safety guard withheld (a failed or late
+        read, the first tick of a ramp): unlike `write_force(0)`, a zero that says nothing of
+        where the hand is. A driver that watches the daemon's zeros (OpenHaptics, after a force
+        error) tells the two apart; for any other this default is the same write."""
+        self.write_force(np.zeros(3))
 
     def zero_force_now(self) -> None:
         """Zero force from another thread while the loop is stalled (the daemon's watchdog calls it,

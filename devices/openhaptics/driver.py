@@ -21,20 +21,20 @@ encoder-reset arm is refused at open; a reconnect never resets again.
 Errors (AnchoredSpringForce.c, ErrorHandling.c): after each frame the error stack is
 drained. A force error (hduIsForceError's codes, see hdapi; and, our choice for safety,
 HD_DEVICE_FAULT) stops force output; the callback goes on. The examples give force back
-only once the user has acted: ErrorHandling.c (l. 279-303) allows contact again once the
-device is on the free side of the surface, AnchoredSpringForce.c (l. 196-202, 227-233)
-after a new button press. The driver sits below the daemon and sees no surface, but the
-daemon's commands say where it is: each command is paired with the position of the state
-the daemon read before it, and a command of any force there says "still in contact". So
-"the free side" is: FREE_COMMANDS commands of exactly zero force in a row, each at a
-position past every in-contact position since the error by FREE_MARGIN_MM, measured along
-the force rendered when the error came (the way out). Zeros that say nothing of the
-contact never count: the watchdog's (`zero_force_now`), and a command after a read that
-failed; an isolated zero (a late tick, the first tick of the daemon's ramp) is followed by
-a command of force and starts the count again. A new button press re-arms at once. Either
-way the force then ramps in: scaled from 0 to 1 over RESUME_RAMP_FRAMES servo frames,
-counted from the first frame that has force to render, so a command that arrives after a
-stall still comes in gradually, never as a step.
+only once the user has acted: ErrorHandling.c (danepowell/openhaptics, commit 2ce9a48,
+examples/HD/console/ErrorHandling/ErrorHandling.c l. 279-303) allows contact again once
+the device is on the free side of the surface, whichever way it got there,
+AnchoredSpringForce.c (l. 196-202, 227-233) after a new button press. The driver sits
+below the daemon and sees no surface, but the daemon's commands say where the free side
+is: a force computed from a valid, on-time reading of the stylus that is exactly zero
+says "no contact here". So force comes back after FREE_COMMANDS such zeros in a row,
+whichever way the stylus left the contact. Zeros that say nothing of the contact never
+count and start the count again: the watchdog's (`zero_force_now`) and the daemon's
+withheld force (`withhold_force`: a failed or late read, the first tick of a ramp); so
+does a command of any force (still in contact). A new button press re-arms at once.
+Either way the force then ramps in: scaled from 0 to 1 over RESUME_RAMP_FRAMES servo
+frames, counted from the first frame that has force to render, so a command that arrives
+after a stall still comes in gradually, never as a step.
 
 A scheduler error (communication, timer) is reported by the next `read()` as a
 DeviceFault. The callback that sees it disables force output (hdDisable(HD_FORCE_OUTPUT):
@@ -47,7 +47,6 @@ from __future__ import annotations
 
 import ctypes
 import logging
-import math
 import threading
 import time
 
@@ -68,9 +67,8 @@ from sasprobe.devices.openhaptics.hdapi import error_name
 log = logging.getLogger("sasprobe.devices.openhaptics")
 
 RESET_ENCODERS = "reset-encoders"
-# zero commands in a row past the contact: the stylus is out (a late tick gives one)
+# the daemon's zero commands in a row from valid, on-time reads: out of contact
 FREE_COMMANDS = 3
-FREE_MARGIN_MM = 0.5  # ... each this far past every in-contact position, along the way out
 # after a force error, force ramps back in over 0.5 s of the 1 kHz servo loop
 RESUME_RAMP_FRAMES = 500
 MAX_ERRORS_PER_FRAME = 16  # the error stack is drained, boundedly, after every frame
@@ -92,8 +90,9 @@ class OpenHapticsDevice(HardwareDriver):
         self._lib = None
         self._handle = hdapi.HD_INVALID_HANDLE
         self._schedule = None
-        # keep a reference: the library calls it
-        self._callback = hdapi.SchedulerCallback(self._servo)
+        self._callback = hdapi.SchedulerCallback(
+            self._servo
+        )  # keep a reference: the library calls it
         self._lock = threading.Lock()
         self._force = (ctypes.c_double * 3)()
         self._limits = PHANTOM_OMNI_LIMITS
@@ -109,11 +108,7 @@ class OpenHapticsDevice(HardwareDriver):
         self._calibrated = False
         # after a force error, until the stylus is out or a button pressed anew
         self._force_blocked = False
-        self._way_out = np.zeros(3)  # unit: the force rendered at that error (zero: none was)
-        self._contact_s = -math.inf  # the furthest position along it where the daemon still pushed
-        self._free_commands = 0  # zero commands in a row past it
-        # the tip of the state read() returned last (None: it failed)
-        self._read_tip: np.ndarray | None = None
+        self._free_commands = 0  # the daemon's zero commands in a row since
         # force ramping in after a resume: frames with force so far
         self._ramp_frames: int | None = None
         self._last_buttons: int | None = None
@@ -254,8 +249,7 @@ class OpenHapticsDevice(HardwareDriver):
             workspace_max_mm=tuple(float(v) for v in hi - self._centre),
             nominal_rate_hz=1000.0,
         )
-        # a parameter this device lacks leaves HD_INVALID_ENUM; the defaults stand
-        self._pop_errors()
+        self._pop_errors()  # a parameter this device lacks leaves HD_INVALID_ENUM; the defaults stand
 
     def _disable(self) -> None:
         self._lib.hdDisableDevice(self._handle)
@@ -297,8 +291,9 @@ class OpenHapticsDevice(HardwareDriver):
             hdapi.HD_CALIBRATION_AUTO,
             hdapi.HD_CALIBRATION_INKWELL,
         ):
-            # Calibration.c's UpdateCalibrationCallback
-            lib.hdUpdateCalibration(self.calibration_style)
+            lib.hdUpdateCalibration(
+                self.calibration_style
+            )  # Calibration.c's UpdateCalibrationCallback
         calibrated = calibration == hdapi.HD_CALIBRATION_OK
         tip = np.array(position[:])
         with self._lock:
@@ -331,7 +326,7 @@ class OpenHapticsDevice(HardwareDriver):
                     self._fatal = self._fatal or (code, internal)
                 elif hdapi.is_force_error(code) or code == hdapi.HD_DEVICE_FAULT:
                     self.force_errors += 1
-                    self._stop_force(tip, rendered)
+                    self._stop_force()
                 else:
                     self.other_errors += 1
             ending = self._fatal is not None
@@ -353,14 +348,9 @@ class OpenHapticsDevice(HardwareDriver):
             self._ramp_frames = None
         return force * scale
 
-    def _stop_force(self, tip: np.ndarray, rendered: np.ndarray) -> None:
-        """A force error: no force until the stylus is out or a button is pressed anew (the first
-        error of a series sets the way out)."""
-        if not self._force_blocked:
-            self._force_blocked = True
-            push = float(np.linalg.norm(rendered))
-            self._way_out = rendered / push if push > 0.0 else np.zeros(3)
-            self._contact_s = float(tip @ self._way_out) if push > 0.0 else -math.inf
+    def _stop_force(self) -> None:
+        """A force error: no force until the stylus is out or a button is pressed anew."""
+        self._force_blocked = True
         self._free_commands = 0
         self._ramp_frames = None
 
@@ -369,33 +359,11 @@ class OpenHapticsDevice(HardwareDriver):
         self._free_commands = 0
         self._ramp_frames = 0
 
-    def _watch_for_free_side(self, force: np.ndarray) -> None:
-        """A command the daemon computed at the tip read last, while force is stopped: force says
-        the stylus is still in contact there; exact zeros past every such place, the free side."""
-        tip = self._read_tip
-        if tip is None:
-            return  # the read failed: a fault tick's zero says nothing of the contact
-        push = float(np.linalg.norm(force))
-        if push > 0.0:
-            # the error came with no force rendered: this is the way out
-            if not np.any(self._way_out):
-                self._way_out = force / push
-            self._contact_s = max(self._contact_s, float(tip @ self._way_out))
-            self._free_commands = 0
-            return
-        if np.any(self._way_out) and float(tip @ self._way_out) < self._contact_s + FREE_MARGIN_MM:
-            self._free_commands = 0
-            return
-        self._free_commands += 1
-        if self._free_commands >= FREE_COMMANDS:
-            self._resume()
-
     # interface ------------------------------------------------------------------------
     def read(self) -> DeviceState:
         with self._lock:
             sample, fatal, calibrated = self._sample, self._fatal, self._calibrated
             unlogged, self._unlogged = self._unlogged, []
-            self._read_tip = None  # until this read succeeds
         for code in unlogged:  # once per code and session; the counts are in `info.details`
             if code not in self._logged and not hdapi.is_scheduler_error(code):
                 self._logged.add(code)
@@ -404,23 +372,19 @@ class OpenHapticsDevice(HardwareDriver):
                     "OpenHaptics reported %s (0x%04x): %s",
                     error_name(code),
                     code,
-                    "force output stopped until the stylus is out "
-                    "of the contact or a button is pressed anew"
+                    "force output stopped until the stylus is out of the contact or a button is pressed anew"
                     if stops_force
                     else "the servo loop goes on",
                 )
         if fatal is not None:
             raise DeviceFault(
-                f"OpenHaptics reported {error_name(fatal[0])} "
-                f"(0x{fatal[0]:04x}, internal {fatal[1]})"
+                f"OpenHaptics reported {error_name(fatal[0])} (0x{fatal[0]:04x}, internal {fatal[1]})"
             )
         if sample is None or time.monotonic_ns() - sample[0] > self.read_timeout_s * 1e9:
             raise DeviceFault(
                 f"the OpenHaptics servo loop has not run for {self.read_timeout_s * 1000:.0f} ms"
             )
         t_ns, position, velocity, transform, buttons = sample
-        with self._lock:
-            self._read_tip = position
         return DeviceState(
             t_ns=t_ns,
             position_mm=position - self._centre,
@@ -431,19 +395,29 @@ class OpenHapticsDevice(HardwareDriver):
         )
 
     def write_force(self, force_n) -> None:
-        self._command(clamp_force(force_n, self._limits.max_force_n), from_the_loop=True)
+        self._command(clamp_force(force_n, self._limits.max_force_n), says_where=True)
+
+    def withhold_force(self) -> None:
+        """The daemon withheld this tick's force (a failed or late read, a ramp's first tick):
+        zero, and no sign that the stylus has left a contact."""
+        self._command(np.zeros(3), says_where=False)
 
     def zero_force_now(self) -> None:
         """The watchdog's zero while the loop is stalled: rendered at the next frame, and no
         sign that the stylus has left a contact."""
-        self._command(np.zeros(3), from_the_loop=False)
+        self._command(np.zeros(3), says_where=False)
 
-    def _command(self, force: np.ndarray, from_the_loop: bool) -> None:
+    def _command(self, force: np.ndarray, says_where: bool) -> None:
+        """`says_where`: the daemon's force for the stylus it read last, valid and on time;
+        while force is stopped, exact zeros of those in a row mean the stylus is out."""
         with self._lock:
             self._force[:] = [float(v) for v in force]
             self.force = force
-            if self._force_blocked and from_the_loop:
-                self._watch_for_free_side(force)
+            if not self._force_blocked:
+                return
+            self._free_commands = self._free_commands + 1 if says_where and not np.any(force) else 0
+            if self._free_commands >= FREE_COMMANDS:
+                self._resume()
 
 
 def create(argument: str | None = None, **options) -> OpenHapticsDevice:
