@@ -12,9 +12,13 @@ socket and the device, but for the stall watchdog's zero):
    force the guard withheld goes out as `withhold_force()`: a zero that says nothing of
    where the hand is);
 6. log faults and lost ticks; reconnect a device that keeps failing;
-7. publish the pose, hand the tick to the recorder, publish the scene when it is due.
+7. hand the tick to the recorder (every tick); publish the scene when it is due and the
+   pose, on every `pose_every`-th tick only.
 
-Nothing in it waits on the network, the disk or a renderer. The timer is
+Publishing is decimated so that a fast loop keeps little more than read, haptics and
+write: above POSE_RATE_HZ only every Nth tick's pose goes out (N = rate // POSE_RATE_HZ,
+so subscribers still get poses at POSE_RATE_HZ or more; the scene's `pose_every` says N).
+Nothing in the loop waits on the network, the disk or a renderer. The timer is
 daemon/timer.py; the state the ticks change (structure, settings, scene, recorder) is
 the daemon's (daemon/service.py).
 """
@@ -33,6 +37,13 @@ from sasprobe.devices.base import DeviceFault, DeviceState
 from sasprobe.protocol.pose import encode_pose
 
 LATE_READ_PERIODS = 3.0  # a read slower than this many periods counts as failed
+POSE_RATE_HZ = 1000.0  # subscribers get a pose at least this often: above it, every Nth tick's
+
+
+def pose_stride(rate_hz: float | None) -> int:
+    """Publish every Nth tick's pose: 1 up to POSE_RATE_HZ (and free-running), else the
+    largest N that keeps poses at POSE_RATE_HZ or more."""
+    return max(1, int(rate_hz // POSE_RATE_HZ)) if rate_hz else 1
 
 
 class HapticLoop:
@@ -43,6 +54,7 @@ class HapticLoop:
         self.daemon = daemon
         self.device = daemon.device
         self.timer = FixedRateTimer(rate_hz, spin_s=config.spin_s)
+        self.pose_every = pose_stride(rate_hz)
         self.write_lock = threading.Lock()  # the loop's force writes and the watchdog's zeros
         self.watchdog = StallWatchdog(
             self.device, self.write_lock, self.timer.period_ns, supervise=daemon.supervise
@@ -120,11 +132,15 @@ class HapticLoop:
         )
         self._keep_device(tick, state, error)
         now = clock()
-        pose = pipeline.pose(tick.seq, state, result, now)
-        daemon.publisher.publish_pose(encode_pose(pose))
-        if daemon.recorder is not None:
-            daemon.recorder.offer_tick(now, tick.seq, state, error, late_periods, read_ns, pose)
-        daemon.publish_scene_when_due(now)
+        publishing = tick.seq % self.pose_every == 0
+        recorder = daemon.recorder
+        if publishing or recorder is not None:
+            pose = pipeline.pose(tick.seq, state, result, now)
+            if recorder is not None:
+                recorder.offer_tick(now, tick.seq, state, error, late_periods, read_ns, pose)
+            if publishing:
+                daemon.publish_scene_when_due(now)
+                daemon.publisher.publish_pose(encode_pose(pose))
         self.timer.stats.record_work(clock() - tick.start_ns)
         return now
 
@@ -146,6 +162,8 @@ class HapticLoop:
         read_ns = time.monotonic_ns() - t_read
         if error is None and self._late_read_ns is not None and read_ns > self._late_read_ns:
             error = f"device read took {read_ns / 1e6:.1f} ms"
+        if error is not None:
+            self.timer.stats.failed_reads += 1
         return state, error, read_ns
 
     def _take_inputs(self, tick: Tick, state: DeviceState | None) -> None:

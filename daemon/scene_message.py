@@ -26,6 +26,7 @@ def scene_message(
     view_rotation,
     marks,
     color_scheme: str | None = None,
+    pose_every: int = 1,
 ) -> dict:
     return {
         "version": SCENE_VERSION,
@@ -47,6 +48,7 @@ def scene_message(
             "damping_n_s_per_m": settings["damping_n_s_per_m"],
         },
         "rate_hz": rate_hz,
+        "pose_every": pose_every,
         "view": {"rotation": rotation_rows(view_rotation)},
         "color_scheme": color_scheme,
         "marks": marks.scene(structure.sha256),

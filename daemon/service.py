@@ -53,6 +53,7 @@ log = logging.getLogger("sasprobe")
 replay_scheme.register()  # the daemon's own recordings, played back as a device
 
 SCENE_INTERVAL_NS = 1_000_000_000  # re-publish the scene at least this often (late joiners)
+SUBSCRIPTIONS_POLL_NS = 5_000_000  # look for new subscribers this often (each look costs µs)
 SWITCH_INTERVAL_S = 1e-4  # how long another Python thread may hold the GIL before the loop gets it
 
 
@@ -81,6 +82,7 @@ class Daemon:
         self.scene: dict = {}  # the scene as published (get_scene)
         self._scene_bytes = b""
         self._next_scene_ns = 0
+        self._next_poll_ns = 0
         self.changes = ChangeQueue()  # what the control thread asks of the loop
         self._network = self.control = self.publisher = None
         self._scheduling = current_scheduling()  # given back when the daemon stops
@@ -305,6 +307,7 @@ class Daemon:
             self.pipeline.view_rotation,
             self.marks,
             self.color_scheme,
+            self.loop.pose_every,
         )
         self._scene_bytes = encode_scene(self.scene)
         self._next_scene_ns = 0
@@ -313,7 +316,11 @@ class Daemon:
 
     def publish_scene_when_due(self, now_ns: int) -> None:
         """On the loop thread: the scene to a subscriber who just joined, after a change, and
-        every SCENE_INTERVAL_NS for those who missed it."""
+        every SCENE_INTERVAL_NS for those who missed it. Subscriptions are looked for every
+        SUBSCRIPTIONS_POLL_NS, not every tick."""
+        if now_ns < self._next_poll_ns and now_ns < self._next_scene_ns:
+            return
+        self._next_poll_ns = now_ns + SUBSCRIPTIONS_POLL_NS
         if self.publisher.poll_subscriptions(now_ns) or now_ns >= self._next_scene_ns:
             self.publisher.publish_scene(self._scene_bytes)
             self._next_scene_ns = now_ns + SCENE_INTERVAL_NS

@@ -4,7 +4,8 @@ recording. The limits, the settings checked against them and the pipeline wait u
 device is open, since some arms tell their workspace and limits only then (an OpenHaptics
 arm after hdInitDevice, a WoodenHaptics board in its first reply); the loop rate cannot
 wait: it is the command line's, or the rate the device declares before it opens
-(`DeviceLimits.nominal_rate_hz`)."""
+(`DeviceLimits.nominal_rate_hz`), and never above the fastest it declares
+(`DeviceLimits.max_rate_hz`)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,8 @@ from sasprobe.daemon.config import DaemonConfig
 from sasprobe.daemon.haptics import HapticPipeline, SafetyGuard, build_engine, validate_settings
 from sasprobe.devices.base import DeviceLimits, HapticDevice
 from sasprobe.molecule import Structure
+
+from sasprobe.common.errors import UserError
 
 
 @dataclass
@@ -54,8 +57,14 @@ def prepare_session(config: DaemonConfig) -> SessionSetup:
         cube_half_A=config.settings.get("cube_half_A"),
     )
     settings = dict(config.settings)
-    rate_hz = config.rate_hz or device.info.limits.nominal_rate_hz
+    limits = device.info.limits
+    rate_hz = config.rate_hz or limits.nominal_rate_hz
     session = device.recorded_session()
+    if session is None and rate_hz > limits.max_rate_hz:
+        raise UserError(
+            f"--rate {rate_hz:g}: --device {config.device} runs at most "
+            f"{limits.max_rate_hz:g} Hz (by default {limits.nominal_rate_hz:g} Hz)"
+        )
     if session is not None:  # a replay: the recording's structure (unless given), settings and rate
         if config.molecule is None:
             structure = parse_structure(

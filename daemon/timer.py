@@ -54,6 +54,7 @@ class LoopStats:
         self.ticks = 0
         self.overruns = 0
         self.missed = 0
+        self.failed_reads = 0  # ticks whose device read failed (the loop counts them)
         self.max_error_ns = 0
         self.max_work_ns = 0
         self.window_start_ns = self._clock()
@@ -82,7 +83,15 @@ class LoopStats:
             self.max_work_ns = work_ns
 
     def summary(self) -> dict:
-        """Rate and period error over the window since the last reset, and the recent second."""
+        """Rate and period error over the window since the last reset, and the recent second.
+        The counters are taken first, together: the loop goes on ticking while this runs on
+        another thread."""
+        ticks, overruns, missed, failed_reads = (
+            self.ticks,
+            self.overruns,
+            self.missed,
+            self.failed_reads,
+        )
         elapsed = max(self._clock() - self.window_start_ns, 1)
         counts = self.hist
         n = int(counts.sum())
@@ -108,16 +117,17 @@ class LoopStats:
                 )
         return {
             "window_s": elapsed / 1e9,
-            "ticks": self.ticks,
-            "rate_hz": self.ticks / (elapsed / 1e9),
+            "ticks": ticks,
+            "rate_hz": ticks / (elapsed / 1e9),
             "period_error_us": {
                 "p50": percentile(0.5),
                 "p99": percentile(0.99),
                 "max": self.max_error_ns / 1e3 if n else None,
                 "bin_us": HIST_BIN_NS / 1e3,
             },
-            "overruns": self.overruns,
-            "missed_deadlines": self.missed,
+            "overruns": overruns,
+            "missed_deadlines": missed,
+            "failed_reads": failed_reads,
             "work_us": {
                 "recent_p50": float(np.percentile(work, 50)) if k else None,
                 "recent_p99": float(np.percentile(work, 99)) if k else None,

@@ -12,8 +12,9 @@ watchdog interrupted counts as that many periods late, which the safety guard fa
 (zero force), and the stall is reported once with its length when the next tick
 completes.
 
-Bound: zero is written within STALL_PERIODS periods plus one check interval of the
-last completed tick, provided this thread gets the CPU and the GIL. It runs at a
+Bound: zero is written within STALL_PERIODS periods plus one check interval (a period,
+and at least CHECK_MIN_S, so a fast loop is not interrupted every period to take the GIL)
+of the last completed tick, provided this thread gets the CPU and the GIL. It runs at a
 real-time priority above the loop's where the loop has one; a stall that holds the GIL
 (a C extension that never releases it) or stops the whole process is beyond any
 in-process watchdog and left to the device's own (devices/README.md, per driver).
@@ -39,6 +40,7 @@ STALL_PERIODS = 3
 # oldest is 5 ms old.
 REZERO_PERIODS = 3
 SUPERVISE_S = 0.5  # how often the control thread is checked
+CHECK_MIN_S = 0.001  # the heartbeat is looked at every period, but at most this often
 
 
 @dataclass
@@ -61,6 +63,7 @@ class StallWatchdog:
         self.write_lock = write_lock
         self.period_ns = period_ns
         self.bound_ns = STALL_PERIODS * period_ns
+        self.check_s = max(period_ns / 1e9, CHECK_MIN_S) if period_ns else 0.01
         self._supervise = supervise
         self._clock = clock
         self._state = threading.Lock()  # heartbeat vs check: a few hundred ns per tick
@@ -123,9 +126,8 @@ class StallWatchdog:
 
     def _run(self) -> None:
         above_loop_priority()
-        check_s = self.period_ns / 1e9 if self.period_ns else 0.01
         next_supervise = 0.0
-        while not self._stop.wait(check_s):
+        while not self._stop.wait(self.check_s):
             if self.period_ns:
                 self.check(self._clock())
             if self._supervise is not None and time.monotonic() >= next_supervise:

@@ -52,7 +52,9 @@ class DeviceLimits:
     max_damping_n_s_per_m: float
     workspace_min_mm: tuple[float, float, float]  # usable box in the device frame
     workspace_max_mm: tuple[float, float, float]
+    # the loop rate the daemon runs the device at by default, and the fastest its link keeps up with
     nominal_rate_hz: float = DEFAULT_RATE_HZ
+    max_rate_hz: float = DEFAULT_RATE_HZ
     has_force_output: bool = True
 
     @property
@@ -95,6 +97,7 @@ class DeviceInfo:
                 "workspace_min_mm": list(lim.workspace_min_mm),
                 "workspace_max_mm": list(lim.workspace_max_mm),
                 "nominal_rate_hz": lim.nominal_rate_hz,
+                "max_rate_hz": lim.max_rate_hz,
                 "has_force_output": lim.has_force_output,
             },
             "details": dict(self.details),

@@ -8,7 +8,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from sasprobe.devices.base import DeviceFault, DeviceLimits, DeviceOpenError, HapticDevice
+from sasprobe.devices.base import (
+    DEFAULT_RATE_HZ,
+    DeviceFault,
+    DeviceLimits,
+    DeviceOpenError,
+    HapticDevice,
+)
 
 ZERO_FORCE = np.zeros(3)
 
@@ -32,7 +38,12 @@ def clamp_force(force_n, max_force_n: float) -> np.ndarray:
 
 
 def sphere_limits(
-    radius_m: float, force_n: float, stiffness_n_per_m: float, damping_n_s_per_m: float
+    radius_m: float,
+    force_n: float,
+    stiffness_n_per_m: float,
+    damping_n_s_per_m: float,
+    nominal_rate_hz: float = DEFAULT_RATE_HZ,
+    max_rate_hz: float = DEFAULT_RATE_HZ,
 ) -> DeviceLimits:
     """The limits of an arm whose maker publishes a workspace sphere and one force limit: the
     box inside the sphere (its corners on it), and that force as both peak and continuous."""
@@ -44,6 +55,8 @@ def sphere_limits(
         max_damping_n_s_per_m=damping_n_s_per_m,
         workspace_min_mm=(-half, -half, -half),
         workspace_max_mm=(half, half, half),
+        nominal_rate_hz=nominal_rate_hz,
+        max_rate_hz=max_rate_hz,
     )
 
 

@@ -70,7 +70,9 @@ class Subscriber:
         self.poses_received = 0
         self.scenes_received = 0
         self.malformed = 0  # messages dropped because they break the protocol
-        self.missed = 0  # poses lost between two received ones (gaps in `seq`)
+        # Poses lost between two received ones: gaps in `seq` beyond the scene's
+        # `pose_every`, counted once a scene has said how far apart poses are.
+        self.missed = 0
         self.last_error: str | None = None  # why the last malformed message was dropped
 
     def poll(self, timeout_s: float = 0.0) -> list[Pose]:
@@ -98,8 +100,10 @@ class Subscriber:
             topic, payload = frames
             if topic == POSE_TOPIC:
                 pose = decode_pose(payload)
-                if self.pose is not None and pose.seq > self.pose.seq + 1:
-                    self.missed += pose.seq - self.pose.seq - 1
+                if self.scene is not None and self.pose is not None:
+                    stride = self.scene.get("pose_every", 1)
+                    if pose.seq > self.pose.seq + stride:
+                        self.missed += (pose.seq - self.pose.seq) // stride - 1
                 self.pose = pose
                 self.poses_received += 1
                 return pose

@@ -66,11 +66,34 @@ def test_malformed_messages_are_dropped_and_counted(pub_and_sub):
     pub.send_multipart([SCENE_TOPIC, b"{not json"])
     pub.send_multipart([SCENE_TOPIC, b'{"version": 1}'])
     pub.send_multipart([POSE_TOPIC, encode_pose(Pose()), b"extra frame"])
-    pub.send_multipart([POSE_TOPIC, encode_pose(Pose(seq=seq + 10))])  # 9 poses lost in between
     deadline = time.monotonic() + 5
-    while sub.pose.seq != seq + 10 and time.monotonic() < deadline:
+    while sub.malformed < 4 and time.monotonic() < deadline:
         sub.poll(0.05)
-    assert sub.malformed == 4 and sub.missed == 9 and sub.scene is None
+    assert sub.malformed == 4 and sub.scene is None and sub.missed == 0
+
+
+def _poses_after_a_scene(pub, sub, scene, seqs) -> None:
+    pub.send_multipart([SCENE_TOPIC, encode_scene(scene)])
+    for seq in seqs:
+        pub.send_multipart([POSE_TOPIC, encode_pose(Pose(seq=seq))])
+    deadline = time.monotonic() + 5
+    while sub.pose.seq != seqs[-1] and time.monotonic() < deadline:
+        sub.poll(0.05)
+    assert sub.pose.seq == seqs[-1]
+
+
+def test_lost_poses_are_counted_in_steps_of_the_scenes_pose_every(pub_and_sub):
+    """Before a scene says how far apart poses are, a gap says nothing; with `pose_every` 4
+    (a 4 kHz daemon publishes every 4th tick), only a gap beyond 4 ticks lost poses."""
+    pub, sub = pub_and_sub
+    seq = sub.pose.seq
+    _poses_after_a_scene(pub, sub, example_scene(), [seq + 10])
+    assert sub.missed == 9  # 1 a pose: 9 lost in between
+    base = seq + 12
+    _poses_after_a_scene(
+        pub, sub, {**example_scene(), "pose_every": 4}, [base, base + 4, base + 16]
+    )
+    assert sub.missed == 9 + 2
 
 
 def test_scene_decoder_rejects_bad_scenes():

@@ -106,6 +106,8 @@ class HapticPipeline:
     def step(
         self, state: DeviceState | None, read_error: str | None, late_periods: float
     ) -> TickResult:
+        if state is not None:
+            self.device_t_ns = int(state.t_ns)
         reason = self.guard.check(state, read_error, late_periods)
         output = None
         force = None
@@ -144,14 +146,12 @@ class HapticPipeline:
     def pose(
         self, seq: int, state: DeviceState | None, result: TickResult, publish_t_ns: int
     ) -> Pose:
-        """The pose message of a tick. When the engine did not run (a failed read, non-finite
-        values) it repeats the last known geometry and device time, and touches nothing: the
-        contact flag and `touched_atom` always describe the same tick."""
+        """The pose message of the tick `step` computed last. When the engine did not run (a
+        failed read, non-finite values) it repeats the last known geometry and device time, and
+        touches nothing: the contact flag and `touched_atom` always describe the same tick."""
         out = result.output if result.output is not None else self.last_output
         # no NaN on the wire
         valid = state is not None and (result.output is not None or state_is_finite(state))
-        if state is not None:
-            self.device_t_ns = int(state.t_ns)
         touched = result.output.touched_atoms if result.output is not None else ()
         return Pose(
             seq=seq,

@@ -8,6 +8,10 @@ gets CHAI3D's own default (l. 749–769: the omega.3's numbers).
 
 The declared workspace is the cube inscribed in the workspace sphere (half edge r/√3),
 centred on the origin; CHAI3D gives one force limit, declared as peak and continuous.
+
+Rates: DHD's calls answer at once (the SDK's examples and CHAI3D's haptic thread run their
+loop free, as fast as the calls return), so the daemon runs these arms at 1 kHz by default
+and up to MAX_RATE_HZ, its own ceiling.
 """
 
 from __future__ import annotations
@@ -16,6 +20,9 @@ from dataclasses import dataclass
 
 from sasprobe.devices.base import DeviceLimits
 from sasprobe.devices.hardware import sphere_limits
+
+NOMINAL_RATE_HZ = 1000.0
+MAX_RATE_HZ = 4000.0
 
 
 @dataclass(frozen=True)
@@ -34,6 +41,8 @@ class DhdModel:
             self.max_force_n,
             self.stiffness_n_per_m,
             self.damping_n_s_per_m,
+            nominal_rate_hz=NOMINAL_RATE_HZ,
+            max_rate_hz=MAX_RATE_HZ,
         )
 
 

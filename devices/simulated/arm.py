@@ -51,6 +51,7 @@ written (the daemon writes zero), so the hand keeps moving as a real one would.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -70,6 +71,9 @@ from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
 from sasprobe.molecule.surface import Surface
 
 FAULT_KINDS = ("raise", "nan", "disconnect")
+# The fastest the daemon runs the simulated arm: its physics keep up with any rate (every
+# period is integrated in substeps), so this is the daemon's own ceiling.
+MAX_RATE_HZ = 4000.0
 MAX_SUBSTEP_S = 1e-4
 HAND_RATING_FRACTION = 0.9  # the model hand pushes at most this fraction of the continuous rating
 
@@ -101,7 +105,7 @@ class SimulatedDevice(HapticDevice):
         if not math.isfinite(rate_hz) or rate_hz <= 0 or rate_hz > 100_000:
             raise ValueError(f"simulated control rate must be in (0, 100000] Hz, got {rate_hz:g}")
         self.hand_path = hand_path
-        self.limits = limits
+        self.limits = dataclasses.replace(limits, max_rate_hz=MAX_RATE_HZ)
         self.arm = arm
         self.rate_hz = rate_hz
         self.period_ns = int(round(1e9 / rate_hz))

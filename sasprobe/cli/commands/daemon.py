@@ -94,8 +94,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=positive_float,
         default=None,
         metavar="HZ",
-        help=f"loop rate (default: the rate the device declares, {DEFAULT_RATE_HZ:g} for most "
-        "arms; a replay runs at its recorded rate times --speed)",
+        help=f"loop rate (default: the rate the device declares, {DEFAULT_RATE_HZ:g} for every "
+        "arm; up to the fastest it declares: 4000 for Force Dimension, the Inverse3 and the "
+        "simulated arm, 1000 for the others; a replay runs at its recorded rate times --speed)",
     )
     p.add_argument(
         "--speed", type=speed, default=1.0, metavar="X|max", help="replay speed factor, or max"
