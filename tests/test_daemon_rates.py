@@ -16,6 +16,7 @@ from tests.conftest import run_cli
 DECLARED = {
     "sim": (1000.0, 4000.0),
     "forcedimension": (1000.0, 4000.0),
+    "inverse3:ws://127.0.0.1:9": (1000.0, 4000.0),
     "openhaptics": (1000.0, 1000.0),
     "falcon": (1000.0, 1000.0),
     "woodenhaptics:/dev/null": (1000.0, 1000.0),

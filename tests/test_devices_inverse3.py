@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.inverse3 import protocol
-from sasprobe.devices.inverse3.driver import Inverse3Device, create
+from sasprobe.devices.inverse3.driver import MAX_IN_FLIGHT, Inverse3Device, create
 from websockets.sync.server import serve
 
 from tests.support.driver_loop import balance, settle_against_a_wall
@@ -32,12 +32,13 @@ def to_haply_mm(device_mm):
 
 @pytest.fixture
 def arm(inverse_service):
-    """An emulated service and a driver on it, opened (read timeouts as at 250 Hz)."""
+    """An emulated service and a driver on it, opened (a reply may be owed 10 ms: 3 periods
+    at 300 Hz; `stale_after_s` for another figure)."""
     made = []
 
-    def make(**options):
+    def make(stale_after_s=0.010, **options):
         svc = inverse_service(**options)
-        dev = Inverse3Device(svc.url, reply_timeout_s=0.010, read_wait_s=0.001)
+        dev = Inverse3Device(svc.url, stale_after_s=stale_after_s)
         dev.open()
         made.append(dev)
         return dev, svc
@@ -171,7 +172,7 @@ def test_forces_are_clamped_and_never_nan(arm):
     assert np.linalg.norm(svc.samples[-1][1]) == 0.0  # inf: zero
 
 
-def test_a_hung_service_is_a_fault_within_the_reply_timeout_and_recovers_when_it_answers(arm):
+def test_a_hung_service_is_a_fault_once_a_reply_is_owed_too_long_and_recovers(arm):
     dev, svc = arm()
     run(dev, force=(0.0, 0.5, 0.0))
     svc.hang()
@@ -185,14 +186,35 @@ def test_a_hung_service_is_a_fault_within_the_reply_timeout_and_recovers_when_it
         dev.reconnect()  # too early to give the session up: still a fault, the same session
     svc.resume()
     run(dev)
-    assert dev.info.details["sessions"] == 1 and dev.late_replies >= 1
+    assert dev.info.details["sessions"] == 1 and dev.stale_reads >= 1
 
 
-def test_during_a_hang_the_driver_sends_nothing_and_the_idle_service_zeroes_the_arm(arm):
-    """The one message in flight carried the force of the tick before the hang; the daemon's
-    zero waits for its reply. What zeroes the motors meanwhile is the service idling an arm
-    it is not commanded (realtime/control-commands). After a close the arm stays idle."""
-    dev, svc = arm()
+def test_a_late_service_gets_a_command_every_tick_and_reads_never_wait_for_it(arm):
+    """A service whose every answer leaves 50 ms after its message: the driver keeps sending
+    one message a tick, several unanswered at once, and each read returns the newest state
+    that has arrived (no round trip is waited for)."""
+    dev, svc = arm(stale_after_s=0.5, answer_after_s=0.05)
+    most_in_flight = states_while_owed = 0
+    deadline = time.monotonic() + 20.0
+
+    def unanswered():
+        return dev.info.details["messages_sent"] - dev.info.details["replies"]
+
+    while most_in_flight < 3 or states_while_owed < 3:
+        assert time.monotonic() < deadline, (most_in_flight, states_while_owed)
+        dev.read()
+        states_while_owed += unanswered() > 0  # a state, while a reply is still owed
+        dev.write_force((0.0, 0.0, 0.0))
+        most_in_flight = max(most_in_flight, unanswered())
+        time.sleep(0.001)
+    assert most_in_flight <= MAX_IN_FLIGHT and dev.held_commands == 0
+
+
+def test_during_a_hang_the_zero_waits_in_line_behind_the_messages_in_flight(arm):
+    """The daemon's ticks go on through a hang: the live forces until the reply is owed 3
+    periods (here 3 ms at 1 kHz), then zero, never more than MAX_IN_FLIGHT unanswered. When
+    the service answers again it takes them in order, the zero last."""
+    dev, svc = arm(stale_after_s=0.003)
     hold(dev, svc, (0.0, 0.5, 0.0))
     wait_for(lambda: np.any(svc.motor_force()), 5.0)
     svc.hang()
@@ -201,21 +223,20 @@ def test_during_a_hang_the_driver_sends_nothing_and_the_idle_service_zeroes_the_
             dev.read()
             dev.write_force((0.0, 0.5, 0.0))
             time.sleep(0.001)
-    sent = dev.info.details["messages_sent"]
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < 0.2:  # fault ticks: the daemon writes zero
+    for _ in range(20):  # fault ticks: the daemon writes zero
         dev.write_force((0.0, 0.0, 0.0))
         with pytest.raises(DeviceFault):
             dev.read()
-        time.sleep(0.002)
-    wait_for(lambda: not np.any(svc.motor_force()), 5.0)  # the service idled the arm ...
-    assert dev.info.details["messages_sent"] == sent  # ... for the driver could send nothing
-    session = dev._session
-    dev.close()  # during the hang: nothing can be sent, the socket is closed
+        time.sleep(0.001)
+    details = dev.info.details
+    sent = details["messages_sent"]
+    assert sent - details["replies"] <= MAX_IN_FLIGHT
     svc.resume()
+    wait_for(lambda: svc.messages == sent, 5.0)  # every message taken, in order ...
+    assert np.allclose(svc.samples[-1][1], 0.0)  # ... the zero last
+    dev.close()
     wait_for(lambda: not svc._connections, 5.0)  # the service sees the client gone ...
     wait_for(lambda: not np.any(svc.motor_force()), 5.0)  # ... and, uncommanded, the arm idles
-    assert session.sent == sent
 
 
 def test_a_session_silent_for_a_second_is_replaced(arm):
@@ -320,6 +341,5 @@ def test_close_sends_zero_and_ends_the_session(arm):
 
 def test_the_device_string_and_timing():
     assert create(None).url == "ws://localhost:10001"
-    dev = create("ws://host:9000", rate_hz=250)
-    assert dev.url == "ws://host:9000" and dev.reply_timeout_s == pytest.approx(0.010)
-    assert dev.read_wait_s == pytest.approx(0.001)
+    dev = create("ws://host:9000", rate_hz=4000)
+    assert dev.url == "ws://host:9000" and dev.stale_after_s == pytest.approx(3 / 4000)

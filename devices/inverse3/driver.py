@@ -1,27 +1,28 @@
 """Haply Inverse3 (and Inverse3x, Minverse) through Haply's Inverse Service, as a HapticDevice.
 
 The service's simulation channel answers every client message with exactly one state
-update (`protocol.py`). The session keeps that alternation without ever holding the
-loop on the socket:
+update (`protocol.py`). No tick waits for that round trip:
 
-- a reader thread owns `recv()` (websockets' sync client; a thread of ours, so each
-  state is stamped with the host's monotonic clock when it arrives, and a closed
-  connection is seen at once);
-- at most one message is in flight: `write_force()` sends the newest force only when the
-  previous message has been answered, otherwise the next one carries it. Two in flight
-  would leave the host a reply behind, since replies carry no sequence number;
-- `read()` waits for the reply in flight at most `read_wait_s` (a quarter period at the
-  daemon's rate), then gives the last state again while the reply is younger than
-  `reply_timeout_s` (2.5 periods; 10 ms without a rate). Past that the read raises
-  DeviceFault: a late reply is a fault, never a stall. The daemon writes zero and the
-  service idles the arm when its commands stop;
-- a late reply that comes is taken as usual; one that never comes (over
-  `SILENT_RECONNECT_S`) or a closed connection makes `reconnect()` open a new session in
-  a background thread, so the loop never waits on a connect either.
+- `write_force()` sends the newest force every tick, whether or not the messages before
+  it have been answered, up to MAX_IN_FLIGHT unanswered (beyond that the next message
+  carries the newest force). Replies carry no sequence number, but none is needed: each
+  is the arm's state when the service took a message, so the newest is the one to use;
+- `read()` never waits: it takes every reply that has arrived (websockets' own thread
+  receives them) and returns the newest, stamped when it was taken, so a pose's
+  `publish_t_ns − device_t_ns` is its age. A reply the service owes for longer than
+  STALE_PERIODS loop periods (measured from the newest reply, or from the oldest message
+  still unanswered when that is later) makes the read a DeviceFault: the daemon writes
+  zero, which goes out behind the messages in flight, and the service idles the arm
+  when its commands stop;
+- a closed connection is a fault at the next read; a service silent for
+  `SILENT_RECONNECT_S` with messages unanswered, or a closed connection, makes
+  `reconnect()` open a new session in a background thread, so the loop never waits on a
+  connect either.
 """
 
 from __future__ import annotations
 
+import collections
 import logging
 import threading
 import time
@@ -42,15 +43,16 @@ from sasprobe.devices.inverse3.models import (
     before_open_limits,
     model_for,
 )
-from sasprobe.devices.serial_arm import READ_WAIT_PERIODS, REPLY_PERIODS
 from websockets.exceptions import ConnectionClosed, InvalidHandshake, InvalidURI
 from websockets.sync.client import connect
 
 log = logging.getLogger("sasprobe.devices.inverse3")
 
-SILENT_RECONNECT_S = 1.0  # a reply this late: the session is given up and a new one opened
+SILENT_RECONNECT_S = 1.0  # owed a reply this long: the session is given up and a new one opened
 HANDSHAKE_TIMEOUT_S = 2.0
-CLOSE_WAIT_S = 0.05  # how long close() waits for the reply in flight before it sends zero
+STALE_PERIODS = 3.0  # a reply owed for this many loop periods: the read is a fault
+MAX_IN_FLIGHT = 8  # messages sent and not yet answered, at most
+CLOSE_WAIT_S = 0.25  # how long close() waits for the service to answer its zero (off the loop)
 
 
 def _service_missing(url: str, why: object) -> DeviceOpenError:
@@ -79,21 +81,18 @@ def _connect(url: str, timeout_s: float):
 
 
 class Session:
-    """One WebSocket connection to the service, and its reader thread."""
+    """One WebSocket connection to the service: what was sent, what came back."""
 
-    def __init__(self, ws, url: str, session_id, device: dict, first: protocol.Reading, t_ns: int):
+    def __init__(self, ws, url: str, session_id, device: dict, first: str, t_ns: int):
         self.ws, self.url, self.session_id = ws, url, session_id
         self.device_id = device["device_id"]
         config = device.get("config") if isinstance(device.get("config"), dict) else {}
         self.kind = str(config.get("type", "inverse3"))
         self.handedness = config.get("handedness")
-        self.cond = threading.Condition()
-        self.sent = self.replied = 0
-        self.sent_at = time.monotonic()
-        self.latest = (t_ns, first)
+        self.sent = self.replied = 1  # the first message and its answer
+        self.unanswered: collections.deque[int] = collections.deque()  # when each was sent, ns
+        self.latest = (t_ns, protocol.reading(first, self.device_id))  # newest state, when taken
         self.lost: str | None = None
-        self.thread = threading.Thread(target=self._receive, name="inverse3-reader", daemon=True)
-        self.thread.start()
 
     @classmethod
     def open(cls, url: str, timeout_s: float) -> Session:
@@ -120,7 +119,8 @@ class Session:
             device = devices[0]
             ws.send(protocol.first_message(device["device_id"]))
             try:
-                first = protocol.reading(ws.recv(timeout=timeout_s), device["device_id"])
+                first = ws.recv(timeout=timeout_s)
+                return cls(ws, url, session_id, device, first, time.monotonic_ns())
             except TimeoutError:
                 raise DeviceOpenError(
                     f"the Inverse Service at {url} did not answer the first message"
@@ -129,7 +129,6 @@ class Session:
                 raise DeviceOpenError(
                     f"{url} answered outside the Inverse Service's 3.x format ({exc})"
                 ) from None
-            return cls(ws, url, session_id, device, first, time.monotonic_ns())
         except (ConnectionClosed, OSError) as exc:
             ws.close()
             raise _service_missing(url, f"the connection closed: {exc}") from None
@@ -137,52 +136,47 @@ class Session:
             ws.close()
             raise
 
-    def _receive(self) -> None:
-        while True:
-            try:
-                text = self.ws.recv()
-                t_ns = time.monotonic_ns()
-                reading = protocol.reading(text, self.device_id)
-            except ConnectionClosed as exc:
-                why = f"the Inverse Service at {self.url} closed the connection ({exc})"
-            except protocol.FormatError as exc:
-                why = (
-                    f"the Inverse Service at {self.url} sent a "
-                    f"state update outside its 3.x format ({exc})"
-                )
-            except Exception as exc:  # the connection broke in some other way
-                why = f"the connection to the Inverse Service at {self.url} failed: {exc}"
-            else:
-                with self.cond:
-                    self.replied += 1
-                    self.latest = (t_ns, reading)
-                    self.cond.notify_all()
-                continue
-            with self.cond:
-                self.lost = why
-                self.cond.notify_all()
-            self.ws.close()
+    def take_replies(self) -> None:
+        """Take every reply that has arrived, keeping the newest state; never waits."""
+        newest = None
+        try:
+            while self.lost is None:
+                newest = self.ws.recv(timeout=0)
+                self.replied += 1
+                if self.unanswered:
+                    self.unanswered.popleft()
+        except TimeoutError:
+            pass
+        except ConnectionClosed as exc:
+            self.lost = f"the Inverse Service at {self.url} closed the connection ({exc})"
+        if newest is None:
             return
+        try:
+            self.latest = (time.monotonic_ns(), protocol.reading(newest, self.device_id))
+        except protocol.FormatError as exc:
+            self.lost = (
+                f"the Inverse Service at {self.url} sent a state update outside its 3.x "
+                f"format ({exc})"
+            )
 
-    def in_flight(self) -> bool:
-        return self.replied < self.sent
+    def owed_since_ns(self) -> int | None:
+        """Since when a reply has been owed (the newest reply, or the oldest message still
+        unanswered when that is later); None when every message has been answered."""
+        return max(self.unanswered[0], self.latest[0]) if self.unanswered else None
 
     def send(self, text: str) -> None:
-        with self.cond:
-            self.sent += 1
-            self.sent_at = time.monotonic()
+        self.sent += 1
+        self.unanswered.append(time.monotonic_ns())
         try:
             self.ws.send(text)
         except (ConnectionClosed, OSError) as exc:
-            with self.cond:
-                self.lost = (
-                    self.lost or f"the Inverse Service at {self.url} closed the connection ({exc})"
-                )
+            self.lost = (
+                self.lost or f"the Inverse Service at {self.url} closed the connection ({exc})"
+            )
             raise DeviceFault(self.lost) from None
 
     def close(self) -> None:
         self.ws.close()
-        self.thread.join(timeout=1.0)
 
 
 class Inverse3Device(HardwareDriver):
@@ -190,13 +184,11 @@ class Inverse3Device(HardwareDriver):
         self,
         url: str = protocol.DEFAULT_URL,
         *,
-        reply_timeout_s: float = 0.010,
-        read_wait_s: float = 0.001,
+        stale_after_s: float = STALE_PERIODS / NOMINAL_RATE_HZ,
         handshake_timeout_s: float = HANDSHAKE_TIMEOUT_S,
     ):
         self.url = url
-        self.reply_timeout_s = reply_timeout_s
-        self.read_wait_s = read_wait_s
+        self.stale_after_s = stale_after_s
         self.handshake_timeout_s = handshake_timeout_s
         self.force = np.zeros(3)
         self.model: InverseModel | None = None
@@ -204,7 +196,7 @@ class Inverse3Device(HardwareDriver):
         self._connector: threading.Thread | None = None
         self._connected: Session | None = None  # what the connector opened
         self._connect_error: str | None = None
-        self.reused_states = self.late_replies = self.sessions = 0
+        self.reused_states = self.stale_reads = self.held_commands = self.sessions = 0
 
     @property
     def info(self) -> DeviceInfo:
@@ -212,7 +204,8 @@ class Inverse3Device(HardwareDriver):
         details = {
             "url": self.url,
             "reused_states": self.reused_states,
-            "late_replies": self.late_replies,
+            "stale_reads": self.stale_reads,
+            "held_commands": self.held_commands,
             "sessions": self.sessions,
         }
         if s is not None:
@@ -239,8 +232,8 @@ class Inverse3Device(HardwareDriver):
         self.sessions += 1
         if not session.latest[1].calibrated:
             log.warning(
-                "the Inverse3 %s is not calibrated: let it self-calibrate (see "
-                "docs/connect-your-arm.md)",
+                "the Inverse3 %s is not calibrated: let it self-calibrate "
+                "(see docs/connect-your-arm.md)",
                 session.device_id,
             )
 
@@ -249,19 +242,23 @@ class Inverse3Device(HardwareDriver):
         self._take(Session.open(self.url, self.handshake_timeout_s))
 
     def close(self) -> None:
+        """Zero force behind whatever is in flight; end the session once the service has
+        answered it (a connection closed with messages unread may lose them), or after
+        CLOSE_WAIT_S."""
         self.force = np.zeros(3)
         session, self._session = self._session, None
         if session is not None:
-            with session.cond:  # let the reply in flight come, so the zero can go out
-                session.cond.wait_for(
-                    lambda: not session.in_flight() or session.lost is not None,
-                    timeout=CLOSE_WAIT_S,
-                )
-            if session.lost is None and not session.in_flight():
+            if session.lost is None:
                 try:
                     session.send(protocol.force_message(session.device_id, np.zeros(3)))
                 except DeviceFault:
                     pass
+                deadline = time.monotonic() + CLOSE_WAIT_S
+                while session.unanswered and session.lost is None:
+                    session.take_replies()
+                    if time.monotonic() > deadline:
+                        break
+                    time.sleep(0.001)
             session.close()
         connector = self._connector
         if connector is not None:
@@ -272,15 +269,16 @@ class Inverse3Device(HardwareDriver):
             self._connected = None
 
     def reconnect(self) -> None:
-        """Give up a session that is closed or silent for SILENT_RECONNECT_S, and open a new one
-        in the background; DeviceFault until it is open."""
+        """Give up a session that is closed or owes a reply for SILENT_RECONNECT_S, and open a
+        new one in the background; DeviceFault until it is open."""
         s = self._session
         if s is not None and s.lost is None:
-            silent_s = time.monotonic() - s.sent_at
-            if not s.in_flight() or silent_s <= self.reply_timeout_s:
+            s.take_replies()
+            owed = s.owed_since_ns()
+            silent_s = 0.0 if owed is None else (time.monotonic_ns() - owed) / 1e9
+            if silent_s <= self.stale_after_s:
                 return  # answering: nothing to do
-            # the late reply may still come; read() takes it when it does
-            if silent_s <= SILENT_RECONNECT_S:
+            if silent_s <= SILENT_RECONNECT_S:  # the late reply may still come
                 raise DeviceFault(
                     f"the Inverse Service has not answered for {silent_s * 1000:.0f} ms"
                 )
@@ -315,22 +313,20 @@ class Inverse3Device(HardwareDriver):
         s = self._session
         if s is None:
             raise DeviceFault(f"not connected to the Inverse Service at {self.url}")
-        with s.cond:
-            if s.in_flight() and s.lost is None:
-                s.cond.wait_for(
-                    lambda: not s.in_flight() or s.lost is not None, timeout=self.read_wait_s
-                )
-            if s.lost is not None:
-                raise DeviceFault(s.lost)
-            t_ns, reading = s.latest
-            if s.in_flight():
-                late_s = time.monotonic() - s.sent_at
-                if late_s > self.reply_timeout_s:
-                    self.late_replies += 1
-                    raise DeviceFault(
-                        f"the Inverse Service has not answered for {late_s * 1000:.0f} ms"
-                    )
-                self.reused_states += 1
+        replied = s.replied
+        s.take_replies()
+        if s.lost is not None:
+            raise DeviceFault(s.lost)
+        owed = s.owed_since_ns()
+        if owed is not None and time.monotonic_ns() - owed > self.stale_after_s * 1e9:
+            self.stale_reads += 1
+            raise DeviceFault(
+                f"the Inverse Service has not answered for "
+                f"{(time.monotonic_ns() - owed) / 1e6:.1f} ms"
+            )
+        if s.replied == replied:
+            self.reused_states += 1
+        t_ns, reading = s.latest
         return DeviceState(
             t_ns=t_ns,
             position_mm=reading.position_mm.copy(),
@@ -348,8 +344,11 @@ class Inverse3Device(HardwareDriver):
         limit = (self.model.limits if self.model is not None else before_open_limits()).max_force_n
         self.force = clamp_force(force_n, limit)
         s = self._session
-        if s is None or s.lost is not None or s.in_flight():
-            return  # the next message carries the newest force
+        if s is None or s.lost is not None:
+            return
+        if len(s.unanswered) >= MAX_IN_FLIGHT:
+            self.held_commands += 1  # the next message carries the newest force
+            return
         calibrated = s.latest[1].calibrated  # an uncalibrated arm gets zero, whatever is asked
         s.send(protocol.force_message(s.device_id, self.force if calibrated else np.zeros(3)))
 
@@ -383,15 +382,9 @@ def list_arms(url: str, timeout_s: float = HANDSHAKE_TIMEOUT_S) -> list[dict]:
 
 def create(argument: str | None = None, **options) -> Inverse3Device:
     """`inverse3[:URL]` (default ws://localhost:10001). Options: rate_hz (the daemon's loop
-    rate, which sets the read wait and the reply timeout; default the arms' nominal rate),
-    reply_timeout_s, read_wait_s."""
+    rate, which sets how long a reply may be owed: STALE_PERIODS periods; default the arms'
+    nominal rate), stale_after_s."""
     url = (argument or "").strip() or protocol.DEFAULT_URL
-    timing = {
-        k: float(options[k])
-        for k in ("reply_timeout_s", "read_wait_s")
-        if options.get(k) is not None
-    }
-    rate = float(options.get("rate_hz") or NOMINAL_RATE_HZ)  # the serial arms' reply timing
-    timing.setdefault("reply_timeout_s", REPLY_PERIODS / rate)
-    timing.setdefault("read_wait_s", READ_WAIT_PERIODS / rate)
-    return Inverse3Device(url, **timing)
+    rate = float(options.get("rate_hz") or NOMINAL_RATE_HZ)
+    stale = options.get("stale_after_s")
+    return Inverse3Device(url, stale_after_s=float(stale) if stale else STALE_PERIODS / rate)

@@ -8,12 +8,11 @@ declare the cube inscribed in it (half edge r/√3). Force: 2.0 N, the safety li
 Lab's Haply client sets by default (`HaplyDeviceCfg.limit_force`), for every type.
 Stiffness and damping limits are ours.
 
-Rate: the service's round trip rate is not published either (Isaac Lab's client exchanges
-at 200 Hz by default, `HaplyDeviceCfg.data_rate`). The arms declare 500 Hz, the rate the
-daemon runs them at unless told otherwise: the lowest rate of `sasprobe bench haptics`'
-stability map at which both rendering methods stay passive up to the declared 0.5 N/mm,
-with a reply deadline of 5 ms (2.5 periods) that the stand-in service kept far more often
-than the 2.5 ms of 1 kHz on a loaded machine (docs/connect-your-arm.md).
+Rate: the service's rate is not published either beyond "haptic control rates
+(multi-kHz)" (Isaac Lab's client exchanges at 200 Hz by default,
+`HaplyDeviceCfg.data_rate`). The driver never waits on the service's reply (driver.py),
+so the arms run at the daemon's 1 kHz by default and up to MAX_RATE_HZ, the daemon's own
+ceiling.
 """
 
 from __future__ import annotations
@@ -26,7 +25,8 @@ from sasprobe.devices.base import DeviceLimits
 MAX_FORCE_N = 2.0
 MAX_STIFFNESS_N_PER_MM = 0.5
 MAX_DAMPING_N_S_PER_M = 3.0
-NOMINAL_RATE_HZ = 500.0
+NOMINAL_RATE_HZ = 1000.0
+MAX_RATE_HZ = 4000.0
 
 
 @dataclass(frozen=True)
@@ -45,6 +45,7 @@ class InverseModel:
             workspace_min_mm=(-half, -half, -half),
             workspace_max_mm=(half, half, half),
             nominal_rate_hz=NOMINAL_RATE_HZ,
+            max_rate_hz=MAX_RATE_HZ,
         )
 
 

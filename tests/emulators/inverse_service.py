@@ -19,7 +19,9 @@ Written from Haply's documentation only (docs.haply.co/inverseSDK/service/: `api
   `configure.preset` is `arm_front_centered` (or `led_front_centered`), which moves it
   to the workspace centre; configuration is per session and dies with the connection.
 Not modelled: the HTTP API, basis permutations and mounts (recorded, not applied),
-position control, several arms.
+position control, several arms. `answer_after_s` makes a slow service: each state update
+leaves that long after its message came (the state as it was when the message was taken),
+in order, while later messages are taken meanwhile.
 
 The hand, the cursor and every force here are in Haply's frame, millimetres for the
 hand and cursor (tests/emulators/physics.py), the workspace centre at the origin.
@@ -63,8 +65,10 @@ class InverseService:
         calibrated: bool = True,
         hand_stiffness_n_per_mm: float = 0.5,
         grip: bool = True,
+        answer_after_s: float = 0.0,
     ):
         self.kind, self.calibrated, self.grip = kind, calibrated, grip
+        self.answer_after_s = answer_after_s
         self.hand = MovableHand((0.0, 0.0, 0.0))
         self.stylus = HeldStylus(
             (0.0, 0.0, 0.0), self.hand, hand_stiffness_n_per_mm=hand_stiffness_n_per_mm
@@ -237,6 +241,7 @@ class InverseService:
         self.sessions += 1
         session_id = self.sessions
         centred = False  # the session's preset: "defaults" until it names another
+        answers = _Answers(conn, self.answer_after_s)
         try:
             conn.send(json.dumps({"session_id": session_id, **self._state(centred, full=True)}))
             for text in conn:
@@ -246,13 +251,54 @@ class InverseService:
                 named = self._apply(text)
                 if named is not None:
                     centred = named in CENTRED_PRESETS
-                conn.send(
+                answers.send(
                     json.dumps({"session_id": session_id, **self._state(centred, full=False)})
                 )
         except ConnectionClosed:
             pass
         finally:
+            answers.close()
             self._connections.discard(conn)
+
+
+class _Answers:
+    """A connection's state updates: sent at once, or `delay_s` after their message came (in
+    order, from a thread of their own)."""
+
+    def __init__(self, conn, delay_s: float):
+        self.conn, self.delay_s = conn, delay_s
+        self.queue: deque = deque()
+        self.ready = threading.Condition()
+        self.open = True
+        if delay_s > 0:
+            threading.Thread(target=self._run, daemon=True).start()
+
+    def send(self, text: str) -> None:
+        if self.delay_s <= 0:
+            self.conn.send(text)
+            return
+        with self.ready:
+            self.queue.append((time.monotonic() + self.delay_s, text))
+            self.ready.notify()
+
+    def _run(self) -> None:
+        while True:
+            with self.ready:
+                while self.open and not self.queue:
+                    self.ready.wait()
+                if not self.open:
+                    return
+                due, text = self.queue.popleft()
+            time.sleep(max(0.0, due - time.monotonic()))
+            try:
+                self.conn.send(text)
+            except ConnectionClosed:
+                return
+
+    def close(self) -> None:
+        with self.ready:
+            self.open = False
+            self.ready.notify()
 
 
 def launch(**options) -> InverseService:
