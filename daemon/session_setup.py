@@ -31,7 +31,7 @@ class SessionSetup:
         """The opened device's limits, the settings checked against them (validate_settings'
         form) and the tick pipeline built for them; call it once the device is open."""
         limits = self.device.info.limits
-        settings = validate_settings(self.settings, limits)
+        settings = validate_settings(self.settings, limits, self.rate_hz)
         return (
             limits,
             settings,

@@ -32,6 +32,11 @@ from sasprobe.common.errors import UserError
 
 IDENTITY_QUATERNION = (1.0, 0.0, 0.0, 0.0)  # (w, x, y, z)
 DEFAULT_RATE_HZ = 1000.0  # the control rate haptics needs, which most arms declare
+# The viscous damping at the tip of an arm held by a light grip, the b of the passivity
+# bound K < 2(b - B)/T: the simulated Omni-class arm's own 0.3 N·s/m and its model hand's
+# 1.0 (devices/simulated/arm.py's ArmModel). No maker publishes an arm's, so every arm is
+# taken to be held like the simulated one (docs/haptics.md#default-stiffness).
+HELD_DAMPING_N_S_PER_M = 1.3
 
 
 class DeviceFault(RuntimeError):
@@ -56,6 +61,7 @@ class DeviceLimits:
     nominal_rate_hz: float = DEFAULT_RATE_HZ
     max_rate_hz: float = DEFAULT_RATE_HZ
     has_force_output: bool = True
+    held_damping_n_s_per_m: float = HELD_DAMPING_N_S_PER_M  # the arm's and the hand's, at the tip
 
     @property
     def workspace_center_mm(self) -> np.ndarray:

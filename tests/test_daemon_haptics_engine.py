@@ -258,7 +258,7 @@ def test_force_is_continuous_while_the_goal_slides_across_seams(points):
     forces, contacts, scale = seam_session(points, path)
     steps = np.linalg.norm(np.diff(np.array(path), axis=0), axis=1).max() / scale  # mm per tick
     jumps = np.linalg.norm(np.diff(forces, axis=0), axis=1)
-    k = HapticSettings().stiffness_n_per_mm
+    k = HapticSettings().validated(LIMITS).stiffness_n_per_mm  # the engine's default
     seams = {len(c) for c in contacts}
     assert 2 in seams  # the proxy did sit in a seam on the way
     # Lipschitz: the force changes by at most a few times K times the goal's step.
@@ -299,7 +299,7 @@ def test_drift_moves_the_cube_without_a_force_jump():
     # no jump when drift starts, during it, or when the hand stops: every tick's force change
     # is bounded by K times the goal's motion in that tick (hand 0.02 mm + drift <= 0.03 mm)
     jumps = np.linalg.norm(np.diff(forces, axis=0), axis=1)
-    k = HapticSettings().stiffness_n_per_mm
+    k = HapticSettings().validated(LIMITS).stiffness_n_per_mm  # the engine's default
     assert jumps.max() <= 2.0 * k * (0.02 + m.drift_speed_mm_s * 1e-3)
     first = drifting.index(True)
     assert jumps[first - 1] <= 1.5 * jumps[first - 5 : first - 1].max() + 1e-6

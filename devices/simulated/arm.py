@@ -105,7 +105,11 @@ class SimulatedDevice(HapticDevice):
         if not math.isfinite(rate_hz) or rate_hz <= 0 or rate_hz > 100_000:
             raise ValueError(f"simulated control rate must be in (0, 100000] Hz, got {rate_hz:g}")
         self.hand_path = hand_path
-        self.limits = dataclasses.replace(limits, max_rate_hz=MAX_RATE_HZ)
+        self.limits = dataclasses.replace(
+            limits,
+            max_rate_hz=MAX_RATE_HZ,
+            held_damping_n_s_per_m=arm.arm_damping_n_s_per_m + arm.hand_damping_n_s_per_m,
+        )
         self.arm = arm
         self.rate_hz = rate_hz
         self.period_ns = int(round(1e9 / rate_hz))

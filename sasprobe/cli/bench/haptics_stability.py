@@ -12,9 +12,9 @@ import numpy as np
 from sasprobe.cli.bench import BenchContext
 from sasprobe.protocol.scene import HAPTIC_METHODS as METHODS
 
-RATES_HZ = (100, 250, 500, 1000, 2000)
-STIFFNESS = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0)
-QUICK_STIFFNESS = (0.2, 0.5, 1.0, 2.0)
+RATES_HZ = (100, 250, 500, 1000, 2000, 4000)
+STIFFNESS = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0, 3.0, 5.0, 8.0, 12.0, 20.0)
+QUICK_STIFFNESS = (0.2, 0.5, 1.0, 2.0, 5.0, 12.0)
 SMOKE_RATES_HZ, SMOKE_STIFFNESS = (1000,), (0.5, 2.0)
 ENERGY_UNSTABLE_MJ = 1.0  # net energy put into the arm over a press-and-release cycle
 POP_THROUGH_N = 0.2  # force component along the push: the surface pulls the hand in
@@ -23,6 +23,7 @@ POP_THROUGH_N = 0.2  # force component along the push: the surface pulls the han
 def stability_map(ctx: BenchContext) -> dict:
     """Press-and-release on crambin at each control rate x stiffness, per method."""
     from sasprobe.daemon.haptics import HapticSettings
+    from sasprobe.daemon.haptics.settings import STIFFNESS_MARGIN, passivity_bound
     from sasprobe.devices.base import PHANTOM_OMNI_LIMITS
     from sasprobe.devices.simulated.arm import ArmModel
     from sasprobe.molecule import load_default
@@ -41,14 +42,20 @@ def stability_map(ctx: BenchContext) -> dict:
             for k in stiffness:
                 cells.append(stability_cell(structure, method, rate, k, limits))
     arm = ArmModel()
+    damping = HapticSettings().damping_n_s_per_m
     return {
         "structure": structure.name,
         "script": "press",
         "rates_hz": list(rates),
         "stiffness_n_per_mm": list(stiffness),
         "device_max_stiffness_n_per_mm": PHANTOM_OMNI_LIMITS.max_stiffness_n_per_mm,
-        "virtual_damping_n_s_per_m": HapticSettings().damping_n_s_per_m,
+        "virtual_damping_n_s_per_m": damping,
         "physical_damping_n_s_per_m": arm.arm_damping_n_s_per_m + arm.hand_damping_n_s_per_m,
+        # the daemon's default on an arm rated above the bound: half the bound
+        "default_stiffness_n_per_mm": {
+            str(r): STIFFNESS_MARGIN * passivity_bound(PHANTOM_OMNI_LIMITS, r, damping)
+            for r in rates
+        },
         "energy_unstable_mj": ENERGY_UNSTABLE_MJ,
         "pop_through_n": POP_THROUGH_N,
         "cells": cells,
@@ -123,6 +130,14 @@ def stability_figure(stability):
             lw=1,
             label="passivity bound 2(b-B)/T",
         )
+        default = [stability["default_stiffness_n_per_mm"][str(r)] for r in rates]
+        ax.plot(
+            range(len(rates)),
+            np.interp(default, ks, range(len(ks)), left=-0.5, right=len(ks) - 0.5),
+            "b-",
+            lw=1,
+            label="default stiffness on an arm rated above it: half the bound",
+        )
         dev = np.interp(stability["device_max_stiffness_n_per_mm"], ks, range(len(ks)))
         ax.axhline(dev, color="k", lw=1, ls=":", label="Omni rated max")
     axes[0].set_ylabel("stiffness (N/mm)")
@@ -145,7 +160,10 @@ def stability_markdown(stability) -> str:
         f"cycle (mJ); **U** = unstable (> {stability['energy_unstable_mj']:g} mJ gained), **P** = "
         f"pop-through (force > {stability['pop_through_n']:g} N along the push). Arm damping + "
         f"hand damping {stability['physical_damping_n_s_per_m']:g} N·s/m, virtual damping "
-        f"{stability['virtual_damping_n_s_per_m']:g} N·s/m.",
+        f"{stability['virtual_damping_n_s_per_m']:g} N·s/m. The passivity bound 2(b − B)/T is "
+        + ", ".join(f"{2 * v:.2g}" for v in stability["default_stiffness_n_per_mm"].values())
+        + f" N/mm at {', '.join(f'{r} Hz' for r in rates)}; the daemon's default stiffness is "
+        "half the smaller of the bound and the arm's rated maximum (docs/haptics.md).",
         "",
     ]
     for method in METHODS:

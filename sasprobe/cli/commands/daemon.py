@@ -149,7 +149,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=positive_float,
         default=None,
         metavar="N_PER_MM",
-        help=f"contact stiffness (default {defaults.stiffness_n_per_mm:g})",
+        help="contact stiffness (default: half the largest the arm renders stably at the loop's "
+        "rate, docs/haptics.md#default-stiffness)",
     )
     p.add_argument(
         "--damping",
