@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from sasprobe.daemon.timer import SPIN_S
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT, parse_endpoint
 from sasprobe.protocol.security import ServerKeys, ensure_local_keys, load_server_keys
 
@@ -25,7 +26,7 @@ class DaemonConfig:
     settings: dict = field(default_factory=dict)  # haptic settings given on the command line
     speed: float | None = 1.0  # replay speed (None: max)
     seed: int = 0
-    spin_s: float = 200e-6
+    spin_s: float = SPIN_S
     report: str | None = None  # write a JSON exit report here
     max_seconds: float | None = None  # stop by itself after this long (benchmarks, demos)
     # ask for SCHED_FIFO for the loop and ZeroMQ's I/O thread (fall back with a warning)

@@ -1,10 +1,14 @@
 """The haptic loop's timer: absolute deadlines on the monotonic clock, sleep then spin.
 
 Tick k is due at t0 + k·period, so errors never accumulate (no drift). The loop sleeps
-until `spin` before the deadline (the OS wakes threads late by tens of µs), then spins
-on the clock for the rest. A tick that starts a full period or more after its deadline
-is an overrun: the deadlines it missed are skipped (counted, never made up in a burst)
-and the schedule stays on the same grid. What each tick does is daemon/loop.py.
+until `spin` before the deadline (the OS wakes a real-time thread late by tens of µs),
+then spins on the clock for the rest, as CHAI3D's haptic thread and Force Dimension's
+free-running loop spin for all of it. It never spins for more than half a period: a
+SCHED_FIFO thread that never sleeps is throttled by the kernel (by default 50 ms of
+every second, `sched_rt_runtime_us`), which costs far more than a late wake-up. A tick
+that starts a full period or more after its deadline is an overrun: the deadlines it
+missed are skipped (counted, never made up in a burst) and the schedule stays on the same
+grid. What each tick does is daemon/loop.py.
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+SPIN_S = 100e-6  # the last part of a period is spun rather than slept
 HIST_BIN_NS = 1_000  # period-error histogram: 1 µs bins ...
 HIST_BINS = 100_000  # ... up to 100 ms (larger errors land in the last bin)
 RECENT_TICKS = 1024  # the window `sasprobe status` shows (about a second at 1 kHz)
@@ -148,7 +153,7 @@ class FixedRateTimer:
     def __init__(
         self,
         rate_hz: float | None,
-        spin_s: float = 200e-6,
+        spin_s: float = SPIN_S,
         clock: Callable[[], int] = time.monotonic_ns,
         sleep: Callable[[float], None] = time.sleep,
     ) -> None:
@@ -156,7 +161,7 @@ class FixedRateTimer:
             raise ValueError(f"loop rate must be positive, got {rate_hz}")
         self.rate_hz = rate_hz
         self.period_ns = round(1e9 / rate_hz) if rate_hz else 0
-        self.spin_ns = int(spin_s * 1e9)
+        self.spin_ns = min(int(spin_s * 1e9), self.period_ns // 2)
         self._clock = clock
         self._sleep = sleep
         self._t0: int | None = None
