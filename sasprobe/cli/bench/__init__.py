@@ -15,6 +15,9 @@ from pathlib import Path
 
 # The order `sasprobe bench` runs them in; a name whose module is absent is skipped.
 ORDER = ["startup", "grid", "sas", "haptics", "daemon", "render", "lighting"]
+# Run by name only (`sasprobe bench NAME`), each writing its own part of the page: they want
+# a machine chosen for them.
+ON_ITS_OWN = ["rates"]
 
 
 @dataclass
@@ -50,8 +53,8 @@ def load(name: str):
         raise
 
 
-def available() -> list[str]:
-    return [name for name in ORDER if load(name) is not None]
+def available(names: list[str] = ORDER) -> list[str]:
+    return [name for name in names if load(name) is not None]
 
 
 def median_time(fn: Callable[[], object], repeats: int) -> float:

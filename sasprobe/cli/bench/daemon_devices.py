@@ -44,18 +44,25 @@ def emulators_available() -> bool:
     return (REPO_ROOT / "tests" / "emulators" / "__init__.py").is_file()
 
 
-def _launch(module: str, options: dict):
+def launch(module: str, options: dict):
     if str(REPO_ROOT) not in sys.path:
         sys.path.insert(0, str(REPO_ROOT))
     return importlib.import_module(f"tests.emulators.{module}").launch(**options)
 
 
-def _measure_one(
-    spec: tuple[str, dict] | None, warmup_s: float, seconds: float, rate_hz: float | None = None
+def measure_one(
+    spec: tuple[str, dict] | None,
+    warmup_s: float,
+    seconds: float,
+    rate_hz: float | None = None,
+    record: bool = True,
 ) -> dict:
+    """One daemon on one device (`spec`: an emulator module and its options; None: the
+    simulated arm) for `seconds` after `warmup_s`: its loop's figures from `status`, and with
+    `record` the read times and failures from its recording of the same window."""
     from sasprobe.protocol.client import ControlClient
 
-    emulator = None if spec is None else _launch(*spec)
+    emulator = None if spec is None else launch(*spec)
     folder = Path(tempfile.mkdtemp(prefix="spbd"))
     env = dict(
         os.environ,
@@ -77,8 +84,7 @@ def _measure_one(
             f"ipc://{folder}/pub",
             "--ctl",
             ctl,
-            "--record",
-            str(recording),
+            *(["--record", str(recording)] if record else []),
         ],
         folder / "daemon.log",
         env=env,
@@ -94,11 +100,10 @@ def _measure_one(
             status = client.status()
             window = (window[0], time.monotonic_ns())
         child.stop(STOP_S)
-        return {
-            "device": status["device"]["model"],
-            "loop": status["loop"],
-            "reads": _reads(recording, *window),
-        }
+        result = {"device": status["device"]["model"], "loop": status["loop"]}
+        if record:
+            result["reads"] = _reads(recording, *window)
+        return result
     finally:
         child.stop(STOP_S)
         if emulator is not None:
@@ -148,7 +153,7 @@ def measure(
     runs = [(label, spec, rate) for label, spec in devices for rate in (rates_hz or [None])]
     for label, spec, rate in progress(runs, desc="bench daemon: devices", total=len(runs)):
         try:
-            result = _measure_one(spec, warmup_s=1.0, seconds=seconds, rate_hz=rate)
+            result = measure_one(spec, warmup_s=1.0, seconds=seconds, rate_hz=rate)
         except (
             Exception
         ) as exc:  # one emulator that cannot start (no C compiler for libHD) skips its row

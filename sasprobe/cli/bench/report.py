@@ -2,10 +2,11 @@
 the benchmark page (docs/benchmarks.md) regenerated from the latest runs.
 
 The page holds one part per kind of run, each written whole by that run: `all` (the
-benchmarks, `sasprobe bench --page PAGE`) and `gpu-quick` (`sasprobe bench --gpu-quick
---page PAGE`, on a machine with a GPU). Writing one part keeps the other as it stands,
-since the two usually run on different machines; each part names its own machine, date
-and code. Charts are copied into a folder beside the page named after it
+benchmarks, `sasprobe bench --page PAGE`), `rates` (`sasprobe bench rates --page PAGE`,
+on a machine chosen for it) and `gpu-quick` (`sasprobe bench --gpu-quick --page PAGE`, on
+a machine with a GPU). Writing one part keeps the others as they stand, since they
+usually run on different machines or at different times; each part names its own
+machine, date and code. Charts are copied into a folder beside the page named after it
 (docs/benchmarks/) and linked relatively; a chart there that no part links to is removed.
 """
 
@@ -19,7 +20,16 @@ from pathlib import Path
 
 from sasprobe.cli.bench.machine import markdown as machine_markdown
 
-PARTS = {"all": "All benchmarks", "gpu-quick": "GPU check"}  # in the page's order
+PARTS = {  # in the page's order
+    "all": "All benchmarks",
+    "rates": "Loop rates",
+    "gpu-quick": "GPU check",
+}
+WRITTEN_BY = {  # how each part is written, for a page that does not have it yet
+    "all": "sasprobe bench --page docs/benchmarks.md",
+    "rates": "sasprobe bench rates --page docs/benchmarks.md",
+    "gpu-quick": "sasprobe bench --gpu-quick --page docs/benchmarks.md",
+}
 MODES = {
     "full": "full size",
     "quick": "--quick: fewer repeats and structures",
@@ -28,11 +38,13 @@ MODES = {
 HEADER = """# Benchmarks
 
 This page is written by `sasprobe bench --page docs/benchmarks.md` (every benchmark at full
-size) and by `sasprobe bench --gpu-quick --page docs/benchmarks.md` (the GPU check, on a
-machine with a GPU); each part is rewritten whole by its own run, and names the machine, the
-date and the code it measured. Times are medians; every ratio compares figures measured in
-the same run. `sasprobe bench --quick` (minutes) and `sasprobe bench --smoke` (seconds: each
-benchmark's code path at its smallest, to check that it runs) write the same report with
+size), by `sasprobe bench rates --page docs/benchmarks.md` (the haptic loop at 1, 2 and
+4 kHz, quiet and beside busy loops) and by `sasprobe bench --gpu-quick --page
+docs/benchmarks.md` (the GPU check, on a machine with a GPU); each part is rewritten whole
+by its own run, and names the machine, the date and the code it measured. Times are
+medians; every ratio compares figures measured in the same run. `sasprobe bench --quick`
+(minutes) and `sasprobe bench --smoke` (seconds: each benchmark's code path at its
+smallest, to check that it runs) write the same report with
 fewer figures; `--out DIR` keeps a run's JSON, charts and report.md apart from this page.
 """
 
@@ -168,6 +180,22 @@ def gpu_part(machine: dict, mode: str, date: str, title: str, text: str) -> str:
     )
 
 
+def own_part(part: str, machine: dict, result, mode: str, date: str) -> str:
+    """The part of a benchmark that runs on its own (bench.ON_ITS_OWN)."""
+    return "\n".join(
+        [
+            f"## {PARTS[part]}",
+            "",
+            f"Run of {date} ({MODES[mode]}), {code_version()}; "
+            f"{result.data.get('wall_seconds', 0.0):.0f} s.",
+            "",
+            machine_markdown(machine),
+            "",
+            result.markdown,
+        ]
+    )
+
+
 def charts_folder(page: Path) -> Path:
     return page.with_suffix("")
 
@@ -185,9 +213,7 @@ def write_page(page: Path, part: str, body: str, charts=()) -> None:
     blocks = [HEADER]
     for name in PARTS:
         text = kept.get(name) or (
-            f"## {PARTS[name]}\n\nNot measured yet: `sasprobe bench "
-            f"{'--gpu-quick ' if name == 'gpu-quick' else ''}--page docs/benchmarks.md` "
-            "writes this part."
+            f"## {PARTS[name]}\n\nNot measured yet: `{WRITTEN_BY[name]}` writes this part."
         )
         blocks.append(
             f"<!-- sasprobe bench: {name} -->\n{text.strip()}\n<!-- sasprobe bench: end {name} -->"

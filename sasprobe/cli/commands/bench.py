@@ -49,7 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="frame size of --gpu-quick (default 1920x1080)",
     )
     names = p.add_subparsers(dest="bench_name", metavar="NAME")
-    for name in bench.available():
+    for name in bench.available() + bench.available(bench.ON_ITS_OWN):
         module = bench.load(name)
         q = names.add_parser(name, help=module.TITLE)
         _common(q, suppress=True)
@@ -204,8 +204,13 @@ def _write(args: argparse.Namespace, payload: dict, results: list[bench.BenchRes
         print(f"wrote {args.out / 'report.md'}", file=sys.stderr)
     if args.page is not None:
         prefix = f"{report.charts_folder(args.page).name}/"
-        body = report.all_part(machine, results, mode, date, *tables, chart_prefix=prefix)
-        report.write_page(args.page, "all", body, [c for r in results for c in r.charts])
+        if args.bench_name in bench.ON_ITS_OWN:
+            part = args.bench_name
+            body = report.own_part(part, machine, results[0], mode, date)
+        else:
+            part = "all"
+            body = report.all_part(machine, results, mode, date, *tables, chart_prefix=prefix)
+        report.write_page(args.page, part, body, [c for r in results for c in r.charts])
         print(f"wrote {args.page}", file=sys.stderr)
 
 
