@@ -56,13 +56,15 @@ def measure_one(
     seconds: float,
     rate_hz: float | None = None,
     record: bool = True,
+    starter=None,
 ) -> dict:
     """One daemon on one device (`spec`: an emulator module and its options; None: the
     simulated arm) for `seconds` after `warmup_s`: its loop's figures from `status`, and with
-    `record` the read times and failures from its recording of the same window."""
+    `record` the read times and failures from its recording of the same window. `starter`
+    starts the emulator (default `launch`)."""
     from sasprobe.protocol.client import ControlClient
 
-    emulator = None if spec is None else launch(*spec)
+    emulator = None if spec is None else (starter or launch)(*spec)
     folder = Path(tempfile.mkdtemp(prefix="spbd"))
     env = dict(
         os.environ,

@@ -5,7 +5,12 @@ Each row starts `sasprobe daemon --device ... --rate R` (no subscriber, no recor
 loop alone) on the simulated arm or on a device-side stand-in from the checkout's
 `tests/emulators/` (the DHD library, fake_libdhd.c, loaded into the daemon; the Inverse
 Service, a WebSocket server in this process), and after a warm-up reads the loop's
-figures from `status`. "Busy" rows run with `--busy N` processes beside it that spin
+figures from `status`. The stand-ins' own threads run at a real-time priority below the
+loop's (STAND_IN_PRIORITY), as the DHD stand-in's physics thread does by living in the
+daemon: a stand-in written in Python needs far more CPU per message than the device or
+service it stands in for, and starved by the busy loops it would measure itself, not the
+daemon. The CPU it takes then counts against the kernel's real-time budget, which a 4 kHz
+Inverse3 row can exhaust. "Busy" rows run with `--busy N` processes beside it that spin
 for as long as the rows last (at normal priority, as another user's jobs would); the
 machine's own load is reported beside each row, since "quiet" is only as quiet as the
 machine is. The benchmark runs by name only, never in `sasprobe bench`'s full run: it
@@ -30,6 +35,7 @@ DEVICES: dict[str, tuple[str, dict] | None] = {  # as daemon_devices.DEVICES
     "Haply Inverse3 (stand-in Inverse Service)": ("inverse_service", {}),
 }
 BUSY_LOOPS = 2
+STAND_IN_PRIORITY = 40  # SCHED_FIFO of the stand-ins' threads started here (the loop's: 50)
 TARGETS = (
     "every arm at 1 kHz with ≤ 0.1 % failed reads beside two busy loops; the simulated arm "
     "and the stand-in DHD at 4 kHz with p99 period error ≤ 50 µs quiet and ≤ 0.1 % late "
@@ -94,6 +100,22 @@ def realtime_processes() -> int:
     return count
 
 
+def start_stand_in(module: str, options: dict):
+    """A stand-in whose threads (started here, they inherit it) run at SCHED_FIFO
+    STAND_IN_PRIORITY; where that is refused, at normal priority."""
+    from sasprobe.daemon.realtime import current_scheduling, restore_scheduling
+
+    saved = current_scheduling()
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(STAND_IN_PRIORITY))
+    except OSError:
+        pass
+    try:
+        return daemon_devices.launch(module, options)
+    finally:
+        restore_scheduling(saved)
+
+
 def _rates(text: str) -> list[float]:
     try:
         rates = [float(r) for r in text.split(",") if r.strip()]
@@ -121,7 +143,12 @@ def measure(
                 loops = BusyLoops(busy) if load == "busy" else None
             try:
                 result = daemon_devices.measure_one(
-                    devices[label], warmup_s, seconds, rate_hz=rate, record=False
+                    devices[label],
+                    warmup_s,
+                    seconds,
+                    rate_hz=rate,
+                    record=False,
+                    starter=start_stand_in,
                 )
             except Exception as exc:  # a stand-in that cannot start (no C compiler) skips its row
                 rows.append(
@@ -195,7 +222,8 @@ def markdown(data: dict) -> str:
         f"Each row: `sasprobe daemon --device ... --rate R` for {data['seconds']:g} s after a "
         "1 s warm-up, no subscriber and no recording, on the simulated arm or on a device-side "
         "stand-in from `tests/emulators/` (the DHD library loaded into the daemon; the Inverse "
-        "Service in the benchmark's process, at normal priority), beside no or "
+        "Service in the benchmark's process, its threads at SCHED_FIFO "
+        f"{STAND_IN_PRIORITY}, below the loop's), beside no or "
         f"{data['busy_loops']} processes of the benchmark's that spin at normal priority (busy "
         "loops; the machine's own load is in the last column). Period error is |interval "
         "between tick starts − period| (1 µs bins); an overrun is a tick that started a full "
