@@ -43,7 +43,7 @@ def command_at(dev, emu, x_mm, force):
 def withheld_at(dev, emu, x_mm):
     """A tick whose force the daemon withheld (late, or a ramp's first): read, then zero that
     says nothing of the contact."""
-    wait_for(dev, lambda s: s.position_mm[0] == pytest.approx(x_mm))
+    read_until(dev, lambda s: s.position_mm[0] == pytest.approx(x_mm))
     dev.withhold_force()
     emu.wait_frames(3)
     return emu.applied_force
@@ -158,14 +158,14 @@ def daemon_ticks_along(dev, emu, xs):
     return force
 
 
-def test_force_comes_back_after_leaving_a_sloped_contact_back_along_the_approach(arm):
+def test_force_comes_back_after_leaving_a_sloped_contact_back_along_the_approach(hd_arm):
     """The force at the error points 75° away from the hand's approach; the hand withdraws
     along the approach to just outside the wall (0.26 mm along its normal), where the daemon
     asks for exactly no force, then presses again: the arm renders the daemon's force,
     ramped in."""
-    dev, emu = arm(styles=HD_CALIBRATION_AUTO, hand=held_at(1.0))
+    dev, emu = hd_arm(styles=HD_CALIBRATION_AUTO, hand=held_at(1.0))
     dev.open()
-    wait_for(dev, lambda s: s.calibrated)
+    read_until(dev, lambda s: s.calibrated)
     pressing = np.arange(1.0, -10.01, -0.5)
     pressed = daemon_ticks_along(dev, emu, pressing)
     assert np.linalg.norm(pressed) > 0.3 and emu.applied_force == pytest.approx(pressed)

@@ -61,7 +61,6 @@ def test_poll_drains_everything_and_keeps_the_newest(pub_and_sub):
 
 def test_malformed_messages_are_dropped_and_counted(pub_and_sub):
     pub, sub = pub_and_sub
-    seq = sub.pose.seq
     pub.send_multipart([POSE_TOPIC, b"short"])
     pub.send_multipart([SCENE_TOPIC, b"{not json"])
     pub.send_multipart([SCENE_TOPIC, b'{"version": 1}'])

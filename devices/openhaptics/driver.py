@@ -249,7 +249,8 @@ class OpenHapticsDevice(HardwareDriver):
             workspace_max_mm=tuple(float(v) for v in hi - self._centre),
             nominal_rate_hz=1000.0,
         )
-        self._pop_errors()  # a parameter this device lacks leaves HD_INVALID_ENUM; the defaults stand
+        # a parameter this device lacks leaves HD_INVALID_ENUM; the defaults stand
+        self._pop_errors()
 
     def _disable(self) -> None:
         self._lib.hdDisableDevice(self._handle)
@@ -372,13 +373,15 @@ class OpenHapticsDevice(HardwareDriver):
                     "OpenHaptics reported %s (0x%04x): %s",
                     error_name(code),
                     code,
-                    "force output stopped until the stylus is out of the contact or a button is pressed anew"
+                    "force output stopped until the stylus is out of the contact or a button is "
+                    "pressed anew"
                     if stops_force
                     else "the servo loop goes on",
                 )
         if fatal is not None:
             raise DeviceFault(
-                f"OpenHaptics reported {error_name(fatal[0])} (0x{fatal[0]:04x}, internal {fatal[1]})"
+                f"OpenHaptics reported {error_name(fatal[0])} "
+                f"(0x{fatal[0]:04x}, internal {fatal[1]})"
             )
         if sample is None or time.monotonic_ns() - sample[0] > self.read_timeout_s * 1e9:
             raise DeviceFault(
