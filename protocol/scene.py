@@ -19,7 +19,7 @@ MAX_MARKS = 500  # marks a scene carries (a session's findings, not a point clou
 MAX_MARK_LABEL = 80  # characters of a mark's label
 # the `method` a scene reports and a `set` may ask for; the first is the default
 HAPTIC_METHODS = ("proxy", "penalty")
-# How renderers colour the atoms (render/colors.py says what each means); the optional scene
+# How renderers colour the atoms (molecule/colors.py says what each means); the optional scene
 # key `color_scheme` is one of these, or null for the renderer's default by structure.
 COLOR_SCHEMES = (
     "element",

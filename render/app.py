@@ -58,7 +58,7 @@ class RenderOptions:
     # "workspace" or "overview"; None: workspace with --connect, else overview.
     view: str | None = None
     gbuffer_dir: Path | None = None  # headless: every frame's G-buffer into this folder
-    color: str | None = None  # colour scheme (render/colors.py); None: the default by structure
+    color: str | None = None  # colour scheme (molecule/colors.py); None: the default by structure
     # Lighting preset (render/lighting/presets.py): light intensities, background.
     preset: str = "default"
     background: tuple[float, float, float] | None = None  # None: the preset's

@@ -18,8 +18,8 @@ import time
 from typing import TYPE_CHECKING
 
 import numpy as np
+from sasprobe.molecule.colors import chain_colors, scheme_colors
 from sasprobe.render.camera import Camera
-from sasprobe.render.colors import chain_colors, scheme_colors
 from sasprobe.render.frame_planner import FramePlan, FramePlanner
 from sasprobe.render.gl.buffers import MoleculeBuffers
 from sasprobe.render.gl.programs import ProgramCache

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from sasprobe.molecule import DEFAULT_PROBE_RADIUS, Structure, UniformGrid
+from sasprobe.molecule.colors import AtomAreas, default_scheme
 from sasprobe.protocol.scene import DEFAULT_LIGHT_DIRECTION
-from sasprobe.render.colors import AtomAreas, default_scheme
 
 
 def normalise_plane(plane) -> np.ndarray:
@@ -115,7 +115,7 @@ class Effects:
     ambient_occlusion: bool = False
     edge_cueing: bool = False
     path_tracing: bool = False
-    # Render/colors.py SCHEMES; None: the default by structure (C key)
+    # protocol/scene.py COLOR_SCHEMES; None: the default by structure (C key)
     color_scheme: str | None = None
 
 

@@ -2,7 +2,7 @@
 FXAA and edges off) shows the colour docs/viewing.md documents for that atom, read back per
 pixel through the G-buffer's atom ids. The expected colours are computed here from the
 documented tables and ramps (Jmol CPK, RasMol amino, Kyte-Doolittle, the polymer kinds),
-not from render/colors.py."""
+not from molecule/colors.py."""
 
 from __future__ import annotations
 
@@ -222,7 +222,7 @@ def test_polymer_colours_protein_nucleic_ligand_water(gl, rb8, oky, reference_by
         assert seen >= ({"protein", "nucleic"} if s is rb8 else {"protein", "ligand", "water"}), (
             seen
         )
-    from sasprobe.render.colors import scheme_colors
+    from sasprobe.molecule.colors import scheme_colors
 
     aon = load_structure(
         reference_by_id["1aon"].path
@@ -267,7 +267,7 @@ def test_bfactor_and_sas_ramps_and_the_colour_bar(gl, rb8, reference_by_id):
 
 
 def test_default_scheme_by_structure(crambin, reference_by_id):
-    from sasprobe.render.colors import LARGE_STRUCTURE, default_scheme
+    from sasprobe.molecule.colors import LARGE_STRUCTURE, default_scheme
 
     assert default_scheme(crambin) == "element"  # one chain
     assert (

@@ -34,7 +34,7 @@ def sphere_records(structure: Structure) -> np.ndarray:
 
 def backbone_vertices(structure: Structure, chain_colors: np.ndarray) -> np.ndarray:
     """Line-list vertices of the trace (two per segment), in BACKBONE_FORMAT as a record array;
-    each segment in its chain's colour (`chain_colors`: per atom, render/colors.py)."""
+    each segment in its chain's colour (`chain_colors`: per atom, molecule/colors.py)."""
     starts, ends = [], []
     for seg in structure.backbone:
         if len(seg) < 2:

@@ -8,6 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from sasprobe.molecule.colors import BACKGROUND, HIGHLIGHT, LIT
 
 # Shadow/AO rays start at p + n * (RAY_EPS_ABS + RAY_EPS_REL * max|p_i|) (Å): a few float32
 # spacings at the coordinate's magnitude plus a floor of 1e-3 Å, far below what a pixel
@@ -40,8 +41,8 @@ class DirectionalLight:
         return d / norm
 
 
-DEFAULT_PROBE_ATTENUATION = (1.0, 0.0, 0.02)  # 1/(1 + 0.02 d^2): half at 7 Å
-DEFAULT_PROBE_RANGE = 20.0  # Å: the probe light's reach (lit, and shadowed, inside it)
+DEFAULT_PROBE_ATTENUATION = LIT.probe_attenuation
+DEFAULT_PROBE_RANGE = LIT.probe_range  # Å: the probe light's reach (lit, and shadowed, inside it)
 
 
 @dataclass
@@ -49,16 +50,16 @@ class ShadingSettings:
     """The shading pass (render/passes/shading.py): deferred Phong of the G-buffer with a
     directional light and the probe's point light."""
 
-    ambient: float = 0.28
-    directional_intensity: float = 0.75
-    probe_intensity: float = 1.0
+    ambient: float = LIT.ambient
+    directional_intensity: float = LIT.directional
+    probe_intensity: float = LIT.probe
     probe_attenuation: tuple[float, float, float] = DEFAULT_PROBE_ATTENUATION
     # Å: the probe light is windowed to 0 here (shadows are traced inside)
     probe_range: float = DEFAULT_PROBE_RANGE
-    shininess: float = 40.0
-    specular: float = 0.25
-    background: tuple[float, float, float] = (0.08, 0.09, 0.11)
-    highlight: tuple[float, float, float] = (0.1, 1.0, 0.5)  # mint: no CPK element looks like it
+    shininess: float = LIT.shininess
+    specular: float = LIT.specular
+    background: tuple[float, float, float] = BACKGROUND
+    highlight: tuple[float, float, float] = HIGHLIGHT
     # The ambient term takes accessibility ** ao_power (> 1: stronger occlusion)
     ao_power: float = 1.0
 

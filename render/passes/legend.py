@@ -1,10 +1,10 @@
 """The last pass: the colour bar of a scheme that maps a number to colour (bfactor, sas;
-render/colors.py), in the image's bottom-right corner, so a saved picture carries its scale."""
+molecule/colors.py), in the image's bottom-right corner, so a saved picture carries its scale."""
 
 from __future__ import annotations
 
 import numpy as np
-from sasprobe.render.colors import ColorBar, color_bar, ramp
+from sasprobe.molecule.colors import ColorBar, color_bar, ramp
 from sasprobe.render.gl.image_quad import ImageQuad
 from sasprobe.render.passes.base import Frame, Pass
 from sasprobe.render.text import PADDING, fit_text, text_font

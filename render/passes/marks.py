@@ -11,11 +11,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from sasprobe.molecule.colors import MARK_COLOR
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.passes.base import Frame, Pass
 
 BADGE_PX = 22
-BADGE_COLOR = (142, 68, 173, 255)  # violet: no CPK colour, not the probe's white or the cube's blue
+BADGE_COLOR = (*(round(c * 255) for c in MARK_COLOR), 255)
 COLUMNS = 32  # badges per atlas row
 
 

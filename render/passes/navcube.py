@@ -6,11 +6,12 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+from sasprobe.molecule.colors import CUBE_WIRE_COLOR
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.passes.backbone import cube_uniforms, line_width_uniforms
 from sasprobe.render.passes.base import Frame, Pass
 
-WIRE_COLOR = (0.55, 0.85, 1.0, 1.0)
+WIRE_COLOR = (*CUBE_WIRE_COLOR, 1.0)
 WIRE_WIDTH_PX = 1.5
 
 

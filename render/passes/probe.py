@@ -4,12 +4,11 @@ next frame can put them back: render/frame_planner.py)."""
 
 from __future__ import annotations
 
+from sasprobe.molecule.colors import PROBE_COLOR
 from sasprobe.render.gl.buffers import SPHERE_FORMAT
 from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
 from sasprobe.render.passes.base import Frame, Pass
 from sasprobe.render.passes.spheres import draw_spheres
-
-PROBE_COLOR = (0.92, 0.95, 1.0)  # near white: the light source
 
 
 class ProbePass(Pass):

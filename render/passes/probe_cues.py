@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from sasprobe.molecule.colors import force_color
 from sasprobe.render.frame_planner import OVERLAY
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.passes.backbone import line_width_uniforms
@@ -27,12 +28,6 @@ from sasprobe.render.rects import ndc_rect, points_rect, union_rect
 
 OUTLINE_COLOR = (1.0, 0.85, 0.3)
 GHOST_COLOR = (0.55, 0.8, 1.0)
-# Low, up to continuous, above
-FORCE_COLORS = (
-    (0.35, 0.95, 0.45),
-    (1.0, 0.85, 0.2),
-    (1.0, 0.3, 0.25),
-)
 LINE_WIDTH_PX = 2.0
 DRAWN_MARGIN_PX = 3  # around the lines' points: half the line width and a pixel of rounding
 CIRCLE_SEGMENTS = 48
@@ -71,12 +66,6 @@ def spring(a, b, across, coils: int = 6) -> np.ndarray:
         for k in range(steps + 1)
     ]
     return np.repeat(np.array(points), 2, axis=0)[1:-1]
-
-
-def force_color(force: float, continuous: float) -> tuple[float, float, float]:
-    if force <= 0.5 * continuous:
-        return FORCE_COLORS[0]
-    return FORCE_COLORS[1] if force <= continuous else FORCE_COLORS[2]
 
 
 def edge_arrow(ndc: np.ndarray) -> np.ndarray | None:

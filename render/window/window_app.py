@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 from sasprobe.molecule.sas import atom_areas
+from sasprobe.protocol.scene import COLOR_SCHEMES as SCHEMES
 from sasprobe.render.camera import Camera
-from sasprobe.render.colors import SCHEMES
 from sasprobe.render.gbuffer_export import gbuffer_arrays, save_gbuffer
 from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE

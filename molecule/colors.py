@@ -1,4 +1,7 @@
-"""Colour schemes of the atoms (`--color`, the window's C key, the scene's `color_scheme`).
+"""Colours every renderer draws with (the desktop window and the browser page alike): the
+atoms' colour schemes (`--color`, the window's C key, the scene's `color_scheme`, whose
+names protocol/scene.py lists), the session's own colours and the Phong terms they are
+lit with.
 
     element         CPK as Jmol has it (molecule/elements.py)
     chain           carbons in their chain's colour, every other element in its CPK colour
@@ -53,9 +56,6 @@ from sasprobe.molecule.residues import (
     residue_kinds,
 )
 from sasprobe.molecule.sas import ACCESSIBLE_MIN_AREA
-from sasprobe.protocol.scene import COLOR_SCHEMES
-
-SCHEMES = COLOR_SCHEMES
 
 
 def _rgb(r: int, g: int, b: int) -> tuple[float, float, float]:
@@ -96,6 +96,38 @@ HYDROPATHY_STOPS = (_rgb(0, 150, 160), _rgb(255, 255, 255), _rgb(230, 120, 20)) 
 BFACTOR_STOPS = (_rgb(40, 80, 220), _rgb(255, 255, 255), _rgb(220, 40, 40))
 SAS_STOPS = (_rgb(40, 30, 110), _rgb(40, 120, 160), _rgb(70, 190, 120), _rgb(250, 230, 40))
 SAS_BAR_MAX = 40.0  # Å²: the colour bar's top; more exposed atoms are yellow too
+
+# The session's own colours (rgb 0..1), none of them a CPK colour.
+BACKGROUND = (0.08, 0.09, 0.11)
+HIGHLIGHT = (0.1, 1.0, 0.5)  # the touched atom, mixed 60 % into its colour: mint
+PROBE_COLOR = (0.92, 0.95, 1.0)  # near white: the probe is the light source
+CUBE_WIRE_COLOR = (0.55, 0.85, 1.0)
+MARK_COLOR = (142 / 255, 68 / 255, 173 / 255)  # the marks' badges: violet
+# The force arrow: below half the device's continuous rating, up to it, above it.
+FORCE_COLORS = ((0.35, 0.95, 0.45), (1.0, 0.85, 0.2), (1.0, 0.3, 0.25))
+
+
+def force_color(force: float, continuous: float) -> tuple[float, float, float]:
+    if force <= 0.5 * continuous:
+        return FORCE_COLORS[0]
+    return FORCE_COLORS[1] if force <= continuous else FORCE_COLORS[2]
+
+
+@dataclass(frozen=True)
+class Lit:
+    """Phong terms an atom's colour is lit with: ambient, a directional light and the probe's
+    point light, 1 / (c + l d + q d²) windowed to 0 at `probe_range` Å."""
+
+    ambient: float = 0.28
+    directional: float = 0.75
+    probe: float = 1.0
+    probe_attenuation: tuple[float, float, float] = (1.0, 0.0, 0.02)  # half at 7 Å
+    probe_range: float = 20.0  # Å
+    shininess: float = 40.0
+    specular: float = 0.25
+
+
+LIT = Lit()
 
 
 def ramp(values: np.ndarray, low: float, high: float, stops) -> np.ndarray:
@@ -222,7 +254,7 @@ def scheme_colors(structure: Structure, scheme: str, areas: np.ndarray | None = 
         out = ramp(areas, SAS_BAR.low, SAS_BAR.high, SAS_BAR.stops)
         out[np.asarray(areas) < ACCESSIBLE_MIN_AREA] = BURIED
         return out
-    raise ValueError(f"unknown colour scheme {scheme!r} (one of {', '.join(SCHEMES)})")
+    raise ValueError(f"unknown colour scheme {scheme!r}")
 
 
 def color_bar(structure: Structure, scheme: str) -> ColorBar | None:
