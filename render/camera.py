@@ -16,9 +16,8 @@ import re
 from dataclasses import dataclass, field
 
 import numpy as np
+from sasprobe.protocol.view import DEFAULT_FOV, FIT_MARGIN
 
-DEFAULT_FOV = 40.0  # degrees, vertical
-FIT_MARGIN = 1.05  # a little air around the fitted bounding sphere
 FIT_FILL = 0.9  # the framed spheres span this fraction of the image's limiting side
 
 

@@ -96,8 +96,9 @@ def render_recording(
 ) -> dict:
     """Write the session as a video at its recorded timing; returns frame counts and duration."""
     from sasprobe.molecule import parse_structure
+    from sasprobe.protocol.view import view_axes
     from sasprobe.render.app import RenderOptions, build_scene, initial_camera, make_renderer
-    from sasprobe.render.follow.messages import apply_pose, apply_scene_message, view_axes
+    from sasprobe.render.follow.messages import apply_pose, apply_scene_message
     from sasprobe.render.gl.context import create_headless_context
     from sasprobe.render.lighting.settings import LightingSettings
     from sasprobe.render.output import FrameWriter

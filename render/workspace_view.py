@@ -22,14 +22,11 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+from sasprobe.protocol.view import FRAME_RADIUS
 from sasprobe.render.camera import DEFAULT_FOV, Camera
 
 WORKSPACE, OVERVIEW = "workspace", "overview"
 VIEWS = (WORKSPACE, OVERVIEW)
-# The camera fits a sphere of this many half edges around the cube's centre: the cube's
-# front face then fills about 78 % of the shorter side of the picture, its middle 60 %,
-# and what lies behind the cube shows around it rather than only through it.
-FRAME_RADIUS = 1.5
 TURN_SEND_S = 0.05  # a turn under way goes to the daemon at most this often
 AXES_MATCH = 1e-6  # the daemon's axes equal the ones sent (its rotation is re-orthonormalised)
 

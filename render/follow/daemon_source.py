@@ -27,12 +27,12 @@ from sasprobe.protocol.client import ControlClient, ControlError, Subscriber, fe
 from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
 from sasprobe.protocol.pose import FLAG_CLUTCHED, FLAG_DRIFTING
 from sasprobe.protocol.security import ClientKeys
+from sasprobe.protocol.view import view_axes
 from sasprobe.render.follow.live_clearance import LiveClearance
 from sasprobe.render.follow.messages import (
     apply_pose,
     apply_scene_message,
     touched_label,
-    view_axes,
 )
 from sasprobe.render.follow.requests import RequestSender
 from sasprobe.render.scene_state import NavCube, Probe

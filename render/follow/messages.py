@@ -10,15 +10,6 @@ from sasprobe.molecule import Structure
 from sasprobe.render.scene_state import Mark, NavCube, Probe, normalise_plane
 
 
-def view_axes(state: dict | None) -> np.ndarray:
-    """The workspace view's rotation of a scene message (identity for a daemon without one)."""
-    view = (state or {}).get("view")
-    if not isinstance(view, dict) or "rotation" not in view:
-        return np.eye(3)
-    axes = np.asarray(view["rotation"], dtype=np.float64)
-    return axes if axes.shape == (3, 3) and np.all(np.isfinite(axes)) else np.eye(3)
-
-
 def apply_scene_message(scene, state: dict) -> bool:
     """A `scene` message's probe radius, clip planes, light direction, force ratings and marks
     into a SceneState (its grid then follows the daemon's probe radius); returns whether the

@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 from sasprobe.molecule.colors import force_color
+from sasprobe.protocol.view import ARROW_RADII
 from sasprobe.render.frame_planner import OVERLAY
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.passes.backbone import line_width_uniforms
@@ -32,7 +33,6 @@ LINE_WIDTH_PX = 2.0
 DRAWN_MARGIN_PX = 3  # around the lines' points: half the line width and a pixel of rounding
 CIRCLE_SEGMENTS = 48
 GHOST_MIN_RADII = 0.05  # the ghost shows when tip and probe are further apart than this many radii
-ARROW_RADII = 3.0  # the force arrow's length at the continuous rating, in probe radii
 EDGE_ARROW_NDC = 0.06  # size of the off-screen arrow
 EDGE_INSET_NDC = 0.04
 MAX_VERTICES = 2 * (3 * CIRCLE_SEGMENTS + 40)
