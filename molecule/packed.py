@@ -28,6 +28,7 @@ import zipfile
 
 import numpy as np
 from sasprobe.molecule.elements import colors_for, radii_for
+from sasprobe.molecule.loading import parse_structure
 from sasprobe.molecule.structure import MAX_COORDINATE_A, Structure, StructureError
 
 TEXT_FIELDS = ("elements", "chain_ids", "residue_names", "insertion_codes", "atom_names")
@@ -127,4 +128,17 @@ def _structure(a: dict, name: str, source: str, sha256: str) -> Structure:
         if lengths.size
         else [],
         backbone_chains=[str(c) for c in chains],
+    )
+
+
+def structure_from_served(served, keep_water: bool = False) -> Structure:
+    """The structure a daemon served (`protocol.client.StructureFile`): its parsed arrays, or
+    its file parsed with the waters when `keep_water` or the daemon kept them."""
+    if served.form == "arrays":
+        return unpack_structure(served.data, served.name, served.source, served.sha256)
+    return parse_structure(
+        served.data,
+        name=served.name,
+        source=served.source,
+        keep_water=keep_water or served.keep_water,
     )

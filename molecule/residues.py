@@ -112,3 +112,12 @@ def per_residue_sums(structure: Structure, **columns: np.ndarray) -> list[dict]:
         }
         for r, (a, b) in enumerate(zip(starts[:-1], starts[1:]))
     ]
+
+
+def touched_label(structure: Structure | None, atom: int) -> str | None:
+    """'A THR 2 OG1' for an atom index (chain, residue name, number and insertion code, atom)."""
+    if structure is None or not 0 <= atom < structure.n_atoms:
+        return None
+    s = structure
+    number = f"{s.residue_numbers[atom]}{s.insertion_codes[atom]}"
+    return f"{s.chain_ids[atom]} {s.residue_names[atom]} {number} {s.atom_names[atom]}"

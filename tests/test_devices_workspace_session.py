@@ -333,7 +333,7 @@ def test_clip_with_connect_is_refused_in_one_line():
 
 # ------------------------------------------------------------------ the link
 def test_readout_comes_back_after_a_daemon_restart_and_never_says_running_and_not(monkeypatch):
-    import sasprobe.render.follow.daemon_source as source_module
+    import sasprobe.protocol.follow as follow_module
     from sasprobe.render.follow.daemon_source import DaemonSource
 
     pub, ctl = free_tcp_endpoint(), free_tcp_endpoint()
@@ -354,7 +354,7 @@ def test_readout_comes_back_after_a_daemon_restart_and_never_says_running_and_no
             time.sleep(0.05)
         assert link.readout().status.startswith("waiting for daemon")
         monkeypatch.setattr(
-            source_module, "FETCH_TIMEOUT_S", 1e-4
+            follow_module, "FETCH_TIMEOUT_S", 1e-4
         )  # every get_structure now times out
         link.structure = None  # and the link wants the structure again (as a new daemon's would)
         with DaemonProcess("--seconds", "60", pub=pub, ctl=ctl):

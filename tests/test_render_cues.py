@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 from sasprobe.molecule.colors import FORCE_COLORS
+from sasprobe.molecule.residues import touched_label
 from sasprobe.render.camera import Camera
-from sasprobe.render.follow.messages import touched_label
 from sasprobe.render.passes.probe_cues import GHOST_COLOR, OUTLINE_COLOR
 from sasprobe.render.renderer import Renderer
 from sasprobe.render.scene_state import Effects, Probe, SceneState

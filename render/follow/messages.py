@@ -6,7 +6,6 @@ navigation cube. A live daemon (follow/daemon_source.py) and a recorded session
 from __future__ import annotations
 
 import numpy as np
-from sasprobe.molecule import Structure
 from sasprobe.render.scene_state import Mark, NavCube, Probe, normalise_plane
 
 
@@ -58,12 +57,3 @@ def apply_pose(scene, pose, cube_enabled: bool, axes: np.ndarray | None = None) 
             scene.nav_cube = cube
     else:
         scene.nav_cube = None
-
-
-def touched_label(structure: Structure | None, atom: int) -> str | None:
-    """'A THR 2 OG1' for an atom index (chain, residue name, number and insertion code, atom)."""
-    if structure is None or not 0 <= atom < structure.n_atoms:
-        return None
-    s = structure
-    number = f"{s.residue_numbers[atom]}{s.insertion_codes[atom]}"
-    return f"{s.chain_ids[atom]} {s.residue_names[atom]} {number} {s.atom_names[atom]}"
