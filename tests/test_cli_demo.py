@@ -223,7 +223,7 @@ def test_replay_frames_follow_the_recorded_timing(demo):
     """Frame k shows the newest pose published at or before first + k/fps (mcap read
     independently)."""
     from mcap.reader import make_reader
-    from sasprobe.render.playback import recorded_frames
+    from sasprobe.protocol.playback import recorded_frames
 
     out, _, _ = demo
     fps = 25.0

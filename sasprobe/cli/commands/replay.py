@@ -102,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
         status = 0 if report.ok else 1
     if args.video is not None:
         from sasprobe.common.progress import progress_bar
-        from sasprobe.render.playback import frame_count, pose_time_range, render_recording
+        from sasprobe.protocol.playback import frame_count, pose_time_range
+        from sasprobe.render.playback import render_recording
 
         time_range = pose_time_range(args.file)
         bar = progress_bar(
