@@ -33,6 +33,7 @@ ALLOWED = {
     "devices": {"protocol", "molecule"},
     "daemon": {"devices", "molecule", "protocol"},
     "render": {"molecule", "protocol"},
+    "web": {"molecule", "protocol"},
 }
 # The root package `sasprobe/` has two floors: `sasprobe/common/` is the ground (the
 # one-line user error, opening a user's file, the progress bar), which every layer may use

@@ -10,7 +10,7 @@ from sasprobe.common.errors import UserError
 
 HELP = (
     "summarise a recording; --verify recomputes its forces; --recover repairs it; "
-    "--video renders it"
+    "--video renders it; --html makes it one web page"
 )
 
 
@@ -39,6 +39,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=Path,
         metavar="OUT.mp4",
         help="render the session to a video at its recorded timing (headless)",
+    )
+    p.add_argument(
+        "--html",
+        type=Path,
+        metavar="OUT.html",
+        help="the session as one self-contained web page that plays offline in any browser "
+        "(structure, poses, marks and the findings' summary inside)",
     )
     p.add_argument(
         "--fps",
@@ -84,6 +91,8 @@ def run(args: argparse.Namespace) -> int:
             )
         if not args.video.resolve().parent.is_dir():
             raise UserError(f"--video {args.video}: folder {args.video.parent} does not exist")
+    if args.html is not None and not args.html.resolve().parent.is_dir():
+        raise UserError(f"--html {args.html}: folder {args.html.parent} does not exist")
     if args.recover is not None:
         result["recovered"] = recover(args.file, args.recover).as_dict()
     summary = summarize(args.file)
@@ -115,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
             )
         finally:
             bar.close()
+    found = None
     if args.findings is not None:
         from sasprobe.daemon.findings import write_findings
 
@@ -122,6 +132,8 @@ def run(args: argparse.Namespace) -> int:
         result["findings"] = {
             k: found[k] for k in ("files", "bottleneck", "verdict", "session", "notes")
         }
+    if args.html is not None:
+        result["html"] = write_html(args.file, args.html, found, args.probe_radius)
     if args.json:
         print(json.dumps(result))
         return status
@@ -154,6 +166,9 @@ def run(args: argparse.Namespace) -> int:
 
         print("\n".join(summary_lines(found)))
         print(f"  files      {args.findings}/: {', '.join(found['files'].values())}")
+    if args.html is not None:
+        h = result["html"]
+        print(f"  html     {h['html']}: {h['bytes'] / 1e6:.2f} MB, {h['frames']} frames")
     if args.video is not None:
         v = result["video"]
         print(
@@ -161,3 +176,27 @@ def run(args: argparse.Namespace) -> int:
             f"{v['size'][0]}x{v['size'][1]} ({v['duration_s']:.2f} s recorded)"
         )
     return status
+
+
+def write_html(path: Path, out: Path, found: dict | None, probe_radius: float | None) -> dict:
+    """The session as one web page (web/export.py), with the findings' summary."""
+    from sasprobe.common.progress import progress_bar
+    from sasprobe.daemon.findings import analyse, summary_lines
+    from sasprobe.web.export import frames_to_write, session_html
+
+    if found is None:
+        from sasprobe.daemon.findings.session import read_track
+
+        found = analyse(read_track(path), probe_radius).found
+    frames = frames_to_write(path)
+    bar = progress_bar(frames, desc="html", unit="frame")
+    try:
+        html = session_html(path, summary_lines(found), progress=bar.update)
+    finally:
+        bar.close()
+    data = html.encode()
+    try:
+        out.write_bytes(data)
+    except OSError as exc:
+        raise UserError(f"--html {out}: cannot write ({exc.strerror or exc})") from None
+    return {"html": str(out), "bytes": len(data), "frames": frames}
