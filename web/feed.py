@@ -25,7 +25,8 @@ from sasprobe.web.packets import colors_packet, effective_scheme, structure_pack
 
 log = logging.getLogger("sasprobe")
 
-POLL_S = 0.05  # the follow thread waits at most this long for a message
+POLL_S = 0.05  # while a page waits for a pose, the follow thread waits this long for one
+IDLE_S = 0.004  # otherwise it takes in what arrived this often
 
 
 @dataclass(frozen=True)
@@ -53,7 +54,6 @@ class Feed:
         self._structure = None
         self._colors_wanted: tuple | None = None
         self._builder = ThreadPoolExecutor(1, thread_name_prefix="sasprobe-web-packets")
-        self._building = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="sasprobe-web-follow", daemon=True)
 
@@ -73,26 +73,25 @@ class Feed:
     # ------------------------------------------------------------ the follow thread
     def _run(self) -> None:
         while not self._stop.is_set():
-            poses = self.follow.poll(POLL_S)
+            if self.pose_wanted.is_set():  # a page waits: take the next pose as it comes
+                poses = self.follow.poll(POLL_S)
+            else:  # the newest pose is all any page will take: look a few times a frame
+                self._stop.wait(IDLE_S)
+                poses = self.follow.poll()
             news = False
             structure = self.follow.take_new_structure()
             if structure is not None:
                 self._structure = structure
                 log.info("daemon structure: %s (%d atoms)", structure.name, structure.n_atoms)
             scene = self.follow.subscriber.scene
-            if self._structure is not None and self.follow.current_structure():
-                wanted = self._colors_key(scene)
-                if wanted != self._colors_wanted and (
-                    self._building is None or self._building.done()
-                ):
-                    self._colors_wanted = wanted
-                    self._building = self._builder.submit(self._build, self._structure, wanted)
             if scene is not None:
                 key = (scene.get("revision"), scene["structure"]["sha256"])
                 if key != self.scene_key:
                     self.scene_json = json.dumps({"type": "scene", "scene": scene})
                     self.scene_key = key
                     news = True
+            if (structure is not None or news) and self.follow.current_structure():
+                self._want_colors(scene)
             connected = self.follow.connected
             if connected != self.connected:
                 self.connected = connected
@@ -107,6 +106,13 @@ class Feed:
                     news = True
             if news:
                 self.changed()
+
+    def _want_colors(self, scene: dict) -> None:
+        """Build the packets of the structure in the colours the scene asks for, unless built."""
+        wanted = self._colors_key(scene)
+        if wanted != self._colors_wanted:
+            self._colors_wanted = wanted
+            self._builder.submit(self._build, self._structure, wanted)
 
     def _colors_key(self, scene: dict) -> tuple:
         scheme = effective_scheme(self._structure, scene)

@@ -9,6 +9,13 @@ function element(parent, tag, className) {
   return e;
 }
 
+const STATUS_EVERY_MS = 250; // the status line's figures change this often at most
+
+// Sets an element's text only when it changes: each change costs the browser a repaint.
+function setText(e, text) {
+  if (e.textContent !== text) e.textContent = text;
+}
+
 export class Overlay {
   constructor(root) {
     this.root = root;
@@ -18,6 +25,7 @@ export class Overlay {
     this.status = element(root, "div", "status");
     this.marks = element(root, "div", "marks");
     this.badges = new Map();
+    this.statusAt = -Infinity;
   }
 
   fatal(text) {
@@ -25,16 +33,20 @@ export class Overlay {
     this.status.classList.add("fatal");
   }
 
-  update(s) {
-    this.status.textContent = s.status;
-    this.touched.textContent = s.touched ? `touching ${s.touched}` : "not touching";
-    this.touched.classList.toggle("contact", s.contact);
-    const states = [];
-    if (s.force !== null && s.force !== undefined) states.push(`force ${s.force.toFixed(2)} N`);
-    states.push(s.contact ? "in contact" : "free");
-    if (s.clutched) states.push("clutch held");
-    if (s.drifting) states.push("cube drifting");
-    this.states.textContent = states.join(" · ");
+  update(s, now) {
+    if (now - this.statusAt >= STATUS_EVERY_MS) {
+      setText(this.status, s.status);
+      const states = [];
+      if (s.force !== null && s.force !== undefined) states.push(`force ${s.force.toFixed(2)} N`);
+      states.push(s.contact ? "in contact" : "free");
+      if (s.clutched) states.push("clutch held");
+      if (s.drifting) states.push("cube drifting");
+      setText(this.states, states.join(" · "));
+      this.statusAt = now;
+    }
+    setText(this.touched, s.touched ? `touching ${s.touched}` : "not touching");
+    if (this.touched.classList.contains("contact") !== s.contact)
+      this.touched.classList.toggle("contact", s.contact);
     const seen = new Set();
     for (const m of s.marks) {
       let badge = this.badges.get(m.id);
@@ -43,10 +55,11 @@ export class Overlay {
         badge.textContent = String(m.id);
         this.badges.set(m.id, badge);
       }
-      badge.title = m.label;
-      if (s.markColor)
+      if (badge.title !== m.label) badge.title = m.label;
+      if (s.markColor && !badge.style.background)
         badge.style.background = `rgb(${s.markColor.map((c) => Math.round(c * 255)).join(",")})`;
-      badge.style.transform = `translate(${m.x}px, ${m.y}px)`;
+      const place = `translate(${m.x.toFixed(0)}px, ${m.y.toFixed(0)}px)`;
+      if (badge.style.transform !== place) badge.style.transform = place;
       seen.add(m.id);
     }
     for (const [id, badge] of this.badges)

@@ -36,6 +36,16 @@ function program(gl, vertex, fragment) {
   return { program: p, uniforms };
 }
 
+// The bounding rectangle of two [x, y, w, h] (null: nothing), the whole picture before a
+// first frame.
+function union(a, b, w, h) {
+  if (a === undefined) return [0, 0, w, h];
+  if (!a || !b) return a || b || [0, 0, 0, 0];
+  const x = Math.min(a[0], b[0]);
+  const y = Math.min(a[1], b[1]);
+  return [x, y, Math.max(a[0] + a[2], b[0] + b[2]) - x, Math.max(a[1] + a[3], b[1] + b[3]) - y];
+}
+
 export class Renderer {
   constructor(canvas) {
     const gl = canvas.getContext("webgl2", { antialias: false, depth: true, alpha: false });
@@ -212,6 +222,7 @@ export class Renderer {
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
     this.targets = { fbo, ids, depth };
     this.size = [w, h];
+    this.drawnRect = undefined; // new targets: cleared whole
   }
 
   // One frame. `f`: {camera, cube, axes (row-major), planes (cube faces then clip planes),
@@ -231,11 +242,17 @@ export class Renderer {
     const rect = f.rect;
 
     // 1. ids and depth of the spheres
+    // Only `rect` is drawn, and the last frame's and this one's cleared: outside them the
+    // ids are already clear, so a pick reads the whole picture right.
     gl.bindFramebuffer(gl.FRAMEBUFFER, this.targets.fbo);
     gl.viewport(0, 0, w, h);
-    gl.disable(gl.SCISSOR_TEST);
+    gl.enable(gl.SCISSOR_TEST);
+    gl.scissor(...union(this.drawnRect, rect, w, h));
+    gl.depthMask(true);
     gl.clearBufferiv(gl.COLOR, 0, new Int32Array([-1, -1, 0, 0]));
     gl.clearBufferfv(gl.DEPTH, 0, new Float32Array([1]));
+    gl.disable(gl.SCISSOR_TEST);
+    this.drawnRect = rect;
     if (rect) {
       gl.enable(gl.SCISSOR_TEST);
       gl.scissor(...rect);

@@ -8,6 +8,7 @@
 // drew (`source.drawn(seq)`).
 import { Atoms, SphereList, cubePlanes } from "sasprobe/atoms.js";
 import { ViewCamera } from "sasprobe/camera.js";
+import { Occlusion } from "sasprobe/occlusion.js";
 import { Overlay } from "sasprobe/overlay.js";
 import { Renderer } from "sasprobe/renderer.js";
 import {
@@ -44,7 +45,10 @@ export class Viewer {
     this.pose = null;
     this.camera = null;
     this.cubeKey = "";
-    this.list = new SphereList();
+    this.viewKey = "";
+    this.list = new SphereList(); // the atoms the cube holds
+    this.shown = new SphereList(); // those of them that can show from this camera
+    this.occlusion = new Occlusion();
     this.frames = 0;
     this.drawnSeq = -1;
     this.lastFrame = null;
@@ -90,7 +94,7 @@ export class Viewer {
         this._draw(now);
         this.source.drawn?.(this.drawnSeq);
       }
-      this._text();
+      this._text(now);
       requestAnimationFrame(tick);
     };
     requestAnimationFrame(tick);
@@ -128,8 +132,8 @@ export class Viewer {
     if (key !== this.cubeKey) {
       if (hasCube) atoms.inCube(cube, axes, this.list);
       else this._whole();
-      this.renderer.setCubeSpheres(this.list);
       this.cubeKey = key;
+      this.viewKey = "";
     }
     const reach = Math.max(length(sub(cube.center, atoms.bounds.center)) + cube.half * Math.sqrt(3),
       length(sub(probe.center, atoms.bounds.center)) + probe.radius, atoms.bounds.radius);
@@ -139,6 +143,13 @@ export class Viewer {
     for (const p of scene.clip_planes || []) {
       const n = Math.hypot(p[0], p[1], p[2]);
       planes.push(p.map((v) => v / n));
+    }
+    const viewKey = `${key} ${camera.eye} ${camera.back} ${camera.up} ${w} ${h} ${planes.length}`;
+    if (viewKey !== this.viewKey) {
+      const shown = planes.length > 6 ? this.list
+        : this.occlusion.visible(this.list, camera, [w, h], cube, axes, !hasCube, this.shown);
+      this.renderer.setCubeSpheres(shown);
+      this.viewKey = viewKey;
     }
     const lights = scene.lights || {};
     const lightDir = normalize(camera.toWorld(
@@ -250,7 +261,7 @@ export class Viewer {
     return t.length >= 2 ? (1000 * (t.length - 1)) / (t[t.length - 1] - t[0]) : null;
   }
 
-  _text() {
+  _text(now) {
     if (!this.ok) return;
     const pose = this.pose;
     const f = this.lastFrame;
@@ -265,7 +276,7 @@ export class Viewer {
       }
     }
     const flags = pose ? pose.flags : 0;
-    const force = pose && f ? length(apply3(f.axes, pose.force)) : null;
+    const force = pose && f ? Math.round(100 * length(apply3(f.axes, pose.force))) / 100 : null;
     this.overlay.update({
       status: this.source.status(this),
       touched: pose && pose.touched >= 0 ? pose.label || `atom ${pose.touched}` : null,
@@ -275,7 +286,7 @@ export class Viewer {
       force,
       marks,
       markColor: this.look && this.look.colors.mark,
-    });
+    }, now);
   }
 
   _input() {
@@ -316,6 +327,7 @@ export class Viewer {
       atoms: this.atoms ? this.atoms.count : 0,
       scheme: this.atoms ? this.atoms.scheme : null,
       cube_atoms: this.list.count,
+      drawn_atoms: this.renderer ? this.renderer.cubeCount : 0,
       fps: this.fps,
       width: this.canvas.width,
       height: this.canvas.height,

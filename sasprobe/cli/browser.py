@@ -1,0 +1,181 @@
+"""Headless Chromium through Selenium, as `sasprobe bench web` and the page's tests drive it,
+and `sasprobe web` as a child process.
+
+Chromium draws WebGL2 with SwiftShader (`--enable-unsafe-swiftshader`), on a fresh profile,
+with everything that would reach the network switched off (a closed network refuses those
+connections). `unpaced` presents frames as fast as the page draws them
+(`--disable-frame-rate-limit --disable-gpu-vsync`); with the default pacing a page on a small
+machine shows far fewer frames than it could draw, and taking a screenshot needs it. Every
+wait is bounded: the driver's page-load and script timeouts, and explicit deadlines here.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from sasprobe.common.errors import UserError
+
+BROWSERS = ("chromium", "chromium-browser", "google-chrome")
+DRIVERS = ("chromedriver",)
+TIMEOUT_S = 60.0  # the driver's page-load and script timeouts
+FLAGS = (
+    "--headless=new",
+    "--enable-unsafe-swiftshader",
+    "--no-sandbox",
+    "--disable-gpu-sandbox",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--disable-default-apps",
+    "--disable-extensions",
+    "--no-first-run",
+    "--no-default-browser-check",
+    "--mute-audio",
+)
+UNPACED = ("--disable-frame-rate-limit", "--disable-gpu-vsync")
+PACED = ("--in-process-gpu",)
+
+
+def find_browser() -> tuple[str, str]:
+    """(chromium, chromedriver) paths; UserError naming what is missing."""
+    browser = next((p for p in map(shutil.which, BROWSERS) if p), None)
+    driver = next((p for p in map(shutil.which, DRIVERS) if p), None)
+    try:
+        import selenium  # noqa: F401
+    except ModuleNotFoundError:
+        raise UserError("Selenium is not installed (pip install -e '.[test]')") from None
+    if browser is None or driver is None:
+        missing = " and ".join(
+            n for n, p in (("chromium", browser), ("chromedriver", driver)) if not p
+        )
+        raise UserError(f"no {missing} (Debian: apt-get install chromium chromium-driver)")
+    return browser, driver
+
+
+class Browser:
+    """One headless Chromium with a fresh profile, closed on exit."""
+
+    def __init__(
+        self, unpaced: bool = False, size: tuple[int, int] = (1280, 720), flags: tuple = ()
+    ) -> None:
+        from selenium import webdriver
+        from selenium.webdriver.chrome.service import Service
+
+        browser, driver = find_browser()
+        self.profile = tempfile.mkdtemp(prefix="sasprobe-chromium-")
+        options = webdriver.ChromeOptions()
+        options.binary_location = browser
+        paced = UNPACED if unpaced else PACED
+        for flag in (*FLAGS, *paced, *flags, f"--user-data-dir={self.profile}"):
+            options.add_argument(flag)
+        options.add_argument(f"--window-size={size[0]},{size[1]}")
+        options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+        try:
+            self.driver = webdriver.Chrome(service=Service(driver), options=options)
+        except Exception as exc:  # noqa: BLE001 - Selenium's errors alike: one line
+            shutil.rmtree(self.profile, ignore_errors=True)
+            raise UserError(f"Chromium did not start: {str(exc).splitlines()[0]}") from None
+        self.driver.set_page_load_timeout(TIMEOUT_S)
+        self.driver.set_script_timeout(TIMEOUT_S)
+        self.viewport(*size)
+
+    def viewport(self, width: int, height: int) -> None:
+        """The page's size in CSS pixels, exactly (one device pixel each)."""
+        self.driver.execute_cdp_cmd(
+            "Emulation.setDeviceMetricsOverride",
+            {"width": width, "height": height, "deviceScaleFactor": 1, "mobile": False},
+        )
+
+    def open(self, url: str) -> None:
+        self.driver.get(url)
+
+    def run(self, script: str, *args):
+        return self.driver.execute_script(script, *args)
+
+    def state(self) -> dict | None:
+        return self.run("return window.sasprobe ? window.sasprobe.state() : null")
+
+    def wait(self, what, timeout_s: float, why: str, every_s: float = 0.1):
+        """Poll `what(self)` until it returns something true; AssertionError after timeout_s."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            value = what(self)
+            if value:
+                return value
+            if time.monotonic() > deadline:
+                raise AssertionError(f"{why}: not within {timeout_s:g} s (page: {self.state()})")
+            time.sleep(every_s)
+
+    def console(self) -> list[str]:
+        return [e["message"] for e in self.driver.get_log("browser")]
+
+    def close(self) -> None:
+        try:
+            self.driver.quit()
+        finally:
+            shutil.rmtree(self.profile, ignore_errors=True)
+
+    def __enter__(self) -> Browser:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class WebBridge:
+    """`sasprobe web` as a child process, its URL read from its first line of output."""
+
+    def __init__(self, *args: str, ready_s: float = 60.0) -> None:
+        self.log = tempfile.TemporaryFile(mode="w+")
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "sasprobe", "-v", "web", "--port", "0", *args],
+            stdout=subprocess.PIPE,
+            stderr=self.log,
+            text=True,
+            env=dict(os.environ, PYTHONUNBUFFERED="1"),
+            start_new_session=True,
+        )
+        line: list[str] = []
+        reader = threading.Thread(target=lambda: line.append(self.proc.stdout.readline()))
+        reader.start()
+        reader.join(ready_s)
+        if not line or not line[0].startswith("http"):
+            self.stop()
+            raise UserError(f"sasprobe web did not start: {self.stderr().strip()[-500:]}")
+        self.url = line[0].strip()
+
+    @property
+    def pid(self) -> int:
+        return self.proc.pid
+
+    def cpu_s(self) -> float:
+        """CPU time (user + system) the bridge has used so far."""
+        fields = Path(f"/proc/{self.pid}/stat").read_text().rpartition(")")[2].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+    def stderr(self) -> str:
+        self.log.seek(0)
+        return self.log.read()
+
+    def stop(self, timeout_s: float = 10.0) -> int:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(timeout_s)
+        return self.proc.returncode
+
+    def __enter__(self) -> WebBridge:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
