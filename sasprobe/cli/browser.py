@@ -12,19 +12,20 @@ wait is bounded: the driver's page-load and script timeouts, and explicit deadli
 from __future__ import annotations
 
 import os
+import queue
 import shutil
-import subprocess
+import signal
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
+from sasprobe.cli.children import Child, child_env
 from sasprobe.common.errors import UserError
 
 BROWSERS = ("chromium", "chromium-browser", "google-chrome")
 DRIVERS = ("chromedriver",)
-TIMEOUT_S = 60.0  # the driver's page-load and script timeouts
+TIMEOUT_S = 120.0  # the driver's page-load and script timeouts (a loaded machine is slow)
 FLAGS = (
     "--headless=new",
     "--enable-unsafe-swiftshader",
@@ -129,31 +130,33 @@ class Browser:
         self.close()
 
 
-class WebBridge:
-    """`sasprobe web` as a child process, its URL read from its first line of output."""
+class WebBridge(Child):
+    """`sasprobe web --port 0 ARGS` as a child (sasprobe/cli/children.py: its own process group,
+    stopped with its parent), its URL read from its first line of output."""
 
-    def __init__(self, *args: str, ready_s: float = 60.0) -> None:
-        self.log = tempfile.TemporaryFile(mode="w+")
-        self.proc = subprocess.Popen(
+    def __init__(self, *args: str, ready_s: float = 90.0) -> None:
+        self._lines: queue.Queue = queue.Queue()
+        self.folder = Path(tempfile.mkdtemp(prefix="sasprobe-web-"))
+        super().__init__(
+            "web",
             [sys.executable, "-m", "sasprobe", "-v", "web", "--port", "0", *args],
-            stdout=subprocess.PIPE,
-            stderr=self.log,
-            text=True,
-            env=dict(os.environ, PYTHONUNBUFFERED="1"),
-            start_new_session=True,
+            self.folder / "web.log",
+            env=child_env(),
         )
-        line: list[str] = []
-        reader = threading.Thread(target=lambda: line.append(self.proc.stdout.readline()))
-        reader.start()
-        reader.join(ready_s)
-        if not line or not line[0].startswith("http"):
+        try:
+            line = self._lines.get(timeout=ready_s)
+        except queue.Empty:
+            line = None
+        if not line or not line.startswith("http"):
+            why = self.error_line() if not self.alive() else f"no URL within {ready_s:g} s"
             self.stop()
-            raise UserError(f"sasprobe web did not start: {self.stderr().strip()[-500:]}")
-        self.url = line[0].strip()
+            raise UserError(f"sasprobe web did not start: {why}")
+        self.url = line
 
-    @property
-    def pid(self) -> int:
-        return self.proc.pid
+    def _read_stdout(self) -> None:
+        for line in self.proc.stdout:
+            self._lines.put(line.decode(errors="replace").strip())
+        self._lines.put(None)
 
     def cpu_s(self) -> float:
         """CPU time (user + system) the bridge has used so far."""
@@ -161,18 +164,13 @@ class WebBridge:
         return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
     def stderr(self) -> str:
-        self.log.seek(0)
-        return self.log.read()
+        return self.log_path.read_text(errors="replace")
 
     def stop(self, timeout_s: float = 10.0) -> int:
-        if self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(timeout_s)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(timeout_s)
-        return self.proc.returncode
+        self.signal(signal.SIGTERM)
+        rc = self.finish(timeout_s)
+        shutil.rmtree(self.folder, ignore_errors=True)
+        return rc
 
     def __enter__(self) -> WebBridge:
         return self

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 # The order `sasprobe bench` runs them in; a name whose module is absent is skipped.
-ORDER = ["startup", "grid", "sas", "haptics", "daemon", "render", "lighting"]
+ORDER = ["startup", "grid", "sas", "haptics", "daemon", "render", "lighting", "web"]
 # Run by name only (`sasprobe bench NAME`), each writing its own part of the page: they want
 # a machine chosen for them.
 ON_ITS_OWN = ["rates"]
