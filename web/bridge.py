@@ -39,6 +39,7 @@ from sasprobe.web.page_files import LIVE_PAGE, REPLAY_PAGE, content_type, page_f
 log = logging.getLogger("sasprobe")
 
 LATENCY_WINDOW = 1000  # drawn poses a page's latency percentiles cover
+STATS_EVERY_S = 0.25  # a page's percentiles are worked out again this often
 SENT_KEPT = 64  # poses a page was sent whose publish times are kept for its acks
 MAX_MESSAGE = 256  # bytes: a page sends only `{"drawn": seq}`
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "[::1]")
@@ -65,6 +66,8 @@ class Page:
         self.connected: bool | None = None
         self.drawn = 0
         self.ignored = 0  # messages that were not a drawn pose
+        self.stats: dict = {}
+        self.stats_at = -1.0
 
 
 class Bridge:
@@ -260,12 +263,16 @@ class Bridge:
         page.sent[pose.seq] = pose.publish_t_ns
         if len(page.sent) > SENT_KEPT:
             del page.sent[next(iter(page.sent))]
-        stats = {"rate_hz": self.feed.rate_hz}
-        if page.latencies:
-            stats["latency_ms"] = [
-                percentile(page.latencies, 0.5),
-                percentile(page.latencies, 0.95),
-            ]
+        now = time.monotonic()
+        if now - page.stats_at >= STATS_EVERY_S:
+            page.stats_at = now
+            page.stats = {"rate_hz": self.feed.rate_hz}
+            if page.latencies:
+                page.stats["latency_ms"] = [
+                    percentile(page.latencies, 0.5),
+                    percentile(page.latencies, 0.95),
+                ]
+        stats = page.stats
         return json.dumps(
             {
                 "type": "pose",

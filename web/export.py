@@ -4,8 +4,9 @@ the marks and the findings' summary, playing offline from `file://`.
 
 The poses are sampled as the video is (protocol/playback.py): frame k, at FPS frames a
 second, shows the newest pose published at or before the first pose's time + k/FPS, with
-the scene and the structure in force then. Packets (web/packets.py) travel gzip-compressed
-and base64-encoded inside a JSON block; the page's modules are `data:` URLs its import map
+the scene and the structure in force then. Packets (web/packets.py) and the list of scenes
+(a long session turns its view often) travel gzip-compressed and base64-encoded inside a
+JSON block; the page's modules are `data:` URLs its import map
 names, and its Content-Security-Policy lets it load nothing from anywhere.
 """
 
@@ -36,7 +37,7 @@ FPS = 60.0  # frames a second the poses are decimated to
 
 
 def blob(data: bytes) -> str:
-    """Packet bytes as the page reads them: gzip, then base64."""
+    """Bytes (a packet, or the scenes' JSON) as the page reads them: gzip, then base64."""
     return base64.b64encode(gzip.compress(data, compresslevel=9, mtime=0)).decode("ascii")
 
 
@@ -168,7 +169,7 @@ def session_html(
         "duration_s": (time_range[1] - time_range[0]) / 1e9,
         "structures": session.structures,
         "colors": session.color_packets,
-        "scenes": session.scenes,
+        "scenes": blob(json.dumps(session.scenes, allow_nan=False).encode()),
         "labels": [session.labels[s["sha256"]] for s in session.structures],
         "marks": sorted(session.marks.values(), key=lambda m: m["t_s"]),
         "poses": blob(session.poses()),

@@ -7,11 +7,14 @@ import { Viewer } from "sasprobe/viewer.js";
 
 const SPEEDS = [0.25, 0.5, 1, 2, 4];
 
-async function unpack(text) {
+// The bytes of a gzip-compressed, base64-encoded blob of the file (web/export.py).
+async function inflate(text) {
   const bytes = Uint8Array.from(atob(text), (c) => c.charCodeAt(0));
   const stream = new Blob([bytes]).stream().pipeThrough(new DecompressionStream("gzip"));
-  return readPacket(await new Response(stream).arrayBuffer());
+  return new Response(stream).arrayBuffer();
 }
+
+const unpack = async (text) => readPacket(await inflate(text));
 
 function element(parent, tag, props = {}) {
   const e = Object.assign(document.createElement(tag), props);
@@ -35,11 +38,18 @@ class ReplaySource {
 
   async load() {
     const s = this.session;
-    this.poses = (await unpack(s.poses)).arrays;
-    this.rows = this.poses.t_s.length;
-    this.structures = await Promise.all(s.structures.map((x) => unpack(x.packet)));
-    this.colorPackets = await Promise.all(s.colors.map(unpack));
-    this.duration = this.rows ? this.poses.t_s[this.rows - 1] : 0;
+    const [poses, structures, colors, scenes] = await Promise.all([
+      unpack(s.poses),
+      Promise.all(s.structures.map((x) => unpack(x.packet))),
+      Promise.all(s.colors.map(unpack)),
+      inflate(s.scenes),
+    ]);
+    this.structures = structures;
+    this.colorPackets = colors;
+    this.scenes = JSON.parse(new TextDecoder().decode(scenes));
+    this.rows = poses.arrays.t_s.length;
+    this.duration = this.rows ? poses.arrays.t_s[this.rows - 1] : 0;
+    this.poses = poses.arrays; // last: from here on the page shows the recording
     this.viewer.setLook(s.hello);
     this._controls();
     this.seek(this.time);
@@ -100,7 +110,7 @@ class ReplaySource {
       v.setStructure(this.structures[this.structure]);
       this.colors = -1;
     }
-    const scene = this.session.scenes[p.scene[k]];
+    const scene = this.scenes[p.scene[k]];
     if (scene.colors !== this.colors) {
       this.colors = scene.colors;
       v.setColors(this.colorPackets[this.colors]);
