@@ -1,11 +1,13 @@
 """Headless Chromium through Selenium, as `sasprobe bench web` and the page's tests drive it,
 and `sasprobe web` as a child process.
 
-Chromium draws WebGL2 with SwiftShader (`--enable-unsafe-swiftshader`), on a fresh profile,
-with everything that would reach the network switched off (a closed network refuses those
-connections). `unpaced` presents frames as fast as the page draws them
-(`--disable-frame-rate-limit --disable-gpu-vsync`); with the default pacing a page on a small
-machine shows far fewer frames than it could draw, and taking a screenshot needs it. Every
+Chromium draws WebGL2 with SwiftShader through ANGLE (`--enable-unsafe-swiftshader
+--use-angle=swiftshader`: without the second flag the session page took twenty times
+the CPU a frame), on a fresh profile, with everything that would reach the network switched
+off (a closed network refuses those connections). `unpaced` presents frames as fast as the
+page draws them (`--disable-frame-rate-limit --disable-gpu-vsync`); with the default pacing
+a page on a small machine shows far fewer frames than it could draw, and taking a
+screenshot needs it. Every
 wait is bounded: the driver's page-load and script timeouts, and explicit deadlines here.
 """
 
@@ -29,6 +31,7 @@ TIMEOUT_S = 120.0  # the driver's page-load and script timeouts (a loaded machin
 FLAGS = (
     "--headless=new",
     "--enable-unsafe-swiftshader",
+    "--use-angle=swiftshader",
     "--no-sandbox",
     "--disable-gpu-sandbox",
     "--disable-background-networking",
