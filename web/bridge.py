@@ -42,7 +42,19 @@ LATENCY_WINDOW = 1000  # drawn poses a page's latency percentiles cover
 STATS_EVERY_S = 0.25  # a page's percentiles are worked out again this often
 SENT_KEPT = 64  # poses a page was sent whose publish times are kept for its acks
 MAX_MESSAGE = 256  # bytes: a page sends only `{"drawn": seq}`
-LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "[::1]")
+
+
+def is_loopback(host: str) -> bool:
+    """Whether a host (a name, or an address, IPv6 in brackets or not) is this machine only."""
+    import ipaddress
+
+    host = host.strip("[]")
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
 
 
 def percentile(values, q: float) -> float:
@@ -64,8 +76,6 @@ class Page:
         self.colors_key: tuple | None = None
         self.scene_key: tuple | None = None
         self.connected: bool | None = None
-        self.drawn = 0
-        self.ignored = 0  # messages that were not a drawn pose
         self.stats: dict = {}
         self.stats_at = -1.0
 
@@ -81,13 +91,14 @@ class Bridge:
         same_clock: bool,
     ) -> None:
         self.feed = feed
+        feed.changed = self._changed_threadsafe
         self.pub = pub
         self.host = host
         self.port = port
         self.token = token
         self.same_clock = same_clock  # the daemon's publish times are on this clock
         self.pages: set[Page] = set()
-        self.loopback = host in ("127.0.0.1", "::1", "localhost")
+        self.loopback = is_loopback(host)
         self.prefix = f"/{token}/" if token else "/"
         self.hello = json.dumps(hello())
         files = page_files()
@@ -102,8 +113,6 @@ class Bridge:
         from websockets.asyncio.server import serve
 
         self._loop = asyncio.get_running_loop()
-        self.feed.changed = self._changed_threadsafe
-        self.feed.start()
         self.server = await serve(
             self._session,
             self.host,
@@ -115,6 +124,7 @@ class Bridge:
             logger=logging.getLogger("sasprobe.web.websockets"),
         )
         self.port = self.server.sockets[0].getsockname()[1]
+        self.feed.start()
         return self.url()
 
     def url(self) -> str:
@@ -152,7 +162,7 @@ class Bridge:
         """Serve a page file, refuse, or let a WebSocket upgrade go on (None)."""
         headers = request.headers
         host = headers.get("Host", "")
-        if self.loopback and host.rpartition(":")[0] not in LOOPBACK_HOSTS:
+        if self.loopback and not is_loopback(_host_name(host)):
             return self._refuse(connection, 403, f"not served under the host name {host!r}")
         path = urlsplit(request.path).path
         if self.token and path == self.prefix[:-1]:
@@ -217,12 +227,10 @@ class Bridge:
                 if isinstance(value, dict) and type(value.get("drawn")) is int:
                     seq = value["drawn"]
         if seq is None:
-            page.ignored += 1
             return
         published = page.sent.get(seq)
         if published is not None and self.same_clock:
             page.latencies.append((time.monotonic_ns() - published) / 1e6)
-        page.drawn += 1
         page.wants_pose = True
         page.wake.set()
 
@@ -287,6 +295,13 @@ class Bridge:
                 "stats": stats,
             }
         )
+
+
+def _host_name(header: str) -> str:
+    """The name or address of a Host header, without its port."""
+    if header.startswith("["):
+        return header[1 : header.find("]")]
+    return header.partition(":")[0]
 
 
 def _matches(path: str, prefix: str) -> bool:

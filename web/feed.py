@@ -40,11 +40,11 @@ class Packets:
 
 
 class Feed:
-    def __init__(self, follow: DaemonFollow, changed: Callable[[], None]) -> None:
-        """`changed` is called (from the follow thread) when the packets, the scene or the
-        daemon's presence changed, and for a pose while `pose_wanted` is set."""
+    def __init__(self, follow: DaemonFollow) -> None:
         self.follow = follow
-        self.changed = changed
+        # called (from the follow thread) when the packets, the scene or the daemon's presence
+        # changed, and for a pose while `pose_wanted` is set
+        self.changed: Callable[[], None] = lambda: None
         self.packets: Packets | None = None
         self.scene_json: str | None = None  # the scene message as pages are sent it
         self.scene_key: tuple | None = None
@@ -98,8 +98,8 @@ class Feed:
                 news = True
             if poses:
                 pose = poses[-1]
-                structure = self._structure
-                label = touched_label(structure, pose.touched_atom) if structure else None
+                current = self.follow.current_structure()
+                label = touched_label(self._structure, pose.touched_atom) if current else None
                 self.latest = (pose, label)
                 if self.pose_wanted.is_set():
                     self.pose_wanted.clear()

@@ -148,10 +148,18 @@ def structure_packet(structure: Structure) -> bytes:
     )
 
 
+_DEFAULT_SCHEMES: dict[str, str] = {}  # sha256 -> the structure's default scheme
+
+
 def effective_scheme(structure: Structure, scene: dict | None) -> str:
-    """The scene's colour scheme, else the structure's default (molecule/colors.py)."""
+    """The scene's colour scheme, else the structure's default (molecule/colors.py; worked out
+    once per structure: a scene changes with every turn of the view)."""
     scheme = (scene or {}).get("color_scheme")
-    return scheme if scheme else default_scheme(structure)
+    if scheme:
+        return scheme
+    if structure.sha256 not in _DEFAULT_SCHEMES:
+        _DEFAULT_SCHEMES[structure.sha256] = default_scheme(structure)
+    return _DEFAULT_SCHEMES[structure.sha256]
 
 
 def colors_packet(structure: Structure, scheme: str, probe_radius: float | None = None) -> bytes:

@@ -65,17 +65,6 @@ def port_number(text: str) -> int:
     return port
 
 
-def is_loopback_address(address: str) -> bool:
-    import ipaddress
-
-    if address == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(address).is_loopback
-    except ValueError:
-        return False
-
-
 def check_token(token: str) -> str:
     import re
 
@@ -120,13 +109,13 @@ def run(args: argparse.Namespace) -> int:
         parse_endpoint,
     )
     from sasprobe.protocol.follow import DaemonFollow
-    from sasprobe.web.bridge import Bridge
+    from sasprobe.web.bridge import Bridge, is_loopback
     from sasprobe.web.feed import Feed
 
     pub = args.connect or DEFAULT_PUB_ENDPOINT
     ctl = args.control or DEFAULT_CTL_ENDPOINT
     parse_endpoint(pub), parse_endpoint(ctl)  # one clear line for a malformed one
-    exposed = not is_loopback_address(args.bind)
+    exposed = not is_loopback(args.bind)
     token = check_token(args.token) if args.token else None
     if exposed and token is None:
         token = secrets.token_urlsafe(18)
@@ -136,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
     follow = DaemonFollow(
         lambda served: structure_from_served(served, keep_water), pub, ctl, keys, keep_water
     )
-    bridge = Bridge(Feed(follow, lambda: None), pub, args.bind, args.port, token, same_clock)
+    bridge = Bridge(Feed(follow), pub, args.bind, args.port, token, same_clock)
 
     async def serve() -> None:
         try:
