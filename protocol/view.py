@@ -11,7 +11,8 @@ face then fills about 78 % of the picture's shorter side, and what lies behind t
 around it rather than only through it.
 
 The force arrow starts on the probe's surface and is ARROW_RADII probe radii long at the
-device's continuous force rating (scaled with the force, up to its peak rating).
+device's continuous force rating (scaled with the force, up to its peak rating). The lines
+(the backbone trace, the cube's edges) have the widths below.
 """
 
 from __future__ import annotations
@@ -22,6 +23,9 @@ DEFAULT_FOV = 40.0  # degrees, vertical
 FIT_MARGIN = 1.05  # a little air around a fitted bounding sphere
 FRAME_RADIUS = 1.5  # the workspace view frames this many cube half edges around its centre
 ARROW_RADII = 3.0  # the force arrow's length at the continuous rating, in probe radii
+TRACE_RADIUS = 0.35  # Å: the backbone trace is drawn as tubes this thick ...
+TRACE_MIN_PX = 2.0  # ... and at least this many pixels wide
+WIRE_PX = 1.5  # the navigation cube's edges, pixels wide
 
 
 def view_axes(scene: dict | None) -> np.ndarray:
@@ -40,4 +44,7 @@ def conventions() -> dict:
         "fit_margin": FIT_MARGIN,
         "frame_radius": FRAME_RADIUS,
         "arrow_radii": ARROW_RADII,
+        "trace_radius": TRACE_RADIUS,
+        "trace_min_px": TRACE_MIN_PX,
+        "wire_px": WIRE_PX,
     }

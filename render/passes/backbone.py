@@ -7,12 +7,11 @@ cube is in effect, or always with `show_always`."""
 from __future__ import annotations
 
 import numpy as np
+from sasprobe.protocol.view import TRACE_MIN_PX as MIN_WIDTH_PX
+from sasprobe.protocol.view import TRACE_RADIUS
 from sasprobe.render.gl.buffers import BACKBONE_FORMAT
 from sasprobe.render.gl.uniforms import apply_planes, apply_uniforms
 from sasprobe.render.passes.base import Frame, Layer, Pass
-
-TRACE_RADIUS = 0.35  # Å
-MIN_WIDTH_PX = 2.0
 
 
 class BackbonePass(Pass):

@@ -7,12 +7,12 @@ import itertools
 
 import numpy as np
 from sasprobe.molecule.colors import CUBE_WIRE_COLOR
+from sasprobe.protocol.view import WIRE_PX as WIRE_WIDTH_PX
 from sasprobe.render.gl.uniforms import apply_uniforms
 from sasprobe.render.passes.backbone import cube_uniforms, line_width_uniforms
 from sasprobe.render.passes.base import Frame, Pass
 
 WIRE_COLOR = (*CUBE_WIRE_COLOR, 1.0)
-WIRE_WIDTH_PX = 1.5
 
 
 def cube_edges() -> np.ndarray:

@@ -6,10 +6,7 @@ import {
   SPHERE_VERTEX, TABLE_WIDTH,
 } from "sasprobe/shaders.js";
 
-const TRACE_WIDTH_A = 0.7; // the trace's tubes are 0.35 Å in radius ...
-const TRACE_MIN_PX = 2; // ... and at least this many pixels wide
-const WIRE_PX = 1.5; // the cube's edges
-const ARROW_PX = 2.5; // the force arrow
+const ARROW_PX = 2.5; // the force arrow: wider than the cube's edges
 
 function compile(gl, type, source) {
   const shader = gl.createShader(type);
@@ -226,8 +223,9 @@ export class Renderer {
   }
 
   // One frame. `f`: {camera, cube, axes (row-major), planes (cube faces then clip planes),
-  // probe {center, radius} or null, touched, lightDir (world), probeLight, look, wire,
-  // arrow (segments or null), rect ([x, y, w, h] where spheres can be, or null)}.
+  // probe {center, radius} or null, touched, lightDir (world), probeLight, look (colours and
+  // Phong terms), view (protocol/view.py's conventions), wire, arrow (segments or null),
+  // rect ([x, y, w, h] where spheres can be, or null)}.
   draw(f) {
     const gl = this.gl;
     this._resize();
@@ -358,8 +356,8 @@ export class Renderer {
     if (f.trace && this.trace.count > 0) {
       gl.uniform1i(u.u_window, 1);
       gl.uniform1i(u.u_tube, 1);
-      gl.uniform1f(u.u_width_px, TRACE_MIN_PX);
-      gl.uniform1f(u.u_width_A, TRACE_WIDTH_A);
+      gl.uniform1f(u.u_width_px, f.view.trace_min_px);
+      gl.uniform1f(u.u_width_A, 2 * f.view.trace_radius);
       gl.bindVertexArray(this.trace.vao);
       gl.drawArraysInstanced(gl.TRIANGLE_STRIP, 0, 4, this.trace.count);
     }
@@ -371,7 +369,7 @@ export class Renderer {
       this._segments(this.wire, f.wire);
       gl.depthFunc(gl.LEQUAL);
       gl.depthMask(false);
-      gl.uniform1f(u.u_width_px, WIRE_PX);
+      gl.uniform1f(u.u_width_px, f.view.wire_px);
       gl.bindVertexArray(this.wire.vao);
       gl.drawArraysInstanced(gl.TRIANGLE_STRIP, 0, 4, this.wire.count);
     }

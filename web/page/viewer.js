@@ -20,7 +20,7 @@ const FLAG_DRIFTING = 8;
 const FLAG_CLUTCHED = 32;
 const FPS_WINDOW_MS = 1000;
 
-export function rowsToMatrix(rows) {
+function rowsToMatrix(rows) {
   return [...rows[0], ...rows[1], ...rows[2]];
 }
 
@@ -151,14 +151,15 @@ export class Viewer {
       this.renderer.setCubeSpheres(shown);
       this.viewKey = viewKey;
     }
-    const lights = scene.lights || {};
-    const lightDir = normalize(camera.toWorld(
-      normalize((lights.directional && lights.directional.direction) || [0.45, -0.55, -0.7])));
+    // the key light follows the camera: its direction is in the view's frame
+    const lights = scene.lights;
+    const lightDir = normalize(camera.toWorld(normalize(lights.directional.direction)));
     const limits = (scene.device && scene.device.limits) || {};
     return {
       size: [w, h], camera, cube, axes, hasCube, planes, probe,
-      touched: pose.touched, lightDir, probeLight: !!(lights.probe && lights.probe.enabled),
-      look: this.look.colors && { ...this.look.colors, lit: this.look.lit },
+      touched: pose.touched, lightDir, probeLight: lights.probe.enabled,
+      look: { ...this.look.colors, lit: this.look.lit },
+      view: this.look.view,
       trace: hasCube,
       wire: hasCube ? this._wire(cube, axes) : null,
       arrow: this._arrow(pose, axes, probe, camera, limits),
