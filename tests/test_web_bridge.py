@@ -13,6 +13,7 @@ import threading
 import time
 from urllib.parse import urlsplit
 
+import numpy as np
 import pytest
 
 from tests.conftest import run_cli
@@ -30,14 +31,14 @@ def daemon(reference_by_id):
 
 @pytest.fixture(scope="module")
 def loopback(daemon):
-    with bridge_for(daemon) as bridge:
+    with bridge_for(daemon.pub, daemon.ctl) as bridge:
         yield bridge
 
 
 @pytest.fixture(scope="module")
 def exposed(daemon):
     """A bridge on every interface: its token is needed for everything."""
-    with bridge_for(daemon, "--bind", "0.0.0.0", "--token", TOKEN) as bridge:
+    with bridge_for(daemon.pub, daemon.ctl, "--bind", "0.0.0.0", "--token", TOKEN) as bridge:
         yield bridge
 
 
@@ -115,7 +116,7 @@ def test_beyond_loopback_every_request_needs_the_token(exposed):
 
 
 def test_beyond_loopback_a_token_is_made_and_printed_in_the_url(daemon):
-    with bridge_for(daemon, "--bind", "0.0.0.0") as bridge:
+    with bridge_for(daemon.pub, daemon.ctl, "--bind", "0.0.0.0") as bridge:
         token = urlsplit(bridge.url).path.strip("/")
         assert len(token) >= 16
         assert get(bridge.url, f"/{token}/")[0] == 200
@@ -249,3 +250,68 @@ def test_it_refuses_to_start_without_keys_toward_a_remote_daemon():
 def test_bad_options_are_one_line(args, why):
     r = run_cli("web", *args, timeout=60)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and why in r.stderr, r.stderr
+
+
+def messages(ws, timeout_s: float = 30.0):
+    """Every message as it comes: (kind, content), binary packets read with web/packets.py's
+    layout; `drawn` acknowledged for each pose so poses keep coming."""
+    from sasprobe.web.packets import read_packet
+
+    deadline = time.monotonic() + timeout_s
+    while True:
+        message = ws.recv(timeout=max(deadline - time.monotonic(), 0.01))
+        if isinstance(message, bytes):
+            header, arrays = read_packet(message)
+            yield header["kind"], (header, arrays)
+            continue
+        value = json.loads(message)
+        if value["type"] == "pose":
+            ws.send(json.dumps({"drawn": value["seq"]}))
+        yield value["type"], value
+
+
+def wait_message(ws, what, why: str, timeout_s: float = 60.0):
+    """The first message for which what(kind, content) holds."""
+    for kind, content in messages(ws, timeout_s):
+        if what(kind, content):
+            return content
+    raise AssertionError(why)
+
+
+def test_it_follows_a_daemon_started_after_it_its_loads_and_its_marks(reference_by_id, tmp_path):
+    from sasprobe.molecule import load_structure
+    from sasprobe.protocol.client import ControlClient
+
+    pub, ctl = f"ipc://{tmp_path}/pub", f"ipc://{tmp_path}/ctl"
+    crambin = load_structure(reference_by_id["1crn"].path)
+    other = reference_by_id["1oky"].path
+    with (
+        bridge_for(pub, ctl) as bridge,
+        session(bridge.url) as ws,
+    ):
+        gone = wait_message(ws, lambda k, c: k == "daemon", "the daemon's absence")
+        assert gone["connected"] is False
+        with DaemonProcess(
+            "--molecule", str(reference_by_id["1crn"].path), device="sim:scan", pub=pub, ctl=ctl
+        ) as daemon:
+            header, arrays = wait_message(ws, lambda k, c: k == "structure", "a structure")
+            assert header["sha256"] == crambin.sha256 and header["n_atoms"] == crambin.n_atoms
+            np.testing.assert_allclose(
+                arrays["positions"].reshape(-1, 3), crambin.positions, atol=1e-4
+            )
+            wait_message(ws, lambda k, c: k == "pose", "a pose")
+            with ControlClient(daemon.ctl, timeout_s=60) as client:
+                mark = client.mark("pocket")["mark"]
+                wait_message(
+                    ws,
+                    lambda k, c: k == "scene" and mark in c["scene"]["marks"],
+                    "the mark in a scene",
+                )
+                loaded = client.load(path=other)["structure"]
+            header, _ = wait_message(ws, lambda k, c: k == "structure", "the loaded structure")
+            assert header["sha256"] == loaded["sha256"] and header["name"] == "1oky"
+            wait_message(
+                ws,
+                lambda k, c: k == "colors" and c[0]["sha256"] == loaded["sha256"],
+                "its colours",
+            )

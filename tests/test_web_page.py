@@ -31,7 +31,7 @@ def page():
 @pytest.fixture(scope="module")
 def crambin_session(reference_by_id):
     with DaemonProcess("--molecule", str(reference_by_id["1crn"].path), device="sim:scan") as d:
-        with bridge_for(d) as bridge:
+        with bridge_for(d.pub, d.ctl) as bridge:
             yield d, bridge
 
 
@@ -128,7 +128,7 @@ def test_the_atom_under_every_pixel_is_the_ray_casters(page, reference_by_id, en
     path = reference_by_id[entry].path
     structure = load_structure(path)
     with DaemonProcess("--molecule", str(path), device="sim:scan") as daemon:
-        with bridge_for(daemon) as bridge:
+        with bridge_for(daemon.pub, daemon.ctl) as bridge:
             page.open(bridge.url)
             drawing(page, frames=3, timeout_s=180)
             picked = page.run("return window.sasprobe.pick()")

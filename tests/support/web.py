@@ -25,11 +25,11 @@ def browser(**options):
 
 
 @contextlib.contextmanager
-def bridge_for(daemon, *args: str):
-    """`sasprobe web` following a tests.daemon_process.DaemonProcess."""
+def bridge_for(pub: str, ctl: str, *args: str):
+    """`sasprobe web` following the daemon at these endpoints (started or not)."""
     from sasprobe.cli.browser import WebBridge
 
-    bridge = WebBridge("--connect", daemon.pub, "--control", daemon.ctl, *args)
+    bridge = WebBridge("--connect", pub, "--control", ctl, *args)
     try:
         yield bridge
     finally:
