@@ -14,16 +14,18 @@ LOOPBACK = "127.0.0.1"
 def register(sub: argparse._SubParsersAction) -> None:
     from pathlib import Path
 
+    from sasprobe.protocol.endpoints import DEFAULT_CTL_ENDPOINT, DEFAULT_PUB_ENDPOINT
+
     p = sub.add_parser("web", help=HELP)
     p.add_argument(
         "--connect",
         metavar="PUB_ENDPOINT",
-        help="the daemon's publisher (default from the protocol, tcp://127.0.0.1:5555)",
+        help=f"the daemon's publisher (default {DEFAULT_PUB_ENDPOINT})",
     )
     p.add_argument(
         "--control",
         metavar="ENDPOINT",
-        help="the daemon's control endpoint, for its structure (default tcp://127.0.0.1:5556)",
+        help=f"the daemon's control endpoint, for its structure (default {DEFAULT_CTL_ENDPOINT})",
     )
     p.add_argument(
         "--keys",
