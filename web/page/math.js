@@ -51,9 +51,6 @@ export function rotation(axis, angle) {
   ];
 }
 
-// A row-major 3x3 from its three columns.
-export const fromColumns = (x, y, z) => [x[0], y[0], z[0], x[1], y[1], z[1], x[2], y[2], z[2]];
-
 // The view matrix of a camera basis (columns right, up, back) at `eye`.
 export function viewMatrix(right, up, back, eye) {
   return new Float32Array([
