@@ -315,3 +315,27 @@ def test_it_follows_a_daemon_started_after_it_its_loads_and_its_marks(reference_
                 lambda k, c: k == "colors" and c[0]["sha256"] == loaded["sha256"],
                 "its colours",
             )
+
+
+def test_a_daemon_publishing_every_fourth_pose_is_followed_at_its_loop_rate(reference_by_id):
+    """At 4 kHz the daemon publishes every 4th tick's pose (the scene's `pose_every`): a page
+    is sent those poses, and the rate it shows is the loop's ticks over device time, not the
+    poses it was sent."""
+    crambin = str(reference_by_id["1crn"].path)
+    with (
+        DaemonProcess("--molecule", crambin, "--rate", "4000", device="sim:scan") as fast,
+        bridge_for(fast.pub, fast.ctl) as bridge,
+        session(bridge.url) as ws,
+    ):
+        scene = wait_message(ws, lambda kind, _: kind == "scene", "a scene")["scene"]
+        assert scene["pose_every"] == 4
+        seqs, rate = [], None
+        for kind, content in messages(ws, 60):
+            if kind == "pose":
+                seqs.append(content["seq"])
+                rate = content["stats"].get("rate_hz") or rate
+                if len(seqs) >= 20 and rate is not None:
+                    break
+        assert all(seq % 4 == 0 for seq in seqs), seqs
+        assert seqs == sorted(seqs) and len(set(seqs)) == len(seqs)
+        assert 3600 <= rate <= 4400, rate

@@ -65,7 +65,7 @@ class LiveSource {
     if (!viewer.atoms) return "fetching the structure ...";
     const parts = [`${viewer.atoms.name}`, `${viewer.atoms.count.toLocaleString("en")} atoms`];
     const s = this.stats;
-    if (s.rate_hz) parts.push(`poses ${Math.round(s.rate_hz)}/s`);
+    if (s.rate_hz) parts.push(`haptic ${Math.round(s.rate_hz)} Hz`);
     if (s.latency_ms) parts.push(`latency ${s.latency_ms[0].toFixed(0)} ms (p95 ${s.latency_ms[1].toFixed(0)})`);
     if (viewer.fps) parts.push(`${viewer.fps.toFixed(0)} frames/s`);
     return parts.join(" · ");

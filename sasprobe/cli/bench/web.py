@@ -135,7 +135,8 @@ def _sessions(ctx: BenchContext, structures, sizes, seconds: float) -> list[dict
 
 
 class _Gaps:
-    """The longest gap between the publish times of consecutive poses, from a subscriber."""
+    """The longest gap between the publish times of consecutive poses, from a subscriber:
+    poses the scene's `pose_every` ticks apart (the daemon publishes every Nth above 2 kHz)."""
 
     def __init__(self, pub: str) -> None:
         import zmq
@@ -146,19 +147,25 @@ class _Gaps:
         self._sock = zmq.Context.instance().socket(zmq.SUB)
         self._sock.rcvhwm = 1_000_000
         self._sock.setsockopt(zmq.SUBSCRIBE, b"pose")
+        self._sock.setsockopt(zmq.SUBSCRIBE, b"scene")
         self._sock.connect(pub)
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
 
     def _run(self) -> None:
-        from sasprobe.protocol.pose import decode_pose
+        from sasprobe.protocol.pose import POSE_TOPIC, decode_pose
+        from sasprobe.protocol.scene import decode_scene
 
-        last = None
+        last, stride = None, None
         while not self._stop.is_set():
             if not self._sock.poll(50):
                 continue
-            pose = decode_pose(self._sock.recv_multipart()[1])
-            if last is not None and pose.seq == last[0] + 1:
+            topic, payload = self._sock.recv_multipart()
+            if topic != POSE_TOPIC:
+                stride = decode_scene(payload).get("pose_every", 1)
+                continue
+            pose = decode_pose(payload)
+            if last is not None and pose.seq == last[0] + (stride or 1):
                 self.worst_ns = max(self.worst_ns, pose.publish_t_ns - last[1])
             last = (pose.seq, pose.publish_t_ns)
             self.poses += 1
