@@ -5,7 +5,8 @@ Frame k stands for the moment t0 + k/fps, where t0 is the first recorded pose; i
 newest pose published at or before that moment, with the scene (probe radius, clip planes,
 lights, cube) and the structure in force then. Everything comes from the recording itself
 (the structure is its attachment), read in one pass in file order through
-protocol/recording.py, so a long session needs no more memory than a short one.
+protocol/recording.py, a block of ticks at a time, so a long session needs no more memory
+than a short one.
 """
 
 from __future__ import annotations
@@ -14,8 +15,10 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 from sasprobe.protocol.pose import Pose
-from sasprobe.protocol.recording import iter_items, pose_from_record
+from sasprobe.protocol.recording import TICKS_TOPIC, Recording
+from sasprobe.protocol.ticks import TickBlock, ticks_span
 
 
 @dataclass
@@ -31,8 +34,13 @@ class RecordedFrame:
 def pose_time_range(path: Path) -> tuple[int, int] | None:
     """First and last pose log time of a recording (ns), None without poses."""
     first = last = None
-    for item in iter_items(path, decode=False):
-        if item.topic == "pose":
+    for item in Recording(path).items(decode=False):
+        if item.topic == TICKS_TOPIC:
+            count, _, _, lo, hi = ticks_span(item.raw)
+            if count:
+                first = lo if first is None else first
+                last = hi
+        elif item.topic == "pose":  # the first recording format: one message per pose
             first = item.log_time if first is None else first
             last = item.log_time
     return None if first is None else (first, last)
@@ -62,8 +70,23 @@ def recorded_frames(
         attached = (*files[sha], keep_water.get(sha, False)) if sha in files else None
         return RecordedFrame(k, sha, attached, scene, pose)
 
-    for item in iter_items(path):
-        if item.topic == "attachment":
+    for item in Recording(path).stream():
+        if isinstance(item, TickBlock):
+            # Frames due before the block's last pose show the newest pose at or before them.
+            log = item.log_ns
+            while k < n and scene is not None:
+                due = t0 + k * 1e9 / fps
+                if due >= log[-1]:
+                    break
+                row = int(np.searchsorted(log, due, side="right")) - 1
+                if row >= 0:
+                    pose = item.pose_at(row)
+                if pose is None:
+                    break
+                yield frame()
+                k += 1
+            pose = item.pose_at(len(item) - 1)
+        elif item.topic == "attachment":
             files[item.data["sha256"]] = (item.data["name"], item.raw)
         elif item.topic == "control" and item.data.get("cmd") in ("start", "load"):
             args = item.data.get("args", {})
@@ -72,17 +95,6 @@ def recorded_frames(
             )
         elif item.topic == "scene":
             scene = item.data
-        elif item.topic == "pose":
-            # Frames due before this pose show the state so far.
-            while (
-                k < n
-                and pose is not None
-                and scene is not None
-                and t0 + k * 1e9 / fps < item.log_time
-            ):
-                yield frame()
-                k += 1
-            pose = pose_from_record(item.data)
     while k < n and pose is not None and scene is not None:
         yield frame()
         k += 1

@@ -1,16 +1,19 @@
-"""Recordings: the MCAP file a daemon writes (`--record`), its channels and their JSON,
-and reading it back, including files whose writer was killed (no summary, cut record).
+"""Recordings: the MCAP file a daemon writes (`--record`), its channels, and reading it
+back as a stream, including files whose writer was killed (no summary, cut record).
 
 The format is documented in protocol/README.md. The daemon writes it
-(daemon/recording/writer.py); the daemon's replay and `replay --verify`, and the
-renderer's `replay --video`, read it through this module, so a renderer needs no daemon
-code to draw a recorded session.
+(daemon/recording/writer.py); the daemon's replay, `replay --verify` and `--findings`,
+and the renderer's `replay --video` read it through this module (`Recording`), so a
+renderer needs no daemon code to draw a recorded session. The ticks' binary layout and
+its codec are protocol/ticks.py's. Files of the first format (a JSON `device` and `pose`
+message per tick) are read as well, into the same blocks of ticks.
 
 Reading: a finished MCAP file ends with a summary and footer; a file of a daemon killed
 with SIGKILL ends after its last flushed chunk, possibly in the middle of a record. The
 reader walks the top-level records, stops before the first incomplete one and reads
-everything up to there in file order. `recover()` writes such a prefix out again as a
-finished, indexed MCAP file.
+everything up to there in file order, one chunk at a time, so a reader's memory does not
+grow with the file. `recover()` writes such a prefix out again as a finished, indexed
+MCAP file.
 """
 
 from __future__ import annotations
@@ -25,8 +28,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from sasprobe.protocol.pose import Pose
-from sasprobe.protocol.schemas import channel_schemas, pose_layout
+from sasprobe.protocol.schemas import channel_schemas
+from sasprobe.protocol.ticks import (
+    JsonTicks,
+    TickBlock,
+    TicksDecodeError,
+    decode_ticks,
+    ticks_span,
+)
 
 from sasprobe.common.errors import UserError
 from sasprobe.common.files import open_regular
@@ -35,8 +44,8 @@ MAGIC = b"\x89MCAP0\r\n"
 _OPCODE_FOOTER = 0x02
 PROFILE = "sasprobe"
 
-# Each channel's JSON Schema (protocol/schemas/), standalone, as the writer embeds it
-# (encoding `jsonschema`).
+# The JSON channels' schemas (protocol/schemas/), standalone, as the writer embeds them
+# (schema encoding `jsonschema`).
 SCHEMAS = channel_schemas()
 
 
@@ -46,41 +55,6 @@ def json_floats(values) -> list:
     if all(map(math.isfinite, floats)):
         return floats
     return [x if math.isfinite(x) else None for x in floats]
-
-
-# The `pose` channel's fields: pose.json's record names (neither the version nor the reserved word).
-POSE_RECORD_FIELDS = tuple(f["record"] for f in pose_layout()["fields"] if f["record"] is not None)
-_POSE_VECTORS = frozenset(
-    f["record"] for f in pose_layout()["fields"] if f["record"] is not None and f["count"] > 1
-)
-
-
-def pose_record(pose: Pose) -> dict:
-    """A pose as the `pose` channel's JSON (non-finite numbers as null)."""
-    record = {}
-    for name in POSE_RECORD_FIELDS:
-        value = getattr(pose, name)
-        record[name] = (
-            json_floats(value)
-            if name in _POSE_VECTORS
-            else float(value)
-            if name == "cube_half_A"
-            else int(value)
-        )
-    return record
-
-
-def pose_from_record(record: dict) -> Pose:
-    """The inverse of pose_record (null numbers come back as NaN)."""
-    values = {}
-    for name in POSE_RECORD_FIELDS:
-        v = record[name]
-        values[name] = (
-            np.array([np.nan if x is None else x for x in v], dtype=np.float64)
-            if name in _POSE_VECTORS
-            else v
-        )
-    return Pose(**values)
 
 
 class RecordingError(UserError):
@@ -139,54 +113,132 @@ class _Prefix(io.RawIOBase):
 
 @dataclass
 class Item:
-    """One message (topic + decoded JSON) or attachment (topic 'attachment') in file order."""
+    """One message (topic + decoded JSON; a `ticks` message keeps its bytes only), attachment
+    (topic 'attachment') or metadata record (topic 'metadata'), in file order."""
 
     topic: str
     log_time: int
     data: dict = field(default_factory=dict)
-    raw: bytes = b""  # attachment bytes, or the message's JSON bytes
+    raw: bytes = b""  # attachment bytes, or the message's bytes
+
+
+TICKS_TOPIC = "ticks"
+TICKS_ENCODING = "sasprobe.ticks"  # the `ticks` channel's message encoding (ticks.json's layout)
+TICKS_SCHEMA_ENCODING = "sasprobe.layout"  # its schema: ticks.json with pose.json, as JSON
+FORMAT_VERSION = 2  # the `sasprobe` metadata's `format`; files without it are format 1
+BLOCK_TICKS = 4096  # ticks per block that Recording.stream() hands out, at most
+
+
+class Recording:
+    """A recording opened for reading, finished or not. Where its complete records end is found
+    once, when it is opened, so that every pass over it reads the same records even while a
+    daemon is still writing the file.
+
+    `items()` gives the records in file order; `stream()` gives the same with the ticks in
+    blocks (protocol/ticks.py), whichever format wrote them. Either holds one chunk of the
+    file and one block at a time: memory does not grow with the recording's length."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        info = scan(self.path)
+        self.end, self.size, self.finished = info.end, info.size, info.finished
+
+    def items(self, decode: bool = True) -> Iterator[Item]:
+        """Messages, attachments and metadata up to the end found when opened, in file order."""
+        from mcap.exceptions import EndOfFile
+        from mcap.records import Attachment, Channel, Message, Metadata
+        from mcap.stream_reader import StreamReader
+
+        path = self.path
+        channels: dict[int, tuple[str, bool]] = {}  # id -> (topic, JSON)
+        with open_regular(path, "recording", RecordingError) as fh:
+            reader = StreamReader(io.BufferedReader(_Prefix(fh, self.end)), skip_magic=False)
+            try:
+                for record in reader.records:
+                    if isinstance(record, Message):
+                        topic, is_json = channels.get(
+                            record.channel_id, (f"channel-{record.channel_id}", False)
+                        )
+                        data = json.loads(record.data) if decode and is_json else {}
+                        yield Item(topic, record.log_time, data, record.data)
+                    elif isinstance(record, Channel):
+                        channels[record.id] = (record.topic, record.message_encoding == "json")
+                    elif isinstance(record, Attachment):
+                        yield Item(
+                            "attachment",
+                            record.log_time,
+                            {
+                                "name": record.name,
+                                "media_type": record.media_type,
+                                "sha256": hashlib.sha256(record.data).hexdigest(),
+                            },
+                            record.data,
+                        )
+                    elif isinstance(record, Metadata):
+                        yield Item("metadata", 0, {"name": record.name, **record.metadata})
+            except EndOfFile:
+                return  # an unfinished file: everything complete has been read
+            except RecordingError:
+                raise
+            except Exception as exc:  # mcap's, zstd's, json's and struct's errors alike
+                raise _damaged(path, exc) from None
+
+    def stream(self, block_ticks: int | None = None) -> Iterator[Item | TickBlock]:
+        """The records in file order, with consecutive ticks joined into TickBlocks of at most
+        block_ticks (a record between ticks ends a block, so the order is kept exactly).
+
+        Format 1 ticks are a `device` and a `pose` message each, written one after the other;
+        a tick counts once both are there (the last one of a cut file may lack its pose)."""
+        block_ticks = block_ticks or BLOCK_TICKS
+        pending: list[TickBlock] = []
+        count = 0
+        device: dict | None = None  # format 1: a device record waiting for its pose
+        first_format = JsonTicks(block_ticks)
+        try:
+            for item in self.items():
+                topic = item.topic
+                if topic == TICKS_TOPIC:
+                    block = decode_ticks(item.raw)
+                    pending.append(block)
+                    count += len(block)
+                elif topic == "device":
+                    device = item.data
+                    continue
+                elif topic == "pose":
+                    if device is not None and device.get("seq") == item.data.get("seq"):
+                        first_format.add(device, item.data)
+                        device = None
+                        if first_format.full:
+                            yield first_format.take()
+                    continue
+                else:
+                    if first_format.count:
+                        pending.append(first_format.take())
+                    if pending:
+                        yield TickBlock.join(pending)
+                        pending, count = [], 0
+                    yield item
+                    continue
+                while count >= block_ticks:
+                    whole = TickBlock.join(pending)
+                    yield whole.rows(0, block_ticks)
+                    rest = whole.rows(block_ticks, len(whole))
+                    pending, count = ([rest], len(rest)) if len(rest) else ([], 0)
+            if first_format.count:
+                pending.append(first_format.take())
+            if pending:
+                yield TickBlock.join(pending)
+        except (TicksDecodeError, KeyError, TypeError, ValueError) as exc:
+            raise _damaged(self.path, exc) from None
+
+
+def _damaged(path: Path, exc: BaseException) -> RecordingError:
+    return RecordingError(f"{path}: damaged recording ({type(exc).__name__}: {_first_line(exc)})")
 
 
 def iter_items(path: Path, decode: bool = True) -> Iterator[Item]:
     """Messages and attachments of a recording, finished or not, in file order."""
-    from mcap.exceptions import EndOfFile
-    from mcap.records import Attachment, Channel, Message, Metadata
-    from mcap.stream_reader import StreamReader
-
-    path = Path(path)
-    info = scan(path)
-    channels: dict[int, str] = {}
-    with open_regular(path, "recording", RecordingError) as fh:
-        reader = StreamReader(io.BufferedReader(_Prefix(fh, info.end)), skip_magic=False)
-        try:
-            for record in reader.records:
-                if isinstance(record, Channel):
-                    channels[record.id] = record.topic
-                elif isinstance(record, Message):
-                    topic = channels.get(record.channel_id, f"channel-{record.channel_id}")
-                    data = json.loads(record.data) if decode else {}
-                    yield Item(topic, record.log_time, data, record.data)
-                elif isinstance(record, Attachment):
-                    yield Item(
-                        "attachment",
-                        record.log_time,
-                        {
-                            "name": record.name,
-                            "media_type": record.media_type,
-                            "sha256": hashlib.sha256(record.data).hexdigest(),
-                        },
-                        record.data,
-                    )
-                elif isinstance(record, Metadata):
-                    yield Item("metadata", 0, {"name": record.name, **record.metadata})
-        except EndOfFile:
-            return  # an unfinished file: everything complete has been read
-        except (
-            Exception
-        ) as exc:  # mcap's, zstd's, json's and struct's errors alike: the file is damaged
-            raise RecordingError(
-                f"{path}: damaged recording ({type(exc).__name__}: {_first_line(exc)})"
-            ) from None
+    return Recording(path).items(decode)
 
 
 @dataclass
@@ -195,6 +247,7 @@ class Summary:
     finished: bool
     bytes_total: int
     bytes_readable: int
+    format: int  # 2: a `ticks` channel; 1: a JSON `device` and `pose` message per tick
     counts: dict  # messages per topic
     first_log_ns: int | None
     last_log_ns: int | None
@@ -214,34 +267,48 @@ class Summary:
 
 
 def summarize(path: Path) -> Summary:
-    info = scan(path)
+    recording = Recording(path)
     counts: dict[str, int] = {}
     first = last = None
     seqs_first = seqs_last = None
     ticks = 0
     structures: list[str] = []
     metadata: dict = {}
-    for item in iter_items(path):
-        if item.topic == "attachment":
-            structures.append(item.data["name"])
-            continue
-        if item.topic == "metadata":
-            metadata = {k: v for k, v in item.data.items() if k != "name"}
-            continue
-        counts[item.topic] = counts.get(item.topic, 0) + 1
-        first = item.log_time if first is None else min(first, item.log_time)
-        last = item.log_time if last is None else max(last, item.log_time)
-        if item.topic == "device":
-            seq = item.data["seq"]
-            seqs_first = seq if seqs_first is None else seqs_first
-            seqs_last = seq
-            ticks += 1
+    try:
+        for item in recording.items(decode=False):
+            topic = item.topic
+            if topic == "attachment":
+                structures.append(item.data["name"])
+                continue
+            if topic == "metadata":
+                metadata = {k: v for k, v in item.data.items() if k != "name"}
+                continue
+            counts[topic] = counts.get(topic, 0) + 1
+            lo = hi = item.log_time
+            if topic == TICKS_TOPIC:
+                n, seq_lo, seq_hi, lo, hi = ticks_span(item.raw)
+                if not n:
+                    continue
+            elif topic == "device":
+                n, seq_lo = 1, json.loads(item.raw)["seq"]
+                seq_hi = seq_lo
+            else:
+                n = 0
+            first = lo if first is None else min(first, lo)
+            last = hi if last is None else max(last, hi)
+            if n:
+                seqs_first = seq_lo if seqs_first is None else seqs_first
+                seqs_last = seq_hi
+                ticks += n
+    except (TicksDecodeError, KeyError, TypeError, ValueError) as exc:
+        raise _damaged(recording.path, exc) from None
     gaps = (seqs_last - seqs_first + 1 - ticks) if ticks else 0
     return Summary(
         str(path),
-        info.finished,
-        info.size,
-        info.end,
+        recording.finished,
+        recording.size,
+        recording.end,
+        FORMAT_VERSION if TICKS_TOPIC in counts else 1,
         counts,
         first,
         last,

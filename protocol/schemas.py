@@ -1,10 +1,12 @@
 """The protocol's machine-readable definitions (protocol/schemas/, shipped with the package).
 
 - `pose.json`: the pose's binary layout and flag bits, one table from which the pose
-  codec (protocol/pose.py) takes its struct format and flag values, the recording's
-  `pose` channel schema is built (`pose_record_schema`) and the tables of
+  codec (protocol/pose.py) takes its struct format and flag values, the first recording
+  format's `pose` channel schema is built (`pose_record_schema`) and the tables of
   protocol/README.md are rendered (`pose_table_markdown`, `flags_table_markdown`; the
   page carries a copy, which a test checks against the rendering);
+- `ticks.json`: the binary layout of a recording's `ticks` channel (protocol/ticks.py's
+  codec is built from it; `ticks_table_markdown` renders its README tables);
 - JSON Schema 2020-12 for every JSON message: `scene.schema.json`, `control.schema.json`
   (every request and reply, `#/$defs/args.CMD` and `#/$defs/result.CMD`),
   `device.schema.json` and `control-record.schema.json` (recording channels),
@@ -54,6 +56,18 @@ def pose_layout() -> dict:
     return _read("pose.json")
 
 
+@functools.cache
+def ticks_layout() -> dict:
+    """ticks.json: {"version", "byte_order", "header", "record", "device_flags", "errors"}."""
+    return _read("ticks.json")
+
+
+def ticks_schema() -> dict:
+    """ticks.json with pose.json under `pose`: the standalone layout a recording embeds for
+    its `ticks` channel."""
+    return {**ticks_layout(), "pose": pose_layout()}
+
+
 def pose_struct_format() -> str:
     """The layout as a Python `struct` format (little-endian, no padding)."""
     return "<" + "".join(
@@ -71,6 +85,8 @@ def pose_flag(name: str) -> int:
 
 
 def field_size(field: dict) -> int:
+    if field["type"] == "pose":
+        return pose_layout()["size"] * field["count"]
     return _SIZES[field["type"]] * field["count"]
 
 
@@ -82,7 +98,8 @@ def schema(name: str) -> dict:
 
 
 def pose_record_schema() -> dict:
-    """The recording's `pose` channel: the pose's fields as JSON, under their record names."""
+    """The first recording format's `pose` channel: the pose's fields as JSON, under their
+    record names."""
     layout = pose_layout()
     properties = {}
     for f in layout["fields"]:
@@ -116,8 +133,10 @@ def pose_record_schema() -> dict:
         "$schema": DIALECT,
         "$id": URN + "pose",
         "title": "sasprobe.Pose",
-        "description": "Recording channel `pose`: the published pose (layout version "
-        f"{layout['version']}) as JSON",
+        "description": (
+            f"Recording channel `pose` (first recording format): the published pose "
+            f"(layout version {layout['version']}) as JSON"
+        ),
         "type": "object",
         "required": list(properties),
         "additionalProperties": False,
@@ -163,13 +182,9 @@ def bundled(name: str) -> dict:
 
 
 def channel_schemas() -> dict[str, dict]:
-    """The recording's channels and their standalone schemas, in the order they are registered."""
-    return {
-        "device": bundled("device"),
-        "pose": bundled("pose"),
-        "scene": bundled("scene"),
-        "control": bundled("control-record"),
-    }
+    """The recording's JSON channels and their standalone schemas, in the order they are
+    registered (the `ticks` channel's layout is `ticks_schema()`)."""
+    return {"scene": bundled("scene"), "control": bundled("control-record")}
 
 
 @functools.cache
@@ -195,14 +210,36 @@ def validation_errors(ref: str, instance) -> list[str]:
     return [f"{'/'.join(map(str, e.absolute_path)) or '(root)'}: {e.message[:300]}" for e in errors]
 
 
-def pose_table_markdown() -> str:
-    """protocol/README.md's pose layout table."""
+def _layout_table(fields: list[dict]) -> str:
     rows = ["| offset | size | type | field | unit / meaning |", "|---:|---:|---|---|---|"]
-    for f in pose_layout()["fields"]:
+    for f in fields:
         typ = f["type"] if f["count"] == 1 else f"{f['type']}[{f['count']}]"
         name = f["name"] if f.get("reserved") else f"`{f['name']}`"
         rows.append(f"| {f['offset']} | {field_size(f)} | {typ} | {name} | {f['meaning']} |")
     return "\n".join(rows)
+
+
+def pose_table_markdown() -> str:
+    """protocol/README.md's pose layout table."""
+    return _layout_table(pose_layout()["fields"])
+
+
+def ticks_table_markdown() -> str:
+    """protocol/README.md's tables of the `ticks` channel: the message header, the tick
+    record and its device flags."""
+    layout = ticks_layout()
+    flags = ["| bit | value | name | meaning |", "|---:|---:|---|---|"]
+    flags += [
+        f"| {f['bit']} | {1 << f['bit']} | {f['name']} | {f['meaning']} |"
+        for f in layout["device_flags"]
+    ]
+    return "\n\n".join(
+        (
+            _layout_table(layout["header"]["fields"]),
+            _layout_table(layout["record"]["fields"]),
+            "\n".join(flags),
+        )
+    )
 
 
 def flags_table_markdown() -> str:

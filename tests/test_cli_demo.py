@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import REPO_ROOT, run_cli
+from tests.support.recordings import reference_ticks
 from tests.support.render import edge_mask, reference_cast
 
 SECONDS = 3
@@ -184,7 +185,6 @@ def test_summary_reports_the_haptic_rate_forces_and_a_clean_stop(demo):
 
 def test_recorded_demo_replays_to_video_with_identical_forces(demo, tmp_path):
     import imageio.v2 as imageio
-    from mcap.reader import make_reader
 
     out, _, _ = demo
     fps = 8
@@ -205,8 +205,7 @@ def test_recorded_demo_replays_to_video_with_identical_forces(demo, tmp_path):
     report = json.loads(result.stdout)
     assert report["verify"]["ok"] and report["verify"]["max_force_diff_n"] == 0.0
     assert report["verify"]["ticks"] > SECONDS * 900
-    with open(out / "session.mcap", "rb") as fh:
-        times = [m.log_time for _, channel, m in make_reader(fh).iter_messages(topics=["pose"])]
+    times = [t["pose"]["publish_t_ns"] for t in reference_ticks(out / "session.mcap")]
     expected = int((max(times) - min(times)) * fps // 1_000_000_000) + 1
     reader = imageio.get_reader(tmp_path / "replay.mp4")
     try:
@@ -220,19 +219,15 @@ def test_recorded_demo_replays_to_video_with_identical_forces(demo, tmp_path):
 
 
 def test_replay_frames_follow_the_recorded_timing(demo):
-    """Frame k shows the newest pose published at or before first + k/fps (mcap read
-    independently)."""
-    from mcap.reader import make_reader
+    """Frame k shows the newest pose published at or before first + k/fps (the recording read
+    independently: the mcap library and the README's tables)."""
     from sasprobe.protocol.playback import recorded_frames
 
     out, _, _ = demo
     fps = 25.0
-    with open(out / "session.mcap", "rb") as fh:
-        poses = [
-            (m.log_time, json.loads(m.data)["seq"])
-            for _, _, m in make_reader(fh).iter_messages(topics=["pose"])
-        ]
-    poses.sort()
+    poses = sorted(
+        (t["pose"]["publish_t_ns"], t["pose"]["seq"]) for t in reference_ticks(out / "session.mcap")
+    )
     times = np.array([t for t, _ in poses])
     seqs = np.array([s for _, s in poses])
     frames = list(recorded_frames(out / "session.mcap", fps))

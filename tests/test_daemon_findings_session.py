@@ -25,6 +25,7 @@ from sasprobe.protocol.client import ControlClient
 
 from tests.conftest import REPO_ROOT, run_cli, skip_or_fail
 from tests.support.daemon_process import DaemonProcess
+from tests.support.recordings import read_session, read_whole_track
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
@@ -128,13 +129,11 @@ def test_the_window_key_and_the_control_command_drop_numbered_marks(session):
 
 
 def test_a_killed_session_still_gives_findings_up_to_its_last_record(session, findings):
-    from sasprobe.protocol.recording import iter_items, scan
+    from sasprobe.protocol.recording import scan
 
     assert not scan(session["recording"]).finished
     out, found, printed = findings
-    last_pose = max(
-        item.data["seq"] for item in iter_items(session["recording"]) if item.topic == "pose"
-    )
+    last_pose = int(read_session(session["recording"]).seq.max())
     assert found["session"]["finished"] is False
     assert (
         found["path"]["points"][-1]["seq"] == last_pose
@@ -181,14 +180,12 @@ def test_marks_survive_record_replay_and_findings(session, findings, tmp_path):
         "--device", f"replay:{session['recording']}", "--speed", "max", "--record", str(again)
     ) as d:
         assert d.proc.wait(timeout=120) == 0, d.stderr
-    from sasprobe.daemon.findings.session import (
-        read_track,
-    )  # what the findings read their marks with
 
     def key(m):
         return m["id"], m["label"], m["seq"], m["position_A"], round(m["t_s"], 9)
 
-    assert [key(m) for m in read_track(again).marks] == [key(m) for m in found["marks"]]
+    # what the findings read their marks with
+    assert [key(m) for m in read_whole_track(again).marks] == [key(m) for m in found["marks"]]
 
 
 def test_the_daemon_analyses_its_own_recording(session):
@@ -201,10 +198,9 @@ def test_the_daemon_analyses_its_own_recording(session):
 
 
 def test_clearance_equals_a_brute_force_minimum_on_recorded_points(session):
-    from sasprobe.daemon.findings.session import read_track
     from sasprobe.molecule.clearance import ClearanceField
 
-    track = read_track(session["recording"])
+    track = read_whole_track(session["recording"])
     rng = np.random.default_rng(18)
     picked = track.proxy_A[rng.choice(track.n_ticks, 300, replace=False)]
     points = np.concatenate(

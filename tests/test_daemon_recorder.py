@@ -1,4 +1,5 @@
-"""Recording to MCAP and reading it back: exact values, cut files, recovery."""
+"""Recording to MCAP and reading it back: exact values (through sasprobe's reader and through
+the README's tables), cut files, recovery, bounded memory."""
 
 from __future__ import annotations
 
@@ -7,7 +8,6 @@ import time
 
 import numpy as np
 import pytest
-from sasprobe.daemon.recording.replay import load_session
 from sasprobe.daemon.recording.writer import Recorder
 from sasprobe.devices.base import PHANTOM_OMNI_LIMITS, DeviceInfo, DeviceState
 from sasprobe.protocol.pose import (
@@ -19,7 +19,10 @@ from sasprobe.protocol.pose import (
     FLAG_RAMPING,
     Pose,
 )
-from sasprobe.protocol.recording import RecordingError, iter_items, recover, scan, summarize
+from sasprobe.protocol.recording import Recording, RecordingError, recover, scan, summarize
+from sasprobe.protocol.ticks import TickBlock
+
+from tests.support.recordings import read_session, reference_ticks
 
 # Flag sets a daemon writes (tests/support/schema_check.py checks each pose's flags against
 # its fields).
@@ -106,25 +109,47 @@ def test_round_trip_is_exact(tmp_path):
     path = tmp_path / "s.mcap"
     rec, truth = _write(path)
     stats = rec.close()
-    assert stats.dropped == 0 and stats.messages == 2 * len(truth) + 1
     assert scan(path).finished
-    session = load_session(path)
-    assert session.n_ticks == len(truth) and session.missing_ticks == 0
+    reference = reference_ticks(path)  # the mcap library and the README's tables
+    batches = summarize(path).counts["ticks"]
+    assert stats.dropped == 0 and stats.messages == batches + 1 and batches < len(truth) / 4
+    session = read_session(path)
+    assert session.n_ticks == len(reference) == len(truth) and session.missing_ticks == 0
     for i, (st, error, pose) in enumerate(truth):
         got, got_error = session.state(i)
-        assert got_error == error
-        assert (
-            session.force_n[i].tolist() == pose.force_N.tolist() and session.flags[i] == pose.flags
-        )
+        ref = reference[i]
+        assert got_error == ref["error"] == error
+        assert session.force_n[i].tolist() == list(ref["pose"]["force"]) == pose.force_N.tolist()
+        assert session.flags[i] == ref["pose"]["flags"] == pose.flags
+        assert ref["pose"]["seq"] == i and ref["late_periods"] == 0.25 and ref["read_ns"] == 1234
         if st is None:
-            assert got is None
+            assert got is None and not ref["device_flags"] & 1
             continue
-        assert got.t_ns == st.t_ns and got.buttons == st.buttons
-        np.testing.assert_array_equal(
-            got.position_mm, st.position_mm
-        )  # NaN stays NaN (null in JSON)
+        assert got.t_ns == ref["t_ns"] == st.t_ns and got.buttons == ref["buttons"] == st.buttons
+        np.testing.assert_array_equal(got.position_mm, st.position_mm)  # NaN stays NaN
+        np.testing.assert_array_equal(ref["position_mm"], st.position_mm)
         np.testing.assert_array_equal(got.velocity_mm_s, st.velocity_mm_s)
     assert session.structure_bytes == b"ATOM tiny structure bytes\n"
+
+
+def test_records_keep_their_place_between_ticks(tmp_path):
+    """A control record offered between two ticks is read back between them (the batch of
+    ticks is split there)."""
+    path = tmp_path / "o.mcap"
+    rec, _ = _write(path, n=50)
+    for seq in range(50, 60):
+        if seq == 55:
+            rec.offer_json("control", 5, {"seq": 55, "cmd": "recentre", "args": {}})
+        rec.offer_tick(10 + seq, seq, None, "gone", 0.0, 0, Pose(seq=seq, flags=FLAG_FAULT))
+    rec.close()
+    order = []
+    for item in Recording(path).stream():
+        if isinstance(item, TickBlock):
+            order.append(("ticks", int(item.seq[0]), int(item.seq[-1])))
+        elif item.topic in ("control", "attachment"):
+            order.append((item.topic, item.data.get("cmd")))
+    assert order[:2] == [("attachment", None), ("control", "start")]
+    assert order[2:] == [("ticks", 0, 54), ("control", "recentre"), ("ticks", 55, 59)]
 
 
 def test_cut_files_read_up_to_their_last_complete_record(tmp_path):
@@ -138,13 +163,14 @@ def test_cut_files_read_up_to_their_last_complete_record(tmp_path):
         part.write_bytes(data[:cut])
         info = scan(part)
         assert not info.finished and info.end <= cut
-        seqs = [item.data["seq"] for item in iter_items(part) if item.topic == "pose"]
+        blocks = [b for b in Recording(part).stream() if isinstance(b, TickBlock)]
+        seqs = TickBlock.join(blocks).seq.tolist() if blocks else []
         assert seqs == list(range(len(seqs)))  # a gap-free prefix of the session
         assert len(seqs) >= previous
         previous = len(seqs)
         out = tmp_path / f"fixed{cut}.mcap"
         summary = recover(part, out)
-        assert scan(out).finished and summary.counts.get("pose", 0) == len(seqs)
+        assert scan(out).finished and summary.ticks == len(seqs)
     assert previous > len(truth) * 0.8
 
 

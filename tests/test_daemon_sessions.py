@@ -12,14 +12,13 @@ import signal
 import time
 
 import numpy as np
-from mcap.reader import make_reader
-from sasprobe.daemon.recording.replay import load_session
 from sasprobe.protocol.client import ControlClient
 from sasprobe.protocol.pose import FLAG_FAULT
-from sasprobe.protocol.recording import iter_items, scan
+from sasprobe.protocol.recording import scan
 
 from tests.conftest import run_cli
 from tests.support.daemon_process import DaemonProcess, collect_raw
+from tests.support.recordings import read_session, reference_ticks
 from tests.support.schema_check import check_pose_payload
 
 
@@ -30,15 +29,15 @@ def test_record_then_sigkill_leaves_a_readable_file_missing_at_most_100_ms(tmp_p
         last_seen = max(check_pose_payload(p)["publish_t_ns"] for p in payloads)
         d.stop(signal.SIGKILL)
     assert not scan(path).finished
-    poses = [item.data for item in iter_items(path) if item.topic == "pose"]
-    seqs = [p["seq"] for p in poses]
+    poses = read_session(path).ticks.pose
+    seqs = poses["seq"].tolist()
     assert seqs == list(range(seqs[0], seqs[0] + len(seqs))), "the recording has holes"
-    lost_ms = (last_seen - poses[-1]["publish_t_ns"]) / 1e6
+    lost_ms = (last_seen - int(poses["publish_t_ns"][-1])) / 1e6
     assert lost_ms <= 100, f"the file ends {lost_ms:.0f} ms before the last pose a subscriber saw"
     out = run_cli("replay", str(path), "--recover", str(tmp_path / "fixed.mcap"), "--json")
     assert out.returncode == 0, out.stderr
     summary = json.loads(out.stdout)
-    assert summary["recovered"]["finished"] and summary["recovered"]["counts"]["pose"] == len(poses)
+    assert summary["recovered"]["finished"] and summary["recovered"]["ticks"] == len(poses)
 
 
 def test_replay_verify_reproduces_every_force_exactly(tmp_path):
@@ -65,14 +64,11 @@ def test_replay_verify_reproduces_every_force_exactly(tmp_path):
     with DaemonProcess("--device", f"replay:{path}", "--speed", "max", "--record", str(again)) as d:
         rc = d.proc.wait(timeout=120)
     assert rc == 0, d.stderr
-    first, second = load_session(path), load_session(again)
+    first, second = read_session(path), read_session(again)
     assert second.n_ticks == first.n_ticks
     np.testing.assert_array_equal(second.force_n, first.force_n)
     np.testing.assert_array_equal(second.flags, first.flags)
-    device_times = [
-        [item.data["device_t_ns"] for item in iter_items(p) if item.topic == "pose"]
-        for p in (path, again)
-    ]
+    device_times = [s.ticks.pose["device_t_ns"].tolist() for s in (first, second)]
     assert device_times[1] == device_times[0]  # a replay shows the recorded device times
     assert [e["cmd"] for e in second.events] == [e["cmd"] for e in first.events]
 
@@ -85,7 +81,7 @@ def test_sigterm_leaves_the_arm_at_zero_force(tmp_path):
     assert rc == 0 and report is not None, d.stderr
     assert report["device_last_force_n"] == [0.0, 0.0, 0.0]
     assert report["reason"] == "SIGTERM" and report["recording"]["dropped"] == 0
-    session = load_session(path)
+    session = read_session(path)
     assert (
         scan(path).finished and np.abs(session.force_n).max() > 0
     )  # it was pushing before the signal
@@ -107,7 +103,7 @@ def test_injected_faults_zero_the_force_then_recover(tmp_path):
                 time.sleep(0.2)
         rc, report = d.stop()
     assert rc == 0
-    s = load_session(path)
+    s = read_session(path)
     timeouts = [i for i, e in s.errors.items() if "timed out" in e]
     lost = [i for i, e in s.errors.items() if "link lost" in e]
     nans = [
@@ -118,10 +114,7 @@ def test_injected_faults_zero_the_force_then_recover(tmp_path):
     # rule is in time: a loaded machine (or a hypervisor taking the CPUs) fits fewer ticks
     # into it, so the outage is measured on the recording's own clock (MCAP log times).
     assert lost == list(range(lost[0], lost[-1] + 1)), "one unbroken outage"
-    with open(path, "rb") as f:
-        log_ns = {
-            m.sequence: m.log_time for _, _, m in make_reader(f).iter_messages(topics=["device"])
-        }
+    log_ns = {t["pose"]["seq"]: t["pose"]["publish_t_ns"] for t in reference_ticks(path)}
     outage_ns = (
         log_ns[int(s.seq[lost[-1] + 1])] - log_ns[int(s.seq[lost[0]])]
     )  # to the first good read

@@ -6,16 +6,15 @@ two extra failure modes layered on top.
 
 from __future__ import annotations
 
-import json
 import time
 
 import numpy as np
-from mcap.reader import make_reader
-from sasprobe.daemon.recording.replay import load_session
 from sasprobe.daemon.service import Daemon, DaemonConfig
 from sasprobe.devices.registry import SCHEMES, DeviceScheme
 from sasprobe.devices.simulated.arm import SimulatedDevice, make_simulated
 from sasprobe.protocol.pose import FLAG_FAULT
+
+from tests.support.recordings import read_session, reference_ticks
 
 SLOW_TICKS = range(300, 303)  # reads that take 8 ms (more than 3 periods)
 BROKEN_TICKS = range(600, 610)  # reads that raise something other than DeviceFault
@@ -47,16 +46,13 @@ def test_slow_reads_and_driver_exceptions_zero_the_force(tmp_path, monkeypatch):
         max_seconds=1.2,
     )
     assert Daemon(config).run() == 0
-    s = load_session(path)
+    s = read_session(path)
     slow = [i for i, e in s.errors.items() if e.startswith("device read took")]
     broken = [i for i, e in s.errors.items() if e == "device error: RuntimeError: driver bug"]
     # The three slowed reads, and any other read a loaded machine made take over 3 periods
-    # (each read's own time is in the recording, read here with the mcap library).
-    with open(path, "rb") as f:
-        read_ns = {
-            m.sequence: json.loads(m.data)["read_ns"]
-            for _, _, m in make_reader(f).iter_messages(topics=["device"])
-        }
+    # (each read's own time is in the recording, read here with the mcap library and the
+    # README's tables).
+    read_ns = {t["pose"]["seq"]: t["read_ns"] for t in reference_ticks(path)}
     slow_seqs = {int(s.seq[i]) for i in slow}
     assert set(SLOW_TICKS) <= slow_seqs
     assert all(read_ns[q] > 3_000_000 for q in slow_seqs)

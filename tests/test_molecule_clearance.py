@@ -87,13 +87,13 @@ def ring_structure():
 def ring_track(probe_radius: float = CARBON):
     """A probe of the ring atoms' size sliding along the inner wall through the ring (1 kHz ticks,
     2 mÅ apart along z, touching at z = 0: 0.8 Å off the axis)."""
-    from sasprobe.daemon.findings.session import Track
+    from sasprobe.daemon.findings.session import track_of_arrays
 
     structure, data = ring_structure()
     z = np.round(np.linspace(-6.0, 6.0, 6001), 9)
     n = z.size
     proxy = np.stack([np.full(n, INNER - probe_radius), np.zeros(n), z], axis=1)
-    return Track(
+    return track_of_arrays(
         structure=structure,
         structure_file=data,
         probe_radius_A=probe_radius,
@@ -141,17 +141,18 @@ def test_the_live_readout_follows_the_ring():
     from sasprobe.render.follow.live_clearance import LiveClearance
 
     track = ring_track()
+    (ring,) = track.blocks()  # the whole ring, one block in memory
     live = LiveClearance()
     poses = [
-        Pose(seq=int(i), proxy_A=track.proxy_A[i], flags=FLAG_CONTACT)
-        for i in range(0, track.n_ticks, 25)
+        Pose(seq=int(i), proxy_A=ring.proxy_A[i], flags=FLAG_CONTACT)
+        for i in range(0, len(ring), 25)
     ]
     for start in range(0, len(poses), 4):  # a few poses per frame
         live.update(track.structure, 1.7, poses[start : start + 4])
         if live.passage_A is not None and live.passage_A < OPEN_RADIUS_A:
             z = live._evaluated[2]
             assert live.passage_A == pytest.approx(np.hypot(RING_RADIUS, z) - CARBON, abs=1e-9)
-    last = track.proxy_A[poses[-1].seq]
+    last = ring.proxy_A[poses[-1].seq]
     assert live.clearance_A == pytest.approx(brute(track.structure, last).min(), abs=1e-12)
     assert live.bottleneck_A == pytest.approx(INNER, abs=1e-9)  # the pose at z = 0 was evaluated
     live.update(track.structure, 1.4, poses[:2])  # another probe radius: a new running bottleneck

@@ -11,10 +11,11 @@ import warnings
 
 import pytest
 from sasprobe.protocol.client import ControlClient
-from sasprobe.protocol.recording import iter_items
+from sasprobe.protocol.schemas import pose_layout
 
 from tests.conftest import REPO_ROOT, skip_or_fail
 from tests.support.daemon_process import DaemonProcess
+from tests.support.recordings import reference_ticks
 
 SOURCE = REPO_ROOT / "examples" / "c" / "sasprobe_follow.c"
 POSES = 300
@@ -95,7 +96,15 @@ def test_the_c_client_follows_a_daemon_and_changes_its_stiffness(
     assert kinds[1] == "set" and scene["haptics"]["stiffness_n_per_mm"] == 0.2
     assert kinds.count("pose") == POSES and kinds[-1] == "done" and "scene" in kinds
     assert any(line["kind"] == "scene" and line["stiffness_n_per_mm"] == "0.2" for line in lines)
-    recorded = {item.data["seq"]: item.data for item in iter_items(path) if item.topic == "pose"}
+    record_name = {f["name"]: f["record"] for f in pose_layout()["fields"] if f["record"]}
+    recorded = {
+        t["pose"]["seq"]: {
+            record_name[k]: list(v) if isinstance(v, tuple) else v
+            for k, v in t["pose"].items()
+            if k in record_name
+        }
+        for t in reference_ticks(path)
+    }
     names = {
         "proxy": "proxy_A",
         "goal": "goal_A",

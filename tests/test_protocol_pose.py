@@ -112,7 +112,7 @@ def test_the_readme_tables_and_the_codec_come_from_pose_json():
     sasprobe.protocol.schemas renders from pose.json; a copy that differs fails, printing the
     rendering to paste."""
     from sasprobe.protocol import schemas
-    from sasprobe.protocol.recording import POSE_RECORD_FIELDS
+    from sasprobe.protocol.ticks import POSE_RECORD_FIELDS
 
     text = README.read_text()
     for rendered in (

@@ -43,7 +43,7 @@ def test_a_bundled_schema_validates_as_the_registry_does():
 def test_every_recording_a_test_reads_is_checked(tmp_path):
     """tests/conftest.py checks each record as sasprobe's reader hands it out, whichever
     module imported the reader: an undocumented command fails the test that reads it."""
-    from sasprobe.daemon.recording.replay import load_session
+    from sasprobe.daemon.recording.replay import open_session
     from sasprobe.daemon.recording.writer import Recorder
     from sasprobe.protocol.recording import iter_items, summarize
 
@@ -54,7 +54,7 @@ def test_every_recording_a_test_reads_is_checked(tmp_path):
     for read in (
         lambda: list(iter_items(path)),
         lambda: summarize(path),
-        lambda: load_session(path),
+        lambda: open_session(path),
     ):
         with pytest.raises(pytest.fail.Exception, match="'explode' is not one of"):
             read()

@@ -23,8 +23,9 @@ from sasprobe.protocol.client import ControlClient, Subscriber
 from sasprobe.protocol.control import decode_reply
 from sasprobe.protocol.pose import FLAG_CONTACT, FLAG_FAULT
 from sasprobe.protocol.recording import iter_items
-from sasprobe.protocol.schemas import channel_schemas
+from sasprobe.protocol.schemas import channel_schemas, pose_layout, ticks_schema
 
+from tests.references.ticks import reference_decode_ticks
 from tests.support.daemon_process import DaemonProcess
 from tests.support.schema_check import check_pose_payload, check_raw_reply
 
@@ -133,24 +134,46 @@ def _recorded(session, topic: str) -> list[dict]:
 
 
 def _ticks(session) -> tuple[dict[int, dict], dict[int, dict]]:
-    return (
-        {r["seq"]: r for r in _recorded(session, "device")},
-        {p["seq"]: p for p in _recorded(session, "pose")},
-    )
+    """Every tick's device record and pose by seq, decoded from the README's tables: the
+    device's fields with `state` and `calibrated` (its flag bits) and `error`; the pose's
+    fields under their record names, vectors as lists."""
+    record_name = {f["name"]: f["record"] for f in pose_layout()["fields"] if f["record"]}
+    devices, poses = {}, {}
+    for item in session["items"]:
+        if item.topic != "ticks":
+            continue
+        for tick in reference_decode_ticks(item.raw)["ticks"]:
+            pose = {
+                record_name[k]: list(v) if isinstance(v, tuple) else v
+                for k, v in tick.pop("pose").items()
+                if k in record_name
+            }
+            flags = tick["device_flags"]
+            devices[pose["seq"]] = {
+                **{k: list(v) if isinstance(v, tuple) else v for k, v in tick.items()},
+                "state": bool(flags & 1),
+                "calibrated": bool(flags & 2),
+            }
+            poses[pose["seq"]] = pose
+    return devices, poses
 
 
 def test_every_message_of_the_session_follows_the_schemas(session):
     assert len(session["poses"]) > 1000 and session["scenes"] >= 3  # each checked as it arrived
-    # every record was checked as `iter_items` read it (checking_recordings,
+    # every record was checked as sasprobe's reader read it (checking_recordings,
     # tests/support/schema_check.py)
-    recorded = {t: len(_recorded(session, t)) for t in ("device", "pose", "scene", "control")}
-    assert recorded["device"] == recorded["pose"] >= TICKS and recorded["scene"] >= 5
+    recorded = {t: len(_recorded(session, t)) for t in ("scene", "control")}
+    devices, poses = _ticks(session)
+    assert len(devices) == len(poses) >= TICKS and recorded["scene"] >= 5
     commands = [c["cmd"] for c in _recorded(session, "control")]
     for cmd in ("start", "set", "mark", "clutch", "recentre", "view"):
         assert cmd in commands, f"no {cmd} in the recording"
     with open(session["path"], "rb") as f:  # the recording embeds the same schemas
         summary = make_reader(f).get_summary()
     embedded = {ch.topic: summary.schemas[ch.schema_id] for ch in summary.channels.values()}
+    assert set(embedded) == {"ticks", "scene", "control"}
+    assert embedded["ticks"].encoding == "sasprobe.layout"
+    assert json.loads(embedded["ticks"].data) == ticks_schema()
     for topic, schema in channel_schemas().items():
         assert (
             embedded[topic].encoding == "jsonschema" and json.loads(embedded[topic].data) == schema
@@ -166,7 +189,7 @@ def test_device_time_is_monotonic_on_the_hosts_clock(session):
     devices, poses = _ticks(session)
     times = [poses[s]["device_t_ns"] for s in sorted(poses)]
     assert all(b >= a for a, b in zip(times, times[1:])) and times[0] > session["started_ns"]
-    failed = [s for s, r in devices.items() if r["t_ns"] is None]
+    failed = [s for s, r in devices.items() if not r["state"]]
     assert len(failed) >= 30
     for s in failed:  # no state: the pose repeats the newest device time
         assert poses[s]["device_t_ns"] == poses[s - 1]["device_t_ns"]
@@ -179,7 +202,7 @@ def test_contact_flag_and_touched_atom_agree_on_every_tick(session):
     touching_then_failing = [
         s
         for s, r in devices.items()
-        if r["t_ns"] is None and poses.get(s - 1, {}).get("touched_atom", -1) >= 0
+        if not r["state"] and poses.get(s - 1, {}).get("touched_atom", -1) >= 0
     ]
     assert touching_then_failing, (
         "no failed read came while the probe touched: the case is not exercised"
@@ -192,15 +215,11 @@ def test_failed_reads_are_complete_records(session):
     devices, _ = _ticks(session)
     failed = [r for r in devices.values() if r["error"] and "timed out" in r["error"]]
     assert len(failed) == 30
-    for r in failed:
-        assert (
-            r["t_ns"] is None and r["position_mm"] == [None] * 3 and r["orientation"] == [None] * 4
-        )
-        assert r["velocity_mm_s"] == [None] * 3 and r["buttons"] is None and r["calibrated"] is None
-    nans = [r for r in devices.values() if r["t_ns"] is not None and r["position_mm"][0] is None]
-    assert len(nans) == 20 and all(
-        r["calibrated"] is True and isinstance(r["buttons"], int) for r in nans
-    )
+    for r in failed:  # no state: its fields are all zero
+        assert not r["state"] and not r["calibrated"] and r["t_ns"] == 0 and r["buttons"] == 0
+        assert r["position_mm"] + r["orientation"] + r["velocity_mm_s"] == [0.0] * 10
+    nans = [r for r in devices.values() if r["state"] and np.isnan(r["position_mm"][0])]
+    assert len(nans) == 20 and all(r["calibrated"] and r["t_ns"] > 0 for r in nans)
 
 
 def test_a_slow_read_counts_as_failed_and_repeats_the_proxy(session):
@@ -222,7 +241,7 @@ def test_a_slow_read_counts_as_failed_and_repeats_the_proxy(session):
     assert injected and injected <= set(slow), "the injected slow reads were not counted as failed"
     for s in slow:
         p, before, r = poses[s], poses[s - 1], devices[s]
-        assert r["read_ns"] > 3 * 1_000_000 and r["t_ns"] is not None  # slow, yet a state
+        assert r["read_ns"] > 3 * 1_000_000 and r["state"]  # slow, yet a state
         assert p["flags"] & FLAG_FAULT and not p["flags"] & FLAG_CONTACT and p["touched_atom"] == -1
         assert p["force_N"] == [0.0, 0.0, 0.0]
         for key in ("proxy_A", "goal_A", "cube_center_A", "cube_half_A"):
@@ -244,7 +263,7 @@ def test_a_late_tick_still_runs_the_engine(session):
         s
         # late alone: no error, and a finite reading (not an injected NaN)
         for s, r in devices.items()
-        if r["error"] is None and r["late_periods"] > 3 and None not in r["position_mm"]
+        if r["error"] is None and r["late_periods"] > 3 and np.all(np.isfinite(r["position_mm"]))
     ]
     assert late, "the stall made no late tick"
     for s in late:
@@ -299,7 +318,15 @@ def test_socket_files_are_private_and_removed_at_exit(session):
 def test_the_recording_says_who_wrote_it(session):
     (metadata,) = _recorded(session, "metadata")
     assert metadata["name"] == "sasprobe"
-    assert set(metadata) == {"name", "daemon_version", "device", "rate_hz", "started_unix_s"}
+    assert set(metadata) == {
+        "name",
+        "daemon_version",
+        "device",
+        "rate_hz",
+        "started_unix_s",
+        "format",
+    }
+    assert metadata["format"] == "2"
     assert metadata["device"] == "sim" and float(metadata["rate_hz"]) == 1000.0
 
 

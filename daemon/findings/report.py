@@ -20,7 +20,6 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 from sasprobe.daemon.findings.bottleneck import (
     Profile,
     profile,
@@ -30,11 +29,7 @@ from sasprobe.daemon.findings.bottleneck import (
     bottleneck as find_bottleneck,
 )
 from sasprobe.daemon.findings.chart import draw_chart
-from sasprobe.daemon.findings.contacts import (
-    residues_near,
-    touched_atoms_per_tick,
-    touched_residues,
-)
+from sasprobe.daemon.findings.contacts import Contacts, residues_near
 from sasprobe.daemon.findings.exports import (
     ViewerScene,
     chimerax_script,
@@ -42,7 +37,7 @@ from sasprobe.daemon.findings.exports import (
     write_path,
     write_structure,
 )
-from sasprobe.daemon.findings.path import ExploredPath, explored_path
+from sasprobe.daemon.findings.path import ExploredPath, PathBuilder
 from sasprobe.daemon.findings.session import Track, read_track
 from sasprobe.molecule.clearance import MIN_RUN_A, OPEN_RADIUS_A, ClearanceField
 
@@ -68,16 +63,36 @@ class Analysis:
     profile: Profile
 
 
-def analyse(track: Track, probe_radius_A: float | None = None) -> Analysis:
-    """Every finding of a track; the verdict is about probe_radius_A (default: the session's)."""
+def analyse(
+    track: Track, probe_radius_A: float | None = None, ticks: int | None = None
+) -> Analysis:
+    """Every finding of a track, from one pass over its ticks (and a partial second one for
+    the bottleneck); the verdict is about probe_radius_A (default: the session's). `ticks`:
+    how many the pass will read, for its progress bar, when known."""
     radius = track.probe_radius_A if probe_radius_A is None else float(probe_radius_A)
     field = ClearanceField.of(track.structure)
-    bar = progress_bar(int(np.count_nonzero(track.contact)), desc="findings: contacts", unit="tick")
+    contacts = Contacts(track.structure, field, track.probe_radius_A)
+    builder = PathBuilder()
+    contact_s = 0.0
+    bar = progress_bar(ticks, desc="findings: ticks", unit="tick")
     try:
-        per_tick = touched_atoms_per_tick(track, field, progress=bar.update)
+        for block in track.blocks():
+            touched = contacts.block(block)
+            builder.add_block(
+                block.first,
+                block.seq.tolist(),
+                block.proxy_A.tolist(),
+                block.t_s.tolist(),
+                block.contact.tolist(),
+                block.force_N.tolist(),
+                touched,
+                set(block.marked),
+            )
+            contact_s += float(block.dt_s[block.contact].sum())
+            bar.update(len(block))
     finally:
         bar.close()
-    path = explored_path(track, per_tick)
+    path = builder.finish()
     bar = progress_bar(path.n_points, desc="findings: passage", unit="point")
     try:
         prof = profile(path, field, progress=bar.update)
@@ -98,10 +113,10 @@ def analyse(track: Track, probe_radius_A: float | None = None) -> Analysis:
             "rate_hz": track.rate_hz,
             "finished": track.finished,
             "probe_radius_A": track.probe_radius_A,
-            "contact_s": float(track.dt_s[track.contact].sum()),
+            "contact_s": contact_s,
             "path_length_A": float(path.length_A[-1]),
         },
-        "touched_residues": touched_residues(track, per_tick),
+        "touched_residues": contacts.residues(),
         "marks": marks,
         "bottleneck": neck,
         "verdict": verdict(None if neck is None else neck["radius_A"], radius),
@@ -109,18 +124,18 @@ def analyse(track: Track, probe_radius_A: float | None = None) -> Analysis:
             "spacing_A": path.spacing_A,
             "open_radius_A": OPEN_RADIUS_A,
             "min_run_A": MIN_RUN_A,
-            "points": _points(track, path, prof),
+            "points": _points(path, prof),
         },
         "notes": track.notes,
     }
     return Analysis(found, path, prof)
 
 
-def _points(track: Track, path: ExploredPath, prof: Profile) -> list[dict]:
+def _points(path: ExploredPath, prof: Profile) -> list[dict]:
     return [
         {
             "t_s": float(path.t_s[k]),
-            "seq": int(track.seq[path.ticks[k]]),
+            "seq": int(path.seq[k]),
             "position_A": path.position_A[k].tolist(),
             "contact": bool(path.contact[k]),
             "force_max_N": float(path.force_max_N[k]),
@@ -136,12 +151,16 @@ def _points(track: Track, path: ExploredPath, prof: Profile) -> list[dict]:
 
 
 def write_findings(
-    recording: str | Path, out_dir: str | Path, probe_radius_A: float | None = None
+    recording: str | Path,
+    out_dir: str | Path,
+    probe_radius_A: float | None = None,
+    ticks: int | None = None,
 ) -> dict:
-    """Analyse a recording and write every file into out_dir; returns findings.json's content."""
+    """Analyse a recording and write every file into out_dir; returns findings.json's content.
+    `ticks`: the recording's tick count, for the progress bar, when known."""
     track = read_track(recording)  # a bad file ends here, before any folder is made
     folder = prepare_folder(out_dir)
-    analysis = analyse(track, probe_radius_A)
+    analysis = analyse(track, probe_radius_A, ticks)
     found, path, prof = analysis.found, analysis.path, analysis.profile
     radius = found["verdict"]["probe_radius_A"]
     title = f"{track.structure.name}: {Path(track.source).name}, {track.duration_s:.1f} s"
@@ -222,9 +241,10 @@ def summary_lines(found: dict, limit: int = 20) -> list[str]:
     touched residues (the first `limit`, by contact time)."""
     s, v = found["session"], found["verdict"]
     lines = [
-        f"findings  {found['structure']['name']}: {s['duration_s']:.1f} s, path "
-        f"{s['path_length_A']:.1f} Å, in contact {s['contact_s']:.1f} s, "
-        f"{len(found['touched_residues'])} residues touched, {len(found['marks'])} marks"
+        f"findings  {found['structure']['name']}: {s['duration_s']:.1f} s, "
+        f"path {s['path_length_A']:.1f} Å, "
+        f"in contact {s['contact_s']:.1f} s, {len(found['touched_residues'])} residues touched, "
+        f"{len(found['marks'])} marks"
     ]
     neck = found["bottleneck"]
     if neck is not None:

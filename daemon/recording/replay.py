@@ -5,8 +5,13 @@ recording has a failed read), so the daemon recomputes forces through the same
 pipeline; it also hands the daemon the recorded control commands and how late each
 tick was, so settings changes and timing faults recur where they happened. The daemon
 paces the replay at the recorded rate times --speed (`max`: as fast as it can); after
-the last state read() raises ReplayFinished (an EOFError). The whole device channel is
-loaded when the device is made, so the loop never waits on the disk.
+the last state read() raises ReplayFinished (an EOFError).
+
+The recording is read as a stream (`ReplaySession.stream()`: the control records and
+blocks of ticks after `start`, in file order), so a replay of any length holds a few
+blocks of ticks. A reader thread keeps PREFETCH_BLOCKS blocks ahead of the loop, so the
+loop waits on the disk only where the reader falls that far behind (a replay at
+`--speed max` from a slow disk).
 
 The replay device reads the daemon's own recordings, so it lives here rather than in
 devices/; the daemon registers its scheme (replay_scheme.py) with the device registry.
@@ -16,7 +21,12 @@ recorded control command.
 
 from __future__ import annotations
 
+import collections
+import logging
 import os
+import queue
+import threading
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,9 +42,14 @@ from sasprobe.devices.base import (
     HapticDevice,
 )
 from sasprobe.devices.workspace.mapping import validate_rotation
-from sasprobe.protocol.recording import RecordingError, iter_items, scan
+from sasprobe.protocol.recording import Recording, RecordingError
+from sasprobe.protocol.ticks import CALIBRATED, HAS_STATE, TickBlock
 
 from sasprobe.common.files import open_regular
+
+log = logging.getLogger("sasprobe")
+
+PREFETCH_BLOCKS = 4  # blocks of ticks the reader thread keeps ahead of a replaying loop
 
 
 class ReplayFinished(EOFError):
@@ -43,35 +58,21 @@ class ReplayFinished(EOFError):
 
 @dataclass
 class ReplaySession:
-    """A recording's replay input and its recorded output, as compact arrays."""
+    """A recording's replay: the `start` record it begins from and the structures attached so
+    far, and its control records and ticks after `start` as a stream."""
 
-    path: Path
-    finished: bool  # the recorder closed the file (False: recovered after a crash)
+    recording: Recording
     start: dict  # the `start` control record's args: settings, structure, device, rate
-    structures: dict  # sha256 -> (name, bytes)
-    seq: np.ndarray  # (N,) tick numbers
-    t_ns: np.ndarray  # (N,)
-    position_mm: np.ndarray  # (N, 3), NaN where the recording had non-finite values
-    orientation: np.ndarray  # (N, 4)
-    velocity_mm_s: np.ndarray  # (N, 3)
-    buttons: np.ndarray  # (N,)
-    calibrated: np.ndarray  # (N,) bool
-    has_state: np.ndarray  # (N,) bool: False when the read failed before returning a state
-    late_periods: np.ndarray  # (N,)
-    errors: dict  # tick index -> read error
-    force_n: np.ndarray  # (N, 3) the recorded (published) force
-    flags: np.ndarray  # (N,)
-    proxy_A: np.ndarray  # (N, 3) the recorded probe centre
-    touched_atom: np.ndarray  # (N,) the recorded touched atom, -1 for none
-    events: list = field(default_factory=list)  # control records after `start`, in order
+    structures: dict = field(default_factory=dict)  # sha256 -> (name, bytes), as they are met
 
     @property
-    def n_ticks(self) -> int:
-        return int(self.seq.size)
+    def path(self) -> Path:
+        return self.recording.path
 
     @property
-    def missing_ticks(self) -> int:
-        return int(self.seq[-1] - self.seq[0] + 1 - self.seq.size) if self.seq.size else 0
+    def finished(self) -> bool:
+        """The recorder closed the file (False: cut short by a crash)."""
+        return self.recording.finished
 
     @property
     def rate_hz(self) -> float:
@@ -114,95 +115,124 @@ class ReplaySession:
         lim["workspace_max_mm"] = tuple(lim["workspace_max_mm"])
         return DeviceLimits(**lim)
 
-    def state(self, i: int) -> tuple[DeviceState | None, str | None]:
-        """Tick i's device state (None when the read failed) and its read error."""
-        state = None
-        if self.has_state[i]:
-            state = DeviceState(
-                t_ns=int(self.t_ns[i]),
-                position_mm=self.position_mm[i].copy(),
-                orientation=self.orientation[i].copy(),
-                velocity_mm_s=self.velocity_mm_s[i].copy(),
-                buttons=int(self.buttons[i]),
-                calibrated=bool(self.calibrated[i]),
-            )
-        return state, self.errors.get(i)
+    def stream(self) -> Iterator[dict | TickBlock]:
+        """The control records after `start` (dicts) and the ticks after it (blocks), in file
+        order; each structure attached on the way joins `structures` before what follows it.
+        A damaged part ends it with a RecordingError."""
+        started = False
+        for item in self.recording.stream():
+            if isinstance(item, TickBlock):
+                if started:
+                    yield item
+            elif item.topic == "attachment":
+                self.structures.setdefault(item.data["sha256"], (item.data["name"], item.raw))
+            elif item.topic == "control":
+                if started:
+                    yield item.data
+                elif item.data.get("cmd") == "start":
+                    started = True
 
 
-def _vector(values, n: int) -> list[float]:
-    if values is None:
-        return [np.nan] * n
-    return [np.nan if v is None else float(v) for v in values]
-
-
-def load_session(path: str | Path) -> ReplaySession:
-    """Read a recording (finished or recovered) into a ReplaySession; DeviceOpenError if
-    unusable."""
+def open_session(path: str | Path) -> ReplaySession:
+    """A recording (finished or cut) opened for replay: its `start` record, its structure and
+    a first tick checked; DeviceOpenError when it has none of them or is not a recording."""
     path = Path(path)
+    start = None
+    structures: dict = {}
     try:
-        finished = scan(path).finished
-        items = list(iter_items(path))
+        recording = Recording(path)
+        stream = recording.stream()
+        try:
+            for item in stream:
+                if isinstance(item, TickBlock):
+                    if start is not None:
+                        break
+                elif item.topic == "attachment":
+                    structures.setdefault(item.data["sha256"], (item.data["name"], item.raw))
+                elif item.topic == "control" and start is None:
+                    if item.data.get("cmd") == "start":
+                        start = item.data["args"]
+            else:
+                if start is None:
+                    raise DeviceOpenError(f"{path}: not a sasprobe recording (no start record)")
+                raise DeviceOpenError(f"{path}: no recorded ticks")
+        finally:
+            stream.close()
     except RecordingError as exc:
         raise DeviceOpenError(str(exc)) from None
-    structures: dict = {}
-    start: dict | None = None
-    events: list = []
-    ticks: dict[int, dict] = {}
-    poses: dict[int, dict] = {}
-    for item in items:
-        if item.topic == "attachment":
-            structures[item.data["sha256"]] = (item.data["name"], item.raw)
-        elif item.topic == "control":
-            if item.data.get("cmd") == "start" and start is None:
-                start = item.data["args"]
-            elif start is not None:
-                events.append(item.data)
-        elif item.topic == "device" and start is not None:
-            ticks[item.data["seq"]] = item.data
-        elif item.topic == "pose" and start is not None:
-            poses[item.data["seq"]] = item.data
-    if start is None:
-        raise DeviceOpenError(f"{path}: not a sasprobe recording (no start record)")
     if start.get("structure_sha256") not in structures:
         raise DeviceOpenError(f"{path}: the recorded structure is not attached")
-    seqs = sorted(s for s in ticks if s in poses)  # a tick counts once both halves were written
-    if not seqs:
-        raise DeviceOpenError(f"{path}: no recorded ticks")
-    rows = [ticks[s] for s in seqs]
-    errors = {i: r["error"] for i, r in enumerate(rows) if r.get("error") is not None}
-    return ReplaySession(
-        path=path,
-        finished=finished,
-        start=start,
-        structures=structures,
-        seq=np.array(seqs, dtype=np.int64),
-        t_ns=np.array([r.get("t_ns") or 0 for r in rows], dtype=np.int64),
-        position_mm=np.array([_vector(r.get("position_mm"), 3) for r in rows]),
-        orientation=np.array([_vector(r.get("orientation"), 4) for r in rows]),
-        velocity_mm_s=np.array([_vector(r.get("velocity_mm_s"), 3) for r in rows]),
-        buttons=np.array([r.get("buttons") or 0 for r in rows], dtype=np.int64),
-        calibrated=np.array([r.get("calibrated", True) is not False for r in rows], dtype=bool),
-        has_state=np.array(
-            [r.get("t_ns") is not None for r in rows], dtype=bool
-        ),  # null or absent: no state
-        late_periods=np.array([r.get("late_periods", 0.0) for r in rows]),
-        errors=errors,
-        force_n=np.array([_vector(poses[s]["force_N"], 3) for s in seqs]),
-        flags=np.array([poses[s]["flags"] for s in seqs], dtype=np.int64),
-        proxy_A=np.array([_vector(poses[s]["proxy_A"], 3) for s in seqs]),
-        touched_atom=np.array([poses[s]["touched_atom"] for s in seqs], dtype=np.int64),
-        events=events,
-    )
+    return ReplaySession(recording, start, structures)
+
+
+def tick_state(block: TickBlock, row: int) -> tuple[DeviceState | None, str | None]:
+    """A recorded tick's device state (None when the read gave none) and its read error."""
+    state = None
+    device = block.device[row]
+    flags = int(device["device_flags"])
+    if flags & HAS_STATE:
+        state = DeviceState(
+            t_ns=int(device["t_ns"]),
+            position_mm=np.array(device["position_mm"]),
+            orientation=np.array(device["orientation"]),
+            velocity_mm_s=np.array(device["velocity_mm_s"]),
+            buttons=int(device["buttons"]),
+            calibrated=bool(flags & CALIBRATED),
+        )
+    return state, block.errors.get(row)
+
+
+_END = object()
+
+
+class _Prefetch:
+    """A thread that reads a session's stream ahead into a bounded queue."""
+
+    def __init__(self, session: ReplaySession) -> None:
+        self._session = session
+        self._queue: queue.Queue = queue.Queue(maxsize=PREFETCH_BLOCKS)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="sasprobe-replay", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            for entry in self._session.stream():
+                if not self._put(entry):
+                    return
+            self._put(_END)
+        except Exception as exc:  # a damaged part of the file: the replay ends there
+            self._put(exc)
+
+    def _put(self, entry) -> bool:
+        while not self._stop.is_set():
+            try:
+                self._queue.put(entry, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def get(self):
+        return self._queue.get()
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join()
 
 
 class ReplayDevice(HapticDevice):
     def __init__(self, path: str, speed: float | None = 1.0) -> None:
         self.path = Path(path)
         self.speed = speed
-        self.session = load_session(self.path)
-        self._index = 0
-        self._event_index = 0
+        self.session = open_session(self.path)
         self.last_force_n = np.zeros(3)
+        self._prefetch: _Prefetch | None = None
+        self._block: TickBlock | None = None
+        self._row = 0
+        self._seq = -1  # the tick read last
+        self._late = 0.0
+        self._events: collections.deque = collections.deque()
         recorded = self.session.start["device"]
         self._info = DeviceInfo(
             kind="replay",
@@ -210,7 +240,6 @@ class ReplayDevice(HapticDevice):
             limits=self.session.device_limits(),
             details={
                 "file": self.path.name,
-                "ticks": self.session.n_ticks,
                 "recorded_kind": recorded.get("kind"),
                 "speed": "max" if speed is None else speed,
             },
@@ -221,11 +250,19 @@ class ReplayDevice(HapticDevice):
         return self._info
 
     def open(self) -> None:
-        self._index = 0
-        self._event_index = 0
+        self._stop_reading()
+        self._block, self._row, self._seq, self._late = None, 0, -1, 0.0
+        self._events.clear()
+        self._prefetch = _Prefetch(self.session)
 
     def close(self) -> None:
         self.last_force_n = np.zeros(3)
+        self._stop_reading()
+
+    def _stop_reading(self) -> None:
+        if self._prefetch is not None:
+            self._prefetch.close()
+            self._prefetch = None
 
     def reconnect(self) -> None:
         """A file does not go away: the recorded reconnects come back as recorded events,
@@ -235,12 +272,30 @@ class ReplayDevice(HapticDevice):
     def recorded_session(self) -> ReplaySession:
         return self.session
 
-    def read(self) -> DeviceState:
-        if self._index >= self.session.n_ticks:
+    def _next_block(self) -> TickBlock:
+        """The next block of ticks; the control records before it go to the event queue."""
+        if self._prefetch is None:
+            raise ReplayFinished(f"{self.path}: the replay is not open")
+        while True:
+            entry = self._prefetch.get()
+            if isinstance(entry, TickBlock):
+                return entry
+            if isinstance(entry, dict):
+                self._events.append(entry)
+                continue
+            self._stop_reading()
+            if isinstance(entry, Exception):
+                log.error("replay of %s ends early: %s", self.path, entry)
             raise ReplayFinished(f"{self.path}: end of recording")
-        i = self._index
-        self._index += 1
-        state, error = self.session.state(i)
+
+    def read(self) -> DeviceState:
+        while self._block is None or self._row >= len(self._block):
+            self._block, self._row = self._next_block(), 0
+        block, row = self._block, self._row
+        self._row += 1
+        self._seq = int(block.pose["seq"][row])
+        self._late = float(block.device["late_periods"][row])
+        state, error = tick_state(block, row)
         if error is not None or state is None:
             raise DeviceFault(error or "recorded read failure")
         return state
@@ -248,18 +303,14 @@ class ReplayDevice(HapticDevice):
     def recorded_late_periods(self) -> float:
         """How late the tick read last started in the recording: the daemon's watchdog
         repeats the recorded timing faults, so a replay's forces match the original's."""
-        return float(self.session.late_periods[self._index - 1]) if self._index else 0.0
+        return self._late
 
     def take_recorded_events(self) -> list[dict]:
         """Recorded control commands due at or before the tick read last, in order."""
-        if self._index == 0:
-            return []
-        seq = self.session.seq[self._index - 1]
-        events = self.session.events
         due = []
-        while self._event_index < len(events) and events[self._event_index]["seq"] <= seq:
-            due.append(events[self._event_index])
-            self._event_index += 1
+        events = self._events
+        while events and events[0]["seq"] <= self._seq:
+            due.append(events.popleft())
         return due
 
     def write_force(self, force_n: np.ndarray) -> None:

@@ -1,17 +1,18 @@
 """Session recording to MCAP (https://mcap.dev), on its own thread.
 
 The loop hands each tick to `offer_tick()`, which only appends a tuple to a bounded
-queue (a full queue drops the tick and counts it). The writer thread turns the queue
-into JSON messages on four channels and finishes an MCAP chunk and flushes the file at
+queue (a full queue drops the tick and counts it), so recording never makes a tick
+wait. The writer thread packs the queued ticks into binary `ticks` messages, consecutive
+ticks in one message (protocol/ticks.py; at most MAX_BATCH_TICKS each), writes the JSON
+records between them in queue order, and finishes an MCAP chunk and flushes the file at
 least every `flush_interval_s`, so a daemon killed with SIGKILL loses at most that much
-and leaves a file whose complete records `protocol.recording.iter_items()` still reads.
+and leaves a file whose complete records `protocol.recording.Recording` still reads.
 
-Channels (message encoding `json`, each with its JSON Schema from protocol/schemas/;
-protocol/README.md describes them):
-  device   raw device state per tick: the replay input (state or read error, lateness)
-  pose     the published pose per tick (force, proxy, flags, ...)
-  scene    every scene the daemon published
-  control  every state-changing control command, with the tick it took effect at
+Channels (protocol/README.md describes them):
+  ticks    every tick: the raw device state (the replay input: state or read error,
+           lateness) and the published pose, in binary, many ticks a message
+  scene    every scene the daemon published (JSON)
+  control  every state-changing control command, with the tick it took effect at (JSON)
 Structure files are attachments (their exact bytes), so a recording replays alone.
 """
 
@@ -29,7 +30,16 @@ from pathlib import Path
 from sasprobe.daemon.realtime import helper_priority
 from sasprobe.devices.base import DeviceState
 from sasprobe.protocol.pose import Pose
-from sasprobe.protocol.recording import PROFILE, SCHEMAS, json_floats, pose_record
+from sasprobe.protocol.recording import (
+    FORMAT_VERSION,
+    PROFILE,
+    SCHEMAS,
+    TICKS_ENCODING,
+    TICKS_SCHEMA_ENCODING,
+    TICKS_TOPIC,
+)
+from sasprobe.protocol.schemas import ticks_schema
+from sasprobe.protocol.ticks import TicksPacker
 
 from sasprobe import __version__
 from sasprobe.common.errors import UserError
@@ -37,47 +47,26 @@ from sasprobe.common.errors import UserError
 log = logging.getLogger("sasprobe")
 
 FLUSH_INTERVAL_S = 0.05  # half the 100 ms a SIGKILL may lose, leaving room for a busy machine
-QUEUE_LIMIT = 20_000  # items (about 10 s of ticks at 1 kHz)
+QUEUE_LIMIT = 20_000  # items (about 5 s of ticks at 4 kHz, 20 s at 1 kHz)
+MAX_BATCH_TICKS = 1024  # ticks in one `ticks` message, at most
 _WAKE_S = 0.01
-
-
-_NO_STATE = {
-    "t_ns": None,
-    "position_mm": [None] * 3,
-    "orientation": [None] * 4,
-    "velocity_mm_s": [None] * 3,
-    "buttons": None,
-    "calibrated": None,
-}
-
-
-def device_record(
-    seq: int, state: DeviceState | None, error: str | None, late_periods: float, read_ns: int
-) -> dict:
-    """The `device` channel's record of a tick: every field always present; a read that gave
-    no state has null device time, vectors, buttons and calibration."""
-    if state is None:
-        fields = _NO_STATE
-    else:
-        fields = {
-            "t_ns": int(state.t_ns),
-            "position_mm": json_floats(state.position_mm),
-            "orientation": json_floats(state.orientation),
-            "velocity_mm_s": json_floats(state.velocity_mm_s),
-            "buttons": int(state.buttons),
-            "calibrated": bool(state.calibrated),
-        }
-    return {
-        "seq": seq,
-        **fields,
-        "error": error,
-        "late_periods": float(late_periods),
-        "read_ns": int(read_ns),
-    }
 
 
 def _media_type(data: bytes) -> str:
     return "application/gzip" if data[:2] == b"\x1f\x8b" else "chemical/x-pdb-or-mmcif"
+
+
+def _device_fields(state: DeviceState | None) -> tuple | None:
+    if state is None:
+        return None
+    return (
+        state.t_ns,
+        state.position_mm,
+        state.orientation,
+        state.velocity_mm_s,
+        state.buttons,
+        state.calibrated,
+    )
 
 
 @dataclass
@@ -119,7 +108,16 @@ class Recorder:
         self._file = os.fdopen(fd, "wb")
         self._writer = Writer(self._file, compression=CompressionType.ZSTD)
         self._writer.start(profile=PROFILE, library=f"sasprobe {__version__}")
-        self._channels = {}
+        schema_id = self._writer.register_schema(
+            name="sasprobe.Ticks",
+            encoding=TICKS_SCHEMA_ENCODING,
+            data=json.dumps(ticks_schema()).encode(),
+        )
+        self._channels = {
+            TICKS_TOPIC: self._writer.register_channel(
+                topic=TICKS_TOPIC, message_encoding=TICKS_ENCODING, schema_id=schema_id
+            )
+        }
         for name, schema in SCHEMAS.items():
             schema_id = self._writer.register_schema(
                 name=schema["title"], encoding="jsonschema", data=json.dumps(schema).encode()
@@ -127,8 +125,10 @@ class Recorder:
             self._channels[name] = self._writer.register_channel(
                 topic=name, message_encoding="json", schema_id=schema_id
             )
-        self._writer.add_metadata("sasprobe", {k: str(v) for k, v in (metadata or {}).items()})
+        fields = {**(metadata or {}), "format": FORMAT_VERSION}
+        self._writer.add_metadata("sasprobe", {k: str(v) for k, v in fields.items()})
         self._writer.flush()
+        self._packer = TicksPacker()
         self._queue: collections.deque = collections.deque()
         self._queue_limit = queue_limit
         self._flush_interval = flush_interval_s
@@ -168,23 +168,30 @@ class Recorder:
         return self._offer(("attachment", log_t_ns, name, data))
 
     # --- the writer thread ---
+    def _write_ticks(self) -> None:
+        """The ticks packed so far as one `ticks` message (log time: the first tick's)."""
+        packer = self._packer
+        if not packer.count:
+            return
+        first, last, seq = packer.first_log_ns, packer.last_log_ns, packer.first_seq
+        self._writer.add_message(
+            self._channels[TICKS_TOPIC], first, packer.take(), last, seq & 0xFFFFFFFF
+        )
+        self.messages += 1
+
     def _write(self, item: tuple) -> None:
         kind, t = item[0], item[1]
-        add = self._writer.add_message
         if kind == "tick":
-            _, _, seq, state, error, late, read_ns, pose = item
-            add(
-                self._channels["device"],
-                t,
-                json.dumps(device_record(seq, state, error, late, read_ns)).encode(),
-                t,
-                seq,
-            )
-            add(self._channels["pose"], t, json.dumps(pose_record(pose)).encode(), t, seq)
-            self.messages += 2
-        elif kind == "json":
+            _, _, _seq, state, error, late, read_ns, pose = item
+            self._packer.add(t, _device_fields(state), error, late, read_ns, pose)
+            if self._packer.count >= MAX_BATCH_TICKS:
+                self._write_ticks()
+            return
+        self._write_ticks()  # the ticks before this record stay before it
+        if kind == "json":
             _, _, channel, obj = item
-            add(self._channels[channel], t, json.dumps(obj, allow_nan=False).encode(), t)
+            data = json.dumps(obj, allow_nan=False).encode()
+            self._writer.add_message(self._channels[channel], t, data, t)
             self.messages += 1
         else:
             _, _, name, data = item
@@ -196,6 +203,7 @@ class Recorder:
         queue = self._queue
         while queue:
             self._write(queue.popleft())
+        self._write_ticks()
 
     def _run(self) -> None:
         helper_priority()

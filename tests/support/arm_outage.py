@@ -1,13 +1,13 @@
 """What a recording says about an arm that went silent: when the daemon flagged the
-fault and zeroed the force, measured on the recording's own clock (the MCAP log times of
-its ticks, on the host's monotonic clock), and whether any tick is missing."""
+fault and zeroed the force, measured on the recording's own clock (the log time of each
+tick, its publish time on the host's monotonic clock), and whether any tick is missing."""
 
 from __future__ import annotations
 
 import numpy as np
-from mcap.reader import make_reader
-from sasprobe.daemon.recording.replay import load_session
 from sasprobe.protocol.pose import FLAG_FAULT
+
+from tests.support.recordings import read_session, reference_ticks
 
 DETECT_WITHIN_NS = 100_000_000
 
@@ -17,12 +17,9 @@ def recorded_outage(path, failed_at_ns: int) -> dict:
     answering), asserted to be flagged within 100 ms of the first tick after it, with zero
     force on every faulted tick and no tick missing from the file. Returns the session, the
     outage's tick range and its read errors."""
-    s = load_session(path)
+    s = read_session(path)
     assert s.missing_ticks == 0, "the recording has holes"
-    with open(path, "rb") as f:
-        log_ns = {
-            m.sequence: m.log_time for _, _, m in make_reader(f).iter_messages(topics=["device"])
-        }
+    log_ns = {t["pose"]["seq"]: t["pose"]["publish_t_ns"] for t in reference_ticks(path)}
     times = np.array([log_ns[int(q)] for q in s.seq])
     after = np.flatnonzero(times > failed_at_ns)
     assert after.size, "no tick after the arm stopped answering"

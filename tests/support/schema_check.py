@@ -11,8 +11,9 @@ pose.json and for the agreement of one tick's flags and fields.
 scene and pose a test receives through sasprobe's clients is checked; raw-socket tests call
 `check_pose_payload` and `check_reply` themselves. `checking_recordings()` (installed the
 same way) checks every message of every recording a test reads through sasprobe's reader
-(`sasprobe.protocol.recording.iter_items`, under the daemon's `load_session`, `summarize`
-and the renderer's playback alike) as the reader hands it out.
+(`sasprobe.protocol.recording.Recording.items`, under the replay, `summarize`, the
+findings and the renderer's playback alike) as the reader hands it out; a `ticks`
+message is decoded with the README-table decoder of tests/references/ticks.py.
 """
 
 from __future__ import annotations
@@ -27,14 +28,16 @@ from sasprobe.protocol import schemas
 from sasprobe.protocol.control import COMMANDS
 
 from tests.references.pose import reference_decode  # imported here, not while poses pour in
+from tests.references.ticks import readme_ticks_tables, reference_decode_ticks
 
 _FLAG = {f["name"]: 1 << f["bit"] for f in schemas.pose_layout()["flags"]}
 RECORDED_TOPICS = {
-    "device": "device",
-    "pose": "pose",
+    "device": "device",  # the first recording format's
+    "pose": "pose",  # the first recording format's
     "scene": "scene",
     "control": "control-record",
-}  # channel: schema
+}  # JSON channel: schema
+TICKS_TOPIC = "ticks"  # binary: protocol/README.md's tables
 
 
 def _strict(node):
@@ -173,10 +176,14 @@ _checked_records: set = (
 )  # hash((topic, raw JSON)) of records already checked: a file read again is not re-checked
 
 
+_checked_ticks: dict = {}  # hash(ticks message) -> its first and last tick's device time
+
+
 class RecordingCheck:
     """The checks of one recording read in file order: each message on a documented channel
-    and valid for its schema, each pose's fields agreeing with its flags, its device time
-    never decreasing and, for a live device (any but a replay), never after its publish time."""
+    and valid for its schema (a `ticks` message for the README's layout), each pose's fields
+    agreeing with its flags, its device time never decreasing and, for a live device (any
+    but a replay), never after its publish time."""
 
     def __init__(self) -> None:
         self.device_kind: str | None = None  # the start record's
@@ -185,6 +192,9 @@ class RecordingCheck:
     def item(self, topic: str, data: dict, raw: bytes) -> None:
         """One item as the reader gives it (`data` empty when it was not decoded)."""
         if topic in ("attachment", "metadata"):
+            return
+        if topic == TICKS_TOPIC:
+            self.ticks(raw)
             return
         assert topic in RECORDED_TOPICS, (
             f"a recording's message on the undocumented channel {topic!r}"
@@ -197,15 +207,60 @@ class RecordingCheck:
         if topic == "control" and record["cmd"] == "start" and self.device_kind is None:
             self.device_kind = record["args"]["device"]["kind"]
         elif topic == "pose":
-            assert record["device_t_ns"] >= self.device_t_ns, (
-                f"seq {record['seq']}: device time {record['device_t_ns']} "
-                f"before the last, {self.device_t_ns}"
-            )
-            self.device_t_ns = record["device_t_ns"]
+            self.device_time(record)
+
+    def device_time(self, pose: dict) -> None:
+        assert pose["device_t_ns"] >= self.device_t_ns, (
+            f"seq {pose['seq']}: device time {pose['device_t_ns']} before the last, "
+            f"{self.device_t_ns}"
+        )
+        self.device_t_ns = pose["device_t_ns"]
+
+    def ticks(self, raw: bytes) -> None:
+        """A `ticks` message, decoded from the README's tables: its header, each tick's
+        device flags and the fields they leave empty, its error text, its pose (a message
+        checked before only for its device times)."""
+        key = hash(bytes(raw))
+        if key in _checked_ticks:
+            first, last = _checked_ticks[key]
+            self.device_time(first)
+            self.device_time(last)
+            return
+        decoded = reference_decode_ticks(bytes(raw))
+        header, ticks = decoded["header"], decoded["ticks"]
+        _, record_rows, flags = readme_ticks_tables()
+        assert header["version"] == 1 and header["reserved"] == 0, header
+        assert header["count"] > 0 and header["record_size"] == record_rows[-1][0] + 200, header
+        layout = schemas.pose_layout()
+        known = sum(flags.values())
+        seqs = [t["pose"]["seq"] for t in ticks]
+        times: list[dict] = []
+        assert seqs == list(range(seqs[0], seqs[0] + len(seqs))), f"ticks {seqs} are not in a row"
+        for tick in ticks:
+            seq, dflags = tick["pose"]["seq"], tick["device_flags"]
+            assert dflags & ~known == 0 and tick["reserved"] == 0, f"seq {seq}: device flags"
+            if not dflags & flags["state"]:
+                assert tick["t_ns"] == 0 and tick["buttons"] == 0, f"seq {seq}: no state, values"
+                assert not dflags & flags["calibrated"], f"seq {seq}: no state, yet calibrated"
+                assert tick["error"], f"seq {seq}: a read without a state and without an error"
+            assert (tick["error"] is not None) == bool(dflags & flags["error"]), f"seq {seq}"
+            assert tick["late_periods"] >= 0 and tick["read_ns"] >= 0, f"seq {seq}"
+            pose = tick["pose"]
+            assert pose["version"] == layout["version"] and pose["reserved"] == 0, pose
+            assert pose["flags"] < 1 << len(layout["flags"]), f"seq {seq}: undocumented flags"
+            record = {
+                f["record"]: (list(pose[f["name"]]) if f["count"] > 1 else pose[f["name"]])
+                for f in layout["fields"]
+                if f["record"] is not None
+            }
+            check_pose_agreement(record, live=self.device_kind != "replay")
+            self.device_time(record)
+            times.append({"seq": seq, "device_t_ns": record["device_t_ns"]})
+        _checked_ticks[key] = (times[0], times[-1])
 
 
 def checked_items(items):
-    """The items of one recording (sasprobe's `iter_items`), each checked as it is handed out.
+    """The items of one recording (sasprobe's reader), each checked as it is handed out.
     A failure is pytest's, which is no Exception: a reader cannot take it for a damaged file."""
     check = RecordingCheck()
     for item in items:
@@ -224,29 +279,23 @@ def checked_items(items):
 @contextlib.contextmanager
 def checking_recordings():
     """Every recording read through sasprobe's reader is checked as it is read:
-    `sasprobe.protocol.recording.iter_items` is replaced by one that checks what it yields,
-    in its module and wherever it was imported by name (the replay, the playback, test
-    modules); modules imported later take the replacement."""
-    import sys
-
+    `sasprobe.protocol.recording.Recording.items` is replaced by one that checks what it
+    yields, for every module that reads through it."""
     from sasprobe.protocol import recording
 
-    original = recording.iter_items
+    original = recording.Recording.items
     for ref in RECORDED_TOPICS.values():  # build the validators now, not while records pour in
         list(_validator(ref).iter_errors({}))
 
     @functools.wraps(original)
-    def iter_items(path, decode: bool = True):
-        return checked_items(original(path, decode))
+    def items(self, decode: bool = True):
+        return checked_items(original(self, decode))
 
-    bound = [m for m in list(sys.modules.values()) if vars(m).get("iter_items") is original]
-    for module in bound:
-        module.iter_items = iter_items
+    recording.Recording.items = items
     try:
         yield
     finally:
-        for module in bound:
-            module.iter_items = original
+        recording.Recording.items = original
 
 
 @contextlib.contextmanager

@@ -128,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
     if args.findings is not None:
         from sasprobe.daemon.findings import write_findings
 
-        found = write_findings(args.file, args.findings, args.probe_radius)
+        found = write_findings(args.file, args.findings, args.probe_radius, ticks=summary.ticks)
         result["findings"] = {
             k: found[k] for k in ("files", "bottleneck", "verdict", "session", "notes")
         }
@@ -142,8 +142,8 @@ def run(args: argparse.Namespace) -> int:
         "finished" if s.finished else "cut short (daemon killed), readable up to its last flush"
     )
     print(
-        f"{s.path}: {ending}, {s.duration_s:.2f} s, {s.ticks} ticks, {s.seq_gaps} missing, "
-        f"structure(s) {', '.join(s.structures)}"
+        f"{s.path}: {ending}, format {s.format}, {s.duration_s:.2f} s, {s.ticks} ticks, "
+        f"{s.seq_gaps} missing, structure(s) {', '.join(s.structures)}"
     )
     print("  messages " + ", ".join(f"{k} {v}" for k, v in sorted(s.counts.items())))
     if "recovered" in result:
