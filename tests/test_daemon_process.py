@@ -299,7 +299,7 @@ def test_recording_started_mid_session_replays_exactly(daemon):
         load["args"]["name"] == "1crn" and load["args"]["sha256"] == loaded["structure"]["sha256"]
     )
     attachments = [item.data["name"] for item in items if item.topic == "attachment"]
-    assert attachments == ["1crn", "1crn"]  # at the start, and for the load
+    assert attachments == ["1crn"]  # at the start; the load of the same bytes adds none
     out = run_cli("replay", str(path), "--verify", "--json")
     verify = json.loads(out.stdout)["verify"]
     assert out.returncode == 0 and verify["ok"] and verify["events_applied"] >= 4, out.stdout

@@ -132,11 +132,12 @@ def test_round_trip_is_exact(tmp_path):
     assert session.structure_bytes == b"ATOM tiny structure bytes\n"
 
 
-def test_records_keep_their_place_between_ticks(tmp_path):
+def test_records_keep_their_place_between_ticks_and_structures_are_attached_once(tmp_path):
     """A control record offered between two ticks is read back between them (the batch of
-    ticks is split there)."""
+    ticks is split there); the same structure offered again is not attached again."""
     path = tmp_path / "o.mcap"
     rec, _ = _write(path, n=50)
+    rec.offer_structure(3, "tiny", b"ATOM tiny structure bytes\n")
     for seq in range(50, 60):
         if seq == 55:
             rec.offer_json("control", 5, {"seq": 55, "cmd": "recentre", "args": {}})
@@ -150,6 +151,36 @@ def test_records_keep_their_place_between_ticks(tmp_path):
             order.append((item.topic, item.data.get("cmd")))
     assert order[:2] == [("attachment", None), ("control", "start")]
     assert order[2:] == [("ticks", 0, 54), ("control", "recentre"), ("ticks", 55, 59)]
+
+
+def test_memory_does_not_grow_with_the_chunks(tmp_path):
+    """One chunk per flush: the writer's index of them waits in a file, and the summary the
+    file ends with still indexes every chunk (the mcap library reads through it)."""
+    import tracemalloc
+
+    from mcap.reader import make_reader
+
+    path = tmp_path / "m.mcap"
+    rec = Recorder(path, flush_interval_s=1e9)  # flushed by hand below
+    rec._stop.set()
+    rec._thread.join()
+    tracemalloc.start()
+    try:
+        for burst in range(2):
+            before = tracemalloc.get_traced_memory()[0]
+            for seq in range(burst * 2000, (burst + 1) * 2000):
+                rec._write(("tick", seq, seq, None, "x", 0.0, 0, Pose(seq=seq)))
+                rec._write_ticks()
+                rec._writer.flush()
+            grown = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    assert grown < 2000 * 16, f"{grown} bytes kept for 2000 chunks"  # a chunk index: ~400 bytes
+    rec.close()
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        assert len(reader.get_summary().chunk_indexes) == 4000
+        assert sum(1 for _ in reader.iter_messages(topics=["ticks"])) == 4000
 
 
 def test_cut_files_read_up_to_their_last_complete_record(tmp_path):

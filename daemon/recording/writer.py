@@ -13,15 +13,23 @@ Channels (protocol/README.md describes them):
            lateness) and the published pose, in binary, many ticks a message
   scene    every scene the daemon published (JSON)
   control  every state-changing control command, with the tick it took effect at (JSON)
-Structure files are attachments (their exact bytes), so a recording replays alone.
+Structure files are attachments (their exact bytes, once per structure), so a recording
+replays alone.
+
+Memory stays flat however long the session: the MCAP writer's index of chunks (one entry
+per flush, for the file's summary) is kept in an unnamed temporary file beside the
+recording until the summary is written.
 """
 
 from __future__ import annotations
 
 import collections
+import hashlib
 import json
 import logging
 import os
+import struct
+import tempfile
 import threading
 import time
 from dataclasses import dataclass
@@ -69,6 +77,43 @@ def _device_fields(state: DeviceState | None) -> tuple | None:
     )
 
 
+class _SpilledChunkIndexes:
+    """Where the MCAP writer keeps its chunk index (it appends one entry per chunk and reads
+    them all back when it writes the summary): each entry serialised into an unnamed file."""
+
+    def __init__(self, folder: Path) -> None:
+        self._file = tempfile.TemporaryFile(dir=folder, prefix=".sasprobe-index-")
+        self.count = 0
+
+    def append(self, index) -> None:
+        from mcap.data_stream import RecordBuilder
+
+        builder = RecordBuilder()
+        index.write(builder)
+        self._file.write(builder.end())
+        self.count += 1
+
+    def __iter__(self):
+        from mcap.data_stream import ReadDataStream
+        from mcap.records import ChunkIndex
+
+        self._file.flush()
+        self._file.seek(0)
+        stream = ReadDataStream(self._file)
+        for _ in range(self.count):
+            _opcode, length = struct.unpack("<BQ", stream.read(9))
+            start = stream.count
+            index = ChunkIndex.read(stream)
+            stream.read(length - (stream.count - start))  # fields a newer mcap may add
+            yield index
+
+    def __len__(self) -> int:
+        return self.count
+
+    def close(self) -> None:
+        self._file.close()
+
+
 @dataclass
 class RecorderStats:
     path: str
@@ -107,6 +152,8 @@ class Recorder:
             raise UserError(f"{self.path}: cannot create ({exc.strerror or exc})") from None
         self._file = os.fdopen(fd, "wb")
         self._writer = Writer(self._file, compression=CompressionType.ZSTD)
+        self._chunk_indexes = _SpilledChunkIndexes(self.path.parent)
+        self._writer._Writer__chunk_indices = self._chunk_indexes  # see _SpilledChunkIndexes
         self._writer.start(profile=PROFILE, library=f"sasprobe {__version__}")
         schema_id = self._writer.register_schema(
             name="sasprobe.Ticks",
@@ -129,6 +176,7 @@ class Recorder:
         self._writer.add_metadata("sasprobe", {k: str(v) for k, v in fields.items()})
         self._writer.flush()
         self._packer = TicksPacker()
+        self._attached: set[bytes] = set()  # the structures in the file, by their bytes' hash
         self._queue: collections.deque = collections.deque()
         self._queue_limit = queue_limit
         self._flush_interval = flush_interval_s
@@ -195,6 +243,10 @@ class Recorder:
             self.messages += 1
         else:
             _, _, name, data = item
+            digest = hashlib.sha256(data).digest()
+            if digest in self._attached:
+                return
+            self._attached.add(digest)
             self._writer.add_attachment(
                 create_time=0, log_time=t, name=name, media_type=_media_type(data), data=data
             )
@@ -242,4 +294,5 @@ class Recorder:
                 self._writer.finish()
         finally:
             self._file.close()
+            self._chunk_indexes.close()
         return self.stats()
