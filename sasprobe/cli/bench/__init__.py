@@ -16,8 +16,8 @@ from pathlib import Path
 # The order `sasprobe bench` runs them in; a name whose module is absent is skipped.
 ORDER = ["startup", "grid", "sas", "haptics", "daemon", "render", "lighting", "web"]
 # Run by name only (`sasprobe bench NAME`), each writing its own part of the page: they want
-# a machine chosen for them.
-ON_ITS_OWN = ["rates"]
+# a machine chosen for them (rates) or take long (replay, soak).
+ON_THEIR_OWN = ["rates", "replay", "soak"]
 
 
 @dataclass
@@ -53,8 +53,14 @@ def load(name: str):
         raise
 
 
-def available(names: list[str] = ORDER) -> list[str]:
-    return [name for name in names if load(name) is not None]
+def available() -> list[str]:
+    """The benchmarks of a plain `sasprobe bench`."""
+    return [name for name in ORDER if load(name) is not None]
+
+
+def on_their_own() -> list[str]:
+    """The benchmarks run by name only."""
+    return [name for name in ON_THEIR_OWN if load(name) is not None]
 
 
 def median_time(fn: Callable[[], object], repeats: int) -> float:

@@ -2,12 +2,13 @@
 the benchmark page (docs/benchmarks.md) regenerated from the latest runs.
 
 The page holds one part per kind of run, each written whole by that run: `all` (the
-benchmarks, `sasprobe bench --page PAGE`), `rates` (`sasprobe bench rates --page PAGE`,
-on a machine chosen for it) and `gpu-quick` (`sasprobe bench --gpu-quick --page PAGE`, on
-a machine with a GPU). Writing one part keeps the others as they stand, since they
-usually run on different machines or at different times; each part names its own
-machine, date and code. Charts are copied into a folder beside the page named after it
-(docs/benchmarks/) and linked relatively; a chart there that no part links to is removed.
+benchmarks, `sasprobe bench --page PAGE`), one per benchmark run by name (`sasprobe bench
+rates --page PAGE`, on a machine chosen for it; `replay` and `soak`, long recordings and
+sessions) and `gpu-quick` (`sasprobe bench --gpu-quick --page PAGE`, on a machine with a
+GPU). Writing one part keeps the others as they stand, since they usually run at different
+times or on different machines; each part names its own machine, date and code. Charts are
+copied into a folder beside the page named after it (docs/benchmarks/) and linked
+relatively; a chart there that no part links to is removed.
 """
 
 from __future__ import annotations
@@ -23,12 +24,9 @@ from sasprobe.cli.bench.machine import markdown as machine_markdown
 PARTS = {  # in the page's order
     "all": "All benchmarks",
     "rates": "Loop rates",
+    "replay": "Long recordings",
+    "soak": "Long sessions",
     "gpu-quick": "GPU check",
-}
-WRITTEN_BY = {  # how each part is written, for a page that does not have it yet
-    "all": "sasprobe bench --page docs/benchmarks.md",
-    "rates": "sasprobe bench rates --page docs/benchmarks.md",
-    "gpu-quick": "sasprobe bench --gpu-quick --page docs/benchmarks.md",
 }
 MODES = {
     "full": "full size",
@@ -39,12 +37,13 @@ HEADER = """# Benchmarks
 
 This page is written by `sasprobe bench --page docs/benchmarks.md` (every benchmark at full
 size), by `sasprobe bench rates --page docs/benchmarks.md` (the haptic loop at 1, 2 and
-4 kHz, quiet and beside busy loops) and by `sasprobe bench --gpu-quick --page
-docs/benchmarks.md` (the GPU check, on a machine with a GPU); each part is rewritten whole
-by its own run, and names the machine, the date and the code it measured. Times are
-medians; every ratio compares figures measured in the same run. `sasprobe bench --quick`
-(minutes) and `sasprobe bench --smoke` (seconds: each benchmark's code path at its
-smallest, to check that it runs) write the same report with
+4 kHz, quiet and beside busy loops), by `sasprobe bench replay --page docs/benchmarks.md` and
+`sasprobe bench soak --page docs/benchmarks.md` (long recordings and long sessions) and by
+`sasprobe bench --gpu-quick --page docs/benchmarks.md` (the GPU check, on a machine with a
+GPU); each part is rewritten whole by its own run, and names the machine, the date and the
+code it measured. Times are medians; every ratio compares figures measured in the same run.
+`sasprobe bench --quick` (minutes) and `sasprobe bench --smoke` (seconds: each benchmark's
+code path at its smallest, to check that it runs) write the same report with
 fewer figures; `--out DIR` keeps a run's JSON, charts and report.md apart from this page.
 """
 
@@ -151,10 +150,11 @@ def all_part(
     failed: dict[str, str],
     total_s: float,
     chart_prefix: str,
+    part: str = "all",
 ) -> str:
     return "\n".join(
         [
-            f"## {PARTS['all']}",
+            f"## {PARTS[part]}",
             "",
             f"Run of {date} ({MODES[mode]}), {code_version()}; {total_s:.0f} s in all.",
             "",
@@ -180,22 +180,6 @@ def gpu_part(machine: dict, mode: str, date: str, title: str, text: str) -> str:
     )
 
 
-def own_part(part: str, machine: dict, result, mode: str, date: str) -> str:
-    """The part of a benchmark that runs on its own (bench.ON_ITS_OWN)."""
-    return "\n".join(
-        [
-            f"## {PARTS[part]}",
-            "",
-            f"Run of {date} ({MODES[mode]}), {code_version()}; "
-            f"{result.data.get('wall_seconds', 0.0):.0f} s.",
-            "",
-            machine_markdown(machine),
-            "",
-            result.markdown,
-        ]
-    )
-
-
 def charts_folder(page: Path) -> Path:
     return page.with_suffix("")
 
@@ -212,8 +196,10 @@ def write_page(page: Path, part: str, body: str, charts=()) -> None:
                 shutil.copyfile(chart, folder / chart.name)
     blocks = [HEADER]
     for name in PARTS:
+        how = {"all": "", "gpu-quick": "--gpu-quick "}.get(name, f"{name} ")
         text = kept.get(name) or (
-            f"## {PARTS[name]}\n\nNot measured yet: `{WRITTEN_BY[name]}` writes this part."
+            f"## {PARTS[name]}\n\nNot measured yet: `sasprobe bench {how}--page "
+            "docs/benchmarks.md` writes this part."
         )
         blocks.append(
             f"<!-- sasprobe bench: {name} -->\n{text.strip()}\n<!-- sasprobe bench: end {name} -->"

@@ -1,10 +1,11 @@
 """`sasprobe bench [--quick|--smoke] [--only NAMES] [--json] [--out DIR] [--page FILE] [NAME]`:
 speed and accuracy figures.
 
-Without a name every available benchmark runs (one that cannot run here, e.g. without
-the reference structures or OpenGL, is listed as skipped with its reason; one that fails
-is one line on stderr and in the report, the others still run, and the exit status is 1)
-and, with --out, report.md and report.json are written beside each benchmark's JSON and
+Without a name every benchmark of the usual set runs (the long-session ones, `replay` and
+`soak`, run by name only and write their own part of the page). One that cannot run here
+(without the reference structures or OpenGL, say) is listed as skipped with its reason;
+one that fails is one line on stderr and in the report, the others still run, and the
+exit status is 1. With --out, report.md and report.json are written beside each benchmark's JSON and
 charts. --page writes the run into the benchmark page (docs/benchmarks.md,
 sasprobe/cli/bench/report.py). `sasprobe bench --gpu-quick [--gpu-size WxH]` runs only the
 short GPU check (sasprobe/cli/bench/gpu_quick.py).
@@ -49,7 +50,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="frame size of --gpu-quick (default 1920x1080)",
     )
     names = p.add_subparsers(dest="bench_name", metavar="NAME")
-    for name in bench.available() + bench.available(bench.ON_ITS_OWN):
+    for name in bench.available() + bench.on_their_own():
         module = bench.load(name)
         q = names.add_parser(name, help=module.TITLE)
         _common(q, suppress=True)
@@ -204,12 +205,10 @@ def _write(args: argparse.Namespace, payload: dict, results: list[bench.BenchRes
         print(f"wrote {args.out / 'report.md'}", file=sys.stderr)
     if args.page is not None:
         prefix = f"{report.charts_folder(args.page).name}/"
-        if args.bench_name in bench.ON_ITS_OWN:
-            part = args.bench_name
-            body = report.own_part(part, machine, results[0], mode, date)
-        else:
-            part = "all"
-            body = report.all_part(machine, results, mode, date, *tables, chart_prefix=prefix)
+        part = args.bench_name if args.bench_name in bench.ON_THEIR_OWN else "all"
+        body = report.all_part(
+            machine, results, mode, date, *tables, chart_prefix=prefix, part=part
+        )
         report.write_page(args.page, part, body, [c for r in results for c in r.charts])
         print(f"wrote {args.page}", file=sys.stderr)
 
