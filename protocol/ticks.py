@@ -16,7 +16,7 @@ import functools
 import struct
 
 import numpy as np
-from sasprobe.protocol.pose import POSE_SIZE, Pose, encode_pose
+from sasprobe.protocol.pose import POSE_SIZE, POSE_VERSION, Pose
 from sasprobe.protocol.schemas import pose_layout, ticks_layout
 
 _NUMPY = {
@@ -216,15 +216,18 @@ def ticks_span(message: bytes) -> tuple[int, int, int, int, int]:
 
 
 class TicksPacker:
-    """Builds `ticks` messages a tick at a time (the recorder's writer thread)."""
+    """Builds `ticks` messages (the recorder's writer thread): a tick is kept as it came, and
+    a message is packed a field at a time for all its ticks, not a tick at a time."""
 
     def __init__(self) -> None:
-        self._records = bytearray()
-        self._errors = bytearray()
-        self.count = 0
+        self._ticks: list[tuple] = []
         self.first_log_ns = 0
         self.last_log_ns = 0
         self.first_seq = 0
+
+    @property
+    def count(self) -> int:
+        return len(self._ticks)
 
     def add(
         self,
@@ -237,42 +240,52 @@ class TicksPacker:
     ) -> None:
         """One tick. `device` is (t_ns, position, orientation, velocity, buttons, calibrated)
         of the state the read gave, None when it gave none."""
-        flags = 0
-        if device is None:
-            t_ns, vectors, buttons = 0, [0.0] * 10, 0
-        else:
-            t_ns, position, orientation, velocity, buttons, calibrated = device
-            vectors = np.concatenate((position, orientation, velocity), dtype=np.float64).tolist()
-            flags = HAS_STATE | (CALIBRATED if calibrated else 0)
-        if error is not None:
-            text = error.encode("utf-8")[:MAX_ERROR_BYTES]
-            self._errors += _LENGTH.pack(len(text)) + text
-            flags |= HAS_ERROR
-        self._records += _DEVICE.pack(
-            int(t_ns),
-            *vectors,
-            float(late_periods),
-            int(read_ns),
-            int(buttons) & 0xFFFFFFFF,
-            flags,
-            0,
-        )
-        self._records += encode_pose(pose)
-        if not self.count:
+        if not self._ticks:
             self.first_log_ns, self.first_seq = log_ns, pose.seq
         self.last_log_ns = log_ns
-        self.count += 1
+        self._ticks.append((device, error, late_periods, read_ns, pose))
 
     def take(self) -> bytes:
         """The message of the ticks added since the last take (then empty)."""
-        message = (
-            HEADER.pack(TICKS_VERSION, RECORD_SIZE, self.count, len(self._errors), 0)
-            + self._records
-            + self._errors
+        ticks, self._ticks = self._ticks, []
+        block = TickBlock(np.zeros(len(ticks), dtype=_VOID), {})
+        device, pose = block.device, block.pose
+        states = [t[0] for t in ticks]
+        device["t_ns"] = [s[0] if s else 0 for s in states]
+        device["position_mm"] = [s[1] if s else _ZEROS[:3] for s in states]
+        device["orientation"] = [s[2] if s else _ZEROS for s in states]
+        device["velocity_mm_s"] = [s[3] if s else _ZEROS[:3] for s in states]
+        device["buttons"] = [int(s[4]) & 0xFFFFFFFF if s else 0 for s in states]
+        device["late_periods"] = [t[2] for t in ticks]
+        device["read_ns"] = [t[3] for t in ticks]
+        device["device_flags"] = [
+            (HAS_STATE | (CALIBRATED if s[5] else 0) if s else 0)
+            | (HAS_ERROR if t[1] is not None else 0)
+            for s, t in zip(states, ticks)
+        ]
+        errors = bytearray()
+        for t in ticks:
+            if t[1] is not None:
+                text = t[1].encode("utf-8")[:MAX_ERROR_BYTES]
+                errors += _LENGTH.pack(len(text)) + text
+        poses = [t[4] for t in ticks]
+        for name in POSE_RECORD_FIELDS:
+            if name not in _MASKED:
+                pose[name] = [getattr(p, name) for p in poses]
+        for name, mask in _MASKED.items():  # as the pose codec writes them
+            pose[name] = [getattr(p, name) & mask for p in poses]
+        raw = block.records.view(np.uint8).reshape(len(ticks), RECORD_SIZE)
+        raw[:, POSE_OFFSET : POSE_OFFSET + 2] = _POSE_VERSION_BYTES
+        return (
+            HEADER.pack(TICKS_VERSION, RECORD_SIZE, len(ticks), len(errors), 0)
+            + block.records.tobytes()
+            + bytes(errors)
         )
-        self._records, self._errors = bytearray(), bytearray()
-        self.count = 0
-        return bytes(message)
+
+
+_ZEROS = np.zeros(4)
+_MASKED = {"flags": 0xFFFF, "buttons": 0xFFFFFFFF}
+_POSE_VERSION_BYTES = np.frombuffer(struct.pack("<H", POSE_VERSION), dtype=np.uint8)
 
 
 def _vector(values, n: int) -> list[float]:
