@@ -39,6 +39,7 @@ def test_every_mode_reads_both_recordings(smoke):
         assert recording["modes"]["verify"]["ok"]
         assert recording["modes"]["device"]["ticks"] == recording["ticks"] + 1  # and the end
     assert set(figures["peak_ratio_longest_to_shortest"]) == set(MODES)
+    assert figures["recorder"]["dropped"] == 0 and figures["recorder"]["ticks_per_s"] > 0
 
 
 def test_the_run_writes_its_own_part_of_the_page(smoke):
