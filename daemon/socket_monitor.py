@@ -20,10 +20,10 @@ from __future__ import annotations
 import errno
 import logging
 import os
+import struct
 import time
 
 import zmq
-from zmq.utils.monitor import recv_monitor_message
 
 log = logging.getLogger("sasprobe")
 
@@ -37,6 +37,11 @@ EVENTS = (
 HANDSHAKE_IVL_MS = 2000  # a connection that has not finished its handshake by then is dropped
 MAX_EVENTS_PER_DRAIN = 16  # bounded work for the loop thread even while events flood in
 LOG_INTERVAL_S = 10.0
+# A monitor event's first frame: the event (uint16) and its value (uint32), native order
+# (libzmq's zmq_socket_monitor). Read as plain integers: pyzmq's recv_monitor_message makes
+# each value an Event flag, and the enum caches every new combination, one more for each
+# descriptor number a refused connection had.
+_EVENT = struct.Struct("=HI")
 _MECHANISM_MISMATCH = 0x11000002  # ZMQ_PROTOCOL_ERROR_ZMTP_MECHANISM_MISMATCH
 _OUT_OF_FDS = (errno.EMFILE, errno.ENFILE)
 
@@ -73,10 +78,11 @@ class SocketMonitor:
             if not self._monitor.getsockopt(zmq.EVENTS) & zmq.POLLIN:
                 return
             try:
-                message = recv_monitor_message(self._monitor, zmq.NOBLOCK)
+                frames = self._monitor.recv_multipart(zmq.NOBLOCK)
             except zmq.Again:
                 return
-            self._event(int(message["event"]), int(message["value"]))
+            if len(frames[0]) == _EVENT.size:
+                self._event(*_EVENT.unpack(frames[0]))
 
     def _event(self, event: int, value: int) -> None:
         if event == zmq.EVENT_ACCEPTED:  # the value is the connection's fd (not so for a handshake)
