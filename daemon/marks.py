@@ -58,8 +58,10 @@ class Marks:
         return dict(mark)
 
     def restore(self, mark: dict) -> None:
-        """A recorded mark, put back as it was (a replay: the structure is the recorded one)."""
-        self._marks.append(dict(mark))
+        """A recorded mark, put back as it was (a replay: the structure is the recorded one);
+        past MAX_MARKS, as live, it is not kept (a file may say anything)."""
+        if len(self._marks) < MAX_MARKS:
+            self._marks.append(dict(mark))
 
     def scene(self, structure_sha256: str) -> list[dict]:
         """The scene's `marks` for the structure in force (copies)."""

@@ -73,6 +73,8 @@ def test_marks_are_numbered_belong_to_one_structure_and_are_bounded():
         marks.drop(k, np.zeros(3), None, "control", "sha-b")
     with pytest.raises(UserError, match=f"at most {MAX_MARKS}"):
         marks.drop(0, np.zeros(3), None, "control", "sha-b")
+    marks.restore({"id": MAX_MARKS + 1, "label": "from a file", "position_A": [0, 0, 0]})
+    assert len(marks.scene("sha-b")) == MAX_MARKS  # a replayed file holds no more
 
 
 def test_the_mark_button_marks_the_newest_proxy_except_in_a_replay():
