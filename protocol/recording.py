@@ -127,6 +127,7 @@ TICKS_ENCODING = "sasprobe.ticks"  # the `ticks` channel's message encoding (tic
 TICKS_SCHEMA_ENCODING = "sasprobe.layout"  # its schema: ticks.json with pose.json, as JSON
 FORMAT_VERSION = 2  # the `sasprobe` metadata's `format`; files without it are format 1
 BLOCK_TICKS = 4096  # ticks per block that Recording.stream() hands out, at most
+COPY_CHUNK_BYTES = 1 << 20  # a recovered copy's chunks (what its writer holds before writing)
 
 
 class Recording:
@@ -344,7 +345,7 @@ def _copy_records(src, dst, end: int, path: Path) -> None:
     from mcap.stream_reader import StreamReader
     from mcap.writer import CompressionType, Writer
 
-    writer = Writer(dst, compression=CompressionType.ZSTD)
+    writer = Writer(dst, chunk_size=COPY_CHUNK_BYTES, compression=CompressionType.ZSTD)
     writer.start(profile=PROFILE, library="sasprobe recover")
     schema_ids: dict[int, int] = {}
     channel_ids: dict[int, int] = {}
