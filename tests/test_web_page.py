@@ -169,13 +169,13 @@ def recording_html(reference_by_id, tmp_path_factory):
 
 
 def recorded_poses(recording):
-    """(log time ns, seq, proxy) of every recorded pose, read straight from the file."""
-    from sasprobe.protocol.recording import iter_items
+    """(log time ns, seq, proxy) of every recorded pose, read straight from the file as the
+    README's tables lay it out."""
+    from tests.support.recordings import reference_ticks
 
     return [
-        (item.log_time, item.data["seq"], item.data["proxy_A"])
-        for item in iter_items(recording)
-        if item.topic == "pose"
+        (t["pose"]["publish_t_ns"], t["pose"]["seq"], t["pose"]["proxy_A"])
+        for t in reference_ticks(recording)
     ]
 
 

@@ -118,19 +118,22 @@ def _reads(recording: Path, start_ns: int, end_ns: int) -> dict:
     daemon records each tick's read time (`read_ns`) and error."""
     import numpy as np
 
-    from sasprobe.protocol.recording import iter_items
+    from sasprobe.protocol.recording import Recording
+    from sasprobe.protocol.ticks import HAS_ERROR, TickBlock
 
-    ticks = [
-        item.data
-        for item in iter_items(recording)
-        if item.topic == "device" and start_ns <= item.log_time <= end_ns
-    ]
-    read_us = np.array([t["read_ns"] for t in ticks], dtype=float) / 1000.0
+    read_ns, failed = [], 0
+    for item in Recording(recording).stream():
+        if isinstance(item, TickBlock):
+            log = item.log_ns
+            inside = (log >= start_ns) & (log <= end_ns)
+            read_ns.append(item.device["read_ns"][inside])
+            failed += int(np.count_nonzero(item.device["device_flags"][inside] & HAS_ERROR))
+    read_us = np.concatenate(read_ns).astype(float) / 1000.0 if read_ns else np.zeros(0)
     if not read_us.size:
         return {"ticks": 0}
     return {
-        "ticks": len(ticks),
-        "failed": sum(1 for t in ticks if t.get("error")),
+        "ticks": int(read_us.size),
+        "failed": failed,
         "p50_us": float(np.percentile(read_us, 50)),
         "p99_us": float(np.percentile(read_us, 99)),
         "max_us": float(read_us.max()),
