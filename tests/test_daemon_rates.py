@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import pytest
 from sasprobe.daemon.loop import pose_stride
-from sasprobe.daemon.recording.replay import load_session
+from sasprobe.daemon.recording.verify import verify_recording
 from sasprobe.daemon.service import Daemon, DaemonConfig
 from sasprobe.devices.registry import open_device
 from sasprobe.protocol.client import Subscriber
 
 from tests.conftest import run_cli
+from tests.support.recordings import reference_ticks
 
 # The rates each driver declares before it opens (none of these opens anything).
 DECLARED = {
@@ -78,5 +79,7 @@ def test_at_4_khz_every_4th_pose_is_published_and_every_tick_recorded(tmp_path):
     published = publisher.poses_sent + publisher.send_failures
     assert published == (ticks + 3) // 4  # ticks 0, 4, 8, ...
     assert received and all(p.seq % 4 == 0 for p in received)
-    session = load_session(path)
-    assert session.n_ticks == ticks and session.missing_ticks == 0
+    recorded = [t["pose"]["seq"] for t in reference_ticks(path)]  # as the README lays it out
+    assert recorded == list(range(ticks))
+    report = verify_recording(path)  # and the 4 kHz session replays to the same forces
+    assert report.ticks == ticks and report.missing_ticks == 0 and report.ok

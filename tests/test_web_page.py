@@ -174,7 +174,7 @@ def recorded_poses(recording):
     from tests.support.recordings import reference_ticks
 
     return [
-        (t["pose"]["publish_t_ns"], t["pose"]["seq"], t["pose"]["proxy_A"])
+        (t["pose"]["publish_t_ns"], t["pose"]["seq"], t["pose"]["proxy"])
         for t in reference_ticks(recording)
     ]
 
