@@ -146,7 +146,8 @@ class RequestHandlers:
     # ------------------------------------------------------------------ changing
     def load(self, request):
         from sasprobe.molecule.fetch import pdb_id, resolve
-        from sasprobe.molecule.loading import MAX_FILE_BYTES, read_regular_file, structure_name
+        from sasprobe.molecule.loading import MAX_FILE_BYTES, read_regular_file
+        from sasprobe.molecule.structure import structure_name
 
         d = self.daemon
         keep_water = request.args.get("keep_water", False)

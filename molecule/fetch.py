@@ -1,8 +1,9 @@
 """Structures by PDB id: `4hhb` or `pdb:4hhb` wherever a structure file is taken.
 
-An id is resolved to a file in a cache folder: a cached copy is used as it is (so a
-fetched entry works offline), otherwise the entry's mmCIF is downloaded from a mirror
-and kept. A bare id counts as an id only when no file of that name exists, so a file
+An id is resolved to a file: the id of an entry shipped with the package (1CRN) to that
+copy, with no network; any other to a file in a cache folder: a cached copy is used as
+it is (so a fetched entry works offline), otherwise the entry's mmCIF is downloaded from
+a mirror and kept. A bare id counts as an id only when no file of that name exists, so a file
 always wins. Ids are the classic four characters, a digit first (`1crn`, `6ZU5`).
 
 Mirrors (`--pdb-mirror`, `$SASPROBE_PDB_MIRROR`, or `pdb-mirror` in a command's TOML
@@ -107,11 +108,27 @@ def cached_entry(ident: str, settings: FetchSettings) -> Path | None:
 
 
 def resolve(text: str, settings: FetchSettings | None = None) -> str:
-    """A structure argument as a file path: itself, or the cached file of the PDB id it names."""
+    """A structure argument as a file path: itself, the shipped copy of an embedded entry,
+    or the cached file of the PDB id it names."""
     ident = pdb_id(text)
     if ident is None:
         return text
+    shipped = embedded_entry(ident)
+    if shipped is not None:
+        return str(shipped)
     return str(fetch_entry(ident, settings or FetchSettings.from_environment()))
+
+
+def embedded_entry(ident: str) -> Path | None:
+    """The package's own file of an entry (the default structure), when it ships one as a file."""
+    from importlib import resources
+
+    from sasprobe.molecule.structure import DEFAULT_STRUCTURE, structure_name
+
+    if ident != structure_name(DEFAULT_STRUCTURE):
+        return None
+    shipped = resources.files("sasprobe.molecule").joinpath("data", DEFAULT_STRUCTURE)
+    return shipped if isinstance(shipped, Path) and shipped.is_file() else None
 
 
 def fetch_entry(ident: str, settings: FetchSettings) -> Path:

@@ -29,13 +29,18 @@ import gemmi
 import numpy as np
 from sasprobe.molecule.backbone import trace_segments
 from sasprobe.molecule.elements import FALLBACK_RADIUS, colors_for, has_bondi_radius, radii_for
-from sasprobe.molecule.structure import MAX_COORDINATE_A, Structure, StructureError
+from sasprobe.molecule.structure import (
+    DEFAULT_STRUCTURE,
+    MAX_COORDINATE_A,
+    Structure,
+    StructureError,
+    structure_name,
+)
 
 from sasprobe.common.files import read_regular
 
 log = logging.getLogger("sasprobe")
 
-DEFAULT_STRUCTURE = "1crn.pdb.gz"
 MAX_FILE_BYTES = 1 << 30  # a structure file (gzipped or not) larger than this is not read
 INFLATE_RATIO = 32  # gzip: structures inflate 4-6x (the shared entries); a bomb inflates ~1000x
 INFLATE_FLOOR = 64 << 20  # ... but a small file may always inflate to this
@@ -319,14 +324,6 @@ def _check_pdb_not_truncated(text: bytes, source: str) -> None:
         raise StructureError(f"{source}: truncated PDB file (last coordinate line is incomplete)")
     if text.lstrip().startswith(b"HEADER") and not re.search(rb"(^|\n)END\s*$", tail):
         raise StructureError(f"{source}: truncated PDB file (wwPDB entry without its END record)")
-
-
-def structure_name(filename: str) -> str:
-    """A structure's name from its file name: the stem without .gz/.pdb/.ent/.cif/.mmcif."""
-    for suffix in (".gz", ".pdb", ".ent", ".cif", ".mmcif"):
-        if filename.lower().endswith(suffix):
-            filename = filename[: -len(suffix)]
-    return filename
 
 
 def _shorten(text: str, limit: int = 160) -> str:

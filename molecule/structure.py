@@ -1,6 +1,7 @@
 """A macromolecular structure as sasprobe holds it: one model as flat per-atom arrays in the
-molecule frame (Å), and the error every unusable structure file raises. Reading a file into
-one is molecule/loading.py."""
+molecule frame (Å), the error every unusable structure file raises, and a structure's name
+from its file's (the shipped default's too, which molecule/fetch.py answers an id with).
+Reading a file into one is molecule/loading.py."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from sasprobe.molecule.probe import DEFAULT_PROBE_RADIUS
 
 from sasprobe.common.errors import UserError
 
+DEFAULT_STRUCTURE = "1crn.pdb.gz"  # shipped in data/: crambin, the structure of every default
 # |x|, |y|, |z| in Å: the PDB format's own reach (8.3f), far beyond any assembly
 MAX_COORDINATE_A = 10_000.0
 
@@ -66,3 +68,11 @@ class Structure:
     def bbox(self) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned bounds of the atom centres (Å)."""
         return self.positions.min(axis=0), self.positions.max(axis=0)
+
+
+def structure_name(filename: str) -> str:
+    """A structure's name from its file name: the stem without .gz/.pdb/.ent/.cif/.mmcif."""
+    for suffix in (".gz", ".pdb", ".ent", ".cif", ".mmcif"):
+        if filename.lower().endswith(suffix):
+            filename = filename[: -len(suffix)]
+    return filename

@@ -1,7 +1,8 @@
 """Structures by PDB id against a real HTTP server on loopback (started here) serving the
 reference data's gzipped mmCIF: a miss downloads into the cache (with a progress bar for a
-large file), a hit works with the server gone, and being offline without a cache, an
-unknown id, a server error or a page that is not mmCIF each end in one line."""
+large file), a hit works with the server gone, the embedded entry's id needs no server, and
+being offline without a cache, an unknown id, a server error or a page that is not mmCIF
+each end in one line."""
 
 from __future__ import annotations
 
@@ -47,12 +48,12 @@ class Archive(BaseHTTPRequestHandler):
 
 
 @pytest.fixture(scope="module")
-def archive(reference_by_id, crambin):
-    crn = gemmi.read_structure(str(reference_by_id["1crn"].path))
-    crn.setup_entities()
+def archive(reference_by_id):
+    oky = gemmi.read_structure(str(reference_by_id["1oky"].path))
+    oky.setup_entities()
     Archive.entries = {
         "6ZU5.cif.gz": reference_by_id["6zu5"].path.read_bytes(),
-        "1CRN.cif.gz": gzip.compress(crn.make_mmcif_document().as_string().encode()),
+        "1OKY.cif.gz": gzip.compress(oky.make_mmcif_document().as_string().encode()),
     }
     server = ThreadingHTTPServer(("127.0.0.1", 0), Archive)
     thread = threading.Thread(target=server.serve_forever, daemon=True)
@@ -92,30 +93,44 @@ def test_miss_then_hit_offline(archive, tmp_path):
     assert len(Archive.requests) == before + 1
 
 
-def test_mirror_from_the_environment_and_the_config_file(archive, tmp_path):
+def test_the_embedded_entry_needs_no_server(tmp_path, crambin):
+    """`1crn` and `pdb:1crn` name the shipped copy: no request, nothing cached, offline."""
+    settings = FetchSettings(mirror=dead_port() + "/{ID}.cif.gz", cache=tmp_path / "cache")
+    for text in ("1crn", "pdb:1CRN"):
+        s = load_structure_or_default(text, fetch=settings)
+        assert s.sha256 == crambin.sha256 and s.n_atoms == 327
+    assert not (tmp_path / "cache").exists()
+    r = run_cli(
+        "sas", "1crn", "--pdb-mirror", dead_port() + "/{id}.cif", "--pdb-cache", str(tmp_path)
+    )
+    assert r.returncode == 0 and r.stdout.startswith("1crn: SAS"), r.stderr
+
+
+def test_mirror_from_the_environment_and_the_config_file(archive, tmp_path, reference_by_id):
+    atoms = load_structure_or_default(str(reference_by_id["1oky"].path)).n_atoms  # the PDB file
     cache = tmp_path / "cache"
     s = load_structure_or_default(
-        "pdb:1crn", fetch=FetchSettings(mirror=archive + "/{ID}.cif.gz", cache=cache)
+        "pdb:1oky", fetch=FetchSettings(mirror=archive + "/{ID}.cif.gz", cache=cache)
     )
-    assert s.n_atoms == 327 and s.source == str(cache / "1crn.cif.gz")
+    assert s.n_atoms == atoms and s.source == str(cache / "1oky.cif.gz")
     env_cache, toml_cache = tmp_path / "env", tmp_path / "toml"
     import os
 
     env = dict(
         os.environ, SASPROBE_PDB_MIRROR=archive + "/{ID}.cif.gz", SASPROBE_PDB_CACHE=str(env_cache)
     )
-    r = run_cli("sas", "1crn", env=env)
+    r = run_cli("sas", "1oky", env=env)
     assert (
-        r.returncode == 0 and "1crn: SAS" in r.stdout and (env_cache / "1crn.cif.gz").is_file()
+        r.returncode == 0 and "1oky: SAS" in r.stdout and (env_cache / "1oky.cif.gz").is_file()
     ), r.stderr
     config = tmp_path / "sasprobe.toml"
     config.write_text(
         f'[info]\npdb-mirror = "{archive}/{{ID}}.cif.gz"\npdb-cache = "{toml_cache}"\n'
     )
-    r = run_cli("--config", str(config), "info", "pdb:1crn")
-    assert r.returncode == 0 and "327" in r.stdout and (toml_cache / "1crn.cif.gz").is_file(), (
-        r.stderr
-    )
+    r = run_cli("--config", str(config), "info", "pdb:1oky")
+    assert (
+        r.returncode == 0 and str(atoms) in r.stdout and (toml_cache / "1oky.cif.gz").is_file()
+    ), r.stderr
 
 
 @pytest.mark.parametrize(
