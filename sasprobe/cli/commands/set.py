@@ -3,7 +3,9 @@
 Each KEY=VALUE becomes a field of one control `set` (protocol/README.md), so the changes
 apply together at one tick, or none of them when any value is refused; the daemon's
 reply (its settings after the change) is printed. Clip planes replace the daemon's list:
-`clip=A,B,C,D` once per plane, `clip=none` to remove them all.
+`clip=A,B,C,D` once per plane, `clip=none` to remove them all. `color=SCHEME` is the
+colour scheme every renderer following the daemon shows (`color=default`: each
+renderer's own default).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ KEYS = {  # KEY: (what it takes, the `set` field)
     "clip": ("A,B,C,D (repeatable)|none", "clip_planes"),
     "light": ("X,Y,Z (the direction the light travels)", "lights"),
     "probe-light": ("on|off", "lights"),
+    "color": ("SCHEME|default (the renderers' colour scheme)", "color_scheme"),
 }
 
 
@@ -32,7 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "set",
         help="change a running daemon's settings (stiffness, probe radius, clip planes, "
-        "cube size, lights)",
+        "cube size, lights, colour scheme)",
         description=f"KEY=VALUE pairs, applied together or not at all. Keys: {keys}.",
     )
     p.add_argument("changes", nargs="+", metavar="KEY=VALUE")
@@ -68,6 +71,17 @@ def _switch(text: str, key: str) -> bool:
     raise UserError(f"{key}={text}: expected on or off")
 
 
+def _color_scheme(text: str) -> str | None:
+    from sasprobe.common.errors import UserError
+    from sasprobe.protocol.scene import COLOR_SCHEMES
+
+    if text.lower() == "default":
+        return None
+    if text.lower() not in COLOR_SCHEMES:
+        raise UserError(f"color={text}: expected default or one of {', '.join(COLOR_SCHEMES)}")
+    return text.lower()
+
+
 def set_fields(pairs: list[str]) -> dict:
     """The `set` request's fields for KEY=VALUE pairs; UserError (one line) for a bad one."""
     from sasprobe.common.errors import UserError
@@ -98,6 +112,8 @@ def set_fields(pairs: list[str]) -> dict:
             planes = planes if planes is not None else []
             if value.lower() != "none":
                 planes.append(_numbers(value, 4, key))
+        elif key == "color":
+            fields["color_scheme"] = _color_scheme(value)
         elif key == "light":
             lights.setdefault("directional", {})["direction"] = _numbers(value, 3, key)
         else:  # probe-light
@@ -120,6 +136,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     s = reply["settings"]
     cube = s["cube_half_A"]
+    scheme = fields.get("color_scheme") or "each renderer's default"
     print(
         f"set at tick {reply['seq']}: stiffness {s['stiffness_n_per_mm']:g} "
         f"N/mm, damping {s['damping_n_s_per_m']:g} N·s/m, probe "
@@ -127,5 +144,6 @@ def run(args: argparse.Namespace) -> int:
         + ("default" if cube is None else cube if isinstance(cube, str) else f"{cube:g} Å")
         + (f", {len(fields['clip_planes'])} clip plane(s)" if "clip_planes" in fields else "")
         + (", lights changed" if "lights" in fields else "")
+        + (f", colour scheme {scheme}" if "color_scheme" in fields else "")
     )
     return 0
