@@ -28,6 +28,7 @@ from sasprobe.common.errors import UserError
 from sasprobe.daemon import stdout_events
 
 PR_SET_PDEATHSIG = 1
+EXIT_WAIT_S = 10.0  # a child whose output ended gets this long to exit before it counts as silent
 
 try:
     _LIBC = ctypes.CDLL(None, use_errno=True)  # this process's own symbols, libc's among them
@@ -196,13 +197,23 @@ class DaemonChild(Child):
         )
 
     def wait_ready(self, timeout_s: float) -> dict:
-        """The daemon's ready event; UserError with its own error line when it ends or is silent
-        first."""
+        """The daemon's ready event; UserError with its own error line when it ends first, or
+        when it stays silent.
+
+        Its stdout closes a moment before the process is gone: a daemon that failed is
+        waited for (EXIT_WAIT_S at most), so its error line, not a timeout, is what is said."""
+        deadline = time.monotonic() + timeout_s
         ready = self.wait_event(stdout_events.READY, timeout_s)
-        if ready is None:
-            why = self.error_line() if not self.alive() else f"no answer within {timeout_s:g} s"
-            raise UserError(f"the daemon did not start: {why}")
-        return ready
+        if ready is not None:
+            return ready
+        if time.monotonic() < deadline:  # its output ended: it is exiting
+            try:
+                self.proc.wait(timeout=EXIT_WAIT_S)
+            except subprocess.TimeoutExpired:
+                pass
+        if self.alive():
+            raise UserError(f"the daemon did not start: no answer within {timeout_s:g} s")
+        raise UserError(f"the daemon did not start: {self.error_line()}")
 
     @property
     def exit_report(self) -> dict | None:
