@@ -45,7 +45,11 @@ class FindingsJob:
             argv += ["--probe-radius", repr(float(probe_radius_A))]
         with _normal_scheduling():
             self._proc = subprocess.Popen(
-                argv, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True
+                argv,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.PIPE,
+                text=True,
+                start_new_session=True,  # a terminal's Ctrl+C stops the daemon, not its analysis
             )
         self._thread = threading.Thread(target=self._watch, name="sasprobe-findings", daemon=True)
         self._thread.start()

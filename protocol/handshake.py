@@ -6,7 +6,7 @@ is not running. A `ConnectionWatch` keeps a socket monitor on the client's socke
 when the client gives up waiting, says which of these it was (libzmq's events: a
 refused key is HANDSHAKE_FAILED_AUTH, a missing or unexpected key a mechanism mismatch,
 a wrong server key a handshake that fails without detail, a missing daemon only
-connection retries).
+connection retries, a daemon that went away a disconnection after the handshake).
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ class ConnectionWatch:
         self._socket = socket
         self._monitor = socket.get_monitor_socket(_EVENTS)
         self._seen: dict[int, int] = {}  # event -> its last value
+        self._link: int | None = None  # the newest of CONNECTED, HANDSHAKE_SUCCEEDED, DISCONNECTED
 
     def _drain(self) -> None:
         while self._monitor.poll(0):
@@ -43,7 +44,12 @@ class ConnectionWatch:
                 message = recv_monitor_message(self._monitor, zmq.NOBLOCK)
             except zmq.Again:
                 return
-            self._seen[int(message["event"])] = int(message["value"])
+            event = int(message["event"])
+            self._seen[event] = int(message["value"])
+            if event & (
+                zmq.EVENT_CONNECTED | zmq.EVENT_HANDSHAKE_SUCCEEDED | zmq.EVENT_DISCONNECTED
+            ):
+                self._link = event
 
     def explain(self) -> str:
         """Why nothing came: the worst thing the connection saw, in a few words."""
@@ -72,6 +78,8 @@ class ConnectionWatch:
                 f"the CURVE handshake with {where} failed: the server.key this client has is not "
                 f"that daemon's{hint}"
             )
+        if zmq.EVENT_HANDSHAKE_SUCCEEDED in seen and self._link == zmq.EVENT_DISCONNECTED:
+            return f"the daemon at {where} closed the connection (it stopped?)"
         if zmq.EVENT_HANDSHAKE_SUCCEEDED in seen:
             return f"connected to {where}, but the daemon did not answer in time (busy or stuck?)"
         if zmq.EVENT_CONNECTED in seen:

@@ -197,6 +197,31 @@ def test_the_daemon_analyses_its_own_recording(session):
     assert (Path(job["dir"]) / "chart.png").stat().st_size > 0
 
 
+def test_the_analysis_finishes_when_the_daemon_has_gone(session, tmp_path):
+    """The daemon's analysis child, its result pipe closed (the daemon stopped meanwhile),
+    still writes its files and ends with one line, no traceback."""
+    out = tmp_path / "late"
+    child = subprocess.Popen(
+        [sys.executable, "-m", "sasprobe.daemon.findings", str(session["recording"]), str(out)]
+        + ["--json"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        cwd=REPO_ROOT,
+    )
+    child.stdout.close()  # what the daemon's end does to the pipe
+    try:
+        _, err = child.communicate(timeout=300)
+    finally:
+        child.kill()
+    assert child.returncode == 0 and "Traceback" not in err, err
+    assert (
+        err.strip().splitlines()[-1]
+        == f"findings: written into {out} (the daemon that asked has gone)"
+    )
+    assert json.loads((out / "findings.json").read_text())["session"]["finished"] is False
+
+
 def test_clearance_equals_a_brute_force_minimum_on_recorded_points(session):
     from sasprobe.molecule.clearance import ClearanceField
 

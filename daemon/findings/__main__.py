@@ -4,7 +4,9 @@ as a process of their own (the daemon's `findings` command starts this; daemon/f
 It first takes normal scheduling and a lower priority, whatever it inherited, so the
 analysis never competes with the daemon's loop. The result is one line on stdout: the
 summary as JSON with --json, else the terminal summary; an error is one line too
-(`{"error": ...}` with --json) and exit status 2.
+(`{"error": ...}` with --json) and exit status 2. A daemon that stops while the analysis
+runs has closed the pipe the result goes to: the files are written all the same, and
+one line on stderr says so.
 """
 
 from __future__ import annotations
@@ -45,10 +47,16 @@ def main() -> int:
             file=sys.stdout if args.json else sys.stderr,
         )
         return 2
-    if args.json:
-        print(json.dumps(brief(found)))
-    else:
-        print("\n".join(summary_lines(found)))
+    try:
+        if args.json:
+            print(json.dumps(brief(found)), flush=True)
+        else:
+            print("\n".join(summary_lines(found)), flush=True)
+    except BrokenPipeError:  # the daemon that asked has gone; the files are written
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # nothing left to flush
+        print(
+            f"findings: written into {args.dir} (the daemon that asked has gone)", file=sys.stderr
+        )
     return 0
 
 

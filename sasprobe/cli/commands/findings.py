@@ -54,6 +54,7 @@ def run(args: argparse.Namespace) -> int:
     from sasprobe.cli.daemon_client import connect
     from sasprobe.common.errors import UserError
     from sasprobe.common.progress import progress_bar
+    from sasprobe.protocol.client import ControlError
 
     with connect(args) as client:
         job = client.findings(args.dir, args.probe_radius)
@@ -67,6 +68,11 @@ def run(args: argparse.Namespace) -> int:
                     time.sleep(0.5)
                     bar.update(0.5)
                     job = client.status()["findings"]
+            except ControlError as exc:  # the daemon went (or hangs): its analysis goes on
+                raise UserError(
+                    f"findings: {exc}; the analysis (pid {job['pid']}) still writes "
+                    f"{job['dir']}/ on the daemon's host"
+                ) from None
             finally:
                 bar.close()
     if args.json:
