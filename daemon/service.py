@@ -86,10 +86,12 @@ class Daemon:
         self.changes = ChangeQueue()  # what the control thread asks of the loop
         self._network = self.control = self.publisher = None
         self._scheduling = current_scheduling()  # given back when the daemon stops
+        self._device_opened = False  # a device whose open() failed holds no force of ours
         try:
             self.realtime = enter_realtime() if config.realtime else False
             self.loop = HapticLoop(self, self.rate_hz, self.realtime)
             self.device.open()
+            self._device_opened = True
             # the opened arm's workspace and limits
             self.limits, self.settings, self.pipeline = setup.build_pipeline()
             self._open_network()
@@ -115,11 +117,13 @@ class Daemon:
 
     def _close_device(self) -> bool:
         """Zero force and close the device; True when the zero was written. A failing device
-        is logged, never raised."""
+        is logged, never raised. A device that did not open was sent no force, and its open
+        error is the one line said."""
         zeroed = False
         try:
-            self.device.write_force(np.zeros(3))
-            zeroed = True
+            if self._device_opened:
+                self.device.write_force(np.zeros(3))
+                zeroed = True
         except Exception as exc:
             log.warning("could not write zero force: %s", exc)
         try:

@@ -282,3 +282,9 @@ def test_last_force_is_what_was_asked_after_clamping_and_zero_after_close(tmp_pa
         assert device.last_force_n.tolist() == [0.0, 0.0, 0.0]
     finally:
         emu.stop()
+
+
+@pytest.mark.parametrize("spec", ["woodenhaptics:/dev/ttyACM99", "haply:/dev/ttyACM99"])
+def test_the_daemon_without_its_arm_says_one_line(spec):
+    """Nothing before the open error: a device that never opened was sent no force."""
+    one_line_error(run_cli("daemon", "--device", spec, "--seconds", "1"), "no such serial port")
