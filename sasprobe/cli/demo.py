@@ -220,7 +220,10 @@ class DemoSession:
             nice=0 if protected else RENDERER_NICE,
             registry=self.children,
         )
-        self._status(reset=True)  # the measured window is the demo proper, renderer included
+
+    def begin_window(self) -> None:
+        """The measured window, the demo proper, begins: the renderer draws the session."""
+        self._status(reset=True)
         self.steal_from = cpu_steal_ticks()
 
     def end_window(self) -> None:
@@ -260,6 +263,7 @@ class DemoSession:
                 now = time.monotonic()
                 if rendering_since is None and (not headless or self.video.exists()):
                     rendering_since = now  # the first frame is in the video
+                    self.begin_window()
                 if now >= next_status:
                     next_status = now + STATUS_EVERY_S
                     bar.set_postfix_str(self._progress_text(), refresh=False)
