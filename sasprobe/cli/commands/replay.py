@@ -94,14 +94,17 @@ def run(args: argparse.Namespace) -> int:
     if args.html is not None and not args.html.resolve().parent.is_dir():
         raise UserError(f"--html {args.html}: folder {args.html.parent} does not exist")
     if args.recover is not None:
-        result["recovered"] = recover(args.file, args.recover).as_dict()
-    summary = summarize(args.file)
+        with _step(f"recover {args.file.name}"):
+            result["recovered"] = recover(args.file, args.recover).as_dict()
+    with _step(f"read {args.file.name}"):
+        summary = summarize(args.file)
     result["summary"] = summary.as_dict()
     status = 0
     if args.verify:
         from sasprobe.common.progress import progress_bar
         from sasprobe.daemon.recording.verify import verify_recording
 
+        # it counts ticks once the recording is read; until then it shows the wait
         bar = progress_bar(summary.ticks, desc="verify", unit="tick")
         try:
             report = verify_recording(args.file, progress=bar.update)
@@ -114,7 +117,8 @@ def run(args: argparse.Namespace) -> int:
         from sasprobe.protocol.playback import frame_count, pose_time_range
         from sasprobe.render.playback import render_recording
 
-        time_range = pose_time_range(args.file)
+        with _step(f"video: time line of {args.file.name}"):
+            time_range = pose_time_range(args.file)
         bar = progress_bar(
             frame_count(time_range, args.fps) if time_range else 0, desc="video", unit="frame"
         )
@@ -150,12 +154,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"  recovered {result['recovered']['ticks']} ticks into {args.recover}")
     if args.verify:
         r = result["verify"]
-        print(
-            f"  verify   {r['ticks']} ticks recomputed, {r['events_applied']} control changes "
-            f"applied: max |force difference| {r['max_force_diff_n']:.3g} N over "
-            f"{r['ticks_with_force_diff']} ticks, {r['flag_mismatches']} flag mismatches -> "
-            f"{'OK' if r['ok'] else 'DIFFERENT'}"
-        )
+        print(verify_line(r))
         if r["missing_ticks"]:
             print(
                 f"  note     {r['missing_ticks']} ticks were dropped while recording; forces "
@@ -200,3 +199,29 @@ def write_html(path: Path, out: Path, found: dict | None, probe_radius: float | 
     except OSError as exc:
         raise UserError(f"--html {out}: cannot write ({exc.strerror or exc})") from None
     return {"html": str(out), "bytes": len(data), "frames": frames}
+
+
+def _step(desc: str):
+    """A replay step that shows it is working (reading a long recording takes a while)."""
+    from contextlib import closing
+
+    from sasprobe.common.progress import working
+
+    return closing(working(desc))
+
+
+def verify_line(r: dict) -> str:
+    """The verify report in one line: how many ticks differ, and by how much at most."""
+    if r["ticks_with_force_diff"]:
+        forces = (
+            f"max |force difference| {r['max_force_diff_n']:.3g} N on "
+            f"{r['ticks_with_force_diff']} of {r['ticks']} ticks "
+            f"(the first at tick {r['first_diff_seq']})"
+        )
+    else:
+        forces = f"every force as recorded (max |force difference| 0 N on all {r['ticks']} ticks)"
+    return (
+        f"  verify   {r['ticks']} ticks recomputed, {r['events_applied']} control changes "
+        f"applied: {forces}, {r['flag_mismatches']} flag mismatches -> "
+        + ("OK" if r["ok"] else "DIFFERENT")
+    )
