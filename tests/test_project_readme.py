@@ -443,3 +443,34 @@ def test_a_working_link_and_a_web_link_pass():
 )
 def test_a_path_outside_the_repository_is_caught(page, text, caught):
     assert bool(outside_paths(REPO_ROOT / page, text)) == caught
+
+
+# Environment variables the code reads that are not settings of sasprobe: passed on to children.
+NOT_SETTINGS = {"PYTHONPATH": "sasprobe bench hands it on to the emulators' processes"}
+ENV_READ = re.compile(
+    r"""(?:environ\.get|environ\.setdefault|env\.setdefault|getenv|factory_from_environment)"""
+    r"""\(\s*["']([A-Z][A-Z0-9_]+)["']|environ\[\s*["']([A-Z][A-Z0-9_]+)["']\]"""
+    r"""|^[A-Z_]*ENV\s*=\s*["']([A-Z][A-Z0-9_]+)["']""",
+    re.M,
+)
+
+
+def environment_variables_read() -> set[str]:
+    """Every environment variable the installed code reads by name."""
+    folders = ("molecule", "protocol", "devices", "daemon", "render", "sasprobe")
+    found = set()
+    for folder in folders:
+        for path in (REPO_ROOT / folder).rglob("*.py"):
+            for match in ENV_READ.finditer(path.read_text()):
+                found.update(name for name in match.groups() if name)
+    return found
+
+
+def test_every_environment_variable_is_documented():
+    """docs/configuration.md names every variable the code reads (its table, or the test
+    hooks under it)."""
+    read = environment_variables_read()
+    assert {"SASPROBE_PDB_MIRROR", "SASPROBE_HD_LIBRARY", "LP_NUM_THREADS"} <= read, read
+    page = (REPO_ROOT / "docs" / "configuration.md").read_text()
+    documented = set(re.findall(r"`([A-Z][A-Z0-9_]+)(?:=[^`]*)?`", page))
+    assert sorted(read - documented - set(NOT_SETTINGS)) == []
