@@ -12,15 +12,15 @@ Every problem a user can cause (missing, empty, garbage, truncated file, nothing
 after filtering) raises StructureError with one line naming the file. What is read is
 bounded before it can hurt: only regular files are opened (a FIFO, device or folder is
 refused before any read), gzip is inflated to at most `inflate_limit()` bytes (a
-gzip bomb stops there), and every coordinate must be finite and within
-±MAX_COORDINATE_A Å (the uniform grid indexes cells from them).
+gzip bomb stops there), a PDB file's coordinates must be numbers (molecule/pdb_text.py),
+and every coordinate must be finite and within ±MAX_COORDINATE_A Å (the uniform grid
+indexes cells from them).
 """
 
 from __future__ import annotations
 
 import hashlib
 import logging
-import re
 import zlib
 from importlib import resources
 from pathlib import Path
@@ -29,6 +29,7 @@ import gemmi
 import numpy as np
 from sasprobe.molecule.backbone import trace_segments
 from sasprobe.molecule.elements import FALLBACK_RADIUS, colors_for, has_bondi_radius, radii_for
+from sasprobe.molecule.pdb_text import bad_coordinate, truncation
 from sasprobe.molecule.structure import (
     DEFAULT_STRUCTURE,
     MAX_COORDINATE_A,
@@ -97,8 +98,9 @@ def parse_structure(data: bytes, name: str, source: str, keep_water: bool = Fals
     if b"\x00" in text[:65536]:
         raise StructureError(f"{source}: not a PDB or mmCIF text file (binary content)")
     is_cif = _looks_like_cif(text)
-    if not is_cif:
-        _check_pdb_not_truncated(text, source)
+    problem = None if is_cif else truncation(text) or bad_coordinate(text)
+    if problem is not None:
+        raise StructureError(f"{source}: {problem}")
     try:
         fmt = gemmi.CoorFormat.Mmcif if is_cif else gemmi.CoorFormat.Pdb
         st = gemmi.read_structure_string(text, format=fmt)
@@ -302,28 +304,6 @@ def _looks_like_cif(text: bytes) -> bool:
             continue
         return stripped.startswith(b"data_")
     return False
-
-
-_COORD_RECORDS = (b"ATOM  ", b"HETATM")
-
-
-def _check_pdb_not_truncated(text: bytes, source: str) -> None:
-    """Reject a PDB file that was cut short (gemmi would silently read the first part).
-
-    Two signs: the last line is an incomplete coordinate record, or the file starts
-    like a wwPDB entry (HEADER) but lacks the END record every such entry ends with.
-    """
-    tail = text[-4096:].rstrip(b"\r\n \t")
-    last = tail.rsplit(b"\n", 1)[-1].rstrip(b"\r")
-    # Columns 1-66 hold everything up to the B-factor; a shorter final line was cut.
-    if (
-        not text.endswith((b"\n", b"\r"))
-        and last.startswith(_COORD_RECORDS)
-        and len(last.rstrip()) < 66
-    ):
-        raise StructureError(f"{source}: truncated PDB file (last coordinate line is incomplete)")
-    if text.lstrip().startswith(b"HEADER") and not re.search(rb"(^|\n)END\s*$", tail):
-        raise StructureError(f"{source}: truncated PDB file (wwPDB entry without its END record)")
 
 
 def _shorten(text: str, limit: int = 160) -> str:

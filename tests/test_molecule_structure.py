@@ -6,7 +6,8 @@ import gzip
 
 import gemmi
 import numpy as np
-from sasprobe.molecule import load_default, load_structure, parse_structure
+import pytest
+from sasprobe.molecule import StructureError, load_default, load_structure, parse_structure
 from sasprobe.molecule.elements import BONDI_RADII, FALLBACK_RADIUS
 
 # Entries whose files hold one model, no waters and no alternate locations: the
@@ -165,3 +166,22 @@ def test_backbone_splits_at_a_chain_break():
     lines = [_pdb_line(i + 1, "CA", "", "ALA", "A", i + 1, p, 1.0, "C") for i, p in enumerate(xyz)]
     s = parse_structure("".join(lines).encode(), name="t", source="t.pdb")
     assert [len(seg) for seg in s.backbone] == [3, 3]
+
+
+@pytest.mark.parametrize(
+    "axis, field, problem",
+    [
+        (0, "  abc.de", "line 2: the x coordinate 'abc.de' is not a number"),
+        (2, "        ", "line 2: the z coordinate is blank"),
+        (1, " 1.2.3  ", "line 2: the y coordinate '1.2.3' is not a number"),
+    ],
+)
+def test_a_coordinate_that_is_not_a_number_is_refused(axis, field, problem):
+    """gemmi reads such a field as 0.0 Å: the atom would sit at the origin, unsaid."""
+    line = _pdb_line(2, "CA", "", "GLY", "A", 1, (1.5, 2.5, 3.5), 1.0, "C")
+    start = 30 + 8 * axis
+    line = line[:start] + field + line[start + 8 :]
+    text = _pdb_line(1, "N", "", "GLY", "A", 1, (0, 0, 0), 1.0, "N") + line + "END\n"
+    with pytest.raises(StructureError) as caught:
+        parse_structure(text.encode(), name="t", source="t.pdb")
+    assert str(caught.value) == f"t.pdb: {problem}"
