@@ -41,7 +41,14 @@ class Network:
             self.control = ControlServer(self.context, config.ctl, handler, ctl_keys)
         except zmq.ZMQError as exc:
             self.close()
-            raise UserError(f"cannot bind {' / '.join(config.pub + config.ctl)}: {exc}") from None
+            where = " / ".join(config.pub + config.ctl)
+            if exc.errno == zmq.EADDRINUSE:
+                raise UserError(
+                    f"cannot bind {where}: another process holds the address; is a daemon "
+                    f"already running there? (`sasprobe status --ctl {config.ctl[0]}` asks it; "
+                    "--pub and --ctl choose other endpoints)"
+                ) from None
+            raise UserError(f"cannot bind {where}: {exc}") from None
         except BaseException:
             self.close()
             raise

@@ -387,7 +387,7 @@ def test_user_errors_end_in_one_line(tmp_path):
         busy.listen()
         port = busy.getsockname()[1]
         cases = {
-            "cannot bind": (
+            "is a daemon already running there?": (
                 "daemon",
                 "--pub",
                 f"tcp://127.0.0.1:{port}",
