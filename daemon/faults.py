@@ -28,13 +28,11 @@ class FaultLog:
         self._last_ns = -interval_ns
         self._suppressed = 0
 
-    def note(self, reason: str | None, now_ns: int) -> None:
-        self.say(
-            "device fault cleared, force back on"
-            if reason is None
-            else f"device fault: {reason}; force zeroed",
-            now_ns,
-        )
+    def note(self, reason: str, now_ns: int) -> None:
+        self.say(f"device fault: {reason}; force zeroed", now_ns)
+
+    def cleared(self, reason: str, now_ns: int) -> None:
+        self.say(f"device fault cleared ({reason}), force back on", now_ns)
 
     def say(self, line: str, now_ns: int) -> None:
         if now_ns - self._last_ns < self.interval_ns:
@@ -63,8 +61,9 @@ class LoopLog:
         self._window: list[tuple[int, int]] = []  # (tick time, lost) within the last window
         self._stalls = FaultLog()
         self._faults = FaultLog()
-        # the fault in progress was told (a timing fault is not: lost_ticks tells it)
-        self._fault_logged = False
+        # the reason of the fault in progress when it was told (a timing fault is not:
+        # lost_ticks tells it), so that its end names it
+        self._fault_told: str | None = None
 
     def tick(
         self, now_ns: int, missed: int, timing_only: bool, fault_changed: bool, guard, stall
@@ -73,9 +72,14 @@ class LoopLog:
         self.lost_ticks(now_ns, missed + (1 if timing_only else 0))
         if stall is not None:
             self.stall(stall.length_ns, stall.zeroed_after_ns, now_ns)
-        if fault_changed and (self._fault_logged or not timing_only):
-            self._fault_logged = guard.fault
-            self._faults.note(guard.reason if guard.fault else None, now_ns)
+        if not fault_changed:
+            return
+        if guard.fault and not timing_only:
+            self._fault_told = guard.reason
+            self._faults.note(guard.reason, now_ns)
+        elif not guard.fault and self._fault_told is not None:
+            self._faults.cleared(self._fault_told, now_ns)
+            self._fault_told = None
 
     def lost_ticks(self, now_ns: int, count: int) -> None:
         if count <= 0:

@@ -188,3 +188,32 @@ def test_lost_ticks_are_told_once(caplog):
     lines = [r.getMessage() for r in caplog.records]
     assert len(lines) == 1 and "losing ticks" in lines[0] and "real-time" in lines[0]
     assert log.lost == 1667
+
+
+def test_a_cleared_fault_is_named_and_an_untold_one_is_not_cleared(caplog):
+    """The log's fault lines: a fault and its end name the fault, even when the rate limit
+    kept the fault's own line back; a timing fault (told by the lost-ticks line) gets no
+    'cleared' line of its own."""
+
+    class Guard:
+        def __init__(self, fault: bool, reason: str | None = None) -> None:
+            self.fault, self.reason = fault, reason
+
+    ms = 1_000_000
+    log = LoopLog(realtime=False)
+    read = "device read failed: device read took 4.5 ms"
+    steps = [  # (tick time, timing only, guard after the tick)
+        (0, True, Guard(True, "the tick started 3.0 periods late")),
+        (1 * ms, False, Guard(False)),
+        (2000 * ms, False, Guard(True, read)),
+        (2001 * ms, False, Guard(False)),  # within a second of the last line: held back
+        (2002 * ms, False, Guard(True, read)),  # held back too
+        (3500 * ms, False, Guard(False)),
+    ]
+    with caplog.at_level(logging.WARNING, logger="sasprobe"):
+        for now, timing_only, guard in steps:
+            log.tick(now, 0, timing_only, True, guard, None)
+    assert [r.getMessage() for r in caplog.records] == [
+        f"device fault: {read}; force zeroed",
+        f"device fault cleared ({read}), force back on (2 more in the last second)",
+    ]
