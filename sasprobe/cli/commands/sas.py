@@ -1,5 +1,5 @@
-"""`sasprobe sas [FILE]`: solvent accessible surface area of the felt spheres, per atom
-(summed per chain), or per residue as a table or CSV."""
+"""`sasprobe sas [FILE]`: solvent accessible surface area of the felt spheres: the total
+and per chain on the terminal, per atom as CSV or JSON, or per residue."""
 
 from __future__ import annotations
 
@@ -12,7 +12,10 @@ import time
 from sasprobe.cli.argtypes import probe_radius
 from sasprobe.cli.structure_args import MOLECULE_HELP, add_fetch_options, resolve_molecule
 
-HELP = "per-atom (or --per-residue) solvent accessible surface area (Shrake-Rupley)"
+HELP = (
+    "solvent accessible surface area (Shrake-Rupley): total and per chain, per atom (--csv, "
+    "--json) or --per-residue"
+)
 RESIDUE_COLUMNS = ("chain", "number", "icode", "residue", "atoms", "area", "accessible_atoms")
 
 
