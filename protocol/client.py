@@ -76,7 +76,10 @@ class Subscriber:
         self.last_error: str | None = None  # why the last malformed message was dropped
 
     def poll(self, timeout_s: float = 0.0) -> list[Pose]:
-        """Wait up to timeout_s for a message, then drain all queued ones without blocking.
+        """Wait up to timeout_s for a message, then take the queued ones without blocking:
+        at most a queue's worth (rcvhwm), so a caller slower than the publisher (a starved
+        process against a 1 kHz daemon) still gets control back; the rest waits for the
+        next call, and what the queue could not hold shows in `missed`.
 
         Returns the poses received by this call, oldest first; `pose` and `scene` hold
         the newest of each.
@@ -84,14 +87,15 @@ class Subscriber:
         received: list[Pose] = []
         if timeout_s > 0 and not self._socket.poll(int(timeout_s * 1000)):
             return received
-        while True:
+        for _ in range(self._socket.rcvhwm):
             try:
                 frames = self._socket.recv_multipart(zmq.NOBLOCK)
             except zmq.Again:
-                return received
+                break
             pose = self._handle(frames)
             if pose is not None:
                 received.append(pose)
+        return received
 
     def _handle(self, frames: list[bytes]) -> Pose | None:
         try:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
@@ -108,3 +109,31 @@ def test_scene_decoder_rejects_bad_scenes():
             validate_scene(broken)
     with pytest.raises(SceneError):
         decode_scene(b'{"version": NaN}')
+
+
+def test_a_publisher_faster_than_the_caller_does_not_keep_poll(pub_and_sub):
+    """Poses arriving as fast as they are taken: poll returns after a queue's worth, the
+    newest taken (a demo on a starved machine was kept in poll for minutes)."""
+    _, sub = pub_and_sub
+    sub.close()
+
+    class Endless:
+        """A socket whose queue never empties: each pose taken, the next has arrived."""
+
+        rcvhwm = 100
+        seq = 1000
+
+        def recv_multipart(self, flags=0):
+            self.seq += 1
+            return [POSE_TOPIC, encode_pose(Pose(seq=self.seq))]
+
+        def close(self, linger=None):
+            pass
+
+    sub._socket = Endless()
+    outcome = {}
+    caller = threading.Thread(target=lambda: outcome.setdefault("poses", sub.poll()), daemon=True)
+    caller.start()
+    caller.join(timeout=30)
+    assert not caller.is_alive(), "poll() never returned"
+    assert [p.seq for p in outcome["poses"]] == list(range(1001, 1101))
