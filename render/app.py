@@ -165,8 +165,6 @@ def render_main(opts: RenderOptions) -> int:
     from sasprobe.render.gl.context import display_available
 
     window_mode = not opts.headless and display_available()
-    if not opts.headless and not window_mode:
-        log.info("no display found: rendering headless")
     source = open_source(opts)
     try:
         return _run_window(opts, source) if window_mode else _run_headless(opts, source)
@@ -274,7 +272,7 @@ def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
     dropped = source.readout().dropped
     if dropped:
         log.warning("dropped %d malformed message(s) from the daemon", dropped)
-    _report(stats.summary(), writer, opts)
+    _report(stats.summary(), writer, opts, "" if opts.headless else " (no display: drawn headless)")
     _write_run_report(opts, stats.as_dict(), source)
     if stats.interrupted == "SIGINT":
         raise KeyboardInterrupt  # outputs are complete; the CLI still ends with 'interrupted'
@@ -357,7 +355,8 @@ def _write_run_report(opts: RenderOptions, frames: dict, source: RenderSource) -
     opts.report.write_text(json.dumps(report, indent=1))
 
 
-def _report(summary: str, writer, opts: RenderOptions) -> None:
+def _report(summary: str, writer, opts: RenderOptions, how: str = "") -> None:
+    """Where the pictures went, one line each on stdout (`how`: why headless, if not asked)."""
     log.info(summary)
     if writer is not None and writer.written:
         shown = (
@@ -365,6 +364,7 @@ def _report(summary: str, writer, opts: RenderOptions) -> None:
             if len(writer.written) == 1
             else f"{writer.written[0]} .. {writer.written[-1]}"
         )
-        log.info("wrote %s", shown)
-    if opts.gbuffer is not None:
-        log.info("wrote %s", opts.gbuffer)
+        print(f"wrote {shown}{how}")
+    for also in (opts.snapshot, opts.gbuffer):
+        if also is not None:
+            print(f"wrote {also}")

@@ -357,6 +357,8 @@ def test_curve_keys_admit_allowed_clients_and_reject_unknown_ones(tmp_path, gl):
             "2",
             "--size",
             "64x48",
+            "--out",
+            str(tmp_path / "followed.mp4"),
         )
         ok, followed, rejected, plain, refused_render = cli_many(
             ("status", "--ctl", ctl, "--keys", str(keys), "--json"),

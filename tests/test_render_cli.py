@@ -19,8 +19,8 @@ def needs_gl(gl):
     made."""
 
 
-def render(*args, timeout=180):
-    return run_cli("render", "--headless", *args, timeout=timeout)
+def render(*args, timeout=180, **kwargs):
+    return run_cli("render", "--headless", *args, timeout=timeout, **kwargs)
 
 
 def one_line_error(result, *words):
@@ -175,6 +175,23 @@ def test_video_and_numbered_frames(tmp_path):
         "f_0001.png",
         "f_0002.png",
     ]
+
+
+def test_a_render_says_where_its_picture_went(tmp_path):
+    """Without a display and without --out, the picture goes to a default file in the
+    working folder, and one line says so (before, it was drawn and dropped, in silence)."""
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    r = run_cli("render", "--size", SMALL, env=env, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout == "wrote sasprobe-render.png (no display: drawn headless)\n"
+    assert iio.imread(tmp_path / "sasprobe-render.png").shape[:2] == (120, 160)
+    r = render("--size", SMALL, "--frames", "2", env=env, cwd=tmp_path)  # asked to be headless
+    assert r.returncode == 0 and r.stdout == "wrote sasprobe-render.mp4\n", r.stderr
+    out = tmp_path / "asked.png"
+    r = render("--size", SMALL, "--out", str(out), "--snapshot", str(tmp_path / "s.png"))
+    assert r.stdout == f"wrote {out}\nwrote {tmp_path / 's.png'}\n", r.stderr
 
 
 @pytest.mark.parametrize(

@@ -113,6 +113,8 @@ def test_cli_follows_the_daemon_headless(daemon, tmp_path):
         "--probe-plane",
         "--gbuffer",
         str(npz),
+        "--out",
+        str(tmp_path / "follow.png"),
         timeout=180,
     )
     assert r.returncode == 0, r.stderr
@@ -144,6 +146,8 @@ def test_the_probe_plane_is_the_workspace_views_default_and_can_be_turned_off(da
         "--no-probe-plane",
         "--report",
         str(report),
+        "--out",
+        str(tmp_path / "plane.png"),  # PNGs: a video of a live daemon is paced
         timeout=180,
     )
     assert r.returncode == 0, r.stderr

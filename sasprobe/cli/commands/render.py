@@ -19,6 +19,7 @@ from sasprobe.common.errors import UserError
 log = logging.getLogger("sasprobe")
 
 MAX_USER_PLANES = 16
+DEFAULT_OUT = "sasprobe-render"  # headless with no --out: .png for one frame, else .mp4
 
 HELP = "draw a structure (or follow the daemon) in a window or headless"
 
@@ -283,10 +284,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def render_options(args: argparse.Namespace):
     """The RenderOptions of a `sasprobe render` command line."""
     from sasprobe.render.app import RenderOptions
-    from sasprobe.render.gl.context import display_available
     from sasprobe.render.lighting.settings import DEFAULT_PROBE_RANGE
 
-    lighting, required = lighting_from_args(args, headless=args.headless or not display_available())
+    lighting, required = lighting_from_args(args, headless=_headless(args))
     return RenderOptions(
         molecule=resolve_molecule(args, args.molecule),
         connect=args.connect,
@@ -327,6 +327,12 @@ def render_options(args: argparse.Namespace):
     )
 
 
+def _headless(args: argparse.Namespace) -> bool:
+    from sasprobe.render.gl.context import display_available
+
+    return args.headless or not display_available()
+
+
 def run(args: argparse.Namespace) -> int:
     from sasprobe.render.app import render_main
 
@@ -350,9 +356,7 @@ def run(args: argparse.Namespace) -> int:
             "set them with `sasprobe set clip=A,B,C,D`"
         )
     if args.gbuffer_dir is not None:
-        from sasprobe.render.gl.context import display_available
-
-        if not args.headless and display_available():
+        if not _headless(args):
             raise UserError("--gbuffer-dir is for headless rendering")
         try:
             args.gbuffer_dir.mkdir(parents=True, exist_ok=True)
@@ -360,10 +364,15 @@ def run(args: argparse.Namespace) -> int:
             raise UserError(
                 f"--gbuffer-dir {args.gbuffer_dir}: cannot create ({exc.strerror or exc})"
             ) from None
+    if (
+        args.out is None
+        and _headless(args)
+        and not (args.snapshot or args.gbuffer or args.gbuffer_dir)
+    ):
+        single = args.seconds is None and (args.frames or 1) == 1
+        args.out = Path(DEFAULT_OUT + (".png" if single else ".mp4"))  # the picture goes here
     if args.out is not None and args.out.is_dir():
-        from sasprobe.render.gl.context import display_available
-
-        if args.headless or not display_available():
+        if _headless(args):
             raise UserError(
                 f"--out {args.out}: a folder is where the window's Ctrl+S and Ctrl+R write; "
                 "headless, give a .png or .mp4 file"
@@ -375,12 +384,11 @@ def run(args: argparse.Namespace) -> int:
     if args.gbuffer is not None and args.gbuffer.suffix.lower() != ".npz":
         raise UserError(f"--gbuffer {args.gbuffer}: expected a .npz file")
     if args.snapshot is not None:
-        from sasprobe.render.gl.context import display_available
         from sasprobe.render.output import check_out_path
 
         if args.snapshot.suffix.lower() != ".png":
             raise UserError(f"--snapshot {args.snapshot}: expected a .png file")
-        if not args.headless and display_available():
+        if not _headless(args):
             raise UserError(
                 "--snapshot is for headless rendering (in a window, --out FILE.png saves the last "
                 "frame)"
