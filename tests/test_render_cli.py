@@ -226,3 +226,23 @@ def test_too_old_opengl_is_one_line(monkeypatch):
     # Mesa then reports an OpenGL 3.3 context.
     monkeypatch.setenv("MESA_GL_VERSION_OVERRIDE", "3.3")
     one_line_error(render("--size", SMALL), "OpenGL 4.1", "3.3")
+
+
+@pytest.mark.parametrize(
+    "args, samples",
+    [
+        (["--preset", "soft"], 64),  # a still waits for the ray-traced AO to converge
+        (["--connect", "--preset", "soft"], 64),  # one frame of the daemon's session too
+        (["--connect", "--preset", "soft", "--seconds", "3", "--out", "s.mp4"], 0),
+        (["--connect", "--ao", "reference", "--frames", "30", "--out", "s.mp4"], 0),
+        (["--connect", "--preset", "soft", "--seconds", "3", "--samples", "8"], 8),
+    ],
+)
+def test_a_live_video_does_not_wait_for_convergence(args, samples):
+    """A video following a daemon films the session as it goes: with the soft preset, 90
+    frames of 3 s were 2 pictures, each frame waiting for 64 AO samples per pixel."""
+    from sasprobe.cli.lighting_args import lighting_from_args
+    from sasprobe.cli.main import build_parser
+
+    parsed = build_parser({"render"}).parse_args(["render", "--headless", *args])
+    assert lighting_from_args(parsed, headless=True)[0].samples == samples

@@ -182,7 +182,12 @@ def add_lighting_arguments(parser: argparse.ArgumentParser) -> None:
 def lighting_from_args(args, headless: bool):
     """(LightingSettings, explicit): the preset's lighting with the flags' changes; explicit
     when the user asked for a lighting effect (or a preset), so that a driver without
-    OpenGL 4.3 is an error rather than a warning."""
+    OpenGL 4.3 is an error rather than a warning.
+
+    A headless still waits for its progressive effects to converge (HEADLESS_SAMPLES); a
+    video following a live daemon does not (it would film a few pictures, each repeated
+    until the next was done): its frames accumulate while the picture holds, as a
+    window's do."""
     from sasprobe.render.lighting.presets import DEFAULT_PRESET, PRESETS, headless_samples
     from sasprobe.render.lighting.settings import HEADLESS_SAMPLES, PathTracing
 
@@ -231,7 +236,10 @@ def lighting_from_args(args, headless: bool):
             path_tracer=tracer,
         )
         samples = args.samples
-        if samples is None:
+        live_video = args.connect is not None and (args.seconds or (args.frames or 1) > 1)
+        if samples is None and live_video:
+            samples = 0
+        elif samples is None:
             samples = 0
             if headless and args.path_trace:
                 samples = HEADLESS_SAMPLES["path_tracing"]
