@@ -20,7 +20,6 @@ import contextlib
 import functools
 import io
 import re
-import shlex
 import sys
 from pathlib import Path
 
@@ -28,17 +27,20 @@ import pytest
 
 from sasprobe.cli.main import build_parser
 from tests.conftest import REPO_ROOT
+from tests.support.pages import (
+    FENCE,
+    PLACEHOLDER,
+    SPAN,
+    command_pages,
+    pages,
+    readme_commands,
+)
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10 (tomli is a dependency there)
     import tomli as tomllib
 
-FENCE = re.compile(r"^```[^\n]*\n(.*?)^```", re.M | re.S)
-SPAN = re.compile(r"`([^`]+)`")  # inline code, paired left to right
-OPERATOR = re.compile(r"\s(?:&&|\|\||[&|;])(?:\s|$)|\s&$")
-REDIRECTION = re.compile(r"\d*[<>]")  # `> out.csv`, `2>&1`: the shell's, not the command's
-PLACEHOLDER = re.compile(r"[A-Z][A-Z0-9_]*(\.[a-z0-9]+)?|WxH|[A-Z](,[A-Z])+")
 SAMPLES = ("1", "64x48", "0,0,1", "0,0,1,1", "sim", "tcp://127.0.0.1:5555", "out.mp4")
 LINK = re.compile(r"!?\[(?:[^\]\[]|\[[^\]]*\])*\]\(([^)\s]+)\)")  # [text](target), ![alt](target)
 UPWARD = re.compile(
@@ -48,69 +50,6 @@ MACHINE_PATH = re.compile(r"(?<![\w.~])/work/")
 OPTION = re.compile(r"(?<![\w-])--[a-z][a-z0-9-]*")
 # Pages a command writes rather than a person: a link to one may precede its first run.
 GENERATED = {"docs/benchmarks.md": "sasprobe bench --page docs/benchmarks.md"}
-
-
-def pages() -> list[Path]:
-    """The Markdown pages a reader meets: the README, CONTRIBUTING, CHANGELOG, docs/ and the
-    subsystems' own READMEs."""
-    found = [REPO_ROOT / name for name in ("README.md", "CONTRIBUTING.md", "CHANGELOG.md")]
-    found += sorted((REPO_ROOT / "docs").glob("*.md"))
-    found += sorted(REPO_ROOT.glob("[!.]*/README.md")) + sorted(
-        (REPO_ROOT / "tests" / "data").rglob("README.md")
-    )
-    return [p for p in dict.fromkeys(found) if p.is_file()]
-
-
-def command_pages() -> list[Path]:
-    """Pages whose command lines must parse today (the changelog's describe past versions)."""
-    return [p for p in pages() if p.name != "CHANGELOG.md"]
-
-
-def sasprobe_args(words: list[str]) -> list[str] | None:
-    """The arguments after `sasprobe` (also `.venv/bin/sasprobe`, `python -m sasprobe`), or None."""
-    for i, word in enumerate(words):
-        if word == "sasprobe" or word.endswith("/sasprobe"):
-            if i == 0 or words[i - 1] == "-m":
-                args = words[i + 1 :]
-                cut = next((k for k, w in enumerate(args) if REDIRECTION.match(w)), len(args))
-                return args[:cut]
-    return None
-
-
-def commands_in(line: str) -> list[list[str]]:
-    """The sasprobe invocations of one shell line."""
-    found = []
-    for part in OPERATOR.split(line):
-        args = sasprobe_args(shlex.split(part, comments=True))
-        if args is not None:
-            found.append(args)
-    return found
-
-
-def readme_commands(text: str) -> list[tuple[str, list[str]]]:
-    """(where, arguments) of every sasprobe command line in a page's text."""
-    found = []
-    for block in FENCE.findall(text):
-        for line in block.replace("\\\n", " ").splitlines():
-            found += [(f"code: {line.strip()}", args) for args in commands_in(line)]
-    for span in SPAN.findall(FENCE.sub("", text)):
-        if "sasprobe " not in span or "\n\n" in span:
-            continue
-        span = " ".join(span.split())  # a span may wrap over two lines
-        found += [(f"`{span}`", synopsis(args)) for args in commands_in(span)]
-    return found
-
-
-def synopsis(args: list[str]) -> list[str]:
-    """A synopsis as plain words: no brackets, first alternatives (`...` stays a placeholder)."""
-    words = []
-    for word in args:
-        word = word.replace("[", "").replace("]", "")
-        if "|" in word.strip("|"):
-            word = word.split("|")[0]
-        if word:
-            words.append(word)
-    return words
 
 
 def subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
