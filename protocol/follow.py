@@ -64,6 +64,7 @@ class DaemonFollow:
         self._last_data = -np.inf
         self._ever_connected = False
         self._seen = 0
+        self._data_in_last_poll = False
         self._recent: deque[tuple[int, int]] = deque(maxlen=RATE_WINDOW_POSES)  # (device_t_ns, seq)
 
     # ------------------------------------------------------------ structure
@@ -117,7 +118,8 @@ class DaemonFollow:
         poses = self.subscriber.poll(timeout_s)
         seen = self.subscriber.poses_received + self.subscriber.scenes_received
         now = time.monotonic()
-        if seen != self._seen:
+        self._data_in_last_poll = seen != self._seen
+        if self._data_in_last_poll:
             self._seen, self._last_data = seen, now
             self._ever_connected = True
         recent = self._recent
@@ -134,6 +136,12 @@ class DaemonFollow:
             )
             self._thread.start()
         return poses
+
+    def after_own_work(self) -> None:
+        """The caller has worked on what the last poll brought (a renderer short of CPU may
+        spend seconds on the clearance): that time is its own, not the daemon's silence."""
+        if self._data_in_last_poll:
+            self._last_data = time.monotonic()
 
     @property
     def connected(self) -> bool:

@@ -20,6 +20,7 @@ from sasprobe.common.errors import UserError
 
 log = logging.getLogger("sasprobe")
 
+OVERVIEW_TILT_DEG = -60.0  # --overview-first: the cube on the molecule, not in front of it
 DAEMON_GONE_S = 3.0  # a headless --connect run ends when the daemon has been silent this long
 
 
@@ -47,6 +48,9 @@ class RenderOptions:
     light: list[float] | None = None
     backbone: bool = False
     fxaa: bool = True
+    readout: bool = True  # following a daemon headless: its readout over every picture
+    # Following a daemon headless in the workspace view: the overview for the first seconds
+    overview_first_s: float | None = None
     keep_water: bool = False
     lighting: LightingSettings | None = None  # None: no lighting passes
     lighting_required: bool = False  # asked for explicitly: no OpenGL 4.3 is an error
@@ -205,7 +209,7 @@ def _writer(opts: RenderOptions, frames: int | None):
 def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
     from sasprobe.render.gl.context import create_headless_context
     from sasprobe.render.headless import run_headless
-    from sasprobe.render.workspace_view import WorkspaceView
+    from sasprobe.render.workspace_view import WorkspaceView, overview_camera, tilted_axes
 
     from sasprobe.common.progress import progress_bar
 
@@ -223,16 +227,42 @@ def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
     frames = opts.frames if (opts.frames is not None or opts.seconds is not None) else 1
     writer = _writer(opts, frames)
     bar = progress_bar(frames, "render", unit="frame") if frames and frames > 1 else None
+    annotate = None
+    if opts.readout and source.follows_daemon:  # where the probe is, as the window says it
+        from sasprobe.render.readout_text import draw_text, readout_lines
+
+        source.show_live_clearance()
+
+        def annotate(image):  # the daemon is there (wait_ready): no 'waiting for' status
+            return draw_text(image, readout_lines(replace(source.readout(), status="")))
 
     aspect = opts.size[0] / opts.size[1]
+    overview_until = None  # the first frame's time plus --overview-first, once it is known
+    overview_s = opts.overview_first_s if view.workspace and source.follows_daemon else None
+    workspace_plane = scene.effects.probe_plane
 
     def update() -> None:
+        nonlocal overview_until
         source.poll()
         if source.lost_for_s() > DAEMON_GONE_S:
             raise UserError(
                 f"the daemon stopped sending (nothing for {DAEMON_GONE_S:g} s): ending the render"
             )
         source.apply(scene)
+        if overview_s is not None:
+            overview_until = overview_until or time.monotonic() + overview_s
+            overview = time.monotonic() < overview_until
+            scene.effects.probe_plane = workspace_plane and not overview
+            if overview:  # the whole molecule, seen from above the cube
+                axes = tilted_axes(view.axes(source.view_axes()), OVERVIEW_TILT_DEG)
+                shown = overview_camera(scene, aspect, axes)
+                camera.eye, camera.target, camera.up, camera.fov_y = (
+                    shown.eye,
+                    shown.target,
+                    shown.up,
+                    shown.fov_y,
+                )
+                return
         follow = view.camera(scene, aspect, source.view_axes())
         if follow is not None:
             camera.eye, camera.target, camera.up, camera.fov_y = (
@@ -257,11 +287,15 @@ def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
             progress=bar,
             pace_fps=pace,
             gbuffer_dir=opts.gbuffer_dir,
+            annotate=annotate,
         )
         if opts.snapshot is not None:
             from sasprobe.render.output import FrameWriter
 
-            FrameWriter(opts.snapshot, 1, opts.fps).write(renderer.read_image())
+            image = renderer.read_image()
+            FrameWriter(opts.snapshot, 1, opts.fps).write(
+                image if annotate is None else annotate(image)
+            )
     finally:
         if bar is not None:
             bar.close()

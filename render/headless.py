@@ -12,6 +12,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 from sasprobe.render.camera import Camera
 from sasprobe.render.gbuffer_export import gbuffer_arrays, save_gbuffer
 
@@ -85,6 +86,7 @@ def run_headless(
     progress=None,
     pace_fps: float | None = None,
     gbuffer_dir: Path | None = None,
+    annotate: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> RunStats:
     """Render until `frames` are done or `seconds` have passed (at least one frame).
 
@@ -94,6 +96,7 @@ def run_headless(
     due k/pace_fps after the first frame is ready (its set-up is not filmed as a still), a
     frame is rendered when its slot is due, and one that took longer is written once per slot
     it covered, so the video has exactly round(seconds * pace_fps) (or `frames`) frames.
+    `annotate` draws over each written picture (the readout of a daemon's live state).
     `gbuffer_dir` gets every frame's G-buffer as gbuffer_0000.npz, ... (uncompressed: quick
     to write).
     """
@@ -121,6 +124,8 @@ def run_headless(
                 )
             stats.frames += 1
             image = renderer.read_image() if writer is not None else None
+            if image is not None and annotate is not None:
+                image = annotate(image)
             if slots is not None:
                 if stats.frames == 1:
                     video_start = time.perf_counter()  # a large structure's set-up is not filmed

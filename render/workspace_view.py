@@ -79,6 +79,15 @@ def overview_camera(scene, aspect: float, axes: np.ndarray, fov_y: float = DEFAU
     )
 
 
+def tilted_axes(axes: np.ndarray, degrees: float) -> np.ndarray:
+    """The axes turned about their x axis so that the view looks `degrees` further down from
+    above: the cube, which the workspace view sees face on with the molecule behind it, is
+    then seen on the molecule (the trace is hidden over the cube's projection)."""
+    a = np.radians(degrees)
+    x, y, z = axes[:, 0], axes[:, 1], axes[:, 2]
+    return np.column_stack([x, np.cos(a) * y - np.sin(a) * z, np.sin(a) * y + np.cos(a) * z])
+
+
 def turned_axes(axes: np.ndarray, p0: tuple[float, float], p1: tuple[float, float]) -> np.ndarray:
     """The cube's axes after an arcball drag from p0 to p1 (NDC): the molecule turns with the
     pointer, so the camera, and with it the device frame, turns the other way."""

@@ -23,6 +23,7 @@ from sasprobe.render.gl.programs import ProgramCache
 from sasprobe.render.gl.targets import KIND_BACKGROUND, KIND_PROBE
 from sasprobe.render.gl.textures import read_image
 from sasprobe.render.lighting.presets import PRESET_NAMES, PRESETS
+from sasprobe.render.readout_text import readout_lines
 from sasprobe.render.scene_state import Effects
 from sasprobe.render.source import Readout
 from sasprobe.render.window.capture import WindowCapture, atom_label
@@ -72,13 +73,6 @@ HELP = [
     "R: reset camera   H: help   Q/Esc: quit",
 ]
 CLICK_PIXELS = 3.0  # a press and release closer than this is a click (a pick), not a drag
-
-
-def clearance_line(ro: Readout) -> str:
-    """Room at the probe (Å): clearance at its centre, passage across its path, narrowest so far."""
-    passage = "open" if ro.passage_A is None else f"{ro.passage_A:.2f} Å"
-    bottleneck = "-" if ro.bottleneck_A is None else f"{ro.bottleneck_A:.2f} Å"
-    return f"clearance {ro.clearance_A:.2f} Å   passage {passage}   bottleneck {bottleneck}"
 
 
 class WindowApp:
@@ -313,30 +307,13 @@ class WindowApp:
             if r.lighting is not None:
                 lines.append(lighting_status(r))
         ro = self.readout
-        if ro.status:
-            lines.append(ro.status)
-        if ro.haptic_hz is not None:
-            lines.append(f"haptic {ro.haptic_hz:6.0f} Hz   {force_text(ro)}")
-            state = [
-                s
-                for s, on in (
-                    ("CLUTCH (Space/button held)", ro.clutched),
-                    ("cube drifting", ro.drifting),
-                )
-                if on
-            ]
-            lines.append(f"touching {ro.touched}" if ro.touched else "not touching")
-            lines += state
+        lines += readout_lines(ro)
         if r is not None and self.source.view_axes() is not None:
             lines.append(
                 "workspace view (Tab: overview)"
                 if self.view.workspace
                 else "overview (Tab: workspace view)"
             )
-        if ro.clearance_A is not None:
-            lines.append(clearance_line(ro))
-        if ro.note:
-            lines.append(ro.note)
         if ro.dropped:
             lines.append(f"dropped malformed messages: {ro.dropped}")
         if self.capture.message:
@@ -457,17 +434,3 @@ class WindowApp:
         self.label_overlay.release()
         self.waiting.release()
         self.programs.release()
-
-
-def force_text(readout: Readout) -> str:
-    """'force 0.42 N (continuous 0.88 N, peak 3.30 N)', or what of it is known."""
-    if readout.force_n is None:
-        return "force -"
-    text = f"force {readout.force_n:.2f} N"
-    if readout.continuous_force_n is not None and readout.peak_force_n is not None:
-        over = "  ABOVE CONTINUOUS" if readout.force_n > readout.continuous_force_n else ""
-        ratings = (
-            f"continuous {readout.continuous_force_n:.2f} N, peak {readout.peak_force_n:.2f} N"
-        )
-        text += f" ({ratings}){over}"
-    return text

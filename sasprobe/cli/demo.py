@@ -36,6 +36,7 @@ HEADLESS_SIZE = (640, 360)
 WINDOW_SIZE = (1280, 720)
 RENDERER_NICE = 10  # the haptic loop comes first
 DAEMON_READY_S = 90.0  # start-up on a loaded machine: imports, structure, grid
+OVERVIEW_FIRST_S = 1.0  # the headless video opens on the whole molecule, the cube on it
 RENDER_START_GRACE_S = 90.0  # renderer start-up (imports, GL context, structure) beyond --seconds
 DAEMON_STOP_S = 10.0
 RENDER_STOP_S = 20.0  # it finishes the video first
@@ -56,6 +57,7 @@ RESERVED_RENDER = (
     "--size",
     "--fps",
     "--keys",
+    "--overview-first",
 )
 RESERVED_DAEMON = (
     "--device",
@@ -201,6 +203,8 @@ class DemoSession:
                 str(self.video),
                 "--snapshot",
                 str(self.snapshot),
+                "--overview-first",
+                f"{OVERVIEW_FIRST_S:g}",
             ]
         elif seconds is not None:
             argv += ["--seconds", f"{seconds:g}"]

@@ -258,6 +258,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--no-fxaa", action="store_true", help="skip the FXAA pass")
     p.add_argument(
+        "--overview-first",
+        type=positive_float,
+        metavar="S",
+        help="with --connect, headless, in the workspace view: the first S seconds show the "
+        "overview (the whole molecule, where the cube sits on it), then the workspace view",
+    )
+    p.add_argument(
+        "--no-readout",
+        action="store_true",
+        help="with --connect, headless: pictures without the readout (haptic rate, force, "
+        "touched atom, clearance) in their top-left corner",
+    )
+    p.add_argument(
         "--no-frame-cache",
         action="store_true",
         help="draw every frame whole (default: keep the molecule layer while only the probe moves)",
@@ -310,6 +323,8 @@ def render_options(args: argparse.Namespace):
         light=args.light,
         backbone=args.backbone,
         fxaa=not args.no_fxaa,
+        readout=not args.no_readout,
+        overview_first_s=args.overview_first,
         frame_cache=not args.no_frame_cache,
         keep_water=args.keep_water,
         lighting=lighting,
