@@ -87,7 +87,20 @@ def test_replay_shows_that_it_reads_the_recording(monkeypatch):
 
     def slow_summarize(path):
         seen.append(stream.wait_for(lambda text: f"read {Path(path).name}: " in text))
-        return Summary(str(path), True, 1, 1, {"device": 1}, 0, 10**9, 1, 0, ["1crn"], {})
+        return Summary(
+            path=str(path),
+            finished=True,
+            bytes_total=1,
+            bytes_readable=1,
+            format=2,
+            counts={"ticks": 1},
+            first_log_ns=0,
+            last_log_ns=10**9,
+            ticks=1,
+            seq_gaps=0,
+            structures=["1crn"],
+            metadata={},
+        )
 
     monkeypatch.setattr("sasprobe.protocol.recording.summarize", slow_summarize)
     args = argparse.Namespace(
@@ -95,6 +108,7 @@ def test_replay_shows_that_it_reads_the_recording(monkeypatch):
         verify=False,
         recover=None,
         video=None,
+        html=None,
         findings=None,
         probe_radius=None,
         json=True,
