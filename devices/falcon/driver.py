@@ -13,9 +13,13 @@ for its 1 ms latency timer, so we allow two, which keeps a command going out eve
 tick. Replies are read by the link's reader thread: `read()` only takes what has
 arrived and `write_force()` only hands a frame over, neither waits on USB. Frames
 unanswered for RESEND_AFTER_S are taken as lost and a fresh one is sent (libnifalcon
-"kicks out another write"); a state older than `reply_timeout_s` is a DeviceFault
-(zero force), and the next reply ends the fault, so a stalled Falcon recovers without
-a reconnect, and a burst of late replies leaves only the newest.
+"kicks out another write"); a frame left unanswered for `reply_timeout_s` is a
+DeviceFault (zero force), and the next reply ends the fault, so a stalled Falcon
+recovers without a reconnect, and a burst of late replies leaves only the newest. The
+Falcon's silence is timed from the first frame sent after its newest reply, never from
+that reply: a host that sent nothing for a while (a busy machine, a late tick) finds
+the Falcon's answers waiting, not a fault blamed on the device (the daemon's loop
+zeroes a late tick itself).
 
 Homing (FalconFirmware.h, FalconCLIBase::calibrateDevice): the homing-mode bit goes in
 every frame, from open to close, since the firmware forgets its homing in a frame
@@ -82,6 +86,7 @@ class FalconDevice(HardwareDriver):
         self._state: DeviceState | None = None
         # send times of unanswered frames
         self._in_flight: collections.deque[int] = collections.deque()
+        self._silent_since_ns: int | None = None  # the first frame sent since the newest reply
         self.firmware_uploads = 0
         self.upload_retries = 0
         self.resent_frames = 0
@@ -153,9 +158,9 @@ class FalconDevice(HardwareDriver):
         if self._usb.is_open and self._link.error is None:
             # USB is fine but the firmware went quiet: never reload a running Falcon, kick it
             self._send_frame()
-            age_ms = (time.monotonic_ns() - self._last_reply_ns()) / 1e6
             raise DeviceFault(
-                f"device still unavailable: the Falcon has not answered for {age_ms:.0f} ms "
+                f"device still unavailable: the Falcon has not answered for "
+                f"{self._silence_ns() / 1e6:.0f} ms "
                 "although its USB link is up (unplug it and plug it back in if this lasts)"
             )
         super().reconnect()
@@ -165,9 +170,9 @@ class FalconDevice(HardwareDriver):
             if self._link.error is not None:
                 raise DeviceFault(f"the Falcon's USB link failed: {self._link.error}")
             self._poll()
-            age_ns = time.monotonic_ns() - self._last_reply_ns()
-            if self._state is None or age_ns > self.reply_timeout_ns:
-                raise DeviceFault(f"the Falcon has not answered for {age_ns / 1e6:.0f} ms")
+            silence_ns = self._silence_ns()
+            if self._state is None or silence_ns > self.reply_timeout_ns:
+                raise DeviceFault(f"the Falcon has not answered for {silence_ns / 1e6:.0f} ms")
         except DeviceFault:
             self.force = np.zeros(3)  # what any frame carries until it answers again
             raise
@@ -193,10 +198,16 @@ class FalconDevice(HardwareDriver):
         self.motor = self.motor_command(self.force)
         leds = P.LED_GREEN if self.calibrated else P.LED_RED
         self._link.send(P.encode_command(self.motor, leds, homing=True))
-        self._in_flight.append(time.monotonic_ns())
+        now = time.monotonic_ns()
+        self._in_flight.append(now)
+        if self._silent_since_ns is None:
+            self._silent_since_ns = now
 
-    def _last_reply_ns(self) -> int:
-        return self._state.t_ns if self._state is not None else 0
+    def _silence_ns(self) -> int:
+        """How long the Falcon has owed a reply (0 when it owes none)."""
+        if self._silent_since_ns is None:
+            return 0
+        return time.monotonic_ns() - self._silent_since_ns
 
     def _poll(self) -> bool:
         """Take what the reader thread received; True when a new reply came."""
@@ -211,6 +222,7 @@ class FalconDevice(HardwareDriver):
                 self._in_flight.popleft()
         if newest is None:
             return False
+        self._silent_since_ns = None
         self._homed = newest.homed
         self._position_m = self._locate(K.thigh_angles(newest.encoders))
         try:
@@ -243,6 +255,7 @@ class FalconDevice(HardwareDriver):
         self._frames.clear()
         self._state = None
         self._in_flight.clear()
+        self._silent_since_ns = None
         self.force = np.zeros(3)
         self._link.start()
         for _ in range(FIRMWARE_KICKS):
@@ -304,6 +317,7 @@ class FalconDevice(HardwareDriver):
         self._frames.clear()
         self._state = None
         self._in_flight.clear()
+        self._silent_since_ns = None
 
 
 def create(argument: str | None = None, **options) -> FalconDevice:

@@ -80,6 +80,8 @@ class FalconHardware:
         self.upload_attempts = 0
         self.probes_seen = 0
         self.replies = 0
+        self.host_reads = 0  # IN transfers the host began
+        self.reply_read = 0  # the one that took the last byte of the newest reply
         self.silent_until = 0.0  # a stall: commands wait until then
         self.hung = False  # stopped answering for good
         self._power_on()
@@ -110,9 +112,19 @@ class FalconHardware:
             self._power_on()
             self.plugged = True
 
-    def stall(self, seconds: float) -> None:
-        """The firmware stops answering for a while; commands sent meanwhile wait."""
+    def stall(self, seconds: float = math.inf) -> None:
+        """The firmware stops answering for a while (without `seconds`, until `answer_again()`);
+        commands sent meanwhile wait."""
         self.silent_until = time.monotonic() + seconds
+
+    def answer_again(self) -> None:
+        self.silent_until = 0.0
+
+    def replies_taken(self) -> bool:
+        """Every command is answered and the host has taken every reply, and came back for more
+        since (so whatever reads its transfers holds them)."""
+        with self.lock:
+            return not self.pending and not self.out and self.host_reads > self.reply_read
 
     # -- mechanism --------------------------------------------------------------------
     @property
@@ -245,6 +257,9 @@ class FalconHardware:
     def host_read(self, generation: int, size: int, timeout_ms: int) -> bytes:
         """One IN packet: at once when a full one waits, else when the latency timer runs out."""
         deadline = time.monotonic() + min(max(self.latency_ms, 1), max(timeout_ms, 1)) / 1000.0
+        with self.lock:
+            self.host_reads += 1
+            number = self.host_reads
         while True:
             with self.lock:
                 self.check(generation)
@@ -253,6 +268,8 @@ class FalconHardware:
                     n = min(size - len(MODEM_STATUS), len(self.out))
                     data = bytes(self.out[:n])
                     del self.out[:n]
+                    if data and not self.out:
+                        self.reply_read = number
                     return MODEM_STATUS + data
             time.sleep(min(0.0005, max(deadline - time.monotonic(), 0.0)))
 
