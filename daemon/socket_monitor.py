@@ -24,6 +24,7 @@ import struct
 import time
 
 import zmq
+from sasprobe.protocol.handshake import start_monitor, stop_monitor
 
 log = logging.getLogger("sasprobe")
 
@@ -63,7 +64,8 @@ class SocketMonitor:
         self.label = label
         self.curve = curve
         socket.setsockopt(zmq.HANDSHAKE_IVL, HANDSHAKE_IVL_MS)
-        self._monitor = socket.get_monitor_socket(EVENTS)
+        self._socket = socket
+        self._monitor = start_monitor(socket, EVENTS)
         self._peers: set[int] = set()
         self.failed_handshakes = 0
         self.accept_failures = 0
@@ -122,4 +124,5 @@ class SocketMonitor:
             log.warning("%s", line)
 
     def close(self) -> None:
-        self._monitor.close(linger=0)
+        """Before the socket closes (protocol/handshake.py `stop_monitor`)."""
+        stop_monitor(self._socket, self._monitor)

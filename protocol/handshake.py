@@ -7,9 +7,13 @@ when the client gives up waiting, says which of these it was (libzmq's events: a
 refused key is HANDSHAKE_FAILED_AUTH, a missing or unexpected key a mechanism mismatch,
 a wrong server key a handshake that fails without detail, a missing daemon only
 connection retries, a daemon that went away a disconnection after the handshake).
+`start_monitor` and `stop_monitor` start and end any socket's monitor (the daemon's too) in
+the ways libzmq allows.
 """
 
 from __future__ import annotations
+
+import itertools
 
 import zmq
 from zmq.utils.monitor import recv_monitor_message
@@ -24,6 +28,32 @@ _EVENTS = (
     | zmq.EVENT_HANDSHAKE_FAILED_AUTH
 )
 _MECHANISM_MISMATCH = 0x11000002  # ZMQ_PROTOCOL_ERROR_ZMTP_MECHANISM_MISMATCH
+_MONITOR_IDS = itertools.count(1)
+
+
+def start_monitor(socket: zmq.Socket, events: int) -> zmq.Socket:
+    """A PAIR socket receiving `socket`'s `events`; close both with `stop_monitor`.
+
+    Its address is this process's own next one: pyzmq's default names the monitor after the
+    socket's descriptor, which a new socket reuses as soon as the old one closes, while
+    libzmq may still hold the old monitor's address (for good, when the socket closed with
+    its monitor running): the new socket's monitor then failed with EADDRINUSE.
+    """
+    return socket.get_monitor_socket(events, addr=f"inproc://sasprobe.monitor.{next(_MONITOR_IDS)}")
+
+
+def stop_monitor(socket: zmq.Socket, monitor: zmq.Socket) -> None:
+    """Stop `socket`'s monitor, then close its reader `monitor`; call it before closing
+    `socket`. The order is libzmq's (4.3.5): a socket closed while its monitor runs is kept,
+    with its monitor and their pipe, for good (three sockets and descriptors of the context
+    each time, until the context can make none), and stopping a monitor whose reader is
+    closed already can block."""
+    if not monitor.closed:
+        try:
+            socket.disable_monitor()
+        except zmq.ZMQError:  # the socket is closed already
+            pass
+    monitor.close(linger=0)
 
 
 class ConnectionWatch:
@@ -34,7 +64,7 @@ class ConnectionWatch:
         self.with_keys = with_keys
         self.local_keys = local_keys  # the keys are this user's local ones (no --keys was given)
         self._socket = socket
-        self._monitor = socket.get_monitor_socket(_EVENTS)
+        self._monitor = start_monitor(socket, _EVENTS)
         self._seen: dict[int, int] = {}  # event -> its last value
         self._link: int | None = None  # the newest of CONNECTED, HANDSHAKE_SUCCEEDED, DISCONNECTED
 
@@ -89,8 +119,10 @@ class ConnectionWatch:
         return f"nothing is listening at {where} (is the daemon running?)"
 
     def close(self) -> None:
-        try:
-            self._socket.disable_monitor()
-        except zmq.ZMQError:
-            pass
-        self._monitor.close(linger=0)
+        stop_monitor(self._socket, self._monitor)
+
+    def __del__(self) -> None:
+        # A client dropped without close(): stop the monitor while its socket is still open.
+        monitor = getattr(self, "_monitor", None)  # (None when __init__ failed)
+        if monitor is not None and not monitor.closed:
+            self.close()

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import errno
 import threading
 import time
 
 import numpy as np
 import pytest
 import zmq
-from sasprobe.protocol.client import Subscriber
+from sasprobe.protocol.client import ControlClient, Subscriber
 from sasprobe.protocol.pose import POSE_TOPIC, Pose, encode_pose
 from sasprobe.protocol.scene import (
     SCENE_TOPIC,
@@ -137,3 +138,31 @@ def test_a_publisher_faster_than_the_caller_does_not_keep_poll(pub_and_sub):
     caller.join(timeout=30)
     assert not caller.is_alive(), "poll() never returned"
     assert [p.seq for p in outcome["poses"]] == list(range(1001, 1101))
+
+
+def test_clients_dropped_without_close_leave_their_context_whole(tmp_path):
+    """A client stops its connection monitor before its socket closes, even when it is dropped
+    without close(): libzmq keeps a socket closed with its monitor running, and the monitor,
+    for good, and pyzmq names a monitor after its socket's descriptor, which a new socket may
+    reuse. Dropped clients then used up the context, or a new client could not start its
+    monitor: ControlClient failed before its request went out."""
+    context = zmq.Context()
+    context.set(zmq.MAX_SOCKETS, 64)  # the sockets of about 20 clients
+    endpoint = f"ipc://{tmp_path}/nobody"
+
+    def opened(make):
+        """make() once the context has room: libzmq's reaper thread frees a closed socket's
+        place (later, on a busy machine); a socket kept for good never frees it."""
+        deadline = time.monotonic() + 10
+        while True:
+            try:
+                return make()
+            except zmq.ZMQError as exc:
+                if exc.errno != errno.EMFILE or time.monotonic() > deadline:
+                    raise
+                time.sleep(0.01)
+
+    for _ in range(100):
+        opened(lambda: Subscriber(endpoint, context=context))  # dropped at once
+        opened(lambda: ControlClient(endpoint, context=context)._open())
+    context.term()  # (after a failure above it would wait for the kept sockets forever)
