@@ -21,6 +21,7 @@ from tests.conftest import in_ci, run_cli, skip_or_fail
 from tests.support.reference_data import small_reference_data
 
 SMOKE_TIMEOUT_S = 900  # about a minute on an idle 2-core machine; several on a shared one
+pytestmark = pytest.mark.timeout(SMOKE_TIMEOUT_S + 300)  # the first test waits for the whole run
 GPU_PART_BEFORE = "## GPU check\n\nfigures of another machine's run"
 
 

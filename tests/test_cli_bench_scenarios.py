@@ -14,7 +14,8 @@ from sasprobe.cli.bench import gpu_quick, render_pymol
 from tests.conftest import run_cli
 from tests.support.reference_data import small_reference_data
 
-pytestmark = pytest.mark.needs_gl(430)
+# each test runs a benchmark whole: minutes on a busy machine
+pytestmark = [pytest.mark.needs_gl(430), pytest.mark.timeout(600)]
 
 
 def test_render_scenarios_print_every_case_with_its_ratios(reference_entries, tmp_path):

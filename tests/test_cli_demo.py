@@ -27,6 +27,8 @@ from tests.conftest import REPO_ROOT, run_cli
 from tests.support.recordings import reference_ticks
 from tests.support.render import edge_mask, reference_cast
 
+pytestmark = pytest.mark.timeout(600)  # a daemon and a renderer each start in minutes when busy
+
 SECONDS = 3
 FPS = 10  # the demo's default headless frame rate
 SIZE = (640, 360)  # and size

@@ -26,6 +26,8 @@ from sasprobe.protocol.pose import FLAG_CLUTCHED, FLAG_FAULT
 from tests.conftest import REPO_ROOT, run_cli, run_window_check
 from tests.support.daemon_process import DaemonProcess, free_tcp_endpoint
 
+pytestmark = pytest.mark.timeout(600)  # a demo on 6ZU5 per module, a daemon and a renderer each
+
 SECONDS = 5
 SIZE = (640, 360)
 FAST = "--ao off --shadows off"
