@@ -236,7 +236,7 @@ def xvfb(gl):
     number = data.decode().strip()
     if not number:
         proc.kill()
-        proc.wait()
+        proc.wait(timeout=10)
         skip_or_fail("no X server for the window tests: Xvfb did not start within 30 s")
     yield f":{number}"
     proc.terminate()

@@ -340,7 +340,7 @@ def test_sigint_stops_every_process_and_leaves_the_arm_at_zero_force(tmp_path, g
             if len(tree) >= 3 and video.exists() and video.stat().st_size > 0:
                 break
             time.sleep(0.2)
-        assert proc.poll() is None, proc.communicate()[1]
+        assert proc.poll() is None, proc.communicate(timeout=30)[1]
         time.sleep(1.0)
         tree.update(_descendants(proc.pid))
         assert len(tree) >= 3, f"expected daemon, renderer and encoder below the demo, found {tree}"
@@ -349,7 +349,7 @@ def test_sigint_stops_every_process_and_leaves_the_arm_at_zero_force(tmp_path, g
     finally:
         if proc.poll() is None:
             proc.kill()
-            proc.communicate()
+            proc.communicate(timeout=30)
     assert proc.returncode == 130, stderr
     assert "interrupted" in stderr
     left = [pid for pid, start in tree.items() if _running(pid, start)]

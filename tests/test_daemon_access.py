@@ -148,7 +148,9 @@ def test_running_out_of_file_descriptors_is_said_and_survived(tmp_path):
         port = s.getsockname()[1]
     ctl = f"tcp://127.0.0.1:{port}"
     with DaemonProcess("--no-realtime", ctl=ctl) as daemon:
-        subprocess.run(["prlimit", f"--pid={daemon.proc.pid}", "--nofile=64:64"], check=True)
+        subprocess.run(
+            ["prlimit", f"--pid={daemon.proc.pid}", "--nofile=64:64"], check=True, timeout=30
+        )
         holders = []
         for _ in range(100):
             c = socket.socket()

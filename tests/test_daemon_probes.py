@@ -24,6 +24,7 @@ import zmq
 from sasprobe.protocol.client import ControlClient
 from sasprobe.protocol.control import MAX_MESSAGE_BYTES, decode_reply, encode_request
 
+from tests.support.bounded import join
 from tests.support.daemon_process import DaemonProcess
 from tests.support.probe import PoseWatch, now_ns, unexplained_ms
 from tests.support.schema_check import check_raw_reply
@@ -253,7 +254,7 @@ def test_the_pose_watcher_checks_every_pose(tmp_path):
         watch = PoseWatch(endpoint)
     finally:
         stop.set()
-        sender.join()
+        join(sender)
         pub.close()
     with pytest.raises(AssertionError, match="broke the protocol"):
         watch.finish()

@@ -24,6 +24,7 @@ from sasprobe.protocol.recording import iter_items
 from sasprobe.protocol.scene import SCENE_VERSION
 
 from tests.conftest import run_cli
+from tests.support.bounded import join
 from tests.support.daemon_process import DaemonProcess, cli_many, collect_raw, free_port
 from tests.support.schema_check import check_pose_payload, check_raw_reply
 
@@ -130,7 +131,7 @@ def test_malformed_control_traffic_gets_errors_while_poses_keep_flowing(daemon):
         time.sleep(0.3)
     finally:
         stop.set()
-        thread.join()
+        join(thread)
     coverage, poses = _coverage(result["p"])
     assert coverage >= 0.95, f"only {coverage:.1%} of the poses arrived during the bad traffic"
     gaps = np.diff([p["publish_t_ns"] for p in poses]) / 1e9
@@ -269,7 +270,7 @@ def test_recording_started_mid_session_replays_exactly(daemon):
             started = client.record_start("mid.mcap")  # below its --record-dir
         finally:
             stop_clutch.set()
-            clutch.join()
+            join(clutch)
         client.call("clutch", held=False)
         with pytest.raises(ControlError, match="already recording"):
             client.record_start("second.mcap")

@@ -24,6 +24,8 @@ from sasprobe.protocol.ticks import TickBlock
 
 from tests.support.recordings import read_session, reference_ticks
 
+from tests.support.bounded import join
+
 # Flag sets a daemon writes (tests/support/schema_check.py checks each pose's flags against
 # its fields).
 _FLAGS = (
@@ -224,7 +226,7 @@ def test_recorder_refuses_to_overwrite(tmp_path):
 def test_a_full_queue_drops_and_counts(tmp_path):
     rec = Recorder(tmp_path / "q.mcap", queue_limit=10, flush_interval_s=10)
     rec._stop.set()  # writer thread exits: nothing drains the queue
-    rec._thread.join()
+    join(rec._thread)
     for seq in range(25):
         rec.offer_tick(seq, seq, None, "x", 0.0, 0, Pose(seq=seq))
     assert rec.dropped == 15

@@ -20,6 +20,7 @@ from sasprobe.protocol.pose import FLAG_FAULT
 
 from tests.conftest import REPO_ROOT, skip_or_fail
 from tests.emulators import falcon_usb, haply_serial, libhd, spacemouse_hid, woodenhaptics_serial
+from tests.support.bounded import join
 from tests.support.daemon_process import DaemonProcess
 from tests.support.press import (
     EMULATED_ARM_RATE,
@@ -280,5 +281,5 @@ def test_daemon_on_openhaptics_through_the_stand_in_library(tmp_path, monkeypatc
         assert emu.applied_force == (0.0, 0.0, 0.0)
     finally:
         swinging.set()
-        hand.join()
+        join(hand)
         emu.close()

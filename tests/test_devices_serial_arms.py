@@ -20,6 +20,7 @@ from sasprobe.devices.base import DeviceFault, DeviceOpenError
 from sasprobe.devices.registry import open_device
 
 from tests.emulators import haply_serial, woodenhaptics_serial
+from tests.support.bounded import join
 from tests.support.serial_arm_session import Session, cosine
 
 
@@ -342,7 +343,7 @@ def test_the_watchdogs_zero_leaves_a_read_in_progress_alone(rig, monkeypatch):
             board.stall(0.5)  # answered; nothing more comes for a while
             watchdog = threading.Thread(target=_zero_or_busy, args=(dev,))
             watchdog.start()
-            watchdog.join()  # the watchdog runs while this thread is away
+            join(watchdog)  # the watchdog runs while this thread is away
         return ready
 
     monkeypatch.setattr(transports.select, "select", descheduled_after_the_answer)

@@ -27,7 +27,7 @@ def client_binary(tmp_path_factory):
     the checkout). The Makefile asks for -Wall -Wextra but not -Werror: a compiler newer than
     the code may warn, and the build must still succeed (its warnings are reported, not failed)."""
     tools = [shutil.which(t) for t in ("cc", "make", "pkg-config")]
-    flags = subprocess.run(["pkg-config", "--exists", "libzmq"]) if all(tools) else None
+    flags = subprocess.run(["pkg-config", "--exists", "libzmq"], timeout=60) if all(tools) else None
     if flags is None or flags.returncode != 0:
         skip_or_fail(
             "no C toolchain with libzmq for examples/c (Debian: gcc, make, pkg-config, libzmq3-dev)"
@@ -35,7 +35,7 @@ def client_binary(tmp_path_factory):
     folder = tmp_path_factory.mktemp("c")
     for name in ("Makefile", SOURCE.name):
         shutil.copy(SOURCE.parent / name, folder / name)
-    build = subprocess.run(["make", "-C", str(folder)], capture_output=True, text=True)
+    build = subprocess.run(["make", "-C", str(folder)], capture_output=True, text=True, timeout=300)
     assert build.returncode == 0, build.stdout + build.stderr
     if "warning:" in build.stderr:
         warnings.warn(f"examples/c builds with warnings:\n{build.stderr}", stacklevel=1)

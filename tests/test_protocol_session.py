@@ -26,6 +26,7 @@ from sasprobe.protocol.recording import iter_items
 from sasprobe.protocol.schemas import channel_schemas, pose_layout, ticks_schema
 
 from tests.references.ticks import reference_decode_ticks
+from tests.support.bounded import join
 from tests.support.daemon_process import DaemonProcess
 from tests.support.schema_check import check_pose_payload, check_raw_reply
 
@@ -120,7 +121,7 @@ def session(tmp_path_factory):
                 r["status"] = client.status()
         finally:
             stop.set()
-            follower.join()
+            join(follower)
         out["rc"], out["report"] = d.stop()
         out["left_behind"] = d.left_behind
         out["stderr"] = d.stderr
@@ -349,7 +350,7 @@ def test_an_idle_subscriber_loses_poses_and_never_slows_the_daemon():
         try:
             assert sock.poll(30_000), "no message"
             while (frames := sock.recv_multipart())[0] != b"pose":
-                pass
+                assert sock.poll(30_000), "no pose"
             first = check_pose_payload(frames[1])["seq"]
             with ControlClient(d.ctl) as client:
                 deadline = time.monotonic() + 120

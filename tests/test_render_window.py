@@ -14,6 +14,7 @@ import imageio.v3 as iio
 import numpy as np
 
 from tests.conftest import REPO_ROOT, run_window_check
+from tests.support.bounded import lines_until
 from tests.support.window import x_screenshot
 
 WINDOW = (320, 240)
@@ -39,13 +40,7 @@ def _start_window(display: str, *args: str) -> subprocess.Popen:
         stderr=subprocess.PIPE,
         text=True,
     )
-    deadline = time.monotonic() + 90
-    lines: list[str] = []
-    while not any("window open" in seen for seen in lines) and time.monotonic() < deadline:
-        line = proc.stderr.readline()
-        if not line and proc.poll() is not None:
-            break
-        lines.append(line)
+    lines = lines_until(proc.stderr, lambda line: "window open" in line, 90.0)
     assert any("window open" in seen for seen in lines), (
         f"no window (exit {proc.poll()}): {''.join(lines)}"
     )

@@ -164,6 +164,7 @@ class EmulatedUsbBackend(usb.backend.IBackend):
 # -- a Falcon for a driver in another process ---------------------------------------------
 
 AUTHKEY = b"falcon-emulator"
+CALL_TIMEOUT_S = 10.0  # longest a call from the driver's process waits for the emulator
 REMOTE_CALLS = {"check", "control", "host_write", "host_read", "plugged", "generation"}
 
 
@@ -193,6 +194,10 @@ class RemoteHardware:
         if conn is None:
             conn = self._local.conn = Client(self.address, family="AF_UNIX", authkey=AUTHKEY)
         conn.send((name, args))
+        if not conn.poll(CALL_TIMEOUT_S):  # the test process went away: fail as a USB timeout
+            conn.close()
+            self._local.conn = None
+            raise usb.core.USBError("Operation timed out", errno=errno.ETIMEDOUT)
         kind, value = conn.recv()
         if kind == "usb":
             raise usb.core.USBError(value[0], errno=value[1])

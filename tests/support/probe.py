@@ -8,6 +8,7 @@ import sys
 import time
 
 from tests.conftest import REPO_ROOT
+from tests.support.bounded import lines_until
 
 
 class PoseWatch:
@@ -21,18 +22,17 @@ class PoseWatch:
             stdout=subprocess.PIPE,
             text=True,
         )
-        line = self.proc.stdout.readline()
-        if line.strip() != "ready":
+        lines = lines_until(self.proc.stdout, lambda line: True, 60.0)
+        if [line.strip() for line in lines] != ["ready"]:
             self.proc.kill()
-            raise AssertionError(f"the pose watcher got no pose from {pub}")
+            raise AssertionError(f"the pose watcher got no pose from {pub} within 60 s")
         self.result: dict | None = None
 
     def finish(self) -> dict:
         """Its report; AssertionError when any pose it received broke the protocol."""
         if self.result is None:
-            self.proc.stdin.close()
-            self.result = json.loads(self.proc.stdout.readline())
-            self.proc.wait(30)
+            out, _ = self.proc.communicate(timeout=30)  # stdin closed: it reports and ends
+            self.result = json.loads(out)
         assert self.result["invalid"] == 0, (
             f"{self.result['invalid']} of {self.result['poses']} poses broke the protocol: "
             f"{self.result['why']}"
