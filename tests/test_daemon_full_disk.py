@@ -1,0 +1,87 @@
+"""A recording whose disk fills up: the daemon goes on as before and says so, and everything
+recorded before the failure replays. The full disk is the daemon's own file-size limit
+(RLIMIT_FSIZE, set on the running daemon with prlimit): a write past it fails with EFBIG
+(Python ignores SIGXFSZ), as a write to a full filesystem fails with ENOSPC, without
+needing a filesystem of our own."""
+
+from __future__ import annotations
+
+import json
+import resource
+import time
+
+import numpy as np
+from sasprobe.protocol.client import ControlClient
+from sasprobe.protocol.recording import iter_items
+
+from tests.conftest import run_cli
+from tests.support.daemon_process import DaemonProcess
+
+ROOM_BYTES = 64 << 10  # what the recording may still grow by: a fraction of a second
+EFBIG = "OSError: [Errno 27] File too large"
+
+
+def _until(condition, what: str, timeout_s: float = 60.0):
+    deadline = time.monotonic() + timeout_s
+    while not (value := condition()):
+        assert time.monotonic() < deadline, f"{what} not within {timeout_s:g} s"
+        time.sleep(0.05)
+    return value
+
+
+def _rate_hz(client: ControlClient, seconds: float) -> float:
+    """The loop's tick rate over the next `seconds`, counted by the daemon."""
+    client.status(reset_stats=True)
+    time.sleep(seconds)
+    return client.status()["loop"]["rate_hz"]
+
+
+def _recording(client: ControlClient, name: str) -> None:
+    client.record_start(name)  # below --record-dir
+    _until(lambda: client.status()["recording"]["bytes"] > 20_000, f"{name} under way")
+
+
+def test_a_full_disk_fails_the_recording_and_nothing_else(tmp_path):
+    path, again = tmp_path / "full.mcap", tmp_path / "again.mcap"
+    daemon = DaemonProcess("--record-dir", str(tmp_path))
+    with daemon as d, ControlClient(d.ctl, timeout_s=30) as client:
+        pid = d.proc.pid
+        rate_before = _rate_hz(client, 1.5)
+        _recording(client, path.name)
+        status = client.status()
+        ticks = status["loop"]["total"]["ticks"]  # the recording holds these by now
+        room = status["recording"]["bytes"] + ROOM_BYTES
+        resource.prlimit(pid, resource.RLIMIT_FSIZE, (room, resource.RLIM_INFINITY))
+        failed = _until(lambda: client.status()["recording"]["error"], "the write failure")
+        rate_after = _rate_hz(client, 1.5)
+        shown = run_cli("status", "--ctl", d.ctl)
+        resource.prlimit(pid, resource.RLIMIT_FSIZE, (resource.RLIM_INFINITY,) * 2)
+        client.record_stop()
+        _recording(client, again.name)  # the daemon records again once there is room
+        client.record_stop()
+        rc, report = d.stop()
+
+    assert failed == EFBIG, failed
+    assert shown.returncode == 0 and f"FAILED: {EFBIG}" in shown.stdout, shown.stdout
+    warnings = [line for line in d.stderr.splitlines() if "recording to" in line]
+    assert len(warnings) == 1 and f"recording to {path} failed: {EFBIG}" in warnings[0], warnings
+    assert rc == 0, d.stderr
+    # The loop keeps its rate: the writer thread's failure costs it nothing.
+    assert rate_after >= 0.9 * rate_before, (rate_before, rate_after)
+
+    # Everything before the failure is in the file, in order, and replays to the same forces.
+    poses = [item.data for item in iter_items(path) if item.topic == "pose"]
+    seqs = [p["seq"] for p in poses]
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs))) and seqs[-1] >= ticks
+    for recording in (path, again):
+        out = run_cli("replay", str(recording), "--verify", "--json", timeout=300)
+        assert out.returncode == 0, out.stderr
+        verify = json.loads(out.stdout)["verify"]
+        assert verify["ok"] and verify["max_force_diff_n"] == 0.0, verify
+    # and the forces after it are the engine's: the second recording replays exactly too. The
+    # device answered every read throughout (ticks a busy machine makes late are zeroed by the
+    # loop's own rule, which the replays reproduce).
+    second = [item.data for item in iter_items(again) if item.topic == "pose"]
+    assert max(np.linalg.norm(p["force_N"]) for p in poses + second) > 0.0
+    reads = [item.data for f in (path, again) for item in iter_items(f) if item.topic == "device"]
+    assert len(reads) == len(poses) + len(second) and not any(r["error"] for r in reads)
