@@ -240,12 +240,14 @@ def test_replay_frames_follow_the_recorded_timing(demo):
 
 
 def test_with_a_display_the_demo_opens_a_window(xvfb, tmp_path):
-    """Under a real X server (Xvfb) the renderer is a window that follows the daemon."""
+    """Under a real X server (Xvfb) the renderer is a window that follows the daemon. The
+    window stays open for a time (the demo sets it no frame count), long enough for a software
+    renderer on a busy machine to draw three frames."""
     out = tmp_path / "window"
     result = run_cli(
         "demo",
         "--seconds",
-        "3",
+        "10",
         "--size",
         "320x240",
         "--out",
