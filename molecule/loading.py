@@ -134,23 +134,34 @@ def _to_arrays(model: gemmi.Model, data: bytes, name: str, source: str) -> Struc
     res_nums: list[int] = []
     icodes: list[str] = []
     hetero: list[bool] = []
-    for chain in model:
-        for residue in chain:
-            chains.append(chain.name)
-            res_names.append(residue.name)
-            res_nums.append(residue.seqid.num)
-            icodes.append(residue.seqid.icode.strip())
-            hetero.append(residue.het_flag == "H")
-            r = len(res_names) - 1
-            for atom in residue:
-                p = atom.pos
-                xyz.append((p.x, p.y, p.z))
-                occupancy.append(atom.occ)
-                b_iso.append(atom.b_iso)
-                altloc.append(atom.altloc)
-                elements.append(atom.element.name)
-                atom_names.append(atom.name)
-                residue_of_atom.append(r)
+    try:  # gemmi gives names as UTF-8: a mangled byte fails only when one is read
+        for chain in model:
+            for residue in chain:
+                if residue.seqid.num is None:  # a blank or garbled number (PDB columns 23-26)
+                    raise StructureError(
+                        f"{source}: residue {residue.name} of chain {chain.name} "
+                        "has no sequence number"
+                    )
+                chains.append(chain.name)
+                res_names.append(residue.name)
+                res_nums.append(residue.seqid.num)
+                icodes.append(residue.seqid.icode.strip())
+                hetero.append(residue.het_flag == "H")
+                r = len(res_names) - 1
+                for atom in residue:
+                    p = atom.pos
+                    xyz.append((p.x, p.y, p.z))
+                    occupancy.append(atom.occ)
+                    b_iso.append(atom.b_iso)
+                    altloc.append(atom.altloc)
+                    elements.append(atom.element.name)
+                    atom_names.append(atom.name)
+                    residue_of_atom.append(r)
+    except UnicodeDecodeError as exc:
+        raise StructureError(
+            f"{source}: a chain, residue or atom name is not UTF-8 text "
+            f"(byte 0x{exc.object[exc.start]:02x})"
+        ) from None
     res_index = np.asarray(residue_of_atom, dtype=np.int64)
     keep = _choose_conformers(
         np.asarray(chains)[res_index],

@@ -81,6 +81,27 @@ def mangle(data: bytes, draw) -> bytes:
     return gzip.compress(data, 1) if draw(st.booleans()) else data
 
 
+def _first_atom_with(pdb: bytes, columns: slice, text: bytes) -> bytes:
+    """The first ATOM record with `columns` (0-based) overwritten by `text`."""
+    lines = pdb.split(b"\n")
+    i = next(i for i, line in enumerate(lines) if line.startswith(b"ATOM"))
+    lines[i] = lines[i][: columns.start] + text + lines[i][columns.stop :]
+    return b"\n".join(lines)
+
+
+@pytest.mark.parametrize(
+    ("columns", "text", "error"),
+    [  # found by the fuzz below: a TypeError, then a UnicodeDecodeError
+        (slice(22, 26), b"    ", "residue THR of chain A has no sequence number"),
+        (slice(17, 20), b"T\x80R", "a chain, residue or atom name is not UTF-8 text (byte 0x80)"),
+    ],
+)
+def test_a_damaged_atom_record_is_refused_in_one_line(seeds, columns, text, error):
+    with pytest.raises(UserError) as refused:
+        parse_structure(_first_atom_with(seeds[0], columns, text), "mangled", "mangled.pdb")
+    assert one_line_error(refused.value) == f"mangled.pdb: {error}"
+
+
 @fuzz_settings(200)
 @given(data=st.data())
 def test_a_mangled_structure_loads_or_is_refused_in_one_line(seeds, data):
