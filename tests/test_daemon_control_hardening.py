@@ -255,10 +255,10 @@ def _not_json(name: str):
     raise ValueError(name)
 
 
-@fuzz_settings(200)
+@fuzz_settings(200, inputs_per_example=FUZZ_BATCH)
 @given(rng=st.randoms(use_true_random=False))
 def test_fuzzed_requests_get_named_errors_from_the_real_handlers(live, rng):
-    """200 batches of 50 (SASPROBE_FUZZ=N: N batches, tests/support/fuzz.py): 10,000
+    """200 batches of 50 (SASPROBE_FUZZ=N: N messages, tests/support/fuzz.py): 10,000
     messages through the daemon's real request path, each reply carrying the request's id
     wherever it can be read."""
     for _ in range(FUZZ_BATCH):

@@ -1,9 +1,10 @@
 """How many inputs a fuzz test draws: in the suite, a few hundred, the same every run (CI
-stays deterministic); with SASPROBE_FUZZ=N in the environment, N fresh ones each, the run
+stays deterministic); with SASPROBE_FUZZ=N in the environment, N fresh inputs each, the run
 by the thousand outside the suite:
 
     SASPROBE_FUZZ=10000 .venv/bin/python -m pytest -p no:cacheprovider -o timeout=0 \\
-        tests/test_molecule_structure_fuzz.py tests/test_daemon_recording_fuzz.py ...
+        tests/test_molecule_structure_fuzz.py tests/test_daemon_recording_fuzz.py \\
+        tests/test_daemon_control_hardening.py -k "fuzz or mangled"
 """
 
 from __future__ import annotations
@@ -15,9 +16,11 @@ from hypothesis import HealthCheck, Phase, settings
 FUZZ = int(os.environ.get("SASPROBE_FUZZ", "0"))
 
 
-def fuzz_settings(in_suite: int) -> settings:
+def fuzz_settings(in_suite: int, inputs_per_example: int = 1) -> settings:
+    """`in_suite` examples, or as many as make SASPROBE_FUZZ inputs where each example tries
+    `inputs_per_example` of them."""
     return settings(
-        max_examples=FUZZ or in_suite,
+        max_examples=-(-FUZZ // inputs_per_example) or in_suite,
         derandomize=not FUZZ,
         deadline=None,
         database=None,
