@@ -45,7 +45,7 @@ def run_loop(dev, seconds, force_of=None):
     return states, faults
 
 
-def loop_until(dev, condition, force_of=None, timeout_s=10.0):
+def loop_until(dev, condition, force_of=None, timeout_s=30.0):
     """Run the loop until `condition(state)` holds for a state read; that state. (A wait for
     the condition: a busy machine runs fewer ticks in a given time.)"""
     deadline = time.monotonic() + timeout_s
@@ -56,7 +56,7 @@ def loop_until(dev, condition, force_of=None, timeout_s=10.0):
     raise AssertionError("condition not reached in time")
 
 
-def read_with_every_reply_in(dev, hw, timeout_s=10.0):
+def read_with_every_reply_in(dev, hw, timeout_s=30.0):
     """A read made with no frame going out, once the host holds the reply to the last one (a
     busy machine may take a while to read it), and where the grip is then."""
     deadline = time.monotonic() + timeout_s
@@ -70,7 +70,7 @@ def read_with_every_reply_in(dev, hw, timeout_s=10.0):
     raise AssertionError("the host never took every reply")
 
 
-def command_carried_out(dev, hw, force, timeout_s=10.0):
+def command_carried_out(dev, hw, force, timeout_s=30.0):
     """Tick asking for `force` until the emulated motors carry out a command the driver
     computed for it where the grip was when it arrived; that command's sample. (A command
     computed from a reply the grip has since moved on from renders the force of another
@@ -281,7 +281,7 @@ def test_a_200_ms_stall_is_survived_with_fresh_reads_after(rig):
     hand.target = (-5.0, 0.0, 10.0)  # the hand moves on meanwhile
     stalled_at, faults, reads_s = time.monotonic(), [], []
     while not faults or time.monotonic() - stalled_at < 0.2:  # (a busy machine ticks less)
-        assert time.monotonic() - stalled_at < 10.0, "no fault while the Falcon is silent"
+        assert time.monotonic() - stalled_at < 30.0, "no fault while the Falcon is silent"
         t0 = time.monotonic()
         try:
             dev.read()
@@ -296,7 +296,7 @@ def test_a_200_ms_stall_is_survived_with_fresh_reads_after(rig):
     assert np.median(reads_s) < dev.reply_timeout_ns / 2e9
     fresh = 0  # it answers again: reads come back by themselves
     while fresh < 100:
-        assert time.monotonic() - stalled_at < 20.0, "no reads came back after the stall"
+        assert time.monotonic() - stalled_at < 60.0, "no reads came back after the stall"
         states, faults = run_loop(dev, 0.02)
         assert all("has not answered" in f for f in faults)
         fresh += len(states)
