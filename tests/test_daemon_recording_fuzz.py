@@ -20,7 +20,7 @@ from contextlib import redirect_stderr, redirect_stdout
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from sasprobe.daemon.recording.replay import ReplayFinished, open_replay
+from sasprobe.daemon.recording.replay import ReplayFinished, load_session, open_replay
 from sasprobe.devices.base import DeviceFault
 from sasprobe.protocol import recording
 from sasprobe.protocol.client import ControlClient
@@ -124,6 +124,18 @@ def test_a_mangled_recording_reads_or_is_refused_in_one_line(seeds, folder, unch
         device.write_force(device.last_force_n)
     with pytest.raises(ReplayFinished):
         device.read()
+
+
+def test_damaged_device_limits_are_refused_in_one_line(seeds, folder):
+    """Found by the fuzz below: a byte flipped in the compressed start record renamed a limit,
+    and --verify ended in a KeyError."""
+    path = folder / "limits.mcap"
+    path.write_bytes(seeds[0])
+    session = load_session(path)
+    del session.start["device"]["limits"]["workspace_min_mm"]
+    with pytest.raises(UserError) as refused:
+        session.device_limits()
+    assert "the start record's device limits are damaged" in one_line_error(refused.value)
 
 
 @fuzz_settings(40)

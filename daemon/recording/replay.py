@@ -110,10 +110,16 @@ class ReplaySession:
         )
 
     def device_limits(self) -> DeviceLimits:
-        lim = dict(self.start["device"]["limits"])
-        lim["workspace_min_mm"] = tuple(lim["workspace_min_mm"])
-        lim["workspace_max_mm"] = tuple(lim["workspace_max_mm"])
-        return DeviceLimits(**lim)
+        try:
+            lim = dict(self.start["device"]["limits"])
+            lim["workspace_min_mm"] = tuple(lim["workspace_min_mm"])
+            lim["workspace_max_mm"] = tuple(lim["workspace_max_mm"])
+            return DeviceLimits(**lim)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DeviceOpenError(
+                f"{self.path}: the start record's device limits are damaged "
+                f"({type(exc).__name__}: {exc})"
+            ) from None
 
     def stream(self) -> Iterator[dict | TickBlock]:
         """The control records after `start` (dicts) and the ticks after it (blocks), in file
