@@ -11,11 +11,11 @@ import resource
 import time
 
 import numpy as np
-from sasprobe.protocol.client import ControlClient
-from sasprobe.protocol.recording import iter_items
+from sasprobe.protocol.client import ControlClient, Subscriber
 
 from tests.conftest import run_cli
 from tests.support.daemon_process import DaemonProcess
+from tests.support.recordings import reference_ticks
 
 ROOM_BYTES = 64 << 10  # what the recording may still grow by: a fraction of a second
 EFBIG = "OSError: [Errno 27] File too large"
@@ -38,12 +38,22 @@ def _recording(client: ControlClient, name: str) -> None:
     _until(lambda: client.status()["recording"]["bytes"] > 20_000, f"{name} under way")
 
 
+def _pressed(pub: str) -> None:
+    """Wait until the simulated hand presses the surface (a pose with force)."""
+    sub = Subscriber(pub)
+    try:
+        _until(lambda: any(np.any(p.force_N) for p in sub.poll(0.1)), "a pose with force", 120.0)
+    finally:
+        sub.close()
+
+
 def test_a_full_disk_fails_the_recording_and_nothing_else(tmp_path):
     path, again = tmp_path / "full.mcap", tmp_path / "again.mcap"
     daemon = DaemonProcess("--record-dir", str(tmp_path))
     with daemon as d, ControlClient(d.ctl, timeout_s=30) as client:
         pid = d.proc.pid
         _recording(client, path.name)
+        _pressed(d.pub)  # a force in the recording: its replay then checks a contact too
         status = client.status()
         ticks = status["loop"]["total"]["ticks"]  # the recording holds these by now
         room = status["recording"]["bytes"] + ROOM_BYTES
@@ -71,19 +81,19 @@ def test_a_full_disk_fails_the_recording_and_nothing_else(tmp_path):
     assert device["write_failures"] == 0, device
     assert "Errno" not in (device["last_fault"] or ""), device["last_fault"]
 
-    # Everything before the failure is in the file, in order, and replays to the same forces.
-    poses = [item.data for item in iter_items(path) if item.topic == "pose"]
-    seqs = [p["seq"] for p in poses]
+    # Everything before the failure is in the file, in order, and replays to the same forces
+    # (read as the README's tables lay the ticks out).
+    recorded = reference_ticks(path, cut=True)
+    seqs = [t["pose"]["seq"] for t in recorded]
     assert seqs == list(range(seqs[0], seqs[0] + len(seqs))) and seqs[-1] >= ticks
     for recording in (path, again):
         out = run_cli("replay", str(recording), "--verify", "--json", timeout=300)
         assert out.returncode == 0, out.stderr
         verify = json.loads(out.stdout)["verify"]
         assert verify["ok"] and verify["max_force_diff_n"] == 0.0, verify
-    # and the forces after it are the engine's: the second recording replays exactly too. The
-    # device answered every read throughout (ticks a busy machine makes late are zeroed by the
-    # loop's own rule, which the replays reproduce).
-    second = [item.data for item in iter_items(again) if item.topic == "pose"]
-    assert max(np.linalg.norm(p["force_N"]) for p in poses + second) > 0.0
-    reads = [item.data for f in (path, again) for item in iter_items(f) if item.topic == "device"]
-    assert len(reads) == len(poses) + len(second) and not any(r["error"] for r in reads)
+    # The forces before it pressed the surface, and the device answered every read throughout
+    # (ticks a busy machine makes late are zeroed by the loop's own rule, which the replays
+    # reproduce).
+    second = reference_ticks(again)
+    assert max(np.linalg.norm(t["pose"]["force"]) for t in recorded) > 0.0
+    assert not any(t["error"] for t in recorded + second)

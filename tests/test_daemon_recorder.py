@@ -22,9 +22,8 @@ from sasprobe.protocol.pose import (
 from sasprobe.protocol.recording import Recording, RecordingError, recover, scan, summarize
 from sasprobe.protocol.ticks import TickBlock
 
-from tests.support.recordings import read_session, reference_ticks
-
 from tests.support.bounded import join
+from tests.support.recordings import read_session, reference_ticks
 
 # Flag sets a daemon writes (tests/support/schema_check.py checks each pose's flags against
 # its fields).

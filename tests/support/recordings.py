@@ -7,6 +7,7 @@ nothing with sasprobe's reader."""
 
 from __future__ import annotations
 
+import io
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -94,14 +95,35 @@ def read_whole_track(path: str | Path):
     return SimpleNamespace(**vars(track), **joined)
 
 
-def reference_ticks(path: str | Path) -> list[dict]:
+class _ForwardOnly(io.RawIOBase):
+    """A file read front to back: the mcap library then reads record by record, and a file cut
+    short (a crash, a full disk) reads up to its cut."""
+
+    def __init__(self, f) -> None:
+        self._f = f
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer) -> int:
+        return self._f.readinto(buffer)
+
+
+def reference_ticks(path: str | Path, cut: bool = False) -> list[dict]:
     """Every recorded tick, in file order, as the README's tables decode it: the device's
-    fields, "error", and "pose" (its fields by their wire names)."""
+    fields, "error", and "pose" (its fields by their wire names). `cut`: the file may end
+    without its summary, its last record perhaps incomplete."""
+    from mcap.exceptions import McapError
     from mcap.reader import make_reader
 
     ticks = []
     with open(path, "rb") as f:
-        for _, channel, message in make_reader(f).iter_messages(topics=["ticks"]):
-            assert channel.message_encoding == "sasprobe.ticks"
-            ticks += reference_decode_ticks(message.data)["ticks"]
+        reader = make_reader(io.BufferedReader(_ForwardOnly(f)) if cut else f)
+        try:
+            for _, channel, message in reader.iter_messages(topics=["ticks"], log_time_order=False):
+                assert channel.message_encoding == "sasprobe.ticks"
+                ticks += reference_decode_ticks(message.data)["ticks"]
+        except (McapError, EOFError):
+            if not cut:
+                raise
     return ticks
