@@ -54,7 +54,8 @@ def demo(tmp_path_factory, gl):  # gl: skips where no headless OpenGL exists
     out = tmp_path_factory.mktemp("demo")
     before = cpu_times()
     # The whole of crambin in the cube, seen whole (the overview), so that the snapshot can be
-    # checked against a ray cast of every atom; the workspace view is
+    # checked against a ray cast of every atom, without the readout's box over its corner
+    # (tests/test_render_readout.py); the workspace view is
     # tests/test_devices_workspace_session.py's.
     result = run_cli(
         "demo",
@@ -66,7 +67,7 @@ def demo(tmp_path_factory, gl):  # gl: skips where no headless OpenGL exists
         "--record",
         str(out / "session.mcap"),
         "--daemon-args=--cube-half fit",
-        "--render-args=--view overview",
+        "--render-args=--view overview --no-readout",
         timeout=300,
     )
     after = cpu_times()
