@@ -111,5 +111,9 @@ def test_a_longer_recording_is_read_in_the_same_memory(
     MODES[mode](recordings["short"], tmp_path / "warm")
     short = _peak(mode, recordings["short"], tmp_path / "short")
     long = _peak(mode, recordings["long"], tmp_path / "long")
+    if long > PEAK_RATIO * short:
+        # tracemalloc counts every thread's allocations: a thread an earlier test left running
+        # can add to one measurement; a reader that keeps every tick is over it every time
+        long = min(long, _peak(mode, recordings["long"], tmp_path / "long-again"))
     capsys.readouterr()
     assert long <= PEAK_RATIO * short, f"{mode}: peak {long:,} B on the long one, {short:,} B short"
