@@ -21,6 +21,7 @@ import json
 import re
 import sys
 from concurrent.futures import ThreadPoolExecutor
+from urllib.parse import urlsplit
 
 import imageio.v2 as imageio
 import numpy as np
@@ -70,10 +71,14 @@ def why_not_run(line) -> str | None:
 # What a line reads that no line of its page makes: the README's replay block reads "a
 # session recorded with --record", which its lab block's arm would have made.
 SETUP = {
+    "sasprobe replay session.mcap --html session.html": [
+        ["daemon", "--device", "sim:scan", "--molecule", "tests/data/pdb/1oky.pdb.gz"]
+        + ["--record", "session.mcap", "--seconds", "2"]
+    ],
     "sasprobe replay session.mcap --verify # recompute every force: difference 0 N": [
         ["daemon", "--device", "sim:dive", "--molecule", "tests/data/pdb/1oky.pdb.gz"]
         + ["--record", "session.mcap", "--seconds", "2"]
-    ]
+    ],
 }
 
 
@@ -195,6 +200,33 @@ def rendered_to(path: str, frames: int | None = None):
         else:
             images = video(r, path, frames, size_of(r))
             assert not np.array_equal(images[0], images[-1]), f"{path} does not change: {r}"
+
+    return check
+
+
+def served(token: bool):
+    """`sasprobe web`: its first line is the page's address (beyond loopback, with a token in
+    it), and that page answers a browser's request; Ctrl+C ends it cleanly."""
+
+    def check(r: Ran) -> None:
+        ran_clean(r)
+        lines = r.stdout.strip().splitlines()
+        path = urlsplit(lines[0]).path
+        assert lines[0].startswith("http://"), r
+        assert re.fullmatch(r"/[\w-]{16,}/", path) if token else path == "/", r
+        assert lines[-1] == "fetched: 200 text/html", r
+
+    return check
+
+
+def html_written(name: str):
+    """`replay --html`: one page that holds its own scripts and the session."""
+
+    def check(r: Ran) -> None:
+        ran_clean(r)
+        page = (r.folder / name).read_text()
+        assert page.lstrip().lower().startswith("<!doctype html>"), page[:200]
+        assert "<script" in page and "http://" not in page.split("<body", 1)[-1], r
 
     return check
 
@@ -561,6 +593,13 @@ EXPECTED = {
         "render": rendered,
     },
     "sasprobe render": rendered,
+    # docs/web.md
+    "sasprobe daemon --device sim:scan --molecule tests/data/pdb/1aon.pdb.gz # or a real arm": (
+        daemon_ran(structure="1oky", script="scan")
+    ),
+    "sasprobe web # in a second terminal": served(token=False),
+    "sasprobe web --bind 0.0.0.0": served(token=True),
+    "sasprobe replay session.mcap --html session.html": html_written("session.html"),
 }
 
 

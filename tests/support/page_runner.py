@@ -31,6 +31,8 @@ import time  # noqa: E402
 from dataclasses import dataclass, field  # noqa: E402
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer  # noqa: E402
 from pathlib import Path  # noqa: E402
+from urllib.parse import urlsplit  # noqa: E402
+from urllib.request import urlopen  # noqa: E402
 
 import gemmi  # noqa: E402, F401  (loaded once, in the fork server)
 import numpy  # noqa: E402, F401
@@ -330,8 +332,13 @@ def adapted(argv: list[str], folder: Path, mirror: Mirror) -> list[str]:
 def needs_daemon(argv: list[str]) -> bool:
     return bool(argv) and (
         argv[0] in ("status", "set", "mark", "findings")
-        or (argv[0] == "render" and "--connect" in argv and "--help" not in argv)
+        or (argv[0] in ("render", "web") and "--help" not in argv and connects(argv))
     )
+
+
+def connects(argv: list[str]) -> bool:
+    """A render that follows the daemon (`--connect`); the web page always does."""
+    return argv[0] == "web" or "--connect" in argv
 
 
 def simulated(argv: list[str]) -> bool:
@@ -356,6 +363,10 @@ def daemon_endpoints(argv: list[str], folder: Path) -> tuple[list[str], dict]:
 
 def client_endpoints(argv: list[str], daemon: dict) -> list[str]:
     """A client line pointed at the running daemon (the page's default or its host)."""
+    if argv[0] == "web":
+        return _set_option(
+            _set_option(argv, "--connect", daemon["pub"]), "--control", daemon["ctl"]
+        )
     if argv[0] == "render":
         argv = list(argv)
         at = argv.index("--connect")
@@ -450,13 +461,33 @@ class PageSession:
             endpoints = self.endpoints
             argv = client_endpoints(argv, endpoints)
         cmd = self.command(argv)
-        rc = cmd.wait()
+        rc = self.serve_once(cmd) if argv[0] == "web" and "--help" not in argv else cmd.wait()
         out = cmd.stdout
         if line.stdout_to is not None:  # the shell's `> FILE`
             (self.folder / line.stdout_to).write_text(out)
         self.results.append(
             Ran(line, argv, rc, out, cmd.stderr, self.folder, cmd.seconds, daemon=endpoints)
         )
+
+    def serve_once(self, cmd: Command) -> int:
+        """A server (`sasprobe web`) runs until it prints its page's URL; the page is asked
+        for once as a browser would (its status line goes to the end of the output, after
+        `fetched: `), then the server ends as Ctrl+C ends it."""
+        deadline = time.monotonic() + READY_LIMIT_S
+        while time.monotonic() < deadline and cmd.alive() and "\n" not in cmd.stdout:
+            time.sleep(0.05)
+        url = cmd.stdout.split("\n", 1)[0].strip()
+        if cmd.alive() and url.startswith("http://"):
+            parts = urlsplit(url)
+            try:  # the printed host may be this machine's name: its loopback serves it too
+                with urlopen(f"http://127.0.0.1:{parts.port}{parts.path}", timeout=60) as reply:
+                    fetched = f"{reply.status} {reply.headers.get_content_type()}"
+            except OSError as exc:
+                fetched = f"failed: {exc}"
+            cmd.stop(signal.SIGINT)
+            with open(cmd.out_path, "a") as out:
+                out.write(f"fetched: {fetched}\n")
+        return cmd.wait()
 
     def daemon_records(self) -> str | None:
         return _option(self.daemon.argv, "--record") if self.daemon is not None else None
