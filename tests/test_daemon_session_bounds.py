@@ -17,6 +17,7 @@ import gc
 import logging
 import os
 import threading
+import time
 import tracemalloc
 
 import pytest
@@ -46,6 +47,21 @@ def container_entries() -> int:
 
 def _recorder_drained(daemon: Daemon) -> bool:
     return not daemon.recorder._queue and not daemon.recorder._packer.count
+
+
+def _recorder_settled(daemon: Daemon) -> None:
+    """No tick running, the recorder's queue written out and a chunk ended since (the open
+    chunk holds an index entry per message: how many depends on how the writer thread was
+    scheduled, not on what the session keeps)."""
+    recorder = daemon.recorder
+    deadline = time.monotonic() + 60.0
+    while not _recorder_drained(daemon):
+        assert time.monotonic() < deadline, "the recorder's queue did not drain"
+        time.sleep(0.01)
+    ended = recorder.flushes + 2  # the flush under way may have begun before the last write
+    while recorder.flushes < ended:
+        assert time.monotonic() < deadline, "the recorder ended no chunk"
+        time.sleep(0.01)
 
 
 @pytest.fixture
@@ -80,12 +96,12 @@ def test_a_recording_session_keeps_the_same_after_10000_more_ticks(tmp_path, qui
     try:
         driver.run(WARM_TICKS, every=5, action=mark)  # 600 marks asked for: MAX_MARKS kept
         assert len(daemon.marks.scene(daemon.structure.sha256)) == MAX_MARKS
-        driver.until(lambda: _recorder_drained(daemon), "the recorder's queue drained")
+        _recorder_settled(daemon)
         entries = container_entries()
         tracemalloc.start()
         try:
             driver.run(MEASURED_TICKS, every=100, action=mark)
-            driver.until(lambda: _recorder_drained(daemon), "the recorder's queue drained")
+            _recorder_settled(daemon)
             grown_entries = container_entries() - entries
             held_bytes = tracemalloc.get_traced_memory()[0]
         finally:

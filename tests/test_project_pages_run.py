@@ -257,13 +257,11 @@ def replayed(r: Ran) -> None:
 
 
 def recorded_ticks(path) -> int:
-    """Ticks of a recording, read with the mcap library itself (not sasprobe's reader)."""
-    from mcap.reader import make_reader
+    """Ticks of a recording, read with the mcap library and the README's tables (not
+    sasprobe's reader)."""
+    from tests.support.recordings import reference_ticks
 
-    with open(path, "rb") as fh:
-        return sum(
-            1 for _, channel, _ in make_reader(fh).iter_messages() if channel.topic == "device"
-        )
+    return len(reference_ticks(path))
 
 
 def demo_wrote(
@@ -480,7 +478,9 @@ EXPECTED = {
         rendered
     ),
     "sasprobe replay session.mcap # duration, ticks, channels, gaps": lambda r: says(
-        r, r"^session.mcap: finished, [\d.]+ s, \d+ ticks, 0 missing", r"^  messages .*device \d+"
+        r,
+        r"^session.mcap: finished, format \d+, [\d.]+ s, \d+ ticks, 0 missing",
+        r"^  messages .*ticks \d+",
     ),
     "sasprobe replay session.mcap --verify # recompute every force: max difference 0 N": verified,
     "sasprobe replay session.mcap --video session.mp4 --fps 30 --size 1280x720": (
@@ -598,6 +598,7 @@ EXPECTED = {
         daemon_ran(structure="1oky", script="scan")
     ),
     "sasprobe web # in a second terminal": served(token=False),
+    "sasprobe web": served(token=False),
     "sasprobe web --bind 0.0.0.0": served(token=True),
     "sasprobe replay session.mcap --html session.html": html_written("session.html"),
 }

@@ -106,9 +106,7 @@ class HapticPipeline:
     def step(
         self, state: DeviceState | None, read_error: str | None, late_periods: float
     ) -> TickResult:
-        if state is not None and read_error is None:
-            # a read that counts as failed (too slow) is one: its time is not the newest state's,
-            # as a replay, which gives no state for it, shows
+        if state is not None:
             self.device_t_ns = int(state.t_ns)
         reason = self.guard.check(state, read_error, late_periods)
         output = None
