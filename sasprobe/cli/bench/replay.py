@@ -309,7 +309,7 @@ def _markdown(data: dict, given: bool) -> str:
     source = (
         "the recordings given"
         if given
-        else "sessions of the simulated arm (`sasprobe daemon --device sim:scan --record`, "
+        else "sessions of the simulated arm (`sasprobe daemon --device sim:scan --record FILE`, "
         "recorded in real time at 1 kHz)"
     )
     lines = [
@@ -330,7 +330,8 @@ def _markdown(data: dict, given: bool) -> str:
         "with Python's start-up, ticks (and megabytes) of recording read per second of it, "
         "and the child's peak resident memory. `recover` reads the file cut in half; "
         f"`video` draws {VIDEO[1]} frames at {VIDEO[3]} fps (the reading is measured, not the "
-        "drawing); `device` is `sasprobe daemon --device replay:FILE --speed max`. "
+        "drawing); `device` is the daemon on the replay device "
+        "(`--device replay:FILE --speed max`). "
         f"Load average at the end: {data['load_average_1min']:.1f} on {os.cpu_count()} cores "
         "(a shared machine: times vary with it, memory does not).",
         "",
