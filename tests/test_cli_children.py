@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from sasprobe.cli.children import Child, DaemonChild
+from sasprobe.cli.children import Child, DaemonChild, child_env
 from sasprobe.common.errors import UserError
 
 # stdout closes first, the error line and the exit come later: the order in which a
@@ -46,3 +46,25 @@ def test_a_silent_daemon_is_reported_as_silent(tmp_path):
     finally:
         daemon.kill_group()
         daemon.finish(10.0)
+
+
+CRASHING = """
+import faulthandler
+
+def draw():
+    faulthandler._sigsegv()  # a segmentation fault, as a GL driver's would be
+
+draw()
+"""
+
+
+def test_a_child_that_crashes_is_reported_by_its_fatal_error_and_where(tmp_path):
+    """A fault-handler dump ends in the outermost frame (or a list of extension modules): the
+    report names the fault and the frame it happened in instead."""
+    log = tmp_path / "render.log"
+    child = Child("render", [sys.executable, "-c", CRASHING], log, env=child_env())
+    assert child.finish(60.0) != 0
+    assert log.read_text().splitlines()[-1].strip() == 'File "<string>", line 7 in <module>'
+    assert (
+        child.error_line() == "Fatal Python error: Segmentation fault at <string>, line 5 in draw"
+    )

@@ -57,6 +57,24 @@ def _child_setup(nice: int):
     return setup
 
 
+def fatal_error(lines: list[str]) -> str:
+    """`Fatal Python error: ...` and where the crashing thread was, from the lines of a
+    fault-handler dump (PYTHONFAULTHANDLER); "" when there is none."""
+    fatal = [k for k, line in enumerate(lines) if line.startswith("Fatal Python error:")]
+    if not fatal:
+        return ""
+    start = fatal[-1]
+    where = ""
+    for k in range(start + 1, len(lines)):
+        if lines[k].startswith("Current thread") and k + 1 < len(lines):
+            frame = lines[k + 1]  # File "/a/b/c.py", line 9 in draw
+            if frame.startswith('File "'):
+                path, _, rest = frame.removeprefix('File "').partition('"')
+                where = f" at {'/'.join(Path(path).parts[-2:])}{rest}"
+            break
+    return lines[start] + where
+
+
 class Child:
     """A subprocess in its own process group whose stdout lines are JSON events
     (`{"event": ...}`) and whose stderr goes to a log file."""
@@ -131,12 +149,17 @@ class Child:
                 return event
 
     def error_line(self) -> str:
-        """The child's own one-line error (`sasprobe: error: ...`), else its last log line."""
+        """The child's own one-line error (`sasprobe: error: ...`); for a crash, the fault
+        handler's fatal error and the innermost frame of the thread that crashed; else the
+        log's last line."""
         try:
             text = self.log_path.read_text(errors="replace")
         except OSError:
             return ""
         lines = [line.strip() for line in text.splitlines() if line.strip()]
+        crash = fatal_error(lines)
+        if crash:
+            return crash
         errors = [line for line in lines if line.startswith("sasprobe: error:")]
         line = errors[-1] if errors else (lines[-1] if lines else "")
         return line.removeprefix("sasprobe: error: ")

@@ -363,6 +363,11 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     folder = Path(tempfile.mkdtemp(prefix="sasprobe-soak-"))
     try:
         data = soak(folder, rounds, pace_s, _structures(ctx.smoke))
+        for ended in data["renderers_ended"]:  # its whole log, beside the charts
+            kept = ctx.chart_path(f"soak-renderer{ended['renderer']}.log")
+            if kept is not None:
+                shutil.copyfile(folder / f"render{ended['renderer'] - 1}.log", kept)
+                ended["log"] = kept.name
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     data.update(
@@ -477,7 +482,8 @@ def _markdown(data: dict) -> str:
             continue
         if x is None:
             end = next(e for e in data["renderers_ended"] if f"renderer {e['renderer']}" == name)
-            rows.append(f"{name}: ended before round {end['round']}: {end['why']}")
+            log = f" (its whole log: `{end['log']}` in --out)" if end.get("log") else ""
+            rows.append(f"{name}: ended before round {end['round']}: {end['why']}{log}")
             continue
         rows.append(
             f"{name}: memory at the end {100 * (x['rss_ratio'] - 1):+.1f} % of round {ref}'s "
