@@ -21,6 +21,7 @@
 // include is expanded once, where it first appears, whether its #ifdef holds or not.
 #include "occluders.glsl"
 #include "ray_origin.glsl"
+#include "light_terms.glsl"
 #ifdef PROBE_SHARE
 #include "probe_share.glsl"
 #endif
@@ -47,10 +48,6 @@ uniform float u_dir_intensity;
 uniform int u_probe_light_enabled;
 uniform vec3 u_probe_center;
 uniform float u_probe_intensity;
-uniform vec3 u_probe_atten;      // constant, linear, quadratic (distance from the probe centre, Å)
-uniform float u_probe_range;     // Å
-uniform float u_shininess;
-uniform float u_specular;
 uniform int u_touched_atom;      // -1: none
 uniform vec3 u_highlight;        // touched-atom colour
 uniform vec3 u_probe_color;
@@ -66,12 +63,6 @@ layout(rg32i, binding = 7) readonly uniform iimage2D u_ids_image;
 #endif
 
 out vec4 o_color;
-
-vec3 phong(vec3 albedo, vec3 n, vec3 v, vec3 l) {
-    float diffuse = max(dot(n, l), 0.0);
-    float spec = diffuse > 0.0 ? pow(max(dot(reflect(-l, n), v), 0.0), u_shininess) : 0.0;
-    return diffuse * albedo + spec * u_specular;
-}
 
 void main() {
     ivec2 px = ivec2(gl_FragCoord.xy);
@@ -105,9 +96,7 @@ void main() {
     if (u_probe_light_enabled == 1 && ids.y != KIND_BACKBONE) {  // the trace is context: not the probe's to light
         vec3 to_probe = u_probe_center - p;
         float dist = length(to_probe);
-        float x = dist / u_probe_range;
-        float window = clamp(1.0 - x * x * x * x, 0.0, 1.0);  // as render/lighting/settings.py probe_falloff
-        float atten = window * window / (u_probe_atten.x + u_probe_atten.y * dist + u_probe_atten.z * dist * dist);
+        float atten = probe_attenuation(dist);
 #if defined(PROBE_SHADOWED)
         float shadow = texelFetch(u_probe_visibility, px, 0).r;
 #elif defined(TRACE_PROBE_LIGHT)

@@ -11,6 +11,8 @@
 //     the cube is a window onto its atoms), the cube's edges and the force arrow, as quads a
 //     few pixels wide, depth-tested against what step 2 handed on.
 
+import { CUBE_WINDOW, LIGHT_TERMS } from "sasprobe/glsl.js"; // render/shaders' own text
+
 export const MAX_PLANES = 14; // the cube's 6 faces, then up to 8 clip planes of the scene
 export const TABLE_WIDTH = 2048; // atoms per row of the atom tables (textures)
 
@@ -128,17 +130,8 @@ uniform int u_probe_light;
 uniform float u_ambient;
 uniform float u_directional;
 uniform float u_probe_intensity;
-uniform vec3 u_probe_atten;  // constant, linear, quadratic (Å)
-uniform float u_probe_range; // Å: the probe light is windowed to 0 here
-uniform float u_shininess;
-uniform float u_specular;
 out vec4 o_color;
-
-vec3 phong(vec3 albedo, vec3 n, vec3 v, vec3 l) {
-  float diffuse = max(dot(n, l), 0.0);
-  float spec = diffuse > 0.0 ? pow(max(dot(reflect(-l, n), v), 0.0), u_shininess) : 0.0;
-  return diffuse * albedo + spec * u_specular;
-}
+${LIGHT_TERMS}
 
 void main() {
   ivec2 px = ivec2(gl_FragCoord.xy);
@@ -176,11 +169,7 @@ void main() {
   if (u_probe_light == 1) {
     vec3 to_probe = u_probe.xyz - p;
     float dist = length(to_probe);
-    float x = dist / u_probe_range;
-    float window = clamp(1.0 - x * x * x * x, 0.0, 1.0);
-    float atten = window * window
-      / (u_probe_atten.x + u_probe_atten.y * dist + u_probe_atten.z * dist * dist);
-    color += u_probe_intensity * atten * phong(albedo, n, v, to_probe / max(dist, 1e-6));
+    color += u_probe_intensity * probe_attenuation(dist) * phong(albedo, n, v, to_probe / max(dist, 1e-6));
   }
   o_color = vec4(min(color, vec3(1.0)), 1.0);
 }`;
@@ -230,8 +219,6 @@ uniform vec3 u_forward;
 uniform vec3 u_right_t;
 uniform vec3 u_up_t;
 uniform int u_window;       // 1: not where the pixel's ray meets the cube (the trace)
-uniform vec4 u_cube;        // centre, half edge (Å)
-uniform mat3 u_cube_axes;
 uniform vec4 u_planes[${MAX_PLANES}];
 uniform int u_n_planes;
 uniform int u_tube;         // 1: shaded as a thin tube, 0: flat colour
@@ -243,24 +230,7 @@ in vec3 v_color;
 in float v_across;
 flat in vec3 v_tangent;
 out vec4 o_color;
-
-bool ray_meets_cube(vec3 o, vec3 d) {
-  vec3 ol = transpose(u_cube_axes) * (o - u_cube.xyz);
-  vec3 dl = transpose(u_cube_axes) * d;
-  float t0 = 0.0;
-  float t1 = 1e30;
-  for (int a = 0; a < 3; ++a) {
-    if (abs(dl[a]) < 1e-12) {
-      if (abs(ol[a]) > u_cube.w) return false;
-      continue;
-    }
-    float ta = (-u_cube.w - ol[a]) / dl[a];
-    float tb = (u_cube.w - ol[a]) / dl[a];
-    t0 = max(t0, min(ta, tb));
-    t1 = min(t1, max(ta, tb));
-  }
-  return t0 <= t1;
-}
+${CUBE_WINDOW}
 
 void main() {
   for (int i = 6; i < u_n_planes; ++i)
