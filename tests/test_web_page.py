@@ -54,6 +54,20 @@ def test_the_live_page_keeps_up_with_the_daemon(page, crambin_session):
     assert later["frames"] > state["frames"] and later["connected"]
 
 
+def test_timed_draws_are_reported_once_asked_for_and_the_page_goes_on(page, crambin_session):
+    """`timeDraws()`: the benchmark's draw times, none before it is called."""
+    daemon, bridge = crambin_session
+    page.open(bridge.url)
+    before = drawing(page)
+    assert before["draw_ms"] is None
+    page.run("window.sasprobe.timeDraws()")
+    state = page.wait(
+        lambda p: (s := p.state())["frames"] >= before["frames"] + 5 and s, 120, "5 timed frames"
+    )
+    p50, p95 = state["draw_ms"]
+    assert 0 < p50 <= p95, state["draw_ms"]
+
+
 # ------------------------------------------------------------------ the picture
 def workspace_camera(cube: dict, aspect: float):
     """Eye, forward, right and up of the workspace view: it looks along -(the cube's third

@@ -4,11 +4,12 @@ and `sasprobe web` as a child process.
 Chromium draws WebGL2 with SwiftShader through ANGLE (`--enable-unsafe-swiftshader
 --use-angle=swiftshader`: without the second flag the session page took twenty times
 the CPU a frame), on a fresh profile, with everything that would reach the network switched
-off (a closed network refuses those connections). `unpaced` presents frames as fast as the
-page draws them (`--disable-frame-rate-limit --disable-gpu-vsync`); with the default pacing
-a page on a small machine shows far fewer frames than it could draw, and taking a
-screenshot needs it. Every
-wait is bounded: the driver's page-load and script timeouts, and explicit deadlines here.
+off (a closed network refuses those connections), with the GPU thread in the browser's
+process (`--in-process-gpu`: taking a screenshot needs it here). Chromium's unpaced mode
+(`--disable-frame-rate-limit`) is not offered: with SwiftShader the page hands frames to the
+GPU process faster than it draws them, and the backlog stalls the page for a minute at a
+time; `sasprobe bench web` times finished frames instead. Every wait is bounded: the
+driver's page-load and script timeouts, and explicit deadlines here.
 """
 
 from __future__ import annotations
@@ -42,9 +43,8 @@ FLAGS = (
     "--no-first-run",
     "--no-default-browser-check",
     "--mute-audio",
+    "--in-process-gpu",
 )
-UNPACED = ("--disable-frame-rate-limit", "--disable-gpu-vsync")
-PACED = ("--in-process-gpu",)
 
 
 def find_browser() -> tuple[str, str]:
@@ -66,9 +66,7 @@ def find_browser() -> tuple[str, str]:
 class Browser:
     """One headless Chromium with a fresh profile, closed on exit."""
 
-    def __init__(
-        self, unpaced: bool = False, size: tuple[int, int] = (1280, 720), flags: tuple = ()
-    ) -> None:
+    def __init__(self, size: tuple[int, int] = (1280, 720), flags: tuple = ()) -> None:
         from selenium import webdriver
         from selenium.webdriver.chrome.service import Service
 
@@ -76,8 +74,7 @@ class Browser:
         self.profile = tempfile.mkdtemp(prefix="sasprobe-chromium-")
         options = webdriver.ChromeOptions()
         options.binary_location = browser
-        paced = UNPACED if unpaced else PACED
-        for flag in (*FLAGS, *paced, *flags, f"--user-data-dir={self.profile}"):
+        for flag in (*FLAGS, *flags, f"--user-data-dir={self.profile}"):
             options.add_argument(flag)
         options.add_argument(f"--window-size={size[0]},{size[1]}")
         options.set_capability("goog:loggingPrefs", {"browser": "ALL"})

@@ -85,6 +85,7 @@ const source = new LiveSource(document.getElementById("view"));
 window.sasprobe = {
   state: () => source.state(),
   pick: () => source.viewer.pick(),
+  timeDraws: () => source.viewer.timeDraws(),
 };
 if (source.viewer.ok) {
   source.connect();

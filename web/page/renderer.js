@@ -49,6 +49,7 @@ export class Renderer {
     if (!gl) throw new Error("no WebGL2");
     this.gl = gl;
     this.canvas = canvas;
+    this.pixel = new Uint8Array(4);
     this.spheres = program(gl, SPHERE_VERTEX, SPHERE_FRAGMENT);
     this.shade = program(gl, FULLSCREEN_VERTEX, SHADE_FRAGMENT);
     this.lines = program(gl, LINE_VERTEX, LINE_FRAGMENT);
@@ -383,6 +384,14 @@ export class Renderer {
     gl.depthMask(true);
     gl.bindVertexArray(null);
     this.frames++;
+  }
+
+  // Waits until everything drawn so far is done: a pixel read back (SwiftShader defers the
+  // drawing past gl.finish until something reads it).
+  finish() {
+    const gl = this.gl;
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, this.pixel);
   }
 
   // The atom id of every pixel of the last frame (-1: no atom; -2: the probe), row 0 at the

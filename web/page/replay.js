@@ -177,6 +177,7 @@ const source = new ReplaySource(document.getElementById("view"), session);
 window.sasprobe = {
   state: () => source.state(),
   pick: () => source.viewer.pick(),
+  timeDraws: () => source.viewer.timeDraws(),
   seek: (seconds) => source.seek(seconds),
   play: () => source.play(),
   pause: () => source.pause(),

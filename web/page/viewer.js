@@ -19,6 +19,7 @@ const FLAG_CONTACT = 1;
 const FLAG_DRIFTING = 8;
 const FLAG_CLUTCHED = 32;
 const FPS_WINDOW_MS = 1000;
+const DRAW_TIMES = 200; // frames whose draw times state() summarises
 
 function rowsToMatrix(rows) {
   return [...rows[0], ...rows[1], ...rows[2]];
@@ -53,6 +54,7 @@ export class Viewer {
     this.drawnSeq = -1;
     this.lastFrame = null;
     this.frameTimes = [];
+    this.drawTimes = null; // the last frames' draw times (ms), once timeDraws() asks for them
     this._input();
   }
 
@@ -248,13 +250,33 @@ export class Viewer {
 
   _draw(now) {
     const f = this.frameInput();
+    const start = performance.now();
     this.renderer.draw(f);
+    if (this.drawTimes) {
+      this.renderer.finish(); // the frame's own cost, the browser's frame pacing aside
+      this.drawTimes.push(performance.now() - start);
+      if (this.drawTimes.length > DRAW_TIMES) this.drawTimes.shift();
+    }
     this.lastFrame = f;
     this.frames++;
     this.drawnSeq = f.seq;
     const times = this.frameTimes;
     times.push(now);
     while (times.length > 2 && now - times[0] > FPS_WINDOW_MS) times.shift();
+  }
+
+  // From now on each frame is finished (gl.finish) as it is drawn and timed: what a frame
+  // costs the page, apart from when the browser lets it draw and shows it.
+  timeDraws() {
+    if (this.ok && !this.drawTimes) this.drawTimes = [];
+  }
+
+  get drawMs() {
+    const t = this.drawTimes;
+    if (!t || t.length === 0) return null;
+    const sorted = [...t].sort((a, b) => a - b);
+    const at = (q) => sorted[Math.min(sorted.length - 1, Math.floor(q * sorted.length))];
+    return [at(0.5), at(0.95)];
   }
 
   get fps() {
@@ -330,6 +352,7 @@ export class Viewer {
       cube_atoms: this.list.count,
       drawn_atoms: this.renderer ? this.renderer.cubeCount : 0,
       fps: this.fps,
+      draw_ms: this.drawMs,
       width: this.canvas.width,
       height: this.canvas.height,
     };
