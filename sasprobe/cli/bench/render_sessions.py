@@ -132,6 +132,7 @@ def _first_frames(by_id, ids, sizes, runs: int, progress) -> dict:
                         capture_output=True,
                         text=True,
                         timeout=300,
+                        cwd=folder,  # its picture (sasprobe-render.png) lands there
                     )
                     wall, after = (
                         time.perf_counter() - t0,
