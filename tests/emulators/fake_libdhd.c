@@ -35,6 +35,7 @@
 #include <fcntl.h>
 #include <math.h>
 #include <pthread.h>
+#include <sched.h>
 #include <stdbool.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -112,7 +113,18 @@ struct control {
 static struct control fallback = {.count = 1, .types = {DHD_DEVICE_OMEGA3}, .open_id = -1};
 static struct control *volatile ctl = &fallback;
 static char ctl_path[4096];
-static pthread_mutex_t lock = PTHREAD_MUTEX_INITIALIZER;
+/* The daemon's loop calls in at a real-time priority; the physics thread runs at normal
+   priority (dhdOpenID). The lock inherits priority, so a busy machine cannot park the loop
+   behind a physics thread preempted while holding it: a real arm's physics runs on its own
+   hardware, outside the host's scheduler. */
+static pthread_mutex_t lock;
+__attribute__((constructor)) static void init_lock(void) {
+    pthread_mutexattr_t a;
+    pthread_mutexattr_init(&a);
+    pthread_mutexattr_setprotocol(&a, PTHREAD_PRIO_INHERIT);
+    pthread_mutex_init(&lock, &a);
+    pthread_mutexattr_destroy(&a);
+}
 static pthread_t physics;
 static int physics_running = 0;
 static double hand_now[3], commanded[3], last_step_s = -1.0;
@@ -252,7 +264,16 @@ int dhdOpenID(char index) {
         motors_off();
         if (!physics_running) {
             physics_running = 1;
-            pthread_create(&physics, NULL, run_physics, NULL);
+            /* At normal priority whatever the caller's: a real arm's physics takes no host
+               time from the loop (the lock above lifts it while the loop waits on it). */
+            pthread_attr_t attr;
+            struct sched_param normal = {0};
+            pthread_attr_init(&attr);
+            pthread_attr_setinheritsched(&attr, PTHREAD_EXPLICIT_SCHED);
+            pthread_attr_setschedpolicy(&attr, SCHED_OTHER);
+            pthread_attr_setschedparam(&attr, &normal);
+            pthread_create(&physics, &attr, run_physics, NULL);
+            pthread_attr_destroy(&attr);
         }
     }
     pthread_mutex_unlock(&lock);
