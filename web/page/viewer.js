@@ -265,8 +265,8 @@ export class Viewer {
     while (times.length > 2 && now - times[0] > FPS_WINDOW_MS) times.shift();
   }
 
-  // From now on each frame is finished (gl.finish) as it is drawn and timed: what a frame
-  // costs the page, apart from when the browser lets it draw and shows it.
+  // From now on each frame is finished (a pixel read back) as it is drawn, and timed: what a
+  // frame costs the page, apart from when the browser lets it draw and shows it.
   timeDraws() {
     if (this.ok && !this.drawTimes) this.drawTimes = [];
   }
