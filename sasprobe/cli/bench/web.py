@@ -319,6 +319,12 @@ def _f(v, digits=0) -> str:
 
 def _markdown(d: dict) -> str:
     lines = [
+        "Each page follows a daemon (simulated arm, scan) through `sasprobe web` in headless "
+        "Chromium (SwiftShader), at the browser's own pacing. Draw time: a frame drawn and "
+        "finished (a pixel read back after it; SwiftShader draws only what is read), last 200 "
+        "frames; frames/s shown: frames the page drew over the window; latency: from the "
+        "daemon publishing a pose to the bridge hearing the page drew it.",
+        "",
         f"Targets: {d['targets']}.",
         "",
         "| structure | atoms | picture | draw p50 / p95 (ms) | frames/s drawable (1 / p50) "
