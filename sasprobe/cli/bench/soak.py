@@ -259,7 +259,12 @@ class Soak:
         for k, child in enumerate(self.render):
             if not child.alive() and all(e["renderer"] != k + 1 for e in self.ended):
                 self.ended.append(
-                    {"renderer": k + 1, "round": len(self.samples) + 1, "why": child.error_line()}
+                    {
+                        "renderer": k + 1,
+                        "round": len(self.samples) + 1,
+                        "why": child.error_line(),
+                        "log_path": str(child.log_path),
+                    }
                 )
 
     def run(self, rounds: int, pace_s: float, bar=None) -> None:
@@ -364,9 +369,10 @@ def run(ctx: BenchContext, args=None) -> BenchResult:
     try:
         data = soak(folder, rounds, pace_s, _structures(ctx.smoke))
         for ended in data["renderers_ended"]:  # its whole log, beside the charts
+            log_path = ended.pop("log_path")  # in the folder about to go
             kept = ctx.chart_path(f"soak-renderer{ended['renderer']}.log")
             if kept is not None:
-                shutil.copyfile(folder / f"render{ended['renderer'] - 1}.log", kept)
+                shutil.copyfile(log_path, kept)
                 ended["log"] = kept.name
     finally:
         shutil.rmtree(folder, ignore_errors=True)
