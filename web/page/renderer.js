@@ -2,11 +2,22 @@
 // cube moves, and per frame only uniforms and a few lines (shaders.js says what each step
 // draws).
 import {
-  FULLSCREEN_VERTEX, LINE_FRAGMENT, LINE_VERTEX, MAX_PLANES, SHADE_FRAGMENT, SPHERE_FRAGMENT,
-  SPHERE_VERTEX, TABLE_WIDTH,
+  FULLSCREEN_VERTEX, LINE_FRAGMENT, LINE_VERTEX, MAX_PLANES, SEGMENT_VERTICES, SHADE_FRAGMENT,
+  SPHERE_FRAGMENT, SPHERE_VERTEX, SPHERE_VERTICES, TABLE_WIDTH,
 } from "sasprobe/shaders.js";
 
 const ARROW_PX = 2.5; // the force arrow: wider than the cube's edges
+
+// Each of `count` records of `width` elements, `times` over in a row: data for each vertex of
+// a shape drawn as plain triangles (shaders.js says why not instanced).
+function repeatEach(array, width, count, times) {
+  const out = new array.constructor(width * count * times);
+  for (let i = 0; i < count; i++) {
+    const record = array.subarray(width * i, width * (i + 1));
+    for (let v = 0; v < times; v++) out.set(record, width * (times * i + v));
+  }
+  return out;
+}
 
 function compile(gl, type, source) {
   const shader = gl.createShader(type);
@@ -77,11 +88,9 @@ export class Renderer {
     gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
     gl.enableVertexAttribArray(0);
     gl.vertexAttribPointer(0, 4, gl.FLOAT, false, 16, 0);
-    gl.vertexAttribDivisor(0, 1);
     gl.bindBuffer(gl.ARRAY_BUFFER, ids);
     gl.enableVertexAttribArray(1);
     gl.vertexAttribIPointer(1, 2, gl.INT, 8, 0);
-    gl.vertexAttribDivisor(1, 1);
     gl.bindVertexArray(null);
     return { vao, buffer, ids, capacity: 0 };
   }
@@ -92,12 +101,11 @@ export class Renderer {
     const buffer = gl.createBuffer();
     gl.bindVertexArray(vao);
     gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
-    // per segment: from xyz, to xyz (float), colour rgb (bytes, normalised) + 1 pad
+    // per vertex of a segment: from xyz, to xyz (float), colour rgb (bytes, normalised) + 1 pad
     for (const [loc, size, type, offset] of [[0, 3, gl.FLOAT, 0], [1, 3, gl.FLOAT, 12],
       [2, 3, gl.UNSIGNED_BYTE, 24]]) {
       gl.enableVertexAttribArray(loc);
       gl.vertexAttribPointer(loc, size, type, type === gl.UNSIGNED_BYTE, 28, offset);
-      gl.vertexAttribDivisor(loc, 1);
     }
     gl.bindVertexArray(null);
     return { vao, buffer, count: 0 };
@@ -152,10 +160,12 @@ export class Renderer {
       gl.texParameteri(gl.TEXTURE_2D, p, gl.NEAREST);
   }
 
+  // `count` segments of 28 bytes each (see _lineVao).
   _upload(lines, data, count) {
     const gl = this.gl;
     gl.bindBuffer(gl.ARRAY_BUFFER, lines.buffer);
-    gl.bufferData(gl.ARRAY_BUFFER, data, gl.DYNAMIC_DRAW);
+    const words = new Uint32Array(data); // 7 words a segment
+    gl.bufferData(gl.ARRAY_BUFFER, repeatEach(words, 7, count, SEGMENT_VERTICES), gl.DYNAMIC_DRAW);
     lines.count = count;
   }
 
@@ -167,17 +177,18 @@ export class Renderer {
 
   _spheres(target, spheres, ids, count) {
     const gl = this.gl;
+    const n = SPHERE_VERTICES;
     gl.bindBuffer(gl.ARRAY_BUFFER, target.buffer);
     if (count > target.capacity) {
       target.capacity = Math.max(count, 2 * target.capacity);
-      gl.bufferData(gl.ARRAY_BUFFER, 16 * target.capacity, gl.DYNAMIC_DRAW);
+      gl.bufferData(gl.ARRAY_BUFFER, 16 * n * target.capacity, gl.DYNAMIC_DRAW);
       gl.bindBuffer(gl.ARRAY_BUFFER, target.ids);
-      gl.bufferData(gl.ARRAY_BUFFER, 8 * target.capacity, gl.DYNAMIC_DRAW);
+      gl.bufferData(gl.ARRAY_BUFFER, 8 * n * target.capacity, gl.DYNAMIC_DRAW);
       gl.bindBuffer(gl.ARRAY_BUFFER, target.buffer);
     }
-    gl.bufferSubData(gl.ARRAY_BUFFER, 0, spheres, 0, 4 * count);
+    gl.bufferSubData(gl.ARRAY_BUFFER, 0, repeatEach(spheres, 4, count, n));
     gl.bindBuffer(gl.ARRAY_BUFFER, target.ids);
-    gl.bufferSubData(gl.ARRAY_BUFFER, 0, ids, 0, 2 * count);
+    gl.bufferSubData(gl.ARRAY_BUFFER, 0, repeatEach(ids, 2, count, n));
   }
 
   // Line segments [[from, to, rgb 0..1], ...] into one of the line lists.
@@ -266,14 +277,14 @@ export class Renderer {
       gl.uniform1i(s.uniforms.u_n_planes, f.planes.length);
       if (this.cubeCount > 0) {
         gl.bindVertexArray(this.cubeSpheres.vao);
-        gl.drawArraysInstanced(gl.TRIANGLE_STRIP, 0, 8, this.cubeCount);
+        gl.drawArrays(gl.TRIANGLES, 0, SPHERE_VERTICES * this.cubeCount);
       }
       if (f.probe) {
         const p = f.probe;
         this._spheres(this.probeSphere, new Float32Array([...p.center, p.radius]),
           new Int32Array([-2, -1]), 1);
         gl.bindVertexArray(this.probeSphere.vao);
-        gl.drawArraysInstanced(gl.TRIANGLE_STRIP, 0, 8, 1);
+        gl.drawArrays(gl.TRIANGLES, 0, SPHERE_VERTICES);
       }
       gl.disable(gl.SCISSOR_TEST);
     }
@@ -360,7 +371,7 @@ export class Renderer {
       gl.uniform1f(u.u_width_px, f.view.trace_min_px);
       gl.uniform1f(u.u_width_A, 2 * f.view.trace_radius);
       gl.bindVertexArray(this.trace.vao);
-      gl.drawArraysInstanced(gl.TRIANGLE_STRIP, 0, 4, this.trace.count);
+      gl.drawArrays(gl.TRIANGLES, 0, SEGMENT_VERTICES * this.trace.count);
     }
     gl.uniform1i(u.u_window, 0);
     gl.uniform1i(u.u_tube, 0);
@@ -372,14 +383,14 @@ export class Renderer {
       gl.depthMask(false);
       gl.uniform1f(u.u_width_px, f.view.wire_px);
       gl.bindVertexArray(this.wire.vao);
-      gl.drawArraysInstanced(gl.TRIANGLE_STRIP, 0, 4, this.wire.count);
+      gl.drawArrays(gl.TRIANGLES, 0, SEGMENT_VERTICES * this.wire.count);
     }
     if (f.arrow) {
       this._segments(this.arrow, f.arrow);
       gl.disable(gl.DEPTH_TEST); // what the hand feels is never hidden
       gl.uniform1f(u.u_width_px, ARROW_PX);
       gl.bindVertexArray(this.arrow.vao);
-      gl.drawArraysInstanced(gl.TRIANGLE_STRIP, 0, 4, this.arrow.count);
+      gl.drawArrays(gl.TRIANGLES, 0, SEGMENT_VERTICES * this.arrow.count);
     }
     gl.depthMask(true);
     gl.bindVertexArray(null);

@@ -15,6 +15,11 @@ import { CUBE_WINDOW, LIGHT_TERMS } from "sasprobe/glsl.js"; // render/shaders' 
 
 export const MAX_PLANES = 14; // the cube's 6 faces, then up to 8 clip planes of the scene
 export const TABLE_WIDTH = 2048; // atoms per row of the atom tables (textures)
+// Spheres and line segments are drawn as plain triangles, their data repeated for each
+// vertex: SwiftShader spends about 20 µs on each instance of an instanced draw (8,000 trace
+// segments: 160 ms), and a plain draw of the same triangles about 0.6 µs a segment.
+export const SPHERE_VERTICES = 18; // the octagon around a sphere: 6 triangles
+export const SEGMENT_VERTICES = 6; // the quad along a segment: 2 triangles
 
 const HEAD = `#version 300 es
 precision highp float;
@@ -45,8 +50,9 @@ void main() {
   }
   // The octagon in the plane through the centre square to the eye, around the circle where
   // the eye's tangent cone crosses that plane (radius r d / sqrt(d^2 - r^2)): its projection
-  // holds the sphere's. Strip order 0 1 7 2 6 3 5 4 of the octagon's corners.
-  int k = gl_VertexID;
+  // holds the sphere's. Strip order 0 1 7 2 6 3 5 4 of the octagon's corners, k along the strip.
+  int j = gl_VertexID % ${SPHERE_VERTICES};  // triangle j / 3 is the strip's (0 1 2), (1 2 3), ...
+  int k = j / 3 + j % 3;
   int corner = (k & 1) == 1 ? (k + 1) / 2 : (8 - k / 2) % 8;
   float angle = (float(corner) + 0.5) * 0.78539816;
   vec3 w = to_eye / d;
@@ -184,14 +190,34 @@ uniform float u_width_px;   // at least this wide
 uniform float u_width_A;    // ... and this wide in Å where that is more
 uniform float u_focal;      // the projection's 1 / tan(half the vertical field of view)
 uniform float u_near;       // segments reaching behind the near plane are not drawn
+uniform vec3 u_eye;
+uniform vec3 u_forward;
+uniform vec3 u_right_t;
+uniform vec3 u_up_t;
+uniform int u_window;       // 1: not where the pixel's ray meets the cube (the trace)
 out vec3 v_point;
 out vec3 v_color;
 out float v_across;
 flat out vec3 v_tangent;
+${CUBE_WINDOW}
+
+// A corner of the quad: the end's clip position moved across the segment by half its width.
+vec4 widened(vec4 c, vec2 across, float side) {
+  float width = max(u_width_px, u_width_A * u_focal * u_size.y * 0.5 / c.w);  // px per Å at w
+  c.xy += across * side * width / u_size * c.w;
+  return c;
+}
+
+bool in_window(vec4 c) {
+  vec2 ndc = c.xy / c.w;
+  return ray_meets_cube(u_eye, normalize(u_forward + ndc.x * u_right_t + ndc.y * u_up_t));
+}
 
 void main() {
-  int end = gl_VertexID >> 1;
-  float side = float(gl_VertexID & 1) * 2.0 - 1.0;
+  int j = gl_VertexID % ${SEGMENT_VERTICES};  // the strip (from, from, to, to) as 2 triangles
+  int k = j / 3 + j % 3;
+  int end = k >> 1;
+  float side = float(k & 1) * 2.0 - 1.0;
   vec4 c0 = u_viewproj * vec4(a_from, 1.0);
   vec4 c1 = u_viewproj * vec4(a_to, 1.0);
   v_color = a_color;
@@ -206,10 +232,13 @@ void main() {
   vec2 s1 = c1.xy / c1.w * u_size;
   vec2 along = s1 - s0;
   along = dot(along, along) > 1e-12 ? normalize(along) : vec2(1.0, 0.0);
-  vec4 c = end == 0 ? c0 : c1;
-  float width = max(u_width_px, u_width_A * u_focal * u_size.y * 0.5 / c.w);  // px per Å at w
-  c.xy += vec2(-along.y, along.x) * side * width / u_size * c.w;
-  gl_Position = c;
+  vec2 across = vec2(-along.y, along.x);
+  gl_Position = widened(end == 0 ? c0 : c1, across, side);
+  // The cube's picture is convex: a quad whose four corners are in it has every pixel in it,
+  // and the fragment shader would discard them all. Each vertex of the quad decides alike.
+  if (u_window == 1 && in_window(widened(c0, across, -1.0)) && in_window(widened(c0, across, 1.0))
+      && in_window(widened(c1, across, -1.0)) && in_window(widened(c1, across, 1.0)))
+    gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
 }`;
 
 export const LINE_FRAGMENT = `${HEAD}
