@@ -114,7 +114,12 @@ class DaemonFollow:
 
     # ------------------------------------------------------------ stream
     def poll(self, timeout_s: float = 0.0) -> list[Pose]:
-        """Take in what has arrived (waiting up to timeout_s for it); the poses, oldest first."""
+        """Take in what has arrived (waiting up to timeout_s for it); the poses, oldest first.
+        The time since a poll that brought something was the caller's own (a frame, the
+        clearance: seconds for a renderer short of CPU), not the daemon's silence: that is
+        counted from the first poll that brings nothing."""
+        if self._data_in_last_poll:
+            self._last_data = time.monotonic()
         poses = self.subscriber.poll(timeout_s)
         seen = self.subscriber.poses_received + self.subscriber.scenes_received
         now = time.monotonic()
@@ -136,12 +141,6 @@ class DaemonFollow:
             )
             self._thread.start()
         return poses
-
-    def after_own_work(self) -> None:
-        """The caller has worked on what the last poll brought (a renderer short of CPU may
-        spend seconds on the clearance): that time is its own, not the daemon's silence."""
-        if self._data_in_last_poll:
-            self._last_data = time.monotonic()
 
     @property
     def connected(self) -> bool:

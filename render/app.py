@@ -241,36 +241,48 @@ def _run_headless(opts: RenderOptions, source: RenderSource) -> int:
     overview_s = opts.overview_first_s if view.workspace and source.follows_daemon else None
     workspace_plane = scene.effects.probe_plane
 
-    def update() -> None:
-        nonlocal overview_until
+    def update():
+        """The newest pose and scene into the renderer's; a new renderer when the daemon
+        serves another structure (returned: run_headless draws with it from then on)."""
+        nonlocal scene, renderer
         source.poll()
         if source.lost_for_s() > DAEMON_GONE_S:
             raise UserError(
                 f"the daemon stopped sending (nothing for {DAEMON_GONE_S:g} s): ending the render"
             )
+        structure = source.take_new_structure()  # a daemon that loaded another one
+        if structure is not None:
+            old = renderer
+            scene = build_scene(structure, opts, effects=scene.effects)
+            renderer = make_renderer(ctx, scene, opts.size, opts)
+            old.release()
+            move_camera(initial_camera(scene, opts))
         source.apply(scene)
+        follow_camera()
+        return renderer if structure is not None else None
+
+    def move_camera(shown) -> None:
+        camera.eye, camera.target, camera.up, camera.fov_y = (
+            shown.eye,
+            shown.target,
+            shown.up,
+            shown.fov_y,
+        )
+
+    def follow_camera() -> None:
+        """The overview first (--overview-first), then the workspace view's camera."""
+        nonlocal overview_until
         if overview_s is not None:
             overview_until = overview_until or time.monotonic() + overview_s
             overview = time.monotonic() < overview_until
             scene.effects.probe_plane = workspace_plane and not overview
             if overview:  # the whole molecule, seen from above the cube
                 axes = tilted_axes(view.axes(source.view_axes()), OVERVIEW_TILT_DEG)
-                shown = overview_camera(scene, aspect, axes)
-                camera.eye, camera.target, camera.up, camera.fov_y = (
-                    shown.eye,
-                    shown.target,
-                    shown.up,
-                    shown.fov_y,
-                )
+                move_camera(overview_camera(scene, aspect, axes))
                 return
         follow = view.camera(scene, aspect, source.view_axes())
         if follow is not None:
-            camera.eye, camera.target, camera.up, camera.fov_y = (
-                follow.eye,
-                follow.target,
-                follow.up,
-                follow.fov_y,
-            )
+            move_camera(follow)
 
     # A live daemon into a video: keep the video in wall-clock time (see run_headless).
     pace = opts.fps if opts.connect is not None and writer is not None and writer.is_video else None

@@ -82,7 +82,7 @@ def run_headless(
     writer=None,
     gbuffer_path=None,
     orbit_deg: float = 0.0,
-    update: Callable[[], None] | None = None,
+    update: Callable[[], object | None] | None = None,
     progress=None,
     pace_fps: float | None = None,
     gbuffer_dir: Path | None = None,
@@ -91,7 +91,8 @@ def run_headless(
     """Render until `frames` are done or `seconds` have passed (at least one frame).
 
     `orbit_deg` turns the camera that many degrees per frame about its up axis;
-    `update` runs before each frame (e.g. to take the latest pose from the daemon).
+    `update` runs before each frame (e.g. to take the latest pose from the daemon); a
+    renderer it returns is drawn with from then on (the daemon's next structure).
     `pace_fps` (a live source into a video) keeps the video in wall-clock time: slot k is
     due k/pace_fps after the first frame is ready (its set-up is not filmed as a still), a
     frame is rendered when its slot is due, and one that took longer is written once per slot
@@ -111,7 +112,7 @@ def run_headless(
     with stop_on_signals() as stop:
         while stop["signal"] is None:
             if update is not None:
-                update()
+                renderer = update() or renderer
             t0 = time.perf_counter()
             renderer.render(camera)
             renderer.ctx.finish()

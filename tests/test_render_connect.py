@@ -9,7 +9,10 @@ subscriber); malformed messages are dropped and counted; no daemon gives one lin
 from __future__ import annotations
 
 import json
+import os
 import signal
+import subprocess
+import sys
 import time
 from dataclasses import replace
 
@@ -319,3 +322,90 @@ def test_renderers_follow_the_daemons_colour_scheme(daemon, crambin):
             assert scene.color_scheme() == "sas"
     finally:
         link.close()
+
+
+def test_a_headless_renderer_draws_the_structure_the_daemon_loads_next(tmp_path):
+    """The daemon loads another structure mid-run: the headless renderer rebuilds for it (a
+    picture of the old atoms in the new poses' frame would be wrong, and the probe light
+    and the cube would lie far from its grid). Every sphere pixel of the last frame lies on
+    an atom of the new structure, as the structure file places it."""
+    from sasprobe.molecule import load_structure
+    from sasprobe.render.gl.targets import KIND_SPHERE
+
+    from tests.conftest import REPO_ROOT
+
+    def wait_for(said: str, why: str) -> None:
+        deadline = time.monotonic() + 120
+        while said not in log.read_text():
+            if time.monotonic() > deadline or proc.poll() is not None:
+                raise AssertionError(f"{why}: not said in 120 s\n{log.read_text()[-2000:]}")
+            time.sleep(0.2)
+
+    path = REPO_ROOT / "tests" / "data" / "pdb" / "1oky.pdb.gz"
+    npz, log = tmp_path / "g.npz", tmp_path / "render.log"
+    with DaemonProcess("--seconds", "300", device=ORBIT) as d, open(log, "w") as err:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "sasprobe", "-v", "render", "--headless", "--connect", d.pub]
+            + ["--control", d.ctl, "--seconds", "240", "--size", "160x120"]
+            + ["--gbuffer", str(npz), "--out", str(tmp_path / "follow.mp4")],
+            stdout=subprocess.DEVNULL,
+            stderr=err,
+            env=dict(os.environ, PYTHONUNBUFFERED="1", PYTHONFAULTHANDLER="1"),
+        )
+        try:
+            wait_for("daemon structure: 1crn", "the first structure")
+            with ControlClient(d.ctl) as client:
+                client.load(path=path, timeout_s=120)
+            wait_for("daemon structure: 1oky", "the structure loaded next")
+            time.sleep(2.0)  # frames of it
+            proc.send_signal(signal.SIGINT)  # ends after the current frame, the G-buffer written
+            assert proc.wait(timeout=120) == 130, log.read_text()[-2000:]  # "interrupted"
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(timeout=30)
+        d.stop(signal.SIGINT)
+    g = np.load(npz)
+    new = load_structure(path)
+    ids, on = g["atom_id"], g["kind"] == KIND_SPHERE
+    assert on.sum() > 50 and ids[on].max() < new.n_atoms, (on.sum(), ids[on].max())
+    points, atoms = g["position"][on], ids[on]
+    gap = np.linalg.norm(points - new.positions[atoms], axis=1) - new.vdw_radii[atoms]
+    assert np.mean(np.abs(gap) < 0.02) > 0.99, np.percentile(np.abs(gap), [50, 99])
+
+
+def test_a_long_frame_is_not_the_daemons_silence(monkeypatch):
+    """A renderer short of CPU spends seconds on a frame, and the next poll may find nothing
+    yet: the silence that ends a headless run is counted from that poll, not from the last
+    message (a real PUB socket; the follower's clock stepped by hand)."""
+    from sasprobe.protocol import follow as follow_module
+    from sasprobe.protocol.follow import STALE_S, DaemonFollow
+
+    clock = [1000.0]
+    endpoint = free_tcp_endpoint()
+    sock = zmq.Context.instance().socket(zmq.PUB)
+    sock.linger = 0
+    make_curve_server(sock, load_server_keys(ensure_local_keys()))
+    sock.bind(endpoint)
+    link = DaemonFollow(lambda served: served, endpoint, free_tcp_endpoint())
+    try:
+        deadline = time.monotonic() + 20
+        while not link.poll() and time.monotonic() < deadline:  # until subscribed
+            sock.send_multipart([b"pose", encode_pose(Pose(seq=1))])
+            time.sleep(0.05)
+        monkeypatch.setattr(follow_module.time, "monotonic", lambda: clock[0])
+        sock.send_multipart([b"pose", encode_pose(Pose(seq=2))])
+        for _ in range(500):  # (the clock is stepped by hand now)
+            if link.poll():
+                break
+            time.sleep(0.01)
+        assert link.lost_for_s() == 0.0
+        clock[0] += 2 * STALE_S  # a frame that long, and nothing in the poll after it
+        assert not link.poll()
+        assert link.connected and link.lost_for_s() == 0.0
+        clock[0] += 2 * STALE_S  # polling on, still nothing: the daemon is gone
+        assert not link.poll()
+        assert not link.connected and link.lost_for_s() == 2 * STALE_S
+    finally:
+        link.close()
+        sock.close()

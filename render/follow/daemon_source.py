@@ -80,7 +80,6 @@ class DaemonSource(RenderSource):
         scene = self.subscriber.scene
         if self._live_wanted and self.follow.current_structure():
             self.live.update(self.structure, float(scene["probe_radius_A"]), poses)
-        self.follow.after_own_work()
 
     @property
     def connected(self) -> bool:
