@@ -8,7 +8,9 @@ Every run is a real `sasprobe daemon` (simulated arm, scan script) followed by
   draw time p50 and p95 (last 200 frames) and the frames a second that p50 allows; the
   frames the page showed a second over the window; and the latency from the daemon
   publishing a pose to the bridge hearing the page drew it (p50 and p95 of the page's last
-  1000 drawn poses, on the daemon's clock). Chromium's unpaced presentation
+  1000 drawn poses, on the daemon's clock). Beside them, per picture size, the floor: a
+  finished frame of one full-screen pass writing one colour on a blank page, the least any
+  page that writes every pixel once can cost here. Chromium's unpaced presentation
   (`--disable-frame-rate-limit`) is not used: it counts frames handed to the GPU process,
   not drawn ones, and the backlog they build stalls the page for a minute at a time.
 - **Bridge CPU**: the bridge's CPU time over the window with no page, then with 1, 2 and 4
@@ -48,6 +50,48 @@ TARGETS = (
     "1 ms of its idle figure"
 )
 READY_S = 120.0
+FLOOR_FRAMES = 30
+# A canvas filling the window, one triangle over it in one colour, each frame finished by a
+# pixel read back as the page's timeDraws() does; the median time of FLOOR_FRAMES frames.
+_FLOOR_JS = """
+const canvas = document.createElement("canvas");
+canvas.width = window.innerWidth;
+canvas.height = window.innerHeight;
+canvas.style.display = "block";
+document.body.style.margin = "0";
+document.body.appendChild(canvas);
+const gl = canvas.getContext("webgl2", { antialias: false, alpha: false });
+const program = gl.createProgram();
+for (const [type, text] of [
+  [gl.VERTEX_SHADER, `#version 300 es
+void main() {
+  gl_Position = vec4(float((gl_VertexID & 1) * 4 - 1), float((gl_VertexID & 2) * 2 - 1), 0, 1);
+}`],
+  [gl.FRAGMENT_SHADER, `#version 300 es
+precision highp float;
+uniform float u_k;
+out vec4 o;
+void main() { o = vec4(u_k, 0.5, 0.25, 1.0); }`]]) {
+  const shader = gl.createShader(type);
+  gl.shaderSource(shader, text);
+  gl.compileShader(shader);
+  gl.attachShader(program, shader);
+}
+gl.linkProgram(program);
+gl.useProgram(program);
+gl.bindVertexArray(gl.createVertexArray());
+const pixel = new Uint8Array(4);
+const times = [];
+for (let k = 0; k < arguments[0]; k++) {
+  const start = performance.now();
+  gl.uniform1f(gl.getUniformLocation(program, "u_k"), (k % 7) / 7);
+  gl.drawArrays(gl.TRIANGLES, 0, 3);
+  gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);
+  times.push(performance.now() - start);
+}
+times.sort((a, b) => a - b);
+return [canvas.width, canvas.height, times[times.length >> 1]];
+"""
 SMALL = (480, 270)  # the pages of the CPU and pose-gap runs
 
 
@@ -104,8 +148,19 @@ def _frames_over(page: Browser, seconds: float) -> tuple[float, dict]:
     return (end["frames"] - start["frames"]) / (t1 - t0), end
 
 
+def _floor_ms(size: tuple[int, int]) -> float:
+    """A finished frame of one full-screen pass of one colour at this picture size (ms)."""
+    with Browser(size=size) as page:
+        page.open("about:blank")
+        width, height, ms = page.run(_FLOOR_JS, FLOOR_FRAMES)
+    if (width, height) != tuple(size):
+        raise UserError(f"the floor's canvas is {width}x{height}, not {size[0]}x{size[1]}")
+    return ms
+
+
 def _sessions(ctx: BenchContext, structures, sizes, seconds: float) -> list[dict]:
     rows = []
+    floors = {size: _floor_ms(size) for size in sizes}
     runs = [(e, size) for e in structures for size in sizes]
     session = current = None
     try:
@@ -131,6 +186,7 @@ def _sessions(ctx: BenchContext, structures, sizes, seconds: float) -> list[dict
                     "draw_p50_ms": draw[0],
                     "draw_p95_ms": draw[1],
                     "draw_fps": 1000.0 / draw[0] if draw[0] else None,
+                    "floor_ms": floors[size],
                     "latency_p50_ms": latency[0],
                     "latency_p95_ms": latency[1],
                     "cube_atoms": state["cube_atoms"],
@@ -317,24 +373,32 @@ def _f(v, digits=0) -> str:
     return "-" if v is None else f"{v:.{digits}f}"
 
 
+def _ratio(a, b) -> str:
+    return "-" if a is None or not b else f"{a / b:.1f}"
+
+
 def _markdown(d: dict) -> str:
     lines = [
         "Each page follows a daemon (simulated arm, scan) through `sasprobe web` in headless "
         "Chromium (SwiftShader), at the browser's own pacing. Draw time: a frame drawn and "
         "finished (a pixel read back after it; SwiftShader draws only what is read), last 200 "
         "frames; frames/s shown: frames the page drew over the window; latency: from the "
-        "daemon publishing a pose to the bridge hearing the page drew it.",
+        "daemon publishing a pose to the bridge hearing the page drew it; floor: a finished "
+        "frame of one full-screen pass writing one colour on a blank page at that size, the "
+        "least any page that writes every pixel once costs here.",
         "",
         f"Targets: {d['targets']}.",
         "",
         "| structure | atoms | picture | draw p50 / p95 (ms) | frames/s drawable (1 / p50) "
-        "| frames/s shown | latency p50 / p95 (ms) | cube atoms (drawn) | load avg |",
-        "|---|---:|---|---|---:|---:|---|---|---:|",
+        "| floor (ms) | draw p50 / floor | frames/s shown | latency p50 / p95 (ms) "
+        "| cube atoms (drawn) | load avg |",
+        "|---|---:|---|---|---:|---:|---:|---:|---|---|---:|",
     ]
     for r in d["sessions"]:
         lines.append(
             f"| {r['structure'].upper()} | {r['atoms']} | {r['size'][0]}x{r['size'][1]} "
             f"| {_f(r['draw_p50_ms'], 1)} / {_f(r['draw_p95_ms'], 1)} | {_f(r['draw_fps'], 1)} "
+            f"| {_f(r['floor_ms'], 1)} | {_ratio(r['draw_p50_ms'], r['floor_ms'])} "
             f"| {_f(r['fps'], 1)} | {_f(r['latency_p50_ms'], 1)} / {_f(r['latency_p95_ms'], 1)} "
             f"| {r['cube_atoms']} ({r['drawn_atoms']}) | {r['load_average_1min']:.1f} |"
         )
@@ -389,12 +453,18 @@ def _charts(ctx: BenchContext, d: dict) -> list[Path]:
                 if row is not None:
                     xs.append(i + k * width)
                     ys.append(row["draw_fps"] or 0.0)
-            ax.bar(xs, ys, width, label=f"{size[0]}x{size[1]}")
+            bars = ax.bar(xs, ys, width, label=f"{size[0]}x{size[1]}")
+            floor = next(r["floor_ms"] for r in d["sessions"] if tuple(r["size"]) == size)
+            if floor:  # the most frames/s a full-screen pass allows at this size
+                ax.axhline(1000.0 / floor, color=bars.patches[0].get_facecolor(), ls="--", lw=1)
         ax.axhline(60, color="k", ls=":", lw=1)
         ax.set_xticks([i + width * (len(sizes) - 1) / 2 for i in range(len(names))])
         ax.set_xticklabels([n.upper() for n in names])
         ax.set_ylabel("frames / s (1 / draw time p50)")
-        ax.set_title("Session page in headless Chromium (SwiftShader); dotted: 60")
+        ax.set_title(
+            "Session page in headless Chromium (SwiftShader)\n"
+            "dotted: 60; dashed: one full-screen pass of one colour"
+        )
         ax.legend(fontsize=8)
         charts.append(save(fig, path))
     path = ctx.chart_path("web_bridge_cpu.png")
