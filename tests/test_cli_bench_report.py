@@ -309,6 +309,19 @@ def test_a_failed_benchmark_is_one_line_and_the_others_still_report(
     assert "Traceback" in (out / "sas.error.txt").read_text()
 
 
+def test_a_page_is_not_overwritten_by_some_of_the_benchmarks(tmp_path):
+    """`bench web --page` or `--only` would replace the whole run's part (its sections and
+    charts) with a few: refused in one line before anything runs, the page as it was."""
+    page = tmp_path / "benchmarks.md"
+    page.write_text("# Benchmarks\n\nkept\n")
+    for args in (["web"], ["--only", "grid,sas"]):
+        result = run_cli("bench", *args, "--page", str(page))
+        lines = result.stderr.strip().splitlines()
+        assert result.returncode == 2 and len(lines) == 1, result.stderr
+        assert "is one run of them all" in lines[0]
+    assert page.read_text() == "# Benchmarks\n\nkept\n"
+
+
 def test_unknown_benchmark_name_is_one_line():
     result = run_cli("bench", "--only", "grid,nonsense")
     lines = result.stderr.strip().splitlines()

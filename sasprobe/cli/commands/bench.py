@@ -99,6 +99,15 @@ def run(args: argparse.Namespace) -> int:
     from sasprobe.cli.bench.report import now
 
     names = [args.bench_name] if args.bench_name else _selected(getattr(args, "only", None))
+    if (
+        args.page is not None
+        and args.bench_name not in bench.ON_THEIR_OWN
+        and names != bench.available()
+    ):  # the part's run line, wall times and charts are one run's: a few would drop the rest
+        raise UserError(
+            f"--page {args.page}: its 'All benchmarks' part is one run of them all; run "
+            "`sasprobe bench --page FILE` (no NAME, no --only), or give --out DIR"
+        )
     mode = _mode(args)
     with tempfile.TemporaryDirectory(prefix="sasprobe-bench-") as scratch:
         # Charts are drawn only where they go: --out, or for --page a folder of their own.
