@@ -341,3 +341,38 @@ def test_a_daemon_publishing_every_fourth_pose_is_followed_at_its_loop_rate(refe
         # poses are published at 1 kHz; the rate shown counts the loop's ticks, 4 kHz less
         # what a loaded machine makes the loop skip
         assert 2000 < rate <= 4400, rate
+
+
+def test_a_follow_thread_still_running_at_stop_keeps_its_sockets(monkeypatch):
+    """A bridge stopping on a loaded machine: the follow thread has not ended within the wait,
+    so its sockets are not closed under it (ZeroMQ would raise in that thread, a traceback on
+    the way out); they are closed once the thread has ended."""
+    from sasprobe.web import feed as feed_module
+
+    release, closed_while_running = threading.Event(), []
+
+    class StarvedFollow:  # a poll that does not come back until released
+        subscriber = type("S", (), {"scene": None})()
+        connected = False
+
+        def poll(self, timeout_s: float = 0.0):
+            release.wait(20)
+            return []
+
+        def take_new_structure(self):
+            return None
+
+        def close(self):
+            closed_while_running.append(feed._thread.is_alive())
+
+    monkeypatch.setattr(feed_module, "STOP_S", 0.2)
+    feed = feed_module.Feed(StarvedFollow())
+    feed.start()
+    time.sleep(0.1)
+    feed.stop()
+    assert closed_while_running == []  # the thread still polls: not closed under it
+    release.set()
+    feed._thread.join(10)
+    assert not feed._thread.is_alive()
+    feed.stop()
+    assert closed_while_running == [False]

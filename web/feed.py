@@ -27,6 +27,7 @@ log = logging.getLogger("sasprobe")
 
 POLL_S = 0.05  # while a page waits for a pose, the follow thread waits this long for one
 IDLE_S = 0.004  # otherwise it takes in what arrived this often
+STOP_S = 30.0  # how long stop() waits for the follow thread (seconds on a loaded machine)
 
 
 @dataclass(frozen=True)
@@ -62,8 +63,10 @@ class Feed:
 
     def stop(self) -> None:
         self._stop.set()
-        self._thread.join(timeout=5.0)
+        self._thread.join(timeout=STOP_S)
         self._builder.shutdown(wait=False, cancel_futures=True)
+        if self._thread.is_alive():  # starved of CPU: its sockets go with the process, since
+            return  # a ZeroMQ socket closed under the thread using it raises there
         self.follow.close()
 
     @property
