@@ -492,9 +492,9 @@ def _markdown(data: dict) -> str:
             rows.append(f"{name}: ended before round {end['round']}: {end['why']}{log}")
             continue
         rows.append(
-            f"{name}: memory at the end {100 * (x['rss_ratio'] - 1):+.1f} % of round {ref}'s "
-            f"(largest {100 * (x['rss_max_ratio'] - 1):+.1f} %), descriptors {x['fds']}, "
-            f"threads {x['threads']}"
+            f"{name}: resident memory in the last row {100 * (x['rss_ratio'] - 1):+.1f} % against "
+            f"row {ref} (highest from row {ref} on {100 * (x['rss_max_ratio'] - 1):+.1f} %), "
+            f"descriptors {x['fds']}, threads {x['threads']}"
         )
     return "\n".join(
         [
